@@ -1,1 +1,11 @@
 //! wgslam: dense RGB-D SLAM with point-based fusion, and point-to-point ICP, on wgpu.
+//!
+//! The CPU reference lives in [`cpu`] (pure functions, no wgpu); the GPU backend in `gpu`
+//! runs the same steps as WGSL compute kernels from `shaders/`.
+
+pub mod camera;
+pub mod error;
+pub mod map;
+pub mod se3;
+
+pub use error::{Error, Result};
