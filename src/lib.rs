@@ -9,3 +9,6 @@ pub mod map;
 pub mod se3;
 
 pub use error::{Error, Result};
+pub mod cpu;
+pub mod layout;
+pub mod solve;
