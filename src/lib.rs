@@ -10,5 +10,7 @@ pub mod se3;
 
 pub use error::{Error, Result};
 pub mod cpu;
+pub mod cpu_backend;
+pub mod pipeline;
 pub mod layout;
 pub mod solve;
