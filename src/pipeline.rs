@@ -72,6 +72,11 @@ pub trait Backend {
     fn counters(&self) -> BackendCounters {
         BackendCounters::default()
     }
+    /// Blocks until all submitted work has finished (for per-stage wall-clock timing;
+    /// a no-op for the CPU).
+    fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// Where the poses come from.
