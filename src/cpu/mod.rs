@@ -12,6 +12,8 @@ pub mod fuse_merge;
 pub mod icp_reduce;
 pub mod predict_model;
 pub mod project_model;
+pub mod render_resolve;
+pub mod render_splat;
 pub mod vertex_to_normal;
 
 use glam::{Mat4, Vec3, Vec4};

@@ -1,0 +1,106 @@
+// render_resolve.wgsl: shades each pixel of a render_splat index map from its winning
+// surfel (colour, normal, weight or depth), background where empty.
+// CPU twin: src/cpu/render_resolve.rs.
+//
+// Prepended with common.wgsl. Bindings:
+//   0 params     uniform RenderParams (mirrors src/render/layout.rs)
+//   1 index_map  array<vec2<u32>>, width x height: the u64 keys of render_splat read as
+//                (low, high) words, little-endian: x = surfel index, y = ~bits(z_cam)
+//   2 normals    array<vec4<f32>>, world frame (VIEW_NORMALS only)
+//   3 colors     array<vec4<f32>>, RGB 0..255 (VIEW_COLOR only)
+//   4 weights    array<f32> (VIEW_WEIGHT only)
+//   5 out_rgba   array<u32>, width x height, r | g << 8 | b << 16 | 255 << 24
+// One pixel per invocation (grid-stride, so any workgroup count works).
+
+// Mirrors `render::layout::RenderParams`.
+struct RenderParams {
+    t_world_to_cam: mat4x4<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    surfel_count: u32,
+    view: u32,
+    splat_radius_m: f32,
+    min_radius_px: f32,
+    max_radius_px: f32,
+    cull_backfaces: u32,
+    near_m: f32,
+    far_m: f32,
+    weight_max: f32,
+    background: u32,
+}
+
+// Mirror `render::layout::VIEW_*`.
+const VIEW_COLOR: u32 = 0u;
+const VIEW_NORMALS: u32 = 1u;
+const VIEW_WEIGHT: u32 = 2u;
+const VIEW_DEPTH: u32 = 3u;
+
+// Mirror `cpu::render_resolve::RAMP_*`.
+const RAMP_LOW: vec3<f32> = vec3<f32>(0.267, 0.005, 0.329);
+const RAMP_MID: vec3<f32> = vec3<f32>(0.128, 0.567, 0.551);
+const RAMP_HIGH: vec3<f32> = vec3<f32>(0.993, 0.906, 0.144);
+
+@group(0) @binding(0) var<uniform> params: RenderParams;
+@group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
+@group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> colors: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> weights: array<f32>;
+@group(0) @binding(5) var<storage, read_write> out_rgba: array<u32>;
+
+// Colour (RGB 0..1) of t on the two-segment ramp. Mirrors `cpu::render_resolve::ramp`.
+fn ramp(t_in: f32) -> vec3<f32> {
+    let t = clamp(t_in, 0.0, 1.0);
+    if t < 0.5 {
+        return mix(RAMP_LOW, RAMP_MID, t * 2.0);
+    }
+    return mix(RAMP_MID, RAMP_HIGH, t * 2.0 - 1.0);
+}
+
+// Mirrors `cpu::render_resolve::pack_rgb`.
+fn pack_rgb(c: vec3<f32>) -> u32 {
+    let q = vec3<u32>(clamp(c, vec3<f32>(0.0), vec3<f32>(255.0)) + 0.5);
+    return q.x | (q.y << 8u) | (q.z << 16u) | (255u << 24u);
+}
+
+// Mirrors `cpu::render_resolve::shade`.
+fn shade(index: u32, z: f32) -> vec3<f32> {
+    switch params.view {
+        case VIEW_COLOR: {
+            return colors[index].xyz;
+        }
+        case VIEW_NORMALS: {
+            return (normals[index].xyz + 1.0) * 127.5;
+        }
+        case VIEW_WEIGHT: {
+            return ramp(weights[index] / params.weight_max) * 255.0;
+        }
+        case VIEW_DEPTH: {
+            return ramp(1.0 - (z - params.near_m) / (params.far_m - params.near_m)) * 255.0;
+        }
+        default: {
+            return vec3<f32>(0.0);
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = groups.x * 64u;
+    let n = params.width * params.height;
+    for (var pix = gid.x; pix < n; pix += stride) {
+        let key = index_map[pix];
+        if key.x == 0u && key.y == 0u {
+            out_rgba[pix] = params.background;
+            continue;
+        }
+        let z = bitcast<f32>(~key.y);
+        out_rgba[pix] = pack_rgb(shade(key.x, z));
+    }
+}

@@ -1,0 +1,99 @@
+// render_splat.wgsl: splats surfels as small discs into a 64-bit depth|index map, for
+// pictures of the map (not for tracking). CPU twin: src/cpu/render_splat.rs.
+//
+// Prepended with common.wgsl (transform_point, transform_dir, xyz).
+// Bindings:
+//   0 params     uniform RenderParams (mirrors src/render/layout.rs)
+//   1 positions  array<vec4<f32>>, world frame, metres; surfel_count entries read
+//   2 normals    array<vec4<f32>>, world frame; read only when cull_backfaces == 1
+//   3 index_map  array<atomic<u64>>, width x height, row-major, cleared to 0 by the host
+// Each covered pixel keeps max((~bitcast<u32>(z_cam)) << 32 | index): the nearest surfel
+// (by centre depth) wins, ties to the larger index, 0 = empty; as in project_model.
+// Needs SHADER_INT64 and SHADER_INT64_ATOMIC_MIN_MAX. Grid-stride loop over surfels, so
+// any workgroup count covers the whole map.
+
+// Mirrors `render::layout::RenderParams`.
+struct RenderParams {
+    t_world_to_cam: mat4x4<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    surfel_count: u32,
+    view: u32,
+    splat_radius_m: f32,
+    min_radius_px: f32,
+    max_radius_px: f32,
+    cull_backfaces: u32,
+    near_m: f32,
+    far_m: f32,
+    weight_max: f32,
+    background: u32,
+}
+
+// Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
+const MAX_PROJECTED_PX: f32 = 1.0e7;
+
+@group(0) @binding(0) var<uniform> params: RenderParams;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> index_map: array<atomic<u64>>;
+
+// Pixel radius of a splat at camera depth z. Mirrors `cpu::render_splat::splat_radius_px`.
+fn splat_radius_px(z: f32) -> f32 {
+    let f = max(abs(params.fx), abs(params.fy));
+    return clamp(params.splat_radius_m * f / z, params.min_radius_px, params.max_radius_px);
+}
+
+// Mirrors `cpu::project_model::pack_depth_index`.
+fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
+    return (u64(~bitcast<u32>(z_cam)) << 32u) | u64(surfel);
+}
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = groups.x * 64u;
+    let w = params.width;
+    let h = params.height;
+    for (var i = gid.x; i < params.surfel_count; i += stride) {
+        let p = transform_point(params.t_world_to_cam, xyz(positions[i]));
+        // Negated so that a NaN depth is skipped too.
+        if !(p.z > params.near_m && p.z <= params.far_m) {
+            continue;
+        }
+        if params.cull_backfaces == 1u {
+            let n = transform_dir(params.t_world_to_cam, xyz(normals[i]));
+            if dot(n, p) > 0.0 {
+                continue;
+            }
+        }
+        let u = params.fx * p.x / p.z + params.cx;
+        let v = params.fy * p.y / p.z + params.cy;
+        if !(abs(u) < MAX_PROJECTED_PX && abs(v) < MAX_PROJECTED_PX) {
+            continue;
+        }
+        let r = splat_radius_px(p.z);
+        let u0 = max(ceil(u - r), 0.0);
+        let u1 = min(floor(u + r), f32(w - 1u));
+        let v0 = max(ceil(v - r), 0.0);
+        let v1 = min(floor(v + r), f32(h - 1u));
+        if u0 > u1 || v0 > v1 {
+            continue;
+        }
+        let key = pack_depth_index(p.z, i);
+        for (var py = u32(v0); py <= u32(v1); py++) {
+            let dv = f32(py) - v;
+            for (var px = u32(u0); px <= u32(u1); px++) {
+                let du = f32(px) - u;
+                if du * du + dv * dv <= r * r {
+                    atomicMax(&index_map[py * w + px], key);
+                }
+            }
+        }
+    }
+}

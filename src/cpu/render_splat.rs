@@ -1,0 +1,77 @@
+//! CPU twin of `shaders/render_splat.wgsl`: splats every surfel as a small disc into an
+//! index map with a depth test, for pictures of the map (not for tracking).
+//!
+//! Each surfel covers the pixels whose centres lie within `r` pixels of its projection,
+//! `r = splat_radius_m * max(|fx|, |fy|) / z` clamped to `[min_radius_px, max_radius_px]`.
+//! Every covered pixel keeps the maximum key `(!bits(z_cam) as u64) << 32 | index`: the
+//! nearest surfel (by its centre depth) wins, ties go to the larger index, 0 means empty.
+//! This is the key of `project_model`, so the GPU's 64-bit `atomicMax` picks the same one.
+
+use super::project_model::pack_depth_index;
+use super::{transform_dir, transform_point, xyz};
+use crate::render::layout::RenderParams;
+
+/// Projections farther than this from the image (pixels) are skipped before any
+/// float-to-int conversion; it also rejects NaN and infinite positions.
+pub const MAX_PROJECTED_PX: f32 = 1.0e7;
+
+/// Pixel radius of a splat at camera depth `z` (metres, > 0). Mirrors `splat_radius_px`.
+#[inline]
+pub fn splat_radius_px(params: &RenderParams, z: f32) -> f32 {
+    let f = params.fx.abs().max(params.fy.abs());
+    (params.splat_radius_m * f / z).clamp(params.min_radius_px, params.max_radius_px)
+}
+
+/// Bindings: 0 `params`, 1 `positions` (world, metres, `surfel_count` used), 2 `normals`
+/// (world, read only when `cull_backfaces == 1`), 3 `index_map` (in/out, width x height,
+/// row-major, cleared to 0 by the caller).
+pub fn render_splat(
+    params: &RenderParams,
+    positions: &[[f32; 4]],
+    normals: &[[f32; 4]],
+    index_map: &mut [u64],
+) {
+    assert_eq!(
+        index_map.len(),
+        params.width as usize * params.height as usize,
+        "index_map has the wrong size"
+    );
+    let (w, h) = (params.width, params.height);
+    for i in 0..params.surfel_count as usize {
+        let p = transform_point(&params.t_world_to_cam, xyz(positions[i]));
+        // Written as a negated comparison so that a NaN depth is skipped too.
+        if !(p.z > params.near_m && p.z <= params.far_m) {
+            continue;
+        }
+        if params.cull_backfaces == 1 {
+            let n = transform_dir(&params.t_world_to_cam, xyz(normals[i]));
+            if n.dot(p) > 0.0 {
+                continue;
+            }
+        }
+        let u = params.fx * p.x / p.z + params.cx;
+        let v = params.fy * p.y / p.z + params.cy;
+        if !(u.abs() < MAX_PROJECTED_PX && v.abs() < MAX_PROJECTED_PX) {
+            continue;
+        }
+        let r = splat_radius_px(params, p.z);
+        let u0 = (u - r).ceil().max(0.0);
+        let u1 = (u + r).floor().min((w - 1) as f32);
+        let v0 = (v - r).ceil().max(0.0);
+        let v1 = (v + r).floor().min((h - 1) as f32);
+        if u0 > u1 || v0 > v1 {
+            continue;
+        }
+        let key = pack_depth_index(p.z, i as u32);
+        for py in v0 as u32..=v1 as u32 {
+            let dv = py as f32 - v;
+            for px in u0 as u32..=u1 as u32 {
+                let du = px as f32 - u;
+                if du * du + dv * dv <= r * r {
+                    let pix = (py * w + px) as usize;
+                    index_map[pix] = index_map[pix].max(key);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! GPU pass of the renderer (not yet implemented).
