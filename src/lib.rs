@@ -17,3 +17,4 @@ pub mod layout;
 pub mod solve;
 pub mod timed;
 pub mod render;
+pub mod plot;
