@@ -4,7 +4,9 @@
 //! runs the same steps as WGSL compute kernels from `shaders/`.
 
 pub mod camera;
+pub mod dataset;
 pub mod error;
+pub mod io;
 pub mod map;
 pub mod se3;
 
