@@ -435,3 +435,173 @@ fn bundled_icl_ground_truth_reads() {
         assert!((*t0 - *t1).to_cols_array().iter().all(|v| v.abs() < 1e-8));
     }
 }
+
+fn surfel_map() -> wgslam::map::SurfelMap {
+    let mut m = wgslam::map::SurfelMap::default();
+    m.push(
+        [0.5, -1.25, 3.0],
+        [0.0, 0.0, -1.0],
+        [255.0, 0.4, 127.6],
+        1.0,
+        0,
+    );
+    m.push(
+        [1e-3, 2.0, -7.5],
+        [0.6, 0.8, 0.0],
+        [12.0, 300.0, -4.0],
+        17.5,
+        3,
+    );
+    m.push([0.0; 3], [1.0, 0.0, 0.0], [1.0, 2.0, 3.0], 2.0, 9);
+    m
+}
+
+#[test]
+fn ply_round_trip() {
+    let d = scratch("ply-rt");
+    let p = d.join("map.ply");
+    let m = surfel_map();
+    wgslam::io::write_surfel_map(&p, &m).unwrap();
+    let bytes = fs::read(&p).unwrap();
+    let header_end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = std::str::from_utf8(&bytes[..header_end]).unwrap();
+    assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"));
+    assert!(header.contains("element vertex 3\n"));
+    // 6 floats + 3 bytes + 1 float per vertex.
+    assert_eq!(bytes.len() - header_end, 3 * 31);
+
+    let c = wgslam::io::read_ply(&p).unwrap();
+    let pos: Vec<[f32; 3]> = m.positions.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    let nrm: Vec<[f32; 3]> = m.normals.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    assert_eq!(c.positions, pos, "f32 round trip is exact");
+    assert_eq!(c.normals.unwrap(), nrm);
+    // Colours are rounded and clamped to 0..255.
+    assert_eq!(
+        c.colors.unwrap(),
+        vec![[255, 0, 128], [12, 255, 0], [1, 2, 3]]
+    );
+    assert_eq!(c.weights.unwrap(), m.weights);
+
+    let empty = d.join("empty.ply");
+    wgslam::io::write_surfel_map(&empty, &Default::default()).unwrap();
+    assert!(wgslam::io::read_ply(&empty).unwrap().positions.is_empty());
+}
+
+#[test]
+fn ply_ascii_any_order_and_types() {
+    let d = scratch("ply-ascii");
+    let p = d.join("a.ply");
+    fs::write(
+        &p,
+        "ply\nformat ascii 1.0\ncomment made by hand\nelement camera 1\nproperty float view_px\n\
+         element vertex 2\nproperty uint8 blue\nproperty double z\nproperty uchar green\n\
+         property float32 y\nproperty int16 weight\nproperty uchar red\nproperty float x\n\
+         element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         0.5\n\
+         3 1.5 2 -2.5 4 1 0.25\n\
+         \n\
+         250 -1e-3 251 7 -1 252 100\n\
+         3 0 1 1\n",
+    )
+    .unwrap();
+    let c = wgslam::io::read_ply(&p).unwrap();
+    assert_eq!(c.positions, vec![[0.25, -2.5, 1.5], [100.0, 7.0, -1e-3]]);
+    assert_eq!(c.colors.unwrap(), vec![[1, 2, 3], [252, 251, 250]]);
+    assert_eq!(c.weights.unwrap(), vec![4.0, -1.0]);
+    assert!(c.normals.is_none());
+}
+
+#[test]
+fn ply_binary_skips_elements_before_vertices() {
+    let d = scratch("ply-bin");
+    let p = d.join("b.ply");
+    let mut b = b"ply\r\nformat binary_little_endian 1.0\nelement meta 2\nproperty short a\n\
+property list uchar uint ids\nelement vertex 2\nproperty double x\nproperty char q\n\
+property float y\nproperty float z\nproperty float red\nproperty float green\n\
+property float blue\nend_header\n"
+        .to_vec();
+    // meta: (a=1, ids=[7]) and (a=2, ids=[8, 9]).
+    b.extend_from_slice(&1i16.to_le_bytes());
+    b.push(1);
+    b.extend_from_slice(&7u32.to_le_bytes());
+    b.extend_from_slice(&2i16.to_le_bytes());
+    b.push(2);
+    b.extend_from_slice(&8u32.to_le_bytes());
+    b.extend_from_slice(&9u32.to_le_bytes());
+    for (x, y, z, col) in [(1.0f64, 2.0f32, 3.0f32, 1.0f32), (-4.0, 5.0, 6.5, 0.5)] {
+        b.extend_from_slice(&x.to_le_bytes());
+        b.push(0xff); // char q = -1, ignored
+        b.extend_from_slice(&y.to_le_bytes());
+        b.extend_from_slice(&z.to_le_bytes());
+        for _ in 0..3 {
+            b.extend_from_slice(&col.to_le_bytes());
+        }
+    }
+    fs::write(&p, &b).unwrap();
+    let c = wgslam::io::read_ply(&p).unwrap();
+    assert_eq!(c.positions, vec![[1.0, 2.0, 3.0], [-4.0, 5.0, 6.5]]);
+    // Float colours are 0..1.
+    assert_eq!(c.colors.unwrap(), vec![[255; 3], [128; 3]]);
+    assert!(c.weights.is_none());
+
+    // One byte short of the last vertex: the error gives the offset needed and the size.
+    let cut = d.join("cut.ply");
+    fs::write(&cut, &b[..b.len() - 1]).unwrap();
+    let msg = err_text(wgslam::io::read_ply(&cut));
+    let need = format!("offset {}", b.len());
+    let has = format!("file has {}", b.len() - 1);
+    assert_contains(&msg, &["cut.ply", "truncated", &need, &has]);
+}
+
+#[test]
+fn ply_malformed() {
+    let d = scratch("ply-bad");
+    let cases: [(&str, &[u8], &[&str]); 6] = [
+        (
+            "notply.ply",
+            b"solid cube\nfacet normal 0 0 1\n",
+            &["not a PLY"],
+        ),
+        (
+            "be.ply",
+            b"ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n",
+            &["big-endian", "not supported", ":2:"],
+        ),
+        (
+            "noxyz.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+end_header\n1 2\n",
+            &["no x, y and z", "has: x y"],
+        ),
+        (
+            "short.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nend_header\n1 2 3\n4 5 6\n",
+            &["truncated", "3 vertices declared, only 2"],
+        ),
+        (
+            "badnum.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+property float z\nend_header\n1 two 3\n",
+            &[":8:", "\"two\""],
+        ),
+        (
+            "noend.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\n",
+            &["end_header"],
+        ),
+    ];
+    for (name, bytes, parts) in cases {
+        let p = d.join(name);
+        fs::write(&p, bytes).unwrap();
+        let msg = err_text(wgslam::io::read_ply(&p));
+        assert_contains(&msg, &[name]);
+        assert_contains(&msg, parts);
+    }
+    let msg = err_text(wgslam::io::read_ply(&d.join("absent.ply")));
+    assert_contains(&msg, &["absent.ply"]);
+}

@@ -4,7 +4,9 @@
 //! goes through [`atomic::write_atomic`], so a failed run never leaves a half-written file.
 
 pub mod atomic;
+pub mod ply;
 pub mod trajectory;
 
 pub use atomic::write_atomic;
+pub use ply::{read_ply, write_surfel_map, PlyCloud};
 pub use trajectory::{read_tum, write_tum};
