@@ -6,6 +6,7 @@
 pub mod camera;
 pub mod dataset;
 pub mod error;
+pub mod eval;
 pub mod io;
 pub mod map;
 pub mod se3;
