@@ -5,7 +5,10 @@
 
 pub mod bench;
 pub mod camera;
+pub mod dataset;
 pub mod error;
+pub mod eval;
+pub mod io;
 pub mod map;
 pub mod se3;
 
