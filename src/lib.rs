@@ -21,3 +21,4 @@ pub mod solve;
 pub mod timed;
 pub mod render;
 pub mod plot;
+pub mod render_cli;

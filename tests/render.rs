@@ -406,3 +406,173 @@ fn trajectory_plot_picks_the_horizontal_axes_and_is_deterministic() {
     assert!(wgslam::plot::trajectory_plot(&[], &gt, (900, 400)).is_err());
     assert!(wgslam::plot::trajectory_plot(&est, &gt, (0, 400)).is_err());
 }
+
+fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
+    wgslam::render_cli::RenderArgs {
+        map: map.to_path_buf(),
+        pose: None,
+        view: "color".into(),
+        size: "320x240".into(),
+        camera: "icl".into(),
+        up: "y".into(),
+        splat_radius: 0.01,
+        no_cull: false,
+        out: out.to_path_buf(),
+    }
+}
+
+#[test]
+fn render_command_writes_pngs_and_refuses_bad_input() {
+    use wgslam::render_cli::run_render;
+    let dir = common::temp_dir("render-cli");
+    let map = bundled_map(&[1, 20], 4);
+    let ply = dir.join("map.ply");
+    wgslam::io::ply::write_surfel_map(&ply, &map).unwrap();
+
+    let out = dir.join("out.png");
+    for view in ["color", "normals", "weight", "depth"] {
+        let mut args = render_args(&ply, &out);
+        args.view = view.into();
+        let report = run_render(&args).unwrap();
+        assert_eq!(report.view.name(), view);
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+        let img = image::open(&out).unwrap().into_rgb8();
+        assert_eq!(img.dimensions(), (320, 240));
+        assert!(
+            coverage(&img, [255, 255, 255]) > 0.1,
+            "{view} view nearly empty"
+        );
+    }
+    // From a TUM line and from a TUM file: frame 1's pose.
+    let mut args = render_args(&ply, &out);
+    args.pose = Some("1 0 0 -2.25 0 0 0 1".into());
+    run_render(&args).unwrap();
+    let gt_file = common::bundled_icl().join("livingRoom2.gt.freiburg");
+    args.pose = Some(gt_file.to_string_lossy().into_owned());
+    run_render(&args).unwrap();
+
+    // Bad input: each is an error, none panics, and the output is not touched.
+    std::fs::remove_file(&out).unwrap();
+    let bad_pose = |p: &str| {
+        let mut a = render_args(&ply, &out);
+        a.pose = Some(p.into());
+        a
+    };
+    let not_ply = dir.join("not.ply");
+    std::fs::write(&not_ply, "hello\n").unwrap();
+    let empty_ply = dir.join("empty.ply");
+    std::fs::write(
+        &empty_ply,
+        "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+    )
+    .unwrap();
+    let cases: Vec<(&str, wgslam::render_cli::RenderArgs)> = vec![
+        ("missing file", render_args(&dir.join("nope.ply"), &out)),
+        ("not a PLY", render_args(&not_ply, &out)),
+        ("no vertex", render_args(&empty_ply, &out)),
+        ("pose with 3 fields", bad_pose("1 2 3")),
+        ("pose not numbers", bad_pose("a b c d e f g h")),
+        ("pose with zero quaternion", bad_pose("1 0 0 0 0 0 0 0")),
+        ("zero size", {
+            let mut a = render_args(&ply, &out);
+            a.size = "0x100".into();
+            a
+        }),
+        ("enormous size", {
+            let mut a = render_args(&ply, &out);
+            a.size = "100000x100".into();
+            a
+        }),
+        ("unknown view", {
+            let mut a = render_args(&ply, &out);
+            a.view = "fancy".into();
+            a
+        }),
+        ("bad up axis", {
+            let mut a = render_args(&ply, &out);
+            a.up = "w".into();
+            a
+        }),
+        (
+            "output dir missing",
+            render_args(&ply, &dir.join("no/such/dir/out.png")),
+        ),
+    ];
+    for (what, args) in cases {
+        match run_render(&args) {
+            Ok(_) => panic!("{what}: accepted"),
+            Err(e) => eprintln!("{what}: {e}"),
+        }
+        assert!(!out.exists(), "{what}: output written");
+    }
+}
+
+#[test]
+fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
+    use wgslam::render_cli::run_render;
+    let dir = common::temp_dir("render-bare");
+    let map = bundled_map(&[1], 4);
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+        map.len()
+    );
+    for p in &map.positions {
+        text.push_str(&format!("{} {} {}\n", p[0], p[1], p[2]));
+    }
+    let ply = dir.join("bare.ply");
+    std::fs::write(&ply, text).unwrap();
+    let out = dir.join("bare.png");
+    let mut args = render_args(&ply, &out);
+    args.view = "normals".into();
+    let report = run_render(&args).unwrap();
+    assert_eq!(report.view, View::Depth);
+    let all = report.warnings.join(" | ");
+    for what in ["normals", "colours", "weights"] {
+        assert!(all.contains(what), "warnings do not mention {what}: {all}");
+    }
+    let img = image::open(&out).unwrap().into_rgb8();
+    keep("bare_depth.png", &img);
+    assert!(coverage(&img, [255, 255, 255]) > 0.1);
+}
+
+#[test]
+fn run_and_icp_outputs_are_written() {
+    use wgslam::render::outputs::{write_icp_overlays, write_map_renders, OverlayViewpoint};
+    let dir = common::temp_dir("render-outputs");
+    let root = common::bundled_icl();
+    let gt: Vec<(f64, DMat4)> = gt_poses(&root)
+        .into_iter()
+        .filter(|(i, _)| *i <= 20)
+        .map(|(i, t)| (i as f64, t))
+        .collect();
+    let map = bundled_map(&[1, 10, 20], 4);
+    let k = Intrinsics::ICL_NUIM.downsampled(2);
+    let written = write_map_renders(&dir, &map, &gt, &k, (320, 240)).unwrap();
+    assert_eq!(written.len(), 4);
+    for p in &written {
+        let img = image::open(p).unwrap().into_rgb8();
+        assert!(
+            coverage(&img, [255, 255, 255]) > 0.1,
+            "{} nearly empty",
+            p.display()
+        );
+        keep(&p.file_name().unwrap().to_string_lossy(), &img);
+    }
+    let pts = |i| {
+        let (_, v, _, _) = frame_maps(&root, i, 4);
+        v
+    };
+    let t_true = gt[0].1.inverse() * gt.last().unwrap().1;
+    let [before, after] = write_icp_overlays(
+        &dir,
+        &pts(20),
+        &pts(1),
+        &DMat4::IDENTITY,
+        &t_true,
+        OverlayViewpoint::Camera { fy_negative: true },
+    )
+    .unwrap();
+    assert!(before.is_file() && after.is_file());
+    // An empty map is refused.
+    assert!(write_map_renders(&dir, &SurfelMap::default(), &gt, &k, (320, 240)).is_err());
+}

@@ -12,6 +12,7 @@
 
 pub mod gpu;
 pub mod layout;
+pub mod outputs;
 
 use std::path::Path;
 
@@ -248,14 +249,15 @@ pub fn render_params(
     check_size(k.width, k.height)?;
     let (view, _) = cloud.usable_view(view);
     let t_world_to_cam = se3::inverse_rigid(&camera.t_cam_to_world);
-    let far_m = match settings.far_m {
-        Some(f) => f,
-        None => fit_far(cloud.positions, &t_world_to_cam, settings.near_m),
+    // Without a far plane the depth range is fitted to the cloud, so that the depth view's
+    // ramp spans what is visible.
+    let (near_m, far_m) = match settings.far_m {
+        Some(f) => (settings.near_m, f),
+        None => fit_depth_range(cloud.positions, &t_world_to_cam, settings.near_m),
     };
-    if !(settings.near_m > 0.0 && far_m > settings.near_m) {
+    if !(near_m > 0.0 && far_m > near_m) {
         return Err(Error::Argument(format!(
-            "depth range ({}, {far_m}] m is empty",
-            settings.near_m
+            "depth range ({near_m}, {far_m}] m is empty"
         )));
     }
     let weight_max = cloud
@@ -282,26 +284,33 @@ pub fn render_params(
         min_radius_px: settings.min_radius_px,
         max_radius_px: settings.max_radius_px.max(settings.min_radius_px),
         cull_backfaces: (settings.cull_backfaces && cloud.normals.is_some()) as u32,
-        near_m: settings.near_m,
+        near_m,
         far_m,
         weight_max: if weight_max > 0.0 { weight_max } else { 1.0 },
         background: crate::layout::pack_rgba8(bg),
     })
 }
 
-/// The largest camera depth of any finite point (at least just past `near_m`), metres.
-fn fit_far(positions: &[[f32; 4]], t_world_to_cam: &DMat4, near_m: f32) -> f32 {
-    let far = positions
+/// `(near, far)` camera depths (metres) just around every finite point in front of
+/// `min_near_m`; `near` never below `min_near_m`, `far` at least just past it.
+fn fit_depth_range(positions: &[[f32; 4]], t_world_to_cam: &DMat4, min_near_m: f32) -> (f32, f32) {
+    let min_near = min_near_m as f64;
+    let (lo, hi) = positions
         .iter()
         .map(|p| {
-            t_world_to_cam
-                .transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-                .z
+            let q = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            t_world_to_cam.transform_point3(q).z
         })
-        .filter(|z| z.is_finite())
-        .fold(0.0f64, f64::max);
-    // A little margin so the farthest point is inside the (near, far] range after f32 rounding.
-    (far * 1.01).max(near_m as f64 * 2.0) as f32
+        .filter(|z| z.is_finite() && *z > min_near)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), z| {
+            (lo.min(z), hi.max(z))
+        });
+    if hi <= 0.0 {
+        // Nothing in front of the camera: any valid range draws nothing.
+        return (min_near_m, min_near_m * 2.0);
+    }
+    // Margins so that the extreme points stay inside (near, far] after f32 rounding.
+    ((lo * 0.99).max(min_near) as f32, (hi * 1.01) as f32)
 }
 
 /// Unpacks `r | g << 8 | b << 16 | a << 24` pixels into an RGB image.
@@ -494,7 +503,7 @@ pub fn render_overlay(
 }
 
 /// The merged overlay cloud: target points first, then the moved source points, with their
-/// colours.
+/// colours. Entries with `w <= 0` (invalid vertex-map pixels) are skipped.
 pub fn overlay_cloud(
     source_pts: &[[f32; 4]],
     target_pts: &[[f32; 4]],
@@ -504,11 +513,11 @@ pub fn overlay_cloud(
     let mut positions = Vec::with_capacity(source_pts.len() + target_pts.len());
     let mut colors = Vec::with_capacity(positions.capacity());
     let rgb = |c: [u8; 3]| [c[0] as f32, c[1] as f32, c[2] as f32, 255.0];
-    for p in target_pts {
+    for p in target_pts.iter().filter(|p| p[3] > 0.0) {
         positions.push([p[0], p[1], p[2], 1.0]);
         colors.push(rgb(TARGET_RGB));
     }
-    for p in source_pts {
+    for p in source_pts.iter().filter(|p| p[3] > 0.0) {
         let q = crate::cpu::transform_point(&t, crate::cpu::xyz(*p));
         positions.push([q.x, q.y, q.z, 1.0]);
         colors.push(rgb(SOURCE_RGB));
@@ -532,29 +541,11 @@ pub fn overlay_camera(
     framing_camera(&positions, size.0, size.1, forward, up, fy_negative)
 }
 
-/// Writes `image` as a PNG at `path`, completely or not at all (temp file, then rename).
+/// Writes `image` as a PNG at `path`, completely or not at all (`io::atomic`).
 pub fn write_png(path: &Path, image: &RgbImage) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Argument(format!("{} is not a file path", path.display())))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = image
-        .save_with_format(&tmp, image::ImageFormat::Png)
-        .map_err(|e| match e {
-            image::ImageError::IoError(io) => Error::io(&tmp, io),
-            other => Error::format(&tmp, format!("PNG encoding failed: {other}")),
-        })
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let mut png = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| Error::format(path, format!("PNG encoding failed: {e}")))?;
+    crate::io::atomic::write_atomic(path, |w| w.write_all(&png).map_err(|e| Error::io(path, e)))
 }
