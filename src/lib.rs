@@ -9,3 +9,5 @@ pub mod map;
 pub mod se3;
 
 pub use error::{Error, Result};
+pub mod scan;
+pub mod scan_cli;
