@@ -36,9 +36,24 @@ pub struct IcpArgs {
     /// Fewer inliers than this stops ICP with status "too few inliers".
     #[arg(long, default_value_t = 10)]
     pub min_inliers: usize,
+    /// Drop points with z below this (sensor frame, metres) from both clouds.
+    #[arg(long)]
+    pub min_z: Option<f32>,
+    /// Drop points with z above this (sensor frame, metres), e.g. the ground of a NED
+    /// LiDAR scan (z down), whose rings pull point-to-point ICP towards zero motion.
+    #[arg(long)]
+    pub max_z: Option<f32>,
 }
 
 impl IcpArgs {
+    /// The z crop `(min, max)` in metres, or `None` when neither bound is given.
+    pub fn z_range(&self) -> Option<(f32, f32)> {
+        match (self.min_z, self.max_z) {
+            (None, None) => None,
+            (lo, hi) => Some((lo.unwrap_or(f32::NEG_INFINITY), hi.unwrap_or(f32::INFINITY))),
+        }
+    }
+
     /// The [`IcpParams`] these options describe.
     pub fn params(&self) -> IcpParams {
         IcpParams {
@@ -66,7 +81,8 @@ pub struct RegisterArgs {
     pub init: Option<PathBuf>,
     #[command(flatten)]
     pub icp: IcpArgs,
-    /// Output directory for result.json and aligned.ply (source moved into the target frame).
+    /// Output directory for result.json and aligned.ply (the whole source, uncropped, moved
+    /// into the target frame).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -110,8 +126,15 @@ pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
         None => DMat4::IDENTITY,
     };
     let params = args.icp.params();
+    let (src_pts, tgt_pts) = match args.icp.z_range() {
+        Some((lo, hi)) => (
+            crate::scan::crop_z(&source.points, lo, hi),
+            crate::scan::crop_z(&target.points, lo, hi),
+        ),
+        None => (source.points.clone(), target.points.clone()),
+    };
     let start = std::time::Instant::now();
-    let result = crate::scan::register(&source.points, &target.points, init, &params)?;
+    let result = crate::scan::register(&src_pts, &tgt_pts, init, &params)?;
     let seconds = start.elapsed().as_secs_f64();
     for (name, c) in [("source", &source), ("target", &target)] {
         if c.stats.dropped_non_finite > 0 {
@@ -190,7 +213,7 @@ pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
     }
     let params = args.icp.params();
     let start = std::time::Instant::now();
-    let odo = odometry::run_odometry(&seq, &params)?;
+    let odo = odometry::run_odometry(&seq, &params, args.icp.z_range())?;
     let seconds = start.elapsed().as_secs_f64();
     let tsv = odometry::format_pairs_tsv(&seq, &odo);
     print!("{tsv}");

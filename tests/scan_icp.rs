@@ -506,11 +506,12 @@ fn icl_relative(dir: &Path, source: u32, target: u32) -> DMat4 {
     se3::inverse_rigid(&icl_gt(dir, target)) * icl_gt(dir, source)
 }
 
-/// Measured with all source points of a stride-2 cloud against the full target: 10->11
-/// lands at 0.07 deg / 0.5 mm, 10->20 at 0.19 deg / 3 mm (point-to-point on noisy,
-/// 1 mm-quantised depth). Bounds leave about 2x room.
-const ICL_ROT_TOL_DEG: f64 = 0.4;
-const ICL_TRANS_TOL_M: f64 = 0.006;
+/// Measured with all points of a stride-4 source against the full-resolution target:
+/// 10->11 lands at 0.07 deg / 0.6 mm, 10->20 at 0.01 deg / 0.2 mm (point-to-point on
+/// noisy, 1 mm-quantised depth). A stride-2 target costs about 3 mm (its pixel grid), so
+/// the bounds leave room for such changes while staying below the 10->20 motion.
+const ICL_ROT_TOL_DEG: f64 = 0.2;
+const ICL_TRANS_TOL_M: f64 = 0.003;
 
 fn icl_pair(source: u32, target: u32) -> (IcpResult, DMat4) {
     let dir = icl_dir();
@@ -610,6 +611,8 @@ fn odometry_chains_pairs_in_the_right_direction() {
             threshold: 1e-9,
             seed: 0,
             min_inliers: 10,
+            min_z: None,
+            max_z: None,
         },
         out: Some(out.clone()),
     };
@@ -675,6 +678,8 @@ fn register_cli_writes_result_and_aligned_cloud() {
             threshold: 1e-5,
             seed: 3,
             min_inliers: 10,
+            min_z: None,
+            max_z: None,
         },
         out: Some(out.clone()),
     };
@@ -693,4 +698,157 @@ fn register_cli_writes_result_and_aligned_cloud() {
         .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
         .collect();
     assert!(leftovers.is_empty());
+}
+
+// ---------------------------------------------------------------- full data set (optional)
+
+/// The full data set next to the repository, or `None` (with a printed reason) when absent.
+fn shared_data() -> Option<PathBuf> {
+    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if d.is_dir() {
+        Some(d)
+    } else {
+        eprintln!("SKIP: {} not found (full data set absent)", d.display());
+        None
+    }
+}
+
+/// Frames 10->50 move 6.5 degrees and 23 cm; measured 0.03-0.11 degrees and 1-10 mm
+/// depending on sampling. A failed registration stays near the motion itself.
+const ICL_FAR_ROT_TOL_DEG: f64 = 0.5;
+const ICL_FAR_TRANS_TOL_M: f64 = 0.03;
+
+#[test]
+fn shared_icl_pairs_against_ground_truth() {
+    let Some(data) = shared_data() else { return };
+    let dir = data.join("icl_living_room_kt2");
+    for (source, target) in [(10, 11), (10, 20), (10, 50)] {
+        let gt = icl_relative(&dir, source, target);
+        let (mr, mt) = pose_err(&DMat4::IDENTITY, &gt);
+        let tgt = icl_cloud(&dir, target, 1);
+        for (label, stride, samples) in [
+            ("1000 samples of stride-2 source", 2, Samples::Count(1000)),
+            ("all points of stride-4 source", 4, Samples::All),
+        ] {
+            let src = icl_cloud(&dir, source, stride);
+            let params = IcpParams {
+                samples,
+                radius: 0.1,
+                final_radius: Some(0.02),
+                max_iterations: 100,
+                ..Default::default()
+            };
+            let start = std::time::Instant::now();
+            let r = register(&src, &tgt, DMat4::IDENTITY, &params).unwrap();
+            let secs = start.elapsed().as_secs_f64();
+            let (rot, trans) = pose_err(&r.t_source_to_target, &gt);
+            eprintln!(
+                "ICL {source}->{target} (motion {mr:.3} deg {mt:.4} m), {label}: {} in {} its, rmse {:.4} m, outliers {:.3}, error {rot:.3} deg {trans:.4} m, {secs:.2} s",
+                r.status,
+                r.iteration_count(),
+                r.final_stats.rmse,
+                r.final_stats.outlier_ratio
+            );
+            assert!(
+                rot < ICL_FAR_ROT_TOL_DEG && trans < ICL_FAR_TRANS_TOL_M,
+                "{source}->{target} {label}: {rot} deg {trans} m"
+            );
+        }
+    }
+}
+
+/// The AirSim sequence is reported, not asserted: point-to-point ICP from the identity
+/// locks onto the ground rings that move with the sensor (see the report); only the
+/// plumbing (20 scans, 19 pairs, a chained trajectory) is checked.
+#[test]
+fn shared_airsim_odometry_report() {
+    let Some(data) = shared_data() else { return };
+    let seq = odometry::discover(&data.join("lidar/airsim_blocks")).unwrap();
+    let coarse_to_fine = |samples| IcpParams {
+        samples,
+        radius: 5.0,
+        final_radius: Some(0.25),
+        max_iterations: 100,
+        ..Default::default()
+    };
+    // Ground crop: the sensor sits about 3.2 m above the ground (NED, z down); keep z < 2 m.
+    let no_ground = Some((f32::NEG_INFINITY, 2.0));
+    for (label, params, crop) in [
+        ("1000 samples, radius 1 m", IcpParams::default(), None),
+        (
+            "1000 samples, radius 5 -> 0.25 m",
+            coarse_to_fine(Samples::Count(1000)),
+            None,
+        ),
+        (
+            "1000 samples, radius 5 -> 0.25 m, ground cropped",
+            coarse_to_fine(Samples::Count(1000)),
+            no_ground,
+        ),
+        (
+            "all points, radius 5 -> 0.25 m, ground cropped",
+            coarse_to_fine(Samples::All),
+            no_ground,
+        ),
+    ] {
+        let start = std::time::Instant::now();
+        let odo = odometry::run_odometry(&seq, &params, crop).unwrap();
+        let s = odometry::summarize(&seq, &odo).unwrap();
+        let bad = odo
+            .pairs
+            .iter()
+            .filter(|p| !p.icp.status.is_converged())
+            .count();
+        eprintln!(
+            "AirSim {label}: {} pairs ({bad} not converged), RPE rotation mean {:.2} max {:.2} deg, translation mean {:.2} max {:.2} m, end error {:.2} m over {:.2} m, {:.2} s",
+            s.pairs,
+            s.mean_rotation_deg,
+            s.max_rotation_deg,
+            s.mean_translation_m,
+            s.max_translation_m,
+            s.end_position_error_m,
+            s.gt_path_length_m,
+            start.elapsed().as_secs_f64()
+        );
+        assert_eq!(odo.t_scan_to_world.len(), 20);
+        assert_eq!(s.pairs, 19);
+    }
+}
+
+/// Timing of one registration of the fast_gicp pair (KD-tree build included), 1000
+/// samples and all points. Ignored by default: run with `--ignored --nocapture`.
+#[test]
+#[ignore]
+fn bench_fast_gicp_pair() {
+    let d = fast_gicp_dir();
+    let source = read_pcd(&d.join("251371071.pcd")).unwrap().points;
+    let target = read_pcd(&d.join("251370668.pcd")).unwrap().points;
+    let reference = read_matrix4(&d.join("relative.txt")).unwrap();
+    for (samples, repeats) in [(Samples::Count(1000), 5), (Samples::All, 2)] {
+        for final_radius in [None, Some(0.2)] {
+            let params = IcpParams {
+                samples,
+                final_radius,
+                max_iterations: 100,
+                ..Default::default()
+            };
+            let (timing, r) = wgslam::scan::bench::bench_register(
+                &source,
+                &target,
+                DMat4::IDENTITY,
+                &params,
+                repeats,
+            )
+            .unwrap();
+            let (rot, trans) = pose_err(&r.t_source_to_target, &reference);
+            eprintln!(
+                "fast_gicp {samples:?} final radius {final_radius:?}: {} in {} its, median {:.3} s (min {:.3}), {:.4} s/iteration, vs relative.txt {rot:.3} deg {trans:.4} m",
+                r.status,
+                r.iteration_count(),
+                timing.median_seconds,
+                timing.min_seconds,
+                timing.median_seconds / r.iteration_count() as f64
+            );
+        }
+    }
 }

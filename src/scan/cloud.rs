@@ -57,6 +57,17 @@ impl PointCloud {
     }
 }
 
+/// Keeps the points whose `z` (sensor frame, metres) lies in `[min_z, max_z]`: a crop
+/// that removes e.g. the ground of a LiDAR scan (whose rings move with the sensor and pull
+/// point-to-point ICP towards zero motion). Either bound may be infinite.
+pub fn crop_z(points: &[[f32; 3]], min_z: f32, max_z: f32) -> Vec<[f32; 3]> {
+    points
+        .iter()
+        .copied()
+        .filter(|p| p[2] >= min_z && p[2] <= max_z)
+        .collect()
+}
+
 /// Back-projects a depth image into camera-frame points (metres).
 ///
 /// `depth` is row-major, `intrinsics.width * intrinsics.height` raw values; a value `d`

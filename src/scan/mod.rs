@@ -11,7 +11,7 @@ pub mod odometry;
 pub mod read;
 pub mod write;
 
-pub use cloud::{cloud_from_depth, load_depth_png, CloudStats, PointCloud};
+pub use cloud::{cloud_from_depth, crop_z, load_depth_png, CloudStats, PointCloud};
 pub use icp::{
     best_rigid_transform, register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats,
     KdTreeTarget, NearestNeighbours, Samples,

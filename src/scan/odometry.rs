@@ -232,14 +232,25 @@ pub struct Odometry {
     pub pairs: Vec<PairResult>,
 }
 
-/// Reads every scan (in parallel), registers each consecutive pair (in parallel across
-/// pairs) from the identity, and chains the trajectory. Pairs that do not converge are
-/// still chained (their status is in [`PairResult::icp`]).
-pub fn run_odometry(seq: &ScanSequence, params: &IcpParams) -> Result<Odometry> {
+/// Reads every scan (in parallel), keeps the points with `z` in `z_range` (sensor frame,
+/// metres; `None` keeps all), registers each consecutive pair (in parallel across pairs)
+/// from the identity, and chains the trajectory. Pairs that do not converge are still
+/// chained (their status is in [`PairResult::icp`]).
+pub fn run_odometry(
+    seq: &ScanSequence,
+    params: &IcpParams,
+    z_range: Option<(f32, f32)>,
+) -> Result<Odometry> {
     let clouds: Vec<Vec<[f32; 3]>> = seq
         .scans
         .par_iter()
-        .map(|p| read_cloud(p).map(|c| c.points))
+        .map(|p| {
+            let c = read_cloud(p)?;
+            Ok(match z_range {
+                Some((lo, hi)) => super::cloud::crop_z(&c.points, lo, hi),
+                None => c.points,
+            })
+        })
         .collect::<Result<_>>()?;
     let pairs: Vec<PairResult> = (0..clouds.len() - 1)
         .into_par_iter()
