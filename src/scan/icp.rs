@@ -158,9 +158,11 @@ pub trait NearestNeighbours: Sync {
     fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> Result<()>;
 }
 
-/// CPU nearest neighbours through a kiddo immutable KD-tree. The immutable tree is used
-/// because the mutable one panics when more than a bucket of points share one coordinate
-/// (which quantised depth images and flat LiDAR scenes produce).
+/// CPU nearest neighbours through a kiddo (5.x) immutable KD-tree. The immutable tree is
+/// used because the mutable one panics when more than a bucket of points share one
+/// coordinate (which quantised depth images and flat LiDAR scenes produce). kiddo 5 stays:
+/// its `ImmutableKdTree::new_from_slice` + `nearest_one::<SquaredEuclidean>` is all ICP
+/// needs, and 6.x would only change the API.
 pub struct KdTreeTarget<'a> {
     tree: ImmutableKdTree<f32, 3>,
     points: &'a [[f32; 3]],
@@ -585,4 +587,89 @@ fn correspond(
         }
     }
     Ok(acc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// f64 sums of a few hundred products of unit-size numbers.
+    const SUM_TOL: f64 = 1e-9;
+
+    fn cloud() -> Vec<DVec3> {
+        (0..200)
+            .map(|i| {
+                let a = i as f64 * 0.37;
+                DVec3::new(a.cos() * 2.0, (a * 1.3).sin(), 0.01 * i as f64)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn noise_floor_is_zero_for_exact_pairs_and_scales_with_noise() {
+        let t = se3::exp(&[0.1, -0.2, 0.05, 0.3, 0.1, -0.2]);
+        let mut exact = CrossCovariance::default();
+        let mut noisy = CrossCovariance::default();
+        let mut rng = SplitMix64::new(1);
+        for p in cloud() {
+            let q = t.transform_point3(p);
+            exact.add(p, q);
+            // Uniform noise in [-5, 5] mm per axis: sigma = 10 mm / sqrt(12) per axis.
+            let e = DVec3::new(
+                rng.below(1001) as f64 - 500.0,
+                rng.below(1001) as f64 - 500.0,
+                rng.below(1001) as f64 - 500.0,
+            ) * 1e-5;
+            noisy.add(p, q + e);
+        }
+        let dt = exact.solve().unwrap();
+        let (r, p) = pose_of(&(se3::inverse_rigid(&t) * dt));
+        assert!(r < SUM_TOL && p < SUM_TOL);
+        let (fr, ft) = exact.noise_floor(&dt);
+        // sigma^2 = var_p + var_q - 2 tr(RH) cancels to rounding: sqrt of ~1e-15.
+        assert!(fr < 1e-7 && ft < 1e-7, "{fr} {ft}");
+        let dn = noisy.solve().unwrap();
+        let (_, ft) = noisy.noise_floor(&dn);
+        let expected = (3.0f64).sqrt() * 0.01 / 12f64.sqrt() / (200f64).sqrt();
+        assert!((ft / expected - 1.0).abs() < 0.2, "{ft} vs {expected}");
+    }
+
+    fn pose_of(t: &DMat4) -> (f64, f64) {
+        (se3::rotation_angle(t), se3::translation_norm(t))
+    }
+
+    #[test]
+    fn merge_equals_sequential_sum() {
+        let pts = cloud();
+        let mut all = CrossCovariance::default();
+        let (mut a, mut b) = (CrossCovariance::default(), CrossCovariance::default());
+        for (i, p) in pts.iter().enumerate() {
+            let q = *p * 0.5 + DVec3::X;
+            all.add(*p, q);
+            if i % 2 == 0 {
+                a.add(*p, q)
+            } else {
+                b.add(*p, q)
+            }
+        }
+        let m = a.merge(&b);
+        assert_eq!(m.count, all.count);
+        assert!((m.sum_sq_dist - all.sum_sq_dist).abs() < SUM_TOL);
+        assert!((m.sum_pq[1][2] - all.sum_pq[1][2]).abs() < SUM_TOL);
+    }
+
+    #[test]
+    fn sample_draws_are_distinct_and_seeded() {
+        let mut order: Vec<u32> = (0..100).collect();
+        let mut rng = SplitMix64::new(5);
+        let s1 = draw_sample(&mut order, 30, &mut rng).to_vec();
+        let mut sorted = s1.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(sorted.len(), 30);
+        let mut order2: Vec<u32> = (0..100).collect();
+        let s2 = draw_sample(&mut order2, 30, &mut SplitMix64::new(5)).to_vec();
+        assert_eq!(s1, s2);
+        assert_eq!(draw_sample(&mut order, 500, &mut rng).len(), 100);
+    }
 }
