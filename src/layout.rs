@@ -1,0 +1,135 @@
+//! The layout contract between Rust and WGSL: every struct a kernel reads from a uniform.
+//!
+//! Each struct is `#[repr(C)]` + `bytemuck::Pod` and mirrors the WGSL struct of the same
+//! name in `shaders/common.wgsl` (which points back here). No `vec3`/`mat3`: only scalars,
+//! 4-vectors and 4x4 matrices, padded explicitly to 16 bytes. `tests/layout.rs` checks
+//! sizes and offsets against naga's layout of the WGSL side.
+//!
+//! Per-pixel and per-surfel arrays are plain storage arrays, not structs:
+//! vertex/normal maps and surfel positions/normals are `[f32; 4]` (`vec4<f32>`), colours
+//! are `[f32; 4]` RGB in 0..255, raw depth is `u16` (packed in pairs into `u32` on the GPU),
+//! raw colour is RGBA8 packed into one `u32` (`r | g << 8 | b << 16 | 255 << 24`).
+
+use bytemuck::{Pod, Zeroable};
+use glam::DMat4;
+
+use crate::camera::Intrinsics;
+
+/// A 4x4 f32 matrix, column-major (`mat4x4<f32>` in WGSL).
+pub type GpuMat4 = [[f32; 4]; 4];
+
+/// Converts an f64 pose to the column-major f32 matrix the kernels use.
+pub fn gpu_mat4(t: &DMat4) -> GpuMat4 {
+    let c = t.to_cols_array_2d();
+    c.map(|col| col.map(|x| x as f32))
+}
+
+/// Parameters of `depth_to_vertex` (mirrors `PreprocessParams` in common.wgsl).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PreprocessParams {
+    /// Intrinsics of the output (downsampled) maps, pixels.
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    /// Output map size in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Raw frame size in pixels.
+    pub raw_width: u32,
+    pub raw_height: u32,
+    /// Output pixel `(u, v)` reads raw pixel `(stride u, stride v)`.
+    pub stride: u32,
+    /// Raw depth units per metre (5000 for TUM and ICL-NUIM).
+    pub depth_scale: f32,
+    /// Depths outside `[min_depth_m, max_depth_m]` are invalid.
+    pub min_depth_m: f32,
+    pub max_depth_m: f32,
+}
+
+/// Parameters of `vertex_to_normal` (mirrors `NormalParams` in common.wgsl).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct NormalParams {
+    pub width: u32,
+    pub height: u32,
+    /// A neighbour whose depth differs by more than this (metres) makes the normal invalid.
+    pub max_depth_jump_m: f32,
+    pub _pad: u32,
+}
+
+/// Parameters of `project_model` and `predict_model` (mirrors `ProjectParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct ProjectParams {
+    /// World to camera of the view the map is rendered from.
+    pub t_world_to_cam: GpuMat4,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Number of valid surfels (entries past it are ignored).
+    pub surfel_count: u32,
+    pub _pad: u32,
+}
+
+/// Parameters of `icp_reduce` (mirrors `IcpParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct IcpParams {
+    /// Current estimate of world to camera for the new frame.
+    pub t_world_to_cam: GpuMat4,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Filter 2: correspondences farther apart than this (metres) are rejected.
+    pub dist_threshold_m: f32,
+    pub _pad: u32,
+}
+
+/// Parameters of `fuse_merge` and `fuse_add` (mirrors `FuseParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct FuseParams {
+    /// Tracked world to camera of the frame being fused.
+    pub t_world_to_cam: GpuMat4,
+    /// Its inverse, camera to world.
+    pub t_cam_to_world: GpuMat4,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Surfels in the map before this frame.
+    pub surfel_count: u32,
+    /// Sequence position of the frame, stored in `last_frame`.
+    pub frame_id: u32,
+    /// Filter 2 of fusion: position distance in metres.
+    pub dist_threshold_m: f32,
+    /// Filter 2 of fusion: cosine of the maximum normal angle.
+    pub cos_normal_threshold: f32,
+    /// Allocated surfel slots; `fuse_add` never writes at or past it.
+    pub capacity: u32,
+    pub _pad: u32,
+}
+
+/// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major) + 6 (Aᵀb)
+/// + inlier count + sum of squared residuals.
+pub const ICP_SYSTEM_LEN: usize = 29;
+
+/// Packs RGB8 into the `u32` layout the GPU reads (`r | g << 8 | b << 16 | 255 << 24`).
+pub fn pack_rgba8(rgb: [u8; 3]) -> u32 {
+    rgb[0] as u32 | (rgb[1] as u32) << 8 | (rgb[2] as u32) << 16 | 255 << 24
+}
+
+/// Intrinsics as the four floats every params struct starts its camera block with.
+pub fn camera_floats(k: &Intrinsics) -> [f32; 4] {
+    [k.fx, k.fy, k.cx, k.cy]
+}

@@ -1,0 +1,156 @@
+//! Host side of one ICP iteration: decode the 29-float system, solve the 6x6 normal
+//! equations in f64, and update the pose by left multiplication.
+//!
+//! The system comes from `cpu::icp_reduce` or the GPU's summed workgroup partials. An
+//! ill-conditioned or under-determined system is refused ([`SolveError`]) so the caller keeps
+//! the previous pose instead of jumping.
+
+use glam::DMat4;
+use nalgebra::{Matrix6, Vector6};
+
+use crate::layout::ICP_SYSTEM_LEN;
+use crate::se3;
+
+/// The decoded normal equations `AᵀA x = -Aᵀb` of one ICP iteration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NormalEquations {
+    /// `AᵀA`, symmetric.
+    pub ata: Matrix6<f64>,
+    /// `Aᵀb`.
+    pub atb: Vector6<f64>,
+    /// Correspondences that passed both filters.
+    pub inliers: u64,
+    /// Sum of squared point-to-plane residuals, m².
+    pub residual_sq_sum: f64,
+}
+
+/// Why a system was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// Fewer correspondences than [`MIN_INLIERS`].
+    #[error("only {0} correspondences (need at least {MIN_INLIERS})")]
+    TooFewInliers(u64),
+    /// Smallest / largest eigenvalue of AᵀA below [`MIN_RECIPROCAL_CONDITION`].
+    #[error("ill-conditioned system (reciprocal condition {0:.3e})")]
+    IllConditioned(f64),
+}
+
+/// Fewer correspondences than this cannot constrain 6 degrees of freedom robustly.
+pub const MIN_INLIERS: u64 = 100;
+/// A reciprocal condition number below this means some motion is unobservable (e.g. a single
+/// plane leaves in-plane translation free); the increment would be noise.
+pub const MIN_RECIPROCAL_CONDITION: f64 = 1e-9;
+
+impl NormalEquations {
+    /// Decodes the 29-entry layout written by `accumulate` (21 upper-triangle entries of AᵀA
+    /// row-major, 6 of Aᵀb, count, squared-residual sum).
+    pub fn decode(sys: &[f64; ICP_SYSTEM_LEN]) -> Self {
+        let mut ata = Matrix6::zeros();
+        let mut k = 0;
+        for r in 0..6 {
+            for c in r..6 {
+                ata[(r, c)] = sys[k];
+                ata[(c, r)] = sys[k];
+                k += 1;
+            }
+        }
+        let atb = Vector6::from_fn(|r, _| sys[21 + r]);
+        NormalEquations {
+            ata,
+            atb,
+            inliers: sys[27].round().max(0.0) as u64,
+            residual_sq_sum: sys[28],
+        }
+    }
+
+    /// Mean squared point-to-plane residual (m²), 0 without inliers.
+    pub fn mean_sq_residual(&self) -> f64 {
+        if self.inliers == 0 {
+            0.0
+        } else {
+            self.residual_sq_sum / self.inliers as f64
+        }
+    }
+
+    /// Solves `AᵀA x = -Aᵀb` for `x = (alpha, beta, gamma, tx, ty, tz)`.
+    pub fn solve(&self) -> Result<se3::Twist, SolveError> {
+        if self.inliers < MIN_INLIERS {
+            return Err(SolveError::TooFewInliers(self.inliers));
+        }
+        let eig = self.ata.symmetric_eigen();
+        let (lo, hi) = eig
+            .eigenvalues
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| (lo.min(e), hi.max(e)));
+        let rcond = if hi > 0.0 { lo / hi } else { 0.0 };
+        if !(rcond >= MIN_RECIPROCAL_CONDITION) {
+            return Err(SolveError::IllConditioned(rcond));
+        }
+        let chol = self
+            .ata
+            .cholesky()
+            .ok_or(SolveError::IllConditioned(rcond))?;
+        let x = chol.solve(&(-self.atb));
+        Ok([x[0], x[1], x[2], x[3], x[4], x[5]])
+    }
+}
+
+/// Left-multiplicative update `T <- exp(x) T` of a world-to-camera pose.
+pub fn update_pose(t_world_to_cam: &DMat4, x: &se3::Twist) -> DMat4 {
+    se3::exp(x) * *t_world_to_cam
+}
+
+/// Size of an increment for the convergence test: rotation (rad) and translation (m) norms.
+pub fn increment_size(x: &se3::Twist) -> (f64, f64) {
+    let r = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+    let t = (x[3] * x[3] + x[4] * x[4] + x[5] * x[5]).sqrt();
+    (r, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::icp_reduce::accumulate;
+
+    /// A well-posed system built from known rows is solved to the exact increment.
+    #[test]
+    fn solves_consistent_system() {
+        let x_true = [0.01, -0.02, 0.005, 0.03, -0.01, 0.02];
+        let mut sys = [0.0; ICP_SYSTEM_LEN];
+        // Deterministic, well-spread rows; b chosen so that A x_true + b = 0.
+        for i in 0..200 {
+            let f = i as f32;
+            let a = [
+                (f * 0.37).sin(),
+                (f * 0.71).cos(),
+                (f * 1.13).sin(),
+                (f * 0.53).cos(),
+                (f * 0.91).sin(),
+                (f * 1.37).cos(),
+            ];
+            let b = -(0..6).map(|k| a[k] as f64 * x_true[k]).sum::<f64>() as f32;
+            accumulate(&mut sys, &a, b);
+        }
+        let x = NormalEquations::decode(&sys).solve().unwrap();
+        for k in 0..6 {
+            // f32 rows: b carries ~1e-8 relative rounding.
+            assert!((x[k] - x_true[k]).abs() < 1e-6, "x[{k}] {} vs {}", x[k], x_true[k]);
+        }
+    }
+
+    /// A planar scene (all normals equal) leaves in-plane motion free: refused.
+    #[test]
+    fn refuses_singular_system() {
+        let mut sys = [0.0; ICP_SYSTEM_LEN];
+        for i in 0..500 {
+            let p = glam::Vec3::new((i % 20) as f32 * 0.1, (i / 20) as f32 * 0.1, 2.0);
+            let n = glam::Vec3::Z;
+            let pxn = p.cross(n);
+            accumulate(&mut sys, &[pxn.x, pxn.y, pxn.z, n.x, n.y, n.z], 0.01);
+        }
+        let eq = NormalEquations::decode(&sys);
+        assert!(matches!(eq.solve(), Err(SolveError::IllConditioned(_))));
+        let few = NormalEquations::decode(&[0.0; ICP_SYSTEM_LEN]);
+        assert_eq!(few.solve(), Err(SolveError::TooFewInliers(0)));
+    }
+}
