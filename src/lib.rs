@@ -21,6 +21,8 @@ pub mod run;
 pub mod se3;
 pub mod solve;
 pub mod timed;
+pub mod scan;
+pub mod scan_cli;
 pub mod two_frame;
 
 pub use error::{Error, Result};
