@@ -29,6 +29,10 @@ pub enum Command {
     Icp(IcpArgs),
     /// ATE and RPE of an estimated TUM trajectory against a ground-truth TUM trajectory.
     Eval(EvalArgs),
+    /// Point-to-point ICP between two point clouds (PCD, PLY, xyz text, KITTI .bin).
+    Register(crate::scan_cli::RegisterArgs),
+    /// Scan odometry: register each consecutive pair of a folder of scans and chain them.
+    Odometry(crate::scan_cli::OdometryArgs),
 }
 
 /// Which implementation runs the kernels.
@@ -239,6 +243,8 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Run(a) => cmd_run(a),
         Command::Icp(a) => cmd_icp(a),
         Command::Eval(a) => cmd_eval(a),
+        Command::Register(a) => crate::scan_cli::run_register(&a).map(|_| ()),
+        Command::Odometry(a) => crate::scan_cli::run_odometry(&a).map(|_| ()),
     }
 }
 

@@ -18,11 +18,11 @@ pub mod layout;
 pub mod map;
 pub mod pipeline;
 pub mod run;
+pub mod scan;
+pub mod scan_cli;
 pub mod se3;
 pub mod solve;
 pub mod timed;
-pub mod scan;
-pub mod scan_cli;
 pub mod two_frame;
 
 pub use error::{Error, Result};
