@@ -5,6 +5,7 @@
 
 pub mod camera;
 pub mod error;
+pub mod gpu;
 pub mod map;
 pub mod se3;
 
