@@ -45,14 +45,18 @@ pub fn exp(x: &Twist) -> DMat4 {
 /// SE(3) logarithm: the twist whose [`exp`] is `t` (rotation angle in [0, pi]).
 pub fn log(t: &DMat4) -> Twist {
     let (r, p) = to_rt(t);
-    let q = DQuat::from_mat3(&r).normalize();
-    let (axis, angle) = q.to_axis_angle();
-    let angle = if angle > std::f64::consts::PI {
-        angle - 2.0 * std::f64::consts::PI
+    let mut q = DQuat::from_mat3(&r).normalize();
+    if q.w < 0.0 {
+        q = -q;
+    }
+    // Rotation vector 2 atan2(|v|, w) v/|v|, which stays accurate for tiny angles.
+    let v = DVec3::new(q.x, q.y, q.z);
+    let s = v.length();
+    let w = if s < 1e-12 {
+        v * (2.0 / q.w)
     } else {
-        angle
+        v * (2.0 * s.atan2(q.w) / s)
     };
-    let w = axis * angle;
     let theta = w.length();
     let k = hat(w);
     let k2 = k * k;

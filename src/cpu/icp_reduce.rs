@@ -100,8 +100,8 @@ mod tests {
         };
         let params = IcpParams {
             t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
-            fx: 500.0,
-            fy: -500.0,
+            fx: 10.0,
+            fy: -10.0,
             cx: 2.0,
             cy: 2.0,
             width: 5,

@@ -1,0 +1,124 @@
+//! Benchmark of the dense pipeline: whole-frame and per-stage times, frames per second,
+//! peak memory, readback bytes and submissions per frame, for each backend.
+//!
+//! Each backend runs in its own child process (`wgslam bench-one`), so peak memory (VmHWM)
+//! is that backend's alone, and both are measured in the same `wgslam bench` invocation so
+//! the GPU/CPU ratio compares like with like. Per-stage times come from a second pass with
+//! [`crate::timed::Timed`], which waits for the device after each stage; frame times come
+//! from the first pass, which does not.
+
+use serde::{Deserialize, Serialize};
+
+use crate::dataset::Sequence;
+use crate::pipeline::{Backend, SlamParams};
+use crate::run;
+use crate::timed::Timed;
+use crate::Result;
+
+/// One backend's figures.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BenchResult {
+    pub backend: String,
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    /// Pipeline time per frame (decode excluded), median and mean, seconds.
+    pub frame_median_s: f64,
+    pub frame_mean_s: f64,
+    pub fps: f64,
+    /// Mean wall time per frame and stage call from the timed pass, milliseconds:
+    /// (stage, calls per frame, ms per call).
+    pub stages: Vec<(String, f64, f64)>,
+    pub readback_bytes_per_frame: f64,
+    pub submissions_per_frame: f64,
+    pub peak_memory_mib: Option<f64>,
+    pub map_points: usize,
+    pub ate_rmse_aligned_m: Option<f64>,
+}
+
+/// Runs one backend twice over the frames (plain, then timed per stage).
+pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
+    mut make: F,
+    seq: &Sequence,
+    first: usize,
+    last: usize,
+    params: &SlamParams,
+) -> Result<BenchResult> {
+    let plain = run::run(make()?, seq, first, last, params.clone(), |_| {})?;
+    let m = &plain.metrics;
+    let backend = make()?;
+    let name = backend.name().to_string();
+    let mut p = params.clone();
+    p.depth_scale = seq.depth_scale;
+    let mut slam = crate::pipeline::Slam::new(Timed::new(backend), seq.intrinsics, p);
+    let (frames, _) = run::run_frames(&mut slam, seq, first, last, |_| {})?;
+    let n = frames.len().max(1) as f64;
+    let counters = slam.backend.counters();
+    let stages = slam
+        .backend
+        .stages
+        .iter()
+        .map(|(k, (calls, secs))| {
+            (
+                k.to_string(),
+                *calls as f64 / n,
+                secs * 1e3 / (*calls).max(1) as f64,
+            )
+        })
+        .collect();
+    Ok(BenchResult {
+        backend: name,
+        frames: m.frames,
+        width: m.width,
+        height: m.height,
+        frame_median_s: m.time_per_frame_median_s,
+        frame_mean_s: m.time_per_frame_mean_s,
+        fps: 1.0 / m.time_per_frame_mean_s.max(f64::MIN_POSITIVE),
+        stages,
+        readback_bytes_per_frame: counters.readback_bytes as f64 / n,
+        submissions_per_frame: counters.submissions as f64 / n,
+        peak_memory_mib: run::peak_memory_mib(),
+        map_points: m.map_points,
+        ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
+    })
+}
+
+/// Prints a table of the results and the GPU/CPU ratios.
+pub fn print_table(results: &[BenchResult]) {
+    for r in results {
+        println!(
+            "{:>4}: {} frames {}x{}: {:.1} ms/frame median, {:.1} ms mean, {:.2} fps, \
+             peak {:.0} MiB, {} surfels, ATE {}",
+            r.backend,
+            r.frames,
+            r.width,
+            r.height,
+            r.frame_median_s * 1e3,
+            r.frame_mean_s * 1e3,
+            r.fps,
+            r.peak_memory_mib.unwrap_or(f64::NAN),
+            r.map_points,
+            r.ate_rmse_aligned_m
+                .map(|a| format!("{:.3} mm", a * 1e3))
+                .unwrap_or_else(|| "n/a".into()),
+        );
+        for (stage, calls, ms) in &r.stages {
+            println!("      {stage:<14} {calls:5.2} calls/frame  {ms:8.2} ms/call");
+        }
+        println!(
+            "      readback {:.0} bytes/frame, {:.1} submissions/frame",
+            r.readback_bytes_per_frame, r.submissions_per_frame
+        );
+    }
+    if let (Some(c), Some(g)) = (
+        results.iter().find(|r| r.backend == "cpu"),
+        results.iter().find(|r| r.backend == "gpu"),
+    ) {
+        println!(
+            "GPU/CPU: {:.2}x faster per frame (mean {:.1} ms vs {:.1} ms)",
+            c.frame_mean_s / g.frame_mean_s,
+            g.frame_mean_s * 1e3,
+            c.frame_mean_s * 1e3
+        );
+    }
+}

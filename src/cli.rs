@@ -1,0 +1,373 @@
+//! Command-line interface: argument parsing and printing only; no algorithm code here.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::camera::Intrinsics;
+use crate::cpu_backend::CpuBackend;
+use crate::dataset::{self, SequenceOptions};
+use crate::pipeline::{PoseSource, SlamParams};
+use crate::{eval, io, run, two_frame, Error, Result};
+
+/// The bundled sequence used when no dataset is given (relative to the crate root).
+pub const BUNDLED_DATASET: &str = "assets/icl_living_room_kt2";
+
+/// Dense RGB-D SLAM (point-based fusion) and point-to-point ICP on wgpu, with a CPU reference.
+#[derive(Debug, Parser)]
+#[command(name = "wgslam", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run dense SLAM over a sequence; write trajectory.tum, map.ply, metrics.json.
+    Run(RunArgs),
+    /// Two-frame ICP: align frame --target to frame --source, print every iteration.
+    Icp(IcpArgs),
+    /// ATE and RPE of an estimated TUM trajectory against a ground-truth TUM trajectory.
+    Eval(EvalArgs),
+}
+
+/// Which implementation runs the kernels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BackendChoice {
+    /// The GPU when an adapter exists, otherwise the CPU reference (saying so).
+    Auto,
+    /// The CPU reference (the twins in src/cpu).
+    Cpu,
+    /// WGSL compute kernels on wgpu (Vulkan, Metal or DX12).
+    Gpu,
+}
+
+/// Pose source for `run`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PosesChoice {
+    /// Frame-to-model ICP tracking.
+    Track,
+    /// Ground-truth poses, no tracking (fusion only).
+    Gt,
+}
+
+/// Options shared by every command that reads an RGB-D sequence.
+#[derive(Debug, Args)]
+pub struct DatasetArgs {
+    /// Sequence directory (TUM RGB-D or ICL-NUIM layout); default: the bundled frames.
+    pub dataset: Option<PathBuf>,
+    /// Ground-truth file (TUM format) instead of the layout's default.
+    #[arg(long)]
+    pub gt: Option<PathBuf>,
+    /// Intrinsics preset: icl, fr1, fr2, fr3 (overrides camera.json).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Intrinsics override "fx,fy,cx,cy" in pixels (image size from the frames' preset/json).
+    #[arg(long)]
+    pub intrinsics: Option<String>,
+    /// Raw depth units per metre (default: camera.json or 5000).
+    #[arg(long)]
+    pub depth_scale: Option<f32>,
+    /// Largest timestamp difference for association, seconds.
+    #[arg(long, default_value_t = dataset::DEFAULT_MAX_TIME_DIFF)]
+    pub max_time_diff: f64,
+}
+
+/// Pipeline tunables shared by `run` and `icp`.
+#[derive(Debug, Args)]
+pub struct PipelineArgs {
+    /// Keep every N-th pixel in each direction.
+    #[arg(long, default_value_t = 2)]
+    pub downsample: u32,
+    /// ICP correspondence distance threshold, metres.
+    #[arg(long, default_value_t = 0.07)]
+    pub icp_dist: f32,
+    /// ICP iterations per frame at most.
+    #[arg(long, default_value_t = 10)]
+    pub icp_iters: usize,
+    /// Fusion distance threshold, metres.
+    #[arg(long, default_value_t = 0.03)]
+    pub fuse_dist: f32,
+    /// Fusion normal-angle threshold, degrees.
+    #[arg(long, default_value_t = 5.0)]
+    pub fuse_angle: f32,
+    /// Implementation: auto, cpu or gpu.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub data: DatasetArgs,
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// Inclusive frame range "A..B" by position in the sequence (default: all frames).
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Poses from tracking or from ground truth.
+    #[arg(long, value_enum, default_value_t = PosesChoice::Track)]
+    pub poses: PosesChoice,
+    /// Output directory.
+    #[arg(long, default_value = "out")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct IcpArgs {
+    #[command(flatten)]
+    pub data: DatasetArgs,
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// Source frame (its points are the model).
+    #[arg(long, default_value_t = 10)]
+    pub source: usize,
+    /// Target frame (aligned to the source).
+    #[arg(long, default_value_t = 50)]
+    pub target: usize,
+    /// Write result.json here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Estimated trajectory, TUM format.
+    pub estimate: PathBuf,
+    /// Ground truth trajectory, TUM format (ICL-NUIM's *.gt.freiburg works).
+    pub ground_truth: PathBuf,
+    /// RPE frame distance.
+    #[arg(long, default_value_t = 1)]
+    pub delta: usize,
+}
+
+impl DatasetArgs {
+    /// Opens the sequence with the overrides applied.
+    pub fn open(&self) -> Result<dataset::Sequence> {
+        let root = self.dataset.clone().unwrap_or_else(bundled_dataset);
+        let mut intrinsics = match &self.camera {
+            Some(name) => Some(Intrinsics::preset(name).ok_or_else(|| {
+                Error::Argument(format!("unknown camera preset {name:?} (icl, fr1, fr2, fr3)"))
+            })?),
+            None => None,
+        };
+        if let Some(s) = &self.intrinsics {
+            let v: Vec<f32> = s
+                .split(',')
+                .map(|x| x.trim().parse::<f32>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| Error::Argument(format!("--intrinsics {s:?}: want fx,fy,cx,cy")))?;
+            if v.len() != 4 || v[0] == 0.0 || v[1] == 0.0 {
+                return Err(Error::Argument(format!(
+                    "--intrinsics {s:?}: want four numbers fx,fy,cx,cy with fx, fy non-zero"
+                )));
+            }
+            let base = intrinsics.unwrap_or(Intrinsics::ICL_NUIM);
+            intrinsics = Some(Intrinsics {
+                fx: v[0],
+                fy: v[1],
+                cx: v[2],
+                cy: v[3],
+                ..base
+            });
+        }
+        let opts = SequenceOptions {
+            gt_path: self.gt.clone(),
+            intrinsics,
+            depth_scale: self.depth_scale,
+            max_time_diff: self.max_time_diff,
+        };
+        dataset::open(&root, &opts)
+    }
+}
+
+impl PipelineArgs {
+    /// Pipeline parameters from the flags.
+    pub fn params(&self, poses: PoseSource) -> Result<SlamParams> {
+        if self.downsample == 0 || self.downsample > 16 {
+            return Err(Error::Argument(format!(
+                "--downsample {} must be between 1 and 16",
+                self.downsample
+            )));
+        }
+        if self.icp_iters == 0 {
+            return Err(Error::Argument("--icp-iters must be at least 1".into()));
+        }
+        Ok(SlamParams {
+            downsample: self.downsample,
+            icp_dist_m: self.icp_dist,
+            icp_max_iters: self.icp_iters,
+            fuse_dist_m: self.fuse_dist,
+            fuse_normal_deg: self.fuse_angle,
+            poses,
+            ..SlamParams::default()
+        })
+    }
+}
+
+/// The bundled sequence: next to the executable's crate when run through cargo, else
+/// relative to the working directory.
+pub fn bundled_dataset() -> PathBuf {
+    let from_crate = Path::new(env!("CARGO_MANIFEST_DIR")).join(BUNDLED_DATASET);
+    if from_crate.is_dir() {
+        from_crate
+    } else {
+        PathBuf::from(BUNDLED_DATASET)
+    }
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal.
+fn progress_bar(len: usize) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} frames {msg}",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Runs the parsed command.
+pub fn execute(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Run(a) => cmd_run(a),
+        Command::Icp(a) => cmd_icp(a),
+        Command::Eval(a) => cmd_eval(a),
+    }
+}
+
+fn cmd_run(a: RunArgs) -> Result<()> {
+    let seq = a.data.open()?;
+    let (first, last) = match &a.frames {
+        Some(r) => dataset::parse_range(r)?,
+        None => (0, seq.len() - 1),
+    };
+    let range = seq.select(first, last)?;
+    let poses = match a.poses {
+        PosesChoice::Track => PoseSource::Track,
+        PosesChoice::Gt => PoseSource::GroundTruth,
+    };
+    let params = a.pipeline.params(poses)?;
+    let bar = progress_bar(range.clone().count());
+    let on_frame = |f: &run::FrameOutcome| {
+        bar.set_message(format!("{} surfels", f.report.surfels));
+        bar.inc(1);
+        if let crate::pipeline::TrackStatus::Lost(why) = &f.report.status {
+            bar.println(format!("frame {}: tracking lost ({why}); not fused", f.index));
+        }
+        if f.report.status == crate::pipeline::TrackStatus::EmptyDepth {
+            bar.println(format!("frame {}: no valid depth; skipped", f.index));
+        }
+    };
+    let result = match a.pipeline.backend {
+        BackendChoice::Cpu | BackendChoice::Auto => run::run(
+            CpuBackend::new(),
+            &seq,
+            *range.start(),
+            *range.end(),
+            params,
+            on_frame,
+        )?,
+        BackendChoice::Gpu => {
+            return Err(Error::Argument("the GPU backend is not built yet".into()))
+        }
+    };
+    bar.finish_and_clear();
+    run::write_outputs(&a.out, &result)?;
+    print_summary(&result.metrics, &a.out);
+    Ok(())
+}
+
+fn print_summary(m: &run::Metrics, out: &Path) {
+    println!(
+        "{} frames {}..{} on {} ({}x{}): {:.1} ms/frame median, {:.2} s total",
+        m.frames,
+        m.first_frame,
+        m.last_frame,
+        m.backend,
+        m.width,
+        m.height,
+        m.time_per_frame_median_s * 1e3,
+        m.time_total_s
+    );
+    println!(
+        "map: {} points, compression ratio {:.4}",
+        m.map_points, m.compression_ratio
+    );
+    let t = &m.tracking;
+    println!(
+        "tracking: {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
+        t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
+    );
+    if let Some(acc) = &m.accuracy {
+        println!(
+            "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",
+            acc.ate_rmse_aligned_m * 1e3,
+            acc.ate_rmse_unaligned_m * 1e3,
+            acc.rpe_trans_rmse_m * 1e3,
+            acc.rpe_rot_rmse_deg,
+            acc.pairs
+        );
+    }
+    if let Some(mem) = m.peak_memory_mib {
+        println!("peak memory {mem:.0} MiB");
+    }
+    println!("wrote {}/{{trajectory.tum, map.ply, metrics.json, frames.json}}", out.display());
+}
+
+fn cmd_icp(a: IcpArgs) -> Result<()> {
+    let seq = a.data.open()?;
+    seq.select(a.source.min(a.target), a.source.max(a.target))?;
+    let params = a.pipeline.params(PoseSource::Track)?;
+    let r = two_frame::align_frames(CpuBackend::new(), &seq, a.source, a.target, params)?;
+    println!("iter  inliers  mean squared residual (m^2)");
+    for (i, it) in r.iterations.iter().enumerate() {
+        println!("{i:4}  {:7}  {:.6e}", it.inliers, it.mean_sq_residual);
+    }
+    println!("status: {:?}", r.status);
+    let t = glam::DMat4::from_cols_array_2d(&r.t_source_to_target);
+    println!("T_source_to_target (row-major):");
+    for row in 0..4 {
+        let rv = t.row(row);
+        println!("  {:10.6} {:10.6} {:10.6} {:10.6}", rv.x, rv.y, rv.z, rv.w);
+    }
+    if let (Some(re), Some(te), Some((gr, gt))) =
+        (r.rotation_error_deg, r.translation_error_m, r.gt_motion)
+    {
+        println!(
+            "against ground truth: rotation error {re:.4} deg, translation error {:.2} mm \
+             (true motion {gr:.2} deg, {:.1} mm)",
+            te * 1e3,
+            gt * 1e3
+        );
+    }
+    if let Some(out) = &a.out {
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        run::write_json(&out.join("result.json"), &r)?;
+    }
+    Ok(())
+}
+
+fn cmd_eval(a: EvalArgs) -> Result<()> {
+    let est = io::trajectory::read_tum(&a.estimate)?;
+    let gt = io::trajectory::read_tum(&a.ground_truth)?;
+    let aligned = eval::ate(&est, &gt, true)?;
+    let unaligned = eval::ate(&est, &gt, false)?;
+    let rpe = eval::rpe(&est, &gt, a.delta)?;
+    println!(
+        "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned ({} poses)",
+        aligned.rmse_m * 1e3,
+        unaligned.rmse_m * 1e3,
+        aligned.pairs
+    );
+    println!(
+        "RPE (delta {}): translation RMSE {:.3} mm, rotation RMSE {:.4} deg ({} pairs)",
+        a.delta,
+        rpe.trans_rmse_m * 1e3,
+        rpe.rot_rmse_deg,
+        rpe.pairs
+    );
+    Ok(())
+}

@@ -1,0 +1,159 @@
+//! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors.
+//!
+//! This is the ground the GPU backend is proven against, so it favours being obviously
+//! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap.
+
+use crate::cpu;
+use crate::layout::{
+    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+};
+use crate::map::SurfelMap;
+use crate::pipeline::{Backend, FrameMaps};
+use crate::Result;
+
+/// Host-side state: the current frame's maps, the prediction and the surfel map.
+#[derive(Debug, Default)]
+pub struct CpuBackend {
+    frame: FrameMaps,
+    index_map: Vec<u64>,
+    pred_vertex: Vec<[f32; 4]>,
+    pred_normal: Vec<[f32; 4]>,
+    assoc: Vec<u32>,
+    map: SurfelMap,
+}
+
+impl CpuBackend {
+    /// An empty map.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The map without copying.
+    pub fn map(&self) -> &SurfelMap {
+        &self.map
+    }
+}
+
+impl Backend for CpuBackend {
+    fn name(&self) -> &'static str {
+        "cpu"
+    }
+
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        normal: &NormalParams,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()> {
+        let n = (params.width * params.height) as usize;
+        self.frame.vertex.resize(n, cpu::INVALID);
+        self.frame.color.resize(n, cpu::INVALID);
+        self.frame.normal.resize(n, cpu::INVALID);
+        cpu::depth_to_vertex::depth_to_vertex(
+            params,
+            raw_depth,
+            raw_rgba,
+            &mut self.frame.vertex,
+            &mut self.frame.color,
+        );
+        cpu::vertex_to_normal::vertex_to_normal(normal, &self.frame.vertex, &mut self.frame.normal);
+        Ok(())
+    }
+
+    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
+        let mut params = *params;
+        params.surfel_count = self.map.len() as u32;
+        let n = (params.width * params.height) as usize;
+        self.index_map.clear();
+        self.index_map.resize(n, 0);
+        self.pred_vertex.resize(n, cpu::INVALID);
+        self.pred_normal.resize(n, cpu::INVALID);
+        cpu::project_model::project_model(&params, &self.map.positions, &mut self.index_map);
+        cpu::predict_model::predict_model(
+            &params,
+            &self.index_map,
+            &self.map.positions,
+            &self.map.normals,
+            &mut self.pred_vertex,
+            &mut self.pred_normal,
+        );
+        Ok(())
+    }
+
+    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        Ok(cpu::icp_reduce::icp_reduce(
+            params,
+            &self.pred_vertex,
+            &self.frame.vertex,
+            &self.frame.normal,
+        ))
+    }
+
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        let n_pix = (params.width * params.height) as usize;
+        let count = self.map.len();
+        let mut params = *params;
+        params.surfel_count = count as u32;
+        params.capacity = (count + n_pix) as u32;
+        self.assoc.clear();
+        self.assoc.resize(n_pix, 0);
+        let m = &mut self.map;
+        cpu::fuse_merge::fuse_merge(
+            &params,
+            &self.frame.vertex,
+            &self.frame.normal,
+            &self.frame.color,
+            &mut m.positions,
+            &mut m.normals,
+            &mut m.colors,
+            &mut m.weights,
+            &mut m.last_frame,
+            &mut self.assoc,
+        );
+        // Room for every pixel, as the GPU backend guarantees before its dispatch.
+        let cap = params.capacity as usize;
+        m.positions.resize(cap, [0.0; 4]);
+        m.normals.resize(cap, [0.0; 4]);
+        m.colors.resize(cap, [0.0; 4]);
+        m.weights.resize(cap, 0.0);
+        m.last_frame.resize(cap, 0);
+        let mut counter = count as u32;
+        cpu::fuse_add::fuse_add(
+            &params,
+            &self.frame.vertex,
+            &self.frame.normal,
+            &self.frame.color,
+            &self.assoc,
+            &mut counter,
+            &mut m.positions,
+            &mut m.normals,
+            &mut m.colors,
+            &mut m.weights,
+            &mut m.last_frame,
+        );
+        let new_len = counter as usize;
+        m.positions.truncate(new_len);
+        m.normals.truncate(new_len);
+        m.colors.truncate(new_len);
+        m.weights.truncate(new_len);
+        m.last_frame.truncate(new_len);
+        Ok(new_len)
+    }
+
+    fn surfel_count(&self) -> usize {
+        self.map.len()
+    }
+
+    fn download_map(&mut self) -> Result<SurfelMap> {
+        Ok(self.map.clone())
+    }
+
+    fn download_frame(&mut self) -> Result<FrameMaps> {
+        Ok(self.frame.clone())
+    }
+
+    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+        Ok((self.pred_vertex.clone(), self.pred_normal.clone()))
+    }
+}

@@ -1,0 +1,367 @@
+//! The dense-SLAM frame as a fixed sequence of kernel steps, generic over a [`Backend`].
+//!
+//! Per frame: `preprocess` (depth -> vertex, normal, colour maps), then for every frame but
+//! the first `predict` (render the map at the previous pose into a model vertex/normal map,
+//! once per frame so each ICP iteration is O(pixels), not O(map)), up to `max_iters` ICP
+//! iterations of `icp_system` + host solve + left-multiplicative update, then `fuse`
+//! (merge + add). The pipeline knows steps and parameters, not backends: the CPU twins and
+//! the GPU kernels implement [`Backend`], so the same loop runs on both.
+
+use glam::DMat4;
+
+use crate::camera::Intrinsics;
+use crate::layout::{
+    camera_floats, gpu_mat4, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
+};
+use crate::map::SurfelMap;
+use crate::se3;
+use crate::solve::{increment_size, update_pose, NormalEquations, SolveError};
+use crate::Result;
+
+/// The per-frame maps a backend holds after `preprocess` (downloaded for comparison).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameMaps {
+    /// Camera-frame vertices, metres, `w = 1` valid / `0` invalid.
+    pub vertex: Vec<[f32; 4]>,
+    /// Camera-frame unit normals, `w = 1` valid / `0` invalid.
+    pub normal: Vec<[f32; 4]>,
+    /// RGB 0..255.
+    pub color: Vec<[f32; 4]>,
+}
+
+/// Work counters a backend reports for the benchmark.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BackendCounters {
+    /// Bytes read back from the device since creation.
+    pub readback_bytes: u64,
+    /// Command submissions since creation.
+    pub submissions: u64,
+}
+
+/// Runs the kernel steps of one frame. Every method mirrors one or two kernels.
+pub trait Backend {
+    /// Short name for logs and reports (`cpu`, `gpu`).
+    fn name(&self) -> &'static str;
+    /// `depth_to_vertex` then `vertex_to_normal` on a raw frame (`raw_depth`: u16 depth
+    /// units; `raw_rgba`: packed RGBA8, both raw_width x raw_height).
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        normal: &NormalParams,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()>;
+    /// `project_model` then `predict_model` at `params.t_world_to_cam`
+    /// (`surfel_count` is filled in by the backend).
+    fn predict(&mut self, params: &ProjectParams) -> Result<()>;
+    /// `icp_reduce` at the current estimate: the summed 29-entry system.
+    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
+    /// `fuse_merge` then `fuse_add` (`surfel_count` and `capacity` are filled in by the
+    /// backend, which grows the map first when needed). Returns surfels after fusion.
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize>;
+    /// Surfels in the map.
+    fn surfel_count(&self) -> usize;
+    /// The whole map (for export and comparison).
+    fn download_map(&mut self) -> Result<SurfelMap>;
+    /// The current frame's maps.
+    fn download_frame(&mut self) -> Result<FrameMaps>;
+    /// The predicted model vertex and normal maps (world frame).
+    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)>;
+    /// Work counters (zero for the CPU).
+    fn counters(&self) -> BackendCounters {
+        BackendCounters::default()
+    }
+    /// Blocks until all submitted work has finished (for per-stage wall-clock timing;
+    /// a no-op for the CPU).
+    fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Where the poses come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum PoseSource {
+    /// Frame-to-model ICP (the first frame at ground truth, or identity without it).
+    Track,
+    /// Ground-truth poses, no tracking (the fusion-only experiment).
+    GroundTruth,
+}
+
+/// Every tunable of the dense pipeline, with the assignment's defaults.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SlamParams {
+    /// Keep every N-th pixel in each direction (the assignment uses 2).
+    pub downsample: u32,
+    /// Raw depth units per metre.
+    pub depth_scale: f32,
+    /// Valid depth range, metres.
+    pub min_depth_m: f32,
+    pub max_depth_m: f32,
+    /// Normals across a depth jump larger than this (metres) are invalid.
+    pub max_depth_jump_m: f32,
+    /// ICP filter 2: maximum point distance, metres.
+    pub icp_dist_m: f32,
+    /// ICP iterations per frame at most.
+    pub icp_max_iters: usize,
+    /// Stop iterating when the increment's rotation (rad) and translation (m) are both below.
+    pub icp_min_increment: f64,
+    /// Fusion filter 2: maximum point distance, metres.
+    pub fuse_dist_m: f32,
+    /// Fusion filter 2: maximum normal angle, degrees.
+    pub fuse_normal_deg: f32,
+    /// Tracking or ground-truth poses.
+    pub poses: PoseSource,
+}
+
+impl Default for SlamParams {
+    fn default() -> Self {
+        SlamParams {
+            downsample: 2,
+            depth_scale: 5000.0,
+            min_depth_m: 0.1,
+            max_depth_m: 10.0,
+            max_depth_jump_m: 0.1,
+            icp_dist_m: 0.07,
+            icp_max_iters: 10,
+            icp_min_increment: 1e-6,
+            fuse_dist_m: 0.03,
+            fuse_normal_deg: 5.0,
+            poses: PoseSource::Track,
+        }
+    }
+}
+
+/// One ICP iteration's statistics.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct IcpIteration {
+    /// Correspondences that passed both filters.
+    pub inliers: u64,
+    /// Mean squared point-to-plane residual before the update, m².
+    pub mean_sq_residual: f64,
+}
+
+/// How a frame's pose was obtained.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub enum TrackStatus {
+    /// The first frame (ground truth or identity) or a ground-truth pose.
+    Given,
+    /// ICP converged (increment below threshold) within the iteration budget.
+    Converged,
+    /// ICP used all iterations; the last pose is kept.
+    MaxIterations,
+    /// ICP refused a later iteration's system; the last good pose is kept.
+    Stopped(String),
+    /// ICP refused the first system: tracking lost, previous pose kept, frame not fused.
+    Lost(String),
+    /// No valid depth pixel: skipped, previous pose kept, frame not fused.
+    EmptyDepth,
+}
+
+/// What the pipeline did with one frame.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FrameReport {
+    /// Pose of the camera, camera to world.
+    #[serde(skip)]
+    pub t_cam_to_world: DMat4,
+    pub status: TrackStatus,
+    pub iterations: Vec<IcpIteration>,
+    /// Surfels after fusing this frame.
+    pub surfels: usize,
+}
+
+/// Drives a backend frame by frame; holds the pose and the frame counter.
+pub struct Slam<B: Backend> {
+    pub backend: B,
+    pub params: SlamParams,
+    /// Intrinsics of the raw frames.
+    pub raw_intrinsics: Intrinsics,
+    /// Intrinsics of the (downsampled) maps.
+    pub intrinsics: Intrinsics,
+    /// Last accepted world-to-camera pose, `None` before the first frame.
+    t_world_to_cam: Option<DMat4>,
+}
+
+impl<B: Backend> Slam<B> {
+    /// A pipeline over `backend` for raw frames with `raw_intrinsics`.
+    pub fn new(backend: B, raw_intrinsics: Intrinsics, params: SlamParams) -> Self {
+        let intrinsics = raw_intrinsics.downsampled(params.downsample.max(1));
+        Slam {
+            backend,
+            params,
+            raw_intrinsics,
+            intrinsics,
+            t_world_to_cam: None,
+        }
+    }
+
+    /// Parameters of `depth_to_vertex`.
+    pub fn preprocess_params(&self) -> PreprocessParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        PreprocessParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            raw_width: self.raw_intrinsics.width,
+            raw_height: self.raw_intrinsics.height,
+            stride: self.params.downsample.max(1),
+            depth_scale: self.params.depth_scale,
+            min_depth_m: self.params.min_depth_m,
+            max_depth_m: self.params.max_depth_m,
+        }
+    }
+
+    /// Parameters of `vertex_to_normal`.
+    pub fn normal_params(&self) -> NormalParams {
+        NormalParams {
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            max_depth_jump_m: self.params.max_depth_jump_m,
+            _pad: 0,
+        }
+    }
+
+    /// Parameters of `project_model`/`predict_model` at a world-to-camera pose.
+    pub fn project_params(&self, t_world_to_cam: &DMat4) -> ProjectParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        ProjectParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            surfel_count: self.backend.surfel_count() as u32,
+            _pad: 0,
+        }
+    }
+
+    /// Parameters of `icp_reduce` at the current estimate.
+    pub fn icp_params(&self, t_world_to_cam: &DMat4) -> IcpParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        IcpParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            dist_threshold_m: self.params.icp_dist_m,
+            _pad: 0,
+        }
+    }
+
+    /// Parameters of `fuse_merge`/`fuse_add` (count and capacity filled by the backend).
+    pub fn fuse_params(&self, t_world_to_cam: &DMat4, frame_id: u32) -> FuseParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        FuseParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            t_cam_to_world: gpu_mat4(&se3::inverse_rigid(t_world_to_cam)),
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            surfel_count: self.backend.surfel_count() as u32,
+            frame_id,
+            dist_threshold_m: self.params.fuse_dist_m,
+            cos_normal_threshold: self.params.fuse_normal_deg.to_radians().cos(),
+            capacity: 0,
+            _pad: 0,
+        }
+    }
+
+    /// Processes one raw frame. `gt_cam_to_world` is used for the first frame (and for every
+    /// frame with [`PoseSource::GroundTruth`]); `frame_id` is stored in fused surfels.
+    pub fn process(
+        &mut self,
+        frame_id: u32,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+        gt_cam_to_world: Option<&DMat4>,
+    ) -> Result<FrameReport> {
+        let (pp, np) = (self.preprocess_params(), self.normal_params());
+        let given = match (self.params.poses, self.t_world_to_cam, gt_cam_to_world) {
+            (PoseSource::GroundTruth, _, Some(gt)) => Some(se3::inverse_rigid(gt)),
+            (PoseSource::GroundTruth, _, None) => {
+                return Err(crate::Error::Argument(format!(
+                    "--poses gt needs ground truth, and frame {frame_id} has none"
+                )))
+            }
+            (PoseSource::Track, None, gt) => {
+                Some(gt.map(se3::inverse_rigid).unwrap_or(DMat4::IDENTITY))
+            }
+            (PoseSource::Track, Some(_), _) => None,
+        };
+        let valid = raw_depth.iter().filter(|&&d| d > 0).count();
+        if valid == 0 {
+            return Ok(self.report(self.t_world_to_cam, TrackStatus::EmptyDepth, vec![]));
+        }
+        self.backend.preprocess(&pp, &np, raw_depth, raw_rgba)?;
+        let (t_world_to_cam, status, iterations) = match given {
+            Some(t) => (t, TrackStatus::Given, vec![]),
+            None => self.track()?,
+        };
+        if let TrackStatus::Lost(_) = status {
+            return Ok(self.report(self.t_world_to_cam, status, iterations));
+        }
+        self.t_world_to_cam = Some(t_world_to_cam);
+        self.backend
+            .fuse(&self.fuse_params(&t_world_to_cam, frame_id))?;
+        Ok(self.report(Some(t_world_to_cam), status, iterations))
+    }
+
+    fn report(
+        &self,
+        t_world_to_cam: Option<DMat4>,
+        status: TrackStatus,
+        iterations: Vec<IcpIteration>,
+    ) -> FrameReport {
+        FrameReport {
+            t_cam_to_world: se3::inverse_rigid(&t_world_to_cam.unwrap_or(DMat4::IDENTITY)),
+            status,
+            iterations,
+            surfels: self.backend.surfel_count(),
+        }
+    }
+
+    /// Frame-to-model ICP from the previous pose: predict once, then iterate.
+    fn track(&mut self) -> Result<(DMat4, TrackStatus, Vec<IcpIteration>)> {
+        let t_prev = self
+            .t_world_to_cam
+            .expect("track() is only called after a first frame");
+        self.backend.predict(&self.project_params(&t_prev))?;
+        let mut t = t_prev;
+        let mut iterations = Vec::new();
+        for it in 0..self.params.icp_max_iters {
+            let sys = self.backend.icp_system(&self.icp_params(&t))?;
+            let eq = NormalEquations::decode(&sys);
+            iterations.push(IcpIteration {
+                inliers: eq.inliers,
+                mean_sq_residual: eq.mean_sq_residual(),
+            });
+            match eq.solve() {
+                Ok(x) => {
+                    t = update_pose(&t, &x);
+                    let (r, tr) = increment_size(&x);
+                    if r < self.params.icp_min_increment && tr < self.params.icp_min_increment {
+                        return Ok((t, TrackStatus::Converged, iterations));
+                    }
+                }
+                Err(e) if it == 0 => return Ok((t_prev, lost(&e), iterations)),
+                Err(e) => return Ok((t, TrackStatus::Stopped(e.to_string()), iterations)),
+            }
+        }
+        Ok((t, TrackStatus::MaxIterations, iterations))
+    }
+}
+
+fn lost(e: &SolveError) -> TrackStatus {
+    TrackStatus::Lost(e.to_string())
+}

@@ -1,0 +1,262 @@
+//! The batch job: run the dense pipeline over a sequence, evaluate, write the outputs.
+//!
+//! Frames are decoded on a helper thread one frame ahead, so PNG decoding overlaps the
+//! pipeline; the per-frame time reported is the pipeline's (decode excluded), and the
+//! wall-clock total is reported beside it. Outputs go to `--out DIR`, each file written
+//! completely or not at all (`io::atomic`).
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Instant;
+
+use glam::DMat4;
+use serde::Serialize;
+
+use crate::dataset::{RawFrame, Sequence};
+use crate::eval;
+use crate::io;
+use crate::layout::pack_rgba8;
+use crate::map::SurfelMap;
+use crate::pipeline::{Backend, FrameReport, Slam, SlamParams, TrackStatus};
+use crate::Result;
+
+/// One processed frame: where it sits in the sequence and what the pipeline did.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameOutcome {
+    /// Position in the sequence.
+    pub index: usize,
+    /// Dataset stamp (seconds, or the frame index for ICL-NUIM).
+    pub timestamp: f64,
+    /// Pipeline time for this frame, seconds (decode excluded).
+    pub seconds: f64,
+    pub report: FrameReport,
+}
+
+/// The result of a whole run.
+pub struct RunResult {
+    pub frames: Vec<FrameOutcome>,
+    pub map: SurfelMap,
+    pub metrics: Metrics,
+}
+
+/// Counts of how frames were tracked.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct TrackingCounts {
+    pub given: usize,
+    pub converged: usize,
+    pub max_iterations: usize,
+    pub stopped: usize,
+    pub lost: usize,
+    pub empty_depth: usize,
+}
+
+/// ATE and RPE against ground truth (TUM benchmark definitions).
+#[derive(Debug, Clone, Serialize)]
+pub struct Accuracy {
+    /// Pose pairs evaluated.
+    pub pairs: usize,
+    /// Absolute trajectory error RMSE after a rigid (Horn/Umeyama, no scale) alignment, m.
+    pub ate_rmse_aligned_m: f64,
+    /// Absolute trajectory error RMSE without alignment, m.
+    pub ate_rmse_unaligned_m: f64,
+    /// Relative pose error between consecutive frames: translation RMSE, m.
+    pub rpe_trans_rmse_m: f64,
+    /// Relative pose error between consecutive frames: rotation RMSE, degrees.
+    pub rpe_rot_rmse_deg: f64,
+}
+
+/// What `metrics.json` holds.
+#[derive(Debug, Clone, Serialize)]
+pub struct Metrics {
+    pub backend: String,
+    pub dataset: PathBuf,
+    pub first_frame: usize,
+    pub last_frame: usize,
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    pub params: SlamParams,
+    pub time_per_frame_median_s: f64,
+    pub time_per_frame_mean_s: f64,
+    pub time_total_s: f64,
+    pub wall_total_s: f64,
+    pub map_points: usize,
+    /// Map points / (frames x H x W) of the downsampled maps.
+    pub compression_ratio: f64,
+    pub tracking: TrackingCounts,
+    pub accuracy: Option<Accuracy>,
+    /// Peak resident memory of the process (VmHWM), MiB; None where not available.
+    pub peak_memory_mib: Option<f64>,
+}
+
+/// Packs a frame's RGB into the RGBA8 words the pipeline takes.
+pub fn packed_rgba(frame: &RawFrame) -> Vec<u32> {
+    frame.rgb.iter().map(|&c| pack_rgba8(c)).collect()
+}
+
+/// Peak resident set size of this process in MiB (Linux `/proc/self/status` VmHWM).
+pub fn peak_memory_mib() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// Runs `slam` over frames `first..=last` of `seq`, calling `on_frame` after each frame
+/// (for progress). Frames are decoded one ahead on a helper thread.
+pub fn run_frames<B: Backend>(
+    slam: &mut Slam<B>,
+    seq: &Sequence,
+    first: usize,
+    last: usize,
+    mut on_frame: impl FnMut(&FrameOutcome),
+) -> Result<(Vec<FrameOutcome>, f64)> {
+    let wall = Instant::now();
+    let (tx, rx) = mpsc::sync_channel::<(usize, Result<RawFrame>)>(1);
+    let mut outcomes = Vec::with_capacity(last + 1 - first);
+    std::thread::scope(|s| -> Result<()> {
+        s.spawn(move || {
+            for i in first..=last {
+                if tx.send((i, seq.load(i))).is_err() {
+                    break; // the consumer stopped on an error
+                }
+            }
+        });
+        for (i, frame) in rx {
+            let frame = frame?;
+            let rgba = packed_rgba(&frame);
+            let rec = &seq.frames[i];
+            let t0 = Instant::now();
+            let report =
+                slam.process(i as u32, &frame.depth, &rgba, rec.gt_cam_to_world.as_ref())?;
+            let out = FrameOutcome {
+                index: i,
+                timestamp: rec.timestamp,
+                seconds: t0.elapsed().as_secs_f64(),
+                report,
+            };
+            on_frame(&out);
+            outcomes.push(out);
+        }
+        Ok(())
+    })?;
+    Ok((outcomes, wall.elapsed().as_secs_f64()))
+}
+
+/// The estimated trajectory `(stamp, t_cam_to_world)`: every frame from the first one that
+/// was placed on (frames before it, with empty depth, have no pose).
+pub fn trajectory(frames: &[FrameOutcome]) -> Vec<(f64, DMat4)> {
+    frames
+        .iter()
+        .skip_while(|f| f.report.status == TrackStatus::EmptyDepth)
+        .map(|f| (f.timestamp, f.report.t_cam_to_world))
+        .collect()
+}
+
+/// ATE/RPE of an estimated trajectory against ground truth, `None` without common stamps.
+pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accuracy>> {
+    if gt.is_empty() || est.len() < 2 {
+        return Ok(None);
+    }
+    let aligned = eval::ate(est, gt, true)?;
+    let unaligned = eval::ate(est, gt, false)?;
+    let rpe = eval::rpe(est, gt, 1)?;
+    Ok(Some(Accuracy {
+        pairs: aligned.pairs,
+        ate_rmse_aligned_m: aligned.rmse_m,
+        ate_rmse_unaligned_m: unaligned.rmse_m,
+        rpe_trans_rmse_m: rpe.trans_rmse_m,
+        rpe_rot_rmse_deg: rpe.rot_rmse_deg,
+    }))
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Runs the whole job on `backend` and computes the metrics (no files written).
+pub fn run<B: Backend>(
+    backend: B,
+    seq: &Sequence,
+    first: usize,
+    last: usize,
+    params: SlamParams,
+    on_frame: impl FnMut(&FrameOutcome),
+) -> Result<RunResult> {
+    let mut params = params;
+    params.depth_scale = seq.depth_scale;
+    let mut slam = Slam::new(backend, seq.intrinsics, params);
+    let (frames, wall) = run_frames(&mut slam, seq, first, last, on_frame)?;
+    let map = slam.backend.download_map()?;
+    let mut counts = TrackingCounts::default();
+    for f in &frames {
+        match f.report.status {
+            TrackStatus::Given => counts.given += 1,
+            TrackStatus::Converged => counts.converged += 1,
+            TrackStatus::MaxIterations => counts.max_iterations += 1,
+            TrackStatus::Stopped(_) => counts.stopped += 1,
+            TrackStatus::Lost(_) => counts.lost += 1,
+            TrackStatus::EmptyDepth => counts.empty_depth += 1,
+        }
+    }
+    let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
+    let total: f64 = times.iter().sum();
+    let est = trajectory(&frames);
+    let accuracy = accuracy(&est, &seq.ground_truth())?;
+    let k = slam.intrinsics;
+    let metrics = Metrics {
+        backend: slam.backend.name().to_string(),
+        dataset: seq.root.clone(),
+        first_frame: first,
+        last_frame: last,
+        frames: frames.len(),
+        width: k.width,
+        height: k.height,
+        params: slam.params.clone(),
+        time_per_frame_median_s: median(times.clone()),
+        time_per_frame_mean_s: total / frames.len().max(1) as f64,
+        time_total_s: total,
+        wall_total_s: wall,
+        map_points: map.len(),
+        compression_ratio: map.len() as f64 / (frames.len().max(1) * k.pixels()) as f64,
+        tracking: counts,
+        accuracy,
+        peak_memory_mib: peak_memory_mib(),
+    };
+    Ok(RunResult {
+        frames,
+        map,
+        metrics,
+    })
+}
+
+/// Writes `trajectory.tum`, `map.ply`, `metrics.json` and `frames.json` into `out`
+/// (created if missing), each file completely or not at all.
+pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {
+    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
+    io::trajectory::write_tum(&out.join("trajectory.tum"), &trajectory(&result.frames))?;
+    io::ply::write_surfel_map(&out.join("map.ply"), &result.map)?;
+    write_json(&out.join("metrics.json"), &result.metrics)?;
+    write_json(&out.join("frames.json"), &result.frames)?;
+    Ok(())
+}
+
+/// Writes any serialisable value as pretty JSON, atomically.
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    io::atomic::write_atomic(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, value)
+            .map_err(|e| crate::Error::format(path, format!("JSON encoding failed: {e}")))?;
+        writeln!(w).map_err(|e| crate::Error::io(path, e))
+    })
+}
+
+use std::io::Write as _;

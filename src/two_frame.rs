@@ -1,0 +1,84 @@
+//! The two-frame ICP experiment: align one frame's points to another's by the same
+//! projective point-to-plane ICP the tracker uses, starting from identity.
+//!
+//! The source frame is fused into an empty map at the identity pose (so the "world" is the
+//! source camera), then the target frame is tracked against it. The result maps source
+//! camera coordinates into target camera coordinates (`t_source_to_target`); with ground
+//! truth it is compared with `inv(T_target_cam_to_world) * T_source_cam_to_world`.
+
+use glam::DMat4;
+use serde::Serialize;
+
+use crate::dataset::Sequence;
+use crate::pipeline::{Backend, IcpIteration, PoseSource, Slam, SlamParams, TrackStatus};
+use crate::run::packed_rgba;
+use crate::{se3, Result};
+
+/// Outcome of [`align_frames`].
+#[derive(Debug, Clone, Serialize)]
+pub struct TwoFrameResult {
+    pub source: usize,
+    pub target: usize,
+    pub status: TrackStatus,
+    pub iterations: Vec<IcpIteration>,
+    /// Source camera to target camera (column-major 4x4).
+    pub t_source_to_target: [[f64; 4]; 4],
+    /// Rotation error against ground truth, degrees.
+    pub rotation_error_deg: Option<f64>,
+    /// Translation error against ground truth, metres.
+    pub translation_error_m: Option<f64>,
+    /// Ground-truth motion between the frames: rotation (deg) and translation (m).
+    pub gt_motion: Option<(f64, f64)>,
+}
+
+/// Aligns frame `target` to frame `source` with `params` (its `poses` is ignored).
+pub fn align_frames<B: Backend>(
+    backend: B,
+    seq: &Sequence,
+    source: usize,
+    target: usize,
+    params: SlamParams,
+) -> Result<TwoFrameResult> {
+    let mut params = params;
+    params.poses = PoseSource::Track;
+    params.depth_scale = seq.depth_scale;
+    let mut slam = Slam::new(backend, seq.intrinsics, params);
+    for (i, gt) in [(source, Some(&DMat4::IDENTITY)), (target, None)] {
+        let frame = seq.load(i)?;
+        if frame.valid_depth_pixels() == 0 {
+            return Err(crate::Error::format(
+                &seq.frames[i].depth_path,
+                "depth image has no valid pixel",
+            ));
+        }
+        let rgba = packed_rgba(&frame);
+        let report = slam.process(i as u32, &frame.depth, &rgba, gt)?;
+        if i == target || source == target {
+            let t_source_to_target = se3::inverse_rigid(&report.t_cam_to_world);
+            let gt_rel = match (
+                seq.frames[source].gt_cam_to_world,
+                seq.frames[target].gt_cam_to_world,
+            ) {
+                (Some(s), Some(t)) => Some(se3::inverse_rigid(&t) * s),
+                _ => None,
+            };
+            let err = gt_rel.map(|g| se3::inverse_rigid(&g) * t_source_to_target);
+            return Ok(TwoFrameResult {
+                source,
+                target,
+                status: report.status,
+                iterations: report.iterations,
+                t_source_to_target: t_source_to_target.to_cols_array_2d(),
+                rotation_error_deg: err.map(|e| se3::rotation_angle(&e).to_degrees()),
+                translation_error_m: err.map(|e| se3::translation_norm(&e)),
+                gt_motion: gt_rel.map(|g| {
+                    (
+                        se3::rotation_angle(&g).to_degrees(),
+                        se3::translation_norm(&g),
+                    )
+                }),
+            });
+        }
+    }
+    unreachable!("the loop returns at the target frame")
+}

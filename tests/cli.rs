@@ -1,0 +1,81 @@
+//! The `wgslam` executable as a user runs it: outputs written, errors clear, exit codes.
+
+mod common;
+
+use std::process::Command;
+
+fn wgslam(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_wgslam"))
+        .args(args)
+        .output()
+        .expect("run wgslam")
+}
+
+fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn run_writes_all_outputs_on_bundled_data() {
+    let out = common::temp_dir("cli-run");
+    let o = wgslam(&[
+        "run",
+        "--backend",
+        "cpu",
+        "--frames",
+        "1..4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["trajectory.tum", "map.ply", "metrics.json", "frames.json"] {
+        assert!(out.join(f).is_file(), "{f} missing: {}", text(&o));
+    }
+    let traj = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
+    assert_eq!(traj.lines().filter(|l| !l.starts_with('#')).count(), 4);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap())
+            .unwrap();
+    assert_eq!(m["frames"], 4);
+    assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
+    // The written trajectory evaluates against the dataset's own ground truth.
+    let gt = common::bundled_icl().join("livingRoom2.gt.freiburg");
+    let o = wgslam(&[
+        "eval",
+        out.join("trajectory.tum").to_str().unwrap(),
+        gt.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("ATE RMSE"), "{}", text(&o));
+}
+
+#[test]
+fn icp_two_frames_prints_iterations_and_error() {
+    let o = wgslam(&["icp", "--backend", "cpu", "--source", "10", "--target", "20"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(t.contains("against ground truth"), "{t}");
+    assert!(t.contains("mean squared residual"), "{t}");
+}
+
+#[test]
+fn clear_errors_for_bad_input() {
+    let cases: [(&[&str], &str); 5] = [
+        (&["run", "/nonexistent/seq"], "/nonexistent/seq"),
+        (&["run", "--frames", "5..900"], "outside"),
+        (&["run", "--frames", "banana"], "A..B"),
+        (&["run", "--downsample", "0"], "downsample"),
+        (&["eval", "/nonexistent/a.tum", "/nonexistent/b.tum"], "a.tum"),
+    ];
+    for (args, needle) in cases {
+        let o = wgslam(args);
+        assert!(!o.status.success(), "{args:?} should fail");
+        let t = text(&o);
+        assert!(t.contains(needle), "{args:?}: {t}");
+        assert!(!t.contains("panicked"), "{args:?} panicked: {t}");
+    }
+}
