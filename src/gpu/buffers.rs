@@ -371,3 +371,55 @@ impl<T: Pod> Uniform<T> {
         self.buffer.as_entire_binding()
     }
 }
+
+/// A persistent `MAP_READ` staging buffer for small per-frame read-backs (ICP partials,
+/// the surfel counter), so the frame loop allocates nothing.
+pub struct Readback<T: Pod> {
+    staging: wgpu::Buffer,
+    capacity: usize,
+    /// Elements copied by the last [`Readback::copy_from`].
+    pending: usize,
+    _element: PhantomData<T>,
+}
+
+impl<T: Pod> Readback<T> {
+    /// Room for `capacity` elements (at least one).
+    pub fn new(ctx: &GpuContext, label: &str, capacity: usize) -> Self {
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: padded_bytes((capacity.max(1) * std::mem::size_of::<T>()) as u64),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Readback {
+            staging,
+            capacity: capacity.max(1),
+            pending: 0,
+            _element: PhantomData,
+        }
+    }
+
+    /// Records a copy of the first `n` elements of `src` into the staging buffer.
+    /// Panics when `n` exceeds either capacity (an internal contract).
+    pub fn copy_from(&mut self, encoder: &mut wgpu::CommandEncoder, src: &GpuArray<T>, n: usize) {
+        assert!(
+            n <= self.capacity && n <= src.capacity(),
+            "read-back of {n} elements from `{}` exceeds a capacity",
+            src.label
+        );
+        let bytes = padded_bytes((n * std::mem::size_of::<T>()) as u64).min(src.buffer.size());
+        encoder.copy_buffer_to_buffer(&src.buffer, 0, &self.staging, 0, bytes);
+        self.pending = n;
+    }
+
+    /// Waits for the submitted copy and returns its elements (counted as read-back bytes).
+    pub fn read(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
+        let n = std::mem::take(&mut self.pending);
+        let bytes = n * std::mem::size_of::<T>();
+        let out = map_read(ctx, &self.staging, |view| {
+            bytemuck::pod_collect_to_vec::<u8, T>(&view[..bytes])
+        })?;
+        ctx.stats_handle().readback(bytes as u64);
+        Ok(out)
+    }
+}

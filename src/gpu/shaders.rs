@@ -10,7 +10,27 @@ pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 
 /// Every kernel as `(name, text of shaders/<name>.wgsl)`. Keep in sync with the directory:
 /// `tests/shaders.rs` fails when a `.wgsl` file is missing here.
-pub const KERNELS: &[(&str, &str)] = &[];
+pub const KERNELS: &[(&str, &str)] = &[
+    (
+        "depth_to_vertex",
+        include_str!("../../shaders/depth_to_vertex.wgsl"),
+    ),
+    (
+        "vertex_to_normal",
+        include_str!("../../shaders/vertex_to_normal.wgsl"),
+    ),
+    (
+        "project_model",
+        include_str!("../../shaders/project_model.wgsl"),
+    ),
+    (
+        "predict_model",
+        include_str!("../../shaders/predict_model.wgsl"),
+    ),
+    ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
+    ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
+    ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
+];
 
 /// The kernel file's text alone (without `common.wgsl`), or `None` for an unknown name.
 pub fn kernel_text(kernel_name: &str) -> Option<&'static str> {
