@@ -1,8 +1,9 @@
 //! wgslam: dense RGB-D SLAM with point-based fusion, and point-to-point ICP, on wgpu.
 //!
 //! The CPU reference lives in [`cpu`] (pure functions, no wgpu) and [`cpu_backend`]; the
-//! GPU backend runs the same steps as WGSL compute kernels from `shaders/`. [`pipeline`]
-//! holds the frame's steps, generic over a backend; [`run`] is the batch job.
+//! GPU backend in [`gpu`] runs the same steps as WGSL compute kernels from `shaders/`.
+//! [`pipeline`] holds the frame's steps, generic over a backend; [`run`] is the batch job;
+//! [`scan`] is point-to-point ICP for point clouds.
 
 pub mod bench;
 pub mod camera;
@@ -13,6 +14,7 @@ pub mod cpu_backend;
 pub mod dataset;
 pub mod error;
 pub mod eval;
+pub mod gpu;
 pub mod io;
 pub mod layout;
 pub mod map;
