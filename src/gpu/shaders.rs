@@ -30,6 +30,15 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
+    // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
+    (
+        "render_splat",
+        include_str!("../../shaders/render_splat.wgsl"),
+    ),
+    (
+        "render_resolve",
+        include_str!("../../shaders/render_resolve.wgsl"),
+    ),
 ];
 
 /// The kernel file's text alone (without `common.wgsl`), or `None` for an unknown name.

@@ -1,1 +1,143 @@
-//! GPU pass of the renderer (not yet implemented).
+//! The GPU pass of the renderer: `render_splat` then `render_resolve` in one submission,
+//! the same kernels as the CPU twins in `src/cpu/render_*.rs`.
+//!
+//! Thin wrapper: two kernels created once, buffers created per picture (a render is a
+//! one-off, not a per-frame step), one read-back of the packed pixels. Needs 64-bit
+//! atomics (`SHADER_INT64_ATOMIC_MIN_MAX`), like `project_model`.
+
+use image::RgbImage;
+
+use super::layout::RenderParams;
+use super::{render_params, rgba_to_image, Cloud, RenderCamera, RenderSettings, View};
+use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, Uniform};
+use crate::{Error, Result};
+
+/// Bindings of `render_splat` (order of `@binding(i)`).
+pub const RENDER_SPLAT: [Binding; 4] = [
+    Binding::uniform("params: RenderParams"),
+    Binding::read("positions: world frame"),
+    Binding::read("normals: world frame (back-face culling)"),
+    Binding::read_write("index_map: atomic u64 depth|index keys"),
+];
+
+/// Bindings of `render_resolve` (order of `@binding(i)`).
+pub const RENDER_RESOLVE: [Binding; 6] = [
+    Binding::uniform("params: RenderParams"),
+    Binding::read("index_map: u64 keys as vec2<u32>"),
+    Binding::read("normals: world frame"),
+    Binding::read("colors: RGB 0..255"),
+    Binding::read("weights"),
+    Binding::read_write("out_rgba: packed RGBA8"),
+];
+
+/// The two render kernels, created once per context.
+#[derive(Debug)]
+pub struct GpuRenderer {
+    splat: Kernel,
+    resolve: Kernel,
+}
+
+impl GpuRenderer {
+    /// Creates both pipelines. [`Error::Gpu`] when the adapter lacks 64-bit atomics.
+    pub fn new(ctx: &GpuContext) -> Result<GpuRenderer> {
+        if !ctx.has_int64_atomics() {
+            return Err(Error::Gpu(format!(
+                "adapter \"{}\" lacks 64-bit atomics (SHADER_INT64 + \
+                 SHADER_INT64_ATOMIC_MIN_MAX), which render_splat needs; use --backend cpu",
+                ctx.adapter_info().name
+            )));
+        }
+        Ok(GpuRenderer {
+            splat: Kernel::new(ctx, "render_splat", &RENDER_SPLAT)?,
+            resolve: Kernel::new(ctx, "render_resolve", &RENDER_RESOLVE)?,
+        })
+    }
+
+    /// Runs both kernels for `params` and reads back the index map and the packed pixels
+    /// (`width * height` each, row-major). Attributes the cloud lacks are bound as a
+    /// one-element dummy that the chosen view never reads. [`Error::Capacity`] when a
+    /// buffer exceeds the device's storage-binding limit.
+    pub fn render_raw(
+        &self,
+        ctx: &GpuContext,
+        params: &RenderParams,
+        cloud: &Cloud,
+    ) -> Result<(Vec<u64>, Vec<u32>)> {
+        cloud.check()?;
+        assert!(
+            params.surfel_count as usize <= cloud.positions.len(),
+            "surfel_count past the positions"
+        );
+        let n = params.width as usize * params.height as usize;
+        const DUMMY4: [[f32; 4]; 1] = [[0.0; 4]];
+        let positions = GpuArray::from_slice(ctx, "render positions", cloud.positions)?;
+        let normals =
+            GpuArray::from_slice(ctx, "render normals", cloud.normals.unwrap_or(&DUMMY4))?;
+        let colors = GpuArray::from_slice(ctx, "render colors", cloud.colors.unwrap_or(&DUMMY4))?;
+        let weights = GpuArray::from_slice(ctx, "render weights", cloud.weights.unwrap_or(&[0.0]))?;
+        let mut index_map = GpuArray::<u64>::new(ctx, "render index map", n)?;
+        index_map.set_len(n);
+        let mut out = GpuArray::<u32>::new(ctx, "render pixels", n)?;
+        out.set_len(n);
+        let uniform = Uniform::new(ctx, "RenderParams", params);
+        let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
+        let splat_groups = self
+            .splat
+            .workgroups_for(params.surfel_count as usize)
+            .min(max_groups);
+        let resolve_groups = self.resolve.workgroups_for(n).min(max_groups);
+        ctx.scoped("render", || {
+            let splat_bg = self.splat.bind_group(
+                ctx,
+                &[
+                    uniform.binding(),
+                    positions.binding(),
+                    normals.binding(),
+                    index_map.binding(),
+                ],
+            );
+            let resolve_bg = self.resolve.bind_group(
+                ctx,
+                &[
+                    uniform.binding(),
+                    index_map.binding(),
+                    normals.binding(),
+                    colors.binding(),
+                    weights.binding(),
+                    out.binding(),
+                ],
+            );
+            let mut enc = ctx.encoder("render");
+            index_map.clear(&mut enc);
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                self.splat
+                    .dispatch(ctx, &mut pass, &splat_bg, splat_groups)?;
+            }
+            {
+                // A second pass: every splat must land before any pixel is resolved.
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                self.resolve
+                    .dispatch(ctx, &mut pass, &resolve_bg, resolve_groups)?;
+            }
+            ctx.submit(enc);
+            ctx.wait_idle()
+        })?;
+        Ok((index_map.read_back(ctx)?, out.read_back(ctx)?))
+    }
+
+    /// Renders `cloud` from `camera` on the GPU: the same picture as [`super::render_cpu`]
+    /// (up to rounding at splat borders).
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        cloud: &Cloud,
+        camera: &RenderCamera,
+        view: View,
+        settings: &RenderSettings,
+    ) -> Result<RgbImage> {
+        let params = render_params(cloud, camera, view, settings)?;
+        let (_, rgba) = self.render_raw(ctx, &params, cloud)?;
+        Ok(rgba_to_image(params.width, params.height, &rgba))
+    }
+}
