@@ -9,11 +9,14 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use crate::camera::Intrinsics;
+use crate::cli::BackendChoice;
+use crate::gpu::GpuContext;
 use crate::io::ply::{read_ply, PlyCloud};
 use crate::io::trajectory::{parse_tum, read_tum};
+use crate::render::gpu::GpuRenderer;
 use crate::render::outputs::map_view_hint;
 use crate::render::{
-    default_camera, parse_size, render_cpu, write_png, Cloud, RenderCamera, RenderSettings, View,
+    default_camera, parse_size, write_png, Cloud, RenderBackend, RenderCamera, RenderSettings, View,
 };
 use crate::{Error, Result};
 
@@ -47,6 +50,10 @@ pub struct RenderArgs {
     /// viewpoint outside a room sees in through its walls).
     #[arg(long)]
     pub no_cull: bool,
+    /// Which implementation draws: auto (the GPU when an adapter with 64-bit atomics
+    /// exists, otherwise the CPU, saying so), cpu or gpu.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
     /// Output PNG (written completely or not at all).
     #[arg(short = 'o', long = "out")]
     pub out: PathBuf,
@@ -59,6 +66,8 @@ pub struct RenderReport {
     /// The view drawn (a depth view when the requested attribute is missing).
     pub view: View,
     pub size: (u32, u32),
+    /// `cpu` or `gpu`: what drew it.
+    pub backend: &'static str,
     /// One sentence per problem met that did not stop the render (missing attributes).
     pub warnings: Vec<String>,
 }
@@ -204,12 +213,41 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
         cull_backfaces: !args.no_cull,
         ..RenderSettings::default()
     };
-    let img = render_cpu(&cloud, &camera, used, &settings)?;
+    let gpu = open_gpu(args.backend, &mut warnings)?;
+    let backend = match &gpu {
+        Some((ctx, kernels)) => RenderBackend::Gpu { ctx, kernels },
+        None => RenderBackend::Cpu,
+    };
+    let img = backend.render(&cloud, &camera, used, &settings)?;
     write_png(&args.out, &img)?;
     Ok(RenderReport {
         points: arrays.positions.len(),
         view: used,
         size: (width, height),
+        backend: backend.name(),
         warnings,
     })
+}
+
+/// The GPU context and render kernels for `choice`: `None` for the CPU. `Auto` falls back to
+/// the CPU with a warning when no suitable adapter exists; `Gpu` fails instead.
+pub fn open_gpu(
+    choice: BackendChoice,
+    warnings: &mut Vec<String>,
+) -> Result<Option<(GpuContext, GpuRenderer)>> {
+    if choice == BackendChoice::Cpu {
+        return Ok(None);
+    }
+    let opened = GpuContext::new().and_then(|ctx| {
+        let kernels = GpuRenderer::new(&ctx)?;
+        Ok((ctx, kernels))
+    });
+    match (opened, choice) {
+        (Ok(pair), _) => Ok(Some(pair)),
+        (Err(e), BackendChoice::Auto) => {
+            warnings.push(format!("no usable GPU ({e}); drawing on the CPU"));
+            Ok(None)
+        }
+        (Err(e), _) => Err(e),
+    }
 }

@@ -42,12 +42,11 @@ fn load_frame(root: &Path, i: usize) -> (Vec<u16>, Vec<u32>) {
     (depth.into_raw(), rgba)
 }
 
+/// Intrinsics, then camera-frame vertex, normal and colour maps (row-major `[f32; 4]`).
+type Maps = (Intrinsics, Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[f32; 4]>);
+
 /// Camera-frame vertex, normal and colour maps of frame `i`, downsampled by `stride`.
-fn frame_maps(
-    root: &Path,
-    i: usize,
-    stride: u32,
-) -> (Intrinsics, Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[f32; 4]>) {
+fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
     let k = Intrinsics::ICL_NUIM.downsampled(stride);
     let (depth, rgba) = load_frame(root, i);
     let pp = PreprocessParams {
@@ -417,6 +416,7 @@ fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
         up: "y".into(),
         splat_radius: 0.01,
         no_cull: false,
+        backend: wgslam::cli::BackendChoice::Cpu,
         out: out.to_path_buf(),
     }
 }
@@ -443,6 +443,18 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
             "{view} view nearly empty"
         );
     }
+    // Auto: the GPU when there is one, else the CPU with a warning; same size either way.
+    let mut args = render_args(&ply, &out);
+    args.backend = wgslam::cli::BackendChoice::Auto;
+    let report = run_render(&args).unwrap();
+    eprintln!(
+        "auto backend drew on {}: {:?}",
+        report.backend, report.warnings
+    );
+    assert_eq!(
+        image::open(&out).unwrap().into_rgb8().dimensions(),
+        (320, 240)
+    );
     // From a TUM line and from a TUM file: frame 1's pose.
     let mut args = render_args(&ply, &out);
     args.pose = Some("1 0 0 -2.25 0 0 0 1".into());
@@ -547,7 +559,8 @@ fn run_and_icp_outputs_are_written() {
         .collect();
     let map = bundled_map(&[1, 10, 20], 4);
     let k = Intrinsics::ICL_NUIM.downsampled(2);
-    let written = write_map_renders(&dir, &map, &gt, &k, (320, 240)).unwrap();
+    let written =
+        write_map_renders(&render::RenderBackend::Cpu, &dir, &map, &gt, &k, (320, 240)).unwrap();
     assert_eq!(written.len(), 4);
     for p in &written {
         let img = image::open(p).unwrap().into_rgb8();
@@ -574,7 +587,15 @@ fn run_and_icp_outputs_are_written() {
     .unwrap();
     assert!(before.is_file() && after.is_file());
     // An empty map is refused.
-    assert!(write_map_renders(&dir, &SurfelMap::default(), &gt, &k, (320, 240)).is_err());
+    assert!(write_map_renders(
+        &render::RenderBackend::Cpu,
+        &dir,
+        &SurfelMap::default(),
+        &gt,
+        &k,
+        (320, 240)
+    )
+    .is_err());
 }
 
 #[test]

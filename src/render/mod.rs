@@ -358,6 +358,44 @@ pub fn render_cpu(
     Ok(rgba_to_image(params.width, params.height, &rgba))
 }
 
+/// Which implementation draws: the CPU twins, or the GPU pass on a borrowed context (so
+/// `wgslam run --backend gpu` can reuse its device).
+#[derive(Debug, Clone, Copy)]
+pub enum RenderBackend<'a> {
+    Cpu,
+    Gpu {
+        ctx: &'a crate::gpu::GpuContext,
+        kernels: &'a gpu::GpuRenderer,
+    },
+}
+
+impl RenderBackend<'_> {
+    /// `cpu` or `gpu`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            RenderBackend::Cpu => "cpu",
+            RenderBackend::Gpu { .. } => "gpu",
+        }
+    }
+
+    /// Renders `cloud` from `camera` (see [`render_cpu`]; both backends draw the same
+    /// picture up to rounding at splat borders).
+    pub fn render(
+        &self,
+        cloud: &Cloud,
+        camera: &RenderCamera,
+        view: View,
+        settings: &RenderSettings,
+    ) -> Result<RgbImage> {
+        match self {
+            RenderBackend::Cpu => render_cpu(cloud, camera, view, settings),
+            RenderBackend::Gpu { ctx, kernels } => {
+                kernels.render(ctx, cloud, camera, view, settings)
+            }
+        }
+    }
+}
+
 /// Intrinsics of a framing camera: `width` x `height`, [`FRAMING_FOV_DEG`] horizontally,
 /// square pixels, `fy` negative when `fy_negative` (see [`look_rotation`]).
 pub fn framing_intrinsics(width: u32, height: u32, fy_negative: bool) -> Intrinsics {

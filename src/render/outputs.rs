@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use glam::{DMat4, DVec3};
 
 use super::{
-    default_camera, framing_camera, render_cpu, render_overlay, trajectory_view_hint, write_png,
-    Cloud, RenderCamera, RenderSettings, View, DEFAULT_SIZE,
+    default_camera, framing_camera, render_overlay, trajectory_view_hint, write_png, Cloud,
+    RenderBackend, RenderCamera, RenderSettings, View, DEFAULT_SIZE,
 };
 use crate::camera::Intrinsics;
 use crate::map::SurfelMap;
@@ -39,6 +39,7 @@ pub fn map_view_hint(normals: Option<&[[f32; 4]]>, up: DVec3) -> (DVec3, DVec3) 
 /// `intrinsics` (`t_cam_to_world` poses, metres; `intrinsics` of the tracked images, whose
 /// `fy` sign also fixes the handedness of the default view). `size`: of the default view.
 pub fn write_map_renders(
+    backend: &RenderBackend,
     out_dir: &Path,
     map: &SurfelMap,
     trajectory: &[(f64, DMat4)],
@@ -72,7 +73,7 @@ pub fn write_map_renders(
     for (name, camera) in &cameras {
         for view in [View::Color, View::Normals] {
             let path = out_dir.join(format!("{name}_{}.png", view.name()));
-            write_png(&path, &render_cpu(&cloud, camera, view, &settings)?)?;
+            write_png(&path, &backend.render(&cloud, camera, view, &settings)?)?;
             written.push(path);
         }
     }
