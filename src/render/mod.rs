@@ -42,6 +42,8 @@ pub const DEFAULT_ELEVATION_DEG: f64 = 35.0;
 /// Fraction of points ignored at each end of every axis when framing (stray surfels far
 /// from the scene would otherwise shrink it to a dot).
 pub const FRAMING_OUTLIER_FRACTION: f64 = 0.005;
+/// Extra distance of a framing camera, as a fraction of the framed extent (a border).
+pub const FRAMING_MARGIN: f64 = 0.08;
 /// Colour of the source cloud in overlays (orange), RGB.
 pub const SOURCE_RGB: [u8; 3] = [245, 130, 32];
 /// Colour of the target cloud in overlays (blue), RGB.
@@ -450,8 +452,8 @@ pub fn robust_bounds(positions: &[[f32; 4]]) -> Option<(DVec3, DVec3)> {
 }
 
 /// A camera of `width` x `height` looking along `forward` (with `up` up in the image) that
-/// frames the robust bounds of `positions`: it sits on the line through their centre, far
-/// enough back that their bounding sphere fits the narrower field of view. `fy_negative`:
+/// frames the robust bounds of `positions` (taken in the view's own axes): centred on them,
+/// and as close as it can be while each point inside them stays in the picture. `fy_negative`:
 /// the sign convention of the data's camera (see [`look_rotation`]).
 pub fn framing_camera(
     positions: &[[f32; 4]],
@@ -462,17 +464,37 @@ pub fn framing_camera(
     fy_negative: bool,
 ) -> Result<RenderCamera> {
     check_size(width, height)?;
-    let (lo, hi) = robust_bounds(positions)
-        .ok_or_else(|| Error::Argument("the cloud has no finite point to frame".into()))?;
     let rot = look_rotation(forward, up, fy_negative)
         .ok_or_else(|| Error::Argument("view direction and up direction are parallel".into()))?;
     let k = framing_intrinsics(width, height, fy_negative);
-    let centre = (lo + hi) * 0.5;
-    let radius = ((hi - lo).length() * 0.5).max(0.05);
-    let half_fov_x = (0.5 * width as f64 / k.fx as f64).atan();
-    let half_fov_y = (0.5 * height as f64 / k.fy.abs() as f64).atan();
-    let dist = radius / half_fov_x.min(half_fov_y).sin();
-    let eye = centre - rot.z_axis * dist;
+    // Work in view-aligned coordinates (q = Rᵀ p: x right, y along the image's vertical, z
+    // ahead), where framing is a 2-D fit.
+    let rot_t = rot.transpose();
+    let view_pts: Vec<[f32; 4]> = positions
+        .iter()
+        .map(|p| {
+            let q = rot_t * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            [q.x as f32, q.y as f32, q.z as f32, 1.0]
+        })
+        .collect();
+    let (lo, hi) = robust_bounds(&view_pts)
+        .ok_or_else(|| Error::Argument("the cloud has no finite point to frame".into()))?;
+    let (cx, cy) = ((lo.x + hi.x) * 0.5, (lo.y + hi.y) * 0.5);
+    let tan_x = 0.5 * width as f64 / k.fx as f64;
+    let tan_y = 0.5 * height as f64 / k.fy.abs() as f64;
+    // The camera sits on the line through (cx, cy) along z, as far forward as it can while
+    // every point inside the robust bounds stays in the picture.
+    let inside = |q: &DVec3| q.cmpge(lo).all() && q.cmple(hi).all();
+    let z_cam = view_pts
+        .iter()
+        .map(|q| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
+        .filter(inside)
+        .map(|q| q.z - ((q.x - cx).abs() / tan_x).max((q.y - cy).abs() / tan_y))
+        .fold(f64::INFINITY, f64::min);
+    // A small margin around the picture, and never closer than 5 cm to the nearest point.
+    let margin = FRAMING_MARGIN * (hi - lo).max_element().max(0.05);
+    let z_cam = z_cam.min(lo.z - 0.05) - margin;
+    let eye = rot * DVec3::new(cx, cy, z_cam);
     Ok(RenderCamera {
         t_cam_to_world: se3::from_rt(rot, eye),
         intrinsics: k,
