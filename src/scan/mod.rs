@@ -7,6 +7,7 @@
 pub mod bench;
 pub mod cloud;
 pub mod icp;
+pub mod layout;
 pub mod odometry;
 pub mod read;
 pub mod write;
