@@ -1,0 +1,124 @@
+// common.wgsl: structs and helpers shared by every dense-SLAM kernel.
+//
+// Prepended to each `shaders/<kernel>.wgsl` by `src/gpu/shaders.rs` (WGSL has no
+// includes), so this file declares no bindings and no entry point. Each struct mirrors the
+// `#[repr(C)]` struct of the same name in `src/layout.rs` (checked by `tests/layout.rs`);
+// each helper mirrors the function of the same name in `src/cpu/mod.rs`.
+// Conventions: metres; pixel centres at integer (u, v); maps are row-major `v * width + u`;
+// a `vec4` map entry is valid when `w > 0` (vertices and normals use w = 1, invalid = 0).
+// Matrices are column-major `mat4x4<f32>` (the layout of `GpuMat4`).
+
+// Mirrors `layout::PreprocessParams` (depth_to_vertex).
+struct PreprocessParams {
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    raw_width: u32,
+    raw_height: u32,
+    stride: u32,
+    depth_scale: f32,
+    min_depth_m: f32,
+    max_depth_m: f32,
+}
+
+// Mirrors `layout::NormalParams` (vertex_to_normal).
+struct NormalParams {
+    width: u32,
+    height: u32,
+    max_depth_jump_m: f32,
+    _pad: u32,
+}
+
+// Mirrors `layout::ProjectParams` (project_model, predict_model).
+struct ProjectParams {
+    t_world_to_cam: mat4x4<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    surfel_count: u32,
+    _pad: u32,
+}
+
+// Mirrors `layout::IcpParams` (icp_reduce).
+struct IcpParams {
+    t_world_to_cam: mat4x4<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    dist_threshold_m: f32,
+    _pad: u32,
+}
+
+// Mirrors `layout::FuseParams` (fuse_merge, fuse_add).
+struct FuseParams {
+    t_world_to_cam: mat4x4<f32>,
+    t_cam_to_world: mat4x4<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    surfel_count: u32,
+    frame_id: u32,
+    dist_threshold_m: f32,
+    cos_normal_threshold: f32,
+    capacity: u32,
+    _pad: u32,
+}
+
+// Floats in one reduced ICP system (mirrors `layout::ICP_SYSTEM_LEN`): 21 of AᵀA (upper
+// triangle, row-major), 6 of Aᵀb, the inlier count and the sum of squared residuals.
+const ICP_SYSTEM_LEN: u32 = 29u;
+
+// The invalid map entry (mirrors `cpu::INVALID`).
+const INVALID: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 0.0);
+
+// `T p` for a point (w = 1). Mirrors `cpu::transform_point`.
+fn transform_point(t: mat4x4<f32>, p: vec3<f32>) -> vec3<f32> {
+    return (t * vec4<f32>(p, 1.0)).xyz;
+}
+
+// `R n` for a direction (w = 0). Mirrors `cpu::transform_dir`.
+fn transform_dir(t: mat4x4<f32>, n: vec3<f32>) -> vec3<f32> {
+    return (t * vec4<f32>(n, 0.0)).xyz;
+}
+
+// Filter 1: the pixel index a camera-frame point projects to, rounding to the nearest
+// pixel centre, or -1 when it is behind the camera (z <= 0) or outside the image.
+// `cam` = (fx, fy, cx, cy). Mirrors `cpu::project_to_pixel` (which returns None for -1).
+fn project_to_pixel(cam: vec4<f32>, width: u32, height: u32, p: vec3<f32>) -> i32 {
+    if p.z <= 0.0 {
+        return -1;
+    }
+    let u = floor(cam.x * p.x / p.z + cam.z + 0.5);
+    let v = floor(cam.y * p.y / p.z + cam.w + 0.5);
+    if u < 0.0 || v < 0.0 || u >= f32(width) || v >= f32(height) {
+        return -1;
+    }
+    return i32(v) * i32(width) + i32(u);
+}
+
+// xyz of a vec4 map entry. Mirrors `cpu::xyz`.
+fn xyz(v: vec4<f32>) -> vec3<f32> {
+    return v.xyz;
+}
+
+// A map entry is valid when its w is positive. Mirrors `cpu::is_valid`.
+fn is_valid(v: vec4<f32>) -> bool {
+    return v.w > 0.0;
+}
+
+// Packs a valid point or direction into a map entry (w = 1). Mirrors `cpu::valid_entry`.
+fn valid_entry(p: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(p, 1.0);
+}

@@ -1,0 +1,52 @@
+// fuse_add.wgsl: appends every valid pixel no surfel merged with as a new surfel (world
+// frame, weight 1) through an atomic counter. CPU twin: src/cpu/fuse_add.rs.
+//
+// Bindings (@group(0)):
+//   0 params      uniform FuseParams (t_cam_to_world, frame_id, capacity)
+//   1 vertex_map  storage read   array<vec4<f32>>: width x height, camera frame
+//   2 normal_map  storage read   array<vec4<f32>>: width x height, camera frame
+//   3 color_map   storage read   array<vec4<f32>>: width x height, RGB 0..255
+//   4 assoc       storage read   array<u32>: 1 where fuse_merge merged the pixel
+//   5 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)
+//   6 positions   storage rw     array<vec4<f32>>: surfels, world frame (capacity entries)
+//   7 normals     storage rw     array<vec4<f32>>
+//   8 colors      storage rw     array<vec4<f32>>
+//   9 weights     storage rw     array<f32>
+//  10 last_frame  storage rw     array<u32>
+// One thread per pixel; the append order is the atomics' order, not pixel order. Never
+// writes at or past params.capacity: the counter still counts, and the host turns a count
+// above capacity into a capacity error.
+
+@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(1) var<storage, read> vertex_map: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> normal_map: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> color_map: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> assoc: array<u32>;
+@group(0) @binding(5) var<storage, read_write> counter: atomic<u32>;
+@group(0) @binding(6) var<storage, read_write> positions: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> normals: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read_write> colors: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read_write> weights: array<f32>;
+@group(0) @binding(10) var<storage, read_write> last_frame: array<u32>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pix = gid.x;
+    if pix >= params.width * params.height {
+        return;
+    }
+    if assoc[pix] != 0u || !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
+        return;
+    }
+    let i = atomicAdd(&counter, 1u);
+    if i >= params.capacity {
+        return;
+    }
+    let p = transform_point(params.t_cam_to_world, xyz(vertex_map[pix]));
+    let n = transform_dir(params.t_cam_to_world, xyz(normal_map[pix]));
+    positions[i] = vec4<f32>(p, 1.0);
+    normals[i] = vec4<f32>(n, 0.0);
+    colors[i] = color_map[pix];
+    weights[i] = 1.0;
+    last_frame[i] = params.frame_id;
+}

@@ -1,0 +1,78 @@
+// fuse_merge.wgsl: merges the new frame into the surfels it sees (weighted averages of
+// position, normal, colour; weight + 1; last_frame = frame_id) and flags merged pixels.
+// CPU twin: src/cpu/fuse_merge.rs (its header states both filter passes).
+//
+// Bindings (@group(0)):
+//   0 params      uniform FuseParams (tracked poses, intrinsics, surfel_count, thresholds)
+//   1 vertex_map  storage read   array<vec4<f32>>: width x height, camera frame
+//   2 normal_map  storage read   array<vec4<f32>>: width x height, camera frame
+//   3 color_map   storage read   array<vec4<f32>>: width x height, RGB 0..255
+//   4 positions   storage rw     array<vec4<f32>>: surfels, world frame, metres
+//   5 normals     storage rw     array<vec4<f32>>: surfels, world frame, unit, w = 0
+//   6 colors      storage rw     array<vec4<f32>>: surfels, RGB 0..255
+//   7 weights     storage rw     array<f32>: observations per surfel
+//   8 last_frame  storage rw     array<u32>: frame that last touched each surfel
+//   9 assoc       storage rw     array<atomic<u32>>: one flag per pixel, cleared by the host
+// Grid-stride loop over surfels; each thread writes only its own surfel, so the result
+// does not depend on thread order (several surfels may flag the same pixel).
+
+@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(1) var<storage, read> vertex_map: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> normal_map: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> color_map: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> positions: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> normals: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> colors: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> weights: array<f32>;
+@group(0) @binding(8) var<storage, read_write> last_frame: array<u32>;
+@group(0) @binding(9) var<storage, read_write> assoc: array<atomic<u32>>;
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+// v / |v|, or zero when |v| is zero (glam's `normalize_or_zero` in the twin).
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let len = length(v);
+    if len > 0.0 {
+        return v * (1.0 / len);
+    }
+    return vec3<f32>(0.0);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let stride = nwg.x * WORKGROUP_SIZE;
+    for (var i = gid.x; i < params.surfel_count; i += stride) {
+        let p_world = xyz(positions[i]);
+        let p_cam = transform_point(params.t_world_to_cam, p_world);
+        let pix = project_to_pixel(cam, params.width, params.height, p_cam);
+        if pix < 0 {
+            continue;
+        }
+        if !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
+            continue;
+        }
+        let q_world = transform_point(params.t_cam_to_world, xyz(vertex_map[pix]));
+        let nq_world = transform_dir(params.t_cam_to_world, xyz(normal_map[pix]));
+        let n_old = xyz(normals[i]);
+        if length(q_world - p_world) >= params.dist_threshold_m
+            || dot(n_old, nq_world) <= params.cos_normal_threshold {
+            continue;
+        }
+        let w = weights[i];
+        let inv = 1.0 / (w + 1.0);
+        let p = (p_world * w + q_world) * inv;
+        let n = normalize_or_zero((n_old * w + nq_world) * inv);
+        let c = colors[i];
+        let cq = color_map[pix];
+        positions[i] = vec4<f32>(p, 1.0);
+        normals[i] = vec4<f32>(n, 0.0);
+        colors[i] = vec4<f32>((c.xyz * w + cq.xyz) * inv, 255.0);
+        weights[i] = w + 1.0;
+        last_frame[i] = params.frame_id;
+        atomicStore(&assoc[pix], 1u);
+    }
+}

@@ -1,0 +1,114 @@
+// icp_reduce.wgsl: projective data association, both filters, the point-to-plane row and
+// the reduction to one 29-float normal-equation partial per workgroup.
+// CPU twin: src/cpu/icp_reduce.rs (its header states the maths and the filters).
+//
+// Bindings (@group(0)):
+//   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, dist_threshold_m)
+//   1 pred_vertex  storage read   array<vec4<f32>>: source, width x height, WORLD frame
+//   2 vertex_map   storage read   array<vec4<f32>>: target vertices, camera frame
+//   3 normal_map   storage read   array<vec4<f32>>: target normals, camera frame
+//   4 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
+//                                 (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
+//                                 sum of squared residuals); the host sums them in f64
+// Grid-stride loop over pixels with few workgroups (few on a CPU adapter, many on a GPU):
+// each thread sums its pixels in registers (f32), then one tree reduction per workgroup.
+
+@group(0) @binding(0) var<uniform> params: IcpParams;
+@group(0) @binding(1) var<storage, read> pred_vertex: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> vertex_map: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> normal_map: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> partials: array<f32>;
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+// One thread's partial system per lane: 64 x 29 x 4 = 7424 bytes of workgroup memory
+// (the WebGPU minimum is 16384).
+var<workgroup> scratch: array<array<f32, ICP_SYSTEM_LEN>, WORKGROUP_SIZE>;
+
+// One correspondence: Jacobian row `a`, residual `b`, and whether both filters passed.
+struct IcpRow {
+    a: array<f32, 6>,
+    b: f32,
+    valid: bool,
+}
+
+// The row of one source point, or valid = false when a filter rejects it.
+// Mirrors `icp_row` in src/cpu/icp_reduce.rs.
+fn icp_row(src_world: vec4<f32>) -> IcpRow {
+    var row: IcpRow;
+    row.valid = false;
+    if !is_valid(src_world) {
+        return row;
+    }
+    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let p = transform_point(params.t_world_to_cam, xyz(src_world));
+    let pix = project_to_pixel(cam, params.width, params.height, p);
+    if pix < 0 {
+        return row;
+    }
+    let q4 = vertex_map[pix];
+    let n4 = normal_map[pix];
+    if !is_valid(q4) || !is_valid(n4) {
+        return row;
+    }
+    let q = xyz(q4);
+    let n = xyz(n4);
+    let d = p - q;
+    if length(d) >= params.dist_threshold_m {
+        return row;
+    }
+    let pxn = cross(p, n);
+    row.a = array<f32, 6>(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z);
+    row.b = dot(n, d);
+    row.valid = true;
+    return row;
+}
+
+// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs.
+fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, b: f32) {
+    var k = 0u;
+    for (var r = 0u; r < 6u; r++) {
+        for (var c = r; c < 6u; c++) {
+            (*sys)[k] += a[r] * a[c];
+            k++;
+        }
+    }
+    for (var r = 0u; r < 6u; r++) {
+        (*sys)[21u + r] += a[r] * b;
+    }
+    (*sys)[27] += 1.0;
+    (*sys)[28] += b * b;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    var sys: array<f32, ICP_SYSTEM_LEN>;
+    let n_pix = params.width * params.height;
+    let stride = nwg.x * WORKGROUP_SIZE;
+    for (var pix = gid.x; pix < n_pix; pix += stride) {
+        let row = icp_row(pred_vertex[pix]);
+        if row.valid {
+            accumulate(&sys, row.a, row.b);
+        }
+    }
+    scratch[lid] = sys;
+    workgroupBarrier();
+    for (var half = WORKGROUP_SIZE / 2u; half > 0u; half /= 2u) {
+        if lid < half {
+            for (var k = 0u; k < ICP_SYSTEM_LEN; k++) {
+                scratch[lid][k] += scratch[lid + half][k];
+            }
+        }
+        workgroupBarrier();
+    }
+    if lid == 0u {
+        for (var k = 0u; k < ICP_SYSTEM_LEN; k++) {
+            partials[wid.x * ICP_SYSTEM_LEN + k] = scratch[0][k];
+        }
+    }
+}

@@ -1,0 +1,36 @@
+// predict_model.wgsl: turns the index map into the predicted (model) vertex and normal
+// maps in the WORLD frame, the ICP source. CPU twin: src/cpu/predict_model.rs.
+//
+// Bindings (@group(0)):
+//   0 params       uniform ProjectParams (only width and height are used)
+//   1 index_map    storage read   array<vec2<u32>>: the u64 keys of project_model, low word
+//                                 (surfel index) first; (0, 0) means no surfel
+//   2 positions    storage read   array<vec4<f32>>: surfel positions, world frame
+//   3 normals      storage read   array<vec4<f32>>: surfel normals, world frame
+//   4 pred_vertex  storage rw     array<vec4<f32>>: width x height, world frame, w = 1 / 0
+//   5 pred_normal  storage rw     array<vec4<f32>>: width x height, world frame, w = 1 / 0
+// One thread per pixel.
+
+@group(0) @binding(0) var<uniform> params: ProjectParams;
+@group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
+@group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> pred_vertex: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> pred_normal: array<vec4<f32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pix = gid.x;
+    if pix >= params.width * params.height {
+        return;
+    }
+    let key = index_map[pix];
+    if key.x == 0u && key.y == 0u {
+        pred_vertex[pix] = INVALID;
+        pred_normal[pix] = INVALID;
+        return;
+    }
+    let i = key.x;
+    pred_vertex[pix] = vec4<f32>(positions[i].xyz, 1.0);
+    pred_normal[pix] = vec4<f32>(normals[i].xyz, 1.0);
+}

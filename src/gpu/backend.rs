@@ -1,0 +1,756 @@
+//! The GPU backend: runs the dense-SLAM steps of [`crate::pipeline::Backend`] as the WGSL
+//! kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`.
+//!
+//! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
+//! per-frame buffers are sized at the first `preprocess` and reused (re-created only if the
+//! frame size changes); the surfel map lives on the GPU as a structure of arrays that grows
+//! geometrically (x1.5, a GPU-side copy) before a fusion could overflow it. Per frame the
+//! host reads back only the ICP partials (one 29-float system per workgroup per iteration)
+//! and the 4-byte surfel counter; maps are downloaded only on request.
+//! Not a scheduler: the order of steps is `pipeline::Slam`'s.
+
+use super::buffers::{GpuArray, Readback, Uniform};
+use super::context::GpuContext;
+use super::kernel::{Binding, Kernel};
+use crate::layout::{
+    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+};
+use crate::map::SurfelMap;
+use crate::pipeline::{Backend, BackendCounters, FrameMaps};
+use crate::{Error, Result};
+
+/// Surfel slots allocated up front: a little over three 320x240 frames, ~10 MB.
+pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
+/// Growth factor of the map buffers when a frame might not fit.
+const GROWTH_NUM: usize = 3;
+const GROWTH_DEN: usize = 2;
+/// Storage buffers bound at once by the largest kernel (`fuse_add`).
+const MAX_STORAGE_BUFFERS_USED: u32 = 10;
+
+/// Bindings of each kernel, in the order of its CPU twin's arguments (`@binding(i)`).
+mod bindings {
+    use super::Binding;
+    pub const DEPTH_TO_VERTEX: [Binding; 5] = [
+        Binding::uniform("params: PreprocessParams"),
+        Binding::read("raw_depth: u16 pairs packed in u32"),
+        Binding::read("raw_rgba: packed RGBA8"),
+        Binding::read_write("vertex_map: camera frame"),
+        Binding::read_write("color_map: RGB 0..255"),
+    ];
+    pub const VERTEX_TO_NORMAL: [Binding; 3] = [
+        Binding::uniform("params: NormalParams"),
+        Binding::read("vertex_map: camera frame"),
+        Binding::read_write("normal_map: camera frame"),
+    ];
+    pub const PROJECT_MODEL: [Binding; 3] = [
+        Binding::uniform("params: ProjectParams"),
+        Binding::read("positions: world frame"),
+        Binding::read_write("index_map: atomic u64 keys"),
+    ];
+    pub const PREDICT_MODEL: [Binding; 6] = [
+        Binding::uniform("params: ProjectParams"),
+        Binding::read("index_map: u64 keys as vec2<u32>"),
+        Binding::read("positions: world frame"),
+        Binding::read("normals: world frame"),
+        Binding::read_write("pred_vertex: world frame"),
+        Binding::read_write("pred_normal: world frame"),
+    ];
+    pub const ICP_REDUCE: [Binding; 5] = [
+        Binding::uniform("params: IcpParams"),
+        Binding::read("pred_vertex: source, world frame"),
+        Binding::read("vertex_map: target, camera frame"),
+        Binding::read("normal_map: target, camera frame"),
+        Binding::read_write("partials: 29 f32 per workgroup"),
+    ];
+    pub const FUSE_MERGE: [Binding; 10] = [
+        Binding::uniform("params: FuseParams"),
+        Binding::read("vertex_map: camera frame"),
+        Binding::read("normal_map: camera frame"),
+        Binding::read("color_map"),
+        Binding::read_write("positions"),
+        Binding::read_write("normals"),
+        Binding::read_write("colors"),
+        Binding::read_write("weights"),
+        Binding::read_write("last_frame"),
+        Binding::read_write("assoc: atomic flag per pixel"),
+    ];
+    pub const FUSE_ADD: [Binding; 11] = [
+        Binding::uniform("params: FuseParams"),
+        Binding::read("vertex_map: camera frame"),
+        Binding::read("normal_map: camera frame"),
+        Binding::read("color_map"),
+        Binding::read("assoc"),
+        Binding::read_write("counter: atomic surfel count"),
+        Binding::read_write("positions"),
+        Binding::read_write("normals"),
+        Binding::read_write("colors"),
+        Binding::read_write("weights"),
+        Binding::read_write("last_frame"),
+    ];
+}
+
+struct Kernels {
+    depth_to_vertex: Kernel,
+    vertex_to_normal: Kernel,
+    project_model: Kernel,
+    predict_model: Kernel,
+    icp_reduce: Kernel,
+    fuse_merge: Kernel,
+    fuse_add: Kernel,
+}
+
+/// Buffers sized by the frame: raw inputs, per-pixel maps, prediction, association flags.
+struct FrameBuffers {
+    raw_width: u32,
+    raw_height: u32,
+    width: u32,
+    height: u32,
+    raw_depth: GpuArray<u16>,
+    raw_rgba: GpuArray<u32>,
+    vertex: GpuArray<[f32; 4]>,
+    normal: GpuArray<[f32; 4]>,
+    color: GpuArray<[f32; 4]>,
+    index_map: GpuArray<u64>,
+    pred_vertex: GpuArray<[f32; 4]>,
+    pred_normal: GpuArray<[f32; 4]>,
+    assoc: GpuArray<u32>,
+}
+
+impl FrameBuffers {
+    fn pixels(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+}
+
+/// The surfel map on the GPU (structure of arrays, world frame), `capacity` slots each.
+struct MapBuffers {
+    positions: GpuArray<[f32; 4]>,
+    normals: GpuArray<[f32; 4]>,
+    colors: GpuArray<[f32; 4]>,
+    weights: GpuArray<f32>,
+    last_frame: GpuArray<u32>,
+}
+
+struct BindGroups {
+    depth_to_vertex: wgpu::BindGroup,
+    vertex_to_normal: wgpu::BindGroup,
+    project_model: wgpu::BindGroup,
+    predict_model: wgpu::BindGroup,
+    icp_reduce: wgpu::BindGroup,
+    fuse_merge: wgpu::BindGroup,
+    fuse_add: wgpu::BindGroup,
+}
+
+/// Runs the pipeline's steps on a GPU through wgpu. See the module header.
+pub struct GpuBackend {
+    ctx: GpuContext,
+    kernels: Kernels,
+    u_preprocess: Uniform<PreprocessParams>,
+    u_normal: Uniform<NormalParams>,
+    u_project: Uniform<ProjectParams>,
+    u_icp: Uniform<IcpParams>,
+    u_fuse: Uniform<FuseParams>,
+    reduction_workgroups: u32,
+    partials: GpuArray<f32>,
+    partials_readback: Readback<f32>,
+    counter: GpuArray<u32>,
+    counter_readback: Readback<u32>,
+    frame: Option<FrameBuffers>,
+    map: MapBuffers,
+    /// Surfels in the map (the GPU counter as last read back).
+    count: usize,
+    /// Largest map the backend may allocate, in surfels.
+    max_surfels: usize,
+    /// `None` after any buffer a bind group refers to was re-created.
+    bind_groups: Option<BindGroups>,
+}
+
+impl GpuBackend {
+    /// A backend on `ctx` with [`DEFAULT_INITIAL_CAPACITY`] surfel slots.
+    ///
+    /// [`Error::Gpu`] when the adapter lacks 64-bit atomics (`project_model`'s packed
+    /// `atomicMax`) or enough storage buffers per stage; kernel creation errors likewise.
+    pub fn new(ctx: GpuContext) -> Result<GpuBackend> {
+        Self::with_initial_capacity(ctx, DEFAULT_INITIAL_CAPACITY)
+    }
+
+    /// A backend whose map starts with `capacity` surfel slots (tests force growth with a
+    /// tiny value).
+    pub fn with_initial_capacity(ctx: GpuContext, capacity: usize) -> Result<GpuBackend> {
+        if !ctx.has_int64_atomics() {
+            return Err(Error::Gpu(format!(
+                "adapter \"{}\" lacks 64-bit atomics (SHADER_INT64 + SHADER_INT64_ATOMIC_MIN_MAX), \
+                 which project_model needs; use --backend cpu",
+                ctx.adapter_info().name
+            )));
+        }
+        let per_stage = ctx.limits().max_storage_buffers_per_shader_stage;
+        if per_stage < MAX_STORAGE_BUFFERS_USED {
+            return Err(Error::Gpu(format!(
+                "adapter \"{}\" allows {per_stage} storage buffers per shader stage; fuse_add \
+                 needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
+                ctx.adapter_info().name
+            )));
+        }
+        let max_surfels = Self::device_max_surfels(&ctx);
+        let capacity = capacity.clamp(1, max_surfels);
+        let reduction_workgroups = ctx.reduction_workgroups();
+        let system_floats = reduction_workgroups as usize * ICP_SYSTEM_LEN;
+        let (kernels, uniforms, small, map) = ctx.scoped("creating the GPU backend", || {
+            let kernels = Kernels {
+                depth_to_vertex: Kernel::new(&ctx, "depth_to_vertex", &bindings::DEPTH_TO_VERTEX)?,
+                vertex_to_normal: Kernel::new(
+                    &ctx,
+                    "vertex_to_normal",
+                    &bindings::VERTEX_TO_NORMAL,
+                )?,
+                project_model: Kernel::new(&ctx, "project_model", &bindings::PROJECT_MODEL)?,
+                predict_model: Kernel::new(&ctx, "predict_model", &bindings::PREDICT_MODEL)?,
+                icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
+                fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
+                fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
+            };
+            let uniforms = (
+                Uniform::new(&ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
+                Uniform::new(&ctx, "NormalParams", &bytemuck::Zeroable::zeroed()),
+                Uniform::new(&ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
+                Uniform::new(&ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
+                Uniform::new(&ctx, "FuseParams", &bytemuck::Zeroable::zeroed()),
+            );
+            let mut partials = GpuArray::new(&ctx, "icp partials", system_floats)?;
+            partials.set_len(system_floats);
+            let mut counter = GpuArray::new(&ctx, "surfel counter", 1)?;
+            counter.set_len(1);
+            let small = (
+                partials,
+                Readback::new(&ctx, "icp partials read-back", system_floats),
+                counter,
+                Readback::new(&ctx, "surfel counter read-back", 1),
+            );
+            let map = MapBuffers {
+                positions: GpuArray::new(&ctx, "surfel positions", capacity)?,
+                normals: GpuArray::new(&ctx, "surfel normals", capacity)?,
+                colors: GpuArray::new(&ctx, "surfel colors", capacity)?,
+                weights: GpuArray::new(&ctx, "surfel weights", capacity)?,
+                last_frame: GpuArray::new(&ctx, "surfel last_frame", capacity)?,
+            };
+            Ok((kernels, uniforms, small, map))
+        })?;
+        let (u_preprocess, u_normal, u_project, u_icp, u_fuse) = uniforms;
+        let (partials, partials_readback, counter, counter_readback) = small;
+        Ok(GpuBackend {
+            ctx,
+            kernels,
+            u_preprocess,
+            u_normal,
+            u_project,
+            u_icp,
+            u_fuse,
+            reduction_workgroups,
+            partials,
+            partials_readback,
+            counter,
+            counter_readback,
+            frame: None,
+            map,
+            count: 0,
+            max_surfels,
+            bind_groups: None,
+        })
+    }
+
+    /// Caps the map at `max_surfels` surfels (below the device limit): a fusion that might
+    /// need more fails with [`Error::Capacity`] (tests use it to force that error).
+    pub fn with_max_surfels(mut self, max_surfels: usize) -> GpuBackend {
+        self.max_surfels = max_surfels.min(Self::device_max_surfels(&self.ctx));
+        self
+    }
+
+    /// Most surfels one storage binding of the device holds (positions: 16 bytes each).
+    fn device_max_surfels(ctx: &GpuContext) -> usize {
+        let by_bytes = ctx.max_storage_bytes() / std::mem::size_of::<[f32; 4]>() as u64;
+        by_bytes.min(u32::MAX as u64) as usize
+    }
+
+    /// The context (device, queue, limits, byte counters).
+    pub fn ctx(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// Allocated surfel slots.
+    pub fn capacity(&self) -> usize {
+        self.map.positions.capacity()
+    }
+
+    /// The cap set by [`GpuBackend::with_max_surfels`] or the device limit.
+    pub fn max_surfels(&self) -> usize {
+        self.max_surfels
+    }
+
+    /// Workgroups `icp_reduce` is dispatched with (partial systems per iteration).
+    pub fn reduction_workgroups(&self) -> u32 {
+        self.reduction_workgroups
+    }
+
+    /// (Re-)creates the per-frame buffers when the frame size changes.
+    fn ensure_frame(&mut self, p: &PreprocessParams) -> Result<()> {
+        if let Some(f) = &self.frame {
+            if (f.raw_width, f.raw_height, f.width, f.height)
+                == (p.raw_width, p.raw_height, p.width, p.height)
+            {
+                return Ok(());
+            }
+        }
+        let ctx = &self.ctx;
+        let raw_n = (p.raw_width * p.raw_height) as usize;
+        let n = (p.width * p.height) as usize;
+        let full = |label: &str| -> Result<GpuArray<[f32; 4]>> {
+            let mut a = GpuArray::new(ctx, label, n)?;
+            a.set_len(n);
+            Ok(a)
+        };
+        let mut raw_depth = GpuArray::new(ctx, "raw depth", raw_n)?;
+        raw_depth.set_len(raw_n);
+        let mut raw_rgba = GpuArray::new(ctx, "raw rgba", raw_n)?;
+        raw_rgba.set_len(raw_n);
+        let mut index_map = GpuArray::new(ctx, "index map", n)?;
+        index_map.set_len(n);
+        let mut assoc = GpuArray::new(ctx, "assoc", n)?;
+        assoc.set_len(n);
+        self.frame = Some(FrameBuffers {
+            raw_width: p.raw_width,
+            raw_height: p.raw_height,
+            width: p.width,
+            height: p.height,
+            raw_depth,
+            raw_rgba,
+            vertex: full("vertex map")?,
+            normal: full("normal map")?,
+            color: full("color map")?,
+            index_map,
+            pred_vertex: full("predicted vertex map")?,
+            pred_normal: full("predicted normal map")?,
+            assoc,
+        });
+        self.bind_groups = None;
+        Ok(())
+    }
+
+    /// Grows the map arrays (x1.5, keeping contents) so `needed` surfels fit, or
+    /// [`Error::Capacity`] when `needed` exceeds [`GpuBackend::max_surfels`].
+    fn ensure_capacity(&mut self, needed: usize) -> Result<()> {
+        if needed <= self.capacity() {
+            return Ok(());
+        }
+        if needed > self.max_surfels {
+            return Err(Error::Capacity(format!(
+                "fusing this frame may need {needed} surfels ({} bytes of positions) but the \
+                 GPU map is limited to {} surfels ({} bytes; device max storage binding {} \
+                 bytes)",
+                needed * 16,
+                self.max_surfels,
+                self.max_surfels * 16,
+                self.ctx.max_storage_bytes()
+            )));
+        }
+        let grown = (self.capacity() * GROWTH_NUM / GROWTH_DEN)
+            .max(needed)
+            .min(self.max_surfels);
+        let ctx = &self.ctx;
+        let m = &mut self.map;
+        m.positions.grow(ctx, grown)?;
+        m.normals.grow(ctx, grown)?;
+        m.colors.grow(ctx, grown)?;
+        m.weights.grow(ctx, grown)?;
+        m.last_frame.grow(ctx, grown)?;
+        self.bind_groups = None;
+        Ok(())
+    }
+
+    /// Builds the bind groups if a buffer changed since they were made.
+    fn bind_groups(&mut self) -> &BindGroups {
+        if self.bind_groups.is_none() {
+            let f = self
+                .frame
+                .as_ref()
+                .expect("preprocess() runs before any other step");
+            let (c, k, m) = (&self.ctx, &self.kernels, &self.map);
+            self.bind_groups = Some(BindGroups {
+                depth_to_vertex: k.depth_to_vertex.bind_group(
+                    c,
+                    &[
+                        self.u_preprocess.binding(),
+                        f.raw_depth.binding(),
+                        f.raw_rgba.binding(),
+                        f.vertex.binding(),
+                        f.color.binding(),
+                    ],
+                ),
+                vertex_to_normal: k.vertex_to_normal.bind_group(
+                    c,
+                    &[
+                        self.u_normal.binding(),
+                        f.vertex.binding(),
+                        f.normal.binding(),
+                    ],
+                ),
+                project_model: k.project_model.bind_group(
+                    c,
+                    &[
+                        self.u_project.binding(),
+                        m.positions.binding(),
+                        f.index_map.binding(),
+                    ],
+                ),
+                predict_model: k.predict_model.bind_group(
+                    c,
+                    &[
+                        self.u_project.binding(),
+                        f.index_map.binding(),
+                        m.positions.binding(),
+                        m.normals.binding(),
+                        f.pred_vertex.binding(),
+                        f.pred_normal.binding(),
+                    ],
+                ),
+                icp_reduce: k.icp_reduce.bind_group(
+                    c,
+                    &[
+                        self.u_icp.binding(),
+                        f.pred_vertex.binding(),
+                        f.vertex.binding(),
+                        f.normal.binding(),
+                        self.partials.binding(),
+                    ],
+                ),
+                fuse_merge: k.fuse_merge.bind_group(
+                    c,
+                    &[
+                        self.u_fuse.binding(),
+                        f.vertex.binding(),
+                        f.normal.binding(),
+                        f.color.binding(),
+                        m.positions.binding(),
+                        m.normals.binding(),
+                        m.colors.binding(),
+                        m.weights.binding(),
+                        m.last_frame.binding(),
+                        f.assoc.binding(),
+                    ],
+                ),
+                fuse_add: k.fuse_add.bind_group(
+                    c,
+                    &[
+                        self.u_fuse.binding(),
+                        f.vertex.binding(),
+                        f.normal.binding(),
+                        f.color.binding(),
+                        f.assoc.binding(),
+                        self.counter.binding(),
+                        m.positions.binding(),
+                        m.normals.binding(),
+                        m.colors.binding(),
+                        m.weights.binding(),
+                        m.last_frame.binding(),
+                    ],
+                ),
+            });
+        }
+        self.bind_groups.as_ref().expect("just built")
+    }
+
+    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped at the
+    /// device's per-dimension limit (the loop covers the rest).
+    fn grid_stride_workgroups(&self, kernel: &Kernel, n: usize) -> u32 {
+        kernel
+            .workgroups_for(n)
+            .min(self.ctx.limits().max_compute_workgroups_per_dimension)
+    }
+
+    fn frame(&self) -> &FrameBuffers {
+        self.frame
+            .as_ref()
+            .expect("preprocess() runs before any other step")
+    }
+}
+
+/// `[f32; 4]` maps read back with their full `len`.
+fn read_map(ctx: &GpuContext, a: &GpuArray<[f32; 4]>) -> Result<Vec<[f32; 4]>> {
+    a.read_back(ctx)
+}
+
+impl Backend for GpuBackend {
+    fn name(&self) -> &'static str {
+        "gpu"
+    }
+
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        normal: &NormalParams,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()> {
+        let raw_n = (params.raw_width * params.raw_height) as usize;
+        if raw_depth.len() != raw_n || raw_rgba.len() != raw_n {
+            return Err(Error::Argument(format!(
+                "frame of {}x{} pixels needs {raw_n} depth and colour values, got {} and {}",
+                params.raw_width,
+                params.raw_height,
+                raw_depth.len(),
+                raw_rgba.len()
+            )));
+        }
+        if params.stride == 0
+            || params.width * params.stride > params.raw_width
+            || params.height * params.stride > params.raw_height
+        {
+            return Err(Error::Argument(format!(
+                "a {}x{} map with stride {} does not fit a {}x{} frame",
+                params.width, params.height, params.stride, params.raw_width, params.raw_height
+            )));
+        }
+        self.ensure_frame(params)?;
+        let ctx = &self.ctx;
+        ctx.scoped("preprocess", || {
+            let f = self.frame.as_mut().expect("ensure_frame made it");
+            f.raw_depth.write_at(ctx, 0, raw_depth)?;
+            f.raw_rgba.write_at(ctx, 0, raw_rgba)?;
+            self.u_preprocess.write(ctx, params);
+            self.u_normal.write(ctx, normal);
+            Ok(())
+        })?;
+        let n = self.frame().pixels();
+        self.bind_groups();
+        let (ctx, k, bg) = (
+            &self.ctx,
+            &self.kernels,
+            self.bind_groups.as_ref().expect("built"),
+        );
+        ctx.scoped("preprocess", || {
+            let mut enc = ctx.encoder("preprocess");
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                k.depth_to_vertex.dispatch(
+                    ctx,
+                    &mut pass,
+                    &bg.depth_to_vertex,
+                    k.depth_to_vertex.workgroups_for(n),
+                )?;
+                k.vertex_to_normal.dispatch(
+                    ctx,
+                    &mut pass,
+                    &bg.vertex_to_normal,
+                    k.vertex_to_normal.workgroups_for(n),
+                )?;
+            }
+            ctx.submit(enc);
+            Ok(())
+        })
+    }
+
+    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
+        let mut params = *params;
+        params.surfel_count = self.count as u32;
+        let n = self.frame().pixels();
+        let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
+        self.bind_groups();
+        let (ctx, k, bg, f) = (
+            &self.ctx,
+            &self.kernels,
+            self.bind_groups.as_ref().expect("built"),
+            self.frame(),
+        );
+        ctx.scoped("predict", || {
+            self.u_project.write(ctx, &params);
+            let mut enc = ctx.encoder("predict");
+            f.index_map.clear(&mut enc);
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                k.project_model
+                    .dispatch(ctx, &mut pass, &bg.project_model, surfel_wg)?;
+                k.predict_model.dispatch(
+                    ctx,
+                    &mut pass,
+                    &bg.predict_model,
+                    k.predict_model.workgroups_for(n),
+                )?;
+            }
+            ctx.submit(enc);
+            Ok(())
+        })
+    }
+
+    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let wg = self.reduction_workgroups;
+        self.bind_groups();
+        let (ctx, k, bg) = (
+            &self.ctx,
+            &self.kernels,
+            self.bind_groups.as_ref().expect("built"),
+        );
+        let partials = ctx.scoped("icp_reduce", || {
+            self.u_icp.write(ctx, params);
+            let mut enc = ctx.encoder("icp_reduce");
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                k.icp_reduce.dispatch(ctx, &mut pass, &bg.icp_reduce, wg)?;
+            }
+            self.partials_readback.copy_from(
+                &mut enc,
+                &self.partials,
+                wg as usize * ICP_SYSTEM_LEN,
+            );
+            ctx.submit(enc);
+            self.partials_readback.read(ctx)
+        })?;
+        let mut sys = [0.0f64; ICP_SYSTEM_LEN];
+        for part in partials.chunks_exact(ICP_SYSTEM_LEN) {
+            for (s, &p) in sys.iter_mut().zip(part) {
+                *s += p as f64;
+            }
+        }
+        Ok(sys)
+    }
+
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        let n = self.frame().pixels();
+        self.ensure_capacity(self.count + n)?;
+        let mut params = *params;
+        params.surfel_count = self.count as u32;
+        params.capacity = self.capacity() as u32;
+        let surfel_wg = self.grid_stride_workgroups(&self.kernels.fuse_merge, self.count);
+        self.bind_groups();
+        let (ctx, k, bg, f) = (
+            &self.ctx,
+            &self.kernels,
+            self.bind_groups.as_ref().expect("built"),
+            self.frame
+                .as_ref()
+                .expect("preprocess() runs before fuse()"),
+        );
+        let counter = ctx.scoped("fuse", || {
+            self.u_fuse.write(ctx, &params);
+            ctx.queue.write_buffer(
+                self.counter.buffer(),
+                0,
+                bytemuck::bytes_of(&params.surfel_count),
+            );
+            let mut enc = ctx.encoder("fuse");
+            f.assoc.clear(&mut enc);
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                k.fuse_merge
+                    .dispatch(ctx, &mut pass, &bg.fuse_merge, surfel_wg)?;
+                k.fuse_add
+                    .dispatch(ctx, &mut pass, &bg.fuse_add, k.fuse_add.workgroups_for(n))?;
+            }
+            self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            ctx.submit(enc);
+            self.counter_readback.read(ctx)
+        })?[0] as usize;
+        if counter > params.capacity as usize {
+            return Err(Error::Capacity(format!(
+                "fuse_add counted {counter} surfels but only {} slots exist; surfels past \
+                 the capacity were dropped (the host should have grown the map first)",
+                params.capacity
+            )));
+        }
+        self.count = counter;
+        let m = &mut self.map;
+        m.positions.set_len(counter);
+        m.normals.set_len(counter);
+        m.colors.set_len(counter);
+        m.weights.set_len(counter);
+        m.last_frame.set_len(counter);
+        Ok(counter)
+    }
+
+    fn surfel_count(&self) -> usize {
+        self.count
+    }
+
+    fn download_map(&mut self) -> Result<SurfelMap> {
+        let (ctx, m) = (&self.ctx, &self.map);
+        ctx.scoped("download map", || {
+            let map = SurfelMap {
+                positions: m.positions.read_back(ctx)?,
+                normals: m.normals.read_back(ctx)?,
+                colors: m.colors.read_back(ctx)?,
+                weights: m.weights.read_back(ctx)?,
+                last_frame: m.last_frame.read_back(ctx)?,
+            };
+            map.assert_consistent();
+            Ok(map)
+        })
+    }
+
+    fn download_frame(&mut self) -> Result<FrameMaps> {
+        let (ctx, f) = (&self.ctx, self.frame());
+        ctx.scoped("download frame", || {
+            Ok(FrameMaps {
+                vertex: read_map(ctx, &f.vertex)?,
+                normal: read_map(ctx, &f.normal)?,
+                color: read_map(ctx, &f.color)?,
+            })
+        })
+    }
+
+    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+        let (ctx, f) = (&self.ctx, self.frame());
+        ctx.scoped("download prediction", || {
+            Ok((
+                read_map(ctx, &f.pred_vertex)?,
+                read_map(ctx, &f.pred_normal)?,
+            ))
+        })
+    }
+
+    fn counters(&self) -> BackendCounters {
+        let s = self.ctx.stats();
+        BackendCounters {
+            readback_bytes: s.readback_bytes,
+            submissions: s.submissions,
+        }
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        self.ctx.wait_idle()
+    }
+}
+
+impl GpuBackend {
+    /// The raw index map of the last `predict` (u64 keys, see `cpu::project_model`), for
+    /// parity tests.
+    pub fn download_index_map(&mut self) -> Result<Vec<u64>> {
+        let (ctx, f) = (&self.ctx, self.frame());
+        ctx.scoped("download index map", || f.index_map.read_back(ctx))
+    }
+}
+
+impl GpuBackend {
+    /// Replaces the GPU map with `map` (growing the buffers if needed), e.g. to start two
+    /// backends from the same map in a parity test or to resume from a saved map.
+    /// [`Error::Capacity`] when it exceeds [`GpuBackend::max_surfels`].
+    pub fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        map.assert_consistent();
+        let n = map.len();
+        self.ensure_capacity(n)?;
+        let (ctx, m) = (&self.ctx, &mut self.map);
+        ctx.scoped("upload map", || {
+            m.positions.write_at(ctx, 0, &map.positions)?;
+            m.normals.write_at(ctx, 0, &map.normals)?;
+            m.colors.write_at(ctx, 0, &map.colors)?;
+            m.weights.write_at(ctx, 0, &map.weights)?;
+            m.last_frame.write_at(ctx, 0, &map.last_frame)?;
+            m.positions.set_len(n);
+            m.normals.set_len(n);
+            m.colors.set_len(n);
+            m.weights.set_len(n);
+            m.last_frame.set_len(n);
+            Ok(())
+        })?;
+        self.count = n;
+        Ok(())
+    }
+}

@@ -1,0 +1,425 @@
+//! Typed GPU buffers: [`GpuArray`] (a storage array of `Pod` elements with upload,
+//! read-back through a staging buffer, and grow-by-copy on the GPU), [`Uniform`] (one
+//! `Pod` params struct), and the byte / submission accounting the benchmark reports.
+//!
+//! Not a memory allocator: every array is one wgpu buffer sized `capacity` elements, and
+//! its capacity is checked against the device limits before anything is allocated.
+
+use std::marker::PhantomData;
+use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use bytemuck::Pod;
+
+use super::context::GpuContext;
+use crate::{Error, Result};
+
+/// wgpu copies and `write_buffer` need sizes in multiples of this many bytes.
+const COPY_ALIGN: u64 = wgpu::COPY_BUFFER_ALIGNMENT;
+
+/// Counters shared by a [`GpuContext`] and all its buffers.
+#[derive(Debug, Default)]
+pub struct GpuStats {
+    allocated_bytes: AtomicU64,
+    peak_allocated_bytes: AtomicU64,
+    uploaded_bytes: AtomicU64,
+    readback_bytes: AtomicU64,
+    submissions: AtomicU64,
+}
+
+/// A copy of the counters at one moment (all byte counts are bytes, not elements).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct StatsSnapshot {
+    /// Bytes in live [`GpuArray`] / [`Uniform`] buffers (staging buffers excluded).
+    pub allocated_bytes: u64,
+    /// Largest `allocated_bytes` seen so far.
+    pub peak_allocated_bytes: u64,
+    /// Bytes written from the host with `write_buffer`.
+    pub uploaded_bytes: u64,
+    /// Bytes copied back to the host through staging buffers.
+    pub readback_bytes: u64,
+    /// Queue submissions made through [`GpuContext::submit`] and the buffer helpers.
+    pub submissions: u64,
+}
+
+impl GpuStats {
+    fn alloc(&self, bytes: u64) {
+        let now = self.allocated_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
+        self.peak_allocated_bytes.fetch_max(now, Ordering::Relaxed);
+    }
+    fn free(&self, bytes: u64) {
+        self.allocated_bytes.fetch_sub(bytes, Ordering::Relaxed);
+    }
+    fn upload(&self, bytes: u64) {
+        self.uploaded_bytes.fetch_add(bytes, Ordering::Relaxed);
+    }
+    fn readback(&self, bytes: u64) {
+        self.readback_bytes.fetch_add(bytes, Ordering::Relaxed);
+    }
+    pub(crate) fn count_submission(&self) {
+        self.submissions.fetch_add(1, Ordering::Relaxed);
+    }
+    pub(crate) fn snapshot(&self) -> StatsSnapshot {
+        StatsSnapshot {
+            allocated_bytes: self.allocated_bytes.load(Ordering::Relaxed),
+            peak_allocated_bytes: self.peak_allocated_bytes.load(Ordering::Relaxed),
+            uploaded_bytes: self.uploaded_bytes.load(Ordering::Relaxed),
+            readback_bytes: self.readback_bytes.load(Ordering::Relaxed),
+            submissions: self.submissions.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// Rounds a byte count up to the copy alignment (and to at least one aligned word, since
+/// zero-sized bindings are invalid).
+fn padded_bytes(bytes: u64) -> u64 {
+    bytes.max(1).div_ceil(COPY_ALIGN) * COPY_ALIGN
+}
+
+/// A storage buffer holding up to `capacity` elements of `T`, of which the first `len` are
+/// meaningful. Usage: STORAGE | COPY_SRC | COPY_DST. Element layout is `T`'s `#[repr(C)]`
+/// layout, which must match the WGSL element type (see `src/layout.rs`).
+pub struct GpuArray<T: Pod> {
+    buffer: wgpu::Buffer,
+    len: usize,
+    capacity: usize,
+    label: String,
+    stats: Arc<GpuStats>,
+    _element: PhantomData<T>,
+}
+
+impl<T: Pod> std::fmt::Debug for GpuArray<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuArray")
+            .field("label", &self.label)
+            .field("len", &self.len)
+            .field("capacity", &self.capacity)
+            .finish()
+    }
+}
+
+impl<T: Pod> Drop for GpuArray<T> {
+    fn drop(&mut self) {
+        self.stats.free(self.buffer.size());
+    }
+}
+
+impl<T: Pod> GpuArray<T> {
+    /// Bytes `capacity` elements take, or [`Error::Capacity`] (naming the array, the element
+    /// count, the bytes and the limit) when one storage binding cannot hold them.
+    pub fn check_capacity(ctx: &GpuContext, label: &str, capacity: usize) -> Result<u64> {
+        let elem = std::mem::size_of::<T>() as u64;
+        let bytes = (capacity as u64)
+            .checked_mul(elem)
+            .ok_or_else(|| Error::Capacity(format!("{label}: {capacity} elements overflow")))?;
+        let limit = ctx.max_storage_bytes();
+        if padded_bytes(bytes) > limit {
+            return Err(Error::Capacity(format!(
+                "{label}: {capacity} elements x {elem} bytes = {bytes} bytes exceeds the \
+                 device limit of {limit} bytes per storage buffer (at most {} elements)",
+                limit / elem.max(1)
+            )));
+        }
+        Ok(padded_bytes(bytes))
+    }
+
+    /// A zero-filled array with room for `capacity` elements and `len = 0`.
+    pub fn new(ctx: &GpuContext, label: &str, capacity: usize) -> Result<Self> {
+        let bytes = Self::check_capacity(ctx, label, capacity)?;
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.stats_handle().alloc(bytes);
+        Ok(GpuArray {
+            buffer,
+            len: 0,
+            capacity,
+            label: label.to_string(),
+            stats: Arc::clone(ctx.stats_handle()),
+            _element: PhantomData,
+        })
+    }
+
+    /// An array holding a copy of `data` (`len = capacity = data.len()`).
+    pub fn from_slice(ctx: &GpuContext, label: &str, data: &[T]) -> Result<Self> {
+        let mut a = Self::new(ctx, label, data.len())?;
+        a.upload(ctx, data)?;
+        Ok(a)
+    }
+
+    /// Meaningful elements.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when `len == 0`.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Allocated elements.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Sets the meaningful length (e.g. after a kernel appended elements and the host read
+    /// the counter). Panics if `len > capacity`: an internal contract.
+    pub fn set_len(&mut self, len: usize) {
+        assert!(
+            len <= self.capacity,
+            "{}: len {len} > capacity {}",
+            self.label,
+            self.capacity
+        );
+        self.len = len;
+    }
+
+    /// The underlying wgpu buffer.
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
+    }
+
+    /// The whole buffer as a binding resource.
+    pub fn binding(&self) -> wgpu::BindingResource<'_> {
+        self.buffer.as_entire_binding()
+    }
+
+    /// Replaces the contents with `data` (`len = data.len()`), growing without keeping the
+    /// old contents when `data` does not fit. Queued: visible to the next submission.
+    pub fn upload(&mut self, ctx: &GpuContext, data: &[T]) -> Result<()> {
+        if data.len() > self.capacity {
+            *self = Self::new(ctx, &self.label.clone(), data.len())?;
+        }
+        self.write_at(ctx, 0, data)?;
+        self.len = data.len();
+        Ok(())
+    }
+
+    /// Writes `data` at element `offset` without changing `len`; the range must fit.
+    pub fn write_at(&mut self, ctx: &GpuContext, offset: usize, data: &[T]) -> Result<()> {
+        if offset + data.len() > self.capacity {
+            return Err(Error::Capacity(format!(
+                "{}: writing {} elements at {offset} past capacity {}",
+                self.label,
+                data.len(),
+                self.capacity
+            )));
+        }
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        if bytes.is_empty() {
+            return Ok(());
+        }
+        let byte_offset = (offset * std::mem::size_of::<T>()) as u64;
+        assert!(
+            byte_offset % COPY_ALIGN == 0,
+            "{}: element offset {offset} is not 4-byte aligned",
+            self.label
+        );
+        if bytes.len() as u64 % COPY_ALIGN == 0 {
+            ctx.queue.write_buffer(&self.buffer, byte_offset, bytes);
+        } else {
+            // Odd tails (e.g. u16 elements): pad with zeros; the pad lies inside the buffer
+            // because the buffer size is padded the same way.
+            let mut padded = bytes.to_vec();
+            padded.resize(padded_bytes(bytes.len() as u64) as usize, 0);
+            ctx.queue.write_buffer(&self.buffer, byte_offset, &padded);
+        }
+        ctx.stats_handle().upload(bytes.len() as u64);
+        Ok(())
+    }
+
+    /// Records a clear of the whole buffer to zero bytes.
+    pub fn clear(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.clear_buffer(&self.buffer, 0, None);
+    }
+
+    /// Copies the first `len` elements back to the host (submits, waits).
+    pub fn read_back(&self, ctx: &GpuContext) -> Result<Vec<T>> {
+        self.read_back_range(ctx, 0..self.len)
+    }
+
+    /// Copies elements `range` back to the host through a staging buffer: one submission,
+    /// a map and a blocking poll. The range may extend past `len` but not `capacity`.
+    pub fn read_back_range(&self, ctx: &GpuContext, range: Range<usize>) -> Result<Vec<T>> {
+        if range.end > self.capacity || range.start > range.end {
+            return Err(Error::Capacity(format!(
+                "{}: read-back range {range:?} outside capacity {}",
+                self.label, self.capacity
+            )));
+        }
+        if range.is_empty() {
+            return Ok(Vec::new());
+        }
+        let elem = std::mem::size_of::<T>() as u64;
+        let start = range.start as u64 * elem;
+        let bytes = range.len() as u64 * elem;
+        // Copies must start and end on 4-byte boundaries: widen, then cut on the host.
+        let aligned_start = start / COPY_ALIGN * COPY_ALIGN;
+        let aligned_len = padded_bytes(start + bytes - aligned_start);
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("wgslam read-back staging"),
+            size: aligned_len,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx.encoder("read back");
+        enc.copy_buffer_to_buffer(&self.buffer, aligned_start, &staging, 0, aligned_len);
+        ctx.submit(enc);
+        let out = map_read(ctx, &staging, |view| {
+            let skip = (start - aligned_start) as usize;
+            bytemuck::pod_collect_to_vec::<u8, T>(&view[skip..skip + bytes as usize])
+        })?;
+        ctx.stats_handle().readback(bytes);
+        Ok(out)
+    }
+
+    /// Grows to at least `new_capacity` elements keeping the first `len` elements: a new
+    /// buffer and a GPU-side copy (one submission). No-op when already large enough.
+    pub fn grow(&mut self, ctx: &GpuContext, new_capacity: usize) -> Result<()> {
+        if new_capacity <= self.capacity {
+            return Ok(());
+        }
+        let mut bigger = Self::new(ctx, &self.label, new_capacity)?;
+        let keep =
+            padded_bytes(self.len as u64 * std::mem::size_of::<T>() as u64).min(self.buffer.size());
+        if self.len > 0 {
+            let mut enc = ctx.encoder("grow copy");
+            enc.copy_buffer_to_buffer(&self.buffer, 0, &bigger.buffer, 0, keep);
+            ctx.submit(enc);
+        }
+        bigger.len = self.len;
+        *self = bigger;
+        Ok(())
+    }
+}
+
+/// Maps a `MAP_READ` buffer, waits for it, hands the bytes to `f`, and unmaps.
+pub(crate) fn map_read<R>(
+    ctx: &GpuContext,
+    staging: &wgpu::Buffer,
+    f: impl FnOnce(&[u8]) -> R,
+) -> Result<R> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        // The receiver lives until after the poll below; a failed send cannot happen.
+        let _ = tx.send(r);
+    });
+    ctx.wait_idle()?;
+    match rx.recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(Error::Gpu(format!("mapping a read-back buffer: {e}"))),
+        Err(_) => return Err(Error::Gpu("read-back map callback never ran".into())),
+    }
+    let out = {
+        let view = staging
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("reading a mapped buffer: {e}")))?;
+        f(&view)
+    };
+    staging.unmap();
+    Ok(out)
+}
+
+/// A uniform buffer holding one `T` (a params struct from `src/layout.rs`).
+pub struct Uniform<T: Pod> {
+    buffer: wgpu::Buffer,
+    stats: Arc<GpuStats>,
+    _element: PhantomData<T>,
+}
+
+impl<T: Pod> Drop for Uniform<T> {
+    fn drop(&mut self) {
+        self.stats.free(self.buffer.size());
+    }
+}
+
+impl<T: Pod> Uniform<T> {
+    /// A uniform buffer initialised to `value`.
+    pub fn new(ctx: &GpuContext, label: &str, value: &T) -> Self {
+        let size = padded_bytes(std::mem::size_of::<T>() as u64);
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.stats_handle().alloc(size);
+        let u = Uniform {
+            buffer,
+            stats: Arc::clone(ctx.stats_handle()),
+            _element: PhantomData,
+        };
+        u.write(ctx, value);
+        u
+    }
+
+    /// Queues a new value (visible to the next submission).
+    pub fn write(&self, ctx: &GpuContext, value: &T) {
+        let bytes = bytemuck::bytes_of(value);
+        ctx.queue.write_buffer(&self.buffer, 0, bytes);
+        ctx.stats_handle().upload(bytes.len() as u64);
+    }
+
+    /// The whole buffer as a binding resource.
+    pub fn binding(&self) -> wgpu::BindingResource<'_> {
+        self.buffer.as_entire_binding()
+    }
+}
+
+/// A persistent `MAP_READ` staging buffer for small per-frame read-backs (ICP partials,
+/// the surfel counter), so the frame loop allocates nothing.
+pub struct Readback<T: Pod> {
+    staging: wgpu::Buffer,
+    capacity: usize,
+    /// Elements copied by the last [`Readback::copy_from`].
+    pending: usize,
+    _element: PhantomData<T>,
+}
+
+impl<T: Pod> Readback<T> {
+    /// Room for `capacity` elements (at least one).
+    pub fn new(ctx: &GpuContext, label: &str, capacity: usize) -> Self {
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: padded_bytes((capacity.max(1) * std::mem::size_of::<T>()) as u64),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Readback {
+            staging,
+            capacity: capacity.max(1),
+            pending: 0,
+            _element: PhantomData,
+        }
+    }
+
+    /// Records a copy of the first `n` elements of `src` into the staging buffer.
+    /// Panics when `n` exceeds either capacity (an internal contract).
+    pub fn copy_from(&mut self, encoder: &mut wgpu::CommandEncoder, src: &GpuArray<T>, n: usize) {
+        assert!(
+            n <= self.capacity && n <= src.capacity(),
+            "read-back of {n} elements from `{}` exceeds a capacity",
+            src.label
+        );
+        let bytes = padded_bytes((n * std::mem::size_of::<T>()) as u64).min(src.buffer.size());
+        encoder.copy_buffer_to_buffer(&src.buffer, 0, &self.staging, 0, bytes);
+        self.pending = n;
+    }
+
+    /// Waits for the submitted copy and returns its elements (counted as read-back bytes).
+    pub fn read(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
+        let n = std::mem::take(&mut self.pending);
+        let bytes = n * std::mem::size_of::<T>();
+        let out = map_read(ctx, &self.staging, |view| {
+            bytemuck::pod_collect_to_vec::<u8, T>(&view[..bytes])
+        })?;
+        ctx.stats_handle().readback(bytes as u64);
+        Ok(out)
+    }
+}

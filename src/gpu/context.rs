@@ -1,0 +1,264 @@
+//! The GPU context: one wgpu instance, adapter, device and queue, with the limits and
+//! features the dense-SLAM kernels need, and the error-scope helper that turns wgpu
+//! validation / out-of-memory errors and device loss into [`crate::Error::Gpu`].
+//!
+//! This is not a kernel runner: pipelines live in [`super::kernel`], buffers in
+//! [`super::buffers`]. Only the Vulkan, Metal and DX12 backends are ever requested: the
+//! OpenGL fallback on llvmpipe compiles one shader in minutes (see STYLE.md).
+
+use std::sync::{Arc, Mutex};
+
+use super::buffers::{GpuStats, StatsSnapshot};
+use crate::{Error, Result};
+
+/// Backends wgslam asks for. Never `GL`: on CPU-only machines it falls back to llvmpipe's
+/// OpenGL, where a single compute shader took 235 s to compile.
+pub const BACKENDS: wgpu::Backends = wgpu::Backends::VULKAN
+    .union(wgpu::Backends::METAL)
+    .union(wgpu::Backends::DX12);
+
+/// Features the kernels use when the adapter offers them: 64-bit integers and 64-bit
+/// `atomicMax` (the packed depth + surfel index map of `project_model`) and timestamp
+/// queries (per-stage timing in [`super::timing`]).
+pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::SHADER_INT64
+    .union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
+    .union(wgpu::Features::TIMESTAMP_QUERY);
+
+/// Reduction workgroups on a CPU adapter (lavapipe): few workgroups with grid-stride
+/// loops, each thread summing many pixels in registers; measured best around 16 at 640x480.
+pub const CPU_REDUCTION_WORKGROUPS: u32 = 16;
+/// Reduction workgroups on a real GPU, which needs thousands of threads in flight.
+pub const GPU_REDUCTION_WORKGROUPS: u32 = 1024;
+
+/// An open GPU device with its queue, limits and feature set, and byte/submission
+/// accounting shared by every buffer created from it.
+pub struct GpuContext {
+    /// Kept alive for the lifetime of the adapter and device.
+    _instance: wgpu::Instance,
+    adapter: wgpu::Adapter,
+    /// The logical device; create pipelines and buffers from it.
+    pub device: wgpu::Device,
+    /// The device's only queue; submit through [`GpuContext::submit`] so it is counted.
+    pub queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    limits: wgpu::Limits,
+    features: wgpu::Features,
+    stats: Arc<GpuStats>,
+    /// Set by the device-lost callback; reported by [`GpuContext::check_device`].
+    lost: Arc<Mutex<Option<String>>>,
+    /// Errors raised outside any error scope (wgpu's default handler would panic).
+    uncaptured: Arc<Mutex<Vec<String>>>,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("adapter", &self.info.name)
+            .field("backend", &self.info.backend)
+            .field("device_type", &self.info.device_type)
+            .field("features", &self.features)
+            .finish()
+    }
+}
+
+impl GpuContext {
+    /// Opens the high-performance adapter among Vulkan / Metal / DX12, logs it to stderr and
+    /// creates a device with every [`WANTED_FEATURES`] flag the adapter has and the
+    /// adapter's own limits (so `max_storage_buffer_binding_size`, `max_buffer_size` and
+    /// storage buffers per stage are as large as the hardware allows).
+    ///
+    /// Errors: [`Error::NoAdapter`] naming the backends tried and the adapters seen;
+    /// [`Error::Gpu`] when the device cannot be created.
+    pub fn new() -> Result<GpuContext> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: BACKENDS,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter =
+            match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                force_fallback_adapter: false,
+                compatible_surface: None,
+                // Trusted native tool: we want the real limits, not fingerprint buckets.
+                apply_limit_buckets: false,
+            })) {
+                Ok(a) => a,
+                Err(e) => {
+                    let seen: Vec<String> =
+                        pollster::block_on(instance.enumerate_adapters(BACKENDS))
+                            .iter()
+                            .map(|a| {
+                                let i = a.get_info();
+                                format!("{} ({:?})", i.name, i.backend)
+                            })
+                            .collect();
+                    return Err(Error::NoAdapter(format!(
+                    "tried backends Vulkan, Metal, DX12 (never GL); adapters seen: [{}]; wgpu: {e}",
+                    seen.join(", ")
+                )));
+                }
+            };
+        let info = adapter.get_info();
+        eprintln!(
+            "wgslam: GPU adapter \"{}\" backend {:?} type {:?} driver \"{} {}\"",
+            info.name, info.backend, info.device_type, info.driver, info.driver_info
+        );
+        let features = adapter.features() & WANTED_FEATURES;
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("wgslam device"),
+            required_features: features,
+            required_limits: limits.clone(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::Gpu(format!("cannot create a device on \"{}\": {e}", info.name)))?;
+
+        let lost = Arc::new(Mutex::new(None));
+        let lost_cb = Arc::clone(&lost);
+        device.set_device_lost_callback(move |reason, msg| {
+            // A device dropped by us at the end of the run is not an error.
+            if reason != wgpu::DeviceLostReason::Destroyed {
+                *lost_cb.lock().unwrap_or_else(|p| p.into_inner()) =
+                    Some(format!("device lost ({reason:?}): {msg}"));
+            }
+        });
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let uncaptured_cb = Arc::clone(&uncaptured);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            uncaptured_cb
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .push(e.to_string());
+        }));
+
+        Ok(GpuContext {
+            _instance: instance,
+            adapter,
+            device,
+            queue,
+            info,
+            limits,
+            features,
+            stats: Arc::new(GpuStats::default()),
+            lost,
+            uncaptured,
+        })
+    }
+
+    /// The device's limits (equal to the adapter's: requested in full).
+    pub fn limits(&self) -> &wgpu::Limits {
+        &self.limits
+    }
+
+    /// The features enabled on the device (the subset of [`WANTED_FEATURES`] the adapter has).
+    pub fn features(&self) -> wgpu::Features {
+        self.features
+    }
+
+    /// Name, backend, device type and driver of the adapter.
+    pub fn adapter_info(&self) -> &wgpu::AdapterInfo {
+        &self.info
+    }
+
+    /// The adapter itself (e.g. for format queries).
+    pub fn adapter(&self) -> &wgpu::Adapter {
+        &self.adapter
+    }
+
+    /// True when 64-bit integer atomics (`atomicMax` on `u64`) are available.
+    pub fn has_int64_atomics(&self) -> bool {
+        self.features
+            .contains(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
+    }
+
+    /// Workgroup count for grid-stride reductions: few on a CPU adapter (lavapipe runs a
+    /// workgroup as SIMD lanes on one core; more workgroups only add partial sums), many on
+    /// a real GPU.
+    pub fn reduction_workgroups(&self) -> u32 {
+        match self.info.device_type {
+            wgpu::DeviceType::Cpu => CPU_REDUCTION_WORKGROUPS,
+            _ => GPU_REDUCTION_WORKGROUPS,
+        }
+    }
+
+    /// Largest buffer, in bytes, that can be both created and bound whole as one storage
+    /// binding: `min(max_storage_buffer_binding_size, max_buffer_size)`.
+    pub fn max_storage_bytes(&self) -> u64 {
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
+    }
+
+    /// Byte and submission counters shared by all buffers of this context.
+    pub fn stats(&self) -> StatsSnapshot {
+        self.stats.snapshot()
+    }
+
+    /// The shared counters (buffers hold a clone to account their own frees).
+    pub(crate) fn stats_handle(&self) -> &Arc<GpuStats> {
+        &self.stats
+    }
+
+    /// A new command encoder.
+    pub fn encoder(&self, label: &str) -> wgpu::CommandEncoder {
+        self.device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
+    }
+
+    /// Submits one encoder's commands and counts the submission.
+    pub fn submit(&self, encoder: wgpu::CommandEncoder) -> wgpu::SubmissionIndex {
+        self.stats.count_submission();
+        self.queue.submit(Some(encoder.finish()))
+    }
+
+    /// Blocks until all submitted work is done; device loss or a timeout is [`Error::Gpu`].
+    pub fn wait_idle(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+        self.check_device()
+    }
+
+    /// [`Error::Gpu`] if the device was lost or an error escaped every error scope.
+    pub fn check_device(&self) -> Result<()> {
+        if let Some(msg) = self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone() {
+            return Err(Error::Gpu(msg));
+        }
+        let mut unc = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
+        if !unc.is_empty() {
+            let msg = unc.join("; ");
+            unc.clear();
+            return Err(Error::Gpu(format!("uncaptured GPU error: {msg}")));
+        }
+        Ok(())
+    }
+
+    /// Runs `work` (which records and submits GPU commands, or creates resources) inside
+    /// pushed Validation and OutOfMemory error scopes, and turns any captured error, a lost
+    /// device, or an error escaping the scopes into [`Error::Gpu`] prefixed with `what`.
+    /// An error returned by `work` itself is passed through unchanged (after popping).
+    pub fn scoped<T>(&self, what: &str, work: impl FnOnce() -> Result<T>) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let result = work();
+        // Scopes pop in reverse order of their pushing.
+        let validation_err = pollster::block_on(validation.pop());
+        let oom_err = pollster::block_on(oom.pop());
+        let mut msgs = Vec::new();
+        if let Some(e) = validation_err {
+            msgs.push(format!("validation: {e}"));
+        }
+        if let Some(e) = oom_err {
+            msgs.push(format!("out of memory: {e}"));
+        }
+        if let Err(e) = self.check_device() {
+            msgs.push(e.to_string());
+        }
+        if !msgs.is_empty() {
+            return Err(Error::Gpu(format!("{what}: {}", msgs.join("; "))));
+        }
+        result
+    }
+}

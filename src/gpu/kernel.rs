@@ -1,0 +1,270 @@
+//! A compute kernel: one pipeline, its explicit bind-group layout and its workgroup size,
+//! built once from a kernel name (`shaders/<name>.wgsl`, entry point `main`) and the list of
+//! its bindings. Dispatch computes nothing itself beyond skipping empty dispatches.
+//!
+//! Not a scheduler: which kernel runs when, on which buffers, is the backend's business.
+//! Layouts are explicit because with `layout: None` bindings an entry point does not use
+//! vanish from the derived layout, and bind-group creation then panics.
+
+use super::context::GpuContext;
+use super::shaders;
+use crate::{Error, Result};
+
+/// What one `@group(0) @binding(i)` is. Bindings are listed in `i` order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BindingKind {
+    /// `var<uniform>`: a params struct from `src/layout.rs`.
+    Uniform,
+    /// `var<storage, read>`.
+    StorageRead,
+    /// `var<storage, read_write>` (including atomics).
+    StorageReadWrite,
+}
+
+/// One binding with a label for the layout (what the buffer is, for error messages).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Binding {
+    pub kind: BindingKind,
+    pub label: &'static str,
+}
+
+impl Binding {
+    /// A uniform params struct.
+    pub const fn uniform(label: &'static str) -> Binding {
+        Binding {
+            kind: BindingKind::Uniform,
+            label,
+        }
+    }
+    /// A read-only storage array.
+    pub const fn read(label: &'static str) -> Binding {
+        Binding {
+            kind: BindingKind::StorageRead,
+            label,
+        }
+    }
+    /// A read-write storage array.
+    pub const fn read_write(label: &'static str) -> Binding {
+        Binding {
+            kind: BindingKind::StorageReadWrite,
+            label,
+        }
+    }
+}
+
+/// A compute pipeline with its bind-group layout (group 0) and `@workgroup_size` (x only:
+/// every kernel here is one-dimensional).
+#[derive(Debug)]
+pub struct Kernel {
+    /// The kernel's name (`shaders/<name>.wgsl`).
+    pub name: String,
+    pub pipeline: wgpu::ComputePipeline,
+    pub bind_group_layout: wgpu::BindGroupLayout,
+    /// Threads per workgroup, read from the shader's `@workgroup_size`.
+    pub workgroup_size: u32,
+    bindings: Vec<Binding>,
+}
+
+impl Kernel {
+    /// Builds the kernel `shaders/<name>.wgsl` (with `common.wgsl` prepended). Create every
+    /// kernel once: pipeline creation costs 60-130 ms on lavapipe.
+    ///
+    /// Panics when `bindings` disagree with the shader's declarations (an internal
+    /// contract); wgpu validation errors become [`Error::Gpu`].
+    pub fn new(ctx: &GpuContext, name: &str, bindings: &[Binding]) -> Result<Kernel> {
+        Self::from_source(ctx, name, &shaders::source(name), bindings)
+    }
+
+    /// Builds a kernel from full WGSL text (used by [`Kernel::new`] and by tests with
+    /// inline shaders).
+    pub fn from_source(
+        ctx: &GpuContext,
+        name: &str,
+        wgsl: &str,
+        bindings: &[Binding],
+    ) -> Result<Kernel> {
+        let workgroup_size = check_shader_interface(name, wgsl, bindings)?;
+        ctx.scoped(&format!("creating kernel `{name}`"), || {
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupLayoutEntry {
+                    binding: i as u32,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: match b.kind {
+                            BindingKind::Uniform => wgpu::BufferBindingType::Uniform,
+                            BindingKind::StorageRead => {
+                                wgpu::BufferBindingType::Storage { read_only: true }
+                            }
+                            BindingKind::StorageReadWrite => {
+                                wgpu::BufferBindingType::Storage { read_only: false }
+                            }
+                        },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                })
+                .collect();
+            let bind_group_layout =
+                ctx.device
+                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some(name),
+                        entries: &entries,
+                    });
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(name),
+                    bind_group_layouts: &[Some(&bind_group_layout)],
+                    immediate_size: 0,
+                });
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(name),
+                    source: wgpu::ShaderSource::Wgsl(wgsl.into()),
+                });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(name),
+                    layout: Some(&layout),
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            Ok(Kernel {
+                name: name.to_string(),
+                pipeline,
+                bind_group_layout,
+                workgroup_size,
+                bindings: bindings.to_vec(),
+            })
+        })
+    }
+
+    /// The bindings this kernel was built with, in `@binding` order.
+    pub fn bindings(&self) -> &[Binding] {
+        &self.bindings
+    }
+
+    /// A bind group with `resources[i]` at `@binding(i)`. Panics when the count differs
+    /// from the kernel's bindings (an internal contract).
+    pub fn bind_group(
+        &self,
+        ctx: &GpuContext,
+        resources: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
+        assert_eq!(
+            resources.len(),
+            self.bindings.len(),
+            "kernel `{}`: {} resources for bindings {:?}",
+            self.name,
+            resources.len(),
+            self.bindings
+        );
+        let entries: Vec<wgpu::BindGroupEntry> = resources
+            .iter()
+            .enumerate()
+            .map(|(i, r)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: r.clone(),
+            })
+            .collect();
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&self.name),
+            layout: &self.bind_group_layout,
+            entries: &entries,
+        })
+    }
+
+    /// Workgroups needed to give each of `n` items one thread: `ceil(n / workgroup_size)`.
+    pub fn workgroups_for(&self, n: usize) -> u32 {
+        n.div_ceil(self.workgroup_size as usize) as u32
+    }
+
+    /// Records `set_pipeline`, `set_bind_group(0)` and a one-dimensional dispatch of
+    /// `workgroups`. Does nothing when `workgroups == 0`; [`Error::Capacity`] when it
+    /// exceeds the device's `max_compute_workgroups_per_dimension`.
+    pub fn dispatch(
+        &self,
+        ctx: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        bind_group: &wgpu::BindGroup,
+        workgroups: u32,
+    ) -> Result<()> {
+        if workgroups == 0 {
+            return Ok(());
+        }
+        let max = ctx.limits().max_compute_workgroups_per_dimension;
+        if workgroups > max {
+            return Err(Error::Capacity(format!(
+                "kernel `{}`: {workgroups} workgroups of {} threads exceed the device limit \
+                 of {max} per dispatch",
+                self.name, self.workgroup_size
+            )));
+        }
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.dispatch_workgroups(workgroups, 1, 1);
+        Ok(())
+    }
+}
+
+/// Parses `wgsl` with naga, checks that the `@group(0)` bindings match `bindings` in count
+/// and kind, and returns `@workgroup_size(x)` of the entry point `main`.
+///
+/// A WGSL parse error is [`Error::Gpu`] (it means the embedded shader is broken, which
+/// `tests/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug).
+fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Result<u32> {
+    let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| {
+        Error::Gpu(format!(
+            "kernel `{name}` does not parse:\n{}",
+            e.emit_to_string(wgsl)
+        ))
+    })?;
+    let entry = module
+        .entry_points
+        .iter()
+        .find(|e| e.name == "main" && e.stage == naga::ShaderStage::Compute)
+        .unwrap_or_else(|| panic!("kernel `{name}` has no `@compute fn main`"));
+    let mut declared: Vec<(u32, BindingKind)> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, g)| {
+            let rb = g.binding.as_ref()?;
+            assert_eq!(rb.group, 0, "kernel `{name}`: only @group(0) is used");
+            let kind = match g.space {
+                naga::AddressSpace::Uniform => BindingKind::Uniform,
+                naga::AddressSpace::Storage { access } => {
+                    if access.contains(naga::StorageAccess::STORE) {
+                        BindingKind::StorageReadWrite
+                    } else {
+                        BindingKind::StorageRead
+                    }
+                }
+                other => panic!("kernel `{name}`: unsupported binding space {other:?}"),
+            };
+            Some((rb.binding, kind))
+        })
+        .collect();
+    declared.sort_by_key(|(i, _)| *i);
+    let expected: Vec<(u32, BindingKind)> = bindings
+        .iter()
+        .enumerate()
+        .map(|(i, b)| (i as u32, b.kind))
+        .collect();
+    assert_eq!(
+        declared, expected,
+        "kernel `{name}`: WGSL bindings (left) differ from the Rust list (right)"
+    );
+    let [x, y, z] = entry.workgroup_size;
+    assert!(
+        y == 1 && z == 1,
+        "kernel `{name}`: only one-dimensional workgroups are supported"
+    );
+    Ok(x)
+}

@@ -1,0 +1,96 @@
+//! The WGSL sources, embedded at build time: `shaders/common.wgsl` plus one file per kernel.
+//!
+//! WGSL has no includes, so a kernel's source is `common.wgsl` followed by
+//! `shaders/<kernel>.wgsl`. [`source`] builds it; the runtime (pipeline creation) and the
+//! naga test (`tests/shaders.rs`) both use it, so what is validated is what runs.
+//! This module does not compile anything; see [`super::kernel`].
+
+/// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`.
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+
+/// Every kernel as `(name, text of shaders/<name>.wgsl)`. Keep in sync with the directory:
+/// `tests/shaders.rs` fails when a `.wgsl` file is missing here.
+pub const KERNELS: &[(&str, &str)] = &[
+    (
+        "depth_to_vertex",
+        include_str!("../../shaders/depth_to_vertex.wgsl"),
+    ),
+    (
+        "vertex_to_normal",
+        include_str!("../../shaders/vertex_to_normal.wgsl"),
+    ),
+    (
+        "project_model",
+        include_str!("../../shaders/project_model.wgsl"),
+    ),
+    (
+        "predict_model",
+        include_str!("../../shaders/predict_model.wgsl"),
+    ),
+    ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
+    ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
+    ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
+];
+
+/// The kernel file's text alone (without `common.wgsl`), or `None` for an unknown name.
+pub fn kernel_text(kernel_name: &str) -> Option<&'static str> {
+    KERNELS
+        .iter()
+        .find(|(name, _)| *name == kernel_name)
+        .map(|(_, text)| *text)
+}
+
+/// The full WGSL of a kernel: `common.wgsl` + `shaders/<kernel_name>.wgsl`.
+///
+/// Panics on an unknown kernel name: kernel names are compile-time constants of this crate,
+/// so a miss is a bug, not a user error.
+pub fn source(kernel_name: &str) -> String {
+    let text = kernel_text(kernel_name).unwrap_or_else(|| {
+        panic!("unknown WGSL kernel `{kernel_name}` (not listed in gpu::shaders::KERNELS)")
+    });
+    concat_with_common(text)
+}
+
+/// `common.wgsl` followed by `kernel_text`, separated by one newline.
+pub fn concat_with_common(kernel_text: &str) -> String {
+    let mut s = String::with_capacity(COMMON.len() + kernel_text.len() + 1);
+    s.push_str(COMMON);
+    if !COMMON.ends_with('\n') {
+        s.push('\n');
+    }
+    s.push_str(kernel_text);
+    s
+}
+
+/// Lines `common.wgsl` takes at the top of every concatenated source.
+pub fn common_line_count() -> usize {
+    COMMON.lines().count()
+}
+
+/// Maps a 1-based line of a concatenated source back to `(file, line)`:
+/// `("common.wgsl", l)` for the prefix, `("<kernel>.wgsl", l)` after it.
+pub fn origin_of_line(kernel_name: &str, line: usize) -> (String, usize) {
+    let n = common_line_count();
+    if line <= n {
+        ("shaders/common.wgsl".to_string(), line)
+    } else {
+        (format!("shaders/{kernel_name}.wgsl"), line - n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_mapping_splits_at_common() {
+        let n = common_line_count();
+        assert_eq!(origin_of_line("k", n).0, "shaders/common.wgsl");
+        assert_eq!(
+            origin_of_line("k", n + 3),
+            ("shaders/k.wgsl".to_string(), 3)
+        );
+        let src = concat_with_common("// first\n");
+        assert_eq!(src.lines().nth(n), Some("// first"));
+    }
+}

@@ -1,0 +1,605 @@
+//! Each WGSL kernel against its CPU twin on real ICL-NUIM frames from `assets/`, a whole
+//! tracked run on both backends (and the GPU run against the real ground truth), and the
+//! GPU map's growth and capacity error. Skips with a printed reason without a GPU adapter
+//! unless `WGSLAM_REQUIRE_GPU=1`.
+
+mod common;
+
+use std::path::Path;
+
+use glam::DMat4;
+use wgslam::camera::Intrinsics;
+use wgslam::cpu;
+use wgslam::cpu_backend::CpuBackend;
+use wgslam::gpu::test_support::gpu_or_skip;
+use wgslam::gpu::GpuBackend;
+use wgslam::layout::pack_rgba8;
+use wgslam::map::SurfelMap;
+use wgslam::pipeline::{Backend, PoseSource, Slam, SlamParams, TrackStatus};
+use wgslam::se3;
+use wgslam::solve::NormalEquations;
+use wgslam::Error;
+
+// ---------------------------------------------------------------------------------------
+// Tolerances (each with its reason).
+
+/// Vertices: the same f32 formula on both sides; lavapipe may contract a multiply-add into
+/// an FMA or round a division differently, a few ULP of a value below 6 m (~1e-6 m).
+const VERTEX_TOL_M: f32 = 1e-5;
+/// Normals: a cross product of differences of nearby vertices amplifies those ULPs by the
+/// inverse of the pixel spacing (~1/0.01 m); 1e-3 of a unit vector is ~0.06 degrees.
+const NORMAL_TOL: f32 = 1e-3;
+/// Validity masks (normals, index map): a depth-jump comparison or a projection can land on
+/// the other side of a boundary after one ULP of FMA difference. Allowed fraction of pixels.
+const MASK_MISMATCH_FRACTION: f64 = 1e-3;
+/// Index-map keys: the camera depth in the key may differ by a few ULP (FMA in the pose
+/// transform on the GPU).
+const KEY_DEPTH_ULP_TOL: u32 = 4;
+/// Decoded 6x6 systems: f32 partial sums of ~50k rows per workgroup on the GPU versus f64
+/// sums on the CPU; relative Frobenius difference of AᵀA and Aᵀb.
+const SYSTEM_REL_TOL: f64 = 1e-3;
+/// Solved increments (radians and metres mixed): 1e-6 is a micrometre / microradian, far
+/// below the 1e-6 convergence threshold's effect on a pose and the data's 1 mm quantisation.
+const INCREMENT_TOL: f64 = 1e-6;
+/// Inlier counts: the distance and projection filters can flip for a few pixels (FMA).
+const INLIER_FRACTION_TOL: f64 = 1e-3;
+/// Fused surfels: an average of a handful of observations of f32 values (metres / 0..255).
+const SURFEL_POS_TOL_M: f32 = 1e-4;
+const SURFEL_COLOR_TOL: f32 = 1e-2;
+/// Whole runs: per-frame pose difference between the backends (the solve differs only by
+/// f32 vs f64 summation, and ICP converges to the same minimum).
+const RUN_POSE_TOL_M: f64 = 1e-4;
+const RUN_POSE_TOL_DEG: f64 = 0.01;
+/// Whole runs: surfel count difference between the backends (fusion filter decisions on a
+/// boundary, amplified over frames).
+const RUN_SURFEL_FRACTION_TOL: f64 = 1e-3;
+/// The GPU run against ground truth over the bundled frames: translation RMSE (the bar
+/// the CPU reference meets with ~0.2 mm to spare).
+const GT_RMSE_MAX_M: f64 = 1e-3;
+
+// ---------------------------------------------------------------------------------------
+// Loading the bundled frames with the image crate directly.
+
+struct Frame {
+    depth: Vec<u16>,
+    rgba: Vec<u32>,
+}
+
+fn load_frame(root: &Path, i: usize) -> Frame {
+    let depth = image::open(root.join(format!("depth/{i}.png")))
+        .unwrap_or_else(|e| panic!("depth/{i}.png: {e}"))
+        .into_luma16();
+    let rgb = image::open(root.join(format!("rgb/{i}.png")))
+        .unwrap_or_else(|e| panic!("rgb/{i}.png: {e}"))
+        .into_rgb8();
+    assert_eq!(depth.dimensions(), (640, 480));
+    assert_eq!(rgb.dimensions(), (640, 480));
+    Frame {
+        depth: depth.into_raw(),
+        rgba: rgb.pixels().map(|p| pack_rgba8(p.0)).collect(),
+    }
+}
+
+/// Ground truth camera-to-world by frame index (`i tx ty tz qx qy qz qw`).
+fn load_gt(root: &Path) -> Vec<Option<DMat4>> {
+    let text = std::fs::read_to_string(root.join("livingRoom2.gt.freiburg")).unwrap();
+    let mut gt = Vec::new();
+    for line in text.lines().filter(|l| !l.trim().is_empty()) {
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        let i = v[0] as usize;
+        if gt.len() <= i {
+            gt.resize(i + 1, None);
+        }
+        gt[i] = Some(se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]));
+    }
+    gt
+}
+
+/// Ground truth of frame `i`, if any.
+fn gt_at(gt: &[Option<DMat4>], i: usize) -> Option<&DMat4> {
+    gt.get(i).and_then(|g| g.as_ref())
+}
+
+fn root() -> std::path::PathBuf {
+    common::bundled_icl()
+}
+
+fn slam<B: Backend>(backend: B, params: SlamParams) -> Slam<B> {
+    Slam::new(backend, Intrinsics::ICL_NUIM, params)
+}
+
+fn gpu_backend(test: &str) -> Option<GpuBackend> {
+    let ctx = gpu_or_skip(test)?;
+    Some(GpuBackend::new(ctx).expect("GPU backend"))
+}
+
+/// Counts mask mismatches and panics (naming the first pixels) past the allowance.
+fn check_mask(what: &str, cpu: &[bool], gpu: &[bool]) {
+    assert_eq!(cpu.len(), gpu.len());
+    let bad: Vec<usize> = (0..cpu.len()).filter(|&i| cpu[i] != gpu[i]).collect();
+    let allowed = (cpu.len() as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;
+    eprintln!("{what}: {} of {} mask entries differ", bad.len(), cpu.len());
+    assert!(
+        bad.len() <= allowed,
+        "{what}: {} mask mismatches (allowed {allowed}); first at pixels {:?} (cpu {:?}, gpu {:?})",
+        bad.len(),
+        &bad[..bad.len().min(5)],
+        bad.iter().take(5).map(|&i| cpu[i]).collect::<Vec<_>>(),
+        bad.iter().take(5).map(|&i| gpu[i]).collect::<Vec<_>>(),
+    );
+}
+
+/// Compares two vec4 maps where both are valid; masks separately with [`check_mask`].
+fn check_vec4_map(what: &str, cpu: &[[f32; 4]], gpu: &[[f32; 4]], tol: f32) {
+    check_mask(
+        what,
+        &cpu.iter().map(|v| v[3] > 0.0).collect::<Vec<_>>(),
+        &gpu.iter().map(|v| v[3] > 0.0).collect::<Vec<_>>(),
+    );
+    let mut worst = (0.0f32, 0usize);
+    for (i, (c, g)) in cpu.iter().zip(gpu).enumerate() {
+        if c[3] > 0.0 && g[3] > 0.0 {
+            let d = (0..3).map(|k| (c[k] - g[k]).abs()).fold(0.0, f32::max);
+            if d > worst.0 {
+                worst = (d, i);
+            }
+        }
+    }
+    let i = worst.1;
+    eprintln!("{what}: max difference {:e} at pixel {i}", worst.0);
+    assert!(
+        worst.0 <= tol,
+        "{what}: pixel {i} differs by {:e} > {tol:e}: cpu {:?}, gpu {:?}",
+        worst.0,
+        cpu[i],
+        gpu[i]
+    );
+}
+
+/// A CPU map fused from bundled frames 1..=n at ground-truth poses.
+fn cpu_map_from_gt(n: usize, params: &SlamParams) -> (Slam<CpuBackend>, Vec<Option<DMat4>>) {
+    let gt = load_gt(&root());
+    let mut s = slam(
+        CpuBackend::new(),
+        SlamParams {
+            poses: PoseSource::GroundTruth,
+            ..params.clone()
+        },
+    );
+    for i in 1..=n {
+        let f = load_frame(&root(), i);
+        s.process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+    }
+    (s, gt)
+}
+
+// ---------------------------------------------------------------------------------------
+
+/// depth_to_vertex and vertex_to_normal against their twins, at downsample 2 and 1.
+#[test]
+fn preprocess_matches_twins() {
+    let Some(mut gpu) = gpu_backend("preprocess_matches_twins") else {
+        return;
+    };
+    let frame = load_frame(&root(), 5);
+    for downsample in [2, 1] {
+        let params = SlamParams {
+            downsample,
+            ..SlamParams::default()
+        };
+        let s = slam(CpuBackend::new(), params);
+        let (pp, np) = (s.preprocess_params(), s.normal_params());
+        let mut cpu_b = s.backend;
+        cpu_b
+            .preprocess(&pp, &np, &frame.depth, &frame.rgba)
+            .unwrap();
+        gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+        let c = cpu_b.download_frame().unwrap();
+        let g = gpu.download_frame().unwrap();
+        let tag = format!("downsample {downsample}");
+        check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
+        // Colour is integer-valued: exact.
+        assert_eq!(c.color, g.color, "{tag}: colour maps differ");
+        check_vec4_map(&format!("{tag} normal"), &c.normal, &g.normal, NORMAL_TOL);
+        let valid = c.normal.iter().filter(|n| n[3] > 0.0).count();
+        assert!(
+            valid > c.normal.len() / 2,
+            "{tag}: only {valid} valid normals"
+        );
+    }
+}
+
+/// project_model and predict_model against their twins on a real fused map, viewed from a
+/// later frame's ground-truth pose.
+#[test]
+fn predict_matches_twins() {
+    let Some(mut gpu) = gpu_backend("predict_matches_twins") else {
+        return;
+    };
+    let params = SlamParams::default();
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    let map = s.backend.download_map().unwrap();
+    gpu.upload_map(&map).unwrap();
+    let frame = load_frame(&root(), 6);
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+    let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
+    let proj = s.project_params(&t_world_to_cam);
+    assert_eq!(proj.surfel_count as usize, map.len());
+
+    let n = (proj.width * proj.height) as usize;
+    let mut index_cpu = vec![0u64; n];
+    cpu::project_model::project_model(&proj, &map.positions, &mut index_cpu);
+    let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
+    cpu::predict_model::predict_model(
+        &proj,
+        &index_cpu,
+        &map.positions,
+        &map.normals,
+        &mut pv_cpu,
+        &mut pn_cpu,
+    );
+    gpu.predict(&proj).unwrap();
+    let index_gpu = gpu.download_index_map().unwrap();
+    let (pv_gpu, pn_gpu) = gpu.download_prediction().unwrap();
+
+    // Index map: the same surfel at (almost) every pixel. The depth half of the key may
+    // differ by a few ULP (the GPU may fuse the pose multiply-adds), which is not a
+    // difference in the chosen surfel unless it changes the winner.
+    let surfel = |k: u64| (k != 0).then_some(k & 0xffff_ffff);
+    let depth_bits = |k: u64| !((k >> 32) as u32);
+    let differ: Vec<usize> = (0..n)
+        .filter(|&i| surfel(index_cpu[i]) != surfel(index_gpu[i]))
+        .collect();
+    let allowed = (n as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;
+    let max_ulp = (0..n)
+        .filter(|&i| index_cpu[i] != 0 && surfel(index_cpu[i]) == surfel(index_gpu[i]))
+        .map(|i| depth_bits(index_cpu[i]).abs_diff(depth_bits(index_gpu[i])))
+        .max()
+        .unwrap_or(0);
+    eprintln!(
+        "index map: {} of {n} pixels pick a different surfel; {} covered; depth keys within {max_ulp} ULP",
+        differ.len(),
+        index_cpu.iter().filter(|&&k| k != 0).count()
+    );
+    assert!(
+        max_ulp <= KEY_DEPTH_ULP_TOL,
+        "index map depth keys differ by {max_ulp} ULP"
+    );
+    if let Some(&i) = differ.first() {
+        assert!(
+            differ.len() <= allowed,
+            "index map: {} pixels differ (allowed {allowed}); first at pixel {i}: cpu {:#x} gpu {:#x}",
+            differ.len(),
+            index_cpu[i],
+            index_gpu[i]
+        );
+    }
+    // The same surfel gives bit-identical copies of its position and normal.
+    check_vec4_map("predicted vertex", &pv_cpu, &pv_gpu, 0.0);
+    check_vec4_map("predicted normal", &pn_cpu, &pn_gpu, 0.0);
+}
+
+/// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
+/// at a pose perturbed from the ground truth.
+#[test]
+fn icp_system_matches_twin() {
+    let Some(mut gpu) = gpu_backend("icp_system_matches_twin") else {
+        return;
+    };
+    let params = SlamParams::default();
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
+    let frame = load_frame(&root(), 4);
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    s.backend
+        .preprocess(&pp, &np, &frame.depth, &frame.rgba)
+        .unwrap();
+    gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+    // Predict from frame 3's pose, track frame 4 from a perturbed estimate.
+    let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
+    let proj = s.project_params(&t_prev);
+    s.backend.predict(&proj).unwrap();
+    gpu.predict(&proj).unwrap();
+    let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
+    for (label, t) in [("true pose", t_true), ("perturbed pose", nudge * t_true)] {
+        let ip = s.icp_params(&t);
+        let c = NormalEquations::decode(&s.backend.icp_system(&ip).unwrap());
+        let g = NormalEquations::decode(&gpu.icp_system(&ip).unwrap());
+        let ata = (c.ata - g.ata).norm() / c.ata.norm();
+        // Aᵀb nearly cancels at the optimum, so its error is measured against the
+        // Cauchy-Schwarz bound of its terms, sqrt(trace(AᵀA) Σb²), not against itself.
+        let atb = (c.atb - g.atb).norm() / (c.ata.trace() * c.residual_sq_sum).sqrt();
+        let inl = c.inliers.abs_diff(g.inliers) as f64 / c.inliers as f64;
+        eprintln!(
+            "{label}: inliers cpu {} gpu {}; rel diff AᵀA {ata:e} Aᵀb {atb:e}; \
+             residual² cpu {:e} gpu {:e}",
+            c.inliers, g.inliers, c.residual_sq_sum, g.residual_sq_sum
+        );
+        assert!(
+            c.inliers > 10_000,
+            "{label}: too few inliers for a real test"
+        );
+        assert!(
+            inl <= INLIER_FRACTION_TOL,
+            "{label}: inliers {} vs {}",
+            c.inliers,
+            g.inliers
+        );
+        assert!(
+            ata <= SYSTEM_REL_TOL,
+            "{label}: AᵀA relative difference {ata:e}"
+        );
+        assert!(
+            atb <= SYSTEM_REL_TOL,
+            "{label}: Aᵀb relative difference {atb:e}"
+        );
+        let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
+        let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
+        eprintln!("{label}: increment cpu {xc:?}\n      gpu {xg:?}; difference {dx:e}");
+        assert!(dx <= INCREMENT_TOL, "{label}: increments differ by {dx:e}");
+    }
+}
+
+/// Sort key for order-independent map comparison: position bits, then frame.
+fn surfel_key(m: &SurfelMap, i: usize) -> ([u32; 3], u32) {
+    let p = m.positions[i];
+    (
+        [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()],
+        m.last_frame[i],
+    )
+}
+
+/// Compares surfel `ic` of `c` with `ig` of `g`.
+fn check_surfel(what: &str, c: &SurfelMap, ic: usize, g: &SurfelMap, ig: usize) {
+    let dp = (0..3)
+        .map(|k| (c.positions[ic][k] - g.positions[ig][k]).abs())
+        .fold(0.0, f32::max);
+    let dn = (0..3)
+        .map(|k| (c.normals[ic][k] - g.normals[ig][k]).abs())
+        .fold(0.0, f32::max);
+    let dc = (0..3)
+        .map(|k| (c.colors[ic][k] - g.colors[ig][k]).abs())
+        .fold(0.0, f32::max);
+    let same = dp <= SURFEL_POS_TOL_M
+        && dn <= NORMAL_TOL
+        && dc <= SURFEL_COLOR_TOL
+        && c.weights[ic] == g.weights[ig]
+        && c.last_frame[ic] == g.last_frame[ig];
+    assert!(
+        same,
+        "{what}: cpu surfel {ic} {:?} n {:?} c {:?} w {} f {} vs gpu surfel {ig} {:?} n {:?} c {:?} w {} f {}",
+        c.positions[ic], c.normals[ic], c.colors[ic], c.weights[ic], c.last_frame[ic],
+        g.positions[ig], g.normals[ig], g.colors[ig], g.weights[ig], g.last_frame[ig]
+    );
+}
+
+/// fuse_merge and fuse_add against their twins: merged surfels keep their index, so they
+/// are compared one to one; appended surfels are compared after sorting (the GPU appends
+/// in atomic order).
+#[test]
+fn fuse_matches_twins() {
+    let Some(mut gpu) = gpu_backend("fuse_matches_twins") else {
+        return;
+    };
+    let params = SlamParams::default();
+    let (mut s, gt) = cpu_map_from_gt(2, &params);
+    let before = s.backend.download_map().unwrap();
+    gpu.upload_map(&before).unwrap();
+    let frame = load_frame(&root(), 3);
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    s.backend
+        .preprocess(&pp, &np, &frame.depth, &frame.rgba)
+        .unwrap();
+    gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+    let fp = s.fuse_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()), 3);
+    let n_cpu = s.backend.fuse(&fp).unwrap();
+    let n_gpu = gpu.fuse(&fp).unwrap();
+    let c = s.backend.download_map().unwrap();
+    let g = gpu.download_map().unwrap();
+    assert_eq!((c.len(), g.len()), (n_cpu, n_gpu));
+    let merged = c.last_frame[..before.len()]
+        .iter()
+        .filter(|&&f| f == 3)
+        .count();
+    eprintln!(
+        "fuse: {} surfels before, {merged} merged; after cpu {n_cpu}, gpu {n_gpu}",
+        before.len()
+    );
+    assert!(merged > 1000, "too few merges for a real test");
+    // Merge decisions on a threshold can flip for a few surfels (FMA); then the appended
+    // sets differ by the same few pixels.
+    let allowed = (before.len() as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;
+    let flips: Vec<usize> = (0..before.len())
+        .filter(|&i| (c.last_frame[i] == 3) != (g.last_frame[i] == 3))
+        .collect();
+    assert!(
+        flips.len() <= allowed,
+        "{} merge decisions differ; first surfel {:?}",
+        flips.len(),
+        flips.first()
+    );
+    for i in (0..before.len()).filter(|i| !flips.contains(i)) {
+        check_surfel("merged/kept surfel", &c, i, &g, i);
+    }
+    assert!(
+        n_cpu.abs_diff(n_gpu) <= allowed,
+        "surfel counts cpu {n_cpu} gpu {n_gpu}"
+    );
+    if flips.is_empty() && n_cpu == n_gpu {
+        let mut ic: Vec<usize> = (before.len()..n_cpu).collect();
+        let mut ig: Vec<usize> = (before.len()..n_gpu).collect();
+        ic.sort_by_key(|&i| surfel_key(&c, i));
+        ig.sort_by_key(|&i| surfel_key(&g, i));
+        for (&a, &b) in ic.iter().zip(&ig) {
+            check_surfel("appended surfel", &c, a, &g, b);
+        }
+    }
+}
+
+/// Tracks the bundled frames 1..=N on both backends: same statuses, poses within
+/// RUN_POSE_TOL, surfel counts within RUN_SURFEL_FRACTION_TOL, and the GPU poses within
+/// GT_RMSE_MAX_M of the ground truth.
+#[test]
+fn tracked_run_matches_cpu_and_ground_truth() {
+    let Some(gpu) = gpu_backend("tracked_run_matches_cpu_and_ground_truth") else {
+        return;
+    };
+    let gt = load_gt(&root());
+    let last = gt.len() - 1;
+    assert!(
+        last >= 20,
+        "at least 20 frames with ground truth are bundled"
+    );
+    let mut c = slam(CpuBackend::new(), SlamParams::default());
+    let mut g = slam(gpu, SlamParams::default());
+    let (mut sq_err, mut worst_m, mut worst_deg) = (0.0, 0.0f64, 0.0f64);
+    let t0 = std::time::Instant::now();
+    let (mut t_cpu, mut t_gpu) = (0.0, 0.0);
+    for i in 1..=last {
+        let f = load_frame(&root(), i);
+        let t = std::time::Instant::now();
+        let rc = c
+            .process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+        t_cpu += t.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
+        let rg = g
+            .process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+        t_gpu += t.elapsed().as_secs_f64();
+        assert!(
+            !matches!(rg.status, TrackStatus::Lost(_) | TrackStatus::EmptyDepth),
+            "frame {i}: GPU {:?}",
+            rg.status
+        );
+        let d = se3::inverse_rigid(&rc.t_cam_to_world) * rg.t_cam_to_world;
+        let (dm, ddeg) = (
+            se3::translation_norm(&d),
+            se3::rotation_angle(&d).to_degrees(),
+        );
+        worst_m = worst_m.max(dm);
+        worst_deg = worst_deg.max(ddeg);
+        let e = se3::inverse_rigid(gt_at(&gt, i).unwrap()) * rg.t_cam_to_world;
+        sq_err += se3::translation_norm(&e).powi(2);
+        let ds = rc.surfels.abs_diff(rg.surfels) as f64 / rc.surfels as f64;
+        assert!(
+            dm <= RUN_POSE_TOL_M && ddeg <= RUN_POSE_TOL_DEG,
+            "frame {i}: poses differ by {:.4} mm / {ddeg:.5} deg",
+            dm * 1e3
+        );
+        assert!(
+            ds <= RUN_SURFEL_FRACTION_TOL,
+            "frame {i}: surfels cpu {} gpu {}",
+            rc.surfels,
+            rg.surfels
+        );
+    }
+    let rmse = (sq_err / last as f64).sqrt();
+    let counters = g.backend.counters();
+    eprintln!(
+        "{last} frames in {:.1} s (cpu {t_cpu:.2} s, gpu {t_gpu:.2} s): backends differ by at \
+         most {:.4} mm / {worst_deg:.5} deg; GPU translation RMSE vs ground truth {:.3} mm; \
+         {} surfels; GPU read back {} bytes in {} submissions",
+        t0.elapsed().as_secs_f64(),
+        worst_m * 1e3,
+        rmse * 1e3,
+        g.backend.surfel_count(),
+        counters.readback_bytes,
+        counters.submissions
+    );
+    assert!(rmse < GT_RMSE_MAX_M, "GPU RMSE {:.3} mm", rmse * 1e3);
+}
+
+/// A tiny initial capacity forces the map buffers to grow during fusion; the result is
+/// the same map as the CPU's.
+#[test]
+fn map_grows_from_a_tiny_capacity() {
+    let Some(ctx) = gpu_or_skip("map_grows_from_a_tiny_capacity") else {
+        return;
+    };
+    let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
+    assert_eq!(gpu.capacity(), 1000);
+    let gt = load_gt(&root());
+    let params = SlamParams {
+        poses: PoseSource::GroundTruth,
+        ..SlamParams::default()
+    };
+    let mut c = slam(CpuBackend::new(), params.clone());
+    let mut g = slam(gpu, params);
+    for i in 1..=3 {
+        let f = load_frame(&root(), i);
+        c.process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+        g.process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+    }
+    let cap = g.backend.capacity();
+    eprintln!(
+        "capacity grew 1000 -> {cap}; surfels cpu {} gpu {}",
+        c.backend.surfel_count(),
+        g.backend.surfel_count()
+    );
+    assert!(cap >= g.backend.surfel_count() + 76_800);
+    let allowed = (c.backend.surfel_count() as f64 * RUN_SURFEL_FRACTION_TOL).ceil() as usize;
+    assert!(c.backend.surfel_count().abs_diff(g.backend.surfel_count()) <= allowed);
+    // The first frame's surfels survived every grow-by-copy: compare them sorted.
+    let (cm, gm) = (
+        c.backend.download_map().unwrap(),
+        g.backend.download_map().unwrap(),
+    );
+    let first = |m: &SurfelMap| {
+        let mut v: Vec<usize> = (0..m.len())
+            .filter(|&i| m.weights[i] == 1.0 && m.last_frame[i] == 1)
+            .collect();
+        v.sort_by_key(|&i| surfel_key(m, i));
+        v
+    };
+    let (fc, fg) = (first(&cm), first(&gm));
+    assert!(fc.len() > 1000);
+    assert!(
+        fc.len().abs_diff(fg.len()) <= allowed,
+        "{} vs {}",
+        fc.len(),
+        fg.len()
+    );
+    if fc.len() == fg.len() {
+        for (&a, &b) in fc.iter().zip(&fg) {
+            check_surfel("frame-1 surfel after growth", &cm, a, &gm, b);
+        }
+    }
+}
+
+/// A map capped below what the second frame may need fails with Error::Capacity naming
+/// the surfels, bytes and limit, instead of writing out of bounds or dropping the frame.
+#[test]
+fn map_capacity_error() {
+    let Some(ctx) = gpu_or_skip("map_capacity_error") else {
+        return;
+    };
+    let gpu = GpuBackend::with_initial_capacity(ctx, 1000)
+        .unwrap()
+        .with_max_surfels(100_000);
+    let gt = load_gt(&root());
+    let params = SlamParams {
+        poses: PoseSource::GroundTruth,
+        ..SlamParams::default()
+    };
+    let mut g = slam(gpu, params);
+    let f = load_frame(&root(), 1);
+    // Frame 1: 0 + 76,800 pixels fit in 100,000.
+    g.process(1, &f.depth, &f.rgba, gt_at(&gt, 1)).unwrap();
+    let f = load_frame(&root(), 2);
+    match g.process(2, &f.depth, &f.rgba, gt_at(&gt, 2)) {
+        Err(Error::Capacity(msg)) => {
+            eprintln!("{msg}");
+            assert!(msg.contains("100000 surfels"), "{msg}");
+        }
+        other => panic!("expected Error::Capacity, got {other:?}"),
+    }
+}

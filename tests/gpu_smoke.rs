@@ -1,0 +1,230 @@
+//! GPU infrastructure end to end: context, a trivial kernel inside the validation scope,
+//! buffer upload / read-back / grow, capacity errors, error scopes, timing.
+//! Skips with a printed reason without an adapter unless `WGSLAM_REQUIRE_GPU=1`.
+
+use wgslam::gpu::buffers::{GpuArray, Uniform};
+use wgslam::gpu::shaders;
+use wgslam::gpu::test_support::gpu_or_skip;
+use wgslam::gpu::{Binding, Kernel, StageTimer};
+use wgslam::Error;
+
+/// `out[i] = 2 in[i] + offset` for `i < n`, using a helper from common.wgsl so the
+/// concatenation is exercised too.
+const AFFINE: &str = r#"
+struct AffineParams { n: u32, offset: u32, _a: u32, _b: u32 }
+@group(0) @binding(0) var<uniform> params: AffineParams;
+@group(0) @binding(1) var<storage, read> input: array<u32>;
+@group(0) @binding(2) var<storage, read_write> output: array<u32>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= params.n {
+        return;
+    }
+    // is_valid comes from common.wgsl.
+    let bonus = select(0u, 1000u, is_valid(vec4<f32>(0.0, 0.0, 0.0, f32(i % 2u))));
+    output[i] = 2u * input[i] + params.offset + bonus;
+}
+"#;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct AffineParams {
+    n: u32,
+    offset: u32,
+    _a: u32,
+    _b: u32,
+}
+
+const AFFINE_BINDINGS: [Binding; 3] = [
+    Binding::uniform("params"),
+    Binding::read("input"),
+    Binding::read_write("output"),
+];
+
+#[test]
+fn trivial_kernel_runs_in_validation_scope() {
+    let Some(ctx) = gpu_or_skip("trivial_kernel_runs_in_validation_scope") else {
+        return;
+    };
+    eprintln!(
+        "adapter {:?}, reduction workgroups {}, max storage binding {} bytes, features {:?}",
+        ctx.adapter_info().name,
+        ctx.reduction_workgroups(),
+        ctx.limits().max_storage_buffer_binding_size,
+        ctx.features()
+    );
+    // 1000 is not a multiple of 64: the last workgroup is partial.
+    let n = 1000usize;
+    let input: Vec<u32> = (0..n as u32).map(|i| i * 7 % 97).collect();
+    let got = ctx
+        .scoped("affine smoke kernel", || {
+            let kernel = Kernel::from_source(
+                &ctx,
+                "affine",
+                &shaders::concat_with_common(AFFINE),
+                &AFFINE_BINDINGS,
+            )?;
+            assert_eq!(kernel.workgroup_size, 64);
+            assert_eq!(kernel.workgroups_for(n), 16);
+            let params = Uniform::new(
+                &ctx,
+                "affine params",
+                &AffineParams {
+                    n: n as u32,
+                    offset: 5,
+                    _a: 0,
+                    _b: 0,
+                },
+            );
+            let inp = GpuArray::from_slice(&ctx, "input", &input)?;
+            let mut out = GpuArray::<u32>::new(&ctx, "output", n)?;
+            out.set_len(n);
+            let bg = kernel.bind_group(&ctx, &[params.binding(), inp.binding(), out.binding()]);
+            let mut timer = StageTimer::new(&ctx, 4);
+            let mut enc = ctx.encoder("affine");
+            {
+                let mut pass = timer.begin_pass(&mut enc, "affine");
+                kernel.dispatch(&ctx, &mut pass, &bg, kernel.workgroups_for(n))?;
+                // An empty dispatch is skipped, not an error.
+                kernel.dispatch(&ctx, &mut pass, &bg, 0)?;
+            }
+            timer.resolve(&mut enc);
+            ctx.submit(enc);
+            let times = timer.read(&ctx)?;
+            assert_eq!(times.len(), 1, "one timed stage: {times:?}");
+            assert!(times[0].ms >= 0.0 && times[0].ms.is_finite());
+            eprintln!("stage times: {times:?}");
+            out.read_back(&ctx)
+        })
+        .expect("no GPU error");
+    for (i, (&g, &x)) in got.iter().zip(&input).enumerate() {
+        let want = 2 * x + 5 + if i % 2 == 1 { 1000 } else { 0 };
+        assert_eq!(g, want, "element {i}: GPU {g}, expected {want}");
+    }
+    let stats = ctx.stats();
+    assert!(stats.submissions >= 2, "{stats:?}");
+    assert_eq!(stats.readback_bytes, (n * 4) as u64, "{stats:?}");
+}
+
+#[test]
+fn int64_atomic_max_packs_depth_and_index() {
+    let Some(ctx) = gpu_or_skip("int64_atomic_max_packs_depth_and_index") else {
+        return;
+    };
+    if !ctx.has_int64_atomics() {
+        eprintln!("SKIP: adapter has no 64-bit atomics");
+        return;
+    }
+    const SRC: &str = r#"
+@group(0) @binding(0) var<storage, read> keys: array<u32>;
+@group(0) @binding(1) var<storage, read_write> best: array<atomic<u64>>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= arrayLength(&keys) { return; }
+    atomicMax(&best[i % 4u], (u64(keys[i]) << 32u) | u64(i));
+}
+"#;
+    let keys: Vec<u32> = (0..256u32)
+        .map(|i| i.wrapping_mul(2654435761) >> 8)
+        .collect();
+    let got = ctx
+        .scoped("u64 atomicMax", || {
+            let k = Kernel::from_source(
+                &ctx,
+                "atomic64",
+                &shaders::concat_with_common(SRC),
+                &[Binding::read("keys"), Binding::read_write("best")],
+            )?;
+            let keys_buf = GpuArray::from_slice(&ctx, "keys", &keys)?;
+            let mut best = GpuArray::<u64>::new(&ctx, "best", 4)?;
+            best.set_len(4);
+            let bg = k.bind_group(&ctx, &[keys_buf.binding(), best.binding()]);
+            let mut enc = ctx.encoder("atomic64");
+            best.clear(&mut enc);
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                k.dispatch(&ctx, &mut pass, &bg, k.workgroups_for(keys.len()))?;
+            }
+            ctx.submit(enc);
+            best.read_back(&ctx)
+        })
+        .expect("no GPU error");
+    for (slot, &g) in got.iter().enumerate() {
+        let want = keys
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i % 4 == slot)
+            .map(|(i, &k)| (k as u64) << 32 | i as u64)
+            .max()
+            .unwrap();
+        assert_eq!(g, want, "slot {slot}");
+    }
+}
+
+#[test]
+fn arrays_grow_keeping_contents_and_read_back_ranges() {
+    let Some(ctx) = gpu_or_skip("arrays_grow_keeping_contents_and_read_back_ranges") else {
+        return;
+    };
+    let data: Vec<[f32; 4]> = (0..100).map(|i| [i as f32, 1.0, 2.0, 3.0]).collect();
+    let mut a = GpuArray::from_slice(&ctx, "positions", &data).unwrap();
+    let before = ctx.stats().allocated_bytes;
+    a.grow(&ctx, 1000).unwrap();
+    assert_eq!(a.capacity(), 1000);
+    assert_eq!(a.len(), 100);
+    assert_eq!(ctx.stats().allocated_bytes, before + 900 * 16);
+    assert_eq!(a.read_back(&ctx).unwrap(), data);
+    assert_eq!(
+        a.read_back_range(&ctx, 10..13).unwrap(),
+        data[10..13].to_vec()
+    );
+    // Elements past len are zero after growing.
+    assert_eq!(a.read_back_range(&ctx, 500..501).unwrap(), vec![[0.0; 4]]);
+    // u16 data (odd byte counts) round-trips through padding.
+    let depth: Vec<u16> = vec![1, 2, 3];
+    let d = GpuArray::from_slice(&ctx, "depth", &depth).unwrap();
+    assert_eq!(d.read_back(&ctx).unwrap(), depth);
+    assert_eq!(d.read_back_range(&ctx, 1..2).unwrap(), vec![2]);
+    drop(a);
+    assert_eq!(ctx.stats().allocated_bytes, before - 100 * 16 + 8);
+}
+
+#[test]
+fn capacity_past_the_binding_limit_is_an_error() {
+    let Some(ctx) = gpu_or_skip("capacity_past_the_binding_limit_is_an_error") else {
+        return;
+    };
+    let too_many = (ctx.max_storage_bytes() / 16 + 1) as usize;
+    match GpuArray::<[f32; 4]>::new(&ctx, "surfel positions", too_many) {
+        Err(Error::Capacity(msg)) => {
+            assert!(msg.contains("surfel positions") && msg.contains(&too_many.to_string()));
+            eprintln!("{msg}");
+        }
+        other => panic!("expected Error::Capacity, got {other:?}"),
+    }
+}
+
+#[test]
+fn validation_errors_become_gpu_errors() {
+    let Some(ctx) = gpu_or_skip("validation_errors_become_gpu_errors") else {
+        return;
+    };
+    // Copying past the end of a buffer is a validation error.
+    let a = GpuArray::<u32>::new(&ctx, "small", 4).unwrap();
+    let b = GpuArray::<u32>::new(&ctx, "smaller", 1).unwrap();
+    let r = ctx.scoped("bad copy", || {
+        let mut enc = ctx.encoder("bad copy");
+        enc.copy_buffer_to_buffer(a.buffer(), 0, b.buffer(), 0, 16);
+        ctx.submit(enc);
+        Ok(())
+    });
+    match r {
+        Err(Error::Gpu(msg)) => assert!(msg.starts_with("bad copy:"), "{msg}"),
+        other => panic!("expected Error::Gpu, got {other:?}"),
+    }
+    // The context stays usable afterwards.
+    ctx.scoped("good work", || Ok(())).unwrap();
+}

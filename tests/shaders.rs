@@ -1,0 +1,138 @@
+//! Parses and validates every `shaders/*.wgsl` with naga, without a GPU.
+//!
+//! Each kernel is checked as the runtime builds it (`common.wgsl` + kernel, through
+//! `wgslam::gpu::shaders::source`), and `common.wgsl` is also checked alone so its errors
+//! show up even before any kernel exists. All failures are reported at once, each with the
+//! file and line it comes from.
+
+use std::path::Path;
+
+use wgslam::gpu::shaders;
+
+/// The capabilities the kernels need (and lavapipe offers): 64-bit integers and 64-bit
+/// `atomicMax` for the packed depth + surfel index map.
+fn capabilities() -> naga::valid::Capabilities {
+    naga::valid::Capabilities::SHADER_INT64 | naga::valid::Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
+}
+
+/// Parses and validates `source`; on failure returns a message naming the file and line
+/// (mapped back from the concatenated source through `origin`).
+fn check(label: &str, source: &str, origin: impl Fn(usize) -> (String, usize)) -> Option<String> {
+    let module = match naga::front::wgsl::parse_str(source) {
+        Ok(m) => m,
+        Err(e) => {
+            let at = e
+                .location(source)
+                .map(|l| {
+                    let (file, line) = origin(l.line_number as usize);
+                    format!("{file}:{line}:{}", l.line_position)
+                })
+                .unwrap_or_else(|| label.to_string());
+            return Some(format!(
+                "{at}: parse error in {label}: {}\n{}",
+                e.message(),
+                e.emit_to_string(source)
+            ));
+        }
+    };
+    let mut validator =
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities());
+    match validator.validate(&module) {
+        Ok(_) => None,
+        Err(e) => {
+            let at = e
+                .location(source)
+                .map(|l| {
+                    let (file, line) = origin(l.line_number as usize);
+                    format!("{file}:{line}:{}", l.line_position)
+                })
+                .unwrap_or_else(|| label.to_string());
+            Some(format!(
+                "{at}: validation error in {label}: {}\n{}",
+                e.as_inner(),
+                e.emit_to_string(source)
+            ))
+        }
+    }
+}
+
+#[test]
+fn every_shader_parses_and_validates() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let mut failures = Vec::new();
+
+    if let Some(f) = check("common.wgsl alone", shaders::COMMON, |l| {
+        ("shaders/common.wgsl".to_string(), l)
+    }) {
+        failures.push(f);
+    }
+
+    let mut on_disk: Vec<String> = std::fs::read_dir(&dir)
+        .expect("shaders/ directory exists")
+        .filter_map(|e| {
+            let p = e.expect("readable directory entry").path();
+            (p.extension()? == "wgsl").then(|| p.file_stem()?.to_str().map(str::to_string))?
+        })
+        .filter(|name| name != "common")
+        .collect();
+    on_disk.sort();
+
+    for name in &on_disk {
+        let Some(embedded) = shaders::kernel_text(name) else {
+            failures.push(format!(
+                "shaders/{name}.wgsl: not listed in gpu::shaders::KERNELS (it would never run)"
+            ));
+            continue;
+        };
+        let file = std::fs::read_to_string(dir.join(format!("{name}.wgsl")))
+            .expect("kernel file is readable");
+        if file != embedded {
+            failures.push(format!(
+                "shaders/{name}.wgsl: differs from the embedded copy (rebuild)"
+            ));
+        }
+        if let Some(f) = check(name, &shaders::source(name), |l| {
+            shaders::origin_of_line(name, l)
+        }) {
+            failures.push(f);
+        }
+    }
+    for (name, _) in shaders::KERNELS {
+        if !on_disk.iter().any(|n| n == name) {
+            failures.push(format!(
+                "gpu::shaders::KERNELS lists `{name}` but shaders/{name}.wgsl is missing"
+            ));
+        }
+    }
+
+    assert!(
+        failures.is_empty(),
+        "{} shader failure(s):\n\n{}",
+        failures.len(),
+        failures.join("\n\n")
+    );
+    eprintln!(
+        "validated common.wgsl and {} kernel(s): {:?}",
+        on_disk.len(),
+        on_disk
+    );
+}
+
+/// The checker itself reports a broken shader with the right file and line (so a passing
+/// run above means something).
+#[test]
+fn a_broken_kernel_is_reported_with_file_and_line() {
+    let broken =
+        "@compute @workgroup_size(64)\nfn main() {\n    let x: u32 = undefined_thing;\n}\n";
+    let src = shaders::concat_with_common(broken);
+    let msg = check("broken", &src, |l| shaders::origin_of_line("broken", l))
+        .expect("an undefined identifier must fail");
+    assert!(msg.starts_with("shaders/broken.wgsl:3:"), "got: {msg}");
+
+    let invalid = "@compute @workgroup_size(64)\nfn main() {\n    let x: u32 = 1.5;\n}\n";
+    let src = shaders::concat_with_common(invalid);
+    assert!(
+        check("invalid", &src, |l| shaders::origin_of_line("invalid", l)).is_some(),
+        "a type mismatch must fail"
+    );
+}
