@@ -8,7 +8,9 @@
 //   2 storage read   targets: array<vec4<f32>>   xyz metres, w unused
 //   3 storage rw     results: array<ScanNnResult> one per query
 // Assumes: dispatched with params.n_threads = workgroups * 64 threads; each thread walks
-// the queries with a grid stride (few workgroups on a CPU adapter, many on a GPU).
+// the queries with a grid stride. One dispatch scans targets [target_begin, target_end)
+// and continues from results[q] when target_begin > 0: llvmpipe (lavapipe) stops an
+// invocation's loops after ~65535 iterations in total, so the host splits big targets.
 
 // Mirrors `scan::layout::ScanNnParams`.
 struct ScanNnParams {
@@ -18,8 +20,8 @@ struct ScanNnParams {
     n_threads: u32,
     cell_size: f32,
     table_mask: u32,
-    _pad0: u32,
-    _pad1: u32,
+    target_begin: u32,
+    target_end: u32,
 }
 
 // Mirrors `scan::layout::ScanNnResult`.
@@ -53,14 +55,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let p = queries[q];
         var best_d = SCAN_F32_MAX;
         var best_i = SCAN_NN_NONE;
-        for (var j = 0u; j < params.n_targets; j++) {
+        if params.target_begin > 0u {
+            best_d = results[q].dist_sq;
+            best_i = results[q].index;
+        }
+        for (var j = params.target_begin; j < params.target_end; j++) {
             let d2 = scan_dist_sq(targets[j], p);
             if scan_closer(d2, j, best_d, best_i) {
                 best_d = d2;
                 best_i = j;
             }
         }
-        if best_d > params.radius_sq {
+        if params.target_end == params.n_targets && best_d > params.radius_sq {
             best_i = SCAN_NN_NONE;
         }
         results[q] = ScanNnResult(best_i, best_d);

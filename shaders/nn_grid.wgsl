@@ -21,8 +21,8 @@ struct ScanNnParams {
     n_threads: u32,
     cell_size: f32,
     table_mask: u32,
-    _pad0: u32,
-    _pad1: u32,
+    target_begin: u32,
+    target_end: u32,
 }
 
 // Mirrors `scan::layout::ScanNnResult`.

@@ -71,8 +71,8 @@ fn scan_structs_match_wgsl_layout() {
                 n_threads,
                 cell_size,
                 table_mask,
-                _pad0,
-                _pad1
+                target_begin,
+                target_end
             }),
         ),
         (
@@ -84,8 +84,8 @@ fn scan_structs_match_wgsl_layout() {
                 n_threads,
                 cell_size,
                 table_mask,
-                _pad0,
-                _pad1
+                target_begin,
+                target_end
             }),
         ),
         ("nn_brute", layout!(ScanNnResult { index, dist_sq })),
@@ -179,8 +179,8 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
         n_threads: 64,
         cell_size: grid.cell_size,
         table_mask: grid.table_mask,
-        _pad0: 0,
-        _pad1: 0,
+        target_begin: 0,
+        target_end: target.len() as u32,
     };
     let (q4, t4) = (v4(&queries), v4(&target));
     let mut brute = vec![
@@ -263,8 +263,8 @@ fn cross_covariance_twin_matches_f64_reduction() {
         n_threads: 64,
         cell_size: 0.0,
         table_mask: 0,
-        _pad0: 0,
-        _pad1: 0,
+        target_begin: 0,
+        target_end: target.len() as u32,
     };
     nn_brute(&p, &q4, &t4, &mut nn);
     let centroid = queries.iter().fold(DVec3::ZERO, |a, q| {

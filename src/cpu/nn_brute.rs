@@ -20,9 +20,10 @@ pub fn scan_dist_sq(a: [f32; 4], b: [f32; 4]) -> f32 {
     dx * dx + dy * dy + dz * dz
 }
 
-/// For every query (`params.n_queries` of `queries`, metres), the nearest of the first
-/// `params.n_targets` targets; `index = SCAN_NN_NONE` when it is beyond `radius_sq`.
-/// `results` has one entry per query.
+/// For every query (`params.n_queries` of `queries`, metres), the nearest of targets
+/// `params.target_begin..params.target_end`, continuing from `results` when
+/// `target_begin > 0`; when `target_end == n_targets`, `index = SCAN_NN_NONE` if the
+/// nearest is beyond `radius_sq`. `results` has one entry per query.
 pub fn nn_brute(
     params: &ScanNnParams,
     queries: &[[f32; 4]],
@@ -33,16 +34,18 @@ pub fn nn_brute(
     // order does not change any result, so the twin walks the queries directly.
     for q in 0..params.n_queries as usize {
         let p = queries[q];
-        let mut best_d = f32::MAX;
-        let mut best_i = SCAN_NN_NONE;
-        for (j, t) in targets[..params.n_targets as usize].iter().enumerate() {
-            let d2 = scan_dist_sq(*t, p);
-            if scan_closer(d2, j as u32, best_d, best_i) {
+        let (mut best_d, mut best_i) = (f32::MAX, SCAN_NN_NONE);
+        if params.target_begin > 0 {
+            (best_d, best_i) = (results[q].dist_sq, results[q].index);
+        }
+        for j in params.target_begin..params.target_end {
+            let d2 = scan_dist_sq(targets[j as usize], p);
+            if scan_closer(d2, j, best_d, best_i) {
                 best_d = d2;
-                best_i = j as u32;
+                best_i = j;
             }
         }
-        if best_d > params.radius_sq {
+        if params.target_end == params.n_targets && best_d > params.radius_sq {
             best_i = SCAN_NN_NONE;
         }
         results[q] = ScanNnResult {

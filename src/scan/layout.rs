@@ -30,9 +30,19 @@ pub struct ScanNnParams {
     pub cell_size: f32,
     /// Hash table size minus one (a power of two minus one); unused by `nn_brute`.
     pub table_mask: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
+    /// `nn_brute` only: this dispatch scans targets `target_begin..target_end`, continuing
+    /// from the best found so far in `results` when `target_begin > 0`, and applies the
+    /// radius when `target_end == n_targets`. llvmpipe (lavapipe) stops a shader
+    /// invocation's loops after about 65535 iterations in total, so a large target is
+    /// scanned in several dispatches of at most [`SCAN_BRUTE_CHUNK`] targets.
+    pub target_begin: u32,
+    /// End (exclusive) of this dispatch's target range; see `target_begin`.
+    pub target_end: u32,
 }
+
+/// Most targets one `nn_brute` dispatch scans (below llvmpipe's ~65535 loop iterations per
+/// invocation, which silently cut a 70k-point scan short).
+pub const SCAN_BRUTE_CHUNK: u32 = 32768;
 
 /// Nearest neighbour of one query (mirrors `ScanNnResult`).
 #[repr(C)]

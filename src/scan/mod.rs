@@ -6,6 +6,7 @@
 
 pub mod bench;
 pub mod cloud;
+pub mod gpu;
 pub mod icp;
 pub mod layout;
 pub mod odometry;
