@@ -9,9 +9,12 @@
 //! and the 4-byte surfel counter; maps are downloaded only on request.
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
+use std::collections::BTreeMap;
+
 use super::buffers::{GpuArray, Readback, Uniform};
 use super::context::GpuContext;
 use super::kernel::{Binding, Kernel};
+use super::timing::StageTimer;
 use crate::layout::{
     FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
@@ -163,6 +166,59 @@ pub struct GpuBackend {
     max_surfels: usize,
     /// `None` after any buffer a bind group refers to was re-created.
     bind_groups: Option<BindGroups>,
+    /// Per-kernel timing, off unless [`GpuBackend::enable_kernel_timing`] was called.
+    profiler: Option<Profiler>,
+}
+
+/// Per-kernel GPU times: timestamps around each kernel's pass (or wall time without the
+/// feature), totalled by kernel name. Reading them waits for the GPU after every step, so
+/// it is for profiling runs only.
+struct Profiler {
+    timer: StageTimer,
+    totals: BTreeMap<String, (u64, f64)>,
+}
+
+/// Records one compute pass per `(kernel, bind group, workgroups)`, timed when profiling.
+fn record_passes(
+    ctx: &GpuContext,
+    profiler: &mut Option<Profiler>,
+    enc: &mut wgpu::CommandEncoder,
+    dispatches: &[(&Kernel, &wgpu::BindGroup, u32)],
+) -> Result<()> {
+    for (kernel, bind_group, workgroups) in dispatches {
+        let mut pass = match profiler {
+            Some(p) => p.timer.begin_pass(enc, &kernel.name),
+            None => enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(&kernel.name),
+                timestamp_writes: None,
+            }),
+        };
+        kernel.dispatch(ctx, &mut pass, bind_group, *workgroups)?;
+    }
+    Ok(())
+}
+
+/// Submits `enc`; when profiling, resolves the timestamps first and adds them to the totals.
+fn submit_profiled(
+    ctx: &GpuContext,
+    profiler: &mut Option<Profiler>,
+    mut enc: wgpu::CommandEncoder,
+) -> Result<()> {
+    match profiler {
+        None => {
+            ctx.submit(enc);
+        }
+        Some(p) => {
+            p.timer.resolve(&mut enc);
+            ctx.submit(enc);
+            for t in p.timer.read(ctx)? {
+                let e = p.totals.entry(t.name).or_insert((0, 0.0));
+                e.0 += 1;
+                e.1 += t.ms;
+            }
+        }
+    }
+    Ok(())
 }
 
 impl GpuBackend {
@@ -256,6 +312,7 @@ impl GpuBackend {
             count: 0,
             max_surfels,
             bind_groups: None,
+            profiler: None,
         })
     }
 
@@ -270,6 +327,25 @@ impl GpuBackend {
     fn device_max_surfels(ctx: &GpuContext) -> usize {
         let by_bytes = ctx.max_storage_bytes() / std::mem::size_of::<[f32; 4]>() as u64;
         by_bytes.min(u32::MAX as u64) as usize
+    }
+
+    /// Turns on per-kernel timing (GPU timestamps when the device has them, else wall time
+    /// per step). Costs a wait after every step: use for profiling, not for throughput.
+    pub fn enable_kernel_timing(&mut self) {
+        self.profiler = Some(Profiler {
+            // At most two kernels per submission (preprocess, predict, fuse).
+            timer: StageTimer::new(&self.ctx, 2),
+            totals: BTreeMap::new(),
+        });
+    }
+
+    /// Per-kernel totals since timing was enabled: name -> (passes, milliseconds). In
+    /// wall-time mode (no timestamp queries) the entry is `"all stages"` per submission.
+    pub fn kernel_times(&self) -> BTreeMap<String, (u64, f64)> {
+        self.profiler
+            .as_ref()
+            .map(|p| p.totals.clone())
+            .unwrap_or_default()
     }
 
     /// The context (device, queue, limits, byte counters).
@@ -522,30 +598,32 @@ impl Backend for GpuBackend {
         })?;
         let n = self.frame().pixels();
         self.bind_groups();
-        let (ctx, k, bg) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
+            &mut self.profiler,
         );
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.depth_to_vertex.dispatch(
-                    ctx,
-                    &mut pass,
-                    &bg.depth_to_vertex,
-                    k.depth_to_vertex.workgroups_for(n),
-                )?;
-                k.vertex_to_normal.dispatch(
-                    ctx,
-                    &mut pass,
-                    &bg.vertex_to_normal,
-                    k.vertex_to_normal.workgroups_for(n),
-                )?;
-            }
-            ctx.submit(enc);
-            Ok(())
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (
+                        &k.depth_to_vertex,
+                        &bg.depth_to_vertex,
+                        k.depth_to_vertex.workgroups_for(n),
+                    ),
+                    (
+                        &k.vertex_to_normal,
+                        &bg.vertex_to_normal,
+                        k.vertex_to_normal.workgroups_for(n),
+                    ),
+                ],
+            )?;
+            submit_profiled(ctx, profiler, enc)
         })
     }
 
@@ -555,53 +633,61 @@ impl Backend for GpuBackend {
         let n = self.frame().pixels();
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
         self.bind_groups();
-        let (ctx, k, bg, f) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
-            self.frame(),
+            &mut self.profiler,
         );
+        let f = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before predict()");
         ctx.scoped("predict", || {
             self.u_project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
             f.index_map.clear(&mut enc);
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.project_model
-                    .dispatch(ctx, &mut pass, &bg.project_model, surfel_wg)?;
-                k.predict_model.dispatch(
-                    ctx,
-                    &mut pass,
-                    &bg.predict_model,
-                    k.predict_model.workgroups_for(n),
-                )?;
-            }
-            ctx.submit(enc);
-            Ok(())
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.project_model, &bg.project_model, surfel_wg),
+                    (
+                        &k.predict_model,
+                        &bg.predict_model,
+                        k.predict_model.workgroups_for(n),
+                    ),
+                ],
+            )?;
+            submit_profiled(ctx, profiler, enc)
         })
     }
 
     fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let wg = self.reduction_workgroups;
         self.bind_groups();
-        let (ctx, k, bg) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
+            &mut self.profiler,
         );
         let partials = ctx.scoped("icp_reduce", || {
             self.u_icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.icp_reduce.dispatch(ctx, &mut pass, &bg.icp_reduce, wg)?;
-            }
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[(&k.icp_reduce, &bg.icp_reduce, wg)],
+            )?;
             self.partials_readback.copy_from(
                 &mut enc,
                 &self.partials,
                 wg as usize * ICP_SYSTEM_LEN,
             );
-            ctx.submit(enc);
+            submit_profiled(ctx, profiler, enc)?;
             self.partials_readback.read(ctx)
         })?;
         let mut sys = [0.0f64; ICP_SYSTEM_LEN];
@@ -621,14 +707,16 @@ impl Backend for GpuBackend {
         params.capacity = self.capacity() as u32;
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.fuse_merge, self.count);
         self.bind_groups();
-        let (ctx, k, bg, f) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
-            self.frame
-                .as_ref()
-                .expect("preprocess() runs before fuse()"),
+            &mut self.profiler,
         );
+        let f = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before fuse()");
         let counter = ctx.scoped("fuse", || {
             self.u_fuse.write(ctx, &params);
             ctx.queue.write_buffer(
@@ -638,15 +726,17 @@ impl Backend for GpuBackend {
             );
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.fuse_merge
-                    .dispatch(ctx, &mut pass, &bg.fuse_merge, surfel_wg)?;
-                k.fuse_add
-                    .dispatch(ctx, &mut pass, &bg.fuse_add, k.fuse_add.workgroups_for(n))?;
-            }
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.fuse_merge, &bg.fuse_merge, surfel_wg),
+                    (&k.fuse_add, &bg.fuse_add, k.fuse_add.workgroups_for(n)),
+                ],
+            )?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
-            ctx.submit(enc);
+            submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
         if counter > params.capacity as usize {
