@@ -95,6 +95,9 @@ impl Intrinsics {
     /// Continuous pixel coordinates `(u, v)` of a camera-frame point with `z != 0`.
     #[inline]
     pub fn project(&self, p: [f32; 3]) -> (f32, f32) {
-        (self.fx * p[0] / p[2] + self.cx, self.fy * p[1] / p[2] + self.cy)
+        (
+            self.fx * p[0] / p[2] + self.cx,
+            self.fy * p[1] / p[2] + self.cy,
+        )
     }
 }

@@ -29,6 +29,10 @@ pub enum Command {
     Icp(IcpArgs),
     /// ATE and RPE of an estimated TUM trajectory against a ground-truth TUM trajectory.
     Eval(EvalArgs),
+    /// Point-to-point ICP between two point clouds (PCD, PLY, xyz text, KITTI .bin).
+    Register(crate::scan_cli::RegisterArgs),
+    /// Scan odometry: register each consecutive pair of a folder of scans and chain them.
+    Odometry(crate::scan_cli::OdometryArgs),
 }
 
 /// Which implementation runs the kernels.
@@ -102,7 +106,8 @@ pub struct RunArgs {
     pub data: DatasetArgs,
     #[command(flatten)]
     pub pipeline: PipelineArgs,
-    /// Inclusive frame range "A..B" by position in the sequence (default: all frames).
+    /// Inclusive frame range "A..B" by position in the sequence (default: all frames from
+    /// the first with ground truth).
     #[arg(long)]
     pub frames: Option<String>,
     /// Poses from tracking or from ground truth.
@@ -122,9 +127,10 @@ pub struct IcpArgs {
     /// Source frame (its points are the model).
     #[arg(long, default_value_t = 10)]
     pub source: usize,
-    /// Target frame (aligned to the source).
-    #[arg(long, default_value_t = 50)]
-    pub target: usize,
+    /// Target frame (aligned to the source); default 50, or the last frame of a shorter
+    /// sequence (the bundled one has 24).
+    #[arg(long)]
+    pub target: Option<usize>,
     /// Write result.json here.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -147,7 +153,9 @@ impl DatasetArgs {
         let root = self.dataset.clone().unwrap_or_else(bundled_dataset);
         let mut intrinsics = match &self.camera {
             Some(name) => Some(Intrinsics::preset(name).ok_or_else(|| {
-                Error::Argument(format!("unknown camera preset {name:?} (icl, fr1, fr2, fr3)"))
+                Error::Argument(format!(
+                    "unknown camera preset {name:?} (icl, fr1, fr2, fr3)"
+                ))
             })?),
             None => None,
         };
@@ -235,6 +243,8 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Run(a) => cmd_run(a),
         Command::Icp(a) => cmd_icp(a),
         Command::Eval(a) => cmd_eval(a),
+        Command::Register(a) => crate::scan_cli::run_register(&a).map(|_| ()),
+        Command::Odometry(a) => crate::scan_cli::run_odometry(&a).map(|_| ()),
     }
 }
 
@@ -242,7 +252,7 @@ fn cmd_run(a: RunArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = match &a.frames {
         Some(r) => dataset::parse_range(r)?,
-        None => (0, seq.len() - 1),
+        None => (default_first_frame(&seq), seq.len() - 1),
     };
     let range = seq.select(first, last)?;
     let poses = match a.poses {
@@ -255,7 +265,10 @@ fn cmd_run(a: RunArgs) -> Result<()> {
         bar.set_message(format!("{} surfels", f.report.surfels));
         bar.inc(1);
         if let crate::pipeline::TrackStatus::Lost(why) = &f.report.status {
-            bar.println(format!("frame {}: tracking lost ({why}); not fused", f.index));
+            bar.println(format!(
+                "frame {}: tracking lost ({why}); not fused",
+                f.index
+            ));
         }
         if f.report.status == crate::pipeline::TrackStatus::EmptyDepth {
             bar.println(format!("frame {}: no valid depth; skipped", f.index));
@@ -278,6 +291,20 @@ fn cmd_run(a: RunArgs) -> Result<()> {
     run::write_outputs(&a.out, &result)?;
     print_summary(&result.metrics, &a.out);
     Ok(())
+}
+
+/// Without `--frames`, a run starts at the first frame with ground truth (ICL-NUIM's frame 0
+/// has none), so the map and trajectory share the ground truth's world frame.
+fn default_first_frame(seq: &dataset::Sequence) -> usize {
+    match seq.frames.iter().position(|f| f.gt_cam_to_world.is_some()) {
+        Some(i) if i > 0 => {
+            eprintln!(
+                "note: starting at frame {i}, the first with ground truth (use --frames to change)"
+            );
+            i
+        }
+        _ => 0,
+    }
 }
 
 fn print_summary(m: &run::Metrics, out: &Path) {
@@ -314,14 +341,19 @@ fn print_summary(m: &run::Metrics, out: &Path) {
     if let Some(mem) = m.peak_memory_mib {
         println!("peak memory {mem:.0} MiB");
     }
-    println!("wrote {}/{{trajectory.tum, map.ply, metrics.json, frames.json}}", out.display());
+    println!(
+        "wrote {}/{{trajectory.tum, map.ply, metrics.json, frames.json}}",
+        out.display()
+    );
 }
 
 fn cmd_icp(a: IcpArgs) -> Result<()> {
     let seq = a.data.open()?;
-    seq.select(a.source.min(a.target), a.source.max(a.target))?;
+    let target = a.target.unwrap_or(50.min(seq.len() - 1));
+    seq.select(a.source.min(target), a.source.max(target))?;
     let params = a.pipeline.params(PoseSource::Track)?;
-    let r = two_frame::align_frames(CpuBackend::new(), &seq, a.source, a.target, params)?;
+    let r = two_frame::align_frames(CpuBackend::new(), &seq, a.source, target, params)?;
+    println!("frames {} -> {target}", a.source);
     println!("iter  inliers  mean squared residual (m^2)");
     for (i, it) in r.iterations.iter().enumerate() {
         println!("{i:4}  {:7}  {:.6e}", it.inliers, it.mean_sq_residual);

@@ -241,12 +241,16 @@ pub fn compare<A: Backend, B: Backend>(
     let mut params = params;
     params.depth_scale = seq.depth_scale;
     let names = (a.name().to_string(), b.name().to_string());
-    let rec = |x| Recorder {
-        inner: x,
+    let ra = Recorder {
+        inner: a,
         systems: vec![],
     };
-    let mut sa = Slam::new(rec(a), seq.intrinsics, params.clone());
-    let mut sb = Slam::new(rec(b), seq.intrinsics, params);
+    let rb = Recorder {
+        inner: b,
+        systems: vec![],
+    };
+    let mut sa = Slam::new(ra, seq.intrinsics, params.clone());
+    let mut sb = Slam::new(rb, seq.intrinsics, params);
     let mut frames = Vec::new();
     let mut violations = Vec::new();
     for i in first..=last {
@@ -255,10 +259,7 @@ pub fn compare<A: Backend, B: Backend>(
         let gt = seq.frames[i].gt_cam_to_world;
         let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
-        let maps = diff_frame_maps(
-            &sa.backend.download_frame()?,
-            &sb.backend.download_frame()?,
-        );
+        let maps = diff_frame_maps(&sa.backend.download_frame()?, &sb.backend.download_frame()?);
         let (first_a, first_b) = (sa.backend.systems.first(), sb.backend.systems.first());
         let (system_rel_diff, inliers) = match (first_a, first_b) {
             (Some(x), Some(y)) => (

@@ -11,8 +11,8 @@ use glam::DMat4;
 
 use crate::camera::Intrinsics;
 use crate::layout::{
-    camera_floats, gpu_mat4, FuseParams, IcpParams, NormalParams, PreprocessParams,
-    ProjectParams, ICP_SYSTEM_LEN,
+    camera_floats, gpu_mat4, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
+    ICP_SYSTEM_LEN,
 };
 use crate::map::SurfelMap;
 use crate::se3;

@@ -33,6 +33,7 @@ pub struct FrameOutcome {
 }
 
 /// The result of a whole run.
+#[derive(Debug)]
 pub struct RunResult {
     pub frames: Vec<FrameOutcome>,
     pub map: SurfelMap,
@@ -258,5 +259,3 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         writeln!(w).map_err(|e| crate::Error::io(path, e))
     })
 }
-
-use std::io::Write as _;

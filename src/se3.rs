@@ -28,7 +28,11 @@ pub fn exp(x: &Twist) -> DMat4 {
     let k2 = k * k;
     // Taylor expansions below 1e-8 rad keep full f64 precision.
     let (a, b, c) = if theta < 1e-8 {
-        (1.0 - theta * theta / 6.0, 0.5 - theta * theta / 24.0, 1.0 / 6.0)
+        (
+            1.0 - theta * theta / 6.0,
+            0.5 - theta * theta / 24.0,
+            1.0 / 6.0,
+        )
     } else {
         let t2 = theta * theta;
         (

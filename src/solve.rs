@@ -81,7 +81,9 @@ impl NormalEquations {
         let (lo, hi) = eig
             .eigenvalues
             .iter()
-            .fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| (lo.min(e), hi.max(e)));
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| {
+                (lo.min(e), hi.max(e))
+            });
         let rcond = if hi > 0.0 { lo / hi } else { 0.0 };
         if !(rcond >= MIN_RECIPROCAL_CONDITION) {
             return Err(SolveError::IllConditioned(rcond));
@@ -134,7 +136,12 @@ mod tests {
         let x = NormalEquations::decode(&sys).solve().unwrap();
         for k in 0..6 {
             // f32 rows: b carries ~1e-8 relative rounding.
-            assert!((x[k] - x_true[k]).abs() < 1e-6, "x[{k}] {} vs {}", x[k], x_true[k]);
+            assert!(
+                (x[k] - x_true[k]).abs() < 1e-6,
+                "x[{k}] {} vs {}",
+                x[k],
+                x_true[k]
+            );
         }
     }
 

@@ -38,8 +38,7 @@ fn run_writes_all_outputs_on_bundled_data() {
     let traj = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
     assert_eq!(traj.lines().filter(|l| !l.starts_with('#')).count(), 4);
     let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     assert_eq!(m["frames"], 4);
     assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
     // The written trajectory evaluates against the dataset's own ground truth.
@@ -55,7 +54,15 @@ fn run_writes_all_outputs_on_bundled_data() {
 
 #[test]
 fn icp_two_frames_prints_iterations_and_error() {
-    let o = wgslam(&["icp", "--backend", "cpu", "--source", "10", "--target", "20"]);
+    let o = wgslam(&[
+        "icp",
+        "--backend",
+        "cpu",
+        "--source",
+        "10",
+        "--target",
+        "20",
+    ]);
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
     assert!(t.contains("against ground truth"), "{t}");
@@ -69,7 +76,10 @@ fn clear_errors_for_bad_input() {
         (&["run", "--frames", "5..900"], "outside"),
         (&["run", "--frames", "banana"], "A..B"),
         (&["run", "--downsample", "0"], "downsample"),
-        (&["eval", "/nonexistent/a.tum", "/nonexistent/b.tum"], "a.tum"),
+        (
+            &["eval", "/nonexistent/a.tum", "/nonexistent/b.tum"],
+            "a.tum",
+        ),
     ];
     for (args, needle) in cases {
         let o = wgslam(args);

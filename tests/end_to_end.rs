@@ -17,8 +17,19 @@ const ATE_BUNDLED_MAX_M: f64 = 0.5e-3;
 fn bundled_frames_track_to_ground_truth() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let last = seq.len() - 1;
-    let r = run::run(CpuBackend::new(), &seq, 1, last, SlamParams::default(), |_| {}).unwrap();
-    let acc = r.metrics.accuracy.expect("the bundled frames have ground truth");
+    let r = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        last,
+        SlamParams::default(),
+        |_| {},
+    )
+    .unwrap();
+    let acc = r
+        .metrics
+        .accuracy
+        .expect("the bundled frames have ground truth");
     eprintln!(
         "bundled 1..{last}: ATE aligned {:.3} mm, unaligned {:.3} mm, RPE {:.3} mm",
         acc.ate_rmse_aligned_m * 1e3,
@@ -29,7 +40,10 @@ fn bundled_frames_track_to_ground_truth() {
     assert!(acc.ate_rmse_unaligned_m < ATE_BUNDLED_MAX_M, "{acc:?}");
     assert!(acc.ate_rmse_aligned_m < ATE_BUNDLED_MAX_M, "{acc:?}");
     assert_eq!(r.metrics.tracking.lost, 0);
-    assert!(r.map.len() > 70_000, "a 320x240 frame alone adds ~70k surfels");
+    assert!(
+        r.map.len() > 70_000,
+        "a 320x240 frame alone adds ~70k surfels"
+    );
 }
 
 #[test]
@@ -53,9 +67,15 @@ fn ground_truth_poses_fuse_without_tracking() {
         ..SlamParams::default()
     };
     let r = run::run(CpuBackend::new(), &seq, 1, 10, params, |_| {}).unwrap();
-    assert!(r.frames.iter().all(|f| f.report.status == TrackStatus::Given));
+    assert!(r
+        .frames
+        .iter()
+        .all(|f| f.report.status == TrackStatus::Given));
     let acc = r.metrics.accuracy.unwrap();
-    assert!(acc.ate_rmse_unaligned_m < 1e-9, "GT poses are returned unchanged");
+    assert!(
+        acc.ate_rmse_unaligned_m < 1e-9,
+        "GT poses are returned unchanged"
+    );
     // Later frames mostly merge into the map instead of duplicating it.
     let per_frame = r.map.len() as f64 / 10.0;
     assert!(per_frame < 0.5 * 76_800.0, "{per_frame} surfels per frame");
@@ -83,7 +103,15 @@ fn shared_sequence_1_to_200_within_1mm() {
         return;
     };
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
-    let r = run::run(CpuBackend::new(), &seq, 1, 200, SlamParams::default(), |_| {}).unwrap();
+    let r = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        200,
+        SlamParams::default(),
+        |_| {},
+    )
+    .unwrap();
     let acc = r.metrics.accuracy.unwrap();
     eprintln!(
         "1..200: ATE aligned {:.3} mm, unaligned {:.3} mm; {} surfels",

@@ -1,0 +1,88 @@
+//! ICL-NUIM TUM-compatible layout: `associations.txt` with `<i> depth/<i>.png <i> rgb/<i>.png`
+//! lines and a `*.gt.freiburg` trajectory whose first column is the FRAME INDEX.
+//!
+//! Only file lists live here; decoding is in [`super::frame`], ground-truth parsing in
+//! [`crate::io::trajectory`].
+
+use std::path::{Path, PathBuf};
+
+use crate::{Error, Result};
+
+/// One line of `associations.txt`; paths are relative to the root.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Association {
+    /// The first column (the frame index for ICL-NUIM), used as the frame's stamp.
+    pub stamp: f64,
+    pub depth_path: PathBuf,
+    pub rgb_path: PathBuf,
+}
+
+/// Reads `associations.txt` (`depth_stamp depth_path rgb_stamp rgb_path`; `#` comments and
+/// blank lines skipped). Errors name `file:line` and quote the line.
+pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut out = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = line.split_whitespace().collect();
+        if f.len() != 4 {
+            return Err(Error::parse(
+                path,
+                i + 1,
+                format!(
+                    "expected 4 fields `<i> depth/<i>.png <i> rgb/<i>.png`, found {}: {line:?}",
+                    f.len()
+                ),
+            ));
+        }
+        let stamp: f64 = f[0]
+            .parse()
+            .ok()
+            .filter(|s: &f64| s.is_finite())
+            .ok_or_else(|| {
+                Error::parse(
+                    path,
+                    i + 1,
+                    format!("index {:?} is not a number: {line:?}", f[0]),
+                )
+            })?;
+        out.push(Association {
+            stamp,
+            depth_path: PathBuf::from(f[1]),
+            rgb_path: PathBuf::from(f[3]),
+        });
+    }
+    Ok(out)
+}
+
+/// The ground-truth file of an ICL-NUIM directory: its only `*.gt.freiburg`, or `None`.
+/// Several candidates are an error (pass the one to use explicitly).
+pub fn find_ground_truth(root: &Path) -> Result<Option<PathBuf>> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(root).map_err(|e| Error::io(root, e))? {
+        let entry = entry.map_err(|e| Error::io(root, e))?;
+        let name = entry.file_name();
+        if name.to_string_lossy().ends_with(".gt.freiburg") && entry.path().is_file() {
+            found.push(entry.path());
+        }
+    }
+    found.sort();
+    match found.len() {
+        0 => Ok(None),
+        1 => Ok(found.pop()),
+        _ => Err(Error::format(
+            root,
+            format!(
+                "several ground-truth files ({}); choose one with --gt",
+                found
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+    }
+}

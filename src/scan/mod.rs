@@ -1,0 +1,19 @@
+//! Scan registration: point-cloud readers, point-to-point ICP and scan-to-scan odometry.
+//!
+//! Pose convention everywhere in this module: a registration result `t_source_to_target`
+//! maps SOURCE coordinates into TARGET coordinates (metres). Trajectories are
+//! `t_scan_to_world`. This is not the dense RGB-D tracker (point-to-plane, projective).
+
+pub mod bench;
+pub mod cloud;
+pub mod icp;
+pub mod odometry;
+pub mod read;
+pub mod write;
+
+pub use cloud::{cloud_from_depth, crop_z, load_depth_png, CloudStats, PointCloud};
+pub use icp::{
+    best_rigid_transform, register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats,
+    KdTreeTarget, NearestNeighbours, Samples,
+};
+pub use read::{read_cloud, read_kitti_bin, read_matrix4, read_pcd, read_ply_xyz, read_xyz_text};

@@ -1,0 +1,386 @@
+//! Scan-to-scan odometry: registers each consecutive pair of a scan sequence (pairs in
+//! parallel with rayon), chains the results into a trajectory and, with ground truth,
+//! measures relative pose errors.
+//!
+//! Frames: pair `i` registers scan `i + 1` (source) onto scan `i` (target), giving
+//! `t_source_to_target = t_{i+1 -> i}`; the trajectory is `t_scan_to_world[i + 1] =
+//! t_scan_to_world[i] * t_{i+1 -> i}`, anchored at the ground-truth pose of scan 0 when
+//! ground truth is given (identity otherwise). Not a mapper: no loop closure, no map.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DMat4;
+use rayon::prelude::*;
+
+use super::icp::{register, IcpParams, IcpResult};
+use super::read::{is_cloud_file, read_cloud};
+use crate::{se3, Error, Result};
+
+/// An ordered list of scans, optionally with ground-truth poses.
+#[derive(Debug, Clone)]
+pub struct ScanSequence {
+    /// Scan files in sequence order.
+    pub scans: Vec<PathBuf>,
+    /// Ground-truth `t_scan_to_world` per scan (metres), when known.
+    pub gt_scan_to_world: Option<Vec<DMat4>>,
+}
+
+impl ScanSequence {
+    /// Timestamp written for scan `i`: its file stem as a number when it is one, else `i`.
+    pub fn stamp(&self, i: usize) -> f64 {
+        stem_number(&self.scans[i]).unwrap_or(i as f64)
+    }
+}
+
+fn stem_number(p: &Path) -> Option<f64> {
+    p.file_stem()?.to_str()?.parse::<f64>().ok()
+}
+
+fn list_dir(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        out.push(e.map_err(|e| Error::io(dir, e))?.path());
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// Finds the scans of `dir`: the AirSim layout (`lidar/<vehicle>/NNNNNN.bin` with
+/// `poses/<vehicle>/NNNNNN.txt`, the poses becoming ground truth) when `dir/lidar` exists,
+/// else every cloud file directly in `dir` (see [`is_cloud_file`]) sorted by name.
+pub fn discover(dir: &Path) -> Result<ScanSequence> {
+    let lidar = dir.join("lidar");
+    if lidar.is_dir() {
+        let vehicles: Vec<PathBuf> = list_dir(&lidar)?
+            .into_iter()
+            .filter(|p| p.is_dir())
+            .collect();
+        let [vehicle] = vehicles.as_slice() else {
+            return Err(Error::format(
+                &lidar,
+                format!(
+                    "AirSim layout needs exactly one vehicle folder, found {}",
+                    vehicles.len()
+                ),
+            ));
+        };
+        let scans: Vec<PathBuf> = list_dir(vehicle)?
+            .into_iter()
+            .filter(|p| p.extension().is_some_and(|e| e == "bin"))
+            .collect();
+        check_count(vehicle, scans.len())?;
+        let poses_dir = dir
+            .join("poses")
+            .join(vehicle.file_name().unwrap_or_default());
+        let gt = if poses_dir.is_dir() {
+            Some(
+                scans
+                    .iter()
+                    .map(|s| {
+                        let name = s.with_extension("txt");
+                        read_airsim_pose(&poses_dir.join(name.file_name().unwrap_or_default()))
+                    })
+                    .collect::<Result<Vec<_>>>()?,
+            )
+        } else {
+            None
+        };
+        return Ok(ScanSequence {
+            scans,
+            gt_scan_to_world: gt,
+        });
+    }
+    let scans: Vec<PathBuf> = list_dir(dir)?
+        .into_iter()
+        .filter(|p| p.is_file() && is_cloud_file(p))
+        .collect();
+    check_count(dir, scans.len())?;
+    Ok(ScanSequence {
+        scans,
+        gt_scan_to_world: None,
+    })
+}
+
+fn check_count(dir: &Path, n: usize) -> Result<()> {
+    if n < 2 {
+        return Err(Error::format(
+            dir,
+            format!("odometry needs at least 2 scans, found {n}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Parses up to `n` comma- or space-separated finite numbers on a line.
+fn numbers(path: &Path, line_no: usize, line: &str, n: usize) -> Result<Vec<f64>> {
+    let v: Vec<f64> = line
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .map(|t| {
+            t.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| Error::parse(path, line_no, format!("`{t}` is not a finite number")))
+        })
+        .collect::<Result<_>>()?;
+    if v.len() != n {
+        return Err(Error::parse(
+            path,
+            line_no,
+            format!("expected {n} numbers, found {}", v.len()),
+        ));
+    }
+    Ok(v)
+}
+
+/// Reads an AirSim pose file: line 1 `x, y, z` (metres, NED), line 2 quaternion
+/// `x, y, z, w`; returns `t_scan_to_world` (`p_world = R(q) p_scan + t`).
+pub fn read_airsim_pose(path: &Path) -> Result<DMat4> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    if lines.len() < 2 {
+        return Err(Error::format(
+            path,
+            "AirSim pose needs 2 lines: `x, y, z` and `qx, qy, qz, qw`",
+        ));
+    }
+    let t = numbers(path, 1, lines[0], 3)?;
+    let q = numbers(path, 2, lines[1], 4)?;
+    Ok(se3::from_tum([t[0], t[1], t[2]], [q[0], q[1], q[2], q[3]]))
+}
+
+/// Ground truth for `seq` from `path`: a directory of AirSim pose files named like the
+/// scans (`<stem>.txt`), or a TUM file (`stamp tx ty tz qx qy qz qw`, `#` comments) whose
+/// stamps equal the scans' numeric file stems (or their indices when stems are not numbers).
+pub fn read_ground_truth(path: &Path, seq: &ScanSequence) -> Result<Vec<DMat4>> {
+    if path.is_dir() {
+        return seq
+            .scans
+            .iter()
+            .map(|s| {
+                let name = s.with_extension("txt");
+                read_airsim_pose(&path.join(name.file_name().unwrap_or_default()))
+            })
+            .collect();
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut table: Vec<(f64, DMat4)> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v = numbers(path, i + 1, line, 8)?;
+        table.push((
+            v[0],
+            se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]),
+        ));
+    }
+    (0..seq.scans.len())
+        .map(|i| {
+            let stamp = seq.stamp(i);
+            table
+                .iter()
+                .find(|(s, _)| (s - stamp).abs() <= 1e-6 * stamp.abs().max(1.0))
+                .map(|(_, t)| *t)
+                .ok_or_else(|| {
+                    Error::format(
+                        path,
+                        format!("no pose with stamp {stamp} for {}", seq.scans[i].display()),
+                    )
+                })
+        })
+        .collect()
+}
+
+/// Rotation (degrees) and translation (metres) of `inv(gt) * est` for two relative poses.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PoseError {
+    pub rotation_deg: f64,
+    pub translation_m: f64,
+}
+
+/// Error of an estimated relative pose against ground truth: the residual `inv(gt) * est`.
+pub fn pose_error(est: &DMat4, gt: &DMat4) -> PoseError {
+    let e = se3::inverse_rigid(gt) * *est;
+    PoseError {
+        rotation_deg: se3::rotation_angle(&e).to_degrees(),
+        translation_m: se3::translation_norm(&e),
+    }
+}
+
+/// One registered pair: scan `target + 1` (source) onto scan `target`.
+#[derive(Debug, Clone)]
+pub struct PairResult {
+    /// Index of the target scan; the source is `target + 1`.
+    pub target: usize,
+    /// ICP outcome; `t_source_to_target` is `t_{target+1 -> target}`.
+    pub icp: IcpResult,
+    /// Wall time of this registration (KD-tree build + ICP), seconds.
+    pub seconds: f64,
+    /// Relative pose error against ground truth, when given.
+    pub error: Option<PoseError>,
+}
+
+/// Result of [`run_odometry`].
+#[derive(Debug, Clone)]
+pub struct Odometry {
+    /// Chained `t_scan_to_world` per scan (metres).
+    pub t_scan_to_world: Vec<DMat4>,
+    /// One entry per consecutive pair, in order.
+    pub pairs: Vec<PairResult>,
+}
+
+/// Reads every scan (in parallel), keeps the points with `z` in `z_range` (sensor frame,
+/// metres; `None` keeps all), registers each consecutive pair (in parallel across pairs)
+/// from the identity, and chains the trajectory. Pairs that do not converge are still
+/// chained (their status is in [`PairResult::icp`]).
+pub fn run_odometry(
+    seq: &ScanSequence,
+    params: &IcpParams,
+    z_range: Option<(f32, f32)>,
+) -> Result<Odometry> {
+    let clouds: Vec<Vec<[f32; 3]>> = seq
+        .scans
+        .par_iter()
+        .map(|p| {
+            let c = read_cloud(p)?;
+            Ok(match z_range {
+                Some((lo, hi)) => super::cloud::crop_z(&c.points, lo, hi),
+                None => c.points,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let pairs: Vec<PairResult> = (0..clouds.len() - 1)
+        .into_par_iter()
+        .map(|i| {
+            let start = Instant::now();
+            let icp = register(&clouds[i + 1], &clouds[i], DMat4::IDENTITY, params)?;
+            let seconds = start.elapsed().as_secs_f64();
+            let error = seq.gt_scan_to_world.as_ref().map(|gt| {
+                let gt_rel = se3::inverse_rigid(&gt[i]) * gt[i + 1];
+                pose_error(&icp.t_source_to_target, &gt_rel)
+            });
+            Ok(PairResult {
+                target: i,
+                icp,
+                seconds,
+                error,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let mut t = vec![seq
+        .gt_scan_to_world
+        .as_ref()
+        .map_or(DMat4::IDENTITY, |g| g[0])];
+    for p in &pairs {
+        let last = *t.last().expect("trajectory starts with one pose");
+        t.push(last * p.icp.t_source_to_target);
+    }
+    Ok(Odometry {
+        t_scan_to_world: t,
+        pairs,
+    })
+}
+
+/// The trajectory as TUM text: `stamp tx ty tz qx qy qz qw` per scan.
+pub fn format_tum(seq: &ScanSequence, t_scan_to_world: &[DMat4]) -> String {
+    let mut s = String::from("# timestamp tx ty tz qx qy qz qw (t_scan_to_world, metres)\n");
+    for (i, t) in t_scan_to_world.iter().enumerate() {
+        let (p, q) = se3::to_tum(t);
+        s.push_str(&format!(
+            "{} {:.6} {:.6} {:.6} {:.9} {:.9} {:.9} {:.9}\n",
+            seq.stamp(i),
+            p[0],
+            p[1],
+            p[2],
+            q[0],
+            q[1],
+            q[2],
+            q[3]
+        ));
+    }
+    s
+}
+
+/// Per-pair table (tab-separated, header line): scans, status, iterations, final inlier
+/// RMSE (m), outlier ratio, seconds, the 12 numbers of the 3x4 `t_source_to_target`
+/// (row-major), and with ground truth the rotation (deg) and translation (m) errors.
+pub fn format_pairs_tsv(seq: &ScanSequence, odo: &Odometry) -> String {
+    let name = |i: usize| {
+        seq.scans[i]
+            .file_name()
+            .map_or_else(|| i.to_string(), |n| n.to_string_lossy().into_owned())
+    };
+    let mut s = String::from("source\ttarget\tstatus\titerations\trmse_m\toutlier_ratio\tseconds");
+    for r in 0..3 {
+        for c in 0..4 {
+            s.push_str(&format!("\tT{r}{c}"));
+        }
+    }
+    s.push_str("\trot_err_deg\ttrans_err_m\n");
+    for p in &odo.pairs {
+        let t = &p.icp.t_source_to_target;
+        s.push_str(&format!(
+            "{}\t{}\t{}\t{}\t{:.6}\t{:.4}\t{:.4}",
+            name(p.target + 1),
+            name(p.target),
+            p.icp.status,
+            p.icp.iteration_count(),
+            p.icp.final_stats.rmse,
+            p.icp.final_stats.outlier_ratio,
+            p.seconds
+        ));
+        for r in 0..3 {
+            let row = t.row(r);
+            for v in [row.x, row.y, row.z, row.w] {
+                s.push_str(&format!("\t{v:.9}"));
+            }
+        }
+        match p.error {
+            Some(e) => s.push_str(&format!(
+                "\t{:.4}\t{:.4}\n",
+                e.rotation_deg, e.translation_m
+            )),
+            None => s.push_str("\t\t\n"),
+        }
+    }
+    s
+}
+
+/// Summary of the relative pose errors of all pairs.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ErrorSummary {
+    pub pairs: usize,
+    pub mean_rotation_deg: f64,
+    pub max_rotation_deg: f64,
+    pub mean_translation_m: f64,
+    pub max_translation_m: f64,
+    /// Distance between the last chained and ground-truth positions, metres.
+    pub end_position_error_m: f64,
+    /// Ground-truth path length, metres.
+    pub gt_path_length_m: f64,
+}
+
+/// Summarises [`PairResult::error`] and the end drift; `None` without ground truth.
+pub fn summarize(seq: &ScanSequence, odo: &Odometry) -> Option<ErrorSummary> {
+    let gt = seq.gt_scan_to_world.as_ref()?;
+    let errs: Vec<PoseError> = odo.pairs.iter().filter_map(|p| p.error).collect();
+    let n = errs.len().max(1) as f64;
+    let last = gt.len() - 1;
+    Some(ErrorSummary {
+        pairs: errs.len(),
+        mean_rotation_deg: errs.iter().map(|e| e.rotation_deg).sum::<f64>() / n,
+        max_rotation_deg: errs.iter().map(|e| e.rotation_deg).fold(0.0, f64::max),
+        mean_translation_m: errs.iter().map(|e| e.translation_m).sum::<f64>() / n,
+        max_translation_m: errs.iter().map(|e| e.translation_m).fold(0.0, f64::max),
+        end_position_error_m: (odo.t_scan_to_world[last].w_axis - gt[last].w_axis)
+            .truncate()
+            .length(),
+        gt_path_length_m: gt
+            .windows(2)
+            .map(|w| (w[1].w_axis - w[0].w_axis).truncate().length())
+            .sum(),
+    })
+}

@@ -1,0 +1,643 @@
+//! Point-cloud readers for registration: PCD (ascii / binary), PLY (ascii / binary
+//! little-endian, xyz only), plain `x y z` text, and KITTI `.bin` float records; plus the
+//! 4x4 transform text format used by `--init` and `relative.txt`.
+//!
+//! Readers keep only x, y, z (metres, as f32); other fields are skipped. NaN / infinite
+//! points are dropped and counted in [`CloudStats`](super::cloud::CloudStats). Every
+//! malformed file is an [`Error`] naming the file and the line (text) or byte offset
+//! (binary). Not supported, with a clear error: PCD `binary_compressed`, big-endian PLY.
+//! This is not the general PLY reader of `crate::io::ply` (colours, normals, faces).
+
+use std::path::Path;
+
+use glam::DMat4;
+
+use super::cloud::PointCloud;
+use crate::{Error, Result};
+
+/// Reads a cloud, choosing the format from the extension: `.pcd`, `.ply`, `.bin` (KITTI),
+/// anything else as `x y z` text (`.txt`, `.xyz`, `.pts`, `.csv`).
+pub fn read_cloud(path: &Path) -> Result<PointCloud> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "pcd" => read_pcd(path),
+        "ply" => read_ply_xyz(path),
+        "bin" => read_kitti_bin(path),
+        _ => read_xyz_text(path),
+    }
+}
+
+/// True when `path` has an extension [`read_cloud`] treats as a point cloud.
+pub fn is_cloud_file(path: &Path) -> bool {
+    matches!(
+        path.extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .as_deref(),
+        Some("pcd" | "ply" | "bin" | "txt" | "xyz" | "pts" | "csv")
+    )
+}
+
+fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
+/// Splits off the next `\n`-terminated line at `*pos`; returns it without `\r\n`.
+fn next_line<'a>(bytes: &'a [u8], pos: &mut usize) -> Option<&'a [u8]> {
+    if *pos >= bytes.len() {
+        return None;
+    }
+    let start = *pos;
+    let end = bytes[start..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(bytes.len(), |i| start + i);
+    *pos = (end + 1).min(bytes.len());
+    let mut line = &bytes[start..end];
+    if line.last() == Some(&b'\r') {
+        line = &line[..line.len() - 1];
+    }
+    Some(line)
+}
+
+/// Scalar type of a binary field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Scalar {
+    F32,
+    F64,
+    /// Any other type: only its size in bytes matters (it is skipped).
+    Other(usize),
+}
+
+impl Scalar {
+    fn size(self) -> usize {
+        match self {
+            Scalar::F32 => 4,
+            Scalar::F64 => 8,
+            Scalar::Other(n) => n,
+        }
+    }
+    fn read_le(self, b: &[u8]) -> f32 {
+        match self {
+            Scalar::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            Scalar::F64 => {
+                f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) as f32
+            }
+            Scalar::Other(_) => unreachable!("x/y/z are checked to be float fields"),
+        }
+    }
+}
+
+/// Where x, y, z sit in a record: byte offsets (binary) and token indices (ascii).
+#[derive(Debug, Clone, Copy)]
+struct XyzLayout {
+    scalar: [Scalar; 3],
+    byte_offset: [usize; 3],
+    token_index: [usize; 3],
+    record_bytes: usize,
+    record_tokens: usize,
+}
+
+fn parse_usize(path: &Path, line: usize, s: &str, what: &str) -> Result<usize> {
+    s.parse::<usize>()
+        .map_err(|_| Error::parse(path, line, format!("{what}: `{s}` is not a count")))
+}
+
+/// Reads a PCD v0.5-0.7 file with fields `x y z` (f32 or f64) and any others.
+pub fn read_pcd(path: &Path) -> Result<PointCloud> {
+    let bytes = read_bytes(path)?;
+    let mut pos = 0usize;
+    let mut line_no = 0usize;
+    let mut fields: Vec<String> = Vec::new();
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut types: Vec<char> = Vec::new();
+    let mut counts: Vec<usize> = Vec::new();
+    let mut points: Option<usize> = None;
+    let (mut width, mut height) = (None, None);
+    let data = loop {
+        let Some(raw) = next_line(&bytes, &mut pos) else {
+            return Err(Error::format(path, "PCD header has no DATA line"));
+        };
+        line_no += 1;
+        let text = std::str::from_utf8(raw)
+            .map_err(|_| Error::parse(path, line_no, "PCD header line is not text"))?;
+        let text = text.split('#').next().unwrap_or("").trim();
+        if text.is_empty() {
+            continue;
+        }
+        let mut tok = text.split_whitespace();
+        let key = tok.next().unwrap_or("").to_ascii_uppercase();
+        let rest: Vec<&str> = tok.collect();
+        match key.as_str() {
+            "VERSION" | "VIEWPOINT" => {}
+            "FIELDS" => fields = rest.iter().map(|s| s.to_string()).collect(),
+            "SIZE" => {
+                sizes = rest
+                    .iter()
+                    .map(|s| parse_usize(path, line_no, s, "SIZE"))
+                    .collect::<Result<_>>()?
+            }
+            "TYPE" => {
+                types = rest
+                    .iter()
+                    .map(|s| match s.to_ascii_uppercase().as_str() {
+                        "F" => Ok('F'),
+                        "I" => Ok('I'),
+                        "U" => Ok('U'),
+                        other => Err(Error::parse(
+                            path,
+                            line_no,
+                            format!("TYPE `{other}` is not F, I or U"),
+                        )),
+                    })
+                    .collect::<Result<_>>()?
+            }
+            "COUNT" => {
+                counts = rest
+                    .iter()
+                    .map(|s| parse_usize(path, line_no, s, "COUNT"))
+                    .collect::<Result<_>>()?
+            }
+            "WIDTH" | "HEIGHT" | "POINTS" => {
+                let v = rest
+                    .first()
+                    .ok_or_else(|| Error::parse(path, line_no, format!("{key} needs a value")))?;
+                let n = parse_usize(path, line_no, v, &key)?;
+                match key.as_str() {
+                    "WIDTH" => width = Some(n),
+                    "HEIGHT" => height = Some(n),
+                    _ => points = Some(n),
+                }
+            }
+            "DATA" => {
+                let kind = rest.first().copied().unwrap_or("").to_ascii_lowercase();
+                break kind;
+            }
+            other => {
+                return Err(Error::parse(
+                    path,
+                    line_no,
+                    format!("unknown PCD header key `{other}`"),
+                ))
+            }
+        }
+    };
+    let n_fields = fields.len();
+    if n_fields == 0 {
+        return Err(Error::format(path, "PCD header has no FIELDS"));
+    }
+    if counts.is_empty() {
+        counts = vec![1; n_fields];
+    }
+    if sizes.len() != n_fields || types.len() != n_fields || counts.len() != n_fields {
+        return Err(Error::format(
+            path,
+            format!(
+                "PCD header: FIELDS has {n_fields} entries but SIZE {}, TYPE {}, COUNT {}",
+                sizes.len(),
+                types.len(),
+                counts.len()
+            ),
+        ));
+    }
+    let n_points = match (points, width, height) {
+        (Some(p), _, _) => p,
+        (None, Some(w), Some(h)) => w * h,
+        _ => {
+            return Err(Error::format(
+                path,
+                "PCD header has neither POINTS nor WIDTH/HEIGHT",
+            ))
+        }
+    };
+    let mut layout = XyzLayout {
+        scalar: [Scalar::F32; 3],
+        byte_offset: [0; 3],
+        token_index: [0; 3],
+        record_bytes: 0,
+        record_tokens: 0,
+    };
+    let mut found = [false; 3];
+    for i in 0..n_fields {
+        let scalar = match (types[i], sizes[i]) {
+            ('F', 4) => Scalar::F32,
+            ('F', 8) => Scalar::F64,
+            (_, s) => Scalar::Other(s),
+        };
+        if let Some(axis) = ["x", "y", "z"].iter().position(|a| *a == fields[i]) {
+            if !matches!(scalar, Scalar::F32 | Scalar::F64) {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "PCD field `{}` has TYPE {} SIZE {}: only float32 / float64 coordinates are supported",
+                        fields[i], types[i], sizes[i]
+                    ),
+                ));
+            }
+            layout.scalar[axis] = scalar;
+            layout.byte_offset[axis] = layout.record_bytes;
+            layout.token_index[axis] = layout.record_tokens;
+            found[axis] = true;
+        }
+        layout.record_bytes += sizes[i] * counts[i];
+        layout.record_tokens += counts[i];
+    }
+    if found.iter().any(|f| !f) {
+        return Err(Error::format(
+            path,
+            format!("PCD FIELDS `{}` lack one of x, y, z", fields.join(" ")),
+        ));
+    }
+    match data.as_str() {
+        "ascii" => read_ascii_records(path, &bytes, pos, line_no, n_points, &layout),
+        "binary" => read_binary_records(path, &bytes, pos, n_points, &layout),
+        "binary_compressed" => Err(Error::format(
+            path,
+            "PCD `DATA binary_compressed` is unsupported; convert to binary or ascii (e.g. pcl_convert_pcd_ascii_binary)",
+        )),
+        other => Err(Error::parse(
+            path,
+            line_no,
+            format!("unknown PCD DATA kind `{other}`"),
+        )),
+    }
+}
+
+/// Ascii records, one per line, starting at byte `pos` after header line `line_no`.
+fn read_ascii_records(
+    path: &Path,
+    bytes: &[u8],
+    mut pos: usize,
+    mut line_no: usize,
+    n_points: usize,
+    layout: &XyzLayout,
+) -> Result<PointCloud> {
+    let mut cloud = PointCloud::default();
+    cloud.points.reserve(n_points);
+    while cloud.stats.records < n_points {
+        let Some(raw) = next_line(bytes, &mut pos) else {
+            return Err(Error::format(
+                path,
+                format!(
+                    "header promises {n_points} points but the file ends after {} (line {line_no})",
+                    cloud.stats.records
+                ),
+            ));
+        };
+        line_no += 1;
+        let text = std::str::from_utf8(raw)
+            .map_err(|_| Error::parse(path, line_no, "line is not text"))?
+            .trim();
+        if text.is_empty() {
+            continue;
+        }
+        let tokens: Vec<&str> = text.split_whitespace().collect();
+        if tokens.len() < layout.record_tokens {
+            return Err(Error::parse(
+                path,
+                line_no,
+                format!(
+                    "expected {} values, found {}",
+                    layout.record_tokens,
+                    tokens.len()
+                ),
+            ));
+        }
+        let mut p = [0f32; 3];
+        for (c, &ti) in p.iter_mut().zip(&layout.token_index) {
+            let t = tokens[ti];
+            *c = parse_float(t)
+                .ok_or_else(|| Error::parse(path, line_no, format!("`{t}` is not a number")))?;
+        }
+        cloud.push_record(p);
+    }
+    Ok(cloud)
+}
+
+/// Parses a float, accepting `nan` / `inf` spellings (they are dropped later, not errors).
+fn parse_float(t: &str) -> Option<f32> {
+    t.parse::<f32>().ok()
+}
+
+/// Fixed-size little-endian records starting at byte `start`.
+fn read_binary_records(
+    path: &Path,
+    bytes: &[u8],
+    start: usize,
+    n_points: usize,
+    layout: &XyzLayout,
+) -> Result<PointCloud> {
+    let need = n_points * layout.record_bytes;
+    let have = bytes.len().saturating_sub(start);
+    if have < need {
+        let full = have / layout.record_bytes.max(1);
+        return Err(Error::format(
+            path,
+            format!(
+                "binary data truncated: {n_points} records of {} bytes need {need} bytes from byte offset {start}, file has {have}; record {full} (at byte offset {}) is incomplete",
+                layout.record_bytes,
+                start + full * layout.record_bytes
+            ),
+        ));
+    }
+    let mut cloud = PointCloud::default();
+    cloud.points.reserve(n_points);
+    for rec in bytes[start..start + need].chunks_exact(layout.record_bytes) {
+        let p: [f32; 3] = std::array::from_fn(|axis| {
+            layout.scalar[axis].read_le(&rec[layout.byte_offset[axis]..])
+        });
+        cloud.push_record(p);
+    }
+    Ok(cloud)
+}
+
+/// Reads the vertex positions of a PLY file (ascii or binary little-endian).
+///
+/// Vertex properties `x y z` must be `float`/`float32` or `double`/`float64`; other vertex
+/// properties are skipped. Elements before `vertex` must have no list properties in binary
+/// files. Faces and everything after the vertices are ignored.
+pub fn read_ply_xyz(path: &Path) -> Result<PointCloud> {
+    let bytes = read_bytes(path)?;
+    let mut pos = 0usize;
+    let mut line_no = 0usize;
+    let mut format: Option<String> = None;
+    let mut elements: Vec<PlyElement> = Vec::new();
+    loop {
+        let Some(raw) = next_line(&bytes, &mut pos) else {
+            return Err(Error::format(path, "PLY header has no end_header line"));
+        };
+        line_no += 1;
+        let text = std::str::from_utf8(raw)
+            .map_err(|_| Error::parse(path, line_no, "PLY header line is not text"))?
+            .trim();
+        if line_no == 1 {
+            if text != "ply" {
+                return Err(Error::parse(
+                    path,
+                    1,
+                    "not a PLY file (first line is not `ply`)",
+                ));
+            }
+            continue;
+        }
+        let tok: Vec<&str> = text.split_whitespace().collect();
+        match tok.first().copied() {
+            None | Some("comment") | Some("obj_info") => {}
+            Some("format") => format = tok.get(1).map(|s| s.to_string()),
+            Some("element") => {
+                if tok.len() != 3 {
+                    return Err(Error::parse(path, line_no, "expected `element NAME COUNT`"));
+                }
+                let n = parse_usize(path, line_no, tok[2], "element count")?;
+                elements.push((tok[1].to_string(), n, Vec::new()));
+            }
+            Some("property") => {
+                let Some(el) = elements.last_mut() else {
+                    return Err(Error::parse(path, line_no, "property before any element"));
+                };
+                if tok.get(1) == Some(&"list") {
+                    let name = tok.get(4).copied().unwrap_or("").to_string();
+                    el.2.push((name, None));
+                } else {
+                    if tok.len() != 3 {
+                        return Err(Error::parse(path, line_no, "expected `property TYPE NAME`"));
+                    }
+                    let scalar = ply_scalar(tok[1]).ok_or_else(|| {
+                        Error::parse(path, line_no, format!("unknown PLY type `{}`", tok[1]))
+                    })?;
+                    el.2.push((tok[2].to_string(), Some(scalar)));
+                }
+            }
+            Some("end_header") => break,
+            Some(other) => {
+                return Err(Error::parse(
+                    path,
+                    line_no,
+                    format!("unknown PLY header keyword `{other}`"),
+                ))
+            }
+        }
+    }
+    let ascii = match format.as_deref() {
+        Some("ascii") => true,
+        Some("binary_little_endian") => false,
+        Some("binary_big_endian") => {
+            return Err(Error::format(path, "PLY binary_big_endian is unsupported"))
+        }
+        other => {
+            return Err(Error::format(
+                path,
+                format!(
+                    "PLY format `{}` is not ascii or binary_little_endian",
+                    other.unwrap_or("(none)")
+                ),
+            ))
+        }
+    };
+    let Some(vi) = elements.iter().position(|e| e.0 == "vertex") else {
+        return Err(Error::format(path, "PLY has no `element vertex`"));
+    };
+    let (_, n_vertex, props) = &elements[vi];
+    let mut layout = XyzLayout {
+        scalar: [Scalar::F32; 3],
+        byte_offset: [0; 3],
+        token_index: [0; 3],
+        record_bytes: 0,
+        record_tokens: 0,
+    };
+    let mut found = [false; 3];
+    for (name, scalar) in props {
+        let Some(scalar) = scalar else {
+            return Err(Error::format(
+                path,
+                format!("PLY vertex property `{name}` is a list: unsupported"),
+            ));
+        };
+        if let Some(axis) = ["x", "y", "z"].iter().position(|a| a == name) {
+            if !matches!(scalar, Scalar::F32 | Scalar::F64) {
+                return Err(Error::format(
+                    path,
+                    format!("PLY vertex property `{name}` must be float or double"),
+                ));
+            }
+            layout.scalar[axis] = *scalar;
+            layout.byte_offset[axis] = layout.record_bytes;
+            layout.token_index[axis] = layout.record_tokens;
+            found[axis] = true;
+        }
+        layout.record_bytes += scalar.size();
+        layout.record_tokens += 1;
+    }
+    if found.iter().any(|f| !f) {
+        return Err(Error::format(
+            path,
+            "PLY vertex element lacks one of x, y, z",
+        ));
+    }
+    if ascii {
+        // Skip the lines of elements before the vertices (one line per item).
+        for (_, n, _) in &elements[..vi] {
+            for _ in 0..*n {
+                if next_line(&bytes, &mut pos).is_none() {
+                    return Err(Error::format(path, "PLY ends before its vertices"));
+                }
+                line_no += 1;
+            }
+        }
+        return read_ascii_records(path, &bytes, pos, line_no, *n_vertex, &layout);
+    }
+    for (name, n, props) in &elements[..vi] {
+        let mut size = 0;
+        for (_, s) in props {
+            match s {
+                Some(s) => size += s.size(),
+                None => {
+                    return Err(Error::format(
+                        path,
+                        format!("binary PLY element `{name}` before the vertices has a list property: unsupported"),
+                    ))
+                }
+            }
+        }
+        pos += size * n;
+    }
+    read_binary_records(path, &bytes, pos, *n_vertex, &layout)
+}
+
+/// A PLY element: name, item count, properties as (name, scalar type or `None` for a list).
+type PlyElement = (String, usize, Vec<(String, Option<Scalar>)>);
+
+fn ply_scalar(t: &str) -> Option<Scalar> {
+    Some(match t {
+        "float" | "float32" => Scalar::F32,
+        "double" | "float64" => Scalar::F64,
+        "char" | "uchar" | "int8" | "uint8" => Scalar::Other(1),
+        "short" | "ushort" | "int16" | "uint16" => Scalar::Other(2),
+        "int" | "uint" | "int32" | "uint32" => Scalar::Other(4),
+        _ => return None,
+    })
+}
+
+/// Reads plain text, one point per line: `x y z [ignored columns...]`, separated by
+/// spaces, tabs or commas. Blank lines and `#` comments (whole-line or trailing) are skipped.
+pub fn read_xyz_text(path: &Path) -> Result<PointCloud> {
+    let bytes = read_bytes(path)?;
+    let mut cloud = PointCloud::default();
+    let mut pos = 0usize;
+    let mut line_no = 0usize;
+    while let Some(raw) = next_line(&bytes, &mut pos) {
+        line_no += 1;
+        let text = std::str::from_utf8(raw)
+            .map_err(|_| Error::parse(path, line_no, "line is not UTF-8 text"))?;
+        let text = text.split('#').next().unwrap_or("").trim();
+        if text.is_empty() {
+            continue;
+        }
+        let tokens: Vec<&str> = text
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|s| !s.is_empty())
+            .collect();
+        if tokens.len() < 3 {
+            return Err(Error::parse(
+                path,
+                line_no,
+                format!("expected `x y z`, found {} value(s)", tokens.len()),
+            ));
+        }
+        let mut p = [0f32; 3];
+        for (axis, t) in tokens[..3].iter().enumerate() {
+            p[axis] = parse_float(t)
+                .ok_or_else(|| Error::parse(path, line_no, format!("`{t}` is not a number")))?;
+        }
+        cloud.push_record(p);
+    }
+    Ok(cloud)
+}
+
+/// Bytes per KITTI Velodyne record: float32 x, y, z, intensity.
+const KITTI_RECORD_BYTES: usize = 16;
+
+/// Reads a KITTI-style `.bin`: little-endian float32 records `x y z intensity`.
+pub fn read_kitti_bin(path: &Path) -> Result<PointCloud> {
+    let bytes = read_bytes(path)?;
+    let rem = bytes.len() % KITTI_RECORD_BYTES;
+    if rem != 0 {
+        let offset = bytes.len() - rem;
+        return Err(Error::format(
+            path,
+            format!(
+                "size {} is not a multiple of {KITTI_RECORD_BYTES} (float32 x y z intensity): {rem} trailing byte(s) at byte offset {offset}",
+                bytes.len()
+            ),
+        ));
+    }
+    let layout = XyzLayout {
+        scalar: [Scalar::F32; 3],
+        byte_offset: [0, 4, 8],
+        token_index: [0, 1, 2],
+        record_bytes: KITTI_RECORD_BYTES,
+        record_tokens: 4,
+    };
+    read_binary_records(path, &bytes, 0, bytes.len() / KITTI_RECORD_BYTES, &layout)
+}
+
+/// Largest deviation from a rigid transform accepted in a 4x4 text file: `R^T R` vs the
+/// identity and the bottom row vs `0 0 0 1`. Files print 6 significant digits (as
+/// `relative.txt` does), so the check allows about 10x their rounding.
+const RIGID_TOL: f64 = 1e-4;
+
+/// Reads a 4x4 homogeneous transform from text: 16 numbers in row-major order (usually
+/// four lines of four), separated by whitespace or commas; `#` starts a comment.
+/// The matrix must be rigid (orthonormal rotation, bottom row `0 0 0 1`, within 1e-4);
+/// the rotation is re-orthonormalised so rounding in the file does not leak a scale.
+pub fn read_matrix4(path: &Path) -> Result<DMat4> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut v: Vec<f64> = Vec::with_capacity(16);
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        for t in line
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|s| !s.is_empty())
+        {
+            let x: f64 = t
+                .parse()
+                .map_err(|_| Error::parse(path, i + 1, format!("`{t}` is not a number")))?;
+            if !x.is_finite() {
+                return Err(Error::parse(path, i + 1, format!("`{t}` is not finite")));
+            }
+            v.push(x);
+        }
+    }
+    if v.len() != 16 {
+        return Err(Error::format(
+            path,
+            format!("a 4x4 transform needs 16 numbers, found {}", v.len()),
+        ));
+    }
+    let m = DMat4::from_cols_array(&[
+        v[0], v[4], v[8], v[12], v[1], v[5], v[9], v[13], v[2], v[6], v[10], v[14], v[3], v[7],
+        v[11], v[15],
+    ]);
+    let bottom = [v[12], v[13], v[14], v[15] - 1.0];
+    let r = glam::DMat3::from_mat4(m);
+    let dev = (r.transpose() * r - glam::DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .chain(bottom.iter())
+        .fold(0.0f64, |a, b| a.max(b.abs()));
+    if dev > RIGID_TOL || r.determinant() <= 0.0 {
+        return Err(Error::format(
+            path,
+            format!(
+                "not a rigid transform (deviation {dev:.2e}, det {:.4})",
+                r.determinant()
+            ),
+        ));
+    }
+    let r = super::icp::nearest_rotation(r);
+    Ok(crate::se3::from_rt(r, m.w_axis.truncate()))
+}
