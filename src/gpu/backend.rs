@@ -222,6 +222,12 @@ fn submit_profiled(
 }
 
 impl GpuBackend {
+    /// Opens the GPU ([`GpuContext::new`]: logs the adapter; [`Error::NoAdapter`] without
+    /// one) and builds a backend on it: what `--backend gpu` needs.
+    pub fn open() -> Result<GpuBackend> {
+        Self::new(GpuContext::new()?)
+    }
+
     /// A backend on `ctx` with [`DEFAULT_INITIAL_CAPACITY`] surfel slots.
     ///
     /// [`Error::Gpu`] when the adapter lacks 64-bit atomics (`project_model`'s packed
