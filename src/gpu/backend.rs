@@ -541,12 +541,10 @@ impl GpuBackend {
         self.bind_groups.as_ref().expect("just built")
     }
 
-    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped at the
-    /// device's per-dimension limit (the loop covers the rest).
+    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped by
+    /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the rest).
     fn grid_stride_workgroups(&self, kernel: &Kernel, n: usize) -> u32 {
-        kernel
-            .workgroups_for(n)
-            .min(self.ctx.limits().max_compute_workgroups_per_dimension)
+        kernel.workgroups_for(n).min(self.ctx.grid_workgroups_cap())
     }
 
     fn frame(&self) -> &FrameBuffers {
@@ -603,6 +601,8 @@ impl Backend for GpuBackend {
             Ok(())
         })?;
         let n = self.frame().pixels();
+        let d2v_wg = self.grid_stride_workgroups(&self.kernels.depth_to_vertex, n);
+        let v2n_wg = self.grid_stride_workgroups(&self.kernels.vertex_to_normal, n);
         self.bind_groups();
         let (ctx, k, bg, profiler) = (
             &self.ctx,
@@ -617,16 +617,8 @@ impl Backend for GpuBackend {
                 profiler,
                 &mut enc,
                 &[
-                    (
-                        &k.depth_to_vertex,
-                        &bg.depth_to_vertex,
-                        k.depth_to_vertex.workgroups_for(n),
-                    ),
-                    (
-                        &k.vertex_to_normal,
-                        &bg.vertex_to_normal,
-                        k.vertex_to_normal.workgroups_for(n),
-                    ),
+                    (&k.depth_to_vertex, &bg.depth_to_vertex, d2v_wg),
+                    (&k.vertex_to_normal, &bg.vertex_to_normal, v2n_wg),
                 ],
             )?;
             submit_profiled(ctx, profiler, enc)
@@ -638,6 +630,7 @@ impl Backend for GpuBackend {
         params.surfel_count = self.count as u32;
         let n = self.frame().pixels();
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
+        let pix_wg = self.grid_stride_workgroups(&self.kernels.predict_model, n);
         self.bind_groups();
         let (ctx, k, bg, profiler) = (
             &self.ctx,
@@ -659,11 +652,7 @@ impl Backend for GpuBackend {
                 &mut enc,
                 &[
                     (&k.project_model, &bg.project_model, surfel_wg),
-                    (
-                        &k.predict_model,
-                        &bg.predict_model,
-                        k.predict_model.workgroups_for(n),
-                    ),
+                    (&k.predict_model, &bg.predict_model, pix_wg),
                 ],
             )?;
             submit_profiled(ctx, profiler, enc)
@@ -712,6 +701,7 @@ impl Backend for GpuBackend {
         params.surfel_count = self.count as u32;
         params.capacity = self.capacity() as u32;
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.fuse_merge, self.count);
+        let pix_wg = self.grid_stride_workgroups(&self.kernels.fuse_add, n);
         self.bind_groups();
         let (ctx, k, bg, profiler) = (
             &self.ctx,
@@ -738,7 +728,7 @@ impl Backend for GpuBackend {
                 &mut enc,
                 &[
                     (&k.fuse_merge, &bg.fuse_merge, surfel_wg),
-                    (&k.fuse_add, &bg.fuse_add, k.fuse_add.workgroups_for(n)),
+                    (&k.fuse_add, &bg.fuse_add, pix_wg),
                 ],
             )?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
