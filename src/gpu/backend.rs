@@ -22,6 +22,12 @@ use crate::map::SurfelMap;
 use crate::pipeline::{Backend, BackendCounters, FrameMaps};
 use crate::{Error, Result};
 
+// Raw depth is uploaded as u16 bytes and read in WGSL as u32 words (pixel k = low half of
+// word k/2 when k is even), and the u64 index map is read as vec2<u32> (low word first):
+// both assume a little-endian host, like every platform wgpu runs on.
+#[cfg(target_endian = "big")]
+compile_error!("the GPU backend assumes a little-endian host (u16/u64 buffers read as u32)");
+
 /// Surfel slots allocated up front: a little over three 320x240 frames, ~10 MB.
 pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
 /// Growth factor of the map buffers when a frame might not fit.
@@ -772,7 +778,11 @@ impl Backend for GpuBackend {
     }
 
     fn download_frame(&mut self) -> Result<FrameMaps> {
-        let (ctx, f) = (&self.ctx, self.frame());
+        // Before the first frame there is nothing to download (as on the CPU).
+        let Some(f) = self.frame.as_ref() else {
+            return Ok(FrameMaps::default());
+        };
+        let ctx = &self.ctx;
         ctx.scoped("download frame", || {
             Ok(FrameMaps {
                 vertex: read_map(ctx, &f.vertex)?,
@@ -783,7 +793,10 @@ impl Backend for GpuBackend {
     }
 
     fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
-        let (ctx, f) = (&self.ctx, self.frame());
+        let Some(f) = self.frame.as_ref() else {
+            return Ok((Vec::new(), Vec::new()));
+        };
+        let ctx = &self.ctx;
         ctx.scoped("download prediction", || {
             Ok((
                 read_map(ctx, &f.pred_vertex)?,
