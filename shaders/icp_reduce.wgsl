@@ -25,12 +25,9 @@ const WORKGROUP_SIZE: u32 = 64u;
 // (the WebGPU minimum is 16384).
 var<workgroup> scratch: array<array<f32, ICP_SYSTEM_LEN>, WORKGROUP_SIZE>;
 
-// One correspondence: Jacobian row `a = [pxn, n]`, residual `b`, and whether both filters
-// passed. Two vec3s instead of an array<f32, 6>: constant-indexed fields stay in
-// registers on lavapipe, dynamically indexed arrays spill to memory.
+// One correspondence: Jacobian row `a`, residual `b`, and whether both filters passed.
 struct IcpRow {
-    pxn: vec3<f32>,
-    n: vec3<f32>,
+    a: array<f32, 6>,
     b: f32,
     valid: bool,
 }
@@ -60,52 +57,44 @@ fn icp_row(src_world: vec4<f32>) -> IcpRow {
     if length(d) >= params.dist_threshold_m {
         return row;
     }
-    row.pxn = cross(p, n);
-    row.n = n;
+    let pxn = cross(p, n);
+    row.a = array<f32, 6>(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z);
     row.b = dot(n, d);
     row.valid = true;
     return row;
 }
 
-// Adds one row to a 29-entry system (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
-// squared residual). Mirrors `accumulate` in src/cpu/icp_reduce.rs; written out with
-// constant indices so the whole system stays in registers (a loop with dynamic indices
-// made lavapipe keep it in memory and ran ~7x slower).
-fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, row: IcpRow) {
-    let a0 = row.pxn.x;
-    let a1 = row.pxn.y;
-    let a2 = row.pxn.z;
-    let a3 = row.n.x;
-    let a4 = row.n.y;
-    let a5 = row.n.z;
-    let b = row.b;
-    (*sys)[0] += a0 * a0;
-    (*sys)[1] += a0 * a1;
-    (*sys)[2] += a0 * a2;
-    (*sys)[3] += a0 * a3;
-    (*sys)[4] += a0 * a4;
-    (*sys)[5] += a0 * a5;
-    (*sys)[6] += a1 * a1;
-    (*sys)[7] += a1 * a2;
-    (*sys)[8] += a1 * a3;
-    (*sys)[9] += a1 * a4;
-    (*sys)[10] += a1 * a5;
-    (*sys)[11] += a2 * a2;
-    (*sys)[12] += a2 * a3;
-    (*sys)[13] += a2 * a4;
-    (*sys)[14] += a2 * a5;
-    (*sys)[15] += a3 * a3;
-    (*sys)[16] += a3 * a4;
-    (*sys)[17] += a3 * a5;
-    (*sys)[18] += a4 * a4;
-    (*sys)[19] += a4 * a5;
-    (*sys)[20] += a5 * a5;
-    (*sys)[21] += a0 * b;
-    (*sys)[22] += a1 * b;
-    (*sys)[23] += a2 * b;
-    (*sys)[24] += a3 * b;
-    (*sys)[25] += a4 * b;
-    (*sys)[26] += a5 * b;
+// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs: the
+// twin's two loops written out in the same k order (row r, column c >= r), because
+// constant indices let lavapipe keep `sys` in registers instead of per-lane stack memory.
+fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, b: f32) {
+    (*sys)[0] += a[0] * a[0];
+    (*sys)[1] += a[0] * a[1];
+    (*sys)[2] += a[0] * a[2];
+    (*sys)[3] += a[0] * a[3];
+    (*sys)[4] += a[0] * a[4];
+    (*sys)[5] += a[0] * a[5];
+    (*sys)[6] += a[1] * a[1];
+    (*sys)[7] += a[1] * a[2];
+    (*sys)[8] += a[1] * a[3];
+    (*sys)[9] += a[1] * a[4];
+    (*sys)[10] += a[1] * a[5];
+    (*sys)[11] += a[2] * a[2];
+    (*sys)[12] += a[2] * a[3];
+    (*sys)[13] += a[2] * a[4];
+    (*sys)[14] += a[2] * a[5];
+    (*sys)[15] += a[3] * a[3];
+    (*sys)[16] += a[3] * a[4];
+    (*sys)[17] += a[3] * a[5];
+    (*sys)[18] += a[4] * a[4];
+    (*sys)[19] += a[4] * a[5];
+    (*sys)[20] += a[5] * a[5];
+    (*sys)[21] += a[0] * b;
+    (*sys)[22] += a[1] * b;
+    (*sys)[23] += a[2] * b;
+    (*sys)[24] += a[3] * b;
+    (*sys)[25] += a[4] * b;
+    (*sys)[26] += a[5] * b;
     (*sys)[27] += 1.0;
     (*sys)[28] += b * b;
 }
@@ -123,7 +112,7 @@ fn main(
     for (var pix = gid.x; pix < n_pix; pix += stride) {
         let row = icp_row(pred_vertex[pix]);
         if row.valid {
-            accumulate(&sys, row);
+            accumulate(&sys, row.a, row.b);
         }
     }
     scratch[lid] = sys;
