@@ -26,7 +26,7 @@ pub enum BackendChoice {
 
 /// The CPU or the GPU backend.
 pub enum AnyBackend {
-    Cpu(CpuBackend),
+    Cpu(Box<CpuBackend>),
     Gpu(Box<GpuBackend>),
 }
 
@@ -34,7 +34,7 @@ impl AnyBackend {
     /// Opens the chosen backend.
     pub fn open(choice: BackendChoice) -> Result<AnyBackend> {
         match choice {
-            BackendChoice::Cpu => Ok(AnyBackend::Cpu(CpuBackend::new())),
+            BackendChoice::Cpu => Ok(AnyBackend::Cpu(Box::default())),
             BackendChoice::Gpu => Ok(AnyBackend::Gpu(Box::new(GpuBackend::new(
                 GpuContext::new()?,
             )?))),
@@ -42,7 +42,7 @@ impl AnyBackend {
                 Ok(g) => Ok(AnyBackend::Gpu(Box::new(g))),
                 Err(e @ (Error::NoAdapter(_) | Error::Gpu(_))) => {
                     eprintln!("note: no usable GPU ({e}); running the CPU reference instead");
-                    Ok(AnyBackend::Cpu(CpuBackend::new()))
+                    Ok(AnyBackend::Cpu(Box::default()))
                 }
                 Err(e) => Err(e),
             },
@@ -51,14 +51,14 @@ impl AnyBackend {
 
     fn inner(&mut self) -> &mut dyn Backend {
         match self {
-            AnyBackend::Cpu(b) => b,
+            AnyBackend::Cpu(b) => b.as_mut(),
             AnyBackend::Gpu(b) => b.as_mut(),
         }
     }
 
     fn inner_ref(&self) -> &dyn Backend {
         match self {
-            AnyBackend::Cpu(b) => b,
+            AnyBackend::Cpu(b) => b.as_ref(),
             AnyBackend::Gpu(b) => b.as_ref(),
         }
     }
@@ -95,7 +95,7 @@ impl Backend for AnyBackend {
     fn download_frame(&mut self) -> Result<FrameMaps> {
         self.inner().download_frame()
     }
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
         self.inner().download_prediction()
     }
     fn counters(&self) -> BackendCounters {

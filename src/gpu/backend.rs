@@ -792,7 +792,7 @@ impl Backend for GpuBackend {
         })
     }
 
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
         let Some(f) = self.frame.as_ref() else {
             return Ok((Vec::new(), Vec::new()));
         };
