@@ -354,8 +354,8 @@ fn print_summary(m: &run::Metrics, out: &Path) {
     );
     let t = &m.tracking;
     println!(
-        "tracking: {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
-        t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
+        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
+        t.given, t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
     );
     if let Some(acc) = &m.accuracy {
         println!(
