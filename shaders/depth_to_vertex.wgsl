@@ -9,7 +9,7 @@
 //   2 raw_rgba    storage read   array<u32>: packed RGBA8 (r | g << 8 | b << 16 | a << 24)
 //   3 vertex_map  storage rw     array<vec4<f32>>: width x height, camera frame, w = 1 / 0
 //   4 color_map   storage rw     array<vec4<f32>>: width x height, RGB 0..255, a = 255
-// One thread per output pixel. Assumes raw_width >= stride * width (and the same for height).
+// Grid-stride loop over output pixels (the host caps the workgroup count). Assumes raw_width >= stride * width (and the same for height).
 
 @group(0) @binding(0) var<uniform> params: PreprocessParams;
 @group(0) @binding(1) var<storage, read> raw_depth: array<u32>;
@@ -23,29 +23,33 @@ fn raw_depth_at(k: u32) -> u32 {
     return select(word & 0xffffu, word >> 16u, (k & 1u) == 1u);
 }
 
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+const WORKGROUP_SIZE: u32 = 64u;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
     let w = params.width;
-    let pix = gid.x;
-    if pix >= w * params.height {
-        return;
+    let stride = nwg.x * WORKGROUP_SIZE;
+    for (var pix = gid.x; pix < w * params.height; pix += stride) {
+        let u = pix % w;
+        let v = pix / w;
+        let raw = v * params.stride * params.raw_width + u * params.stride;
+        let z = f32(raw_depth_at(raw)) / params.depth_scale;
+        let c = raw_rgba[raw];
+        color_map[pix] = vec4<f32>(
+            f32(c & 255u),
+            f32((c >> 8u) & 255u),
+            f32((c >> 16u) & 255u),
+            255.0,
+        );
+        if z <= 0.0 || z < params.min_depth_m || z > params.max_depth_m {
+            vertex_map[pix] = INVALID;
+            continue;
+        }
+        let x = (f32(u) - params.cx) * z / params.fx;
+        let y = (f32(v) - params.cy) * z / params.fy;
+        vertex_map[pix] = valid_entry(vec3<f32>(x, y, z));
     }
-    let u = pix % w;
-    let v = pix / w;
-    let raw = v * params.stride * params.raw_width + u * params.stride;
-    let z = f32(raw_depth_at(raw)) / params.depth_scale;
-    let c = raw_rgba[raw];
-    color_map[pix] = vec4<f32>(
-        f32(c & 255u),
-        f32((c >> 8u) & 255u),
-        f32((c >> 16u) & 255u),
-        255.0,
-    );
-    if z <= 0.0 || z < params.min_depth_m || z > params.max_depth_m {
-        vertex_map[pix] = INVALID;
-        return;
-    }
-    let x = (f32(u) - params.cx) * z / params.fx;
-    let y = (f32(v) - params.cy) * z / params.fy;
-    vertex_map[pix] = valid_entry(vec3<f32>(x, y, z));
 }

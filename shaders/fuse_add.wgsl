@@ -13,7 +13,7 @@
 //   8 colors      storage rw     array<vec4<f32>>
 //   9 weights     storage rw     array<f32>
 //  10 last_frame  storage rw     array<u32>
-// One thread per pixel; the append order is the atomics' order, not pixel order. Never
+// Grid-stride loop over pixels; the append order is the atomics' order, not pixel order. Never
 // writes at or past params.capacity: the counter still counts, and the host turns a count
 // above capacity into a capacity error.
 
@@ -29,24 +29,28 @@
 @group(0) @binding(9) var<storage, read_write> weights: array<f32>;
 @group(0) @binding(10) var<storage, read_write> last_frame: array<u32>;
 
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let pix = gid.x;
-    if pix >= params.width * params.height {
-        return;
+const WORKGROUP_SIZE: u32 = 64u;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let stride = nwg.x * WORKGROUP_SIZE;
+    for (var pix = gid.x; pix < params.width * params.height; pix += stride) {
+        if assoc[pix] != 0u || !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
+            continue;
+        }
+        let i = atomicAdd(&counter, 1u);
+        if i >= params.capacity {
+            continue;
+        }
+        let p = transform_point(params.t_cam_to_world, xyz(vertex_map[pix]));
+        let n = transform_dir(params.t_cam_to_world, xyz(normal_map[pix]));
+        positions[i] = vec4<f32>(p, 1.0);
+        normals[i] = vec4<f32>(n, 0.0);
+        colors[i] = color_map[pix];
+        weights[i] = 1.0;
+        last_frame[i] = params.frame_id;
     }
-    if assoc[pix] != 0u || !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
-        return;
-    }
-    let i = atomicAdd(&counter, 1u);
-    if i >= params.capacity {
-        return;
-    }
-    let p = transform_point(params.t_cam_to_world, xyz(vertex_map[pix]));
-    let n = transform_dir(params.t_cam_to_world, xyz(normal_map[pix]));
-    positions[i] = vec4<f32>(p, 1.0);
-    normals[i] = vec4<f32>(n, 0.0);
-    colors[i] = color_map[pix];
-    weights[i] = 1.0;
-    last_frame[i] = params.frame_id;
 }

@@ -64,18 +64,37 @@ fn icp_row(src_world: vec4<f32>) -> IcpRow {
     return row;
 }
 
-// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs.
+// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs: the
+// twin's two loops written out in the same k order (row r, column c >= r), because
+// constant indices let lavapipe keep `sys` in registers instead of per-lane stack memory.
 fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, b: f32) {
-    var k = 0u;
-    for (var r = 0u; r < 6u; r++) {
-        for (var c = r; c < 6u; c++) {
-            (*sys)[k] += a[r] * a[c];
-            k++;
-        }
-    }
-    for (var r = 0u; r < 6u; r++) {
-        (*sys)[21u + r] += a[r] * b;
-    }
+    (*sys)[0] += a[0] * a[0];
+    (*sys)[1] += a[0] * a[1];
+    (*sys)[2] += a[0] * a[2];
+    (*sys)[3] += a[0] * a[3];
+    (*sys)[4] += a[0] * a[4];
+    (*sys)[5] += a[0] * a[5];
+    (*sys)[6] += a[1] * a[1];
+    (*sys)[7] += a[1] * a[2];
+    (*sys)[8] += a[1] * a[3];
+    (*sys)[9] += a[1] * a[4];
+    (*sys)[10] += a[1] * a[5];
+    (*sys)[11] += a[2] * a[2];
+    (*sys)[12] += a[2] * a[3];
+    (*sys)[13] += a[2] * a[4];
+    (*sys)[14] += a[2] * a[5];
+    (*sys)[15] += a[3] * a[3];
+    (*sys)[16] += a[3] * a[4];
+    (*sys)[17] += a[3] * a[5];
+    (*sys)[18] += a[4] * a[4];
+    (*sys)[19] += a[4] * a[5];
+    (*sys)[20] += a[5] * a[5];
+    (*sys)[21] += a[0] * b;
+    (*sys)[22] += a[1] * b;
+    (*sys)[23] += a[2] * b;
+    (*sys)[24] += a[3] * b;
+    (*sys)[25] += a[4] * b;
+    (*sys)[26] += a[5] * b;
     (*sys)[27] += 1.0;
     (*sys)[28] += b * b;
 }

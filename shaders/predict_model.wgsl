@@ -9,7 +9,7 @@
 //   3 normals      storage read   array<vec4<f32>>: surfel normals, world frame
 //   4 pred_vertex  storage rw     array<vec4<f32>>: width x height, world frame, w = 1 / 0
 //   5 pred_normal  storage rw     array<vec4<f32>>: width x height, world frame, w = 1 / 0
-// One thread per pixel.
+// Grid-stride loop over pixels (the host caps the workgroup count).
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
@@ -18,19 +18,23 @@
 @group(0) @binding(4) var<storage, read_write> pred_vertex: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> pred_normal: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let pix = gid.x;
-    if pix >= params.width * params.height {
-        return;
+const WORKGROUP_SIZE: u32 = 64u;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let stride = nwg.x * WORKGROUP_SIZE;
+    for (var pix = gid.x; pix < params.width * params.height; pix += stride) {
+        let key = index_map[pix];
+        if key.x == 0u && key.y == 0u {
+            pred_vertex[pix] = INVALID;
+            pred_normal[pix] = INVALID;
+            continue;
+        }
+        let i = key.x;
+        pred_vertex[pix] = vec4<f32>(positions[i].xyz, 1.0);
+        pred_normal[pix] = vec4<f32>(normals[i].xyz, 1.0);
     }
-    let key = index_map[pix];
-    if key.x == 0u && key.y == 0u {
-        pred_vertex[pix] = INVALID;
-        pred_normal[pix] = INVALID;
-        return;
-    }
-    let i = key.x;
-    pred_vertex[pix] = vec4<f32>(positions[i].xyz, 1.0);
-    pred_normal[pix] = vec4<f32>(normals[i].xyz, 1.0);
 }

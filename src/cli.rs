@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use crate::any_backend::{AnyBackend, BackendChoice};
 use crate::camera::Intrinsics;
-use crate::cpu_backend::CpuBackend;
 use crate::dataset::{self, SequenceOptions};
 use crate::pipeline::{PoseSource, SlamParams};
-use crate::{eval, io, run, two_frame, Error, Result};
+use crate::{bench, compare, eval, io, run, two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
 pub const BUNDLED_DATASET: &str = "assets/icl_living_room_kt2";
@@ -29,21 +29,18 @@ pub enum Command {
     Icp(IcpArgs),
     /// ATE and RPE of an estimated TUM trajectory against a ground-truth TUM trajectory.
     Eval(EvalArgs),
+    /// Run the CPU reference and the GPU on the same frames and report their differences
+    /// per stage and frame; exits non-zero beyond the documented tolerances.
+    Compare(CompareArgs),
+    /// Time both backends on the same frames: per stage, per frame, memory, readbacks.
+    Bench(BenchArgs),
+    /// (internal) Benchmark one backend and print its result as JSON; used by `bench`.
+    #[command(hide = true)]
+    BenchOne(BenchArgs),
     /// Point-to-point ICP between two point clouds (PCD, PLY, xyz text, KITTI .bin).
     Register(crate::scan_cli::RegisterArgs),
     /// Scan odometry: register each consecutive pair of a folder of scans and chain them.
     Odometry(crate::scan_cli::OdometryArgs),
-}
-
-/// Which implementation runs the kernels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum BackendChoice {
-    /// The GPU when an adapter exists, otherwise the CPU reference (saying so).
-    Auto,
-    /// The CPU reference (the twins in src/cpu).
-    Cpu,
-    /// WGSL compute kernels on wgpu (Vulkan, Metal or DX12).
-    Gpu,
 }
 
 /// Pose source for `run`.
@@ -134,6 +131,39 @@ pub struct IcpArgs {
     /// Write result.json here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    pub data: DatasetArgs,
+    /// Inclusive frame range "A..B" (default: 20 frames from the first with ground truth).
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Keep every N-th pixel in each direction.
+    #[arg(long, default_value_t = 2)]
+    pub downsample: u32,
+    /// Write the full comparison as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub data: DatasetArgs,
+    /// Inclusive frame range "A..B" (default: all frames from the first with ground truth).
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Keep every N-th pixel in each direction.
+    #[arg(long, default_value_t = 2)]
+    pub downsample: u32,
+    /// Backends to run (bench-one runs the first only).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendChoice::Cpu, BackendChoice::Gpu])]
+    pub backends: Vec<BackendChoice>,
+    /// Write the results as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -243,6 +273,9 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Run(a) => cmd_run(a),
         Command::Icp(a) => cmd_icp(a),
         Command::Eval(a) => cmd_eval(a),
+        Command::Compare(a) => cmd_compare(a),
+        Command::Bench(a) => cmd_bench(a),
+        Command::BenchOne(a) => cmd_bench_one(a),
         Command::Register(a) => crate::scan_cli::run_register(&a).map(|_| ()),
         Command::Odometry(a) => crate::scan_cli::run_odometry(&a).map(|_| ()),
     }
@@ -274,19 +307,15 @@ fn cmd_run(a: RunArgs) -> Result<()> {
             bar.println(format!("frame {}: no valid depth; skipped", f.index));
         }
     };
-    let result = match a.pipeline.backend {
-        BackendChoice::Cpu | BackendChoice::Auto => run::run(
-            CpuBackend::new(),
-            &seq,
-            *range.start(),
-            *range.end(),
-            params,
-            on_frame,
-        )?,
-        BackendChoice::Gpu => {
-            return Err(Error::Argument("the GPU backend is not built yet".into()))
-        }
-    };
+    let backend = AnyBackend::open(a.pipeline.backend)?;
+    let result = run::run(
+        backend,
+        &seq,
+        *range.start(),
+        *range.end(),
+        params,
+        on_frame,
+    )?;
     bar.finish_and_clear();
     run::write_outputs(&a.out, &result)?;
     print_summary(&result.metrics, &a.out);
@@ -325,8 +354,8 @@ fn print_summary(m: &run::Metrics, out: &Path) {
     );
     let t = &m.tracking;
     println!(
-        "tracking: {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
-        t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
+        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
+        t.given, t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
     );
     if let Some(acc) = &m.accuracy {
         println!(
@@ -352,7 +381,13 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
     let target = a.target.unwrap_or(50.min(seq.len() - 1));
     seq.select(a.source.min(target), a.source.max(target))?;
     let params = a.pipeline.params(PoseSource::Track)?;
-    let r = two_frame::align_frames(CpuBackend::new(), &seq, a.source, target, params)?;
+    let r = two_frame::align_frames(
+        AnyBackend::open(a.pipeline.backend)?,
+        &seq,
+        a.source,
+        target,
+        params,
+    )?;
     println!("frames {} -> {target}", a.source);
     println!("iter  inliers  mean squared residual (m^2)");
     for (i, it) in r.iterations.iter().enumerate() {
@@ -379,6 +414,140 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
         run::write_json(&out.join("result.json"), &r)?;
     }
+    Ok(())
+}
+
+/// Frames from `--frames`, or from the first frame with ground truth to at most `count`
+/// frames later (`usize::MAX` for all).
+fn frame_range(
+    seq: &dataset::Sequence,
+    frames: &Option<String>,
+    count: usize,
+) -> Result<(usize, usize)> {
+    let (first, last) = match frames {
+        Some(r) => dataset::parse_range(r)?,
+        None => {
+            let first = default_first_frame(seq);
+            (first, (seq.len() - 1).min(first.saturating_add(count - 1)))
+        }
+    };
+    let r = seq.select(first, last)?;
+    Ok((*r.start(), *r.end()))
+}
+
+fn downsampled_params(downsample: u32) -> Result<SlamParams> {
+    if downsample == 0 || downsample > 16 {
+        return Err(Error::Argument(format!(
+            "--downsample {downsample} must be between 1 and 16"
+        )));
+    }
+    Ok(SlamParams {
+        downsample,
+        ..SlamParams::default()
+    })
+}
+
+fn cmd_compare(a: CompareArgs) -> Result<()> {
+    let seq = a.data.open()?;
+    let (first, last) = frame_range(&seq, &a.frames, 20)?;
+    let params = downsampled_params(a.downsample)?;
+    let gpu = AnyBackend::open(BackendChoice::Gpu)?;
+    let cpu = AnyBackend::open(BackendChoice::Cpu)?;
+    let c = compare::compare(cpu, gpu, &seq, first, last, params)?;
+    println!("frame  vertex(m)  normal(deg)  valid-mismatch  system-rel   pose(mm)  pose(deg)  surfels cpu/gpu");
+    for f in &c.frames {
+        println!(
+            "{:5}  {:9.2e}  {:11.5}  {:13.5}%  {:>10}  {:9.5}  {:9.6}  {}/{}",
+            f.index,
+            f.maps.vertex_max_abs_m,
+            f.maps.normal_max_deg,
+            f.maps.validity_mismatch_fraction * 100.0,
+            f.system_rel_diff
+                .map(|r| format!("{r:.2e}"))
+                .unwrap_or_else(|| "-".into()),
+            f.pose_diff_mm,
+            f.pose_diff_deg,
+            f.surfels.0,
+            f.surfels.1
+        );
+    }
+    println!(
+        "final map: {} vs {} surfels; unmatched within {} mm: {:.4}% cpu, {:.4}% gpu; mean match {:.2e} m",
+        c.map.surfels.0,
+        c.map.surfels.1,
+        compare::tolerance::MAP_MATCH_RADIUS_M * 1e3,
+        c.map.unmatched_a_fraction * 100.0,
+        c.map.unmatched_b_fraction * 100.0,
+        c.map.mean_match_m
+    );
+    if let Some(path) = &a.json {
+        run::write_json(path, &c)?;
+    }
+    if c.violations.is_empty() {
+        println!("backends agree within the documented tolerances (src/compare.rs)");
+        Ok(())
+    } else {
+        for v in &c.violations {
+            println!("beyond tolerance: {v}");
+        }
+        Err(Error::Numerical(format!(
+            "{} comparisons beyond tolerance",
+            c.violations.len()
+        )))
+    }
+}
+
+fn cmd_bench(a: BenchArgs) -> Result<()> {
+    let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
+    let mut results = Vec::new();
+    for b in &a.backends {
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("bench-one");
+        if let Some(d) = &a.data.dataset {
+            cmd.arg(d);
+        }
+        if let Some(f) = &a.frames {
+            cmd.args(["--frames", f]);
+        }
+        cmd.args(["--downsample", &a.downsample.to_string()]);
+        let name = format!("{b:?}").to_lowercase();
+        cmd.args(["--backends", &name]);
+        for (flag, v) in [("--gt", &a.data.gt)] {
+            if let Some(v) = v {
+                cmd.arg(flag).arg(v);
+            }
+        }
+        eprintln!("benchmarking the {name} backend ...");
+        let out = cmd
+            .stderr(std::process::Stdio::inherit())
+            .output()
+            .map_err(|e| Error::io(&exe, e))?;
+        if !out.status.success() {
+            return Err(Error::Gpu(format!(
+                "the {name} benchmark failed (see above)"
+            )));
+        }
+        let r: bench::BenchResult = serde_json::from_slice(&out.stdout)
+            .map_err(|e| Error::format(&exe, format!("bench-one output: {e}")))?;
+        results.push(r);
+    }
+    bench::print_table(&results);
+    if let Some(path) = &a.json {
+        run::write_json(path, &results)?;
+    }
+    Ok(())
+}
+
+fn cmd_bench_one(a: BenchArgs) -> Result<()> {
+    let seq = a.data.open()?;
+    let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
+    let params = downsampled_params(a.downsample)?;
+    let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
+    let r = bench::bench_backend(|| AnyBackend::open(choice), &seq, first, last, &params)?;
+    println!(
+        "{}",
+        serde_json::to_string(&r).map_err(|e| Error::Argument(e.to_string()))?
+    );
     Ok(())
 }
 

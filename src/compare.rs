@@ -82,7 +82,7 @@ impl<B: Backend> Backend for Recorder<B> {
     fn download_frame(&mut self) -> Result<FrameMaps> {
         self.inner.download_frame()
     }
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
         self.inner.download_prediction()
     }
     fn counters(&self) -> BackendCounters {
@@ -154,11 +154,12 @@ pub fn diff_frame_maps(a: &FrameMaps, b: &FrameMaps) -> MapDiff {
             }
         }
         if na[3] > 0.0 && nb[3] > 0.0 {
-            let dot = (na[0] as f64 * nb[0] as f64
-                + na[1] as f64 * nb[1] as f64
-                + na[2] as f64 * nb[2] as f64)
-                .clamp(-1.0, 1.0);
-            d.normal_max_deg = d.normal_max_deg.max(dot.acos().to_degrees());
+            // atan2(|a x b|, a . b): accurate near 0, where acos(dot) has a ~0.03 deg floor
+            // for f32 unit vectors.
+            let a = glam::DVec3::new(na[0] as f64, na[1] as f64, na[2] as f64);
+            let b = glam::DVec3::new(nb[0] as f64, nb[1] as f64, nb[2] as f64);
+            let angle = a.cross(b).length().atan2(a.dot(b));
+            d.normal_max_deg = d.normal_max_deg.max(angle.to_degrees());
         }
     }
     d.validity_mismatch_fraction = mismatched as f64 / n as f64;

@@ -153,7 +153,7 @@ impl Backend for CpuBackend {
         Ok(self.frame.clone())
     }
 
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
         Ok((self.pred_vertex.clone(), self.pred_normal.clone()))
     }
 }

@@ -5,6 +5,7 @@
 //! [`pipeline`] holds the frame's steps, generic over a backend; [`run`] is the batch job;
 //! [`scan`] is point-to-point ICP for point clouds.
 
+pub mod any_backend;
 pub mod bench;
 pub mod camera;
 pub mod cli;

@@ -30,6 +30,9 @@ pub struct FrameMaps {
     pub color: Vec<[f32; 4]>,
 }
 
+/// Predicted model vertex and normal maps (world frame, `w = 1` valid).
+pub type Prediction = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
 /// Work counters a backend reports for the benchmark.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct BackendCounters {
@@ -67,7 +70,7 @@ pub trait Backend {
     /// The current frame's maps.
     fn download_frame(&mut self) -> Result<FrameMaps>;
     /// The predicted model vertex and normal maps (world frame).
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)>;
+    fn download_prediction(&mut self) -> Result<Prediction>;
     /// Work counters (zero for the CPU).
     fn counters(&self) -> BackendCounters {
         BackendCounters::default()

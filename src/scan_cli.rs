@@ -68,6 +68,17 @@ impl IcpArgs {
     }
 }
 
+/// Where `register` finds nearest neighbours (and, on the GPU, reduces the pairs).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NnBackend {
+    /// CPU KD-tree (kiddo), pairs reduced in f64 on the CPU.
+    Kdtree,
+    /// GPU hashed voxel grid + GPU cross-covariance reduction.
+    GpuGrid,
+    /// GPU brute force + GPU cross-covariance reduction.
+    GpuBrute,
+}
+
 /// `register SOURCE TARGET`: align SOURCE onto TARGET with point-to-point ICP. The printed
 /// transform maps SOURCE coordinates into TARGET coordinates (t_source_to_target).
 #[derive(clap::Args, Debug, Clone)]
@@ -81,6 +92,10 @@ pub struct RegisterArgs {
     pub init: Option<PathBuf>,
     #[command(flatten)]
     pub icp: IcpArgs,
+    /// Nearest-neighbour backend: `kdtree` (CPU, kiddo), `gpu-grid` (hashed voxel grid
+    /// on the GPU) or `gpu-brute` (brute force on the GPU; slow, for checking).
+    #[arg(long, value_enum, default_value_t = NnBackend::Kdtree)]
+    pub nn: NnBackend,
     /// Output directory for result.json and aligned.ply (the whole source, uncropped, moved
     /// into the target frame).
     #[arg(long)]
@@ -134,7 +149,21 @@ pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
         None => (source.points.clone(), target.points.clone()),
     };
     let start = std::time::Instant::now();
-    let result = crate::scan::register(&src_pts, &tgt_pts, init, &params)?;
+    let result = match args.nn {
+        NnBackend::Kdtree => crate::scan::register(&src_pts, &tgt_pts, init, &params)?,
+        NnBackend::GpuGrid | NnBackend::GpuBrute => {
+            use crate::scan::gpu::{GpuTarget, NnMethod, ScanKernels};
+            let ctx = crate::gpu::GpuContext::new()?;
+            let kernels = ScanKernels::new(&ctx)?;
+            let method = if args.nn == NnBackend::GpuGrid {
+                NnMethod::Grid
+            } else {
+                NnMethod::Brute
+            };
+            let target = GpuTarget::new(&ctx, &kernels, &tgt_pts, params.radius as f32, method)?;
+            crate::scan::register_with(&src_pts, &target, init, &params)?
+        }
+    };
     let seconds = start.elapsed().as_secs_f64();
     for (name, c) in [("source", &source), ("target", &target)] {
         if c.stats.dropped_non_finite > 0 {
@@ -154,7 +183,7 @@ pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
         result.final_stats.outlier_ratio,
         result.final_stats.inliers,
         result.final_stats.sampled,
-        params.radius
+        result.final_stats.radius
     );
     println!("time:          {seconds:.3} s");
     if let Some(dir) = &args.out {

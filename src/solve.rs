@@ -85,7 +85,8 @@ impl NormalEquations {
                 (lo.min(e), hi.max(e))
             });
         let rcond = if hi > 0.0 { lo / hi } else { 0.0 };
-        if !(rcond >= MIN_RECIPROCAL_CONDITION) {
+        // NaN (a broken system) is refused as well.
+        if rcond.is_nan() || rcond < MIN_RECIPROCAL_CONDITION {
             return Err(SolveError::IllConditioned(rcond));
         }
         let chol = self

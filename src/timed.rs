@@ -73,7 +73,7 @@ impl<B: Backend> Backend for Timed<B> {
     fn download_frame(&mut self) -> Result<FrameMaps> {
         self.inner.download_frame()
     }
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
         self.inner.download_prediction()
     }
     fn counters(&self) -> BackendCounters {

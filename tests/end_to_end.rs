@@ -121,3 +121,45 @@ fn shared_sequence_1_to_200_within_1mm() {
     );
     assert!(acc.ate_rmse_aligned_m < ATE_ALIGNED_MAX_M, "{acc:?}");
 }
+
+/// A frame whose depth is all invalid is reported and skipped; a frame with too little
+/// valid depth to constrain ICP is reported as lost and not fused; tracking then resumes.
+#[test]
+fn empty_and_untrackable_frames_are_reported_not_fused() {
+    use wgslam::pipeline::Slam;
+    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let mut slam = Slam::new(CpuBackend::new(), seq.intrinsics, SlamParams::default());
+    let load = |i: usize| {
+        let f = seq.load(i).unwrap();
+        let c = run::packed_rgba(&f);
+        (f.depth, c)
+    };
+    let (d1, c1) = load(1);
+    let gt1 = seq.frames[1].gt_cam_to_world;
+    slam.process(1, &d1, &c1, gt1.as_ref()).unwrap();
+    let surfels = slam.backend.map().len();
+
+    let empty = vec![0u16; d1.len()];
+    let r = slam.process(2, &empty, &c1, None).unwrap();
+    assert_eq!(r.status, TrackStatus::EmptyDepth);
+    assert_eq!(r.surfels, surfels, "an empty frame adds nothing");
+
+    // Keep 40 scattered valid pixels: fewer correspondences than solve::MIN_INLIERS.
+    let mut sparse = vec![0u16; d1.len()];
+    for k in 0..40 {
+        let i = 1000 + k * 7001;
+        sparse[i] = d1[i];
+    }
+    let r = slam.process(3, &sparse, &c1, None).unwrap();
+    assert!(matches!(r.status, TrackStatus::Lost(_)), "{:?}", r.status);
+    assert_eq!(r.surfels, surfels, "a lost frame is not fused");
+    assert_eq!(r.t_cam_to_world, gt1.unwrap(), "the previous pose is kept");
+
+    let (d4, c4) = load(4);
+    let r = slam.process(4, &d4, &c4, None).unwrap();
+    assert_eq!(r.status, TrackStatus::Converged);
+    let err = (r.t_cam_to_world.w_axis - seq.frames[4].gt_cam_to_world.unwrap().w_axis)
+        .truncate()
+        .length();
+    assert!(err < ATE_BUNDLED_MAX_M, "tracking resumes: {err} m off");
+}

@@ -603,3 +603,25 @@ fn map_capacity_error() {
         other => panic!("expected Error::Capacity, got {other:?}"),
     }
 }
+
+/// A frame whose buffers do not match its stated size is a user error, not a panic or a
+/// GPU fault; downloads before the first frame are empty, as on the CPU.
+#[test]
+fn bad_frame_size_is_an_argument_error() {
+    let Some(mut gpu) = gpu_backend("bad_frame_size_is_an_argument_error") else {
+        return;
+    };
+    assert_eq!(gpu.download_frame().unwrap(), Default::default());
+    assert!(gpu.download_prediction().unwrap().0.is_empty());
+    let s = slam(CpuBackend::new(), SlamParams::default());
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    let short = vec![0u16; 100];
+    match gpu.preprocess(&pp, &np, &short, &vec![0u32; 100]) {
+        Err(Error::Argument(msg)) => assert!(msg.contains("640x480"), "{msg}"),
+        other => panic!("expected Error::Argument, got {other:?}"),
+    }
+    // The backend still works afterwards.
+    let f = load_frame(&root(), 1);
+    gpu.preprocess(&pp, &np, &f.depth, &f.rgba).unwrap();
+    assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
+}

@@ -681,6 +681,7 @@ fn register_cli_writes_result_and_aligned_cloud() {
             min_z: None,
             max_z: None,
         },
+        nn: wgslam::scan_cli::NnBackend::Kdtree,
         out: Some(out.clone()),
     };
     let r = wgslam::scan_cli::run_register(&args).unwrap();

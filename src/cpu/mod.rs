@@ -6,10 +6,13 @@
 //! same on both sides; only the reductions differ (f64 sums here, f32 workgroup partials
 //! summed in f64 on the host for the GPU).
 
+pub mod cross_covariance;
 pub mod depth_to_vertex;
 pub mod fuse_add;
 pub mod fuse_merge;
 pub mod icp_reduce;
+pub mod nn_brute;
+pub mod nn_grid;
 pub mod predict_model;
 pub mod project_model;
 pub mod render_resolve;

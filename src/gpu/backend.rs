@@ -9,15 +9,24 @@
 //! and the 4-byte surfel counter; maps are downloaded only on request.
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
+use std::collections::BTreeMap;
+
 use super::buffers::{GpuArray, Readback, Uniform};
 use super::context::GpuContext;
 use super::kernel::{Binding, Kernel};
+use super::timing::StageTimer;
 use crate::layout::{
     FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::map::SurfelMap;
 use crate::pipeline::{Backend, BackendCounters, FrameMaps};
 use crate::{Error, Result};
+
+// Raw depth is uploaded as u16 bytes and read in WGSL as u32 words (pixel k = low half of
+// word k/2 when k is even), and the u64 index map is read as vec2<u32> (low word first):
+// both assume a little-endian host, like every platform wgpu runs on.
+#[cfg(target_endian = "big")]
+compile_error!("the GPU backend assumes a little-endian host (u16/u64 buffers read as u32)");
 
 /// Surfel slots allocated up front: a little over three 320x240 frames, ~10 MB.
 pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
@@ -163,9 +172,68 @@ pub struct GpuBackend {
     max_surfels: usize,
     /// `None` after any buffer a bind group refers to was re-created.
     bind_groups: Option<BindGroups>,
+    /// Per-kernel timing, off unless [`GpuBackend::enable_kernel_timing`] was called.
+    profiler: Option<Profiler>,
+}
+
+/// Per-kernel GPU times: timestamps around each kernel's pass (or wall time without the
+/// feature), totalled by kernel name. Reading them waits for the GPU after every step, so
+/// it is for profiling runs only.
+struct Profiler {
+    timer: StageTimer,
+    totals: BTreeMap<String, (u64, f64)>,
+}
+
+/// Records one compute pass per `(kernel, bind group, workgroups)`, timed when profiling.
+fn record_passes(
+    ctx: &GpuContext,
+    profiler: &mut Option<Profiler>,
+    enc: &mut wgpu::CommandEncoder,
+    dispatches: &[(&Kernel, &wgpu::BindGroup, u32)],
+) -> Result<()> {
+    for (kernel, bind_group, workgroups) in dispatches {
+        let mut pass = match profiler {
+            Some(p) => p.timer.begin_pass(enc, &kernel.name),
+            None => enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(&kernel.name),
+                timestamp_writes: None,
+            }),
+        };
+        kernel.dispatch(ctx, &mut pass, bind_group, *workgroups)?;
+    }
+    Ok(())
+}
+
+/// Submits `enc`; when profiling, resolves the timestamps first and adds them to the totals.
+fn submit_profiled(
+    ctx: &GpuContext,
+    profiler: &mut Option<Profiler>,
+    mut enc: wgpu::CommandEncoder,
+) -> Result<()> {
+    match profiler {
+        None => {
+            ctx.submit(enc);
+        }
+        Some(p) => {
+            p.timer.resolve(&mut enc);
+            ctx.submit(enc);
+            for t in p.timer.read(ctx)? {
+                let e = p.totals.entry(t.name).or_insert((0, 0.0));
+                e.0 += 1;
+                e.1 += t.ms;
+            }
+        }
+    }
+    Ok(())
 }
 
 impl GpuBackend {
+    /// Opens the GPU ([`GpuContext::new`]: logs the adapter; [`Error::NoAdapter`] without
+    /// one) and builds a backend on it: what `--backend gpu` needs.
+    pub fn open() -> Result<GpuBackend> {
+        Self::new(GpuContext::new()?)
+    }
+
     /// A backend on `ctx` with [`DEFAULT_INITIAL_CAPACITY`] surfel slots.
     ///
     /// [`Error::Gpu`] when the adapter lacks 64-bit atomics (`project_model`'s packed
@@ -256,6 +324,7 @@ impl GpuBackend {
             count: 0,
             max_surfels,
             bind_groups: None,
+            profiler: None,
         })
     }
 
@@ -270,6 +339,25 @@ impl GpuBackend {
     fn device_max_surfels(ctx: &GpuContext) -> usize {
         let by_bytes = ctx.max_storage_bytes() / std::mem::size_of::<[f32; 4]>() as u64;
         by_bytes.min(u32::MAX as u64) as usize
+    }
+
+    /// Turns on per-kernel timing (GPU timestamps when the device has them, else wall time
+    /// per step). Costs a wait after every step: use for profiling, not for throughput.
+    pub fn enable_kernel_timing(&mut self) {
+        self.profiler = Some(Profiler {
+            // At most two kernels per submission (preprocess, predict, fuse).
+            timer: StageTimer::new(&self.ctx, 2),
+            totals: BTreeMap::new(),
+        });
+    }
+
+    /// Per-kernel totals since timing was enabled: name -> (passes, milliseconds). In
+    /// wall-time mode (no timestamp queries) the entry is `"all stages"` per submission.
+    pub fn kernel_times(&self) -> BTreeMap<String, (u64, f64)> {
+        self.profiler
+            .as_ref()
+            .map(|p| p.totals.clone())
+            .unwrap_or_default()
     }
 
     /// The context (device, queue, limits, byte counters).
@@ -459,12 +547,10 @@ impl GpuBackend {
         self.bind_groups.as_ref().expect("just built")
     }
 
-    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped at the
-    /// device's per-dimension limit (the loop covers the rest).
+    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped by
+    /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the rest).
     fn grid_stride_workgroups(&self, kernel: &Kernel, n: usize) -> u32 {
-        kernel
-            .workgroups_for(n)
-            .min(self.ctx.limits().max_compute_workgroups_per_dimension)
+        kernel.workgroups_for(n).min(self.ctx.grid_workgroups_cap())
     }
 
     fn frame(&self) -> &FrameBuffers {
@@ -521,31 +607,27 @@ impl Backend for GpuBackend {
             Ok(())
         })?;
         let n = self.frame().pixels();
+        let d2v_wg = self.grid_stride_workgroups(&self.kernels.depth_to_vertex, n);
+        let v2n_wg = self.grid_stride_workgroups(&self.kernels.vertex_to_normal, n);
         self.bind_groups();
-        let (ctx, k, bg) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
+            &mut self.profiler,
         );
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.depth_to_vertex.dispatch(
-                    ctx,
-                    &mut pass,
-                    &bg.depth_to_vertex,
-                    k.depth_to_vertex.workgroups_for(n),
-                )?;
-                k.vertex_to_normal.dispatch(
-                    ctx,
-                    &mut pass,
-                    &bg.vertex_to_normal,
-                    k.vertex_to_normal.workgroups_for(n),
-                )?;
-            }
-            ctx.submit(enc);
-            Ok(())
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.depth_to_vertex, &bg.depth_to_vertex, d2v_wg),
+                    (&k.vertex_to_normal, &bg.vertex_to_normal, v2n_wg),
+                ],
+            )?;
+            submit_profiled(ctx, profiler, enc)
         })
     }
 
@@ -554,54 +636,59 @@ impl Backend for GpuBackend {
         params.surfel_count = self.count as u32;
         let n = self.frame().pixels();
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
+        let pix_wg = self.grid_stride_workgroups(&self.kernels.predict_model, n);
         self.bind_groups();
-        let (ctx, k, bg, f) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
-            self.frame(),
+            &mut self.profiler,
         );
+        let f = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before predict()");
         ctx.scoped("predict", || {
             self.u_project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
             f.index_map.clear(&mut enc);
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.project_model
-                    .dispatch(ctx, &mut pass, &bg.project_model, surfel_wg)?;
-                k.predict_model.dispatch(
-                    ctx,
-                    &mut pass,
-                    &bg.predict_model,
-                    k.predict_model.workgroups_for(n),
-                )?;
-            }
-            ctx.submit(enc);
-            Ok(())
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.project_model, &bg.project_model, surfel_wg),
+                    (&k.predict_model, &bg.predict_model, pix_wg),
+                ],
+            )?;
+            submit_profiled(ctx, profiler, enc)
         })
     }
 
     fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let wg = self.reduction_workgroups;
         self.bind_groups();
-        let (ctx, k, bg) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
+            &mut self.profiler,
         );
         let partials = ctx.scoped("icp_reduce", || {
             self.u_icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.icp_reduce.dispatch(ctx, &mut pass, &bg.icp_reduce, wg)?;
-            }
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[(&k.icp_reduce, &bg.icp_reduce, wg)],
+            )?;
             self.partials_readback.copy_from(
                 &mut enc,
                 &self.partials,
                 wg as usize * ICP_SYSTEM_LEN,
             );
-            ctx.submit(enc);
+            submit_profiled(ctx, profiler, enc)?;
             self.partials_readback.read(ctx)
         })?;
         let mut sys = [0.0f64; ICP_SYSTEM_LEN];
@@ -620,15 +707,18 @@ impl Backend for GpuBackend {
         params.surfel_count = self.count as u32;
         params.capacity = self.capacity() as u32;
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.fuse_merge, self.count);
+        let pix_wg = self.grid_stride_workgroups(&self.kernels.fuse_add, n);
         self.bind_groups();
-        let (ctx, k, bg, f) = (
+        let (ctx, k, bg, profiler) = (
             &self.ctx,
             &self.kernels,
             self.bind_groups.as_ref().expect("built"),
-            self.frame
-                .as_ref()
-                .expect("preprocess() runs before fuse()"),
+            &mut self.profiler,
         );
+        let f = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before fuse()");
         let counter = ctx.scoped("fuse", || {
             self.u_fuse.write(ctx, &params);
             ctx.queue.write_buffer(
@@ -638,15 +728,17 @@ impl Backend for GpuBackend {
             );
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
-            {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                k.fuse_merge
-                    .dispatch(ctx, &mut pass, &bg.fuse_merge, surfel_wg)?;
-                k.fuse_add
-                    .dispatch(ctx, &mut pass, &bg.fuse_add, k.fuse_add.workgroups_for(n))?;
-            }
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.fuse_merge, &bg.fuse_merge, surfel_wg),
+                    (&k.fuse_add, &bg.fuse_add, pix_wg),
+                ],
+            )?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
-            ctx.submit(enc);
+            submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
         if counter > params.capacity as usize {
@@ -686,7 +778,11 @@ impl Backend for GpuBackend {
     }
 
     fn download_frame(&mut self) -> Result<FrameMaps> {
-        let (ctx, f) = (&self.ctx, self.frame());
+        // Before the first frame there is nothing to download (as on the CPU).
+        let Some(f) = self.frame.as_ref() else {
+            return Ok(FrameMaps::default());
+        };
+        let ctx = &self.ctx;
         ctx.scoped("download frame", || {
             Ok(FrameMaps {
                 vertex: read_map(ctx, &f.vertex)?,
@@ -696,8 +792,11 @@ impl Backend for GpuBackend {
         })
     }
 
-    fn download_prediction(&mut self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
-        let (ctx, f) = (&self.ctx, self.frame());
+    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
+        let Some(f) = self.frame.as_ref() else {
+            return Ok((Vec::new(), Vec::new()));
+        };
+        let ctx = &self.ctx;
         ctx.scoped("download prediction", || {
             Ok((
                 read_map(ctx, &f.pred_vertex)?,

@@ -1,7 +1,16 @@
-//! The GPU backend: wgpu context, embedded WGSL kernels, typed buffers and timing.
+//! The GPU backend: wgpu context, embedded WGSL kernels, typed buffers, timing, and
+//! [`GpuBackend`], which runs `pipeline::Backend`'s steps as those kernels.
 //!
 //! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in `src/cpu/<kernel>.rs`; this
 //! module only knows how to run them on a device. Nothing here reads files.
+//!
+//! - [`context`]: adapter (Vulkan / Metal / DX12, never GL), device, limits, error scopes.
+//! - [`shaders`]: `common.wgsl` + kernel sources, shared by the runtime and the naga test.
+//! - [`kernel`]: pipeline + explicit bind-group layout + workgroup size; dispatch.
+//! - [`buffers`]: typed storage arrays, uniforms, read-back, byte accounting.
+//! - [`timing`]: per-pass timestamps (or wall time).
+//! - [`backend`]: the dense-SLAM steps on the GPU.
+//! - [`test_support`]: skip-or-require logic shared by every GPU test.
 
 pub mod backend;
 pub mod buffers;

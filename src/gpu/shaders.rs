@@ -30,6 +30,13 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
+    // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
+    ("nn_brute", include_str!("../../shaders/nn_brute.wgsl")),
+    ("nn_grid", include_str!("../../shaders/nn_grid.wgsl")),
+    (
+        "cross_covariance",
+        include_str!("../../shaders/cross_covariance.wgsl"),
+    ),
     // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
     (
         "render_splat",

@@ -6,7 +6,9 @@
 
 pub mod bench;
 pub mod cloud;
+pub mod gpu;
 pub mod icp;
+pub mod layout;
 pub mod odometry;
 pub mod read;
 pub mod write;

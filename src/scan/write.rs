@@ -1,7 +1,6 @@
 //! Output files of the scan tools, written completely or not at all (temp file in the same
 //! directory, then rename): binary little-endian xyz PLY, JSON, text tables.
 
-use std::io::Write;
 use std::path::Path;
 
 use glam::DMat4;
@@ -10,27 +9,7 @@ use crate::{Error, Result};
 
 /// Writes `bytes` to `path` atomically: a temporary sibling file, flushed, then renamed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Argument(format!("{} is not a file path", path.display())))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".tmp{}", std::process::id()));
-    let tmp = match dir {
-        Some(d) => d.join(&tmp_name),
-        None => tmp_name.into(),
-    };
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })
+    crate::io::atomic::write_atomic(path, |w| w.write_all(bytes).map_err(|e| Error::io(path, e)))
 }
 
 /// Encodes points (metres) as a binary little-endian PLY with `float x y z` vertices.

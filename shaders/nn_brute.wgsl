@@ -1,0 +1,74 @@
+// nn_brute.wgsl: nearest target point of each query by brute force, reported only within
+// the rejection radius. CPU twin: src/cpu/nn_brute.rs (same loops, same tie rule: equal
+// squared distances go to the lower target index).
+//
+// Bindings (group 0):
+//   0 uniform        params:  ScanNnParams (counts, radius^2, grid-stride thread count)
+//   1 storage read   queries: array<vec4<f32>>   xyz metres in the target frame, w unused
+//   2 storage read   targets: array<vec4<f32>>   xyz metres, w unused
+//   3 storage rw     results: array<ScanNnResult> one per query
+// Assumes: dispatched with params.n_threads = workgroups * 64 threads; each thread walks
+// the queries with a grid stride. One dispatch scans targets [target_begin, target_end)
+// and continues from results[q] when target_begin > 0: llvmpipe (lavapipe) stops an
+// invocation's loops after ~65535 iterations in total, so the host splits big targets.
+
+// Mirrors `scan::layout::ScanNnParams`.
+struct ScanNnParams {
+    n_queries: u32,
+    n_targets: u32,
+    radius_sq: f32,
+    n_threads: u32,
+    cell_size: f32,
+    table_mask: u32,
+    target_begin: u32,
+    target_end: u32,
+}
+
+// Mirrors `scan::layout::ScanNnResult`.
+struct ScanNnResult {
+    index: u32,
+    dist_sq: f32,
+}
+
+const SCAN_NN_NONE: u32 = 0xffffffffu;
+const SCAN_F32_MAX: f32 = 3.40282347e38;
+
+@group(0) @binding(0) var<uniform> params: ScanNnParams;
+@group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> targets: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> results: array<ScanNnResult>;
+
+// Mirrors `scan_closer` in src/cpu/nn_brute.rs.
+fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
+    return d < best_d || (d == best_d && i < best_i);
+}
+
+// Mirrors `scan_dist_sq` in src/cpu/nn_brute.rs.
+fn scan_dist_sq(a: vec4<f32>, b: vec4<f32>) -> f32 {
+    let d = a.xyz - b.xyz;
+    return d.x * d.x + d.y * d.y + d.z * d.z;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    for (var q = gid.x; q < params.n_queries; q += params.n_threads) {
+        let p = queries[q];
+        var best_d = SCAN_F32_MAX;
+        var best_i = SCAN_NN_NONE;
+        if params.target_begin > 0u {
+            best_d = results[q].dist_sq;
+            best_i = results[q].index;
+        }
+        for (var j = params.target_begin; j < params.target_end; j++) {
+            let d2 = scan_dist_sq(targets[j], p);
+            if scan_closer(d2, j, best_d, best_i) {
+                best_d = d2;
+                best_i = j;
+            }
+        }
+        if params.target_end == params.n_targets && best_d > params.radius_sq {
+            best_i = SCAN_NN_NONE;
+        }
+        results[q] = ScanNnResult(best_i, best_d);
+    }
+}

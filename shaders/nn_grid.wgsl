@@ -1,0 +1,95 @@
+// nn_grid.wgsl: radius-limited nearest neighbour through a hashed uniform voxel grid.
+// Each query searches the 3x3x3 cells around its own; with a cell edge >= the radius this
+// equals brute force within the radius. CPU twin: src/cpu/nn_grid.rs (same loops, same
+// hash, same tie rule), which also builds the grid (`HashGrid::build`).
+//
+// Bindings (group 0):
+//   0 uniform        params:       ScanNnParams (counts, radius^2, thread count, cell, mask)
+//   1 storage read   queries:      array<vec4<f32>>  xyz metres in the target frame
+//   2 storage read   grid_points:  array<vec4<f32>>  target points sorted by bucket; w holds
+//                                  the original target index (bitcast<u32>)
+//   3 storage read   bucket_start: array<u32>  bucket b is [bucket_start[b], bucket_start[b+1])
+//   4 storage rw     results:      array<ScanNnResult> one per query, index into the
+//                                  ORIGINAL target cloud
+// Assumes: params.n_threads = workgroups * 64 (grid-stride over queries).
+
+// Mirrors `scan::layout::ScanNnParams`.
+struct ScanNnParams {
+    n_queries: u32,
+    n_targets: u32,
+    radius_sq: f32,
+    n_threads: u32,
+    cell_size: f32,
+    table_mask: u32,
+    target_begin: u32,
+    target_end: u32,
+}
+
+// Mirrors `scan::layout::ScanNnResult`.
+struct ScanNnResult {
+    index: u32,
+    dist_sq: f32,
+}
+
+const SCAN_NN_NONE: u32 = 0xffffffffu;
+const SCAN_F32_MAX: f32 = 3.40282347e38;
+
+@group(0) @binding(0) var<uniform> params: ScanNnParams;
+@group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> grid_points: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> bucket_start: array<u32>;
+@group(0) @binding(4) var<storage, read_write> results: array<ScanNnResult>;
+
+// Mirrors `scan_closer` in src/cpu/nn_brute.rs.
+fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
+    return d < best_d || (d == best_d && i < best_i);
+}
+
+// Mirrors `scan_dist_sq` in src/cpu/nn_brute.rs.
+fn scan_dist_sq(a: vec4<f32>, b: vec4<f32>) -> f32 {
+    let d = a.xyz - b.xyz;
+    return d.x * d.x + d.y * d.y + d.z * d.z;
+}
+
+// Mirrors `scan_cell_of` in src/cpu/nn_grid.rs.
+fn scan_cell_of(p: vec4<f32>, cell_size: f32) -> vec3<i32> {
+    return vec3<i32>(floor(p.xyz / cell_size));
+}
+
+// Mirrors `scan_bucket` in src/cpu/nn_grid.rs (u32 multiplication wraps in WGSL).
+fn scan_bucket(c: vec3<i32>, table_mask: u32) -> u32 {
+    let h = (bitcast<u32>(c.x) * 73856093u) ^ (bitcast<u32>(c.y) * 19349663u)
+        ^ (bitcast<u32>(c.z) * 83492791u);
+    return h & table_mask;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    for (var q = gid.x; q < params.n_queries; q += params.n_threads) {
+        let p = queries[q];
+        let c = scan_cell_of(p, params.cell_size);
+        var best_d = SCAN_F32_MAX;
+        var best_i = SCAN_NN_NONE;
+        for (var dz = -1; dz <= 1; dz++) {
+            for (var dy = -1; dy <= 1; dy++) {
+                for (var dx = -1; dx <= 1; dx++) {
+                    let b = scan_bucket(c + vec3<i32>(dx, dy, dz), params.table_mask);
+                    let end = bucket_start[b + 1u];
+                    for (var k = bucket_start[b]; k < end; k++) {
+                        let t = grid_points[k];
+                        let d2 = scan_dist_sq(t, p);
+                        let i = bitcast<u32>(t.w);
+                        if scan_closer(d2, i, best_d, best_i) {
+                            best_d = d2;
+                            best_i = i;
+                        }
+                    }
+                }
+            }
+        }
+        if best_d > params.radius_sq {
+            best_i = SCAN_NN_NONE;
+        }
+        results[q] = ScanNnResult(best_i, best_d);
+    }
+}

@@ -1,0 +1,56 @@
+//! CPU twin of `shaders/nn_brute.wgsl`: the nearest target point of each query by brute
+//! force, reported only within the radius. Arguments follow the shader's bindings.
+//!
+//! Ties (equal squared distances) go to the lower target index, in both twins, so the
+//! brute-force and grid kernels agree exactly on the CPU.
+
+use crate::scan::layout::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
+
+/// True when `(d, i)` beats `(best_d, best_i)`: closer, or as close with a lower index.
+/// Mirrors `scan_closer` in the shaders.
+#[inline]
+pub fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
+    d < best_d || (d == best_d && i < best_i)
+}
+
+/// Squared distance written out as the shaders do (`x*x + y*y + z*z` of the difference).
+#[inline]
+pub fn scan_dist_sq(a: [f32; 4], b: [f32; 4]) -> f32 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    dx * dx + dy * dy + dz * dz
+}
+
+/// For every query (`params.n_queries` of `queries`, metres), the nearest of targets
+/// `params.target_begin..params.target_end`, continuing from `results` when
+/// `target_begin > 0`; when `target_end == n_targets`, `index = SCAN_NN_NONE` if the
+/// nearest is beyond `radius_sq`. `results` has one entry per query.
+pub fn nn_brute(
+    params: &ScanNnParams,
+    queries: &[[f32; 4]],
+    targets: &[[f32; 4]],
+    results: &mut [ScanNnResult],
+) {
+    // The shader's grid-stride loop over threads visits every query exactly once; the
+    // order does not change any result, so the twin walks the queries directly.
+    for q in 0..params.n_queries as usize {
+        let p = queries[q];
+        let (mut best_d, mut best_i) = (f32::MAX, SCAN_NN_NONE);
+        if params.target_begin > 0 {
+            (best_d, best_i) = (results[q].dist_sq, results[q].index);
+        }
+        for j in params.target_begin..params.target_end {
+            let d2 = scan_dist_sq(targets[j as usize], p);
+            if scan_closer(d2, j, best_d, best_i) {
+                best_d = d2;
+                best_i = j;
+            }
+        }
+        if params.target_end == params.n_targets && best_d > params.radius_sq {
+            best_i = SCAN_NN_NONE;
+        }
+        results[q] = ScanNnResult {
+            index: best_i,
+            dist_sq: best_d,
+        };
+    }
+}

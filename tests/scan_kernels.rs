@@ -1,0 +1,313 @@
+//! Scan kernels without a GPU: the WGSL of `nn_brute`, `nn_grid` and `cross_covariance`
+//! parses and validates with naga, its structs match `scan::layout`, and the CPU twins
+//! agree with the KD-tree and with the f64 reduction of the ICP on real scans.
+
+use std::mem::{offset_of, size_of};
+use std::path::Path;
+
+use glam::DVec3;
+use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
+use wgslam::cpu::nn_brute::nn_brute;
+use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
+use wgslam::scan::icp::{CrossCovariance, KdTreeTarget, NearestNeighbours};
+use wgslam::scan::layout::*;
+use wgslam::scan::write::transform_points;
+use wgslam::scan::{read_matrix4, read_pcd};
+use wgslam::se3;
+
+const SHADERS: [&str; 3] = ["nn_brute", "nn_grid", "cross_covariance"];
+
+fn shader_text(name: &str) -> String {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("shaders/{name}.wgsl"));
+    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+fn parse(name: &str) -> naga::Module {
+    naga::front::wgsl::parse_str(&shader_text(name))
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string_with_path(&shader_text(name), name)))
+}
+
+#[test]
+fn scan_shaders_validate() {
+    let mut failures = Vec::new();
+    for name in SHADERS {
+        let src = shader_text(name);
+        match naga::front::wgsl::parse_str(&src) {
+            Err(e) => {
+                failures.push(e.emit_to_string_with_path(&src, &format!("shaders/{name}.wgsl")))
+            }
+            Ok(module) => {
+                let mut v = naga::valid::Validator::new(
+                    naga::valid::ValidationFlags::all(),
+                    naga::valid::Capabilities::empty(),
+                );
+                if let Err(e) = v.validate(&module) {
+                    failures
+                        .push(e.emit_to_string_with_path(&src, &format!("shaders/{name}.wgsl")));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+type Layout = (&'static str, usize, Vec<(&'static str, usize)>);
+
+macro_rules! layout {
+    ($ty:ident { $($f:ident),* $(,)? }) => {
+        (stringify!($ty), size_of::<$ty>(), vec![$((stringify!($f), offset_of!($ty, $f))),*])
+    };
+}
+
+#[test]
+fn scan_structs_match_wgsl_layout() {
+    let expected: Vec<(&str, Layout)> = vec![
+        (
+            "nn_brute",
+            layout!(ScanNnParams {
+                n_queries,
+                n_targets,
+                radius_sq,
+                n_threads,
+                cell_size,
+                table_mask,
+                target_begin,
+                target_end
+            }),
+        ),
+        (
+            "nn_grid",
+            layout!(ScanNnParams {
+                n_queries,
+                n_targets,
+                radius_sq,
+                n_threads,
+                cell_size,
+                table_mask,
+                target_begin,
+                target_end
+            }),
+        ),
+        ("nn_brute", layout!(ScanNnResult { index, dist_sq })),
+        ("nn_grid", layout!(ScanNnResult { index, dist_sq })),
+        ("cross_covariance", layout!(ScanNnResult { index, dist_sq })),
+        (
+            "cross_covariance",
+            layout!(ScanCovParams {
+                anchor,
+                n_pairs,
+                n_threads,
+                radius_sq,
+                _pad0
+            }),
+        ),
+        (
+            "cross_covariance",
+            layout!(ScanCovPartial {
+                count_sq,
+                sum_p,
+                sum_q,
+                pq0,
+                pq1,
+                pq2
+            }),
+        ),
+    ];
+    let mut failures = Vec::new();
+    for (shader, (name, size, members)) in expected {
+        let module = parse(shader);
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).unwrap();
+        let Some((h, ty)) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+        else {
+            failures.push(format!("{shader}.wgsl: no struct {name}"));
+            continue;
+        };
+        let naga::TypeInner::Struct { members: wm, .. } = &ty.inner else {
+            unreachable!()
+        };
+        if layouter[h].size as usize != size {
+            failures.push(format!(
+                "{shader}.wgsl {name}: WGSL {} bytes, Rust {size}",
+                layouter[h].size
+            ));
+        }
+        let w: Vec<(String, usize)> = wm
+            .iter()
+            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
+            .collect();
+        let r: Vec<(String, usize)> = members.iter().map(|(n, o)| (n.to_string(), *o)).collect();
+        if w != r {
+            failures.push(format!("{shader}.wgsl {name}: WGSL {w:?}, Rust {r:?}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+fn v4(p: &[[f32; 3]]) -> Vec<[f32; 4]> {
+    p.iter().map(|q| [q[0], q[1], q[2], 0.0]).collect()
+}
+
+/// A real scan pair: 1500 queries (the source moved by relative.txt, every 46th point)
+/// against the 69,088-point target.
+fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
+    let source = read_pcd(&d.join("251371071.pcd")).unwrap().points;
+    let target = read_pcd(&d.join("251370668.pcd")).unwrap().points;
+    let rel = read_matrix4(&d.join("relative.txt")).unwrap();
+    let queries: Vec<[f32; 3]> = transform_points(&rel, &source)
+        .into_iter()
+        .step_by(46)
+        .collect();
+    (queries, target)
+}
+
+const RADIUS: f32 = 0.5;
+
+#[test]
+fn nn_twins_agree_with_each_other_and_the_kd_tree() {
+    let (queries, target) = real_pair();
+    let n = queries.len();
+    let grid = HashGrid::build(&target, RADIUS);
+    let params = ScanNnParams {
+        n_queries: n as u32,
+        n_targets: target.len() as u32,
+        radius_sq: RADIUS * RADIUS,
+        n_threads: 64,
+        cell_size: grid.cell_size,
+        table_mask: grid.table_mask,
+        target_begin: 0,
+        target_end: target.len() as u32,
+    };
+    let (q4, t4) = (v4(&queries), v4(&target));
+    let mut brute = vec![
+        ScanNnResult {
+            index: 0,
+            dist_sq: 0.0
+        };
+        n
+    ];
+    nn_brute(&params, &q4, &t4, &mut brute);
+    let mut gridded = brute.clone();
+    nn_grid(
+        &ScanNnParams {
+            n_targets: grid.points.len() as u32,
+            ..params
+        },
+        &q4,
+        &grid.points,
+        &grid.bucket_start,
+        &mut gridded,
+    );
+    let tree = KdTreeTarget::new(&target).unwrap();
+    let mut kd = vec![(0u32, 0f32); n];
+    tree.nearest(&queries, &mut kd).unwrap();
+    let mut inliers = 0;
+    for i in 0..n {
+        // Grid and brute force share the distance formula and tie rule: exact equality.
+        assert_eq!(
+            brute[i].index, gridded[i].index,
+            "query {i}: brute {:?} grid {:?}",
+            brute[i], gridded[i]
+        );
+        if brute[i].index != SCAN_NN_NONE {
+            assert_eq!(brute[i].dist_sq, gridded[i].dist_sq, "query {i}");
+            inliers += 1;
+        }
+        // kiddo computes the distance its own way: compare distances, not indices (ties).
+        let within = kd[i].1 <= RADIUS * RADIUS;
+        assert_eq!(
+            within,
+            brute[i].index != SCAN_NN_NONE,
+            "query {i}: kd {:?} brute {:?}",
+            kd[i],
+            brute[i]
+        );
+        assert!(
+            (kd[i].1 - brute[i].dist_sq).abs() <= 1e-6 * brute[i].dist_sq.max(1e-6),
+            "query {i}: kd {:?} brute {:?}",
+            kd[i],
+            brute[i]
+        );
+    }
+    assert!(inliers > n * 3 / 4, "{inliers} of {n} within {RADIUS} m");
+}
+
+/// f32 partial sums of ~1500 anchored products (metres up to ~50) against f64: the solved
+/// transforms differ by a few micro-radians / micrometres.
+const COV_ROT_TOL_RAD: f64 = 1e-4;
+const COV_TRANS_TOL_M: f64 = 1e-4;
+
+#[test]
+fn cross_covariance_twin_matches_f64_reduction() {
+    let (queries, target) = real_pair();
+    // Perturb the queries so the solve has something to find.
+    let dt = se3::exp(&[0.01, -0.02, 0.015, 0.1, -0.05, 0.02]);
+    let queries = transform_points(&dt, &queries);
+    let n = queries.len();
+    let (q4, t4) = (v4(&queries), v4(&target));
+    let mut nn = vec![
+        ScanNnResult {
+            index: 0,
+            dist_sq: 0.0
+        };
+        n
+    ];
+    let p = ScanNnParams {
+        n_queries: n as u32,
+        n_targets: target.len() as u32,
+        radius_sq: 4.0,
+        n_threads: 64,
+        cell_size: 0.0,
+        table_mask: 0,
+        target_begin: 0,
+        target_end: target.len() as u32,
+    };
+    nn_brute(&p, &q4, &t4, &mut nn);
+    let centroid = queries.iter().fold(DVec3::ZERO, |a, q| {
+        a + DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64)
+    }) / n as f64;
+    let anchor = [centroid.x as f32, centroid.y as f32, centroid.z as f32, 0.0];
+    let workgroups = 3;
+    let params = ScanCovParams {
+        anchor,
+        n_pairs: n as u32,
+        n_threads: workgroups * 64,
+        radius_sq: 1.0,
+        _pad0: 0,
+    };
+    let mut partials = vec![bytemuck::Zeroable::zeroed(); workgroups as usize];
+    cross_covariance(&params, &q4, &t4, &nn, &mut partials);
+    let shifted = decode(&partials);
+
+    let mut reference = CrossCovariance::default();
+    for (q, r) in queries.iter().zip(&nn) {
+        if r.index != SCAN_NN_NONE && r.dist_sq <= 1.0 {
+            let t = target[r.index as usize];
+            reference.add(
+                DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64),
+                DVec3::new(t[0] as f64, t[1] as f64, t[2] as f64),
+            );
+        }
+    }
+    assert_eq!(shifted.count, reference.count);
+    assert!(reference.count > 100);
+    assert!(
+        (shifted.rmse() - reference.rmse()).abs() < 1e-5,
+        "{} {}",
+        shifted.rmse(),
+        reference.rmse()
+    );
+    let a = unshift(&shifted.solve().unwrap(), anchor);
+    let b = reference.solve().unwrap();
+    let e = se3::inverse_rigid(&b) * a;
+    assert!(
+        se3::rotation_angle(&e) < COV_ROT_TOL_RAD && se3::translation_norm(&e) < COV_TRANS_TOL_M,
+        "{} rad {} m",
+        se3::rotation_angle(&e),
+        se3::translation_norm(&e)
+    );
+}
