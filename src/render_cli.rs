@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
+use crate::any_backend::BackendChoice;
 use crate::camera::Intrinsics;
-use crate::cli::BackendChoice;
 use crate::gpu::GpuContext;
 use crate::io::ply::{read_ply, PlyCloud};
 use crate::io::trajectory::{parse_tum, read_tum};

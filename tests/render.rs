@@ -416,7 +416,7 @@ fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
         up: "y".into(),
         splat_radius: 0.01,
         no_cull: false,
-        backend: wgslam::cli::BackendChoice::Cpu,
+        backend: wgslam::any_backend::BackendChoice::Cpu,
         out: out.to_path_buf(),
     }
 }
@@ -445,7 +445,7 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
     }
     // Auto: the GPU when there is one, else the CPU with a warning; same size either way.
     let mut args = render_args(&ply, &out);
-    args.backend = wgslam::cli::BackendChoice::Auto;
+    args.backend = wgslam::any_backend::BackendChoice::Auto;
     let report = run_render(&args).unwrap();
     eprintln!(
         "auto backend drew on {}: {:?}",
