@@ -777,3 +777,37 @@ fn gpu_matches_cpu_on_a_small_map() {
         }
     }
 }
+
+#[test]
+fn lidar_overlay_from_above() {
+    use wgslam::render::outputs::{write_icp_overlays, OverlayViewpoint};
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
+    let read = |name: &str| -> Vec<[f32; 4]> {
+        let c = wgslam::scan::read::read_cloud(&data.join(name)).unwrap();
+        c.points.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect()
+    };
+    let (target, source) = (read("251370668.pcd"), read("251371071.pcd"));
+    let t = wgslam::scan::read::read_matrix4(&data.join("relative.txt")).unwrap();
+    let dir = common::temp_dir("render-lidar");
+    let [before, after] = write_icp_overlays(
+        &dir,
+        &source,
+        &target,
+        &DMat4::IDENTITY,
+        &t,
+        OverlayViewpoint::TopDown { up: DVec3::Z },
+    )
+    .unwrap();
+    for p in [&before, &after] {
+        let img = image::open(p).unwrap().into_rgb8();
+        keep(
+            &format!("lidar_{}", p.file_name().unwrap().to_string_lossy()),
+            &img,
+        );
+        let n = (img.width() * img.height()) as f64;
+        let count = |c: [u8; 3]| img.pixels().filter(|q| q.0 == c).count() as f64 / n;
+        // Sparse scans seen from tens of metres: each cloud still covers a visible share.
+        const MIN_SHARE: f64 = 0.005;
+        assert!(count(render::SOURCE_RGB) > MIN_SHARE && count(render::TARGET_RGB) > MIN_SHARE);
+    }
+}

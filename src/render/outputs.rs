@@ -124,6 +124,8 @@ pub fn write_icp_overlays(
     )?;
     let settings = RenderSettings {
         cull_backfaces: false,
+        // Sparse clouds (LiDAR) seen from afar: at least a 3-pixel cross per point.
+        min_radius_px: 1.0,
         ..RenderSettings::default()
     };
     let paths = [
