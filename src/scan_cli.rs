@@ -326,7 +326,7 @@ pub struct BenchScanArgs {
     /// Target cloud (default: the bundled 251370668.pcd).
     pub target: Option<PathBuf>,
     /// Maximum timed runs per row (median and minimum are printed); a row stops repeating
-    /// once its runs took 2 s in total, and all-points rows run once.
+    /// once its runs took 2 s in total; all-points and gpu-brute registrations run once.
     #[arg(long, default_value_t = 5)]
     pub repeats: usize,
     /// Nearest-neighbour-only timings at these query counts (comma-separated).
