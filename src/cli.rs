@@ -41,6 +41,8 @@ pub enum Command {
     Register(crate::scan_cli::RegisterArgs),
     /// Scan odometry: register each consecutive pair of a folder of scans and chain them.
     Odometry(crate::scan_cli::OdometryArgs),
+    /// Time scan registration and nearest neighbours: CPU KD-tree vs GPU grid / brute force.
+    BenchScan(crate::scan_cli::BenchScanArgs),
 }
 
 /// Pose source for `run`.
@@ -278,6 +280,7 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::BenchOne(a) => cmd_bench_one(a),
         Command::Register(a) => crate::scan_cli::run_register(&a).map(|_| ()),
         Command::Odometry(a) => crate::scan_cli::run_odometry(&a).map(|_| ()),
+        Command::BenchScan(a) => crate::scan_cli::run_bench_scan(&a).map(|_| ()),
     }
 }
 
