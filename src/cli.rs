@@ -43,6 +43,8 @@ pub enum Command {
     Odometry(crate::scan_cli::OdometryArgs),
     /// Time scan registration and nearest neighbours: CPU KD-tree vs GPU grid / brute force.
     BenchScan(crate::scan_cli::BenchScanArgs),
+    /// Render a map PLY headlessly to a PNG (colour, normals, weight or depth view).
+    Render(crate::render_cli::RenderArgs),
 }
 
 /// Pose source for `run`.
@@ -130,7 +132,8 @@ pub struct IcpArgs {
     /// sequence (the bundled one has 24).
     #[arg(long)]
     pub target: Option<usize>,
-    /// Write result.json here.
+    /// Write result.json and before/after overlay pictures (icp_before.png, icp_after.png)
+    /// here.
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -177,6 +180,10 @@ pub struct EvalArgs {
     /// RPE frame distance.
     #[arg(long, default_value_t = 1)]
     pub delta: usize,
+    /// Write a trajectory plot (estimate vs ground truth from above, and the error over
+    /// frames) to this PNG.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
 }
 
 impl DatasetArgs {
@@ -280,6 +287,7 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::BenchOne(a) => cmd_bench_one(a),
         Command::Register(a) => crate::scan_cli::run_register(&a).map(|_| ()),
         Command::Odometry(a) => crate::scan_cli::run_odometry(&a).map(|_| ()),
+        Command::Render(a) => cmd_render(a),
         Command::BenchScan(a) => crate::scan_cli::run_bench_scan(&a).map(|_| ()),
     }
 }
@@ -321,7 +329,11 @@ fn cmd_run(a: RunArgs) -> Result<()> {
     )?;
     bar.finish_and_clear();
     run::write_outputs(&a.out, &result)?;
+    let pictures = run::write_pictures(&a.out, &result, &seq)?;
     print_summary(&result.metrics, &a.out);
+    for p in pictures {
+        println!("wrote {}", p.display());
+    }
     Ok(())
 }
 
@@ -416,6 +428,22 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
     if let Some(out) = &a.out {
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
         run::write_json(&out.join("result.json"), &r)?;
+        let [before, after] = crate::render::outputs::write_icp_overlays(
+            out,
+            &r.source_points,
+            &r.target_points,
+            &glam::DMat4::IDENTITY,
+            &t,
+            crate::render::outputs::OverlayViewpoint::Camera {
+                fy_negative: seq.intrinsics.fy < 0.0,
+            },
+        )?;
+        println!(
+            "wrote {}, {} and {} (source orange, target blue)",
+            out.join("result.json").display(),
+            before.display(),
+            after.display()
+        );
     }
     Ok(())
 }
@@ -572,6 +600,22 @@ fn cmd_eval(a: EvalArgs) -> Result<()> {
         rpe.trans_rmse_m * 1e3,
         rpe.rot_rmse_deg,
         rpe.pairs
+    );
+    if let Some(path) = &a.plot {
+        crate::plot::write_trajectory_plot(path, &est, &gt)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn cmd_render(a: crate::render_cli::RenderArgs) -> Result<()> {
+    let r = crate::render_cli::run_render(&a)?;
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "rendered {} points ({:?} view, {}x{}, {})",
+        r.points, r.view, r.size.0, r.size.1, r.backend
     );
     Ok(())
 }

@@ -259,3 +259,29 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         writeln!(w).map_err(|e| crate::Error::io(path, e))
     })
 }
+
+/// Writes the pictures of a run into `out`: `trajectory.png` (with ground truth) and the
+/// map renders (`map_{color,normals}.png`, `last_camera_{color,normals}.png`). Drawn by the
+/// CPU renderer, which needs no device and takes tens of milliseconds at this size.
+pub fn write_pictures(out: &Path, result: &RunResult, seq: &Sequence) -> Result<Vec<PathBuf>> {
+    let est = trajectory(&result.frames);
+    if result.map.is_empty() {
+        eprintln!("note: the map is empty; no renders written");
+        return Ok(vec![]);
+    }
+    let mut written = crate::render::outputs::write_map_renders(
+        &crate::render::RenderBackend::Cpu,
+        out,
+        &result.map,
+        &est,
+        &seq.intrinsics,
+        crate::render::DEFAULT_SIZE,
+    )?;
+    let gt = seq.ground_truth();
+    if !gt.is_empty() && !est.is_empty() {
+        let path = out.join("trajectory.png");
+        crate::plot::write_trajectory_plot(&path, &est, &gt)?;
+        written.push(path);
+    }
+    Ok(written)
+}

@@ -29,6 +29,12 @@ pub struct TwoFrameResult {
     pub translation_error_m: Option<f64>,
     /// Ground-truth motion between the frames: rotation (deg) and translation (m).
     pub gt_motion: Option<(f64, f64)>,
+    /// The source frame's vertex map (source camera frame, metres, `w = 0` invalid).
+    #[serde(skip)]
+    pub source_points: Vec<[f32; 4]>,
+    /// The target frame's vertex map (target camera frame).
+    #[serde(skip)]
+    pub target_points: Vec<[f32; 4]>,
 }
 
 /// Aligns frame `target` to frame `source` with `params` (its `poses` is ignored).
@@ -43,6 +49,7 @@ pub fn align_frames<B: Backend>(
     params.poses = PoseSource::Track;
     params.depth_scale = seq.depth_scale;
     let mut slam = Slam::new(backend, seq.intrinsics, params);
+    let mut source_points = Vec::new();
     for (i, gt) in [(source, Some(&DMat4::IDENTITY)), (target, None)] {
         let frame = seq.load(i)?;
         if frame.valid_depth_pixels() == 0 {
@@ -53,7 +60,11 @@ pub fn align_frames<B: Backend>(
         }
         let rgba = packed_rgba(&frame);
         let report = slam.process(i as u32, &frame.depth, &rgba, gt)?;
+        if source_points.is_empty() {
+            source_points = slam.backend.download_frame()?.vertex;
+        }
         if i == target || source == target {
+            let target_points = slam.backend.download_frame()?.vertex;
             let t_source_to_target = se3::inverse_rigid(&report.t_cam_to_world);
             let gt_rel = match (
                 seq.frames[source].gt_cam_to_world,
@@ -77,6 +88,8 @@ pub fn align_frames<B: Backend>(
                         se3::translation_norm(&g),
                     )
                 }),
+                source_points,
+                target_points,
             });
         }
     }

@@ -32,7 +32,15 @@ fn run_writes_all_outputs_on_bundled_data() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    for f in ["trajectory.tum", "map.ply", "metrics.json", "frames.json"] {
+    for f in [
+        "trajectory.tum",
+        "map.ply",
+        "metrics.json",
+        "frames.json",
+        "map_color.png",
+        "map_normals.png",
+        "trajectory.png",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing: {}", text(&o));
     }
     let traj = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
@@ -50,6 +58,23 @@ fn run_writes_all_outputs_on_bundled_data() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("ATE RMSE"), "{}", text(&o));
+    // The map renders headlessly from the written PLY.
+    let png = out.join("rerender.png");
+    let o = wgslam(&[
+        "render",
+        out.join("map.ply").to_str().unwrap(),
+        "--view",
+        "normals",
+        "--size",
+        "320x240",
+        "--backend",
+        "cpu",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (320, 240));
 }
 
 #[test]
@@ -71,7 +96,15 @@ fn icp_two_frames_prints_iterations_and_error() {
 
 #[test]
 fn clear_errors_for_bad_input() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
+        (
+            &["render", "/nonexistent/map.ply", "-o", "/tmp/x.png"],
+            "map.ply",
+        ),
+        (
+            &["render", "Cargo.toml", "--size", "0x10", "-o", "/tmp/x.png"],
+            "size",
+        ),
         (&["run", "/nonexistent/seq"], "/nonexistent/seq"),
         (&["run", "--frames", "5..900"], "outside"),
         (&["run", "--frames", "banana"], "A..B"),
