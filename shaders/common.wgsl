@@ -122,3 +122,25 @@ fn is_valid(v: vec4<f32>) -> bool {
 fn valid_entry(p: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(p, 1.0);
 }
+
+// Used by render_splat and render_resolve.
+// Mirrors `render::layout::RenderParams`.
+struct RenderParams {
+    t_world_to_cam: mat4x4<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    surfel_count: u32,
+    view: u32,
+    splat_radius_m: f32,
+    min_radius_px: f32,
+    max_radius_px: f32,
+    cull_backfaces: u32,
+    near_m: f32,
+    far_m: f32,
+    weight_max: f32,
+    background: u32,
+}

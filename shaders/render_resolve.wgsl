@@ -12,26 +12,7 @@
 //   5 out_rgba   array<u32>, width x height, r | g << 8 | b << 16 | 255 << 24
 // One pixel per invocation (grid-stride, so any workgroup count works).
 
-// Mirrors `render::layout::RenderParams`.
-struct RenderParams {
-    t_world_to_cam: mat4x4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
-    surfel_count: u32,
-    view: u32,
-    splat_radius_m: f32,
-    min_radius_px: f32,
-    max_radius_px: f32,
-    cull_backfaces: u32,
-    near_m: f32,
-    far_m: f32,
-    weight_max: f32,
-    background: u32,
-}
+// RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
 
 // Mirror `render::layout::VIEW_*`.
 const VIEW_COLOR: u32 = 0u;

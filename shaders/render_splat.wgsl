@@ -12,26 +12,7 @@
 // Needs SHADER_INT64 and SHADER_INT64_ATOMIC_MIN_MAX. Grid-stride loop over surfels, so
 // any workgroup count covers the whole map.
 
-// Mirrors `render::layout::RenderParams`.
-struct RenderParams {
-    t_world_to_cam: mat4x4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
-    surfel_count: u32,
-    view: u32,
-    splat_radius_m: f32,
-    min_radius_px: f32,
-    max_radius_px: f32,
-    cull_backfaces: u32,
-    near_m: f32,
-    far_m: f32,
-    weight_max: f32,
-    background: u32,
-}
+// RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
 
 // Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
 const MAX_PROJECTED_PX: f32 = 1.0e7;

@@ -2,8 +2,8 @@
 //! `render_resolve`.
 //!
 //! `#[repr(C)]` + `bytemuck::Pod`, only scalars and a 4x4 matrix, padded to 16 bytes; it
-//! mirrors `struct RenderParams` at the top of `shaders/render_splat.wgsl` and
-//! `shaders/render_resolve.wgsl` (both point back here). `tests/render.rs` checks its size
+//! mirrors `struct RenderParams` in `shaders/common.wgsl`, which both render kernels are
+//! prefixed with (it points back here). `tests/render.rs` checks its size
 //! and offsets against naga's layout of the WGSL side.
 
 use bytemuck::{Pod, Zeroable};
