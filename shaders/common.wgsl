@@ -108,6 +108,12 @@ fn project_to_pixel(cam: vec4<f32>, width: u32, height: u32, p: vec3<f32>) -> i3
     return i32(v) * i32(width) + i32(u);
 }
 
+// Texel of pixel index `pix` in a per-pixel map texture `width` texels wide (row-major,
+// the same order as the CPU twins' arrays).
+fn texel_of(pix: u32, width: u32) -> vec2<u32> {
+    return vec2<u32>(pix % width, pix / width);
+}
+
 // xyz of a vec4 map entry. Mirrors `cpu::xyz`.
 fn xyz(v: vec4<f32>) -> vec3<f32> {
     return v.xyz;

@@ -4,9 +4,9 @@
 //
 // Bindings (@group(0)):
 //   0 params      uniform FuseParams (tracked poses, intrinsics, surfel_count, thresholds)
-//   1 vertex_map  storage read   array<vec4<f32>>: width x height, camera frame
-//   2 normal_map  storage read   array<vec4<f32>>: width x height, camera frame
-//   3 color_map   storage read   array<vec4<f32>>: width x height, RGB 0..255
+//   1 vertex_map  texture_2d<f32>: width x height, camera frame
+//   2 normal_map  texture_2d<f32>: width x height, camera frame
+//   3 color_map   texture_2d<f32>: width x height, RGB 0..255
 //   4 positions   storage rw     array<vec4<f32>>: surfels, world frame, metres
 //   5 normals     storage rw     array<vec4<f32>>: surfels, world frame, unit, w = 0
 //   6 colors      storage rw     array<vec4<f32>>: surfels, RGB 0..255
@@ -17,9 +17,9 @@
 // does not depend on thread order (several surfels may flag the same pixel).
 
 @group(0) @binding(0) var<uniform> params: FuseParams;
-@group(0) @binding(1) var<storage, read> vertex_map: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> normal_map: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> color_map: array<vec4<f32>>;
+@group(0) @binding(1) var vertex_map: texture_2d<f32>;
+@group(0) @binding(2) var normal_map: texture_2d<f32>;
+@group(0) @binding(3) var color_map: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read_write> positions: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> normals: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> colors: array<vec4<f32>>;
@@ -52,11 +52,14 @@ fn main(
         if pix < 0 {
             continue;
         }
-        if !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
+        let texel = texel_of(u32(pix), params.width);
+        let q4 = textureLoad(vertex_map, texel, 0);
+        let nq4 = textureLoad(normal_map, texel, 0);
+        if !is_valid(q4) || !is_valid(nq4) {
             continue;
         }
-        let q_world = transform_point(params.t_cam_to_world, xyz(vertex_map[pix]));
-        let nq_world = transform_dir(params.t_cam_to_world, xyz(normal_map[pix]));
+        let q_world = transform_point(params.t_cam_to_world, xyz(q4));
+        let nq_world = transform_dir(params.t_cam_to_world, xyz(nq4));
         let n_old = xyz(normals[i]);
         if length(q_world - p_world) >= params.dist_threshold_m
             || dot(n_old, nq_world) <= params.cos_normal_threshold {
@@ -67,7 +70,7 @@ fn main(
         let p = (p_world * w + q_world) * inv;
         let n = normalize_or_zero((n_old * w + nq_world) * inv);
         let c = colors[i];
-        let cq = color_map[pix];
+        let cq = textureLoad(color_map, texel, 0);
         positions[i] = vec4<f32>(p, 1.0);
         normals[i] = vec4<f32>(n, 0.0);
         colors[i] = vec4<f32>((c.xyz * w + cq.xyz) * inv, 255.0);

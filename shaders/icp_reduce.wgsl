@@ -4,9 +4,9 @@
 //
 // Bindings (@group(0)):
 //   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, dist_threshold_m)
-//   1 pred_vertex  storage read   array<vec4<f32>>: source, width x height, WORLD frame
-//   2 vertex_map   storage read   array<vec4<f32>>: target vertices, camera frame
-//   3 normal_map   storage read   array<vec4<f32>>: target normals, camera frame
+//   1 pred_vertex  texture_2d<f32>: source, width x height, WORLD frame
+//   2 vertex_map   texture_2d<f32>: target vertices, camera frame
+//   3 normal_map   texture_2d<f32>: target normals, camera frame
 //   4 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
 //                                 (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
 //                                 sum of squared residuals); the host sums them in f64
@@ -14,9 +14,9 @@
 // each thread sums its pixels in registers (f32), then one tree reduction per workgroup.
 
 @group(0) @binding(0) var<uniform> params: IcpParams;
-@group(0) @binding(1) var<storage, read> pred_vertex: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> vertex_map: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> normal_map: array<vec4<f32>>;
+@group(0) @binding(1) var pred_vertex: texture_2d<f32>;
+@group(0) @binding(2) var vertex_map: texture_2d<f32>;
+@group(0) @binding(3) var normal_map: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read_write> partials: array<f32>;
 
 const WORKGROUP_SIZE: u32 = 64u;
@@ -46,8 +46,9 @@ fn icp_row(src_world: vec4<f32>) -> IcpRow {
     if pix < 0 {
         return row;
     }
-    let q4 = vertex_map[pix];
-    let n4 = normal_map[pix];
+    let target_texel = texel_of(u32(pix), params.width);
+    let q4 = textureLoad(vertex_map, target_texel, 0);
+    let n4 = textureLoad(normal_map, target_texel, 0);
     if !is_valid(q4) || !is_valid(n4) {
         return row;
     }
@@ -110,7 +111,7 @@ fn main(
     let n_pix = params.width * params.height;
     let stride = nwg.x * WORKGROUP_SIZE;
     for (var pix = gid.x; pix < n_pix; pix += stride) {
-        let row = icp_row(pred_vertex[pix]);
+        let row = icp_row(textureLoad(pred_vertex, texel_of(pix, params.width), 0));
         if row.valid {
             accumulate(&sys, row.a, row.b);
         }

@@ -7,16 +7,16 @@
 //                                 (surfel index) first; (0, 0) means no surfel
 //   2 positions    storage read   array<vec4<f32>>: surfel positions, world frame
 //   3 normals      storage read   array<vec4<f32>>: surfel normals, world frame
-//   4 pred_vertex  storage rw     array<vec4<f32>>: width x height, world frame, w = 1 / 0
-//   5 pred_normal  storage rw     array<vec4<f32>>: width x height, world frame, w = 1 / 0
+//   4 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
+//   5 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 // Grid-stride loop over pixels (the host caps the workgroup count).
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
 @group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> normals: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read_write> pred_vertex: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read_write> pred_normal: array<vec4<f32>>;
+@group(0) @binding(4) var pred_vertex: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(5) var pred_normal: texture_storage_2d<rgba32float, write>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -28,13 +28,14 @@ fn main(
     let stride = nwg.x * WORKGROUP_SIZE;
     for (var pix = gid.x; pix < params.width * params.height; pix += stride) {
         let key = index_map[pix];
+        let out = texel_of(pix, params.width);
         if key.x == 0u && key.y == 0u {
-            pred_vertex[pix] = INVALID;
-            pred_normal[pix] = INVALID;
+            textureStore(pred_vertex, out, INVALID);
+            textureStore(pred_normal, out, INVALID);
             continue;
         }
         let i = key.x;
-        pred_vertex[pix] = vec4<f32>(positions[i].xyz, 1.0);
-        pred_normal[pix] = vec4<f32>(normals[i].xyz, 1.0);
+        textureStore(pred_vertex, out, vec4<f32>(positions[i].xyz, 1.0));
+        textureStore(pred_normal, out, vec4<f32>(normals[i].xyz, 1.0));
     }
 }

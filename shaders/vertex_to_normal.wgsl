@@ -3,14 +3,45 @@
 //
 // Bindings (@group(0)):
 //   0 params      uniform NormalParams
-//   1 vertex_map  storage read   array<vec4<f32>>: width x height, camera frame, w = 1 / 0
-//   2 normal_map  storage rw     array<vec4<f32>>: width x height, camera frame, unit, w = 1 / 0
+//   1 vertex_map  texture_2d<f32>: width x height, camera frame, w = 1 / 0
+//   2 normal_map  storage texture rgba32float, write: width x height, camera frame, unit,
+//                 w = 1 / 0
 // Grid-stride loop over pixels. Invalid on the border, next to an invalid vertex, across a depth
 // jump larger than max_depth_jump_m, or where the cross product vanishes.
 
 @group(0) @binding(0) var<uniform> params: NormalParams;
-@group(0) @binding(1) var<storage, read> vertex_map: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read_write> normal_map: array<vec4<f32>>;
+@group(0) @binding(1) var vertex_map: texture_2d<f32>;
+@group(0) @binding(2) var normal_map: texture_storage_2d<rgba32float, write>;
+
+// The normal of pixel (u, v), or INVALID (the rules of the module header).
+fn normal_at(u: u32, v: u32) -> vec4<f32> {
+    if u == 0u || v == 0u || u + 1u >= params.width || v + 1u >= params.height {
+        return INVALID;
+    }
+    let c = textureLoad(vertex_map, vec2<u32>(u, v), 0);
+    let l = textureLoad(vertex_map, vec2<u32>(u - 1u, v), 0);
+    let r = textureLoad(vertex_map, vec2<u32>(u + 1u, v), 0);
+    let t = textureLoad(vertex_map, vec2<u32>(u, v - 1u), 0);
+    let b = textureLoad(vertex_map, vec2<u32>(u, v + 1u), 0);
+    if !(is_valid(c) && is_valid(l) && is_valid(r) && is_valid(t) && is_valid(b)) {
+        return INVALID;
+    }
+    let jump = params.max_depth_jump_m;
+    if abs(l.z - c.z) > jump || abs(r.z - c.z) > jump || abs(t.z - c.z) > jump
+        || abs(b.z - c.z) > jump {
+        return INVALID;
+    }
+    let n = cross(xyz(r) - xyz(l), xyz(b) - xyz(t));
+    let len = length(n);
+    if len <= 1e-12 {
+        return INVALID;
+    }
+    var nn = n / len;
+    if dot(nn, xyz(c)) > 0.0 {
+        nn = -nn;
+    }
+    return valid_entry(nn);
+}
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -25,32 +56,6 @@ fn main(
     for (var pix = gid.x; pix < w * h; pix += stride) {
         let u = pix % w;
         let v = pix / w;
-        normal_map[pix] = INVALID;
-        if u == 0u || v == 0u || u + 1u >= w || v + 1u >= h {
-            continue;
-        }
-        let c = vertex_map[pix];
-        let l = vertex_map[pix - 1u];
-        let r = vertex_map[pix + 1u];
-        let t = vertex_map[pix - w];
-        let b = vertex_map[pix + w];
-        if !(is_valid(c) && is_valid(l) && is_valid(r) && is_valid(t) && is_valid(b)) {
-            continue;
-        }
-        let jump = params.max_depth_jump_m;
-        if abs(l.z - c.z) > jump || abs(r.z - c.z) > jump || abs(t.z - c.z) > jump
-            || abs(b.z - c.z) > jump {
-            continue;
-        }
-        let n = cross(xyz(r) - xyz(l), xyz(b) - xyz(t));
-        let len = length(n);
-        if len <= 1e-12 {
-            continue;
-        }
-        var nn = n / len;
-        if dot(nn, xyz(c)) > 0.0 {
-            nn = -nn;
-        }
-        normal_map[pix] = valid_entry(nn);
+        textureStore(normal_map, vec2<u32>(u, v), normal_at(u, v));
     }
 }

@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::dataset::Sequence;
+use crate::gpu::backend::GpuBackend;
 use crate::pipeline::{Backend, SlamParams};
 use crate::run;
 use crate::timed::Timed;
@@ -34,6 +35,10 @@ pub struct BenchResult {
     pub peak_memory_mib: Option<f64>,
     pub map_points: usize,
     pub ate_rmse_aligned_m: Option<f64>,
+    /// GPU only, with `--kernels`: (kernel, passes per frame, ms per pass) from GPU
+    /// timestamps (or wall time per submission without them).
+    #[serde(default)]
+    pub kernels: Vec<(String, f64, f64)>,
 }
 
 /// Runs one backend twice over the frames (plain, then timed per stage).
@@ -80,7 +85,31 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
         peak_memory_mib: run::peak_memory_mib(),
         map_points: m.map_points,
         ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
+        kernels: Vec::new(),
     })
+}
+
+/// One more GPU pass over the frames with per-kernel timing on: (kernel, passes per frame,
+/// ms per pass).
+pub fn gpu_kernel_times(
+    seq: &Sequence,
+    first: usize,
+    last: usize,
+    params: &SlamParams,
+) -> Result<Vec<(String, f64, f64)>> {
+    let mut gpu = GpuBackend::open()?;
+    gpu.enable_kernel_timing();
+    let mut p = params.clone();
+    p.depth_scale = seq.depth_scale;
+    let mut slam = crate::pipeline::Slam::new(gpu, seq.intrinsics, p);
+    let (frames, _) = run::run_frames(&mut slam, seq, first, last, |_| {})?;
+    let n = frames.len().max(1) as f64;
+    Ok(slam
+        .backend
+        .kernel_times()
+        .into_iter()
+        .map(|(k, (passes, ms))| (k, passes as f64 / n, ms / passes.max(1) as f64))
+        .collect())
 }
 
 /// Prints a table of the results and the GPU/CPU ratios.
@@ -104,6 +133,9 @@ pub fn print_table(results: &[BenchResult]) {
         );
         for (stage, calls, ms) in &r.stages {
             println!("      {stage:<14} {calls:5.2} calls/frame  {ms:8.2} ms/call");
+        }
+        for (kernel, passes, ms) in &r.kernels {
+            println!("      kernel {kernel:<16} {passes:5.2} passes/frame {ms:8.2} ms/pass");
         }
         println!(
             "      readback {:.0} bytes/frame, {:.1} submissions/frame",

@@ -166,6 +166,9 @@ pub struct BenchArgs {
     /// Backends to run (bench-one runs the first only).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendChoice::Cpu, BackendChoice::Gpu])]
     pub backends: Vec<BackendChoice>,
+    /// Also time every GPU kernel (one more pass over the frames, GPU timestamps).
+    #[arg(long)]
+    pub kernels: bool,
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -543,6 +546,9 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         cmd.args(["--downsample", &a.downsample.to_string()]);
         let name = format!("{b:?}").to_lowercase();
         cmd.args(["--backends", &name]);
+        if a.kernels {
+            cmd.arg("--kernels");
+        }
         for (flag, v) in [("--gt", &a.data.gt)] {
             if let Some(v) = v {
                 cmd.arg(flag).arg(v);
@@ -574,7 +580,10 @@ fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     let params = downsampled_params(a.downsample)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
-    let r = bench::bench_backend(|| AnyBackend::open(choice), &seq, first, last, &params)?;
+    let mut r = bench::bench_backend(|| AnyBackend::open(choice), &seq, first, last, &params)?;
+    if a.kernels && r.backend == "gpu" {
+        r.kernels = bench::gpu_kernel_times(&seq, first, last, &params)?;
+    }
     println!(
         "{}",
         serde_json::to_string(&r).map_err(|e| Error::Argument(e.to_string()))?

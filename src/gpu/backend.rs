@@ -1,6 +1,11 @@
 //! The GPU backend: runs the dense-SLAM steps of [`crate::pipeline::Backend`] as the WGSL
 //! kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`.
 //!
+//! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
+//! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
+//! textures, which lavapipe runs 3-5x faster than storage-buffer loads (see `images.rs`).
+//! The index map, the association flags and the surfel map stay storage buffers (atomics,
+//! and the map grows by copy).
 //! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
 //! per-frame buffers are sized at the first `preprocess` and reused (re-created only if the
 //! frame size changes); the surfel map lives on the GPU as a structure of arrays that grows
@@ -13,6 +18,7 @@ use std::collections::BTreeMap;
 
 use super::buffers::{GpuArray, Readback, Uniform};
 use super::context::GpuContext;
+use super::images::GpuImage;
 use super::kernel::{Binding, Kernel};
 use super::timing::StageTimer;
 use crate::layout::{
@@ -22,11 +28,11 @@ use crate::map::SurfelMap;
 use crate::pipeline::{Backend, BackendCounters, FrameMaps};
 use crate::{Error, Result};
 
-// Raw depth is uploaded as u16 bytes and read in WGSL as u32 words (pixel k = low half of
-// word k/2 when k is even), and the u64 index map is read as vec2<u32> (low word first):
-// both assume a little-endian host, like every platform wgpu runs on.
+// Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
+// index map is read as vec2<u32> (low word first): both assume a little-endian host, like
+// every platform wgpu runs on.
 #[cfg(target_endian = "big")]
-compile_error!("the GPU backend assumes a little-endian host (u16/u64 buffers read as u32)");
+compile_error!("the GPU backend assumes a little-endian host (u32/u64 data read as bytes/words)");
 
 /// Surfel slots allocated up front: a little over three 320x240 frames, ~10 MB.
 pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
@@ -41,15 +47,15 @@ mod bindings {
     use super::Binding;
     pub const DEPTH_TO_VERTEX: [Binding; 5] = [
         Binding::uniform("params: PreprocessParams"),
-        Binding::read("raw_depth: u16 pairs packed in u32"),
-        Binding::read("raw_rgba: packed RGBA8"),
-        Binding::read_write("vertex_map: camera frame"),
-        Binding::read_write("color_map: RGB 0..255"),
+        Binding::texture_u32("raw_depth: r16uint"),
+        Binding::texture_u32("raw_rgba: rgba8uint"),
+        Binding::write_texture("vertex_map: camera frame"),
+        Binding::write_texture("color_map: RGB 0..255"),
     ];
     pub const VERTEX_TO_NORMAL: [Binding; 3] = [
         Binding::uniform("params: NormalParams"),
-        Binding::read("vertex_map: camera frame"),
-        Binding::read_write("normal_map: camera frame"),
+        Binding::texture_f32("vertex_map: camera frame"),
+        Binding::write_texture("normal_map: camera frame"),
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
         Binding::uniform("params: ProjectParams"),
@@ -61,21 +67,21 @@ mod bindings {
         Binding::read("index_map: u64 keys as vec2<u32>"),
         Binding::read("positions: world frame"),
         Binding::read("normals: world frame"),
-        Binding::read_write("pred_vertex: world frame"),
-        Binding::read_write("pred_normal: world frame"),
+        Binding::write_texture("pred_vertex: world frame"),
+        Binding::write_texture("pred_normal: world frame"),
     ];
     pub const ICP_REDUCE: [Binding; 5] = [
         Binding::uniform("params: IcpParams"),
-        Binding::read("pred_vertex: source, world frame"),
-        Binding::read("vertex_map: target, camera frame"),
-        Binding::read("normal_map: target, camera frame"),
+        Binding::texture_f32("pred_vertex: source, world frame"),
+        Binding::texture_f32("vertex_map: target, camera frame"),
+        Binding::texture_f32("normal_map: target, camera frame"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
     pub const FUSE_MERGE: [Binding; 10] = [
         Binding::uniform("params: FuseParams"),
-        Binding::read("vertex_map: camera frame"),
-        Binding::read("normal_map: camera frame"),
-        Binding::read("color_map"),
+        Binding::texture_f32("vertex_map: camera frame"),
+        Binding::texture_f32("normal_map: camera frame"),
+        Binding::texture_f32("color_map"),
         Binding::read_write("positions"),
         Binding::read_write("normals"),
         Binding::read_write("colors"),
@@ -85,9 +91,9 @@ mod bindings {
     ];
     pub const FUSE_ADD: [Binding; 11] = [
         Binding::uniform("params: FuseParams"),
-        Binding::read("vertex_map: camera frame"),
-        Binding::read("normal_map: camera frame"),
-        Binding::read("color_map"),
+        Binding::texture_f32("vertex_map: camera frame"),
+        Binding::texture_f32("normal_map: camera frame"),
+        Binding::texture_f32("color_map"),
         Binding::read("assoc"),
         Binding::read_write("counter: atomic surfel count"),
         Binding::read_write("positions"),
@@ -114,14 +120,14 @@ struct FrameBuffers {
     raw_height: u32,
     width: u32,
     height: u32,
-    raw_depth: GpuArray<u16>,
-    raw_rgba: GpuArray<u32>,
-    vertex: GpuArray<[f32; 4]>,
-    normal: GpuArray<[f32; 4]>,
-    color: GpuArray<[f32; 4]>,
+    raw_depth: GpuImage,
+    raw_rgba: GpuImage,
+    vertex: GpuImage,
+    normal: GpuImage,
+    color: GpuImage,
     index_map: GpuArray<u64>,
-    pred_vertex: GpuArray<[f32; 4]>,
-    pred_normal: GpuArray<[f32; 4]>,
+    pred_vertex: GpuImage,
+    pred_normal: GpuImage,
     assoc: GpuArray<u32>,
 }
 
@@ -390,17 +396,22 @@ impl GpuBackend {
             }
         }
         let ctx = &self.ctx;
-        let raw_n = (p.raw_width * p.raw_height) as usize;
         let n = (p.width * p.height) as usize;
-        let full = |label: &str| -> Result<GpuArray<[f32; 4]>> {
-            let mut a = GpuArray::new(ctx, label, n)?;
-            a.set_len(n);
-            Ok(a)
+        let full = |label: &str| -> Result<GpuImage> {
+            GpuImage::new(
+                ctx,
+                label,
+                p.width,
+                p.height,
+                wgpu::TextureFormat::Rgba32Float,
+                true,
+            )
         };
-        let mut raw_depth = GpuArray::new(ctx, "raw depth", raw_n)?;
-        raw_depth.set_len(raw_n);
-        let mut raw_rgba = GpuArray::new(ctx, "raw rgba", raw_n)?;
-        raw_rgba.set_len(raw_n);
+        let raw = |label: &str, format| -> Result<GpuImage> {
+            GpuImage::new(ctx, label, p.raw_width, p.raw_height, format, false)
+        };
+        let raw_depth = raw("raw depth", wgpu::TextureFormat::R16Uint)?;
+        let raw_rgba = raw("raw rgba", wgpu::TextureFormat::Rgba8Uint)?;
         let mut index_map = GpuArray::new(ctx, "index map", n)?;
         index_map.set_len(n);
         let mut assoc = GpuArray::new(ctx, "assoc", n)?;
@@ -560,9 +571,9 @@ impl GpuBackend {
     }
 }
 
-/// `[f32; 4]` maps read back with their full `len`.
-fn read_map(ctx: &GpuContext, a: &GpuArray<[f32; 4]>) -> Result<Vec<[f32; 4]>> {
-    a.read_back(ctx)
+/// A per-pixel `[f32; 4]` map read back row-major.
+fn read_map(ctx: &GpuContext, image: &GpuImage) -> Result<Vec<[f32; 4]>> {
+    image.read_back(ctx)
 }
 
 impl Backend for GpuBackend {
@@ -600,8 +611,8 @@ impl Backend for GpuBackend {
         let ctx = &self.ctx;
         ctx.scoped("preprocess", || {
             let f = self.frame.as_mut().expect("ensure_frame made it");
-            f.raw_depth.write_at(ctx, 0, raw_depth)?;
-            f.raw_rgba.write_at(ctx, 0, raw_rgba)?;
+            f.raw_depth.upload(ctx, raw_depth)?;
+            f.raw_rgba.upload(ctx, raw_rgba)?;
             self.u_preprocess.write(ctx, params);
             self.u_normal.write(ctx, normal);
             Ok(())

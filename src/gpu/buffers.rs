@@ -44,17 +44,17 @@ pub struct StatsSnapshot {
 }
 
 impl GpuStats {
-    fn alloc(&self, bytes: u64) {
+    pub(crate) fn alloc(&self, bytes: u64) {
         let now = self.allocated_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
         self.peak_allocated_bytes.fetch_max(now, Ordering::Relaxed);
     }
-    fn free(&self, bytes: u64) {
+    pub(crate) fn free(&self, bytes: u64) {
         self.allocated_bytes.fetch_sub(bytes, Ordering::Relaxed);
     }
-    fn upload(&self, bytes: u64) {
+    pub(crate) fn upload(&self, bytes: u64) {
         self.uploaded_bytes.fetch_add(bytes, Ordering::Relaxed);
     }
-    fn readback(&self, bytes: u64) {
+    pub(crate) fn readback(&self, bytes: u64) {
         self.readback_bytes.fetch_add(bytes, Ordering::Relaxed);
     }
     pub(crate) fn count_submission(&self) {

@@ -19,6 +19,12 @@ pub enum BindingKind {
     StorageRead,
     /// `var<storage, read_write>` (including atomics).
     StorageReadWrite,
+    /// `var: texture_2d<f32>` read with `textureLoad` (rgba32float, unfilterable).
+    TextureF32,
+    /// `var: texture_2d<u32>` read with `textureLoad` (r16uint, rgba8uint).
+    TextureU32,
+    /// `var: texture_storage_2d<rgba32float, write>`.
+    WriteTextureRgba32F,
 }
 
 /// One binding with a label for the layout (what the buffer is, for error messages).
@@ -47,6 +53,27 @@ impl Binding {
     pub const fn read_write(label: &'static str) -> Binding {
         Binding {
             kind: BindingKind::StorageReadWrite,
+            label,
+        }
+    }
+    /// A float texture read with `textureLoad`.
+    pub const fn texture_f32(label: &'static str) -> Binding {
+        Binding {
+            kind: BindingKind::TextureF32,
+            label,
+        }
+    }
+    /// An unsigned-integer texture read with `textureLoad`.
+    pub const fn texture_u32(label: &'static str) -> Binding {
+        Binding {
+            kind: BindingKind::TextureU32,
+            label,
+        }
+    }
+    /// A write-only rgba32float storage texture.
+    pub const fn write_texture(label: &'static str) -> Binding {
+        Binding {
+            kind: BindingKind::WriteTextureRgba32F,
             label,
         }
     }
@@ -91,19 +118,7 @@ impl Kernel {
                 .map(|(i, b)| wgpu::BindGroupLayoutEntry {
                     binding: i as u32,
                     visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: match b.kind {
-                            BindingKind::Uniform => wgpu::BufferBindingType::Uniform,
-                            BindingKind::StorageRead => {
-                                wgpu::BufferBindingType::Storage { read_only: true }
-                            }
-                            BindingKind::StorageReadWrite => {
-                                wgpu::BufferBindingType::Storage { read_only: false }
-                            }
-                        },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
+                    ty: layout_type(b.kind),
                     count: None,
                 })
                 .collect();
@@ -214,6 +229,34 @@ impl Kernel {
     }
 }
 
+/// The bind-group layout entry type of one binding kind.
+fn layout_type(kind: BindingKind) -> wgpu::BindingType {
+    let buffer = |ty| wgpu::BindingType::Buffer {
+        ty,
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    let texture = |sample_type| wgpu::BindingType::Texture {
+        sample_type,
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    match kind {
+        BindingKind::Uniform => buffer(wgpu::BufferBindingType::Uniform),
+        BindingKind::StorageRead => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
+        BindingKind::StorageReadWrite => {
+            buffer(wgpu::BufferBindingType::Storage { read_only: false })
+        }
+        BindingKind::TextureF32 => texture(wgpu::TextureSampleType::Float { filterable: false }),
+        BindingKind::TextureU32 => texture(wgpu::TextureSampleType::Uint),
+        BindingKind::WriteTextureRgba32F => wgpu::BindingType::StorageTexture {
+            access: wgpu::StorageTextureAccess::WriteOnly,
+            format: wgpu::TextureFormat::Rgba32Float,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+    }
+}
+
 /// Parses `wgsl` with naga, checks that the `@group(0)` bindings match `bindings` in count
 /// and kind, and returns `@workgroup_size(x)` of the entry point `main`.
 ///
@@ -246,6 +289,30 @@ fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Resul
                         BindingKind::StorageRead
                     }
                 }
+                naga::AddressSpace::Handle => match &module.types[g.ty].inner {
+                    naga::TypeInner::Image {
+                        dim: naga::ImageDimension::D2,
+                        arrayed: false,
+                        class,
+                    } => match class {
+                        naga::ImageClass::Sampled {
+                            kind: naga::ScalarKind::Float,
+                            multi: false,
+                        } => BindingKind::TextureF32,
+                        naga::ImageClass::Sampled {
+                            kind: naga::ScalarKind::Uint,
+                            multi: false,
+                        } => BindingKind::TextureU32,
+                        naga::ImageClass::Storage {
+                            format: naga::StorageFormat::Rgba32Float,
+                            access,
+                        } if *access == naga::StorageAccess::STORE => {
+                            BindingKind::WriteTextureRgba32F
+                        }
+                        other => panic!("kernel `{name}`: unsupported image class {other:?}"),
+                    },
+                    other => panic!("kernel `{name}`: unsupported handle type {other:?}"),
+                },
                 other => panic!("kernel `{name}`: unsupported binding space {other:?}"),
             };
             Some((rb.binding, kind))

@@ -8,6 +8,7 @@
 //! - [`shaders`]: `common.wgsl` + kernel sources, shared by the runtime and the naga test.
 //! - [`kernel`]: pipeline + explicit bind-group layout + workgroup size; dispatch.
 //! - [`buffers`]: typed storage arrays, uniforms, read-back, byte accounting.
+//! - [`images`]: per-pixel maps as 2D textures (fast loads on lavapipe), read-back.
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
@@ -15,6 +16,7 @@
 pub mod backend;
 pub mod buffers;
 pub mod context;
+pub mod images;
 pub mod kernel;
 pub mod shaders;
 pub mod test_support;
