@@ -80,6 +80,15 @@ struct FuseParams {
 // triangle, row-major), 6 of Aᵀb, the inlier count and the sum of squared residuals.
 const ICP_SYSTEM_LEN: u32 = 29u;
 
+// Texels per row of the surfel-map textures (mirrors `layout::MAP_TEXTURE_WIDTH`): surfel i
+// is texel (i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH).
+const MAP_TEXTURE_WIDTH: u32 = 4096u;
+
+// The texel of surfel `i` in a surfel-map texture.
+fn surfel_texel(i: u32) -> vec2<u32> {
+    return vec2<u32>(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH);
+}
+
 // The invalid map entry (mirrors `cpu::INVALID`).
 const INVALID: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 0.0);
 

@@ -8,11 +8,12 @@
 //   3 color_map   texture_2d<f32>: width x height, RGB 0..255
 //   4 assoc       storage read   array<u32>: 1 where fuse_merge merged the pixel
 //   5 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)
-//   6 positions   storage rw     array<vec4<f32>>: surfels, world frame (capacity entries)
-//   7 normals     storage rw     array<vec4<f32>>
-//   8 colors      storage rw     array<vec4<f32>>
-//   9 weights     storage rw     array<f32>
-//  10 last_frame  storage rw     array<u32>
+//   6 positions   storage texture rgba32float, write: world frame (capacity entries)
+//   7 normals     storage texture rgba32float, write
+//   8 colors      storage texture rgba32float, write
+//   9 weights     storage texture r32float, write
+//  10 last_frame  storage texture r32uint, write
+//   (surfel i is texel surfel_texel(i) of each map texture)
 // Grid-stride loop over pixels; the append order is the atomics' order, not pixel order. Never
 // writes at or past params.capacity: the counter still counts, and the host turns a count
 // above capacity into a capacity error.
@@ -23,11 +24,11 @@
 @group(0) @binding(3) var color_map: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read> assoc: array<u32>;
 @group(0) @binding(5) var<storage, read_write> counter: atomic<u32>;
-@group(0) @binding(6) var<storage, read_write> positions: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> normals: array<vec4<f32>>;
-@group(0) @binding(8) var<storage, read_write> colors: array<vec4<f32>>;
-@group(0) @binding(9) var<storage, read_write> weights: array<f32>;
-@group(0) @binding(10) var<storage, read_write> last_frame: array<u32>;
+@group(0) @binding(6) var positions: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(7) var normals: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(8) var colors: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(9) var weights: texture_storage_2d<r32float, write>;
+@group(0) @binding(10) var last_frame: texture_storage_2d<r32uint, write>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -53,10 +54,11 @@ fn main(
         }
         let p = transform_point(params.t_cam_to_world, xyz(q4));
         let n = transform_dir(params.t_cam_to_world, xyz(nq4));
-        positions[i] = vec4<f32>(p, 1.0);
-        normals[i] = vec4<f32>(n, 0.0);
-        colors[i] = textureLoad(color_map, texel, 0);
-        weights[i] = 1.0;
-        last_frame[i] = params.frame_id;
+        let surfel = surfel_texel(i);
+        textureStore(positions, surfel, vec4<f32>(p, 1.0));
+        textureStore(normals, surfel, vec4<f32>(n, 0.0));
+        textureStore(colors, surfel, textureLoad(color_map, texel, 0));
+        textureStore(weights, surfel, vec4<f32>(1.0));
+        textureStore(last_frame, surfel, vec4<u32>(params.frame_id));
     }
 }

@@ -7,11 +7,12 @@
 //   1 vertex_map  texture_2d<f32>: width x height, camera frame
 //   2 normal_map  texture_2d<f32>: width x height, camera frame
 //   3 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   4 positions   storage rw     array<vec4<f32>>: surfels, world frame, metres
-//   5 normals     storage rw     array<vec4<f32>>: surfels, world frame, unit, w = 0
-//   6 colors      storage rw     array<vec4<f32>>: surfels, RGB 0..255
-//   7 weights     storage rw     array<f32>: observations per surfel
-//   8 last_frame  storage rw     array<u32>: frame that last touched each surfel
+//   4 positions   storage texture rgba32float, read_write: world frame, metres
+//   5 normals     storage texture rgba32float, read_write: world frame, unit, w = 0
+//   6 colors      storage texture rgba32float, read_write: RGB 0..255
+//   7 weights     storage texture r32float, read_write: observations per surfel
+//   8 last_frame  storage texture r32uint, read_write: frame that last touched each surfel
+//   (surfel i is texel surfel_texel(i) of each map texture)
 //   9 assoc       storage rw     array<atomic<u32>>: one flag per pixel, cleared by the host
 // Grid-stride loop over surfels; each thread writes only its own surfel, so the result
 // does not depend on thread order (several surfels may flag the same pixel).
@@ -20,11 +21,11 @@
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
 @group(0) @binding(2) var normal_map: texture_2d<f32>;
 @group(0) @binding(3) var color_map: texture_2d<f32>;
-@group(0) @binding(4) var<storage, read_write> positions: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read_write> normals: array<vec4<f32>>;
-@group(0) @binding(6) var<storage, read_write> colors: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> weights: array<f32>;
-@group(0) @binding(8) var<storage, read_write> last_frame: array<u32>;
+@group(0) @binding(4) var positions: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(5) var normals: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(6) var colors: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(7) var weights: texture_storage_2d<r32float, read_write>;
+@group(0) @binding(8) var last_frame: texture_storage_2d<r32uint, read_write>;
 @group(0) @binding(9) var<storage, read_write> assoc: array<atomic<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
@@ -46,7 +47,8 @@ fn main(
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
     let stride = nwg.x * WORKGROUP_SIZE;
     for (var i = gid.x; i < params.surfel_count; i += stride) {
-        let p_world = xyz(positions[i]);
+        let surfel = surfel_texel(i);
+        let p_world = xyz(textureLoad(positions, surfel));
         let p_cam = transform_point(params.t_world_to_cam, p_world);
         let pix = project_to_pixel(cam, params.width, params.height, p_cam);
         if pix < 0 {
@@ -60,22 +62,22 @@ fn main(
         }
         let q_world = transform_point(params.t_cam_to_world, xyz(q4));
         let nq_world = transform_dir(params.t_cam_to_world, xyz(nq4));
-        let n_old = xyz(normals[i]);
+        let n_old = xyz(textureLoad(normals, surfel));
         if length(q_world - p_world) >= params.dist_threshold_m
             || dot(n_old, nq_world) <= params.cos_normal_threshold {
             continue;
         }
-        let w = weights[i];
+        let w = textureLoad(weights, surfel).x;
         let inv = 1.0 / (w + 1.0);
         let p = (p_world * w + q_world) * inv;
         let n = normalize_or_zero((n_old * w + nq_world) * inv);
-        let c = colors[i];
+        let c = textureLoad(colors, surfel);
         let cq = textureLoad(color_map, texel, 0);
-        positions[i] = vec4<f32>(p, 1.0);
-        normals[i] = vec4<f32>(n, 0.0);
-        colors[i] = vec4<f32>((c.xyz * w + cq.xyz) * inv, 255.0);
-        weights[i] = w + 1.0;
-        last_frame[i] = params.frame_id;
+        textureStore(positions, surfel, vec4<f32>(p, 1.0));
+        textureStore(normals, surfel, vec4<f32>(n, 0.0));
+        textureStore(colors, surfel, vec4<f32>((c.xyz * w + cq.xyz) * inv, 255.0));
+        textureStore(weights, surfel, vec4<f32>(w + 1.0));
+        textureStore(last_frame, surfel, vec4<u32>(params.frame_id));
         atomicStore(&assoc[pix], 1u);
     }
 }

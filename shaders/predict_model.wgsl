@@ -5,16 +5,16 @@
 //   0 params       uniform ProjectParams (only width and height are used)
 //   1 index_map    storage read   array<vec2<u32>>: the u64 keys of project_model, low word
 //                                 (surfel index) first; (0, 0) means no surfel
-//   2 positions    storage read   array<vec4<f32>>: surfel positions, world frame
-//   3 normals      storage read   array<vec4<f32>>: surfel normals, world frame
+//   2 positions    texture_2d<f32>: surfel positions, world frame (surfel_texel(i))
+//   3 normals      texture_2d<f32>: surfel normals, world frame
 //   4 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 //   5 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 // Grid-stride loop over pixels (the host caps the workgroup count).
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
-@group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(2) var positions: texture_2d<f32>;
+@group(0) @binding(3) var normals: texture_2d<f32>;
 @group(0) @binding(4) var pred_vertex: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(5) var pred_normal: texture_storage_2d<rgba32float, write>;
 
@@ -34,8 +34,8 @@ fn main(
             textureStore(pred_normal, out, INVALID);
             continue;
         }
-        let i = key.x;
-        textureStore(pred_vertex, out, vec4<f32>(positions[i].xyz, 1.0));
-        textureStore(pred_normal, out, vec4<f32>(normals[i].xyz, 1.0));
+        let surfel = surfel_texel(key.x);
+        textureStore(pred_vertex, out, vec4<f32>(textureLoad(positions, surfel, 0).xyz, 1.0));
+        textureStore(pred_normal, out, vec4<f32>(textureLoad(normals, surfel, 0).xyz, 1.0));
     }
 }

@@ -124,6 +124,12 @@ pub struct FuseParams {
 /// + inlier count + sum of squared residuals.
 pub const ICP_SYSTEM_LEN: usize = 29;
 
+/// Texels per row of the GPU surfel-map textures (mirrors `MAP_TEXTURE_WIDTH` in
+/// common.wgsl): surfel `i` lives at texel `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)`.
+/// 4096 is below the 8192 every WebGPU device allows per side, and a 4096-texel rgba32float
+/// row is 64 KiB, a multiple of the 256-byte copy pitch.
+pub const MAP_TEXTURE_WIDTH: u32 = 4096;
+
 /// Packs RGB8 into the `u32` layout the GPU reads (`r | g << 8 | b << 16 | 255 << 24`).
 pub fn pack_rgba8(rgb: [u8; 3]) -> u32 {
     rgb[0] as u32 | (rgb[1] as u32) << 8 | (rgb[2] as u32) << 16 | 255 << 24

@@ -140,17 +140,29 @@ fn rust_and_wgsl_structs_have_the_same_layout() {
 }
 
 /// The `ICP_SYSTEM_LEN` constant agrees on both sides.
-#[test]
-fn icp_system_len_matches() {
+/// The u32 literal value of the constant `name` in common.wgsl.
+fn wgsl_u32_const(name: &str) -> u32 {
     let module = naga::front::wgsl::parse_str(shaders::COMMON).expect("common.wgsl parses");
     let (_, c) = module
         .constants
         .iter()
-        .find(|(_, c)| c.name.as_deref() == Some("ICP_SYSTEM_LEN"))
-        .expect("common.wgsl declares ICP_SYSTEM_LEN");
-    let value = match module.global_expressions[c.init] {
-        naga::Expression::Literal(naga::Literal::U32(v)) => v as usize,
-        ref e => panic!("ICP_SYSTEM_LEN is not a u32 literal: {e:?}"),
-    };
-    assert_eq!(value, ICP_SYSTEM_LEN);
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("common.wgsl declares {name}"));
+    match module.global_expressions[c.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => v,
+        ref e => panic!("{name} is not a u32 literal: {e:?}"),
+    }
+}
+
+#[test]
+fn icp_system_len_matches() {
+    assert_eq!(wgsl_u32_const("ICP_SYSTEM_LEN") as usize, ICP_SYSTEM_LEN);
+}
+
+#[test]
+fn map_texture_width_matches() {
+    assert_eq!(
+        wgsl_u32_const("MAP_TEXTURE_WIDTH"),
+        wgslam::layout::MAP_TEXTURE_WIDTH
+    );
 }

@@ -19,7 +19,8 @@ use std::collections::BTreeMap;
 use super::buffers::{GpuArray, Readback, Uniform};
 use super::context::GpuContext;
 use super::images::GpuImage;
-use super::kernel::{Binding, Kernel};
+use super::kernel::{Binding, Kernel, TexelFormat};
+use super::map_textures::MapTextures;
 use super::timing::StageTimer;
 use crate::layout::{
     FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
@@ -39,12 +40,15 @@ pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
-/// Storage buffers bound at once by the largest kernel (`fuse_add`).
-const MAX_STORAGE_BUFFERS_USED: u32 = 10;
+/// Storage buffers bound at once by the largest kernel (`fuse_add`: assoc, counter).
+const MAX_STORAGE_BUFFERS_USED: u32 = 2;
+/// Storage textures bound at once by the largest kernel (`fuse_merge`, `fuse_add`: the
+/// five map attributes).
+const MAX_STORAGE_TEXTURES_USED: u32 = 5;
 
 /// Bindings of each kernel, in the order of its CPU twin's arguments (`@binding(i)`).
 mod bindings {
-    use super::Binding;
+    use super::{Binding, TexelFormat};
     pub const DEPTH_TO_VERTEX: [Binding; 5] = [
         Binding::uniform("params: PreprocessParams"),
         Binding::texture_u32("raw_depth: r16uint"),
@@ -59,14 +63,14 @@ mod bindings {
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
         Binding::uniform("params: ProjectParams"),
-        Binding::read("positions: world frame"),
+        Binding::texture_f32("positions: world frame"),
         Binding::read_write("index_map: atomic u64 keys"),
     ];
     pub const PREDICT_MODEL: [Binding; 6] = [
         Binding::uniform("params: ProjectParams"),
         Binding::read("index_map: u64 keys as vec2<u32>"),
-        Binding::read("positions: world frame"),
-        Binding::read("normals: world frame"),
+        Binding::texture_f32("positions: world frame"),
+        Binding::texture_f32("normals: world frame"),
         Binding::write_texture("pred_vertex: world frame"),
         Binding::write_texture("pred_normal: world frame"),
     ];
@@ -82,11 +86,11 @@ mod bindings {
         Binding::texture_f32("vertex_map: camera frame"),
         Binding::texture_f32("normal_map: camera frame"),
         Binding::texture_f32("color_map"),
-        Binding::read_write("positions"),
-        Binding::read_write("normals"),
-        Binding::read_write("colors"),
-        Binding::read_write("weights"),
-        Binding::read_write("last_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, true, "positions"),
+        Binding::storage_texture(TexelFormat::Rgba32F, true, "normals"),
+        Binding::storage_texture(TexelFormat::Rgba32F, true, "colors"),
+        Binding::storage_texture(TexelFormat::R32F, true, "weights"),
+        Binding::storage_texture(TexelFormat::R32U, true, "last_frame"),
         Binding::read_write("assoc: atomic flag per pixel"),
     ];
     pub const FUSE_ADD: [Binding; 11] = [
@@ -96,11 +100,11 @@ mod bindings {
         Binding::texture_f32("color_map"),
         Binding::read("assoc"),
         Binding::read_write("counter: atomic surfel count"),
-        Binding::read_write("positions"),
-        Binding::read_write("normals"),
-        Binding::read_write("colors"),
-        Binding::read_write("weights"),
-        Binding::read_write("last_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "positions"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "normals"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "colors"),
+        Binding::storage_texture(TexelFormat::R32F, false, "weights"),
+        Binding::storage_texture(TexelFormat::R32U, false, "last_frame"),
     ];
 }
 
@@ -137,14 +141,6 @@ impl FrameBuffers {
     }
 }
 
-/// The surfel map on the GPU (structure of arrays, world frame), `capacity` slots each.
-struct MapBuffers {
-    positions: GpuArray<[f32; 4]>,
-    normals: GpuArray<[f32; 4]>,
-    colors: GpuArray<[f32; 4]>,
-    weights: GpuArray<f32>,
-    last_frame: GpuArray<u32>,
-}
 
 struct BindGroups {
     depth_to_vertex: wgpu::BindGroup,
@@ -171,7 +167,7 @@ pub struct GpuBackend {
     counter: GpuArray<u32>,
     counter_readback: Readback<u32>,
     frame: Option<FrameBuffers>,
-    map: MapBuffers,
+    map: MapTextures,
     /// Surfels in the map (the GPU counter as last read back).
     count: usize,
     /// Largest map the backend may allocate, in surfels.
@@ -266,6 +262,22 @@ impl GpuBackend {
                 ctx.adapter_info().name
             )));
         }
+        let per_stage = ctx.limits().max_storage_textures_per_shader_stage;
+        if per_stage < MAX_STORAGE_TEXTURES_USED {
+            return Err(Error::Gpu(format!(
+                "adapter \"{}\" allows {per_stage} storage textures per shader stage; \
+                 fuse_merge needs {MAX_STORAGE_TEXTURES_USED}; use --backend cpu",
+                ctx.adapter_info().name
+            )));
+        }
+        if !ctx.has_read_write_rgba32float() {
+            return Err(Error::Gpu(format!(
+                "adapter \"{}\" cannot read and write rgba32float storage textures \
+                 (TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES), which fuse_merge needs for the \
+                 surfel map; use --backend cpu",
+                ctx.adapter_info().name
+            )));
+        }
         let max_surfels = Self::device_max_surfels(&ctx);
         let capacity = capacity.clamp(1, max_surfels);
         let reduction_workgroups = ctx.reduction_workgroups();
@@ -301,13 +313,7 @@ impl GpuBackend {
                 counter,
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
-            let map = MapBuffers {
-                positions: GpuArray::new(&ctx, "surfel positions", capacity)?,
-                normals: GpuArray::new(&ctx, "surfel normals", capacity)?,
-                colors: GpuArray::new(&ctx, "surfel colors", capacity)?,
-                weights: GpuArray::new(&ctx, "surfel weights", capacity)?,
-                last_frame: GpuArray::new(&ctx, "surfel last_frame", capacity)?,
-            };
+            let map = MapTextures::new(&ctx, capacity)?;
             Ok((kernels, uniforms, small, map))
         })?;
         let (u_preprocess, u_normal, u_project, u_icp, u_fuse) = uniforms;
@@ -341,10 +347,9 @@ impl GpuBackend {
         self
     }
 
-    /// Most surfels one storage binding of the device holds (positions: 16 bytes each).
+    /// Most surfels the device's texture size limit allows.
     fn device_max_surfels(ctx: &GpuContext) -> usize {
-        let by_bytes = ctx.max_storage_bytes() / std::mem::size_of::<[f32; 4]>() as u64;
-        by_bytes.min(u32::MAX as u64) as usize
+        MapTextures::device_max_surfels(ctx)
     }
 
     /// Turns on per-kernel timing (GPU timestamps when the device has them, else wall time
@@ -373,7 +378,7 @@ impl GpuBackend {
 
     /// Allocated surfel slots.
     pub fn capacity(&self) -> usize {
-        self.map.positions.capacity()
+        self.map.capacity()
     }
 
     /// The cap set by [`GpuBackend::with_max_surfels`] or the device limit.
@@ -444,24 +449,20 @@ impl GpuBackend {
         if needed > self.max_surfels {
             return Err(Error::Capacity(format!(
                 "fusing this frame may need {needed} surfels ({} bytes of positions) but the \
-                 GPU map is limited to {} surfels ({} bytes; device max storage binding {} \
-                 bytes)",
+                 GPU map is limited to {} surfels ({} bytes; the device allows {} surfels: \
+                 {} texels per row x {} rows)",
                 needed * 16,
                 self.max_surfels,
                 self.max_surfels * 16,
-                self.ctx.max_storage_bytes()
+                Self::device_max_surfels(&self.ctx),
+                crate::layout::MAP_TEXTURE_WIDTH,
+                self.ctx.limits().max_texture_dimension_2d
             )));
         }
         let grown = (self.capacity() * GROWTH_NUM / GROWTH_DEN)
             .max(needed)
             .min(self.max_surfels);
-        let ctx = &self.ctx;
-        let m = &mut self.map;
-        m.positions.grow(ctx, grown)?;
-        m.normals.grow(ctx, grown)?;
-        m.colors.grow(ctx, grown)?;
-        m.weights.grow(ctx, grown)?;
-        m.last_frame.grow(ctx, grown)?;
+        self.map.grow(&self.ctx, grown, self.count)?;
         self.bind_groups = None;
         Ok(())
     }
@@ -760,12 +761,6 @@ impl Backend for GpuBackend {
             )));
         }
         self.count = counter;
-        let m = &mut self.map;
-        m.positions.set_len(counter);
-        m.normals.set_len(counter);
-        m.colors.set_len(counter);
-        m.weights.set_len(counter);
-        m.last_frame.set_len(counter);
         Ok(counter)
     }
 
@@ -776,13 +771,7 @@ impl Backend for GpuBackend {
     fn download_map(&mut self) -> Result<SurfelMap> {
         let (ctx, m) = (&self.ctx, &self.map);
         ctx.scoped("download map", || {
-            let map = SurfelMap {
-                positions: m.positions.read_back(ctx)?,
-                normals: m.normals.read_back(ctx)?,
-                colors: m.colors.read_back(ctx)?,
-                weights: m.weights.read_back(ctx)?,
-                last_frame: m.last_frame.read_back(ctx)?,
-            };
+            let map = m.download(ctx, self.count)?;
             map.assert_consistent();
             Ok(map)
         })
@@ -846,20 +835,8 @@ impl GpuBackend {
         map.assert_consistent();
         let n = map.len();
         self.ensure_capacity(n)?;
-        let (ctx, m) = (&self.ctx, &mut self.map);
-        ctx.scoped("upload map", || {
-            m.positions.write_at(ctx, 0, &map.positions)?;
-            m.normals.write_at(ctx, 0, &map.normals)?;
-            m.colors.write_at(ctx, 0, &map.colors)?;
-            m.weights.write_at(ctx, 0, &map.weights)?;
-            m.last_frame.write_at(ctx, 0, &map.last_frame)?;
-            m.positions.set_len(n);
-            m.normals.set_len(n);
-            m.colors.set_len(n);
-            m.weights.set_len(n);
-            m.last_frame.set_len(n);
-            Ok(())
-        })?;
+        let (ctx, m) = (&self.ctx, &self.map);
+        ctx.scoped("upload map", || m.upload(ctx, map))?;
         self.count = n;
         Ok(())
     }

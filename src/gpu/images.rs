@@ -117,53 +117,82 @@ impl GpuImage {
         wgpu::BindingResource::TextureView(&self.view)
     }
 
-    /// Uploads `texels` (row-major, exactly width x height of them) with `write_texture`.
+    /// Uploads `texels` (row-major, exactly width x height of them).
     pub fn upload<T: Pod>(&self, ctx: &GpuContext, texels: &[T]) -> Result<()> {
-        let n = self.width as usize * self.height as usize;
-        if texels.len() != n || std::mem::size_of::<T>() != texel_bytes(self.format) as usize {
+        let n = self.texels();
+        if texels.len() != n {
             return Err(Error::Argument(format!(
-                "{}: upload of {} texels of {} bytes into a {}x{} texture of {:?}",
+                "{}: upload of {} texels into a {}x{} texture",
                 self.label,
                 texels.len(),
-                std::mem::size_of::<T>(),
                 self.width,
-                self.height,
-                self.format
+                self.height
             )));
         }
-        let bytes: &[u8] = bytemuck::cast_slice(texels);
+        self.upload_prefix(ctx, texels)
+    }
+
+    /// Writes `texels` into texels `0..texels.len()` (row-major) with `write_texture`; the
+    /// rest of the last row written is zeroed. [`Error::Argument`] when they do not fit or
+    /// `T` is not one texel.
+    pub fn upload_prefix<T: Pod>(&self, ctx: &GpuContext, texels: &[T]) -> Result<()> {
+        self.check_texel_type::<T>()?;
+        if texels.len() > self.texels() {
+            return Err(Error::Argument(format!(
+                "{}: {} texels do not fit a {}x{} texture",
+                self.label,
+                texels.len(),
+                self.width,
+                self.height
+            )));
+        }
+        let rows = self.rows_for(texels.len());
+        if rows == 0 {
+            return Ok(());
+        }
+        let mut padded: Vec<T> = texels.to_vec();
+        padded.resize(rows as usize * self.width as usize, T::zeroed());
+        let bytes: &[u8] = bytemuck::cast_slice(&padded);
         ctx.queue.write_texture(
             self.texture.as_image_copy(),
             bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
                 bytes_per_row: Some(self.width * texel_bytes(self.format)),
-                rows_per_image: Some(self.height),
+                rows_per_image: Some(rows),
             },
-            self.extent(),
+            self.extent_rows(rows),
         );
         self.stats.upload(bytes.len() as u64);
         Ok(())
     }
 
-    /// Copies every texel back to the host, row-major, without the row padding
-    /// `copy_texture_to_buffer` needs (one submission, blocking).
+    /// Copies every texel back to the host, row-major (one submission, blocking).
     pub fn read_back<T: Pod>(&self, ctx: &GpuContext) -> Result<Vec<T>> {
-        let texel = texel_bytes(self.format);
-        if std::mem::size_of::<T>() != texel as usize {
-            return Err(Error::Argument(format!(
-                "{}: reading {:?} texels as {} bytes each",
-                self.label,
-                self.format,
-                std::mem::size_of::<T>()
+        self.read_back_prefix(ctx, self.texels())
+    }
+
+    /// Copies texels `0..n` (row-major) back to the host: the rows holding them go through
+    /// a staging buffer with the 256-byte row pitch `copy_texture_to_buffer` needs, and the
+    /// padding is dropped (one submission, blocking).
+    pub fn read_back_prefix<T: Pod>(&self, ctx: &GpuContext, n: usize) -> Result<Vec<T>> {
+        self.check_texel_type::<T>()?;
+        if n > self.texels() {
+            return Err(Error::Capacity(format!(
+                "{}: read-back of {n} texels from a {}x{} texture",
+                self.label, self.width, self.height
             )));
         }
-        let row = self.width * texel;
+        let rows = self.rows_for(n);
+        if rows == 0 {
+            return Ok(Vec::new());
+        }
+        let row = self.width * texel_bytes(self.format);
         let padded_row = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
             * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("wgslam texture read-back staging"),
-            size: padded_row as u64 * self.height as u64,
+            size: padded_row as u64 * rows as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -175,30 +204,74 @@ impl GpuImage {
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
                     bytes_per_row: Some(padded_row),
-                    rows_per_image: Some(self.height),
+                    rows_per_image: Some(rows),
                 },
             },
-            self.extent(),
+            self.extent_rows(rows),
         );
         ctx.submit(enc);
         let out = map_read(ctx, &staging, |view| {
-            let mut bytes = Vec::with_capacity(row as usize * self.height as usize);
+            let mut bytes = Vec::with_capacity(row as usize * rows as usize);
             for r in view.chunks_exact(padded_row as usize) {
                 bytes.extend_from_slice(&r[..row as usize]);
             }
-            bytemuck::pod_collect_to_vec::<u8, T>(&bytes)
+            let mut texels = bytemuck::pod_collect_to_vec::<u8, T>(&bytes);
+            texels.truncate(n);
+            texels
         })?;
-        self.stats.readback(row as u64 * self.height as u64);
+        self.stats
+            .readback((n * std::mem::size_of::<T>()) as u64);
         Ok(out)
     }
 
-    fn extent(&self) -> wgpu::Extent3d {
+    /// Records a GPU copy of the rows holding texels `0..n` into `dst` (same width and
+    /// format, at least as tall): how the surfel map grows.
+    pub fn copy_prefix_to(&self, encoder: &mut wgpu::CommandEncoder, dst: &GpuImage, n: usize) {
+        assert!(
+            dst.width == self.width && dst.format == self.format && n <= dst.texels(),
+            "{} -> {}: copy of {n} texels between incompatible textures",
+            self.label,
+            dst.label
+        );
+        let rows = self.rows_for(n.min(self.texels()));
+        if rows > 0 {
+            encoder.copy_texture_to_texture(
+                self.texture.as_image_copy(),
+                dst.texture.as_image_copy(),
+                self.extent_rows(rows),
+            );
+        }
+    }
+
+    /// width x height.
+    pub fn texels(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    fn rows_for(&self, n: usize) -> u32 {
+        n.div_ceil(self.width as usize) as u32
+    }
+
+    fn check_texel_type<T>(&self) -> Result<()> {
+        if std::mem::size_of::<T>() != texel_bytes(self.format) as usize {
+            return Err(Error::Argument(format!(
+                "{}: {:?} texels accessed as {} bytes each",
+                self.label,
+                self.format,
+                std::mem::size_of::<T>()
+            )));
+        }
+        Ok(())
+    }
+
+    fn extent_rows(&self, rows: u32) -> wgpu::Extent3d {
         wgpu::Extent3d {
             width: self.width,
-            height: self.height,
+            height: rows,
             depth_or_array_layers: 1,
         }
     }
+
 }
 
 /// Bytes per texel of the formats used here.

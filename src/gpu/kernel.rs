@@ -23,8 +23,33 @@ pub enum BindingKind {
     TextureF32,
     /// `var: texture_2d<u32>` read with `textureLoad` (r16uint, rgba8uint).
     TextureU32,
-    /// `var: texture_storage_2d<rgba32float, write>`.
-    WriteTextureRgba32F,
+    /// `var: texture_storage_2d<FORMAT, write>` or `<FORMAT, read_write>`.
+    StorageTexture {
+        format: TexelFormat,
+        read_write: bool,
+    },
+}
+
+/// Storage-texture formats the kernels use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TexelFormat {
+    /// vec4<f32>: maps, surfel positions / normals / colours.
+    Rgba32F,
+    /// f32: surfel weights.
+    R32F,
+    /// u32: surfel last_frame.
+    R32U,
+}
+
+impl TexelFormat {
+    /// The wgpu texture format.
+    pub const fn wgpu(self) -> wgpu::TextureFormat {
+        match self {
+            TexelFormat::Rgba32F => wgpu::TextureFormat::Rgba32Float,
+            TexelFormat::R32F => wgpu::TextureFormat::R32Float,
+            TexelFormat::R32U => wgpu::TextureFormat::R32Uint,
+        }
+    }
 }
 
 /// One binding with a label for the layout (what the buffer is, for error messages).
@@ -72,8 +97,16 @@ impl Binding {
     }
     /// A write-only rgba32float storage texture.
     pub const fn write_texture(label: &'static str) -> Binding {
+        Self::storage_texture(TexelFormat::Rgba32F, false, label)
+    }
+    /// A storage texture of `format`, write-only or read-write.
+    pub const fn storage_texture(
+        format: TexelFormat,
+        read_write: bool,
+        label: &'static str,
+    ) -> Binding {
         Binding {
-            kind: BindingKind::WriteTextureRgba32F,
+            kind: BindingKind::StorageTexture { format, read_write },
             label,
         }
     }
@@ -249,9 +282,13 @@ fn layout_type(kind: BindingKind) -> wgpu::BindingType {
         }
         BindingKind::TextureF32 => texture(wgpu::TextureSampleType::Float { filterable: false }),
         BindingKind::TextureU32 => texture(wgpu::TextureSampleType::Uint),
-        BindingKind::WriteTextureRgba32F => wgpu::BindingType::StorageTexture {
-            access: wgpu::StorageTextureAccess::WriteOnly,
-            format: wgpu::TextureFormat::Rgba32Float,
+        BindingKind::StorageTexture { format, read_write } => wgpu::BindingType::StorageTexture {
+            access: if read_write {
+                wgpu::StorageTextureAccess::ReadWrite
+            } else {
+                wgpu::StorageTextureAccess::WriteOnly
+            },
+            format: format.wgpu(),
             view_dimension: wgpu::TextureViewDimension::D2,
         },
     }
@@ -303,11 +340,18 @@ fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Resul
                             kind: naga::ScalarKind::Uint,
                             multi: false,
                         } => BindingKind::TextureU32,
-                        naga::ImageClass::Storage {
-                            format: naga::StorageFormat::Rgba32Float,
-                            access,
-                        } if *access == naga::StorageAccess::STORE => {
-                            BindingKind::WriteTextureRgba32F
+                        naga::ImageClass::Storage { format, access } => {
+                            BindingKind::StorageTexture {
+                                format: match format {
+                                    naga::StorageFormat::Rgba32Float => TexelFormat::Rgba32F,
+                                    naga::StorageFormat::R32Float => TexelFormat::R32F,
+                                    naga::StorageFormat::R32Uint => TexelFormat::R32U,
+                                    other => panic!(
+                                        "kernel `{name}`: unsupported storage format {other:?}"
+                                    ),
+                                },
+                                read_write: access.contains(naga::StorageAccess::LOAD),
+                            }
                         }
                         other => panic!("kernel `{name}`: unsupported image class {other:?}"),
                     },

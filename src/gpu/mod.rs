@@ -9,6 +9,7 @@
 //! - [`kernel`]: pipeline + explicit bind-group layout + workgroup size; dispatch.
 //! - [`buffers`]: typed storage arrays, uniforms, read-back, byte accounting.
 //! - [`images`]: per-pixel maps as 2D textures (fast loads on lavapipe), read-back.
+//! - [`map_textures`]: the surfel map as five textures that grow by GPU copy.
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
@@ -18,6 +19,7 @@ pub mod buffers;
 pub mod context;
 pub mod images;
 pub mod kernel;
+pub mod map_textures;
 pub mod shaders;
 pub mod test_support;
 pub mod timing;
@@ -25,5 +27,5 @@ pub mod timing;
 pub use backend::GpuBackend;
 pub use buffers::{GpuArray, Readback, StatsSnapshot, Uniform};
 pub use context::GpuContext;
-pub use kernel::{Binding, BindingKind, Kernel};
+pub use kernel::{Binding, BindingKind, Kernel, TexelFormat};
 pub use timing::{StageTime, StageTimer};
