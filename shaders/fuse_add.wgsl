@@ -8,12 +8,10 @@
 //   3 color_map   texture_2d<f32>: width x height, RGB 0..255
 //   4 assoc       storage read   array<u32>: 1 where fuse_merge merged the pixel
 //   5 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)
-//   6 positions   storage texture rgba32float, write: world frame (capacity entries)
-//   7 normals     storage texture rgba32float, write
-//   8 colors      storage texture rgba32float, write
-//   9 weights     storage texture r32float, write
-//  10 last_frame  storage texture r32uint, write
-//   (surfel i is texel surfel_texel(i) of each map texture)
+//   6 position_weight  storage texture rgba32float, write: xyz world frame, w = weight
+//   7 normal_frame     storage texture rgba32uint, write: normal bits, w = last_frame
+//   8 color            storage texture rgba32float, write: RGB 0..255, a = 255
+//   (surfel i is texel surfel_texel(i) of each; capacity slots; see src/gpu/map_textures.rs)
 // Grid-stride loop over pixels; the append order is the atomics' order, not pixel order. Never
 // writes at or past params.capacity: the counter still counts, and the host turns a count
 // above capacity into a capacity error.
@@ -24,11 +22,9 @@
 @group(0) @binding(3) var color_map: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read> assoc: array<u32>;
 @group(0) @binding(5) var<storage, read_write> counter: atomic<u32>;
-@group(0) @binding(6) var positions: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(7) var normals: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(8) var colors: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(9) var weights: texture_storage_2d<r32float, write>;
-@group(0) @binding(10) var last_frame: texture_storage_2d<r32uint, write>;
+@group(0) @binding(6) var position_weight: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(7) var normal_frame: texture_storage_2d<rgba32uint, write>;
+@group(0) @binding(8) var color: texture_storage_2d<rgba32float, write>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -55,10 +51,8 @@ fn main(
         let p = transform_point(params.t_cam_to_world, xyz(q4));
         let n = transform_dir(params.t_cam_to_world, xyz(nq4));
         let surfel = surfel_texel(i);
-        textureStore(positions, surfel, vec4<f32>(p, 1.0));
-        textureStore(normals, surfel, vec4<f32>(n, 0.0));
-        textureStore(colors, surfel, textureLoad(color_map, texel, 0));
-        textureStore(weights, surfel, vec4<f32>(1.0));
-        textureStore(last_frame, surfel, vec4<u32>(params.frame_id));
+        textureStore(position_weight, surfel, vec4<f32>(p, 1.0));
+        textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));
+        textureStore(color, surfel, textureLoad(color_map, texel, 0));
     }
 }

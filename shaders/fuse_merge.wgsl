@@ -7,13 +7,13 @@
 //   1 vertex_map  texture_2d<f32>: width x height, camera frame
 //   2 normal_map  texture_2d<f32>: width x height, camera frame
 //   3 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   4 positions   storage texture rgba32float, read_write: world frame, metres
-//   5 normals     storage texture rgba32float, read_write: world frame, unit, w = 0
-//   6 colors      storage texture rgba32float, read_write: RGB 0..255
-//   7 weights     storage texture r32float, read_write: observations per surfel
-//   8 last_frame  storage texture r32uint, read_write: frame that last touched each surfel
-//   (surfel i is texel surfel_texel(i) of each map texture)
-//   9 assoc       storage rw     array<atomic<u32>>: one flag per pixel, cleared by the host
+//   4 position_weight  storage texture rgba32float, read_write: xyz world frame (metres),
+//                      w = observations
+//   5 normal_frame     storage texture rgba32uint, read_write: bits of the unit normal
+//                      (world frame), w = frame that last touched the surfel
+//   6 color            storage texture rgba32float, read_write: RGB 0..255, a = 255
+//   7 assoc            storage rw array<atomic<u32>>: one flag per pixel, cleared by the host
+//   (surfel i is texel surfel_texel(i) of each map texture; see src/gpu/map_textures.rs)
 // Grid-stride loop over surfels; each thread writes only its own surfel, so the result
 // does not depend on thread order (several surfels may flag the same pixel).
 
@@ -21,12 +21,10 @@
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
 @group(0) @binding(2) var normal_map: texture_2d<f32>;
 @group(0) @binding(3) var color_map: texture_2d<f32>;
-@group(0) @binding(4) var positions: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(5) var normals: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(6) var colors: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(7) var weights: texture_storage_2d<r32float, read_write>;
-@group(0) @binding(8) var last_frame: texture_storage_2d<r32uint, read_write>;
-@group(0) @binding(9) var<storage, read_write> assoc: array<atomic<u32>>;
+@group(0) @binding(4) var position_weight: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(5) var normal_frame: texture_storage_2d<rgba32uint, read_write>;
+@group(0) @binding(6) var color: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -48,7 +46,8 @@ fn main(
     let stride = nwg.x * WORKGROUP_SIZE;
     for (var i = gid.x; i < params.surfel_count; i += stride) {
         let surfel = surfel_texel(i);
-        let p_world = xyz(textureLoad(positions, surfel));
+        let pw = textureLoad(position_weight, surfel);
+        let p_world = xyz(pw);
         let p_cam = transform_point(params.t_world_to_cam, p_world);
         let pix = project_to_pixel(cam, params.width, params.height, p_cam);
         if pix < 0 {
@@ -62,22 +61,20 @@ fn main(
         }
         let q_world = transform_point(params.t_cam_to_world, xyz(q4));
         let nq_world = transform_dir(params.t_cam_to_world, xyz(nq4));
-        let n_old = xyz(textureLoad(normals, surfel));
+        let n_old = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel).xyz);
         if length(q_world - p_world) >= params.dist_threshold_m
             || dot(n_old, nq_world) <= params.cos_normal_threshold {
             continue;
         }
-        let w = textureLoad(weights, surfel).x;
+        let w = pw.w;
         let inv = 1.0 / (w + 1.0);
         let p = (p_world * w + q_world) * inv;
         let n = normalize_or_zero((n_old * w + nq_world) * inv);
-        let c = textureLoad(colors, surfel);
+        let c = textureLoad(color, surfel);
         let cq = textureLoad(color_map, texel, 0);
-        textureStore(positions, surfel, vec4<f32>(p, 1.0));
-        textureStore(normals, surfel, vec4<f32>(n, 0.0));
-        textureStore(colors, surfel, vec4<f32>((c.xyz * w + cq.xyz) * inv, 255.0));
-        textureStore(weights, surfel, vec4<f32>(w + 1.0));
-        textureStore(last_frame, surfel, vec4<u32>(params.frame_id));
+        textureStore(position_weight, surfel, vec4<f32>(p, w + 1.0));
+        textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));
+        textureStore(color, surfel, vec4<f32>((c.xyz * w + cq.xyz) * inv, 255.0));
         atomicStore(&assoc[pix], 1u);
     }
 }

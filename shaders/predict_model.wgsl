@@ -5,16 +5,17 @@
 //   0 params       uniform ProjectParams (only width and height are used)
 //   1 index_map    storage read   array<vec2<u32>>: the u64 keys of project_model, low word
 //                                 (surfel index) first; (0, 0) means no surfel
-//   2 positions    texture_2d<f32>: surfel positions, world frame (surfel_texel(i))
-//   3 normals      texture_2d<f32>: surfel normals, world frame
+//   2 position_weight  texture_2d<f32>: surfel xyz (world frame) + weight, surfel_texel(i)
+//   3 normal_frame     texture_2d<u32>: bits of the surfel normal (world frame) + last_frame
+//   (the packing is documented in src/gpu/map_textures.rs)
 //   4 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 //   5 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 // Grid-stride loop over pixels (the host caps the workgroup count).
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
-@group(0) @binding(2) var positions: texture_2d<f32>;
-@group(0) @binding(3) var normals: texture_2d<f32>;
+@group(0) @binding(2) var position_weight: texture_2d<f32>;
+@group(0) @binding(3) var normal_frame: texture_2d<u32>;
 @group(0) @binding(4) var pred_vertex: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(5) var pred_normal: texture_storage_2d<rgba32float, write>;
 
@@ -35,7 +36,9 @@ fn main(
             continue;
         }
         let surfel = surfel_texel(key.x);
-        textureStore(pred_vertex, out, vec4<f32>(textureLoad(positions, surfel, 0).xyz, 1.0));
-        textureStore(pred_normal, out, vec4<f32>(textureLoad(normals, surfel, 0).xyz, 1.0));
+        let p = textureLoad(position_weight, surfel, 0).xyz;
+        let n = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel, 0).xyz);
+        textureStore(pred_vertex, out, vec4<f32>(p, 1.0));
+        textureStore(pred_normal, out, vec4<f32>(n, 1.0));
     }
 }

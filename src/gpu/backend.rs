@@ -43,8 +43,8 @@ const GROWTH_DEN: usize = 2;
 /// Storage buffers bound at once by the largest kernel (`fuse_add`: assoc, counter).
 const MAX_STORAGE_BUFFERS_USED: u32 = 2;
 /// Storage textures bound at once by the largest kernel (`fuse_merge`, `fuse_add`: the
-/// five map attributes).
-const MAX_STORAGE_TEXTURES_USED: u32 = 5;
+/// three packed map textures; `depth_to_vertex`, `predict_model`: two maps).
+const MAX_STORAGE_TEXTURES_USED: u32 = 3;
 
 /// Bindings of each kernel, in the order of its CPU twin's arguments (`@binding(i)`).
 mod bindings {
@@ -63,14 +63,14 @@ mod bindings {
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
         Binding::uniform("params: ProjectParams"),
-        Binding::texture_f32("positions: world frame"),
+        Binding::texture_f32("position_weight: world frame"),
         Binding::read_write("index_map: atomic u64 keys"),
     ];
     pub const PREDICT_MODEL: [Binding; 6] = [
         Binding::uniform("params: ProjectParams"),
         Binding::read("index_map: u64 keys as vec2<u32>"),
-        Binding::texture_f32("positions: world frame"),
-        Binding::texture_f32("normals: world frame"),
+        Binding::texture_f32("position_weight: world frame"),
+        Binding::texture_u32("normal_frame: world frame normal bits"),
         Binding::write_texture("pred_vertex: world frame"),
         Binding::write_texture("pred_normal: world frame"),
     ];
@@ -81,30 +81,26 @@ mod bindings {
         Binding::texture_f32("normal_map: target, camera frame"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
-    pub const FUSE_MERGE: [Binding; 10] = [
+    pub const FUSE_MERGE: [Binding; 8] = [
         Binding::uniform("params: FuseParams"),
         Binding::texture_f32("vertex_map: camera frame"),
         Binding::texture_f32("normal_map: camera frame"),
         Binding::texture_f32("color_map"),
-        Binding::storage_texture(TexelFormat::Rgba32F, true, "positions"),
-        Binding::storage_texture(TexelFormat::Rgba32F, true, "normals"),
-        Binding::storage_texture(TexelFormat::Rgba32F, true, "colors"),
-        Binding::storage_texture(TexelFormat::R32F, true, "weights"),
-        Binding::storage_texture(TexelFormat::R32U, true, "last_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
+        Binding::storage_texture(TexelFormat::Rgba32U, true, "normal_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, true, "color"),
         Binding::read_write("assoc: atomic flag per pixel"),
     ];
-    pub const FUSE_ADD: [Binding; 11] = [
+    pub const FUSE_ADD: [Binding; 9] = [
         Binding::uniform("params: FuseParams"),
         Binding::texture_f32("vertex_map: camera frame"),
         Binding::texture_f32("normal_map: camera frame"),
         Binding::texture_f32("color_map"),
         Binding::read("assoc"),
         Binding::read_write("counter: atomic surfel count"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "positions"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "normals"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "colors"),
-        Binding::storage_texture(TexelFormat::R32F, false, "weights"),
-        Binding::storage_texture(TexelFormat::R32U, false, "last_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "position_weight"),
+        Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "color"),
     ];
 }
 
@@ -270,9 +266,9 @@ impl GpuBackend {
                 ctx.adapter_info().name
             )));
         }
-        if !ctx.has_read_write_rgba32float() {
+        if !ctx.has_read_write_rgba32() {
             return Err(Error::Gpu(format!(
-                "adapter \"{}\" cannot read and write rgba32float storage textures \
+                "adapter \"{}\" cannot read and write rgba32float/rgba32uint storage textures \
                  (TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES), which fuse_merge needs for the \
                  surfel map; use --backend cpu",
                 ctx.adapter_info().name
@@ -498,7 +494,7 @@ impl GpuBackend {
                     c,
                     &[
                         self.u_project.binding(),
-                        m.positions.binding(),
+                        m.position_weight.binding(),
                         f.index_map.binding(),
                     ],
                 ),
@@ -507,8 +503,8 @@ impl GpuBackend {
                     &[
                         self.u_project.binding(),
                         f.index_map.binding(),
-                        m.positions.binding(),
-                        m.normals.binding(),
+                        m.position_weight.binding(),
+                        m.normal_frame.binding(),
                         f.pred_vertex.binding(),
                         f.pred_normal.binding(),
                     ],
@@ -530,11 +526,9 @@ impl GpuBackend {
                         f.vertex.binding(),
                         f.normal.binding(),
                         f.color.binding(),
-                        m.positions.binding(),
-                        m.normals.binding(),
-                        m.colors.binding(),
-                        m.weights.binding(),
-                        m.last_frame.binding(),
+                        m.position_weight.binding(),
+                        m.normal_frame.binding(),
+                        m.color.binding(),
                         f.assoc.binding(),
                     ],
                 ),
@@ -547,11 +541,9 @@ impl GpuBackend {
                         f.color.binding(),
                         f.assoc.binding(),
                         self.counter.binding(),
-                        m.positions.binding(),
-                        m.normals.binding(),
-                        m.colors.binding(),
-                        m.weights.binding(),
-                        m.last_frame.binding(),
+                        m.position_weight.binding(),
+                        m.normal_frame.binding(),
+                        m.color.binding(),
                     ],
                 ),
             });

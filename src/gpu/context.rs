@@ -174,16 +174,19 @@ impl GpuContext {
         &self.adapter
     }
 
-    /// True when rgba32float storage textures can be read and written in one kernel (the
-    /// surfel map in `fuse_merge`).
-    pub fn has_read_write_rgba32float(&self) -> bool {
+    /// True when rgba32float and rgba32uint storage textures can be read and written in
+    /// one kernel (the packed surfel map in `fuse_merge`).
+    pub fn has_read_write_rgba32(&self) -> bool {
         self.features
             .contains(wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES)
-            && self
-                .adapter
-                .get_texture_format_features(wgpu::TextureFormat::Rgba32Float)
-                .flags
-                .contains(wgpu::TextureFormatFeatureFlags::STORAGE_READ_WRITE)
+            && [wgpu::TextureFormat::Rgba32Float, wgpu::TextureFormat::Rgba32Uint]
+                .iter()
+                .all(|&f| {
+                    self.adapter
+                        .get_texture_format_features(f)
+                        .flags
+                        .contains(wgpu::TextureFormatFeatureFlags::STORAGE_READ_WRITE)
+                })
     }
 
     /// True when 64-bit integer atomics (`atomicMax` on `u64`) are available.

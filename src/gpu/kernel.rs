@@ -33,12 +33,10 @@ pub enum BindingKind {
 /// Storage-texture formats the kernels use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TexelFormat {
-    /// vec4<f32>: maps, surfel positions / normals / colours.
+    /// vec4<f32>: maps, surfel position + weight, surfel colour.
     Rgba32F,
-    /// f32: surfel weights.
-    R32F,
-    /// u32: surfel last_frame.
-    R32U,
+    /// vec4<u32>: surfel normal bits + last_frame.
+    Rgba32U,
 }
 
 impl TexelFormat {
@@ -46,8 +44,7 @@ impl TexelFormat {
     pub const fn wgpu(self) -> wgpu::TextureFormat {
         match self {
             TexelFormat::Rgba32F => wgpu::TextureFormat::Rgba32Float,
-            TexelFormat::R32F => wgpu::TextureFormat::R32Float,
-            TexelFormat::R32U => wgpu::TextureFormat::R32Uint,
+            TexelFormat::Rgba32U => wgpu::TextureFormat::Rgba32Uint,
         }
     }
 }
@@ -344,8 +341,7 @@ fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Resul
                             BindingKind::StorageTexture {
                                 format: match format {
                                     naga::StorageFormat::Rgba32Float => TexelFormat::Rgba32F,
-                                    naga::StorageFormat::R32Float => TexelFormat::R32F,
-                                    naga::StorageFormat::R32Uint => TexelFormat::R32U,
+                                    naga::StorageFormat::Rgba32Uint => TexelFormat::Rgba32U,
                                     other => panic!(
                                         "kernel `{name}`: unsupported storage format {other:?}"
                                     ),

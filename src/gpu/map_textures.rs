@@ -1,13 +1,21 @@
-//! The surfel map on the GPU: five 2D textures, one per attribute (structure of arrays,
-//! world frame), [`MAP_TEXTURE_WIDTH`] texels wide, surfel `i` at texel
-//! `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)`.
+//! The surfel map on the GPU: three 2D textures [`MAP_TEXTURE_WIDTH`] texels wide, surfel
+//! `i` at texel `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)` of each, packing the five
+//! attributes of [`SurfelMap`] (world frame):
+//!
+//! | texture | format | x, y, z | w |
+//! |---|---|---|---|
+//! | `position_weight` | rgba32float | position, metres | weight |
+//! | `normal_frame` | rgba32uint | bits of the unit normal (`bitcast<u32>`) | last_frame |
+//! | `color` | rgba32float | RGB 0..255 | 255 |
 //!
 //! Textures rather than storage buffers because lavapipe loads texels 2-4x faster than
 //! storage-buffer elements (measured in `images.rs`), and every frame reads the whole map
-//! twice (`project_model`, `fuse_merge`). `fuse_merge` reads and writes its own surfel
-//! through read-write storage textures (rgba32float needs the adapter-specific format
-//! feature; `GpuBackend::new` checks it). The logical capacity may be smaller than the
-//! texture (whole rows): kernels never write at or past it.
+//! twice (`project_model`, `fuse_merge`). Packing five attributes into three texels cuts
+//! `fuse_merge`'s loads and stores per merged surfel from five to three; the packing is
+//! exact (the normal's bits are kept, not converted). `fuse_merge` reads and writes its
+//! own surfel through read-write storage textures (128-bit formats need the
+//! adapter-specific format feature; `GpuBackend::new` checks it). The logical capacity may
+//! be smaller than the textures (whole rows): kernels never write at or past it.
 
 use super::context::GpuContext;
 use super::images::GpuImage;
@@ -15,18 +23,14 @@ use crate::layout::MAP_TEXTURE_WIDTH;
 use crate::map::SurfelMap;
 use crate::Result;
 
-/// Surfel attributes as textures, `capacity` logical slots each.
+/// Surfel attributes packed into three textures, `capacity` logical slots each.
 pub struct MapTextures {
-    /// rgba32float: xyz metres, w = 1.
-    pub positions: GpuImage,
-    /// rgba32float: unit xyz, w = 0.
-    pub normals: GpuImage,
+    /// rgba32float: xyz metres, w = weight.
+    pub position_weight: GpuImage,
+    /// rgba32uint: xyz = bits of the unit normal, w = last_frame.
+    pub normal_frame: GpuImage,
     /// rgba32float: RGB 0..255, a = 255.
-    pub colors: GpuImage,
-    /// r32float: observations.
-    pub weights: GpuImage,
-    /// r32uint: frame that last touched the surfel.
-    pub last_frame: GpuImage,
+    pub color: GpuImage,
     capacity: usize,
 }
 
@@ -45,11 +49,9 @@ impl MapTextures {
         };
         use wgpu::TextureFormat as F;
         Ok(MapTextures {
-            positions: image("surfel positions", F::Rgba32Float)?,
-            normals: image("surfel normals", F::Rgba32Float)?,
-            colors: image("surfel colors", F::Rgba32Float)?,
-            weights: image("surfel weights", F::R32Float)?,
-            last_frame: image("surfel last_frame", F::R32Uint)?,
+            position_weight: image("surfel position+weight", F::Rgba32Float)?,
+            normal_frame: image("surfel normal+last_frame", F::Rgba32Uint)?,
+            color: image("surfel color", F::Rgba32Float)?,
             capacity,
         })
     }
@@ -76,33 +78,46 @@ impl MapTextures {
         Ok(())
     }
 
-    /// The first `n` surfels, downloaded.
+    /// The first `n` surfels, downloaded and unpacked.
     pub fn download(&self, ctx: &GpuContext, n: usize) -> Result<SurfelMap> {
+        let pw: Vec<[f32; 4]> = self.position_weight.read_back_prefix(ctx, n)?;
+        let nf: Vec<[u32; 4]> = self.normal_frame.read_back_prefix(ctx, n)?;
+        let colors: Vec<[f32; 4]> = self.color.read_back_prefix(ctx, n)?;
         Ok(SurfelMap {
-            positions: self.positions.read_back_prefix(ctx, n)?,
-            normals: self.normals.read_back_prefix(ctx, n)?,
-            colors: self.colors.read_back_prefix(ctx, n)?,
-            weights: self.weights.read_back_prefix(ctx, n)?,
-            last_frame: self.last_frame.read_back_prefix(ctx, n)?,
+            positions: pw.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect(),
+            normals: nf
+                .iter()
+                .map(|n| {
+                    let f = |k: usize| f32::from_bits(n[k]);
+                    [f(0), f(1), f(2), 0.0]
+                })
+                .collect(),
+            colors,
+            weights: pw.iter().map(|p| p[3]).collect(),
+            last_frame: nf.iter().map(|n| n[3]).collect(),
         })
     }
 
-    /// Writes `map` into slots `0..map.len()` (the caller grows first).
+    /// Packs `map` and writes it into slots `0..map.len()` (the caller grows first).
     pub fn upload(&self, ctx: &GpuContext, map: &SurfelMap) -> Result<()> {
-        self.positions.upload_prefix(ctx, &map.positions)?;
-        self.normals.upload_prefix(ctx, &map.normals)?;
-        self.colors.upload_prefix(ctx, &map.colors)?;
-        self.weights.upload_prefix(ctx, &map.weights)?;
-        self.last_frame.upload_prefix(ctx, &map.last_frame)
+        let pw: Vec<[f32; 4]> = map
+            .positions
+            .iter()
+            .zip(&map.weights)
+            .map(|(p, &w)| [p[0], p[1], p[2], w])
+            .collect();
+        let nf: Vec<[u32; 4]> = map
+            .normals
+            .iter()
+            .zip(&map.last_frame)
+            .map(|(n, &frame)| [n[0].to_bits(), n[1].to_bits(), n[2].to_bits(), frame])
+            .collect();
+        self.position_weight.upload_prefix(ctx, &pw)?;
+        self.normal_frame.upload_prefix(ctx, &nf)?;
+        self.color.upload_prefix(ctx, &map.colors)
     }
 
-    fn images(&self) -> [&GpuImage; 5] {
-        [
-            &self.positions,
-            &self.normals,
-            &self.colors,
-            &self.weights,
-            &self.last_frame,
-        ]
+    fn images(&self) -> [&GpuImage; 3] {
+        [&self.position_weight, &self.normal_frame, &self.color]
     }
 }
