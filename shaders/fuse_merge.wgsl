@@ -49,11 +49,12 @@ fn main(
         let pw = textureLoad(position_weight, surfel);
         let p_world = xyz(pw);
         let p_cam = transform_point(params.t_world_to_cam, p_world);
-        let pix = project_to_pixel(cam, params.width, params.height, p_cam);
-        if pix < 0 {
+        let uv = project_to_texel(cam, params.width, params.height, p_cam);
+        if uv.x < 0 {
             continue;
         }
-        let texel = texel_of(u32(pix), params.width);
+        let texel = vec2<u32>(uv);
+        let pix = texel.y * params.width + texel.x;
         let q4 = textureLoad(vertex_map, texel, 0);
         let nq4 = textureLoad(normal_map, texel, 0);
         if !is_valid(q4) || !is_valid(nq4) {

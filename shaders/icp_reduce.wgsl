@@ -42,11 +42,11 @@ fn icp_row(src_world: vec4<f32>) -> IcpRow {
     }
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
     let p = transform_point(params.t_world_to_cam, xyz(src_world));
-    let pix = project_to_pixel(cam, params.width, params.height, p);
-    if pix < 0 {
+    let uv = project_to_texel(cam, params.width, params.height, p);
+    if uv.x < 0 {
         return row;
     }
-    let target_texel = texel_of(u32(pix), params.width);
+    let target_texel = vec2<u32>(uv);
     let q4 = textureLoad(vertex_map, target_texel, 0);
     let n4 = textureLoad(normal_map, target_texel, 0);
     if !is_valid(q4) || !is_valid(n4) {
