@@ -28,6 +28,16 @@ impl CpuBackend {
         Self::default()
     }
 
+    /// A backend starting from `map` (to resume from a saved map, or to start both backends
+    /// from the same map; the GPU's twin is `GpuBackend::upload_map`).
+    pub fn with_map(map: SurfelMap) -> Self {
+        map.assert_consistent();
+        CpuBackend {
+            map,
+            ..Self::default()
+        }
+    }
+
     /// The map without copying.
     pub fn map(&self) -> &SurfelMap {
         &self.map

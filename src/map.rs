@@ -1,8 +1,8 @@
 //! The surfel map as a structure of arrays on the host (CPU reference and GPU download).
 //!
 //! One surfel per index `i` across all arrays. Positions and normals are in the world
-//! frame; the GPU keeps the same arrays as separate storage buffers (lavapipe caps one
-//! binding at 128 MiB, so no array-of-structs).
+//! frame. The GPU packs the five arrays into three textures (`gpu::map_textures`) and
+//! unpacks them exactly on download.
 
 /// The fused point map: positions, normals, colours, weights, last-updated frames.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -4,11 +4,11 @@
 //! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
 //! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
 //! textures, which lavapipe runs 3-5x faster than storage-buffer loads (see `images.rs`).
-//! The index map, the association flags and the surfel map stay storage buffers (atomics,
-//! and the map grows by copy).
+//! The surfel map is three packed textures ([`MapTextures`]); only the index map, the
+//! association flags, the counter and the ICP partials are storage buffers (atomics).
 //! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
-//! per-frame buffers are sized at the first `preprocess` and reused (re-created only if the
-//! frame size changes); the surfel map lives on the GPU as a structure of arrays that grows
+//! per-frame textures are sized at the first `preprocess` and reused (re-created only if the
+//! frame size changes); the surfel map lives on the GPU for the whole run and grows
 //! geometrically (x1.5, a GPU-side copy) before a fusion could overflow it. Per frame the
 //! host reads back only the ICP partials (one 29-float system per workgroup per iteration)
 //! and the 4-byte surfel counter; maps are downloaded only on request.
@@ -136,7 +136,6 @@ impl FrameBuffers {
         (self.width * self.height) as usize
     }
 }
-
 
 struct BindGroups {
     depth_to_vertex: wgpu::BindGroup,

@@ -179,14 +179,17 @@ impl GpuContext {
     pub fn has_read_write_rgba32(&self) -> bool {
         self.features
             .contains(wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES)
-            && [wgpu::TextureFormat::Rgba32Float, wgpu::TextureFormat::Rgba32Uint]
-                .iter()
-                .all(|&f| {
-                    self.adapter
-                        .get_texture_format_features(f)
-                        .flags
-                        .contains(wgpu::TextureFormatFeatureFlags::STORAGE_READ_WRITE)
-                })
+            && [
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureFormat::Rgba32Uint,
+            ]
+            .iter()
+            .all(|&f| {
+                self.adapter
+                    .get_texture_format_features(f)
+                    .flags
+                    .contains(wgpu::TextureFormatFeatureFlags::STORAGE_READ_WRITE)
+            })
     }
 
     /// True when 64-bit integer atomics (`atomicMax` on `u64`) are available.

@@ -5,7 +5,7 @@
 //! Why textures and not storage buffers for per-pixel maps: on Mesa lavapipe (the CPU
 //! Vulkan driver) a storage-buffer load is emitted as a loop over the SIMD lanes with one
 //! scalar load and bounds check per lane and component, while `textureLoad` goes through
-//! the vectorised texel-fetch path. Measured here (`examples/lvp_probe.rs`, 640x480, five
+//! the vectorised texel-fetch path. Measured here (`examples/lavapipe_loads.rs`, 640x480, five
 //! vec4 loads per pixel): 23-28 ms from a storage buffer, 5-8 ms from a texture; a random
 //! gather of 307k vec4 from a 1.3M-entry table: 18 ms vs 7.7 ms. Writes stay cheap either
 //! way, so kernels write maps through write-only storage textures.
@@ -188,8 +188,8 @@ impl GpuImage {
             return Ok(Vec::new());
         }
         let row = self.width * texel_bytes(self.format);
-        let padded_row = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
-            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded_row =
+            row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("wgslam texture read-back staging"),
             size: padded_row as u64 * rows as u64,
@@ -219,8 +219,7 @@ impl GpuImage {
             texels.truncate(n);
             texels
         })?;
-        self.stats
-            .readback((n * std::mem::size_of::<T>()) as u64);
+        self.stats.readback((n * std::mem::size_of::<T>()) as u64);
         Ok(out)
     }
 
@@ -271,7 +270,6 @@ impl GpuImage {
             depth_or_array_layers: 1,
         }
     }
-
 }
 
 /// Bytes per texel of the formats used here.

@@ -44,9 +44,8 @@ impl MapTextures {
     /// Zero-filled textures with room for `capacity` surfels (whole rows).
     pub fn new(ctx: &GpuContext, capacity: usize) -> Result<MapTextures> {
         let rows = capacity.max(1).div_ceil(MAP_TEXTURE_WIDTH as usize) as u32;
-        let image = |label: &str, format| {
-            GpuImage::new(ctx, label, MAP_TEXTURE_WIDTH, rows, format, true)
-        };
+        let image =
+            |label: &str, format| GpuImage::new(ctx, label, MAP_TEXTURE_WIDTH, rows, format, true);
         use wgpu::TextureFormat as F;
         Ok(MapTextures {
             position_weight: image("surfel position+weight", F::Rgba32Float)?,
