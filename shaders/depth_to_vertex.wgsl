@@ -7,7 +7,7 @@
 //   2 raw_rgba    texture_2d<u32> (rgba8uint): raw_width x raw_height, RGBA 0..255
 //   3 vertex_map  storage texture rgba32float, write: width x height, camera frame, w = 1 / 0
 //   4 color_map   storage texture rgba32float, write: width x height, RGB 0..255, a = 255
-// Grid-stride loop over output pixels (the host caps the workgroup count). Assumes raw_width >= stride * width (and the same for height).
+// One thread per output pixel (8x8 workgroups). Assumes raw_width >= stride * width (and the same for height).
 
 @group(0) @binding(0) var<uniform> params: PreprocessParams;
 @group(0) @binding(1) var raw_depth: texture_2d<u32>;
@@ -15,29 +15,23 @@
 @group(0) @binding(3) var vertex_map: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(4) var color_map: texture_storage_2d<rgba32float, write>;
 
-const WORKGROUP_SIZE: u32 = 64u;
-
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    let w = params.width;
-    let stride = nwg.x * WORKGROUP_SIZE;
-    for (var pix = gid.x; pix < w * params.height; pix += stride) {
-        let u = pix % w;
-        let v = pix / w;
-        let raw = vec2<u32>(u * params.stride, v * params.stride);
-        let z = f32(textureLoad(raw_depth, raw, 0).x) / params.depth_scale;
-        let c = textureLoad(raw_rgba, raw, 0);
-        let out = vec2<u32>(u, v);
-        textureStore(color_map, out, vec4<f32>(vec3<f32>(c.xyz), 255.0));
-        if z <= 0.0 || z < params.min_depth_m || z > params.max_depth_m {
-            textureStore(vertex_map, out, INVALID);
-            continue;
-        }
+// One thread per output pixel in 8x8 tiles (see vertex_to_normal.wgsl).
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let u = gid.x;
+    let v = gid.y;
+    if u >= params.width || v >= params.height {
+        return;
+    }
+    let raw = vec2<u32>(u * params.stride, v * params.stride);
+    let z = f32(textureLoad(raw_depth, raw, 0).x) / params.depth_scale;
+    let c = textureLoad(raw_rgba, raw, 0);
+    textureStore(color_map, gid.xy, vec4<f32>(vec3<f32>(c.xyz), 255.0));
+    var vertex = INVALID;
+    if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
         let x = (f32(u) - params.cx) * z / params.fx;
         let y = (f32(v) - params.cy) * z / params.fy;
-        textureStore(vertex_map, out, valid_entry(vec3<f32>(x, y, z)));
+        vertex = valid_entry(vec3<f32>(x, y, z));
     }
+    textureStore(vertex_map, gid.xy, vertex);
 }

@@ -12,7 +12,7 @@
 //   7 normal_frame     storage texture rgba32uint, write: normal bits, w = last_frame
 //   8 color            storage texture rgba32float, write: RGB 0..255, a = 255
 //   (surfel i is texel surfel_texel(i) of each; capacity slots; see src/gpu/map_textures.rs)
-// Grid-stride loop over pixels; the append order is the atomics' order, not pixel order. Never
+// One thread per pixel (8x8 workgroups); the append order is the atomics' order, not pixel order. Never
 // writes at or past params.capacity: the counter still counts, and the host turns a count
 // above capacity into a capacity error.
 
@@ -26,33 +26,28 @@
 @group(0) @binding(7) var normal_frame: texture_storage_2d<rgba32uint, write>;
 @group(0) @binding(8) var color: texture_storage_2d<rgba32float, write>;
 
-const WORKGROUP_SIZE: u32 = 64u;
-
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    let stride = nwg.x * WORKGROUP_SIZE;
-    for (var pix = gid.x; pix < params.width * params.height; pix += stride) {
-        if assoc[pix] != 0u {
-            continue;
-        }
-        let texel = texel_of(pix, params.width);
-        let q4 = textureLoad(vertex_map, texel, 0);
-        let nq4 = textureLoad(normal_map, texel, 0);
-        if !is_valid(q4) || !is_valid(nq4) {
-            continue;
-        }
-        let i = atomicAdd(&counter, 1u);
-        if i >= params.capacity {
-            continue;
-        }
-        let p = transform_point(params.t_cam_to_world, xyz(q4));
-        let n = transform_dir(params.t_cam_to_world, xyz(nq4));
-        let surfel = surfel_texel(i);
-        textureStore(position_weight, surfel, vec4<f32>(p, 1.0));
-        textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));
-        textureStore(color, surfel, textureLoad(color_map, texel, 0));
+// One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
     }
+    if assoc[gid.y * params.width + gid.x] != 0u {
+        return;
+    }
+    let q4 = textureLoad(vertex_map, gid.xy, 0);
+    let nq4 = textureLoad(normal_map, gid.xy, 0);
+    if !is_valid(q4) || !is_valid(nq4) {
+        return;
+    }
+    let i = atomicAdd(&counter, 1u);
+    if i >= params.capacity {
+        return;
+    }
+    let p = transform_point(params.t_cam_to_world, xyz(q4));
+    let n = transform_dir(params.t_cam_to_world, xyz(nq4));
+    let surfel = surfel_texel(i);
+    textureStore(position_weight, surfel, vec4<f32>(p, 1.0));
+    textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));
+    textureStore(color, surfel, textureLoad(color_map, gid.xy, 0));
 }

@@ -10,7 +10,7 @@
 //   (the packing is documented in src/gpu/map_textures.rs)
 //   4 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 //   5 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
-// Grid-stride loop over pixels (the host caps the workgroup count).
+// One thread per pixel (8x8 workgroups).
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
@@ -19,26 +19,22 @@
 @group(0) @binding(4) var pred_vertex: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(5) var pred_normal: texture_storage_2d<rgba32float, write>;
 
-const WORKGROUP_SIZE: u32 = 64u;
-
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    let stride = nwg.x * WORKGROUP_SIZE;
-    for (var pix = gid.x; pix < params.width * params.height; pix += stride) {
-        let key = index_map[pix];
-        let out = texel_of(pix, params.width);
-        if key.x == 0u && key.y == 0u {
-            textureStore(pred_vertex, out, INVALID);
-            textureStore(pred_normal, out, INVALID);
-            continue;
-        }
+// One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let key = index_map[gid.y * params.width + gid.x];
+    var vertex = INVALID;
+    var normal = INVALID;
+    if key.x != 0u || key.y != 0u {
         let surfel = surfel_texel(key.x);
         let p = textureLoad(position_weight, surfel, 0).xyz;
         let n = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel, 0).xyz);
-        textureStore(pred_vertex, out, vec4<f32>(p, 1.0));
-        textureStore(pred_normal, out, vec4<f32>(n, 1.0));
+        vertex = vec4<f32>(p, 1.0);
+        normal = vec4<f32>(n, 1.0);
     }
+    textureStore(pred_vertex, gid.xy, vertex);
+    textureStore(pred_normal, gid.xy, normal);
 }

@@ -181,12 +181,13 @@ struct Profiler {
     totals: BTreeMap<String, (u64, f64)>,
 }
 
-/// Records one compute pass per `(kernel, bind group, workgroups)`, timed when profiling.
+/// Records one compute pass per `(kernel, bind group, [x, y] workgroups)`, timed when
+/// profiling.
 fn record_passes(
     ctx: &GpuContext,
     profiler: &mut Option<Profiler>,
     enc: &mut wgpu::CommandEncoder,
-    dispatches: &[(&Kernel, &wgpu::BindGroup, u32)],
+    dispatches: &[(&Kernel, &wgpu::BindGroup, [u32; 2])],
 ) -> Result<()> {
     for (kernel, bind_group, workgroups) in dispatches {
         let mut pass = match profiler {
@@ -196,7 +197,7 @@ fn record_passes(
                 timestamp_writes: None,
             }),
         };
-        kernel.dispatch(ctx, &mut pass, bind_group, *workgroups)?;
+        kernel.dispatch_grid(ctx, &mut pass, bind_group, *workgroups)?;
     }
     Ok(())
 }
@@ -609,9 +610,9 @@ impl Backend for GpuBackend {
             self.u_normal.write(ctx, normal);
             Ok(())
         })?;
-        let n = self.frame().pixels();
-        let d2v_wg = self.grid_stride_workgroups(&self.kernels.depth_to_vertex, n);
-        let v2n_wg = self.grid_stride_workgroups(&self.kernels.vertex_to_normal, n);
+        let (w, h) = (params.width, params.height);
+        let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
+        let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
         self.bind_groups();
         let (ctx, k, bg, profiler) = (
             &self.ctx,
@@ -637,9 +638,12 @@ impl Backend for GpuBackend {
     fn predict(&mut self, params: &ProjectParams) -> Result<()> {
         let mut params = *params;
         params.surfel_count = self.count as u32;
-        let n = self.frame().pixels();
+        let f = self.frame();
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
-        let pix_wg = self.grid_stride_workgroups(&self.kernels.predict_model, n);
+        let pix_wg = self
+            .kernels
+            .predict_model
+            .workgroups_for_image(f.width, f.height);
         self.bind_groups();
         let (ctx, k, bg, profiler) = (
             &self.ctx,
@@ -660,7 +664,7 @@ impl Backend for GpuBackend {
                 profiler,
                 &mut enc,
                 &[
-                    (&k.project_model, &bg.project_model, surfel_wg),
+                    (&k.project_model, &bg.project_model, [surfel_wg, 1]),
                     (&k.predict_model, &bg.predict_model, pix_wg),
                 ],
             )?;
@@ -684,7 +688,7 @@ impl Backend for GpuBackend {
                 ctx,
                 profiler,
                 &mut enc,
-                &[(&k.icp_reduce, &bg.icp_reduce, wg)],
+                &[(&k.icp_reduce, &bg.icp_reduce, [wg, 1])],
             )?;
             self.partials_readback.copy_from(
                 &mut enc,
@@ -710,7 +714,11 @@ impl Backend for GpuBackend {
         params.surfel_count = self.count as u32;
         params.capacity = self.capacity() as u32;
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.fuse_merge, self.count);
-        let pix_wg = self.grid_stride_workgroups(&self.kernels.fuse_add, n);
+        let f = self.frame();
+        let pix_wg = self
+            .kernels
+            .fuse_add
+            .workgroups_for_image(f.width, f.height);
         self.bind_groups();
         let (ctx, k, bg, profiler) = (
             &self.ctx,
@@ -736,7 +744,7 @@ impl Backend for GpuBackend {
                 profiler,
                 &mut enc,
                 &[
-                    (&k.fuse_merge, &bg.fuse_merge, surfel_wg),
+                    (&k.fuse_merge, &bg.fuse_merge, [surfel_wg, 1]),
                     (&k.fuse_add, &bg.fuse_add, pix_wg),
                 ],
             )?;

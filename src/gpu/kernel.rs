@@ -109,16 +109,18 @@ impl Binding {
     }
 }
 
-/// A compute pipeline with its bind-group layout (group 0) and `@workgroup_size` (x only:
-/// every kernel here is one-dimensional).
+/// A compute pipeline with its bind-group layout (group 0) and `@workgroup_size` (x, y:
+/// grid-stride kernels are one-dimensional, per-pixel kernels use 8x8 tiles).
 #[derive(Debug)]
 pub struct Kernel {
     /// The kernel's name (`shaders/<name>.wgsl`).
     pub name: String,
     pub pipeline: wgpu::ComputePipeline,
     pub bind_group_layout: wgpu::BindGroupLayout,
-    /// Threads per workgroup, read from the shader's `@workgroup_size`.
+    /// Threads per workgroup along x, read from the shader's `@workgroup_size`.
     pub workgroup_size: u32,
+    /// Threads per workgroup along y (1 for one-dimensional kernels).
+    pub workgroup_size_y: u32,
     bindings: Vec<Binding>,
 }
 
@@ -140,7 +142,7 @@ impl Kernel {
         wgsl: &str,
         bindings: &[Binding],
     ) -> Result<Kernel> {
-        let workgroup_size = check_shader_interface(name, wgsl, bindings)?;
+        let [workgroup_size, workgroup_size_y] = check_shader_interface(name, wgsl, bindings)?;
         ctx.scoped(&format!("creating kernel `{name}`"), || {
             let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
                 .iter()
@@ -186,6 +188,7 @@ impl Kernel {
                 pipeline,
                 bind_group_layout,
                 workgroup_size,
+                workgroup_size_y,
                 bindings: bindings.to_vec(),
             })
         })
@@ -241,20 +244,40 @@ impl Kernel {
         bind_group: &wgpu::BindGroup,
         workgroups: u32,
     ) -> Result<()> {
-        if workgroups == 0 {
+        self.dispatch_grid(ctx, pass, bind_group, [workgroups, 1])
+    }
+
+    /// Workgroups covering a `width x height` image with one thread per pixel.
+    pub fn workgroups_for_image(&self, width: u32, height: u32) -> [u32; 2] {
+        [
+            width.div_ceil(self.workgroup_size),
+            height.div_ceil(self.workgroup_size_y),
+        ]
+    }
+
+    /// Like [`Kernel::dispatch`] with an `[x, y]` grid of workgroups (each at most the
+    /// device's `max_compute_workgroups_per_dimension`).
+    pub fn dispatch_grid(
+        &self,
+        ctx: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        bind_group: &wgpu::BindGroup,
+        [x, y]: [u32; 2],
+    ) -> Result<()> {
+        if x == 0 || y == 0 {
             return Ok(());
         }
         let max = ctx.limits().max_compute_workgroups_per_dimension;
-        if workgroups > max {
+        if x > max || y > max {
             return Err(Error::Capacity(format!(
-                "kernel `{}`: {workgroups} workgroups of {} threads exceed the device limit \
-                 of {max} per dispatch",
-                self.name, self.workgroup_size
+                "kernel `{}`: {x}x{y} workgroups of {}x{} threads exceed the device limit \
+                 of {max} per dimension",
+                self.name, self.workgroup_size, self.workgroup_size_y
             )));
         }
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, bind_group, &[]);
-        pass.dispatch_workgroups(workgroups, 1, 1);
+        pass.dispatch_workgroups(x, y, 1);
         Ok(())
     }
 }
@@ -292,11 +315,11 @@ fn layout_type(kind: BindingKind) -> wgpu::BindingType {
 }
 
 /// Parses `wgsl` with naga, checks that the `@group(0)` bindings match `bindings` in count
-/// and kind, and returns `@workgroup_size(x)` of the entry point `main`.
+/// and kind, and returns `@workgroup_size(x, y)` of the entry point `main`.
 ///
 /// A WGSL parse error is [`Error::Gpu`] (it means the embedded shader is broken, which
 /// `tests/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug).
-fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Result<u32> {
+fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Result<[u32; 2]> {
     let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| {
         Error::Gpu(format!(
             "kernel `{name}` does not parse:\n{}",
@@ -370,8 +393,8 @@ fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Resul
     );
     let [x, y, z] = entry.workgroup_size;
     assert!(
-        y == 1 && z == 1,
-        "kernel `{name}`: only one-dimensional workgroups are supported"
+        z == 1,
+        "kernel `{name}`: only one- and two-dimensional workgroups are supported"
     );
-    Ok(x)
+    Ok([x, y])
 }
