@@ -110,25 +110,34 @@ fn main(
     var sys: array<f32, ICP_SYSTEM_LEN>;
     let n_pix = params.width * params.height;
     let stride = nwg.x * WORKGROUP_SIZE;
+    // (u, v) of `pix`, stepped along with it: one division per thread, not per pixel.
+    let w = params.width;
+    var u = gid.x % w;
+    var v = gid.x / w;
+    let du = stride % w;
+    let dv = stride / w;
     for (var pix = gid.x; pix < n_pix; pix += stride) {
-        let row = icp_row(textureLoad(pred_vertex, texel_of(pix, params.width), 0));
+        let row = icp_row(textureLoad(pred_vertex, vec2<u32>(u, v), 0));
         if row.valid {
             accumulate(&sys, row.a, row.b);
+        }
+        u += du;
+        v += dv;
+        if u >= w {
+            u -= w;
+            v += 1u;
         }
     }
     scratch[lid] = sys;
     workgroupBarrier();
-    for (var half = WORKGROUP_SIZE / 2u; half > 0u; half /= 2u) {
-        if lid < half {
-            for (var k = 0u; k < ICP_SYSTEM_LEN; k++) {
-                scratch[lid][k] += scratch[lid + half][k];
-            }
+    // One barrier, then thread k < ICP_SYSTEM_LEN sums entry k over the workgroup's threads
+    // (on lavapipe every barrier is a coroutine switch of the whole workgroup, so one
+    // barrier beats a log2(WORKGROUP_SIZE)-level tree).
+    if lid < ICP_SYSTEM_LEN {
+        var total = 0.0;
+        for (var t = 0u; t < WORKGROUP_SIZE; t++) {
+            total += scratch[t][lid];
         }
-        workgroupBarrier();
-    }
-    if lid == 0u {
-        for (var k = 0u; k < ICP_SYSTEM_LEN; k++) {
-            partials[wid.x * ICP_SYSTEM_LEN + k] = scratch[0][k];
-        }
+        partials[wid.x * ICP_SYSTEM_LEN + lid] = total;
     }
 }
