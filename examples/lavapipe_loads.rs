@@ -12,6 +12,7 @@
 use std::time::Instant;
 
 use wgpu::util::DeviceExt;
+use wgslam::gpu::images::GpuImage;
 use wgslam::gpu::GpuContext;
 
 const W: u32 = 640;
@@ -20,13 +21,17 @@ const H: u32 = 480;
 const TABLE_ROWS: u32 = 320;
 const REPETITIONS: usize = 10;
 
-/// Common WGSL: the frame size and the table width.
-const HEADER: &str = "const W: u32 = 640u; const H: u32 = 480u; const TW: u32 = 4096u;\n";
-
-const STENCIL_BUFFER: &str = "
-@group(0) @binding(0) var<storage, read> src: array<vec4<f32>>;
+/// Common WGSL: the frame size, the table width, and the output and index bindings.
+const HEADER: &str = "const W: u32 = 640u; const H: u32 = 480u; const TW: u32 = 4096u;
 @group(0) @binding(1) var<storage, read_write> dst: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> idx: array<u32>;
+";
+/// The source binding of the storage-buffer variants.
+const SRC_BUFFER: &str = "@group(0) @binding(0) var<storage, read> src: array<vec4<f32>>;\n";
+/// The source binding of the texture variants.
+const SRC_TEXTURE: &str = "@group(0) @binding(0) var src: texture_2d<f32>;\n";
+
+const STENCIL_BUFFER: &str = "
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x; let u = i % W; let v = i / W;
@@ -34,9 +39,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     dst[i] = src[i] + src[i - 1u] + src[i + 1u] + src[i - W] + src[i + W];
 }";
 const STENCIL_TEXTURE: &str = "
-@group(0) @binding(0) var src: texture_2d<f32>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> idx: array<u32>;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x; let u = i % W; let v = i / W;
@@ -46,35 +48,23 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         + textureLoad(src, vec2(u, v + 1u), 0);
 }";
 const SEQUENTIAL_BUFFER: &str = "
-@group(0) @binding(0) var<storage, read> src: array<vec4<f32>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> idx: array<u32>;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = src[gid.x];
     if p.x + p.y + p.z < -1.0 || idx[0] == 1u { dst[0] = p; }
 }";
 const SEQUENTIAL_TEXTURE: &str = "
-@group(0) @binding(0) var src: texture_2d<f32>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> idx: array<u32>;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = textureLoad(src, vec2(gid.x % TW, gid.x / TW), 0);
     if p.x + p.y + p.z < -1.0 || idx[0] == 1u { dst[0] = p; }
 }";
 const GATHER_BUFFER: &str = "
-@group(0) @binding(0) var<storage, read> src: array<vec4<f32>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> idx: array<u32>;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     dst[gid.x] = src[idx[gid.x]];
 }";
 const GATHER_TEXTURE: &str = "
-@group(0) @binding(0) var src: texture_2d<f32>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> idx: array<u32>;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = idx[gid.x];
@@ -94,37 +84,21 @@ fn main() -> wgslam::Result<()> {
             usage: wgpu::BufferUsages::STORAGE,
         })
     };
-    let texture = |width: u32, height: u32| {
-        let t = d.create_texture(&wgpu::TextureDescriptor {
-            label: None,
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let n = (width * height) as usize;
-        ctx.queue.write_texture(
-            t.as_image_copy(),
-            bytemuck::cast_slice(&data[..n]),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(width * 16),
-                rows_per_image: Some(height),
-            },
-            t.size(),
-        );
-        t.create_view(&Default::default())
+    let texture = |width: u32, height: u32| -> wgslam::Result<GpuImage> {
+        let image = GpuImage::new(
+            &ctx,
+            "source",
+            width,
+            height,
+            wgpu::TextureFormat::Rgba32Float,
+            false,
+        )?;
+        image.upload(&ctx, &data[..(width * height) as usize])?;
+        Ok(image)
     };
     let src_buffer = buffer(bytemuck::cast_slice(&data));
-    let frame_texture = texture(W, H);
-    let table_texture = texture(4096, TABLE_ROWS);
+    let frame_texture = texture(W, H)?;
+    let table_texture = texture(4096, TABLE_ROWS)?;
     let dst = buffer(&vec![0u8; pixels as usize * 16]);
     // Scattered indices (a multiplicative hash), the same for both variants.
     let scattered: Vec<u32> = (0..pixels)
@@ -132,10 +106,10 @@ fn main() -> wgslam::Result<()> {
         .collect();
     let idx = buffer(bytemuck::cast_slice(&scattered));
 
-    let time = |code: &str, src: wgpu::BindingResource, threads: u32| -> f64 {
+    let time = |src_decl: &str, code: &str, src: wgpu::BindingResource, threads: u32| -> f64 {
         let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: None,
-            source: wgpu::ShaderSource::Wgsl(format!("{HEADER}{code}").into()),
+            source: wgpu::ShaderSource::Wgsl(format!("{HEADER}{src_decl}{code}").into()),
         });
         let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: None,
@@ -185,22 +159,46 @@ fn main() -> wgslam::Result<()> {
         }
         best
     };
-    let tex = wgpu::BindingResource::TextureView;
     let rows = [
         (
             "5-point stencil, 640x480",
-            time(STENCIL_BUFFER, src_buffer.as_entire_binding(), pixels),
-            time(STENCIL_TEXTURE, tex(&frame_texture), pixels),
+            time(
+                SRC_BUFFER,
+                STENCIL_BUFFER,
+                src_buffer.as_entire_binding(),
+                pixels,
+            ),
+            time(
+                SRC_TEXTURE,
+                STENCIL_TEXTURE,
+                frame_texture.binding(),
+                pixels,
+            ),
         ),
         (
             "sequential, 1.3M entries",
-            time(SEQUENTIAL_BUFFER, src_buffer.as_entire_binding(), table),
-            time(SEQUENTIAL_TEXTURE, tex(&table_texture), table),
+            time(
+                SRC_BUFFER,
+                SEQUENTIAL_BUFFER,
+                src_buffer.as_entire_binding(),
+                table,
+            ),
+            time(
+                SRC_TEXTURE,
+                SEQUENTIAL_TEXTURE,
+                table_texture.binding(),
+                table,
+            ),
         ),
         (
             "gather 307k of 1.3M",
-            time(GATHER_BUFFER, src_buffer.as_entire_binding(), pixels),
-            time(GATHER_TEXTURE, tex(&table_texture), pixels),
+            time(
+                SRC_BUFFER,
+                GATHER_BUFFER,
+                src_buffer.as_entire_binding(),
+                pixels,
+            ),
+            time(SRC_TEXTURE, GATHER_TEXTURE, table_texture.binding(), pixels),
         ),
     ];
     println!("fastest of {REPETITIONS} dispatches, milliseconds");

@@ -5,10 +5,12 @@
 //! Why textures and not storage buffers for per-pixel maps: on Mesa lavapipe (the CPU
 //! Vulkan driver) a storage-buffer load is emitted as a loop over the SIMD lanes with one
 //! scalar load and bounds check per lane and component, while `textureLoad` goes through
-//! the vectorised texel-fetch path. Measured here (`examples/lavapipe_loads.rs`, 640x480, five
-//! vec4 loads per pixel): 23-28 ms from a storage buffer, 5-8 ms from a texture; a random
-//! gather of 307k vec4 from a 1.3M-entry table: 18 ms vs 7.7 ms. Writes stay cheap either
-//! way, so kernels write maps through write-only storage textures.
+//! the vectorised texel-fetch path. Measured here with `examples/lavapipe_loads.rs`
+//! (fastest of 10 dispatches, several runs): a 5-point stencil over 640x480 took 22-28 ms
+//! from a storage buffer and 4-8 ms from a texture; a sequential pass over 1.3M vec4 23-25
+//! ms vs 8 ms; a gather of 307k vec4 at scattered indices from 1.3M 10-18 ms vs 6-8 ms.
+//! Writes cost about the same either way (one scalar store per lane and component), so
+//! kernels write maps through write-only storage textures.
 
 use std::sync::Arc;
 
