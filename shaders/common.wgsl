@@ -106,19 +106,15 @@ fn transform_dir(t: mat4x4<f32>, n: vec3<f32>) -> vec3<f32> {
 // pixel centre, or -1 when it is behind the camera (z <= 0) or outside the image.
 // `cam` = (fx, fy, cx, cy). Mirrors `cpu::project_to_pixel` (which returns None for -1).
 fn project_to_pixel(cam: vec4<f32>, width: u32, height: u32, p: vec3<f32>) -> i32 {
-    if p.z <= 0.0 {
+    let uv = project_to_texel(cam, width, height, p);
+    if uv.x < 0 {
         return -1;
     }
-    let u = floor(cam.x * p.x / p.z + cam.z + 0.5);
-    let v = floor(cam.y * p.y / p.z + cam.w + 0.5);
-    if u < 0.0 || v < 0.0 || u >= f32(width) || v >= f32(height) {
-        return -1;
-    }
-    return i32(v) * i32(width) + i32(u);
+    return uv.y * i32(width) + uv.x;
 }
 
-// Like project_to_pixel, but returns the pixel as (u, v), or (-1, -1) when it misses: saves
-// the division that splitting a pixel index into (u, v) costs on CPU adapters.
+// Filter 1 as a texel: the pixel (u, v) of project_to_pixel, or (-1, -1) when it misses.
+// Kernels that read textures use this directly (no index division on CPU adapters).
 fn project_to_texel(cam: vec4<f32>, width: u32, height: u32, p: vec3<f32>) -> vec2<i32> {
     if p.z <= 0.0 {
         return vec2<i32>(-1);
@@ -129,12 +125,6 @@ fn project_to_texel(cam: vec4<f32>, width: u32, height: u32, p: vec3<f32>) -> ve
         return vec2<i32>(-1);
     }
     return vec2<i32>(i32(u), i32(v));
-}
-
-// Texel of pixel index `pix` in a per-pixel map texture `width` texels wide (row-major,
-// the same order as the CPU twins' arrays).
-fn texel_of(pix: u32, width: u32) -> vec2<u32> {
-    return vec2<u32>(pix % width, pix / width);
 }
 
 // xyz of a vec4 map entry. Mirrors `cpu::xyz`.

@@ -3,6 +3,7 @@
 //! Skips with a printed reason without an adapter unless `WGSLAM_REQUIRE_GPU=1`.
 
 use wgslam::gpu::buffers::{GpuArray, Uniform};
+use wgslam::gpu::images::GpuImage;
 use wgslam::gpu::shaders;
 use wgslam::gpu::test_support::gpu_or_skip;
 use wgslam::gpu::{Binding, Kernel, StageTimer};
@@ -227,4 +228,47 @@ fn validation_errors_become_gpu_errors() {
     }
     // The context stays usable afterwards.
     ctx.scoped("good work", || Ok(())).unwrap();
+}
+
+/// Textures whose rows are not a multiple of the 256-byte copy pitch read back without
+/// the padding; a prefix upload zero-fills the rest of its last row and leaves later rows.
+#[test]
+fn images_round_trip_unaligned_rows_and_prefixes() {
+    let Some(ctx) = gpu_or_skip("images_round_trip_unaligned_rows_and_prefixes") else {
+        return;
+    };
+    // 213 texels x 16 bytes = 3408 bytes per row: not a multiple of 256.
+    let (w, h) = (213u32, 5u32);
+    let image = GpuImage::new(
+        &ctx,
+        "test image",
+        w,
+        h,
+        wgpu::TextureFormat::Rgba32Float,
+        true,
+    )
+    .unwrap();
+    let full: Vec<[f32; 4]> = (0..w * h).map(|i| [i as f32, 1.0, 2.0, 3.0]).collect();
+    image.upload(&ctx, &full).unwrap();
+    assert_eq!(image.read_back::<[f32; 4]>(&ctx).unwrap(), full);
+    // Overwrite the first 300 texels (one row and 87 texels of the next) with -1.
+    let prefix = vec![[-1.0f32; 4]; 300];
+    image.upload_prefix(&ctx, &prefix).unwrap();
+    let back: Vec<[f32; 4]> = image.read_back(&ctx).unwrap();
+    assert_eq!(&back[..300], &prefix[..]);
+    assert!(back[300..2 * w as usize].iter().all(|t| *t == [0.0; 4]));
+    assert_eq!(&back[2 * w as usize..], &full[2 * w as usize..]);
+    assert_eq!(
+        image.read_back_prefix::<[f32; 4]>(&ctx, 250).unwrap(),
+        back[..250]
+    );
+    // Wrong texel size and oversized uploads are errors, not panics.
+    assert!(matches!(
+        image.read_back::<u32>(&ctx),
+        Err(Error::Argument(_))
+    ));
+    assert!(matches!(
+        image.upload_prefix(&ctx, &vec![[0.0f32; 4]; (w * h + 1) as usize]),
+        Err(Error::Argument(_))
+    ));
 }

@@ -152,9 +152,21 @@ impl GpuImage {
         if rows == 0 {
             return Ok(());
         }
-        let mut padded: Vec<T> = texels.to_vec();
-        padded.resize(rows as usize * self.width as usize, T::zeroed());
-        let bytes: &[u8] = bytemuck::cast_slice(&padded);
+        // Only a partial last row needs a padded copy (map uploads); whole frames go as is.
+        let whole = rows as usize * self.width as usize;
+        let padded: Vec<T>;
+        let texels = if texels.len() == whole {
+            texels
+        } else {
+            padded = texels
+                .iter()
+                .copied()
+                .chain(std::iter::repeat(T::zeroed()))
+                .take(whole)
+                .collect();
+            &padded
+        };
+        let bytes: &[u8] = bytemuck::cast_slice(texels);
         ctx.queue.write_texture(
             self.texture.as_image_copy(),
             bytes,
