@@ -41,6 +41,38 @@ pub struct BenchResult {
     pub kernels: Vec<(String, f64, f64)>,
 }
 
+/// Runs one backend once over the frames without per-stage timing: whole-frame times,
+/// peak memory and counters only (`stages` empty).
+pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
+    mut make: F,
+    seq: &Sequence,
+    first: usize,
+    last: usize,
+    params: &SlamParams,
+) -> Result<BenchResult> {
+    let backend = make()?;
+    let name = backend.name().to_string();
+    let plain = run::run(backend, seq, first, last, params.clone(), |_| {})?;
+    let m = &plain.metrics;
+    Ok(BenchResult {
+        backend: name,
+        frames: m.frames,
+        width: m.width,
+        height: m.height,
+        frame_median_s: m.time_per_frame_median_s,
+        frame_mean_s: m.time_per_frame_mean_s,
+        fps: 1.0 / m.time_per_frame_mean_s.max(f64::MIN_POSITIVE),
+        stages: Vec::new(),
+        // Counted by the per-stage pass of round 1 only.
+        readback_bytes_per_frame: 0.0,
+        submissions_per_frame: 0.0,
+        peak_memory_mib: run::peak_memory_mib(),
+        map_points: m.map_points,
+        ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
+        kernels: Vec::new(),
+    })
+}
+
 /// Runs one backend twice over the frames (plain, then timed per stage).
 pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
     mut make: F,
@@ -110,6 +142,55 @@ pub fn gpu_kernel_times(
         .into_iter()
         .map(|(k, (passes, ms))| (k, passes as f64 / n, ms / passes.max(1) as f64))
         .collect())
+}
+
+/// Mean CPU frame time over mean GPU frame time ("x faster"), when both ran.
+pub fn gpu_over_cpu(results: &[BenchResult]) -> Option<f64> {
+    let c = results.iter().find(|r| r.backend == "cpu")?;
+    let g = results.iter().find(|r| r.backend == "gpu")?;
+    Some(c.frame_mean_s / g.frame_mean_s)
+}
+
+/// One line per backend for a whole-frame-only round, and the round's ratio.
+pub fn print_round(round: usize, results: &[BenchResult]) {
+    let order: Vec<&str> = results.iter().map(|r| r.backend.as_str()).collect();
+    println!("round {round} ({}):", order.join(" then "));
+    for r in results {
+        println!(
+            "{:>4}: {:.1} ms/frame median, {:.1} ms mean, ATE {}",
+            r.backend,
+            r.frame_median_s * 1e3,
+            r.frame_mean_s * 1e3,
+            r.ate_rmse_aligned_m
+                .map(|a| format!("{:.3} mm", a * 1e3))
+                .unwrap_or_else(|| "n/a".into()),
+        );
+    }
+    if let Some(x) = gpu_over_cpu(results) {
+        println!("GPU/CPU: {x:.2}x faster per frame");
+    }
+}
+
+/// The GPU/CPU ratio of every round and their median.
+pub fn print_ratio_over_rounds(rounds: &[Vec<BenchResult>]) {
+    let mut ratios: Vec<f64> = rounds.iter().filter_map(|r| gpu_over_cpu(r)).collect();
+    if ratios.is_empty() {
+        return;
+    }
+    let listed: Vec<String> = ratios.iter().map(|x| format!("{x:.2}x")).collect();
+    ratios.sort_by(f64::total_cmp);
+    let k = ratios.len();
+    let median = if k % 2 == 1 {
+        ratios[k / 2]
+    } else {
+        (ratios[k / 2 - 1] + ratios[k / 2]) / 2.0
+    };
+    println!(
+        "GPU/CPU over {k} rounds: {} (median {median:.2}x, range {:.2}x..{:.2}x)",
+        listed.join(", "),
+        ratios[0],
+        ratios[k - 1]
+    );
 }
 
 /// Prints a table of the results and the GPU/CPU ratios.

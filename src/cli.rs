@@ -169,9 +169,18 @@ pub struct BenchArgs {
     /// Also time every GPU kernel (one more pass over the frames, GPU timestamps).
     #[arg(long)]
     pub kernels: bool,
+    /// Rounds of whole-frame timing. Round 1 also times every stage; each later round runs
+    /// the backends once more without it, in the reverse order of the round before (CPU,
+    /// GPU, GPU, CPU, ...), so a machine whose speed drifts favours neither. The ratio is
+    /// reported per round and as the median over rounds.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub rounds: u32,
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// bench-one only: time whole frames only (no per-stage pass, no kernels).
+    #[arg(long, hide = true)]
+    pub frames_only: bool,
 }
 
 #[derive(Debug, Args)]
@@ -532,9 +541,41 @@ fn cmd_compare(a: CompareArgs) -> Result<()> {
 }
 
 fn cmd_bench(a: BenchArgs) -> Result<()> {
+    let mut rounds = Vec::new();
+    for round in 0..a.rounds {
+        let mut order = a.backends.clone();
+        if round % 2 == 1 {
+            order.reverse();
+        }
+        let mut results = Vec::new();
+        for b in &order {
+            results.push(bench_in_child(&a, *b, round > 0)?);
+        }
+        if round == 0 {
+            bench::print_table(&results);
+        } else {
+            bench::print_round(round as usize + 1, &results);
+        }
+        rounds.push(results);
+    }
+    if a.rounds > 1 {
+        bench::print_ratio_over_rounds(&rounds);
+    }
+    if let Some(path) = &a.json {
+        run::write_json(path, &rounds)?;
+    }
+    Ok(())
+}
+
+/// Runs `wgslam bench-one` for backend `b` in a child process (so its peak memory is its
+/// own) and parses its result.
+fn bench_in_child(
+    a: &BenchArgs,
+    b: BackendChoice,
+    frames_only: bool,
+) -> Result<bench::BenchResult> {
     let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
-    let mut results = Vec::new();
-    for b in &a.backends {
+    {
         let mut cmd = std::process::Command::new(&exe);
         cmd.arg("bench-one");
         if let Some(d) = &a.data.dataset {
@@ -546,7 +587,9 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         cmd.args(["--downsample", &a.downsample.to_string()]);
         let name = format!("{b:?}").to_lowercase();
         cmd.args(["--backends", &name]);
-        if a.kernels {
+        if frames_only {
+            cmd.arg("--frames-only");
+        } else if a.kernels {
             cmd.arg("--kernels");
         }
         for (flag, v) in [("--gt", &a.data.gt)] {
@@ -564,15 +607,9 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
                 "the {name} benchmark failed (see above)"
             )));
         }
-        let r: bench::BenchResult = serde_json::from_slice(&out.stdout)
-            .map_err(|e| Error::format(&exe, format!("bench-one output: {e}")))?;
-        results.push(r);
+        serde_json::from_slice(&out.stdout)
+            .map_err(|e| Error::format(&exe, format!("bench-one output: {e}")))
     }
-    bench::print_table(&results);
-    if let Some(path) = &a.json {
-        run::write_json(path, &results)?;
-    }
-    Ok(())
 }
 
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {
@@ -580,8 +617,13 @@ fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     let params = downsampled_params(a.downsample)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
-    let mut r = bench::bench_backend(|| AnyBackend::open(choice), &seq, first, last, &params)?;
-    if a.kernels && r.backend == "gpu" {
+    let make = || AnyBackend::open(choice);
+    let mut r = if a.frames_only {
+        bench::bench_frames(make, &seq, first, last, &params)?
+    } else {
+        bench::bench_backend(make, &seq, first, last, &params)?
+    };
+    if a.kernels && !a.frames_only && r.backend == "gpu" {
         r.kernels = bench::gpu_kernel_times(&seq, first, last, &params)?;
     }
     println!(

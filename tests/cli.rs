@@ -77,6 +77,42 @@ fn run_writes_all_outputs_on_bundled_data() {
     assert_eq!((img.width(), img.height()), (320, 240));
 }
 
+/// `bench --rounds 2` on the CPU: round 1 with per-stage times, round 2 whole frames only,
+/// both over the requested frames and tracking them as accurately as `run` does.
+#[test]
+fn bench_rounds_write_every_round() {
+    let out = common::temp_dir("cli-bench");
+    let json = out.join("bench.json");
+    let o = wgslam(&[
+        "bench",
+        "--backends",
+        "cpu",
+        "--frames",
+        "1..3",
+        "--rounds",
+        "2",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("round 2 (cpu)"), "{}", text(&o));
+    let rounds: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rounds = rounds.as_array().unwrap();
+    assert_eq!(rounds.len(), 2);
+    for (k, round) in rounds.iter().enumerate() {
+        let r = &round[0];
+        assert_eq!(r["backend"], "cpu");
+        assert_eq!(r["frames"], 3);
+        assert!(r["frame_mean_s"].as_f64().unwrap() > 0.0);
+        assert!(r["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
+        let stages = r["stages"].as_array().unwrap().len();
+        assert_eq!(stages > 0, k == 0, "round {k}: {stages} stages");
+    }
+    let o = wgslam(&["bench", "--backends", "cpu", "--rounds", "0"]);
+    assert!(!o.status.success(), "--rounds 0 accepted");
+}
+
 #[test]
 fn icp_two_frames_prints_iterations_and_error() {
     let o = wgslam(&[
