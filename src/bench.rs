@@ -5,7 +5,9 @@
 //! is that backend's alone, and both are measured in the same `wgslam bench` invocation so
 //! the GPU/CPU ratio compares like with like. Per-stage times come from a second pass with
 //! [`crate::timed::Timed`], which waits for the device after each stage; frame times come
-//! from the first pass, which does not.
+//! from the first pass, which does not. Every pass decodes each frame before processing it
+//! ([`run::Decode::BeforeEachFrame`]), so decoding never competes with a backend for a
+//! core; its time is reported on its own line.
 
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +17,9 @@ use crate::pipeline::{Backend, SlamParams};
 use crate::run;
 use crate::timed::Timed;
 use crate::Result;
+
+/// Benchmarks decode on the pipeline's thread, outside the timed frame (see the header).
+const BEFORE: run::Decode = run::Decode::BeforeEachFrame;
 
 /// One backend's figures.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -39,6 +44,15 @@ pub struct BenchResult {
     /// timestamps (or wall time per submission without them).
     #[serde(default)]
     pub kernels: Vec<(String, f64, f64)>,
+    /// Mean time to load and decode one frame's images (not part of the frame times).
+    #[serde(default)]
+    pub decode_ms_per_frame: f64,
+}
+
+/// Mean decode time of a run's frames, milliseconds.
+fn decode_ms(frames: &[run::FrameOutcome]) -> f64 {
+    let n = frames.len().max(1) as f64;
+    frames.iter().map(|f| f.decode_seconds).sum::<f64>() * 1e3 / n
 }
 
 /// Runs one backend once over the frames without per-stage timing: whole-frame times,
@@ -52,7 +66,7 @@ pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
 ) -> Result<BenchResult> {
     let backend = make()?;
     let name = backend.name().to_string();
-    let plain = run::run(backend, seq, first, last, params.clone(), |_| {})?;
+    let plain = run::run_with(backend, seq, first, last, params.clone(), BEFORE, |_| {})?;
     let m = &plain.metrics;
     Ok(BenchResult {
         backend: name,
@@ -70,6 +84,7 @@ pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
         map_points: m.map_points,
         ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
         kernels: Vec::new(),
+        decode_ms_per_frame: decode_ms(&plain.frames),
     })
 }
 
@@ -81,14 +96,14 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
     last: usize,
     params: &SlamParams,
 ) -> Result<BenchResult> {
-    let plain = run::run(make()?, seq, first, last, params.clone(), |_| {})?;
+    let plain = run::run_with(make()?, seq, first, last, params.clone(), BEFORE, |_| {})?;
     let m = &plain.metrics;
     let backend = make()?;
     let name = backend.name().to_string();
     let mut p = params.clone();
     p.depth_scale = seq.depth_scale;
     let mut slam = crate::pipeline::Slam::new(Timed::new(backend), seq.intrinsics, p);
-    let (frames, _) = run::run_frames(&mut slam, seq, first, last, |_| {})?;
+    let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     let counters = slam.backend.counters();
     let stages = slam
@@ -118,6 +133,7 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
         map_points: m.map_points,
         ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
         kernels: Vec::new(),
+        decode_ms_per_frame: decode_ms(&plain.frames),
     })
 }
 
@@ -134,7 +150,7 @@ pub fn gpu_kernel_times(
     let mut p = params.clone();
     p.depth_scale = seq.depth_scale;
     let mut slam = crate::pipeline::Slam::new(gpu, seq.intrinsics, p);
-    let (frames, _) = run::run_frames(&mut slam, seq, first, last, |_| {})?;
+    let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     Ok(slam
         .backend
@@ -219,8 +235,9 @@ pub fn print_table(results: &[BenchResult]) {
             println!("      kernel {kernel:<16} {passes:5.2} passes/frame {ms:8.2} ms/pass");
         }
         println!(
-            "      readback {:.0} bytes/frame, {:.1} submissions/frame",
-            r.readback_bytes_per_frame, r.submissions_per_frame
+            "      readback {:.0} bytes/frame, {:.1} submissions/frame; decoding the \
+             images took {:.1} ms/frame (before each frame, not timed in it)",
+            r.readback_bytes_per_frame, r.submissions_per_frame, r.decode_ms_per_frame
         );
     }
     if let (Some(c), Some(g)) = (
