@@ -127,6 +127,16 @@ fn project_to_texel(cam: vec4<f32>, width: u32, height: u32, p: vec3<f32>) -> ve
     return vec2<i32>(i32(u), i32(v));
 }
 
+// The camera-frame point of pixel `texel` at depth z (metres), cam = (fx, fy, cx, cy):
+// depth_to_vertex's back-projection, `((u - cx) z / fx, (v - cy) z / fy, z)`, in the order
+// of its twin. Kernels that rebuild a vertex from a normal_depth texel call this same
+// function, so they get the vertex map's bits back.
+fn back_project(cam: vec4<f32>, texel: vec2<u32>, z: f32) -> vec3<f32> {
+    let x = (f32(texel.x) - cam.z) * z / cam.x;
+    let y = (f32(texel.y) - cam.w) * z / cam.y;
+    return vec3<f32>(x, y, z);
+}
+
 // xyz of a vec4 map entry. Mirrors `cpu::xyz`.
 fn xyz(v: vec4<f32>) -> vec3<f32> {
     return v.xyz;

@@ -29,9 +29,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     textureStore(color_map, gid.xy, vec4<f32>(vec3<f32>(c.xyz), 255.0));
     var vertex = INVALID;
     if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
-        let x = (f32(u) - params.cx) * z / params.fx;
-        let y = (f32(v) - params.cy) * z / params.fy;
-        vertex = valid_entry(vec3<f32>(x, y, z));
+        let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+        vertex = valid_entry(back_project(cam, gid.xy, z));
     }
     textureStore(vertex_map, gid.xy, vertex);
 }

@@ -3,28 +3,28 @@
 //
 // Bindings (@group(0)):
 //   0 params      uniform FuseParams (t_cam_to_world, frame_id, capacity)
-//   1 vertex_map  texture_2d<f32>: width x height, camera frame
-//   2 normal_map  texture_2d<f32>: width x height, camera frame
-//   3 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   4 assoc       storage read   array<u32>: 1 where fuse_merge merged the pixel
-//   5 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)
-//   6 position_weight  storage texture rgba32float, write: xyz world frame, w = weight
-//   7 normal_frame     storage texture rgba32uint, write: normal bits, w = last_frame
-//   8 color            storage texture rgba32float, write: RGB 0..255, a = 255
+//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
+//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the twin
+//                   reads the vertex and normal maps, which this texel holds both of
+//   2 color_map   texture_2d<f32>: width x height, RGB 0..255
+//   3 assoc       storage read   array<u32>: 1 where fuse_merge merged the pixel
+//   4 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)
+//   5 position_weight  storage texture rgba32float, write: xyz world frame, w = weight
+//   6 normal_frame     storage texture rgba32uint, write: normal bits, w = last_frame
+//   7 color            storage texture rgba32float, write: RGB 0..255, a = 255
 //   (surfel i is texel surfel_texel(i) of each; capacity slots; see src/gpu/map_textures.rs)
 // One thread per pixel (8x8 workgroups); the append order is the atomics' order, not pixel order. Never
 // writes at or past params.capacity: the counter still counts, and the host turns a count
 // above capacity into a capacity error.
 
 @group(0) @binding(0) var<uniform> params: FuseParams;
-@group(0) @binding(1) var vertex_map: texture_2d<f32>;
-@group(0) @binding(2) var normal_map: texture_2d<f32>;
-@group(0) @binding(3) var color_map: texture_2d<f32>;
-@group(0) @binding(4) var<storage, read> assoc: array<u32>;
-@group(0) @binding(5) var<storage, read_write> counter: atomic<u32>;
-@group(0) @binding(6) var position_weight: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(7) var normal_frame: texture_storage_2d<rgba32uint, write>;
-@group(0) @binding(8) var color: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(1) var normal_depth: texture_2d<f32>;
+@group(0) @binding(2) var color_map: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read> assoc: array<u32>;
+@group(0) @binding(4) var<storage, read_write> counter: atomic<u32>;
+@group(0) @binding(5) var position_weight: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(6) var normal_frame: texture_storage_2d<rgba32uint, write>;
+@group(0) @binding(7) var color: texture_storage_2d<rgba32float, write>;
 
 // One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
 @compute @workgroup_size(8, 8)
@@ -35,17 +35,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if assoc[gid.y * params.width + gid.x] != 0u {
         return;
     }
-    let q4 = textureLoad(vertex_map, gid.xy, 0);
-    let nq4 = textureLoad(normal_map, gid.xy, 0);
-    if !is_valid(q4) || !is_valid(nq4) {
+    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
+    let nd = textureLoad(normal_depth, gid.xy, 0);
+    if !is_valid(nd) {
         return;
     }
     let i = atomicAdd(&counter, 1u);
     if i >= params.capacity {
         return;
     }
-    let p = transform_point(params.t_cam_to_world, xyz(q4));
-    let n = transform_dir(params.t_cam_to_world, xyz(nq4));
+    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let p = transform_point(params.t_cam_to_world, back_project(cam, gid.xy, nd.w));
+    let n = transform_dir(params.t_cam_to_world, xyz(nd));
     let surfel = surfel_texel(i);
     textureStore(position_weight, surfel, vec4<f32>(p, 1.0));
     textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));

@@ -4,27 +4,27 @@
 //
 // Bindings (@group(0)):
 //   0 params      uniform FuseParams (tracked poses, intrinsics, surfel_count, thresholds)
-//   1 vertex_map  texture_2d<f32>: width x height, camera frame
-//   2 normal_map  texture_2d<f32>: width x height, camera frame
-//   3 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   4 position_weight  storage texture rgba32float, read_write: xyz world frame (metres),
+//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
+//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the twin
+//                   reads the vertex and normal maps, which this texel holds both of
+//   2 color_map   texture_2d<f32>: width x height, RGB 0..255
+//   3 position_weight  storage texture rgba32float, read_write: xyz world frame (metres),
 //                      w = observations
-//   5 normal_frame     storage texture rgba32uint, read_write: bits of the unit normal
+//   4 normal_frame     storage texture rgba32uint, read_write: bits of the unit normal
 //                      (world frame), w = frame that last touched the surfel
-//   6 color            storage texture rgba32float, read_write: RGB 0..255, a = 255
-//   7 assoc            storage rw array<atomic<u32>>: one flag per pixel, cleared by the host
+//   5 color            storage texture rgba32float, read_write: RGB 0..255, a = 255
+//   6 assoc            storage rw array<atomic<u32>>: one flag per pixel, cleared by the host
 //   (surfel i is texel surfel_texel(i) of each map texture; see src/gpu/map_textures.rs)
 // Grid-stride loop over surfels; each thread writes only its own surfel, so the result
 // does not depend on thread order (several surfels may flag the same pixel).
 
 @group(0) @binding(0) var<uniform> params: FuseParams;
-@group(0) @binding(1) var vertex_map: texture_2d<f32>;
-@group(0) @binding(2) var normal_map: texture_2d<f32>;
-@group(0) @binding(3) var color_map: texture_2d<f32>;
-@group(0) @binding(4) var position_weight: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(5) var normal_frame: texture_storage_2d<rgba32uint, read_write>;
-@group(0) @binding(6) var color: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u32>>;
+@group(0) @binding(1) var normal_depth: texture_2d<f32>;
+@group(0) @binding(2) var color_map: texture_2d<f32>;
+@group(0) @binding(3) var position_weight: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(4) var normal_frame: texture_storage_2d<rgba32uint, read_write>;
+@group(0) @binding(5) var color: texture_storage_2d<rgba32float, read_write>;
+@group(0) @binding(6) var<storage, read_write> assoc: array<atomic<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -55,13 +55,13 @@ fn main(
         }
         let texel = vec2<u32>(uv);
         let pix = texel.y * params.width + texel.x;
-        let q4 = textureLoad(vertex_map, texel, 0);
-        let nq4 = textureLoad(normal_map, texel, 0);
-        if !is_valid(q4) || !is_valid(nq4) {
+        // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
+        let nd = textureLoad(normal_depth, texel, 0);
+        if !is_valid(nd) {
             continue;
         }
-        let q_world = transform_point(params.t_cam_to_world, xyz(q4));
-        let nq_world = transform_dir(params.t_cam_to_world, xyz(nq4));
+        let q_world = transform_point(params.t_cam_to_world, back_project(cam, texel, nd.w));
+        let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
         let n_old = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel).xyz);
         if length(q_world - p_world) >= params.dist_threshold_m
             || dot(n_old, nq_world) <= params.cos_normal_threshold {

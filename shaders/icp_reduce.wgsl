@@ -5,9 +5,10 @@
 // Bindings (@group(0)):
 //   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, dist_threshold_m)
 //   1 pred_vertex  texture_2d<f32>: source, width x height, WORLD frame
-//   2 vertex_map   texture_2d<f32>: target vertices, camera frame
-//   3 normal_map   texture_2d<f32>: target normals, camera frame
-//   4 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
+//   2 normal_depth texture_2d<f32>: target normals (camera frame) with the target vertex's
+//                  depth in w, zero where invalid (see vertex_to_normal.wgsl); the twin
+//                  reads the vertex and normal maps, which this texel holds both of
+//   3 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
 //                                 (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
 //                                 sum of squared residuals); the host sums them in f64
 // Grid-stride loop over pixels with few workgroups (few on a CPU adapter, many on a GPU):
@@ -15,9 +16,8 @@
 
 @group(0) @binding(0) var<uniform> params: IcpParams;
 @group(0) @binding(1) var pred_vertex: texture_2d<f32>;
-@group(0) @binding(2) var vertex_map: texture_2d<f32>;
-@group(0) @binding(3) var normal_map: texture_2d<f32>;
-@group(0) @binding(4) var<storage, read_write> partials: array<f32>;
+@group(0) @binding(2) var normal_depth: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read_write> partials: array<f32>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -47,13 +47,13 @@ fn icp_row(src_world: vec4<f32>) -> IcpRow {
         return row;
     }
     let target_texel = vec2<u32>(uv);
-    let q4 = textureLoad(vertex_map, target_texel, 0);
-    let n4 = textureLoad(normal_map, target_texel, 0);
-    if !is_valid(q4) || !is_valid(n4) {
+    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two validity tests.
+    let nd = textureLoad(normal_depth, target_texel, 0);
+    if !is_valid(nd) {
         return row;
     }
-    let q = xyz(q4);
-    let n = xyz(n4);
+    let q = back_project(cam, target_texel, nd.w);
+    let n = xyz(nd);
     let d = p - q;
     if length(d) >= params.dist_threshold_m {
         return row;

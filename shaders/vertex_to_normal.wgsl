@@ -2,18 +2,25 @@
 // towards the camera. CPU twin: src/cpu/vertex_to_normal.rs (its header states the rules).
 //
 // Bindings (@group(0)):
-//   0 params      uniform NormalParams
-//   1 vertex_map  texture_2d<f32>: width x height, camera frame, w = 1 / 0
-//   2 normal_map  storage texture rgba32float, write: width x height, camera frame, unit,
-//                 w = 1 / 0
+//   0 params        uniform NormalParams
+//   1 vertex_map    texture_2d<f32>: width x height, camera frame, w = 1 / 0
+//   2 normal_depth  storage texture rgba32float, write: width x height; xyz = the unit
+//                   normal (camera frame), w = the vertex's depth z (metres, > 0) where the
+//                   normal is valid; all zero where it is not
+// The twin writes the normal map (xyz, w = 1 / 0). A valid normal implies a valid vertex,
+// and every later kernel that reads this frame needs both, so the GPU keeps the normal and
+// the depth in one texel and rebuilds the vertex with back_project (common.wgsl), the
+// function depth_to_vertex made it with: one texel fetch instead of two per association
+// (icp_reduce, fuse_merge, fuse_add).
 // One thread per pixel (8x8 workgroups). Invalid on the border, next to an invalid vertex, across a depth
 // jump larger than max_depth_jump_m, or where the cross product vanishes.
 
 @group(0) @binding(0) var<uniform> params: NormalParams;
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
-@group(0) @binding(2) var normal_map: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(2) var normal_depth: texture_storage_2d<rgba32float, write>;
 
-// The normal of pixel (u, v), or INVALID (the rules of the module header).
+// The normal of pixel (u, v) with the pixel's depth in w, or INVALID (the rules of the
+// module header).
 fn normal_at(u: u32, v: u32) -> vec4<f32> {
     if u == 0u || v == 0u || u + 1u >= params.width || v + 1u >= params.height {
         return INVALID;
@@ -40,7 +47,7 @@ fn normal_at(u: u32, v: u32) -> vec4<f32> {
     if dot(nn, xyz(c)) > 0.0 {
         nn = -nn;
     }
-    return valid_entry(nn);
+    return vec4<f32>(nn, c.z);
 }
 
 // One thread per pixel in 8x8 tiles: on lavapipe this beat a grid-stride loop over pixel
@@ -50,5 +57,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.width || gid.y >= params.height {
         return;
     }
-    textureStore(normal_map, gid.xy, normal_at(gid.x, gid.y));
+    textureStore(normal_depth, gid.xy, normal_at(gid.x, gid.y));
 }

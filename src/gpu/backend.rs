@@ -59,7 +59,7 @@ mod bindings {
     pub const VERTEX_TO_NORMAL: [Binding; 3] = [
         Binding::uniform("params: NormalParams"),
         Binding::texture_f32("vertex_map: camera frame"),
-        Binding::write_texture("normal_map: camera frame"),
+        Binding::write_texture("normal_depth: camera-frame normal, w = depth"),
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
         Binding::uniform("params: ProjectParams"),
@@ -74,27 +74,24 @@ mod bindings {
         Binding::write_texture("pred_vertex: world frame"),
         Binding::write_texture("pred_normal: world frame"),
     ];
-    pub const ICP_REDUCE: [Binding; 5] = [
+    pub const ICP_REDUCE: [Binding; 4] = [
         Binding::uniform("params: IcpParams"),
         Binding::texture_f32("pred_vertex: source, world frame"),
-        Binding::texture_f32("vertex_map: target, camera frame"),
-        Binding::texture_f32("normal_map: target, camera frame"),
+        Binding::texture_f32("normal_depth: target, camera frame, w = depth"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
-    pub const FUSE_MERGE: [Binding; 8] = [
+    pub const FUSE_MERGE: [Binding; 7] = [
         Binding::uniform("params: FuseParams"),
-        Binding::texture_f32("vertex_map: camera frame"),
-        Binding::texture_f32("normal_map: camera frame"),
+        Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
         Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
         Binding::storage_texture(TexelFormat::Rgba32U, true, "normal_frame"),
         Binding::storage_texture(TexelFormat::Rgba32F, true, "color"),
         Binding::read_write("assoc: atomic flag per pixel"),
     ];
-    pub const FUSE_ADD: [Binding; 9] = [
+    pub const FUSE_ADD: [Binding; 8] = [
         Binding::uniform("params: FuseParams"),
-        Binding::texture_f32("vertex_map: camera frame"),
-        Binding::texture_f32("normal_map: camera frame"),
+        Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
         Binding::read("assoc"),
         Binding::read_write("counter: atomic surfel count"),
@@ -123,7 +120,8 @@ struct FrameBuffers {
     raw_depth: GpuImage,
     raw_rgba: GpuImage,
     vertex: GpuImage,
-    normal: GpuImage,
+    /// The normal map with the vertex's depth in w (see vertex_to_normal.wgsl).
+    normal_depth: GpuImage,
     color: GpuImage,
     index_map: GpuArray<u64>,
     pred_vertex: GpuImage,
@@ -425,7 +423,7 @@ impl GpuBackend {
             raw_depth,
             raw_rgba,
             vertex: full("vertex map")?,
-            normal: full("normal map")?,
+            normal_depth: full("normal-depth map")?,
             color: full("color map")?,
             index_map,
             pred_vertex: full("predicted vertex map")?,
@@ -487,7 +485,7 @@ impl GpuBackend {
                     &[
                         self.u_normal.binding(),
                         f.vertex.binding(),
-                        f.normal.binding(),
+                        f.normal_depth.binding(),
                     ],
                 ),
                 project_model: k.project_model.bind_group(
@@ -514,8 +512,7 @@ impl GpuBackend {
                     &[
                         self.u_icp.binding(),
                         f.pred_vertex.binding(),
-                        f.vertex.binding(),
-                        f.normal.binding(),
+                        f.normal_depth.binding(),
                         self.partials.binding(),
                     ],
                 ),
@@ -523,8 +520,7 @@ impl GpuBackend {
                     c,
                     &[
                         self.u_fuse.binding(),
-                        f.vertex.binding(),
-                        f.normal.binding(),
+                        f.normal_depth.binding(),
                         f.color.binding(),
                         m.position_weight.binding(),
                         m.normal_frame.binding(),
@@ -536,8 +532,7 @@ impl GpuBackend {
                     c,
                     &[
                         self.u_fuse.binding(),
-                        f.vertex.binding(),
-                        f.normal.binding(),
+                        f.normal_depth.binding(),
                         f.color.binding(),
                         f.assoc.binding(),
                         self.counter.binding(),
@@ -562,6 +557,21 @@ impl GpuBackend {
             .as_ref()
             .expect("preprocess() runs before any other step")
     }
+}
+
+/// The normal map (xyz, w = 1 / 0) of a normal-depth map (xyz, w = depth / 0): a valid
+/// normal always has a positive depth.
+fn normal_map_of(normal_depth: &[[f32; 4]]) -> Vec<[f32; 4]> {
+    normal_depth
+        .iter()
+        .map(|n| {
+            if n[3] > 0.0 {
+                [n[0], n[1], n[2], 1.0]
+            } else {
+                [0.0; 4]
+            }
+        })
+        .collect()
 }
 
 /// A per-pixel `[f32; 4]` map read back row-major.
@@ -785,7 +795,7 @@ impl Backend for GpuBackend {
         ctx.scoped("download frame", || {
             Ok(FrameMaps {
                 vertex: read_map(ctx, &f.vertex)?,
-                normal: read_map(ctx, &f.normal)?,
+                normal: normal_map_of(&read_map(ctx, &f.normal_depth)?),
                 color: read_map(ctx, &f.color)?,
             })
         })
