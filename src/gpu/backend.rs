@@ -4,6 +4,9 @@
 //! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
 //! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
 //! textures, which lavapipe runs 3-5x faster than storage-buffer loads (see `images.rs`).
+//! The frame's normal map carries the vertex's depth in w (`normal_depth`), so the kernels
+//! that associate with the frame fetch one texel and rebuild the vertex (see
+//! vertex_to_normal.wgsl); `download_frame` turns it back into the twin's normal map.
 //! The surfel map is three packed textures ([`MapTextures`]); only the index map, the
 //! association flags, the counter and the ICP partials are storage buffers (atomics).
 //! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
