@@ -11,6 +11,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::cpu_backend::CpuBackend;
 use crate::dataset::Sequence;
 use crate::gpu::backend::GpuBackend;
 use crate::pipeline::{Backend, SlamParams};
@@ -56,7 +57,7 @@ fn decode_ms(frames: &[run::FrameOutcome]) -> f64 {
 }
 
 /// Runs one backend once over the frames without per-stage timing: whole-frame times,
-/// peak memory and counters only (`stages` empty).
+/// peak memory and accuracy only (`stages` empty, counters zero).
 pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
     mut make: F,
     seq: &Sequence,
@@ -67,9 +68,15 @@ pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
     let backend = make()?;
     let name = backend.name().to_string();
     let plain = run::run_with(backend, seq, first, last, params.clone(), BEFORE, |_| {})?;
+    Ok(frames_result(name, &plain))
+}
+
+/// The whole-frame figures of a plain run; per-stage times and counters left empty (the
+/// counters come from the per-stage pass).
+fn frames_result(backend: String, plain: &run::RunResult) -> BenchResult {
     let m = &plain.metrics;
-    Ok(BenchResult {
-        backend: name,
+    BenchResult {
+        backend,
         frames: m.frames,
         width: m.width,
         height: m.height,
@@ -77,7 +84,6 @@ pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
         frame_mean_s: m.time_per_frame_mean_s,
         fps: 1.0 / m.time_per_frame_mean_s.max(f64::MIN_POSITIVE),
         stages: Vec::new(),
-        // Counted by the per-stage pass of round 1 only.
         readback_bytes_per_frame: 0.0,
         submissions_per_frame: 0.0,
         peak_memory_mib: run::peak_memory_mib(),
@@ -85,7 +91,7 @@ pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
         ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
         kernels: Vec::new(),
         decode_ms_per_frame: decode_ms(&plain.frames),
-    })
+    }
 }
 
 /// Runs one backend twice over the frames (plain, then timed per stage).
@@ -97,16 +103,15 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
     params: &SlamParams,
 ) -> Result<BenchResult> {
     let plain = run::run_with(make()?, seq, first, last, params.clone(), BEFORE, |_| {})?;
-    let m = &plain.metrics;
     let backend = make()?;
-    let name = backend.name().to_string();
+    let mut result = frames_result(backend.name().to_string(), &plain);
     let mut p = params.clone();
     p.depth_scale = seq.depth_scale;
     let mut slam = crate::pipeline::Slam::new(Timed::new(backend), seq.intrinsics, p);
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     let counters = slam.backend.counters();
-    let stages = slam
+    result.stages = slam
         .backend
         .stages
         .iter()
@@ -118,23 +123,11 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
             )
         })
         .collect();
-    Ok(BenchResult {
-        backend: name,
-        frames: m.frames,
-        width: m.width,
-        height: m.height,
-        frame_median_s: m.time_per_frame_median_s,
-        frame_mean_s: m.time_per_frame_mean_s,
-        fps: 1.0 / m.time_per_frame_mean_s.max(f64::MIN_POSITIVE),
-        stages,
-        readback_bytes_per_frame: counters.readback_bytes as f64 / n,
-        submissions_per_frame: counters.submissions as f64 / n,
-        peak_memory_mib: run::peak_memory_mib(),
-        map_points: m.map_points,
-        ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
-        kernels: Vec::new(),
-        decode_ms_per_frame: decode_ms(&plain.frames),
-    })
+    result.readback_bytes_per_frame = counters.readback_bytes as f64 / n;
+    result.submissions_per_frame = counters.submissions as f64 / n;
+    // Peak memory over both passes, read after the second.
+    result.peak_memory_mib = run::peak_memory_mib();
+    Ok(result)
 }
 
 /// One more GPU pass over the frames with per-kernel timing on: (kernel, passes per frame,
@@ -158,6 +151,127 @@ pub fn gpu_kernel_times(
         .into_iter()
         .map(|(k, (passes, ms))| (k, passes as f64 / n, ms / passes.max(1) as f64))
         .collect())
+}
+
+/// Both backends in one process, frame by frame: see [`bench_interleaved`].
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct InterleavedResult {
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    /// Pipeline time per frame (decode excluded), seconds, for each backend.
+    pub cpu_frame_mean_s: f64,
+    pub gpu_frame_mean_s: f64,
+    /// CPU time over GPU time of each frame: median, and the 10th and 90th percentiles.
+    pub ratio_median: f64,
+    pub ratio_p10: f64,
+    pub ratio_p90: f64,
+    pub cpu_ate_rmse_aligned_m: Option<f64>,
+    pub gpu_ate_rmse_aligned_m: Option<f64>,
+}
+
+impl InterleavedResult {
+    /// Mean CPU frame time over mean GPU frame time.
+    pub fn ratio_of_means(&self) -> f64 {
+        self.cpu_frame_mean_s / self.gpu_frame_mean_s
+    }
+}
+
+/// Runs the CPU reference and `gpu` over the same frames in one process, alternating frame
+/// by frame (which one goes first alternates too), each frame decoded once beforehand.
+/// Both backends then meet the machine in the same state within a fraction of a second,
+/// so the per-frame ratio survives other jobs that change the machine's speed from one
+/// minute to the next, which separate runs do not (peak memory is not separable here; the
+/// per-backend runs measure it).
+pub fn bench_interleaved<G: Backend>(
+    gpu: G,
+    seq: &Sequence,
+    first: usize,
+    last: usize,
+    params: &SlamParams,
+) -> Result<InterleavedResult> {
+    let mut p = params.clone();
+    p.depth_scale = seq.depth_scale;
+    let mut cpu = crate::pipeline::Slam::new(CpuBackend::new(), seq.intrinsics, p.clone());
+    let mut gpu = crate::pipeline::Slam::new(gpu, seq.intrinsics, p);
+    let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
+    for i in first..=last {
+        let frame = seq.load(i)?;
+        let rgba = run::packed_rgba(&frame);
+        let rec = &seq.frames[i];
+        let gt = rec.gt_cam_to_world.as_ref();
+        let outcome = |report, seconds| run::FrameOutcome {
+            index: i,
+            timestamp: rec.timestamp,
+            seconds,
+            decode_seconds: 0.0,
+            report,
+        };
+        let cpu_first = (i - first) % 2 == 0;
+        for turn in 0..2 {
+            let t0 = std::time::Instant::now();
+            if (turn == 0) == cpu_first {
+                let report = cpu.process(i as u32, &frame.depth, &rgba, gt)?;
+                cpu_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
+            } else {
+                let report = gpu.process(i as u32, &frame.depth, &rgba, gt)?;
+                gpu_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
+            }
+        }
+    }
+    let mut ratios: Vec<f64> = cpu_frames
+        .iter()
+        .zip(&gpu_frames)
+        .map(|(c, g)| c.seconds / g.seconds.max(f64::MIN_POSITIVE))
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    let pick = |q: f64| ratios[((ratios.len() - 1) as f64 * q).round() as usize];
+    let mean =
+        |f: &[run::FrameOutcome]| f.iter().map(|o| o.seconds).sum::<f64>() / f.len().max(1) as f64;
+    let gt = seq.ground_truth();
+    let ate = |f: &[run::FrameOutcome]| -> Result<Option<f64>> {
+        Ok(run::accuracy(&run::trajectory(f), &gt)?.map(|a| a.ate_rmse_aligned_m))
+    };
+    if ratios.is_empty() {
+        return Err(crate::Error::Argument("no frames to benchmark".into()));
+    }
+    let camera = seq.intrinsics.downsampled(params.downsample.max(1));
+    Ok(InterleavedResult {
+        frames: cpu_frames.len(),
+        width: camera.width,
+        height: camera.height,
+        cpu_frame_mean_s: mean(&cpu_frames),
+        gpu_frame_mean_s: mean(&gpu_frames),
+        ratio_median: pick(0.5),
+        ratio_p10: pick(0.1),
+        ratio_p90: pick(0.9),
+        cpu_ate_rmse_aligned_m: ate(&cpu_frames)?,
+        gpu_ate_rmse_aligned_m: ate(&gpu_frames)?,
+    })
+}
+
+/// Prints an interleaved result.
+pub fn print_interleaved(r: &InterleavedResult) {
+    let mm = |a: Option<f64>| a.map_or("n/a".into(), |a| format!("{:.3} mm", a * 1e3));
+    println!(
+        "interleaved, frame by frame in one process ({} frames {}x{}): cpu {:.1} ms/frame, \
+         gpu {:.1} ms/frame mean; ATE cpu {}, gpu {}",
+        r.frames,
+        r.width,
+        r.height,
+        r.cpu_frame_mean_s * 1e3,
+        r.gpu_frame_mean_s * 1e3,
+        mm(r.cpu_ate_rmse_aligned_m),
+        mm(r.gpu_ate_rmse_aligned_m),
+    );
+    println!(
+        "GPU/CPU interleaved: {:.2}x faster (ratio of means); per frame median {:.2}x, \
+         10th-90th percentile {:.2}x..{:.2}x",
+        r.ratio_of_means(),
+        r.ratio_median,
+        r.ratio_p10,
+        r.ratio_p90
+    );
 }
 
 /// Mean CPU frame time over mean GPU frame time ("x faster"), when both ran.

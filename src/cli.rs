@@ -175,6 +175,11 @@ pub struct BenchArgs {
     /// reported per round and as the median over rounds.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub rounds: u32,
+    /// Also run both backends in one process, alternating frame by frame, and report the
+    /// per-frame GPU/CPU ratio: robust to other jobs changing the machine's speed between
+    /// runs (needs both backends).
+    #[arg(long)]
+    pub interleaved: bool,
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -561,8 +566,23 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
     if a.rounds > 1 {
         bench::print_ratio_over_rounds(&rounds);
     }
+    let interleaved = if a.interleaved {
+        eprintln!("benchmarking both backends frame by frame in one process ...");
+        let seq = a.data.open()?;
+        let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
+        let params = downsampled_params(a.downsample)?;
+        let gpu = crate::gpu::GpuBackend::open()?;
+        let r = bench::bench_interleaved(gpu, &seq, first, last, &params)?;
+        bench::print_interleaved(&r);
+        Some(r)
+    } else {
+        None
+    };
     if let Some(path) = &a.json {
-        run::write_json(path, &rounds)?;
+        run::write_json(
+            path,
+            &serde_json::json!({ "rounds": rounds, "interleaved": interleaved }),
+        )?;
     }
     Ok(())
 }

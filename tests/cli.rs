@@ -96,9 +96,10 @@ fn bench_rounds_write_every_round() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("round 2 (cpu)"), "{}", text(&o));
-    let rounds: serde_json::Value =
+    let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let rounds = rounds.as_array().unwrap();
+    let rounds = report["rounds"].as_array().unwrap();
+    assert!(report["interleaved"].is_null());
     assert_eq!(rounds.len(), 2);
     for (k, round) in rounds.iter().enumerate() {
         let r = &round[0];

@@ -71,3 +71,22 @@ fn gpu_shared_sequence_1_to_200_within_1mm() {
     assert!(acc.ate_rmse_aligned_m < ATE_ALIGNED_MAX_M, "{acc:?}");
     assert_eq!(r.metrics.tracking.lost, 0);
 }
+
+/// The interleaved benchmark runs both backends over the same frames, each tracking to the
+/// ground truth, and reports ordered per-frame ratios.
+#[test]
+fn interleaved_bench_tracks_both_backends() {
+    let Some(ctx) = gpu_or_skip("interleaved_bench_tracks_both_backends") else {
+        return;
+    };
+    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let backend = GpuBackend::new(ctx).unwrap();
+    let r = wgslam::bench::bench_interleaved(backend, &seq, 1, 6, &SlamParams::default()).unwrap();
+    eprintln!("{r:?}");
+    assert_eq!((r.frames, r.width, r.height), (6, 320, 240));
+    for ate in [r.cpu_ate_rmse_aligned_m, r.gpu_ate_rmse_aligned_m] {
+        assert!(ate.expect("ground truth") < ATE_BUNDLED_MAX_M, "{r:?}");
+    }
+    assert!(r.cpu_frame_mean_s > 0.0 && r.gpu_frame_mean_s > 0.0);
+    assert!(0.0 < r.ratio_p10 && r.ratio_p10 <= r.ratio_median && r.ratio_median <= r.ratio_p90);
+}
