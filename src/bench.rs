@@ -102,9 +102,8 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
     last: usize,
     params: &SlamParams,
 ) -> Result<BenchResult> {
-    let plain = run::run_with(make()?, seq, first, last, params.clone(), BEFORE, |_| {})?;
+    let mut result = bench_frames(&mut make, seq, first, last, params)?;
     let backend = make()?;
-    let mut result = frames_result(backend.name().to_string(), &plain);
     let mut p = params.clone();
     p.depth_scale = seq.depth_scale;
     let mut slam = crate::pipeline::Slam::new(Timed::new(backend), seq.intrinsics, p);
