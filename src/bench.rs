@@ -161,7 +161,8 @@ pub struct InterleavedResult {
     /// Pipeline time per frame (decode excluded), seconds, for each backend.
     pub cpu_frame_mean_s: f64,
     pub gpu_frame_mean_s: f64,
-    /// CPU time over GPU time of each frame: median, and the 10th and 90th percentiles.
+    /// CPU time over GPU time of each frame: median, and the 10th and 90th percentiles
+    /// (nearest rank).
     pub ratio_median: f64,
     pub ratio_p10: f64,
     pub ratio_p90: f64,
@@ -223,7 +224,11 @@ pub fn bench_interleaved<G: Backend>(
         .zip(&gpu_frames)
         .map(|(c, g)| c.seconds / g.seconds.max(f64::MIN_POSITIVE))
         .collect();
+    if ratios.is_empty() {
+        return Err(crate::Error::Argument("no frames to benchmark".into()));
+    }
     ratios.sort_by(f64::total_cmp);
+    // Nearest-rank percentile of the sorted ratios.
     let pick = |q: f64| ratios[((ratios.len() - 1) as f64 * q).round() as usize];
     let mean =
         |f: &[run::FrameOutcome]| f.iter().map(|o| o.seconds).sum::<f64>() / f.len().max(1) as f64;
@@ -231,9 +236,6 @@ pub fn bench_interleaved<G: Backend>(
     let ate = |f: &[run::FrameOutcome]| -> Result<Option<f64>> {
         Ok(run::accuracy(&run::trajectory(f), &gt)?.map(|a| a.ate_rmse_aligned_m))
     };
-    if ratios.is_empty() {
-        return Err(crate::Error::Argument("no frames to benchmark".into()));
-    }
     let camera = seq.intrinsics.downsampled(params.downsample.max(1));
     Ok(InterleavedResult {
         frames: cpu_frames.len(),
@@ -241,7 +243,7 @@ pub fn bench_interleaved<G: Backend>(
         height: camera.height,
         cpu_frame_mean_s: mean(&cpu_frames),
         gpu_frame_mean_s: mean(&gpu_frames),
-        ratio_median: pick(0.5),
+        ratio_median: run::median(ratios.clone()),
         ratio_p10: pick(0.1),
         ratio_p90: pick(0.9),
         cpu_ate_rmse_aligned_m: ate(&cpu_frames)?,
@@ -302,23 +304,19 @@ pub fn print_round(round: usize, results: &[BenchResult]) {
 
 /// The GPU/CPU ratio of every round and their median.
 pub fn print_ratio_over_rounds(rounds: &[Vec<BenchResult>]) {
-    let mut ratios: Vec<f64> = rounds.iter().filter_map(|r| gpu_over_cpu(r)).collect();
+    let ratios: Vec<f64> = rounds.iter().filter_map(|r| gpu_over_cpu(r)).collect();
     if ratios.is_empty() {
         return;
     }
     let listed: Vec<String> = ratios.iter().map(|x| format!("{x:.2}x")).collect();
-    ratios.sort_by(f64::total_cmp);
-    let k = ratios.len();
-    let median = if k % 2 == 1 {
-        ratios[k / 2]
-    } else {
-        (ratios[k / 2 - 1] + ratios[k / 2]) / 2.0
-    };
+    let (lo, hi) = ratios
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
     println!(
-        "GPU/CPU over {k} rounds: {} (median {median:.2}x, range {:.2}x..{:.2}x)",
+        "GPU/CPU over {} rounds: {} (median {:.2}x, range {lo:.2}x..{hi:.2}x)",
+        ratios.len(),
         listed.join(", "),
-        ratios[0],
-        ratios[k - 1]
+        run::median(ratios.clone()),
     );
 }
 

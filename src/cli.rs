@@ -175,9 +175,9 @@ pub struct BenchArgs {
     /// reported per round and as the median over rounds.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub rounds: u32,
-    /// Also run both backends in one process, alternating frame by frame, and report the
-    /// per-frame GPU/CPU ratio: robust to other jobs changing the machine's speed between
-    /// runs (needs both backends).
+    /// Also run the CPU reference and the GPU in one process, alternating frame by frame,
+    /// and report the per-frame GPU/CPU ratio: robust to other jobs changing the machine's
+    /// speed between runs (runs both backends whatever --backends lists; needs a GPU).
     #[arg(long)]
     pub interleaved: bool,
     /// Write the results as JSON here.
@@ -595,41 +595,49 @@ fn bench_in_child(
     frames_only: bool,
 ) -> Result<bench::BenchResult> {
     let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
-    {
-        let mut cmd = std::process::Command::new(&exe);
-        cmd.arg("bench-one");
-        if let Some(d) = &a.data.dataset {
-            cmd.arg(d);
-        }
-        if let Some(f) = &a.frames {
-            cmd.args(["--frames", f]);
-        }
-        cmd.args(["--downsample", &a.downsample.to_string()]);
-        let name = format!("{b:?}").to_lowercase();
-        cmd.args(["--backends", &name]);
-        if frames_only {
-            cmd.arg("--frames-only");
-        } else if a.kernels {
-            cmd.arg("--kernels");
-        }
-        for (flag, v) in [("--gt", &a.data.gt)] {
-            if let Some(v) = v {
-                cmd.arg(flag).arg(v);
-            }
-        }
-        eprintln!("benchmarking the {name} backend ...");
-        let out = cmd
-            .stderr(std::process::Stdio::inherit())
-            .output()
-            .map_err(|e| Error::io(&exe, e))?;
-        if !out.status.success() {
-            return Err(Error::Gpu(format!(
-                "the {name} benchmark failed (see above)"
-            )));
-        }
-        serde_json::from_slice(&out.stdout)
-            .map_err(|e| Error::format(&exe, format!("bench-one output: {e}")))
+    let mut cmd = std::process::Command::new(&exe);
+    cmd.arg("bench-one");
+    let d = &a.data;
+    if let Some(dir) = &d.dataset {
+        cmd.arg(dir);
     }
+    // Every dataset option, so the child opens the sequence exactly as this process does.
+    for (flag, v) in [
+        ("--gt", d.gt.as_ref().map(|p| p.display().to_string())),
+        ("--camera", d.camera.clone()),
+        ("--intrinsics", d.intrinsics.clone()),
+        ("--depth-scale", d.depth_scale.map(|x| x.to_string())),
+        ("--max-time-diff", Some(d.max_time_diff.to_string())),
+        ("--frames", a.frames.clone()),
+        ("--downsample", Some(a.downsample.to_string())),
+    ] {
+        if let Some(v) = v {
+            cmd.arg(flag).arg(v);
+        }
+    }
+    let name = format!("{b:?}").to_lowercase();
+    cmd.args(["--backends", &name]);
+    if frames_only {
+        cmd.arg("--frames-only");
+    } else if a.kernels {
+        cmd.arg("--kernels");
+    }
+    eprintln!("benchmarking the {name} backend ...");
+    let out = cmd
+        .stderr(std::process::Stdio::inherit())
+        .output()
+        .map_err(|e| Error::io(&exe, e))?;
+    if !out.status.success() {
+        return Err(Error::format(
+            &exe,
+            format!(
+                "bench-one for the {name} backend exited with {} (its error is above)",
+                out.status
+            ),
+        ));
+    }
+    serde_json::from_slice(&out.stdout)
+        .map_err(|e| Error::format(&exe, format!("bench-one output: {e}")))
 }
 
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {

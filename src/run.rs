@@ -219,7 +219,8 @@ pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accu
     }))
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The median of `v` (mean of the middle two for an even count; 0 when empty).
+pub fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return 0.0;
     }

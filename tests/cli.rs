@@ -114,6 +114,22 @@ fn bench_rounds_write_every_round() {
     }
     let o = wgslam(&["bench", "--backends", "cpu", "--rounds", "0"]);
     assert!(!o.status.success(), "--rounds 0 accepted");
+    // Dataset options reach the per-backend child that opens the sequence.
+    let o = wgslam(&[
+        "bench",
+        "--backends",
+        "cpu",
+        "--frames",
+        "1..2",
+        "--intrinsics",
+        "1,2",
+    ]);
+    assert!(
+        !o.status.success(),
+        "bad --intrinsics ignored: {}",
+        text(&o)
+    );
+    assert!(text(&o).contains("intrinsics"), "{}", text(&o));
 }
 
 #[test]
