@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::instrumented::Instrumented;
 use wgslam::pipeline::{Backend, Slam, SlamParams};
-use wgslam::timed::Timed;
 
 fn arg(i: usize, default: usize) -> wgslam::Result<usize> {
     match std::env::args().nth(i) {
@@ -31,14 +31,13 @@ fn main() -> wgslam::Result<()> {
     }
     let (last, downsample, step) = (arg(1, 200)?, arg(2, 1)?, arg(3, 10)?.max(1));
     let seq = dataset::open(root, &SequenceOptions::default())?;
-    let mut params = SlamParams {
+    let params = SlamParams {
         downsample: downsample as u32,
         ..SlamParams::default()
     };
-    params.depth_scale = seq.depth_scale;
     let mut gpu = GpuBackend::new(GpuContext::new()?)?;
     gpu.enable_kernel_timing();
-    let mut slam = Slam::new(Timed::new(gpu), seq.intrinsics, params);
+    let mut slam = Slam::for_sequence(Instrumented::timed(gpu), &seq, params);
     let mut stages_before: BTreeMap<&str, (u64, f64)> = BTreeMap::new();
     let mut kernels_before = slam.backend.inner.kernel_times();
     let mut acc_stage: BTreeMap<String, f64> = BTreeMap::new();

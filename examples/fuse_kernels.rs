@@ -13,8 +13,8 @@ use std::collections::BTreeMap;
 use wgslam::cpu_backend::CpuBackend;
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::instrumented::Instrumented;
 use wgslam::pipeline::{Backend, PoseSource, Slam, SlamParams};
-use wgslam::timed::Timed;
 
 const REPETITIONS: usize = 10;
 
@@ -40,13 +40,12 @@ fn main() -> wgslam::Result<()> {
         None => 40,
     };
     let seq = dataset::open(root, &SequenceOptions::default())?;
-    let mut params = SlamParams {
+    let params = SlamParams {
         poses: PoseSource::GroundTruth,
         downsample: 1,
         ..SlamParams::default()
     };
-    params.depth_scale = seq.depth_scale;
-    let mut cpu = Slam::new(CpuBackend::new(), seq.intrinsics, params.clone());
+    let mut cpu = Slam::for_sequence(CpuBackend::new(), &seq, params.clone());
     for i in 1..=n {
         process(&seq, &mut cpu, i)?;
     }
@@ -55,8 +54,8 @@ fn main() -> wgslam::Result<()> {
     let mut cpu_best: BTreeMap<String, f64> = BTreeMap::new();
     let mut merged = 0;
     for _ in 0..REPETITIONS {
-        let backend = Timed::new(CpuBackend::with_map(map.clone()));
-        let mut slam = Slam::new(backend, seq.intrinsics, params.clone());
+        let backend = Instrumented::timed(CpuBackend::with_map(map.clone()));
+        let mut slam = Slam::for_sequence(backend, &seq, params.clone());
         process(&seq, &mut slam, n + 1)?;
         for (stage, (_, secs)) in &slam.backend.stages {
             let e = cpu_best.entry(stage.to_string()).or_insert(f64::MAX);
@@ -75,7 +74,7 @@ fn main() -> wgslam::Result<()> {
 
     let mut gpu = GpuBackend::new(GpuContext::new()?)?;
     gpu.enable_kernel_timing();
-    let mut slam = Slam::new(Timed::new(gpu), seq.intrinsics, params);
+    let mut slam = Slam::for_sequence(Instrumented::timed(gpu), &seq, params);
     let mut gpu_best: BTreeMap<String, f64> = BTreeMap::new();
     let mut stage_best: BTreeMap<String, f64> = BTreeMap::new();
     let mut before = slam.backend.inner.kernel_times();

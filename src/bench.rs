@@ -4,7 +4,7 @@
 //! Each backend runs in its own child process (`wgslam bench-one`), so peak memory (VmHWM)
 //! is that backend's alone, and both are measured in the same `wgslam bench` invocation so
 //! the GPU/CPU ratio compares like with like. Per-stage times come from a second pass with
-//! [`crate::timed::Timed`], which waits for the device after each stage; frame times come
+//! [`crate::instrumented::Instrumented`], which waits for the device after each stage; frame times come
 //! from the first pass, which does not. Every pass decodes each frame before processing it
 //! ([`run::Decode::BeforeEachFrame`]), so decoding never competes with a backend for a
 //! core; its time is reported on its own line.
@@ -14,9 +14,9 @@ use serde::{Deserialize, Serialize};
 use crate::cpu_backend::CpuBackend;
 use crate::dataset::Sequence;
 use crate::gpu::backend::GpuBackend;
+use crate::instrumented::Instrumented;
 use crate::pipeline::{Backend, SlamParams};
 use crate::run;
-use crate::timed::Timed;
 use crate::Result;
 
 /// Benchmarks decode on the pipeline's thread, outside the timed frame (see the header).
@@ -104,9 +104,8 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
 ) -> Result<BenchResult> {
     let mut result = bench_frames(&mut make, seq, first, last, params)?;
     let backend = make()?;
-    let mut p = params.clone();
-    p.depth_scale = seq.depth_scale;
-    let mut slam = crate::pipeline::Slam::new(Timed::new(backend), seq.intrinsics, p);
+    let mut slam =
+        crate::pipeline::Slam::for_sequence(Instrumented::timed(backend), seq, params.clone());
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     let counters = slam.backend.counters();
@@ -139,9 +138,7 @@ pub fn gpu_kernel_times(
 ) -> Result<Vec<(String, f64, f64)>> {
     let mut gpu = GpuBackend::open()?;
     gpu.enable_kernel_timing();
-    let mut p = params.clone();
-    p.depth_scale = seq.depth_scale;
-    let mut slam = crate::pipeline::Slam::new(gpu, seq.intrinsics, p);
+    let mut slam = crate::pipeline::Slam::for_sequence(gpu, seq, params.clone());
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     Ok(slam
@@ -190,10 +187,8 @@ pub fn bench_interleaved<G: Backend>(
     last: usize,
     params: &SlamParams,
 ) -> Result<InterleavedResult> {
-    let mut p = params.clone();
-    p.depth_scale = seq.depth_scale;
-    let mut cpu = crate::pipeline::Slam::new(CpuBackend::new(), seq.intrinsics, p.clone());
-    let mut gpu = crate::pipeline::Slam::new(gpu, seq.intrinsics, p);
+    let mut cpu = crate::pipeline::Slam::for_sequence(CpuBackend::new(), seq, params.clone());
+    let mut gpu = crate::pipeline::Slam::for_sequence(gpu, seq, params.clone());
     let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
     for i in first..=last {
         let frame = seq.load(i)?;
@@ -243,7 +238,7 @@ pub fn bench_interleaved<G: Backend>(
         height: camera.height,
         cpu_frame_mean_s: mean(&cpu_frames),
         gpu_frame_mean_s: mean(&gpu_frames),
-        ratio_median: run::median(ratios.clone()),
+        ratio_median: crate::stats::median(&ratios),
         ratio_p10: pick(0.1),
         ratio_p90: pick(0.9),
         cpu_ate_rmse_aligned_m: ate(&cpu_frames)?,
@@ -316,7 +311,7 @@ pub fn print_ratio_over_rounds(rounds: &[Vec<BenchResult>]) {
         "GPU/CPU over {} rounds: {} (median {:.2}x, range {lo:.2}x..{hi:.2}x)",
         ratios.len(),
         listed.join(", "),
-        run::median(ratios.clone()),
+        crate::stats::median(&ratios),
     );
 }
 

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::any_backend::{AnyBackend, BackendChoice};
+use crate::any_backend::{self, BackendChoice};
 use crate::camera::Intrinsics;
 use crate::dataset::{self, SequenceOptions};
 use crate::pipeline::{PoseSource, SlamParams};
@@ -335,7 +335,7 @@ fn cmd_run(a: RunArgs) -> Result<()> {
             bar.println(format!("frame {}: no valid depth; skipped", f.index));
         }
     };
-    let backend = AnyBackend::open(a.pipeline.backend)?;
+    let backend = any_backend::open(a.pipeline.backend)?;
     let result = run::run(
         backend,
         &seq,
@@ -414,7 +414,7 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
     seq.select(a.source.min(target), a.source.max(target))?;
     let params = a.pipeline.params(PoseSource::Track)?;
     let r = two_frame::align_frames(
-        AnyBackend::open(a.pipeline.backend)?,
+        any_backend::open(a.pipeline.backend)?,
         &seq,
         a.source,
         target,
@@ -443,7 +443,7 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
         );
     }
     if let Some(out) = &a.out {
-        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        std::fs::create_dir_all(out).map_err(|e| Error::write(out, e))?;
         run::write_json(&out.join("result.json"), &r)?;
         let [before, after] = crate::render::outputs::write_icp_overlays(
             out,
@@ -499,8 +499,8 @@ fn cmd_compare(a: CompareArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, 20)?;
     let params = downsampled_params(a.downsample)?;
-    let gpu = AnyBackend::open(BackendChoice::Gpu)?;
-    let cpu = AnyBackend::open(BackendChoice::Cpu)?;
+    let gpu = any_backend::open(BackendChoice::Gpu)?;
+    let cpu = any_backend::open(BackendChoice::Cpu)?;
     let c = compare::compare(cpu, gpu, &seq, first, last, params)?;
     println!("frame  vertex(m)  normal(deg)  valid-mismatch  system-rel   pose(mm)  pose(deg)  surfels cpu/gpu");
     for f in &c.frames {
@@ -645,7 +645,7 @@ fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     let params = downsampled_params(a.downsample)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
-    let make = || AnyBackend::open(choice);
+    let make = || any_backend::open(choice);
     let mut r = if a.frames_only {
         bench::bench_frames(make, &seq, first, last, &params)?
     } else {
@@ -656,7 +656,7 @@ fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     }
     println!(
         "{}",
-        serde_json::to_string(&r).map_err(|e| Error::Argument(e.to_string()))?
+        serde_json::to_string(&r).map_err(|e| Error::encode("the bench result", e))?
     );
     Ok(())
 }

@@ -11,11 +11,10 @@ use glam::DMat4;
 use serde::Serialize;
 
 use crate::dataset::Sequence;
-use crate::layout::{
-    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
-};
+use crate::instrumented::Instrumented;
+use crate::layout::ICP_SYSTEM_LEN;
 use crate::map::SurfelMap;
-use crate::pipeline::{Backend, BackendCounters, FrameMaps, Slam, SlamParams};
+use crate::pipeline::{Backend, FrameMaps, Slam, SlamParams};
 use crate::run::packed_rgba;
 use crate::solve::NormalEquations;
 use crate::{se3, Result};
@@ -40,54 +39,6 @@ pub mod tolerance {
     pub const MAP_MATCH_RADIUS_M: f32 = 1e-3;
     /// Fraction of map points allowed to have no match within the radius.
     pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 1e-3;
-}
-
-/// Records the ICP systems of the current frame (wraps a backend).
-struct Recorder<B: Backend> {
-    inner: B,
-    systems: Vec<[f64; ICP_SYSTEM_LEN]>,
-}
-
-impl<B: Backend> Backend for Recorder<B> {
-    fn name(&self) -> &'static str {
-        self.inner.name()
-    }
-    fn preprocess(
-        &mut self,
-        p: &PreprocessParams,
-        n: &NormalParams,
-        d: &[u16],
-        c: &[u32],
-    ) -> Result<()> {
-        self.systems.clear();
-        self.inner.preprocess(p, n, d, c)
-    }
-    fn predict(&mut self, p: &ProjectParams) -> Result<()> {
-        self.inner.predict(p)
-    }
-    fn icp_system(&mut self, p: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
-        let s = self.inner.icp_system(p)?;
-        self.systems.push(s);
-        Ok(s)
-    }
-    fn fuse(&mut self, p: &FuseParams) -> Result<usize> {
-        self.inner.fuse(p)
-    }
-    fn surfel_count(&self) -> usize {
-        self.inner.surfel_count()
-    }
-    fn download_map(&mut self) -> Result<SurfelMap> {
-        self.inner.download_map()
-    }
-    fn download_frame(&mut self) -> Result<FrameMaps> {
-        self.inner.download_frame()
-    }
-    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
-        self.inner.download_prediction()
-    }
-    fn counters(&self) -> BackendCounters {
-        self.inner.counters()
-    }
 }
 
 /// Differences of two frame maps.
@@ -239,19 +190,9 @@ pub fn compare<A: Backend, B: Backend>(
     params: SlamParams,
 ) -> Result<Comparison> {
     use tolerance::*;
-    let mut params = params;
-    params.depth_scale = seq.depth_scale;
     let names = (a.name().to_string(), b.name().to_string());
-    let ra = Recorder {
-        inner: a,
-        systems: vec![],
-    };
-    let rb = Recorder {
-        inner: b,
-        systems: vec![],
-    };
-    let mut sa = Slam::new(ra, seq.intrinsics, params.clone());
-    let mut sb = Slam::new(rb, seq.intrinsics, params);
+    let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
+    let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
     let mut frames = Vec::new();
     let mut violations = Vec::new();
     for i in first..=last {
@@ -261,7 +202,10 @@ pub fn compare<A: Backend, B: Backend>(
         let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let maps = diff_frame_maps(&sa.backend.download_frame()?, &sb.backend.download_frame()?);
-        let (first_a, first_b) = (sa.backend.systems.first(), sb.backend.systems.first());
+        let (first_a, first_b) = (
+            sa.backend.frame_systems.first(),
+            sb.backend.frame_systems.first(),
+        );
         let (system_rel_diff, inliers) = match (first_a, first_b) {
             (Some(x), Some(y)) => (
                 Some(system_rel_diff(x, y)),

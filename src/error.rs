@@ -15,6 +15,16 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    /// An output file or directory cannot be created, written or renamed into place.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A report (JSON) could not be encoded; names what was being encoded.
+    #[error("cannot encode {what}: {why}")]
+    Encode { what: String, why: String },
     /// A file exists but its contents are not what the format requires.
     #[error("{path}: {what}")]
     Format { path: PathBuf, what: String },
@@ -49,7 +59,21 @@ pub enum Error {
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
-    /// An I/O error on `path`.
+    /// A write error on `path` (creating, writing, syncing or renaming an output).
+    pub fn write(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Write {
+            path: path.into(),
+            source,
+        }
+    }
+    /// An encoding failure of `what` (a report or result file).
+    pub fn encode(what: impl Into<String>, why: impl std::fmt::Display) -> Self {
+        Error::Encode {
+            what: what.into(),
+            why: why.to_string(),
+        }
+    }
+    /// A read error on `path` (opening, reading or listing an input).
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),

@@ -11,6 +11,7 @@ use nalgebra::Matrix3;
 use serde::Serialize;
 
 use crate::dataset::tum::{associate as associate_stamps, nearest_within};
+use crate::rigid;
 use crate::se3;
 use crate::{Error, Result};
 
@@ -64,38 +65,21 @@ pub fn align_rigid(est_positions: &[DVec3], gt_positions: &[DVec3]) -> Result<DM
     let n = est_positions.len() as f64;
     let mu_e = est_positions.iter().copied().sum::<DVec3>() / n;
     let mu_g = gt_positions.iter().copied().sum::<DVec3>() / n;
-    // Cross-covariance H = sum (g - mu_g)(e - mu_e)^T, so that R = U S V^T maps e to g.
+    // Cross-covariance H = sum (e - mu_e)(g - mu_g)^T: the rotation maps e onto g.
     let mut h = Matrix3::<f64>::zeros();
     for (e, g) in est_positions.iter().zip(gt_positions) {
         let de = *e - mu_e;
         let dg = *g - mu_g;
-        h += nalgebra::Vector3::new(dg.x, dg.y, dg.z) * nalgebra::RowVector3::new(de.x, de.y, de.z);
+        h += nalgebra::Vector3::new(de.x, de.y, de.z) * nalgebra::RowVector3::new(dg.x, dg.y, dg.z);
     }
     if !h.iter().all(|v| v.is_finite()) {
         return Err(Error::Numerical(
             "alignment input contains non-finite positions".into(),
         ));
     }
-    let svd = h.svd(true, true);
-    let (u, v_t) = match (svd.u, svd.v_t) {
-        (Some(u), Some(v_t)) => (u, v_t),
-        _ => {
-            return Err(Error::Numerical(
-                "SVD of the alignment covariance failed".into(),
-            ))
-        }
-    };
-    let mut s = Matrix3::<f64>::identity();
-    if (u * v_t).determinant() < 0.0 {
-        s[(2, 2)] = -1.0;
-    }
-    let r = u * s * v_t;
-    // nalgebra is column-major like glam: copy column by column.
-    let rot = DMat3::from_cols(
-        DVec3::new(r[(0, 0)], r[(1, 0)], r[(2, 0)]),
-        DVec3::new(r[(0, 1)], r[(1, 1)], r[(2, 1)]),
-        DVec3::new(r[(0, 2)], r[(1, 2)], r[(2, 2)]),
-    );
+    // Fewer than three non-collinear points: svd_rotation still returns one minimiser.
+    let (rot, _) = rigid::svd_rotation(&h)
+        .ok_or_else(|| Error::Numerical("SVD of the alignment covariance failed".into()))?;
     Ok(se3::from_rt(rot, mu_g - rot * mu_e))
 }
 
@@ -130,7 +114,7 @@ pub fn ate_with(
     } else {
         DMat4::IDENTITY
     };
-    let mut d: Vec<f64> = e
+    let d: Vec<f64> = e
         .iter()
         .zip(&g)
         .map(|(e, g)| (t.transform_point3(*e) - *g).length())
@@ -139,14 +123,8 @@ pub fn ate_with(
     let rmse_m = (d.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
     let mean_m = d.iter().sum::<f64>() / n;
     let max_m = d.iter().copied().fold(0.0, f64::max);
-    d.sort_by(f64::total_cmp);
     let k = d.len();
-    // numpy.median: the mean of the two middle values for an even count.
-    let median_m = if k % 2 == 1 {
-        d[k / 2]
-    } else {
-        0.5 * (d[k / 2 - 1] + d[k / 2])
-    };
+    let median_m = crate::stats::median(&d);
     Ok(AteStats {
         rmse_m,
         mean_m,

@@ -82,6 +82,51 @@ pub trait Backend {
     }
 }
 
+/// A boxed backend is a backend (the CLI picks CPU or GPU at run time): every step goes to
+/// the box's content. The one hand-written forwarding of the trait besides
+/// [`crate::instrumented::Instrumented`].
+impl<B: Backend + ?Sized> Backend for Box<B> {
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        normal: &NormalParams,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()> {
+        (**self).preprocess(params, normal, raw_depth, raw_rgba)
+    }
+    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
+        (**self).predict(params)
+    }
+    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        (**self).icp_system(params)
+    }
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        (**self).fuse(params)
+    }
+    fn surfel_count(&self) -> usize {
+        (**self).surfel_count()
+    }
+    fn download_map(&mut self) -> Result<SurfelMap> {
+        (**self).download_map()
+    }
+    fn download_frame(&mut self) -> Result<FrameMaps> {
+        (**self).download_frame()
+    }
+    fn download_prediction(&mut self) -> Result<Prediction> {
+        (**self).download_prediction()
+    }
+    fn counters(&self) -> BackendCounters {
+        (**self).counters()
+    }
+    fn finish(&mut self) -> Result<()> {
+        (**self).finish()
+    }
+}
+
 /// Where the poses come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum PoseSource {
@@ -96,7 +141,7 @@ pub enum PoseSource {
 pub struct SlamParams {
     /// Keep every N-th pixel in each direction (the assignment uses 2).
     pub downsample: u32,
-    /// Raw depth units per metre.
+    /// Raw depth units per metre (the sequence's own: [`Slam::for_sequence`] sets it).
     pub depth_scale: f32,
     /// Valid depth range, metres.
     pub min_depth_m: f32,
@@ -187,6 +232,18 @@ pub struct Slam<B: Backend> {
 
 impl<B: Backend> Slam<B> {
     /// A pipeline over `backend` for raw frames with `raw_intrinsics`.
+    /// A tracker for `seq`: its raw intrinsics, and its depth scale in place of
+    /// `params.depth_scale` (the sequence knows its units; this is the one place that
+    /// copies them into the parameters).
+    pub fn for_sequence(backend: B, seq: &crate::dataset::Sequence, params: SlamParams) -> Self {
+        let params = SlamParams {
+            depth_scale: seq.depth_scale,
+            ..params
+        };
+        Self::new(backend, seq.intrinsics, params)
+    }
+
+    /// A tracker for frames with `raw_intrinsics` and `params.depth_scale` as given.
     pub fn new(backend: B, raw_intrinsics: Intrinsics, params: SlamParams) -> Self {
         let intrinsics = raw_intrinsics.downsampled(params.downsample.max(1));
         Slam {

@@ -15,13 +15,11 @@ use image::RgbImage;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
+use crate::eval::DEFAULT_MAX_DT;
 use crate::{Error, Result};
 
 /// Default size of `trajectory.png`, pixels.
 pub const TRAJECTORY_PLOT_SIZE: (u32, u32) = (1400, 640);
-/// Estimated and ground-truth stamps closer than this (seconds, or frames for ICL-NUIM's
-/// frame-index stamps) are the same frame (TUM's own association uses 0.02 s).
-pub const STAMP_TOLERANCE: f64 = 0.02;
 
 const FONT_BYTES: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 const FONT_NAME: &str = "wgslam-sans";
@@ -70,24 +68,20 @@ pub fn horizontal_axes(points: &[DVec3]) -> (usize, usize) {
     }
 }
 
-/// `(stamp, estimated position, ground-truth position)` of every estimated pose with a
-/// ground-truth pose within [`STAMP_TOLERANCE`] (the nearest one).
+/// `(stamp, estimated position, ground-truth position)` of every estimated pose that the
+/// evaluation associates with a ground-truth pose ([`crate::eval::associate`] with its
+/// default window), so the plotted error is the error the ATE measures.
 pub fn associate(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Vec<(f64, DVec3, DVec3)> {
-    let mut sorted: Vec<&(f64, DMat4)> = gt.iter().collect();
-    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut out = Vec::new();
-    for (s, t) in est {
-        let i = sorted.partition_point(|g| g.0 < *s);
-        let best = [i.checked_sub(1), Some(i)]
-            .into_iter()
-            .flatten()
-            .filter_map(|j| sorted.get(j))
-            .min_by(|a, b| (a.0 - s).abs().total_cmp(&(b.0 - s).abs()));
-        if let Some(g) = best.filter(|g| (g.0 - s).abs() <= STAMP_TOLERANCE) {
-            out.push((*s, t.w_axis.truncate(), g.1.w_axis.truncate()));
-        }
-    }
-    out
+    crate::eval::associate(est, gt, DEFAULT_MAX_DT)
+        .into_iter()
+        .map(|(ie, ig)| {
+            (
+                est[ie].0,
+                est[ie].1.w_axis.truncate(),
+                gt[ig].1.w_axis.truncate(),
+            )
+        })
+        .collect()
 }
 
 const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
@@ -121,7 +115,7 @@ pub fn trajectory_plot(
         });
     let gt_pts: Vec<DVec3> = ground_truth
         .iter()
-        .filter(|(s, _)| *s >= s0 - STAMP_TOLERANCE && *s <= s1 + STAMP_TOLERANCE)
+        .filter(|(s, _)| *s >= s0 - DEFAULT_MAX_DT && *s <= s1 + DEFAULT_MAX_DT)
         .map(|(_, t)| t.w_axis.truncate())
         .collect();
     let pairs = associate(estimated, ground_truth);

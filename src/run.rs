@@ -219,20 +219,6 @@ pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accu
     }))
 }
 
-/// The median of `v` (mean of the middle two for an even count; 0 when empty).
-pub fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// Runs the whole job on `backend` and computes the metrics (no files written).
 pub fn run<B: Backend>(
     backend: B,
@@ -263,9 +249,7 @@ pub fn run_with<B: Backend>(
     decode: Decode,
     on_frame: impl FnMut(&FrameOutcome),
 ) -> Result<RunResult> {
-    let mut params = params;
-    params.depth_scale = seq.depth_scale;
-    let mut slam = Slam::new(backend, seq.intrinsics, params);
+    let mut slam = Slam::for_sequence(backend, seq, params);
     let (frames, wall) = run_frames_with(&mut slam, seq, first, last, decode, on_frame)?;
     let map = slam.backend.download_map()?;
     let mut counts = TrackingCounts::default();
@@ -293,7 +277,7 @@ pub fn run_with<B: Backend>(
         width: k.width,
         height: k.height,
         params: slam.params.clone(),
-        time_per_frame_median_s: median(times.clone()),
+        time_per_frame_median_s: crate::stats::median(&times),
         time_per_frame_mean_s: total / frames.len().max(1) as f64,
         time_total_s: total,
         wall_total_s: wall,
@@ -313,7 +297,7 @@ pub fn run_with<B: Backend>(
 /// Writes `trajectory.tum`, `map.ply`, `metrics.json` and `frames.json` into `out`
 /// (created if missing), each file completely or not at all.
 pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| crate::Error::write(out, e))?;
     io::trajectory::write_tum(&out.join("trajectory.tum"), &trajectory(&result.frames))?;
     io::ply::write_surfel_map(&out.join("map.ply"), &result.map)?;
     write_json(&out.join("metrics.json"), &result.metrics)?;
@@ -324,9 +308,14 @@ pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {
 /// Writes any serialisable value as pretty JSON, atomically.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     io::atomic::write_atomic(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, value)
-            .map_err(|e| crate::Error::format(path, format!("JSON encoding failed: {e}")))?;
-        writeln!(w).map_err(|e| crate::Error::io(path, e))
+        serde_json::to_writer_pretty(&mut *w, value).map_err(|e| {
+            if e.is_io() {
+                crate::Error::write(path, e.into())
+            } else {
+                crate::Error::encode(path.display().to_string(), e)
+            }
+        })?;
+        writeln!(w).map_err(|e| crate::Error::write(path, e))
     })
 }
 

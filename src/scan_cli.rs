@@ -127,7 +127,7 @@ fn rows(t: &DMat4) -> [[f64; 4]; 4] {
 }
 
 fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+    std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))
 }
 
 /// Runs `register`: prints the transform, iterations, inlier RMSE and outlier ratio, and
@@ -203,8 +203,8 @@ pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
             per_iteration: &result.iterations,
             seconds,
         };
-        let json = serde_json::to_vec_pretty(&report)
-            .map_err(|e| Error::Argument(format!("cannot encode result.json: {e}")))?;
+        let json =
+            serde_json::to_vec_pretty(&report).map_err(|e| Error::encode("result.json", e))?;
         write_atomic(&dir.join("result.json"), &json)?;
         write_ply_xyz(
             &dir.join("aligned.ply"),
@@ -279,8 +279,7 @@ pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
         )?;
         write_atomic(&dir.join("pairs.tsv"), tsv.as_bytes())?;
         if let Some(s) = &summary {
-            let json = serde_json::to_vec_pretty(s)
-                .map_err(|e| Error::Argument(format!("cannot encode errors.json: {e}")))?;
+            let json = serde_json::to_vec_pretty(s).map_err(|e| Error::encode("errors.json", e))?;
             write_atomic(&dir.join("errors.json"), &json)?;
         }
         println!("wrote {}/trajectory.tum and pairs.tsv", dir.display());
@@ -559,8 +558,8 @@ pub fn run_bench_scan(args: &BenchScanArgs) -> Result<BenchScanReport> {
     }
     print_bench_scan(&report, &moved);
     if let Some(path) = &args.json {
-        let json = serde_json::to_vec_pretty(&report)
-            .map_err(|e| Error::Argument(format!("cannot encode the bench report: {e}")))?;
+        let json =
+            serde_json::to_vec_pretty(&report).map_err(|e| Error::encode("the bench report", e))?;
         write_atomic(path, &json)?;
         println!("wrote {}", path.display());
     }

@@ -47,8 +47,7 @@ pub fn align_frames<B: Backend>(
 ) -> Result<TwoFrameResult> {
     let mut params = params;
     params.poses = PoseSource::Track;
-    params.depth_scale = seq.depth_scale;
-    let mut slam = Slam::new(backend, seq.intrinsics, params);
+    let mut slam = Slam::for_sequence(backend, seq, params);
     let mut source_points = Vec::new();
     for (i, gt) in [(source, Some(&DMat4::IDENTITY)), (target, None)] {
         let frame = seq.load(i)?;

@@ -35,13 +35,15 @@ fn write_and_rename<F>(path: &Path, tmp: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
-    let file = File::create(tmp).map_err(|e| Error::io(tmp, e))?;
+    let file = File::create(tmp).map_err(|e| Error::write(tmp, e))?;
     let mut w = BufWriter::new(file);
     fill(&mut w)?;
-    let file = w.into_inner().map_err(|e| Error::io(tmp, e.into_error()))?;
-    file.sync_all().map_err(|e| Error::io(tmp, e))?;
+    let file = w
+        .into_inner()
+        .map_err(|e| Error::write(tmp, e.into_error()))?;
+    file.sync_all().map_err(|e| Error::write(tmp, e))?;
     drop(file);
-    fs::rename(tmp, path).map_err(|e| Error::io(path, e))?;
+    fs::rename(tmp, path).map_err(|e| Error::write(path, e))?;
     Ok(())
 }
 
@@ -77,7 +79,8 @@ mod tests {
         let d = scratch("ok");
         let p = d.join("out.txt");
         write_atomic(&p, |w| {
-            w.write_all(b"hello").map_err(|e| Error::io("out.txt", e))
+            w.write_all(b"hello")
+                .map_err(|e| Error::write("out.txt", e))
         })
         .unwrap();
         assert_eq!(fs::read(&p).unwrap(), b"hello");
@@ -111,6 +114,6 @@ mod tests {
         let d = scratch("missing");
         let p = d.join("no/such/dir/out.txt");
         let r = write_atomic(&p, |_| Ok(()));
-        assert!(matches!(r, Err(Error::Io { .. })), "{r:?}");
+        assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
     }
 }

@@ -22,7 +22,7 @@ property uchar red\nproperty uchar green\nproperty uchar blue\nproperty float we
 pub fn write_surfel_map(path: &Path, map: &SurfelMap) -> Result<()> {
     map.assert_consistent();
     write_atomic(path, |w: &mut dyn Write| {
-        let io = |e| Error::io(path, e);
+        let io = |e| Error::write(path, e);
         write!(
             w,
             "ply\nformat binary_little_endian 1.0\ncomment wgslam surfel map (world frame, metres)\n\

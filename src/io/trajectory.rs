@@ -94,7 +94,7 @@ fn format_stamp(s: f64) -> String {
 /// 9 decimals. Errors on a non-finite pose (nothing is written then).
 pub fn write_tum(path: &Path, poses: &[(f64, DMat4)]) -> Result<()> {
     write_atomic(path, |w: &mut dyn Write| {
-        let io = |e| Error::io(path, e);
+        let io = |e| Error::write(path, e);
         writeln!(
             w,
             "# timestamp tx ty tz qx qy qz qw (camera to world, metres)"

@@ -607,5 +607,7 @@ pub fn write_png(path: &Path, image: &RgbImage) -> Result<()> {
     image
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .map_err(|e| Error::format(path, format!("PNG encoding failed: {e}")))?;
-    crate::io::atomic::write_atomic(path, |w| w.write_all(&png).map_err(|e| Error::io(path, e)))
+    crate::io::atomic::write_atomic(path, |w| {
+        w.write_all(&png).map_err(|e| Error::write(path, e))
+    })
 }

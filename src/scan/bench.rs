@@ -63,11 +63,10 @@ fn timed_runs<T>(
     Ok((seconds, last.expect("at least one run")))
 }
 
-/// `(median, min)` of a non-empty list of seconds.
+/// `(median, min)` of a non-empty list of seconds (the one median: [`crate::stats::median`]).
 fn median_min(seconds: &[f64]) -> (f64, f64) {
-    let mut sorted = seconds.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    (sorted[sorted.len() / 2], sorted[0])
+    let min = seconds.iter().copied().fold(f64::INFINITY, f64::min);
+    (crate::stats::median(seconds), min)
 }
 
 /// Registers `source` onto `target` (metres) on the CPU `repeats` times (>= 1) from

@@ -3,10 +3,7 @@
 //!
 //! This is not a surfel map: no normals, colours or weights (see `crate::map` for those).
 
-use std::path::Path;
-
 use crate::camera::Intrinsics;
-use crate::{Error, Result};
 
 /// What a reader saw while building a [`PointCloud`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
@@ -104,30 +101,6 @@ pub fn cloud_from_depth(
         }
     }
     points
-}
-
-/// Reads a 16-bit single-channel depth PNG: `(width, height, row-major raw values)`.
-pub fn load_depth_png(path: &Path) -> Result<(u32, u32, Vec<u16>)> {
-    let img = image::ImageReader::open(path)
-        .map_err(|e| Error::io(path, e))?
-        .decode()
-        .map_err(|e| Error::Image {
-            path: path.to_path_buf(),
-            what: format!("cannot decode: {e}"),
-        })?;
-    match img {
-        image::DynamicImage::ImageLuma16(buf) => {
-            let (w, h) = buf.dimensions();
-            Ok((w, h, buf.into_raw()))
-        }
-        other => Err(Error::Image {
-            path: path.to_path_buf(),
-            what: format!(
-                "depth must be 16-bit single channel, found {:?}",
-                other.color()
-            ),
-        }),
-    }
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use crate::rigid::{nearest_rotation, rotation_from_cross_covariance};
 use crate::se3;
 use crate::{Error, Result};
 
@@ -382,39 +383,6 @@ impl CrossCovariance {
 /// progress: the norm of a 3-vector of independent errors exceeds 3 sigma rarely.
 const NOISE_FLOOR_SIGMAS: f64 = 3.0;
 
-/// Second over first singular value below which the centred source is a line or a point
-/// and the rotation about that line is undetermined. f64 rounding sits near 1e-16; real
-/// near-collinear sets (a single scan line) sit well above 1e-9.
-const DEGENERATE_SINGULAR_RATIO: f64 = 1e-9;
-
-/// Rotation `R` maximising `trace(R H)` for a cross-covariance `H = sum p q^T`:
-/// with `H = U S V^T`, `R = V diag(1, 1, d) U^T`, `d = sign(det(V U^T))` (the reflection
-/// fix: when the plain solution is a reflection, the axis of the smallest singular value is
-/// flipped). `None` when the rank of `H` is below 2.
-pub fn rotation_from_cross_covariance(h: &Matrix3<f64>) -> Option<DMat3> {
-    // `SVD::new` sorts singular values in descending order, so the last one is smallest.
-    let svd = nalgebra::SVD::new(*h, true, true);
-    let (u, v_t) = (svd.u?, svd.v_t?);
-    let s = svd.singular_values;
-    if s[0].is_nan() || s[0] <= 0.0 || s[1] <= DEGENERATE_SINGULAR_RATIO * s[0] {
-        return None;
-    }
-    let v = v_t.transpose();
-    let d = (v * u.transpose()).determinant().signum();
-    let r = v * Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d)) * u.transpose();
-    Some(DMat3::from_cols_array(&[
-        r[(0, 0)],
-        r[(1, 0)],
-        r[(2, 0)],
-        r[(0, 1)],
-        r[(1, 1)],
-        r[(2, 1)],
-        r[(0, 2)],
-        r[(1, 2)],
-        r[(2, 2)],
-    ]))
-}
-
 /// Best rigid transform mapping `src[i]` onto `dst[i]` (least squares, Arun / Umeyama with
 /// the reflection fix); `None` for fewer than 3 pairs or collinear `src`. Always a proper
 /// rotation (det = +1), even for planar or mirrored inputs.
@@ -425,14 +393,6 @@ pub fn best_rigid_transform(src: &[[f64; 3]], dst: &[[f64; 3]]) -> Option<DMat4>
         acc.add(DVec3::from_array(*p), DVec3::from_array(*q));
     }
     acc.solve()
-}
-
-/// The rotation closest to `m` in the Frobenius norm (for cleaning rounded matrices).
-pub fn nearest_rotation(m: DMat3) -> DMat3 {
-    let c = m.to_cols_array();
-    // H^T = M means R = V U^T of H = U S V^T equals the polar factor of M.
-    let h = Matrix3::new(c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8]);
-    rotation_from_cross_covariance(&h).unwrap_or(m)
 }
 
 /// Registers `source` onto `target` with a KD-tree: see [`register_with`].

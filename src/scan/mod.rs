@@ -13,7 +13,9 @@ pub mod odometry;
 pub mod read;
 pub mod write;
 
-pub use cloud::{cloud_from_depth, crop_z, load_depth_png, CloudStats, PointCloud};
+/// The one depth-PNG decoder (16-bit single channel), shared with the RGB-D loader.
+pub use crate::dataset::frame::load_depth as load_depth_png;
+pub use cloud::{cloud_from_depth, crop_z, CloudStats, PointCloud};
 pub use icp::{
     best_rigid_transform, register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats,
     KdTreeTarget, NearestNeighbours, Samples,

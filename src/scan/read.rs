@@ -74,13 +74,6 @@ enum Scalar {
 }
 
 impl Scalar {
-    fn size(self) -> usize {
-        match self {
-            Scalar::F32 => 4,
-            Scalar::F64 => 8,
-            Scalar::Other(n) => n,
-        }
-    }
     fn read_le(self, b: &[u8]) -> f32 {
         match self {
             Scalar::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
@@ -355,171 +348,13 @@ fn read_binary_records(
     Ok(cloud)
 }
 
-/// Reads the vertex positions of a PLY file (ascii or binary little-endian).
-///
-/// Vertex properties `x y z` must be `float`/`float32` or `double`/`float64`; other vertex
-/// properties are skipped. Elements before `vertex` must have no list properties in binary
-/// files. Faces and everything after the vertices are ignored.
+/// Reads the vertex positions of a PLY file (ASCII or binary little-endian) with the
+/// one PLY reader, [`crate::io::read_ply`]: `x y z` of any scalar type; other vertex
+/// properties, elements before the vertices (list properties included) and everything
+/// after them are skipped. Non-finite records are dropped and counted.
 pub fn read_ply_xyz(path: &Path) -> Result<PointCloud> {
-    let bytes = read_bytes(path)?;
-    let mut pos = 0usize;
-    let mut line_no = 0usize;
-    let mut format: Option<String> = None;
-    let mut elements: Vec<PlyElement> = Vec::new();
-    loop {
-        let Some(raw) = next_line(&bytes, &mut pos) else {
-            return Err(Error::format(path, "PLY header has no end_header line"));
-        };
-        line_no += 1;
-        let text = std::str::from_utf8(raw)
-            .map_err(|_| Error::parse(path, line_no, "PLY header line is not text"))?
-            .trim();
-        if line_no == 1 {
-            if text != "ply" {
-                return Err(Error::parse(
-                    path,
-                    1,
-                    "not a PLY file (first line is not `ply`)",
-                ));
-            }
-            continue;
-        }
-        let tok: Vec<&str> = text.split_whitespace().collect();
-        match tok.first().copied() {
-            None | Some("comment") | Some("obj_info") => {}
-            Some("format") => format = tok.get(1).map(|s| s.to_string()),
-            Some("element") => {
-                if tok.len() != 3 {
-                    return Err(Error::parse(path, line_no, "expected `element NAME COUNT`"));
-                }
-                let n = parse_usize(path, line_no, tok[2], "element count")?;
-                elements.push((tok[1].to_string(), n, Vec::new()));
-            }
-            Some("property") => {
-                let Some(el) = elements.last_mut() else {
-                    return Err(Error::parse(path, line_no, "property before any element"));
-                };
-                if tok.get(1) == Some(&"list") {
-                    let name = tok.get(4).copied().unwrap_or("").to_string();
-                    el.2.push((name, None));
-                } else {
-                    if tok.len() != 3 {
-                        return Err(Error::parse(path, line_no, "expected `property TYPE NAME`"));
-                    }
-                    let scalar = ply_scalar(tok[1]).ok_or_else(|| {
-                        Error::parse(path, line_no, format!("unknown PLY type `{}`", tok[1]))
-                    })?;
-                    el.2.push((tok[2].to_string(), Some(scalar)));
-                }
-            }
-            Some("end_header") => break,
-            Some(other) => {
-                return Err(Error::parse(
-                    path,
-                    line_no,
-                    format!("unknown PLY header keyword `{other}`"),
-                ))
-            }
-        }
-    }
-    let ascii = match format.as_deref() {
-        Some("ascii") => true,
-        Some("binary_little_endian") => false,
-        Some("binary_big_endian") => {
-            return Err(Error::format(path, "PLY binary_big_endian is unsupported"))
-        }
-        other => {
-            return Err(Error::format(
-                path,
-                format!(
-                    "PLY format `{}` is not ascii or binary_little_endian",
-                    other.unwrap_or("(none)")
-                ),
-            ))
-        }
-    };
-    let Some(vi) = elements.iter().position(|e| e.0 == "vertex") else {
-        return Err(Error::format(path, "PLY has no `element vertex`"));
-    };
-    let (_, n_vertex, props) = &elements[vi];
-    let mut layout = XyzLayout {
-        scalar: [Scalar::F32; 3],
-        byte_offset: [0; 3],
-        token_index: [0; 3],
-        record_bytes: 0,
-        record_tokens: 0,
-    };
-    let mut found = [false; 3];
-    for (name, scalar) in props {
-        let Some(scalar) = scalar else {
-            return Err(Error::format(
-                path,
-                format!("PLY vertex property `{name}` is a list: unsupported"),
-            ));
-        };
-        if let Some(axis) = ["x", "y", "z"].iter().position(|a| a == name) {
-            if !matches!(scalar, Scalar::F32 | Scalar::F64) {
-                return Err(Error::format(
-                    path,
-                    format!("PLY vertex property `{name}` must be float or double"),
-                ));
-            }
-            layout.scalar[axis] = *scalar;
-            layout.byte_offset[axis] = layout.record_bytes;
-            layout.token_index[axis] = layout.record_tokens;
-            found[axis] = true;
-        }
-        layout.record_bytes += scalar.size();
-        layout.record_tokens += 1;
-    }
-    if found.iter().any(|f| !f) {
-        return Err(Error::format(
-            path,
-            "PLY vertex element lacks one of x, y, z",
-        ));
-    }
-    if ascii {
-        // Skip the lines of elements before the vertices (one line per item).
-        for (_, n, _) in &elements[..vi] {
-            for _ in 0..*n {
-                if next_line(&bytes, &mut pos).is_none() {
-                    return Err(Error::format(path, "PLY ends before its vertices"));
-                }
-                line_no += 1;
-            }
-        }
-        return read_ascii_records(path, &bytes, pos, line_no, *n_vertex, &layout);
-    }
-    for (name, n, props) in &elements[..vi] {
-        let mut size = 0;
-        for (_, s) in props {
-            match s {
-                Some(s) => size += s.size(),
-                None => {
-                    return Err(Error::format(
-                        path,
-                        format!("binary PLY element `{name}` before the vertices has a list property: unsupported"),
-                    ))
-                }
-            }
-        }
-        pos += size * n;
-    }
-    read_binary_records(path, &bytes, pos, *n_vertex, &layout)
-}
-
-/// A PLY element: name, item count, properties as (name, scalar type or `None` for a list).
-type PlyElement = (String, usize, Vec<(String, Option<Scalar>)>);
-
-fn ply_scalar(t: &str) -> Option<Scalar> {
-    Some(match t {
-        "float" | "float32" => Scalar::F32,
-        "double" | "float64" => Scalar::F64,
-        "char" | "uchar" | "int8" | "uint8" => Scalar::Other(1),
-        "short" | "ushort" | "int16" | "uint16" => Scalar::Other(2),
-        "int" | "uint" | "int32" | "uint32" => Scalar::Other(4),
-        _ => return None,
-    })
+    let ply = crate::io::read_ply(path)?;
+    Ok(PointCloud::from_records(ply.positions))
 }
 
 /// Reads plain text, one point per line: `x y z [ignored columns...]`, separated by
@@ -638,6 +473,6 @@ pub fn read_matrix4(path: &Path) -> Result<DMat4> {
             ),
         ));
     }
-    let r = super::icp::nearest_rotation(r);
+    let r = crate::rigid::nearest_rotation(r);
     Ok(crate::se3::from_rt(r, m.w_axis.truncate()))
 }

@@ -9,7 +9,9 @@ use crate::{Error, Result};
 
 /// Writes `bytes` to `path` atomically: a temporary sibling file, flushed, then renamed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    crate::io::atomic::write_atomic(path, |w| w.write_all(bytes).map_err(|e| Error::io(path, e)))
+    crate::io::atomic::write_atomic(path, |w| {
+        w.write_all(bytes).map_err(|e| Error::write(path, e))
+    })
 }
 
 /// Encodes points (metres) as a binary little-endian PLY with `float x y z` vertices.

@@ -1,0 +1,108 @@
+//! A [`Backend`] decorator that watches the pipeline's steps: wall-clock time per step
+//! (for `wgslam bench`) and the ICP systems of the current frame (for `wgslam compare`).
+//!
+//! With timing on, it calls [`Backend::finish`] after each step, so asynchronous GPU work
+//! is charged to the step that queued it. This costs the overlap between steps, so
+//! benchmarks report per-stage times from one run and whole-frame times from a run without
+//! timing. With timing off, it only records and adds no synchronisation. This is the one
+//! place that forwards the [`Backend`] trait step by step (besides `Box<dyn Backend>`).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use crate::layout::{
+    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+};
+use crate::map::SurfelMap;
+use crate::pipeline::{Backend, BackendCounters, FrameMaps, Prediction};
+use crate::Result;
+
+/// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;
+/// `frame_systems` holds the 29-float ICP systems of the frame in flight, in order (cleared
+/// by `preprocess`, so after a frame it holds that frame's iterations).
+pub struct Instrumented<B: Backend> {
+    pub inner: B,
+    pub stages: BTreeMap<&'static str, (u64, f64)>,
+    pub frame_systems: Vec<[f64; ICP_SYSTEM_LEN]>,
+    timing: bool,
+}
+
+impl<B: Backend> Instrumented<B> {
+    /// Times every step (and records the ICP systems).
+    pub fn timed(inner: B) -> Self {
+        Instrumented {
+            inner,
+            stages: BTreeMap::new(),
+            frame_systems: Vec::new(),
+            timing: true,
+        }
+    }
+
+    /// Records the ICP systems only: no timing, no extra synchronisation.
+    pub fn recording(inner: B) -> Self {
+        Instrumented {
+            timing: false,
+            ..Self::timed(inner)
+        }
+    }
+
+    fn step<T>(&mut self, name: &'static str, f: impl FnOnce(&mut B) -> Result<T>) -> Result<T> {
+        if !self.timing {
+            return f(&mut self.inner);
+        }
+        let t0 = Instant::now();
+        let out = f(&mut self.inner)?;
+        self.inner.finish()?;
+        let e = self.stages.entry(name).or_insert((0, 0.0));
+        e.0 += 1;
+        e.1 += t0.elapsed().as_secs_f64();
+        Ok(out)
+    }
+}
+
+impl<B: Backend> Backend for Instrumented<B> {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        normal: &NormalParams,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()> {
+        self.frame_systems.clear();
+        self.step("preprocess", |b| {
+            b.preprocess(params, normal, raw_depth, raw_rgba)
+        })
+    }
+    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
+        self.step("predict", |b| b.predict(params))
+    }
+    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let system = self.step("icp_iteration", |b| b.icp_system(params))?;
+        self.frame_systems.push(system);
+        Ok(system)
+    }
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        self.step("fuse", |b| b.fuse(params))
+    }
+    fn surfel_count(&self) -> usize {
+        self.inner.surfel_count()
+    }
+    fn download_map(&mut self) -> Result<SurfelMap> {
+        self.inner.download_map()
+    }
+    fn download_frame(&mut self) -> Result<FrameMaps> {
+        self.inner.download_frame()
+    }
+    fn download_prediction(&mut self) -> Result<Prediction> {
+        self.inner.download_prediction()
+    }
+    fn counters(&self) -> BackendCounters {
+        self.inner.counters()
+    }
+    fn finish(&mut self) -> Result<()> {
+        self.inner.finish()
+    }
+}
