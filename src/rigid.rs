@@ -6,7 +6,7 @@
 //! `H = sum (p_i - cp)(q_i - cq)^T`; the rotation maximising `trace(R H)` (equivalently
 //! minimising `sum |R (p_i - cp) - (q_i - cq)|^2`) maps the p's onto the q's, and the
 //! translation is `cq - R cp`. This module does not accumulate `H`; callers do (centred
-//! sums in `eval`, running sums in `scan::icp::CrossCovariance`).
+//! sums in `eval`, running sums in `scan::align::CrossCovariance`).
 
 use glam::DMat3;
 use nalgebra::{Matrix3, Vector3};

@@ -6,7 +6,7 @@
 use bytemuck::Zeroable;
 use glam::{DMat4, DVec3};
 
-use crate::scan::icp::CrossCovariance;
+use crate::scan::align::CrossCovariance;
 use crate::scan::layout::{
     ScanCovParams, ScanCovPartial, ScanNnResult, SCAN_NN_NONE, SCAN_WORKGROUP_SIZE,
 };

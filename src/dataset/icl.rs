@@ -22,16 +22,12 @@ pub struct Association {
 pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut out = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
+    for (lineno, line) in crate::io::text::data_lines(&text) {
         let f: Vec<&str> = line.split_whitespace().collect();
         if f.len() != 4 {
             return Err(Error::parse(
                 path,
-                i + 1,
+                lineno,
                 format!(
                     "expected 4 fields `<i> depth/<i>.png <i> rgb/<i>.png`, found {}: {line:?}",
                     f.len()
@@ -45,7 +41,7 @@ pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
             .ok_or_else(|| {
                 Error::parse(
                     path,
-                    i + 1,
+                    lineno,
                     format!("index {:?} is not a number: {line:?}", f[0]),
                 )
             })?;

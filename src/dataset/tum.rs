@@ -19,16 +19,12 @@ pub struct ListEntry {
 pub fn read_list(path: &Path) -> Result<Vec<ListEntry>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut out = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
+    for (lineno, line) in crate::io::text::data_lines(&text) {
         let mut it = line.split_whitespace();
         let (Some(stamp), Some(file), None) = (it.next(), it.next(), it.next()) else {
             return Err(Error::parse(
                 path,
-                i + 1,
+                lineno,
                 format!("expected `timestamp path`: {line:?}"),
             ));
         };
@@ -39,7 +35,7 @@ pub fn read_list(path: &Path) -> Result<Vec<ListEntry>> {
             .ok_or_else(|| {
                 Error::parse(
                     path,
-                    i + 1,
+                    lineno,
                     format!("timestamp {stamp:?} is not a number: {line:?}"),
                 )
             })?;

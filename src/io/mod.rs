@@ -5,6 +5,7 @@
 
 pub mod atomic;
 pub mod ply;
+pub mod text;
 pub mod trajectory;
 
 pub use atomic::write_atomic;

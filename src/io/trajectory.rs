@@ -32,12 +32,7 @@ pub fn read_tum(path: &Path) -> Result<Trajectory> {
 /// Parses the text of a TUM trajectory file (`path` is only used in error messages).
 pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
     let mut out = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let lineno = i + 1;
+    for (lineno, line) in crate::io::text::data_lines(text) {
         let fields: Vec<&str> = line.split_whitespace().collect();
         if fields.len() != 8 {
             return Err(Error::parse(

@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use glam::DMat4;
 
-use super::icp::{register, IcpParams, IcpResult, NearestNeighbours};
+use super::icp::{register, IcpParams, IcpResult};
+use super::nn::NearestNeighbours;
 use crate::{Error, Result};
 
 /// Timings of [`bench_register`] / [`bench_register_with`], seconds.

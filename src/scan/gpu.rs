@@ -13,10 +13,11 @@ use std::sync::Mutex;
 
 use glam::DVec3;
 
-use super::icp::{CrossCovariance, NearestNeighbours};
+use super::align::CrossCovariance;
 use super::layout::{
     ScanCovParams, ScanCovPartial, ScanNnParams, ScanNnResult, SCAN_BRUTE_CHUNK, SCAN_NN_NONE,
 };
+use super::nn::NearestNeighbours;
 use crate::cpu::cross_covariance::decode;
 use crate::cpu::nn_grid::HashGrid;
 use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, Uniform};

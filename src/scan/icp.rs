@@ -6,12 +6,11 @@
 //! [`NearestNeighbours`] implementation: [`KdTreeTarget`] (kiddo) on the CPU; a GPU one
 //! can plug in the same way. This is not point-to-plane ICP (see the dense-SLAM tracker).
 
-use glam::{DMat3, DMat4, DVec3};
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use nalgebra::Matrix3;
-use rayon::prelude::*;
+use glam::{DMat4, DVec3};
 
-use crate::rigid::{nearest_rotation, rotation_from_cross_covariance};
+use super::align::CrossCovariance;
+use super::nn::{KdTreeTarget, NearestNeighbours};
+use crate::rigid::nearest_rotation;
 use crate::se3;
 use crate::{Error, Result};
 
@@ -150,70 +149,6 @@ impl IcpResult {
     }
 }
 
-/// Nearest-neighbour search in a fixed target cloud.
-pub trait NearestNeighbours: Sync {
-    /// The target cloud (metres, target frame); indices returned by `nearest` point here.
-    fn points(&self) -> &[[f32; 3]];
-    /// For each query (target frame, metres): `(index of the nearest target point,
-    /// squared distance in m^2)`, written into `out` (same length as `queries`).
-    fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> Result<()>;
-
-    /// Optionally the whole correspondence step at once: the [`CrossCovariance`] of the
-    /// inlier pairs (nearest neighbour within `radius_sq`, m^2) of `queries` (target frame,
-    /// metres). `None` (the default) makes ICP call [`NearestNeighbours::nearest`] and
-    /// reduce on the CPU in f64; the GPU target reduces on the device instead.
-    fn reduce_pairs(
-        &self,
-        _queries: &[[f32; 3]],
-        _radius_sq: f64,
-    ) -> Result<Option<CrossCovariance>> {
-        Ok(None)
-    }
-}
-
-/// CPU nearest neighbours through a kiddo (5.x) immutable KD-tree. The immutable tree is
-/// used because the mutable one panics when more than a bucket of points share one
-/// coordinate (which quantised depth images and flat LiDAR scenes produce). kiddo 5 stays:
-/// its `ImmutableKdTree::new_from_slice` + `nearest_one::<SquaredEuclidean>` is all ICP
-/// needs, and 6.x would only change the API.
-pub struct KdTreeTarget<'a> {
-    tree: ImmutableKdTree<f32, 3>,
-    points: &'a [[f32; 3]],
-}
-
-impl<'a> KdTreeTarget<'a> {
-    /// Builds the tree over `target` (metres). Errors on an empty target.
-    pub fn new(target: &'a [[f32; 3]]) -> Result<KdTreeTarget<'a>> {
-        if target.is_empty() {
-            return Err(Error::Argument("target cloud is empty".into()));
-        }
-        Ok(KdTreeTarget {
-            tree: ImmutableKdTree::new_from_slice(target),
-            points: target,
-        })
-    }
-}
-
-/// Queries per rayon task: below this the threading overhead exceeds the work.
-const QUERIES_PER_TASK: usize = 256;
-
-impl NearestNeighbours for KdTreeTarget<'_> {
-    fn points(&self) -> &[[f32; 3]] {
-        self.points
-    }
-    fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> Result<()> {
-        queries
-            .par_iter()
-            .zip(out.par_iter_mut())
-            .with_min_len(QUERIES_PER_TASK)
-            .for_each(|(q, o)| {
-                let nn = self.tree.nearest_one::<SquaredEuclidean>(q);
-                *o = (nn.item as u32, nn.distance);
-            });
-        Ok(())
-    }
-}
-
 /// SplitMix64: a small, fast, seedable generator (statistical quality is ample for sampling).
 #[derive(Debug, Clone)]
 pub struct SplitMix64(u64);
@@ -252,148 +187,9 @@ fn draw_sample<'a>(order: &'a mut [u32], k: usize, rng: &mut SplitMix64) -> &'a 
     &order[..k]
 }
 
-/// Sums over inlier pairs `(p, q)` (p: transformed source, q: target) that determine the
-/// best rigid transform: the 3x3 cross-covariance and centroids, in f64.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct CrossCovariance {
-    /// Number of pairs.
-    pub count: usize,
-    /// Sum of p (metres).
-    pub sum_p: DVec3,
-    /// Sum of q (metres).
-    pub sum_q: DVec3,
-    /// Sum of the outer products `p q^T` (m^2), `sum_pq[i][j] = sum p_i q_j`.
-    pub sum_pq: [[f64; 3]; 3],
-    /// Sum of squared pair distances `|p - q|^2` (m^2).
-    pub sum_sq_dist: f64,
-    /// Sum of `|p|^2` (m^2), for [`CrossCovariance::noise_floor`].
-    pub sum_p_sq: f64,
-    /// Sum of `|q|^2` (m^2), for [`CrossCovariance::noise_floor`].
-    pub sum_q_sq: f64,
-}
-
-impl CrossCovariance {
-    /// Adds one pair.
-    pub fn add(&mut self, p: DVec3, q: DVec3) {
-        self.count += 1;
-        self.sum_p += p;
-        self.sum_q += q;
-        let (pa, qa) = (p.to_array(), q.to_array());
-        for (i, row) in self.sum_pq.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v += pa[i] * qa[j];
-            }
-        }
-        self.sum_sq_dist += (p - q).length_squared();
-        self.sum_p_sq += p.length_squared();
-        self.sum_q_sq += q.length_squared();
-    }
-
-    /// Sum of two partial reductions.
-    pub fn merge(mut self, o: &CrossCovariance) -> CrossCovariance {
-        self.count += o.count;
-        self.sum_p += o.sum_p;
-        self.sum_q += o.sum_q;
-        for i in 0..3 {
-            for j in 0..3 {
-                self.sum_pq[i][j] += o.sum_pq[i][j];
-            }
-        }
-        self.sum_sq_dist += o.sum_sq_dist;
-        self.sum_p_sq += o.sum_p_sq;
-        self.sum_q_sq += o.sum_q_sq;
-        self
-    }
-
-    /// The rigid transform `T` minimising `sum |T p - q|^2` (Arun 1987 / Umeyama 1991
-    /// without scale), or `None` when fewer than 3 pairs or the p's lie on a line / point.
-    pub fn solve(&self) -> Option<DMat4> {
-        if self.count < 3 {
-            return None;
-        }
-        let n = self.count as f64;
-        let cp = self.sum_p / n;
-        let cq = self.sum_q / n;
-        let (cpa, cqa) = (cp.to_array(), cq.to_array());
-        // Centred cross-covariance H = sum (p - cp)(q - cq)^T = sum p q^T - n cp cq^T.
-        let h = Matrix3::from_fn(|i, j| self.sum_pq[i][j] - n * cpa[i] * cqa[j]);
-        let r = rotation_from_cross_covariance(&h)?;
-        Some(se3::from_rt(r, cq - r * cp))
-    }
-
-    /// Standard errors of an update solved from these pairs, as `(rotation radians,
-    /// translation metres)`: `sigma / sqrt(n)` over the lever arm (RMS distance of the p's
-    /// from their centroid) and `sigma / sqrt(n)`, where `sigma` is the RMS residual the
-    /// best rigid fit `dT` leaves (`sum |dT p - q|^2 / n`: noise and pairing error, not
-    /// the misalignment the update removes). Zero for fewer than 3 pairs.
-    pub fn noise_floor(&self, dt: &DMat4) -> (f64, f64) {
-        if self.count < 3 {
-            return (0.0, 0.0);
-        }
-        let n = self.count as f64;
-        let cp = self.sum_p / n;
-        let cq = self.sum_q / n;
-        let var_p = (self.sum_p_sq / n - cp.length_squared()).max(0.0);
-        let var_q = (self.sum_q_sq / n - cq.length_squared()).max(0.0);
-        // tr(R H) / n with H the centred cross-covariance: sum_ij R_ji H_ij.
-        let r = DMat3::from_mat4(*dt);
-        let (cpa, cqa) = (cp.to_array(), cq.to_array());
-        let mut tr_rh = 0.0;
-        for (i, row) in self.sum_pq.iter().enumerate() {
-            for (j, s) in row.iter().enumerate() {
-                let h = s / n - cpa[i] * cqa[j];
-                tr_rh += r.col(i)[j] * h;
-            }
-        }
-        let sigma = (var_p + var_q - 2.0 * tr_rh).max(0.0).sqrt();
-        let se = sigma / n.sqrt();
-        let spread = var_p.sqrt();
-        (if spread > 0.0 { se / spread } else { 0.0 }, se)
-    }
-
-    /// These sums for points `p + a`, `q + a`, given sums over the shifted `p`, `q`
-    /// (e.g. GPU partials accumulated relative to an anchor `a`, metres).
-    pub fn unshifted(&self, a: DVec3) -> CrossCovariance {
-        let n = self.count as f64;
-        let (sp, sq, aa) = (self.sum_p.to_array(), self.sum_q.to_array(), a.to_array());
-        let mut sum_pq = self.sum_pq;
-        for (i, row) in sum_pq.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v += sp[i] * aa[j] + aa[i] * sq[j] + n * aa[i] * aa[j];
-            }
-        }
-        CrossCovariance {
-            count: self.count,
-            sum_p: self.sum_p + n * a,
-            sum_q: self.sum_q + n * a,
-            sum_pq,
-            sum_sq_dist: self.sum_sq_dist,
-            sum_p_sq: self.sum_p_sq + 2.0 * a.dot(self.sum_p) + n * a.length_squared(),
-            sum_q_sq: self.sum_q_sq + 2.0 * a.dot(self.sum_q) + n * a.length_squared(),
-        }
-    }
-
-    /// Root mean square pair distance (metres); NaN with no pairs.
-    pub fn rmse(&self) -> f64 {
-        (self.sum_sq_dist / self.count as f64).sqrt()
-    }
-}
-
 /// Standard errors an update may reach from sampling noise alone before it counts as
 /// progress: the norm of a 3-vector of independent errors exceeds 3 sigma rarely.
 const NOISE_FLOOR_SIGMAS: f64 = 3.0;
-
-/// Best rigid transform mapping `src[i]` onto `dst[i]` (least squares, Arun / Umeyama with
-/// the reflection fix); `None` for fewer than 3 pairs or collinear `src`. Always a proper
-/// rotation (det = +1), even for planar or mirrored inputs.
-pub fn best_rigid_transform(src: &[[f64; 3]], dst: &[[f64; 3]]) -> Option<DMat4> {
-    assert_eq!(src.len(), dst.len(), "best_rigid_transform: unpaired input");
-    let mut acc = CrossCovariance::default();
-    for (p, q) in src.iter().zip(dst) {
-        acc.add(DVec3::from_array(*p), DVec3::from_array(*q));
-    }
-    acc.solve()
-}
 
 /// Registers `source` onto `target` with a KD-tree: see [`register_with`].
 pub fn register(

@@ -4,20 +4,21 @@
 //! maps SOURCE coordinates into TARGET coordinates (metres). Trajectories are
 //! `t_scan_to_world`. This is not the dense RGB-D tracker (point-to-plane, projective).
 
+pub mod align;
 pub mod bench;
 pub mod cloud;
 pub mod gpu;
 pub mod icp;
 pub mod layout;
+pub mod nn;
 pub mod odometry;
 pub mod read;
 pub mod write;
 
 /// The one depth-PNG decoder (16-bit single channel), shared with the RGB-D loader.
 pub use crate::dataset::frame::load_depth as load_depth_png;
+pub use align::{best_rigid_transform, CrossCovariance};
 pub use cloud::{cloud_from_depth, crop_z, CloudStats, PointCloud};
-pub use icp::{
-    best_rigid_transform, register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats,
-    KdTreeTarget, NearestNeighbours, Samples,
-};
+pub use icp::{register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats, Samples};
+pub use nn::{KdTreeTarget, NearestNeighbours};
 pub use read::{read_cloud, read_kitti_bin, read_matrix4, read_pcd, read_ply_xyz, read_xyz_text};

@@ -164,19 +164,8 @@ pub fn read_ground_truth(path: &Path, seq: &ScanSequence) -> Result<Vec<DMat4>> 
             })
             .collect();
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let mut table: Vec<(f64, DMat4)> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("").trim();
-        if line.is_empty() {
-            continue;
-        }
-        let v = numbers(path, i + 1, line, 8)?;
-        table.push((
-            v[0],
-            se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]),
-        ));
-    }
+    // The one TUM trajectory reader (comments, field count, unit quaternions checked).
+    let table = crate::io::read_tum(path)?;
     (0..seq.scans.len())
         .map(|i| {
             let stamp = seq.stamp(i);
