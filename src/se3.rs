@@ -125,6 +125,12 @@ pub fn translation_norm(t: &DMat4) -> f64 {
     t.w_axis.truncate().length()
 }
 
+/// The matrix as four rows (row-major), for JSON reports that people read.
+pub fn to_rows(t: &DMat4) -> [[f64; 4]; 4] {
+    let r = |i| t.row(i).to_array();
+    [r(0), r(1), r(2), r(3)]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

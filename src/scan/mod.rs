@@ -6,6 +6,7 @@
 
 pub mod align;
 pub mod bench;
+pub mod bench_scan;
 pub mod cloud;
 pub mod gpu;
 pub mod icp;
