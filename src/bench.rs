@@ -358,3 +358,40 @@ pub fn print_table(results: &[BenchResult]) {
         );
     }
 }
+
+/// Runs `wgslam bench-one <child_args> --backends <backend>` in a child process (so its
+/// peak memory is its own) and parses the result it prints as JSON. `child_args` name the
+/// dataset, frames and resolution (see the CLI's `BenchArgs`); `frames_only` asks for
+/// whole-frame times only, `kernels` for GPU kernel times as well.
+pub fn bench_in_child(
+    child_args: &[String],
+    backend: &str,
+    frames_only: bool,
+    kernels: bool,
+) -> Result<BenchResult> {
+    let exe = std::env::current_exe().map_err(|e| crate::Error::io("current executable", e))?;
+    let mut cmd = std::process::Command::new(&exe);
+    cmd.arg("bench-one").args(child_args);
+    cmd.args(["--backends", backend]);
+    if frames_only {
+        cmd.arg("--frames-only");
+    } else if kernels {
+        cmd.arg("--kernels");
+    }
+    eprintln!("benchmarking the {backend} backend ...");
+    let out = cmd
+        .stderr(std::process::Stdio::inherit())
+        .output()
+        .map_err(|e| crate::Error::io(&exe, e))?;
+    if !out.status.success() {
+        return Err(crate::Error::format(
+            &exe,
+            format!(
+                "bench-one for the {backend} backend exited with {} (its error is above)",
+                out.status
+            ),
+        ));
+    }
+    serde_json::from_slice(&out.stdout)
+        .map_err(|e| crate::Error::format(&exe, format!("bench-one output: {e}")))
+}

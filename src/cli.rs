@@ -443,21 +443,10 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
         );
     }
     if let Some(out) = &a.out {
-        std::fs::create_dir_all(out).map_err(|e| Error::write(out, e))?;
-        run::write_json(&out.join("result.json"), &r)?;
-        let [before, after] = crate::render::outputs::write_icp_overlays(
-            out,
-            &r.source_points,
-            &r.target_points,
-            &glam::DMat4::IDENTITY,
-            &t,
-            crate::render::outputs::OverlayViewpoint::Camera {
-                fy_negative: seq.intrinsics.fy < 0.0,
-            },
-        )?;
+        let [result, before, after] = two_frame::write_outputs(out, &r, &seq)?;
         println!(
             "wrote {}, {} and {} (source orange, target blue)",
-            out.join("result.json").display(),
+            result.display(),
             before.display(),
             after.display()
         );
@@ -554,7 +543,15 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         }
         let mut results = Vec::new();
         for b in &order {
-            results.push(bench_in_child(&a, *b, round > 0)?);
+            let name = format!("{b:?}").to_lowercase();
+            let frames_only = round > 0;
+            let kernels = a.kernels && !frames_only;
+            results.push(bench::bench_in_child(
+                &a.child_args(),
+                &name,
+                frames_only,
+                kernels,
+            )?);
         }
         if round == 0 {
             bench::print_table(&results);
@@ -587,57 +584,31 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// Runs `wgslam bench-one` for backend `b` in a child process (so its peak memory is its
-/// own) and parses its result.
-fn bench_in_child(
-    a: &BenchArgs,
-    b: BackendChoice,
-    frames_only: bool,
-) -> Result<bench::BenchResult> {
-    let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
-    let mut cmd = std::process::Command::new(&exe);
-    cmd.arg("bench-one");
-    let d = &a.data;
-    if let Some(dir) = &d.dataset {
-        cmd.arg(dir);
-    }
-    // Every dataset option, so the child opens the sequence exactly as this process does.
-    for (flag, v) in [
-        ("--gt", d.gt.as_ref().map(|p| p.display().to_string())),
-        ("--camera", d.camera.clone()),
-        ("--intrinsics", d.intrinsics.clone()),
-        ("--depth-scale", d.depth_scale.map(|x| x.to_string())),
-        ("--max-time-diff", Some(d.max_time_diff.to_string())),
-        ("--frames", a.frames.clone()),
-        ("--downsample", Some(a.downsample.to_string())),
-    ] {
-        if let Some(v) = v {
-            cmd.arg(flag).arg(v);
+impl BenchArgs {
+    /// The `bench-one` arguments that reproduce this invocation's dataset, frames and
+    /// resolution in a child process (every dataset option, so the child opens the
+    /// sequence exactly as this process does).
+    fn child_args(&self) -> Vec<String> {
+        let d = &self.data;
+        let mut args = Vec::new();
+        if let Some(dir) = &d.dataset {
+            args.push(dir.display().to_string());
         }
+        for (flag, v) in [
+            ("--gt", d.gt.as_ref().map(|p| p.display().to_string())),
+            ("--camera", d.camera.clone()),
+            ("--intrinsics", d.intrinsics.clone()),
+            ("--depth-scale", d.depth_scale.map(|x| x.to_string())),
+            ("--max-time-diff", Some(d.max_time_diff.to_string())),
+            ("--frames", self.frames.clone()),
+            ("--downsample", Some(self.downsample.to_string())),
+        ] {
+            if let Some(v) = v {
+                args.extend([flag.to_string(), v]);
+            }
+        }
+        args
     }
-    let name = format!("{b:?}").to_lowercase();
-    cmd.args(["--backends", &name]);
-    if frames_only {
-        cmd.arg("--frames-only");
-    } else if a.kernels {
-        cmd.arg("--kernels");
-    }
-    eprintln!("benchmarking the {name} backend ...");
-    let out = cmd
-        .stderr(std::process::Stdio::inherit())
-        .output()
-        .map_err(|e| Error::io(&exe, e))?;
-    if !out.status.success() {
-        return Err(Error::format(
-            &exe,
-            format!(
-                "bench-one for the {name} backend exited with {} (its error is above)",
-                out.status
-            ),
-        ));
-    }
-    serde_json::from_slice(&out.stdout)
-        .map_err(|e| Error::format(&exe, format!("bench-one output: {e}")))
 }
 
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {

@@ -94,3 +94,28 @@ pub fn align_frames<B: Backend>(
     }
     unreachable!("the loop returns at the target frame")
 }
+
+/// Writes `result.json` and the before/after overlays (`icp_before.png`, `icp_after.png`:
+/// source orange, target blue, seen from the target camera) into `out` (created when
+/// missing). Returns the three paths in that order.
+pub fn write_outputs(
+    out: &std::path::Path,
+    r: &TwoFrameResult,
+    seq: &Sequence,
+) -> Result<[std::path::PathBuf; 3]> {
+    use crate::render::outputs::{write_icp_overlays, OverlayViewpoint};
+    std::fs::create_dir_all(out).map_err(|e| crate::Error::write(out, e))?;
+    let result = out.join("result.json");
+    crate::run::write_json(&result, r)?;
+    let [before, after] = write_icp_overlays(
+        out,
+        &r.source_points,
+        &r.target_points,
+        &DMat4::IDENTITY,
+        &DMat4::from_cols_array_2d(&r.t_source_to_target),
+        OverlayViewpoint::Camera {
+            fy_negative: seq.intrinsics.fy < 0.0,
+        },
+    )?;
+    Ok([result, before, after])
+}
