@@ -360,8 +360,8 @@ pub fn render_cpu(
     Ok(rgba_to_image(params.width, params.height, &rgba))
 }
 
-/// Which implementation draws: the CPU twins, or the GPU pass on a borrowed context (so
-/// `wgslam run --backend gpu` can reuse its device).
+/// Which implementation draws: the CPU twins, or the GPU pass on a borrowed context
+/// (`wgslam render --backend`; `wgslam run` draws its pictures with the CPU twins).
 #[derive(Debug, Clone, Copy)]
 pub enum RenderBackend<'a> {
     Cpu,
