@@ -37,8 +37,21 @@ pub mod tolerance {
     pub const SURFEL_COUNT_REL_DIFF_MAX: f64 = 1e-3;
     /// Map points of one backend farther than this from every point of the other.
     pub const MAP_MATCH_RADIUS_M: f32 = 1e-3;
-    /// Fraction of map points allowed to have no match within the radius.
+    /// Fraction of map points allowed to have no match within the radius, for short runs.
     pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 1e-3;
+    /// ...and per frame compared, for long ones: a surfel whose projection lands exactly
+    /// on a pixel boundary may be moved to the neighbouring pixel by a fused multiply-add
+    /// on one backend only, and then averages in a different frame point; such surfels
+    /// accumulate over a run. Measured on ICL kt2 (320x240, both backends tracking):
+    /// unmatched 0.017 % after 20 frames, 0.062 % after 50, 0.10 % after 100, 0.13 %
+    /// after 150, 0.14 % after 200, while within 1 cm only 0.001 % are unmatched after 200
+    /// (the maps are the same surface). 2e-5 per frame leaves 1.9x headroom at 100 frames.
+    pub const MAP_UNMATCHED_MAX_FRACTION_PER_FRAME: f64 = 2e-5;
+
+    /// The unmatched-fraction limit for a comparison over `frames` frames.
+    pub fn map_unmatched_max_fraction(frames: usize) -> f64 {
+        MAP_UNMATCHED_MAX_FRACTION.max(MAP_UNMATCHED_MAX_FRACTION_PER_FRAME * frames as f64)
+    }
 }
 
 /// Differences of two frame maps.
@@ -264,12 +277,16 @@ pub fn compare<A: Backend, B: Backend>(
     let (ma, mb) = (sa.backend.download_map()?, sb.backend.download_map()?);
     let (ua, mean) = unmatched_fraction(&ma, &mb, MAP_MATCH_RADIUS_M);
     let (ub, _) = unmatched_fraction(&mb, &ma, MAP_MATCH_RADIUS_M);
-    if ua > MAP_UNMATCHED_MAX_FRACTION || ub > MAP_UNMATCHED_MAX_FRACTION {
+    let unmatched_max = map_unmatched_max_fraction(frames.len());
+    if ua > unmatched_max || ub > unmatched_max {
         violations.push(format!(
-            "final map: {:.4}% / {:.4}% of points unmatched within {} mm",
+            "final map: {:.4}% / {:.4}% of points unmatched within {} mm (limit {:.4}% for {} \
+             frames)",
             ua * 100.0,
             ub * 100.0,
-            MAP_MATCH_RADIUS_M * 1e3
+            MAP_MATCH_RADIUS_M * 1e3,
+            unmatched_max * 100.0,
+            frames.len()
         ));
     }
     Ok(Comparison {
