@@ -3,10 +3,11 @@
 //!
 //! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
 //! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
-//! textures, which lavapipe runs 3-5x faster than storage-buffer loads (see `images.rs`).
+//! textures, which lavapipe loads 3-5x faster than storage-buffer elements
+//! (`examples/lavapipe_loads.rs`).
 //! The frame's normal map carries the vertex's depth in w (`normal_depth`), so the kernels
 //! that associate with the frame fetch one texel and rebuild the vertex (see
-//! vertex_to_normal.wgsl); `download_frame` turns it back into the twin's normal map.
+//! vertex_to_normal.wgsl), as does the twin; `download_frame` reads it as it is.
 //! The surfel map is three packed textures ([`MapTextures`]); only the index map, the
 //! association flags, the counter and the ICP partials are storage buffers (atomics).
 //! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
@@ -562,21 +563,6 @@ impl GpuBackend {
     }
 }
 
-/// The normal map (xyz, w = 1 / 0) of a normal-depth map (xyz, w = depth / 0): a valid
-/// normal always has a positive depth.
-fn normal_map_of(normal_depth: &[[f32; 4]]) -> Vec<[f32; 4]> {
-    normal_depth
-        .iter()
-        .map(|n| {
-            if n[3] > 0.0 {
-                [n[0], n[1], n[2], 1.0]
-            } else {
-                [0.0; 4]
-            }
-        })
-        .collect()
-}
-
 /// A per-pixel `[f32; 4]` map read back row-major.
 fn read_map(ctx: &GpuContext, image: &GpuImage) -> Result<Vec<[f32; 4]>> {
     image.read_back(ctx)
@@ -798,7 +784,7 @@ impl Backend for GpuBackend {
         ctx.scoped("download frame", || {
             Ok(FrameMaps {
                 vertex: read_map(ctx, &f.vertex)?,
-                normal: normal_map_of(&read_map(ctx, &f.normal_depth)?),
+                normal_depth: read_map(ctx, &f.normal_depth)?,
                 color: read_map(ctx, &f.color)?,
             })
         })
