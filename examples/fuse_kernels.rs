@@ -64,7 +64,7 @@ fn main() -> wgslam::Result<()> {
         }
         let after = slam.backend.inner.download_map()?;
         merged = (0..map.len())
-            .filter(|&i| after.weights[i] > map.weights[i])
+            .filter(|&i| after.weight(i) > map.weight(i))
             .count();
     }
     println!(

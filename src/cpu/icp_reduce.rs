@@ -98,10 +98,6 @@ mod tests {
         let n = glam::DVec3::new(0.2, 0.3, -0.9).normalize();
         let p = glam::DVec3::new(0.12, -0.18, 2.01);
         let z_q = 2.0f32;
-        let resid = |x: &[f64; 6]| -> f64 {
-            let t = se3::exp(x);
-            n.dot(t.transform_point3(p) - q)
-        };
         let params = IcpParams {
             t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
             fx: 10.0,
@@ -120,6 +116,10 @@ mod tests {
         let p32 = glam::Vec3::new(p.x as f32, p.y as f32, p.z as f32);
         let texel = project_to_texel(cam, 5, 5, p32).expect("p projects into the image");
         let q = back_project(cam, texel, z_q).as_dvec3();
+        let resid = |x: &[f64; 6]| -> f64 {
+            let t = se3::exp(x);
+            n.dot(t.transform_point3(p) - q)
+        };
         let (a, b) = icp_row(&params, [p.x as f32, p.y as f32, p.z as f32, 1.0], &nd)
             .expect("the correspondence passes both filters");
         assert!((b as f64 - resid(&[0.0; 6])).abs() < 1e-6);
