@@ -83,11 +83,7 @@ impl Backend for CpuBackend {
         self.index_map.resize(n, 0);
         self.pred_vertex.resize(n, cpu::INVALID);
         self.pred_normal.resize(n, cpu::INVALID);
-        cpu::project_model::project_model(
-            &params,
-            &self.map.position_weight,
-            &mut self.index_map,
-        );
+        cpu::project_model::project_model(&params, &self.map.position_weight, &mut self.index_map);
         cpu::predict_model::predict_model(
             &params,
             &self.index_map,

@@ -404,9 +404,7 @@ fn fuse_matches_twins() {
     let c = s.backend.download_map().unwrap();
     let g = gpu.download_map().unwrap();
     assert_eq!((c.len(), g.len()), (n_cpu, n_gpu));
-    let merged = (0..before.len())
-        .filter(|&i| c.last_frame(i) == 3)
-        .count();
+    let merged = (0..before.len()).filter(|&i| c.last_frame(i) == 3).count();
     eprintln!(
         "fuse: {} surfels before, {merged} merged; after cpu {n_cpu}, gpu {n_gpu}",
         before.len()

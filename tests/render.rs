@@ -139,7 +139,13 @@ fn render_from_the_frames_own_pose_matches_its_photo() {
         intrinsics: Intrinsics::ICL_NUIM,
     };
     let settings = RenderSettings::default();
-    let img = render::render_cpu(&MapCloud::new(&map).cloud(), &camera, View::Color, &settings).unwrap();
+    let img = render::render_cpu(
+        &MapCloud::new(&map).cloud(),
+        &camera,
+        View::Color,
+        &settings,
+    )
+    .unwrap();
     keep("own_pose_color.png", &img);
     let photo = image::open(root.join("rgb/1.png")).unwrap().into_rgb8();
     // Pixels of the photo with no normal (image border, depth jumps) stay background.

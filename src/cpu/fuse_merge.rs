@@ -26,7 +26,11 @@ fn normalize_or_zero(v: Vec3) -> Vec3 {
 /// The unit normal stored as bits in `normal_frame`'s xyz (`bitcast<vec3<f32>>`).
 #[inline]
 fn normal_of(nf: [u32; 4]) -> Vec3 {
-    Vec3::new(f32::from_bits(nf[0]), f32::from_bits(nf[1]), f32::from_bits(nf[2]))
+    Vec3::new(
+        f32::from_bits(nf[0]),
+        f32::from_bits(nf[1]),
+        f32::from_bits(nf[2]),
+    )
 }
 
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):

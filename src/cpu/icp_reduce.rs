@@ -29,7 +29,8 @@ pub fn icp_row(
     let p = transform_point(&params.t_world_to_cam, xyz(src_world));
     let target_texel = project_to_texel(cam, params.width, params.height, p)?;
     // Valid normal (w = depth > 0) implies a valid vertex.
-    let nd = normal_depth[target_texel[1] as usize * params.width as usize + target_texel[0] as usize];
+    let nd =
+        normal_depth[target_texel[1] as usize * params.width as usize + target_texel[0] as usize];
     if !is_valid(nd) {
         return None;
     }

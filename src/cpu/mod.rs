@@ -118,3 +118,18 @@ pub fn valid_entry(p: Vec3) -> [f32; 4] {
 pub fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
     ((!z_cam.to_bits()) as u64) << 32 | surfel as u64
 }
+
+/// True when `(d, i)` beats `(best_d, best_i)`: closer, or as close with a lower index
+/// (scan nearest neighbours). Mirrors `scan_closer` in common.wgsl.
+#[inline]
+pub fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
+    d < best_d || (d == best_d && i < best_i)
+}
+
+/// Squared distance of the xyz parts, written out as the shader does (`x*x + y*y + z*z` of
+/// the difference). Mirrors `scan_dist_sq` in common.wgsl.
+#[inline]
+pub fn scan_dist_sq(a: [f32; 4], b: [f32; 4]) -> f32 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    dx * dx + dy * dy + dz * dz
+}

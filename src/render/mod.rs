@@ -137,7 +137,6 @@ impl<'a> MapCloud<'a> {
 }
 
 impl<'a> Cloud<'a> {
-
     /// Checks that every present attribute has one entry per point.
     pub fn check(&self) -> Result<()> {
         let n = self.positions.len();

@@ -59,7 +59,14 @@ pub fn write_map_renders(
     let image_up = if fy_negative { DVec3::Y } else { DVec3::NEG_Y };
     let (up, heading) = trajectory_view_hint(&poses, intrinsics.fy)
         .unwrap_or_else(|| map_view_hint(cloud.normals, image_up));
-    let overview = default_camera(&map.position_weight, size.0, size.1, up, heading, fy_negative)?;
+    let overview = default_camera(
+        &map.position_weight,
+        size.0,
+        size.1,
+        up,
+        heading,
+        fy_negative,
+    )?;
     let mut cameras = vec![("map", overview)];
     if let Some(last) = poses.last() {
         cameras.push((
