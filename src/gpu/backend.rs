@@ -50,8 +50,9 @@ const MAX_STORAGE_BUFFERS_USED: u32 = 2;
 /// three packed map textures; `depth_to_vertex`, `predict_model`: two maps).
 const MAX_STORAGE_TEXTURES_USED: u32 = 3;
 
-/// Bindings of each kernel, in the order of its CPU twin's arguments (`@binding(i)`).
-mod bindings {
+/// Bindings of each dense-SLAM kernel, in the order of its CPU twin's arguments
+/// (`@binding(i)`); `kernel::layout_entries` turns them into the layout.
+pub mod bindings {
     use super::{Binding, TexelFormat};
     pub const DEPTH_TO_VERTEX: [Binding; 5] = [
         Binding::uniform("params: PreprocessParams"),
