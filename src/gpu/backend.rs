@@ -184,6 +184,22 @@ struct Profiler {
     totals: BTreeMap<String, (u64, f64)>,
 }
 
+/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
+/// submit its passes: `(ctx, kernels, bind groups, profiler)`. A macro rather than a method
+/// so the borrows stay per field: the step still reads its uniforms, frame buffers and
+/// read-backs while the profiler is borrowed mutably.
+macro_rules! encoding_parts {
+    ($backend:ident) => {{
+        $backend.bind_groups();
+        (
+            &$backend.ctx,
+            &$backend.kernels,
+            $backend.bind_groups.as_ref().expect("just built"),
+            &mut $backend.profiler,
+        )
+    }};
+}
+
 /// Records one compute pass per `(kernel, bind group, [x, y] workgroups)`, timed when
 /// profiling.
 fn record_passes(
@@ -613,13 +629,7 @@ impl Backend for GpuBackend {
         let (w, h) = (params.width, params.height);
         let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
         let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             record_passes(
@@ -644,13 +654,7 @@ impl Backend for GpuBackend {
             .kernels
             .predict_model
             .workgroups_for_image(f.width, f.height);
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
             .as_ref()
@@ -674,13 +678,7 @@ impl Backend for GpuBackend {
 
     fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let wg = self.reduction_workgroups;
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         let partials = ctx.scoped("icp_reduce", || {
             self.u_icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
@@ -719,13 +717,7 @@ impl Backend for GpuBackend {
             .kernels
             .fuse_add
             .workgroups_for_image(f.width, f.height);
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
             .as_ref()
