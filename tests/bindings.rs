@@ -81,7 +81,7 @@ fn a_wrong_table_is_reported_binding_by_binding() {
         multisampled: false,
     };
     let wrong_format = Binding::storage_texture(TexelFormat::Rgba32U, false, "pred_normal");
-    wrong[5] = gpu::layout_entries(&[wrong_format])[0].clone();
+    wrong[5] = gpu::layout_entries(&[wrong_format])[0];
     wrong[5].binding = 5;
     let problems =
         gpu::layout_mismatches("predict_model", &shaders::source("predict_model"), &wrong);

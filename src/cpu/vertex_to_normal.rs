@@ -64,8 +64,10 @@ pub fn vertex_to_normal(
     let (w, h) = (params.width as usize, params.height as usize);
     assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
     assert_eq!(normal_depth.len(), w * h, "normal_depth has the wrong size");
-    for pix in 0..w * h {
-        let (u, v) = ((pix % w) as u32, (pix / w) as u32);
-        normal_depth[pix] = normal_at(params, vertex_map, u, v);
+    // One shader thread per pixel (u, v).
+    for v in 0..params.height {
+        for u in 0..params.width {
+            normal_depth[v as usize * w + u as usize] = normal_at(params, vertex_map, u, v);
+        }
     }
 }
