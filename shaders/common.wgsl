@@ -1,11 +1,14 @@
-// common.wgsl: structs and helpers shared by every dense-SLAM kernel.
+// common.wgsl: structs and helpers shared by the dense-SLAM and render kernels (the scan
+// kernels have their own prefix, scan_common.wgsl, with no 64-bit integers).
 //
 // Prepended to each `shaders/<kernel>.wgsl` by `src/gpu/shaders.rs` (WGSL has no
 // includes), so this file declares no bindings and no entry point. Each struct mirrors the
-// `#[repr(C)]` struct of the same name in `src/layout.rs` (checked by `tests/layout.rs`);
-// each helper mirrors the function of the same name in `src/cpu/mod.rs`.
+// `#[repr(C)]` struct of the same name in `src/layout.rs` (checked by `tests/layout.rs`;
+// RenderParams: `src/render/layout.rs`, checked by `tests/render.rs`); each helper mirrors
+// the function of the same name in `src/cpu/mod.rs`, its one Rust twin.
 // Conventions: metres; pixel centres at integer (u, v); maps are row-major `v * width + u`;
-// a `vec4` map entry is valid when `w > 0` (vertices and normals use w = 1, invalid = 0).
+// a `vec4` map entry is valid when `w > 0` (vertices and normals use w = 1, normal_depth
+// the depth; invalid = 0).
 // Matrices are column-major `mat4x4<f32>` (the layout of `GpuMat4`).
 
 // Mirrors `layout::PreprocessParams` (depth_to_vertex).
@@ -150,6 +153,13 @@ fn is_valid(v: vec4<f32>) -> bool {
 // Packs a valid point or direction into a map entry (w = 1). Mirrors `cpu::valid_entry`.
 fn valid_entry(p: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(p, 1.0);
+}
+
+// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
+// key is the nearer surfel, ties to the larger index, 0 = none (project_model,
+// render_splat). Mirrors `cpu::pack_depth_index`.
+fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
+    return (u64(~bitcast<u32>(z_cam)) << 32u) | u64(surfel);
 }
 
 // Used by render_splat and render_resolve.

@@ -13,33 +13,8 @@
 // Assumes: params.n_threads = workgroups * 64. Points are shifted by params.anchor (the
 // queries' centroid) before accumulation so f32 sums of products stay well conditioned.
 
-// Mirrors `scan::layout::ScanNnResult`.
-struct ScanNnResult {
-    index: u32,
-    dist_sq: f32,
-}
-
-// Mirrors `scan::layout::ScanCovParams`.
-struct ScanCovParams {
-    anchor: vec4<f32>,
-    n_pairs: u32,
-    n_threads: u32,
-    radius_sq: f32,
-    _pad0: u32,
-}
-
-// Mirrors `scan::layout::ScanCovPartial`: (count, sum|p-q|^2, sum|p|^2, sum|q|^2), sum p,
-// sum q, rows of sum p q^T.
-struct ScanCovPartial {
-    count_sq: vec4<f32>,
-    sum_p: vec4<f32>,
-    sum_q: vec4<f32>,
-    pq0: vec4<f32>,
-    pq1: vec4<f32>,
-    pq2: vec4<f32>,
-}
-
-const SCAN_NN_NONE: u32 = 0xffffffffu;
+// ScanNnResult, ScanCovParams, ScanCovPartial and SCAN_NN_NONE live in scan_common.wgsl
+// (prepended by src/gpu/shaders.rs).
 
 @group(0) @binding(0) var<uniform> params: ScanCovParams;
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;

@@ -4,8 +4,8 @@
 // Bindings (@group(0)):
 //   0 params      uniform FuseParams (t_cam_to_world, frame_id, capacity)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
-//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the twin
-//                   reads the vertex and normal maps, which this texel holds both of
+//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
+//                   is rebuilt with back_project, as in the twin
 //   2 color_map   texture_2d<f32>: width x height, RGB 0..255
 //   3 assoc       storage read   array<u32>: 1 where fuse_merge merged the pixel
 //   4 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)

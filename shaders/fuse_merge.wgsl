@@ -5,8 +5,8 @@
 // Bindings (@group(0)):
 //   0 params      uniform FuseParams (tracked poses, intrinsics, surfel_count, thresholds)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
-//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the twin
-//                   reads the vertex and normal maps, which this texel holds both of
+//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
+//                   is rebuilt with back_project, as in the twin
 //   2 color_map   texture_2d<f32>: width x height, RGB 0..255
 //   3 position_weight  storage texture rgba32float, read_write: xyz world frame (metres),
 //                      w = observations

@@ -6,13 +6,14 @@
 //   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, dist_threshold_m)
 //   1 pred_vertex  texture_2d<f32>: source, width x height, WORLD frame
 //   2 normal_depth texture_2d<f32>: target normals (camera frame) with the target vertex's
-//                  depth in w, zero where invalid (see vertex_to_normal.wgsl); the twin
-//                  reads the vertex and normal maps, which this texel holds both of
+//                  depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
+//                  is rebuilt with back_project, as in the twin
 //   3 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
 //                                 (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
 //                                 sum of squared residuals); the host sums them in f64
 // Grid-stride loop over pixels with few workgroups (few on a CPU adapter, many on a GPU):
-// each thread sums its pixels in registers (f32), then one tree reduction per workgroup.
+// each thread sums its pixels in registers (f32), then, after one barrier, thread k sums
+// entry k over the workgroup's threads (no tree reduction; see main).
 
 @group(0) @binding(0) var<uniform> params: IcpParams;
 @group(0) @binding(1) var pred_vertex: texture_2d<f32>;

@@ -12,42 +12,13 @@
 // and continues from results[q] when target_begin > 0: llvmpipe (lavapipe) stops an
 // invocation's loops after ~65535 iterations in total, so the host splits big targets.
 
-// Mirrors `scan::layout::ScanNnParams`.
-struct ScanNnParams {
-    n_queries: u32,
-    n_targets: u32,
-    radius_sq: f32,
-    n_threads: u32,
-    cell_size: f32,
-    table_mask: u32,
-    target_begin: u32,
-    target_end: u32,
-}
-
-// Mirrors `scan::layout::ScanNnResult`.
-struct ScanNnResult {
-    index: u32,
-    dist_sq: f32,
-}
-
-const SCAN_NN_NONE: u32 = 0xffffffffu;
-const SCAN_F32_MAX: f32 = 3.40282347e38;
+// ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
+// live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
 
 @group(0) @binding(0) var<uniform> params: ScanNnParams;
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> targets: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> results: array<ScanNnResult>;
-
-// Mirrors `scan_closer` in src/cpu/nn_brute.rs.
-fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
-    return d < best_d || (d == best_d && i < best_i);
-}
-
-// Mirrors `scan_dist_sq` in src/cpu/nn_brute.rs.
-fn scan_dist_sq(a: vec4<f32>, b: vec4<f32>) -> f32 {
-    let d = a.xyz - b.xyz;
-    return d.x * d.x + d.y * d.y + d.z * d.z;
-}
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {

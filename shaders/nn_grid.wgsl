@@ -13,43 +13,14 @@
 //                                  ORIGINAL target cloud
 // Assumes: params.n_threads = workgroups * 64 (grid-stride over queries).
 
-// Mirrors `scan::layout::ScanNnParams`.
-struct ScanNnParams {
-    n_queries: u32,
-    n_targets: u32,
-    radius_sq: f32,
-    n_threads: u32,
-    cell_size: f32,
-    table_mask: u32,
-    target_begin: u32,
-    target_end: u32,
-}
-
-// Mirrors `scan::layout::ScanNnResult`.
-struct ScanNnResult {
-    index: u32,
-    dist_sq: f32,
-}
-
-const SCAN_NN_NONE: u32 = 0xffffffffu;
-const SCAN_F32_MAX: f32 = 3.40282347e38;
+// ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
+// live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
 
 @group(0) @binding(0) var<uniform> params: ScanNnParams;
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> grid_points: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> bucket_start: array<u32>;
 @group(0) @binding(4) var<storage, read_write> results: array<ScanNnResult>;
-
-// Mirrors `scan_closer` in src/cpu/nn_brute.rs.
-fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
-    return d < best_d || (d == best_d && i < best_i);
-}
-
-// Mirrors `scan_dist_sq` in src/cpu/nn_brute.rs.
-fn scan_dist_sq(a: vec4<f32>, b: vec4<f32>) -> f32 {
-    let d = a.xyz - b.xyz;
-    return d.x * d.x + d.y * d.y + d.z * d.z;
-}
 
 // Mirrors `scan_cell_of` in src/cpu/nn_grid.rs.
 fn scan_cell_of(p: vec4<f32>, cell_size: f32) -> vec3<i32> {

@@ -17,11 +17,6 @@
 
 const WORKGROUP_SIZE: u32 = 64u;
 
-// Packs a camera depth (metres, > 0) and a surfel index into an index-map key.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(~bitcast<u32>(z_cam)) << 32u) | u64(surfel);
-}
-
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
     @builtin(global_invocation_id) gid: vec3<u32>,

@@ -1,7 +1,7 @@
 // render_splat.wgsl: splats surfels as small discs into a 64-bit depth|index map, for
 // pictures of the map (not for tracking). CPU twin: src/cpu/render_splat.rs.
 //
-// Prepended with common.wgsl (transform_point, transform_dir, xyz).
+// Prepended with common.wgsl (transform_point, transform_dir, xyz, pack_depth_index).
 // Bindings:
 //   0 params     uniform RenderParams (mirrors src/render/layout.rs)
 //   1 positions  array<vec4<f32>>, world frame, metres; surfel_count entries read
@@ -26,11 +26,6 @@ const MAX_PROJECTED_PX: f32 = 1.0e7;
 fn splat_radius_px(z: f32) -> f32 {
     let f = max(abs(params.fx), abs(params.fy));
     return clamp(params.splat_radius_m * f / z, params.min_radius_px, params.max_radius_px);
-}
-
-// Mirrors `cpu::project_model::pack_depth_index`.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(~bitcast<u32>(z_cam)) << 32u) | u64(surfel);
 }
 
 @compute @workgroup_size(64)

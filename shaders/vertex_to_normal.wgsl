@@ -7,11 +7,11 @@
 //   2 normal_depth  storage texture rgba32float, write: width x height; xyz = the unit
 //                   normal (camera frame), w = the vertex's depth z (metres, > 0) where the
 //                   normal is valid; all zero where it is not
-// The twin writes the normal map (xyz, w = 1 / 0). A valid normal implies a valid vertex,
-// and every later kernel that reads this frame needs both, so the GPU keeps the normal and
-// the depth in one texel and rebuilds the vertex with back_project (common.wgsl), the
-// function depth_to_vertex made it with: one texel fetch instead of two per association
-// (icp_reduce, fuse_merge, fuse_add).
+// A valid normal implies a valid vertex, and every later kernel that reads this frame needs
+// both, so the normal and the depth share one texel and those kernels (icp_reduce,
+// fuse_merge, fuse_add, and their twins) rebuild the vertex with back_project
+// (common.wgsl), the function depth_to_vertex made it with: one texel fetch instead of two
+// per association.
 // One thread per pixel (8x8 workgroups). Invalid on the border, next to an invalid vertex, across a depth
 // jump larger than max_depth_jump_m, or where the cross product vanishes.
 

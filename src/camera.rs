@@ -1,4 +1,5 @@
-//! Pinhole intrinsics, projection and back-projection, and named presets.
+//! Pinhole intrinsics and named presets (projection and back-projection are the CPU twins'
+//! helpers in `crate::cpu`, shared with the shaders).
 //!
 //! Pixel coordinates: `u` to the right (column), `v` down (row), pixel centres at integers.
 //! Camera coordinates: metres, `z` along the optical axis. `fy` may be negative (ICL-NUIM's
@@ -86,18 +87,11 @@ impl Intrinsics {
         self.width as usize * self.height as usize
     }
 
-    /// Camera-frame point (metres) of pixel `(u, v)` at depth `z` (metres).
+    /// Camera-frame point (metres) of pixel `(u, v)` at depth `z` (metres): the one
+    /// back-projection of the crate, [`crate::cpu::back_project`] (which `depth_to_vertex`
+    /// uses), so scan clouds and vertex maps agree to the bit.
     #[inline]
-    pub fn unproject(&self, u: f32, v: f32, z: f32) -> [f32; 3] {
-        [(u - self.cx) * z / self.fx, (v - self.cy) * z / self.fy, z]
-    }
-
-    /// Continuous pixel coordinates `(u, v)` of a camera-frame point with `z != 0`.
-    #[inline]
-    pub fn project(&self, p: [f32; 3]) -> (f32, f32) {
-        (
-            self.fx * p[0] / p[2] + self.cx,
-            self.fy * p[1] / p[2] + self.cy,
-        )
+    pub fn unproject(&self, u: u32, v: u32, z: f32) -> [f32; 3] {
+        crate::cpu::back_project(crate::layout::camera_floats(self), [u, v], z).to_array()
     }
 }

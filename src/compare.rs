@@ -106,9 +106,10 @@ pub fn diff_frame_maps(a: &FrameMaps, b: &FrameMaps) -> MapDiff {
     let mut d = MapDiff::default();
     let mut mismatched = 0usize;
     let n = a.vertex.len().max(1);
+    let (normal_a, normal_b) = (a.normal_map(), b.normal_map());
     for i in 0..a.vertex.len() {
         let (va, vb) = (a.vertex[i], b.vertex[i]);
-        let (na, nb) = (a.normal[i], b.normal[i]);
+        let (na, nb) = (normal_a[i], normal_b[i]);
         if (va[3] > 0.0) != (vb[3] > 0.0) || (na[3] > 0.0) != (nb[3] > 0.0) {
             mismatched += 1;
         }
@@ -149,11 +150,11 @@ pub fn unmatched_fraction(a: &SurfelMap, b: &SurfelMap, radius: f32) -> (f64, f6
         )
     };
     let mut grid: HashMap<(i32, i32, i32), Vec<u32>> = HashMap::new();
-    for (i, p) in b.positions.iter().enumerate() {
+    for (i, p) in b.position_weight.iter().enumerate() {
         grid.entry(cell(p)).or_default().push(i as u32);
     }
     let (mut unmatched, mut sum, mut matched) = (0usize, 0.0f64, 0usize);
-    for p in &a.positions {
+    for p in &a.position_weight {
         let c = cell(p);
         let mut best = f32::INFINITY;
         for dx in -1..=1 {
@@ -161,7 +162,7 @@ pub fn unmatched_fraction(a: &SurfelMap, b: &SurfelMap, radius: f32) -> (f64, f6
                 for dz in -1..=1 {
                     if let Some(ids) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
                         for &j in ids {
-                            let q = b.positions[j as usize];
+                            let q = b.position_weight[j as usize];
                             let d2 = (p[0] - q[0]).powi(2)
                                 + (p[1] - q[1]).powi(2)
                                 + (p[2] - q[2]).powi(2);

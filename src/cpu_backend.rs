@@ -59,7 +59,7 @@ impl Backend for CpuBackend {
         let n = (params.width * params.height) as usize;
         self.frame.vertex.resize(n, cpu::INVALID);
         self.frame.color.resize(n, cpu::INVALID);
-        self.frame.normal.resize(n, cpu::INVALID);
+        self.frame.normal_depth.resize(n, cpu::INVALID);
         cpu::depth_to_vertex::depth_to_vertex(
             params,
             raw_depth,
@@ -67,7 +67,11 @@ impl Backend for CpuBackend {
             &mut self.frame.vertex,
             &mut self.frame.color,
         );
-        cpu::vertex_to_normal::vertex_to_normal(normal, &self.frame.vertex, &mut self.frame.normal);
+        cpu::vertex_to_normal::vertex_to_normal(
+            normal,
+            &self.frame.vertex,
+            &mut self.frame.normal_depth,
+        );
         Ok(())
     }
 
@@ -79,12 +83,12 @@ impl Backend for CpuBackend {
         self.index_map.resize(n, 0);
         self.pred_vertex.resize(n, cpu::INVALID);
         self.pred_normal.resize(n, cpu::INVALID);
-        cpu::project_model::project_model(&params, &self.map.positions, &mut self.index_map);
+        cpu::project_model::project_model(&params, &self.map.position_weight, &mut self.index_map);
         cpu::predict_model::predict_model(
             &params,
             &self.index_map,
-            &self.map.positions,
-            &self.map.normals,
+            &self.map.position_weight,
+            &self.map.normal_frame,
             &mut self.pred_vertex,
             &mut self.pred_normal,
         );
@@ -95,8 +99,7 @@ impl Backend for CpuBackend {
         Ok(cpu::icp_reduce::icp_reduce(
             params,
             &self.pred_vertex,
-            &self.frame.vertex,
-            &self.frame.normal,
+            &self.frame.normal_depth,
         ))
     }
 
@@ -111,43 +114,28 @@ impl Backend for CpuBackend {
         let m = &mut self.map;
         cpu::fuse_merge::fuse_merge(
             &params,
-            &self.frame.vertex,
-            &self.frame.normal,
+            &self.frame.normal_depth,
             &self.frame.color,
-            &mut m.positions,
-            &mut m.normals,
-            &mut m.colors,
-            &mut m.weights,
-            &mut m.last_frame,
+            &mut m.position_weight,
+            &mut m.normal_frame,
+            &mut m.color,
             &mut self.assoc,
         );
         // Room for every pixel, as the GPU backend guarantees before its dispatch.
-        let cap = params.capacity as usize;
-        m.positions.resize(cap, [0.0; 4]);
-        m.normals.resize(cap, [0.0; 4]);
-        m.colors.resize(cap, [0.0; 4]);
-        m.weights.resize(cap, 0.0);
-        m.last_frame.resize(cap, 0);
+        m.resize(params.capacity as usize);
         let mut counter = count as u32;
         cpu::fuse_add::fuse_add(
             &params,
-            &self.frame.vertex,
-            &self.frame.normal,
+            &self.frame.normal_depth,
             &self.frame.color,
             &self.assoc,
             &mut counter,
-            &mut m.positions,
-            &mut m.normals,
-            &mut m.colors,
-            &mut m.weights,
-            &mut m.last_frame,
+            &mut m.position_weight,
+            &mut m.normal_frame,
+            &mut m.color,
         );
         let new_len = counter as usize;
-        m.positions.truncate(new_len);
-        m.normals.truncate(new_len);
-        m.colors.truncate(new_len);
-        m.weights.truncate(new_len);
-        m.last_frame.truncate(new_len);
+        m.resize(new_len);
         Ok(new_len)
     }
 

@@ -5,10 +5,11 @@
 //! 4-vectors and 4x4 matrices, padded explicitly to 16 bytes. `tests/layout.rs` checks
 //! sizes and offsets against naga's layout of the WGSL side.
 //!
-//! Per-pixel and per-surfel arrays are plain storage arrays, not structs:
-//! vertex/normal maps and surfel positions/normals are `[f32; 4]` (`vec4<f32>`), colours
-//! are `[f32; 4]` RGB in 0..255, raw depth is `u16` (packed in pairs into `u32` on the GPU),
-//! raw colour is RGBA8 packed into one `u32` (`r | g << 8 | b << 16 | 255 << 24`).
+//! Per-pixel and per-surfel arrays are plain arrays of texels, not structs: vertex maps,
+//! the `normal_depth` map (normal xyz, depth in w) and colour maps are `[f32; 4]`
+//! (`vec4<f32>`, rgba32float textures on the GPU); the surfel map is the three packed arrays
+//! of `map::SurfelMap`; raw depth is `u16` (an r16uint texture); raw colour is RGBA8 packed
+//! into one `u32` (`r | g << 8 | b << 16 | 255 << 24`, an rgba8uint texture).
 
 use bytemuck::{Pod, Zeroable};
 use glam::DMat4;

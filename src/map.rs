@@ -1,52 +1,90 @@
-//! The surfel map as a structure of arrays on the host (CPU reference and GPU download).
+//! The surfel map on the host, in the GPU's packed representation (CPU reference map and
+//! GPU download alike).
 //!
-//! One surfel per index `i` across all arrays. Positions and normals are in the world
-//! frame. The GPU packs the five arrays into three textures (`gpu::map_textures`) and
-//! unpacks them exactly on download.
+//! Three arrays, one entry per surfel `i`, exactly the texels of the three map textures of
+//! `gpu::map_textures` (`surfel_texel` in `shaders/common.wgsl`), so upload and download are
+//! plain copies and the CPU twins read and write the same packing as the shaders:
+//!
+//! | array | x, y, z | w |
+//! |---|---|---|
+//! | `position_weight` | world-frame position, metres | weight (observations fused) |
+//! | `normal_frame` | f32 bits of the unit world-frame normal | last frame |
+//! | `color` | RGB 0..255 (float, averaged) | 255 |
+//!
+//! Outputs (PLY, renders, comparisons) read it through the accessors, not the packing.
 
-/// The fused point map: positions, normals, colours, weights, last-updated frames.
+/// The fused point map, packed as the GPU's map textures (see the module header).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
-    /// World-frame position in metres; `w` is unused and kept at 1.
-    pub positions: Vec<[f32; 4]>,
-    /// World-frame unit normal; `w` is unused and kept at 0.
-    pub normals: Vec<[f32; 4]>,
-    /// Colour as RGB in 0..255 (float, averaged); `a` is unused and kept at 255.
-    pub colors: Vec<[f32; 4]>,
-    /// Number of observations fused into the surfel (1 when added).
-    pub weights: Vec<f32>,
-    /// Sequence position of the frame that last added or merged this surfel.
-    pub last_frame: Vec<u32>,
+    /// xyz: world-frame position in metres; w: weight (observations fused, 1 when added).
+    pub position_weight: Vec<[f32; 4]>,
+    /// xyz: f32 bits of the world-frame unit normal; w: sequence position of the frame that
+    /// last added or merged the surfel.
+    pub normal_frame: Vec<[u32; 4]>,
+    /// RGB in 0..255 (float, averaged); `a` is 255.
+    pub color: Vec<[f32; 4]>,
 }
 
 impl SurfelMap {
     /// Number of surfels.
     pub fn len(&self) -> usize {
-        self.positions.len()
+        self.position_weight.len()
     }
 
     /// True when the map holds no surfel.
     pub fn is_empty(&self) -> bool {
-        self.positions.is_empty()
+        self.position_weight.is_empty()
     }
 
-    /// Appends one surfel.
+    /// World-frame position of surfel `i`, metres.
+    pub fn position(&self, i: usize) -> [f32; 3] {
+        let p = self.position_weight[i];
+        [p[0], p[1], p[2]]
+    }
+
+    /// World-frame unit normal of surfel `i`.
+    pub fn normal(&self, i: usize) -> [f32; 3] {
+        let n = self.normal_frame[i];
+        [n[0], n[1], n[2]].map(f32::from_bits)
+    }
+
+    /// Observations fused into surfel `i` (1 when added).
+    pub fn weight(&self, i: usize) -> f32 {
+        self.position_weight[i][3]
+    }
+
+    /// Sequence position of the frame that last added or merged surfel `i`.
+    pub fn last_frame(&self, i: usize) -> u32 {
+        self.normal_frame[i][3]
+    }
+
+    /// Colour of surfel `i`, RGB 0..255.
+    pub fn color(&self, i: usize) -> [f32; 3] {
+        let c = self.color[i];
+        [c[0], c[1], c[2]]
+    }
+
+    /// Appends one surfel: position `p` (metres) and unit normal `n`, world frame; colour
+    /// `c` RGB 0..255.
     pub fn push(&mut self, p: [f32; 3], n: [f32; 3], c: [f32; 3], weight: f32, frame: u32) {
-        self.positions.push([p[0], p[1], p[2], 1.0]);
-        self.normals.push([n[0], n[1], n[2], 0.0]);
-        self.colors.push([c[0], c[1], c[2], 255.0]);
-        self.weights.push(weight);
-        self.last_frame.push(frame);
+        self.position_weight.push([p[0], p[1], p[2], weight]);
+        self.normal_frame
+            .push([n[0].to_bits(), n[1].to_bits(), n[2].to_bits(), frame]);
+        self.color.push([c[0], c[1], c[2], 255.0]);
+    }
+
+    /// Resizes every array to `n` surfels (new slots zero).
+    pub fn resize(&mut self, n: usize) {
+        self.position_weight.resize(n, [0.0; 4]);
+        self.normal_frame.resize(n, [0; 4]);
+        self.color.resize(n, [0.0; 4]);
     }
 
     /// Checks that all arrays have the same length (an internal contract).
     pub fn assert_consistent(&self) {
-        let n = self.positions.len();
+        let n = self.position_weight.len();
         assert!(
-            self.normals.len() == n
-                && self.colors.len() == n
-                && self.weights.len() == n
-                && self.last_frame.len() == n,
+            self.normal_frame.len() == n && self.color.len() == n,
             "SurfelMap arrays have different lengths"
         );
     }

@@ -1,6 +1,6 @@
 //! The dense-SLAM frame as a fixed sequence of kernel steps, generic over a [`Backend`].
 //!
-//! Per frame: `preprocess` (depth -> vertex, normal, colour maps), then for every frame but
+//! Per frame: `preprocess` (depth -> vertex, normal-depth, colour maps), then for every frame but
 //! the first `predict` (render the map at the previous pose into a model vertex/normal map,
 //! once per frame so each ICP iteration is O(pixels), not O(map)), up to `max_iters` ICP
 //! iterations of `icp_system` + host solve + left-multiplicative update, then `fuse`
@@ -19,15 +19,34 @@ use crate::se3;
 use crate::solve::{increment_size, update_pose, NormalEquations, SolveError};
 use crate::Result;
 
-/// The per-frame maps a backend holds after `preprocess` (downloaded for comparison).
+/// The per-frame maps a backend holds after `preprocess` (downloaded for comparison), in
+/// the kernels' representation: `depth_to_vertex`'s two outputs and `vertex_to_normal`'s.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameMaps {
     /// Camera-frame vertices, metres, `w = 1` valid / `0` invalid.
     pub vertex: Vec<[f32; 4]>,
-    /// Camera-frame unit normals, `w = 1` valid / `0` invalid.
-    pub normal: Vec<[f32; 4]>,
+    /// Camera-frame unit normals with the vertex's depth (metres, > 0) in `w`; all zero
+    /// where invalid (see `cpu::vertex_to_normal`).
+    pub normal_depth: Vec<[f32; 4]>,
     /// RGB 0..255.
     pub color: Vec<[f32; 4]>,
+}
+
+impl FrameMaps {
+    /// The normal map decoded from `normal_depth` (xyz, `w = 1` valid / `0` invalid), for
+    /// reports and comparisons.
+    pub fn normal_map(&self) -> Vec<[f32; 4]> {
+        self.normal_depth
+            .iter()
+            .map(|n| {
+                if n[3] > 0.0 {
+                    [n[0], n[1], n[2], 1.0]
+                } else {
+                    [0.0; 4]
+                }
+            })
+            .collect()
+    }
 }
 
 /// Predicted model vertex and normal maps (world frame, `w = 1` valid).

@@ -204,10 +204,11 @@ fn preprocess_matches_twins() {
         check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
         // Colour is integer-valued: exact.
         assert_eq!(c.color, g.color, "{tag}: colour maps differ");
-        check_vec4_map(&format!("{tag} normal"), &c.normal, &g.normal, NORMAL_TOL);
-        let valid = c.normal.iter().filter(|n| n[3] > 0.0).count();
+        let (c_normal, g_normal) = (c.normal_map(), g.normal_map());
+        check_vec4_map(&format!("{tag} normal"), &c_normal, &g_normal, NORMAL_TOL);
+        let valid = c_normal.iter().filter(|n| n[3] > 0.0).count();
         assert!(
-            valid > c.normal.len() / 2,
+            valid > c_normal.len() / 2,
             "{tag}: only {valid} valid normals"
         );
     }
@@ -233,13 +234,13 @@ fn predict_matches_twins() {
 
     let n = (proj.width * proj.height) as usize;
     let mut index_cpu = vec![0u64; n];
-    cpu::project_model::project_model(&proj, &map.positions, &mut index_cpu);
+    cpu::project_model::project_model(&proj, &map.position_weight, &mut index_cpu);
     let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
     cpu::predict_model::predict_model(
         &proj,
         &index_cpu,
-        &map.positions,
-        &map.normals,
+        &map.position_weight,
+        &map.normal_frame,
         &mut pv_cpu,
         &mut pn_cpu,
     );
@@ -348,34 +349,34 @@ fn icp_system_matches_twin() {
 
 /// Sort key for order-independent map comparison: position bits, then frame.
 fn surfel_key(m: &SurfelMap, i: usize) -> ([u32; 3], u32) {
-    let p = m.positions[i];
+    let p = m.position(i);
     (
         [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()],
-        m.last_frame[i],
+        m.last_frame(i),
     )
 }
 
 /// Compares surfel `ic` of `c` with `ig` of `g`.
 fn check_surfel(what: &str, c: &SurfelMap, ic: usize, g: &SurfelMap, ig: usize) {
     let dp = (0..3)
-        .map(|k| (c.positions[ic][k] - g.positions[ig][k]).abs())
+        .map(|k| (c.position(ic)[k] - g.position(ig)[k]).abs())
         .fold(0.0, f32::max);
     let dn = (0..3)
-        .map(|k| (c.normals[ic][k] - g.normals[ig][k]).abs())
+        .map(|k| (c.normal(ic)[k] - g.normal(ig)[k]).abs())
         .fold(0.0, f32::max);
     let dc = (0..3)
-        .map(|k| (c.colors[ic][k] - g.colors[ig][k]).abs())
+        .map(|k| (c.color(ic)[k] - g.color(ig)[k]).abs())
         .fold(0.0, f32::max);
     let same = dp <= SURFEL_POS_TOL_M
         && dn <= NORMAL_TOL
         && dc <= SURFEL_COLOR_TOL
-        && c.weights[ic] == g.weights[ig]
-        && c.last_frame[ic] == g.last_frame[ig];
+        && c.weight(ic) == g.weight(ig)
+        && c.last_frame(ic) == g.last_frame(ig);
     assert!(
         same,
         "{what}: cpu surfel {ic} {:?} n {:?} c {:?} w {} f {} vs gpu surfel {ig} {:?} n {:?} c {:?} w {} f {}",
-        c.positions[ic], c.normals[ic], c.colors[ic], c.weights[ic], c.last_frame[ic],
-        g.positions[ig], g.normals[ig], g.colors[ig], g.weights[ig], g.last_frame[ig]
+        c.position(ic), c.normal(ic), c.color(ic), c.weight(ic), c.last_frame(ic),
+        g.position(ig), g.normal(ig), g.color(ig), g.weight(ig), g.last_frame(ig)
     );
 }
 
@@ -403,10 +404,7 @@ fn fuse_matches_twins() {
     let c = s.backend.download_map().unwrap();
     let g = gpu.download_map().unwrap();
     assert_eq!((c.len(), g.len()), (n_cpu, n_gpu));
-    let merged = c.last_frame[..before.len()]
-        .iter()
-        .filter(|&&f| f == 3)
-        .count();
+    let merged = (0..before.len()).filter(|&i| c.last_frame(i) == 3).count();
     eprintln!(
         "fuse: {} surfels before, {merged} merged; after cpu {n_cpu}, gpu {n_gpu}",
         before.len()
@@ -416,7 +414,7 @@ fn fuse_matches_twins() {
     // sets differ by the same few pixels.
     let allowed = (before.len() as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;
     let flips: Vec<usize> = (0..before.len())
-        .filter(|&i| (c.last_frame[i] == 3) != (g.last_frame[i] == 3))
+        .filter(|&i| (c.last_frame(i) == 3) != (g.last_frame(i) == 3))
         .collect();
     assert!(
         flips.len() <= allowed,
@@ -555,7 +553,7 @@ fn map_grows_from_a_tiny_capacity() {
     );
     let first = |m: &SurfelMap| {
         let mut v: Vec<usize> = (0..m.len())
-            .filter(|&i| m.weights[i] == 1.0 && m.last_frame[i] == 1)
+            .filter(|&i| m.weight(i) == 1.0 && m.last_frame(i) == 1)
             .collect();
         v.sort_by_key(|&i| surfel_key(m, i));
         v

@@ -475,8 +475,8 @@ fn ply_round_trip() {
     assert_eq!(bytes.len() - header_end, 3 * 31);
 
     let c = wgslam::io::read_ply(&p).unwrap();
-    let pos: Vec<[f32; 3]> = m.positions.iter().map(|p| [p[0], p[1], p[2]]).collect();
-    let nrm: Vec<[f32; 3]> = m.normals.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    let pos: Vec<[f32; 3]> = (0..m.len()).map(|i| m.position(i)).collect();
+    let nrm: Vec<[f32; 3]> = (0..m.len()).map(|i| m.normal(i)).collect();
     assert_eq!(c.positions, pos, "f32 round trip is exact");
     assert_eq!(c.normals.unwrap(), nrm);
     // Colours are rounded and clamped to 0..255.
@@ -484,7 +484,8 @@ fn ply_round_trip() {
         c.colors.unwrap(),
         vec![[255, 0, 128], [12, 255, 0], [1, 2, 3]]
     );
-    assert_eq!(c.weights.unwrap(), m.weights);
+    let weights: Vec<f32> = (0..m.len()).map(|i| m.weight(i)).collect();
+    assert_eq!(c.weights.unwrap(), weights);
 
     let empty = d.join("empty.ply");
     wgslam::io::write_surfel_map(&empty, &Default::default()).unwrap();

@@ -12,7 +12,7 @@ use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
 use wgslam::layout::{pack_rgba8, NormalParams, PreprocessParams};
 use wgslam::map::SurfelMap;
-use wgslam::render::{self, Cloud, RenderCamera, RenderSettings, View};
+use wgslam::render::{self, Cloud, MapCloud, RenderCamera, RenderSettings, View};
 use wgslam::se3;
 
 /// Ground-truth poses (`t_cam_to_world`) of the bundled frames, by frame index.
@@ -139,7 +139,13 @@ fn render_from_the_frames_own_pose_matches_its_photo() {
         intrinsics: Intrinsics::ICL_NUIM,
     };
     let settings = RenderSettings::default();
-    let img = render::render_cpu(&Cloud::from_map(&map), &camera, View::Color, &settings).unwrap();
+    let img = render::render_cpu(
+        &MapCloud::new(&map).cloud(),
+        &camera,
+        View::Color,
+        &settings,
+    )
+    .unwrap();
     keep("own_pose_color.png", &img);
     let photo = image::open(root.join("rgb/1.png")).unwrap().into_rgb8();
     // Pixels of the photo with no normal (image border, depth jumps) stay background.
@@ -174,11 +180,12 @@ fn render_from_the_frames_own_pose_matches_its_photo() {
 #[test]
 fn renders_are_deterministic_and_views_differ() {
     let map = bundled_map(&[1, 10, 20], 4);
-    let cloud = Cloud::from_map(&map);
+    let map_cloud = MapCloud::new(&map);
+    let cloud = map_cloud.cloud();
     let up_fwd =
         render::trajectory_view_hint(&[gt_poses(&common::bundled_icl())[0].1], -480.0).unwrap();
     let camera =
-        render::default_camera(&map.positions, 320, 240, up_fwd.0, up_fwd.1, true).unwrap();
+        render::default_camera(&map.position_weight, 320, 240, up_fwd.0, up_fwd.1, true).unwrap();
     let settings = RenderSettings::default();
     let mut seen = Vec::new();
     for view in [View::Color, View::Normals, View::Weight, View::Depth] {
@@ -528,7 +535,7 @@ fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
         "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
         map.len()
     );
-    for p in &map.positions {
+    for p in &map.position_weight {
         text.push_str(&format!("{} {} {}\n", p[0], p[1], p[2]));
     }
     let ply = dir.join("bare.ply");
@@ -696,12 +703,13 @@ fn gpu_matches_cpu_on_a_small_map() {
     };
     let root = common::bundled_icl();
     let map = bundled_map(&[1, 10, 20], 2);
-    let cloud = Cloud::from_map(&map);
+    let map_cloud = MapCloud::new(&map);
+    let cloud = map_cloud.cloud();
     let (up, heading) = render::trajectory_view_hint(&[gt_poses(&root)[0].1], -480.0).unwrap();
     let cameras = [
         (
             "default",
-            render::default_camera(&map.positions, 320, 240, up, heading, true).unwrap(),
+            render::default_camera(&map.position_weight, 320, 240, up, heading, true).unwrap(),
         ),
         (
             "own pose",

@@ -18,8 +18,8 @@ use wgslam::se3;
 const SHADERS: [&str; 3] = ["nn_brute", "nn_grid", "cross_covariance"];
 
 fn shader_text(name: &str) -> String {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("shaders/{name}.wgsl"));
-    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    // As the runtime builds it: common.wgsl (which holds the scan structs) + the kernel.
+    wgslam::gpu::shaders::source(name)
 }
 
 fn parse(name: &str) -> naga::Module {

@@ -61,10 +61,12 @@ fn every_shader_parses_and_validates() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
     let mut failures = Vec::new();
 
-    if let Some(f) = check("common.wgsl alone", shaders::COMMON, |l| {
-        ("shaders/common.wgsl".to_string(), l)
-    }) {
-        failures.push(f);
+    for (prefix, text) in shaders::PREFIXES {
+        if let Some(f) = check(&format!("{prefix}.wgsl alone"), text, |l| {
+            (format!("shaders/{prefix}.wgsl"), l)
+        }) {
+            failures.push(f);
+        }
     }
 
     let mut on_disk: Vec<String> = std::fs::read_dir(&dir)
@@ -73,7 +75,7 @@ fn every_shader_parses_and_validates() {
             let p = e.expect("readable directory entry").path();
             (p.extension()? == "wgsl").then(|| p.file_stem()?.to_str().map(str::to_string))?
         })
-        .filter(|name| name != "common")
+        .filter(|name| !shaders::PREFIXES.iter().any(|(p, _)| p == name))
         .collect();
     on_disk.sort();
 

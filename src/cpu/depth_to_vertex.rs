@@ -2,17 +2,19 @@
 //! vertex map (metres) and a colour map, downsampled by keeping every `stride`-th pixel.
 //!
 //! Output pixel `(u, v)` reads raw pixel `(stride u, stride v)`; `params.fx..cy` are the
-//! downsampled intrinsics, so unprojecting `(u, v)` with them equals unprojecting the raw
-//! pixel with the raw intrinsics. Invalid depth (0 or outside the depth range) gives the
+//! downsampled intrinsics, so back-projecting `(u, v)` with them equals back-projecting the
+//! raw pixel with the raw intrinsics. Invalid depth (0 or outside the depth range) gives the
 //! invalid entry `[0; 4]`.
 
-use super::{valid_entry, INVALID};
+use super::{back_project, valid_entry, INVALID};
 use crate::layout::PreprocessParams;
-use glam::Vec3;
 
-/// Bindings: 0 `params`, 1 `raw_depth` (u16, raw_width x raw_height), 2 `raw_rgba`
-/// (packed RGBA8), 3 `vertex_map` (out, width x height, camera frame, metres),
-/// 4 `color_map` (out, RGB 0..255).
+/// Bindings (as in the shader header):
+/// - 0 `params`: `PreprocessParams`
+/// - 1 `raw_depth`: u16 depth units, raw_width x raw_height (r16uint texture on the GPU)
+/// - 2 `raw_rgba`: packed RGBA8 (`r | g << 8 | b << 16 | a << 24`), raw_width x raw_height
+/// - 3 `vertex_map` (out): width x height, camera frame, metres, w = 1 / 0
+/// - 4 `color_map` (out): width x height, RGB 0..255, a = 255
 pub fn depth_to_vertex(
     params: &PreprocessParams,
     raw_depth: &[u16],
@@ -38,12 +40,11 @@ pub fn depth_to_vertex(
             ((c >> 16) & 255) as f32,
             255.0,
         ];
-        if z <= 0.0 || z < params.min_depth_m || z > params.max_depth_m {
-            vertex_map[pix] = INVALID;
-            continue;
+        let mut vertex = INVALID;
+        if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
+            let cam = [params.fx, params.fy, params.cx, params.cy];
+            vertex = valid_entry(back_project(cam, [u, v], z));
         }
-        let x = (u as f32 - params.cx) * z / params.fx;
-        let y = (v as f32 - params.cy) * z / params.fy;
-        vertex_map[pix] = valid_entry(Vec3::new(x, y, z));
+        vertex_map[pix] = vertex;
     }
 }

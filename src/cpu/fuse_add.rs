@@ -5,43 +5,54 @@
 //! compare maps order-independently. Never writes at or past `params.capacity`: the counter
 //! still counts, and the host reports a count above capacity as a capacity error.
 
-use super::{is_valid, transform_dir, transform_point, xyz};
+use super::{back_project, is_valid, surfel_texel, transform_dir, transform_point, xyz};
 use crate::layout::FuseParams;
 
-/// Bindings: 0 `params`, 1 `vertex_map`, 2 `normal_map`, 3 `color_map`, 4 `assoc`,
-/// 5 `counter` (surfels in the map; in/out), 6 `positions`, 7 `normals`, 8 `colors`,
-/// 9 `weights`, 10 `last_frame`. Map arrays must hold `capacity` entries.
+/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, each
+/// holding at least `capacity` entries):
+/// - 0 `params`: `FuseParams` (`t_cam_to_world`, `frame_id`, `capacity`)
+/// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
+///   zero where invalid (see `vertex_to_normal`)
+/// - 2 `color_map`: width x height, RGB 0..255
+/// - 3 `assoc`: 1 where `fuse_merge` merged the pixel
+/// - 4 `counter` (in/out): surfels in the map (in: before, out: after)
+/// - 5 `position_weight` (out): xyz world frame, w = weight
+/// - 6 `normal_frame` (out): normal bits, w = last frame
+/// - 7 `color` (out): RGB 0..255, a = 255
 #[allow(clippy::too_many_arguments)]
 pub fn fuse_add(
     params: &FuseParams,
-    vertex_map: &[[f32; 4]],
-    normal_map: &[[f32; 4]],
+    normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
     assoc: &[u32],
     counter: &mut u32,
-    positions: &mut [[f32; 4]],
-    normals: &mut [[f32; 4]],
-    colors: &mut [[f32; 4]],
-    weights: &mut [f32],
-    last_frame: &mut [u32],
+    position_weight: &mut [[f32; 4]],
+    normal_frame: &mut [[u32; 4]],
+    color: &mut [[f32; 4]],
 ) {
-    let n = (params.width * params.height) as usize;
-    for pix in 0..n {
-        if assoc[pix] != 0 || !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
-            continue;
+    let cam = [params.fx, params.fy, params.cx, params.cy];
+    for v in 0..params.height {
+        for u in 0..params.width {
+            let pix = (v * params.width + u) as usize;
+            if assoc[pix] != 0 {
+                continue;
+            }
+            // Valid normal (w = depth > 0) implies a valid vertex.
+            let nd = normal_depth[pix];
+            if !is_valid(nd) {
+                continue;
+            }
+            let i = *counter;
+            *counter += 1;
+            if i >= params.capacity {
+                continue;
+            }
+            let p = transform_point(&params.t_cam_to_world, back_project(cam, [u, v], nd[3]));
+            let n = transform_dir(&params.t_cam_to_world, xyz(nd));
+            let surfel = surfel_texel(i);
+            position_weight[surfel] = [p.x, p.y, p.z, 1.0];
+            normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+            color[surfel] = color_map[pix];
         }
-        let i = *counter;
-        *counter += 1;
-        if i >= params.capacity {
-            continue;
-        }
-        let i = i as usize;
-        let p = transform_point(&params.t_cam_to_world, xyz(vertex_map[pix]));
-        let nn = transform_dir(&params.t_cam_to_world, xyz(normal_map[pix]));
-        positions[i] = [p.x, p.y, p.z, 1.0];
-        normals[i] = [nn.x, nn.y, nn.z, 0.0];
-        colors[i] = color_map[pix];
-        weights[i] = 1.0;
-        last_frame[i] = params.frame_id;
     }
 }

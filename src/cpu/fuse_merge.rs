@@ -1,67 +1,89 @@
 //! CPU twin of `shaders/fuse_merge.wgsl`: merges the new frame into the surfels it sees.
 //!
 //! For every surfel (world frame): move it into the tracked camera and project it. Filter
-//! pass 1: it lands inside the image with `z > 0` on a pixel with a valid vertex and
-//! normal. Filter pass 2: the frame's point at that pixel, moved to the world, is closer
-//! than `dist_threshold_m`, and the angle between the normals is below the threshold
+//! pass 1: it lands inside the image with `z > 0` on a pixel with a valid `normal_depth`
+//! texel (a valid normal implies a valid vertex). Filter pass 2: the frame's point at that
+//! pixel (rebuilt with `back_project`), moved to the world, is closer than
+//! `dist_threshold_m`, and the angle between the normals is below the threshold
 //! (`cos > cos_normal_threshold`). Associated surfels take the weighted average
 //! `(w x + 1 x_new) / (w + 1)` of position, colour and normal (normal renormalised), weight
 //! `w + 1` and `last_frame = frame_id`; the pixel is marked in `assoc` so `fuse_add` does
 //! not add it again. Several surfels may merge with one pixel (as in the assignment).
 
-use super::{is_valid, project_to_pixel, transform_dir, transform_point, xyz};
+use glam::Vec3;
+
+use super::{
+    back_project, is_valid, project_to_texel, surfel_texel, transform_dir, transform_point, xyz,
+};
 use crate::layout::FuseParams;
 
-/// Bindings: 0 `params`, 1 `vertex_map` and 2 `normal_map` (camera frame), 3 `color_map`,
-/// 4 `positions`, 5 `normals`, 6 `colors`, 7 `weights`, 8 `last_frame` (the map, in/out),
-/// 9 `assoc` (out, one flag per pixel, cleared to 0 by the caller).
-#[allow(clippy::too_many_arguments)]
+/// `v / |v|`, or zero when `|v|` is zero. Mirrors `normalize_or_zero` in fuse_merge.wgsl.
+#[inline]
+fn normalize_or_zero(v: Vec3) -> Vec3 {
+    v.normalize_or_zero()
+}
+
+/// The unit normal stored as bits in `normal_frame`'s xyz (`bitcast<vec3<f32>>`).
+#[inline]
+fn normal_of(nf: [u32; 4]) -> Vec3 {
+    Vec3::new(
+        f32::from_bits(nf[0]),
+        f32::from_bits(nf[1]),
+        f32::from_bits(nf[2]),
+    )
+}
+
+/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
+/// - 0 `params`: `FuseParams` (tracked poses, intrinsics, `surfel_count`, thresholds)
+/// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
+///   zero where invalid (see `vertex_to_normal`)
+/// - 2 `color_map`: width x height, RGB 0..255
+/// - 3 `position_weight` (in/out): xyz world frame (metres), w = observations
+/// - 4 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
+/// - 5 `color` (in/out): RGB 0..255, a = 255
+/// - 6 `assoc` (out): one flag per pixel, cleared to 0 by the caller
 pub fn fuse_merge(
     params: &FuseParams,
-    vertex_map: &[[f32; 4]],
-    normal_map: &[[f32; 4]],
+    normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
-    positions: &mut [[f32; 4]],
-    normals: &mut [[f32; 4]],
-    colors: &mut [[f32; 4]],
-    weights: &mut [f32],
-    last_frame: &mut [u32],
+    position_weight: &mut [[f32; 4]],
+    normal_frame: &mut [[u32; 4]],
+    color: &mut [[f32; 4]],
     assoc: &mut [u32],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    for i in 0..params.surfel_count as usize {
-        let p_world = xyz(positions[i]);
+    for i in 0..params.surfel_count {
+        let surfel = surfel_texel(i);
+        let pw = position_weight[surfel];
+        let p_world = xyz(pw);
         let p_cam = transform_point(&params.t_world_to_cam, p_world);
-        let Some(pix) = project_to_pixel(cam, params.width, params.height, p_cam) else {
+        let Some(texel) = project_to_texel(cam, params.width, params.height, p_cam) else {
             continue;
         };
-        if !is_valid(vertex_map[pix]) || !is_valid(normal_map[pix]) {
+        let pix = (texel[1] * params.width + texel[0]) as usize;
+        // Valid normal (w = depth > 0) implies a valid vertex.
+        let nd = normal_depth[pix];
+        if !is_valid(nd) {
             continue;
         }
-        let q_world = transform_point(&params.t_cam_to_world, xyz(vertex_map[pix]));
-        let nq_world = transform_dir(&params.t_cam_to_world, xyz(normal_map[pix]));
-        let n_old = xyz(normals[i]);
+        let q_world = transform_point(&params.t_cam_to_world, back_project(cam, texel, nd[3]));
+        let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
+        let n_old = normal_of(normal_frame[surfel]);
         if (q_world - p_world).length() >= params.dist_threshold_m
             || n_old.dot(nq_world) <= params.cos_normal_threshold
         {
             continue;
         }
-        let w = weights[i];
+        let w = pw[3];
         let inv = 1.0 / (w + 1.0);
         let p = (p_world * w + q_world) * inv;
-        let n = ((n_old * w + nq_world) * inv).normalize_or_zero();
-        let c = colors[i];
+        let n = normalize_or_zero((n_old * w + nq_world) * inv);
+        let c = color[surfel];
         let cq = color_map[pix];
-        positions[i] = [p.x, p.y, p.z, 1.0];
-        normals[i] = [n.x, n.y, n.z, 0.0];
-        colors[i] = [
-            (c[0] * w + cq[0]) * inv,
-            (c[1] * w + cq[1]) * inv,
-            (c[2] * w + cq[2]) * inv,
-            255.0,
-        ];
-        weights[i] = w + 1.0;
-        last_frame[i] = params.frame_id;
+        position_weight[surfel] = [p.x, p.y, p.z, w + 1.0];
+        normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+        let c = (xyz(c) * w + xyz(cq)) * inv;
+        color[surfel] = [c.x, c.y, c.z, 255.0];
         assoc[pix] = 1;
     }
 }

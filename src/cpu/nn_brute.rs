@@ -4,21 +4,8 @@
 //! Ties (equal squared distances) go to the lower target index, in both twins, so the
 //! brute-force and grid kernels agree exactly on the CPU.
 
+use super::{scan_closer, scan_dist_sq};
 use crate::scan::layout::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
-
-/// True when `(d, i)` beats `(best_d, best_i)`: closer, or as close with a lower index.
-/// Mirrors `scan_closer` in the shaders.
-#[inline]
-pub fn scan_closer(d: f32, i: u32, best_d: f32, best_i: u32) -> bool {
-    d < best_d || (d == best_d && i < best_i)
-}
-
-/// Squared distance written out as the shaders do (`x*x + y*y + z*z` of the difference).
-#[inline]
-pub fn scan_dist_sq(a: [f32; 4], b: [f32; 4]) -> f32 {
-    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
-    dx * dx + dy * dy + dz * dz
-}
 
 /// For every query (`params.n_queries` of `queries`, metres), the nearest of targets
 /// `params.target_begin..params.target_end`, continuing from `results` when

@@ -6,7 +6,7 @@
 //! lies in the 3x3x3 cells around the query's cell, so the answer equals brute force
 //! within the radius (same tie rule). Hash collisions only add candidates.
 
-use super::nn_brute::{scan_closer, scan_dist_sq};
+use super::{scan_closer, scan_dist_sq};
 use crate::scan::layout::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
 
 /// Cell coordinates of a point. Mirrors `scan_cell_of` in nn_grid.wgsl.

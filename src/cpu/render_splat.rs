@@ -7,8 +7,7 @@
 //! nearest surfel (by its centre depth) wins, ties go to the larger index, 0 means empty.
 //! This is the key of `project_model`, so the GPU's 64-bit `atomicMax` picks the same one.
 
-use super::project_model::pack_depth_index;
-use super::{transform_dir, transform_point, xyz};
+use super::{pack_depth_index, transform_dir, transform_point, xyz};
 use crate::render::layout::RenderParams;
 
 /// Projections farther than this from the image (pixels) are skipped before any

@@ -1,52 +1,73 @@
-//! CPU twin of `shaders/vertex_to_normal.wgsl`: normal map from the vertex map by central
-//! differences, oriented towards the camera.
+//! CPU twin of `shaders/vertex_to_normal.wgsl`: the `normal_depth` map from the vertex map,
+//! normals by central differences, oriented towards the camera.
 //!
 //! `n = normalize((V(u+1,v) - V(u-1,v)) x (V(u,v+1) - V(u,v-1)))`, flipped so that
 //! `n . V(u,v) < 0` (it faces the camera, whatever the sign of fy). Invalid on the image
 //! border, where any of the five vertices is invalid, where a neighbour's depth differs by
 //! more than `max_depth_jump_m` (an occlusion edge), or where the cross product vanishes.
+//!
+//! The output texel is `(n, z)`: the unit normal (camera frame) with the pixel's vertex
+//! depth `z` (metres, > 0) in w, or all zero where invalid. A valid normal implies a valid
+//! vertex, so later twins (`icp_reduce`, `fuse_merge`, `fuse_add`) read this one texel and
+//! rebuild the vertex with [`super::back_project`], the function `depth_to_vertex` made it
+//! with, bit for bit.
 
-use super::{is_valid, valid_entry, xyz, INVALID};
+use super::{is_valid, xyz, INVALID};
 use crate::layout::NormalParams;
 
-/// Bindings: 0 `params`, 1 `vertex_map` (camera frame), 2 `normal_map` (out, camera frame).
+/// The normal of pixel `(u, v)` with the pixel's depth in w, or [`INVALID`] (the rules of
+/// the module header). Mirrors `normal_at` in vertex_to_normal.wgsl.
+pub fn normal_at(params: &NormalParams, vertex_map: &[[f32; 4]], u: u32, v: u32) -> [f32; 4] {
+    if u == 0 || v == 0 || u + 1 >= params.width || v + 1 >= params.height {
+        return INVALID;
+    }
+    let w = params.width as usize;
+    let load = |u: u32, v: u32| vertex_map[v as usize * w + u as usize];
+    let c = load(u, v);
+    let l = load(u - 1, v);
+    let r = load(u + 1, v);
+    let t = load(u, v - 1);
+    let b = load(u, v + 1);
+    if !(is_valid(c) && is_valid(l) && is_valid(r) && is_valid(t) && is_valid(b)) {
+        return INVALID;
+    }
+    let jump = params.max_depth_jump_m;
+    if (l[2] - c[2]).abs() > jump
+        || (r[2] - c[2]).abs() > jump
+        || (t[2] - c[2]).abs() > jump
+        || (b[2] - c[2]).abs() > jump
+    {
+        return INVALID;
+    }
+    let n = (xyz(r) - xyz(l)).cross(xyz(b) - xyz(t));
+    let len = n.length();
+    if len <= 1e-12 {
+        return INVALID;
+    }
+    let mut nn = n / len;
+    if nn.dot(xyz(c)) > 0.0 {
+        nn = -nn;
+    }
+    [nn.x, nn.y, nn.z, c[2]]
+}
+
+/// Bindings (as in the shader header):
+/// - 0 `params`: `NormalParams`
+/// - 1 `vertex_map`: width x height, camera frame, metres, w = 1 / 0
+/// - 2 `normal_depth` (out): width x height; xyz = unit normal (camera frame), w = the
+///   vertex's depth (metres, > 0) where valid; all zero where not
 pub fn vertex_to_normal(
     params: &NormalParams,
     vertex_map: &[[f32; 4]],
-    normal_map: &mut [[f32; 4]],
+    normal_depth: &mut [[f32; 4]],
 ) {
     let (w, h) = (params.width as usize, params.height as usize);
     assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
-    assert_eq!(normal_map.len(), w * h, "normal_map has the wrong size");
-    for pix in 0..w * h {
-        let (u, v) = (pix % w, pix / w);
-        normal_map[pix] = INVALID;
-        if u == 0 || v == 0 || u + 1 >= w || v + 1 >= h {
-            continue;
+    assert_eq!(normal_depth.len(), w * h, "normal_depth has the wrong size");
+    // One shader thread per pixel (u, v).
+    for v in 0..params.height {
+        for u in 0..params.width {
+            normal_depth[v as usize * w + u as usize] = normal_at(params, vertex_map, u, v);
         }
-        let c = vertex_map[pix];
-        let (l, r) = (vertex_map[pix - 1], vertex_map[pix + 1]);
-        let (t, b) = (vertex_map[pix - w], vertex_map[pix + w]);
-        if !(is_valid(c) && is_valid(l) && is_valid(r) && is_valid(t) && is_valid(b)) {
-            continue;
-        }
-        let jump = params.max_depth_jump_m;
-        if (l[2] - c[2]).abs() > jump
-            || (r[2] - c[2]).abs() > jump
-            || (t[2] - c[2]).abs() > jump
-            || (b[2] - c[2]).abs() > jump
-        {
-            continue;
-        }
-        let n = (xyz(r) - xyz(l)).cross(xyz(b) - xyz(t));
-        let len = n.length();
-        if len <= 1e-12 {
-            continue;
-        }
-        let mut n = n / len;
-        if n.dot(xyz(c)) > 0.0 {
-            n = -n;
-        }
-        normal_map[pix] = valid_entry(n);
     }
 }

@@ -3,10 +3,11 @@
 //!
 //! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
 //! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
-//! textures, which lavapipe runs 3-5x faster than storage-buffer loads (see `images.rs`).
+//! textures, which lavapipe loads 3-5x faster than storage-buffer elements
+//! (`examples/lavapipe_loads.rs`).
 //! The frame's normal map carries the vertex's depth in w (`normal_depth`), so the kernels
 //! that associate with the frame fetch one texel and rebuild the vertex (see
-//! vertex_to_normal.wgsl); `download_frame` turns it back into the twin's normal map.
+//! vertex_to_normal.wgsl), as does the twin; `download_frame` reads it as it is.
 //! The surfel map is three packed textures ([`MapTextures`]); only the index map, the
 //! association flags, the counter and the ICP partials are storage buffers (atomics).
 //! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
@@ -49,8 +50,9 @@ const MAX_STORAGE_BUFFERS_USED: u32 = 2;
 /// three packed map textures; `depth_to_vertex`, `predict_model`: two maps).
 const MAX_STORAGE_TEXTURES_USED: u32 = 3;
 
-/// Bindings of each kernel, in the order of its CPU twin's arguments (`@binding(i)`).
-mod bindings {
+/// Bindings of each dense-SLAM kernel, in the order of its CPU twin's arguments
+/// (`@binding(i)`); `kernel::layout_entries` turns them into the layout.
+pub mod bindings {
     use super::{Binding, TexelFormat};
     pub const DEPTH_TO_VERTEX: [Binding; 5] = [
         Binding::uniform("params: PreprocessParams"),
@@ -180,6 +182,22 @@ pub struct GpuBackend {
 struct Profiler {
     timer: StageTimer,
     totals: BTreeMap<String, (u64, f64)>,
+}
+
+/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
+/// submit its passes: `(ctx, kernels, bind groups, profiler)`. A macro rather than a method
+/// so the borrows stay per field: the step still reads its uniforms, frame buffers and
+/// read-backs while the profiler is borrowed mutably.
+macro_rules! encoding_parts {
+    ($backend:ident) => {{
+        $backend.bind_groups();
+        (
+            &$backend.ctx,
+            &$backend.kernels,
+            $backend.bind_groups.as_ref().expect("just built"),
+            &mut $backend.profiler,
+        )
+    }};
 }
 
 /// Records one compute pass per `(kernel, bind group, [x, y] workgroups)`, timed when
@@ -562,21 +580,6 @@ impl GpuBackend {
     }
 }
 
-/// The normal map (xyz, w = 1 / 0) of a normal-depth map (xyz, w = depth / 0): a valid
-/// normal always has a positive depth.
-fn normal_map_of(normal_depth: &[[f32; 4]]) -> Vec<[f32; 4]> {
-    normal_depth
-        .iter()
-        .map(|n| {
-            if n[3] > 0.0 {
-                [n[0], n[1], n[2], 1.0]
-            } else {
-                [0.0; 4]
-            }
-        })
-        .collect()
-}
-
 /// A per-pixel `[f32; 4]` map read back row-major.
 fn read_map(ctx: &GpuContext, image: &GpuImage) -> Result<Vec<[f32; 4]>> {
     image.read_back(ctx)
@@ -626,13 +629,7 @@ impl Backend for GpuBackend {
         let (w, h) = (params.width, params.height);
         let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
         let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             record_passes(
@@ -657,13 +654,7 @@ impl Backend for GpuBackend {
             .kernels
             .predict_model
             .workgroups_for_image(f.width, f.height);
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
             .as_ref()
@@ -687,13 +678,7 @@ impl Backend for GpuBackend {
 
     fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let wg = self.reduction_workgroups;
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         let partials = ctx.scoped("icp_reduce", || {
             self.u_icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
@@ -732,13 +717,7 @@ impl Backend for GpuBackend {
             .kernels
             .fuse_add
             .workgroups_for_image(f.width, f.height);
-        self.bind_groups();
-        let (ctx, k, bg, profiler) = (
-            &self.ctx,
-            &self.kernels,
-            self.bind_groups.as_ref().expect("built"),
-            &mut self.profiler,
-        );
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
             .as_ref()
@@ -798,7 +777,7 @@ impl Backend for GpuBackend {
         ctx.scoped("download frame", || {
             Ok(FrameMaps {
                 vertex: read_map(ctx, &f.vertex)?,
-                normal: normal_map_of(&read_map(ctx, &f.normal_depth)?),
+                normal_depth: read_map(ctx, &f.normal_depth)?,
                 color: read_map(ctx, &f.color)?,
             })
         })

@@ -144,16 +144,7 @@ impl Kernel {
     ) -> Result<Kernel> {
         let [workgroup_size, workgroup_size_y] = check_shader_interface(name, wgsl, bindings)?;
         ctx.scoped(&format!("creating kernel `{name}`"), || {
-            let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupLayoutEntry {
-                    binding: i as u32,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: layout_type(b.kind),
-                    count: None,
-                })
-                .collect();
+            let entries = layout_entries(bindings);
             let bind_group_layout =
                 ctx.device
                     .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -314,11 +305,182 @@ fn layout_type(kind: BindingKind) -> wgpu::BindingType {
     }
 }
 
-/// Parses `wgsl` with naga, checks that the `@group(0)` bindings match `bindings` in count
-/// and kind, and returns `@workgroup_size(x, y)` of the entry point `main`.
+/// The explicit bind-group layout entries of a binding table: `bindings[i]` at
+/// `@binding(i)`, compute stage only. Needs no device, so `tests/bindings.rs` checks the
+/// very entries [`Kernel::from_source`] creates its layout from.
+pub fn layout_entries(bindings: &[Binding]) -> Vec<wgpu::BindGroupLayoutEntry> {
+    bindings
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupLayoutEntry {
+            binding: i as u32,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: layout_type(b.kind),
+            count: None,
+        })
+        .collect()
+}
+
+/// The layout entry type naga's reflection of one WGSL global asks for (uniform, storage
+/// read / read_write, sampled 2D texture of f32 or u32, 2D storage texture with format and
+/// access), or a sentence saying why the kernels cannot use it.
+fn reflected_type(
+    module: &naga::Module,
+    g: &naga::GlobalVariable,
+) -> Result<wgpu::BindingType, String> {
+    let buffer = |ty| wgpu::BindingType::Buffer {
+        ty,
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    };
+    let texture = |sample_type| wgpu::BindingType::Texture {
+        sample_type,
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    match g.space {
+        naga::AddressSpace::Uniform => Ok(buffer(wgpu::BufferBindingType::Uniform)),
+        naga::AddressSpace::Storage { access } => Ok(buffer(wgpu::BufferBindingType::Storage {
+            read_only: !access.contains(naga::StorageAccess::STORE),
+        })),
+        naga::AddressSpace::Handle => match &module.types[g.ty].inner {
+            naga::TypeInner::Image {
+                dim: naga::ImageDimension::D2,
+                arrayed: false,
+                class,
+            } => match class {
+                naga::ImageClass::Sampled {
+                    kind: naga::ScalarKind::Float,
+                    multi: false,
+                } => Ok(texture(wgpu::TextureSampleType::Float {
+                    filterable: false,
+                })),
+                naga::ImageClass::Sampled {
+                    kind: naga::ScalarKind::Uint,
+                    multi: false,
+                } => Ok(texture(wgpu::TextureSampleType::Uint)),
+                naga::ImageClass::Storage { format, access } => {
+                    let format = match format {
+                        naga::StorageFormat::Rgba32Float => wgpu::TextureFormat::Rgba32Float,
+                        naga::StorageFormat::Rgba32Uint => wgpu::TextureFormat::Rgba32Uint,
+                        other => return Err(format!("unsupported storage format {other:?}")),
+                    };
+                    let access = match (
+                        access.contains(naga::StorageAccess::LOAD),
+                        access.contains(naga::StorageAccess::STORE),
+                    ) {
+                        (true, true) => wgpu::StorageTextureAccess::ReadWrite,
+                        (false, true) => wgpu::StorageTextureAccess::WriteOnly,
+                        _ => wgpu::StorageTextureAccess::ReadOnly,
+                    };
+                    Ok(wgpu::BindingType::StorageTexture {
+                        access,
+                        format,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    })
+                }
+                other => Err(format!("unsupported image class {other:?}")),
+            },
+            other => Err(format!("unsupported handle type {other:?}")),
+        },
+        other => Err(format!("unsupported binding space {other:?}")),
+    }
+}
+
+/// Every disagreement between the `@group(0) @binding(i)` globals of `wgsl` (reflected by
+/// naga) and the layout `entries` built for kernel `name`, one sentence each naming the
+/// kernel and the binding: a binding on one side only, a different type (uniform, storage
+/// access, texture sample type, storage-texture format or access), a group other than 0,
+/// a stage other than compute, an array count. Empty when they agree. A WGSL parse error
+/// is one entry.
+pub fn layout_mismatches(
+    name: &str,
+    wgsl: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+) -> Vec<String> {
+    let module = match naga::front::wgsl::parse_str(wgsl) {
+        Ok(m) => m,
+        Err(e) => {
+            return vec![format!(
+                "kernel `{name}`: WGSL does not parse: {}",
+                e.message()
+            )]
+        }
+    };
+    let mut problems = Vec::new();
+    let mut declared = std::collections::BTreeMap::new();
+    for (_, g) in module.global_variables.iter() {
+        let Some(rb) = g.binding.as_ref() else {
+            continue;
+        };
+        let var = g.name.clone().unwrap_or_default();
+        if rb.group != 0 {
+            problems.push(format!(
+                "kernel `{name}` binding {} (`{var}`): @group({}), only @group(0) is used",
+                rb.binding, rb.group
+            ));
+            continue;
+        }
+        match reflected_type(&module, g) {
+            Ok(ty) => {
+                declared.insert(rb.binding, (var, ty));
+            }
+            Err(why) => problems.push(format!(
+                "kernel `{name}` binding {} (`{var}`): {why}",
+                rb.binding
+            )),
+        }
+    }
+    let mut listed = std::collections::BTreeMap::new();
+    for e in entries {
+        if listed.insert(e.binding, e).is_some() {
+            problems.push(format!(
+                "kernel `{name}` binding {}: listed twice in the layout",
+                e.binding
+            ));
+        }
+        if e.visibility != wgpu::ShaderStages::COMPUTE {
+            problems.push(format!(
+                "kernel `{name}` binding {}: layout visibility {:?}, not COMPUTE",
+                e.binding, e.visibility
+            ));
+        }
+        if e.count.is_some() {
+            problems.push(format!(
+                "kernel `{name}` binding {}: layout has an array count",
+                e.binding
+            ));
+        }
+    }
+    let all: std::collections::BTreeSet<u32> =
+        declared.keys().chain(listed.keys()).copied().collect();
+    for b in all {
+        match (declared.get(&b), listed.get(&b)) {
+            (Some((var, wgsl_ty)), Some(e)) if *wgsl_ty != e.ty => problems.push(format!(
+                "kernel `{name}` binding {b} (`{var}`): WGSL declares {wgsl_ty:?}, the layout \
+                 has {:?}",
+                e.ty
+            )),
+            (Some((var, wgsl_ty)), None) => problems.push(format!(
+                "kernel `{name}` binding {b} (`{var}`): declared in WGSL as {wgsl_ty:?}, missing \
+                 from the layout"
+            )),
+            (None, Some(e)) => problems.push(format!(
+                "kernel `{name}` binding {b}: in the layout as {:?}, not declared in WGSL",
+                e.ty
+            )),
+            _ => {}
+        }
+    }
+    problems
+}
+
+/// Checks `bindings` against the shader's declarations ([`layout_mismatches`]) and returns
+/// `@workgroup_size(x, y)` of the entry point `main`.
 ///
 /// A WGSL parse error is [`Error::Gpu`] (it means the embedded shader is broken, which
-/// `tests/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug).
+/// `tests/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug,
+/// which `tests/bindings.rs` catches without a GPU).
 fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Result<[u32; 2]> {
     let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| {
         Error::Gpu(format!(
@@ -331,65 +493,11 @@ fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Resul
         .iter()
         .find(|e| e.name == "main" && e.stage == naga::ShaderStage::Compute)
         .unwrap_or_else(|| panic!("kernel `{name}` has no `@compute fn main`"));
-    let mut declared: Vec<(u32, BindingKind)> = module
-        .global_variables
-        .iter()
-        .filter_map(|(_, g)| {
-            let rb = g.binding.as_ref()?;
-            assert_eq!(rb.group, 0, "kernel `{name}`: only @group(0) is used");
-            let kind = match g.space {
-                naga::AddressSpace::Uniform => BindingKind::Uniform,
-                naga::AddressSpace::Storage { access } => {
-                    if access.contains(naga::StorageAccess::STORE) {
-                        BindingKind::StorageReadWrite
-                    } else {
-                        BindingKind::StorageRead
-                    }
-                }
-                naga::AddressSpace::Handle => match &module.types[g.ty].inner {
-                    naga::TypeInner::Image {
-                        dim: naga::ImageDimension::D2,
-                        arrayed: false,
-                        class,
-                    } => match class {
-                        naga::ImageClass::Sampled {
-                            kind: naga::ScalarKind::Float,
-                            multi: false,
-                        } => BindingKind::TextureF32,
-                        naga::ImageClass::Sampled {
-                            kind: naga::ScalarKind::Uint,
-                            multi: false,
-                        } => BindingKind::TextureU32,
-                        naga::ImageClass::Storage { format, access } => {
-                            BindingKind::StorageTexture {
-                                format: match format {
-                                    naga::StorageFormat::Rgba32Float => TexelFormat::Rgba32F,
-                                    naga::StorageFormat::Rgba32Uint => TexelFormat::Rgba32U,
-                                    other => panic!(
-                                        "kernel `{name}`: unsupported storage format {other:?}"
-                                    ),
-                                },
-                                read_write: access.contains(naga::StorageAccess::LOAD),
-                            }
-                        }
-                        other => panic!("kernel `{name}`: unsupported image class {other:?}"),
-                    },
-                    other => panic!("kernel `{name}`: unsupported handle type {other:?}"),
-                },
-                other => panic!("kernel `{name}`: unsupported binding space {other:?}"),
-            };
-            Some((rb.binding, kind))
-        })
-        .collect();
-    declared.sort_by_key(|(i, _)| *i);
-    let expected: Vec<(u32, BindingKind)> = bindings
-        .iter()
-        .enumerate()
-        .map(|(i, b)| (i as u32, b.kind))
-        .collect();
-    assert_eq!(
-        declared, expected,
-        "kernel `{name}`: WGSL bindings (left) differ from the Rust list (right)"
+    let problems = layout_mismatches(name, wgsl, &layout_entries(bindings));
+    assert!(
+        problems.is_empty(),
+        "kernel `{name}`: WGSL bindings differ from the Rust list:\n{}",
+        problems.join("\n")
     );
     let [x, y, z] = entry.workgroup_size;
     assert!(

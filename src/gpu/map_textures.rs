@@ -1,6 +1,6 @@
 //! The surfel map on the GPU: three 2D textures [`MAP_TEXTURE_WIDTH`] texels wide, surfel
 //! `i` at texel `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)` of each, packing the five
-//! attributes of [`SurfelMap`] (world frame):
+//! surfel attributes (world frame) exactly as [`SurfelMap`] holds them on the host:
 //!
 //! | texture | format | x, y, z | w |
 //! |---|---|---|---|
@@ -8,9 +8,9 @@
 //! | `normal_frame` | rgba32uint | bits of the unit normal (`bitcast<u32>`) | last_frame |
 //! | `color` | rgba32float | RGB 0..255 | 255 |
 //!
-//! Textures rather than storage buffers because lavapipe loads texels 2-4x faster than
-//! storage-buffer elements (measured in `images.rs`), and every frame reads the whole map
-//! twice (`project_model`, `fuse_merge`). Packing five attributes into three texels cuts
+//! Textures rather than storage buffers because lavapipe loads texels 3-5x faster than
+//! storage-buffer elements (measured by `examples/lavapipe_loads.rs`), and every frame
+//! reads the whole map twice (`project_model`, `fuse_merge`). Packing five attributes into three texels cuts
 //! `fuse_merge`'s loads and stores per merged surfel from five to three; the packing is
 //! exact (the normal's bits are kept, not converted). `fuse_merge` reads and writes its
 //! own surfel through read-write storage textures (128-bit formats need the
@@ -77,43 +77,22 @@ impl MapTextures {
         Ok(())
     }
 
-    /// The first `n` surfels, downloaded and unpacked.
+    /// The first `n` surfels, downloaded: the textures' texels are `SurfelMap`'s packing,
+    /// so this is a plain copy.
     pub fn download(&self, ctx: &GpuContext, n: usize) -> Result<SurfelMap> {
-        let pw: Vec<[f32; 4]> = self.position_weight.read_back_prefix(ctx, n)?;
-        let nf: Vec<[u32; 4]> = self.normal_frame.read_back_prefix(ctx, n)?;
-        let colors: Vec<[f32; 4]> = self.color.read_back_prefix(ctx, n)?;
         Ok(SurfelMap {
-            positions: pw.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect(),
-            normals: nf
-                .iter()
-                .map(|n| {
-                    let f = |k: usize| f32::from_bits(n[k]);
-                    [f(0), f(1), f(2), 0.0]
-                })
-                .collect(),
-            colors,
-            weights: pw.iter().map(|p| p[3]).collect(),
-            last_frame: nf.iter().map(|n| n[3]).collect(),
+            position_weight: self.position_weight.read_back_prefix(ctx, n)?,
+            normal_frame: self.normal_frame.read_back_prefix(ctx, n)?,
+            color: self.color.read_back_prefix(ctx, n)?,
         })
     }
 
-    /// Packs `map` and writes it into slots `0..map.len()` (the caller grows first).
+    /// Writes `map` into slots `0..map.len()` as it is (the caller grows first).
     pub fn upload(&self, ctx: &GpuContext, map: &SurfelMap) -> Result<()> {
-        let pw: Vec<[f32; 4]> = map
-            .positions
-            .iter()
-            .zip(&map.weights)
-            .map(|(p, &w)| [p[0], p[1], p[2], w])
-            .collect();
-        let nf: Vec<[u32; 4]> = map
-            .normals
-            .iter()
-            .zip(&map.last_frame)
-            .map(|(n, &frame)| [n[0].to_bits(), n[1].to_bits(), n[2].to_bits(), frame])
-            .collect();
-        self.position_weight.upload_prefix(ctx, &pw)?;
-        self.normal_frame.upload_prefix(ctx, &nf)?;
-        self.color.upload_prefix(ctx, &map.colors)
+        self.position_weight
+            .upload_prefix(ctx, &map.position_weight)?;
+        self.normal_frame.upload_prefix(ctx, &map.normal_frame)?;
+        self.color.upload_prefix(ctx, &map.color)
     }
 
     fn images(&self) -> [&GpuImage; 3] {

@@ -9,7 +9,7 @@
 //! - [`kernel`]: pipeline + explicit bind-group layout + workgroup size; dispatch.
 //! - [`buffers`]: typed storage arrays, uniforms, read-back, byte accounting.
 //! - [`images`]: per-pixel maps as 2D textures (fast loads on lavapipe), read-back.
-//! - [`map_textures`]: the surfel map as five textures that grow by GPU copy.
+//! - [`map_textures`]: the surfel map as three packed textures that grow by GPU copy.
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
@@ -27,5 +27,29 @@ pub mod timing;
 pub use backend::GpuBackend;
 pub use buffers::{GpuArray, Readback, StatsSnapshot, Uniform};
 pub use context::GpuContext;
-pub use kernel::{Binding, BindingKind, Kernel, TexelFormat};
+pub use kernel::{layout_entries, layout_mismatches, Binding, BindingKind, Kernel, TexelFormat};
 pub use timing::{StageTime, StageTimer};
+
+/// The binding table of every kernel in [`shaders::KERNELS`], as `(kernel name, table)`:
+/// the tables the dense backend, the scan registration and the renderer build their
+/// layouts from. `tests/bindings.rs` checks each against naga's reflection of the kernel's
+/// WGSL, without a GPU.
+pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
+    use crate::render::gpu::{RENDER_RESOLVE, RENDER_SPLAT};
+    use crate::scan::gpu::{CROSS_COVARIANCE, NN_BRUTE, NN_GRID};
+    use backend::bindings as b;
+    vec![
+        ("depth_to_vertex", &b::DEPTH_TO_VERTEX),
+        ("vertex_to_normal", &b::VERTEX_TO_NORMAL),
+        ("project_model", &b::PROJECT_MODEL),
+        ("predict_model", &b::PREDICT_MODEL),
+        ("icp_reduce", &b::ICP_REDUCE),
+        ("fuse_merge", &b::FUSE_MERGE),
+        ("fuse_add", &b::FUSE_ADD),
+        ("nn_brute", &NN_BRUTE),
+        ("nn_grid", &NN_GRID),
+        ("cross_covariance", &CROSS_COVARIANCE),
+        ("render_splat", &RENDER_SPLAT),
+        ("render_resolve", &RENDER_RESOLVE),
+    ]
+}

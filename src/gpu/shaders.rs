@@ -1,12 +1,25 @@
-//! The WGSL sources, embedded at build time: `shaders/common.wgsl` plus one file per kernel.
+//! The WGSL sources, embedded at build time: two shared prefixes (`shaders/common.wgsl`,
+//! `shaders/scan_common.wgsl`) plus one file per kernel.
 //!
-//! WGSL has no includes, so a kernel's source is `common.wgsl` followed by
-//! `shaders/<kernel>.wgsl`. [`source`] builds it; the runtime (pipeline creation) and the
-//! naga test (`tests/shaders.rs`) both use it, so what is validated is what runs.
-//! This module does not compile anything; see [`super::kernel`].
+//! WGSL has no includes, so a kernel's source is its prefix followed by
+//! `shaders/<kernel>.wgsl`: `scan_common.wgsl` for the scan kernels ([`SCAN_KERNELS`]),
+//! `common.wgsl` for every other. [`source`] builds it; the runtime (pipeline creation)
+//! and the naga tests (`tests/shaders.rs`, `tests/bindings.rs`) both use it, so what is
+//! validated is what runs. This module does not compile anything; see [`super::kernel`].
 
-/// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`.
+/// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`
+/// (dense SLAM and renders).
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+
+/// `shaders/scan_common.wgsl`: the structs of `src/scan/layout.rs` and the scan helpers of
+/// `src/cpu/mod.rs`.
+pub const SCAN_COMMON: &str = include_str!("../../shaders/scan_common.wgsl");
+
+/// The prefix files as `(name, text)` (not kernels: no entry point, no bindings).
+pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN_COMMON)];
+
+/// Kernels prefixed with `scan_common.wgsl` instead of `common.wgsl`.
+pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 
 /// Every kernel as `(name, text of shaders/<name>.wgsl)`. Keep in sync with the directory:
 /// `tests/shaders.rs` fails when a `.wgsl` file is missing here.
@@ -56,7 +69,17 @@ pub fn kernel_text(kernel_name: &str) -> Option<&'static str> {
         .map(|(_, text)| *text)
 }
 
-/// The full WGSL of a kernel: `common.wgsl` + `shaders/<kernel_name>.wgsl`.
+/// The prefix of a kernel as `(file name without .wgsl, text)`: `scan_common` for
+/// [`SCAN_KERNELS`], `common` for every other name (inline test kernels included).
+pub fn prefix_of(kernel_name: &str) -> (&'static str, &'static str) {
+    if SCAN_KERNELS.contains(&kernel_name) {
+        ("scan_common", SCAN_COMMON)
+    } else {
+        ("common", COMMON)
+    }
+}
+
+/// The full WGSL of a kernel: its prefix ([`prefix_of`]) + `shaders/<kernel_name>.wgsl`.
 ///
 /// Panics on an unknown kernel name: kernel names are compile-time constants of this crate,
 /// so a miss is a bug, not a user error.
@@ -64,31 +87,37 @@ pub fn source(kernel_name: &str) -> String {
     let text = kernel_text(kernel_name).unwrap_or_else(|| {
         panic!("unknown WGSL kernel `{kernel_name}` (not listed in gpu::shaders::KERNELS)")
     });
-    concat_with_common(text)
+    concat(prefix_of(kernel_name).1, text)
 }
 
 /// `common.wgsl` followed by `kernel_text`, separated by one newline.
 pub fn concat_with_common(kernel_text: &str) -> String {
-    let mut s = String::with_capacity(COMMON.len() + kernel_text.len() + 1);
-    s.push_str(COMMON);
-    if !COMMON.ends_with('\n') {
+    concat(COMMON, kernel_text)
+}
+
+/// `prefix` followed by `kernel_text`, separated by one newline.
+fn concat(prefix: &str, kernel_text: &str) -> String {
+    let mut s = String::with_capacity(prefix.len() + kernel_text.len() + 1);
+    s.push_str(prefix);
+    if !prefix.ends_with('\n') {
         s.push('\n');
     }
     s.push_str(kernel_text);
     s
 }
 
-/// Lines `common.wgsl` takes at the top of every concatenated source.
+/// Lines `common.wgsl` takes at the top of every concatenated dense or render source.
 pub fn common_line_count() -> usize {
     COMMON.lines().count()
 }
 
 /// Maps a 1-based line of a concatenated source back to `(file, line)`:
-/// `("common.wgsl", l)` for the prefix, `("<kernel>.wgsl", l)` after it.
+/// `("shaders/<prefix>.wgsl", l)` for the prefix, `("shaders/<kernel>.wgsl", l)` after it.
 pub fn origin_of_line(kernel_name: &str, line: usize) -> (String, usize) {
-    let n = common_line_count();
+    let (prefix, text) = prefix_of(kernel_name);
+    let n = text.lines().count();
     if line <= n {
-        ("shaders/common.wgsl".to_string(), line)
+        (format!("shaders/{prefix}.wgsl"), line)
     } else {
         (format!("shaders/{kernel_name}.wgsl"), line - n)
     }

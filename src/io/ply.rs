@@ -33,16 +33,14 @@ pub fn write_surfel_map(path: &Path, map: &SurfelMap) -> Result<()> {
         // 31 bytes per vertex; one buffer per chunk keeps the writes large.
         let mut buf = Vec::with_capacity(31 * 4096);
         for i in 0..map.len() {
-            let p = map.positions[i];
-            let n = map.normals[i];
-            let c = map.colors[i];
+            let (p, n, c) = (map.position(i), map.normal(i), map.color(i));
             for v in [p[0], p[1], p[2], n[0], n[1], n[2]] {
                 buf.extend_from_slice(&v.to_le_bytes());
             }
             for v in [c[0], c[1], c[2]] {
                 buf.push(v.round().clamp(0.0, 255.0) as u8);
             }
-            buf.extend_from_slice(&map.weights[i].to_le_bytes());
+            buf.extend_from_slice(&map.weight(i).to_le_bytes());
             if buf.len() >= 31 * 4096 {
                 w.write_all(&buf).map_err(io)?;
                 buf.clear();

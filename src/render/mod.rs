@@ -107,18 +107,36 @@ pub struct Cloud<'a> {
     pub weights: Option<&'a [f32]>,
 }
 
-impl<'a> Cloud<'a> {
-    /// The whole fused map (all attributes present).
-    pub fn from_map(map: &'a SurfelMap) -> Cloud<'a> {
+/// The whole fused map as a [`Cloud`] (all attributes present): positions, normals and
+/// colours borrowed from the map's packed arrays (their `w` holds the weight and the last
+/// frame, which the renderer ignores), the weights copied out of `position_weight`'s `w`
+/// because the render kernels take them as an array of their own.
+#[derive(Debug, Clone)]
+pub struct MapCloud<'a> {
+    map: &'a SurfelMap,
+    weights: Vec<f32>,
+}
+
+impl<'a> MapCloud<'a> {
+    /// Splits the weights out of `map`.
+    pub fn new(map: &'a SurfelMap) -> MapCloud<'a> {
         map.assert_consistent();
-        Cloud {
-            positions: &map.positions,
-            normals: Some(&map.normals),
-            colors: Some(&map.colors),
-            weights: Some(&map.weights),
-        }
+        let weights = (0..map.len()).map(|i| map.weight(i)).collect();
+        MapCloud { map, weights }
     }
 
+    /// The cloud to draw.
+    pub fn cloud(&self) -> Cloud<'_> {
+        Cloud {
+            positions: &self.map.position_weight,
+            normals: Some(bytemuck::cast_slice(&self.map.normal_frame)),
+            colors: Some(&self.map.color),
+            weights: Some(&self.weights),
+        }
+    }
+}
+
+impl<'a> Cloud<'a> {
     /// Checks that every present attribute has one entry per point.
     pub fn check(&self) -> Result<()> {
         let n = self.positions.len();

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::{DMat4, DVec3};
 
 use super::{
-    default_camera, framing_camera, render_overlay, trajectory_view_hint, write_png, Cloud,
+    default_camera, framing_camera, render_overlay, trajectory_view_hint, write_png, MapCloud,
     RenderBackend, RenderCamera, RenderSettings, View, DEFAULT_SIZE,
 };
 use crate::camera::Intrinsics;
@@ -51,14 +51,22 @@ pub fn write_map_renders(
             "the map is empty: nothing to render".into(),
         ));
     }
-    let cloud = Cloud::from_map(map);
+    let map_cloud = MapCloud::new(map);
+    let cloud = map_cloud.cloud();
     let settings = RenderSettings::default();
     let fy_negative = intrinsics.fy < 0.0;
     let poses: Vec<DMat4> = trajectory.iter().map(|(_, t)| *t).collect();
     let image_up = if fy_negative { DVec3::Y } else { DVec3::NEG_Y };
     let (up, heading) = trajectory_view_hint(&poses, intrinsics.fy)
         .unwrap_or_else(|| map_view_hint(cloud.normals, image_up));
-    let overview = default_camera(&map.positions, size.0, size.1, up, heading, fy_negative)?;
+    let overview = default_camera(
+        &map.position_weight,
+        size.0,
+        size.1,
+        up,
+        heading,
+        fy_negative,
+    )?;
     let mut cameras = vec![("map", overview)];
     if let Some(last) = poses.last() {
         cameras.push((

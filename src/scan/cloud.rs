@@ -97,7 +97,7 @@ pub fn cloud_from_depth(
                 continue;
             }
             let z = d as f32 / depth_scale;
-            points.push(intrinsics.unproject(u as f32, v as f32, z));
+            points.push(intrinsics.unproject(u as u32, v as u32, z));
         }
     }
     points

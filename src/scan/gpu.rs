@@ -32,6 +32,32 @@ pub enum NnMethod {
     Grid,
 }
 
+/// Bindings of `nn_brute` (order of `@binding(i)`).
+pub const NN_BRUTE: [Binding; 4] = [
+    Binding::uniform("ScanNnParams"),
+    Binding::read("queries (vec4, metres)"),
+    Binding::read("targets (vec4, metres)"),
+    Binding::read_write("nn results"),
+];
+
+/// Bindings of `nn_grid` (order of `@binding(i)`).
+pub const NN_GRID: [Binding; 5] = [
+    Binding::uniform("ScanNnParams"),
+    Binding::read("queries (vec4, metres)"),
+    Binding::read("grid points sorted by bucket (w = index bits)"),
+    Binding::read("bucket start offsets"),
+    Binding::read_write("nn results"),
+];
+
+/// Bindings of `cross_covariance` (order of `@binding(i)`).
+pub const CROSS_COVARIANCE: [Binding; 5] = [
+    Binding::uniform("ScanCovParams"),
+    Binding::read("queries (vec4, metres)"),
+    Binding::read("targets (vec4, metres)"),
+    Binding::read("nn results"),
+    Binding::read_write("per-workgroup partials"),
+];
+
 /// The three scan kernels, created once per context (pipeline creation is slow).
 #[derive(Debug)]
 pub struct ScanKernels {
@@ -44,38 +70,9 @@ impl ScanKernels {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<ScanKernels> {
         Ok(ScanKernels {
-            nn_brute: Kernel::new(
-                ctx,
-                "nn_brute",
-                &[
-                    Binding::uniform("ScanNnParams"),
-                    Binding::read("queries (vec4, metres)"),
-                    Binding::read("targets (vec4, metres)"),
-                    Binding::read_write("nn results"),
-                ],
-            )?,
-            nn_grid: Kernel::new(
-                ctx,
-                "nn_grid",
-                &[
-                    Binding::uniform("ScanNnParams"),
-                    Binding::read("queries (vec4, metres)"),
-                    Binding::read("grid points sorted by bucket (w = index bits)"),
-                    Binding::read("bucket start offsets"),
-                    Binding::read_write("nn results"),
-                ],
-            )?,
-            cross_covariance: Kernel::new(
-                ctx,
-                "cross_covariance",
-                &[
-                    Binding::uniform("ScanCovParams"),
-                    Binding::read("queries (vec4, metres)"),
-                    Binding::read("targets (vec4, metres)"),
-                    Binding::read("nn results"),
-                    Binding::read_write("per-workgroup partials"),
-                ],
-            )?,
+            nn_brute: Kernel::new(ctx, "nn_brute", &NN_BRUTE)?,
+            nn_grid: Kernel::new(ctx, "nn_grid", &NN_GRID)?,
+            cross_covariance: Kernel::new(ctx, "cross_covariance", &CROSS_COVARIANCE)?,
         })
     }
 }

@@ -1,0 +1,91 @@
+//! Every kernel's binding table against its WGSL, without a GPU.
+//!
+//! For each kernel of `gpu::shaders::KERNELS`, naga reflects the `@group(0) @binding(i)`
+//! globals of the source the runtime builds (`gpu::shaders::source`) with their kind
+//! (uniform, storage read / read_write, texture sample type, storage texture format and
+//! access), and `gpu::layout_mismatches` compares them with the bind-group layout entries
+//! the GPU code creates (`gpu::layout_entries` of the kernel's table in
+//! `gpu::kernel_binding_tables`). Every mismatch of every kernel is reported at once, each
+//! naming the kernel and the binding. Until now these tables were only checked when a GPU
+//! pipeline was built.
+
+use wgslam::gpu::{self, shaders, Binding, TexelFormat};
+
+#[test]
+fn every_kernel_layout_matches_its_wgsl() {
+    let tables = gpu::kernel_binding_tables();
+    let mut failures = Vec::new();
+    for (name, _) in shaders::KERNELS {
+        let Some((_, table)) = tables.iter().find(|(n, _)| n == name) else {
+            failures.push(format!(
+                "kernel `{name}`: no binding table in gpu::kernel_binding_tables"
+            ));
+            continue;
+        };
+        failures.extend(gpu::layout_mismatches(
+            name,
+            &shaders::source(name),
+            &gpu::layout_entries(table),
+        ));
+    }
+    for (name, _) in &tables {
+        if shaders::kernel_text(name).is_none() {
+            failures.push(format!(
+                "gpu::kernel_binding_tables lists `{name}`, which is not a kernel"
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} binding mismatch(es):\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    eprintln!("checked the layouts of {} kernels", tables.len());
+}
+
+/// The check itself fails on a wrong table, and reports every mismatch at once (so a
+/// passing run above means something).
+#[test]
+fn a_wrong_table_is_reported_binding_by_binding() {
+    // fuse_add with binding 5 read-write instead of write-only, binding 3 a read-write
+    // buffer instead of read-only, and binding 7 missing.
+    let wrong = [
+        Binding::uniform("params"),
+        Binding::texture_f32("normal_depth"),
+        Binding::texture_f32("color_map"),
+        Binding::read_write("assoc"),
+        Binding::read_write("counter"),
+        Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
+        Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
+    ];
+    let problems = gpu::layout_mismatches(
+        "fuse_add",
+        &shaders::source("fuse_add"),
+        &gpu::layout_entries(&wrong),
+    );
+    assert_eq!(problems.len(), 3, "got: {problems:#?}");
+    for (b, var) in [(3, "assoc"), (5, "position_weight"), (7, "color")] {
+        let tag = format!("kernel `fuse_add` binding {b} (`{var}`)");
+        assert!(
+            problems.iter().any(|p| p.starts_with(&tag)),
+            "no report for {tag}: {problems:#?}"
+        );
+    }
+
+    // A texture format and a sample type.
+    let mut wrong = gpu::layout_entries(gpu::backend::bindings::PREDICT_MODEL.as_slice());
+    wrong[3].ty = wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    let wrong_format = Binding::storage_texture(TexelFormat::Rgba32U, false, "pred_normal");
+    wrong[5] = gpu::layout_entries(&[wrong_format])[0];
+    wrong[5].binding = 5;
+    let problems =
+        gpu::layout_mismatches("predict_model", &shaders::source("predict_model"), &wrong);
+    assert_eq!(problems.len(), 2, "got: {problems:#?}");
+    assert!(problems[0].starts_with("kernel `predict_model` binding 3 (`normal_frame`)"));
+    assert!(problems[1].starts_with("kernel `predict_model` binding 5 (`pred_normal`)"));
+}
