@@ -82,6 +82,11 @@ struct FuseParams {
 // Floats in one reduced ICP system (mirrors `layout::ICP_SYSTEM_LEN`): 21 of AᵀA (upper
 // triangle, row-major), 6 of Aᵀb, the inlier count and the sum of squared residuals.
 const ICP_SYSTEM_LEN: u32 = 29u;
+// Where the parts start (mirror `layout::ICP_ATB_OFFSET`, `ICP_COUNT_INDEX`,
+// `ICP_RESIDUAL_INDEX`): Aᵀb at 21..27, the count at 27, the squared residuals at 28.
+const ICP_ATB_OFFSET: u32 = 21u;
+const ICP_COUNT_INDEX: u32 = 27u;
+const ICP_RESIDUAL_INDEX: u32 = 28u;
 
 // Texels per row of the surfel-map textures (mirrors `layout::MAP_TEXTURE_WIDTH`): surfel i
 // is texel (i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH).

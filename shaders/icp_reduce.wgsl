@@ -91,14 +91,14 @@ fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, 
     (*sys)[18] += a[4] * a[4];
     (*sys)[19] += a[4] * a[5];
     (*sys)[20] += a[5] * a[5];
-    (*sys)[21] += a[0] * b;
-    (*sys)[22] += a[1] * b;
-    (*sys)[23] += a[2] * b;
-    (*sys)[24] += a[3] * b;
-    (*sys)[25] += a[4] * b;
-    (*sys)[26] += a[5] * b;
-    (*sys)[27] += 1.0;
-    (*sys)[28] += b * b;
+    (*sys)[ICP_ATB_OFFSET + 0u] += a[0] * b;
+    (*sys)[ICP_ATB_OFFSET + 1u] += a[1] * b;
+    (*sys)[ICP_ATB_OFFSET + 2u] += a[2] * b;
+    (*sys)[ICP_ATB_OFFSET + 3u] += a[3] * b;
+    (*sys)[ICP_ATB_OFFSET + 4u] += a[4] * b;
+    (*sys)[ICP_ATB_OFFSET + 5u] += a[5] * b;
+    (*sys)[ICP_COUNT_INDEX] += 1.0;
+    (*sys)[ICP_RESIDUAL_INDEX] += b * b;
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)

@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::dataset::Sequence;
 use crate::instrumented::Instrumented;
-use crate::layout::ICP_SYSTEM_LEN;
+use crate::layout::{ICP_COUNT_INDEX, ICP_SYSTEM_LEN};
 use crate::map::SurfelMap;
 use crate::pipeline::{Backend, FrameMaps, Slam, SlamParams};
 use crate::run::packed_rgba;
@@ -223,7 +223,7 @@ pub fn compare<A: Backend, B: Backend>(
         let (system_rel_diff, inliers) = match (first_a, first_b) {
             (Some(x), Some(y)) => (
                 Some(system_rel_diff(x, y)),
-                Some((x[27] as u64, y[27] as u64)),
+                Some((x[ICP_COUNT_INDEX] as u64, y[ICP_COUNT_INDEX] as u64)),
             ),
             _ => (None, None),
         };

@@ -122,8 +122,14 @@ pub struct FuseParams {
 }
 
 /// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major) + 6 (Aᵀb)
-/// + inlier count + sum of squared residuals.
+/// + inlier count + sum of squared residuals (mirrors `ICP_SYSTEM_LEN` in common.wgsl).
 pub const ICP_SYSTEM_LEN: usize = 29;
+/// Index of the first of the 6 Aᵀb entries in the system (after the 21 of AᵀA).
+pub const ICP_ATB_OFFSET: usize = 21;
+/// Index of the inlier count in the system.
+pub const ICP_COUNT_INDEX: usize = 27;
+/// Index of the sum of squared residuals (m²) in the system.
+pub const ICP_RESIDUAL_INDEX: usize = 28;
 
 /// Texels per row of the GPU surfel-map textures (mirrors `MAP_TEXTURE_WIDTH` in
 /// common.wgsl): surfel `i` lives at texel `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)`.

@@ -8,7 +8,7 @@
 use glam::DMat4;
 use nalgebra::{Matrix6, Vector6};
 
-use crate::layout::ICP_SYSTEM_LEN;
+use crate::layout::{ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN};
 use crate::se3;
 
 /// The decoded normal equations `AᵀA x = -Aᵀb` of one ICP iteration.
@@ -54,12 +54,12 @@ impl NormalEquations {
                 k += 1;
             }
         }
-        let atb = Vector6::from_fn(|r, _| sys[21 + r]);
+        let atb = Vector6::from_fn(|r, _| sys[ICP_ATB_OFFSET + r]);
         NormalEquations {
             ata,
             atb,
-            inliers: sys[27].round().max(0.0) as u64,
-            residual_sq_sum: sys[28],
+            inliers: sys[ICP_COUNT_INDEX].round().max(0.0) as u64,
+            residual_sq_sum: sys[ICP_RESIDUAL_INDEX],
         }
     }
 

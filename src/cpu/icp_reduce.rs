@@ -12,7 +12,9 @@
 //! increment solves `AᵀA x = -Aᵀb` (see `crate::solve`).
 
 use super::{back_project, is_valid, project_to_texel, transform_point, xyz};
-use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
+use crate::layout::{
+    IcpParams, ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN,
+};
 
 /// One correspondence's Jacobian row `A` and residual `b`, or `None` when a filter rejects
 /// it. Mirrors `icp_row` in icp_reduce.wgsl.
@@ -56,10 +58,10 @@ pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
         }
     }
     for r in 0..6 {
-        sys[21 + r] += a[r] as f64 * b as f64;
+        sys[ICP_ATB_OFFSET + r] += a[r] as f64 * b as f64;
     }
-    sys[27] += 1.0;
-    sys[28] += b as f64 * b as f64;
+    sys[ICP_COUNT_INDEX] += 1.0;
+    sys[ICP_RESIDUAL_INDEX] += b as f64 * b as f64;
 }
 
 /// Bindings (as in the shader header):
