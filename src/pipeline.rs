@@ -1,11 +1,28 @@
 //! The dense-SLAM frame as a fixed sequence of kernel steps, generic over a [`Backend`].
 //!
-//! Per frame: `preprocess` (depth -> vertex, normal-depth, colour maps), then for every frame but
-//! the first `predict` (render the map at the previous pose into a model vertex/normal map,
-//! once per frame so each ICP iteration is O(pixels), not O(map)), up to `max_iters` ICP
-//! iterations of `icp_system` + host solve + left-multiplicative update, then `fuse`
-//! (merge + add). The pipeline knows steps and parameters, not backends: the CPU twins and
-//! the GPU kernels implement [`Backend`], so the same loop runs on both.
+//! Per frame: `preprocess` (depth -> vertex, normal-depth, colour maps), then for every
+//! frame but the first `predict` (render the map at the previous pose into a model
+//! vertex/normal map, once per frame so each ICP iteration is O(pixels), not O(map)), up to
+//! `max_iters` ICP iterations of `icp_system` + host solve + left-multiplicative update,
+//! then `fuse` (merge + add). The pipeline knows steps and parameters, not backends: the
+//! CPU twins and the GPU kernels implement [`Backend`], so the same loop runs on both.
+//!
+//! What each step reads and writes. Frame maps are width x height (the downsampled
+//! image); the map is one entry per surfel in the packed representation of
+//! `common.wgsl` (`position_weight`, `normal_frame`, `color`). The CPU backend
+//! (`cpu_backend.rs`) holds them as `Vec`s, the GPU backend (`gpu/backend.rs`) as textures
+//! (frame maps and the map) and storage buffers (`index_map`, `assoc`, `partials`,
+//! `counter`).
+//!
+//! | step (kernels) | reads | writes |
+//! |---|---|---|
+//! | `preprocess` (`depth_to_vertex`, `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame), `normal_depth` (camera-frame normal, depth in w), `color` |
+//! | `predict` (`project_model`, `predict_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame) |
+//! | `icp_system` (`icp_reduce`), per iteration | `pred_vertex`, `normal_depth`; the current `t_world_to_cam` | the 29-float system (host: [`crate::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
+//! | `fuse` (`fuse_merge`, then `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, then appended), `assoc` (merged pixels), `counter` (surfel count) |
+//!
+//! The tracking loop reads back only the system per iteration and the surfel count per
+//! frame; the `download_*` methods copy maps to the host for outputs and comparisons.
 
 use glam::DMat4;
 
