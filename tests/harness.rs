@@ -79,9 +79,15 @@ fn every_test_file_is_registered_with_the_harness() {
             .iter()
             .any(|(d, p)| *d == "tests" && p.file_stem().is_some_and(|s| *s == **name))
         {
-            failures.push(format!("Cargo.toml lists [[test]] {name} but tests/{name}.rs is missing"));
+            failures.push(format!(
+                "Cargo.toml lists [[test]] {name} but tests/{name}.rs is missing"
+            ));
         }
     }
-    eprintln!("{} test files, {} registered", files.len(), registered.len());
+    eprintln!(
+        "{} test files, {} registered",
+        files.len(),
+        registered.len()
+    );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

@@ -5,11 +5,16 @@
 mod common;
 
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
+use common::harness::{gpu, plain, skipped};
+use common::wgsl::{self, rust_layout};
 use glam::{DMat4, DVec3};
+use libtest_mimic::Completion;
 use wgslam::camera::Intrinsics;
 use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
+use wgslam::gpu::GpuContext;
 use wgslam::layout::{pack_rgba8, NormalParams, PreprocessParams};
 use wgslam::map::SurfelMap;
 use wgslam::render::{self, Cloud, RenderCamera, RenderSettings, View};
@@ -127,7 +132,6 @@ fn coverage(img: &image::RgbImage, bg: [u8; 3]) -> f64 {
     img.pixels().filter(|p| p.0 != bg).count() as f64 / (img.width() * img.height()) as f64
 }
 
-#[test]
 fn render_from_the_frames_own_pose_matches_its_photo() {
     // Ground truth: the map of frame 1 seen from frame 1's pose with the dataset intrinsics
     // is (nearly) frame 1's own colour image.
@@ -171,7 +175,6 @@ fn render_from_the_frames_own_pose_matches_its_photo() {
     );
 }
 
-#[test]
 fn renders_are_deterministic_and_views_differ() {
     let map = bundled_map(&[1, 10, 20], 4);
     let cloud = Cloud::from_map(&map);
@@ -203,7 +206,6 @@ fn renders_are_deterministic_and_views_differ() {
     }
 }
 
-#[test]
 fn nearest_surfel_wins_and_ties_go_to_the_larger_index() {
     // Three surfels on the optical axis: 0 at 2 m, 1 at 1 m, 2 at 1 m (tie with 1).
     let positions = [
@@ -240,7 +242,6 @@ fn nearest_surfel_wins_and_ties_go_to_the_larger_index() {
     assert_eq!(rgba[0], pack_rgba8([255, 255, 255]), "corner is background");
 }
 
-#[test]
 fn overlay_shows_both_clouds_and_alignment_changes_it() {
     // Two real frames' point clouds (camera frames); the ground-truth relative pose aligns
     // frame 20 (source) onto frame 1 (target).
@@ -285,7 +286,6 @@ fn overlay_shows_both_clouds_and_alignment_changes_it() {
     assert!(before != after, "the alignment did not change the overlay");
 }
 
-#[test]
 fn missing_attributes_fall_back_to_depth_and_say_so() {
     let positions = [[0.0, 0.0, 1.0, 1.0]];
     let cloud = Cloud {
@@ -309,7 +309,6 @@ fn missing_attributes_fall_back_to_depth_and_say_so() {
     assert!(coverage(&img, [255, 255, 255]) > 0.0, "the point is drawn");
 }
 
-#[test]
 fn bad_sizes_and_clouds_are_refused() {
     for s in [
         "0x10",
@@ -361,7 +360,6 @@ fn bad_sizes_and_clouds_are_refused() {
     assert_eq!(coverage(&img, [255, 255, 255]), 0.0);
 }
 
-#[test]
 fn trajectory_plot_picks_the_horizontal_axes_and_is_deterministic() {
     let root = common::bundled_icl();
     let gt: Vec<(f64, DMat4)> = gt_poses(&root)
@@ -421,7 +419,6 @@ fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
     }
 }
 
-#[test]
 fn render_command_writes_pngs_and_refuses_bad_input() {
     use wgslam::render_cli::run_render;
     let dir = common::temp_dir("render-cli");
@@ -519,7 +516,6 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
     }
 }
 
-#[test]
 fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
     use wgslam::render_cli::run_render;
     let dir = common::temp_dir("render-bare");
@@ -547,7 +543,6 @@ fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
     assert!(coverage(&img, [255, 255, 255]) > 0.1);
 }
 
-#[test]
 fn run_and_icp_outputs_are_written() {
     use wgslam::render::outputs::{write_icp_overlays, write_map_renders, OverlayViewpoint};
     let dir = common::temp_dir("render-outputs");
@@ -598,69 +593,33 @@ fn run_and_icp_outputs_are_written() {
     .is_err());
 }
 
-#[test]
+/// `RenderParams` is declared in both render kernels (not in common.wgsl): both match Rust.
 fn render_params_layout_matches_both_shaders() {
-    use std::mem::{offset_of, size_of};
     use wgslam::gpu::shaders;
     use wgslam::render::layout::RenderParams;
-    let rust: Vec<(&str, usize)> = vec![
-        ("t_world_to_cam", offset_of!(RenderParams, t_world_to_cam)),
-        ("fx", offset_of!(RenderParams, fx)),
-        ("fy", offset_of!(RenderParams, fy)),
-        ("cx", offset_of!(RenderParams, cx)),
-        ("cy", offset_of!(RenderParams, cy)),
-        ("width", offset_of!(RenderParams, width)),
-        ("height", offset_of!(RenderParams, height)),
-        ("surfel_count", offset_of!(RenderParams, surfel_count)),
-        ("view", offset_of!(RenderParams, view)),
-        ("splat_radius_m", offset_of!(RenderParams, splat_radius_m)),
-        ("min_radius_px", offset_of!(RenderParams, min_radius_px)),
-        ("max_radius_px", offset_of!(RenderParams, max_radius_px)),
-        ("cull_backfaces", offset_of!(RenderParams, cull_backfaces)),
-        ("near_m", offset_of!(RenderParams, near_m)),
-        ("far_m", offset_of!(RenderParams, far_m)),
-        ("weight_max", offset_of!(RenderParams, weight_max)),
-        ("background", offset_of!(RenderParams, background)),
-    ];
+    let rust = rust_layout!(RenderParams {
+        t_world_to_cam,
+        fx,
+        fy,
+        cx,
+        cy,
+        width,
+        height,
+        surfel_count,
+        view,
+        splat_radius_m,
+        min_radius_px,
+        max_radius_px,
+        cull_backfaces,
+        near_m,
+        far_m,
+        weight_max,
+        background,
+    });
     let mut failures = Vec::new();
     for kernel in ["render_splat", "render_resolve"] {
-        let src = shaders::source(kernel);
-        let module = naga::front::wgsl::parse_str(&src).expect("kernel parses");
-        let mut layouter = naga::proc::Layouter::default();
-        layouter
-            .update(module.to_ctx())
-            .expect("naga lays out the kernel");
-        let (handle, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("RenderParams"))
-            .unwrap_or_else(|| panic!("{kernel}: no struct RenderParams"));
-        let naga::TypeInner::Struct { members, .. } = &ty.inner else {
-            panic!("{kernel}: RenderParams is not a struct");
-        };
-        if layouter[handle].size as usize != size_of::<RenderParams>() {
-            failures.push(format!(
-                "{kernel}: WGSL size {} vs Rust {}",
-                layouter[handle].size,
-                size_of::<RenderParams>()
-            ));
-        }
-        let wgsl: Vec<(String, usize)> = members
-            .iter()
-            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
-            .collect();
-        if wgsl.len() != rust.len() {
-            failures.push(format!(
-                "{kernel}: {} WGSL members, {} Rust",
-                wgsl.len(),
-                rust.len()
-            ));
-        }
-        for ((rn, ro), (wn, wo)) in rust.iter().zip(&wgsl) {
-            if rn != wn || ro != wo {
-                failures.push(format!("{kernel}: Rust `{rn}`@{ro} vs WGSL `{wn}`@{wo}"));
-            }
-        }
+        let module = wgsl::parse(kernel, &shaders::source(kernel));
+        failures.extend(wgsl::layout_mismatches(kernel, &module, &rust));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -679,18 +638,12 @@ const MAX_CHANNEL_DIFF: i32 = 1;
 /// of 76,800 per render, in the depth view).
 const MAX_COLOUR_DIFF_FRACTION: f64 = 0.001;
 
-#[test]
-fn gpu_matches_cpu_on_a_small_map() {
-    use wgslam::gpu::test_support::gpu_or_skip;
+fn gpu_matches_cpu_on_a_small_map(ctx: GpuContext) -> Completion {
     use wgslam::render::gpu::GpuRenderer;
-    let Some(ctx) = gpu_or_skip("gpu_matches_cpu_on_a_small_map") else {
-        return;
-    };
     let renderer = match GpuRenderer::new(&ctx) {
         Ok(r) => r,
         Err(e) if !wgslam::gpu::test_support::gpu_required() => {
-            eprintln!("SKIP: gpu_matches_cpu_on_a_small_map: {e}");
-            return;
+            return skipped(format!("the adapter cannot run the renderer: {e}"));
         }
         Err(e) => panic!("{e}"),
     };
@@ -776,9 +729,9 @@ fn gpu_matches_cpu_on_a_small_map() {
             );
         }
     }
+    Completion::Completed
 }
 
-#[test]
 fn lidar_overlay_from_above() {
     use wgslam::render::outputs::{write_icp_overlays, OverlayViewpoint};
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
@@ -810,4 +763,58 @@ fn lidar_overlay_from_above() {
         const MIN_SHARE: f64 = 0.005;
         assert!(count(render::SOURCE_RGB) > MIN_SHARE && count(render::TARGET_RGB) > MIN_SHARE);
     }
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "render_from_the_frames_own_pose_matches_its_photo",
+            render_from_the_frames_own_pose_matches_its_photo,
+        ),
+        plain(
+            "renders_are_deterministic_and_views_differ",
+            renders_are_deterministic_and_views_differ,
+        ),
+        plain(
+            "nearest_surfel_wins_and_ties_go_to_the_larger_index",
+            nearest_surfel_wins_and_ties_go_to_the_larger_index,
+        ),
+        plain(
+            "overlay_shows_both_clouds_and_alignment_changes_it",
+            overlay_shows_both_clouds_and_alignment_changes_it,
+        ),
+        plain(
+            "missing_attributes_fall_back_to_depth_and_say_so",
+            missing_attributes_fall_back_to_depth_and_say_so,
+        ),
+        plain(
+            "bad_sizes_and_clouds_are_refused",
+            bad_sizes_and_clouds_are_refused,
+        ),
+        plain(
+            "trajectory_plot_picks_the_horizontal_axes_and_is_deterministic",
+            trajectory_plot_picks_the_horizontal_axes_and_is_deterministic,
+        ),
+        plain(
+            "render_command_writes_pngs_and_refuses_bad_input",
+            render_command_writes_pngs_and_refuses_bad_input,
+        ),
+        plain(
+            "render_command_draws_a_bare_point_cloud_and_says_what_is_missing",
+            render_command_draws_a_bare_point_cloud_and_says_what_is_missing,
+        ),
+        plain(
+            "run_and_icp_outputs_are_written",
+            run_and_icp_outputs_are_written,
+        ),
+        plain(
+            "render_params_layout_matches_both_shaders",
+            render_params_layout_matches_both_shaders,
+        ),
+        gpu(
+            "gpu_matches_cpu_on_a_small_map",
+            gpu_matches_cpu_on_a_small_map,
+        ),
+        plain("lidar_overlay_from_above", lidar_overlay_from_above),
+    ])
 }

@@ -1,14 +1,19 @@
 //! Scan kernels on the GPU against their CPU twins (`src/cpu/nn_brute.rs`, `nn_grid.rs`,
-//! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Skips
-//! with a printed reason without a GPU adapter unless `WGSLAM_REQUIRE_GPU=1`.
+//! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Every
+//! trial shows as ignored without a GPU adapter (tests/common/harness.rs).
+
+mod common;
 
 use std::path::Path;
+use std::process::ExitCode;
+
+use common::harness::gpu;
 
 use glam::DMat4;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
-use wgslam::gpu::test_support::gpu_or_skip;
+use wgslam::gpu::GpuContext;
 use wgslam::scan::gpu::{GpuTarget, NnMethod, ScanKernels};
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
@@ -65,11 +70,7 @@ fn compare_nn(label: &str, gpu: &[ScanNnResult], cpu: &[ScanNnResult]) {
     );
 }
 
-#[test]
-fn gpu_nn_kernels_match_twins() {
-    let Some(ctx) = gpu_or_skip("gpu_nn_kernels_match_twins") else {
-        return;
-    };
+fn gpu_nn_kernels_match_twins(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
     let (source, target, rel) = fast_gicp();
     let queries: Vec<[f32; 3]> = transform_points(&rel, &source)
@@ -143,11 +144,7 @@ fn gpu_nn_kernels_match_twins() {
 /// twin's: relative difference of each sum.
 const COV_SUM_REL_TOL: f64 = 1e-4;
 
-#[test]
-fn gpu_cross_covariance_matches_twin() {
-    let Some(ctx) = gpu_or_skip("gpu_cross_covariance_matches_twin") else {
-        return;
-    };
+fn gpu_cross_covariance_matches_twin(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
     let (source, target, rel) = fast_gicp();
     let dt = se3::exp(&[0.01, -0.02, 0.015, 0.1, -0.05, 0.02]);
@@ -193,11 +190,7 @@ fn gpu_cross_covariance_matches_twin() {
 const GPU_ICP_ROT_TOL_DEG: f64 = 0.1;
 const GPU_ICP_TRANS_TOL_M: f64 = 0.02;
 
-#[test]
-fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair() {
-    let Some(ctx) = gpu_or_skip("gpu_icp_matches_cpu_icp_on_fast_gicp_pair") else {
-        return;
-    };
+fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
     let (source, target, reference) = fast_gicp();
     let params = IcpParams {
@@ -234,4 +227,18 @@ fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair() {
                 && se3::translation_norm(&e) < GPU_ICP_TRANS_TOL_M
         );
     }
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        gpu("gpu_nn_kernels_match_twins", gpu_nn_kernels_match_twins),
+        gpu(
+            "gpu_cross_covariance_matches_twin",
+            gpu_cross_covariance_matches_twin,
+        ),
+        gpu(
+            "gpu_icp_matches_cpu_icp_on_fast_gicp_pair",
+            gpu_icp_matches_cpu_icp_on_fast_gicp_pair,
+        ),
+    ])
 }

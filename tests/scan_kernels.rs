@@ -2,9 +2,13 @@
 //! parses and validates with naga, its structs match `scan::layout`, and the CPU twins
 //! agree with the KD-tree and with the f64 reduction of the ICP on real scans.
 
-use std::mem::{offset_of, size_of};
-use std::path::Path;
+mod common;
 
+use std::path::Path;
+use std::process::ExitCode;
+
+use common::harness::plain;
+use common::wgsl::{self, rust_layout, RustLayout};
 use glam::DVec3;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
 use wgslam::cpu::nn_brute::nn_brute;
@@ -23,48 +27,31 @@ fn shader_text(name: &str) -> String {
 }
 
 fn parse(name: &str) -> naga::Module {
-    naga::front::wgsl::parse_str(&shader_text(name))
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string_with_path(&shader_text(name), name)))
+    wgsl::parse(name, &shader_text(name))
 }
 
-#[test]
+/// The scan kernels parse and validate on their own (without common.wgsl) and need no
+/// optional capability.
 fn scan_shaders_validate() {
-    let mut failures = Vec::new();
-    for name in SHADERS {
-        let src = shader_text(name);
-        match naga::front::wgsl::parse_str(&src) {
-            Err(e) => {
-                failures.push(e.emit_to_string_with_path(&src, &format!("shaders/{name}.wgsl")))
-            }
-            Ok(module) => {
-                let mut v = naga::valid::Validator::new(
-                    naga::valid::ValidationFlags::all(),
-                    naga::valid::Capabilities::empty(),
-                );
-                if let Err(e) = v.validate(&module) {
-                    failures
-                        .push(e.emit_to_string_with_path(&src, &format!("shaders/{name}.wgsl")));
-                }
-            }
-        }
-    }
+    let failures: Vec<String> = SHADERS
+        .iter()
+        .filter_map(|name| {
+            wgsl::check(
+                name,
+                &shader_text(name),
+                naga::valid::Capabilities::empty(),
+                |line| (format!("shaders/{name}.wgsl"), line),
+            )
+        })
+        .collect();
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-type Layout = (&'static str, usize, Vec<(&'static str, usize)>);
-
-macro_rules! layout {
-    ($ty:ident { $($f:ident),* $(,)? }) => {
-        (stringify!($ty), size_of::<$ty>(), vec![$((stringify!($f), offset_of!($ty, $f))),*])
-    };
-}
-
-#[test]
 fn scan_structs_match_wgsl_layout() {
-    let expected: Vec<(&str, Layout)> = vec![
+    let expected: Vec<(&str, RustLayout)> = vec![
         (
             "nn_brute",
-            layout!(ScanNnParams {
+            rust_layout!(ScanNnParams {
                 n_queries,
                 n_targets,
                 radius_sq,
@@ -77,7 +64,7 @@ fn scan_structs_match_wgsl_layout() {
         ),
         (
             "nn_grid",
-            layout!(ScanNnParams {
+            rust_layout!(ScanNnParams {
                 n_queries,
                 n_targets,
                 radius_sq,
@@ -88,12 +75,15 @@ fn scan_structs_match_wgsl_layout() {
                 target_end
             }),
         ),
-        ("nn_brute", layout!(ScanNnResult { index, dist_sq })),
-        ("nn_grid", layout!(ScanNnResult { index, dist_sq })),
-        ("cross_covariance", layout!(ScanNnResult { index, dist_sq })),
+        ("nn_brute", rust_layout!(ScanNnResult { index, dist_sq })),
+        ("nn_grid", rust_layout!(ScanNnResult { index, dist_sq })),
         (
             "cross_covariance",
-            layout!(ScanCovParams {
+            rust_layout!(ScanNnResult { index, dist_sq }),
+        ),
+        (
+            "cross_covariance",
+            rust_layout!(ScanCovParams {
                 anchor,
                 n_pairs,
                 n_threads,
@@ -103,7 +93,7 @@ fn scan_structs_match_wgsl_layout() {
         ),
         (
             "cross_covariance",
-            layout!(ScanCovPartial {
+            rust_layout!(ScanCovPartial {
                 count_sq,
                 sum_p,
                 sum_q,
@@ -114,35 +104,13 @@ fn scan_structs_match_wgsl_layout() {
         ),
     ];
     let mut failures = Vec::new();
-    for (shader, (name, size, members)) in expected {
+    for (shader, rust) in &expected {
         let module = parse(shader);
-        let mut layouter = naga::proc::Layouter::default();
-        layouter.update(module.to_ctx()).unwrap();
-        let Some((h, ty)) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-        else {
-            failures.push(format!("{shader}.wgsl: no struct {name}"));
-            continue;
-        };
-        let naga::TypeInner::Struct { members: wm, .. } = &ty.inner else {
-            unreachable!()
-        };
-        if layouter[h].size as usize != size {
-            failures.push(format!(
-                "{shader}.wgsl {name}: WGSL {} bytes, Rust {size}",
-                layouter[h].size
-            ));
-        }
-        let w: Vec<(String, usize)> = wm
-            .iter()
-            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
-            .collect();
-        let r: Vec<(String, usize)> = members.iter().map(|(n, o)| (n.to_string(), *o)).collect();
-        if w != r {
-            failures.push(format!("{shader}.wgsl {name}: WGSL {w:?}, Rust {r:?}"));
-        }
+        failures.extend(wgsl::layout_mismatches(
+            &format!("{shader}.wgsl"),
+            &module,
+            rust,
+        ));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -167,7 +135,6 @@ fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
 
 const RADIUS: f32 = 0.5;
 
-#[test]
 fn nn_twins_agree_with_each_other_and_the_kd_tree() {
     let (queries, target) = real_pair();
     let n = queries.len();
@@ -241,7 +208,6 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
 const COV_ROT_TOL_RAD: f64 = 1e-4;
 const COV_TRANS_TOL_M: f64 = 1e-4;
 
-#[test]
 fn cross_covariance_twin_matches_f64_reduction() {
     let (queries, target) = real_pair();
     // Perturb the queries so the solve has something to find.
@@ -310,4 +276,22 @@ fn cross_covariance_twin_matches_f64_reduction() {
         se3::rotation_angle(&e),
         se3::translation_norm(&e)
     );
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain("scan_shaders_validate", scan_shaders_validate),
+        plain(
+            "scan_structs_match_wgsl_layout",
+            scan_structs_match_wgsl_layout,
+        ),
+        plain(
+            "nn_twins_agree_with_each_other_and_the_kd_tree",
+            nn_twins_agree_with_each_other_and_the_kd_tree,
+        ),
+        plain(
+            "cross_covariance_twin_matches_f64_reduction",
+            cross_covariance_twin_matches_f64_reduction,
+        ),
+    ])
 }

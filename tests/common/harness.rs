@@ -115,10 +115,7 @@ pub fn gpu<R: Finish>(
 }
 
 /// A test that reads the full data sets in `../shared/data` (it gets that directory).
-pub fn shared<R: Finish>(
-    name: &'static str,
-    f: impl FnOnce(&Path) -> R + Send + 'static,
-) -> Test {
+pub fn shared<R: Finish>(name: &'static str, f: impl FnOnce(&Path) -> R + Send + 'static) -> Test {
     Test {
         name,
         needs_gpu: false,
@@ -153,7 +150,10 @@ fn data_status() -> Result<Option<String>, String> {
     if dir.is_dir() {
         Ok(None)
     } else if data_required() {
-        Err(format!("{} is absent and {REQUIRE_DATA_ENV}=1", dir.display()))
+        Err(format!(
+            "{} is absent and {REQUIRE_DATA_ENV}=1",
+            dir.display()
+        ))
     } else {
         Ok(Some(format!(
             "{} is absent (the full ICL-NUIM sequence and LiDAR sets); \

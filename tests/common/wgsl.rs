@@ -37,7 +37,8 @@ pub fn check(
             ));
         }
     };
-    let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities);
+    let mut validator =
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities);
     validator.validate(&module).err().map(|e| {
         format!(
             "{}: validation error in {label}: {}\n{}",
