@@ -30,11 +30,11 @@ use wgslam::Error;
 /// an FMA or round a division differently, a few ULP of a value below 6 m (~1e-6 m).
 const VERTEX_TOL_M: f32 = tolerance::VERTEX_MAX_ABS_M as f32;
 /// Normals, per component of a unit vector: a cross product of differences of nearby
-/// vertices amplifies those ULPs by the inverse of the pixel spacing (~1/0.01 m). 1e-3 is
-/// ~0.06 degrees, the same order as `tolerance::NORMAL_MAX_DEG` (0.05 degrees, which bounds
-/// each component by 0.05° in radians = 8.7e-4); kept at 1e-3 as measured safe for the
-/// fused surfel normals of `check_surfel` too.
-const NORMAL_TOL: f32 = 1e-3;
+/// vertices amplifies those ULPs by the inverse of the pixel spacing (~1/0.01 m). Derived
+/// from `tolerance::NORMAL_MAX_DEG` (0.05 degrees): turning a unit vector by an angle θ moves
+/// it by the chord 2 sin(θ/2) <= θ, so no component moves by more than θ in radians
+/// (8.7e-4; was 1e-3 here; measured on lavapipe: 0 in preprocess).
+const NORMAL_TOL: f32 = tolerance::NORMAL_MAX_DEG.to_radians() as f32;
 /// Validity masks (normals, index map): a depth-jump comparison or a projection can land on
 /// the other side of a boundary after one ULP of FMA difference. Allowed fraction of pixels.
 const MASK_MISMATCH_FRACTION: f64 = tolerance::VALIDITY_MISMATCH_MAX_FRACTION;
