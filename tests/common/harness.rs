@@ -18,7 +18,8 @@
 //! Whether a GPU adapter exists is decided once per process (only when a selected trial
 //! needs one), as is whether `../shared/data` is a directory. A trial that cannot run is
 //! marked ignored with its reason as the trial's kind (`test [no GPU adapter] name ...
-//! ignored`), and a line per reason is printed to stderr before the run. Each GPU trial
+//! ignored`; both reasons when both are missing), and the ignored tests are listed with
+//! the full reason on stderr before the run. Each GPU trial
 //! still opens its own context, as the tests always have
 //! ([`wgslam::gpu::test_support::gpu_for_test`]).
 //!
@@ -216,18 +217,25 @@ pub fn run(tests: Vec<Test>) -> ExitCode {
         .flatten();
     let data_skip = data_status().ok().flatten();
 
-    let mut skipped_by_reason: Vec<(&str, &str, Vec<&str>)> = Vec::new();
+    // Tests skipped for the same reason(s), listed before the run: (kind, reason, names).
+    let mut skipped_by_reason: Vec<(String, String, Vec<&str>)> = Vec::new();
     let mut trials = Vec::with_capacity(tests.len());
     for test in tests {
-        let skip = match (&gpu_skip, &data_skip) {
-            (Some(why), _) if test.needs_gpu => Some((NO_GPU_KIND, why.as_str())),
-            (_, Some(why)) if test.needs_data => Some((NO_DATA_KIND, why.as_str())),
-            _ => None,
-        };
+        let mut kinds = Vec::new();
+        let mut whys = Vec::new();
+        if let (true, Some(why)) = (test.needs_gpu, &gpu_skip) {
+            kinds.push(NO_GPU_KIND);
+            whys.push(why.as_str());
+        }
+        if let (true, Some(why)) = (test.needs_data, &data_skip) {
+            kinds.push(NO_DATA_KIND);
+            whys.push(why.as_str());
+        }
         let name = test.name;
         let mut trial = Trial::ignorable_test(name, move || run_one(test));
-        if let Some((kind, why)) = skip {
-            trial = trial.with_kind(kind).with_ignored_flag(true);
+        if !kinds.is_empty() {
+            let (kind, why) = (kinds.join(", "), whys.join("; "));
+            trial = trial.with_kind(kind.clone()).with_ignored_flag(true);
             if selected(&args, name) {
                 match skipped_by_reason.iter_mut().find(|(k, _, _)| *k == kind) {
                     Some((_, _, names)) => names.push(name),
