@@ -5,9 +5,9 @@
 
 mod common;
 
-use std::path::Path;
 use std::process::ExitCode;
 
+use common::frames::{gt_at, load_frame, load_gt};
 use common::harness::gpu;
 use glam::DMat4;
 use wgslam::camera::Intrinsics;
@@ -15,7 +15,6 @@ use wgslam::compare::tolerance;
 use wgslam::cpu;
 use wgslam::cpu_backend::CpuBackend;
 use wgslam::gpu::{GpuBackend, GpuContext};
-use wgslam::layout::pack_rgba8;
 use wgslam::map::SurfelMap;
 use wgslam::pipeline::{Backend, PoseSource, Slam, SlamParams, TrackStatus};
 use wgslam::se3;
@@ -65,51 +64,6 @@ const RUN_SURFEL_FRACTION_TOL: f64 = tolerance::SURFEL_COUNT_REL_DIFF_MAX;
 const GT_RMSE_MAX_M: f64 = 1e-3;
 
 // ---------------------------------------------------------------------------------------
-// Loading the bundled frames with the image crate directly.
-
-struct Frame {
-    depth: Vec<u16>,
-    rgba: Vec<u32>,
-}
-
-fn load_frame(root: &Path, i: usize) -> Frame {
-    let depth = image::open(root.join(format!("depth/{i}.png")))
-        .unwrap_or_else(|e| panic!("depth/{i}.png: {e}"))
-        .into_luma16();
-    let rgb = image::open(root.join(format!("rgb/{i}.png")))
-        .unwrap_or_else(|e| panic!("rgb/{i}.png: {e}"))
-        .into_rgb8();
-    assert_eq!(depth.dimensions(), (640, 480));
-    assert_eq!(rgb.dimensions(), (640, 480));
-    Frame {
-        depth: depth.into_raw(),
-        rgba: rgb.pixels().map(|p| pack_rgba8(p.0)).collect(),
-    }
-}
-
-/// Ground truth camera-to-world by frame index (`i tx ty tz qx qy qz qw`).
-fn load_gt(root: &Path) -> Vec<Option<DMat4>> {
-    let text = std::fs::read_to_string(root.join("livingRoom2.gt.freiburg")).unwrap();
-    let mut gt = Vec::new();
-    for line in text.lines().filter(|l| !l.trim().is_empty()) {
-        let v: Vec<f64> = line
-            .split_whitespace()
-            .map(|s| s.parse().unwrap())
-            .collect();
-        let i = v[0] as usize;
-        if gt.len() <= i {
-            gt.resize(i + 1, None);
-        }
-        gt[i] = Some(se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]));
-    }
-    gt
-}
-
-/// Ground truth of frame `i`, if any.
-fn gt_at(gt: &[Option<DMat4>], i: usize) -> Option<&DMat4> {
-    gt.get(i).and_then(|g| g.as_ref())
-}
-
 fn root() -> std::path::PathBuf {
     common::bundled_icl()
 }

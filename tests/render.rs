@@ -7,6 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use common::frames::{load_frame, load_gt, Frame};
 use common::harness::{gpu, plain, skipped};
 use common::wgsl::{self, rust_layout};
 use glam::{DMat4, DVec3};
@@ -18,33 +19,15 @@ use wgslam::gpu::GpuContext;
 use wgslam::layout::{pack_rgba8, NormalParams, PreprocessParams};
 use wgslam::map::SurfelMap;
 use wgslam::render::{self, Cloud, RenderCamera, RenderSettings, View};
-use wgslam::se3;
 
-/// Ground-truth poses (`t_cam_to_world`) of the bundled frames, by frame index.
+/// Ground-truth poses (`t_cam_to_world`) of the bundled frames that have one, in frame
+/// order (frame 0 has none, so `[0]` is frame 1).
 fn gt_poses(root: &Path) -> Vec<(usize, DMat4)> {
-    let text = std::fs::read_to_string(root.join("livingRoom2.gt.freiburg")).expect("gt file");
-    text.lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            (
-                v[0] as usize,
-                se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]),
-            )
-        })
+    load_gt(root)
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, t)| Some((i, t?)))
         .collect()
-}
-
-/// Raw depth (u16) and packed RGBA of bundled frame `i`.
-fn load_frame(root: &Path, i: usize) -> (Vec<u16>, Vec<u32>) {
-    let depth = image::open(root.join(format!("depth/{i}.png")))
-        .unwrap()
-        .into_luma16();
-    let rgb = image::open(root.join(format!("rgb/{i}.png")))
-        .unwrap()
-        .into_rgb8();
-    let rgba = rgb.pixels().map(|p| pack_rgba8(p.0)).collect();
-    (depth.into_raw(), rgba)
 }
 
 /// Intrinsics, then camera-frame vertex, normal and colour maps (row-major `[f32; 4]`).
@@ -53,7 +36,7 @@ type Maps = (Intrinsics, Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[f32; 4]>);
 /// Camera-frame vertex, normal and colour maps of frame `i`, downsampled by `stride`.
 fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
     let k = Intrinsics::ICL_NUIM.downsampled(stride);
-    let (depth, rgba) = load_frame(root, i);
+    let Frame { depth, rgba } = load_frame(root, i);
     let pp = PreprocessParams {
         fx: k.fx,
         fy: k.fy,
@@ -734,7 +717,7 @@ fn gpu_matches_cpu_on_a_small_map(ctx: GpuContext) -> Completion {
 
 fn lidar_overlay_from_above() {
     use wgslam::render::outputs::{write_icp_overlays, OverlayViewpoint};
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
+    let data = common::scans::fast_gicp_dir();
     let read = |name: &str| -> Vec<[f32; 4]> {
         let c = wgslam::scan::read::read_cloud(&data.join(name)).unwrap();
         c.points.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect()

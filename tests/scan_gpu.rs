@@ -4,10 +4,10 @@
 
 mod common;
 
-use std::path::Path;
 use std::process::ExitCode;
 
 use common::harness::gpu;
+use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
 
 use glam::DMat4;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode};
@@ -17,21 +17,8 @@ use wgslam::gpu::GpuContext;
 use wgslam::scan::gpu::{GpuTarget, NnMethod, ScanKernels};
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
-use wgslam::scan::{read_matrix4, read_pcd, register, register_with, IcpParams, Samples};
+use wgslam::scan::{register, register_with, IcpParams, Samples};
 use wgslam::se3;
-
-fn fast_gicp() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, DMat4) {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
-    (
-        read_pcd(&d.join("251371071.pcd")).unwrap().points,
-        read_pcd(&d.join("251370668.pcd")).unwrap().points,
-        read_matrix4(&d.join("relative.txt")).unwrap(),
-    )
-}
-
-fn v4(p: &[[f32; 3]]) -> Vec<[f32; 4]> {
-    p.iter().map(|q| [q[0], q[1], q[2], 0.0]).collect()
-}
 
 const RADIUS: f32 = 0.5;
 
@@ -72,30 +59,15 @@ fn compare_nn(label: &str, gpu: &[ScanNnResult], cpu: &[ScanNnResult]) {
 
 fn gpu_nn_kernels_match_twins(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
-    let (source, target, rel) = fast_gicp();
+    let (source, target, rel) = fast_gicp_pair();
     let queries: Vec<[f32; 3]> = transform_points(&rel, &source)
         .into_iter()
         .step_by(23)
         .collect();
     let n = queries.len();
     let grid = HashGrid::build(&target, RADIUS);
-    let params = ScanNnParams {
-        n_queries: n as u32,
-        n_targets: target.len() as u32,
-        radius_sq: RADIUS * RADIUS,
-        n_threads: 64,
-        cell_size: grid.cell_size,
-        table_mask: grid.table_mask,
-        target_begin: 0,
-        target_end: target.len() as u32,
-    };
-    let mut cpu_brute = vec![
-        ScanNnResult {
-            index: 0,
-            dist_sq: 0.0
-        };
-        n
-    ];
+    let params = nn_params(n, &target, RADIUS, &grid);
+    let mut cpu_brute = zeroed_results(n);
     nn_brute(&params, &v4(&queries), &v4(&target), &mut cpu_brute);
     let mut cpu_grid = cpu_brute.clone();
     nn_grid(
@@ -146,7 +118,7 @@ const COV_SUM_REL_TOL: f64 = 1e-4;
 
 fn gpu_cross_covariance_matches_twin(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
-    let (source, target, rel) = fast_gicp();
+    let (source, target, rel) = fast_gicp_pair();
     let dt = se3::exp(&[0.01, -0.02, 0.015, 0.1, -0.05, 0.02]);
     let queries: Vec<[f32; 3]> = transform_points(&(dt * rel), &source)
         .into_iter()
@@ -192,7 +164,7 @@ const GPU_ICP_TRANS_TOL_M: f64 = 0.02;
 
 fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
-    let (source, target, reference) = fast_gicp();
+    let (source, target, reference) = fast_gicp_pair();
     let params = IcpParams {
         radius: 1.0,
         final_radius: Some(0.2),

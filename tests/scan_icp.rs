@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use common::harness::{plain, shared};
+use common::scans::fast_gicp_dir;
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use wgslam::camera::Intrinsics;
 use wgslam::scan::odometry;
@@ -422,10 +423,6 @@ fn matrix4_reader() {
 }
 
 // ---------------------------------------------------------------- real data
-
-fn fast_gicp_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data")
-}
 
 /// relative.txt is a reference registration (fast_gicp's GICP), not ground truth; the
 /// point-to-point result sits 0.3-0.4 degrees and 1-3 cm from it (the sampled estimate

@@ -8,6 +8,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use common::harness::plain;
+use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
 use common::wgsl::{self, rust_layout, RustLayout};
 use glam::DVec3;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
@@ -16,7 +17,6 @@ use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
 use wgslam::scan::icp::{CrossCovariance, KdTreeTarget, NearestNeighbours};
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
-use wgslam::scan::{read_matrix4, read_pcd};
 use wgslam::se3;
 
 const SHADERS: [&str; 3] = ["nn_brute", "nn_grid", "cross_covariance"];
@@ -115,17 +115,10 @@ fn scan_structs_match_wgsl_layout() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-fn v4(p: &[[f32; 3]]) -> Vec<[f32; 4]> {
-    p.iter().map(|q| [q[0], q[1], q[2], 0.0]).collect()
-}
-
 /// A real scan pair: 1500 queries (the source moved by relative.txt, every 46th point)
 /// against the 69,088-point target.
 fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
-    let source = read_pcd(&d.join("251371071.pcd")).unwrap().points;
-    let target = read_pcd(&d.join("251370668.pcd")).unwrap().points;
-    let rel = read_matrix4(&d.join("relative.txt")).unwrap();
+    let (source, target, rel) = fast_gicp_pair();
     let queries: Vec<[f32; 3]> = transform_points(&rel, &source)
         .into_iter()
         .step_by(46)
@@ -139,24 +132,9 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
     let (queries, target) = real_pair();
     let n = queries.len();
     let grid = HashGrid::build(&target, RADIUS);
-    let params = ScanNnParams {
-        n_queries: n as u32,
-        n_targets: target.len() as u32,
-        radius_sq: RADIUS * RADIUS,
-        n_threads: 64,
-        cell_size: grid.cell_size,
-        table_mask: grid.table_mask,
-        target_begin: 0,
-        target_end: target.len() as u32,
-    };
+    let params = nn_params(n, &target, RADIUS, &grid);
     let (q4, t4) = (v4(&queries), v4(&target));
-    let mut brute = vec![
-        ScanNnResult {
-            index: 0,
-            dist_sq: 0.0
-        };
-        n
-    ];
+    let mut brute = zeroed_results(n);
     nn_brute(&params, &q4, &t4, &mut brute);
     let mut gridded = brute.clone();
     nn_grid(
@@ -215,13 +193,7 @@ fn cross_covariance_twin_matches_f64_reduction() {
     let queries = transform_points(&dt, &queries);
     let n = queries.len();
     let (q4, t4) = (v4(&queries), v4(&target));
-    let mut nn = vec![
-        ScanNnResult {
-            index: 0,
-            dist_sq: 0.0
-        };
-        n
-    ];
+    let mut nn = zeroed_results(n);
     let p = ScanNnParams {
         n_queries: n as u32,
         n_targets: target.len() as u32,
