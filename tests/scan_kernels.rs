@@ -48,39 +48,25 @@ fn scan_shaders_validate() {
 }
 
 fn scan_structs_match_wgsl_layout() {
+    let nn_params = || {
+        rust_layout!(ScanNnParams {
+            n_queries,
+            n_targets,
+            radius_sq,
+            n_threads,
+            cell_size,
+            table_mask,
+            target_begin,
+            target_end
+        })
+    };
+    let nn_result = || rust_layout!(ScanNnResult { index, dist_sq });
     let expected: Vec<(&str, RustLayout)> = vec![
-        (
-            "nn_brute",
-            rust_layout!(ScanNnParams {
-                n_queries,
-                n_targets,
-                radius_sq,
-                n_threads,
-                cell_size,
-                table_mask,
-                target_begin,
-                target_end
-            }),
-        ),
-        (
-            "nn_grid",
-            rust_layout!(ScanNnParams {
-                n_queries,
-                n_targets,
-                radius_sq,
-                n_threads,
-                cell_size,
-                table_mask,
-                target_begin,
-                target_end
-            }),
-        ),
-        ("nn_brute", rust_layout!(ScanNnResult { index, dist_sq })),
-        ("nn_grid", rust_layout!(ScanNnResult { index, dist_sq })),
-        (
-            "cross_covariance",
-            rust_layout!(ScanNnResult { index, dist_sq }),
-        ),
+        ("nn_brute", nn_params()),
+        ("nn_grid", nn_params()),
+        ("nn_brute", nn_result()),
+        ("nn_grid", nn_result()),
+        ("cross_covariance", nn_result()),
         (
             "cross_covariance",
             rust_layout!(ScanCovParams {
