@@ -9,9 +9,13 @@
 //! naming the kernel and the binding. Until now these tables were only checked when a GPU
 //! pipeline was built.
 
+mod common;
+
+use std::process::ExitCode;
+
+use common::harness::plain;
 use wgslam::gpu::{self, shaders, Binding, TexelFormat};
 
-#[test]
 fn every_kernel_layout_matches_its_wgsl() {
     let tables = gpu::kernel_binding_tables();
     let mut failures = Vec::new();
@@ -46,7 +50,6 @@ fn every_kernel_layout_matches_its_wgsl() {
 
 /// The check itself fails on a wrong table, and reports every mismatch at once (so a
 /// passing run above means something).
-#[test]
 fn a_wrong_table_is_reported_binding_by_binding() {
     // fuse_add with binding 5 read-write instead of write-only, binding 3 a read-write
     // buffer instead of read-only, and binding 7 missing.
@@ -88,4 +91,17 @@ fn a_wrong_table_is_reported_binding_by_binding() {
     assert_eq!(problems.len(), 2, "got: {problems:#?}");
     assert!(problems[0].starts_with("kernel `predict_model` binding 3 (`normal_frame`)"));
     assert!(problems[1].starts_with("kernel `predict_model` binding 5 (`pred_normal`)"));
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "every_kernel_layout_matches_its_wgsl",
+            every_kernel_layout_matches_its_wgsl,
+        ),
+        plain(
+            "a_wrong_table_is_reported_binding_by_binding",
+            a_wrong_table_is_reported_binding_by_binding,
+        ),
+    ])
 }

@@ -2,7 +2,9 @@
 
 mod common;
 
-use std::process::Command;
+use std::process::{Command, ExitCode};
+
+use common::harness::plain;
 
 fn wgslam(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_wgslam"))
@@ -19,7 +21,6 @@ fn text(o: &std::process::Output) -> String {
     )
 }
 
-#[test]
 fn run_writes_all_outputs_on_bundled_data() {
     let out = common::temp_dir("cli-run");
     let o = wgslam(&[
@@ -79,7 +80,6 @@ fn run_writes_all_outputs_on_bundled_data() {
 
 /// `bench --rounds 2` on the CPU: round 1 with per-stage times, round 2 whole frames only,
 /// both over the requested frames and tracking them as accurately as `run` does.
-#[test]
 fn bench_rounds_write_every_round() {
     let out = common::temp_dir("cli-bench");
     let json = out.join("bench.json");
@@ -132,7 +132,6 @@ fn bench_rounds_write_every_round() {
     assert!(text(&o).contains("intrinsics"), "{}", text(&o));
 }
 
-#[test]
 fn icp_two_frames_prints_iterations_and_error() {
     let o = wgslam(&[
         "icp",
@@ -149,7 +148,6 @@ fn icp_two_frames_prints_iterations_and_error() {
     assert!(t.contains("mean squared residual"), "{t}");
 }
 
-#[test]
 fn clear_errors_for_bad_input() {
     let cases: [(&[&str], &str); 7] = [
         (
@@ -176,4 +174,22 @@ fn clear_errors_for_bad_input() {
         assert!(t.contains(needle), "{args:?}: {t}");
         assert!(!t.contains("panicked"), "{args:?} panicked: {t}");
     }
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "run_writes_all_outputs_on_bundled_data",
+            run_writes_all_outputs_on_bundled_data,
+        ),
+        plain(
+            "bench_rounds_write_every_round",
+            bench_rounds_write_every_round,
+        ),
+        plain(
+            "icp_two_frames_prints_iterations_and_error",
+            icp_two_frames_prints_iterations_and_error,
+        ),
+        plain("clear_errors_for_bad_input", clear_errors_for_bad_input),
+    ])
 }

@@ -1,8 +1,12 @@
 //! Trajectory evaluation on synthetic trajectories with known answers, and on the bundled
 //! ICL-NUIM ground truth.
 
-use std::path::Path;
+mod common;
 
+use std::path::Path;
+use std::process::ExitCode;
+
+use common::harness::plain;
 use glam::{DMat4, DVec3};
 use wgslam::eval::{align_rigid, associate, ate, ate_with, rpe, rpe_with};
 use wgslam::io::trajectory::{read_tum, write_tum};
@@ -29,7 +33,6 @@ fn moved(traj: &[(f64, DMat4)], world: DMat4) -> Vec<(f64, DMat4)> {
     traj.iter().map(|(s, p)| (*s, world * *p)).collect()
 }
 
-#[test]
 fn rotated_translated_copy_aligns_to_zero() {
     let gt = helix(60);
     let a = se3::exp(&[0.4, -0.9, 1.3, 5.0, -3.0, 2.0]);
@@ -50,7 +53,6 @@ fn rotated_translated_copy_aligns_to_zero() {
     assert!(d.iter().all(|v| v.abs() < EXACT_TOL), "{t}");
 }
 
-#[test]
 fn planar_points_need_the_reflection_fix() {
     // Coplanar points: the cross-covariance has rank 2, where an unguarded SVD solution can
     // be a reflection. The result must be a proper rotation that maps the points exactly.
@@ -86,7 +88,6 @@ fn planar_points_need_the_reflection_fix() {
     assert!(align_rigid(&[DVec3::ZERO], &[]).is_err());
 }
 
-#[test]
 fn ate_statistics_of_known_errors() {
     let gt = helix(4);
     // Offsets of 1, 2, 3, 4 m in different directions, no alignment.
@@ -111,7 +112,6 @@ fn ate_statistics_of_known_errors() {
     assert!((s.max_m - 4.0).abs() < EXACT_TOL);
 }
 
-#[test]
 fn association_by_stamp() {
     let gt = helix(10);
     // Estimate stamps 5 ms late, every other frame, plus one stamp far from any GT.
@@ -128,7 +128,6 @@ fn association_by_stamp() {
     assert!(rpe_with(&est, &gt, 1, 0.001).is_err());
 }
 
-#[test]
 fn rpe_of_a_world_offset_is_zero() {
     let gt = helix(40);
     let est = moved(&gt, se3::exp(&[0.3, 0.2, -0.5, 1.0, 2.0, 3.0]));
@@ -147,7 +146,6 @@ fn rpe_of_a_world_offset_is_zero() {
     );
 }
 
-#[test]
 fn rpe_of_a_known_per_step_error() {
     let gt = helix(30);
     // Each estimated step is the true step followed by the same small error D:
@@ -176,7 +174,6 @@ fn rpe_of_a_known_per_step_error() {
     assert!(ate(&est, &gt, true).unwrap().rmse_m > 0.01);
 }
 
-#[test]
 fn bundled_icl_ground_truth_evaluates_against_itself() {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("assets/icl_living_room_kt2/livingRoom2.gt.freiburg");
@@ -200,4 +197,34 @@ fn bundled_icl_ground_truth_evaluates_against_itself() {
     assert!(ate(&back, &gt, true).unwrap().rmse_m < 1e-8);
     assert!(ate(&back, &gt, false).unwrap().rmse_m > 0.5);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "rotated_translated_copy_aligns_to_zero",
+            rotated_translated_copy_aligns_to_zero,
+        ),
+        plain(
+            "planar_points_need_the_reflection_fix",
+            planar_points_need_the_reflection_fix,
+        ),
+        plain(
+            "ate_statistics_of_known_errors",
+            ate_statistics_of_known_errors,
+        ),
+        plain("association_by_stamp", association_by_stamp),
+        plain(
+            "rpe_of_a_world_offset_is_zero",
+            rpe_of_a_world_offset_is_zero,
+        ),
+        plain(
+            "rpe_of_a_known_per_step_error",
+            rpe_of_a_known_per_step_error,
+        ),
+        plain(
+            "bundled_icl_ground_truth_evaluates_against_itself",
+            bundled_icl_ground_truth_evaluates_against_itself,
+        ),
+    ])
 }

@@ -1,19 +1,20 @@
 //! Each WGSL kernel against its CPU twin on real ICL-NUIM frames from `assets/`, a whole
 //! tracked run on both backends (and the GPU run against the real ground truth), and the
-//! GPU map's growth and capacity error. Skips with a printed reason without a GPU adapter
-//! unless `WGSLAM_REQUIRE_GPU=1`.
+//! GPU map's growth and capacity error. Every trial shows as ignored without a GPU adapter
+//! (tests/common/harness.rs).
 
 mod common;
 
-use std::path::Path;
+use std::process::ExitCode;
 
+use common::frames::{gt_at, load_frame, load_gt};
+use common::harness::gpu;
 use glam::DMat4;
 use wgslam::camera::Intrinsics;
+use wgslam::compare::tolerance;
 use wgslam::cpu;
 use wgslam::cpu_backend::CpuBackend;
-use wgslam::gpu::test_support::gpu_or_skip;
-use wgslam::gpu::GpuBackend;
-use wgslam::layout::pack_rgba8;
+use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::map::SurfelMap;
 use wgslam::pipeline::{Backend, PoseSource, Slam, SlamParams, TrackStatus};
 use wgslam::se3;
@@ -21,88 +22,48 @@ use wgslam::solve::NormalEquations;
 use wgslam::Error;
 
 // ---------------------------------------------------------------------------------------
-// Tolerances (each with its reason).
+// Tolerances (each with its reason). Where `wgslam compare` has the same bound
+// (`wgslam::compare::tolerance`, documented there) it is used, converted to this file's units.
 
 /// Vertices: the same f32 formula on both sides; lavapipe may contract a multiply-add into
 /// an FMA or round a division differently, a few ULP of a value below 6 m (~1e-6 m).
-const VERTEX_TOL_M: f32 = 1e-5;
-/// Normals: a cross product of differences of nearby vertices amplifies those ULPs by the
-/// inverse of the pixel spacing (~1/0.01 m); 1e-3 of a unit vector is ~0.06 degrees.
-const NORMAL_TOL: f32 = 1e-3;
+const VERTEX_TOL_M: f32 = tolerance::VERTEX_MAX_ABS_M as f32;
+/// Normals, per component of a unit vector: a cross product of differences of nearby
+/// vertices amplifies those ULPs by the inverse of the pixel spacing (~1/0.01 m). Derived
+/// from `tolerance::NORMAL_MAX_DEG` (0.05 degrees): turning a unit vector by an angle θ moves
+/// it by the chord 2 sin(θ/2) <= θ, so no component moves by more than θ in radians
+/// (8.7e-4; was 1e-3 here; measured on lavapipe: 0 in preprocess).
+const NORMAL_TOL: f32 = tolerance::NORMAL_MAX_DEG.to_radians() as f32;
 /// Validity masks (normals, index map): a depth-jump comparison or a projection can land on
 /// the other side of a boundary after one ULP of FMA difference. Allowed fraction of pixels.
-const MASK_MISMATCH_FRACTION: f64 = 1e-3;
+const MASK_MISMATCH_FRACTION: f64 = tolerance::VALIDITY_MISMATCH_MAX_FRACTION;
 /// Index-map keys: the camera depth in the key may differ by a few ULP (FMA in the pose
 /// transform on the GPU).
 const KEY_DEPTH_ULP_TOL: u32 = 4;
 /// Decoded 6x6 systems: f32 partial sums of ~50k rows per workgroup on the GPU versus f64
 /// sums on the CPU; relative Frobenius difference of AᵀA and Aᵀb.
-const SYSTEM_REL_TOL: f64 = 1e-3;
+const SYSTEM_REL_TOL: f64 = tolerance::SYSTEM_REL_DIFF_MAX;
 /// Solved increments (radians and metres mixed): 1e-6 is a micrometre / microradian, far
 /// below the 1e-6 convergence threshold's effect on a pose and the data's 1 mm quantisation.
 const INCREMENT_TOL: f64 = 1e-6;
-/// Inlier counts: the distance and projection filters can flip for a few pixels (FMA).
-const INLIER_FRACTION_TOL: f64 = 1e-3;
+/// Inlier counts: the distance and projection filters can flip for a few pixels (FMA), as
+/// the validity masks can: the same allowed fraction.
+const INLIER_FRACTION_TOL: f64 = tolerance::VALIDITY_MISMATCH_MAX_FRACTION;
 /// Fused surfels: an average of a handful of observations of f32 values (metres / 0..255).
 const SURFEL_POS_TOL_M: f32 = 1e-4;
 const SURFEL_COLOR_TOL: f32 = 1e-2;
 /// Whole runs: per-frame pose difference between the backends (the solve differs only by
 /// f32 vs f64 summation, and ICP converges to the same minimum).
-const RUN_POSE_TOL_M: f64 = 1e-4;
-const RUN_POSE_TOL_DEG: f64 = 0.01;
+const RUN_POSE_TOL_M: f64 = tolerance::POSE_MAX_MM / 1e3;
+const RUN_POSE_TOL_DEG: f64 = tolerance::POSE_MAX_DEG;
 /// Whole runs: surfel count difference between the backends (fusion filter decisions on a
 /// boundary, amplified over frames).
-const RUN_SURFEL_FRACTION_TOL: f64 = 1e-3;
+const RUN_SURFEL_FRACTION_TOL: f64 = tolerance::SURFEL_COUNT_REL_DIFF_MAX;
 /// The GPU run against ground truth over the bundled frames: translation RMSE (the bar
 /// the CPU reference meets with ~0.2 mm to spare).
 const GT_RMSE_MAX_M: f64 = 1e-3;
 
 // ---------------------------------------------------------------------------------------
-// Loading the bundled frames with the image crate directly.
-
-struct Frame {
-    depth: Vec<u16>,
-    rgba: Vec<u32>,
-}
-
-fn load_frame(root: &Path, i: usize) -> Frame {
-    let depth = image::open(root.join(format!("depth/{i}.png")))
-        .unwrap_or_else(|e| panic!("depth/{i}.png: {e}"))
-        .into_luma16();
-    let rgb = image::open(root.join(format!("rgb/{i}.png")))
-        .unwrap_or_else(|e| panic!("rgb/{i}.png: {e}"))
-        .into_rgb8();
-    assert_eq!(depth.dimensions(), (640, 480));
-    assert_eq!(rgb.dimensions(), (640, 480));
-    Frame {
-        depth: depth.into_raw(),
-        rgba: rgb.pixels().map(|p| pack_rgba8(p.0)).collect(),
-    }
-}
-
-/// Ground truth camera-to-world by frame index (`i tx ty tz qx qy qz qw`).
-fn load_gt(root: &Path) -> Vec<Option<DMat4>> {
-    let text = std::fs::read_to_string(root.join("livingRoom2.gt.freiburg")).unwrap();
-    let mut gt = Vec::new();
-    for line in text.lines().filter(|l| !l.trim().is_empty()) {
-        let v: Vec<f64> = line
-            .split_whitespace()
-            .map(|s| s.parse().unwrap())
-            .collect();
-        let i = v[0] as usize;
-        if gt.len() <= i {
-            gt.resize(i + 1, None);
-        }
-        gt[i] = Some(se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]));
-    }
-    gt
-}
-
-/// Ground truth of frame `i`, if any.
-fn gt_at(gt: &[Option<DMat4>], i: usize) -> Option<&DMat4> {
-    gt.get(i).and_then(|g| g.as_ref())
-}
-
 fn root() -> std::path::PathBuf {
     common::bundled_icl()
 }
@@ -111,9 +72,8 @@ fn slam<B: Backend>(backend: B, params: SlamParams) -> Slam<B> {
     Slam::new(backend, Intrinsics::ICL_NUIM, params)
 }
 
-fn gpu_backend(test: &str) -> Option<GpuBackend> {
-    let ctx = gpu_or_skip(test)?;
-    Some(GpuBackend::new(ctx).expect("GPU backend"))
+fn gpu_backend(ctx: GpuContext) -> GpuBackend {
+    GpuBackend::new(ctx).expect("GPU backend")
 }
 
 /// Counts mask mismatches and panics (naming the first pixels) past the allowance.
@@ -180,11 +140,7 @@ fn cpu_map_from_gt(n: usize, params: &SlamParams) -> (Slam<CpuBackend>, Vec<Opti
 // ---------------------------------------------------------------------------------------
 
 /// depth_to_vertex and vertex_to_normal against their twins, at downsample 2 and 1.
-#[test]
-fn preprocess_matches_twins() {
-    let Some(mut gpu) = gpu_backend("preprocess_matches_twins") else {
-        return;
-    };
+fn preprocess_matches_twins(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
     for downsample in [2, 1] {
         let params = SlamParams {
@@ -216,11 +172,7 @@ fn preprocess_matches_twins() {
 
 /// project_model and predict_model against their twins on a real fused map, viewed from a
 /// later frame's ground-truth pose.
-#[test]
-fn predict_matches_twins() {
-    let Some(mut gpu) = gpu_backend("predict_matches_twins") else {
-        return;
-    };
+fn predict_matches_twins(mut gpu: GpuBackend) {
     let params = SlamParams::default();
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     let map = s.backend.download_map().unwrap();
@@ -287,11 +239,7 @@ fn predict_matches_twins() {
 
 /// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
 /// at a pose perturbed from the ground truth.
-#[test]
-fn icp_system_matches_twin() {
-    let Some(mut gpu) = gpu_backend("icp_system_matches_twin") else {
-        return;
-    };
+fn icp_system_matches_twin(mut gpu: GpuBackend) {
     let params = SlamParams::default();
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
@@ -383,11 +331,7 @@ fn check_surfel(what: &str, c: &SurfelMap, ic: usize, g: &SurfelMap, ig: usize) 
 /// fuse_merge and fuse_add against their twins: merged surfels keep their index, so they
 /// are compared one to one; appended surfels are compared after sorting (the GPU appends
 /// in atomic order).
-#[test]
-fn fuse_matches_twins() {
-    let Some(mut gpu) = gpu_backend("fuse_matches_twins") else {
-        return;
-    };
+fn fuse_matches_twins(mut gpu: GpuBackend) {
     let params = SlamParams::default();
     let (mut s, gt) = cpu_map_from_gt(2, &params);
     let before = s.backend.download_map().unwrap();
@@ -443,11 +387,7 @@ fn fuse_matches_twins() {
 /// Tracks the bundled frames 1..=N on both backends: same statuses, poses within
 /// RUN_POSE_TOL, surfel counts within RUN_SURFEL_FRACTION_TOL, and the GPU poses within
 /// GT_RMSE_MAX_M of the ground truth.
-#[test]
-fn tracked_run_matches_cpu_and_ground_truth() {
-    let Some(gpu) = gpu_backend("tracked_run_matches_cpu_and_ground_truth") else {
-        return;
-    };
+fn tracked_run_matches_cpu_and_ground_truth(gpu: GpuBackend) {
     let gt = load_gt(&root());
     let last = gt.len() - 1;
     assert!(
@@ -516,11 +456,7 @@ fn tracked_run_matches_cpu_and_ground_truth() {
 
 /// A tiny initial capacity forces the map buffers to grow during fusion; the result is
 /// the same map as the CPU's.
-#[test]
-fn map_grows_from_a_tiny_capacity() {
-    let Some(ctx) = gpu_or_skip("map_grows_from_a_tiny_capacity") else {
-        return;
-    };
+fn map_grows_from_a_tiny_capacity(ctx: GpuContext) {
     let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
     assert_eq!(gpu.capacity(), 1000);
     let gt = load_gt(&root());
@@ -575,11 +511,7 @@ fn map_grows_from_a_tiny_capacity() {
 
 /// A map capped below what the second frame may need fails with Error::Capacity naming
 /// the surfels, bytes and limit, instead of writing out of bounds or dropping the frame.
-#[test]
-fn map_capacity_error() {
-    let Some(ctx) = gpu_or_skip("map_capacity_error") else {
-        return;
-    };
+fn map_capacity_error(ctx: GpuContext) {
     let gpu = GpuBackend::with_initial_capacity(ctx, 1000)
         .unwrap()
         .with_max_surfels(100_000);
@@ -604,11 +536,7 @@ fn map_capacity_error() {
 
 /// A frame whose buffers do not match its stated size is a user error, not a panic or a
 /// GPU fault; downloads before the first frame are empty, as on the CPU.
-#[test]
-fn bad_frame_size_is_an_argument_error() {
-    let Some(mut gpu) = gpu_backend("bad_frame_size_is_an_argument_error") else {
-        return;
-    };
+fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     assert_eq!(gpu.download_frame().unwrap(), Default::default());
     assert!(gpu.download_prediction().unwrap().0.is_empty());
     let s = slam(CpuBackend::new(), SlamParams::default());
@@ -622,4 +550,32 @@ fn bad_frame_size_is_an_argument_error() {
     let f = load_frame(&root(), 1);
     gpu.preprocess(&pp, &np, &f.depth, &f.rgba).unwrap();
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        gpu("preprocess_matches_twins", |ctx| {
+            preprocess_matches_twins(gpu_backend(ctx))
+        }),
+        gpu("predict_matches_twins", |ctx| {
+            predict_matches_twins(gpu_backend(ctx))
+        }),
+        gpu("icp_system_matches_twin", |ctx| {
+            icp_system_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("fuse_matches_twins", |ctx| {
+            fuse_matches_twins(gpu_backend(ctx))
+        }),
+        gpu("tracked_run_matches_cpu_and_ground_truth", |ctx| {
+            tracked_run_matches_cpu_and_ground_truth(gpu_backend(ctx))
+        }),
+        gpu(
+            "map_grows_from_a_tiny_capacity",
+            map_grows_from_a_tiny_capacity,
+        ),
+        gpu("map_capacity_error", map_capacity_error),
+        gpu("bad_frame_size_is_an_argument_error", |ctx| {
+            bad_frame_size_is_an_argument_error(gpu_backend(ctx))
+        }),
+    ])
 }

@@ -1,12 +1,17 @@
 //! GPU infrastructure end to end: context, a trivial kernel inside the validation scope,
 //! buffer upload / read-back / grow, capacity errors, error scopes, timing.
-//! Skips with a printed reason without an adapter unless `WGSLAM_REQUIRE_GPU=1`.
+//! Every trial shows as ignored without an adapter (tests/common/harness.rs).
 
+mod common;
+
+use std::process::ExitCode;
+
+use common::harness::{gpu, skipped};
+use libtest_mimic::Completion;
 use wgslam::gpu::buffers::{GpuArray, Uniform};
 use wgslam::gpu::images::GpuImage;
 use wgslam::gpu::shaders;
-use wgslam::gpu::test_support::gpu_or_skip;
-use wgslam::gpu::{Binding, Kernel, StageTimer};
+use wgslam::gpu::{Binding, GpuContext, Kernel, StageTimer};
 use wgslam::Error;
 
 /// `out[i] = 2 in[i] + offset` for `i < n`, using a helper from common.wgsl so the
@@ -44,11 +49,7 @@ const AFFINE_BINDINGS: [Binding; 3] = [
     Binding::read_write("output"),
 ];
 
-#[test]
-fn trivial_kernel_runs_in_validation_scope() {
-    let Some(ctx) = gpu_or_skip("trivial_kernel_runs_in_validation_scope") else {
-        return;
-    };
+fn trivial_kernel_runs_in_validation_scope(ctx: GpuContext) {
     eprintln!(
         "adapter {:?}, reduction workgroups {}, max storage binding {} bytes, features {:?}",
         ctx.adapter_info().name,
@@ -109,14 +110,9 @@ fn trivial_kernel_runs_in_validation_scope() {
     assert_eq!(stats.readback_bytes, (n * 4) as u64, "{stats:?}");
 }
 
-#[test]
-fn int64_atomic_max_packs_depth_and_index() {
-    let Some(ctx) = gpu_or_skip("int64_atomic_max_packs_depth_and_index") else {
-        return;
-    };
+fn int64_atomic_max_packs_depth_and_index(ctx: GpuContext) -> Completion {
     if !ctx.has_int64_atomics() {
-        eprintln!("SKIP: adapter has no 64-bit atomics");
-        return;
+        return skipped("adapter has no 64-bit atomics");
     }
     const SRC: &str = r#"
 @group(0) @binding(0) var<storage, read> keys: array<u32>;
@@ -163,13 +159,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             .unwrap();
         assert_eq!(g, want, "slot {slot}");
     }
+    Completion::Completed
 }
 
-#[test]
-fn arrays_grow_keeping_contents_and_read_back_ranges() {
-    let Some(ctx) = gpu_or_skip("arrays_grow_keeping_contents_and_read_back_ranges") else {
-        return;
-    };
+fn arrays_grow_keeping_contents_and_read_back_ranges(ctx: GpuContext) {
     let data: Vec<[f32; 4]> = (0..100).map(|i| [i as f32, 1.0, 2.0, 3.0]).collect();
     let mut a = GpuArray::from_slice(&ctx, "positions", &data).unwrap();
     let before = ctx.stats().allocated_bytes;
@@ -193,11 +186,7 @@ fn arrays_grow_keeping_contents_and_read_back_ranges() {
     assert_eq!(ctx.stats().allocated_bytes, before - 100 * 16 + 8);
 }
 
-#[test]
-fn capacity_past_the_binding_limit_is_an_error() {
-    let Some(ctx) = gpu_or_skip("capacity_past_the_binding_limit_is_an_error") else {
-        return;
-    };
+fn capacity_past_the_binding_limit_is_an_error(ctx: GpuContext) {
     let too_many = (ctx.max_storage_bytes() / 16 + 1) as usize;
     match GpuArray::<[f32; 4]>::new(&ctx, "surfel positions", too_many) {
         Err(Error::Capacity(msg)) => {
@@ -208,11 +197,7 @@ fn capacity_past_the_binding_limit_is_an_error() {
     }
 }
 
-#[test]
-fn validation_errors_become_gpu_errors() {
-    let Some(ctx) = gpu_or_skip("validation_errors_become_gpu_errors") else {
-        return;
-    };
+fn validation_errors_become_gpu_errors(ctx: GpuContext) {
     // Copying past the end of a buffer is a validation error.
     let a = GpuArray::<u32>::new(&ctx, "small", 4).unwrap();
     let b = GpuArray::<u32>::new(&ctx, "smaller", 1).unwrap();
@@ -232,11 +217,7 @@ fn validation_errors_become_gpu_errors() {
 
 /// Textures whose rows are not a multiple of the 256-byte copy pitch read back without
 /// the padding; a prefix upload zero-fills the rest of its last row and leaves later rows.
-#[test]
-fn images_round_trip_unaligned_rows_and_prefixes() {
-    let Some(ctx) = gpu_or_skip("images_round_trip_unaligned_rows_and_prefixes") else {
-        return;
-    };
+fn images_round_trip_unaligned_rows_and_prefixes(ctx: GpuContext) {
     // 213 texels x 16 bytes = 3408 bytes per row: not a multiple of 256.
     let (w, h) = (213u32, 5u32);
     let image = GpuImage::new(
@@ -271,4 +252,33 @@ fn images_round_trip_unaligned_rows_and_prefixes() {
         image.upload_prefix(&ctx, &vec![[0.0f32; 4]; (w * h + 1) as usize]),
         Err(Error::Argument(_))
     ));
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        gpu(
+            "trivial_kernel_runs_in_validation_scope",
+            trivial_kernel_runs_in_validation_scope,
+        ),
+        gpu(
+            "int64_atomic_max_packs_depth_and_index",
+            int64_atomic_max_packs_depth_and_index,
+        ),
+        gpu(
+            "arrays_grow_keeping_contents_and_read_back_ranges",
+            arrays_grow_keeping_contents_and_read_back_ranges,
+        ),
+        gpu(
+            "capacity_past_the_binding_limit_is_an_error",
+            capacity_past_the_binding_limit_is_an_error,
+        ),
+        gpu(
+            "validation_errors_become_gpu_errors",
+            validation_errors_become_gpu_errors,
+        ),
+        gpu(
+            "images_round_trip_unaligned_rows_and_prefixes",
+            images_round_trip_unaligned_rows_and_prefixes,
+        ),
+    ])
 }

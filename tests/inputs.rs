@@ -1,9 +1,13 @@
 //! Bad and good inputs for the dataset loaders and file readers, written as real files
 //! into a fresh temp directory per test (tiny PNGs generated here, no binary fixtures).
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
+use common::harness::{plain, shared};
 use glam::{DMat4, DVec3};
 use image::{GrayImage, ImageBuffer, Luma, Rgb, RgbImage, Rgba, RgbaImage};
 use wgslam::camera::Intrinsics;
@@ -116,7 +120,6 @@ fn assert_contains(msg: &str, parts: &[&str]) {
     }
 }
 
-#[test]
 fn tum_association_is_greedy_nearest_first() {
     let d = tum_fixture("tum-assoc");
     let seq = dataset::open(&d, &opts_tiny()).unwrap();
@@ -169,7 +172,6 @@ fn tum_association_is_greedy_nearest_first() {
     assert_eq!(f.valid_depth_pixels(), (W * H - 1) as usize);
 }
 
-#[test]
 fn tum_without_intrinsics_asks_for_them() {
     let d = tum_fixture("tum-nok");
     let msg = err_text(dataset::open(&d, &SequenceOptions::default()));
@@ -197,7 +199,6 @@ fn tum_without_intrinsics_asks_for_them() {
     assert_contains(&msg, &["camera.json", "fx"]);
 }
 
-#[test]
 fn icl_layout_defaults_and_frame_index_stamps() {
     let d = icl_fixture("icl", 3);
     // No camera.json: the ICL-NUIM preset (640x480), so loading the 4x3 frames must fail.
@@ -219,7 +220,6 @@ fn icl_layout_defaults_and_frame_index_stamps() {
     assert_eq!(seq.select(1, 2).unwrap(), 1..=2);
 }
 
-#[test]
 fn missing_directory_and_files() {
     let d = scratch("missing");
     let msg = err_text(dataset::open(&d.join("nope"), &opts_tiny()));
@@ -241,7 +241,6 @@ fn missing_directory_and_files() {
     assert_contains(&msg, &["other.txt"]);
 }
 
-#[test]
 fn empty_sequence() {
     let d = scratch("empty");
     fs::write(d.join("associations.txt"), "# nothing here\n\n").unwrap();
@@ -257,7 +256,6 @@ fn empty_sequence() {
     assert_contains(&msg, &["empty sequence", "0.001"]);
 }
 
-#[test]
 fn malformed_lists() {
     let d = icl_fixture("bad-assoc", 2);
     fs::write(
@@ -274,7 +272,6 @@ fn malformed_lists() {
     assert_contains(&msg, &["rgb.txt:2", "abc"]);
 }
 
-#[test]
 fn malformed_ground_truth() {
     let cases: [(&str, &str, &[&str]); 4] = [
         (
@@ -303,7 +300,6 @@ fn malformed_ground_truth() {
     }
 }
 
-#[test]
 fn bad_images() {
     let d = icl_fixture("bad-img", 6);
     // 1: 8-bit grey depth. 2: 8-bit grey colour. 3: truncated depth PNG.
@@ -333,7 +329,6 @@ fn bad_images() {
     assert!(matches!(e, Error::Argument(_)), "{e}");
 }
 
-#[test]
 fn frame_range_outside_sequence() {
     let d = icl_fixture("range", 3);
     let seq = dataset::open(&d, &opts_tiny()).unwrap();
@@ -345,7 +340,6 @@ fn frame_range_outside_sequence() {
     assert_contains(&err_text(seq.select(a, b)), &["1..200"]);
 }
 
-#[test]
 fn bundled_icl_frame_1() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
@@ -365,13 +359,8 @@ fn bundled_icl_frame_1() {
     );
 }
 
-#[test]
-fn shared_icl_sequence_if_present() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/icl_living_room_kt2");
-    if !root.is_dir() {
-        eprintln!("SKIP: {} is absent", root.display());
-        return;
-    }
+fn shared_icl_sequence_if_present(data: &Path) {
+    let root = common::shared_icl(data);
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
     assert_eq!(seq.len(), 210);
     assert_eq!(seq.select(1, 200).unwrap(), 1..=200);
@@ -380,7 +369,6 @@ fn shared_icl_sequence_if_present() {
     assert_eq!((f.width, f.height), (640, 480));
 }
 
-#[test]
 fn trajectory_round_trip() {
     let d = scratch("traj");
     let poses: Vec<(f64, DMat4)> = (0..5)
@@ -417,7 +405,6 @@ fn trajectory_round_trip() {
     assert_eq!(fs::read_to_string(&p).unwrap(), text);
 }
 
-#[test]
 fn bundled_icl_ground_truth_reads() {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("assets/icl_living_room_kt2/livingRoom2.gt.freiburg");
@@ -456,7 +443,6 @@ fn surfel_map() -> wgslam::map::SurfelMap {
     m
 }
 
-#[test]
 fn ply_round_trip() {
     let d = scratch("ply-rt");
     let p = d.join("map.ply");
@@ -492,7 +478,6 @@ fn ply_round_trip() {
     assert!(wgslam::io::read_ply(&empty).unwrap().positions.is_empty());
 }
 
-#[test]
 fn ply_ascii_any_order_and_types() {
     let d = scratch("ply-ascii");
     let p = d.join("a.ply");
@@ -516,7 +501,6 @@ fn ply_ascii_any_order_and_types() {
     assert!(c.normals.is_none());
 }
 
-#[test]
 fn ply_binary_skips_elements_before_vertices() {
     let d = scratch("ply-bin");
     let p = d.join("b.ply");
@@ -558,7 +542,6 @@ property float blue\nend_header\n"
     assert_contains(&msg, &["cut.ply", "truncated", &need, &has]);
 }
 
-#[test]
 fn ply_malformed() {
     let d = scratch("ply-bad");
     let cases: [(&str, &[u8], &[&str]); 6] = [
@@ -605,4 +588,47 @@ property float z\nend_header\n1 two 3\n",
     }
     let msg = err_text(wgslam::io::read_ply(&d.join("absent.ply")));
     assert_contains(&msg, &["absent.ply"]);
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "tum_association_is_greedy_nearest_first",
+            tum_association_is_greedy_nearest_first,
+        ),
+        plain(
+            "tum_without_intrinsics_asks_for_them",
+            tum_without_intrinsics_asks_for_them,
+        ),
+        plain(
+            "icl_layout_defaults_and_frame_index_stamps",
+            icl_layout_defaults_and_frame_index_stamps,
+        ),
+        plain("missing_directory_and_files", missing_directory_and_files),
+        plain("empty_sequence", empty_sequence),
+        plain("malformed_lists", malformed_lists),
+        plain("malformed_ground_truth", malformed_ground_truth),
+        plain("bad_images", bad_images),
+        plain("frame_range_outside_sequence", frame_range_outside_sequence),
+        plain("bundled_icl_frame_1", bundled_icl_frame_1),
+        shared(
+            "shared_icl_sequence_if_present",
+            shared_icl_sequence_if_present,
+        ),
+        plain("trajectory_round_trip", trajectory_round_trip),
+        plain(
+            "bundled_icl_ground_truth_reads",
+            bundled_icl_ground_truth_reads,
+        ),
+        plain("ply_round_trip", ply_round_trip),
+        plain(
+            "ply_ascii_any_order_and_types",
+            ply_ascii_any_order_and_types,
+        ),
+        plain(
+            "ply_binary_skips_elements_before_vertices",
+            ply_binary_skips_elements_before_vertices,
+        ),
+        plain("ply_malformed", ply_malformed),
+    ])
 }

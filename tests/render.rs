@@ -5,41 +5,29 @@
 mod common;
 
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
+use common::frames::{load_frame, load_gt, Frame};
+use common::harness::{gpu, plain, skipped};
+use common::wgsl::{self, rust_layout};
 use glam::{DMat4, DVec3};
+use libtest_mimic::Completion;
 use wgslam::camera::Intrinsics;
 use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
+use wgslam::gpu::GpuContext;
 use wgslam::layout::{pack_rgba8, NormalParams, PreprocessParams};
 use wgslam::map::SurfelMap;
 use wgslam::render::{self, Cloud, MapCloud, RenderCamera, RenderSettings, View};
-use wgslam::se3;
 
-/// Ground-truth poses (`t_cam_to_world`) of the bundled frames, by frame index.
+/// Ground-truth poses (`t_cam_to_world`) of the bundled frames that have one, in frame
+/// order (frame 0 has none, so `[0]` is frame 1).
 fn gt_poses(root: &Path) -> Vec<(usize, DMat4)> {
-    let text = std::fs::read_to_string(root.join("livingRoom2.gt.freiburg")).expect("gt file");
-    text.lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            (
-                v[0] as usize,
-                se3::from_tum([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]]),
-            )
-        })
+    load_gt(root)
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, t)| Some((i, t?)))
         .collect()
-}
-
-/// Raw depth (u16) and packed RGBA of bundled frame `i`.
-fn load_frame(root: &Path, i: usize) -> (Vec<u16>, Vec<u32>) {
-    let depth = image::open(root.join(format!("depth/{i}.png")))
-        .unwrap()
-        .into_luma16();
-    let rgb = image::open(root.join(format!("rgb/{i}.png")))
-        .unwrap()
-        .into_rgb8();
-    let rgba = rgb.pixels().map(|p| pack_rgba8(p.0)).collect();
-    (depth.into_raw(), rgba)
 }
 
 /// Intrinsics, then camera-frame vertex, normal and colour maps (row-major `[f32; 4]`).
@@ -48,7 +36,7 @@ type Maps = (Intrinsics, Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[f32; 4]>);
 /// Camera-frame vertex, normal and colour maps of frame `i`, downsampled by `stride`.
 fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
     let k = Intrinsics::ICL_NUIM.downsampled(stride);
-    let (depth, rgba) = load_frame(root, i);
+    let Frame { depth, rgba } = load_frame(root, i);
     let pp = PreprocessParams {
         fx: k.fx,
         fy: k.fy,
@@ -127,7 +115,6 @@ fn coverage(img: &image::RgbImage, bg: [u8; 3]) -> f64 {
     img.pixels().filter(|p| p.0 != bg).count() as f64 / (img.width() * img.height()) as f64
 }
 
-#[test]
 fn render_from_the_frames_own_pose_matches_its_photo() {
     // Ground truth: the map of frame 1 seen from frame 1's pose with the dataset intrinsics
     // is (nearly) frame 1's own colour image.
@@ -177,7 +164,6 @@ fn render_from_the_frames_own_pose_matches_its_photo() {
     );
 }
 
-#[test]
 fn renders_are_deterministic_and_views_differ() {
     let map = bundled_map(&[1, 10, 20], 4);
     let map_cloud = MapCloud::new(&map);
@@ -210,7 +196,6 @@ fn renders_are_deterministic_and_views_differ() {
     }
 }
 
-#[test]
 fn nearest_surfel_wins_and_ties_go_to_the_larger_index() {
     // Three surfels on the optical axis: 0 at 2 m, 1 at 1 m, 2 at 1 m (tie with 1).
     let positions = [
@@ -247,7 +232,6 @@ fn nearest_surfel_wins_and_ties_go_to_the_larger_index() {
     assert_eq!(rgba[0], pack_rgba8([255, 255, 255]), "corner is background");
 }
 
-#[test]
 fn overlay_shows_both_clouds_and_alignment_changes_it() {
     // Two real frames' point clouds (camera frames); the ground-truth relative pose aligns
     // frame 20 (source) onto frame 1 (target).
@@ -292,7 +276,6 @@ fn overlay_shows_both_clouds_and_alignment_changes_it() {
     assert!(before != after, "the alignment did not change the overlay");
 }
 
-#[test]
 fn missing_attributes_fall_back_to_depth_and_say_so() {
     let positions = [[0.0, 0.0, 1.0, 1.0]];
     let cloud = Cloud {
@@ -316,7 +299,6 @@ fn missing_attributes_fall_back_to_depth_and_say_so() {
     assert!(coverage(&img, [255, 255, 255]) > 0.0, "the point is drawn");
 }
 
-#[test]
 fn bad_sizes_and_clouds_are_refused() {
     for s in [
         "0x10",
@@ -368,7 +350,6 @@ fn bad_sizes_and_clouds_are_refused() {
     assert_eq!(coverage(&img, [255, 255, 255]), 0.0);
 }
 
-#[test]
 fn trajectory_plot_picks_the_horizontal_axes_and_is_deterministic() {
     let root = common::bundled_icl();
     let gt: Vec<(f64, DMat4)> = gt_poses(&root)
@@ -428,7 +409,6 @@ fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
     }
 }
 
-#[test]
 fn render_command_writes_pngs_and_refuses_bad_input() {
     use wgslam::render_cli::run_render;
     let dir = common::temp_dir("render-cli");
@@ -526,7 +506,6 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
     }
 }
 
-#[test]
 fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
     use wgslam::render_cli::run_render;
     let dir = common::temp_dir("render-bare");
@@ -554,7 +533,6 @@ fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
     assert!(coverage(&img, [255, 255, 255]) > 0.1);
 }
 
-#[test]
 fn run_and_icp_outputs_are_written() {
     use wgslam::render::outputs::{write_icp_overlays, write_map_renders, OverlayViewpoint};
     let dir = common::temp_dir("render-outputs");
@@ -605,69 +583,33 @@ fn run_and_icp_outputs_are_written() {
     .is_err());
 }
 
-#[test]
+/// `RenderParams` is declared in both render kernels (not in common.wgsl): both match Rust.
 fn render_params_layout_matches_both_shaders() {
-    use std::mem::{offset_of, size_of};
     use wgslam::gpu::shaders;
     use wgslam::render::layout::RenderParams;
-    let rust: Vec<(&str, usize)> = vec![
-        ("t_world_to_cam", offset_of!(RenderParams, t_world_to_cam)),
-        ("fx", offset_of!(RenderParams, fx)),
-        ("fy", offset_of!(RenderParams, fy)),
-        ("cx", offset_of!(RenderParams, cx)),
-        ("cy", offset_of!(RenderParams, cy)),
-        ("width", offset_of!(RenderParams, width)),
-        ("height", offset_of!(RenderParams, height)),
-        ("surfel_count", offset_of!(RenderParams, surfel_count)),
-        ("view", offset_of!(RenderParams, view)),
-        ("splat_radius_m", offset_of!(RenderParams, splat_radius_m)),
-        ("min_radius_px", offset_of!(RenderParams, min_radius_px)),
-        ("max_radius_px", offset_of!(RenderParams, max_radius_px)),
-        ("cull_backfaces", offset_of!(RenderParams, cull_backfaces)),
-        ("near_m", offset_of!(RenderParams, near_m)),
-        ("far_m", offset_of!(RenderParams, far_m)),
-        ("weight_max", offset_of!(RenderParams, weight_max)),
-        ("background", offset_of!(RenderParams, background)),
-    ];
+    let rust = rust_layout!(RenderParams {
+        t_world_to_cam,
+        fx,
+        fy,
+        cx,
+        cy,
+        width,
+        height,
+        surfel_count,
+        view,
+        splat_radius_m,
+        min_radius_px,
+        max_radius_px,
+        cull_backfaces,
+        near_m,
+        far_m,
+        weight_max,
+        background,
+    });
     let mut failures = Vec::new();
     for kernel in ["render_splat", "render_resolve"] {
-        let src = shaders::source(kernel);
-        let module = naga::front::wgsl::parse_str(&src).expect("kernel parses");
-        let mut layouter = naga::proc::Layouter::default();
-        layouter
-            .update(module.to_ctx())
-            .expect("naga lays out the kernel");
-        let (handle, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("RenderParams"))
-            .unwrap_or_else(|| panic!("{kernel}: no struct RenderParams"));
-        let naga::TypeInner::Struct { members, .. } = &ty.inner else {
-            panic!("{kernel}: RenderParams is not a struct");
-        };
-        if layouter[handle].size as usize != size_of::<RenderParams>() {
-            failures.push(format!(
-                "{kernel}: WGSL size {} vs Rust {}",
-                layouter[handle].size,
-                size_of::<RenderParams>()
-            ));
-        }
-        let wgsl: Vec<(String, usize)> = members
-            .iter()
-            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
-            .collect();
-        if wgsl.len() != rust.len() {
-            failures.push(format!(
-                "{kernel}: {} WGSL members, {} Rust",
-                wgsl.len(),
-                rust.len()
-            ));
-        }
-        for ((rn, ro), (wn, wo)) in rust.iter().zip(&wgsl) {
-            if rn != wn || ro != wo {
-                failures.push(format!("{kernel}: Rust `{rn}`@{ro} vs WGSL `{wn}`@{wo}"));
-            }
-        }
+        let module = wgsl::parse(kernel, &shaders::source(kernel));
+        failures.extend(wgsl::layout_mismatches(kernel, &module, &rust));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -686,18 +628,12 @@ const MAX_CHANNEL_DIFF: i32 = 1;
 /// of 76,800 per render, in the depth view).
 const MAX_COLOUR_DIFF_FRACTION: f64 = 0.001;
 
-#[test]
-fn gpu_matches_cpu_on_a_small_map() {
-    use wgslam::gpu::test_support::gpu_or_skip;
+fn gpu_matches_cpu_on_a_small_map(ctx: GpuContext) -> Completion {
     use wgslam::render::gpu::GpuRenderer;
-    let Some(ctx) = gpu_or_skip("gpu_matches_cpu_on_a_small_map") else {
-        return;
-    };
     let renderer = match GpuRenderer::new(&ctx) {
         Ok(r) => r,
         Err(e) if !wgslam::gpu::test_support::gpu_required() => {
-            eprintln!("SKIP: gpu_matches_cpu_on_a_small_map: {e}");
-            return;
+            return skipped(format!("the adapter cannot run the renderer: {e}"));
         }
         Err(e) => panic!("{e}"),
     };
@@ -784,12 +720,12 @@ fn gpu_matches_cpu_on_a_small_map() {
             );
         }
     }
+    Completion::Completed
 }
 
-#[test]
 fn lidar_overlay_from_above() {
     use wgslam::render::outputs::{write_icp_overlays, OverlayViewpoint};
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
+    let data = common::scans::fast_gicp_dir();
     let read = |name: &str| -> Vec<[f32; 4]> {
         let c = wgslam::scan::read::read_cloud(&data.join(name)).unwrap();
         c.points.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect()
@@ -818,4 +754,58 @@ fn lidar_overlay_from_above() {
         const MIN_SHARE: f64 = 0.005;
         assert!(count(render::SOURCE_RGB) > MIN_SHARE && count(render::TARGET_RGB) > MIN_SHARE);
     }
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "render_from_the_frames_own_pose_matches_its_photo",
+            render_from_the_frames_own_pose_matches_its_photo,
+        ),
+        plain(
+            "renders_are_deterministic_and_views_differ",
+            renders_are_deterministic_and_views_differ,
+        ),
+        plain(
+            "nearest_surfel_wins_and_ties_go_to_the_larger_index",
+            nearest_surfel_wins_and_ties_go_to_the_larger_index,
+        ),
+        plain(
+            "overlay_shows_both_clouds_and_alignment_changes_it",
+            overlay_shows_both_clouds_and_alignment_changes_it,
+        ),
+        plain(
+            "missing_attributes_fall_back_to_depth_and_say_so",
+            missing_attributes_fall_back_to_depth_and_say_so,
+        ),
+        plain(
+            "bad_sizes_and_clouds_are_refused",
+            bad_sizes_and_clouds_are_refused,
+        ),
+        plain(
+            "trajectory_plot_picks_the_horizontal_axes_and_is_deterministic",
+            trajectory_plot_picks_the_horizontal_axes_and_is_deterministic,
+        ),
+        plain(
+            "render_command_writes_pngs_and_refuses_bad_input",
+            render_command_writes_pngs_and_refuses_bad_input,
+        ),
+        plain(
+            "render_command_draws_a_bare_point_cloud_and_says_what_is_missing",
+            render_command_draws_a_bare_point_cloud_and_says_what_is_missing,
+        ),
+        plain(
+            "run_and_icp_outputs_are_written",
+            run_and_icp_outputs_are_written,
+        ),
+        plain(
+            "render_params_layout_matches_both_shaders",
+            render_params_layout_matches_both_shaders,
+        ),
+        gpu(
+            "gpu_matches_cpu_on_a_small_map",
+            gpu_matches_cpu_on_a_small_map,
+        ),
+        plain("lidar_overlay_from_above", lidar_overlay_from_above),
+    ])
 }

@@ -1,32 +1,24 @@
 //! Scan kernels on the GPU against their CPU twins (`src/cpu/nn_brute.rs`, `nn_grid.rs`,
-//! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Skips
-//! with a printed reason without a GPU adapter unless `WGSLAM_REQUIRE_GPU=1`.
+//! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Every
+//! trial shows as ignored without a GPU adapter (tests/common/harness.rs).
 
-use std::path::Path;
+mod common;
+
+use std::process::ExitCode;
+
+use common::harness::gpu;
+use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
 
 use glam::DMat4;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
-use wgslam::gpu::test_support::gpu_or_skip;
+use wgslam::gpu::GpuContext;
 use wgslam::scan::gpu::{GpuTarget, NnMethod, ScanKernels};
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
-use wgslam::scan::{read_matrix4, read_pcd, register, register_with, IcpParams, Samples};
+use wgslam::scan::{register, register_with, IcpParams, Samples};
 use wgslam::se3;
-
-fn fast_gicp() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, DMat4) {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
-    (
-        read_pcd(&d.join("251371071.pcd")).unwrap().points,
-        read_pcd(&d.join("251370668.pcd")).unwrap().points,
-        read_matrix4(&d.join("relative.txt")).unwrap(),
-    )
-}
-
-fn v4(p: &[[f32; 3]]) -> Vec<[f32; 4]> {
-    p.iter().map(|q| [q[0], q[1], q[2], 0.0]).collect()
-}
 
 const RADIUS: f32 = 0.5;
 
@@ -65,36 +57,17 @@ fn compare_nn(label: &str, gpu: &[ScanNnResult], cpu: &[ScanNnResult]) {
     );
 }
 
-#[test]
-fn gpu_nn_kernels_match_twins() {
-    let Some(ctx) = gpu_or_skip("gpu_nn_kernels_match_twins") else {
-        return;
-    };
+fn gpu_nn_kernels_match_twins(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
-    let (source, target, rel) = fast_gicp();
+    let (source, target, rel) = fast_gicp_pair();
     let queries: Vec<[f32; 3]> = transform_points(&rel, &source)
         .into_iter()
         .step_by(23)
         .collect();
     let n = queries.len();
     let grid = HashGrid::build(&target, RADIUS);
-    let params = ScanNnParams {
-        n_queries: n as u32,
-        n_targets: target.len() as u32,
-        radius_sq: RADIUS * RADIUS,
-        n_threads: 64,
-        cell_size: grid.cell_size,
-        table_mask: grid.table_mask,
-        target_begin: 0,
-        target_end: target.len() as u32,
-    };
-    let mut cpu_brute = vec![
-        ScanNnResult {
-            index: 0,
-            dist_sq: 0.0
-        };
-        n
-    ];
+    let params = nn_params(n, &target, RADIUS, &grid);
+    let mut cpu_brute = zeroed_results(n);
     nn_brute(&params, &v4(&queries), &v4(&target), &mut cpu_brute);
     let mut cpu_grid = cpu_brute.clone();
     nn_grid(
@@ -143,13 +116,9 @@ fn gpu_nn_kernels_match_twins() {
 /// twin's: relative difference of each sum.
 const COV_SUM_REL_TOL: f64 = 1e-4;
 
-#[test]
-fn gpu_cross_covariance_matches_twin() {
-    let Some(ctx) = gpu_or_skip("gpu_cross_covariance_matches_twin") else {
-        return;
-    };
+fn gpu_cross_covariance_matches_twin(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
-    let (source, target, rel) = fast_gicp();
+    let (source, target, rel) = fast_gicp_pair();
     let dt = se3::exp(&[0.01, -0.02, 0.015, 0.1, -0.05, 0.02]);
     let queries: Vec<[f32; 3]> = transform_points(&(dt * rel), &source)
         .into_iter()
@@ -193,13 +162,9 @@ fn gpu_cross_covariance_matches_twin() {
 const GPU_ICP_ROT_TOL_DEG: f64 = 0.1;
 const GPU_ICP_TRANS_TOL_M: f64 = 0.02;
 
-#[test]
-fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair() {
-    let Some(ctx) = gpu_or_skip("gpu_icp_matches_cpu_icp_on_fast_gicp_pair") else {
-        return;
-    };
+fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair(ctx: GpuContext) {
     let kernels = ScanKernels::new(&ctx).unwrap();
-    let (source, target, reference) = fast_gicp();
+    let (source, target, reference) = fast_gicp_pair();
     let params = IcpParams {
         radius: 1.0,
         final_radius: Some(0.2),
@@ -234,4 +199,18 @@ fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair() {
                 && se3::translation_norm(&e) < GPU_ICP_TRANS_TOL_M
         );
     }
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        gpu("gpu_nn_kernels_match_twins", gpu_nn_kernels_match_twins),
+        gpu(
+            "gpu_cross_covariance_matches_twin",
+            gpu_cross_covariance_matches_twin,
+        ),
+        gpu(
+            "gpu_icp_matches_cpu_icp_on_fast_gicp_pair",
+            gpu_icp_matches_cpu_icp_on_fast_gicp_pair,
+        ),
+    ])
 }

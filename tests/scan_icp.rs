@@ -2,8 +2,13 @@
 //! transform, readers on good and malformed input, and real data against references
 //! (bundled `assets/`; the full data set in `../shared/data` only for extra checks).
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use common::harness::{plain, shared};
+use common::scans::fast_gicp_dir;
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use wgslam::camera::Intrinsics;
 use wgslam::scan::odometry;
@@ -71,7 +76,6 @@ fn to_f64(p: &[[f32; 3]]) -> Vec<[f64; 3]> {
 /// Exact correspondences in f64: only rounding separates the solve from the truth.
 const ARUN_EXACT_TOL: f64 = 1e-9;
 
-#[test]
 fn arun_recovers_exact_transform() {
     let t = known_motion();
     let src = to_f64(&surface());
@@ -87,7 +91,6 @@ fn arun_recovers_exact_transform() {
     );
 }
 
-#[test]
 fn arun_planar_set_gives_proper_rotation() {
     // Points on the plane z = 0: H has rank 2 and the plain V U^T can be a reflection.
     let src: Vec<[f64; 3]> = (0..50)
@@ -111,7 +114,6 @@ fn arun_planar_set_gives_proper_rotation() {
     );
 }
 
-#[test]
 fn arun_mirrored_target_still_gives_rotation() {
     // The best orthogonal map here is the mirror z -> -z; the fix must return det = +1.
     let src = to_f64(&surface());
@@ -121,7 +123,6 @@ fn arun_mirrored_target_still_gives_rotation() {
     assert!((det - 1.0).abs() < ARUN_EXACT_TOL, "det {det}");
 }
 
-#[test]
 fn arun_rejects_collinear_and_tiny_input() {
     let line: Vec<[f64; 3]> = (0..10).map(|i| [i as f64, 2.0 * i as f64, 0.5]).collect();
     assert!(best_rigid_transform(&line, &line).is_none());
@@ -136,7 +137,6 @@ fn arun_rejects_collinear_and_tiny_input() {
 /// 1e-5 rad are two orders tighter than any real use.
 const SYNTHETIC_TOL: f64 = 1e-5;
 
-#[test]
 fn icp_recovers_known_transform() {
     let target = surface();
     let t = known_motion();
@@ -171,7 +171,6 @@ fn icp_recovers_known_transform() {
 /// convergence test's noise floor.
 const SAMPLED_TOL: f64 = 1e-4;
 
-#[test]
 fn icp_sampled_is_seeded_and_converges() {
     let target = surface();
     // Half the known motion and 3000 of the 10201 points. With 1000 samples some seeds stop
@@ -201,7 +200,6 @@ fn icp_sampled_is_seeded_and_converges() {
     assert_eq!(a.final_stats.sampled, 3000);
 }
 
-#[test]
 fn icp_reports_failure_instead_of_panicking() {
     let target = surface();
     // Shifted 5 m away with a 1 cm radius: no inliers at all.
@@ -246,7 +244,6 @@ fn icp_reports_failure_instead_of_panicking() {
     assert!(register(&target, &target, DMat4::IDENTITY, &bad).is_err());
 }
 
-#[test]
 fn samples_parse() {
     assert_eq!("all".parse::<Samples>(), Ok(Samples::All));
     assert_eq!("500".parse::<Samples>(), Ok(Samples::Count(500)));
@@ -258,7 +255,6 @@ fn samples_parse() {
 
 const PCD_HEADER_XYZI: &str = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\n";
 
-#[test]
 fn pcd_ascii_reads_and_drops_nan() {
     let d = temp_dir("pcd-ascii");
     let p = write(
@@ -272,7 +268,6 @@ fn pcd_ascii_reads_and_drops_nan() {
     assert_eq!(c.stats.dropped_non_finite, 1);
 }
 
-#[test]
 fn pcd_binary_f64_with_extra_fields() {
     let d = temp_dir("pcd-f64");
     let mut bytes = b"VERSION 0.7\nFIELDS rgb x y z\nSIZE 4 8 8 8\nTYPE U F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n".to_vec();
@@ -291,7 +286,6 @@ fn err_text<T: std::fmt::Debug>(r: Result<T, Error>) -> String {
     r.expect_err("malformed input must be an error").to_string()
 }
 
-#[test]
 fn pcd_malformed_inputs_name_the_problem() {
     let d = temp_dir("pcd-bad");
     let e = err_text(read_pcd(&write(
@@ -335,7 +329,6 @@ fn pcd_malformed_inputs_name_the_problem() {
     ));
 }
 
-#[test]
 fn ply_ascii_and_binary() {
     let d = temp_dir("ply");
     let ascii = b"ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n1 2 3 255\n4 5 6 0\n3 0 1 1\n";
@@ -370,7 +363,6 @@ fn ply_ascii_and_binary() {
     );
 }
 
-#[test]
 fn xyz_text_reader() {
     let d = temp_dir("xyz");
     let p = write(
@@ -391,7 +383,6 @@ fn xyz_text_reader() {
     assert!(e.contains("c.txt:2") && e.contains("`z`"), "{e}");
 }
 
-#[test]
 fn kitti_bin_reader() {
     let d = temp_dir("kitti");
     let mut bytes = Vec::new();
@@ -415,7 +406,6 @@ fn kitti_bin_reader() {
     );
 }
 
-#[test]
 fn matrix4_reader() {
     let d = temp_dir("mat");
     let t = known_motion();
@@ -437,10 +427,6 @@ fn matrix4_reader() {
 
 // ---------------------------------------------------------------- real data
 
-fn fast_gicp_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data")
-}
-
 /// relative.txt is a reference registration (fast_gicp's GICP), not ground truth; the
 /// point-to-point result sits 0.3-0.4 degrees and 1-3 cm from it (the sampled estimate
 /// jitters by a few mm). These bounds are loose on purpose: a wrong direction or a failed
@@ -448,7 +434,6 @@ fn fast_gicp_dir() -> PathBuf {
 const FAST_GICP_ROT_TOL_DEG: f64 = 0.6;
 const FAST_GICP_TRANS_TOL_M: f64 = 0.06;
 
-#[test]
 fn fast_gicp_pair_matches_relative_txt() {
     let d = fast_gicp_dir();
     // relative.txt maps the later scan (251371071) into the earlier one (251370668).
@@ -531,7 +516,6 @@ fn icl_pair(source: u32, target: u32) -> (IcpResult, DMat4) {
     (r, icl_relative(&dir, source, target))
 }
 
-#[test]
 fn icl_frames_10_to_11_match_ground_truth() {
     let (r, gt) = icl_pair(10, 11);
     let (rot, trans) = pose_err(&r.t_source_to_target, &gt);
@@ -547,7 +531,6 @@ fn icl_frames_10_to_11_match_ground_truth() {
     );
 }
 
-#[test]
 fn icl_frames_10_to_20_recover_most_of_the_motion() {
     let (r, gt) = icl_pair(10, 20);
     let (rot, trans) = pose_err(&r.t_source_to_target, &gt);
@@ -568,7 +551,6 @@ fn icl_frames_10_to_20_recover_most_of_the_motion() {
 
 /// Synthetic odometry: 4 scans of the surface seen from poses moving 2 cm and 1 degree
 /// per step, written as text files, with a TUM ground-truth file keyed by file stem.
-#[test]
 fn odometry_chains_pairs_in_the_right_direction() {
     let d = temp_dir("odo");
     let scans = d.join("scans");
@@ -643,7 +625,6 @@ fn odometry_chains_pairs_in_the_right_direction() {
     assert!(out.join("errors.json").is_file());
 }
 
-#[test]
 fn airsim_layout_is_discovered_with_poses() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/airsim_blocks");
     let seq = odometry::discover(&dir).unwrap();
@@ -660,7 +641,6 @@ fn airsim_layout_is_discovered_with_poses() {
     assert!((5_000..7_000).contains(&c.len()), "{}", c.len());
 }
 
-#[test]
 fn register_cli_writes_result_and_aligned_cloud() {
     let d = fast_gicp_dir();
     let out = temp_dir("register-out");
@@ -710,7 +690,6 @@ fn register_cli_writes_result_and_aligned_cloud() {
 const BENCH_VS_RESEEDED_ROT_TOL_DEG: f64 = 0.1;
 const BENCH_VS_RESEEDED_TRANS_TOL_M: f64 = 0.02;
 
-#[test]
 fn bench_scan_cpu_only_reports_sane_rows() {
     let out = temp_dir("bench-scan");
     let json_path = out.join("bench.json");
@@ -790,26 +769,13 @@ fn bench_scan_cpu_only_reports_sane_rows() {
 
 // ---------------------------------------------------------------- full data set (optional)
 
-/// The full data set next to the repository, or `None` (with a printed reason) when absent.
-fn shared_data() -> Option<PathBuf> {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if d.is_dir() {
-        Some(d)
-    } else {
-        eprintln!("SKIP: {} not found (full data set absent)", d.display());
-        None
-    }
-}
-
 /// Frames 10->50 move 6.5 degrees and 23 cm; measured 0.03-0.11 degrees and 1-10 mm
 /// depending on sampling. A failed registration stays near the motion itself.
 const ICL_FAR_ROT_TOL_DEG: f64 = 0.5;
 const ICL_FAR_TRANS_TOL_M: f64 = 0.03;
 
-#[test]
-fn shared_icl_pairs_against_ground_truth() {
-    let Some(data) = shared_data() else { return };
-    let dir = data.join("icl_living_room_kt2");
+fn shared_icl_pairs_against_ground_truth(data: &Path) {
+    let dir = common::shared_icl(data);
     for (source, target) in [(10, 11), (10, 20), (10, 50)] {
         let gt = icl_relative(&dir, source, target);
         let (mr, mt) = pose_err(&DMat4::IDENTITY, &gt);
@@ -848,9 +814,7 @@ fn shared_icl_pairs_against_ground_truth() {
 /// The AirSim sequence is reported, not asserted: point-to-point ICP from the identity
 /// locks onto the ground rings that move with the sensor (see the report); only the
 /// plumbing (20 scans, 19 pairs, a chained trajectory) is checked.
-#[test]
-fn shared_airsim_odometry_report() {
-    let Some(data) = shared_data() else { return };
+fn shared_airsim_odometry_report(data: &Path) {
     let seq = odometry::discover(&data.join("lidar/airsim_blocks")).unwrap();
     let coarse_to_fine = |samples| IcpParams {
         samples,
@@ -901,4 +865,87 @@ fn shared_airsim_odometry_report() {
         assert_eq!(odo.t_scan_to_world.len(), 20);
         assert_eq!(s.pairs, 19);
     }
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "arun_recovers_exact_transform",
+            arun_recovers_exact_transform,
+        ),
+        plain(
+            "arun_planar_set_gives_proper_rotation",
+            arun_planar_set_gives_proper_rotation,
+        ),
+        plain(
+            "arun_mirrored_target_still_gives_rotation",
+            arun_mirrored_target_still_gives_rotation,
+        ),
+        plain(
+            "arun_rejects_collinear_and_tiny_input",
+            arun_rejects_collinear_and_tiny_input,
+        ),
+        plain("icp_recovers_known_transform", icp_recovers_known_transform),
+        plain(
+            "icp_sampled_is_seeded_and_converges",
+            icp_sampled_is_seeded_and_converges,
+        ),
+        plain(
+            "icp_reports_failure_instead_of_panicking",
+            icp_reports_failure_instead_of_panicking,
+        ),
+        plain("samples_parse", samples_parse),
+        plain(
+            "pcd_ascii_reads_and_drops_nan",
+            pcd_ascii_reads_and_drops_nan,
+        ),
+        plain(
+            "pcd_binary_f64_with_extra_fields",
+            pcd_binary_f64_with_extra_fields,
+        ),
+        plain(
+            "pcd_malformed_inputs_name_the_problem",
+            pcd_malformed_inputs_name_the_problem,
+        ),
+        plain("ply_ascii_and_binary", ply_ascii_and_binary),
+        plain("xyz_text_reader", xyz_text_reader),
+        plain("kitti_bin_reader", kitti_bin_reader),
+        plain("matrix4_reader", matrix4_reader),
+        plain(
+            "fast_gicp_pair_matches_relative_txt",
+            fast_gicp_pair_matches_relative_txt,
+        ),
+        plain(
+            "icl_frames_10_to_11_match_ground_truth",
+            icl_frames_10_to_11_match_ground_truth,
+        ),
+        plain(
+            "icl_frames_10_to_20_recover_most_of_the_motion",
+            icl_frames_10_to_20_recover_most_of_the_motion,
+        ),
+        plain(
+            "odometry_chains_pairs_in_the_right_direction",
+            odometry_chains_pairs_in_the_right_direction,
+        ),
+        plain(
+            "airsim_layout_is_discovered_with_poses",
+            airsim_layout_is_discovered_with_poses,
+        ),
+        plain(
+            "register_cli_writes_result_and_aligned_cloud",
+            register_cli_writes_result_and_aligned_cloud,
+        ),
+        plain(
+            "bench_scan_cpu_only_reports_sane_rows",
+            bench_scan_cpu_only_reports_sane_rows,
+        ),
+        shared(
+            "shared_icl_pairs_against_ground_truth",
+            shared_icl_pairs_against_ground_truth,
+        ),
+        shared(
+            "shared_airsim_odometry_report",
+            shared_airsim_odometry_report,
+        ),
+    ])
 }

@@ -2,16 +2,19 @@
 //! parses and validates with naga, its structs match `scan::layout`, and the CPU twins
 //! agree with the KD-tree and with the f64 reduction of the ICP on real scans.
 
-use std::mem::{offset_of, size_of};
-use std::path::Path;
+mod common;
 
+use std::process::ExitCode;
+
+use common::harness::plain;
+use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
+use common::wgsl::{self, rust_layout, RustLayout};
 use glam::DVec3;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
-use wgslam::scan::{read_matrix4, read_pcd};
 use wgslam::scan::{CrossCovariance, KdTreeTarget, NearestNeighbours};
 use wgslam::se3;
 
@@ -23,77 +26,49 @@ fn shader_text(name: &str) -> String {
 }
 
 fn parse(name: &str) -> naga::Module {
-    naga::front::wgsl::parse_str(&shader_text(name))
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string_with_path(&shader_text(name), name)))
+    wgsl::parse(name, &shader_text(name))
 }
 
-#[test]
+/// The scan kernels parse and validate on their own (without common.wgsl) and need no
+/// optional capability.
 fn scan_shaders_validate() {
-    let mut failures = Vec::new();
-    for name in SHADERS {
-        let src = shader_text(name);
-        match naga::front::wgsl::parse_str(&src) {
-            Err(e) => {
-                failures.push(e.emit_to_string_with_path(&src, &format!("shaders/{name}.wgsl")))
-            }
-            Ok(module) => {
-                let mut v = naga::valid::Validator::new(
-                    naga::valid::ValidationFlags::all(),
-                    naga::valid::Capabilities::empty(),
-                );
-                if let Err(e) = v.validate(&module) {
-                    failures
-                        .push(e.emit_to_string_with_path(&src, &format!("shaders/{name}.wgsl")));
-                }
-            }
-        }
-    }
+    let failures: Vec<String> = SHADERS
+        .iter()
+        .filter_map(|name| {
+            wgsl::check(
+                name,
+                &shader_text(name),
+                naga::valid::Capabilities::empty(),
+                |line| (format!("shaders/{name}.wgsl"), line),
+            )
+        })
+        .collect();
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-type Layout = (&'static str, usize, Vec<(&'static str, usize)>);
-
-macro_rules! layout {
-    ($ty:ident { $($f:ident),* $(,)? }) => {
-        (stringify!($ty), size_of::<$ty>(), vec![$((stringify!($f), offset_of!($ty, $f))),*])
-    };
-}
-
-#[test]
 fn scan_structs_match_wgsl_layout() {
-    let expected: Vec<(&str, Layout)> = vec![
-        (
-            "nn_brute",
-            layout!(ScanNnParams {
-                n_queries,
-                n_targets,
-                radius_sq,
-                n_threads,
-                cell_size,
-                table_mask,
-                target_begin,
-                target_end
-            }),
-        ),
-        (
-            "nn_grid",
-            layout!(ScanNnParams {
-                n_queries,
-                n_targets,
-                radius_sq,
-                n_threads,
-                cell_size,
-                table_mask,
-                target_begin,
-                target_end
-            }),
-        ),
-        ("nn_brute", layout!(ScanNnResult { index, dist_sq })),
-        ("nn_grid", layout!(ScanNnResult { index, dist_sq })),
-        ("cross_covariance", layout!(ScanNnResult { index, dist_sq })),
+    let nn_params = || {
+        rust_layout!(ScanNnParams {
+            n_queries,
+            n_targets,
+            radius_sq,
+            n_threads,
+            cell_size,
+            table_mask,
+            target_begin,
+            target_end
+        })
+    };
+    let nn_result = || rust_layout!(ScanNnResult { index, dist_sq });
+    let expected: Vec<(&str, RustLayout)> = vec![
+        ("nn_brute", nn_params()),
+        ("nn_grid", nn_params()),
+        ("nn_brute", nn_result()),
+        ("nn_grid", nn_result()),
+        ("cross_covariance", nn_result()),
         (
             "cross_covariance",
-            layout!(ScanCovParams {
+            rust_layout!(ScanCovParams {
                 anchor,
                 n_pairs,
                 n_threads,
@@ -103,7 +78,7 @@ fn scan_structs_match_wgsl_layout() {
         ),
         (
             "cross_covariance",
-            layout!(ScanCovPartial {
+            rust_layout!(ScanCovPartial {
                 count_sq,
                 sum_p,
                 sum_q,
@@ -114,50 +89,21 @@ fn scan_structs_match_wgsl_layout() {
         ),
     ];
     let mut failures = Vec::new();
-    for (shader, (name, size, members)) in expected {
+    for (shader, rust) in &expected {
         let module = parse(shader);
-        let mut layouter = naga::proc::Layouter::default();
-        layouter.update(module.to_ctx()).unwrap();
-        let Some((h, ty)) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-        else {
-            failures.push(format!("{shader}.wgsl: no struct {name}"));
-            continue;
-        };
-        let naga::TypeInner::Struct { members: wm, .. } = &ty.inner else {
-            unreachable!()
-        };
-        if layouter[h].size as usize != size {
-            failures.push(format!(
-                "{shader}.wgsl {name}: WGSL {} bytes, Rust {size}",
-                layouter[h].size
-            ));
-        }
-        let w: Vec<(String, usize)> = wm
-            .iter()
-            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
-            .collect();
-        let r: Vec<(String, usize)> = members.iter().map(|(n, o)| (n.to_string(), *o)).collect();
-        if w != r {
-            failures.push(format!("{shader}.wgsl {name}: WGSL {w:?}, Rust {r:?}"));
-        }
+        failures.extend(wgsl::layout_mismatches(
+            &format!("{shader}.wgsl"),
+            &module,
+            rust,
+        ));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-}
-
-fn v4(p: &[[f32; 3]]) -> Vec<[f32; 4]> {
-    p.iter().map(|q| [q[0], q[1], q[2], 0.0]).collect()
 }
 
 /// A real scan pair: 1500 queries (the source moved by relative.txt, every 46th point)
 /// against the 69,088-point target.
 fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data");
-    let source = read_pcd(&d.join("251371071.pcd")).unwrap().points;
-    let target = read_pcd(&d.join("251370668.pcd")).unwrap().points;
-    let rel = read_matrix4(&d.join("relative.txt")).unwrap();
+    let (source, target, rel) = fast_gicp_pair();
     let queries: Vec<[f32; 3]> = transform_points(&rel, &source)
         .into_iter()
         .step_by(46)
@@ -167,29 +113,13 @@ fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
 
 const RADIUS: f32 = 0.5;
 
-#[test]
 fn nn_twins_agree_with_each_other_and_the_kd_tree() {
     let (queries, target) = real_pair();
     let n = queries.len();
     let grid = HashGrid::build(&target, RADIUS);
-    let params = ScanNnParams {
-        n_queries: n as u32,
-        n_targets: target.len() as u32,
-        radius_sq: RADIUS * RADIUS,
-        n_threads: 64,
-        cell_size: grid.cell_size,
-        table_mask: grid.table_mask,
-        target_begin: 0,
-        target_end: target.len() as u32,
-    };
+    let params = nn_params(n, &target, RADIUS, &grid);
     let (q4, t4) = (v4(&queries), v4(&target));
-    let mut brute = vec![
-        ScanNnResult {
-            index: 0,
-            dist_sq: 0.0
-        };
-        n
-    ];
+    let mut brute = zeroed_results(n);
     nn_brute(&params, &q4, &t4, &mut brute);
     let mut gridded = brute.clone();
     nn_grid(
@@ -241,7 +171,6 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
 const COV_ROT_TOL_RAD: f64 = 1e-4;
 const COV_TRANS_TOL_M: f64 = 1e-4;
 
-#[test]
 fn cross_covariance_twin_matches_f64_reduction() {
     let (queries, target) = real_pair();
     // Perturb the queries so the solve has something to find.
@@ -249,13 +178,7 @@ fn cross_covariance_twin_matches_f64_reduction() {
     let queries = transform_points(&dt, &queries);
     let n = queries.len();
     let (q4, t4) = (v4(&queries), v4(&target));
-    let mut nn = vec![
-        ScanNnResult {
-            index: 0,
-            dist_sq: 0.0
-        };
-        n
-    ];
+    let mut nn = zeroed_results(n);
     let p = ScanNnParams {
         n_queries: n as u32,
         n_targets: target.len() as u32,
@@ -310,4 +233,22 @@ fn cross_covariance_twin_matches_f64_reduction() {
         se3::rotation_angle(&e),
         se3::translation_norm(&e)
     );
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain("scan_shaders_validate", scan_shaders_validate),
+        plain(
+            "scan_structs_match_wgsl_layout",
+            scan_structs_match_wgsl_layout,
+        ),
+        plain(
+            "nn_twins_agree_with_each_other_and_the_kd_tree",
+            nn_twins_agree_with_each_other_and_the_kd_tree,
+        ),
+        plain(
+            "cross_covariance_twin_matches_f64_reduction",
+            cross_covariance_twin_matches_f64_reduction,
+        ),
+    ])
 }

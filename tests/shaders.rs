@@ -5,58 +5,20 @@
 //! show up even before any kernel exists. All failures are reported at once, each with the
 //! file and line it comes from.
 
-use std::path::Path;
+mod common;
 
+use std::path::Path;
+use std::process::ExitCode;
+
+use common::harness::plain;
+use common::wgsl;
 use wgslam::gpu::shaders;
 
-/// The capabilities the kernels need (and lavapipe offers): 64-bit integers and 64-bit
-/// `atomicMax` for the packed depth + surfel index map.
-fn capabilities() -> naga::valid::Capabilities {
-    naga::valid::Capabilities::SHADER_INT64 | naga::valid::Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
-}
-
-/// Parses and validates `source`; on failure returns a message naming the file and line
-/// (mapped back from the concatenated source through `origin`).
+/// [`wgsl::check`] with the capabilities the kernels need.
 fn check(label: &str, source: &str, origin: impl Fn(usize) -> (String, usize)) -> Option<String> {
-    let module = match naga::front::wgsl::parse_str(source) {
-        Ok(m) => m,
-        Err(e) => {
-            let at = e
-                .location(source)
-                .map(|l| {
-                    let (file, line) = origin(l.line_number as usize);
-                    format!("{file}:{line}:{}", l.line_position)
-                })
-                .unwrap_or_else(|| label.to_string());
-            return Some(format!(
-                "{at}: parse error in {label}: {}\n{}",
-                e.message(),
-                e.emit_to_string(source)
-            ));
-        }
-    };
-    let mut validator =
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities());
-    match validator.validate(&module) {
-        Ok(_) => None,
-        Err(e) => {
-            let at = e
-                .location(source)
-                .map(|l| {
-                    let (file, line) = origin(l.line_number as usize);
-                    format!("{file}:{line}:{}", l.line_position)
-                })
-                .unwrap_or_else(|| label.to_string());
-            Some(format!(
-                "{at}: validation error in {label}: {}\n{}",
-                e.as_inner(),
-                e.emit_to_string(source)
-            ))
-        }
-    }
+    wgsl::check(label, source, wgsl::kernel_capabilities(), origin)
 }
 
-#[test]
 fn every_shader_parses_and_validates() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
     let mut failures = Vec::new();
@@ -122,7 +84,6 @@ fn every_shader_parses_and_validates() {
 
 /// The checker itself reports a broken shader with the right file and line (so a passing
 /// run above means something).
-#[test]
 fn a_broken_kernel_is_reported_with_file_and_line() {
     let broken =
         "@compute @workgroup_size(64)\nfn main() {\n    let x: u32 = undefined_thing;\n}\n";
@@ -137,4 +98,17 @@ fn a_broken_kernel_is_reported_with_file_and_line() {
         check("invalid", &src, |l| shaders::origin_of_line("invalid", l)).is_some(),
         "a type mismatch must fail"
     );
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain(
+            "every_shader_parses_and_validates",
+            every_shader_parses_and_validates,
+        ),
+        plain(
+            "a_broken_kernel_is_reported_with_file_and_line",
+            a_broken_kernel_is_reported_with_file_and_line,
+        ),
+    ])
 }

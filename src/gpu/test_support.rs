@@ -1,7 +1,10 @@
-//! Shared skip/require logic for tests that need a GPU adapter (unit, integration, bench).
+//! Opening the GPU for a test (integration tests, examples), with the skip-or-fail rule in
+//! one place. Not a test harness: the integration tests' harness (`tests/common/harness.rs`)
+//! turns a skip into an `ignored` trial with its reason.
 //!
-//! Without an adapter a GPU test prints `SKIP: ...` and passes, unless the environment sets
-//! `WGSLAM_REQUIRE_GPU=1` (CI with lavapipe), in which case it fails. Not a test harness.
+//! Without an adapter a GPU test is skipped, unless the environment sets
+//! `WGSLAM_REQUIRE_GPU=1` (CI with lavapipe), in which case it fails. An adapter whose
+//! device cannot be created always fails: that is a broken driver, not a missing one.
 
 use super::context::GpuContext;
 use crate::Error;
@@ -14,18 +17,28 @@ pub fn gpu_required() -> bool {
     std::env::var(REQUIRE_GPU_ENV).is_ok_and(|v| v == "1")
 }
 
-/// The context for a GPU test named `test`, or `None` after printing why the test is
-/// skipped. Panics (failing the test) when no adapter is found and [`gpu_required`], or
-/// when an adapter exists but the device cannot be created.
-pub fn gpu_or_skip(test: &str) -> Option<GpuContext> {
+/// Why a GPU test cannot have a context.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NoGpu {
+    /// No adapter and [`gpu_required`] is false: report the test as skipped with this
+    /// reason (it names the backends tried and the adapters seen).
+    Skip(String),
+    /// No adapter although [`gpu_required`], or the device could not be created: the test
+    /// fails with this message.
+    Fail(String),
+}
+
+/// Opens a fresh [`GpuContext`] for one test ([`GpuContext::new`], as every backend does),
+/// or says whether the test is skipped or failed without one. Prints nothing itself.
+pub fn gpu_for_test() -> Result<GpuContext, NoGpu> {
     match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
-        Err(Error::NoAdapter(why)) if !gpu_required() => {
-            eprintln!(
-                "SKIP: {test}: no GPU adapter ({why}); set {REQUIRE_GPU_ENV}=1 to fail instead"
-            );
-            None
-        }
-        Err(e) => panic!("{test}: cannot open the GPU: {e}"),
+        Ok(ctx) => Ok(ctx),
+        Err(Error::NoAdapter(why)) if !gpu_required() => Err(NoGpu::Skip(format!(
+            "no GPU adapter ({why}); set {REQUIRE_GPU_ENV}=1 to fail instead"
+        ))),
+        Err(Error::NoAdapter(why)) => Err(NoGpu::Fail(format!(
+            "no GPU adapter ({why}) and {REQUIRE_GPU_ENV}=1"
+        ))),
+        Err(e) => Err(NoGpu::Fail(format!("cannot open the GPU: {e}"))),
     }
 }

@@ -1,26 +1,26 @@
-//! Shared helpers for integration tests: where the data is, and skipping with a reason.
+//! Shared helpers for the integration tests: the harness that shows a skipped test as
+//! ignored with its reason ([`harness`]), naga checks of WGSL ([`wgsl`]), raw bundled
+//! frames and ground truth ([`frames`]), the bundled LiDAR pair and nearest-neighbour
+//! kernel inputs ([`scans`]), and where the data is. Each test file includes it with `mod common;` and uses what it needs.
 
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+pub mod frames;
+pub mod harness;
+pub mod scans;
+pub mod wgsl;
+
+use std::path::{Path, PathBuf};
 
 /// The bundled real frames (always present in a clone).
 pub fn bundled_icl() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2")
 }
 
-/// The full ICL-NUIM sequence in `../shared/data`, or `None` with a printed reason.
-pub fn shared_icl() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/icl_living_room_kt2");
-    if p.join("associations.txt").is_file() {
-        Some(p)
-    } else {
-        eprintln!(
-            "SKIP: {} is absent; this test needs the full 210-frame sequence",
-            p.display()
-        );
-        None
-    }
+/// The full 210-frame ICL-NUIM sequence inside the shared data directory that
+/// [`harness::shared`] tests receive (`../shared/data`).
+pub fn shared_icl(data: &Path) -> PathBuf {
+    data.join("icl_living_room_kt2")
 }
 
 /// A fresh empty directory under the system temp dir.
