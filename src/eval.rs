@@ -11,8 +11,8 @@ use nalgebra::Matrix3;
 use serde::Serialize;
 
 use crate::dataset::tum::{associate as associate_stamps, nearest_within};
-use crate::rigid;
-use crate::se3;
+use crate::geometry::rigid;
+use crate::geometry::se3;
 use crate::{Error, Result};
 
 /// Default association window, as in the TUM tools (`--max_difference 0.02`).

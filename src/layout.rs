@@ -14,7 +14,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::DMat4;
 
-use crate::camera::Intrinsics;
+use crate::geometry::camera::Intrinsics;
 
 /// A 4x4 f32 matrix, column-major (`mat4x4<f32>` in WGSL).
 pub type GpuMat4 = [[f32; 4]; 4];

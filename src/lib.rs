@@ -1,36 +1,34 @@
 //! wgslam: dense RGB-D SLAM with point-based fusion, and point-to-point ICP, on wgpu.
 //!
-//! The CPU reference lives in [`cpu`] (pure functions, no wgpu) and [`cpu_backend`]; the
-//! GPU backend in [`gpu`] runs the same steps as WGSL compute kernels from `shaders/`.
-//! [`pipeline`] holds the frame's steps, generic over a backend; [`run`] is the batch job;
-//! [`scan`] is point-to-point ICP for point clouds.
+//! The tree is the architecture:
+//!
+//! | module | what |
+//! |---|---|
+//! | [`slam`] | the frame's step list generic over a backend ([`slam::pipeline`]), the 6x6 solve, the host map, the CPU reference backend |
+//! | [`cpu`] | the CPU twins of the WGSL kernels: pure functions, no wgpu |
+//! | [`gpu`] | wgpu context, kernels, buffers and textures, the GPU backend |
+//! | [`layout`] | `#[repr(C)]` structs shared with `shaders/common.wgsl` |
+//! | [`scan`] | point-to-point ICP for point clouds (readers, nearest neighbours, odometry) |
+//! | [`geometry`] | SE(3), intrinsics, the rigid-alignment rotation |
+//! | [`dataset`], [`io`] | sequences in; trajectories, PLY and atomic writes |
+//! | [`eval`], [`stats`] | ATE / RPE with the TUM benchmark's definitions; medians |
+//! | [`render`] | headless pictures of maps and overlays, trajectory plots |
+//! | [`tools`] | the jobs: run, two-frame ICP, CPU-vs-GPU compare, bench |
+//! | [`cli`] | argument parsing and printing only |
 
-pub mod any_backend;
-pub mod bench;
-pub mod camera;
 pub mod cli;
-pub mod compare;
 pub mod cpu;
-pub mod cpu_backend;
 pub mod dataset;
 pub mod error;
 pub mod eval;
+pub mod geometry;
 pub mod gpu;
-pub mod instrumented;
 pub mod io;
 pub mod layout;
-pub mod map;
-pub mod pipeline;
-pub mod run;
+pub mod render;
 pub mod scan;
-pub mod scan_cli;
-pub mod se3;
-pub mod solve;
+pub mod slam;
 pub mod stats;
-pub mod two_frame;
+pub mod tools;
 
 pub use error::{Error, Result};
-pub mod plot;
-pub mod render;
-pub mod render_cli;
-pub mod rigid;

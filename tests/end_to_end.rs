@@ -10,11 +10,11 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use common::harness::{gpu, gpu_shared, plain, shared};
-use wgslam::cpu_backend::CpuBackend;
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
-use wgslam::pipeline::{Backend, PoseSource, SlamParams, TrackStatus};
-use wgslam::run;
+use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::pipeline::{Backend, PoseSource, SlamParams, TrackStatus};
+use wgslam::tools::run;
 
 /// The bar for frames 1..200 at downsample 2: ATE RMSE after rigid alignment.
 const ATE_ALIGNED_MAX_M: f64 = 1e-3;
@@ -156,7 +156,7 @@ fn shared_sequence_1_to_200_within_1mm<B: Backend>(backend: B, data: &Path) {
 /// A frame whose depth is all invalid is reported and skipped; a frame with too little
 /// valid depth to constrain ICP is reported as lost and not fused; tracking then resumes.
 fn empty_and_untrackable_frames_are_reported_not_fused() {
-    use wgslam::pipeline::Slam;
+    use wgslam::slam::pipeline::Slam;
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let mut slam = Slam::new(CpuBackend::new(), seq.intrinsics, SlamParams::default());
     let load = |i: usize| {
@@ -198,8 +198,14 @@ fn empty_and_untrackable_frames_are_reported_not_fused() {
 /// ground truth, and reports ordered per-frame ratios.
 fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let r = wgslam::bench::bench_interleaved(gpu_backend(ctx), &seq, 1, 6, &SlamParams::default())
-        .unwrap();
+    let r = wgslam::tools::bench::bench_interleaved(
+        gpu_backend(ctx),
+        &seq,
+        1,
+        6,
+        &SlamParams::default(),
+    )
+    .unwrap();
     eprintln!("{r:?}");
     assert_eq!((r.frames, r.width, r.height), (6, 320, 240));
     for ate in [r.cpu_ate_rmse_aligned_m, r.gpu_ate_rmse_aligned_m] {

@@ -9,8 +9,8 @@ use std::process::ExitCode;
 use common::harness::plain;
 use glam::{DMat4, DVec3};
 use wgslam::eval::{align_rigid, associate, ate, ate_with, rpe, rpe_with};
+use wgslam::geometry::se3;
 use wgslam::io::trajectory::{read_tum, write_tum};
-use wgslam::se3;
 
 /// f64 pipelines of a few dozen operations on metre-scale values stay below 1e-9.
 const EXACT_TOL: f64 = 1e-9;

@@ -10,20 +10,20 @@ use std::process::ExitCode;
 use common::frames::{gt_at, load_frame, load_gt};
 use common::harness::gpu;
 use glam::DMat4;
-use wgslam::camera::Intrinsics;
-use wgslam::compare::tolerance;
 use wgslam::cpu;
-use wgslam::cpu_backend::CpuBackend;
+use wgslam::geometry::camera::Intrinsics;
+use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
-use wgslam::map::SurfelMap;
-use wgslam::pipeline::{Backend, PoseSource, Slam, SlamParams, TrackStatus};
-use wgslam::se3;
-use wgslam::solve::NormalEquations;
+use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::map::SurfelMap;
+use wgslam::slam::pipeline::{Backend, PoseSource, Slam, SlamParams, TrackStatus};
+use wgslam::slam::solve::NormalEquations;
+use wgslam::tools::compare::tolerance;
 use wgslam::Error;
 
 // ---------------------------------------------------------------------------------------
 // Tolerances (each with its reason). Where `wgslam compare` has the same bound
-// (`wgslam::compare::tolerance`, documented there) it is used, converted to this file's units.
+// (`wgslam::tools::compare::tolerance`, documented there) it is used, converted to this file's units.
 
 /// Vertices: the same f32 formula on both sides; lavapipe may contract a multiply-add into
 /// an FMA or round a division differently, a few ULP of a value below 6 m (~1e-6 m).

@@ -10,10 +10,10 @@ use std::process::ExitCode;
 use common::harness::{plain, shared};
 use glam::{DMat4, DVec3};
 use image::{GrayImage, ImageBuffer, Luma, Rgb, RgbImage, Rgba, RgbaImage};
-use wgslam::camera::Intrinsics;
 use wgslam::dataset::{self, Layout, SequenceOptions};
+use wgslam::geometry::camera::Intrinsics;
 use wgslam::io::trajectory::{read_tum, write_tum};
-use wgslam::{se3, Error};
+use wgslam::{geometry::se3, Error};
 
 /// Tiny frames keep every fixture under a few hundred bytes.
 const W: u32 = 4;
@@ -423,8 +423,8 @@ fn bundled_icl_ground_truth_reads() {
     }
 }
 
-fn surfel_map() -> wgslam::map::SurfelMap {
-    let mut m = wgslam::map::SurfelMap::default();
+fn surfel_map() -> wgslam::slam::map::SurfelMap {
+    let mut m = wgslam::slam::map::SurfelMap::default();
     m.push(
         [0.5, -1.25, 3.0],
         [0.0, 0.0, -1.0],

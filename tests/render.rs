@@ -12,13 +12,13 @@ use common::harness::{gpu, plain, skipped};
 use common::wgsl::{self, rust_layout};
 use glam::{DMat4, DVec3};
 use libtest_mimic::Completion;
-use wgslam::camera::Intrinsics;
 use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
+use wgslam::geometry::camera::Intrinsics;
 use wgslam::gpu::GpuContext;
 use wgslam::layout::{pack_rgba8, NormalParams, PreprocessParams};
-use wgslam::map::SurfelMap;
 use wgslam::render::{self, Cloud, MapCloud, RenderCamera, RenderSettings, View};
+use wgslam::slam::map::SurfelMap;
 
 /// Ground-truth poses (`t_cam_to_world`) of the bundled frames that have one, in frame
 /// order (frame 0 has none, so `[0]` is frame 1).
@@ -368,15 +368,15 @@ fn trajectory_plot_picks_the_horizontal_axes_and_is_deterministic() {
         })
         .collect();
     let pts: Vec<DVec3> = gt.iter().map(|(_, t)| t.w_axis.truncate()).collect();
-    let pairs = wgslam::plot::associate(&est, &gt);
+    let pairs = wgslam::render::plot::associate(&est, &gt);
     assert_eq!(pairs.len(), est.len());
     let last = pairs.last().unwrap();
     assert!(((last.1 - last.2).length() - 0.002 * (est.len() - 1) as f64).abs() < 1e-9);
-    let axes = wgslam::plot::horizontal_axes(&pts);
+    let axes = wgslam::render::plot::horizontal_axes(&pts);
     // ICL-NUIM's first frames move mostly in x and z, y is vertical.
     assert_eq!(axes, (0, 2), "axes chosen: {axes:?}");
-    let a = wgslam::plot::trajectory_plot(&est, &gt, (900, 400)).unwrap();
-    let b = wgslam::plot::trajectory_plot(&est, &gt, (900, 400)).unwrap();
+    let a = wgslam::render::plot::trajectory_plot(&est, &gt, (900, 400)).unwrap();
+    let b = wgslam::render::plot::trajectory_plot(&est, &gt, (900, 400)).unwrap();
     assert!(a == b, "two plots of the same input differ");
     keep("trajectory.png", &a);
     // Both series are drawn in their colours, and text (dark pixels) is present.
@@ -389,13 +389,13 @@ fn trajectory_plot_picks_the_horizontal_axes_and_is_deterministic() {
         "only {dark} dark pixels: labels missing?"
     );
     // Without ground truth it still draws, and refuses an empty estimate.
-    wgslam::plot::trajectory_plot(&est, &[], (900, 400)).unwrap();
-    assert!(wgslam::plot::trajectory_plot(&[], &gt, (900, 400)).is_err());
-    assert!(wgslam::plot::trajectory_plot(&est, &gt, (0, 400)).is_err());
+    wgslam::render::plot::trajectory_plot(&est, &[], (900, 400)).unwrap();
+    assert!(wgslam::render::plot::trajectory_plot(&[], &gt, (900, 400)).is_err());
+    assert!(wgslam::render::plot::trajectory_plot(&est, &gt, (0, 400)).is_err());
 }
 
-fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
-    wgslam::render_cli::RenderArgs {
+fn render_args(map: &Path, out: &Path) -> wgslam::cli::render::RenderArgs {
+    wgslam::cli::render::RenderArgs {
         map: map.to_path_buf(),
         pose: None,
         view: "color".into(),
@@ -404,13 +404,13 @@ fn render_args(map: &Path, out: &Path) -> wgslam::render_cli::RenderArgs {
         up: "y".into(),
         splat_radius: 0.01,
         no_cull: false,
-        backend: wgslam::any_backend::BackendChoice::Cpu,
+        backend: wgslam::slam::any_backend::BackendChoice::Cpu,
         out: out.to_path_buf(),
     }
 }
 
 fn render_command_writes_pngs_and_refuses_bad_input() {
-    use wgslam::render_cli::run_render;
+    use wgslam::cli::render::run_render;
     let dir = common::temp_dir("render-cli");
     let map = bundled_map(&[1, 20], 4);
     let ply = dir.join("map.ply");
@@ -432,7 +432,7 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
     }
     // Auto: the GPU when there is one, else the CPU with a warning; same size either way.
     let mut args = render_args(&ply, &out);
-    args.backend = wgslam::any_backend::BackendChoice::Auto;
+    args.backend = wgslam::slam::any_backend::BackendChoice::Auto;
     let report = run_render(&args).unwrap();
     eprintln!(
         "auto backend drew on {}: {:?}",
@@ -465,7 +465,7 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
         "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
     )
     .unwrap();
-    let cases: Vec<(&str, wgslam::render_cli::RenderArgs)> = vec![
+    let cases: Vec<(&str, wgslam::cli::render::RenderArgs)> = vec![
         ("missing file", render_args(&dir.join("nope.ply"), &out)),
         ("not a PLY", render_args(&not_ply, &out)),
         ("no vertex", render_args(&empty_ply, &out)),
@@ -507,7 +507,7 @@ fn render_command_writes_pngs_and_refuses_bad_input() {
 }
 
 fn render_command_draws_a_bare_point_cloud_and_says_what_is_missing() {
-    use wgslam::render_cli::run_render;
+    use wgslam::cli::render::run_render;
     let dir = common::temp_dir("render-bare");
     let map = bundled_map(&[1], 4);
     let mut text = format!(

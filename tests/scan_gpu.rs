@@ -13,12 +13,12 @@ use glam::DMat4;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
+use wgslam::geometry::se3;
 use wgslam::gpu::GpuContext;
 use wgslam::scan::gpu::{GpuTarget, NnMethod, ScanKernels};
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
 use wgslam::scan::{register, register_with, IcpParams, Samples};
-use wgslam::se3;
 
 const RADIUS: f32 = 0.5;
 

@@ -10,11 +10,11 @@ use std::process::ExitCode;
 use common::harness::{plain, shared};
 use common::scans::fast_gicp_dir;
 use glam::{DMat3, DMat4, DQuat, DVec3};
-use wgslam::camera::Intrinsics;
+use wgslam::geometry::camera::Intrinsics;
 use wgslam::scan::odometry;
 use wgslam::scan::write::{encode_ply_xyz, format_matrix4, transform_points};
 use wgslam::scan::*;
-use wgslam::{se3, Error};
+use wgslam::{geometry::se3, Error};
 
 /// A fresh empty directory under the system temp dir for one test.
 fn temp_dir(name: &str) -> PathBuf {
@@ -585,10 +585,10 @@ fn odometry_chains_pairs_in_the_right_direction() {
     }
     let gt_file = write(&d, "gt.tum", tum.as_bytes());
     let out = d.join("out");
-    let args = wgslam::scan_cli::OdometryArgs {
+    let args = wgslam::cli::scan::OdometryArgs {
         scans_dir: scans,
         gt: Some(gt_file),
-        icp: wgslam::scan_cli::IcpArgs {
+        icp: wgslam::cli::scan::IcpArgs {
             samples: Samples::All,
             max_iters: 300,
             radius: 0.5,
@@ -601,7 +601,7 @@ fn odometry_chains_pairs_in_the_right_direction() {
         },
         out: Some(out.clone()),
     };
-    let (seq, odo) = wgslam::scan_cli::run_odometry(&args).unwrap();
+    let (seq, odo) = wgslam::cli::scan::run_odometry(&args).unwrap();
     assert_eq!(seq.scans.len(), 4);
     assert_eq!(odo.pairs.len(), 3);
     for (est, truth) in odo.t_scan_to_world.iter().zip(&gt) {
@@ -649,11 +649,11 @@ fn register_cli_writes_result_and_aligned_cloud() {
         "init.txt",
         format_matrix4(&DMat4::IDENTITY).as_bytes(),
     );
-    let args = wgslam::scan_cli::RegisterArgs {
+    let args = wgslam::cli::scan::RegisterArgs {
         source: d.join("251371071.pcd"),
         target: d.join("251370668.pcd"),
         init: Some(init),
-        icp: wgslam::scan_cli::IcpArgs {
+        icp: wgslam::cli::scan::IcpArgs {
             samples: Samples::Count(1000),
             max_iters: 50,
             radius: 1.0,
@@ -664,10 +664,10 @@ fn register_cli_writes_result_and_aligned_cloud() {
             min_z: None,
             max_z: None,
         },
-        nn: wgslam::scan_cli::NnBackend::Kdtree,
+        nn: wgslam::cli::scan::NnBackend::Kdtree,
         out: Some(out.clone()),
     };
-    let r = wgslam::scan_cli::run_register(&args).unwrap();
+    let r = wgslam::cli::scan::run_register(&args).unwrap();
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
     assert_eq!(json["iterations"], r.iteration_count());
@@ -693,7 +693,7 @@ const BENCH_VS_RESEEDED_TRANS_TOL_M: f64 = 0.02;
 fn bench_scan_cpu_only_reports_sane_rows() {
     let out = temp_dir("bench-scan");
     let json_path = out.join("bench.json");
-    let args = wgslam::scan_cli::BenchScanArgs {
+    let args = wgslam::cli::scan::BenchScanArgs {
         source: None,
         target: None,
         repeats: 1,
@@ -702,7 +702,7 @@ fn bench_scan_cpu_only_reports_sane_rows() {
         cpu_only: true,
         json: Some(json_path.clone()),
     };
-    let report = wgslam::scan_cli::run_bench_scan(&args).unwrap();
+    let report = wgslam::cli::scan::run_bench_scan(&args).unwrap();
     assert_eq!(
         (report.source_points, report.target_points),
         (69_792, 69_088)

@@ -13,10 +13,10 @@ use glam::DVec3;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
+use wgslam::geometry::se3;
 use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
 use wgslam::scan::{CrossCovariance, KdTreeTarget, NearestNeighbours};
-use wgslam::se3;
 
 const SHADERS: [&str; 3] = ["nn_brute", "nn_grid", "cross_covariance"];
 

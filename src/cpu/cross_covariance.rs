@@ -6,11 +6,11 @@
 use bytemuck::Zeroable;
 use glam::{DMat4, DVec3};
 
+use crate::geometry::se3;
 use crate::scan::align::CrossCovariance;
 use crate::scan::layout::{
     ScanCovParams, ScanCovPartial, ScanNnResult, SCAN_NN_NONE, SCAN_WORKGROUP_SIZE,
 };
-use crate::se3;
 
 /// Component-wise sum of two partials. Mirrors `scan_cov_add`.
 #[inline]

@@ -9,7 +9,7 @@
 //! the texel's depth with `back_project`) and normal, camera frame. Linearising
 //! `T <- exp(x) T` with `x = (alpha, beta, gamma, tx, ty, tz)` gives the residual
 //! `r = A x + b` with `A = [(p' x n_q)ᵀ, n_qᵀ]` and `b = n_qᵀ (p' - q)`; the least-squares
-//! increment solves `AᵀA x = -Aᵀb` (see `crate::solve`).
+//! increment solves `AᵀA x = -Aᵀb` (see `crate::slam::solve`).
 
 use super::{back_project, is_valid, project_to_texel, transform_point, xyz};
 use crate::layout::{
@@ -88,8 +88,8 @@ pub fn icp_reduce(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::se3;
     use crate::layout::gpu_mat4;
-    use crate::se3;
 
     /// Central differences in f64 of an f32 residual: error ~ h^2 plus f32 rounding / h.
     const JACOBIAN_TOL: f64 = 2e-3;

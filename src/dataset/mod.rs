@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use glam::DMat4;
 use serde::Deserialize;
 
-use crate::camera::Intrinsics;
+use crate::geometry::camera::Intrinsics;
 use crate::io::trajectory::read_tum;
 use crate::{Error, Result};
 

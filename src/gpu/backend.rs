@@ -1,4 +1,4 @@
-//! The GPU backend: runs the dense-SLAM steps of [`crate::pipeline::Backend`] as the WGSL
+//! The GPU backend: runs the dense-SLAM steps of [`crate::slam::pipeline::Backend`] as the WGSL
 //! kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`.
 //!
 //! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
@@ -29,8 +29,8 @@ use super::timing::StageTimer;
 use crate::layout::{
     FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::map::SurfelMap;
-use crate::pipeline::{Backend, BackendCounters, FrameMaps};
+use crate::slam::map::SurfelMap;
+use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps};
 use crate::{Error, Result};
 
 // Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
@@ -783,7 +783,7 @@ impl Backend for GpuBackend {
         })
     }
 
-    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
+    fn download_prediction(&mut self) -> Result<crate::slam::pipeline::Prediction> {
         let Some(f) = self.frame.as_ref() else {
             return Ok((Vec::new(), Vec::new()));
         };

@@ -20,7 +20,7 @@
 use super::context::GpuContext;
 use super::images::GpuImage;
 use crate::layout::MAP_TEXTURE_WIDTH;
-use crate::map::SurfelMap;
+use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// Surfel attributes packed into three textures, `capacity` logical slots each.

@@ -10,8 +10,8 @@ use std::path::Path;
 
 use glam::DMat4;
 
+use crate::geometry::se3;
 use crate::io::atomic::write_atomic;
-use crate::se3;
 use crate::{Error, Result};
 
 /// Largest accepted `| |q| - 1 |`. Files print 4 to 9 significant digits, so rounding moves

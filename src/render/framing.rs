@@ -8,8 +8,8 @@ use glam::{DMat3, DMat4, DVec3};
 
 use super::view::check_size;
 use super::RenderCamera;
-use crate::camera::Intrinsics;
-use crate::se3;
+use crate::geometry::camera::Intrinsics;
+use crate::geometry::se3;
 use crate::{Error, Result};
 
 /// Horizontal field of view of framing cameras, degrees.

@@ -5,7 +5,7 @@
 //! pixels) into a 64-bit depth|index map (`render_splat`), then each pixel is shaded from
 //! its winning surfel (`render_resolve`). The CPU twins in `src/cpu/render_*.rs` run here;
 //! the GPU pass lives in [`gpu`]. This module knows cameras, views and images, not files
-//! other than the PNG it is asked to write; trajectory plots are in `crate::plot`.
+//! other than the PNG it is asked to write; trajectory plots are in `crate::render::plot`.
 //!
 //! Submodules: [`view`] (what a pixel shows, image sizes), [`framing`] (virtual cameras
 //! that frame a cloud), [`overlay`] (ICP before/after pictures), [`outputs`] (the pictures
@@ -19,6 +19,7 @@ pub mod gpu;
 pub mod layout;
 pub mod outputs;
 pub mod overlay;
+pub mod plot;
 pub mod view;
 
 pub use framing::{
@@ -34,12 +35,12 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 use image::RgbImage;
 
-use crate::camera::Intrinsics;
 use crate::cpu::render_resolve::render_resolve;
 use crate::cpu::render_splat::render_splat;
+use crate::geometry::camera::Intrinsics;
+use crate::geometry::se3;
 use crate::layout::gpu_mat4;
-use crate::map::SurfelMap;
-use crate::se3;
+use crate::slam::map::SurfelMap;
 use crate::{Error, Result};
 use layout::RenderParams;
 

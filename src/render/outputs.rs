@@ -12,8 +12,8 @@ use super::{
     default_camera, framing_camera, render_overlay, trajectory_view_hint, write_png, MapCloud,
     RenderBackend, RenderCamera, RenderSettings, View, DEFAULT_SIZE,
 };
-use crate::camera::Intrinsics;
-use crate::map::SurfelMap;
+use crate::geometry::camera::Intrinsics;
+use crate::slam::map::SurfelMap;
 use crate::{Error, Result};
 
 /// Up and heading for the default view of a map without a trajectory: up is `up`, the

@@ -1,13 +1,13 @@
 //! Rigid alignment of paired points for point-to-point ICP: the running sums of inlier
 //! pairs ([`CrossCovariance`], reduced in parallel on the CPU or on the GPU) and the closed
 //! form best rigid transform they determine (Arun / Umeyama, through
-//! [`crate::rigid::rotation_from_cross_covariance`]).
+//! [`crate::geometry::rigid::rotation_from_cross_covariance`]).
 
 use glam::{DMat3, DMat4, DVec3};
 use nalgebra::Matrix3;
 
-use crate::rigid::rotation_from_cross_covariance;
-use crate::se3;
+use crate::geometry::rigid::rotation_from_cross_covariance;
+use crate::geometry::se3;
 
 /// Sums over inlier pairs `(p, q)` (p: transformed source, q: target) that determine the
 /// best rigid transform: the 3x3 cross-covariance and centroids, in f64.

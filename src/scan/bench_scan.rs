@@ -1,6 +1,6 @@
 //! The `bench-scan` benchmark: scan registration and nearest-neighbour queries timed on
 //! the CPU (KD-tree) and the GPU (hashed grid, brute force) over one pair of clouds, with
-//! GPU/CPU ratios. It measures and returns a report; the CLI (`scan_cli.rs`) parses the
+//! GPU/CPU ratios. It measures and returns a report; the CLI (`cli/scan.rs`) parses the
 //! options and prints the table. The timing loops themselves are in [`super::bench`].
 
 use std::path::PathBuf;
@@ -9,7 +9,7 @@ use glam::DMat4;
 
 use super::icp::{IcpParams, IcpResult, Samples};
 use super::write::transform_points;
-use crate::{se3, Result};
+use crate::{geometry::se3, Result};
 
 /// Source points per iteration of the sampled registration rows.
 pub const BENCH_SAMPLES: usize = 1000;

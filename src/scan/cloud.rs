@@ -1,9 +1,9 @@
 //! Point clouds for scan registration: xyz points (metres, f32) plus reading statistics,
 //! and back-projection of a depth image into a cloud.
 //!
-//! This is not a surfel map: no normals, colours or weights (see `crate::map` for those).
+//! This is not a surfel map: no normals, colours or weights (see `crate::slam::map` for those).
 
-use crate::camera::Intrinsics;
+use crate::geometry::camera::Intrinsics;
 
 /// What a reader saw while building a [`PointCloud`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]

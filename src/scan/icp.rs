@@ -10,8 +10,8 @@ use glam::{DMat4, DVec3};
 
 use super::align::CrossCovariance;
 use super::nn::{KdTreeTarget, NearestNeighbours};
-use crate::rigid::nearest_rotation;
-use crate::se3;
+use crate::geometry::rigid::nearest_rotation;
+use crate::geometry::se3;
 use crate::{Error, Result};
 
 /// How many source points each iteration uses.

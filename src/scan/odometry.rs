@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::icp::{register, IcpParams, IcpResult};
 use super::read::{is_cloud_file, read_cloud};
-use crate::{se3, Error, Result};
+use crate::{geometry::se3, Error, Result};
 
 /// An ordered list of scans, optionally with ground-truth poses.
 #[derive(Debug, Clone)]

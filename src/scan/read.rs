@@ -473,6 +473,6 @@ pub fn read_matrix4(path: &Path) -> Result<DMat4> {
             ),
         ));
     }
-    let r = crate::rigid::nearest_rotation(r);
-    Ok(crate::se3::from_rt(r, m.w_axis.truncate()))
+    let r = crate::geometry::rigid::nearest_rotation(r);
+    Ok(crate::geometry::se3::from_rt(r, m.w_axis.truncate()))
 }

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use glam::DMat4;
+use wgslam::geometry::se3;
 use wgslam::layout::pack_rgba8;
-use wgslam::se3;
 
 /// One raw frame: depth (`u16`, row-major 640x480) and colour packed by [`pack_rgba8`].
 pub struct Frame {

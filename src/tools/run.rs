@@ -19,8 +19,8 @@ use crate::dataset::{RawFrame, Sequence};
 use crate::eval;
 use crate::io;
 use crate::layout::pack_rgba8;
-use crate::map::SurfelMap;
-use crate::pipeline::{Backend, FrameReport, Slam, SlamParams, TrackStatus};
+use crate::slam::map::SurfelMap;
+use crate::slam::pipeline::{Backend, FrameReport, Slam, SlamParams, TrackStatus};
 use crate::Result;
 
 /// One processed frame: where it sits in the sequence and what the pipeline did.
@@ -339,7 +339,7 @@ pub fn write_pictures(out: &Path, result: &RunResult, seq: &Sequence) -> Result<
     let gt = seq.ground_truth();
     if !gt.is_empty() && !est.is_empty() {
         let path = out.join("trajectory.png");
-        crate::plot::write_trajectory_plot(&path, &est, &gt)?;
+        crate::render::plot::write_trajectory_plot(&path, &est, &gt)?;
         written.push(path);
     }
     Ok(written)

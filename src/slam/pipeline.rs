@@ -18,7 +18,7 @@
 //! |---|---|---|
 //! | `preprocess` (`depth_to_vertex`, `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame), `normal_depth` (camera-frame normal, depth in w), `color` |
 //! | `predict` (`project_model`, `predict_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame) |
-//! | `icp_system` (`icp_reduce`), per iteration | `pred_vertex`, `normal_depth`; the current `t_world_to_cam` | the 29-float system (host: [`crate::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
+//! | `icp_system` (`icp_reduce`), per iteration | `pred_vertex`, `normal_depth`; the current `t_world_to_cam` | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
 //! | `fuse` (`fuse_merge`, then `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, then appended), `assoc` (merged pixels), `counter` (surfel count) |
 //!
 //! The tracking loop reads back only the system per iteration and the surfel count per
@@ -26,14 +26,14 @@
 
 use glam::DMat4;
 
-use crate::camera::Intrinsics;
+use crate::geometry::camera::Intrinsics;
+use crate::geometry::se3;
 use crate::layout::{
     camera_floats, gpu_mat4, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
     ICP_SYSTEM_LEN,
 };
-use crate::map::SurfelMap;
-use crate::se3;
-use crate::solve::{increment_size, update_pose, NormalEquations, SolveError};
+use crate::slam::map::SurfelMap;
+use crate::slam::solve::{increment_size, update_pose, NormalEquations, SolveError};
 use crate::Result;
 
 /// The per-frame maps a backend holds after `preprocess` (downloaded for comparison), in
@@ -120,7 +120,7 @@ pub trait Backend {
 
 /// A boxed backend is a backend (the CLI picks CPU or GPU at run time): every step goes to
 /// the box's content. The one hand-written forwarding of the trait besides
-/// [`crate::instrumented::Instrumented`].
+/// [`crate::slam::instrumented::Instrumented`].
 impl<B: Backend + ?Sized> Backend for Box<B> {
     fn name(&self) -> &'static str {
         (**self).name()

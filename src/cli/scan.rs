@@ -14,7 +14,7 @@ use crate::scan::bench_scan::{
 use crate::scan::odometry::{self, Odometry, ScanSequence};
 use crate::scan::write::{format_matrix4, transform_points, write_atomic, write_ply_xyz};
 use crate::scan::{read_cloud, read_matrix4, IcpParams, IcpResult, Samples};
-use crate::{se3, Error, Result};
+use crate::{geometry::se3, Error, Result};
 
 /// ICP options shared by `register` and `odometry`.
 #[derive(clap::Args, Debug, Clone)]

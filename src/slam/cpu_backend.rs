@@ -7,8 +7,8 @@ use crate::cpu;
 use crate::layout::{
     FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::map::SurfelMap;
-use crate::pipeline::{Backend, FrameMaps};
+use crate::slam::map::SurfelMap;
+use crate::slam::pipeline::{Backend, FrameMaps};
 use crate::Result;
 
 /// Host-side state: the current frame's maps, the prediction and the surfel map.
@@ -151,7 +151,7 @@ impl Backend for CpuBackend {
         Ok(self.frame.clone())
     }
 
-    fn download_prediction(&mut self) -> Result<crate::pipeline::Prediction> {
+    fn download_prediction(&mut self) -> Result<crate::slam::pipeline::Prediction> {
         Ok((self.pred_vertex.clone(), self.pred_normal.clone()))
     }
 }

@@ -1,14 +1,17 @@
 //! Command-line interface: argument parsing and printing only; no algorithm code here.
 
+pub mod render;
+pub mod scan;
+
 use std::path::{Path, PathBuf};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::any_backend::{self, BackendChoice};
-use crate::camera::Intrinsics;
 use crate::dataset::{self, SequenceOptions};
-use crate::pipeline::{PoseSource, SlamParams};
-use crate::{bench, compare, eval, io, run, two_frame, Error, Result};
+use crate::geometry::camera::Intrinsics;
+use crate::slam::any_backend::{self, BackendChoice};
+use crate::slam::pipeline::{PoseSource, SlamParams};
+use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
 pub const BUNDLED_DATASET: &str = "assets/icl_living_room_kt2";
@@ -38,13 +41,13 @@ pub enum Command {
     #[command(hide = true)]
     BenchOne(BenchArgs),
     /// Point-to-point ICP between two point clouds (PCD, PLY, xyz text, KITTI .bin).
-    Register(crate::scan_cli::RegisterArgs),
+    Register(crate::cli::scan::RegisterArgs),
     /// Scan odometry: register each consecutive pair of a folder of scans and chain them.
-    Odometry(crate::scan_cli::OdometryArgs),
+    Odometry(crate::cli::scan::OdometryArgs),
     /// Time scan registration and nearest neighbours: CPU KD-tree vs GPU grid / brute force.
-    BenchScan(crate::scan_cli::BenchScanArgs),
+    BenchScan(crate::cli::scan::BenchScanArgs),
     /// Render a map PLY headlessly to a PNG (colour, normals, weight or depth view).
-    Render(crate::render_cli::RenderArgs),
+    Render(crate::cli::render::RenderArgs),
 }
 
 /// Pose source for `run`.
@@ -302,10 +305,10 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Compare(a) => cmd_compare(a),
         Command::Bench(a) => cmd_bench(a),
         Command::BenchOne(a) => cmd_bench_one(a),
-        Command::Register(a) => crate::scan_cli::run_register(&a).map(|_| ()),
-        Command::Odometry(a) => crate::scan_cli::run_odometry(&a).map(|_| ()),
+        Command::Register(a) => crate::cli::scan::run_register(&a).map(|_| ()),
+        Command::Odometry(a) => crate::cli::scan::run_odometry(&a).map(|_| ()),
         Command::Render(a) => cmd_render(a),
-        Command::BenchScan(a) => crate::scan_cli::run_bench_scan(&a).map(|_| ()),
+        Command::BenchScan(a) => crate::cli::scan::run_bench_scan(&a).map(|_| ()),
     }
 }
 
@@ -325,13 +328,13 @@ fn cmd_run(a: RunArgs) -> Result<()> {
     let on_frame = |f: &run::FrameOutcome| {
         bar.set_message(format!("{} surfels", f.report.surfels));
         bar.inc(1);
-        if let crate::pipeline::TrackStatus::Lost(why) = &f.report.status {
+        if let crate::slam::pipeline::TrackStatus::Lost(why) = &f.report.status {
             bar.println(format!(
                 "frame {}: tracking lost ({why}); not fused",
                 f.index
             ));
         }
-        if f.report.status == crate::pipeline::TrackStatus::EmptyDepth {
+        if f.report.status == crate::slam::pipeline::TrackStatus::EmptyDepth {
             bar.println(format!("frame {}: no valid depth; skipped", f.index));
         }
     };
@@ -521,7 +524,7 @@ fn cmd_compare(a: CompareArgs) -> Result<()> {
         run::write_json(path, &c)?;
     }
     if c.violations.is_empty() {
-        println!("backends agree within the documented tolerances (src/compare.rs)");
+        println!("backends agree within the documented tolerances (src/tools/compare.rs)");
         Ok(())
     } else {
         for v in &c.violations {
@@ -652,14 +655,14 @@ fn cmd_eval(a: EvalArgs) -> Result<()> {
         rpe.pairs
     );
     if let Some(path) = &a.plot {
-        crate::plot::write_trajectory_plot(path, &est, &gt)?;
+        crate::render::plot::write_trajectory_plot(path, &est, &gt)?;
         println!("wrote {}", path.display());
     }
     Ok(())
 }
 
-fn cmd_render(a: crate::render_cli::RenderArgs) -> Result<()> {
-    let r = crate::render_cli::run_render(&a)?;
+fn cmd_render(a: crate::cli::render::RenderArgs) -> Result<()> {
+    let r = crate::cli::render::run_render(&a)?;
     for w in &r.warnings {
         eprintln!("warning: {w}");
     }

@@ -21,7 +21,7 @@ use crate::{Error, Result};
 /// Default size of `trajectory.png`, pixels.
 pub const TRAJECTORY_PLOT_SIZE: (u32, u32) = (1400, 640);
 
-const FONT_BYTES: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+const FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 const FONT_NAME: &str = "wgslam-sans";
 const EST_COLOR: RGBColor = RGBColor(220, 60, 30);
 const GT_COLOR: RGBColor = RGBColor(30, 90, 200);

@@ -3,10 +3,10 @@
 //! `auto` opens the GPU when an adapter exists and otherwise falls back to the CPU
 //! reference, saying so on stderr; `gpu` fails with the adapter error instead.
 
-use crate::cpu_backend::CpuBackend;
 use crate::gpu::backend::GpuBackend;
 use crate::gpu::context::GpuContext;
-use crate::pipeline::Backend;
+use crate::slam::cpu_backend::CpuBackend;
+use crate::slam::pipeline::Backend;
 use crate::{Error, Result};
 
 /// Which implementation to run.

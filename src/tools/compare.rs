@@ -11,13 +11,13 @@ use glam::DMat4;
 use serde::Serialize;
 
 use crate::dataset::Sequence;
-use crate::instrumented::Instrumented;
 use crate::layout::{ICP_COUNT_INDEX, ICP_SYSTEM_LEN};
-use crate::map::SurfelMap;
-use crate::pipeline::{Backend, FrameMaps, Slam, SlamParams};
-use crate::run::packed_rgba;
-use crate::solve::NormalEquations;
-use crate::{se3, Result};
+use crate::slam::instrumented::Instrumented;
+use crate::slam::map::SurfelMap;
+use crate::slam::pipeline::{Backend, FrameMaps, Slam, SlamParams};
+use crate::slam::solve::NormalEquations;
+use crate::tools::run::packed_rgba;
+use crate::{geometry::se3, Result};
 
 /// Documented tolerances; `wgslam compare` exits non-zero beyond any of them.
 pub mod tolerance {

@@ -8,8 +8,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use crate::any_backend::BackendChoice;
-use crate::camera::Intrinsics;
+use crate::geometry::camera::Intrinsics;
 use crate::gpu::GpuContext;
 use crate::io::ply::{read_ply, PlyCloud};
 use crate::io::trajectory::{parse_tum, read_tum};
@@ -18,6 +17,7 @@ use crate::render::outputs::map_view_hint;
 use crate::render::{
     default_camera, parse_size, write_png, Cloud, RenderBackend, RenderCamera, RenderSettings, View,
 };
+use crate::slam::any_backend::BackendChoice;
 use crate::{Error, Result};
 
 /// `wgslam render MAP.ply [--pose ...] [--view ...] [--size WxH] -o OUT.png`

@@ -8,8 +8,8 @@
 use glam::DMat4;
 use nalgebra::{Matrix6, Vector6};
 
+use crate::geometry::se3;
 use crate::layout::{ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN};
-use crate::se3;
 
 /// The decoded normal equations `AᵀA x = -Aᵀb` of one ICP iteration.
 #[derive(Debug, Clone, Copy, PartialEq)]

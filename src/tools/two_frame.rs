@@ -10,9 +10,9 @@ use glam::DMat4;
 use serde::Serialize;
 
 use crate::dataset::Sequence;
-use crate::pipeline::{Backend, IcpIteration, PoseSource, Slam, SlamParams, TrackStatus};
-use crate::run::packed_rgba;
-use crate::{se3, Result};
+use crate::slam::pipeline::{Backend, IcpIteration, PoseSource, Slam, SlamParams, TrackStatus};
+use crate::tools::run::packed_rgba;
+use crate::{geometry::se3, Result};
 
 /// Outcome of [`align_frames`].
 #[derive(Debug, Clone, Serialize)]
@@ -106,7 +106,7 @@ pub fn write_outputs(
     use crate::render::outputs::{write_icp_overlays, OverlayViewpoint};
     std::fs::create_dir_all(out).map_err(|e| crate::Error::write(out, e))?;
     let result = out.join("result.json");
-    crate::run::write_json(&result, r)?;
+    crate::tools::run::write_json(&result, r)?;
     let [before, after] = write_icp_overlays(
         out,
         &r.source_points,

@@ -13,8 +13,8 @@ use std::time::Instant;
 use crate::layout::{
     FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::map::SurfelMap;
-use crate::pipeline::{Backend, BackendCounters, FrameMaps, Prediction};
+use crate::slam::map::SurfelMap;
+use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction};
 use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;

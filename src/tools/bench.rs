@@ -4,19 +4,19 @@
 //! Each backend runs in its own child process (`wgslam bench-one`), so peak memory (VmHWM)
 //! is that backend's alone, and both are measured in the same `wgslam bench` invocation so
 //! the GPU/CPU ratio compares like with like. Per-stage times come from a second pass with
-//! [`crate::instrumented::Instrumented`], which waits for the device after each stage; frame times come
+//! [`crate::slam::instrumented::Instrumented`], which waits for the device after each stage; frame times come
 //! from the first pass, which does not. Every pass decodes each frame before processing it
 //! ([`run::Decode::BeforeEachFrame`]), so decoding never competes with a backend for a
 //! core; its time is reported on its own line.
 
 use serde::{Deserialize, Serialize};
 
-use crate::cpu_backend::CpuBackend;
 use crate::dataset::Sequence;
 use crate::gpu::backend::GpuBackend;
-use crate::instrumented::Instrumented;
-use crate::pipeline::{Backend, SlamParams};
-use crate::run;
+use crate::slam::cpu_backend::CpuBackend;
+use crate::slam::instrumented::Instrumented;
+use crate::slam::pipeline::{Backend, SlamParams};
+use crate::tools::run;
 use crate::Result;
 
 /// Benchmarks decode on the pipeline's thread, outside the timed frame (see the header).
@@ -104,8 +104,11 @@ pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
 ) -> Result<BenchResult> {
     let mut result = bench_frames(&mut make, seq, first, last, params)?;
     let backend = make()?;
-    let mut slam =
-        crate::pipeline::Slam::for_sequence(Instrumented::timed(backend), seq, params.clone());
+    let mut slam = crate::slam::pipeline::Slam::for_sequence(
+        Instrumented::timed(backend),
+        seq,
+        params.clone(),
+    );
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     let counters = slam.backend.counters();
@@ -138,7 +141,7 @@ pub fn gpu_kernel_times(
 ) -> Result<Vec<(String, f64, f64)>> {
     let mut gpu = GpuBackend::open()?;
     gpu.enable_kernel_timing();
-    let mut slam = crate::pipeline::Slam::for_sequence(gpu, seq, params.clone());
+    let mut slam = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone());
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     Ok(slam
@@ -187,8 +190,8 @@ pub fn bench_interleaved<G: Backend>(
     last: usize,
     params: &SlamParams,
 ) -> Result<InterleavedResult> {
-    let mut cpu = crate::pipeline::Slam::for_sequence(CpuBackend::new(), seq, params.clone());
-    let mut gpu = crate::pipeline::Slam::for_sequence(gpu, seq, params.clone());
+    let mut cpu = crate::slam::pipeline::Slam::for_sequence(CpuBackend::new(), seq, params.clone());
+    let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone());
     let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
     for i in first..=last {
         let frame = seq.load(i)?;

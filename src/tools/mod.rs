@@ -1,0 +1,9 @@
+//! The jobs a user runs on top of the SLAM core, as library functions the CLI calls:
+//! the batch run over a sequence with its outputs ([`run`]), the two-frame ICP experiment
+//! ([`two_frame`]), the CPU-vs-GPU comparison ([`compare`]) and the benchmark ([`bench`]).
+//! They compute and write results; parsing arguments and printing tables is `crate::cli`.
+
+pub mod bench;
+pub mod compare;
+pub mod run;
+pub mod two_frame;
