@@ -1,4 +1,4 @@
-//! `wgslam render`: arguments and the run function (the lead's `cli.rs` wires it in).
+//! `wgslam render`: arguments and the run function (dispatched from `cli/mod.rs`).
 //!
 //! Reads a PLY point cloud or surfel map, renders it from a default viewpoint framing the
 //! whole cloud (or from `--pose`), writes one PNG. Argument checking and printing only; the

@@ -273,10 +273,10 @@ pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
     );
     if let Some(dir) = &args.out {
         create_dir(dir)?;
-        write_atomic(
-            &dir.join("trajectory.tum"),
-            odometry::format_tum(&seq, &odo.t_scan_to_world).as_bytes(),
-        )?;
+        let poses: Vec<(f64, DMat4)> = (odo.t_scan_to_world.iter().enumerate())
+            .map(|(i, t)| (seq.stamp(i), *t))
+            .collect();
+        crate::io::trajectory::write_tum_of(&dir.join("trajectory.tum"), "scan to world", &poses)?;
         write_atomic(&dir.join("pairs.tsv"), tsv.as_bytes())?;
         if let Some(s) = &summary {
             let json = serde_json::to_vec_pretty(s).map_err(|e| Error::encode("errors.json", e))?;

@@ -273,18 +273,26 @@ impl Kernel {
     }
 }
 
-/// The bind-group layout entry type of one binding kind.
-fn layout_type(kind: BindingKind) -> wgpu::BindingType {
-    let buffer = |ty| wgpu::BindingType::Buffer {
+/// A buffer binding of type `ty` (no dynamic offset, no minimum size).
+fn buffer(ty: wgpu::BufferBindingType) -> wgpu::BindingType {
+    wgpu::BindingType::Buffer {
         ty,
         has_dynamic_offset: false,
         min_binding_size: None,
-    };
-    let texture = |sample_type| wgpu::BindingType::Texture {
+    }
+}
+
+/// A sampled 2D texture binding (not multisampled).
+fn texture(sample_type: wgpu::TextureSampleType) -> wgpu::BindingType {
+    wgpu::BindingType::Texture {
         sample_type,
         view_dimension: wgpu::TextureViewDimension::D2,
         multisampled: false,
-    };
+    }
+}
+
+/// The bind-group layout entry type of one binding kind.
+fn layout_type(kind: BindingKind) -> wgpu::BindingType {
     match kind {
         BindingKind::Uniform => buffer(wgpu::BufferBindingType::Uniform),
         BindingKind::StorageRead => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
@@ -328,16 +336,6 @@ fn reflected_type(
     module: &naga::Module,
     g: &naga::GlobalVariable,
 ) -> Result<wgpu::BindingType, String> {
-    let buffer = |ty| wgpu::BindingType::Buffer {
-        ty,
-        has_dynamic_offset: false,
-        min_binding_size: None,
-    };
-    let texture = |sample_type| wgpu::BindingType::Texture {
-        sample_type,
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    };
     match g.space {
         naga::AddressSpace::Uniform => Ok(buffer(wgpu::BufferBindingType::Uniform)),
         naga::AddressSpace::Storage { access } => Ok(buffer(wgpu::BufferBindingType::Storage {

@@ -88,13 +88,15 @@ fn format_stamp(s: f64) -> String {
 /// stamp (see above), translation in metres and quaternion `qx qy qz qw` (`qw >= 0`), with
 /// 9 decimals. Errors on a non-finite pose (nothing is written then).
 pub fn write_tum(path: &Path, poses: &[(f64, DMat4)]) -> Result<()> {
+    write_tum_of(path, "camera to world", poses)
+}
+
+/// [`write_tum`] for poses of another sensor: `frames` names them in the header line
+/// (e.g. `scan to world`).
+pub fn write_tum_of(path: &Path, frames: &str, poses: &[(f64, DMat4)]) -> Result<()> {
     write_atomic(path, |w: &mut dyn Write| {
         let io = |e| Error::write(path, e);
-        writeln!(
-            w,
-            "# timestamp tx ty tz qx qy qz qw (camera to world, metres)"
-        )
-        .map_err(io)?;
+        writeln!(w, "# timestamp tx ty tz qx qy qz qw ({frames}, metres)").map_err(io)?;
         for (k, (stamp, pose)) in poses.iter().enumerate() {
             if !stamp.is_finite() || !pose.is_finite() {
                 return Err(Error::format(

@@ -266,20 +266,24 @@ pub fn register_with(
     let mut order: Vec<u32> = (0..source.len() as u32).collect();
     let mut queries = vec![[0f32; 3]; k];
     let mut pairs = vec![(0u32, 0f32); k];
+    // A fresh sample, paired at the estimate `t` within `radius` (metres).
+    let mut pair_sample = |t: &DMat4, radius: f64| {
+        correspond(
+            source,
+            nn,
+            t,
+            draw_sample(&mut order, k, &mut rng),
+            radius * radius,
+            &mut queries,
+            &mut pairs,
+        )
+    };
     let mut t = init_source_to_target;
     let mut iterations = Vec::new();
     let mut status = IcpStatus::NotConverged;
 
     for _ in 0..params.max_iterations {
-        let acc = correspond(
-            source,
-            nn,
-            &t,
-            draw_sample(&mut order, k, &mut rng),
-            radius * radius,
-            &mut queries,
-            &mut pairs,
-        )?;
+        let acc = pair_sample(&t, radius)?;
         let mut stats = stats_of(&acc, k, radius);
         if acc.count < needed {
             iterations.push(stats);
@@ -317,15 +321,7 @@ pub fn register_with(
     // Re-orthonormalise: hundreds of f64 products drift by ~1e-15, harmless but untidy.
     let (r, p) = se3::to_rt(&t);
     let t = se3::from_rt(nearest_rotation(r), p);
-    let acc = correspond(
-        source,
-        nn,
-        &t,
-        draw_sample(&mut order, k, &mut rng),
-        radius * radius,
-        &mut queries,
-        &mut pairs,
-    )?;
+    let acc = pair_sample(&t, radius)?;
     Ok(IcpResult {
         t_source_to_target: t,
         status,

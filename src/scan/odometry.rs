@@ -273,26 +273,6 @@ pub fn run_odometry(
     })
 }
 
-/// The trajectory as TUM text: `stamp tx ty tz qx qy qz qw` per scan.
-pub fn format_tum(seq: &ScanSequence, t_scan_to_world: &[DMat4]) -> String {
-    let mut s = String::from("# timestamp tx ty tz qx qy qz qw (t_scan_to_world, metres)\n");
-    for (i, t) in t_scan_to_world.iter().enumerate() {
-        let (p, q) = se3::to_tum(t);
-        s.push_str(&format!(
-            "{} {:.6} {:.6} {:.6} {:.9} {:.9} {:.9} {:.9}\n",
-            seq.stamp(i),
-            p[0],
-            p[1],
-            p[2],
-            q[0],
-            q[1],
-            q[2],
-            q[3]
-        ));
-    }
-    s
-}
-
 /// Per-pair table (tab-separated, header line): scans, status, iterations, final inlier
 /// RMSE (m), outlier ratio, seconds, the 12 numbers of the 3x4 `t_source_to_target`
 /// (row-major), and with ground truth the rotation (deg) and translation (m) errors.
