@@ -58,7 +58,11 @@ struct IcpParams {
     width: u32,
     height: u32,
     dist_threshold_m: f32,
-    _pad: u32,
+    cos_normal_threshold: f32,
+    huber_delta_m: f32,
+    noise_weighting: u32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 // Mirrors `layout::FuseParams` (fuse_merge, fuse_add).

@@ -1,24 +1,28 @@
-// icp_reduce.wgsl: projective data association, both filters, the point-to-plane row and
-// the reduction to one 29-float normal-equation partial per workgroup.
-// CPU twin: src/cpu/icp_reduce.rs (its header states the maths and the filters).
+// icp_reduce.wgsl: projective data association, both filters, the weighted point-to-plane
+// row and the reduction to one 29-float normal-equation partial per workgroup.
+// CPU twin: src/cpu/icp_reduce.rs (its header states the maths, the filters and weights).
 //
 // Bindings (@group(0)):
-//   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, dist_threshold_m)
+//   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, the gates and
+//                  the weights)
 //   1 pred_vertex  texture_2d<f32>: source, width x height, WORLD frame
-//   2 normal_depth texture_2d<f32>: target normals (camera frame) with the target vertex's
+//   2 pred_normal  texture_2d<f32>: the source's unit normals, WORLD frame (angle gate)
+//   3 normal_depth texture_2d<f32>: target normals (camera frame) with the target vertex's
 //                  depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
 //                  is rebuilt with back_project, as in the twin
-//   3 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
+//   4 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
 //                                 (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
-//                                 sum of squared residuals); the host sums them in f64
+//                                 sum of squared weighted residuals); the host sums them
+//                                 in f64
 // Grid-stride loop over pixels with few workgroups (few on a CPU adapter, many on a GPU):
 // each thread sums its pixels in registers (f32), then, after one barrier, thread k sums
 // entry k over the workgroup's threads (no tree reduction; see main).
 
 @group(0) @binding(0) var<uniform> params: IcpParams;
 @group(0) @binding(1) var pred_vertex: texture_2d<f32>;
-@group(0) @binding(2) var normal_depth: texture_2d<f32>;
-@group(0) @binding(3) var<storage, read_write> partials: array<f32>;
+@group(0) @binding(2) var pred_normal: texture_2d<f32>;
+@group(0) @binding(3) var normal_depth: texture_2d<f32>;
+@group(0) @binding(4) var<storage, read_write> partials: array<f32>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -33,11 +37,37 @@ struct IcpRow {
     valid: bool,
 }
 
-// The row of one source point, or valid = false when a filter rejects it.
+// Axial depth noise of a Kinect-like sensor at depth z (metres), after Nguyen, Izadi and
+// Lovell (2012): sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2. Mirrors the twin's constants.
+const NOISE_SIGMA_0_M: f32 = 0.0012;
+const NOISE_SIGMA_QUAD: f32 = 0.0019;
+const NOISE_Z_0_M: f32 = 0.4;
+
+// Row weight of the depth noise at z: (sigma(0.4 m) / sigma(z))^2, 1 at 0.4 m and less
+// beyond. Mirrors `noise_weight` in src/cpu/icp_reduce.rs.
+fn noise_weight(z: f32) -> f32 {
+    let dz = z - NOISE_Z_0_M;
+    let sigma = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD * dz * dz;
+    let r = NOISE_SIGMA_0_M / sigma;
+    return r * r;
+}
+
+// Huber weight of a residual b (metres): 1 within delta, delta / |b| beyond; 1 when
+// delta is 0 (off). Mirrors `huber_weight` in src/cpu/icp_reduce.rs.
+fn huber_weight(b: f32, delta: f32) -> f32 {
+    if delta <= 0.0 || abs(b) <= delta {
+        return 1.0;
+    }
+    return delta / abs(b);
+}
+
+// The row of source pixel `src_texel`, or valid = false when a filter rejects it; weighted rows
+// are scaled by sqrt(weight), so AᵀA and Aᵀb carry the weight once.
 // Mirrors `icp_row` in src/cpu/icp_reduce.rs.
-fn icp_row(src_world: vec4<f32>) -> IcpRow {
+fn icp_row(src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
+    let src_world = textureLoad(pred_vertex, src_texel, 0);
     if !is_valid(src_world) {
         return row;
     }
@@ -59,9 +89,24 @@ fn icp_row(src_world: vec4<f32>) -> IcpRow {
     if length(d) >= params.dist_threshold_m {
         return row;
     }
-    let pxn = cross(p, n);
-    row.a = array<f32, 6>(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z);
-    row.b = dot(n, d);
+    // The angle gate reads the source normal only when it is on.
+    if params.cos_normal_threshold >= -1.0 {
+        let src_normal_world = textureLoad(pred_normal, src_texel, 0);
+        let n_p = transform_dir(params.t_world_to_cam, xyz(src_normal_world));
+        if !is_valid(src_normal_world) || dot(n_p, n) <= params.cos_normal_threshold {
+            return row;
+        }
+    }
+    let b = dot(n, d);
+    var w = huber_weight(b, params.huber_delta_m);
+    if params.noise_weighting != 0u {
+        w = w * noise_weight(q.z);
+    }
+    let s = sqrt(w);
+    let pxn = cross(p, n) * s;
+    let ns = n * s;
+    row.a = array<f32, 6>(pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z);
+    row.b = b * s;
     row.valid = true;
     return row;
 }
@@ -118,7 +163,7 @@ fn main(
     let du = stride % w;
     let dv = stride / w;
     for (var pix = gid.x; pix < n_pix; pix += stride) {
-        let row = icp_row(textureLoad(pred_vertex, vec2<u32>(u, v), 0));
+        let row = icp_row(vec2<u32>(u, v));
         if row.valid {
             accumulate(&sys, row.a, row.b);
         }

@@ -91,7 +91,17 @@ pub struct IcpParams {
     pub height: u32,
     /// Filter 2: correspondences farther apart than this (metres) are rejected.
     pub dist_threshold_m: f32,
-    pub _pad: u32,
+    /// Filter 2, angle: rejected unless the cosine between the model normal (moved into
+    /// the camera) and the frame normal exceeds this; below -1 the gate is off.
+    pub cos_normal_threshold: f32,
+    /// Huber threshold on the point-to-plane residual, metres: rows with `|b|` above it
+    /// get weight `huber_delta_m / |b|`; 0 turns the robust weight off.
+    pub huber_delta_m: f32,
+    /// 1: weight each row by the depth noise model ([`crate::cpu::icp_reduce::noise_weight`]);
+    /// 0: unweighted.
+    pub noise_weighting: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
 }
 
 /// Parameters of `fuse_merge` and `fuse_add` (mirrors `FuseParams`).

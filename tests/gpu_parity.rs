@@ -16,7 +16,7 @@ use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
-use wgslam::slam::pipeline::{Backend, PoseSource, Slam, SlamParams, TrackStatus};
+use wgslam::slam::pipeline::{Backend, PoseSource, Profile, Slam, SlamParams, TrackStatus};
 use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::tolerance;
 use wgslam::Error;
@@ -256,8 +256,20 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     gpu.predict(&proj).unwrap();
     let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
     let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
-    for (label, t) in [("true pose", t_true), ("perturbed pose", nudge * t_true)] {
-        let ip = s.icp_params(&t);
+    // The robust profile's gates and weights too (angle gate, Huber, depth noise), with
+    // the parameters its pipeline builds.
+    let robust = Slam::new(
+        CpuBackend::new(),
+        Intrinsics::ICL_NUIM,
+        SlamParams::profile(Profile::Robust),
+    );
+    let cases = [
+        ("true pose", s.icp_params(&t_true)),
+        ("perturbed pose", s.icp_params(&(nudge * t_true))),
+        ("robust, perturbed pose", robust.icp_params(&(nudge * t_true))),
+    ];
+    assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
+    for (label, ip) in cases {
         let c = NormalEquations::decode(&s.backend.icp_system(&ip).unwrap());
         let g = NormalEquations::decode(&gpu.icp_system(&ip).unwrap());
         let ata = (c.ata - g.ata).norm() / c.ata.norm();

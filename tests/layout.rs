@@ -53,7 +53,11 @@ fn rust_layouts() -> Vec<RustLayout> {
             width,
             height,
             dist_threshold_m,
-            _pad
+            cos_normal_threshold,
+            huber_delta_m,
+            noise_weighting,
+            _pad0,
+            _pad1
         }),
         rust_layout!(FuseParams {
             t_world_to_cam,

@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::pipeline::{PoseSource, SlamParams};
+use crate::slam::pipeline::{PoseSource, Profile, SlamParams};
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -81,24 +81,35 @@ pub struct DatasetArgs {
     pub max_time_diff: f64,
 }
 
-/// Pipeline tunables shared by `run` and `icp`.
+/// Pipeline tunables shared by `run` and `icp`: a profile, then any of its values
+/// overridden one by one (the flags' defaults are the profile's).
 #[derive(Debug, Args)]
 pub struct PipelineArgs {
+    /// Parameter set to start from: the course assignment's algorithm, or the robust
+    /// tracker for noisy depth (in progress).
+    #[arg(long, value_enum, default_value_t = Profile::Assignment)]
+    pub profile: Profile,
     /// Keep every N-th pixel in each direction.
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
-    /// ICP correspondence distance threshold, metres.
-    #[arg(long, default_value_t = 0.07)]
-    pub icp_dist: f32,
-    /// ICP iterations per frame at most.
-    #[arg(long, default_value_t = 10)]
-    pub icp_iters: usize,
-    /// Fusion distance threshold, metres.
-    #[arg(long, default_value_t = 0.03)]
-    pub fuse_dist: f32,
-    /// Fusion normal-angle threshold, degrees.
-    #[arg(long, default_value_t = 5.0)]
-    pub fuse_angle: f32,
+    /// ICP correspondence distance threshold, metres (assignment 0.07, robust 0.10).
+    #[arg(long)]
+    pub icp_dist: Option<f32>,
+    /// ICP normal-angle threshold, degrees; 180 turns it off (assignment 180, robust 20).
+    #[arg(long)]
+    pub icp_angle: Option<f32>,
+    /// Huber threshold on ICP residuals, metres; 0 turns it off (assignment 0, robust 0.02).
+    #[arg(long)]
+    pub icp_huber: Option<f32>,
+    /// ICP iterations per frame at most (assignment 10, robust 15).
+    #[arg(long)]
+    pub icp_iters: Option<usize>,
+    /// Fusion distance threshold, metres (0.03).
+    #[arg(long)]
+    pub fuse_dist: Option<f32>,
+    /// Fusion normal-angle threshold, degrees (5).
+    #[arg(long)]
+    pub fuse_angle: Option<f32>,
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
@@ -151,6 +162,9 @@ pub struct CompareArgs {
     /// Keep every N-th pixel in each direction.
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
+    /// Parameter set (see `run --help`).
+    #[arg(long, value_enum, default_value_t = Profile::Assignment)]
+    pub profile: Profile,
     /// Write the full comparison as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -166,6 +180,9 @@ pub struct BenchArgs {
     /// Keep every N-th pixel in each direction.
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
+    /// Parameter set (see `run --help`).
+    #[arg(long, value_enum, default_value_t = Profile::Assignment)]
+    pub profile: Profile,
     /// Backends to run (bench-one runs the first only).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendChoice::Cpu, BackendChoice::Gpu])]
     pub backends: Vec<BackendChoice>,
@@ -257,18 +274,38 @@ impl PipelineArgs {
                 self.downsample
             )));
         }
-        if self.icp_iters == 0 {
+        let base = SlamParams::profile(self.profile);
+        let p = SlamParams {
+            downsample: self.downsample,
+            icp_dist_m: self.icp_dist.unwrap_or(base.icp_dist_m),
+            icp_normal_deg: self.icp_angle.unwrap_or(base.icp_normal_deg),
+            icp_huber_m: self.icp_huber.unwrap_or(base.icp_huber_m),
+            icp_max_iters: self.icp_iters.unwrap_or(base.icp_max_iters),
+            fuse_dist_m: self.fuse_dist.unwrap_or(base.fuse_dist_m),
+            fuse_normal_deg: self.fuse_angle.unwrap_or(base.fuse_normal_deg),
+            poses,
+            ..base
+        };
+        if p.icp_max_iters == 0 {
             return Err(Error::Argument("--icp-iters must be at least 1".into()));
         }
-        Ok(SlamParams {
-            downsample: self.downsample,
-            icp_dist_m: self.icp_dist,
-            icp_max_iters: self.icp_iters,
-            fuse_dist_m: self.fuse_dist,
-            fuse_normal_deg: self.fuse_angle,
-            poses,
-            ..SlamParams::default()
-        })
+        for (flag, v) in [
+            ("--icp-dist", p.icp_dist_m),
+            ("--icp-angle", p.icp_normal_deg),
+            ("--fuse-dist", p.fuse_dist_m),
+            ("--fuse-angle", p.fuse_normal_deg),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::Argument(format!("{flag} {v} must be positive")));
+            }
+        }
+        if !(p.icp_huber_m.is_finite() && p.icp_huber_m >= 0.0) {
+            return Err(Error::Argument(format!(
+                "--icp-huber {} must be 0 (off) or positive",
+                p.icp_huber_m
+            )));
+        }
+        Ok(p)
     }
 }
 
@@ -475,7 +512,8 @@ fn frame_range(
     Ok((*r.start(), *r.end()))
 }
 
-fn downsampled_params(downsample: u32) -> Result<SlamParams> {
+/// The profile's parameters at `downsample` (for compare and bench).
+fn profile_params(profile: Profile, downsample: u32) -> Result<SlamParams> {
     if downsample == 0 || downsample > 16 {
         return Err(Error::Argument(format!(
             "--downsample {downsample} must be between 1 and 16"
@@ -483,14 +521,14 @@ fn downsampled_params(downsample: u32) -> Result<SlamParams> {
     }
     Ok(SlamParams {
         downsample,
-        ..SlamParams::default()
+        ..SlamParams::profile(profile)
     })
 }
 
 fn cmd_compare(a: CompareArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, 20)?;
-    let params = downsampled_params(a.downsample)?;
+    let params = profile_params(a.profile, a.downsample)?;
     let gpu = any_backend::open(BackendChoice::Gpu)?;
     let cpu = any_backend::open(BackendChoice::Cpu)?;
     let c = compare::compare(cpu, gpu, &seq, first, last, params)?;
@@ -570,7 +608,7 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         eprintln!("benchmarking both backends frame by frame in one process ...");
         let seq = a.data.open()?;
         let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-        let params = downsampled_params(a.downsample)?;
+        let params = profile_params(a.profile, a.downsample)?;
         let gpu = crate::gpu::GpuBackend::open()?;
         let r = bench::bench_interleaved(gpu, &seq, first, last, &params)?;
         bench::print_interleaved(&r);
@@ -605,6 +643,10 @@ impl BenchArgs {
             ("--max-time-diff", Some(d.max_time_diff.to_string())),
             ("--frames", self.frames.clone()),
             ("--downsample", Some(self.downsample.to_string())),
+            (
+                "--profile",
+                clap::ValueEnum::to_possible_value(&self.profile).map(|v| v.get_name().to_string()),
+            ),
         ] {
             if let Some(v) = v {
                 args.extend([flag.to_string(), v]);
@@ -617,7 +659,7 @@ impl BenchArgs {
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-    let params = downsampled_params(a.downsample)?;
+    let params = profile_params(a.profile, a.downsample)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
     let make = || any_backend::open(choice);
     let mut r = if a.frames_only {

@@ -1,29 +1,69 @@
 //! CPU twin of `shaders/icp_reduce.wgsl`: projective data association, both filters, the
-//! point-to-plane row and the reduction to the 29-float normal-equation system.
+//! weighted point-to-plane row and the reduction to the 29-float normal-equation system.
 //!
 //! Source: the predicted model map (world frame), one point per pixel, moved into the
 //! new camera with the current estimate `T_world_to_cam`: `p' = T p`. Filter 1: `p'`
 //! projects inside the image with `z > 0`, onto a pixel whose `normal_depth` texel is valid
 //! (a valid normal implies a valid target vertex, depth > 0). Filter 2:
-//! `|p' - q| < dist_threshold_m`. Target `q`, `n_q`: the new frame's vertex (rebuilt from
-//! the texel's depth with `back_project`) and normal, camera frame. Linearising
-//! `T <- exp(x) T` with `x = (alpha, beta, gamma, tx, ty, tz)` gives the residual
-//! `r = A x + b` with `A = [(p' x n_q)ᵀ, n_qᵀ]` and `b = n_qᵀ (p' - q)`; the least-squares
-//! increment solves `AᵀA x = -Aᵀb` (see `crate::slam::solve`).
+//! `|p' - q| < dist_threshold_m` and, when the angle gate is on
+//! (`cos_normal_threshold >= -1`), the model normal moved into the camera, `R n_p`, and
+//! the frame normal `n_q` have a cosine above `cos_normal_threshold`. Target `q`, `n_q`:
+//! the new frame's vertex (rebuilt from the texel's depth with `back_project`) and normal,
+//! camera frame. Linearising `T <- exp(x) T` with `x = (alpha, beta, gamma, tx, ty, tz)`
+//! gives the residual `r = A x + b` with `A = [(p' x n_q)ᵀ, n_qᵀ]` and
+//! `b = n_qᵀ (p' - q)`; the least-squares increment solves `AᵀA x = -Aᵀb` (see
+//! `crate::slam::solve`).
+//!
+//! Weights (robust profile; both off in the assignment's): a Huber weight on `b`
+//! ([`huber_weight`]) times a depth-noise weight of the target depth ([`noise_weight`]).
+//! The row is scaled by `sqrt(w)`, so the system stays 29 floats: AᵀWA, AᵀWb, the inlier
+//! count and the weighted squared residuals. With both off `w` is exactly 1 and the row
+//! is the unweighted one bit for bit.
 
-use super::{back_project, is_valid, project_to_texel, transform_point, xyz};
+use super::{back_project, is_valid, project_to_texel, transform_dir, transform_point, xyz};
 use crate::layout::{
     IcpParams, ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN,
 };
 
-/// One correspondence's Jacobian row `A` and residual `b`, or `None` when a filter rejects
-/// it. Mirrors `icp_row` in icp_reduce.wgsl.
+/// Axial depth noise of a Kinect-like sensor, after Nguyen, Izadi and Lovell (2012):
+/// `sigma(z) = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD (z - NOISE_Z_0_M)^2`, metres.
+pub const NOISE_SIGMA_0_M: f32 = 0.0012;
+pub const NOISE_SIGMA_QUAD: f32 = 0.0019;
+pub const NOISE_Z_0_M: f32 = 0.4;
+
+/// Row weight of the depth noise at `z` (metres): `(sigma(0.4 m) / sigma(z))^2`, 1 at
+/// 0.4 m and less beyond. Mirrors `noise_weight` in icp_reduce.wgsl.
+#[inline]
+pub fn noise_weight(z: f32) -> f32 {
+    let dz = z - NOISE_Z_0_M;
+    let sigma = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD * dz * dz;
+    let r = NOISE_SIGMA_0_M / sigma;
+    r * r
+}
+
+/// Huber weight of a residual `b` (metres): 1 within `delta`, `delta / |b|` beyond; 1 when
+/// `delta` is 0 (off). Mirrors `huber_weight` in icp_reduce.wgsl.
+#[inline]
+pub fn huber_weight(b: f32, delta: f32) -> f32 {
+    if delta <= 0.0 || b.abs() <= delta {
+        return 1.0;
+    }
+    delta / b.abs()
+}
+
+/// The weighted Jacobian row `A` and residual `b` of source pixel `src_texel` (both scaled
+/// by `sqrt(weight)`), or `None` when a filter rejects it. Mirrors `icp_row` in
+/// icp_reduce.wgsl.
 #[inline]
 pub fn icp_row(
     params: &IcpParams,
-    src_world: [f32; 4],
+    src_texel: [u32; 2],
+    pred_vertex: &[[f32; 4]],
+    pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> Option<([f32; 6], f32)> {
+    let src = src_texel[1] as usize * params.width as usize + src_texel[0] as usize;
+    let src_world = pred_vertex[src];
     if !is_valid(src_world) {
         return None;
     }
@@ -42,8 +82,23 @@ pub fn icp_row(
     if d.length() >= params.dist_threshold_m {
         return None;
     }
-    let pxn = p.cross(n);
-    Some(([pxn.x, pxn.y, pxn.z, n.x, n.y, n.z], n.dot(d)))
+    // The angle gate reads the source normal only when it is on.
+    if params.cos_normal_threshold >= -1.0 {
+        let src_normal_world = pred_normal[src];
+        let n_p = transform_dir(&params.t_world_to_cam, xyz(src_normal_world));
+        if !is_valid(src_normal_world) || n_p.dot(n) <= params.cos_normal_threshold {
+            return None;
+        }
+    }
+    let b = n.dot(d);
+    let mut w = huber_weight(b, params.huber_delta_m);
+    if params.noise_weighting != 0 {
+        w *= noise_weight(q.z);
+    }
+    let s = w.sqrt();
+    let pxn = p.cross(n) * s;
+    let ns = n * s;
+    Some(([pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z], b * s))
 }
 
 /// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
@@ -65,21 +120,25 @@ pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
 }
 
 /// Bindings (as in the shader header):
-/// - 0 `params`: `IcpParams` (current `t_world_to_cam`, intrinsics, `dist_threshold_m`)
+/// - 0 `params`: `IcpParams` (current `t_world_to_cam`, intrinsics, the gates and weights)
 /// - 1 `pred_vertex`: source, width x height, WORLD frame, w = 1 / 0
-/// - 2 `normal_depth`: target normals (camera frame) with the target vertex's depth in w,
+/// - 2 `pred_normal`: the source's unit normals, WORLD frame, w = 1 / 0 (angle gate)
+/// - 3 `normal_depth`: target normals (camera frame) with the target vertex's depth in w,
 ///   zero where invalid (see `vertex_to_normal`)
-/// - 3 `partials`: returned instead of written: the summed system (the GPU writes one f32
+/// - 4 `partials`: returned instead of written: the summed system (the GPU writes one f32
 ///   partial per workgroup; the host sums them in f64)
 pub fn icp_reduce(
     params: &IcpParams,
     pred_vertex: &[[f32; 4]],
+    pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> [f64; ICP_SYSTEM_LEN] {
     let mut sys = [0.0f64; ICP_SYSTEM_LEN];
-    for src in pred_vertex {
-        if let Some((a, b)) = icp_row(params, *src, normal_depth) {
-            accumulate(&mut sys, &a, b);
+    for v in 0..params.height {
+        for u in 0..params.width {
+            if let Some((a, b)) = icp_row(params, [u, v], pred_vertex, pred_normal, normal_depth) {
+                accumulate(&mut sys, &a, b);
+            }
         }
     }
     sys
@@ -90,9 +149,36 @@ mod tests {
     use super::*;
     use crate::geometry::se3;
     use crate::layout::gpu_mat4;
+    use bytemuck::Zeroable;
 
     /// Central differences in f64 of an f32 residual: error ~ h^2 plus f32 rounding / h.
     const JACOBIAN_TOL: f64 = 2e-3;
+
+    /// Gates and weights off: the assignment's filters.
+    fn plain(params: IcpParams) -> IcpParams {
+        IcpParams {
+            cos_normal_threshold: -2.0,
+            huber_delta_m: 0.0,
+            noise_weighting: 0,
+            ..params
+        }
+    }
+
+    /// The row of one source point `p` (world frame) with normal `n_p`, put at texel (0, 0)
+    /// of an otherwise empty prediction.
+    fn row_of(
+        params: &IcpParams,
+        p: [f32; 4],
+        n_p: [f32; 4],
+        nd: &[[f32; 4]],
+    ) -> Option<([f32; 6], f32)> {
+        let n = (params.width * params.height) as usize;
+        let mut pv = vec![[0.0; 4]; n];
+        let mut pn = vec![[0.0; 4]; n];
+        pv[0] = p;
+        pn[0] = n_p;
+        icp_row(params, [0, 0], &pv, &pn, nd)
+    }
 
     /// The analytic row matches finite differences of the exact residual
     /// `n_qᵀ (exp(x) p' - q)` around x = 0.
@@ -110,8 +196,9 @@ mod tests {
             width: 5,
             height: 5,
             dist_threshold_m: 0.5,
-            _pad: 0,
+            ..Zeroable::zeroed()
         };
+        let params = plain(params);
         // A target map where every pixel holds n at depth z_q; q is the vertex of the pixel
         // p lands on.
         let nd = vec![[n.x as f32, n.y as f32, n.z as f32, z_q]; 25];
@@ -123,8 +210,13 @@ mod tests {
             let t = se3::exp(x);
             n.dot(t.transform_point3(p) - q)
         };
-        let (a, b) = icp_row(&params, [p.x as f32, p.y as f32, p.z as f32, 1.0], &nd)
-            .expect("the correspondence passes both filters");
+        let (a, b) = row_of(
+            &params,
+            [p.x as f32, p.y as f32, p.z as f32, 1.0],
+            [0.0; 4],
+            &nd,
+        )
+        .expect("the correspondence passes both filters");
         assert!((b as f64 - resid(&[0.0; 6])).abs() < 1e-6);
         let h = 1e-4;
         for k in 0..6 {
@@ -152,11 +244,12 @@ mod tests {
             width: 3,
             height: 3,
             dist_threshold_m: 0.07,
-            _pad: 0,
+            ..Zeroable::zeroed()
         };
+        let params = plain(params);
         // Normal (0, 0, -1) at depth 1 m everywhere: the centre pixel's vertex is (0, 0, 1).
         let nd = vec![[0.0, 0.0, -1.0, 1.0]; 9];
-        let row = |p: [f32; 4]| icp_row(&params, p, &nd);
+        let row = |p: [f32; 4]| row_of(&params, p, [0.0; 4], &nd);
         assert!(row([0.0, 0.0, 1.05, 1.0]).is_some());
         assert!(row([0.0, 0.0, -1.0, 1.0]).is_none(), "behind the camera");
         assert!(row([1.0, 0.0, 1.0, 1.0]).is_none(), "outside the image");
@@ -164,6 +257,57 @@ mod tests {
         assert!(row([0.0, 0.0, 1.0, 0.0]).is_none(), "invalid source");
         let mut holes = nd.clone();
         holes[4] = [0.0; 4];
-        assert!(icp_row(&params, [0.0, 0.0, 1.0, 1.0], &holes).is_none());
+        assert!(row_of(&params, [0.0, 0.0, 1.0, 1.0], [0.0; 4], &holes).is_none());
+    }
+
+    /// The angle gate rejects a model normal turned away from the frame normal and keeps
+    /// an aligned one; the Huber and noise weights scale the row by sqrt(w).
+    #[test]
+    fn angle_gate_and_weights() {
+        let params = IcpParams {
+            t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
+            fx: 100.0,
+            fy: 100.0,
+            cx: 1.0,
+            cy: 1.0,
+            width: 3,
+            height: 3,
+            dist_threshold_m: 0.1,
+            cos_normal_threshold: 20f32.to_radians().cos(),
+            ..Zeroable::zeroed()
+        };
+        let nd = vec![[0.0, 0.0, -1.0, 1.0]; 9];
+        let toward = [0.0, 0.0, -1.0, 1.0];
+        let tilted = [
+            0.0,
+            30f32.to_radians().sin(),
+            -30f32.to_radians().cos(),
+            1.0,
+        ];
+        let p = [0.0, 0.0, 1.05, 1.0];
+        let (a1, b1) = row_of(&params, p, toward, &nd).expect("aligned normals pass");
+        assert!(row_of(&params, p, tilted, &nd).is_none(), "30 degrees > 20");
+        assert!(
+            row_of(&params, p, [0.0; 4], &nd).is_none(),
+            "invalid model normal"
+        );
+        // Huber: |b| = 0.05 > delta = 0.01 gives w = 0.2; the row scales by sqrt(0.2).
+        let huber = IcpParams {
+            huber_delta_m: 0.01,
+            ..params
+        };
+        let (a2, b2) = row_of(&huber, p, toward, &nd).unwrap();
+        let s = 0.2f32.sqrt();
+        assert!((b2 - b1 * s).abs() < 1e-6, "{b2} vs {}", b1 * s);
+        assert!((a2[5] - a1[5] * s).abs() < 1e-6);
+        // Noise: 1 at 0.4 m, falling with depth; the row at 1 m depth is scaled by it.
+        assert_eq!(noise_weight(NOISE_Z_0_M), 1.0);
+        assert!(noise_weight(3.0) < noise_weight(1.0) && noise_weight(1.0) < 1.0);
+        let noisy = IcpParams {
+            noise_weighting: 1,
+            ..params
+        };
+        let (_, b3) = row_of(&noisy, p, toward, &nd).unwrap();
+        assert!((b3 - b1 * noise_weight(1.0).sqrt()).abs() < 1e-6);
     }
 }

@@ -79,9 +79,10 @@ pub mod bindings {
         Binding::write_texture("pred_vertex: world frame"),
         Binding::write_texture("pred_normal: world frame"),
     ];
-    pub const ICP_REDUCE: [Binding; 4] = [
+    pub const ICP_REDUCE: [Binding; 5] = [
         Binding::uniform("params: IcpParams"),
         Binding::texture_f32("pred_vertex: source, world frame"),
+        Binding::texture_f32("pred_normal: source normals, world frame"),
         Binding::texture_f32("normal_depth: target, camera frame, w = depth"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
@@ -533,6 +534,7 @@ impl GpuBackend {
                     &[
                         self.u_icp.binding(),
                         f.pred_vertex.binding(),
+                        f.pred_normal.binding(),
                         f.normal_depth.binding(),
                         self.partials.binding(),
                     ],

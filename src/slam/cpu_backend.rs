@@ -99,6 +99,7 @@ impl Backend for CpuBackend {
         Ok(cpu::icp_reduce::icp_reduce(
             params,
             &self.pred_vertex,
+            &self.pred_normal,
             &self.frame.normal_depth,
         ))
     }
