@@ -13,7 +13,7 @@ use common::harness::{gpu, gpu_shared, plain, shared};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::pipeline::{Backend, PoseSource, SlamParams, TrackStatus};
+use wgslam::slam::pipeline::{Backend, PoseSource, Profile, SlamParams, TrackStatus};
 use wgslam::tools::run;
 
 /// The issue's bar for frames 1..200 at downsample 2: ATE RMSE after rigid alignment.
@@ -22,6 +22,13 @@ const ATE_ALIGNED_MAX_M: f64 = 1e-3;
 /// ~0.2 mm here (CPU and GPU alike), so 0.5 mm still catches a tracker that is off by a
 /// pixel's worth.
 const ATE_BUNDLED_MAX_M: f64 = 0.5e-3;
+/// The robust profile on the 23 bundled noisy frames: measured 4.4 mm ATE aligned (the
+/// assignment's profile: 11.6 mm); 8 mm leaves room for the backends' rounding while
+/// still failing a tracker that drifts like the assignment's.
+const ATE_BUNDLED_NOISY_MAX_M: f64 = 8e-3;
+/// The issue's bar for noisy frames 1..200 at 320x240 (robust profile; measured 8.8 mm,
+/// the assignment's profile 204 mm; Open3D's TSDF pipeline 38 mm).
+const ATE_NOISY_320_MAX_M: f64 = 15e-3;
 
 fn main() -> ExitCode {
     common::harness::run(vec![
@@ -43,6 +50,23 @@ fn main() -> ExitCode {
         gpu_shared("gpu_shared_sequence_1_to_200_within_1mm", |ctx, data| {
             shared_sequence_1_to_200_within_1mm(gpu_backend(ctx), data)
         }),
+        plain("robust_profile_tracks_bundled_noisy_frames", || {
+            robust_profile_tracks_bundled_noisy_frames(CpuBackend::new())
+        }),
+        gpu("gpu_robust_profile_tracks_bundled_noisy_frames", |ctx| {
+            robust_profile_tracks_bundled_noisy_frames(gpu_backend(ctx))
+        }),
+        plain(
+            "robust_profile_tracks_clean_frames_too",
+            robust_profile_tracks_clean_frames_too,
+        ),
+        shared("shared_noisy_1_to_200_robust_within_15mm", |data| {
+            shared_noisy_1_to_200_robust_within_15mm(CpuBackend::new(), data)
+        }),
+        gpu_shared(
+            "gpu_shared_noisy_1_to_200_robust_within_15mm",
+            |ctx, data| shared_noisy_1_to_200_robust_within_15mm(gpu_backend(ctx), data),
+        ),
         plain(
             "empty_and_untrackable_frames_are_reported_not_fused",
             empty_and_untrackable_frames_are_reported_not_fused,
@@ -213,4 +237,67 @@ fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
     }
     assert!(r.cpu_frame_mean_s > 0.0 && r.gpu_frame_mean_s > 0.0);
     assert!(0.0 < r.ratio_p10 && r.ratio_p10 <= r.ratio_median && r.ratio_median <= r.ratio_p90);
+}
+
+/// Runs `backend` over frames `first..=last` of `dir` with `params`; returns the aligned
+/// ATE (metres) and the map's size as a fraction of all pixels fused.
+fn ate_and_map_fraction<B: Backend>(
+    backend: B,
+    dir: &Path,
+    first: usize,
+    last: usize,
+    params: SlamParams,
+) -> (f64, f64) {
+    let name = backend.name();
+    let seq = dataset::open(dir, &SequenceOptions::default()).unwrap();
+    let r = run::run(backend, &seq, first, last, params, |_| {}).unwrap();
+    let acc = r.metrics.accuracy.expect("ground truth");
+    eprintln!(
+        "{name} {} {first}..{last} ({:?}): ATE aligned {:.3} mm, unaligned {:.3} mm; map {} \
+         surfels ({:.4} of all pixels); lost {}",
+        dir.display(),
+        r.metrics.params.profile,
+        acc.ate_rmse_aligned_m * 1e3,
+        acc.ate_rmse_unaligned_m * 1e3,
+        r.map.len(),
+        r.metrics.compression_ratio,
+        r.metrics.tracking.lost
+    );
+    assert_eq!(r.metrics.tracking.lost, 0, "{name}: no frame may be lost");
+    (acc.ate_rmse_aligned_m, r.metrics.compression_ratio)
+}
+
+/// The robust profile holds on the bundled noisy frames, where the assignment's drifts.
+fn robust_profile_tracks_bundled_noisy_frames<B: Backend>(backend: B) {
+    let dir = common::bundled_icl_noisy();
+    let robust = SlamParams::profile(Profile::Robust);
+    let (ate, _) = ate_and_map_fraction(backend, &dir, 1, 23, robust);
+    assert!(
+        ate < ATE_BUNDLED_NOISY_MAX_M,
+        "robust ATE {:.2} mm on noisy frames",
+        ate * 1e3
+    );
+}
+
+/// The robust profile on clean frames: as good as the assignment's (which is exact there).
+fn robust_profile_tracks_clean_frames_too() {
+    let robust = SlamParams::profile(Profile::Robust);
+    let (ate, _) = ate_and_map_fraction(CpuBackend::new(), &common::bundled_icl(), 1, 23, robust);
+    assert!(
+        ate < ATE_BUNDLED_MAX_M,
+        "robust ATE {:.3} mm on clean frames",
+        ate * 1e3
+    );
+}
+
+/// The issue's bar on the full noisy sequence at 320x240.
+fn shared_noisy_1_to_200_robust_within_15mm<B: Backend>(backend: B, data: &Path) {
+    let dir = common::shared_icl_noisy(data);
+    let robust = SlamParams::profile(Profile::Robust);
+    let (ate, _) = ate_and_map_fraction(backend, &dir, 1, 200, robust);
+    assert!(
+        ate < ATE_NOISY_320_MAX_M,
+        "robust ATE {:.2} mm on noisy 1..200",
+        ate * 1e3
+    );
 }

@@ -266,7 +266,10 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     let cases = [
         ("true pose", s.icp_params(&t_true)),
         ("perturbed pose", s.icp_params(&(nudge * t_true))),
-        ("robust, perturbed pose", robust.icp_params(&(nudge * t_true))),
+        (
+            "robust, perturbed pose",
+            robust.icp_params(&(nudge * t_true)),
+        ),
     ];
     assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
     for (label, ip) in cases {

@@ -104,10 +104,10 @@ pub struct PipelineArgs {
     /// ICP iterations per frame at most (assignment 10, robust 15).
     #[arg(long)]
     pub icp_iters: Option<usize>,
-    /// Fusion distance threshold, metres (0.03).
+    /// Fusion distance threshold, metres (assignment 0.03, robust 0.05).
     #[arg(long)]
     pub fuse_dist: Option<f32>,
-    /// Fusion normal-angle threshold, degrees (5).
+    /// Fusion normal-angle threshold, degrees (assignment 5, robust 60).
     #[arg(long)]
     pub fuse_angle: Option<f32>,
     /// Implementation: auto, cpu or gpu.

@@ -17,10 +17,21 @@ pub fn bundled_icl() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2")
 }
 
+/// The same 24 frames with Kinect-like depth noise (depth only; the colour images are the
+/// clean subset's, which are byte-identical).
+pub fn bundled_icl_noisy() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2_noisy")
+}
+
 /// The full 210-frame ICL-NUIM sequence inside the shared data directory that
 /// [`harness::shared`] tests receive (`../shared/data`).
 pub fn shared_icl(data: &Path) -> PathBuf {
     data.join("icl_living_room_kt2")
+}
+
+/// The full noisy sequence (frames 0..209) inside the shared data directory.
+pub fn shared_icl_noisy(data: &Path) -> PathBuf {
+    data.join("icl_living_room_kt2_noisy")
 }
 
 /// A fresh empty directory under the system temp dir.
