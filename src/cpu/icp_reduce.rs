@@ -232,10 +232,10 @@ mod tests {
         }
     }
 
-    /// Filter 1 rejects points behind the camera or outside the image, filter 2 far ones.
-    #[test]
-    fn filters_reject() {
-        let params = IcpParams {
+    /// A 3x3 camera at the identity, f = 100 px, with distance gate `dist_m` and no
+    /// angle gate or weights.
+    fn params_3x3(dist_m: f32) -> IcpParams {
+        plain(IcpParams {
             t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
             fx: 100.0,
             fy: 100.0,
@@ -243,10 +243,15 @@ mod tests {
             cy: 1.0,
             width: 3,
             height: 3,
-            dist_threshold_m: 0.07,
+            dist_threshold_m: dist_m,
             ..Zeroable::zeroed()
-        };
-        let params = plain(params);
+        })
+    }
+
+    /// Filter 1 rejects points behind the camera or outside the image, filter 2 far ones.
+    #[test]
+    fn filters_reject() {
+        let params = plain(params_3x3(0.07));
         // Normal (0, 0, -1) at depth 1 m everywhere: the centre pixel's vertex is (0, 0, 1).
         let nd = vec![[0.0, 0.0, -1.0, 1.0]; 9];
         let row = |p: [f32; 4]| row_of(&params, p, [0.0; 4], &nd);
@@ -265,16 +270,8 @@ mod tests {
     #[test]
     fn angle_gate_and_weights() {
         let params = IcpParams {
-            t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
-            fx: 100.0,
-            fy: 100.0,
-            cx: 1.0,
-            cy: 1.0,
-            width: 3,
-            height: 3,
-            dist_threshold_m: 0.1,
             cos_normal_threshold: 20f32.to_radians().cos(),
-            ..Zeroable::zeroed()
+            ..params_3x3(0.1)
         };
         let nd = vec![[0.0, 0.0, -1.0, 1.0]; 9];
         let toward = [0.0, 0.0, -1.0, 1.0];
