@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::pipeline::{PoseSource, SlamParams};
+use crate::slam::pipeline::{BilateralSettings, PoseSource, SlamParams};
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -81,6 +81,74 @@ pub struct DatasetArgs {
     pub max_time_diff: f64,
 }
 
+/// The bilateral depth filter: off unless `--bilateral` (shared by `run`, `icp`, `compare`
+/// and `bench`); the other three flags take effect only with it.
+#[derive(Debug, Args)]
+pub struct BilateralArgs {
+    /// Smooth the depth with an edge-preserving bilateral filter before the normals, ICP
+    /// and fusion (KinectFusion's; for noisy sensors). Off by default.
+    #[arg(long)]
+    pub bilateral: bool,
+    /// Bilateral filter window half-width, pixels of the (downsampled) maps.
+    #[arg(long, default_value_t = BilateralSettings::default().radius_px)]
+    pub bilateral_radius: u32,
+    /// Bilateral filter spatial sigma, pixels of the (downsampled) maps.
+    #[arg(long, default_value_t = BilateralSettings::default().sigma_space_px)]
+    pub bilateral_sigma_space: f32,
+    /// Bilateral filter depth sigma, metres.
+    #[arg(long, default_value_t = BilateralSettings::default().sigma_depth_m)]
+    pub bilateral_sigma_depth: f32,
+}
+
+/// Largest `--bilateral-radius`: a 33x33 window is already far past any useful one.
+const MAX_BILATERAL_RADIUS: u32 = 16;
+
+impl BilateralArgs {
+    /// The filter's settings, or `None` without `--bilateral`.
+    pub fn settings(&self) -> Result<Option<BilateralSettings>> {
+        if !self.bilateral {
+            return Ok(None);
+        }
+        if self.bilateral_radius > MAX_BILATERAL_RADIUS {
+            return Err(Error::Argument(format!(
+                "--bilateral-radius {} must be at most {MAX_BILATERAL_RADIUS}",
+                self.bilateral_radius
+            )));
+        }
+        for (flag, v) in [
+            ("--bilateral-sigma-space", self.bilateral_sigma_space),
+            ("--bilateral-sigma-depth", self.bilateral_sigma_depth),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(Error::Argument(format!(
+                    "{flag} {v} must be a positive number"
+                )));
+            }
+        }
+        Ok(Some(BilateralSettings {
+            radius_px: self.bilateral_radius,
+            sigma_space_px: self.bilateral_sigma_space,
+            sigma_depth_m: self.bilateral_sigma_depth,
+        }))
+    }
+
+    /// The flags that reproduce these settings (for `bench`'s child processes).
+    fn args(&self) -> Vec<String> {
+        if !self.bilateral {
+            return Vec::new();
+        }
+        vec![
+            "--bilateral".into(),
+            "--bilateral-radius".into(),
+            self.bilateral_radius.to_string(),
+            "--bilateral-sigma-space".into(),
+            self.bilateral_sigma_space.to_string(),
+            "--bilateral-sigma-depth".into(),
+            self.bilateral_sigma_depth.to_string(),
+        ]
+    }
+}
+
 /// Pipeline tunables shared by `run` and `icp`.
 #[derive(Debug, Args)]
 pub struct PipelineArgs {
@@ -102,6 +170,8 @@ pub struct PipelineArgs {
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
+    #[command(flatten)]
+    pub bilateral: BilateralArgs,
 }
 
 #[derive(Debug, Args)]
@@ -151,6 +221,8 @@ pub struct CompareArgs {
     /// Keep every N-th pixel in each direction.
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
+    #[command(flatten)]
+    pub bilateral: BilateralArgs,
     /// Write the full comparison as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -166,6 +238,8 @@ pub struct BenchArgs {
     /// Keep every N-th pixel in each direction.
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
+    #[command(flatten)]
+    pub bilateral: BilateralArgs,
     /// Backends to run (bench-one runs the first only).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendChoice::Cpu, BackendChoice::Gpu])]
     pub backends: Vec<BackendChoice>,
@@ -267,6 +341,7 @@ impl PipelineArgs {
             fuse_dist_m: self.fuse_dist,
             fuse_normal_deg: self.fuse_angle,
             poses,
+            bilateral: self.bilateral.settings()?,
             ..SlamParams::default()
         })
     }
@@ -475,7 +550,8 @@ fn frame_range(
     Ok((*r.start(), *r.end()))
 }
 
-fn downsampled_params(downsample: u32) -> Result<SlamParams> {
+/// The default parameters at `downsample`, with the bilateral filter as the flags say.
+fn downsampled_params(downsample: u32, bilateral: &BilateralArgs) -> Result<SlamParams> {
     if downsample == 0 || downsample > 16 {
         return Err(Error::Argument(format!(
             "--downsample {downsample} must be between 1 and 16"
@@ -483,6 +559,7 @@ fn downsampled_params(downsample: u32) -> Result<SlamParams> {
     }
     Ok(SlamParams {
         downsample,
+        bilateral: bilateral.settings()?,
         ..SlamParams::default()
     })
 }
@@ -490,7 +567,7 @@ fn downsampled_params(downsample: u32) -> Result<SlamParams> {
 fn cmd_compare(a: CompareArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, 20)?;
-    let params = downsampled_params(a.downsample)?;
+    let params = downsampled_params(a.downsample, &a.bilateral)?;
     let gpu = any_backend::open(BackendChoice::Gpu)?;
     let cpu = any_backend::open(BackendChoice::Cpu)?;
     let c = compare::compare(cpu, gpu, &seq, first, last, params)?;
@@ -570,7 +647,7 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         eprintln!("benchmarking both backends frame by frame in one process ...");
         let seq = a.data.open()?;
         let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-        let params = downsampled_params(a.downsample)?;
+        let params = downsampled_params(a.downsample, &a.bilateral)?;
         let gpu = crate::gpu::GpuBackend::open()?;
         let r = bench::bench_interleaved(gpu, &seq, first, last, &params)?;
         bench::print_interleaved(&r);
@@ -610,6 +687,7 @@ impl BenchArgs {
                 args.extend([flag.to_string(), v]);
             }
         }
+        args.extend(self.bilateral.args());
         args
     }
 }
@@ -617,7 +695,7 @@ impl BenchArgs {
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-    let params = downsampled_params(a.downsample)?;
+    let params = downsampled_params(a.downsample, &a.bilateral)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
     let make = || any_backend::open(choice);
     let mut r = if a.frames_only {
