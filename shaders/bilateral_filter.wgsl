@@ -30,7 +30,8 @@ fn filtered_at(u: u32, v: u32) -> vec4<f32> {
     let u_hi = min(u + r, params.width - 1u);
     let v_hi = min(v + r, params.height - 1u);
     let k_space = 1.0 / (2.0 * params.sigma_space_px * params.sigma_space_px);
-    let k_depth = 1.0 / (2.0 * params.sigma_depth_m * params.sigma_depth_m);
+    let sigma_depth = params.sigma_depth_m + params.sigma_depth_per_m2 * c.z * c.z;
+    let k_depth = 1.0 / (2.0 * sigma_depth * sigma_depth);
     var sum_w = 0.0;
     var sum_wz = 0.0;
     for (var nv = v_lo; nv <= v_hi; nv++) {

@@ -46,7 +46,7 @@ struct BilateralParams {
     radius_px: u32,
     sigma_space_px: f32,
     sigma_depth_m: f32,
-    _pad0: u32,
+    sigma_depth_per_m2: f32,
     _pad1: u32,
     _pad2: u32,
 }

@@ -76,9 +76,11 @@ pub struct BilateralParams {
     pub radius_px: u32,
     /// Spatial Gaussian's standard deviation, pixels of the map.
     pub sigma_space_px: f32,
-    /// Range Gaussian's standard deviation on the depth difference, metres.
+    /// Range Gaussian's standard deviation on the depth difference, metres:
+    /// `sigma_depth_m + sigma_depth_per_m2 * z²` at the pixel's depth `z`.
     pub sigma_depth_m: f32,
-    pub _pad0: u32,
+    /// The range sigma's growth with the square of the depth, 1/m.
+    pub sigma_depth_per_m2: f32,
     pub _pad1: u32,
     pub _pad2: u32,
 }

@@ -30,12 +30,13 @@ use wgslam::Error;
 /// Vertices: the same f32 formula on both sides; lavapipe may contract a multiply-add into
 /// an FMA or round a division differently, a few ULP of a value below 6 m (~1e-6 m).
 const VERTEX_TOL_M: f32 = tolerance::VERTEX_MAX_ABS_M as f32;
-/// Bilaterally filtered vertices: a weighted mean of up to 49 depths whose weights come
+/// Bilaterally filtered vertices: a weighted mean of 9 (default) to 49 depths whose weights come
 /// from `exp`, which lavapipe evaluates with its own polynomial (WGSL allows 3 + 2|x| ULP)
 /// and whose sums it may contract into FMAs. A relative weight error ε moves the mean by at
 /// most ε times the spread of the window's depths, which the range weight keeps within a few
 /// sigma_depth (0.1 m): ~1e-6 m for ε of a few ULP, within the vertex bound (measured on
-/// lavapipe, frame 5: 1.7e-6 m at 320x240, 1.9e-6 m at 640x480).
+/// lavapipe, frame 5: 1.2e-6 m with the default 3x3 window at 320x240 and 640x480, 1.7e-6 m
+/// with the 7x7 one).
 const FILTERED_VERTEX_TOL_M: f32 = VERTEX_TOL_M;
 /// Normals, per component of a unit vector: a cross product of differences of nearby
 /// vertices amplifies those ULPs by the inverse of the pixel spacing (~1/0.01 m). Derived
@@ -182,13 +183,25 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
 
 /// bilateral_filter against its twin, through `preprocess` with the filter on (so the GPU
 /// pipeline's wiring is checked too): the unfiltered vertex map is kept, the filtered one
-/// matches the twin, and the normals are made from it; at downsample 2 and 1.
+/// matches the twin, and the normals are made from it; at downsample 2 and 1, with the
+/// default 3x3 window and depth-dependent sigma and with KinectFusion's 7x7 window and
+/// constant 30 mm sigma.
 fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
-    for downsample in [2, 1] {
+    let kinect_fusion = BilateralSettings {
+        radius_px: 3,
+        sigma_space_px: 2.25,
+        sigma_depth_m: 0.03,
+        sigma_depth_per_m2: 0.0,
+    };
+    for (downsample, settings) in [
+        (2, BilateralSettings::default()),
+        (1, BilateralSettings::default()),
+        (2, kinect_fusion),
+    ] {
         let params = SlamParams {
             downsample,
-            bilateral: Some(BilateralSettings::default()),
+            bilateral: Some(settings),
             ..SlamParams::default()
         };
         let s = slam(CpuBackend::new(), params);
@@ -206,7 +219,7 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
             .unwrap();
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
-        let tag = format!("bilateral, downsample {downsample}");
+        let tag = format!("bilateral {settings:?}, downsample {downsample}");
         check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
         assert_eq!(c.filtered_vertex.len(), c.vertex.len());
         check_vec4_map(

@@ -37,7 +37,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             radius_px,
             sigma_space_px,
             sigma_depth_m,
-            _pad0,
+            sigma_depth_per_m2,
             _pad1,
             _pad2
         }),

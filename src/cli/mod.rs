@@ -95,9 +95,12 @@ pub struct BilateralArgs {
     /// Bilateral filter spatial sigma, pixels of the (downsampled) maps.
     #[arg(long, default_value_t = BilateralSettings::default().sigma_space_px)]
     pub bilateral_sigma_space: f32,
-    /// Bilateral filter depth sigma, metres.
+    /// Bilateral filter depth sigma, metres (at depth 0, see --bilateral-sigma-depth-z2).
     #[arg(long, default_value_t = BilateralSettings::default().sigma_depth_m)]
     pub bilateral_sigma_depth: f32,
+    /// Bilateral filter depth sigma's growth with depth squared, 1/m: sigma_depth + this x z².
+    #[arg(long, default_value_t = BilateralSettings::default().sigma_depth_per_m2)]
+    pub bilateral_sigma_depth_z2: f32,
 }
 
 /// Largest `--bilateral-radius`: a 33x33 window is already far past any useful one.
@@ -115,20 +118,24 @@ impl BilateralArgs {
                 self.bilateral_radius
             )));
         }
-        for (flag, v) in [
-            ("--bilateral-sigma-space", self.bilateral_sigma_space),
-            ("--bilateral-sigma-depth", self.bilateral_sigma_depth),
-        ] {
-            if !(v > 0.0 && v.is_finite()) {
-                return Err(Error::Argument(format!(
-                    "{flag} {v} must be a positive number"
-                )));
-            }
+        let space = self.bilateral_sigma_space;
+        if !(space > 0.0 && space.is_finite()) {
+            return Err(Error::Argument(format!(
+                "--bilateral-sigma-space {space} must be a positive number"
+            )));
+        }
+        let (depth, z2) = (self.bilateral_sigma_depth, self.bilateral_sigma_depth_z2);
+        if !(depth >= 0.0 && z2 >= 0.0 && depth + z2 > 0.0 && (depth + z2).is_finite()) {
+            return Err(Error::Argument(format!(
+                "--bilateral-sigma-depth {depth} and --bilateral-sigma-depth-z2 {z2} must be \
+                 non-negative numbers, not both zero"
+            )));
         }
         Ok(Some(BilateralSettings {
             radius_px: self.bilateral_radius,
             sigma_space_px: self.bilateral_sigma_space,
             sigma_depth_m: self.bilateral_sigma_depth,
+            sigma_depth_per_m2: self.bilateral_sigma_depth_z2,
         }))
     }
 
@@ -145,6 +152,8 @@ impl BilateralArgs {
             self.bilateral_sigma_space.to_string(),
             "--bilateral-sigma-depth".into(),
             self.bilateral_sigma_depth.to_string(),
+            "--bilateral-sigma-depth-z2".into(),
+            self.bilateral_sigma_depth_z2.to_string(),
         ]
     }
 }

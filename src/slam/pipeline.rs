@@ -212,25 +212,27 @@ pub struct SlamParams {
 }
 
 /// Parameters of the bilateral depth filter (`cpu::bilateral_filter`), in pixels of the
-/// (downsampled) maps and metres. The defaults are KinectFusion's (sigma_space 4.5 px at
-/// 640x480, sigma_depth 30 mm) at the default 320x240: see the twin's header for the
-/// measurements behind them.
+/// (downsampled) maps and metres. The defaults (3x3 window, sigma 1 px, range sigma
+/// `0.01 z²`) were measured at the default 320x240: see the twin's header for the table.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct BilateralSettings {
     /// Half-width of the window, pixels: (2r+1)² neighbours.
     pub radius_px: u32,
     /// Spatial Gaussian's standard deviation, pixels.
     pub sigma_space_px: f32,
-    /// Range Gaussian's standard deviation on depth differences, metres.
+    /// Range Gaussian's standard deviation on depth differences, metres, at depth 0 ...
     pub sigma_depth_m: f32,
+    /// ... plus this times the pixel's depth squared (1/m).
+    pub sigma_depth_per_m2: f32,
 }
 
 impl Default for BilateralSettings {
     fn default() -> Self {
         BilateralSettings {
-            radius_px: 3,
-            sigma_space_px: 2.25,
-            sigma_depth_m: 0.03,
+            radius_px: 1,
+            sigma_space_px: 1.0,
+            sigma_depth_m: 0.0,
+            sigma_depth_per_m2: 0.01,
         }
     }
 }
@@ -362,7 +364,7 @@ impl<B: Backend> Slam<B> {
             radius_px: b.radius_px,
             sigma_space_px: b.sigma_space_px,
             sigma_depth_m: b.sigma_depth_m,
-            _pad0: 0,
+            sigma_depth_per_m2: b.sigma_depth_per_m2,
             _pad1: 0,
             _pad2: 0,
         })
