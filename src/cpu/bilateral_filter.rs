@@ -58,8 +58,9 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
         return INVALID;
     }
     let r = params.radius_px;
-    let u_lo = if u < r { 0 } else { u - r };
-    let v_lo = if v < r { 0 } else { v - r };
+    // The shader's `select(u - r, 0u, u < r)`.
+    let u_lo = u.saturating_sub(r);
+    let v_lo = v.saturating_sub(r);
     let u_hi = (u + r).min(params.width - 1);
     let v_hi = (v + r).min(params.height - 1);
     let k_space = 1.0 / (2.0 * params.sigma_space_px * params.sigma_space_px);

@@ -1,10 +1,10 @@
 //! The GPU backend: runs the dense-SLAM steps of [`crate::slam::pipeline::Backend`] as the WGSL
 //! kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`.
 //!
-//! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
-//! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
-//! textures, which lavapipe loads 3-5x faster than storage-buffer elements
-//! (`examples/lavapipe_loads.rs`).
+//! Per-pixel maps (raw inputs, vertex / filtered-vertex / normal / colour maps, the
+//! prediction) are 2D textures ([`GpuImage`]): kernels read them with `textureLoad` and
+//! write them as storage textures, which lavapipe loads 3-5x faster than storage-buffer
+//! elements (`examples/lavapipe_loads.rs`).
 //! The frame's normal map carries the vertex's depth in w (`normal_depth`), so the kernels
 //! that associate with the frame fetch one texel and rebuild the vertex (see
 //! vertex_to_normal.wgsl), as does the twin; `download_frame` reads it as it is.
@@ -16,6 +16,9 @@
 //! geometrically (x1.5, a GPU-side copy) before a fusion could overflow it. Per frame the
 //! host reads back only the ICP partials (one 29-float system per workgroup per iteration)
 //! and the 4-byte surfel counter; maps are downloaded only on request.
+//! With the bilateral filter on, `preprocess` runs three kernels and `vertex_to_normal`
+//! reads the filtered-vertex texture through a second bind group; the unfiltered vertex
+//! texture is kept (the filtered one is allocated either way, one frame map's worth).
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
 use std::collections::BTreeMap;
