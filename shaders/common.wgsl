@@ -35,6 +35,22 @@ struct NormalParams {
     _pad: u32,
 }
 
+// Mirrors `layout::BilateralParams` (bilateral_filter).
+struct BilateralParams {
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    radius_px: u32,
+    sigma_space_px: f32,
+    sigma_depth_m: f32,
+    sigma_depth_per_m2: f32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
 // Mirrors `layout::ProjectParams` (project_model, predict_model).
 struct ProjectParams {
     t_world_to_cam: mat4x4<f32>,

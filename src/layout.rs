@@ -60,6 +60,31 @@ pub struct NormalParams {
     pub _pad: u32,
 }
 
+/// Parameters of `bilateral_filter` (mirrors `BilateralParams` in common.wgsl).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct BilateralParams {
+    /// Intrinsics of the (downsampled) maps, pixels: the filtered vertex is re-built with them.
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    /// Map size in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Half-width of the window: (2 radius_px + 1)² neighbours, clipped at the border.
+    pub radius_px: u32,
+    /// Spatial Gaussian's standard deviation, pixels of the map.
+    pub sigma_space_px: f32,
+    /// Range Gaussian's standard deviation on the depth difference, metres:
+    /// `sigma_depth_m + sigma_depth_per_m2 * z²` at the pixel's depth `z`.
+    pub sigma_depth_m: f32,
+    /// The range sigma's growth with the square of the depth, 1/m.
+    pub sigma_depth_per_m2: f32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
 /// Parameters of `project_model` and `predict_model` (mirrors `ProjectParams`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]

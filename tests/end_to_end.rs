@@ -13,7 +13,9 @@ use common::harness::{gpu, gpu_shared, plain, shared};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::pipeline::{Backend, PoseSource, Profile, SlamParams, TrackStatus};
+use wgslam::slam::pipeline::{
+    Backend, BilateralSettings, PoseSource, Profile, SlamParams, TrackStatus,
+};
 use wgslam::tools::run;
 
 /// The bar for frames 1..200 at downsample 2: ATE RMSE after rigid alignment.
@@ -33,11 +35,18 @@ const ATE_NOISY_320_MAX_M: f64 = 15e-3;
 fn main() -> ExitCode {
     common::harness::run(vec![
         plain("bundled_frames_track_to_ground_truth", || {
-            bundled_frames_track_to_ground_truth(CpuBackend::new())
+            bundled_frames_track_to_ground_truth(CpuBackend::new(), SlamParams::default())
         }),
         gpu("gpu_bundled_frames_track_to_ground_truth", |ctx| {
-            bundled_frames_track_to_ground_truth(gpu_backend(ctx))
+            bundled_frames_track_to_ground_truth(gpu_backend(ctx), SlamParams::default())
         }),
+        plain("bundled_frames_track_with_the_bilateral_filter", || {
+            bundled_frames_track_to_ground_truth(CpuBackend::new(), with_bilateral())
+        }),
+        gpu(
+            "gpu_bundled_frames_track_with_the_bilateral_filter",
+            |ctx| bundled_frames_track_to_ground_truth(gpu_backend(ctx), with_bilateral()),
+        ),
         plain("full_resolution_tracks_too", full_resolution_tracks_too),
         plain(
             "ground_truth_poses_fuse_without_tracking",
@@ -82,13 +91,30 @@ fn gpu_backend(ctx: GpuContext) -> GpuBackend {
     GpuBackend::new(ctx).expect("GPU backend")
 }
 
-/// The 23 bundled frames (1..=23) on `backend`: within [`ATE_BUNDLED_MAX_M`] of the ground
-/// truth with and without alignment, no frame lost, a map of a plausible size.
-fn bundled_frames_track_to_ground_truth<B: Backend>(backend: B) {
-    let name = backend.name();
+/// The default parameters with the bilateral depth filter on, at its defaults.
+fn with_bilateral() -> SlamParams {
+    SlamParams {
+        bilateral: Some(BilateralSettings::default()),
+        ..SlamParams::default()
+    }
+}
+
+/// The 23 bundled frames (1..=23) on `backend` with `params`: within [`ATE_BUNDLED_MAX_M`]
+/// of the ground truth with and without alignment, no frame lost, a map of a plausible size.
+/// With the bilateral filter on, the clean frames must track as well as without it.
+fn bundled_frames_track_to_ground_truth<B: Backend>(backend: B, params: SlamParams) {
+    let name = format!(
+        "{}{}",
+        backend.name(),
+        if params.bilateral.is_some() {
+            " (bilateral)"
+        } else {
+            ""
+        }
+    );
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let last = seq.len() - 1;
-    let r = run::run(backend, &seq, 1, last, SlamParams::default(), |_| {}).unwrap();
+    let r = run::run(backend, &seq, 1, last, params, |_| {}).unwrap();
     let acc = r
         .metrics
         .accuracy

@@ -16,7 +16,9 @@ use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
-use wgslam::slam::pipeline::{Backend, PoseSource, Profile, Slam, SlamParams, TrackStatus};
+use wgslam::slam::pipeline::{
+    Backend, BilateralSettings, PoseSource, Profile, Slam, SlamParams, TrackStatus,
+};
 use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::tolerance;
 use wgslam::Error;
@@ -28,6 +30,14 @@ use wgslam::Error;
 /// Vertices: the same f32 formula on both sides; lavapipe may contract a multiply-add into
 /// an FMA or round a division differently, a few ULP of a value below 6 m (~1e-6 m).
 const VERTEX_TOL_M: f32 = tolerance::VERTEX_MAX_ABS_M as f32;
+/// Bilaterally filtered vertices: a weighted mean of 9 (default) to 49 depths whose weights come
+/// from `exp`, which lavapipe evaluates with its own polynomial (WGSL allows 3 + 2|x| ULP)
+/// and whose sums it may contract into FMAs. A relative weight error ε moves the mean by at
+/// most ε times the spread of the window's depths, which the range weight keeps within a few
+/// sigma_depth (0.1 m): ~1e-6 m for ε of a few ULP, within the vertex bound (measured on
+/// lavapipe, frame 5: 1.2e-6 m with the default 3x3 window at 320x240 and 640x480, 1.7e-6 m
+/// with the 7x7 one).
+const FILTERED_VERTEX_TOL_M: f32 = VERTEX_TOL_M;
 /// Normals, per component of a unit vector: a cross product of differences of nearby
 /// vertices amplifies those ULPs by the inverse of the pixel spacing (~1/0.01 m). Derived
 /// from `tolerance::NORMAL_MAX_DEG` (0.05 degrees): turning a unit vector by an angle θ moves
@@ -151,9 +161,10 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
         let (pp, np) = (s.preprocess_params(), s.normal_params());
         let mut cpu_b = s.backend;
         cpu_b
-            .preprocess(&pp, &np, &frame.depth, &frame.rgba)
+            .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
             .unwrap();
-        gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+        gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+            .unwrap();
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
         let tag = format!("downsample {downsample}");
@@ -170,6 +181,88 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
     }
 }
 
+/// bilateral_filter against its twin, through `preprocess` with the filter on (so the GPU
+/// pipeline's wiring is checked too): the unfiltered vertex map is kept, the filtered one
+/// matches the twin, and the normals are made from it; at downsample 2 and 1, with the
+/// default 3x3 window and depth-dependent sigma and with KinectFusion's 7x7 window and
+/// constant 30 mm sigma.
+fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
+    let frame = load_frame(&root(), 5);
+    let kinect_fusion = BilateralSettings {
+        radius_px: 3,
+        sigma_space_px: 2.25,
+        sigma_depth_m: 0.03,
+        sigma_depth_per_m2: 0.0,
+    };
+    for (downsample, settings) in [
+        (2, BilateralSettings::default()),
+        (1, BilateralSettings::default()),
+        (2, kinect_fusion),
+    ] {
+        let params = SlamParams {
+            downsample,
+            bilateral: Some(settings),
+            ..SlamParams::default()
+        };
+        let s = slam(CpuBackend::new(), params);
+        let (pp, bp, np) = (
+            s.preprocess_params(),
+            s.bilateral_params(),
+            s.normal_params(),
+        );
+        assert!(bp.is_some());
+        let mut cpu_b = s.backend;
+        cpu_b
+            .preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+            .unwrap();
+        gpu.preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+            .unwrap();
+        let c = cpu_b.download_frame().unwrap();
+        let g = gpu.download_frame().unwrap();
+        let tag = format!("bilateral {settings:?}, downsample {downsample}");
+        check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
+        assert_eq!(c.filtered_vertex.len(), c.vertex.len());
+        check_vec4_map(
+            &format!("{tag} filtered vertex"),
+            &c.filtered_vertex,
+            &g.filtered_vertex,
+            FILTERED_VERTEX_TOL_M,
+        );
+        // The filter keeps the validity mask exactly (invalid stays invalid, valid stays
+        // valid) and moves depths: the twin's output is not the unfiltered map.
+        let moved = (0..c.vertex.len())
+            .filter(|&i| c.vertex[i][3] > 0.0 && c.vertex[i][2] != c.filtered_vertex[i][2])
+            .count();
+        assert!(
+            c.vertex
+                .iter()
+                .zip(&c.filtered_vertex)
+                .all(|(a, b)| (a[3] > 0.0) == (b[3] > 0.0)),
+            "{tag}: the filter changed the validity mask"
+        );
+        assert!(
+            moved > c.vertex.len() / 4,
+            "{tag}: only {moved} depths moved"
+        );
+        let (c_normal, g_normal) = (c.normal_map(), g.normal_map());
+        check_vec4_map(&format!("{tag} normal"), &c_normal, &g_normal, NORMAL_TOL);
+        // normal_depth carries the filtered depth.
+        let i = (0..c.vertex.len())
+            .find(|&i| c.normal_depth[i][3] > 0.0)
+            .expect("a valid normal");
+        assert_eq!(
+            c.normal_depth[i][3], c.filtered_vertex[i][2],
+            "{tag}: pixel {i}"
+        );
+    }
+    // Back to the filter off: the frame has no filtered map again.
+    let s = slam(CpuBackend::new(), SlamParams::default());
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .unwrap();
+    assert!(gpu.download_frame().unwrap().filtered_vertex.is_empty());
+}
+
 /// project_model and predict_model against their twins on a real fused map, viewed from a
 /// later frame's ground-truth pose.
 fn predict_matches_twins(mut gpu: GpuBackend) {
@@ -179,7 +272,8 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     gpu.upload_map(&map).unwrap();
     let frame = load_frame(&root(), 6);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .unwrap();
     let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
     let proj = s.project_params(&t_world_to_cam);
     assert_eq!(proj.surfel_count as usize, map.len());
@@ -246,9 +340,10 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 4);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     s.backend
-        .preprocess(&pp, &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .unwrap();
     // Predict from frame 3's pose, track frame 4 from a perturbed estimate.
     let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
     let proj = s.project_params(&t_prev);
@@ -354,9 +449,10 @@ fn fuse_matches_twins(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 3);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     s.backend
-        .preprocess(&pp, &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, &np, &frame.depth, &frame.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .unwrap();
     let fp = s.fuse_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()), 3);
     let n_cpu = s.backend.fuse(&fp).unwrap();
     let n_gpu = gpu.fuse(&fp).unwrap();
@@ -557,13 +653,13 @@ fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     let s = slam(CpuBackend::new(), SlamParams::default());
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     let short = vec![0u16; 100];
-    match gpu.preprocess(&pp, &np, &short, &vec![0u32; 100]) {
+    match gpu.preprocess(&pp, None, &np, &short, &vec![0u32; 100]) {
         Err(Error::Argument(msg)) => assert!(msg.contains("640x480"), "{msg}"),
         other => panic!("expected Error::Argument, got {other:?}"),
     }
     // The backend still works afterwards.
     let f = load_frame(&root(), 1);
-    gpu.preprocess(&pp, &np, &f.depth, &f.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &f.depth, &f.rgba).unwrap();
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
 }
 
@@ -571,6 +667,9 @@ fn main() -> ExitCode {
     common::harness::run(vec![
         gpu("preprocess_matches_twins", |ctx| {
             preprocess_matches_twins(gpu_backend(ctx))
+        }),
+        gpu("bilateral_filter_matches_twin", |ctx| {
+            bilateral_filter_matches_twin(gpu_backend(ctx))
         }),
         gpu("predict_matches_twins", |ctx| {
             predict_matches_twins(gpu_backend(ctx))

@@ -27,6 +27,20 @@ fn rust_layouts() -> Vec<RustLayout> {
             min_depth_m,
             max_depth_m
         }),
+        rust_layout!(BilateralParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+            radius_px,
+            sigma_space_px,
+            sigma_depth_m,
+            sigma_depth_per_m2,
+            _pad1,
+            _pad2
+        }),
         rust_layout!(NormalParams {
             width,
             height,

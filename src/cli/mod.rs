@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::pipeline::{PoseSource, Profile, SlamParams};
+use crate::slam::pipeline::{BilateralSettings, PoseSource, Profile, SlamParams};
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -81,6 +81,83 @@ pub struct DatasetArgs {
     pub max_time_diff: f64,
 }
 
+/// The bilateral depth filter: off unless `--bilateral` (shared by `run`, `icp`, `compare`
+/// and `bench`); the other three flags take effect only with it.
+#[derive(Debug, Args)]
+pub struct BilateralArgs {
+    /// Smooth the depth with an edge-preserving bilateral filter before the normals, ICP
+    /// and fusion (KinectFusion's; for noisy sensors). Off by default.
+    #[arg(long)]
+    pub bilateral: bool,
+    /// Bilateral filter window half-width, pixels of the (downsampled) maps.
+    #[arg(long, default_value_t = BilateralSettings::default().radius_px)]
+    pub bilateral_radius: u32,
+    /// Bilateral filter spatial sigma, pixels of the (downsampled) maps.
+    #[arg(long, default_value_t = BilateralSettings::default().sigma_space_px)]
+    pub bilateral_sigma_space: f32,
+    /// Bilateral filter depth sigma, metres (at depth 0, see --bilateral-sigma-depth-z2).
+    #[arg(long, default_value_t = BilateralSettings::default().sigma_depth_m)]
+    pub bilateral_sigma_depth: f32,
+    /// Bilateral filter depth sigma's growth with depth squared, 1/m: sigma_depth + this x z².
+    #[arg(long, default_value_t = BilateralSettings::default().sigma_depth_per_m2)]
+    pub bilateral_sigma_depth_z2: f32,
+}
+
+/// Largest `--bilateral-radius`: a 33x33 window is already far past any useful one.
+const MAX_BILATERAL_RADIUS: u32 = 16;
+
+impl BilateralArgs {
+    /// The filter's settings, or `None` without `--bilateral`.
+    pub fn settings(&self) -> Result<Option<BilateralSettings>> {
+        if !self.bilateral {
+            return Ok(None);
+        }
+        if self.bilateral_radius > MAX_BILATERAL_RADIUS {
+            return Err(Error::Argument(format!(
+                "--bilateral-radius {} must be at most {MAX_BILATERAL_RADIUS}",
+                self.bilateral_radius
+            )));
+        }
+        let space = self.bilateral_sigma_space;
+        if !(space > 0.0 && space.is_finite()) {
+            return Err(Error::Argument(format!(
+                "--bilateral-sigma-space {space} must be a positive number"
+            )));
+        }
+        let (depth, z2) = (self.bilateral_sigma_depth, self.bilateral_sigma_depth_z2);
+        if !(depth >= 0.0 && z2 >= 0.0 && depth + z2 > 0.0 && (depth + z2).is_finite()) {
+            return Err(Error::Argument(format!(
+                "--bilateral-sigma-depth {depth} and --bilateral-sigma-depth-z2 {z2} must be \
+                 non-negative numbers, not both zero"
+            )));
+        }
+        Ok(Some(BilateralSettings {
+            radius_px: self.bilateral_radius,
+            sigma_space_px: self.bilateral_sigma_space,
+            sigma_depth_m: self.bilateral_sigma_depth,
+            sigma_depth_per_m2: self.bilateral_sigma_depth_z2,
+        }))
+    }
+
+    /// The flags that reproduce these settings (for `bench`'s child processes).
+    fn args(&self) -> Vec<String> {
+        if !self.bilateral {
+            return Vec::new();
+        }
+        vec![
+            "--bilateral".into(),
+            "--bilateral-radius".into(),
+            self.bilateral_radius.to_string(),
+            "--bilateral-sigma-space".into(),
+            self.bilateral_sigma_space.to_string(),
+            "--bilateral-sigma-depth".into(),
+            self.bilateral_sigma_depth.to_string(),
+            "--bilateral-sigma-depth-z2".into(),
+            self.bilateral_sigma_depth_z2.to_string(),
+        ]
+    }
+}
+
 /// Pipeline tunables shared by `run` and `icp`: a profile, then any of its values
 /// overridden one by one (the flags' defaults are the profile's).
 #[derive(Debug, Args)]
@@ -113,6 +190,8 @@ pub struct PipelineArgs {
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
+    #[command(flatten)]
+    pub bilateral: BilateralArgs,
 }
 
 #[derive(Debug, Args)]
@@ -165,6 +244,8 @@ pub struct CompareArgs {
     /// Parameter set (see `run --help`).
     #[arg(long, value_enum, default_value_t = Profile::Assignment)]
     pub profile: Profile,
+    #[command(flatten)]
+    pub bilateral: BilateralArgs,
     /// Write the full comparison as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -183,6 +264,8 @@ pub struct BenchArgs {
     /// Parameter set (see `run --help`).
     #[arg(long, value_enum, default_value_t = Profile::Assignment)]
     pub profile: Profile,
+    #[command(flatten)]
+    pub bilateral: BilateralArgs,
     /// Backends to run (bench-one runs the first only).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendChoice::Cpu, BackendChoice::Gpu])]
     pub backends: Vec<BackendChoice>,
@@ -305,7 +388,12 @@ impl PipelineArgs {
                 p.icp_huber_m
             )));
         }
-        Ok(p)
+        Ok(SlamParams {
+            // --bilateral turns the filter on with its flags' settings; without it the
+            // profile decides.
+            bilateral: self.bilateral.settings()?.or(p.bilateral),
+            ..p
+        })
     }
 }
 
@@ -512,8 +600,13 @@ fn frame_range(
     Ok((*r.start(), *r.end()))
 }
 
-/// The profile's parameters at `downsample` (for compare and bench).
-fn profile_params(profile: Profile, downsample: u32) -> Result<SlamParams> {
+/// The profile's parameters at `downsample`, with the bilateral filter on when the flags
+/// say so (for compare and bench).
+fn profile_params(
+    profile: Profile,
+    downsample: u32,
+    bilateral: &BilateralArgs,
+) -> Result<SlamParams> {
     if downsample == 0 || downsample > 16 {
         return Err(Error::Argument(format!(
             "--downsample {downsample} must be between 1 and 16"
@@ -521,6 +614,9 @@ fn profile_params(profile: Profile, downsample: u32) -> Result<SlamParams> {
     }
     Ok(SlamParams {
         downsample,
+        bilateral: bilateral
+            .settings()?
+            .or(SlamParams::profile(profile).bilateral),
         ..SlamParams::profile(profile)
     })
 }
@@ -528,7 +624,7 @@ fn profile_params(profile: Profile, downsample: u32) -> Result<SlamParams> {
 fn cmd_compare(a: CompareArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, 20)?;
-    let params = profile_params(a.profile, a.downsample)?;
+    let params = profile_params(a.profile, a.downsample, &a.bilateral)?;
     let gpu = any_backend::open(BackendChoice::Gpu)?;
     let cpu = any_backend::open(BackendChoice::Cpu)?;
     let c = compare::compare(cpu, gpu, &seq, first, last, params)?;
@@ -608,7 +704,7 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         eprintln!("benchmarking both backends frame by frame in one process ...");
         let seq = a.data.open()?;
         let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-        let params = profile_params(a.profile, a.downsample)?;
+        let params = profile_params(a.profile, a.downsample, &a.bilateral)?;
         let gpu = crate::gpu::GpuBackend::open()?;
         let r = bench::bench_interleaved(gpu, &seq, first, last, &params)?;
         bench::print_interleaved(&r);
@@ -652,6 +748,7 @@ impl BenchArgs {
                 args.extend([flag.to_string(), v]);
             }
         }
+        args.extend(self.bilateral.args());
         args
     }
 }
@@ -659,7 +756,7 @@ impl BenchArgs {
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-    let params = profile_params(a.profile, a.downsample)?;
+    let params = profile_params(a.profile, a.downsample, &a.bilateral)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
     let make = || any_backend::open(choice);
     let mut r = if a.frames_only {

@@ -12,6 +12,7 @@
 //! Textures become row-major slices: texel `(u, v)` of a `width`-wide map is element
 //! `v * width + u`, and surfel `i` of a map texture is element `i` ([`surfel_texel`]).
 
+pub mod bilateral_filter;
 pub mod cross_covariance;
 pub mod depth_to_vertex;
 pub mod fuse_add;

@@ -1,10 +1,10 @@
 //! The GPU backend: runs the dense-SLAM steps of [`crate::slam::pipeline::Backend`] as the WGSL
 //! kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`.
 //!
-//! Per-pixel maps (raw inputs, vertex / normal / colour maps, the prediction) are 2D
-//! textures ([`GpuImage`]): kernels read them with `textureLoad` and write them as storage
-//! textures, which lavapipe loads 3-5x faster than storage-buffer elements
-//! (`examples/lavapipe_loads.rs`).
+//! Per-pixel maps (raw inputs, vertex / filtered-vertex / normal / colour maps, the
+//! prediction) are 2D textures ([`GpuImage`]): kernels read them with `textureLoad` and
+//! write them as storage textures, which lavapipe loads 3-5x faster than storage-buffer
+//! elements (`examples/lavapipe_loads.rs`).
 //! The frame's normal map carries the vertex's depth in w (`normal_depth`), so the kernels
 //! that associate with the frame fetch one texel and rebuild the vertex (see
 //! vertex_to_normal.wgsl), as does the twin; `download_frame` reads it as it is.
@@ -16,6 +16,9 @@
 //! geometrically (x1.5, a GPU-side copy) before a fusion could overflow it. Per frame the
 //! host reads back only the ICP partials (one 29-float system per workgroup per iteration)
 //! and the 4-byte surfel counter; maps are downloaded only on request.
+//! With the bilateral filter on, `preprocess` runs three kernels and `vertex_to_normal`
+//! reads the filtered-vertex texture through a second bind group; the unfiltered vertex
+//! texture is kept (the filtered one is allocated either way, one frame map's worth).
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
 use std::collections::BTreeMap;
@@ -27,7 +30,8 @@ use super::kernel::{Binding, Kernel, TexelFormat};
 use super::map_textures::MapTextures;
 use super::timing::StageTimer;
 use crate::layout::{
-    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps};
@@ -61,9 +65,14 @@ pub mod bindings {
         Binding::write_texture("vertex_map: camera frame"),
         Binding::write_texture("color_map: RGB 0..255"),
     ];
+    pub const BILATERAL_FILTER: [Binding; 3] = [
+        Binding::uniform("params: BilateralParams"),
+        Binding::texture_f32("vertex_map: camera frame, unfiltered"),
+        Binding::write_texture("filtered_vertex: camera frame"),
+    ];
     pub const VERTEX_TO_NORMAL: [Binding; 3] = [
         Binding::uniform("params: NormalParams"),
-        Binding::texture_f32("vertex_map: camera frame"),
+        Binding::texture_f32("vertex_map: camera frame (filtered_vertex with the filter)"),
         Binding::write_texture("normal_depth: camera-frame normal, w = depth"),
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
@@ -109,6 +118,7 @@ pub mod bindings {
 
 struct Kernels {
     depth_to_vertex: Kernel,
+    bilateral_filter: Kernel,
     vertex_to_normal: Kernel,
     project_model: Kernel,
     predict_model: Kernel,
@@ -125,7 +135,13 @@ struct FrameBuffers {
     height: u32,
     raw_depth: GpuImage,
     raw_rgba: GpuImage,
+    /// `depth_to_vertex`'s output, never filtered.
     vertex: GpuImage,
+    /// `bilateral_filter`'s output; meaningful only when `filtered` is set.
+    filtered_vertex: GpuImage,
+    /// Whether the last `preprocess` ran the filter (and made the normals from
+    /// `filtered_vertex`).
+    filtered: bool,
     /// The normal map with the vertex's depth in w (see vertex_to_normal.wgsl).
     normal_depth: GpuImage,
     color: GpuImage,
@@ -143,7 +159,11 @@ impl FrameBuffers {
 
 struct BindGroups {
     depth_to_vertex: wgpu::BindGroup,
+    bilateral_filter: wgpu::BindGroup,
+    /// `vertex_to_normal` reading the unfiltered vertex map (filter off) ...
     vertex_to_normal: wgpu::BindGroup,
+    /// ... and reading the filtered one (filter on).
+    vertex_to_normal_filtered: wgpu::BindGroup,
     project_model: wgpu::BindGroup,
     predict_model: wgpu::BindGroup,
     icp_reduce: wgpu::BindGroup,
@@ -156,6 +176,7 @@ pub struct GpuBackend {
     ctx: GpuContext,
     kernels: Kernels,
     u_preprocess: Uniform<PreprocessParams>,
+    u_bilateral: Uniform<BilateralParams>,
     u_normal: Uniform<NormalParams>,
     u_project: Uniform<ProjectParams>,
     u_icp: Uniform<IcpParams>,
@@ -301,6 +322,11 @@ impl GpuBackend {
         let (kernels, uniforms, small, map) = ctx.scoped("creating the GPU backend", || {
             let kernels = Kernels {
                 depth_to_vertex: Kernel::new(&ctx, "depth_to_vertex", &bindings::DEPTH_TO_VERTEX)?,
+                bilateral_filter: Kernel::new(
+                    &ctx,
+                    "bilateral_filter",
+                    &bindings::BILATERAL_FILTER,
+                )?,
                 vertex_to_normal: Kernel::new(
                     &ctx,
                     "vertex_to_normal",
@@ -314,6 +340,7 @@ impl GpuBackend {
             };
             let uniforms = (
                 Uniform::new(&ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
+                Uniform::new(&ctx, "BilateralParams", &bytemuck::Zeroable::zeroed()),
                 Uniform::new(&ctx, "NormalParams", &bytemuck::Zeroable::zeroed()),
                 Uniform::new(&ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
                 Uniform::new(&ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
@@ -332,12 +359,13 @@ impl GpuBackend {
             let map = MapTextures::new(&ctx, capacity)?;
             Ok((kernels, uniforms, small, map))
         })?;
-        let (u_preprocess, u_normal, u_project, u_icp, u_fuse) = uniforms;
+        let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
         let (partials, partials_readback, counter, counter_readback) = small;
         Ok(GpuBackend {
             ctx,
             kernels,
             u_preprocess,
+            u_bilateral,
             u_normal,
             u_project,
             u_icp,
@@ -372,8 +400,9 @@ impl GpuBackend {
     /// per step). Costs a wait after every step: use for profiling, not for throughput.
     pub fn enable_kernel_timing(&mut self) {
         self.profiler = Some(Profiler {
-            // At most two kernels per submission (preprocess, predict, fuse).
-            timer: StageTimer::new(&self.ctx, 2),
+            // At most three kernels per submission (preprocess with the bilateral filter;
+            // predict and fuse have two).
+            timer: StageTimer::new(&self.ctx, 3),
             totals: BTreeMap::new(),
         });
     }
@@ -445,6 +474,8 @@ impl GpuBackend {
             raw_depth,
             raw_rgba,
             vertex: full("vertex map")?,
+            filtered_vertex: full("filtered vertex map")?,
+            filtered: false,
             normal_depth: full("normal-depth map")?,
             color: full("color map")?,
             index_map,
@@ -502,11 +533,27 @@ impl GpuBackend {
                         f.color.binding(),
                     ],
                 ),
+                bilateral_filter: k.bilateral_filter.bind_group(
+                    c,
+                    &[
+                        self.u_bilateral.binding(),
+                        f.vertex.binding(),
+                        f.filtered_vertex.binding(),
+                    ],
+                ),
                 vertex_to_normal: k.vertex_to_normal.bind_group(
                     c,
                     &[
                         self.u_normal.binding(),
                         f.vertex.binding(),
+                        f.normal_depth.binding(),
+                    ],
+                ),
+                vertex_to_normal_filtered: k.vertex_to_normal.bind_group(
+                    c,
+                    &[
+                        self.u_normal.binding(),
+                        f.filtered_vertex.binding(),
                         f.normal_depth.binding(),
                     ],
                 ),
@@ -595,6 +642,7 @@ impl Backend for GpuBackend {
     fn preprocess(
         &mut self,
         params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
         raw_depth: &[u16],
         raw_rgba: &[u32],
@@ -624,25 +672,30 @@ impl Backend for GpuBackend {
             let f = self.frame.as_mut().expect("ensure_frame made it");
             f.raw_depth.upload(ctx, raw_depth)?;
             f.raw_rgba.upload(ctx, raw_rgba)?;
+            f.filtered = bilateral.is_some();
             self.u_preprocess.write(ctx, params);
+            if let Some(b) = bilateral {
+                self.u_bilateral.write(ctx, b);
+            }
             self.u_normal.write(ctx, normal);
             Ok(())
         })?;
         let (w, h) = (params.width, params.height);
         let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
+        let bf_wg = self.kernels.bilateral_filter.workgroups_for_image(w, h);
         let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.depth_to_vertex, &bg.depth_to_vertex, d2v_wg),
-                    (&k.vertex_to_normal, &bg.vertex_to_normal, v2n_wg),
-                ],
-            )?;
+            let d2v = (&k.depth_to_vertex, &bg.depth_to_vertex, d2v_wg);
+            let bf = (&k.bilateral_filter, &bg.bilateral_filter, bf_wg);
+            let v2n = (&k.vertex_to_normal, &bg.vertex_to_normal, v2n_wg);
+            let v2n_filtered = (&k.vertex_to_normal, &bg.vertex_to_normal_filtered, v2n_wg);
+            let passes = match bilateral {
+                Some(_) => vec![d2v, bf, v2n_filtered],
+                None => vec![d2v, v2n],
+            };
+            record_passes(ctx, profiler, &mut enc, &passes)?;
             submit_profiled(ctx, profiler, enc)
         })
     }
@@ -779,6 +832,11 @@ impl Backend for GpuBackend {
         ctx.scoped("download frame", || {
             Ok(FrameMaps {
                 vertex: read_map(ctx, &f.vertex)?,
+                filtered_vertex: if f.filtered {
+                    read_map(ctx, &f.filtered_vertex)?
+                } else {
+                    Vec::new()
+                },
                 normal_depth: read_map(ctx, &f.normal_depth)?,
                 color: read_map(ctx, &f.color)?,
             })

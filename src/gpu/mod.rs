@@ -40,6 +40,7 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
     use backend::bindings as b;
     vec![
         ("depth_to_vertex", &b::DEPTH_TO_VERTEX),
+        ("bilateral_filter", &b::BILATERAL_FILTER),
         ("vertex_to_normal", &b::VERTEX_TO_NORMAL),
         ("project_model", &b::PROJECT_MODEL),
         ("predict_model", &b::PREDICT_MODEL),

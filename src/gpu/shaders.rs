@@ -29,6 +29,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/depth_to_vertex.wgsl"),
     ),
     (
+        "bilateral_filter",
+        include_str!("../../shaders/bilateral_filter.wgsl"),
+    ),
+    (
         "vertex_to_normal",
         include_str!("../../shaders/vertex_to_normal.wgsl"),
     ),

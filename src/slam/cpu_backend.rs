@@ -5,7 +5,8 @@
 
 use crate::cpu;
 use crate::layout::{
-    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, FrameMaps};
@@ -52,6 +53,7 @@ impl Backend for CpuBackend {
     fn preprocess(
         &mut self,
         params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
         raw_depth: &[u16],
         raw_rgba: &[u32],
@@ -67,11 +69,21 @@ impl Backend for CpuBackend {
             &mut self.frame.vertex,
             &mut self.frame.color,
         );
-        cpu::vertex_to_normal::vertex_to_normal(
-            normal,
-            &self.frame.vertex,
-            &mut self.frame.normal_depth,
-        );
+        // The normals (and through normal_depth, ICP and fusion) see the filtered map when
+        // the filter is on; `vertex` stays unfiltered either way.
+        let f = &mut self.frame;
+        let normals_from = match bilateral {
+            Some(b) => {
+                f.filtered_vertex.resize(n, cpu::INVALID);
+                cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
+                &f.filtered_vertex
+            }
+            None => {
+                f.filtered_vertex.clear();
+                &f.vertex
+            }
+        };
+        cpu::vertex_to_normal::vertex_to_normal(normal, normals_from, &mut f.normal_depth);
         Ok(())
     }
 

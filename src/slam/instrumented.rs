@@ -11,7 +11,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::layout::{
-    FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction};
@@ -67,13 +68,14 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn preprocess(
         &mut self,
         params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
         self.frame_systems.clear();
         self.step("preprocess", |b| {
-            b.preprocess(params, normal, raw_depth, raw_rgba)
+            b.preprocess(params, bilateral, normal, raw_depth, raw_rgba)
         })
     }
     fn predict(&mut self, params: &ProjectParams) -> Result<()> {

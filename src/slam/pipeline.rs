@@ -1,6 +1,7 @@
 //! The dense-SLAM frame as a fixed sequence of kernel steps, generic over a [`Backend`].
 //!
-//! Per frame: `preprocess` (depth -> vertex, normal-depth, colour maps), then for every
+//! Per frame: `preprocess` (depth -> vertex, optionally bilateral-filtered, then
+//! normal-depth and colour maps), then for every
 //! frame but the first `predict` (render the map at the previous pose into a model
 //! vertex/normal map, once per frame so each ICP iteration is O(pixels), not O(map)), up to
 //! `max_iters` ICP iterations of `icp_system` + host solve + left-multiplicative update,
@@ -16,7 +17,7 @@
 //!
 //! | step (kernels) | reads | writes |
 //! |---|---|---|
-//! | `preprocess` (`depth_to_vertex`, `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame), `normal_depth` (camera-frame normal, depth in w), `color` |
+//! | `preprocess` (`depth_to_vertex`, with [`SlamParams::bilateral`] `bilateral_filter`, then `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame, unfiltered), `filtered_vertex` (camera frame; only with the filter), `normal_depth` (camera-frame normal, depth in w; from `filtered_vertex` with the filter, else from `vertex`), `color` |
 //! | `predict` (`project_model`, `predict_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame) |
 //! | `icp_system` (`icp_reduce`), per iteration | `pred_vertex`, `normal_depth`; the current `t_world_to_cam` | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
 //! | `fuse` (`fuse_merge`, then `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, then appended), `assoc` (merged pixels), `counter` (surfel count) |
@@ -29,19 +30,24 @@ use glam::DMat4;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
 use crate::layout::{
-    camera_floats, gpu_mat4, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
-    ICP_SYSTEM_LEN,
+    camera_floats, gpu_mat4, BilateralParams, FuseParams, IcpParams, NormalParams,
+    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::solve::{increment_size, update_pose, NormalEquations, SolveError};
 use crate::Result;
 
 /// The per-frame maps a backend holds after `preprocess` (downloaded for comparison), in
-/// the kernels' representation: `depth_to_vertex`'s two outputs and `vertex_to_normal`'s.
+/// the kernels' representation: `depth_to_vertex`'s two outputs, `bilateral_filter`'s and
+/// `vertex_to_normal`'s.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameMaps {
-    /// Camera-frame vertices, metres, `w = 1` valid / `0` invalid.
+    /// Camera-frame vertices, metres, `w = 1` valid / `0` invalid: `depth_to_vertex`'s
+    /// output, unfiltered.
     pub vertex: Vec<[f32; 4]>,
+    /// `bilateral_filter`'s output (same representation), which `normal_depth` was made
+    /// from; empty when the last `preprocess` ran without the filter.
+    pub filtered_vertex: Vec<[f32; 4]>,
     /// Camera-frame unit normals with the vertex's depth (metres, > 0) in `w`; all zero
     /// where invalid (see `cpu::vertex_to_normal`).
     pub normal_depth: Vec<[f32; 4]>,
@@ -82,11 +88,14 @@ pub struct BackendCounters {
 pub trait Backend {
     /// Short name for logs and reports (`cpu`, `gpu`).
     fn name(&self) -> &'static str;
-    /// `depth_to_vertex` then `vertex_to_normal` on a raw frame (`raw_depth`: u16 depth
-    /// units; `raw_rgba`: packed RGBA8, both raw_width x raw_height).
+    /// `depth_to_vertex`, then `bilateral_filter` when `bilateral` is given, then
+    /// `vertex_to_normal` on the filtered vertex map (or on the unfiltered one without the
+    /// filter) on a raw frame (`raw_depth`: u16 depth units; `raw_rgba`: packed RGBA8, both
+    /// raw_width x raw_height). The unfiltered vertex map is kept either way.
     fn preprocess(
         &mut self,
         params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
         raw_depth: &[u16],
         raw_rgba: &[u32],
@@ -128,11 +137,12 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn preprocess(
         &mut self,
         params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
-        (**self).preprocess(params, normal, raw_depth, raw_rgba)
+        (**self).preprocess(params, bilateral, normal, raw_depth, raw_rgba)
     }
     fn predict(&mut self, params: &ProjectParams) -> Result<()> {
         (**self).predict(params)
@@ -220,6 +230,35 @@ pub struct SlamParams {
     pub fuse_normal_deg: f32,
     /// Tracking or ground-truth poses.
     pub poses: PoseSource,
+    /// The edge-preserving bilateral depth filter between `depth_to_vertex` and
+    /// `vertex_to_normal`; `None` (the default) runs without it.
+    pub bilateral: Option<BilateralSettings>,
+}
+
+/// Parameters of the bilateral depth filter (`cpu::bilateral_filter`), in pixels of the
+/// (downsampled) maps and metres. The defaults (3x3 window, sigma 1 px, range sigma
+/// `0.01 z²`) were measured at the default 320x240: see the twin's header for the table.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BilateralSettings {
+    /// Half-width of the window, pixels: (2r+1)² neighbours.
+    pub radius_px: u32,
+    /// Spatial Gaussian's standard deviation, pixels.
+    pub sigma_space_px: f32,
+    /// Range Gaussian's standard deviation on depth differences, metres, at depth 0 ...
+    pub sigma_depth_m: f32,
+    /// ... plus this times the pixel's depth squared (1/m).
+    pub sigma_depth_per_m2: f32,
+}
+
+impl Default for BilateralSettings {
+    fn default() -> Self {
+        BilateralSettings {
+            radius_px: 1,
+            sigma_space_px: 1.0,
+            sigma_depth_m: 0.0,
+            sigma_depth_per_m2: 0.01,
+        }
+    }
 }
 
 impl Default for SlamParams {
@@ -247,6 +286,7 @@ impl SlamParams {
             fuse_dist_m: 0.03,
             fuse_normal_deg: 5.0,
             poses: PoseSource::Track,
+            bilateral: None,
         };
         match profile {
             Profile::Assignment => assignment,
@@ -388,6 +428,26 @@ impl<B: Backend> Slam<B> {
         }
     }
 
+    /// Parameters of `bilateral_filter`, or `None` when [`SlamParams::bilateral`] is off.
+    pub fn bilateral_params(&self) -> Option<BilateralParams> {
+        let b = self.params.bilateral?;
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        Some(BilateralParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            radius_px: b.radius_px,
+            sigma_space_px: b.sigma_space_px,
+            sigma_depth_m: b.sigma_depth_m,
+            sigma_depth_per_m2: b.sigma_depth_per_m2,
+            _pad1: 0,
+            _pad2: 0,
+        })
+    }
+
     /// Parameters of `vertex_to_normal`.
     pub fn normal_params(&self) -> NormalParams {
         NormalParams {
@@ -468,7 +528,11 @@ impl<B: Backend> Slam<B> {
         raw_rgba: &[u32],
         gt_cam_to_world: Option<&DMat4>,
     ) -> Result<FrameReport> {
-        let (pp, np) = (self.preprocess_params(), self.normal_params());
+        let (pp, bp, np) = (
+            self.preprocess_params(),
+            self.bilateral_params(),
+            self.normal_params(),
+        );
         let given = match (self.params.poses, self.t_world_to_cam, gt_cam_to_world) {
             (PoseSource::GroundTruth, _, Some(gt)) => Some(se3::inverse_rigid(gt)),
             (PoseSource::GroundTruth, _, None) => {
@@ -485,7 +549,8 @@ impl<B: Backend> Slam<B> {
         if valid == 0 {
             return Ok(self.report(self.t_world_to_cam, TrackStatus::EmptyDepth, vec![]));
         }
-        self.backend.preprocess(&pp, &np, raw_depth, raw_rgba)?;
+        self.backend
+            .preprocess(&pp, bp.as_ref(), &np, raw_depth, raw_rgba)?;
         let (t_world_to_cam, status, iterations) = match given {
             Some(t) => (t, TrackStatus::Given, vec![]),
             None => self.track()?,

@@ -57,7 +57,8 @@ pub mod tolerance {
 /// Differences of two frame maps.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct MapDiff {
-    /// Largest |a - b| over pixels valid on both sides, metres.
+    /// Largest |a - b| over pixels valid on both sides, metres: the unfiltered vertex maps
+    /// and, when both ran the bilateral filter, the filtered ones.
     pub vertex_max_abs_m: f64,
     /// Largest normal angle over pixels valid on both sides, degrees.
     pub normal_max_deg: f64,
@@ -125,6 +126,15 @@ pub fn diff_frame_maps(a: &FrameMaps, b: &FrameMaps) -> MapDiff {
             let b = glam::DVec3::new(nb[0] as f64, nb[1] as f64, nb[2] as f64);
             let angle = a.cross(b).length().atan2(a.dot(b));
             d.normal_max_deg = d.normal_max_deg.max(angle.to_degrees());
+        }
+    }
+    if a.filtered_vertex.len() == b.filtered_vertex.len() {
+        for (fa, fb) in a.filtered_vertex.iter().zip(&b.filtered_vertex) {
+            if fa[3] > 0.0 && fb[3] > 0.0 {
+                for k in 0..3 {
+                    d.vertex_max_abs_m = d.vertex_max_abs_m.max((fa[k] - fb[k]).abs() as f64);
+                }
+            }
         }
     }
     d.validity_mismatch_fraction = mismatched as f64 / n as f64;
