@@ -24,13 +24,18 @@ const ATE_ALIGNED_MAX_M: f64 = 1e-3;
 /// ~0.2 mm here (CPU and GPU alike), so 0.5 mm still catches a tracker that is off by a
 /// pixel's worth.
 const ATE_BUNDLED_MAX_M: f64 = 0.5e-3;
-/// The robust profile on the 23 bundled noisy frames: measured 4.4 mm ATE aligned (the
-/// assignment's profile: 11.6 mm); 8 mm leaves room for the backends' rounding while
-/// still failing a tracker that drifts like the assignment's.
-const ATE_BUNDLED_NOISY_MAX_M: f64 = 8e-3;
-/// The bar for noisy frames 1..200 at 320x240 (robust profile; measured 8.8 mm,
-/// the assignment's profile 204 mm; Open3D's TSDF pipeline 38 mm).
+/// The robust profile on the 23 bundled noisy frames: measured 2.55 mm ATE aligned on both
+/// backends (the assignment's profile: 11.6 mm); 5 mm is twice the measurement and still
+/// fails a tracker that drifts like the assignment's.
+const ATE_BUNDLED_NOISY_MAX_M: f64 = 5e-3;
+/// The bar for noisy frames 1..200 at 320x240 (robust profile; measured 7.9 mm on
+/// both backends, the assignment's profile 204 mm; Open3D's TSDF pipeline 38 mm).
 const ATE_NOISY_320_MAX_M: f64 = 15e-3;
+/// Map size on noisy frames 1..200 as a fraction of all pixels fused: measured 0.0225
+/// (the assignment's profile 0.41). The target is 0.02, not reached yet (surfel
+/// confidence and removal of unstable surfels are still to come); this bound keeps what
+/// was reached.
+const NOISY_MAP_FRACTION_MAX: f64 = 0.03;
 
 fn main() -> ExitCode {
     common::harness::run(vec![
@@ -320,10 +325,14 @@ fn robust_profile_tracks_clean_frames_too() {
 fn shared_noisy_1_to_200_robust_within_15mm<B: Backend>(backend: B, data: &Path) {
     let dir = common::shared_icl_noisy(data);
     let robust = SlamParams::profile(Profile::Robust);
-    let (ate, _) = ate_and_map_fraction(backend, &dir, 1, 200, robust);
+    let (ate, map_fraction) = ate_and_map_fraction(backend, &dir, 1, 200, robust);
     assert!(
         ate < ATE_NOISY_320_MAX_M,
         "robust ATE {:.2} mm on noisy 1..200",
         ate * 1e3
+    );
+    assert!(
+        map_fraction < NOISY_MAP_FRACTION_MAX,
+        "robust map {map_fraction:.4} of all pixels on noisy 1..200"
     );
 }
