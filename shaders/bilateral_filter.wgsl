@@ -1,6 +1,6 @@
 // bilateral_filter.wgsl: KinectFusion's edge-preserving bilateral filter on the depth of the
 // camera-frame vertex map. CPU twin: src/cpu/bilateral_filter.rs (its header states the
-// rules, the defaults and why sigma_depth is constant).
+// rules, the defaults and why sigma_depth grows with depth squared).
 //
 // Bindings (@group(0)):
 //   0 params           uniform BilateralParams
