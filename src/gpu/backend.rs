@@ -114,6 +114,29 @@ pub mod bindings {
         Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
         Binding::storage_texture(TexelFormat::Rgba32F, false, "color"),
     ];
+    pub const COMPACT_FLAGS: [Binding; 4] = [
+        Binding::uniform("params: CompactParams"),
+        Binding::texture_f32("position_weight: w = weight"),
+        Binding::texture_u32("normal_frame: w = last_frame"),
+        Binding::read_write("flags: 1 keep / 0 remove per surfel"),
+    ];
+    pub const PREFIX_SUM: [Binding; 4] = [
+        Binding::uniform("params: CompactParams"),
+        Binding::read("flags"),
+        Binding::read_write("offsets: exclusive prefix sum of flags"),
+        Binding::read_write("counter: surfels kept"),
+    ];
+    pub const COMPACT_SCATTER: [Binding; 9] = [
+        Binding::uniform("params: CompactParams"),
+        Binding::read("flags"),
+        Binding::read("offsets"),
+        Binding::texture_f32("position_weight"),
+        Binding::texture_u32("normal_frame"),
+        Binding::texture_f32("color"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "out_position_weight"),
+        Binding::storage_texture(TexelFormat::Rgba32U, false, "out_normal_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "out_color"),
+    ];
 }
 
 struct Kernels {
