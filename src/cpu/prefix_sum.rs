@@ -29,7 +29,13 @@ pub fn prefix_sum(params: &CompactParams, flags: &[u32], offsets: &mut [u32], co
     let mut stride = 1;
     while stride < SCAN_THREADS {
         let add: Vec<u32> = (0..SCAN_THREADS)
-            .map(|t| if t >= stride { sums[(t - stride) as usize] } else { 0 })
+            .map(|t| {
+                if t >= stride {
+                    sums[(t - stride) as usize]
+                } else {
+                    0
+                }
+            })
             .collect();
         for (s, a) in sums.iter_mut().zip(add) {
             *s += a;

@@ -30,8 +30,8 @@ use super::kernel::{Binding, Kernel, TexelFormat};
 use super::map_textures::MapTextures;
 use super::timing::StageTimer;
 use crate::layout::{
-    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
-    ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps};
@@ -48,8 +48,9 @@ pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
-/// Storage buffers bound at once by the largest kernel (`fuse_add`: assoc, counter).
-const MAX_STORAGE_BUFFERS_USED: u32 = 2;
+/// Storage buffers bound at once by the largest kernel (`prefix_sum`: flags, offsets,
+/// counter; `fuse_add`: assoc, counter).
+const MAX_STORAGE_BUFFERS_USED: u32 = 3;
 /// Storage textures bound at once by the largest kernel (`fuse_merge`, `fuse_add`: the
 /// three packed map textures; `depth_to_vertex`, `predict_model`: two maps).
 const MAX_STORAGE_TEXTURES_USED: u32 = 3;
@@ -148,6 +149,19 @@ struct Kernels {
     icp_reduce: Kernel,
     fuse_merge: Kernel,
     fuse_add: Kernel,
+    compact_flags: Kernel,
+    prefix_sum: Kernel,
+    compact_scatter: Kernel,
+}
+
+/// What the `compact` step needs besides the map, allocated at its first call (the
+/// assignment profile never pays for it) and re-allocated when the map grows: one flag and
+/// one offset per surfel slot, and a second set of map textures of the same capacity that
+/// `compact_scatter` writes and that then swaps with the map.
+struct Compaction {
+    flags: GpuArray<u32>,
+    offsets: GpuArray<u32>,
+    spare: MapTextures,
 }
 
 /// Buffers sized by the frame: raw inputs, per-pixel maps, prediction, association flags.
@@ -219,6 +233,9 @@ pub struct GpuBackend {
     bind_groups: Option<BindGroups>,
     /// Per-kernel timing, off unless [`GpuBackend::enable_kernel_timing`] was called.
     profiler: Option<Profiler>,
+    /// Buffers of the `compact` step, `None` until its first call.
+    compaction: Option<Compaction>,
+    u_compact: Uniform<CompactParams>,
 }
 
 /// Per-kernel GPU times: timestamps around each kernel's pass (or wall time without the
@@ -317,8 +334,8 @@ impl GpuBackend {
         let per_stage = ctx.limits().max_storage_buffers_per_shader_stage;
         if per_stage < MAX_STORAGE_BUFFERS_USED {
             return Err(Error::Gpu(format!(
-                "adapter \"{}\" allows {per_stage} storage buffers per shader stage; fuse_add \
-                 needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
+                "adapter \"{}\" allows {per_stage} storage buffers per shader stage; \
+                 prefix_sum needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
                 ctx.adapter_info().name
             )));
         }
@@ -360,6 +377,9 @@ impl GpuBackend {
                 icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
                 fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
+                compact_flags: Kernel::new(&ctx, "compact_flags", &bindings::COMPACT_FLAGS)?,
+                prefix_sum: Kernel::new(&ctx, "prefix_sum", &bindings::PREFIX_SUM)?,
+                compact_scatter: Kernel::new(&ctx, "compact_scatter", &bindings::COMPACT_SCATTER)?,
             };
             let uniforms = (
                 Uniform::new(&ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
@@ -384,6 +404,7 @@ impl GpuBackend {
         })?;
         let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
         let (partials, partials_readback, counter, counter_readback) = small;
+        let u_compact = Uniform::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
         Ok(GpuBackend {
             ctx,
             kernels,
@@ -404,6 +425,8 @@ impl GpuBackend {
             max_surfels,
             bind_groups: None,
             profiler: None,
+            compaction: None,
+            u_compact,
         })
     }
 
@@ -534,6 +557,30 @@ impl GpuBackend {
             .min(self.max_surfels);
         self.map.grow(&self.ctx, grown, self.count)?;
         self.bind_groups = None;
+        Ok(())
+    }
+
+    /// Allocates the `compact` step's flags, offsets and second map for the current
+    /// capacity (first call, or after the map grew). [`Error::Capacity`] when a flag per
+    /// surfel slot outgrows the device's storage-buffer binding limit.
+    fn ensure_compaction(&mut self) -> Result<()> {
+        let cap = self.capacity();
+        if self.compaction.as_ref().map(|c| c.spare.capacity()) == Some(cap) {
+            return Ok(());
+        }
+        let ctx = &self.ctx;
+        let compaction = ctx.scoped("allocating the compaction buffers", || {
+            let mut flags = GpuArray::new(ctx, "compact flags", cap)?;
+            flags.set_len(cap);
+            let mut offsets = GpuArray::new(ctx, "compact offsets", cap)?;
+            offsets.set_len(cap);
+            Ok(Compaction {
+                flags,
+                offsets,
+                spare: MapTextures::new(ctx, cap)?,
+            })
+        })?;
+        self.compaction = Some(compaction);
         Ok(())
     }
 
@@ -833,6 +880,81 @@ impl Backend for GpuBackend {
         Ok(counter)
     }
 
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        let n = self.count;
+        if n == 0 {
+            return Ok(0);
+        }
+        self.ensure_compaction()?;
+        let mut params = *params;
+        params.surfel_count = n as u32;
+        let surfel_wg = self.grid_stride_workgroups(&self.kernels.compact_flags, n);
+        let scatter_wg = self.grid_stride_workgroups(&self.kernels.compact_scatter, n);
+        let (ctx, k, m) = (&self.ctx, &self.kernels, &self.map);
+        let c = self.compaction.as_ref().expect("ensure_compaction made it");
+        // Made per call: the map and the spare swap every time (cheap next to the passes).
+        let flags_bg = k.compact_flags.bind_group(
+            ctx,
+            &[
+                self.u_compact.binding(),
+                m.position_weight.binding(),
+                m.normal_frame.binding(),
+                c.flags.binding(),
+            ],
+        );
+        let scan_bg = k.prefix_sum.bind_group(
+            ctx,
+            &[
+                self.u_compact.binding(),
+                c.flags.binding(),
+                c.offsets.binding(),
+                self.counter.binding(),
+            ],
+        );
+        let scatter_bg = k.compact_scatter.bind_group(
+            ctx,
+            &[
+                self.u_compact.binding(),
+                c.flags.binding(),
+                c.offsets.binding(),
+                m.position_weight.binding(),
+                m.normal_frame.binding(),
+                m.color.binding(),
+                c.spare.position_weight.binding(),
+                c.spare.normal_frame.binding(),
+                c.spare.color.binding(),
+            ],
+        );
+        let profiler = &mut self.profiler;
+        let kept = ctx.scoped("compact", || {
+            self.u_compact.write(ctx, &params);
+            let mut enc = ctx.encoder("compact");
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.compact_flags, &flags_bg, [surfel_wg, 1]),
+                    (&k.prefix_sum, &scan_bg, [1, 1]),
+                    (&k.compact_scatter, &scatter_bg, [scatter_wg, 1]),
+                ],
+            )?;
+            self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            submit_profiled(ctx, profiler, enc)?;
+            self.counter_readback.read(ctx)
+        })?[0] as usize;
+        if kept > n {
+            return Err(Error::Gpu(format!(
+                "prefix_sum kept {kept} of {n} surfels (an internal contract)"
+            )));
+        }
+        let c = self.compaction.as_mut().expect("ensure_compaction made it");
+        std::mem::swap(&mut self.map, &mut c.spare);
+        self.bind_groups = None;
+        self.count = kept;
+        Ok(kept)
+    }
+
     fn surfel_count(&self) -> usize {
         self.count
     }
@@ -898,6 +1020,23 @@ impl GpuBackend {
     pub fn download_index_map(&mut self) -> Result<Vec<u64>> {
         let (ctx, f) = (&self.ctx, self.frame());
         ctx.scoped("download index map", || f.index_map.read_back(ctx))
+    }
+}
+
+impl GpuBackend {
+    /// The first `n` keep flags and offsets of the last `compact` (`compact_flags`' and
+    /// `prefix_sum`'s outputs), for parity tests; empty before the first `compact`.
+    pub fn download_compaction(&mut self, n: usize) -> Result<(Vec<u32>, Vec<u32>)> {
+        let Some(c) = self.compaction.as_ref() else {
+            return Ok((Vec::new(), Vec::new()));
+        };
+        let ctx = &self.ctx;
+        ctx.scoped("download compaction", || {
+            Ok((
+                c.flags.read_back_range(ctx, 0..n)?,
+                c.offsets.read_back_range(ctx, 0..n)?,
+            ))
+        })
     }
 }
 

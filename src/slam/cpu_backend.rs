@@ -5,8 +5,8 @@
 
 use crate::cpu;
 use crate::layout::{
-    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
-    ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, FrameMaps};
@@ -150,6 +150,35 @@ impl Backend for CpuBackend {
         let new_len = counter as usize;
         m.resize(new_len);
         Ok(new_len)
+    }
+
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        let n = self.map.len();
+        let mut params = *params;
+        params.surfel_count = n as u32;
+        let m = &self.map;
+        let mut flags = vec![0u32; n];
+        cpu::compact_flags::compact_flags(&params, &m.position_weight, &m.normal_frame, &mut flags);
+        let mut offsets = vec![0u32; n];
+        let mut counter = 0u32;
+        cpu::prefix_sum::prefix_sum(&params, &flags, &mut offsets, &mut counter);
+        // The second map, as large as the first (as on the GPU), cut to the survivors.
+        let mut out = SurfelMap::default();
+        out.resize(n);
+        cpu::compact_scatter::compact_scatter(
+            &params,
+            &flags,
+            &offsets,
+            &m.position_weight,
+            &m.normal_frame,
+            &m.color,
+            &mut out.position_weight,
+            &mut out.normal_frame,
+            &mut out.color,
+        );
+        out.resize(counter as usize);
+        self.map = out;
+        Ok(self.map.len())
     }
 
     fn surfel_count(&self) -> usize {
