@@ -194,11 +194,11 @@ pub struct PipelineArgs {
     pub bilateral: BilateralArgs,
     /// Removal of unstable surfels: surfels with fewer observations than this whose last
     /// one is more than --unstable-max-age frames old are removed after each fusion; 0
-    /// turns the removal off (assignment off, robust 3).
+    /// turns the removal off (assignment off, robust 20).
     #[arg(long)]
     pub stable_weight: Option<f32>,
     /// Removal of unstable surfels: frames an unstable surfel may go unobserved (assignment
-    /// off, robust 10; with the assignment profile, either flag turns the removal on).
+    /// off, robust 20; with the assignment profile, either flag turns the removal on).
     #[arg(long)]
     pub unstable_max_age: Option<u32>,
 }
