@@ -31,11 +31,11 @@ const ATE_BUNDLED_NOISY_MAX_M: f64 = 5e-3;
 /// The bar for noisy frames 1..200 at 320x240 (robust profile; measured 7.9 mm on
 /// both backends, the assignment's profile 204 mm; Open3D's TSDF pipeline 38 mm).
 const ATE_NOISY_320_MAX_M: f64 = 15e-3;
-/// Map size on noisy frames 1..200 as a fraction of all pixels fused: measured 0.0225
-/// (the assignment's profile 0.41). The target is 0.02, not reached yet (surfel
-/// confidence and removal of unstable surfels are still to come); this bound keeps what
-/// was reached.
-const NOISY_MAP_FRACTION_MAX: f64 = 0.03;
+/// Map size on noisy frames 1..200 as a fraction of all pixels fused: measured 0.0197 on
+/// both backends with the removal of unstable surfels (0.0225 without it; the assignment's
+/// profile 0.41). The target is 0.02; 0.021 leaves room for the backends'
+/// diverging maps and still fails a profile without the removal.
+const NOISY_MAP_FRACTION_MAX: f64 = 0.021;
 
 fn main() -> ExitCode {
     common::harness::run(vec![

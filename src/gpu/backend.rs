@@ -19,6 +19,11 @@
 //! With the bilateral filter on, `preprocess` runs three kernels and `vertex_to_normal`
 //! reads the filtered-vertex texture through a second bind group; the unfiltered vertex
 //! texture is kept (the filtered one is allocated either way, one frame map's worth).
+//! The `compact` step (robust profile) runs `compact_flags`, `prefix_sum` and
+//! `compact_scatter` in one submission and reads back only the 4-byte counter that
+//! `prefix_sum` writes; its flags, offsets (one `u32` per surfel slot, storage buffers) and
+//! second set of map textures are allocated at its first call and re-allocated when the map
+//! grows, and after the scatter the two map sets swap (so the bind groups are rebuilt).
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
 use std::collections::BTreeMap;
@@ -446,8 +451,8 @@ impl GpuBackend {
     /// per step). Costs a wait after every step: use for profiling, not for throughput.
     pub fn enable_kernel_timing(&mut self) {
         self.profiler = Some(Profiler {
-            // At most three kernels per submission (preprocess with the bilateral filter;
-            // predict and fuse have two).
+            // At most three kernels per submission (preprocess with the bilateral filter,
+            // compact; predict and fuse have two).
             timer: StageTimer::new(&self.ctx, 3),
             totals: BTreeMap::new(),
         });

@@ -290,7 +290,7 @@ impl Default for UnstableRemoval {
 /// surfels merge with each pixel), so only a high stable weight reaches 0.02. 20 / 20 is
 /// the longest time window under 0.02. On the noise-free frames 1..200 it keeps the ATE
 /// (0.180 mm with and without) and shrinks the map from 0.0198 to 0.0174 (15 / 5: 0.0176;
-/// 10 / 1: 0.182 mm / 0.0182): the rule also drops real surfaces seen for only a few
+/// 10 / 1: 0.176 mm / 0.0182): the rule also drops real surfaces seen for only a few
 /// frames at the edge of the view, not only noise.
 pub const ROBUST_STABLE_WEIGHT: f32 = 20.0;
 /// Age limit of the robust profile's removal rule, frames; see [`ROBUST_STABLE_WEIGHT`].
