@@ -397,8 +397,17 @@ impl PipelineArgs {
                 p.icp_huber_m
             )));
         }
+        if let Some(w) = self.stable_weight {
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(Error::Argument(format!(
+                    "--stable-weight {w} must be 0 (off) or positive"
+                )));
+            }
+        }
+        // --stable-weight 0 turns the removal off; either flag otherwise overrides the
+        // profile's rule (or the robust one's, when the profile has none).
         let unstable_removal = match (self.stable_weight, self.unstable_max_age) {
-            (Some(w), _) if w == 0.0 => None,
+            (Some(0.0), _) => None,
             (None, None) => p.unstable_removal,
             (w, age) => {
                 let base = p.unstable_removal.unwrap_or_default();
@@ -408,13 +417,6 @@ impl PipelineArgs {
                 })
             }
         };
-        if let Some(w) = self.stable_weight {
-            if !(w.is_finite() && w >= 0.0) {
-                return Err(Error::Argument(format!(
-                    "--stable-weight {w} must be 0 (off) or positive"
-                )));
-            }
-        }
         Ok(SlamParams {
             unstable_removal,
             // --bilateral turns the filter on with its flags' settings; without it the
