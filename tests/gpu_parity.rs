@@ -18,7 +18,7 @@ use wgslam::layout::CompactParams;
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
 use wgslam::slam::pipeline::{
-    Backend, BilateralSettings, PoseSource, Profile, Slam, SlamParams, TrackStatus,
+    Backend, BilateralSettings, PoseSource, Profile, Slam, SlamParams, TrackStatus, UnstableRemoval,
 };
 use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::tolerance;
@@ -707,6 +707,51 @@ fn tracked_run_matches_cpu_and_ground_truth(gpu: GpuBackend) {
 
 /// A tiny initial capacity forces the map buffers to grow during fusion; the result is
 /// the same map as the CPU's.
+/// The compact step across map growth: from a tiny capacity, the robust profile with an
+/// aggressive removal rule over bundled frames 1..=8 at ground truth (the map grows, the
+/// compaction buffers follow, the two map sets swap every frame); the GPU's surfel counts
+/// stay within the run tolerance of the CPU's and its map downloads at its count.
+fn compaction_follows_map_growth(ctx: GpuContext) {
+    let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
+    let gt = load_gt(&root());
+    let params = SlamParams {
+        poses: PoseSource::GroundTruth,
+        unstable_removal: Some(UnstableRemoval {
+            stable_weight: 3.0,
+            max_age_frames: 1,
+        }),
+        ..SlamParams::profile(Profile::Robust)
+    };
+    let mut c = slam(CpuBackend::new(), params.clone());
+    let mut g = slam(gpu, params);
+    let mut obeyed = 0;
+    for i in 1..=8 {
+        let f = load_frame(&root(), i);
+        let rc = c
+            .process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+        let rg = g
+            .process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+        let allowed = (rc.surfels as f64 * RUN_SURFEL_FRACTION_TOL).ceil() as usize;
+        assert!(
+            rc.surfels.abs_diff(rg.surfels) <= allowed,
+            "frame {i}: surfels cpu {} gpu {}",
+            rc.surfels,
+            rg.surfels
+        );
+        let map = c.backend.map();
+        obeyed += (0..map.len()).all(|k| map.last_frame(k) + 1 >= i as u32 || map.weight(k) >= 3.0)
+            as usize;
+    }
+    assert_eq!(obeyed, 8, "every CPU map obeys the rule after each frame");
+    assert!(g.backend.capacity() > 1000, "the map grew");
+    assert_eq!(
+        g.backend.download_map().unwrap().len(),
+        g.backend.surfel_count()
+    );
+}
+
 fn map_grows_from_a_tiny_capacity(ctx: GpuContext) {
     let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
     assert_eq!(gpu.capacity(), 1000);
@@ -834,6 +879,10 @@ fn main() -> ExitCode {
             map_grows_from_a_tiny_capacity,
         ),
         gpu("map_capacity_error", map_capacity_error),
+        gpu(
+            "compaction_follows_map_growth",
+            compaction_follows_map_growth,
+        ),
         gpu("bad_frame_size_is_an_argument_error", |ctx| {
             bad_frame_size_is_an_argument_error(gpu_backend(ctx))
         }),
