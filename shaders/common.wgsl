@@ -99,6 +99,14 @@ struct FuseParams {
     _pad: u32,
 }
 
+// Mirrors `layout::CompactParams` (compact_flags, prefix_sum, compact_scatter).
+struct CompactParams {
+    surfel_count: u32,
+    frame_id: u32,
+    stable_weight: f32,
+    max_age_frames: u32,
+}
+
 // Floats in one reduced ICP system (mirrors `layout::ICP_SYSTEM_LEN`): 21 of AᵀA (upper
 // triangle, row-major), 6 of Aᵀb, the inlier count and the sum of squared residuals.
 const ICP_SYSTEM_LEN: u32 = 29u;

@@ -156,6 +156,23 @@ pub struct FuseParams {
     pub _pad: u32,
 }
 
+/// Parameters of `compact_flags`, `prefix_sum` and `compact_scatter`, the removal of
+/// unstable surfels and the stream compaction of the map (mirrors `CompactParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct CompactParams {
+    /// Surfels in the map before compaction (filled in by the backend).
+    pub surfel_count: u32,
+    /// Sequence position of the frame just fused (the surfels' `last_frame` is compared
+    /// with it).
+    pub frame_id: u32,
+    /// A surfel whose weight (observations) is below this ...
+    pub stable_weight: f32,
+    /// ... and whose `last_frame` is more than this many frames before `frame_id` is
+    /// removed.
+    pub max_age_frames: u32,
+}
+
 /// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major) + 6 (Aᵀb)
 /// + inlier count + sum of squared residuals (mirrors `ICP_SYSTEM_LEN` in common.wgsl).
 pub const ICP_SYSTEM_LEN: usize = 29;

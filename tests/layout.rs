@@ -89,6 +89,12 @@ fn rust_layouts() -> Vec<RustLayout> {
             capacity,
             _pad
         }),
+        rust_layout!(CompactParams {
+            surfel_count,
+            frame_id,
+            stable_weight,
+            max_age_frames
+        }),
     ]
 }
 

@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::pipeline::{BilateralSettings, PoseSource, Profile, SlamParams};
+use crate::slam::pipeline::{BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval};
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -192,6 +192,15 @@ pub struct PipelineArgs {
     pub backend: BackendChoice,
     #[command(flatten)]
     pub bilateral: BilateralArgs,
+    /// Removal of unstable surfels: surfels with fewer observations than this whose last
+    /// one is more than --unstable-max-age frames old are removed after each fusion; 0
+    /// turns the removal off (assignment off, robust 20).
+    #[arg(long)]
+    pub stable_weight: Option<f32>,
+    /// Removal of unstable surfels: frames an unstable surfel may go unobserved (assignment
+    /// off, robust 20; with the assignment profile, either flag turns the removal on).
+    #[arg(long)]
+    pub unstable_max_age: Option<u32>,
 }
 
 #[derive(Debug, Args)]
@@ -388,7 +397,28 @@ impl PipelineArgs {
                 p.icp_huber_m
             )));
         }
+        if let Some(w) = self.stable_weight {
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(Error::Argument(format!(
+                    "--stable-weight {w} must be 0 (off) or positive"
+                )));
+            }
+        }
+        // --stable-weight 0 turns the removal off; either flag otherwise overrides the
+        // profile's rule (or the robust one's, when the profile has none).
+        let unstable_removal = match (self.stable_weight, self.unstable_max_age) {
+            (Some(0.0), _) => None,
+            (None, None) => p.unstable_removal,
+            (w, age) => {
+                let base = p.unstable_removal.unwrap_or_default();
+                Some(UnstableRemoval {
+                    stable_weight: w.unwrap_or(base.stable_weight),
+                    max_age_frames: age.unwrap_or(base.max_age_frames),
+                })
+            }
+        };
         Ok(SlamParams {
+            unstable_removal,
             // --bilateral turns the filter on with its flags' settings; without it the
             // profile decides.
             bilateral: self.bilateral.settings()?.or(p.bilateral),

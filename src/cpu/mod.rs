@@ -13,6 +13,8 @@
 //! `v * width + u`, and surfel `i` of a map texture is element `i` ([`surfel_texel`]).
 
 pub mod bilateral_filter;
+pub mod compact_flags;
+pub mod compact_scatter;
 pub mod cross_covariance;
 pub mod depth_to_vertex;
 pub mod fuse_add;
@@ -21,6 +23,7 @@ pub mod icp_reduce;
 pub mod nn_brute;
 pub mod nn_grid;
 pub mod predict_model;
+pub mod prefix_sum;
 pub mod project_model;
 pub mod render_resolve;
 pub mod render_splat;

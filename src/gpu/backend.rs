@@ -19,6 +19,11 @@
 //! With the bilateral filter on, `preprocess` runs three kernels and `vertex_to_normal`
 //! reads the filtered-vertex texture through a second bind group; the unfiltered vertex
 //! texture is kept (the filtered one is allocated either way, one frame map's worth).
+//! The `compact` step (robust profile) runs `compact_flags`, `prefix_sum` and
+//! `compact_scatter` in one submission and reads back only the 4-byte counter that
+//! `prefix_sum` writes; its flags, offsets (one `u32` per surfel slot, storage buffers) and
+//! second set of map textures are allocated at its first call and re-allocated when the map
+//! grows, and after the scatter the two map sets swap (so the bind groups are rebuilt).
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
 use std::collections::BTreeMap;
@@ -30,8 +35,8 @@ use super::kernel::{Binding, Kernel, TexelFormat};
 use super::map_textures::MapTextures;
 use super::timing::StageTimer;
 use crate::layout::{
-    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
-    ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps};
@@ -48,8 +53,9 @@ pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
-/// Storage buffers bound at once by the largest kernel (`fuse_add`: assoc, counter).
-const MAX_STORAGE_BUFFERS_USED: u32 = 2;
+/// Storage buffers bound at once by the largest kernel (`prefix_sum`: flags, offsets,
+/// counter; `fuse_add`: assoc, counter).
+const MAX_STORAGE_BUFFERS_USED: u32 = 3;
 /// Storage textures bound at once by the largest kernel (`fuse_merge`, `fuse_add`: the
 /// three packed map textures; `depth_to_vertex`, `predict_model`: two maps).
 const MAX_STORAGE_TEXTURES_USED: u32 = 3;
@@ -114,6 +120,29 @@ pub mod bindings {
         Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
         Binding::storage_texture(TexelFormat::Rgba32F, false, "color"),
     ];
+    pub const COMPACT_FLAGS: [Binding; 4] = [
+        Binding::uniform("params: CompactParams"),
+        Binding::texture_f32("position_weight: w = weight"),
+        Binding::texture_u32("normal_frame: w = last_frame"),
+        Binding::read_write("flags: 1 keep / 0 remove per surfel"),
+    ];
+    pub const PREFIX_SUM: [Binding; 4] = [
+        Binding::uniform("params: CompactParams"),
+        Binding::read("flags"),
+        Binding::read_write("offsets: exclusive prefix sum of flags"),
+        Binding::read_write("counter: surfels kept"),
+    ];
+    pub const COMPACT_SCATTER: [Binding; 9] = [
+        Binding::uniform("params: CompactParams"),
+        Binding::read("flags"),
+        Binding::read("offsets"),
+        Binding::texture_f32("position_weight"),
+        Binding::texture_u32("normal_frame"),
+        Binding::texture_f32("color"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "out_position_weight"),
+        Binding::storage_texture(TexelFormat::Rgba32U, false, "out_normal_frame"),
+        Binding::storage_texture(TexelFormat::Rgba32F, false, "out_color"),
+    ];
 }
 
 struct Kernels {
@@ -125,6 +154,19 @@ struct Kernels {
     icp_reduce: Kernel,
     fuse_merge: Kernel,
     fuse_add: Kernel,
+    compact_flags: Kernel,
+    prefix_sum: Kernel,
+    compact_scatter: Kernel,
+}
+
+/// What the `compact` step needs besides the map, allocated at its first call (the
+/// assignment profile never pays for it) and re-allocated when the map grows: one flag and
+/// one offset per surfel slot, and a second set of map textures of the same capacity that
+/// `compact_scatter` writes and that then swaps with the map.
+struct Compaction {
+    flags: GpuArray<u32>,
+    offsets: GpuArray<u32>,
+    spare: MapTextures,
 }
 
 /// Buffers sized by the frame: raw inputs, per-pixel maps, prediction, association flags.
@@ -196,6 +238,9 @@ pub struct GpuBackend {
     bind_groups: Option<BindGroups>,
     /// Per-kernel timing, off unless [`GpuBackend::enable_kernel_timing`] was called.
     profiler: Option<Profiler>,
+    /// Buffers of the `compact` step, `None` until its first call.
+    compaction: Option<Compaction>,
+    u_compact: Uniform<CompactParams>,
 }
 
 /// Per-kernel GPU times: timestamps around each kernel's pass (or wall time without the
@@ -294,8 +339,8 @@ impl GpuBackend {
         let per_stage = ctx.limits().max_storage_buffers_per_shader_stage;
         if per_stage < MAX_STORAGE_BUFFERS_USED {
             return Err(Error::Gpu(format!(
-                "adapter \"{}\" allows {per_stage} storage buffers per shader stage; fuse_add \
-                 needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
+                "adapter \"{}\" allows {per_stage} storage buffers per shader stage; \
+                 prefix_sum needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
                 ctx.adapter_info().name
             )));
         }
@@ -337,6 +382,9 @@ impl GpuBackend {
                 icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
                 fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
+                compact_flags: Kernel::new(&ctx, "compact_flags", &bindings::COMPACT_FLAGS)?,
+                prefix_sum: Kernel::new(&ctx, "prefix_sum", &bindings::PREFIX_SUM)?,
+                compact_scatter: Kernel::new(&ctx, "compact_scatter", &bindings::COMPACT_SCATTER)?,
             };
             let uniforms = (
                 Uniform::new(&ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
@@ -361,6 +409,7 @@ impl GpuBackend {
         })?;
         let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
         let (partials, partials_readback, counter, counter_readback) = small;
+        let u_compact = Uniform::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
         Ok(GpuBackend {
             ctx,
             kernels,
@@ -381,6 +430,8 @@ impl GpuBackend {
             max_surfels,
             bind_groups: None,
             profiler: None,
+            compaction: None,
+            u_compact,
         })
     }
 
@@ -400,8 +451,8 @@ impl GpuBackend {
     /// per step). Costs a wait after every step: use for profiling, not for throughput.
     pub fn enable_kernel_timing(&mut self) {
         self.profiler = Some(Profiler {
-            // At most three kernels per submission (preprocess with the bilateral filter;
-            // predict and fuse have two).
+            // At most three kernels per submission (preprocess with the bilateral filter,
+            // compact; predict and fuse have two).
             timer: StageTimer::new(&self.ctx, 3),
             totals: BTreeMap::new(),
         });
@@ -511,6 +562,30 @@ impl GpuBackend {
             .min(self.max_surfels);
         self.map.grow(&self.ctx, grown, self.count)?;
         self.bind_groups = None;
+        Ok(())
+    }
+
+    /// Allocates the `compact` step's flags, offsets and second map for the current
+    /// capacity (first call, or after the map grew). [`Error::Capacity`] when a flag per
+    /// surfel slot outgrows the device's storage-buffer binding limit.
+    fn ensure_compaction(&mut self) -> Result<()> {
+        let cap = self.capacity();
+        if self.compaction.as_ref().map(|c| c.spare.capacity()) == Some(cap) {
+            return Ok(());
+        }
+        let ctx = &self.ctx;
+        let compaction = ctx.scoped("allocating the compaction buffers", || {
+            let mut flags = GpuArray::new(ctx, "compact flags", cap)?;
+            flags.set_len(cap);
+            let mut offsets = GpuArray::new(ctx, "compact offsets", cap)?;
+            offsets.set_len(cap);
+            Ok(Compaction {
+                flags,
+                offsets,
+                spare: MapTextures::new(ctx, cap)?,
+            })
+        })?;
+        self.compaction = Some(compaction);
         Ok(())
     }
 
@@ -810,6 +885,81 @@ impl Backend for GpuBackend {
         Ok(counter)
     }
 
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        let n = self.count;
+        if n == 0 {
+            return Ok(0);
+        }
+        self.ensure_compaction()?;
+        let mut params = *params;
+        params.surfel_count = n as u32;
+        let surfel_wg = self.grid_stride_workgroups(&self.kernels.compact_flags, n);
+        let scatter_wg = self.grid_stride_workgroups(&self.kernels.compact_scatter, n);
+        let (ctx, k, m) = (&self.ctx, &self.kernels, &self.map);
+        let c = self.compaction.as_ref().expect("ensure_compaction made it");
+        // Made per call: the map and the spare swap every time (cheap next to the passes).
+        let flags_bg = k.compact_flags.bind_group(
+            ctx,
+            &[
+                self.u_compact.binding(),
+                m.position_weight.binding(),
+                m.normal_frame.binding(),
+                c.flags.binding(),
+            ],
+        );
+        let scan_bg = k.prefix_sum.bind_group(
+            ctx,
+            &[
+                self.u_compact.binding(),
+                c.flags.binding(),
+                c.offsets.binding(),
+                self.counter.binding(),
+            ],
+        );
+        let scatter_bg = k.compact_scatter.bind_group(
+            ctx,
+            &[
+                self.u_compact.binding(),
+                c.flags.binding(),
+                c.offsets.binding(),
+                m.position_weight.binding(),
+                m.normal_frame.binding(),
+                m.color.binding(),
+                c.spare.position_weight.binding(),
+                c.spare.normal_frame.binding(),
+                c.spare.color.binding(),
+            ],
+        );
+        let profiler = &mut self.profiler;
+        let kept = ctx.scoped("compact", || {
+            self.u_compact.write(ctx, &params);
+            let mut enc = ctx.encoder("compact");
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.compact_flags, &flags_bg, [surfel_wg, 1]),
+                    (&k.prefix_sum, &scan_bg, [1, 1]),
+                    (&k.compact_scatter, &scatter_bg, [scatter_wg, 1]),
+                ],
+            )?;
+            self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            submit_profiled(ctx, profiler, enc)?;
+            self.counter_readback.read(ctx)
+        })?[0] as usize;
+        if kept > n {
+            return Err(Error::Gpu(format!(
+                "prefix_sum kept {kept} of {n} surfels (an internal contract)"
+            )));
+        }
+        let c = self.compaction.as_mut().expect("ensure_compaction made it");
+        std::mem::swap(&mut self.map, &mut c.spare);
+        self.bind_groups = None;
+        self.count = kept;
+        Ok(kept)
+    }
+
     fn surfel_count(&self) -> usize {
         self.count
     }
@@ -875,6 +1025,23 @@ impl GpuBackend {
     pub fn download_index_map(&mut self) -> Result<Vec<u64>> {
         let (ctx, f) = (&self.ctx, self.frame());
         ctx.scoped("download index map", || f.index_map.read_back(ctx))
+    }
+}
+
+impl GpuBackend {
+    /// The first `n` keep flags and offsets of the last `compact` (`compact_flags`' and
+    /// `prefix_sum`'s outputs), for parity tests; empty before the first `compact`.
+    pub fn download_compaction(&mut self, n: usize) -> Result<(Vec<u32>, Vec<u32>)> {
+        let Some(c) = self.compaction.as_ref() else {
+            return Ok((Vec::new(), Vec::new()));
+        };
+        let ctx = &self.ctx;
+        ctx.scoped("download compaction", || {
+            Ok((
+                c.flags.read_back_range(ctx, 0..n)?,
+                c.offsets.read_back_range(ctx, 0..n)?,
+            ))
+        })
     }
 }
 

@@ -47,6 +47,15 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
+    (
+        "compact_flags",
+        include_str!("../../shaders/compact_flags.wgsl"),
+    ),
+    ("prefix_sum", include_str!("../../shaders/prefix_sum.wgsl")),
+    (
+        "compact_scatter",
+        include_str!("../../shaders/compact_scatter.wgsl"),
+    ),
     // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
     ("nn_brute", include_str!("../../shaders/nn_brute.wgsl")),
     ("nn_grid", include_str!("../../shaders/nn_grid.wgsl")),

@@ -5,8 +5,8 @@
 
 use crate::cpu;
 use crate::layout::{
-    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
-    ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, FrameMaps};
@@ -152,6 +152,35 @@ impl Backend for CpuBackend {
         Ok(new_len)
     }
 
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        let n = self.map.len();
+        let mut params = *params;
+        params.surfel_count = n as u32;
+        let m = &self.map;
+        let mut flags = vec![0u32; n];
+        cpu::compact_flags::compact_flags(&params, &m.position_weight, &m.normal_frame, &mut flags);
+        let mut offsets = vec![0u32; n];
+        let mut counter = 0u32;
+        cpu::prefix_sum::prefix_sum(&params, &flags, &mut offsets, &mut counter);
+        // The second map, as large as the first (as on the GPU), cut to the survivors.
+        let mut out = SurfelMap::default();
+        out.resize(n);
+        cpu::compact_scatter::compact_scatter(
+            &params,
+            &flags,
+            &offsets,
+            &m.position_weight,
+            &m.normal_frame,
+            &m.color,
+            &mut out.position_weight,
+            &mut out.normal_frame,
+            &mut out.color,
+        );
+        out.resize(counter as usize);
+        self.map = out;
+        Ok(self.map.len())
+    }
+
     fn surfel_count(&self) -> usize {
         self.map.len()
     }
@@ -166,5 +195,61 @@ impl Backend for CpuBackend {
 
     fn download_prediction(&mut self) -> Result<crate::slam::pipeline::Prediction> {
         Ok((self.pred_vertex.clone(), self.pred_normal.clone()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The removal rule on a hand-made map: only unstable surfels (weight below 3) last seen
+    /// more than 5 frames before frame 10 go; the survivors keep their order and contents.
+    #[test]
+    fn compact_removes_old_unstable_surfels_in_order() {
+        // (weight, last_frame, removed?)
+        let surfels = [
+            (1.0, 1, true),   // seen once, 9 frames ago
+            (5.0, 1, false),  // stable, however old
+            (1.0, 10, false), // seen in this very frame
+            (2.9, 5, false),  // unstable but exactly 5 frames old: not more than the limit
+            (2.9, 4, true),   // 6 frames old
+            (3.0, 0, false),  // weight exactly the stable weight
+            (1.0, 2, true),
+            (2.0, 9, false),
+        ];
+        let mut map = SurfelMap::default();
+        for (i, &(w, f, _)) in surfels.iter().enumerate() {
+            let x = i as f32;
+            map.push([x, 1.0, 2.0], [0.0, 0.0, 1.0], [x, 0.0, 0.0], w, f);
+        }
+        let mut b = CpuBackend::with_map(map.clone());
+        let params = CompactParams {
+            surfel_count: 0, // filled in by the backend
+            frame_id: 10,
+            stable_weight: 3.0,
+            max_age_frames: 5,
+        };
+        let kept = b.compact(&params).unwrap();
+        let expected: Vec<usize> = (0..surfels.len()).filter(|&i| !surfels[i].2).collect();
+        assert_eq!(kept, expected.len());
+        let m = b.map();
+        assert_eq!(m.len(), expected.len());
+        for (slot, &i) in expected.iter().enumerate() {
+            assert_eq!(
+                m.position_weight[slot], map.position_weight[i],
+                "slot {slot}"
+            );
+            assert_eq!(m.normal_frame[slot], map.normal_frame[i], "slot {slot}");
+            assert_eq!(m.color[slot], map.color[i], "slot {slot}");
+        }
+        // A rule that keeps everything leaves the map as it is; an empty map stays empty.
+        let mut b = CpuBackend::with_map(map.clone());
+        let keep_all = CompactParams {
+            stable_weight: 0.0,
+            ..params
+        };
+        assert_eq!(b.compact(&keep_all).unwrap(), map.len());
+        assert_eq!(b.map(), &map);
+        assert_eq!(CpuBackend::new().compact(&params).unwrap(), 0);
     }
 }

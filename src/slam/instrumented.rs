@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::layout::{
-    BilateralParams, FuseParams, IcpParams, NormalParams, PreprocessParams, ProjectParams,
-    ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction};
@@ -88,6 +88,9 @@ impl<B: Backend> Backend for Instrumented<B> {
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         self.step("fuse", |b| b.fuse(params))
+    }
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        self.step("compact", |b| b.compact(params))
     }
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()

@@ -1,0 +1,44 @@
+// compact_flags.wgsl: one keep flag per surfel, the removal rule for unstable surfels
+// (Keller et al. 2013): a surfel seen fewer than `stable_weight` times whose last
+// observation is more than `max_age_frames` frames old is dropped. First of the three
+// stream-compaction kernels (then prefix_sum, compact_scatter). CPU twin:
+// src/cpu/compact_flags.rs.
+//
+// Bindings (@group(0)):
+//   0 params           uniform CompactParams (surfel_count, frame_id, stable_weight,
+//                      max_age_frames)
+//   1 position_weight  texture_2d<f32> (rgba32float): xyz world frame, w = weight
+//   2 normal_frame     texture_2d<u32> (rgba32uint): normal bits, w = last_frame
+//   3 flags            storage rw array<u32>: out, 1 keep / 0 remove, surfel_count entries
+//   (surfel i is texel surfel_texel(i) of each map texture; see src/gpu/map_textures.rs)
+// Grid-stride loop over surfels; each thread writes only its own flag.
+
+@group(0) @binding(0) var<uniform> params: CompactParams;
+@group(0) @binding(1) var position_weight: texture_2d<f32>;
+@group(0) @binding(2) var normal_frame: texture_2d<u32>;
+@group(0) @binding(3) var<storage, read_write> flags: array<u32>;
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+// True when the surfel stays: it is stable (weight >= stable_weight) or was seen within
+// the last max_age_frames frames (last_frame never exceeds frame_id; the test is written
+// so it cannot underflow).
+fn keep_surfel(weight: f32, last_frame: u32, frame_id: u32) -> bool {
+    let unstable = weight < params.stable_weight;
+    let old = last_frame < frame_id && frame_id - last_frame > params.max_age_frames;
+    return !(unstable && old);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let stride = nwg.x * WORKGROUP_SIZE;
+    for (var i = gid.x; i < params.surfel_count; i += stride) {
+        let surfel = surfel_texel(i);
+        let weight = textureLoad(position_weight, surfel, 0).w;
+        let last_frame = textureLoad(normal_frame, surfel, 0).w;
+        flags[i] = select(0u, 1u, keep_surfel(weight, last_frame, params.frame_id));
+    }
+}

@@ -1,0 +1,36 @@
+//! CPU twin of `shaders/compact_flags.wgsl`: one keep flag per surfel, the removal rule for
+//! unstable surfels (Keller et al. 2013). A surfel with weight below `stable_weight` whose
+//! `last_frame` is more than `max_age_frames` frames before `frame_id` is removed (flag 0);
+//! every other surfel is kept (flag 1).
+
+use super::surfel_texel;
+use crate::layout::CompactParams;
+
+/// True when the surfel stays: it is stable (`weight >= stable_weight`) or was seen within
+/// the last `max_age_frames` frames. Mirrors `keep_surfel` in compact_flags.wgsl.
+#[inline]
+pub fn keep_surfel(params: &CompactParams, weight: f32, last_frame: u32, frame_id: u32) -> bool {
+    let unstable = weight < params.stable_weight;
+    let old = last_frame < frame_id && frame_id - last_frame > params.max_age_frames;
+    !(unstable && old)
+}
+
+/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
+/// - 0 `params`: `CompactParams` (`surfel_count`, `frame_id`, `stable_weight`,
+///   `max_age_frames`)
+/// - 1 `position_weight`: xyz world frame, w = weight
+/// - 2 `normal_frame`: normal bits, w = last frame
+/// - 3 `flags` (out): 1 keep / 0 remove, `surfel_count` entries
+pub fn compact_flags(
+    params: &CompactParams,
+    position_weight: &[[f32; 4]],
+    normal_frame: &[[u32; 4]],
+    flags: &mut [u32],
+) {
+    for i in 0..params.surfel_count {
+        let surfel = surfel_texel(i);
+        let weight = position_weight[surfel][3];
+        let last_frame = normal_frame[surfel][3];
+        flags[i as usize] = keep_surfel(params, weight, last_frame, params.frame_id) as u32;
+    }
+}
