@@ -21,7 +21,7 @@ use wgslam::slam::pipeline::{
     Backend, BilateralSettings, PoseSource, Profile, Slam, SlamParams, TrackStatus, UnstableRemoval,
 };
 use wgslam::slam::solve::NormalEquations;
-use wgslam::tools::compare::tolerance;
+use wgslam::tools::compare::{system_rel_diffs, tolerance};
 use wgslam::Error;
 
 // ---------------------------------------------------------------------------------------
@@ -369,12 +369,16 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     ];
     assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
     for (label, ip) in cases {
-        let c = NormalEquations::decode(&s.backend.icp_system(&ip).unwrap());
-        let g = NormalEquations::decode(&gpu.icp_system(&ip).unwrap());
-        let ata = (c.ata - g.ata).norm() / c.ata.norm();
-        // Aᵀb nearly cancels at the optimum, so its error is measured against the
-        // Cauchy-Schwarz bound of its terms, sqrt(trace(AᵀA) Σb²), not against itself.
-        let atb = (c.atb - g.atb).norm() / (c.ata.trace() * c.residual_sq_sum).sqrt();
+        let (sys_c, sys_g) = (
+            s.backend.icp_system(&ip).unwrap(),
+            gpu.icp_system(&ip).unwrap(),
+        );
+        let (c, g) = (
+            NormalEquations::decode(&sys_c),
+            NormalEquations::decode(&sys_g),
+        );
+        // The measure `wgslam compare` uses (Aᵀb against its Cauchy-Schwarz bound).
+        let (ata, atb) = system_rel_diffs(&sys_c, &sys_g);
         let inl = c.inliers.abs_diff(g.inliers) as f64 / c.inliers as f64;
         eprintln!(
             "{label}: inliers cpu {} gpu {}; rel diff AᵀA {ata:e} Aᵀb {atb:e}; \

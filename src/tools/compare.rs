@@ -28,7 +28,7 @@ pub mod tolerance {
     pub const NORMAL_MAX_DEG: f64 = 0.05;
     /// Pixels whose validity differs (a neighbour's depth jump exactly at the threshold).
     pub const VALIDITY_MISMATCH_MAX_FRACTION: f64 = 1e-3;
-    /// Relative Frobenius difference of AᵀA and Aᵀb: f32 partial sums over ~1e5 rows.
+    /// Relative difference of AᵀA and Aᵀb (see `system_rel_diffs`): f32 partial sums over ~1e5 rows.
     pub const SYSTEM_REL_DIFF_MAX: f64 = 1e-3;
     /// Pose difference per frame (end to end, accumulated over the run).
     pub const POSE_MAX_MM: f64 = 0.1;
@@ -141,11 +141,21 @@ pub fn diff_frame_maps(a: &FrameMaps, b: &FrameMaps) -> MapDiff {
     d
 }
 
-/// Relative Frobenius difference of two 29-entry systems' AᵀA and Aᵀb (the larger of the two).
-pub fn system_rel_diff(a: &[f64; ICP_SYSTEM_LEN], b: &[f64; ICP_SYSTEM_LEN]) -> f64 {
+/// Relative differences of two 29-entry systems, `(AᵀA, Aᵀb)`, `a` the reference: AᵀA's
+/// Frobenius difference over its norm; Aᵀb's difference over the Cauchy-Schwarz bound of
+/// its terms, `sqrt(trace(AᵀA) Σb²)`, not over itself, because Aᵀb nearly cancels near the
+/// optimum (a tiny denominator would make rounding look like a disagreement).
+pub fn system_rel_diffs(a: &[f64; ICP_SYSTEM_LEN], b: &[f64; ICP_SYSTEM_LEN]) -> (f64, f64) {
     let (ea, eb) = (NormalEquations::decode(a), NormalEquations::decode(b));
     let h = (ea.ata - eb.ata).norm() / ea.ata.norm().max(f64::MIN_POSITIVE);
-    let g = (ea.atb - eb.atb).norm() / ea.atb.norm().max(f64::MIN_POSITIVE);
+    let bound = (ea.ata.trace() * ea.residual_sq_sum).sqrt();
+    let g = (ea.atb - eb.atb).norm() / bound.max(f64::MIN_POSITIVE);
+    (h, g)
+}
+
+/// The larger of [`system_rel_diffs`]' two.
+pub fn system_rel_diff(a: &[f64; ICP_SYSTEM_LEN], b: &[f64; ICP_SYSTEM_LEN]) -> f64 {
+    let (h, g) = system_rel_diffs(a, b);
     h.max(g)
 }
 
