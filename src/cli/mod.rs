@@ -360,15 +360,9 @@ impl DatasetArgs {
 impl PipelineArgs {
     /// Pipeline parameters from the flags.
     pub fn params(&self, poses: PoseSource) -> Result<SlamParams> {
-        if self.downsample == 0 || self.downsample > 16 {
-            return Err(Error::Argument(format!(
-                "--downsample {} must be between 1 and 16",
-                self.downsample
-            )));
-        }
-        let base = SlamParams::profile(self.profile);
+        // The profile at --downsample with the bilateral flags, then the overrides.
+        let base = profile_params(self.profile, self.downsample, &self.bilateral)?;
         let p = SlamParams {
-            downsample: self.downsample,
             icp_dist_m: self.icp_dist.unwrap_or(base.icp_dist_m),
             icp_normal_deg: self.icp_angle.unwrap_or(base.icp_normal_deg),
             icp_huber_m: self.icp_huber.unwrap_or(base.icp_huber_m),
@@ -419,9 +413,6 @@ impl PipelineArgs {
         };
         Ok(SlamParams {
             unstable_removal,
-            // --bilateral turns the filter on with its flags' settings; without it the
-            // profile decides.
-            bilateral: self.bilateral.settings()?.or(p.bilateral),
             ..p
         })
     }
@@ -631,7 +622,8 @@ fn frame_range(
 }
 
 /// The profile's parameters at `downsample`, with the bilateral filter on when the flags
-/// say so (for compare and bench).
+/// say so: `--bilateral` turns it on with its flags' settings; without it the profile
+/// decides. `run`/`icp` override further values on top (`PipelineArgs::params`).
 fn profile_params(
     profile: Profile,
     downsample: u32,

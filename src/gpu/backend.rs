@@ -167,6 +167,17 @@ struct Compaction {
     flags: GpuArray<u32>,
     offsets: GpuArray<u32>,
     spare: MapTextures,
+    /// The three passes' bind groups for the live map (`groups`) and for the spare one
+    /// (`spare_groups`), made once each and swapped with the maps.
+    groups: Option<CompactionGroups>,
+    spare_groups: Option<CompactionGroups>,
+}
+
+/// Bind groups of `compact_flags`, `prefix_sum` and `compact_scatter` for one map set.
+struct CompactionGroups {
+    flags: wgpu::BindGroup,
+    scan: wgpu::BindGroup,
+    scatter: wgpu::BindGroup,
 }
 
 /// Buffers sized by the frame: raw inputs, per-pixel maps, prediction, association flags.
@@ -236,6 +247,9 @@ pub struct GpuBackend {
     max_surfels: usize,
     /// `None` after any buffer a bind group refers to was re-created.
     bind_groups: Option<BindGroups>,
+    /// The same for the compaction's spare map set: `compact` swaps the map with the
+    /// spare and these with `bind_groups`, so no bind group is made per frame.
+    spare_bind_groups: Option<BindGroups>,
     /// Per-kernel timing, off unless [`GpuBackend::enable_kernel_timing`] was called.
     profiler: Option<Profiler>,
     /// Buffers of the `compact` step, `None` until its first call.
@@ -429,6 +443,7 @@ impl GpuBackend {
             count: 0,
             max_surfels,
             bind_groups: None,
+            spare_bind_groups: None,
             profiler: None,
             compaction: None,
             u_compact,
@@ -535,6 +550,7 @@ impl GpuBackend {
             assoc,
         });
         self.bind_groups = None;
+        self.spare_bind_groups = None;
         Ok(())
     }
 
@@ -561,7 +577,9 @@ impl GpuBackend {
             .max(needed)
             .min(self.max_surfels);
         self.map.grow(&self.ctx, grown, self.count)?;
+        // The spare map is re-made at the new capacity by the next `compact`.
         self.bind_groups = None;
+        self.spare_bind_groups = None;
         Ok(())
     }
 
@@ -583,9 +601,12 @@ impl GpuBackend {
                 flags,
                 offsets,
                 spare: MapTextures::new(ctx, cap)?,
+                groups: None,
+                spare_groups: None,
             })
         })?;
         self.compaction = Some(compaction);
+        self.spare_bind_groups = None;
         Ok(())
     }
 
@@ -896,40 +917,42 @@ impl Backend for GpuBackend {
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.compact_flags, n);
         let scatter_wg = self.grid_stride_workgroups(&self.kernels.compact_scatter, n);
         let (ctx, k, m) = (&self.ctx, &self.kernels, &self.map);
-        let c = self.compaction.as_ref().expect("ensure_compaction made it");
-        // Made per call: the map and the spare swap every time (cheap next to the passes).
-        let flags_bg = k.compact_flags.bind_group(
-            ctx,
-            &[
-                self.u_compact.binding(),
-                m.position_weight.binding(),
-                m.normal_frame.binding(),
-                c.flags.binding(),
-            ],
-        );
-        let scan_bg = k.prefix_sum.bind_group(
-            ctx,
-            &[
-                self.u_compact.binding(),
-                c.flags.binding(),
-                c.offsets.binding(),
-                self.counter.binding(),
-            ],
-        );
-        let scatter_bg = k.compact_scatter.bind_group(
-            ctx,
-            &[
-                self.u_compact.binding(),
-                c.flags.binding(),
-                c.offsets.binding(),
-                m.position_weight.binding(),
-                m.normal_frame.binding(),
-                m.color.binding(),
-                c.spare.position_weight.binding(),
-                c.spare.normal_frame.binding(),
-                c.spare.color.binding(),
-            ],
-        );
+        let c = self.compaction.as_mut().expect("ensure_compaction made it");
+        // Made once per map set (live and spare swap every call, and so do these).
+        let g = c.groups.get_or_insert_with(|| CompactionGroups {
+            flags: k.compact_flags.bind_group(
+                ctx,
+                &[
+                    self.u_compact.binding(),
+                    m.position_weight.binding(),
+                    m.normal_frame.binding(),
+                    c.flags.binding(),
+                ],
+            ),
+            scan: k.prefix_sum.bind_group(
+                ctx,
+                &[
+                    self.u_compact.binding(),
+                    c.flags.binding(),
+                    c.offsets.binding(),
+                    self.counter.binding(),
+                ],
+            ),
+            scatter: k.compact_scatter.bind_group(
+                ctx,
+                &[
+                    self.u_compact.binding(),
+                    c.flags.binding(),
+                    c.offsets.binding(),
+                    m.position_weight.binding(),
+                    m.normal_frame.binding(),
+                    m.color.binding(),
+                    c.spare.position_weight.binding(),
+                    c.spare.normal_frame.binding(),
+                    c.spare.color.binding(),
+                ],
+            ),
+        });
         let profiler = &mut self.profiler;
         let kept = ctx.scoped("compact", || {
             self.u_compact.write(ctx, &params);
@@ -939,9 +962,9 @@ impl Backend for GpuBackend {
                 profiler,
                 &mut enc,
                 &[
-                    (&k.compact_flags, &flags_bg, [surfel_wg, 1]),
-                    (&k.prefix_sum, &scan_bg, [1, 1]),
-                    (&k.compact_scatter, &scatter_bg, [scatter_wg, 1]),
+                    (&k.compact_flags, &g.flags, [surfel_wg, 1]),
+                    (&k.prefix_sum, &g.scan, [1, 1]),
+                    (&k.compact_scatter, &g.scatter, [scatter_wg, 1]),
                 ],
             )?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
@@ -955,7 +978,8 @@ impl Backend for GpuBackend {
         }
         let c = self.compaction.as_mut().expect("ensure_compaction made it");
         std::mem::swap(&mut self.map, &mut c.spare);
-        self.bind_groups = None;
+        std::mem::swap(&mut c.groups, &mut c.spare_groups);
+        std::mem::swap(&mut self.bind_groups, &mut self.spare_bind_groups);
         self.count = kept;
         Ok(kept)
     }

@@ -21,6 +21,11 @@ pub struct CpuBackend {
     pred_normal: Vec<[f32; 4]>,
     assoc: Vec<u32>,
     map: SurfelMap,
+    /// Compaction's keep flags, offsets and second map, kept between frames (the map and
+    /// `spare` swap after each compaction, as the GPU's map textures do).
+    flags: Vec<u32>,
+    offsets: Vec<u32>,
+    spare: SurfelMap,
 }
 
 impl CpuBackend {
@@ -157,18 +162,23 @@ impl Backend for CpuBackend {
         let mut params = *params;
         params.surfel_count = n as u32;
         let m = &self.map;
-        let mut flags = vec![0u32; n];
-        cpu::compact_flags::compact_flags(&params, &m.position_weight, &m.normal_frame, &mut flags);
-        let mut offsets = vec![0u32; n];
+        self.flags.resize(n, 0);
+        cpu::compact_flags::compact_flags(
+            &params,
+            &m.position_weight,
+            &m.normal_frame,
+            &mut self.flags,
+        );
+        self.offsets.resize(n, 0);
         let mut counter = 0u32;
-        cpu::prefix_sum::prefix_sum(&params, &flags, &mut offsets, &mut counter);
+        cpu::prefix_sum::prefix_sum(&params, &self.flags, &mut self.offsets, &mut counter);
         // The second map, as large as the first (as on the GPU), cut to the survivors.
-        let mut out = SurfelMap::default();
+        let out = &mut self.spare;
         out.resize(n);
         cpu::compact_scatter::compact_scatter(
             &params,
-            &flags,
-            &offsets,
+            &self.flags,
+            &self.offsets,
             &m.position_weight,
             &m.normal_frame,
             &m.color,
@@ -177,7 +187,7 @@ impl Backend for CpuBackend {
             &mut out.color,
         );
         out.resize(counter as usize);
-        self.map = out;
+        std::mem::swap(&mut self.map, &mut self.spare);
         Ok(self.map.len())
     }
 
