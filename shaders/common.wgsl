@@ -96,8 +96,16 @@ struct FuseParams {
     dist_threshold_m: f32,
     cos_normal_threshold: f32,
     capacity: u32,
-    _pad: u32,
+    association: u32,
+    confidence_sigma: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
+
+// FuseParams::association (mirror `layout::ASSOCIATION_PROJECTIVE`, `..._BEST_CANDIDATE`).
+const ASSOCIATION_PROJECTIVE: u32 = 0u;
+const ASSOCIATION_BEST_CANDIDATE: u32 = 1u;
 
 // Mirrors `layout::CompactParams` (compact_flags, prefix_sum, compact_scatter).
 struct CompactParams {
@@ -193,6 +201,28 @@ fn valid_entry(p: vec3<f32>) -> vec4<f32> {
 // render_splat). Mirrors `cpu::pack_depth_index`.
 fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
     return (u64(~bitcast<u32>(z_cam)) << 32u) | u64(surfel);
+}
+
+// Radius (metres) of the disc a pixel's measurement covers: the pixel's footprint at depth
+// q_cam.z times sqrt(2) (the disc through the pixel's corners), grown by the viewing angle
+// (1 / cos between the normal and the ray) up to twice that (Keller et al. 2013, Sec. 4.1;
+// ElasticFusion). q_cam, n_cam: camera frame; focal_px = fx. Mirrors `cpu::surfel_radius`.
+fn surfel_radius(focal_px: f32, q_cam: vec3<f32>, n_cam: vec3<f32>) -> f32 {
+    let footprint = 1.41421356 * q_cam.z / focal_px;
+    let cos_view = abs(dot(n_cam, q_cam)) / length(q_cam);
+    return footprint / max(cos_view, 0.5);
+}
+
+// Confidence of the measurement at pixel `texel`: a Gaussian over its distance from the
+// principal point, normalised so the corner at distance |(cx, cy)| is 1 (Keller et al.
+// 2013: the lens is worst at the border), or 1 when sigma is 0 (plain counts).
+// cam = (fx, fy, cx, cy). Mirrors `cpu::pixel_confidence`.
+fn pixel_confidence(cam: vec4<f32>, texel: vec2<u32>, sigma: f32) -> f32 {
+    if sigma <= 0.0 {
+        return 1.0;
+    }
+    let d = vec2<f32>(f32(texel.x) - cam.z, f32(texel.y) - cam.w) / length(cam.zw);
+    return exp(-dot(d, d) / (2.0 * sigma * sigma));
 }
 
 // Used by render_splat and render_resolve.

@@ -153,8 +153,25 @@ pub struct FuseParams {
     pub cos_normal_threshold: f32,
     /// Allocated surfel slots; `fuse_add` never writes at or past it.
     pub capacity: u32,
-    pub _pad: u32,
+    /// How pixels find their surfel: [`ASSOCIATION_PROJECTIVE`] (the assignment: every
+    /// surfel merges with the pixel it projects to, gates on distance and angle) or
+    /// [`ASSOCIATION_BEST_CANDIDATE`] (`fuse_select` first picks one surfel per pixel
+    /// within depth, angle and radius gates; a surfel merges only with the pixel that chose
+    /// it).
+    pub association: u32,
+    /// Standard deviation of the confidence of a pixel's measurement over its distance from
+    /// the image centre (normalised: 1 at the corners); 0 gives every measurement weight 1
+    /// (the assignment's counts). See `pixel_confidence` in common.wgsl.
+    pub confidence_sigma: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
+
+/// `FuseParams::association`: each surfel merges with the pixel it projects to.
+pub const ASSOCIATION_PROJECTIVE: u32 = 0;
+/// `FuseParams::association`: each pixel picks its best surfel (`fuse_select`).
+pub const ASSOCIATION_BEST_CANDIDATE: u32 = 1;
 
 /// Parameters of `compact_flags`, `prefix_sum` and `compact_scatter`, the removal of
 /// unstable surfels and the stream compaction of the map (mirrors `CompactParams`).

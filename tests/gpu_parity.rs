@@ -14,11 +14,12 @@ use wgslam::cpu;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
-use wgslam::layout::CompactParams;
+use wgslam::layout::{CompactParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
 use wgslam::slam::pipeline::{
-    Backend, BilateralSettings, PoseSource, Profile, Slam, SlamParams, TrackStatus, UnstableRemoval,
+    Backend, BilateralSettings, FrameMaps, PoseSource, Profile, Slam, SlamParams, TrackStatus,
+    UnstableRemoval,
 };
 use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::{system_rel_diffs, tolerance};
@@ -51,6 +52,11 @@ const MASK_MISMATCH_FRACTION: f64 = tolerance::VALIDITY_MISMATCH_MAX_FRACTION;
 /// Index-map keys: the camera depth in the key may differ by a few ULP (FMA in the pose
 /// transform on the GPU).
 const KEY_DEPTH_ULP_TOL: u32 = 4;
+/// fuse_select's off-ray distances, metres: the difference of the surfel's camera-frame
+/// point and the pixel's, both a few ULP of ~3 m apart between the backends (FMA in the
+/// pose transform, as for vertices), minus its component along the ray; the cancellation
+/// leaves the vertices' absolute error, not a relative one.
+const OFF_RAY_TOL_M: f32 = VERTEX_TOL_M;
 /// Decoded 6x6 systems: f32 partial sums of ~50k rows per workgroup on the GPU versus f64
 /// sums on the CPU; relative Frobenius difference of AᵀA and Aᵀb.
 const SYSTEM_REL_TOL: f64 = tolerance::SYSTEM_REL_DIFF_MAX;
@@ -63,6 +69,13 @@ const INLIER_FRACTION_TOL: f64 = tolerance::VALIDITY_MISMATCH_MAX_FRACTION;
 /// Fused surfels: an average of a handful of observations of f32 values (metres / 0..255).
 const SURFEL_POS_TOL_M: f32 = 1e-4;
 const SURFEL_COLOR_TOL: f32 = 1e-2;
+/// Surfel weights, relative: sums of `pixel_confidence`, an `exp` that lavapipe evaluates
+/// with its own polynomial (WGSL allows 3 + 2|x| ULP), so a few ULP per term; counts
+/// (the assignment's unit confidences) stay exact under it.
+const SURFEL_WEIGHT_REL_TOL: f32 = 1e-5;
+/// Surfel radii, metres: `surfel_radius` is a product and quotient of f32s of ~1e-2 m, a
+/// few ULP apart (dot products may be contracted into FMAs).
+const SURFEL_RADIUS_TOL_M: f32 = 1e-6;
 /// Whole runs: per-frame pose difference between the backends (the solve differs only by
 /// f32 vs f64 summation, and ICP converges to the same minimum).
 const RUN_POSE_TOL_M: f64 = tolerance::POSE_MAX_MM / 1e3;
@@ -430,35 +443,46 @@ fn check_surfel(what: &str, c: &SurfelMap, ic: usize, g: &SurfelMap, ig: usize) 
     let dc = (0..3)
         .map(|k| (c.color(ic)[k] - g.color(ig)[k]).abs())
         .fold(0.0, f32::max);
+    let dw = (c.weight(ic) - g.weight(ig)).abs();
+    let dr = (c.radius(ic) - g.radius(ig)).abs();
     let same = dp <= SURFEL_POS_TOL_M
         && dn <= NORMAL_TOL
         && dc <= SURFEL_COLOR_TOL
-        && c.weight(ic) == g.weight(ig)
+        && dw <= SURFEL_WEIGHT_REL_TOL * c.weight(ic)
+        && dr <= SURFEL_RADIUS_TOL_M
         && c.last_frame(ic) == g.last_frame(ig);
     assert!(
         same,
-        "{what}: cpu surfel {ic} {:?} n {:?} c {:?} w {} f {} vs gpu surfel {ig} {:?} n {:?} c {:?} w {} f {}",
-        c.position(ic), c.normal(ic), c.color(ic), c.weight(ic), c.last_frame(ic),
-        g.position(ig), g.normal(ig), g.color(ig), g.weight(ig), g.last_frame(ig)
+        "{what}: cpu surfel {ic} {:?} n {:?} c {:?} w {} r {} f {} vs gpu surfel {ig} {:?} n {:?} c {:?} w {} r {} f {}",
+        c.position(ic), c.normal(ic), c.color(ic), c.weight(ic), c.radius(ic), c.last_frame(ic),
+        g.position(ig), g.normal(ig), g.color(ig), g.weight(ig), g.radius(ig), g.last_frame(ig)
     );
 }
 
-/// fuse_merge and fuse_add against their twins: merged surfels keep their index, so they
+/// fuse_select (robust profile), fuse_merge and fuse_add against their twins, for each
+/// profile: the association keys pixel by pixel; merged surfels keep their index, so they
 /// are compared one to one; appended surfels are compared after sorting (the GPU appends
 /// in atomic order).
-fn fuse_matches_twins(mut gpu: GpuBackend) {
-    let params = SlamParams::default();
+fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
+    let params = SlamParams::profile(profile);
     let (mut s, gt) = cpu_map_from_gt(2, &params);
     let before = s.backend.download_map().unwrap();
     gpu.upload_map(&before).unwrap();
     let frame = load_frame(&root(), 3);
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    let (pp, bp, np) = (
+        s.preprocess_params(),
+        s.bilateral_params(),
+        s.normal_params(),
+    );
     s.backend
-        .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
         .unwrap();
     let fp = s.fuse_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()), 3);
+    if fp.association == ASSOCIATION_BEST_CANDIDATE {
+        check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
+    }
     let n_cpu = s.backend.fuse(&fp).unwrap();
     let n_gpu = gpu.fuse(&fp).unwrap();
     let c = s.backend.download_map().unwrap();
@@ -498,6 +522,63 @@ fn fuse_matches_twins(mut gpu: GpuBackend) {
             check_surfel("appended surfel", &c, a, &g, b);
         }
     }
+}
+
+/// fuse_select's twin on `map` against the GPU's keys of its whole fuse step from the
+/// same map and frame (`params`: the fuse step's, with `surfel_count` filled in here).
+fn check_fuse_select(
+    gpu: &mut GpuBackend,
+    map: &SurfelMap,
+    frame: &FrameMaps,
+    params: &FuseParams,
+) {
+    let params = FuseParams {
+        surfel_count: map.len() as u32,
+        ..*params
+    };
+    let mut keys = vec![0u64; frame.normal_depth.len()];
+    cpu::fuse_select::fuse_select(
+        &params,
+        &frame.normal_depth,
+        &map.position_weight,
+        &map.normal_frame,
+        &map.color,
+        &mut keys,
+    );
+    gpu.upload_map(map).unwrap();
+    gpu.fuse(&params).unwrap();
+    let g = gpu.download_assoc().unwrap();
+    assert_eq!(g.len(), keys.len(), "assoc sizes");
+    // A pixel's choice: the surfel (low word) must match; the off-ray distance (high word,
+    // inverted bits) within OFF_RAY_TOL_M. A choice may flip where a gate or two distances
+    // tie within that (FMA): the mask allowance.
+    let off_ray_m = |k: u64| f32::from_bits(!((k >> 32) as u32));
+    let chosen = keys.iter().filter(|&&k| k != 0).count();
+    let differ: Vec<usize> = (0..keys.len())
+        .filter(|&p| {
+            let (c, g) = (keys[p], g[p]);
+            (c as u32) != (g as u32)
+                || (c == 0) != (g == 0)
+                || (c != 0 && (off_ray_m(c) - off_ray_m(g)).abs() > OFF_RAY_TOL_M)
+        })
+        .collect();
+    eprintln!(
+        "fuse_select: {chosen} of {} pixels chose a surfel; {} differ",
+        keys.len(),
+        differ.len()
+    );
+    assert!(chosen > 1000, "too few choices for a real test");
+    let allowed = (keys.len() as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;
+    assert!(
+        differ.len() <= allowed,
+        "{} pixels chose differently; first pixel {:?}: cpu {:x} gpu {:x}",
+        differ.len(),
+        differ.first(),
+        differ.first().map_or(0, |&p| keys[p]),
+        differ.first().map_or(0, |&p| g[p])
+    );
+    // Put the map back for the caller's own fuse step.
+    gpu.upload_map(map).unwrap();
 }
 
 /// Runs the `compact` step on both backends from the same `map` with `params`; checks
@@ -867,7 +948,10 @@ fn main() -> ExitCode {
             icp_system_matches_twin(gpu_backend(ctx))
         }),
         gpu("fuse_matches_twins", |ctx| {
-            fuse_matches_twins(gpu_backend(ctx))
+            fuse_matches_twins(gpu_backend(ctx), Profile::Assignment)
+        }),
+        gpu("robust_fuse_matches_twins", |ctx| {
+            fuse_matches_twins(gpu_backend(ctx), Profile::Robust)
         }),
         gpu("compaction_matches_twins", |ctx| {
             compaction_matches_twins(gpu_backend(ctx))

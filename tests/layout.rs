@@ -87,7 +87,11 @@ fn rust_layouts() -> Vec<RustLayout> {
             dist_threshold_m,
             cos_normal_threshold,
             capacity,
-            _pad
+            association,
+            confidence_sigma,
+            _pad0,
+            _pad1,
+            _pad2
         }),
         rust_layout!(CompactParams {
             surfel_count,

@@ -10,7 +10,9 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::pipeline::{BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval};
+use crate::slam::pipeline::{
+    Association, BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval,
+};
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -187,6 +189,14 @@ pub struct PipelineArgs {
     /// Fusion normal-angle threshold, degrees (assignment 5, robust 60).
     #[arg(long)]
     pub fuse_angle: Option<f32>,
+    /// How fusion pairs pixels with surfels (assignment projective, robust best-candidate).
+    #[arg(long, value_enum)]
+    pub fuse_association: Option<Association>,
+    /// Confidence of a measurement over its distance from the image centre: the Gaussian's
+    /// sigma (normalised, 1 at the corners); 0 weighs every measurement 1 (assignment 0,
+    /// robust 0.6).
+    #[arg(long)]
+    pub confidence_sigma: Option<f32>,
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
@@ -369,6 +379,8 @@ impl PipelineArgs {
             icp_max_iters: self.icp_iters.unwrap_or(base.icp_max_iters),
             fuse_dist_m: self.fuse_dist.unwrap_or(base.fuse_dist_m),
             fuse_normal_deg: self.fuse_angle.unwrap_or(base.fuse_normal_deg),
+            fuse_association: self.fuse_association.unwrap_or(base.fuse_association),
+            fuse_confidence_sigma: self.confidence_sigma.unwrap_or(base.fuse_confidence_sigma),
             poses,
             ..base
         };
@@ -384,6 +396,12 @@ impl PipelineArgs {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Error::Argument(format!("{flag} {v} must be positive")));
             }
+        }
+        if !(p.fuse_confidence_sigma.is_finite() && p.fuse_confidence_sigma >= 0.0) {
+            return Err(Error::Argument(format!(
+                "--confidence-sigma {} must be 0 (off) or positive",
+                p.fuse_confidence_sigma
+            )));
         }
         if !(p.icp_huber_m.is_finite() && p.icp_huber_m >= 0.0) {
             return Err(Error::Argument(format!(

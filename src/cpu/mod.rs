@@ -19,6 +19,7 @@ pub mod cross_covariance;
 pub mod depth_to_vertex;
 pub mod fuse_add;
 pub mod fuse_merge;
+pub mod fuse_select;
 pub mod icp_reduce;
 pub mod nn_brute;
 pub mod nn_grid;
@@ -121,6 +122,28 @@ pub fn valid_entry(p: Vec3) -> [f32; 4] {
 #[inline]
 pub fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
     ((!z_cam.to_bits()) as u64) << 32 | surfel as u64
+}
+
+/// Radius (metres) of the disc a pixel's measurement covers (camera frame `q_cam`,
+/// `n_cam`; `focal_px` = fx). Mirrors `surfel_radius` in common.wgsl, which says why.
+#[inline]
+pub fn surfel_radius(focal_px: f32, q_cam: Vec3, n_cam: Vec3) -> f32 {
+    let footprint = std::f32::consts::SQRT_2 * q_cam.z / focal_px;
+    let cos_view = n_cam.dot(q_cam).abs() / q_cam.length();
+    footprint / cos_view.max(0.5)
+}
+
+/// Confidence of the measurement at pixel `texel` (1 at the principal point, a Gaussian
+/// of standard deviation `sigma` over the distance normalised to 1 at the corners; 1
+/// everywhere when `sigma` is 0). Mirrors `pixel_confidence` in common.wgsl.
+#[inline]
+pub fn pixel_confidence(cam: [f32; 4], texel: [u32; 2], sigma: f32) -> f32 {
+    if sigma <= 0.0 {
+        return 1.0;
+    }
+    let d = glam::Vec2::new(texel[0] as f32 - cam[2], texel[1] as f32 - cam[3])
+        / glam::Vec2::new(cam[2], cam[3]).length();
+    (-d.dot(d) / (2.0 * sigma * sigma)).exp()
 }
 
 /// True when `(d, i)` beats `(best_d, best_i)`: closer, or as close with a lower index

@@ -36,7 +36,7 @@ use super::map_textures::MapTextures;
 use super::timing::StageTimer;
 use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
-    ProjectParams, ICP_SYSTEM_LEN,
+    ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps};
@@ -101,6 +101,14 @@ pub mod bindings {
         Binding::texture_f32("normal_depth: target, camera frame, w = depth"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
+    pub const FUSE_SELECT: [Binding; 6] = [
+        Binding::uniform("params: FuseParams"),
+        Binding::texture_f32("normal_depth: camera frame, w = depth"),
+        Binding::texture_f32("position_weight: w = confidence"),
+        Binding::texture_u32("normal_frame: w = last_frame"),
+        Binding::texture_f32("color: a = radius"),
+        Binding::read_write("assoc: atomic u64 key per pixel"),
+    ];
     pub const FUSE_MERGE: [Binding; 7] = [
         Binding::uniform("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
@@ -108,7 +116,7 @@ pub mod bindings {
         Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
         Binding::storage_texture(TexelFormat::Rgba32U, true, "normal_frame"),
         Binding::storage_texture(TexelFormat::Rgba32F, true, "color"),
-        Binding::read_write("assoc: atomic flag per pixel"),
+        Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
     pub const FUSE_ADD: [Binding; 8] = [
         Binding::uniform("params: FuseParams"),
@@ -152,6 +160,7 @@ struct Kernels {
     project_model: Kernel,
     predict_model: Kernel,
     icp_reduce: Kernel,
+    fuse_select: Kernel,
     fuse_merge: Kernel,
     fuse_add: Kernel,
     compact_flags: Kernel,
@@ -201,7 +210,8 @@ struct FrameBuffers {
     index_map: GpuArray<u64>,
     pred_vertex: GpuImage,
     pred_normal: GpuImage,
-    assoc: GpuArray<u32>,
+    /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
+    assoc: GpuArray<u64>,
 }
 
 impl FrameBuffers {
@@ -220,6 +230,7 @@ struct BindGroups {
     project_model: wgpu::BindGroup,
     predict_model: wgpu::BindGroup,
     icp_reduce: wgpu::BindGroup,
+    fuse_select: wgpu::BindGroup,
     fuse_merge: wgpu::BindGroup,
     fuse_add: wgpu::BindGroup,
 }
@@ -394,6 +405,7 @@ impl GpuBackend {
                 project_model: Kernel::new(&ctx, "project_model", &bindings::PROJECT_MODEL)?,
                 predict_model: Kernel::new(&ctx, "predict_model", &bindings::PREDICT_MODEL)?,
                 icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
+                fuse_select: Kernel::new(&ctx, "fuse_select", &bindings::FUSE_SELECT)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
                 fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
                 compact_flags: Kernel::new(&ctx, "compact_flags", &bindings::COMPACT_FLAGS)?,
@@ -682,6 +694,17 @@ impl GpuBackend {
                         self.partials.binding(),
                     ],
                 ),
+                fuse_select: k.fuse_select.bind_group(
+                    c,
+                    &[
+                        self.u_fuse.binding(),
+                        f.normal_depth.binding(),
+                        m.position_weight.binding(),
+                        m.normal_frame.binding(),
+                        m.color.binding(),
+                        f.assoc.binding(),
+                    ],
+                ),
                 fuse_merge: k.fuse_merge.bind_group(
                     c,
                     &[
@@ -882,15 +905,17 @@ impl Backend for GpuBackend {
             );
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.fuse_merge, &bg.fuse_merge, [surfel_wg, 1]),
-                    (&k.fuse_add, &bg.fuse_add, pix_wg),
-                ],
-            )?;
+            let select = (&k.fuse_select, &bg.fuse_select, [surfel_wg, 1]);
+            let merge_add = [
+                (&k.fuse_merge, &bg.fuse_merge, [surfel_wg, 1]),
+                (&k.fuse_add, &bg.fuse_add, pix_wg),
+            ];
+            let passes: Vec<_> = (params.association == ASSOCIATION_BEST_CANDIDATE)
+                .then_some(select)
+                .into_iter()
+                .chain(merge_add)
+                .collect();
+            record_passes(ctx, profiler, &mut enc, &passes)?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
@@ -1070,6 +1095,17 @@ impl GpuBackend {
 }
 
 impl GpuBackend {
+    /// The last `fuse`'s per-pixel association keys (for the parity test of
+    /// `fuse_select`); empty before the first frame.
+    pub fn download_assoc(&mut self) -> Result<Vec<u64>> {
+        let (ctx, Some(f)) = (&self.ctx, self.frame.as_ref()) else {
+            return Ok(Vec::new());
+        };
+        ctx.scoped("download assoc", || {
+            f.assoc.read_back_range(ctx, 0..f.pixels())
+        })
+    }
+
     /// Replaces the GPU map with `map` (growing the buffers if needed), e.g. to start two
     /// backends from the same map in a parity test or to resume from a saved map.
     /// [`Error::Capacity`] when it exceeds [`GpuBackend::max_surfels`].

@@ -45,6 +45,7 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
         ("project_model", &b::PROJECT_MODEL),
         ("predict_model", &b::PREDICT_MODEL),
         ("icp_reduce", &b::ICP_REDUCE),
+        ("fuse_select", &b::FUSE_SELECT),
         ("fuse_merge", &b::FUSE_MERGE),
         ("fuse_add", &b::FUSE_ADD),
         ("compact_flags", &b::COMPACT_FLAGS),

@@ -45,6 +45,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/predict_model.wgsl"),
     ),
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
+    (
+        "fuse_select",
+        include_str!("../../shaders/fuse_select.wgsl"),
+    ),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
     (

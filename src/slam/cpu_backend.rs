@@ -6,7 +6,7 @@
 use crate::cpu;
 use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
-    ProjectParams, ICP_SYSTEM_LEN,
+    ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, FrameMaps};
@@ -19,7 +19,7 @@ pub struct CpuBackend {
     index_map: Vec<u64>,
     pred_vertex: Vec<[f32; 4]>,
     pred_normal: Vec<[f32; 4]>,
-    assoc: Vec<u32>,
+    assoc: Vec<u64>,
     map: SurfelMap,
     /// Compaction's keep flags, offsets and second map, kept between frames (the map and
     /// `spare` swap after each compaction, as the GPU's map textures do).
@@ -130,6 +130,16 @@ impl Backend for CpuBackend {
         self.assoc.clear();
         self.assoc.resize(n_pix, 0);
         let m = &mut self.map;
+        if params.association == ASSOCIATION_BEST_CANDIDATE {
+            cpu::fuse_select::fuse_select(
+                &params,
+                &self.frame.normal_depth,
+                &m.position_weight,
+                &m.normal_frame,
+                &m.color,
+                &mut self.assoc,
+            );
+        }
         cpu::fuse_merge::fuse_merge(
             &params,
             &self.frame.normal_depth,

@@ -238,6 +238,11 @@ pub struct SlamParams {
     pub fuse_dist_m: f32,
     /// Fusion filter 2: maximum normal angle, degrees.
     pub fuse_normal_deg: f32,
+    /// How fusion pairs pixels with surfels.
+    pub fuse_association: Association,
+    /// Standard deviation of a measurement's confidence over its normalised distance from
+    /// the image centre (`pixel_confidence`); 0 weighs every measurement 1 (counts).
+    pub fuse_confidence_sigma: f32,
     /// Tracking or ground-truth poses.
     pub poses: PoseSource,
     /// The edge-preserving bilateral depth filter between `depth_to_vertex` and
@@ -246,6 +251,30 @@ pub struct SlamParams {
     /// Removal of unstable surfels after each fusion (the `compact` step); `None` (the
     /// assignment) keeps every surfel.
     pub unstable_removal: Option<UnstableRemoval>,
+}
+
+/// How fusion pairs the frame's pixels with the map's surfels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Association {
+    /// The assignment's: every surfel merges with the pixel it projects to when the
+    /// distance and angle gates pass; several surfels may merge with one pixel, and a pixel
+    /// no surfel merged with becomes a new surfel.
+    Projective,
+    /// Keller et al. 2013 / ElasticFusion: each pixel picks the one surfel nearest its ray
+    /// among those whose disc covers it within the depth and angle gates (`fuse_select`);
+    /// only that surfel merges, and a pixel no disc covers becomes a new surfel.
+    BestCandidate,
+}
+
+impl Association {
+    /// `FuseParams::association`.
+    pub fn code(self) -> u32 {
+        match self {
+            Association::Projective => crate::layout::ASSOCIATION_PROJECTIVE,
+            Association::BestCandidate => crate::layout::ASSOCIATION_BEST_CANDIDATE,
+        }
+    }
 }
 
 /// The removal rule for unstable surfels (Keller et al. 2013, ElasticFusion): after fusing
@@ -346,6 +375,8 @@ impl SlamParams {
             icp_min_increment: 1e-6,
             fuse_dist_m: 0.03,
             fuse_normal_deg: 5.0,
+            fuse_association: Association::Projective,
+            fuse_confidence_sigma: 0.0,
             poses: PoseSource::Track,
             bilateral: None,
             unstable_removal: None,
@@ -361,6 +392,8 @@ impl SlamParams {
                 icp_min_increment: ROBUST_MIN_INCREMENT,
                 fuse_dist_m: ROBUST_FUSE_DIST_M,
                 fuse_normal_deg: ROBUST_FUSE_NORMAL_DEG,
+                fuse_association: Association::BestCandidate,
+                fuse_confidence_sigma: ROBUST_CONFIDENCE_SIGMA,
                 bilateral: Some(BilateralSettings::default()),
                 unstable_removal: Some(UnstableRemoval::default()),
                 ..assignment
@@ -394,6 +427,10 @@ pub const ROBUST_HUBER_M: f32 = 0.02;
 pub const ROBUST_FUSE_DIST_M: f32 = 0.05;
 /// See [`ROBUST_FUSE_DIST_M`].
 pub const ROBUST_FUSE_NORMAL_DEG: f32 = 60.0;
+
+/// Confidence sigma of the robust profile: ElasticFusion's 0.6 (a measurement at the
+/// image corner weighs exp(-1 / 0.72) = 0.25 of one at the centre).
+pub const ROBUST_CONFIDENCE_SIGMA: f32 = 0.6;
 
 /// Convergence threshold of the robust profile (radians and metres): noisy depth moves
 /// every increment by more than the assignment's 1e-6, so ICP would always use all its
@@ -581,7 +618,11 @@ impl<B: Backend> Slam<B> {
             dist_threshold_m: self.params.fuse_dist_m,
             cos_normal_threshold: self.params.fuse_normal_deg.to_radians().cos(),
             capacity: 0,
-            _pad: 0,
+            association: self.params.fuse_association.code(),
+            confidence_sigma: self.params.fuse_confidence_sigma,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 

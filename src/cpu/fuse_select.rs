@@ -1,0 +1,94 @@
+//! CPU twin of `shaders/fuse_select.wgsl`: every pixel picks the one surfel it will fuse
+//! with (the best-candidate association of the robust profile, Keller et al. 2013 Sec. 4.2,
+//! ElasticFusion), before `fuse_merge` and `fuse_add`.
+//!
+//! For every surfel (world frame): move it and its normal into the tracked camera and
+//! project it (filter 1: inside the image, `z > 0`). Its disc covers the pixels within
+//! its radius: the projected pixel and, when the radius spans at least one pixel at that
+//! depth, its 8 neighbours ([`MAX_SELECT_RADIUS_PX`]). For each covered pixel with a
+//! valid measurement `q` (camera frame, rebuilt with `back_project`), filter 2 has three
+//! gates: the distance along the pixel's ray `|(p - q) . ray| < dist_threshold_m` (depth),
+//! the distance off the ray `|(p - q) - ((p - q) . ray) ray| < radius` (the disc covers
+//! the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels that pass,
+//! the pixel keeps the one nearest its ray (smallest off-ray distance; ties to the larger
+//! index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the choice does
+//! not depend on thread order. `fuse_merge` then merges surfel `i` with its projected pixel
+//! only if that pixel chose `i`; `fuse_add` adds only pixels no surfel covers.
+//!
+//! Surfels that pass the gates but are not chosen are neither merged nor refreshed: a
+//! second copy of a surface stops gaining confidence and the removal of unstable surfels
+//! (`compact_flags`) takes it away.
+
+use super::{
+    back_project, is_valid, pack_depth_index, project_to_texel, surfel_texel, transform_dir,
+    transform_point, xyz,
+};
+use crate::layout::FuseParams;
+
+/// Largest half-width, pixels, of the window a surfel's disc covers: 1 (3x3). Discs are
+/// at most 2 sqrt(2) pixel footprints wide (`surfel_radius`) where they were made, so a
+/// wider window only matters for surfels seen again from much closer.
+pub const MAX_SELECT_RADIUS_PX: i32 = 1;
+
+/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
+/// - 0 `params`: `FuseParams` (tracked pose, intrinsics, `surfel_count`, gates)
+/// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w, zero where
+///   invalid
+/// - 2 `position_weight`: xyz world frame (metres), w = confidence
+/// - 3 `normal_frame`: bits of the unit normal (world frame), w = last frame
+/// - 4 `color`: RGB 0..255, a = radius (metres)
+/// - 5 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; the chosen
+///   surfel's `pack_depth_index(off_ray_m, index)`
+pub fn fuse_select(
+    params: &FuseParams,
+    normal_depth: &[[f32; 4]],
+    position_weight: &[[f32; 4]],
+    normal_frame: &[[u32; 4]],
+    color: &[[f32; 4]],
+    assoc: &mut [u64],
+) {
+    let cam = [params.fx, params.fy, params.cx, params.cy];
+    for i in 0..params.surfel_count {
+        let surfel = surfel_texel(i);
+        let p_cam = transform_point(&params.t_world_to_cam, xyz(position_weight[surfel]));
+        let Some(centre) = project_to_texel(cam, params.width, params.height, p_cam) else {
+            continue;
+        };
+        let nf = normal_frame[surfel];
+        let n_world = glam::Vec3::new(
+            f32::from_bits(nf[0]),
+            f32::from_bits(nf[1]),
+            f32::from_bits(nf[2]),
+        );
+        let n_cam = transform_dir(&params.t_world_to_cam, n_world);
+        let radius = color[surfel][3];
+        let reach = ((radius * params.fx / p_cam.z) as i32).min(MAX_SELECT_RADIUS_PX);
+        for dv in -reach..=reach {
+            for du in -reach..=reach {
+                let u = centre[0] as i32 + du;
+                let v = centre[1] as i32 + dv;
+                if u < 0 || v < 0 || u >= params.width as i32 || v >= params.height as i32 {
+                    continue;
+                }
+                let texel = [u as u32, v as u32];
+                let pix = (texel[1] * params.width + texel[0]) as usize;
+                let nd = normal_depth[pix];
+                if !is_valid(nd) {
+                    continue;
+                }
+                let q = back_project(cam, texel, nd[3]);
+                let ray = q / q.length();
+                let d = p_cam - q;
+                let along = d.dot(ray);
+                let off_ray = (d - ray * along).length();
+                if along.abs() >= params.dist_threshold_m
+                    || off_ray >= radius
+                    || n_cam.dot(xyz(nd)) <= params.cos_normal_threshold
+                {
+                    continue;
+                }
+                assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
+            }
+        }
+    }
+}
