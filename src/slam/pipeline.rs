@@ -199,11 +199,13 @@ pub enum Profile {
     /// The handout's experiment: raw normals, one level, a 0.07 m distance gate, no angle
     /// gate, unweighted rows, 0.03 m / 5 degree fusion gates, count weights.
     Assignment,
-    /// Tracking for noisy depth (work in progress, see the README): ElasticFusion's 0.10 m /
-    /// 20 degree association gates, Huber-weighted rows scaled by the depth-noise model, a
-    /// convergence test that noisy data can meet, the bilateral depth filter
-    /// ([`BilateralSettings`]); the assignment's fusion with wider gates
-    /// ([`ROBUST_FUSE_DIST_M`]).
+    /// Tracking and fusion for noisy depth (Keller et al. 2013, ElasticFusion): the
+    /// bilateral depth filter ([`BilateralSettings`]); ICP with 0.10 m / 20 degree
+    /// association gates, Huber-weighted rows scaled by the depth-noise model and a
+    /// convergence test that noisy data can meet; fusion with best-candidate association
+    /// ([`Association::BestCandidate`]), confidence-weighted averages
+    /// ([`ROBUST_CONFIDENCE_SIGMA`]), surfel radii, wider gates ([`ROBUST_FUSE_DIST_M`]) and
+    /// the removal of unstable surfels ([`ROBUST_STABLE_WEIGHT`]).
     Robust,
 }
 
@@ -299,28 +301,21 @@ impl Default for UnstableRemoval {
     }
 }
 
-/// Stable weight of the robust profile's removal rule (see [`UnstableRemoval`]). Measured
-/// on the noisy ICL kt2 frames 1..200 at 320x240 (`wgslam run ... --profile robust
-/// --backend cpu --stable-weight W --unstable-max-age A`), ATE aligned / map fraction of
-/// all pixels; without removal 7.91 mm / 0.0225:
+/// Stable weight of the robust profile's removal rule (see [`UnstableRemoval`]), in the
+/// units of the surfel weight: summed `pixel_confidence`s, at most 1 per observation.
+/// Measured with best-candidate fusion on the noisy ICL kt2 frames 1..200 at 320x240
+/// (`wgslam run ... --profile robust --backend cpu --stable-weight W`, age 20), ATE
+/// aligned / map fraction of all pixels:
 ///
-/// | W \ A | 1 | 3 or 5 | 10 | 20 | 50 |
+/// | W | 0 (off) | 5 | 10 | 20 | 30 |
 /// |---|---|---|---|---|---|
-/// | 2 | 7.85 / 0.0214 | 7.89 / 0.0219 (3) | 7.91 / 0.0222 | 7.90 / 0.0222 | |
-/// | 3 | 7.86 / 0.0210 | 7.89 / 0.0218 (5) | 7.92 / 0.0219 | 7.91 / 0.0220 | |
-/// | 5 | 7.87 / 0.0204 | 7.90 / 0.0214 (5) | 7.93 / 0.0216 | 7.91 / 0.0217 | |
-/// | 10 | 7.94 / 0.0194 | 7.92 / 0.0205 (5) | 7.94 / 0.0208 | 7.91 / 0.0209 | |
-/// | 15 | 7.95 / 0.0186 | 7.91 / 0.0198 (5) | 7.94 / 0.0201 | 7.92 / 0.0203 | 7.92 / 0.0209 |
-/// | 20 | 7.97 / 0.0179 | 7.91 / 0.0191 (5) | 7.92 / 0.0194 | 7.90 / 0.0197 | 7.92 / 0.0205 |
-/// | 30 | 7.99 / 0.0166 | 7.94 / 0.0179 (5) | 7.93 / 0.0183 | 7.92 / 0.0187 | |
+/// | | 6.50 mm / 0.0085 | 6.50 / 0.0083 | 6.51 / 0.0080 | 6.50 / 0.0077 | 6.50 / 0.0073 |
 ///
-/// The ATE barely moves (the removed surfels are rarely the ones ICP matches); the map
-/// is mostly surfels seen many times (median weight 55: with the wide fusion gates several
-/// surfels merge with each pixel), so only a high stable weight reaches 0.02. 20 / 20 is
-/// the longest time window under 0.02. On the noise-free frames 1..200 it keeps the ATE
-/// (0.180 mm with and without) and shrinks the map from 0.0198 to 0.0174 (15 / 5: 0.0176;
-/// 10 / 1: 0.176 mm / 0.0182): the rule also drops real surfaces seen for only a few
-/// frames at the edge of the view, not only noise.
+/// Best-candidate association already keeps the map small (a second copy of a surface is
+/// not refreshed), so the rule only trims the last tenth: copies that were seen a few
+/// times and never again, flying pixels at edges. The ATE does not move. With projective
+/// (the assignment's) fusion and count weights the same rule had mattered more (0.0225 to
+/// 0.0197 at 20 / 20). 20 / 20 is kept: the longest window that removes the most.
 pub const ROBUST_STABLE_WEIGHT: f32 = 20.0;
 /// Age limit of the robust profile's removal rule, frames; see [`ROBUST_STABLE_WEIGHT`].
 pub const ROBUST_UNSTABLE_MAX_AGE: u32 = 20;
@@ -410,8 +405,9 @@ const ANGLE_GATE_OFF: f32 = -2.0;
 /// points keep full weight and mismatches beyond are down-weighted, not cut.
 pub const ROBUST_HUBER_M: f32 = 0.02;
 
-/// Fusion gates of the robust profile until fusion itself is rebuilt for noisy depth
-/// (surfel confidence and radius, normals from filtered depth). Raw central-difference
+/// Fusion gates of the robust profile: the depth gate (along the pixel's ray with
+/// best-candidate association) and the normal-angle gate. First chosen with projective
+/// fusion, where raw central-difference
 /// normals on noisy depth rarely agree within the assignment's 5 degrees, so almost
 /// nothing merged and the map became a cloud of noise. Measured on the noisy ICL kt2
 /// frames 1..200 at 320x240 with the robust tracker (`wgslam run ... --profile robust
@@ -423,13 +419,19 @@ pub const ROBUST_HUBER_M: f32 = 0.02;
 /// noise. With the bilateral filter (now part of the profile) the normals are smoother:
 /// 0.05 / 30 8.9 mm / 0.042; 0.05 / 60 7.9 mm / 0.0225; 0.05 / 80 7.8 mm / 0.021; and the
 /// noise-free frames 1..200 give 0.180 mm / 0.0198 at 0.05 / 60. 60 degrees is kept as the
-/// widest gate that still separates a wall from the floor it meets.
+/// widest gate that still separates a wall from the floor it meets. With best-candidate
+/// association (noisy, 320x240, CPU) the gates matter less: 0.05 / 60 6.50 mm / 0.0077;
+/// 0.05 / 45 6.63 / 0.0087; 0.05 / 30 6.29 / 0.011; 0.03 / 60 6.13 / 0.0086 (within the
+/// run-to-run spread of the tracker's choices), so they are kept.
 pub const ROBUST_FUSE_DIST_M: f32 = 0.05;
 /// See [`ROBUST_FUSE_DIST_M`].
 pub const ROBUST_FUSE_NORMAL_DEG: f32 = 60.0;
 
 /// Confidence sigma of the robust profile: ElasticFusion's 0.6 (a measurement at the
-/// image corner weighs exp(-1 / 0.72) = 0.25 of one at the centre).
+/// image corner weighs exp(-1 / 0.72) = 0.25 of one at the centre). On the ICL frames it
+/// neither helps nor hurts (noisy 1..200 at 320x240: 6.50 mm / map 0.0077 with it, 6.44 mm
+/// / 0.0081 with `--confidence-sigma 0`): their noise model has no lens falloff, which a
+/// real sensor has.
 pub const ROBUST_CONFIDENCE_SIGMA: f32 = 0.6;
 
 /// Convergence threshold of the robust profile (radians and metres): noisy depth moves
