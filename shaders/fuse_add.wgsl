@@ -1,29 +1,29 @@
-// fuse_add.wgsl: appends every valid pixel no surfel merged with (projective association)
-// or covers (best candidate) as a new surfel (world frame, weight pixel_confidence, radius
-// surfel_radius) through an atomic counter. CPU twin: src/cpu/fuse_add.rs.
+// fuse_add.wgsl: appends every pixel fuse_flags flagged (a valid measurement no surfel
+// merged with or covers) as a new surfel at slot surfel_count + offsets[pix] (prefix_sum of
+// the flags, so new surfels lie in pixel order, as on the CPU, and two runs write the same
+// map): world frame, weight pixel_confidence, radius surfel_radius. Last of three kernels
+// (fuse_flags, prefix_sum, fuse_add). CPU twin: src/cpu/fuse_add.rs.
 //
 // Bindings (@group(0)):
-//   0 params      uniform FuseParams (t_cam_to_world, frame_id, capacity)
+//   0 params      uniform FuseParams (t_cam_to_world, surfel_count, frame_id, capacity)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
 //                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
 //                   is rebuilt with back_project, as in the twin
 //   2 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   3 assoc       storage read   array<vec2<u32>>: the u64 key per pixel (low word first),
-//                 non-zero where a surfel merged with or was chosen by the pixel
-//   4 counter     storage rw     atomic<u32>: surfels in the map (in: before, out: after)
+//   3 flags       storage read   array<u32>: 1 where the pixel becomes a new surfel
+//   4 offsets     storage read   array<u32>: exclusive prefix sum of flags
 //   5 position_weight  storage texture rgba32float, write: xyz world frame, w = confidence
 //   6 normal_frame     storage texture rgba32uint, write: normal bits, w = last_frame
 //   7 color            storage texture rgba32float, write: RGB 0..255, a = radius (m)
 //   (surfel i is texel surfel_texel(i) of each; capacity slots; see src/gpu/map_textures.rs)
-// One thread per pixel (8x8 workgroups); the append order is the atomics' order, not pixel order. Never
-// writes at or past params.capacity: the counter still counts, and the host turns a count
-// above capacity into a capacity error.
+// One thread per pixel (8x8 workgroups). Never writes at or past params.capacity (the host
+// grows the map first so that every pixel fits).
 
 @group(0) @binding(0) var<uniform> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var color_map: texture_2d<f32>;
-@group(0) @binding(3) var<storage, read> assoc: array<vec2<u32>>;
-@group(0) @binding(4) var<storage, read_write> counter: atomic<u32>;
+@group(0) @binding(3) var<storage, read> flags: array<u32>;
+@group(0) @binding(4) var<storage, read> offsets: array<u32>;
 @group(0) @binding(5) var position_weight: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var normal_frame: texture_storage_2d<rgba32uint, write>;
 @group(0) @binding(7) var color: texture_storage_2d<rgba32float, write>;
@@ -34,16 +34,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.width || gid.y >= params.height {
         return;
     }
-    let key = assoc[gid.y * params.width + gid.x];
-    if key.x != 0u || key.y != 0u {
+    let pix = gid.y * params.width + gid.x;
+    if flags[pix] == 0u {
         return;
     }
-    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
     let nd = textureLoad(normal_depth, gid.xy, 0);
-    if !is_valid(nd) {
-        return;
-    }
-    let i = atomicAdd(&counter, 1u);
+    let i = params.surfel_count + offsets[pix];
     if i >= params.capacity {
         return;
     }

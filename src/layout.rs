@@ -168,6 +168,17 @@ pub struct FuseParams {
     pub _pad2: u32,
 }
 
+/// `prefix_sum`'s parameters for a scan of `n` flags that are not surfels (fusion's
+/// new-surfel flags, one per pixel): only `surfel_count` (= n) is read.
+pub fn scan_params(n: usize) -> CompactParams {
+    CompactParams {
+        surfel_count: n as u32,
+        frame_id: 0,
+        stable_weight: 0.0,
+        max_age_frames: 0,
+    }
+}
+
 /// `FuseParams::association`: each surfel merges with the pixel it projects to.
 pub const ASSOCIATION_PROJECTIVE: u32 = 0;
 /// `FuseParams::association`: each pixel picks its best surfel (`fuse_select`).

@@ -57,8 +57,8 @@ fn a_wrong_table_is_reported_binding_by_binding() {
         Binding::uniform("params"),
         Binding::texture_f32("normal_depth"),
         Binding::texture_f32("color_map"),
-        Binding::read_write("assoc"),
-        Binding::read_write("counter"),
+        Binding::read_write("flags"),
+        Binding::read("offsets"),
         Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
         Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
     ];
@@ -68,7 +68,7 @@ fn a_wrong_table_is_reported_binding_by_binding() {
         &gpu::layout_entries(&wrong),
     );
     assert_eq!(problems.len(), 3, "got: {problems:#?}");
-    for (b, var) in [(3, "assoc"), (5, "position_weight"), (7, "color")] {
+    for (b, var) in [(3, "flags"), (5, "position_weight"), (7, "color")] {
         let tag = format!("kernel `fuse_add` binding {b} (`{var}`)");
         assert!(
             problems.iter().any(|p| p.starts_with(&tag)),

@@ -18,6 +18,7 @@ pub mod compact_scatter;
 pub mod cross_covariance;
 pub mod depth_to_vertex;
 pub mod fuse_add;
+pub mod fuse_flags;
 pub mod fuse_merge;
 pub mod fuse_select;
 pub mod icp_reduce;

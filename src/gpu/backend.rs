@@ -34,6 +34,7 @@ use super::images::GpuImage;
 use super::kernel::{Binding, Kernel, TexelFormat};
 use super::map_textures::MapTextures;
 use super::timing::StageTimer;
+use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
@@ -118,12 +119,18 @@ pub mod bindings {
         Binding::storage_texture(TexelFormat::Rgba32F, true, "color"),
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
+    pub const FUSE_FLAGS: [Binding; 4] = [
+        Binding::uniform("params: FuseParams"),
+        Binding::texture_f32("normal_depth: camera frame, w = depth"),
+        Binding::read("assoc: u64 key per pixel"),
+        Binding::read_write("flags: 1 new surfel / 0 per pixel"),
+    ];
     pub const FUSE_ADD: [Binding; 8] = [
         Binding::uniform("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
-        Binding::read("assoc"),
-        Binding::read_write("counter: atomic surfel count"),
+        Binding::read("flags: new surfel per pixel"),
+        Binding::read("offsets: prefix sum of flags"),
         Binding::storage_texture(TexelFormat::Rgba32F, false, "position_weight"),
         Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
         Binding::storage_texture(TexelFormat::Rgba32F, false, "color"),
@@ -162,6 +169,7 @@ struct Kernels {
     icp_reduce: Kernel,
     fuse_select: Kernel,
     fuse_merge: Kernel,
+    fuse_flags: Kernel,
     fuse_add: Kernel,
     compact_flags: Kernel,
     prefix_sum: Kernel,
@@ -212,6 +220,9 @@ struct FrameBuffers {
     pred_normal: GpuImage,
     /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
     assoc: GpuArray<u64>,
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`).
+    add_flags: GpuArray<u32>,
+    add_offsets: GpuArray<u32>,
 }
 
 impl FrameBuffers {
@@ -232,6 +243,9 @@ struct BindGroups {
     icp_reduce: wgpu::BindGroup,
     fuse_select: wgpu::BindGroup,
     fuse_merge: wgpu::BindGroup,
+    fuse_flags: wgpu::BindGroup,
+    /// `prefix_sum` over the new-surfel flags (one per pixel).
+    fuse_scan: wgpu::BindGroup,
     fuse_add: wgpu::BindGroup,
 }
 
@@ -266,6 +280,8 @@ pub struct GpuBackend {
     /// Buffers of the `compact` step, `None` until its first call.
     compaction: Option<Compaction>,
     u_compact: Uniform<CompactParams>,
+    /// `prefix_sum`'s parameters for fusion's scan over the pixels.
+    u_fuse_scan: Uniform<CompactParams>,
 }
 
 /// Per-kernel GPU times: timestamps around each kernel's pass (or wall time without the
@@ -407,6 +423,7 @@ impl GpuBackend {
                 icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
                 fuse_select: Kernel::new(&ctx, "fuse_select", &bindings::FUSE_SELECT)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
+                fuse_flags: Kernel::new(&ctx, "fuse_flags", &bindings::FUSE_FLAGS)?,
                 fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
                 compact_flags: Kernel::new(&ctx, "compact_flags", &bindings::COMPACT_FLAGS)?,
                 prefix_sum: Kernel::new(&ctx, "prefix_sum", &bindings::PREFIX_SUM)?,
@@ -436,6 +453,7 @@ impl GpuBackend {
         let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
         let (partials, partials_readback, counter, counter_readback) = small;
         let u_compact = Uniform::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
+        let u_fuse_scan = Uniform::new(&ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed());
         Ok(GpuBackend {
             ctx,
             kernels,
@@ -459,6 +477,7 @@ impl GpuBackend {
             profiler: None,
             compaction: None,
             u_compact,
+            u_fuse_scan,
         })
     }
 
@@ -544,6 +563,10 @@ impl GpuBackend {
         index_map.set_len(n);
         let mut assoc = GpuArray::new(ctx, "assoc", n)?;
         assoc.set_len(n);
+        let mut add_flags = GpuArray::new(ctx, "new-surfel flags", n)?;
+        add_flags.set_len(n);
+        let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n)?;
+        add_offsets.set_len(n);
         self.frame = Some(FrameBuffers {
             raw_width: p.raw_width,
             raw_height: p.raw_height,
@@ -560,6 +583,8 @@ impl GpuBackend {
             pred_vertex: full("predicted vertex map")?,
             pred_normal: full("predicted normal map")?,
             assoc,
+            add_flags,
+            add_offsets,
         });
         self.bind_groups = None;
         self.spare_bind_groups = None;
@@ -717,14 +742,32 @@ impl GpuBackend {
                         f.assoc.binding(),
                     ],
                 ),
+                fuse_flags: k.fuse_flags.bind_group(
+                    c,
+                    &[
+                        self.u_fuse.binding(),
+                        f.normal_depth.binding(),
+                        f.assoc.binding(),
+                        f.add_flags.binding(),
+                    ],
+                ),
+                fuse_scan: k.prefix_sum.bind_group(
+                    c,
+                    &[
+                        self.u_fuse_scan.binding(),
+                        f.add_flags.binding(),
+                        f.add_offsets.binding(),
+                        self.counter.binding(),
+                    ],
+                ),
                 fuse_add: k.fuse_add.bind_group(
                     c,
                     &[
                         self.u_fuse.binding(),
                         f.normal_depth.binding(),
                         f.color.binding(),
-                        f.assoc.binding(),
-                        self.counter.binding(),
+                        f.add_flags.binding(),
+                        f.add_offsets.binding(),
                         m.position_weight.binding(),
                         m.normal_frame.binding(),
                         m.color.binding(),
@@ -896,18 +939,16 @@ impl Backend for GpuBackend {
             .frame
             .as_ref()
             .expect("preprocess() runs before fuse()");
-        let counter = ctx.scoped("fuse", || {
+        let added = ctx.scoped("fuse", || {
             self.u_fuse.write(ctx, &params);
-            ctx.queue.write_buffer(
-                self.counter.buffer(),
-                0,
-                bytemuck::bytes_of(&params.surfel_count),
-            );
+            self.u_fuse_scan.write(ctx, &scan_params(n));
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
             let select = (&k.fuse_select, &bg.fuse_select, [surfel_wg, 1]);
             let merge_add = [
                 (&k.fuse_merge, &bg.fuse_merge, [surfel_wg, 1]),
+                (&k.fuse_flags, &bg.fuse_flags, pix_wg),
+                (&k.prefix_sum, &bg.fuse_scan, [1, 1]),
                 (&k.fuse_add, &bg.fuse_add, pix_wg),
             ];
             let passes: Vec<_> = (params.association == ASSOCIATION_BEST_CANDIDATE)
@@ -920,15 +961,16 @@ impl Backend for GpuBackend {
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
-        if counter > params.capacity as usize {
+        let total = self.count + added;
+        if total > params.capacity as usize {
             return Err(Error::Capacity(format!(
-                "fuse_add counted {counter} surfels but only {} slots exist; surfels past \
+                "fusion added {added} surfels to {} but only {} slots exist; surfels past \
                  the capacity were dropped (the host should have grown the map first)",
-                params.capacity
+                self.count, params.capacity
             )));
         }
-        self.count = counter;
-        Ok(counter)
+        self.count = total;
+        Ok(total)
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {

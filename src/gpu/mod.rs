@@ -47,6 +47,7 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
         ("icp_reduce", &b::ICP_REDUCE),
         ("fuse_select", &b::FUSE_SELECT),
         ("fuse_merge", &b::FUSE_MERGE),
+        ("fuse_flags", &b::FUSE_FLAGS),
         ("fuse_add", &b::FUSE_ADD),
         ("compact_flags", &b::COMPACT_FLAGS),
         ("prefix_sum", &b::PREFIX_SUM),

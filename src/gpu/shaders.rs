@@ -50,6 +50,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/fuse_select.wgsl"),
     ),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
+    ("fuse_flags", include_str!("../../shaders/fuse_flags.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
     (
         "compact_flags",

@@ -4,6 +4,7 @@
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap.
 
 use crate::cpu;
+use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
@@ -20,6 +21,9 @@ pub struct CpuBackend {
     pred_vertex: Vec<[f32; 4]>,
     pred_normal: Vec<[f32; 4]>,
     assoc: Vec<u64>,
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`).
+    add_flags: Vec<u32>,
+    add_offsets: Vec<u32>,
     map: SurfelMap,
     /// Compaction's keep flags, offsets and second map, kept between frames (the map and
     /// `spare` swap after each compaction, as the GPU's map textures do).
@@ -149,20 +153,34 @@ impl Backend for CpuBackend {
             &mut m.color,
             &mut self.assoc,
         );
+        self.add_flags.resize(n_pix, 0);
+        cpu::fuse_flags::fuse_flags(
+            &params,
+            &self.frame.normal_depth,
+            &self.assoc,
+            &mut self.add_flags,
+        );
+        self.add_offsets.resize(n_pix, 0);
+        let mut added = 0u32;
+        cpu::prefix_sum::prefix_sum(
+            &scan_params(n_pix),
+            &self.add_flags,
+            &mut self.add_offsets,
+            &mut added,
+        );
         // Room for every pixel, as the GPU backend guarantees before its dispatch.
         m.resize(params.capacity as usize);
-        let mut counter = count as u32;
         cpu::fuse_add::fuse_add(
             &params,
             &self.frame.normal_depth,
             &self.frame.color,
-            &self.assoc,
-            &mut counter,
+            &self.add_flags,
+            &self.add_offsets,
             &mut m.position_weight,
             &mut m.normal_frame,
             &mut m.color,
         );
-        let new_len = counter as usize;
+        let new_len = count + added as usize;
         m.resize(new_len);
         Ok(new_len)
     }

@@ -1,0 +1,31 @@
+// fuse_flags.wgsl: one flag per pixel, 1 where the pixel becomes a new surfel: a valid
+// measurement that no surfel merged with (projective association) or covers (best
+// candidate). First of fuse_add's three kernels (then prefix_sum over the pixels, which
+// gives each new surfel its slot in pixel order, then fuse_add). CPU twin:
+// src/cpu/fuse_flags.rs.
+//
+// Bindings (@group(0)):
+//   0 params        uniform FuseParams (width, height)
+//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the depth in
+//                   w, zero where invalid
+//   2 assoc         storage read array<vec2<u32>>: the u64 key per pixel (low word first),
+//                   non-zero where a surfel merged with or was chosen by the pixel
+//   3 flags         storage rw array<u32>: out, 1 new surfel / 0 not, width x height
+// One thread per pixel (8x8 workgroups).
+
+@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(1) var normal_depth: texture_2d<f32>;
+@group(0) @binding(2) var<storage, read> assoc: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read_write> flags: array<u32>;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let pix = gid.y * params.width + gid.x;
+    let key = assoc[pix];
+    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
+    let new_surfel = key.x == 0u && key.y == 0u && is_valid(textureLoad(normal_depth, gid.xy, 0));
+    flags[pix] = select(0u, 1u, new_surfel);
+}
