@@ -24,26 +24,32 @@ const ATE_ALIGNED_MAX_M: f64 = 1e-3;
 /// ~0.2 mm here (CPU and GPU alike), so 0.5 mm still catches a tracker that is off by a
 /// pixel's worth.
 const ATE_BUNDLED_MAX_M: f64 = 0.5e-3;
-/// The robust profile on the 23 bundled noisy frames: measured 2.55 mm ATE aligned on both
+/// The robust profile on the 23 bundled noisy frames: measured 2.45 mm ATE aligned on both
 /// backends (the assignment's profile: 11.6 mm); 5 mm is twice the measurement and still
 /// fails a tracker that drifts like the assignment's.
 const ATE_BUNDLED_NOISY_MAX_M: f64 = 5e-3;
-/// The bar for noisy frames 1..200 at 320x240 (robust profile; measured 7.9 mm on
+/// The bar for noisy frames 1..200 at 320x240 (robust profile; measured 6.50 mm on
 /// both backends, the assignment's profile 204 mm; Open3D's TSDF pipeline 38 mm).
 const ATE_NOISY_320_MAX_M: f64 = 15e-3;
-/// Map size on noisy frames 1..200 as a fraction of all pixels fused: measured 0.0197 on
-/// both backends with the removal of unstable surfels (0.0225 without it; the assignment's
-/// profile 0.41). The target is 0.02; 0.021 leaves room for the backends'
-/// diverging maps and still fails a profile without the removal.
-const NOISY_MAP_FRACTION_MAX: f64 = 0.021;
+/// Map size on noisy frames 1..200 as a fraction of all pixels fused: measured 0.0077 on
+/// both backends (best-candidate fusion with the removal of unstable surfels; 0.0085
+/// without the removal; projective fusion 0.018, the assignment's profile 0.41). The
+/// issue's target is 0.02; 0.012 is 1.5x the measurement and fails projective fusion.
+const NOISY_MAP_FRACTION_MAX: f64 = 0.012;
 
 fn main() -> ExitCode {
     common::harness::run(vec![
         plain("bundled_frames_track_to_ground_truth", || {
-            bundled_frames_track_to_ground_truth(CpuBackend::new(), SlamParams::default())
+            bundled_frames_track_to_ground_truth(
+                CpuBackend::new(),
+                SlamParams::profile(Profile::Assignment),
+            )
         }),
         gpu("gpu_bundled_frames_track_to_ground_truth", |ctx| {
-            bundled_frames_track_to_ground_truth(gpu_backend(ctx), SlamParams::default())
+            bundled_frames_track_to_ground_truth(
+                gpu_backend(ctx),
+                SlamParams::profile(Profile::Assignment),
+            )
         }),
         plain("bundled_frames_track_with_the_bilateral_filter", || {
             bundled_frames_track_to_ground_truth(CpuBackend::new(), with_bilateral())
@@ -107,7 +113,7 @@ fn gpu_backend(ctx: GpuContext) -> GpuBackend {
 fn with_bilateral() -> SlamParams {
     SlamParams {
         bilateral: Some(BilateralSettings::default()),
-        ..SlamParams::default()
+        ..SlamParams::profile(Profile::Assignment)
     }
 }
 
@@ -154,7 +160,7 @@ fn full_resolution_tracks_too() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let params = SlamParams {
         downsample: 1,
-        ..SlamParams::default()
+        ..SlamParams::profile(Profile::Assignment)
     };
     let r = run::run(CpuBackend::new(), &seq, 1, 8, params, |_| {}).unwrap();
     let acc = r.metrics.accuracy.unwrap();
@@ -166,7 +172,7 @@ fn ground_truth_poses_fuse_without_tracking() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
-        ..SlamParams::default()
+        ..SlamParams::profile(Profile::Assignment)
     };
     let r = run::run(CpuBackend::new(), &seq, 1, 10, params, |_| {}).unwrap();
     assert!(r
@@ -187,11 +193,19 @@ fn ground_truth_poses_fuse_without_tracking() {
 /// a ground-truth run refuses it with a clear error.
 fn frame_without_ground_truth() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let r = run::run(CpuBackend::new(), &seq, 0, 2, SlamParams::default(), |_| {}).unwrap();
+    let r = run::run(
+        CpuBackend::new(),
+        &seq,
+        0,
+        2,
+        SlamParams::profile(Profile::Assignment),
+        |_| {},
+    )
+    .unwrap();
     assert_eq!(r.frames[0].report.t_cam_to_world, glam::DMat4::IDENTITY);
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
-        ..SlamParams::default()
+        ..SlamParams::profile(Profile::Assignment)
     };
     let err = run::run(CpuBackend::new(), &seq, 0, 2, params, |_| {}).unwrap_err();
     assert!(err.to_string().contains("ground truth"), "{err}");
@@ -202,7 +216,15 @@ fn frame_without_ground_truth() {
 fn shared_sequence_1_to_200_within_1mm<B: Backend>(backend: B, data: &Path) {
     let name = backend.name();
     let seq = dataset::open(&common::shared_icl(data), &SequenceOptions::default()).unwrap();
-    let r = run::run(backend, &seq, 1, 200, SlamParams::default(), |_| {}).unwrap();
+    let r = run::run(
+        backend,
+        &seq,
+        1,
+        200,
+        SlamParams::profile(Profile::Assignment),
+        |_| {},
+    )
+    .unwrap();
     let acc = r.metrics.accuracy.unwrap();
     eprintln!(
         "{name} 1..200: ATE aligned {:.3} mm, unaligned {:.3} mm; {} surfels; median {:.1} ms/frame",
@@ -220,7 +242,11 @@ fn shared_sequence_1_to_200_within_1mm<B: Backend>(backend: B, data: &Path) {
 fn empty_and_untrackable_frames_are_reported_not_fused() {
     use wgslam::slam::pipeline::Slam;
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let mut slam = Slam::new(CpuBackend::new(), seq.intrinsics, SlamParams::default());
+    let mut slam = Slam::new(
+        CpuBackend::new(),
+        seq.intrinsics,
+        SlamParams::profile(Profile::Assignment),
+    );
     let load = |i: usize| {
         let f = seq.load(i).unwrap();
         let c = run::packed_rgba(&f);
@@ -265,7 +291,7 @@ fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
         &seq,
         1,
         6,
-        &SlamParams::default(),
+        &SlamParams::profile(Profile::Assignment),
     )
     .unwrap();
     eprintln!("{r:?}");

@@ -169,7 +169,7 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
     for downsample in [2, 1] {
         let params = SlamParams {
             downsample,
-            ..SlamParams::default()
+            ..SlamParams::profile(Profile::Assignment)
         };
         let s = slam(CpuBackend::new(), params);
         let (pp, np) = (s.preprocess_params(), s.normal_params());
@@ -216,7 +216,7 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         let params = SlamParams {
             downsample,
             bilateral: Some(settings),
-            ..SlamParams::default()
+            ..SlamParams::profile(Profile::Assignment)
         };
         let s = slam(CpuBackend::new(), params);
         let (pp, bp, np) = (
@@ -270,7 +270,7 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         );
     }
     // Back to the filter off: the frame has no filtered map again.
-    let s = slam(CpuBackend::new(), SlamParams::default());
+    let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
         .unwrap();
@@ -280,7 +280,7 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
 /// project_model and predict_model against their twins on a real fused map, viewed from a
 /// later frame's ground-truth pose.
 fn predict_matches_twins(mut gpu: GpuBackend) {
-    let params = SlamParams::default();
+    let params = SlamParams::profile(Profile::Assignment);
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     let map = s.backend.download_map().unwrap();
     gpu.upload_map(&map).unwrap();
@@ -348,7 +348,7 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
 /// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
 /// at a pose perturbed from the ground truth.
 fn icp_system_matches_twin(mut gpu: GpuBackend) {
-    let params = SlamParams::default();
+    let params = SlamParams::profile(Profile::Assignment);
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
     let frame = load_frame(&root(), 4);
@@ -728,8 +728,8 @@ fn tracked_run_matches_cpu_and_ground_truth(gpu: GpuBackend) {
         last >= 20,
         "at least 20 frames with ground truth are bundled"
     );
-    let mut c = slam(CpuBackend::new(), SlamParams::default());
-    let mut g = slam(gpu, SlamParams::default());
+    let mut c = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
+    let mut g = slam(gpu, SlamParams::profile(Profile::Assignment));
     let (mut sq_err, mut worst_m, mut worst_deg) = (0.0, 0.0f64, 0.0f64);
     let t0 = std::time::Instant::now();
     let (mut t_cpu, mut t_gpu) = (0.0, 0.0);
@@ -841,7 +841,7 @@ fn map_grows_from_a_tiny_capacity(ctx: GpuContext) {
     let gt = load_gt(&root());
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
-        ..SlamParams::default()
+        ..SlamParams::profile(Profile::Assignment)
     };
     let mut c = slam(CpuBackend::new(), params.clone());
     let mut g = slam(gpu, params);
@@ -897,7 +897,7 @@ fn map_capacity_error(ctx: GpuContext) {
     let gt = load_gt(&root());
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
-        ..SlamParams::default()
+        ..SlamParams::profile(Profile::Assignment)
     };
     let mut g = slam(gpu, params);
     let f = load_frame(&root(), 1);
@@ -918,7 +918,7 @@ fn map_capacity_error(ctx: GpuContext) {
 fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     assert_eq!(gpu.download_frame().unwrap(), Default::default());
     assert!(gpu.download_prediction().unwrap().0.is_empty());
-    let s = slam(CpuBackend::new(), SlamParams::default());
+    let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     let short = vec![0u16; 100];
     match gpu.preprocess(&pp, None, &np, &short, &vec![0u32; 100]) {

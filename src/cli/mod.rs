@@ -164,9 +164,9 @@ impl BilateralArgs {
 /// overridden one by one (the flags' defaults are the profile's).
 #[derive(Debug, Args)]
 pub struct PipelineArgs {
-    /// Parameter set to start from: the course assignment's algorithm, or the robust
-    /// tracker for noisy depth (in progress).
-    #[arg(long, value_enum, default_value_t = Profile::Assignment)]
+    /// Parameter set to start from: the robust tracker and fusion for real (noisy) depth,
+    /// the default, or the course assignment's exact algorithm.
+    #[arg(long, value_enum, default_value_t = Profile::Robust)]
     pub profile: Profile,
     /// Keep every N-th pixel in each direction.
     #[arg(long, default_value_t = 2)]
@@ -261,7 +261,7 @@ pub struct CompareArgs {
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
     /// Parameter set (see `run --help`).
-    #[arg(long, value_enum, default_value_t = Profile::Assignment)]
+    #[arg(long, value_enum, default_value_t = Profile::Robust)]
     pub profile: Profile,
     #[command(flatten)]
     pub bilateral: BilateralArgs,
@@ -281,7 +281,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 2)]
     pub downsample: u32,
     /// Parameter set (see `run --help`).
-    #[arg(long, value_enum, default_value_t = Profile::Assignment)]
+    #[arg(long, value_enum, default_value_t = Profile::Robust)]
     pub profile: Profile,
     #[command(flatten)]
     pub bilateral: BilateralArgs,

@@ -209,7 +209,7 @@ pub enum Profile {
     Robust,
 }
 
-/// Every tunable of the dense pipeline. `Default` is the assignment's profile.
+/// Every tunable of the dense pipeline. `Default` is the robust profile.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SlamParams {
     /// The profile these values started from (each may have been overridden since).
@@ -347,8 +347,9 @@ impl Default for BilateralSettings {
 }
 
 impl Default for SlamParams {
+    /// The robust profile, as on the command line.
     fn default() -> Self {
-        Self::profile(Profile::Assignment)
+        Self::profile(Profile::Robust)
     }
 }
 
