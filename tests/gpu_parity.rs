@@ -802,6 +802,7 @@ fn compaction_follows_map_growth(ctx: GpuContext) {
         unstable_removal: Some(UnstableRemoval {
             stable_weight: 3.0,
             max_age_frames: 1,
+            every_frames: 1,
         }),
         ..SlamParams::profile(Profile::Robust)
     };

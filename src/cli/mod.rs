@@ -211,6 +211,9 @@ pub struct PipelineArgs {
     /// off, robust 20; with the assignment profile, either flag turns the removal on).
     #[arg(long)]
     pub unstable_max_age: Option<u32>,
+    /// Removal of unstable surfels: run it after every N-th frame (robust 10).
+    #[arg(long)]
+    pub removal_every: Option<u32>,
 }
 
 #[derive(Debug, Args)]
@@ -418,14 +421,22 @@ impl PipelineArgs {
         }
         // --stable-weight 0 turns the removal off; either flag otherwise overrides the
         // profile's rule (or the robust one's, when the profile has none).
-        let unstable_removal = match (self.stable_weight, self.unstable_max_age) {
-            (Some(0.0), _) => None,
-            (None, None) => p.unstable_removal,
-            (w, age) => {
+        if self.removal_every == Some(0) {
+            return Err(Error::Argument("--removal-every must be at least 1".into()));
+        }
+        let unstable_removal = match (
+            self.stable_weight,
+            self.unstable_max_age,
+            self.removal_every,
+        ) {
+            (Some(0.0), _, _) => None,
+            (None, None, None) => p.unstable_removal,
+            (w, age, every) => {
                 let base = p.unstable_removal.unwrap_or_default();
                 Some(UnstableRemoval {
                     stable_weight: w.unwrap_or(base.stable_weight),
                     max_age_frames: age.unwrap_or(base.max_age_frames),
+                    every_frames: every.unwrap_or(base.every_frames),
                 })
             }
         };
