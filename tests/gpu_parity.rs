@@ -162,9 +162,9 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
         let (pp, np) = (s.preprocess_params(), s.normal_params());
         let mut cpu_b = s.backend;
         cpu_b
-            .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+            .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
-        gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
@@ -214,9 +214,9 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         assert!(bp.is_some());
         let mut cpu_b = s.backend;
         cpu_b
-            .preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+            .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
-        gpu.preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+        gpu.preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
@@ -259,7 +259,7 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
     // Back to the filter off: the frame has no filtered map again.
     let s = slam(CpuBackend::new(), SlamParams::default());
     let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     assert!(gpu.download_frame().unwrap().filtered_vertex.is_empty());
 }
@@ -273,7 +273,7 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     gpu.upload_map(&map).unwrap();
     let frame = load_frame(&root(), 6);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
     let proj = s.project_params(&t_world_to_cam);
@@ -291,9 +291,9 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
         &mut pv_cpu,
         &mut pn_cpu,
     );
-    gpu.predict(&proj).unwrap();
+    gpu.predict(&proj, &[]).unwrap();
     let index_gpu = gpu.download_index_map().unwrap();
-    let (pv_gpu, pn_gpu) = gpu.download_prediction().unwrap();
+    let (pv_gpu, pn_gpu) = gpu.download_prediction(0).unwrap();
 
     // Index map: the same surfel at (almost) every pixel. The depth half of the key may
     // differ by a few ULP (the GPU may fuse the pose multiply-adds), which is not a
@@ -341,15 +341,15 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 4);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     s.backend
-        .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     // Predict from frame 3's pose, track frame 4 from a perturbed estimate.
     let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
     let proj = s.project_params(&t_prev);
-    s.backend.predict(&proj).unwrap();
-    gpu.predict(&proj).unwrap();
+    s.backend.predict(&proj, &[]).unwrap();
+    gpu.predict(&proj, &[]).unwrap();
     let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
     let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
     // The robust profile's gates and weights too (angle gate, Huber, depth noise), with
@@ -360,18 +360,18 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
         SlamParams::profile(Profile::Robust),
     );
     let cases = [
-        ("true pose", s.icp_params(&t_true)),
-        ("perturbed pose", s.icp_params(&(nudge * t_true))),
+        ("true pose", s.icp_params(0, &t_true)),
+        ("perturbed pose", s.icp_params(0, &(nudge * t_true))),
         (
             "robust, perturbed pose",
-            robust.icp_params(&(nudge * t_true)),
+            robust.icp_params(0, &(nudge * t_true)),
         ),
     ];
     assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
     for (label, ip) in cases {
         let (sys_c, sys_g) = (
-            s.backend.icp_system(&ip).unwrap(),
-            gpu.icp_system(&ip).unwrap(),
+            s.backend.icp_system(0, &ip).unwrap(),
+            gpu.icp_system(0, &ip).unwrap(),
         );
         let (c, g) = (
             NormalEquations::decode(&sys_c),
@@ -454,9 +454,9 @@ fn fuse_matches_twins(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 3);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     s.backend
-        .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     let fp = s.fuse_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()), 3);
     let n_cpu = s.backend.fuse(&fp).unwrap();
@@ -838,17 +838,17 @@ fn map_capacity_error(ctx: GpuContext) {
 /// GPU fault; downloads before the first frame are empty, as on the CPU.
 fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     assert_eq!(gpu.download_frame().unwrap(), Default::default());
-    assert!(gpu.download_prediction().unwrap().0.is_empty());
+    assert!(gpu.download_prediction(0).unwrap().0.is_empty());
     let s = slam(CpuBackend::new(), SlamParams::default());
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     let short = vec![0u16; 100];
-    match gpu.preprocess(&pp, None, &np, &short, &vec![0u32; 100]) {
+    match gpu.preprocess(&pp, None, &np, &[], &short, &vec![0u32; 100]) {
         Err(Error::Argument(msg)) => assert!(msg.contains("640x480"), "{msg}"),
         other => panic!("expected Error::Argument, got {other:?}"),
     }
     // The backend still works afterwards.
     let f = load_frame(&root(), 1);
-    gpu.preprocess(&pp, None, &np, &f.depth, &f.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &[], &f.depth, &f.rgba).unwrap();
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
 }
 
