@@ -70,6 +70,12 @@ fn main() -> ExitCode {
         gpu("gpu_robust_profile_tracks_bundled_noisy_frames", |ctx| {
             robust_profile_tracks_bundled_noisy_frames(gpu_backend(ctx))
         }),
+        plain("robust_icp_runs_coarse_to_fine", || {
+            robust_icp_runs_coarse_to_fine(CpuBackend::new())
+        }),
+        gpu("gpu_robust_icp_runs_coarse_to_fine", |ctx| {
+            robust_icp_runs_coarse_to_fine(gpu_backend(ctx))
+        }),
         plain("removal_shrinks_the_bundled_noisy_map", || {
             removal_shrinks_the_bundled_noisy_map(CpuBackend::new(), CpuBackend::new())
         }),
@@ -315,6 +321,37 @@ fn robust_profile_tracks_bundled_noisy_frames<B: Backend>(backend: B) {
         "robust ATE {:.2} mm on noisy frames",
         ate * 1e3
     );
+}
+
+/// The robust profile tracks with its pyramid: every tracked frame's iterations run from
+/// the coarsest level to level 0, never more at a level than its budget, and the status is
+/// level 0's; a one-level schedule runs at level 0 only.
+fn robust_icp_runs_coarse_to_fine<B: Backend>(backend: B) {
+    let seq = dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
+    let robust = SlamParams::profile(Profile::Robust);
+    let schedule = robust.icp_level_iters.clone();
+    assert!(schedule.len() > 1, "the robust profile has a pyramid");
+    let r = run::run(backend, &seq, 1, 6, robust, |_| {}).unwrap();
+    for f in &r.frames[1..] {
+        let levels: Vec<usize> = f.report.iterations.iter().map(|it| it.level).collect();
+        assert_eq!(levels.first(), Some(&(schedule.len() - 1)), "frame {}", f.index);
+        assert_eq!(levels.last(), Some(&0), "frame {}", f.index);
+        assert!(levels.windows(2).all(|w| w[0] >= w[1]), "frame {}: {levels:?}", f.index);
+        for (i, &budget) in schedule.iter().enumerate() {
+            let level = schedule.len() - 1 - i;
+            let n = levels.iter().filter(|&&l| l == level).count();
+            assert!((1..=budget).contains(&n), "frame {}: {levels:?}", f.index);
+        }
+        let at_0 = levels.iter().filter(|&&l| l == 0).count();
+        match f.report.status {
+            TrackStatus::Converged => {}
+            TrackStatus::MaxIterations => assert_eq!(at_0, schedule[schedule.len() - 1]),
+            ref other => panic!("frame {}: {other:?}", f.index),
+        }
+    }
+    let acc = r.metrics.accuracy.expect("ground truth");
+    assert!(acc.ate_rmse_aligned_m < ATE_BUNDLED_NOISY_MAX_M, "{acc:?}");
+    assert_eq!(r.metrics.params.icp_level_iters, schedule);
 }
 
 /// The robust profile's removal of unstable surfels on the bundled noisy frames: the ATE

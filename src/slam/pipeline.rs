@@ -94,7 +94,12 @@ impl FrameMaps {
     /// The normal map decoded from `normal_depth` (xyz, `w = 1` valid / `0` invalid), for
     /// reports and comparisons.
     pub fn normal_map(&self) -> Vec<[f32; 4]> {
-        self.normal_depth
+        Self::normal_map_of(&self.normal_depth)
+    }
+
+    /// The normal map decoded from any `normal_depth` map (a pyramid level's too).
+    pub fn normal_map_of(normal_depth: &[[f32; 4]]) -> Vec<[f32; 4]> {
+        normal_depth
             .iter()
             .map(|n| {
                 if n[3] > 0.0 {
