@@ -334,9 +334,18 @@ fn robust_icp_runs_coarse_to_fine<B: Backend>(backend: B) {
     let r = run::run(backend, &seq, 1, 6, robust, |_| {}).unwrap();
     for f in &r.frames[1..] {
         let levels: Vec<usize> = f.report.iterations.iter().map(|it| it.level).collect();
-        assert_eq!(levels.first(), Some(&(schedule.len() - 1)), "frame {}", f.index);
+        assert_eq!(
+            levels.first(),
+            Some(&(schedule.len() - 1)),
+            "frame {}",
+            f.index
+        );
         assert_eq!(levels.last(), Some(&0), "frame {}", f.index);
-        assert!(levels.windows(2).all(|w| w[0] >= w[1]), "frame {}: {levels:?}", f.index);
+        assert!(
+            levels.windows(2).all(|w| w[0] >= w[1]),
+            "frame {}: {levels:?}",
+            f.index
+        );
         for (i, &budget) in schedule.iter().enumerate() {
             let level = schedule.len() - 1 - i;
             let n = levels.iter().filter(|&&l| l == level).count();

@@ -439,7 +439,10 @@ fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
             .unwrap();
         gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
             .unwrap();
-        let (c, g) = (cpu_b.download_frame().unwrap(), gpu.download_frame().unwrap());
+        let (c, g) = (
+            cpu_b.download_frame().unwrap(),
+            gpu.download_frame().unwrap(),
+        );
         assert_eq!((c.pyramid.len(), g.pyramid.len()), (2, 2));
         for (l, (cl, gl)) in c.pyramid.iter().zip(&g.pyramid).enumerate() {
             let k = level_intrinsics[l];
@@ -495,7 +498,11 @@ fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
         let k = s.level_intrinsics(level);
         let (cv, cn) = s.backend.download_prediction(level).unwrap();
         let (gv, gn) = gpu.download_prediction(level).unwrap();
-        assert_eq!((cv.len(), gv.len()), (k.pixels(), k.pixels()), "level {level}");
+        assert_eq!(
+            (cv.len(), gv.len()),
+            (k.pixels(), k.pixels()),
+            "level {level}"
+        );
         check_vec4_map(&format!("level {level} predicted vertex"), &cv, &gv, 0.0);
         check_vec4_map(&format!("level {level} predicted normal"), &cn, &gn, 0.0);
         if level > 0 {
@@ -562,10 +569,16 @@ fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
             c.inliers,
             g.inliers
         );
-        assert!(ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL, "level {level}");
+        assert!(
+            ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
+            "level {level}"
+        );
         let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
         let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
-        assert!(dx <= INCREMENT_TOL, "level {level}: increments differ by {dx:e}");
+        assert!(
+            dx <= INCREMENT_TOL,
+            "level {level}: increments differ by {dx:e}"
+        );
     }
     // A level the pyramid does not have is an argument error, not a panic.
     assert!(matches!(
@@ -1012,7 +1025,8 @@ fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     }
     // The backend still works afterwards.
     let f = load_frame(&root(), 1);
-    gpu.preprocess(&pp, None, &np, &[], &f.depth, &f.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &[], &f.depth, &f.rgba)
+        .unwrap();
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
 }
 

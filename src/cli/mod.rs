@@ -191,7 +191,10 @@ impl IcpLevelArgs {
         match &self.icp_level_iters {
             Some(s) => vec![
                 "--icp-level-iters".into(),
-                s.iter().map(|n| n.to_string()).collect::<Vec<_>>().join(","),
+                s.iter()
+                    .map(|n| n.to_string())
+                    .collect::<Vec<_>>()
+                    .join(","),
             ],
             None => Vec::new(),
         }

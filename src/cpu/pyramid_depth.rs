@@ -71,7 +71,11 @@ pub fn pyramid_depth(
         (params.fine_width * params.fine_height) as usize,
         "fine_vertex has the wrong size"
     );
-    assert_eq!(coarse_vertex.len(), w * h, "coarse_vertex has the wrong size");
+    assert_eq!(
+        coarse_vertex.len(),
+        w * h,
+        "coarse_vertex has the wrong size"
+    );
     assert!(
         2 * params.width - 1 <= params.fine_width && 2 * params.height - 1 <= params.fine_height,
         "a {w}x{h} level does not sample a {}x{} one",
@@ -165,7 +169,13 @@ mod tests {
         let mut fine_map = vec![INVALID; 16];
         for v in 0..4u32 {
             for u in 0..4u32 {
-                let z = if u >= 2 { 3.0 } else if v % 2 == 0 { 1.0 } else { 1.02 };
+                let z = if u >= 2 {
+                    3.0
+                } else if v % 2 == 0 {
+                    1.0
+                } else {
+                    1.02
+                };
                 fine_map[(v * 4 + u) as usize] = valid_entry(back_project(cam, [u, v], z));
             }
         }

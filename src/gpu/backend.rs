@@ -1038,11 +1038,7 @@ impl Backend for GpuBackend {
         })
     }
 
-    fn icp_system(
-        &mut self,
-        level: usize,
-        params: &IcpParams,
-    ) -> Result<[f64; ICP_SYSTEM_LEN]> {
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let levels = 1 + self.frame().levels.len();
         if level >= levels {
             return Err(Error::Argument(format!(

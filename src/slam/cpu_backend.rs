@@ -121,7 +121,8 @@ impl Backend for CpuBackend {
         let n = (params.width * params.height) as usize;
         self.index_map.clear();
         self.index_map.resize(n, 0);
-        self.prediction.resize_with(1 + pyramid.len(), Default::default);
+        self.prediction
+            .resize_with(1 + pyramid.len(), Default::default);
         let (pred_vertex, pred_normal) = &mut self.prediction[0];
         pred_vertex.resize(n, cpu::INVALID);
         pred_normal.resize(n, cpu::INVALID);
@@ -152,11 +153,7 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn icp_system(
-        &mut self,
-        level: usize,
-        params: &IcpParams,
-    ) -> Result<[f64; ICP_SYSTEM_LEN]> {
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let (pred_vertex, pred_normal) = &self.prediction[level];
         let normal_depth = match level {
             0 => &self.frame.normal_depth,

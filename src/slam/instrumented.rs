@@ -82,11 +82,7 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         self.step("predict", |b| b.predict(params, pyramid))
     }
-    fn icp_system(
-        &mut self,
-        level: usize,
-        params: &IcpParams,
-    ) -> Result<[f64; ICP_SYSTEM_LEN]> {
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let system = self.step("icp_iteration", |b| b.icp_system(level, params))?;
         self.frame_systems.push(system);
         Ok(system)

@@ -149,8 +149,7 @@ pub trait Backend {
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
     /// carry that level's size and intrinsics): the summed 29-entry system.
-    fn icp_system(&mut self, level: usize, params: &IcpParams)
-        -> Result<[f64; ICP_SYSTEM_LEN]>;
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
     /// `fuse_merge` then `fuse_add` (`surfel_count` and `capacity` are filled in by the
     /// backend, which grows the map first when needed). Returns surfels after fusion.
     fn fuse(&mut self, params: &FuseParams) -> Result<usize>;
@@ -199,11 +198,7 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         (**self).predict(params, pyramid)
     }
-    fn icp_system(
-        &mut self,
-        level: usize,
-        params: &IcpParams,
-    ) -> Result<[f64; ICP_SYSTEM_LEN]> {
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         (**self).icp_system(level, params)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
@@ -641,7 +636,10 @@ impl<B: Backend> Slam<B> {
         let s = self.params.pyramid;
         (1..self.levels())
             .map(|level| {
-                let (fine, coarse) = (self.level_intrinsics(level - 1), self.level_intrinsics(level));
+                let (fine, coarse) = (
+                    self.level_intrinsics(level - 1),
+                    self.level_intrinsics(level),
+                );
                 let [fx, fy, cx, cy] = camera_floats(&coarse);
                 PyramidLevel {
                     down: PyramidParams {
@@ -829,7 +827,9 @@ impl<B: Backend> Slam<B> {
             let level = schedule.len() - 1 - i;
             status = TrackStatus::MaxIterations;
             for _ in 0..max_iters {
-                let sys = self.backend.icp_system(level, &self.icp_params(level, &t))?;
+                let sys = self
+                    .backend
+                    .icp_system(level, &self.icp_params(level, &t))?;
                 let eq = NormalEquations::decode(&sys);
                 iterations.push(IcpIteration {
                     level,
