@@ -618,9 +618,12 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
         params,
     )?;
     println!("frames {} -> {target}", a.source);
-    println!("iter  inliers  mean squared residual (m^2)");
+    println!("iter  level  inliers  mean squared residual (m^2)");
     for (i, it) in r.iterations.iter().enumerate() {
-        println!("{i:4}  {:7}  {:.6e}", it.inliers, it.mean_sq_residual);
+        println!(
+            "{i:4}  {:5}  {:7}  {:.6e}",
+            it.level, it.inliers, it.mean_sq_residual
+        );
     }
     println!("status: {:?}", r.status);
     let t = glam::DMat4::from_cols_array_2d(&r.t_source_to_target);

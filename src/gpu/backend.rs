@@ -24,6 +24,15 @@
 //! `prefix_sum` writes; its flags, offsets (one `u32` per surfel slot, storage buffers) and
 //! second set of map textures are allocated at its first call and re-allocated when the map
 //! grows, and after the scatter the two map sets swap (so the bind groups are rebuilt).
+//! The ICP pyramid's coarser levels (a schedule of more than one level) are textures of
+//! their own (`LevelBuffers`: the frame's vertex and normal-depth maps, the model's
+//! predicted maps, and their `pyramid_depth` / `vertex_to_normal` uniforms), made with the
+//! frame's other buffers, with their bind groups (`pyramid_depth` from level 0's filtered or
+//! unfiltered vertex map, `vertex_to_normal`, `pyramid_model`, and `icp_reduce` bound to
+//! the level's maps) built once with the rest. `preprocess` records every level's two
+//! passes in its one submission, `predict` one `pyramid_model` pass per level in its own;
+//! `icp_system` at level `l` dispatches the same `icp_reduce` pipeline with level `l`'s
+//! bind group and the level's size and intrinsics in the uniform.
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
 use std::collections::BTreeMap;

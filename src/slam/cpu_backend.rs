@@ -154,6 +154,14 @@ impl Backend for CpuBackend {
     }
 
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let levels = 1 + self.frame.pyramid.len();
+        if level >= levels.min(self.prediction.len()) {
+            return Err(crate::Error::Argument(format!(
+                "ICP at pyramid level {level}, but preprocess() made {levels} level(s) and \
+                 predict() {}",
+                self.prediction.len()
+            )));
+        }
         let (pred_vertex, pred_normal) = &self.prediction[level];
         let normal_depth = match level {
             0 => &self.frame.normal_depth,
