@@ -35,6 +35,23 @@ struct NormalParams {
     _pad: u32,
 }
 
+// Mirrors `layout::PyramidParams` (pyramid_depth, pyramid_model): coarse pixel (u, v)
+// samples finer pixel (2u, 2v); fx..cy and width/height are the coarse level's.
+struct PyramidParams {
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: u32,
+    height: u32,
+    fine_width: u32,
+    fine_height: u32,
+    radius_px: u32,
+    max_depth_diff_m: f32,
+    max_depth_diff_per_m2: f32,
+    _pad: u32,
+}
+
 // Mirrors `layout::BilateralParams` (bilateral_filter).
 struct BilateralParams {
     fx: f32,

@@ -60,6 +60,36 @@ pub struct NormalParams {
     pub _pad: u32,
 }
 
+/// Parameters of `pyramid_depth` and `pyramid_model` (mirrors `PyramidParams` in
+/// common.wgsl): one coarse level of the ICP pyramid, made from the next finer level.
+/// Coarse pixel `(u, v)` samples finer pixel `(2u, 2v)`, so the coarse intrinsics are the
+/// finer ones halved (`Intrinsics::downsampled(2)`) and the coarse size is the finer size
+/// halved, rounded up. `pyramid_model` reads only `width` and `height`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PyramidParams {
+    /// Intrinsics of the coarse level, pixels: its vertices are re-built with them.
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    /// Coarse level size in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Size of the finer level read, pixels.
+    pub fine_width: u32,
+    pub fine_height: u32,
+    /// Half-width of the averaging window around the sampled finer pixel, finer pixels:
+    /// (2 radius_px + 1)² neighbours, clipped at the border.
+    pub radius_px: u32,
+    /// Neighbours whose depth differs from the sampled pixel's depth `z` by more than
+    /// `max_depth_diff_m + max_depth_diff_per_m2 * z²` (metres) are left out of the mean.
+    pub max_depth_diff_m: f32,
+    /// The gate's growth with the square of the depth, 1/m.
+    pub max_depth_diff_per_m2: f32,
+    pub _pad: u32,
+}
+
 /// Parameters of `bilateral_filter` (mirrors `BilateralParams` in common.wgsl).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]

@@ -130,6 +130,53 @@ fn bench_rounds_write_every_round() {
         text(&o)
     );
     assert!(text(&o).contains("intrinsics"), "{}", text(&o));
+    // So does the ICP schedule.
+    let o = wgslam(&[
+        "bench",
+        "--backends",
+        "cpu",
+        "--frames",
+        "1..2",
+        "--icp-level-iters",
+        "5,0",
+    ]);
+    assert!(!o.status.success(), "bad schedule ignored: {}", text(&o));
+    assert!(text(&o).contains("--icp-level-iters"), "{}", text(&o));
+}
+
+/// `--icp-level-iters` sets the pyramid's schedule: recorded in metrics.json, and each
+/// tracked frame's iterations in frames.json name their level, coarse to fine.
+fn run_with_an_icp_schedule() {
+    let out = common::temp_dir("cli-levels");
+    let o = wgslam(&[
+        "run",
+        "--backend",
+        "cpu",
+        "--frames",
+        "1..3",
+        "--icp-level-iters",
+        "3,2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let read = |f: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(out.join(f)).unwrap()).unwrap()
+    };
+    let m = read("metrics.json");
+    assert_eq!(m["params"]["icp_level_iters"], serde_json::json!([3, 2]));
+    assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
+    let frames = read("frames.json");
+    for f in &frames.as_array().unwrap()[1..] {
+        let levels: Vec<u64> = f["report"]["iterations"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|it| it["level"].as_u64().unwrap())
+            .collect();
+        assert_eq!(levels.first(), Some(&1), "{levels:?}");
+        assert_eq!(levels.last(), Some(&0), "{levels:?}");
+    }
 }
 
 fn icp_two_frames_prints_iterations_and_error() {
@@ -149,7 +196,7 @@ fn icp_two_frames_prints_iterations_and_error() {
 }
 
 fn clear_errors_for_bad_input() {
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 9] = [
         (
             &["render", "/nonexistent/map.ply", "-o", "/tmp/x.png"],
             "map.ply",
@@ -162,6 +209,11 @@ fn clear_errors_for_bad_input() {
         (&["run", "--frames", "5..900"], "outside"),
         (&["run", "--frames", "banana"], "A..B"),
         (&["run", "--downsample", "0"], "downsample"),
+        (&["run", "--icp-level-iters", "10,0,4"], "--icp-level-iters"),
+        (
+            &["run", "--icp-level-iters", "1,1,1,1,1"],
+            "--icp-level-iters",
+        ),
         (
             &["eval", "/nonexistent/a.tum", "/nonexistent/b.tum"],
             "a.tum",
@@ -190,6 +242,7 @@ fn main() -> ExitCode {
             "icp_two_frames_prints_iterations_and_error",
             icp_two_frames_prints_iterations_and_error,
         ),
+        plain("run_with_an_icp_schedule", run_with_an_icp_schedule),
         plain("clear_errors_for_bad_input", clear_errors_for_bad_input),
     ])
 }

@@ -14,7 +14,7 @@ use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::pipeline::{
-    Backend, BilateralSettings, PoseSource, Profile, SlamParams, TrackStatus,
+    Backend, BilateralSettings, PoseSource, Profile, SlamParams, TrackStatus, UnstableRemoval,
 };
 use wgslam::tools::run;
 
@@ -75,6 +75,12 @@ fn main() -> ExitCode {
         }),
         gpu("gpu_robust_profile_tracks_bundled_noisy_frames", |ctx| {
             robust_profile_tracks_bundled_noisy_frames(gpu_backend(ctx))
+        }),
+        plain("robust_icp_runs_coarse_to_fine", || {
+            robust_icp_runs_coarse_to_fine(CpuBackend::new())
+        }),
+        gpu("gpu_robust_icp_runs_coarse_to_fine", |ctx| {
+            robust_icp_runs_coarse_to_fine(gpu_backend(ctx))
         }),
         plain("removal_shrinks_the_bundled_noisy_map", || {
             removal_shrinks_the_bundled_noisy_map(CpuBackend::new(), CpuBackend::new())
@@ -343,15 +349,65 @@ fn robust_profile_tracks_bundled_noisy_frames<B: Backend>(backend: B) {
     );
 }
 
+/// The robust profile tracks with its pyramid: every tracked frame's iterations run from
+/// the coarsest level to level 0, never more at a level than its budget, and the status is
+/// level 0's; a one-level schedule runs at level 0 only.
+fn robust_icp_runs_coarse_to_fine<B: Backend>(backend: B) {
+    let seq = dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
+    let robust = SlamParams::profile(Profile::Robust);
+    let schedule = robust.icp_level_iters.clone();
+    assert!(schedule.len() > 1, "the robust profile has a pyramid");
+    let r = run::run(backend, &seq, 1, 6, robust, |_| {}).unwrap();
+    for f in &r.frames[1..] {
+        let levels: Vec<usize> = f.report.iterations.iter().map(|it| it.level).collect();
+        assert_eq!(
+            levels.first(),
+            Some(&(schedule.len() - 1)),
+            "frame {}",
+            f.index
+        );
+        assert_eq!(levels.last(), Some(&0), "frame {}", f.index);
+        assert!(
+            levels.windows(2).all(|w| w[0] >= w[1]),
+            "frame {}: {levels:?}",
+            f.index
+        );
+        for (i, &budget) in schedule.iter().enumerate() {
+            let level = schedule.len() - 1 - i;
+            let n = levels.iter().filter(|&&l| l == level).count();
+            assert!((1..=budget).contains(&n), "frame {}: {levels:?}", f.index);
+        }
+        let at_0 = levels.iter().filter(|&&l| l == 0).count();
+        match f.report.status {
+            TrackStatus::Converged => {}
+            TrackStatus::MaxIterations => assert_eq!(at_0, schedule[schedule.len() - 1]),
+            ref other => panic!("frame {}: {other:?}", f.index),
+        }
+    }
+    let acc = r.metrics.accuracy.expect("ground truth");
+    assert!(acc.ate_rmse_aligned_m < ATE_BUNDLED_NOISY_MAX_M, "{acc:?}");
+    assert_eq!(r.metrics.params.icp_level_iters, schedule);
+}
+
 /// The robust profile's removal of unstable surfels on the bundled noisy frames: the ATE
-/// bound still holds, and the map is smaller than with the rule off (same backend).
+/// bound still holds, and the map is smaller than with the rule off (same backend). The
+/// profile's 20-frame age limit and 10-frame cadence leave nothing old enough in 23
+/// frames, so the rule runs here after every frame with a 5-frame age limit.
 fn removal_shrinks_the_bundled_noisy_map<B: Backend>(on: B, off: B) {
     let dir = common::bundled_icl_noisy();
-    let robust = SlamParams::profile(Profile::Robust);
+    let profile = SlamParams::profile(Profile::Robust);
     assert!(
-        robust.unstable_removal.is_some(),
+        profile.unstable_removal.is_some(),
         "the robust profile removes"
     );
+    let robust = SlamParams {
+        unstable_removal: Some(UnstableRemoval {
+            max_age_frames: 5,
+            every_frames: 1,
+            ..UnstableRemoval::default()
+        }),
+        ..profile
+    };
     let without = SlamParams {
         unstable_removal: None,
         ..robust.clone()

@@ -175,9 +175,9 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
         let (pp, np) = (s.preprocess_params(), s.normal_params());
         let mut cpu_b = s.backend;
         cpu_b
-            .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+            .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
-        gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
@@ -227,9 +227,9 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         assert!(bp.is_some());
         let mut cpu_b = s.backend;
         cpu_b
-            .preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+            .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
-        gpu.preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+        gpu.preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
@@ -272,7 +272,7 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
     // Back to the filter off: the frame has no filtered map again.
     let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
     let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     assert!(gpu.download_frame().unwrap().filtered_vertex.is_empty());
 }
@@ -286,7 +286,7 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     gpu.upload_map(&map).unwrap();
     let frame = load_frame(&root(), 6);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
     let proj = s.project_params(&t_world_to_cam);
@@ -304,9 +304,9 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
         &mut pv_cpu,
         &mut pn_cpu,
     );
-    gpu.predict(&proj).unwrap();
+    gpu.predict(&proj, &[]).unwrap();
     let index_gpu = gpu.download_index_map().unwrap();
-    let (pv_gpu, pn_gpu) = gpu.download_prediction().unwrap();
+    let (pv_gpu, pn_gpu) = gpu.download_prediction(0).unwrap();
 
     // Index map: the same surfel at (almost) every pixel. The depth half of the key may
     // differ by a few ULP (the GPU may fuse the pose multiply-adds), which is not a
@@ -354,15 +354,15 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 4);
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     s.backend
-        .preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, None, &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     // Predict from frame 3's pose, track frame 4 from a perturbed estimate.
     let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
     let proj = s.project_params(&t_prev);
-    s.backend.predict(&proj).unwrap();
-    gpu.predict(&proj).unwrap();
+    s.backend.predict(&proj, &[]).unwrap();
+    gpu.predict(&proj, &[]).unwrap();
     let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
     let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
     // The robust profile's gates and weights too (angle gate, Huber, depth noise), with
@@ -373,18 +373,18 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
         SlamParams::profile(Profile::Robust),
     );
     let cases = [
-        ("true pose", s.icp_params(&t_true)),
-        ("perturbed pose", s.icp_params(&(nudge * t_true))),
+        ("true pose", s.icp_params(0, &t_true)),
+        ("perturbed pose", s.icp_params(0, &(nudge * t_true))),
         (
             "robust, perturbed pose",
-            robust.icp_params(&(nudge * t_true)),
+            robust.icp_params(0, &(nudge * t_true)),
         ),
     ];
     assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
     for (label, ip) in cases {
         let (sys_c, sys_g) = (
-            s.backend.icp_system(&ip).unwrap(),
-            gpu.icp_system(&ip).unwrap(),
+            s.backend.icp_system(0, &ip).unwrap(),
+            gpu.icp_system(0, &ip).unwrap(),
         );
         let (c, g) = (
             NormalEquations::decode(&sys_c),
@@ -421,6 +421,182 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
         eprintln!("{label}: increment cpu {xc:?}\n      gpu {xg:?}; difference {dx:e}");
         assert!(dx <= INCREMENT_TOL, "{label}: increments differ by {dx:e}");
     }
+}
+
+/// pyramid_depth (with vertex_to_normal per level) against its twin, through `preprocess`
+/// with the robust profile's three levels, with the bilateral filter on (level 1 made from
+/// the filtered map) and off (from the unfiltered one), at downsample 2 and 1.
+fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
+    let frame = load_frame(&root(), 5);
+    let robust = SlamParams::profile(Profile::Robust);
+    assert_eq!(robust.icp_level_iters.len(), 3);
+    for (downsample, bilateral) in [(2, robust.bilateral), (2, None), (1, robust.bilateral)] {
+        let params = SlamParams {
+            downsample,
+            bilateral,
+            ..robust.clone()
+        };
+        let s = slam(CpuBackend::new(), params);
+        let (pp, bp, np, pyr) = (
+            s.preprocess_params(),
+            s.bilateral_params(),
+            s.normal_params(),
+            s.pyramid_levels(),
+        );
+        assert_eq!(pyr.len(), 2);
+        let level_intrinsics: Vec<Intrinsics> = (1..3).map(|l| s.level_intrinsics(l)).collect();
+        let mut cpu_b = s.backend;
+        cpu_b
+            .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+            .unwrap();
+        gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+            .unwrap();
+        let (c, g) = (
+            cpu_b.download_frame().unwrap(),
+            gpu.download_frame().unwrap(),
+        );
+        assert_eq!((c.pyramid.len(), g.pyramid.len()), (2, 2));
+        for (l, (cl, gl)) in c.pyramid.iter().zip(&g.pyramid).enumerate() {
+            let k = level_intrinsics[l];
+            let tag = format!(
+                "downsample {downsample}, filter {}, level {} ({}x{})",
+                bilateral.is_some(),
+                l + 1,
+                k.width,
+                k.height
+            );
+            assert_eq!(cl.vertex.len(), k.pixels(), "{tag}");
+            // A mean of up to 9 depths that differ by the filtered maps' tolerance.
+            check_vec4_map(
+                &format!("{tag} vertex"),
+                &cl.vertex,
+                &gl.vertex,
+                FILTERED_VERTEX_TOL_M,
+            );
+            let (cn, gn) = (
+                FrameMaps::normal_map_of(&cl.normal_depth),
+                FrameMaps::normal_map_of(&gl.normal_depth),
+            );
+            check_vec4_map(&format!("{tag} normal"), &cn, &gn, NORMAL_TOL);
+            let valid = cn.iter().filter(|n| n[3] > 0.0).count();
+            assert!(valid > cn.len() / 2, "{tag}: only {valid} valid normals");
+        }
+    }
+}
+
+/// pyramid_model against its twin, through `predict` with the robust profile's three
+/// levels: each coarser level copies the finer level's pixel (2u, 2v), bit for bit, on
+/// both backends.
+fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
+    let params = SlamParams::profile(Profile::Robust);
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
+    let frame = load_frame(&root(), 6);
+    let (pp, bp, np, pyr) = (
+        s.preprocess_params(),
+        s.bilateral_params(),
+        s.normal_params(),
+        s.pyramid_levels(),
+    );
+    s.backend
+        .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+        .unwrap();
+    gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+        .unwrap();
+    let proj = s.project_params(&se3::inverse_rigid(gt_at(&gt, 6).unwrap()));
+    s.backend.predict(&proj, &pyr).unwrap();
+    gpu.predict(&proj, &pyr).unwrap();
+    for level in 0..3 {
+        let k = s.level_intrinsics(level);
+        let (cv, cn) = s.backend.download_prediction(level).unwrap();
+        let (gv, gn) = gpu.download_prediction(level).unwrap();
+        assert_eq!(
+            (cv.len(), gv.len()),
+            (k.pixels(), k.pixels()),
+            "level {level}"
+        );
+        check_vec4_map(&format!("level {level} predicted vertex"), &cv, &gv, 0.0);
+        check_vec4_map(&format!("level {level} predicted normal"), &cn, &gn, 0.0);
+        if level > 0 {
+            // The twin's rule on its own finer level.
+            let (fv, _) = s.backend.download_prediction(level - 1).unwrap();
+            let fine_w = s.level_intrinsics(level - 1).width as usize;
+            let (u, v) = (k.width as usize / 2, k.height as usize / 2);
+            assert_eq!(cv[v * k.width as usize + u], fv[2 * v * fine_w + 2 * u]);
+        }
+    }
+    assert!(gpu.download_prediction(3).unwrap().0.is_empty());
+}
+
+/// icp_reduce on the coarser pyramid levels against its twin: the kernel is level 0's, with
+/// the level's textures, size and intrinsics bound; the decoded systems and increments
+/// agree as at level 0 (robust profile, a perturbed pose).
+fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
+    let params = SlamParams::profile(Profile::Robust);
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
+    let frame = load_frame(&root(), 4);
+    let (pp, bp, np, pyr) = (
+        s.preprocess_params(),
+        s.bilateral_params(),
+        s.normal_params(),
+        s.pyramid_levels(),
+    );
+    s.backend
+        .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+        .unwrap();
+    gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+        .unwrap();
+    let proj = s.project_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()));
+    s.backend.predict(&proj, &pyr).unwrap();
+    gpu.predict(&proj, &pyr).unwrap();
+    let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
+    let t = nudge * se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    for level in 1..3 {
+        let ip = s.icp_params(level, &t);
+        let pixels = s.level_intrinsics(level).pixels();
+        assert_eq!(ip.width as usize * ip.height as usize, pixels);
+        let (sys_c, sys_g) = (
+            s.backend.icp_system(level, &ip).unwrap(),
+            gpu.icp_system(level, &ip).unwrap(),
+        );
+        let (c, g) = (
+            NormalEquations::decode(&sys_c),
+            NormalEquations::decode(&sys_g),
+        );
+        let (ata, atb) = system_rel_diffs(&sys_c, &sys_g);
+        eprintln!(
+            "level {level}: inliers cpu {} gpu {} of {pixels} pixels; rel diff AᵀA {ata:e} \
+             Aᵀb {atb:e}",
+            c.inliers, g.inliers
+        );
+        assert!(
+            c.inliers as usize > pixels / 4,
+            "level {level}: too few inliers for a real test"
+        );
+        let allowed = (c.inliers as f64 * INLIER_FRACTION_TOL).ceil() as u64;
+        assert!(
+            c.inliers.abs_diff(g.inliers) <= allowed,
+            "level {level}: inliers {} vs {}",
+            c.inliers,
+            g.inliers
+        );
+        assert!(
+            ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
+            "level {level}"
+        );
+        let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
+        let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
+        assert!(
+            dx <= INCREMENT_TOL,
+            "level {level}: increments differ by {dx:e}"
+        );
+    }
+    // A level the pyramid does not have is an argument error, not a panic.
+    assert!(matches!(
+        gpu.icp_system(3, &s.icp_params(2, &t)),
+        Err(Error::Argument(_))
+    ));
 }
 
 /// Sort key for order-independent map comparison: position bits, then frame.
@@ -475,9 +651,9 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
         s.normal_params(),
     );
     s.backend
-        .preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+        .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
-    gpu.preprocess(&pp, bp.as_ref(), &np, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
     let fp = s.fuse_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()), 3);
     if fp.association == ASSOCIATION_BEST_CANDIDATE {
@@ -918,17 +1094,18 @@ fn map_capacity_error(ctx: GpuContext) {
 /// GPU fault; downloads before the first frame are empty, as on the CPU.
 fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     assert_eq!(gpu.download_frame().unwrap(), Default::default());
-    assert!(gpu.download_prediction().unwrap().0.is_empty());
+    assert!(gpu.download_prediction(0).unwrap().0.is_empty());
     let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
     let (pp, np) = (s.preprocess_params(), s.normal_params());
     let short = vec![0u16; 100];
-    match gpu.preprocess(&pp, None, &np, &short, &vec![0u32; 100]) {
+    match gpu.preprocess(&pp, None, &np, &[], &short, &vec![0u32; 100]) {
         Err(Error::Argument(msg)) => assert!(msg.contains("640x480"), "{msg}"),
         other => panic!("expected Error::Argument, got {other:?}"),
     }
     // The backend still works afterwards.
     let f = load_frame(&root(), 1);
-    gpu.preprocess(&pp, None, &np, &f.depth, &f.rgba).unwrap();
+    gpu.preprocess(&pp, None, &np, &[], &f.depth, &f.rgba)
+        .unwrap();
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
 }
 
@@ -945,6 +1122,15 @@ fn main() -> ExitCode {
         }),
         gpu("icp_system_matches_twin", |ctx| {
             icp_system_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("pyramid_depth_matches_twin", |ctx| {
+            pyramid_depth_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("pyramid_model_matches_twin", |ctx| {
+            pyramid_model_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("coarse_icp_systems_match_twin", |ctx| {
+            coarse_icp_systems_match_twin(gpu_backend(ctx))
         }),
         gpu("fuse_matches_twins", |ctx| {
             fuse_matches_twins(gpu_backend(ctx), Profile::Assignment)

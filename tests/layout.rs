@@ -47,6 +47,20 @@ fn rust_layouts() -> Vec<RustLayout> {
             max_depth_jump_m,
             _pad
         }),
+        rust_layout!(PyramidParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+            fine_width,
+            fine_height,
+            radius_px,
+            max_depth_diff_m,
+            max_depth_diff_per_m2,
+            _pad
+        }),
         rust_layout!(ProjectParams {
             t_world_to_cam,
             fx,

@@ -12,6 +12,7 @@ use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::pipeline::{
     Association, BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval,
+    MAX_ICP_LEVELS,
 };
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
@@ -160,6 +161,47 @@ impl BilateralArgs {
     }
 }
 
+/// The coarse-to-fine ICP schedule (shared by `run`, `icp`, `compare` and `bench`); the
+/// profile's without the flag.
+#[derive(Debug, Args)]
+pub struct IcpLevelArgs {
+    /// ICP iterations per pyramid level, coarse to fine: "10,5,4" is three levels (each
+    /// half the size of the next finer one), at most 10 iterations at the coarsest and 4 at
+    /// the full maps; one number is single-level ICP (assignment 10, robust 10,5,4).
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub icp_level_iters: Option<Vec<usize>>,
+}
+
+impl IcpLevelArgs {
+    /// The schedule, or `None` without the flag (the profile's then).
+    pub fn schedule(&self) -> Result<Option<Vec<usize>>> {
+        let Some(s) = &self.icp_level_iters else {
+            return Ok(None);
+        };
+        if s.is_empty() || s.len() > MAX_ICP_LEVELS || s.contains(&0) {
+            return Err(Error::Argument(format!(
+                "--icp-level-iters {s:?}: want 1 to {MAX_ICP_LEVELS} iteration counts, coarse \
+                 to fine, each at least 1 (e.g. 10,5,4)"
+            )));
+        }
+        Ok(Some(s.clone()))
+    }
+
+    /// The flags that reproduce this schedule (for `bench`'s child processes).
+    fn args(&self) -> Vec<String> {
+        match &self.icp_level_iters {
+            Some(s) => vec![
+                "--icp-level-iters".into(),
+                s.iter()
+                    .map(|n| n.to_string())
+                    .collect::<Vec<_>>()
+                    .join(","),
+            ],
+            None => Vec::new(),
+        }
+    }
+}
+
 /// Pipeline tunables shared by `run` and `icp`: a profile, then any of its values
 /// overridden one by one (the flags' defaults are the profile's).
 #[derive(Debug, Args)]
@@ -180,9 +222,8 @@ pub struct PipelineArgs {
     /// Huber threshold on ICP residuals, metres; 0 turns it off (assignment 0, robust 0.02).
     #[arg(long)]
     pub icp_huber: Option<f32>,
-    /// ICP iterations per frame at most (assignment 10, robust 15).
-    #[arg(long)]
-    pub icp_iters: Option<usize>,
+    #[command(flatten)]
+    pub icp_levels: IcpLevelArgs,
     /// Fusion distance threshold, metres (assignment 0.03, robust 0.05).
     #[arg(long)]
     pub fuse_dist: Option<f32>,
@@ -268,6 +309,8 @@ pub struct CompareArgs {
     pub profile: Profile,
     #[command(flatten)]
     pub bilateral: BilateralArgs,
+    #[command(flatten)]
+    pub icp_levels: IcpLevelArgs,
     /// Write the full comparison as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -288,6 +331,8 @@ pub struct BenchArgs {
     pub profile: Profile,
     #[command(flatten)]
     pub bilateral: BilateralArgs,
+    #[command(flatten)]
+    pub icp_levels: IcpLevelArgs,
     /// Backends to run (bench-one runs the first only).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendChoice::Cpu, BackendChoice::Gpu])]
     pub backends: Vec<BackendChoice>,
@@ -373,13 +418,18 @@ impl DatasetArgs {
 impl PipelineArgs {
     /// Pipeline parameters from the flags.
     pub fn params(&self, poses: PoseSource) -> Result<SlamParams> {
-        // The profile at --downsample with the bilateral flags, then the overrides.
-        let base = profile_params(self.profile, self.downsample, &self.bilateral)?;
+        // The profile at --downsample with the bilateral and ICP schedule flags, then the
+        // overrides.
+        let base = profile_params(
+            self.profile,
+            self.downsample,
+            &self.bilateral,
+            &self.icp_levels,
+        )?;
         let p = SlamParams {
             icp_dist_m: self.icp_dist.unwrap_or(base.icp_dist_m),
             icp_normal_deg: self.icp_angle.unwrap_or(base.icp_normal_deg),
             icp_huber_m: self.icp_huber.unwrap_or(base.icp_huber_m),
-            icp_max_iters: self.icp_iters.unwrap_or(base.icp_max_iters),
             fuse_dist_m: self.fuse_dist.unwrap_or(base.fuse_dist_m),
             fuse_normal_deg: self.fuse_angle.unwrap_or(base.fuse_normal_deg),
             fuse_association: self.fuse_association.unwrap_or(base.fuse_association),
@@ -387,9 +437,6 @@ impl PipelineArgs {
             poses,
             ..base
         };
-        if p.icp_max_iters == 0 {
-            return Err(Error::Argument("--icp-iters must be at least 1".into()));
-        }
         for (flag, v) in [
             ("--icp-dist", p.icp_dist_m),
             ("--icp-angle", p.icp_normal_deg),
@@ -599,9 +646,12 @@ fn cmd_icp(a: IcpArgs) -> Result<()> {
         params,
     )?;
     println!("frames {} -> {target}", a.source);
-    println!("iter  inliers  mean squared residual (m^2)");
+    println!("iter  level  inliers  mean squared residual (m^2)");
     for (i, it) in r.iterations.iter().enumerate() {
-        println!("{i:4}  {:7}  {:.6e}", it.inliers, it.mean_sq_residual);
+        println!(
+            "{i:4}  {:5}  {:7}  {:.6e}",
+            it.level, it.inliers, it.mean_sq_residual
+        );
     }
     println!("status: {:?}", r.status);
     let t = glam::DMat4::from_cols_array_2d(&r.t_source_to_target);
@@ -651,31 +701,35 @@ fn frame_range(
 }
 
 /// The profile's parameters at `downsample`, with the bilateral filter on when the flags
-/// say so: `--bilateral` turns it on with its flags' settings; without it the profile
-/// decides. `run`/`icp` override further values on top (`PipelineArgs::params`).
+/// say so (`--bilateral` turns it on with its flags' settings; without it the profile
+/// decides) and the ICP schedule of `--icp-level-iters` (the profile's without it).
+/// `run`/`icp` override further values on top (`PipelineArgs::params`).
 fn profile_params(
     profile: Profile,
     downsample: u32,
     bilateral: &BilateralArgs,
+    icp_levels: &IcpLevelArgs,
 ) -> Result<SlamParams> {
     if downsample == 0 || downsample > 16 {
         return Err(Error::Argument(format!(
             "--downsample {downsample} must be between 1 and 16"
         )));
     }
+    let base = SlamParams::profile(profile);
     Ok(SlamParams {
         downsample,
-        bilateral: bilateral
-            .settings()?
-            .or(SlamParams::profile(profile).bilateral),
-        ..SlamParams::profile(profile)
+        bilateral: bilateral.settings()?.or(base.bilateral),
+        icp_level_iters: icp_levels
+            .schedule()?
+            .unwrap_or_else(|| base.icp_level_iters.clone()),
+        ..base
     })
 }
 
 fn cmd_compare(a: CompareArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, 20)?;
-    let params = profile_params(a.profile, a.downsample, &a.bilateral)?;
+    let params = profile_params(a.profile, a.downsample, &a.bilateral, &a.icp_levels)?;
     let gpu = any_backend::open(BackendChoice::Gpu)?;
     let cpu = any_backend::open(BackendChoice::Cpu)?;
     let c = compare::compare(cpu, gpu, &seq, first, last, params)?;
@@ -755,7 +809,7 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
         eprintln!("benchmarking both backends frame by frame in one process ...");
         let seq = a.data.open()?;
         let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-        let params = profile_params(a.profile, a.downsample, &a.bilateral)?;
+        let params = profile_params(a.profile, a.downsample, &a.bilateral, &a.icp_levels)?;
         let gpu = crate::gpu::GpuBackend::open()?;
         let r = bench::bench_interleaved(gpu, &seq, first, last, &params)?;
         bench::print_interleaved(&r);
@@ -800,6 +854,7 @@ impl BenchArgs {
             }
         }
         args.extend(self.bilateral.args());
+        args.extend(self.icp_levels.args());
         args
     }
 }
@@ -807,7 +862,7 @@ impl BenchArgs {
 fn cmd_bench_one(a: BenchArgs) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-    let params = profile_params(a.profile, a.downsample, &a.bilateral)?;
+    let params = profile_params(a.profile, a.downsample, &a.bilateral, &a.icp_levels)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
     let make = || any_backend::open(choice);
     let mut r = if a.frames_only {

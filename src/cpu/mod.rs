@@ -27,6 +27,8 @@ pub mod nn_grid;
 pub mod predict_model;
 pub mod prefix_sum;
 pub mod project_model;
+pub mod pyramid_depth;
+pub mod pyramid_model;
 pub mod render_resolve;
 pub mod render_splat;
 pub mod vertex_to_normal;

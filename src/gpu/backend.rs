@@ -24,6 +24,15 @@
 //! `prefix_sum` writes; its flags, offsets (one `u32` per surfel slot, storage buffers) and
 //! second set of map textures are allocated at its first call and re-allocated when the map
 //! grows, and after the scatter the two map sets swap (so the bind groups are rebuilt).
+//! The ICP pyramid's coarser levels (a schedule of more than one level) are textures of
+//! their own (`LevelBuffers`: the frame's vertex and normal-depth maps, the model's
+//! predicted maps, and their `pyramid_depth` / `vertex_to_normal` uniforms), made with the
+//! frame's other buffers, with their bind groups (`pyramid_depth` from level 0's filtered or
+//! unfiltered vertex map, `vertex_to_normal`, `pyramid_model`, and `icp_reduce` bound to
+//! the level's maps) built once with the rest. `preprocess` records every level's two
+//! passes in its one submission, `predict` one `pyramid_model` pass per level in its own;
+//! `icp_system` at level `l` dispatches the same `icp_reduce` pipeline with level `l`'s
+//! bind group and the level's size and intrinsics in the uniform.
 //! Not a scheduler: the order of steps is `pipeline::Slam`'s.
 
 use std::collections::BTreeMap;
@@ -37,10 +46,12 @@ use super::timing::StageTimer;
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
-    ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
+    ProjectParams, PyramidParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps};
+use crate::slam::pipeline::{
+    Backend, BackendCounters, FrameLevel, FrameMaps, Prediction, PyramidLevel, MAX_ICP_LEVELS,
+};
 use crate::{Error, Result};
 
 // Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
@@ -81,6 +92,18 @@ pub mod bindings {
         Binding::uniform("params: NormalParams"),
         Binding::texture_f32("vertex_map: camera frame (filtered_vertex with the filter)"),
         Binding::write_texture("normal_depth: camera-frame normal, w = depth"),
+    ];
+    pub const PYRAMID_DEPTH: [Binding; 3] = [
+        Binding::uniform("params: PyramidParams"),
+        Binding::texture_f32("fine_vertex: camera frame, the finer level"),
+        Binding::write_texture("coarse_vertex: camera frame"),
+    ];
+    pub const PYRAMID_MODEL: [Binding; 5] = [
+        Binding::uniform("params: PyramidParams"),
+        Binding::texture_f32("fine_vertex: the finer level's pred_vertex, world frame"),
+        Binding::texture_f32("fine_normal: the finer level's pred_normal, world frame"),
+        Binding::write_texture("coarse_vertex: world frame"),
+        Binding::write_texture("coarse_normal: world frame"),
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
         Binding::uniform("params: ProjectParams"),
@@ -164,8 +187,10 @@ struct Kernels {
     depth_to_vertex: Kernel,
     bilateral_filter: Kernel,
     vertex_to_normal: Kernel,
+    pyramid_depth: Kernel,
     project_model: Kernel,
     predict_model: Kernel,
+    pyramid_model: Kernel,
     icp_reduce: Kernel,
     fuse_select: Kernel,
     fuse_merge: Kernel,
@@ -223,6 +248,24 @@ struct FrameBuffers {
     /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`).
     add_flags: GpuArray<u32>,
     add_offsets: GpuArray<u32>,
+    /// The ICP pyramid's coarser levels 1, 2, ... (none with a one-level schedule).
+    levels: Vec<LevelBuffers>,
+}
+
+/// One coarser level (1, 2, ...) of the ICP pyramid: the frame's and the model's maps at
+/// its size, and the uniforms of the kernels that make them (one per level: `preprocess`
+/// records every level's passes in one submission, so they cannot share one).
+struct LevelBuffers {
+    width: u32,
+    height: u32,
+    /// `pyramid_depth`'s output.
+    vertex: GpuImage,
+    normal_depth: GpuImage,
+    /// `pyramid_model`'s outputs.
+    pred_vertex: GpuImage,
+    pred_normal: GpuImage,
+    u_pyramid: Uniform<PyramidParams>,
+    u_normal: Uniform<NormalParams>,
 }
 
 impl FrameBuffers {
@@ -247,6 +290,20 @@ struct BindGroups {
     /// `prefix_sum` over the new-surfel flags (one per pixel).
     fuse_scan: wgpu::BindGroup,
     fuse_add: wgpu::BindGroup,
+    /// Per coarser pyramid level (1, 2, ...).
+    levels: Vec<LevelBindGroups>,
+}
+
+/// The bind groups of one coarser pyramid level.
+struct LevelBindGroups {
+    /// `pyramid_depth` reading the finer level's vertex map: at level 1 the unfiltered
+    /// one (filter off) ...
+    pyramid_depth: wgpu::BindGroup,
+    /// ... or the filtered one (filter on); at levels 2 and up the same as `pyramid_depth`.
+    pyramid_depth_filtered: wgpu::BindGroup,
+    vertex_to_normal: wgpu::BindGroup,
+    pyramid_model: wgpu::BindGroup,
+    icp_reduce: wgpu::BindGroup,
 }
 
 /// Runs the pipeline's steps on a GPU through wgpu. See the module header.
@@ -418,8 +475,10 @@ impl GpuBackend {
                     "vertex_to_normal",
                     &bindings::VERTEX_TO_NORMAL,
                 )?,
+                pyramid_depth: Kernel::new(&ctx, "pyramid_depth", &bindings::PYRAMID_DEPTH)?,
                 project_model: Kernel::new(&ctx, "project_model", &bindings::PROJECT_MODEL)?,
                 predict_model: Kernel::new(&ctx, "predict_model", &bindings::PREDICT_MODEL)?,
+                pyramid_model: Kernel::new(&ctx, "pyramid_model", &bindings::PYRAMID_MODEL)?,
                 icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
                 fuse_select: Kernel::new(&ctx, "fuse_select", &bindings::FUSE_SELECT)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
@@ -498,8 +557,9 @@ impl GpuBackend {
     pub fn enable_kernel_timing(&mut self) {
         self.profiler = Some(Profiler {
             // At most three kernels per submission (preprocess with the bilateral filter,
-            // compact; predict and fuse have two).
-            timer: StageTimer::new(&self.ctx, 3),
+            // compact; predict and fuse have two) plus two per coarser pyramid level
+            // (preprocess; predict adds one).
+            timer: StageTimer::new(&self.ctx, 3 + 2 * (MAX_ICP_LEVELS as u32 - 1)),
             totals: BTreeMap::new(),
         });
     }
@@ -533,11 +593,18 @@ impl GpuBackend {
         self.reduction_workgroups
     }
 
-    /// (Re-)creates the per-frame buffers when the frame size changes.
-    fn ensure_frame(&mut self, p: &PreprocessParams) -> Result<()> {
+    /// (Re-)creates the per-frame buffers when the frame size or the pyramid's levels
+    /// change.
+    fn ensure_frame(&mut self, p: &PreprocessParams, pyramid: &[PyramidLevel]) -> Result<()> {
+        let level_sizes: Vec<(u32, u32)> = pyramid
+            .iter()
+            .map(|l| (l.down.width, l.down.height))
+            .collect();
         if let Some(f) = &self.frame {
+            let have: Vec<(u32, u32)> = f.levels.iter().map(|l| (l.width, l.height)).collect();
             if (f.raw_width, f.raw_height, f.width, f.height)
                 == (p.raw_width, p.raw_height, p.width, p.height)
+                && have == level_sizes
             {
                 return Ok(());
             }
@@ -567,6 +634,25 @@ impl GpuBackend {
         add_flags.set_len(n);
         let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n)?;
         add_offsets.set_len(n);
+        let levels = pyramid
+            .iter()
+            .map(|l| {
+                let (w, h) = (l.down.width, l.down.height);
+                let map = |label: &str| {
+                    GpuImage::new(ctx, label, w, h, wgpu::TextureFormat::Rgba32Float, true)
+                };
+                Ok(LevelBuffers {
+                    width: w,
+                    height: h,
+                    vertex: map("pyramid vertex map")?,
+                    normal_depth: map("pyramid normal-depth map")?,
+                    pred_vertex: map("pyramid predicted vertex map")?,
+                    pred_normal: map("pyramid predicted normal map")?,
+                    u_pyramid: Uniform::new(ctx, "PyramidParams", &l.down),
+                    u_normal: Uniform::new(ctx, "NormalParams (pyramid)", &l.normal),
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
         self.frame = Some(FrameBuffers {
             raw_width: p.raw_width,
             raw_height: p.raw_height,
@@ -585,6 +671,7 @@ impl GpuBackend {
             assoc,
             add_flags,
             add_offsets,
+            levels,
         });
         self.bind_groups = None;
         self.spare_bind_groups = None;
@@ -773,6 +860,66 @@ impl GpuBackend {
                         m.color.binding(),
                     ],
                 ),
+                levels: (0..f.levels.len())
+                    .map(|l| {
+                        let level = &f.levels[l];
+                        // The finer level's maps: level 0's, or the previous level's.
+                        let (fine_vertex, fine_pred_vertex, fine_pred_normal) = match l {
+                            0 => (&f.vertex, &f.pred_vertex, &f.pred_normal),
+                            _ => {
+                                let p = &f.levels[l - 1];
+                                (&p.vertex, &p.pred_vertex, &p.pred_normal)
+                            }
+                        };
+                        let pyramid_depth = |fine: &GpuImage| {
+                            k.pyramid_depth.bind_group(
+                                c,
+                                &[
+                                    level.u_pyramid.binding(),
+                                    fine.binding(),
+                                    level.vertex.binding(),
+                                ],
+                            )
+                        };
+                        let unfiltered = pyramid_depth(fine_vertex);
+                        let filtered = match l {
+                            0 => pyramid_depth(&f.filtered_vertex),
+                            _ => unfiltered.clone(),
+                        };
+                        LevelBindGroups {
+                            pyramid_depth: unfiltered,
+                            pyramid_depth_filtered: filtered,
+                            vertex_to_normal: k.vertex_to_normal.bind_group(
+                                c,
+                                &[
+                                    level.u_normal.binding(),
+                                    level.vertex.binding(),
+                                    level.normal_depth.binding(),
+                                ],
+                            ),
+                            pyramid_model: k.pyramid_model.bind_group(
+                                c,
+                                &[
+                                    level.u_pyramid.binding(),
+                                    fine_pred_vertex.binding(),
+                                    fine_pred_normal.binding(),
+                                    level.pred_vertex.binding(),
+                                    level.pred_normal.binding(),
+                                ],
+                            ),
+                            icp_reduce: k.icp_reduce.bind_group(
+                                c,
+                                &[
+                                    self.u_icp.binding(),
+                                    level.pred_vertex.binding(),
+                                    level.pred_normal.binding(),
+                                    level.normal_depth.binding(),
+                                    self.partials.binding(),
+                                ],
+                            ),
+                        }
+                    })
+                    .collect(),
             });
         }
         self.bind_groups.as_ref().expect("just built")
@@ -791,6 +938,37 @@ impl GpuBackend {
     }
 }
 
+/// [`Error::Argument`] unless each pyramid level halves the one before (rounded up), the
+/// first level 0's `width` x `height`: the kernels read finer pixel `(2u, 2v)` for coarse
+/// pixel `(u, v)` without a bounds check of their own.
+fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -> Result<()> {
+    let mut fine = (width, height);
+    for (l, p) in pyramid.iter().enumerate() {
+        let d = &p.down;
+        let coarse = (fine.0.div_ceil(2), fine.1.div_ceil(2));
+        if (d.fine_width, d.fine_height) != fine
+            || (d.width, d.height) != coarse
+            || (p.normal.width, p.normal.height) != coarse
+        {
+            return Err(Error::Argument(format!(
+                "pyramid level {}: a {}x{} level (normals {}x{}) made from {}x{} does not halve \
+                 the {}x{} level before it",
+                l + 1,
+                d.width,
+                d.height,
+                p.normal.width,
+                p.normal.height,
+                d.fine_width,
+                d.fine_height,
+                fine.0,
+                fine.1
+            )));
+        }
+        fine = coarse;
+    }
+    Ok(())
+}
+
 /// A per-pixel `[f32; 4]` map read back row-major.
 fn read_map(ctx: &GpuContext, image: &GpuImage) -> Result<Vec<[f32; 4]>> {
     image.read_back(ctx)
@@ -806,6 +984,7 @@ impl Backend for GpuBackend {
         params: &PreprocessParams,
         bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
+        pyramid: &[PyramidLevel],
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
@@ -828,7 +1007,8 @@ impl Backend for GpuBackend {
                 params.width, params.height, params.stride, params.raw_width, params.raw_height
             )));
         }
-        self.ensure_frame(params)?;
+        check_pyramid(params.width, params.height, pyramid)?;
+        self.ensure_frame(params, pyramid)?;
         let ctx = &self.ctx;
         ctx.scoped("preprocess", || {
             let f = self.frame.as_mut().expect("ensure_frame made it");
@@ -840,12 +1020,26 @@ impl Backend for GpuBackend {
                 self.u_bilateral.write(ctx, b);
             }
             self.u_normal.write(ctx, normal);
+            for (level, p) in f.levels.iter().zip(pyramid) {
+                level.u_pyramid.write(ctx, &p.down);
+                level.u_normal.write(ctx, &p.normal);
+            }
             Ok(())
         })?;
         let (w, h) = (params.width, params.height);
         let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
         let bf_wg = self.kernels.bilateral_filter.workgroups_for_image(w, h);
         let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
+        let level_wg: Vec<([u32; 2], [u32; 2])> = pyramid
+            .iter()
+            .map(|p| {
+                let (w, h) = (p.down.width, p.down.height);
+                (
+                    self.kernels.pyramid_depth.workgroups_for_image(w, h),
+                    self.kernels.vertex_to_normal.workgroups_for_image(w, h),
+                )
+            })
+            .collect();
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
@@ -853,24 +1047,51 @@ impl Backend for GpuBackend {
             let bf = (&k.bilateral_filter, &bg.bilateral_filter, bf_wg);
             let v2n = (&k.vertex_to_normal, &bg.vertex_to_normal, v2n_wg);
             let v2n_filtered = (&k.vertex_to_normal, &bg.vertex_to_normal_filtered, v2n_wg);
-            let passes = match bilateral {
+            let mut passes = match bilateral {
                 Some(_) => vec![d2v, bf, v2n_filtered],
                 None => vec![d2v, v2n],
             };
+            for (g, &(down_wg, normal_wg)) in bg.levels.iter().zip(&level_wg) {
+                let down = match bilateral {
+                    Some(_) => &g.pyramid_depth_filtered,
+                    None => &g.pyramid_depth,
+                };
+                passes.push((&k.pyramid_depth, down, down_wg));
+                passes.push((&k.vertex_to_normal, &g.vertex_to_normal, normal_wg));
+            }
             record_passes(ctx, profiler, &mut enc, &passes)?;
             submit_profiled(ctx, profiler, enc)
         })
     }
 
-    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
+    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         let mut params = *params;
         params.surfel_count = self.count as u32;
         let f = self.frame();
+        let made: Vec<(u32, u32)> = f.levels.iter().map(|l| (l.width, l.height)).collect();
+        let asked: Vec<(u32, u32)> = pyramid
+            .iter()
+            .map(|l| (l.down.width, l.down.height))
+            .collect();
+        if made != asked {
+            return Err(Error::Argument(format!(
+                "predict() asked for pyramid levels {asked:?} but preprocess() made {made:?}"
+            )));
+        }
         let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
         let pix_wg = self
             .kernels
             .predict_model
             .workgroups_for_image(f.width, f.height);
+        let level_wg: Vec<[u32; 2]> = f
+            .levels
+            .iter()
+            .map(|l| {
+                self.kernels
+                    .pyramid_model
+                    .workgroups_for_image(l.width, l.height)
+            })
+            .collect();
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
@@ -880,31 +1101,35 @@ impl Backend for GpuBackend {
             self.u_project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
             f.index_map.clear(&mut enc);
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.project_model, &bg.project_model, [surfel_wg, 1]),
-                    (&k.predict_model, &bg.predict_model, pix_wg),
-                ],
-            )?;
+            let mut passes = vec![
+                (&k.project_model, &bg.project_model, [surfel_wg, 1]),
+                (&k.predict_model, &bg.predict_model, pix_wg),
+            ];
+            for (g, &wg) in bg.levels.iter().zip(&level_wg) {
+                passes.push((&k.pyramid_model, &g.pyramid_model, wg));
+            }
+            record_passes(ctx, profiler, &mut enc, &passes)?;
             submit_profiled(ctx, profiler, enc)
         })
     }
 
-    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let levels = 1 + self.frame().levels.len();
+        if level >= levels {
+            return Err(Error::Argument(format!(
+                "ICP at pyramid level {level}, but preprocess() made {levels} level(s)"
+            )));
+        }
         let wg = self.reduction_workgroups;
         let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let group = match level {
+            0 => &bg.icp_reduce,
+            l => &bg.levels[l - 1].icp_reduce,
+        };
         let partials = ctx.scoped("icp_reduce", || {
             self.u_icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[(&k.icp_reduce, &bg.icp_reduce, [wg, 1])],
-            )?;
+            record_passes(ctx, profiler, &mut enc, &[(&k.icp_reduce, group, [wg, 1])])?;
             self.partials_readback.copy_from(
                 &mut enc,
                 &self.partials,
@@ -1080,20 +1305,34 @@ impl Backend for GpuBackend {
                 },
                 normal_depth: read_map(ctx, &f.normal_depth)?,
                 color: read_map(ctx, &f.color)?,
+                pyramid: f
+                    .levels
+                    .iter()
+                    .map(|l| {
+                        Ok(FrameLevel {
+                            vertex: read_map(ctx, &l.vertex)?,
+                            normal_depth: read_map(ctx, &l.normal_depth)?,
+                        })
+                    })
+                    .collect::<Result<_>>()?,
             })
         })
     }
 
-    fn download_prediction(&mut self) -> Result<crate::slam::pipeline::Prediction> {
+    fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
         let Some(f) = self.frame.as_ref() else {
-            return Ok((Vec::new(), Vec::new()));
+            return Ok(Prediction::default());
+        };
+        let (vertex, normal) = match level {
+            0 => (&f.pred_vertex, &f.pred_normal),
+            l => match f.levels.get(l - 1) {
+                Some(level) => (&level.pred_vertex, &level.pred_normal),
+                None => return Ok(Prediction::default()),
+            },
         };
         let ctx = &self.ctx;
         ctx.scoped("download prediction", || {
-            Ok((
-                read_map(ctx, &f.pred_vertex)?,
-                read_map(ctx, &f.pred_normal)?,
-            ))
+            Ok((read_map(ctx, vertex)?, read_map(ctx, normal)?))
         })
     }
 

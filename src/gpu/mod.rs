@@ -42,6 +42,8 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
         ("depth_to_vertex", &b::DEPTH_TO_VERTEX),
         ("bilateral_filter", &b::BILATERAL_FILTER),
         ("vertex_to_normal", &b::VERTEX_TO_NORMAL),
+        ("pyramid_depth", &b::PYRAMID_DEPTH),
+        ("pyramid_model", &b::PYRAMID_MODEL),
         ("project_model", &b::PROJECT_MODEL),
         ("predict_model", &b::PREDICT_MODEL),
         ("icp_reduce", &b::ICP_REDUCE),

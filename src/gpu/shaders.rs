@@ -44,6 +44,14 @@ pub const KERNELS: &[(&str, &str)] = &[
         "predict_model",
         include_str!("../../shaders/predict_model.wgsl"),
     ),
+    (
+        "pyramid_depth",
+        include_str!("../../shaders/pyramid_depth.wgsl"),
+    ),
+    (
+        "pyramid_model",
+        include_str!("../../shaders/pyramid_model.wgsl"),
+    ),
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     (
         "fuse_select",

@@ -10,16 +10,17 @@ use crate::layout::{
     ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, FrameMaps};
+use crate::slam::pipeline::{Backend, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::Result;
 
-/// Host-side state: the current frame's maps, the prediction and the surfel map.
+/// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
+/// pyramid level) and the surfel map.
 #[derive(Debug, Default)]
 pub struct CpuBackend {
     frame: FrameMaps,
     index_map: Vec<u64>,
-    pred_vertex: Vec<[f32; 4]>,
-    pred_normal: Vec<[f32; 4]>,
+    /// The predicted vertex and normal maps per pyramid level, level 0 first.
+    prediction: Vec<Prediction>,
     assoc: Vec<u64>,
     /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`).
     add_flags: Vec<u32>,
@@ -64,6 +65,7 @@ impl Backend for CpuBackend {
         params: &PreprocessParams,
         bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
+        pyramid: &[PyramidLevel],
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
@@ -93,35 +95,87 @@ impl Backend for CpuBackend {
             }
         };
         cpu::vertex_to_normal::vertex_to_normal(normal, normals_from, &mut f.normal_depth);
+        // The coarser levels, each from the finer one's vertex map (level 0's: the one
+        // the normals were made from).
+        f.pyramid.resize_with(pyramid.len(), FrameLevel::default);
+        for (l, p) in pyramid.iter().enumerate() {
+            let (finer, coarser) = f.pyramid.split_at_mut(l);
+            let fine_vertex = match finer.last() {
+                Some(level) => &level.vertex,
+                None if bilateral.is_some() => &f.filtered_vertex,
+                None => &f.vertex,
+            };
+            let level = &mut coarser[0];
+            let n = (p.down.width * p.down.height) as usize;
+            level.vertex.resize(n, cpu::INVALID);
+            level.normal_depth.resize(n, cpu::INVALID);
+            cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut level.vertex);
+            cpu::vertex_to_normal::vertex_to_normal(
+                &p.normal,
+                &level.vertex,
+                &mut level.normal_depth,
+            );
+        }
         Ok(())
     }
 
-    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
+    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         let mut params = *params;
         params.surfel_count = self.map.len() as u32;
         let n = (params.width * params.height) as usize;
         self.index_map.clear();
         self.index_map.resize(n, 0);
-        self.pred_vertex.resize(n, cpu::INVALID);
-        self.pred_normal.resize(n, cpu::INVALID);
+        self.prediction
+            .resize_with(1 + pyramid.len(), Default::default);
+        let (pred_vertex, pred_normal) = &mut self.prediction[0];
+        pred_vertex.resize(n, cpu::INVALID);
+        pred_normal.resize(n, cpu::INVALID);
         cpu::project_model::project_model(&params, &self.map.position_weight, &mut self.index_map);
         cpu::predict_model::predict_model(
             &params,
             &self.index_map,
             &self.map.position_weight,
             &self.map.normal_frame,
-            &mut self.pred_vertex,
-            &mut self.pred_normal,
+            pred_vertex,
+            pred_normal,
         );
+        for (l, p) in pyramid.iter().enumerate() {
+            let (finer, coarser) = self.prediction.split_at_mut(l + 1);
+            let (fine_vertex, fine_normal) = &finer[l];
+            let (coarse_vertex, coarse_normal) = &mut coarser[0];
+            let n = (p.down.width * p.down.height) as usize;
+            coarse_vertex.resize(n, cpu::INVALID);
+            coarse_normal.resize(n, cpu::INVALID);
+            cpu::pyramid_model::pyramid_model(
+                &p.down,
+                fine_vertex,
+                fine_normal,
+                coarse_vertex,
+                coarse_normal,
+            );
+        }
         Ok(())
     }
 
-    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let levels = 1 + self.frame.pyramid.len();
+        if level >= levels.min(self.prediction.len()) {
+            return Err(crate::Error::Argument(format!(
+                "ICP at pyramid level {level}, but preprocess() made {levels} level(s) and \
+                 predict() {}",
+                self.prediction.len()
+            )));
+        }
+        let (pred_vertex, pred_normal) = &self.prediction[level];
+        let normal_depth = match level {
+            0 => &self.frame.normal_depth,
+            l => &self.frame.pyramid[l - 1].normal_depth,
+        };
         Ok(cpu::icp_reduce::icp_reduce(
             params,
-            &self.pred_vertex,
-            &self.pred_normal,
-            &self.frame.normal_depth,
+            pred_vertex,
+            pred_normal,
+            normal_depth,
         ))
     }
 
@@ -231,8 +285,8 @@ impl Backend for CpuBackend {
         Ok(self.frame.clone())
     }
 
-    fn download_prediction(&mut self) -> Result<crate::slam::pipeline::Prediction> {
-        Ok((self.pred_vertex.clone(), self.pred_normal.clone()))
+    fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
+        Ok(self.prediction.get(level).cloned().unwrap_or_default())
     }
 }
 

@@ -15,7 +15,7 @@ use crate::layout::{
     ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction};
+use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction, PyramidLevel};
 use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;
@@ -70,19 +70,20 @@ impl<B: Backend> Backend for Instrumented<B> {
         params: &PreprocessParams,
         bilateral: Option<&BilateralParams>,
         normal: &NormalParams,
+        pyramid: &[PyramidLevel],
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
         self.frame_systems.clear();
         self.step("preprocess", |b| {
-            b.preprocess(params, bilateral, normal, raw_depth, raw_rgba)
+            b.preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba)
         })
     }
-    fn predict(&mut self, params: &ProjectParams) -> Result<()> {
-        self.step("predict", |b| b.predict(params))
+    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
+        self.step("predict", |b| b.predict(params, pyramid))
     }
-    fn icp_system(&mut self, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
-        let system = self.step("icp_iteration", |b| b.icp_system(params))?;
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let system = self.step("icp_iteration", |b| b.icp_system(level, params))?;
         self.frame_systems.push(system);
         Ok(system)
     }
@@ -101,8 +102,8 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn download_frame(&mut self) -> Result<FrameMaps> {
         self.inner.download_frame()
     }
-    fn download_prediction(&mut self) -> Result<Prediction> {
-        self.inner.download_prediction()
+    fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
+        self.inner.download_prediction(level)
     }
     fn counters(&self) -> BackendCounters {
         self.inner.counters()

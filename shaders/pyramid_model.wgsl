@@ -1,0 +1,29 @@
+// pyramid_model.wgsl: the next coarser level of the predicted (model) maps, the ICP source,
+// by subsampling. CPU twin: src/cpu/pyramid_model.rs (its header says why subsampling).
+//
+// Bindings (@group(0)):
+//   0 params       uniform PyramidParams (only width and height, the coarse size, are used)
+//   1 fine_vertex  texture_2d<f32>: the finer level's pred_vertex, WORLD frame, w = 1 / 0
+//   2 fine_normal  texture_2d<f32>: the finer level's pred_normal, WORLD frame, w = 1 / 0
+//   3 coarse_vertex storage texture rgba32float, write: width x height, WORLD frame
+//   4 coarse_normal storage texture rgba32float, write: width x height, WORLD frame
+// Coarse pixel (u, v) is a copy of finer pixel (2u, 2v) (the frame pyramid's sampling);
+// the finer level is at least 2 width - 1 by 2 height - 1, so the texel exists.
+// One thread per coarse pixel (8x8 workgroups).
+
+@group(0) @binding(0) var<uniform> params: PyramidParams;
+@group(0) @binding(1) var fine_vertex: texture_2d<f32>;
+@group(0) @binding(2) var fine_normal: texture_2d<f32>;
+@group(0) @binding(3) var coarse_vertex: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(4) var coarse_normal: texture_storage_2d<rgba32float, write>;
+
+// One thread per coarse pixel in 8x8 tiles, like vertex_to_normal.
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let fine = 2u * gid.xy;
+    textureStore(coarse_vertex, gid.xy, textureLoad(fine_vertex, fine, 0));
+    textureStore(coarse_normal, gid.xy, textureLoad(fine_normal, fine, 0));
+}

@@ -1,0 +1,41 @@
+//! CPU twin of `shaders/pyramid_model.wgsl`: the next coarser level of the predicted
+//! (model) vertex and normal maps, the ICP source, by subsampling: coarse pixel `(u, v)` is
+//! finer pixel `(2u, 2v)`, as in the frame's pyramid (`pyramid_depth`).
+//!
+//! Why subsampling and not an average like the frame side: the model's points are surfels
+//! already averaged over many observations (the robust profile's median weight is 55), so
+//! an average would remove little noise, and it would blend surfels across depth edges and
+//! normals across creases. The source's pixel grid does not enter the association (ICP
+//! moves each source point into the frame and projects it with the coarse intrinsics), so
+//! any subset of the model's points is a valid coarse source.
+
+use crate::layout::PyramidParams;
+
+/// Bindings (as in the shader header):
+/// - 0 `params`: `PyramidParams` (the shader uses only `width` and `height`, the coarse
+///   size; here `fine_width` is also the row length of the finer slices)
+/// - 1 `fine_vertex`: the finer level's `pred_vertex`, world frame, w = 1 / 0
+/// - 2 `fine_normal`: the finer level's `pred_normal`, world frame, w = 1 / 0
+/// - 3 `coarse_vertex` (out): width x height, world frame
+/// - 4 `coarse_normal` (out): width x height, world frame
+pub fn pyramid_model(
+    params: &PyramidParams,
+    fine_vertex: &[[f32; 4]],
+    fine_normal: &[[f32; 4]],
+    coarse_vertex: &mut [[f32; 4]],
+    coarse_normal: &mut [[f32; 4]],
+) {
+    let (w, h) = (params.width as usize, params.height as usize);
+    let fine_w = params.fine_width as usize;
+    assert!(fine_vertex.len() == fine_normal.len() && fine_vertex.len() % fine_w == 0);
+    assert!(coarse_vertex.len() == w * h && coarse_normal.len() == w * h);
+    assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_vertex.len() / fine_w);
+    // One shader thread per coarse pixel (u, v).
+    for v in 0..h {
+        for u in 0..w {
+            let fine = 2 * v * fine_w + 2 * u;
+            coarse_vertex[v * w + u] = fine_vertex[fine];
+            coarse_normal[v * w + u] = fine_normal[fine];
+        }
+    }
+}
