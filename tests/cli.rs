@@ -49,6 +49,7 @@ fn run_writes_all_outputs_on_bundled_data() {
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     assert_eq!(m["frames"], 4);
+    assert_eq!(m["params"]["profile"], "robust", "the default profile");
     assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
     // The written trajectory evaluates against the dataset's own ground truth.
     let gt = common::bundled_icl().join("livingRoom2.gt.freiburg");
@@ -195,8 +196,54 @@ fn icp_two_frames_prints_iterations_and_error() {
     assert!(t.contains("mean squared residual"), "{t}");
 }
 
+/// Every value of a profile is a flag of its own and lands in metrics.json: the
+/// assignment's profile with the robust fusion's values and others overridden.
+fn profile_values_are_flags_recorded_in_metrics() {
+    let out = common::temp_dir("cli-overrides");
+    let o = wgslam(&[
+        "run",
+        "--backend",
+        "cpu",
+        "--frames",
+        "1..3",
+        "--profile",
+        "assignment",
+        "--fuse-association",
+        "best-candidate",
+        "--confidence-sigma",
+        "0.3",
+        "--min-depth",
+        "0.2",
+        "--icp-noise-weight",
+        "true",
+        "--icp-min-increment",
+        "2e-6",
+        "--removal-every",
+        "3",
+        "--pyramid-radius",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let p = &m["params"];
+    assert_eq!(p["profile"], "assignment");
+    assert_eq!(p["fuse_association"], "best-candidate");
+    assert_eq!(p["fuse_confidence_sigma"].as_f64(), Some(0.3));
+    assert_eq!(p["min_depth_m"].as_f64(), Some(0.2));
+    assert_eq!(p["icp_noise_weight"], true);
+    assert_eq!(p["icp_min_increment"].as_f64(), Some(2e-6));
+    assert_eq!(p["unstable_removal"]["every_frames"], 3);
+    assert_eq!(p["pyramid"]["radius_px"], 2);
+    // Values not overridden stay the assignment's.
+    assert_eq!(p["fuse_normal_deg"].as_f64(), Some(5.0));
+    assert_eq!(p["icp_level_iters"], serde_json::json!([10]));
+}
+
 fn clear_errors_for_bad_input() {
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 12] = [
         (
             &["render", "/nonexistent/map.ply", "-o", "/tmp/x.png"],
             "map.ply",
@@ -209,6 +256,9 @@ fn clear_errors_for_bad_input() {
         (&["run", "--frames", "5..900"], "outside"),
         (&["run", "--frames", "banana"], "A..B"),
         (&["run", "--downsample", "0"], "downsample"),
+        (&["run", "--max-depth", "0.05"], "--max-depth"),
+        (&["run", "--removal-every", "0"], "--removal-every"),
+        (&["run", "--confidence-sigma=-1"], "--confidence-sigma"),
         (&["run", "--icp-level-iters", "10,0,4"], "--icp-level-iters"),
         (
             &["run", "--icp-level-iters", "1,1,1,1,1"],
@@ -243,6 +293,10 @@ fn main() -> ExitCode {
             icp_two_frames_prints_iterations_and_error,
         ),
         plain("run_with_an_icp_schedule", run_with_an_icp_schedule),
+        plain(
+            "profile_values_are_flags_recorded_in_metrics",
+            profile_values_are_flags_recorded_in_metrics,
+        ),
         plain("clear_errors_for_bad_input", clear_errors_for_bad_input),
     ])
 }

@@ -11,8 +11,8 @@ use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::pipeline::{
-    Association, BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval,
-    MAX_ICP_LEVELS,
+    Association, BilateralSettings, PoseSource, Profile, PyramidSettings, SlamParams,
+    UnstableRemoval, MAX_ICP_LEVELS,
 };
 use crate::{eval, io, tools::bench, tools::compare, tools::run, tools::two_frame, Error, Result};
 
@@ -255,6 +255,30 @@ pub struct PipelineArgs {
     /// Removal of unstable surfels: run it after every N-th frame (robust 10).
     #[arg(long)]
     pub removal_every: Option<u32>,
+    /// Valid depth range, metres: nearer pixels are invalid (both profiles 0.1).
+    #[arg(long)]
+    pub min_depth: Option<f32>,
+    /// Valid depth range, metres: farther pixels are invalid (both profiles 10).
+    #[arg(long)]
+    pub max_depth: Option<f32>,
+    /// Normals across a depth jump larger than this, metres, are invalid (both 0.1).
+    #[arg(long)]
+    pub max_depth_jump: Option<f32>,
+    /// Weigh each ICP row by the depth-noise model (assignment false, robust true).
+    #[arg(long)]
+    pub icp_noise_weight: Option<bool>,
+    /// ICP stops when the increment's rotation (rad) and translation (m) are both below
+    /// this (assignment 1e-6, robust 1e-5).
+    #[arg(long)]
+    pub icp_min_increment: Option<f64>,
+    /// Coarser ICP pyramid levels: half-width of the averaging window, pixels of the finer
+    /// level (1).
+    #[arg(long)]
+    pub pyramid_radius: Option<u32>,
+    /// Coarser ICP pyramid levels: neighbours whose depth differs from the sampled pixel's
+    /// by more than this times its depth squared (1/m) are left out of the average (0.03).
+    #[arg(long)]
+    pub pyramid_depth_gate_z2: Option<f32>,
 }
 
 #[derive(Debug, Args)]
@@ -434,9 +458,43 @@ impl PipelineArgs {
             fuse_normal_deg: self.fuse_angle.unwrap_or(base.fuse_normal_deg),
             fuse_association: self.fuse_association.unwrap_or(base.fuse_association),
             fuse_confidence_sigma: self.confidence_sigma.unwrap_or(base.fuse_confidence_sigma),
+            min_depth_m: self.min_depth.unwrap_or(base.min_depth_m),
+            max_depth_m: self.max_depth.unwrap_or(base.max_depth_m),
+            max_depth_jump_m: self.max_depth_jump.unwrap_or(base.max_depth_jump_m),
+            icp_noise_weight: self.icp_noise_weight.unwrap_or(base.icp_noise_weight),
+            icp_min_increment: self.icp_min_increment.unwrap_or(base.icp_min_increment),
+            pyramid: PyramidSettings {
+                radius_px: self.pyramid_radius.unwrap_or(base.pyramid.radius_px),
+                max_depth_diff_per_m2: self
+                    .pyramid_depth_gate_z2
+                    .unwrap_or(base.pyramid.max_depth_diff_per_m2),
+                ..base.pyramid
+            },
             poses,
             ..base
         };
+        if !(p.min_depth_m.is_finite()
+            && p.min_depth_m >= 0.0
+            && p.max_depth_m.is_finite()
+            && p.max_depth_m > p.min_depth_m)
+        {
+            return Err(Error::Argument(format!(
+                "--min-depth {} and --max-depth {} must be a range 0 <= min < max",
+                p.min_depth_m, p.max_depth_m
+            )));
+        }
+        for (flag, v) in [
+            ("--max-depth-jump", p.max_depth_jump_m as f64),
+            ("--icp-min-increment", p.icp_min_increment),
+            (
+                "--pyramid-depth-gate-z2",
+                p.pyramid.max_depth_diff_per_m2 as f64,
+            ),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::Argument(format!("{flag} {v} must be positive")));
+            }
+        }
         for (flag, v) in [
             ("--icp-dist", p.icp_dist_m),
             ("--icp-angle", p.icp_normal_deg),
