@@ -484,14 +484,19 @@ fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
     }
 }
 
-/// pyramid_model against its twin, through `predict` with the robust profile's three
-/// levels: each coarser level copies the finer level's pixel (2u, 2v), bit for bit, on
-/// both backends.
-fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
+/// The robust profile on both backends from the same map (bundled frames 1..=3 fused at
+/// ground truth): frame `frame` preprocessed into its pyramid, and the map predicted at
+/// the ground-truth pose of frame `predict_at`. Returns the CPU tracker and the ground
+/// truth.
+fn robust_pyramids_on_both(
+    gpu: &mut GpuBackend,
+    frame: usize,
+    predict_at: usize,
+) -> (Slam<CpuBackend>, Vec<Option<DMat4>>) {
     let params = SlamParams::profile(Profile::Robust);
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
-    let frame = load_frame(&root(), 6);
+    let f = load_frame(&root(), frame);
     let (pp, bp, np, pyr) = (
         s.preprocess_params(),
         s.bilateral_params(),
@@ -499,13 +504,21 @@ fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
         s.pyramid_levels(),
     );
     s.backend
-        .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+        .preprocess(&pp, bp.as_ref(), &np, &pyr, &f.depth, &f.rgba)
         .unwrap();
-    gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+    gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &f.depth, &f.rgba)
         .unwrap();
-    let proj = s.project_params(&se3::inverse_rigid(gt_at(&gt, 6).unwrap()));
+    let proj = s.project_params(&se3::inverse_rigid(gt_at(&gt, predict_at).unwrap()));
     s.backend.predict(&proj, &pyr).unwrap();
     gpu.predict(&proj, &pyr).unwrap();
+    (s, gt)
+}
+
+/// pyramid_model against its twin, through `predict` with the robust profile's three
+/// levels: each coarser level copies the finer level's pixel (2u, 2v), bit for bit, on
+/// both backends.
+fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
+    let (mut s, _) = robust_pyramids_on_both(&mut gpu, 6, 6);
     for level in 0..3 {
         let k = s.level_intrinsics(level);
         let (cv, cn) = s.backend.download_prediction(level).unwrap();
@@ -532,24 +545,7 @@ fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
 /// the level's textures, size and intrinsics bound; the decoded systems and increments
 /// agree as at level 0 (robust profile, a perturbed pose).
 fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
-    let params = SlamParams::profile(Profile::Robust);
-    let (mut s, gt) = cpu_map_from_gt(3, &params);
-    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
-    let frame = load_frame(&root(), 4);
-    let (pp, bp, np, pyr) = (
-        s.preprocess_params(),
-        s.bilateral_params(),
-        s.normal_params(),
-        s.pyramid_levels(),
-    );
-    s.backend
-        .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
-        .unwrap();
-    gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
-        .unwrap();
-    let proj = s.project_params(&se3::inverse_rigid(gt_at(&gt, 3).unwrap()));
-    s.backend.predict(&proj, &pyr).unwrap();
-    gpu.predict(&proj, &pyr).unwrap();
+    let (mut s, gt) = robust_pyramids_on_both(&mut gpu, 4, 3);
     let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
     let t = nudge * se3::inverse_rigid(gt_at(&gt, 4).unwrap());
     for level in 1..3 {
