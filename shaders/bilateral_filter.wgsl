@@ -3,7 +3,7 @@
 // rules, the defaults and why sigma_depth grows with depth squared).
 //
 // Bindings (@group(0)):
-//   0 params           uniform BilateralParams
+//   0 params           storage read BilateralParams
 //   1 vertex_map       texture_2d<f32>: width x height, camera frame (depth_to_vertex's
 //                      output), w = 1 valid / 0 invalid; its z is the depth in metres
 //   2 filtered_vertex  storage texture rgba32float, write: width x height, camera frame,
@@ -14,7 +14,7 @@
 // itself has weight 1, so the sum of weights is >= 1. Invalid pixels stay invalid.
 // One thread per pixel (8x8 workgroups).
 
-@group(0) @binding(0) var<uniform> params: BilateralParams;
+@group(0) @binding(0) var<storage, read> params: BilateralParams;
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
 @group(0) @binding(2) var filtered_vertex: texture_storage_2d<rgba32float, write>;
 

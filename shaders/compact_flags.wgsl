@@ -5,7 +5,7 @@
 // src/cpu/compact_flags.rs.
 //
 // Bindings (@group(0)):
-//   0 params           uniform CompactParams (surfel_count, frame_id, stable_weight,
+//   0 params           storage read CompactParams (surfel_count, frame_id, stable_weight,
 //                      max_age_frames)
 //   1 position_weight  texture_2d<f32> (rgba32float): xyz world frame, w = weight
 //   2 normal_frame     texture_2d<u32> (rgba32uint): normal bits, w = last_frame
@@ -13,7 +13,7 @@
 //   (surfel i is texel surfel_texel(i) of each map texture; see src/gpu/map_textures.rs)
 // Grid-stride loop over surfels; each thread writes only its own flag.
 
-@group(0) @binding(0) var<uniform> params: CompactParams;
+@group(0) @binding(0) var<storage, read> params: CompactParams;
 @group(0) @binding(1) var position_weight: texture_2d<f32>;
 @group(0) @binding(2) var normal_frame: texture_2d<u32>;
 @group(0) @binding(3) var<storage, read_write> flags: array<u32>;

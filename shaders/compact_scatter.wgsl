@@ -4,7 +4,7 @@
 // kernels. CPU twin: src/cpu/compact_scatter.rs.
 //
 // Bindings (@group(0)):
-//   0 params               uniform CompactParams (surfel_count)
+//   0 params               storage read CompactParams (surfel_count)
 //   1 flags                storage read array<u32>: 1 keep / 0 remove (compact_flags)
 //   2 offsets              storage read array<u32>: exclusive prefix sum of flags
 //                          (prefix_sum)
@@ -18,7 +18,7 @@
 //   textures have the input's capacity, and offsets[i] <= i, so no write goes past it)
 // Grid-stride loop over surfels; each kept surfel has its own output slot.
 
-@group(0) @binding(0) var<uniform> params: CompactParams;
+@group(0) @binding(0) var<storage, read> params: CompactParams;
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
 @group(0) @binding(2) var<storage, read> offsets: array<u32>;
 @group(0) @binding(3) var position_weight: texture_2d<f32>;

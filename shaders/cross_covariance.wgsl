@@ -5,7 +5,7 @@
 // CPU twin: src/cpu/cross_covariance.rs (same loops and reduction order).
 //
 // Bindings (group 0):
-//   0 uniform        params:   ScanCovParams (anchor, pair count, thread count, radius^2)
+//   0 storage read        params:   ScanCovParams (anchor, pair count, thread count, radius^2)
 //   1 storage read   queries:  array<vec4<f32>>     transformed source points p, metres
 //   2 storage read   targets:  array<vec4<f32>>     target cloud, metres
 //   3 storage read   nn:       array<ScanNnResult>  nearest target of each query
@@ -16,7 +16,7 @@
 // ScanNnResult, ScanCovParams, ScanCovPartial and SCAN_NN_NONE live in scan_common.wgsl
 // (prepended by src/gpu/shaders.rs).
 
-@group(0) @binding(0) var<uniform> params: ScanCovParams;
+@group(0) @binding(0) var<storage, read> params: ScanCovParams;
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> targets: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> nn: array<ScanNnResult>;

@@ -2,14 +2,14 @@
 // and a colour map, keeping every `stride`-th raw pixel. CPU twin: src/cpu/depth_to_vertex.rs.
 //
 // Bindings (@group(0)):
-//   0 params      uniform PreprocessParams
+//   0 params      storage read PreprocessParams
 //   1 raw_depth   texture_2d<u32> (r16uint): raw_width x raw_height, depth units
 //   2 raw_rgba    texture_2d<u32> (rgba8uint): raw_width x raw_height, RGBA 0..255
 //   3 vertex_map  storage texture rgba32float, write: width x height, camera frame, w = 1 / 0
 //   4 color_map   storage texture rgba32float, write: width x height, RGB 0..255, a = 255
 // One thread per output pixel (8x8 workgroups). Assumes raw_width >= stride * width (and the same for height).
 
-@group(0) @binding(0) var<uniform> params: PreprocessParams;
+@group(0) @binding(0) var<storage, read> params: PreprocessParams;
 @group(0) @binding(1) var raw_depth: texture_2d<u32>;
 @group(0) @binding(2) var raw_rgba: texture_2d<u32>;
 @group(0) @binding(3) var vertex_map: texture_storage_2d<rgba32float, write>;

@@ -5,7 +5,7 @@
 // (fuse_flags, prefix_sum, fuse_add). CPU twin: src/cpu/fuse_add.rs.
 //
 // Bindings (@group(0)):
-//   0 params      uniform FuseParams (t_cam_to_world, surfel_count, frame_id, capacity)
+//   0 params      storage read FuseParams (t_cam_to_world, surfel_count, frame_id, capacity)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
 //                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
 //                   is rebuilt with back_project, as in the twin
@@ -19,7 +19,7 @@
 // One thread per pixel (8x8 workgroups). Never writes at or past params.capacity (the host
 // grows the map first so that every pixel fits).
 
-@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var color_map: texture_2d<f32>;
 @group(0) @binding(3) var<storage, read> flags: array<u32>;

@@ -5,7 +5,7 @@
 // src/cpu/fuse_flags.rs.
 //
 // Bindings (@group(0)):
-//   0 params        uniform FuseParams (width, height)
+//   0 params        storage read FuseParams (width, height)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the depth in
 //                   w, zero where invalid
 //   2 assoc         storage read array<vec2<u32>>: the u64 key per pixel (low word first),
@@ -13,7 +13,7 @@
 //   3 flags         storage rw array<u32>: out, 1 new surfel / 0 not, width x height
 // One thread per pixel (8x8 workgroups).
 
-@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read> assoc: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read_write> flags: array<u32>;

@@ -6,7 +6,7 @@
 // filter passes).
 //
 // Bindings (@group(0)):
-//   0 params      uniform FuseParams (tracked poses, intrinsics, surfel_count, gates,
+//   0 params      storage read FuseParams (tracked poses, intrinsics, surfel_count, gates,
 //                 association, confidence_sigma)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
 //                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
@@ -24,7 +24,7 @@
 // Grid-stride loop over surfels; each thread writes only its own surfel, so the result
 // does not depend on thread order (several surfels may flag the same pixel).
 
-@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var color_map: texture_2d<f32>;
 @group(0) @binding(3) var position_weight: texture_storage_2d<rgba32float, read_write>;

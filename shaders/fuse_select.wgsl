@@ -3,7 +3,7 @@
 // src/cpu/fuse_select.rs (its header states the gates and the choice).
 //
 // Bindings (@group(0)):
-//   0 params      uniform FuseParams (tracked pose, intrinsics, surfel_count, gates)
+//   0 params      storage read FuseParams (tracked pose, intrinsics, surfel_count, gates)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the depth in
 //                   w, zero where invalid; the vertex is rebuilt with back_project
 //   2 position_weight  texture_2d<f32>: xyz world frame (metres), w = confidence
@@ -15,7 +15,7 @@
 // Grid-stride loop over surfels; the atomicMax keeps the surfel nearest each pixel's ray
 // (ties to the larger index) whatever the thread order. Needs SHADER_INT64_ATOMIC_MIN_MAX.
 
-@group(0) @binding(0) var<uniform> params: FuseParams;
+@group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var position_weight: texture_2d<f32>;
 @group(0) @binding(3) var normal_frame: texture_2d<u32>;

@@ -3,7 +3,7 @@
 // CPU twin: src/cpu/icp_reduce.rs (its header states the maths, the filters and weights).
 //
 // Bindings (@group(0)):
-//   0 params       uniform IcpParams (current t_world_to_cam, intrinsics, the gates and
+//   0 params       storage read IcpParams (current t_world_to_cam, intrinsics, the gates and
 //                  the weights)
 //   1 pred_vertex  texture_2d<f32>: source, width x height, WORLD frame
 //   2 pred_normal  texture_2d<f32>: the source's unit normals, WORLD frame (angle gate)
@@ -18,7 +18,7 @@
 // each thread sums its pixels in registers (f32), then, after one barrier, thread k sums
 // entry k over the workgroup's threads (no tree reduction; see main).
 
-@group(0) @binding(0) var<uniform> params: IcpParams;
+@group(0) @binding(0) var<storage, read> params: IcpParams;
 @group(0) @binding(1) var pred_vertex: texture_2d<f32>;
 @group(0) @binding(2) var pred_normal: texture_2d<f32>;
 @group(0) @binding(3) var normal_depth: texture_2d<f32>;

@@ -3,7 +3,7 @@
 // squared distances go to the lower target index).
 //
 // Bindings (group 0):
-//   0 uniform        params:  ScanNnParams (counts, radius^2, grid-stride thread count)
+//   0 storage read        params:  ScanNnParams (counts, radius^2, grid-stride thread count)
 //   1 storage read   queries: array<vec4<f32>>   xyz metres in the target frame, w unused
 //   2 storage read   targets: array<vec4<f32>>   xyz metres, w unused
 //   3 storage rw     results: array<ScanNnResult> one per query
@@ -15,7 +15,7 @@
 // ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
 // live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
 
-@group(0) @binding(0) var<uniform> params: ScanNnParams;
+@group(0) @binding(0) var<storage, read> params: ScanNnParams;
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> targets: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> results: array<ScanNnResult>;

@@ -4,7 +4,7 @@
 // hash, same tie rule), which also builds the grid (`HashGrid::build`).
 //
 // Bindings (group 0):
-//   0 uniform        params:       ScanNnParams (counts, radius^2, thread count, cell, mask)
+//   0 storage read        params:       ScanNnParams (counts, radius^2, thread count, cell, mask)
 //   1 storage read   queries:      array<vec4<f32>>  xyz metres in the target frame
 //   2 storage read   grid_points:  array<vec4<f32>>  target points sorted by bucket; w holds
 //                                  the original target index (bitcast<u32>)
@@ -16,7 +16,7 @@
 // ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
 // live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
 
-@group(0) @binding(0) var<uniform> params: ScanNnParams;
+@group(0) @binding(0) var<storage, read> params: ScanNnParams;
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> grid_points: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> bucket_start: array<u32>;

@@ -2,7 +2,7 @@
 // maps in the WORLD frame, the ICP source. CPU twin: src/cpu/predict_model.rs.
 //
 // Bindings (@group(0)):
-//   0 params       uniform ProjectParams (only width and height are used)
+//   0 params       storage read ProjectParams (only width and height are used)
 //   1 index_map    storage read   array<vec2<u32>>: the u64 keys of project_model, low word
 //                                 (surfel index) first; (0, 0) means no surfel
 //   2 position_weight  texture_2d<f32>: surfel xyz (world frame) + weight, surfel_texel(i)
@@ -12,7 +12,7 @@
 //   5 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 // One thread per pixel (8x8 workgroups).
 
-@group(0) @binding(0) var<uniform> params: ProjectParams;
+@group(0) @binding(0) var<storage, read> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
 @group(0) @binding(2) var position_weight: texture_2d<f32>;
 @group(0) @binding(3) var normal_frame: texture_2d<u32>;

@@ -3,7 +3,7 @@
 // stream-compaction kernels. CPU twin: src/cpu/prefix_sum.rs.
 //
 // Bindings (@group(0)):
-//   0 params   uniform CompactParams (surfel_count = n, the flags to scan)
+//   0 params   storage read CompactParams (surfel_count = n, the flags to scan)
 //   1 flags    storage read array<u32>: 0 or 1 per surfel (compact_flags), n entries
 //   2 offsets  storage rw array<u32>: out, offsets[i] = flags[0] + ... + flags[i - 1]
 //   3 counter  storage rw array<u32>: out, counter[0] = flags[0] + ... + flags[n - 1]
@@ -16,7 +16,7 @@
 // surfels on lavapipe, where a workgroup runs on one core anyway; a large map on a real GPU
 // would want a multi-workgroup scan (reduce, scan the block sums, then scan-and-add).
 
-@group(0) @binding(0) var<uniform> params: CompactParams;
+@group(0) @binding(0) var<storage, read> params: CompactParams;
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
 @group(0) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(0) @binding(3) var<storage, read_write> counter: array<u32>;

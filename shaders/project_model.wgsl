@@ -2,7 +2,7 @@
 // 64-bit key per pixel. CPU twin: src/cpu/project_model.rs.
 //
 // Bindings (@group(0)):
-//   0 params     uniform ProjectParams (t_world_to_cam, intrinsics, map size, surfel_count)
+//   0 params     storage read ProjectParams (t_world_to_cam, intrinsics, map size, surfel_count)
 //   1 position_weight  texture_2d<f32>: surfel xyz (world frame, metres) + weight,
 //                      surfel i at surfel_texel(i) (see src/gpu/map_textures.rs)
 //   2 index_map  storage rw     array<atomic<u64>>: width x height, cleared to 0 by the host
@@ -11,7 +11,7 @@
 // SHADER_INT64_ATOMIC_MIN_MAX feature. Grid-stride loop over surfels: the host dispatches
 // at most max_compute_workgroups_per_dimension workgroups.
 
-@group(0) @binding(0) var<uniform> params: ProjectParams;
+@group(0) @binding(0) var<storage, read> params: ProjectParams;
 @group(0) @binding(1) var position_weight: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read_write> index_map: array<atomic<u64>>;
 

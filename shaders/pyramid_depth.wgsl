@@ -3,7 +3,7 @@
 // src/cpu/pyramid_depth.rs (its header states the rules and the sampling convention).
 //
 // Bindings (@group(0)):
-//   0 params        uniform PyramidParams (coarse intrinsics and size, the finer size,
+//   0 params        storage read PyramidParams (coarse intrinsics and size, the finer size,
 //                   the window and the depth gate)
 //   1 fine_vertex   texture_2d<f32>: fine_width x fine_height, camera frame, w = 1 / 0 (the
 //                   finer level's vertex map: at level 0 the one the normals are made from)
@@ -15,7 +15,7 @@
 // border) that lie within the depth gate of its depth (the pixel itself always does).
 // One thread per coarse pixel (8x8 workgroups).
 
-@group(0) @binding(0) var<uniform> params: PyramidParams;
+@group(0) @binding(0) var<storage, read> params: PyramidParams;
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
 @group(0) @binding(2) var coarse_vertex: texture_storage_2d<rgba32float, write>;
 

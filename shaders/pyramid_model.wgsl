@@ -2,7 +2,7 @@
 // by subsampling. CPU twin: src/cpu/pyramid_model.rs (its header says why subsampling).
 //
 // Bindings (@group(0)):
-//   0 params       uniform PyramidParams (only width and height, the coarse size, are used)
+//   0 params       storage read PyramidParams (only width and height, the coarse size, are used)
 //   1 fine_vertex  texture_2d<f32>: the finer level's pred_vertex, WORLD frame, w = 1 / 0
 //   2 fine_normal  texture_2d<f32>: the finer level's pred_normal, WORLD frame, w = 1 / 0
 //   3 coarse_vertex storage texture rgba32float, write: width x height, WORLD frame
@@ -11,7 +11,7 @@
 // the finer level is at least 2 width - 1 by 2 height - 1, so the texel exists.
 // One thread per coarse pixel (8x8 workgroups).
 
-@group(0) @binding(0) var<uniform> params: PyramidParams;
+@group(0) @binding(0) var<storage, read> params: PyramidParams;
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
 @group(0) @binding(2) var fine_normal: texture_2d<f32>;
 @group(0) @binding(3) var coarse_vertex: texture_storage_2d<rgba32float, write>;

@@ -3,7 +3,7 @@
 // CPU twin: src/cpu/render_resolve.rs.
 //
 // Prepended with common.wgsl. Bindings:
-//   0 params     uniform RenderParams (mirrors src/render/layout.rs)
+//   0 params     storage read RenderParams (mirrors src/render/layout.rs)
 //   1 index_map  array<vec2<u32>>, width x height: the u64 keys of render_splat read as
 //                (low, high) words, little-endian: x = surfel index, y = ~bits(z_cam)
 //   2 normals    array<vec4<f32>>, world frame (VIEW_NORMALS only)
@@ -25,7 +25,7 @@ const RAMP_LOW: vec3<f32> = vec3<f32>(0.267, 0.005, 0.329);
 const RAMP_MID: vec3<f32> = vec3<f32>(0.128, 0.567, 0.551);
 const RAMP_HIGH: vec3<f32> = vec3<f32>(0.993, 0.906, 0.144);
 
-@group(0) @binding(0) var<uniform> params: RenderParams;
+@group(0) @binding(0) var<storage, read> params: RenderParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> colors: array<vec4<f32>>;

@@ -3,7 +3,7 @@
 //
 // Prepended with common.wgsl (transform_point, transform_dir, xyz, pack_depth_index).
 // Bindings:
-//   0 params     uniform RenderParams (mirrors src/render/layout.rs)
+//   0 params     storage read RenderParams (mirrors src/render/layout.rs)
 //   1 positions  array<vec4<f32>>, world frame, metres; surfel_count entries read
 //   2 normals    array<vec4<f32>>, world frame; read only when cull_backfaces == 1
 //   3 index_map  array<atomic<u64>>, width x height, row-major, cleared to 0 by the host
@@ -17,7 +17,7 @@
 // Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
 const MAX_PROJECTED_PX: f32 = 1.0e7;
 
-@group(0) @binding(0) var<uniform> params: RenderParams;
+@group(0) @binding(0) var<storage, read> params: RenderParams;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> index_map: array<atomic<u64>>;

@@ -2,7 +2,7 @@
 // towards the camera. CPU twin: src/cpu/vertex_to_normal.rs (its header states the rules).
 //
 // Bindings (@group(0)):
-//   0 params        uniform NormalParams
+//   0 params        storage read NormalParams
 //   1 vertex_map    texture_2d<f32>: width x height, camera frame, w = 1 / 0
 //   2 normal_depth  storage texture rgba32float, write: width x height; xyz = the unit
 //                   normal (camera frame), w = the vertex's depth z (metres, > 0) where the
@@ -15,7 +15,7 @@
 // One thread per pixel (8x8 workgroups). Invalid on the border, next to an invalid vertex, across a depth
 // jump larger than max_depth_jump_m, or where the cross product vanishes.
 
-@group(0) @binding(0) var<uniform> params: NormalParams;
+@group(0) @binding(0) var<storage, read> params: NormalParams;
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
 @group(0) @binding(2) var normal_depth: texture_storage_2d<rgba32float, write>;
 

@@ -1,4 +1,4 @@
-//! The layout contract between Rust and WGSL: every struct a kernel reads from a uniform.
+//! The layout contract between Rust and WGSL: every params struct a kernel reads (bound as a read-only storage buffer, see `gpu::kernel::BindingKind::Params`).
 //!
 //! Each struct is `#[repr(C)]` + `bytemuck::Pod` and mirrors the WGSL struct of the same
 //! name in `shaders/common.wgsl` (which points back here). No `vec3`/`mat3`: only scalars,

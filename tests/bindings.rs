@@ -54,7 +54,7 @@ fn a_wrong_table_is_reported_binding_by_binding() {
     // fuse_add with binding 5 read-write instead of write-only, binding 3 a read-write
     // buffer instead of read-only, and binding 7 missing.
     let wrong = [
-        Binding::uniform("params"),
+        Binding::params("params"),
         Binding::texture_f32("normal_depth"),
         Binding::texture_f32("color_map"),
         Binding::read_write("flags"),

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 
 use common::harness::{gpu, skipped};
 use libtest_mimic::Completion;
-use wgslam::gpu::buffers::{GpuArray, Uniform};
+use wgslam::gpu::buffers::{GpuArray, ParamBuffer};
 use wgslam::gpu::images::GpuImage;
 use wgslam::gpu::shaders;
 use wgslam::gpu::{Binding, GpuContext, Kernel, StageTimer};
@@ -18,7 +18,7 @@ use wgslam::Error;
 /// concatenation is exercised too.
 const AFFINE: &str = r#"
 struct AffineParams { n: u32, offset: u32, _a: u32, _b: u32 }
-@group(0) @binding(0) var<uniform> params: AffineParams;
+@group(0) @binding(0) var<storage, read> params: AffineParams;
 @group(0) @binding(1) var<storage, read> input: array<u32>;
 @group(0) @binding(2) var<storage, read_write> output: array<u32>;
 
@@ -44,7 +44,7 @@ struct AffineParams {
 }
 
 const AFFINE_BINDINGS: [Binding; 3] = [
-    Binding::uniform("params"),
+    Binding::params("params"),
     Binding::read("input"),
     Binding::read_write("output"),
 ];
@@ -70,7 +70,7 @@ fn trivial_kernel_runs_in_validation_scope(ctx: GpuContext) {
             )?;
             assert_eq!(kernel.workgroup_size, 64);
             assert_eq!(kernel.workgroups_for(n), 16);
-            let params = Uniform::new(
+            let params = ParamBuffer::new(
                 &ctx,
                 "affine params",
                 &AffineParams {

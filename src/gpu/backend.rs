@@ -37,7 +37,7 @@
 
 use std::collections::BTreeMap;
 
-use super::buffers::{GpuArray, Readback, Uniform};
+use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::{Binding, Kernel, TexelFormat};
@@ -77,41 +77,41 @@ const MAX_STORAGE_TEXTURES_USED: u32 = 3;
 pub mod bindings {
     use super::{Binding, TexelFormat};
     pub const DEPTH_TO_VERTEX: [Binding; 5] = [
-        Binding::uniform("params: PreprocessParams"),
+        Binding::params("params: PreprocessParams"),
         Binding::texture_u32("raw_depth: r16uint"),
         Binding::texture_u32("raw_rgba: rgba8uint"),
         Binding::write_texture("vertex_map: camera frame"),
         Binding::write_texture("color_map: RGB 0..255"),
     ];
     pub const BILATERAL_FILTER: [Binding; 3] = [
-        Binding::uniform("params: BilateralParams"),
+        Binding::params("params: BilateralParams"),
         Binding::texture_f32("vertex_map: camera frame, unfiltered"),
         Binding::write_texture("filtered_vertex: camera frame"),
     ];
     pub const VERTEX_TO_NORMAL: [Binding; 3] = [
-        Binding::uniform("params: NormalParams"),
+        Binding::params("params: NormalParams"),
         Binding::texture_f32("vertex_map: camera frame (filtered_vertex with the filter)"),
         Binding::write_texture("normal_depth: camera-frame normal, w = depth"),
     ];
     pub const PYRAMID_DEPTH: [Binding; 3] = [
-        Binding::uniform("params: PyramidParams"),
+        Binding::params("params: PyramidParams"),
         Binding::texture_f32("fine_vertex: camera frame, the finer level"),
         Binding::write_texture("coarse_vertex: camera frame"),
     ];
     pub const PYRAMID_MODEL: [Binding; 5] = [
-        Binding::uniform("params: PyramidParams"),
+        Binding::params("params: PyramidParams"),
         Binding::texture_f32("fine_vertex: the finer level's pred_vertex, world frame"),
         Binding::texture_f32("fine_normal: the finer level's pred_normal, world frame"),
         Binding::write_texture("coarse_vertex: world frame"),
         Binding::write_texture("coarse_normal: world frame"),
     ];
     pub const PROJECT_MODEL: [Binding; 3] = [
-        Binding::uniform("params: ProjectParams"),
+        Binding::params("params: ProjectParams"),
         Binding::texture_f32("position_weight: world frame"),
         Binding::read_write("index_map: atomic u64 keys"),
     ];
     pub const PREDICT_MODEL: [Binding; 6] = [
-        Binding::uniform("params: ProjectParams"),
+        Binding::params("params: ProjectParams"),
         Binding::read("index_map: u64 keys as vec2<u32>"),
         Binding::texture_f32("position_weight: world frame"),
         Binding::texture_u32("normal_frame: world frame normal bits"),
@@ -119,14 +119,14 @@ pub mod bindings {
         Binding::write_texture("pred_normal: world frame"),
     ];
     pub const ICP_REDUCE: [Binding; 5] = [
-        Binding::uniform("params: IcpParams"),
+        Binding::params("params: IcpParams"),
         Binding::texture_f32("pred_vertex: source, world frame"),
         Binding::texture_f32("pred_normal: source normals, world frame"),
         Binding::texture_f32("normal_depth: target, camera frame, w = depth"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
     pub const FUSE_SELECT: [Binding; 6] = [
-        Binding::uniform("params: FuseParams"),
+        Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("position_weight: w = confidence"),
         Binding::texture_u32("normal_frame: w = last_frame"),
@@ -134,7 +134,7 @@ pub mod bindings {
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
     pub const FUSE_MERGE: [Binding; 7] = [
-        Binding::uniform("params: FuseParams"),
+        Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
         Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
@@ -143,13 +143,13 @@ pub mod bindings {
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
     pub const FUSE_FLAGS: [Binding; 4] = [
-        Binding::uniform("params: FuseParams"),
+        Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::read("assoc: u64 key per pixel"),
         Binding::read_write("flags: 1 new surfel / 0 per pixel"),
     ];
     pub const FUSE_ADD: [Binding; 8] = [
-        Binding::uniform("params: FuseParams"),
+        Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
         Binding::read("flags: new surfel per pixel"),
@@ -159,19 +159,19 @@ pub mod bindings {
         Binding::storage_texture(TexelFormat::Rgba32F, false, "color"),
     ];
     pub const COMPACT_FLAGS: [Binding; 4] = [
-        Binding::uniform("params: CompactParams"),
+        Binding::params("params: CompactParams"),
         Binding::texture_f32("position_weight: w = weight"),
         Binding::texture_u32("normal_frame: w = last_frame"),
         Binding::read_write("flags: 1 keep / 0 remove per surfel"),
     ];
     pub const PREFIX_SUM: [Binding; 4] = [
-        Binding::uniform("params: CompactParams"),
+        Binding::params("params: CompactParams"),
         Binding::read("flags"),
         Binding::read_write("offsets: exclusive prefix sum of flags"),
         Binding::read_write("counter: surfels kept"),
     ];
     pub const COMPACT_SCATTER: [Binding; 9] = [
-        Binding::uniform("params: CompactParams"),
+        Binding::params("params: CompactParams"),
         Binding::read("flags"),
         Binding::read("offsets"),
         Binding::texture_f32("position_weight"),
@@ -264,8 +264,8 @@ struct LevelBuffers {
     /// `pyramid_model`'s outputs.
     pred_vertex: GpuImage,
     pred_normal: GpuImage,
-    u_pyramid: Uniform<PyramidParams>,
-    u_normal: Uniform<NormalParams>,
+    u_pyramid: ParamBuffer<PyramidParams>,
+    u_normal: ParamBuffer<NormalParams>,
 }
 
 impl FrameBuffers {
@@ -310,12 +310,12 @@ struct LevelBindGroups {
 pub struct GpuBackend {
     ctx: GpuContext,
     kernels: Kernels,
-    u_preprocess: Uniform<PreprocessParams>,
-    u_bilateral: Uniform<BilateralParams>,
-    u_normal: Uniform<NormalParams>,
-    u_project: Uniform<ProjectParams>,
-    u_icp: Uniform<IcpParams>,
-    u_fuse: Uniform<FuseParams>,
+    u_preprocess: ParamBuffer<PreprocessParams>,
+    u_bilateral: ParamBuffer<BilateralParams>,
+    u_normal: ParamBuffer<NormalParams>,
+    u_project: ParamBuffer<ProjectParams>,
+    u_icp: ParamBuffer<IcpParams>,
+    u_fuse: ParamBuffer<FuseParams>,
     reduction_workgroups: u32,
     partials: GpuArray<f32>,
     partials_readback: Readback<f32>,
@@ -336,9 +336,9 @@ pub struct GpuBackend {
     profiler: Option<Profiler>,
     /// Buffers of the `compact` step, `None` until its first call.
     compaction: Option<Compaction>,
-    u_compact: Uniform<CompactParams>,
+    u_compact: ParamBuffer<CompactParams>,
     /// `prefix_sum`'s parameters for fusion's scan over the pixels.
-    u_fuse_scan: Uniform<CompactParams>,
+    u_fuse_scan: ParamBuffer<CompactParams>,
 }
 
 /// Per-kernel GPU times: timestamps around each kernel's pass (or wall time without the
@@ -489,12 +489,12 @@ impl GpuBackend {
                 compact_scatter: Kernel::new(&ctx, "compact_scatter", &bindings::COMPACT_SCATTER)?,
             };
             let uniforms = (
-                Uniform::new(&ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
-                Uniform::new(&ctx, "BilateralParams", &bytemuck::Zeroable::zeroed()),
-                Uniform::new(&ctx, "NormalParams", &bytemuck::Zeroable::zeroed()),
-                Uniform::new(&ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
-                Uniform::new(&ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
-                Uniform::new(&ctx, "FuseParams", &bytemuck::Zeroable::zeroed()),
+                ParamBuffer::new(&ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
+                ParamBuffer::new(&ctx, "BilateralParams", &bytemuck::Zeroable::zeroed()),
+                ParamBuffer::new(&ctx, "NormalParams", &bytemuck::Zeroable::zeroed()),
+                ParamBuffer::new(&ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
+                ParamBuffer::new(&ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
+                ParamBuffer::new(&ctx, "FuseParams", &bytemuck::Zeroable::zeroed()),
             );
             let mut partials = GpuArray::new(&ctx, "icp partials", system_floats)?;
             partials.set_len(system_floats);
@@ -511,8 +511,9 @@ impl GpuBackend {
         })?;
         let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
         let (partials, partials_readback, counter, counter_readback) = small;
-        let u_compact = Uniform::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
-        let u_fuse_scan = Uniform::new(&ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed());
+        let u_compact = ParamBuffer::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
+        let u_fuse_scan =
+            ParamBuffer::new(&ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed());
         Ok(GpuBackend {
             ctx,
             kernels,
@@ -648,8 +649,8 @@ impl GpuBackend {
                     normal_depth: map("pyramid normal-depth map")?,
                     pred_vertex: map("pyramid predicted vertex map")?,
                     pred_normal: map("pyramid predicted normal map")?,
-                    u_pyramid: Uniform::new(ctx, "PyramidParams", &l.down),
-                    u_normal: Uniform::new(ctx, "NormalParams (pyramid)", &l.normal),
+                    u_pyramid: ParamBuffer::new(ctx, "PyramidParams", &l.down),
+                    u_normal: ParamBuffer::new(ctx, "NormalParams (pyramid)", &l.normal),
                 })
             })
             .collect::<Result<Vec<_>>>()?;

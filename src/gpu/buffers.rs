@@ -1,5 +1,5 @@
 //! Typed GPU buffers: [`GpuArray`] (a storage array of `Pod` elements with upload,
-//! read-back through a staging buffer, and grow-by-copy on the GPU), [`Uniform`] (one
+//! read-back through a staging buffer, and grow-by-copy on the GPU), [`ParamBuffer`] (one
 //! `Pod` params struct), and the byte / submission accounting the benchmark reports.
 //!
 //! Not a memory allocator: every array is one wgpu buffer sized `capacity` elements, and
@@ -31,7 +31,7 @@ pub struct GpuStats {
 /// A copy of the counters at one moment (all byte counts are bytes, not elements).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct StatsSnapshot {
-    /// Bytes in live [`GpuArray`] / [`Uniform`] buffers (staging buffers excluded).
+    /// Bytes in live [`GpuArray`] / [`ParamBuffer`] buffers (staging buffers excluded).
     pub allocated_bytes: u64,
     /// Largest `allocated_bytes` seen so far.
     pub peak_allocated_bytes: u64,
@@ -326,31 +326,35 @@ pub(crate) fn map_read<R>(
     Ok(out)
 }
 
-/// A uniform buffer holding one `T` (a params struct from `src/layout.rs`).
-pub struct Uniform<T: Pod> {
+/// A read-only storage buffer holding one `T` (a params struct from `src/layout.rs`),
+/// bound as `var<storage, read> params`; not a uniform buffer, see
+/// [`super::kernel::BindingKind::Params`].
+pub struct ParamBuffer<T: Pod> {
     buffer: wgpu::Buffer,
     stats: Arc<GpuStats>,
     _element: PhantomData<T>,
 }
 
-impl<T: Pod> Drop for Uniform<T> {
+impl<T: Pod> Drop for ParamBuffer<T> {
     fn drop(&mut self) {
         self.stats.free(self.buffer.size());
     }
 }
 
-impl<T: Pod> Uniform<T> {
-    /// A uniform buffer initialised to `value`.
+impl<T: Pod> ParamBuffer<T> {
+    /// A params buffer initialised to `value`.
     pub fn new(ctx: &GpuContext, label: &str, value: &T) -> Self {
         let size = padded_bytes(std::mem::size_of::<T>() as u64);
         let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM
+                | wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         ctx.stats_handle().alloc(size);
-        let u = Uniform {
+        let u = ParamBuffer {
             buffer,
             stats: Arc::clone(ctx.stats_handle()),
             _element: PhantomData,

@@ -13,8 +13,13 @@ use crate::{Error, Result};
 /// What one `@group(0) @binding(i)` is. Bindings are listed in `i` order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BindingKind {
-    /// `var<uniform>`: a params struct from `src/layout.rs`.
-    Uniform,
+    /// `var<storage, read> params`: a params struct from `src/layout.rs` in a read-only
+    /// storage buffer, not a uniform buffer: lavapipe (Mesa 22.3) inlines the values of a
+    /// uniform buffer into the shader and compiles a new variant after every write of
+    /// it, keeping each (0.75 MB of JIT code per `icp_reduce` iteration, so a 200-frame
+    /// run grew by gigabytes and spent most of its time compiling; measured with
+    /// `examples/params_memory.rs`). Storage buffers are not inlined.
+    Params,
     /// `var<storage, read>`.
     StorageRead,
     /// `var<storage, read_write>` (including atomics).
@@ -57,10 +62,10 @@ pub struct Binding {
 }
 
 impl Binding {
-    /// A uniform params struct.
-    pub const fn uniform(label: &'static str) -> Binding {
+    /// A params struct (see [`BindingKind::Params`]).
+    pub const fn params(label: &'static str) -> Binding {
         Binding {
-            kind: BindingKind::Uniform,
+            kind: BindingKind::Params,
             label,
         }
     }
@@ -294,7 +299,7 @@ fn texture(sample_type: wgpu::TextureSampleType) -> wgpu::BindingType {
 /// The bind-group layout entry type of one binding kind.
 fn layout_type(kind: BindingKind) -> wgpu::BindingType {
     match kind {
-        BindingKind::Uniform => buffer(wgpu::BufferBindingType::Uniform),
+        BindingKind::Params => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
         BindingKind::StorageRead => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
         BindingKind::StorageReadWrite => {
             buffer(wgpu::BufferBindingType::Storage { read_only: false })

@@ -25,7 +25,7 @@ pub mod test_support;
 pub mod timing;
 
 pub use backend::GpuBackend;
-pub use buffers::{GpuArray, Readback, StatsSnapshot, Uniform};
+pub use buffers::{GpuArray, ParamBuffer, Readback, StatsSnapshot};
 pub use context::GpuContext;
 pub use kernel::{layout_entries, layout_mismatches, Binding, BindingKind, Kernel, TexelFormat};
 pub use timing::{StageTime, StageTimer};

@@ -9,12 +9,12 @@ use image::RgbImage;
 
 use super::layout::RenderParams;
 use super::{render_params, rgba_to_image, Cloud, RenderCamera, RenderSettings, View};
-use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, Uniform};
+use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, ParamBuffer};
 use crate::{Error, Result};
 
 /// Bindings of `render_splat` (order of `@binding(i)`).
 pub const RENDER_SPLAT: [Binding; 4] = [
-    Binding::uniform("params: RenderParams"),
+    Binding::params("params: RenderParams"),
     Binding::read("positions: world frame"),
     Binding::read("normals: world frame (back-face culling)"),
     Binding::read_write("index_map: atomic u64 depth|index keys"),
@@ -22,7 +22,7 @@ pub const RENDER_SPLAT: [Binding; 4] = [
 
 /// Bindings of `render_resolve` (order of `@binding(i)`).
 pub const RENDER_RESOLVE: [Binding; 6] = [
-    Binding::uniform("params: RenderParams"),
+    Binding::params("params: RenderParams"),
     Binding::read("index_map: u64 keys as vec2<u32>"),
     Binding::read("normals: world frame"),
     Binding::read("colors: RGB 0..255"),
@@ -79,7 +79,7 @@ impl GpuRenderer {
         index_map.set_len(n);
         let mut out = GpuArray::<u32>::new(ctx, "render pixels", n)?;
         out.set_len(n);
-        let uniform = Uniform::new(ctx, "RenderParams", params);
+        let params_buf = ParamBuffer::new(ctx, "RenderParams", params);
         let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
         let splat_groups = self
             .splat
@@ -90,7 +90,7 @@ impl GpuRenderer {
             let splat_bg = self.splat.bind_group(
                 ctx,
                 &[
-                    uniform.binding(),
+                    params_buf.binding(),
                     positions.binding(),
                     normals.binding(),
                     index_map.binding(),
@@ -99,7 +99,7 @@ impl GpuRenderer {
             let resolve_bg = self.resolve.bind_group(
                 ctx,
                 &[
-                    uniform.binding(),
+                    params_buf.binding(),
                     index_map.binding(),
                     normals.binding(),
                     colors.binding(),

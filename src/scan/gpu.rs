@@ -20,7 +20,7 @@ use super::layout::{
 use super::nn::NearestNeighbours;
 use crate::cpu::cross_covariance::decode;
 use crate::cpu::nn_grid::HashGrid;
-use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, Uniform};
+use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, ParamBuffer};
 use crate::{Error, Result};
 
 /// Which nearest-neighbour kernel to run.
@@ -34,7 +34,7 @@ pub enum NnMethod {
 
 /// Bindings of `nn_brute` (order of `@binding(i)`).
 pub const NN_BRUTE: [Binding; 4] = [
-    Binding::uniform("ScanNnParams"),
+    Binding::params("ScanNnParams"),
     Binding::read("queries (vec4, metres)"),
     Binding::read("targets (vec4, metres)"),
     Binding::read_write("nn results"),
@@ -42,7 +42,7 @@ pub const NN_BRUTE: [Binding; 4] = [
 
 /// Bindings of `nn_grid` (order of `@binding(i)`).
 pub const NN_GRID: [Binding; 5] = [
-    Binding::uniform("ScanNnParams"),
+    Binding::params("ScanNnParams"),
     Binding::read("queries (vec4, metres)"),
     Binding::read("grid points sorted by bucket (w = index bits)"),
     Binding::read("bucket start offsets"),
@@ -51,7 +51,7 @@ pub const NN_GRID: [Binding; 5] = [
 
 /// Bindings of `cross_covariance` (order of `@binding(i)`).
 pub const CROSS_COVARIANCE: [Binding; 5] = [
-    Binding::uniform("ScanCovParams"),
+    Binding::params("ScanCovParams"),
     Binding::read("queries (vec4, metres)"),
     Binding::read("targets (vec4, metres)"),
     Binding::read("nn results"),
@@ -198,7 +198,7 @@ impl<'a> GpuTarget<'a> {
                 .map(|b| (b, (b + SCAN_BRUTE_CHUNK).min(base.n_targets)))
                 .collect(),
         };
-        let nn_params: Vec<Uniform<ScanNnParams>> = ranges
+        let nn_params: Vec<ParamBuffer<ScanNnParams>> = ranges
             .iter()
             .map(|&(target_begin, target_end)| {
                 let p = ScanNnParams {
@@ -206,10 +206,10 @@ impl<'a> GpuTarget<'a> {
                     target_end,
                     ..base
                 };
-                Uniform::new(ctx, "ScanNnParams", &p)
+                ParamBuffer::new(ctx, "ScanNnParams", &p)
             })
             .collect();
-        let cov_params = cov.map(|c| Uniform::new(ctx, "ScanCovParams", c));
+        let cov_params = cov.map(|c| ParamBuffer::new(ctx, "ScanCovParams", c));
         ctx.scoped("scan correspondences", || {
             let nn_groups: Vec<wgpu::BindGroup> = nn_params
                 .iter()
