@@ -118,6 +118,10 @@ pub trait Backend {
     fn surfel_count(&self) -> usize;
     /// The whole map (for export and comparison).
     fn download_map(&mut self) -> Result<SurfelMap>;
+    /// Replaces the map with `map` (growing the storage if needed): to resume from a saved
+    /// map, or to put this backend into another's state (`wgslam compare`'s lockstep mode).
+    /// [`crate::Error::Capacity`] when the backend cannot hold it.
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()>;
     /// The current frame's maps.
     fn download_frame(&mut self) -> Result<FrameMaps>;
     /// The predicted model vertex and normal maps (world frame).
@@ -167,6 +171,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn download_map(&mut self) -> Result<SurfelMap> {
         (**self).download_map()
+    }
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        (**self).upload_map(map)
     }
     fn download_frame(&mut self) -> Result<FrameMaps> {
         (**self).download_frame()
@@ -643,6 +650,19 @@ impl<B: Backend> Slam<B> {
             self.backend.compact(&cp)?;
         }
         Ok(self.report(Some(t_world_to_cam), status, iterations))
+    }
+
+    /// The last accepted world-to-camera pose (the next frame's ICP starts from it),
+    /// `None` before the first frame.
+    pub fn t_world_to_cam(&self) -> Option<DMat4> {
+        self.t_world_to_cam
+    }
+
+    /// Replaces the last accepted pose: the next frame tracks from `t_world_to_cam` (`None`:
+    /// as before the first frame). With [`Backend::upload_map`], puts this tracker into
+    /// another's state (`wgslam compare`'s lockstep mode).
+    pub fn set_t_world_to_cam(&mut self, t_world_to_cam: Option<DMat4>) {
+        self.t_world_to_cam = t_world_to_cam;
     }
 
     fn report(
