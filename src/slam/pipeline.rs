@@ -25,7 +25,8 @@
 //! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`SlamParams::unstable_removal`] | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
 //!
 //! The tracking loop reads back only the system per iteration and the surfel count per
-//! frame (twice with `compact`); the `download_*` methods copy maps to the host for outputs and comparisons.
+//! frame (twice with `compact`); the `download_*` methods copy maps to the host for outputs and comparisons,
+//! and `upload_map` copies a map into the backend (to resume, or to put one backend into another's state).
 
 use glam::DMat4;
 
