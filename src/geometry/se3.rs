@@ -113,11 +113,19 @@ pub fn to_tum(t: &DMat4) -> ([f64; 3], [f64; 4]) {
     (p.to_array(), [q.x, q.y, q.z, q.w])
 }
 
-/// Rotation angle of a transform's rotation part, in radians, in [0, pi].
+/// Rotation angle of a transform's rotation part, in radians, in [0, pi]: atan2 of the
+/// sine (half the length of the axis vector of `R - Rᵀ`) and the cosine (`(trace - 1) / 2`),
+/// which stays exact near 0 where `acos` of the cosine alone turns rounding in the trace
+/// into ~1e-8 rad (an identity composed of a pose and its inverse read as 2e-6 degrees).
 pub fn rotation_angle(t: &DMat4) -> f64 {
     let (r, _) = to_rt(t);
-    let c = ((r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) * 0.5).clamp(-1.0, 1.0);
-    c.acos()
+    let cos = (r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) * 0.5;
+    let axis = glam::DVec3::new(
+        r.y_axis.z - r.z_axis.y,
+        r.z_axis.x - r.x_axis.z,
+        r.x_axis.y - r.y_axis.x,
+    );
+    (axis.length() * 0.5).atan2(cos)
 }
 
 /// Translation length of a transform, in metres.
@@ -137,6 +145,21 @@ mod tests {
 
     /// f64 round trips of exp/log lose only a few ulps per operation.
     const ROUND_TRIP_TOL: f64 = 1e-10;
+
+    #[test]
+    fn rotation_angle_from_tiny_to_half_turn() {
+        for theta in [1e-9, 1e-4, 0.3, 1.5, 3.0] {
+            let axis = glam::DVec3::new(1.0, -2.0, 0.5).normalize() * theta;
+            let t = exp(&[axis.x, axis.y, axis.z, 0.1, 0.2, 0.3]);
+            let got = rotation_angle(&t);
+            assert!(
+                (got - theta).abs() <= ROUND_TRIP_TOL * theta.max(1.0),
+                "{theta} -> {got}"
+            );
+        }
+        let t = exp(&[0.2, -0.4, 0.1, 1.0, 2.0, 3.0]);
+        assert!(rotation_angle(&(inverse_rigid(&t) * t)) < 1e-15);
+    }
 
     #[test]
     fn exp_log_round_trip() {

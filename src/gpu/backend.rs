@@ -1290,6 +1290,18 @@ impl Backend for GpuBackend {
         })
     }
 
+    /// Writes `map` into the live map textures (growing them first if needed) and sets
+    /// the count; the spare map set is untouched (compaction overwrites it).
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        map.assert_consistent();
+        let n = map.len();
+        self.ensure_capacity(n)?;
+        let (ctx, m) = (&self.ctx, &self.map);
+        ctx.scoped("upload map", || m.upload(ctx, map))?;
+        self.count = n;
+        Ok(())
+    }
+
     fn download_frame(&mut self) -> Result<FrameMaps> {
         // Before the first frame there is nothing to download (as on the CPU).
         let Some(f) = self.frame.as_ref() else {
@@ -1386,18 +1398,5 @@ impl GpuBackend {
         ctx.scoped("download assoc", || {
             f.assoc.read_back_range(ctx, 0..f.pixels())
         })
-    }
-
-    /// Replaces the GPU map with `map` (growing the buffers if needed), e.g. to start two
-    /// backends from the same map in a parity test or to resume from a saved map.
-    /// [`Error::Capacity`] when it exceeds [`GpuBackend::max_surfels`].
-    pub fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
-        map.assert_consistent();
-        let n = map.len();
-        self.ensure_capacity(n)?;
-        let (ctx, m) = (&self.ctx, &self.map);
-        ctx.scoped("upload map", || m.upload(ctx, map))?;
-        self.count = n;
-        Ok(())
     }
 }

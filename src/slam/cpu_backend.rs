@@ -40,7 +40,7 @@ impl CpuBackend {
     }
 
     /// A backend starting from `map` (to resume from a saved map, or to start both backends
-    /// from the same map; the GPU's twin is `GpuBackend::upload_map`).
+    /// from the same map; [`Backend::upload_map`] does the same later).
     pub fn with_map(map: SurfelMap) -> Self {
         map.assert_consistent();
         CpuBackend {
@@ -279,6 +279,12 @@ impl Backend for CpuBackend {
 
     fn download_map(&mut self) -> Result<SurfelMap> {
         Ok(self.map.clone())
+    }
+
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        map.assert_consistent();
+        self.map.clone_from(map);
+        Ok(())
     }
 
     fn download_frame(&mut self) -> Result<FrameMaps> {

@@ -1,5 +1,6 @@
 //! A [`Backend`] decorator that watches the pipeline's steps: wall-clock time per step
-//! (for `wgslam bench`) and the ICP systems of the current frame (for `wgslam compare`).
+//! (for `wgslam bench`), and the ICP systems and the surfel count after fusion of the
+//! current frame (for `wgslam compare`).
 //!
 //! With timing on, it calls [`Backend::finish`] after each step, so asynchronous GPU work
 //! is charged to the step that queued it. This costs the overlap between steps, so
@@ -20,11 +21,13 @@ use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;
 /// `frame_systems` holds the 29-float ICP systems of the frame in flight, in order (cleared
-/// by `preprocess`, so after a frame it holds that frame's iterations).
+/// by `preprocess`, so after a frame it holds that frame's iterations); `fused_surfels` the
+/// surfel count `fuse` returned in that frame (before `compact`), `None` if it did not fuse.
 pub struct Instrumented<B: Backend> {
     pub inner: B,
     pub stages: BTreeMap<&'static str, (u64, f64)>,
     pub frame_systems: Vec<[f64; ICP_SYSTEM_LEN]>,
+    pub fused_surfels: Option<usize>,
     timing: bool,
 }
 
@@ -35,6 +38,7 @@ impl<B: Backend> Instrumented<B> {
             inner,
             stages: BTreeMap::new(),
             frame_systems: Vec::new(),
+            fused_surfels: None,
             timing: true,
         }
     }
@@ -45,6 +49,13 @@ impl<B: Backend> Instrumented<B> {
             timing: false,
             ..Self::timed(inner)
         }
+    }
+
+    /// Forgets the last frame's ICP systems and fused count (`preprocess` does it; a frame
+    /// skipped before `preprocess`, e.g. one without depth, would otherwise show the last).
+    pub fn clear_frame(&mut self) {
+        self.frame_systems.clear();
+        self.fused_surfels = None;
     }
 
     fn step<T>(&mut self, name: &'static str, f: impl FnOnce(&mut B) -> Result<T>) -> Result<T> {
@@ -74,7 +85,7 @@ impl<B: Backend> Backend for Instrumented<B> {
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
-        self.frame_systems.clear();
+        self.clear_frame();
         self.step("preprocess", |b| {
             b.preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba)
         })
@@ -88,7 +99,9 @@ impl<B: Backend> Backend for Instrumented<B> {
         Ok(system)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        self.step("fuse", |b| b.fuse(params))
+        let surfels = self.step("fuse", |b| b.fuse(params))?;
+        self.fused_surfels = Some(surfels);
+        Ok(surfels)
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.step("compact", |b| b.compact(params))
@@ -98,6 +111,9 @@ impl<B: Backend> Backend for Instrumented<B> {
     }
     fn download_map(&mut self) -> Result<SurfelMap> {
         self.inner.download_map()
+    }
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        self.inner.upload_map(map)
     }
     fn download_frame(&mut self) -> Result<FrameMaps> {
         self.inner.download_frame()

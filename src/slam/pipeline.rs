@@ -37,7 +37,8 @@
 //! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`SlamParams::unstable_removal`] | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
 //!
 //! The tracking loop reads back only the system per iteration and the surfel count per
-//! frame (twice with `compact`); the `download_*` methods copy maps to the host for outputs and comparisons.
+//! frame (twice with `compact`); the `download_*` methods copy maps to the host for outputs and comparisons,
+//! and `upload_map` copies a map into the backend (to resume, or to put one backend into another's state).
 
 use glam::DMat4;
 
@@ -161,6 +162,10 @@ pub trait Backend {
     fn surfel_count(&self) -> usize;
     /// The whole map (for export and comparison).
     fn download_map(&mut self) -> Result<SurfelMap>;
+    /// Replaces the map with `map` (growing the storage if needed): to resume from a saved
+    /// map, or to put this backend into another's state (`wgslam compare`'s lockstep mode).
+    /// [`crate::Error::Capacity`] when the backend cannot hold it.
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()>;
     /// The current frame's maps.
     fn download_frame(&mut self) -> Result<FrameMaps>;
     /// The predicted model vertex and normal maps (world frame) of pyramid level `level`
@@ -212,6 +217,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn download_map(&mut self) -> Result<SurfelMap> {
         (**self).download_map()
+    }
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        (**self).upload_map(map)
     }
     fn download_frame(&mut self) -> Result<FrameMaps> {
         (**self).download_frame()
@@ -879,6 +887,19 @@ impl<B: Backend> Slam<B> {
             self.backend.compact(&cp)?;
         }
         Ok(self.report(Some(t_world_to_cam), status, iterations))
+    }
+
+    /// The last accepted world-to-camera pose (the next frame's ICP starts from it),
+    /// `None` before the first frame.
+    pub fn t_world_to_cam(&self) -> Option<DMat4> {
+        self.t_world_to_cam
+    }
+
+    /// Replaces the last accepted pose: the next frame tracks from `t_world_to_cam` (`None`:
+    /// as before the first frame). With [`Backend::upload_map`], puts this tracker into
+    /// another's state (`wgslam compare`'s lockstep mode).
+    pub fn set_t_world_to_cam(&mut self, t_world_to_cam: Option<DMat4>) {
+        self.t_world_to_cam = t_world_to_cam;
     }
 
     fn report(

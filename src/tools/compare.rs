@@ -1,13 +1,23 @@
-//! Runs two backends over the same frames in lockstep and measures how far apart they are,
-//! stage by stage: the frame maps, the first ICP system, the pose, the surfel count and the
-//! final map. Used by `wgslam compare` and by the parity tests.
+//! Runs two backends, A (the reference) and B, over the same frames and measures how far
+//! apart they are, stage by stage: the frame maps, the first ICP system, the pose, the
+//! surfel counts after fusion and after compaction, and the map. Used by `wgslam compare`
+//! and by the parity tests (`tests/compare.rs`).
 //!
-//! Each backend tracks on its own state (as it would in a real run), so differences may
-//! grow over frames; the tolerances below are for that end-to-end situation.
+//! Two [`Mode`]s. **Lockstep** (the default): before every frame B is put into A's state
+//! (A's map uploaded with [`Backend::upload_map`], A's last pose given to B's tracker), so
+//! a frame's differences come from that frame's kernels alone and the per-frame tolerances
+//! ([`tolerance::lockstep`]) can be tight. This is what proves the GPU kernels equal their
+//! CPU twins over a whole sequence: on noisy depth two trackers that each keep their own
+//! state drift apart chaotically (an ulp today moves a merge decision tomorrow), whatever
+//! the kernels. **Free**: each backend tracks on its own state, as two separate runs would;
+//! differences accumulate, and its tolerances ([`tolerance`]'s end-to-end ones) hold on
+//! noise-free frames only.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DMat4;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::dataset::Sequence;
@@ -19,7 +29,9 @@ use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
 
-/// Documented tolerances; `wgslam compare` exits non-zero beyond any of them.
+/// Documented tolerances; `wgslam compare` exits non-zero beyond any of them. The frame-map
+/// bounds hold in both modes (the inputs are the same raw frame); the rest are for the
+/// free (end-to-end) mode, and [`lockstep`] has the per-frame ones.
 pub mod tolerance {
     /// Vertex maps: the same f32 expression, but GPUs may fuse multiply-adds: a few ulps of
     /// a value of ~5 m is ~1e-6 m.
@@ -52,6 +64,102 @@ pub mod tolerance {
     pub fn map_unmatched_max_fraction(frames: usize) -> f64 {
         MAP_UNMATCHED_MAX_FRACTION.max(MAP_UNMATCHED_MAX_FRACTION_PER_FRAME * frames as f64)
     }
+
+    /// Per-frame tolerances of the lockstep mode: both backends start each frame from the
+    /// same map and pose, so a bound is what one frame's kernels may differ by; nothing
+    /// accumulates. Measured with `wgslam compare DATA --frames 1..200` (320x240, every
+    /// frame's map compared) on the noisy and the noise-free ICL kt2 with `--profile
+    /// robust` and `--profile assignment`; each comment gives the worst frame of the four
+    /// runs. The frame-map bounds and the match radius are the ones above.
+    pub mod lockstep {
+        /// The first ICP system, from the same prediction (same map, same pose) and the
+        /// same frame: f32 partial sums per workgroup on the GPU against f64 on the CPU.
+        /// Worst 1.5e-4 (noisy, robust: Huber and noise weights); 7.8e-5 noise-free and
+        /// 7.1e-5 noisy with the assignment profile. 3.3x headroom.
+        pub const SYSTEM_REL_DIFF_MAX: f64 = 5e-4;
+        /// The pose after ICP, from the same starting pose: the systems' rounding
+        /// differences pass through every iteration, and a frame may stop one iteration
+        /// earlier on one side (an increment just below the convergence threshold, 1e-5
+        /// with the robust profile). Worst 0.031 mm / 0.00078 deg (noisy, assignment: ICP
+        /// without weights runs all 10 iterations on noisy depth); 0.015 mm / 0.00023 deg
+        /// noisy robust; 0.0014 mm / 0.00003 deg noise-free. 3.3x / 3.8x headroom over the
+        /// worst.
+        pub const POSE_MAX_MM: f64 = 0.1;
+        pub const POSE_MAX_DEG: f64 = 0.003;
+        /// Surfel counts after fusion and after compaction: pixels at a fusion gate may
+        /// merge on one side and be added on the other (and the pose differs by the amount
+        /// above). Worst 3.8e-5 (noisy robust, 5 surfels of 132k); at most 14 surfels in
+        /// any run; 1.3e-5 noise-free. 5x headroom.
+        pub const SURFEL_COUNT_REL_DIFF_MAX: f64 = 2e-4;
+        /// The map after the frame: fraction of surfels (the larger side) with no surfel
+        /// of the other map within [`super::MAP_MATCH_RADIUS_M`]. From the same map, the
+        /// pose difference moves surfels by less than 3e-5 m (noisy frame 91, 0.013 mm
+        /// apart: 8786 surfels have no partner within 0.01 mm, 64 none within 0.03 mm, the
+        /// same 64 none within 1 mm), so the unmatched ones are the fusion-gate decisions
+        /// that differ. Worst 6.3e-4
+        /// (noisy assignment, frame 3: 87 of 139k; its noisy normals sit at the 5 degree
+        /// gate), 1.8e-4 noisy robust, 8e-5 noise-free. 3.2x headroom.
+        pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 2e-3;
+    }
+}
+
+/// How the two backends are driven (see the module header).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase", tag = "name")]
+pub enum Mode {
+    /// Before every frame B takes A's map and last pose; the maps after the frame are
+    /// compared every `map_every` frames and after the last frame.
+    Lockstep { map_every: usize },
+    /// Each backend tracks on its own state; the maps are compared after the last frame.
+    Free,
+}
+
+impl Mode {
+    /// Lockstep with the map compared after every frame.
+    pub const LOCKSTEP: Mode = Mode::Lockstep { map_every: 1 };
+
+    /// `lockstep` or `free`, for reports.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Mode::Lockstep { .. } => "lockstep",
+            Mode::Free => "free",
+        }
+    }
+}
+
+/// The bounds a mode checks each frame (and the map) against; the frame-map bounds are
+/// the same in both modes and stay in [`tolerance`].
+struct Limits {
+    system_rel_diff: f64,
+    pose_mm: f64,
+    pose_deg: f64,
+    surfel_count_rel_diff: f64,
+    map_match_radius_m: f32,
+    map_unmatched_fraction: f64,
+}
+
+impl Limits {
+    fn of(mode: Mode, frames: usize) -> Limits {
+        use tolerance::*;
+        match mode {
+            Mode::Lockstep { .. } => Limits {
+                system_rel_diff: lockstep::SYSTEM_REL_DIFF_MAX,
+                pose_mm: lockstep::POSE_MAX_MM,
+                pose_deg: lockstep::POSE_MAX_DEG,
+                surfel_count_rel_diff: lockstep::SURFEL_COUNT_REL_DIFF_MAX,
+                map_match_radius_m: MAP_MATCH_RADIUS_M,
+                map_unmatched_fraction: lockstep::MAP_UNMATCHED_MAX_FRACTION,
+            },
+            Mode::Free => Limits {
+                system_rel_diff: SYSTEM_REL_DIFF_MAX,
+                pose_mm: POSE_MAX_MM,
+                pose_deg: POSE_MAX_DEG,
+                surfel_count_rel_diff: SURFEL_COUNT_REL_DIFF_MAX,
+                map_match_radius_m: MAP_MATCH_RADIUS_M,
+                map_unmatched_fraction: map_unmatched_max_fraction(frames),
+            },
+        }
+    }
 }
 
 /// Differences of two frame maps.
@@ -71,34 +179,100 @@ pub struct MapDiff {
 pub struct FrameDiff {
     pub index: usize,
     pub maps: MapDiff,
-    /// Relative Frobenius difference of the first ICP iteration's AᵀA and Aᵀb (None on
-    /// frames without tracking).
+    /// Relative difference of the first ICP iteration's AᵀA and Aᵀb (see
+    /// [`system_rel_diff`]; None on frames without tracking).
     pub system_rel_diff: Option<f64>,
     /// Inlier counts of the first ICP iteration (A, B).
     pub inliers: Option<(u64, u64)>,
+    /// Pose after the frame (after ICP), A against B.
     pub pose_diff_mm: f64,
     pub pose_diff_deg: f64,
+    /// Surfels after fusion (A, B); None when a backend did not fuse (tracking lost, no
+    /// depth).
+    pub fused_surfels: Option<(usize, usize)>,
+    /// Surfels after the frame (after compaction when the profile removes unstable surfels).
     pub surfels: (usize, usize),
+    /// The maps after this frame (lockstep mode, on the frames whose map is compared).
+    pub map: Option<SurfelMapDiff>,
 }
 
 /// Order-independent comparison of two surfel maps.
 #[derive(Debug, Clone, Serialize)]
 pub struct SurfelMapDiff {
     pub surfels: (usize, usize),
+    /// The match radius used, metres.
+    pub match_radius_m: f32,
     /// Fraction of A's points without a B point within the match radius (and vice versa).
     pub unmatched_a_fraction: f64,
     pub unmatched_b_fraction: f64,
-    /// Mean distance to the nearest point of the other map over matched points, metres.
+    /// Mean and largest distance to the nearest point of the other map over A's matched
+    /// points, metres.
     pub mean_match_m: f64,
+    pub max_match_m: f64,
+}
+
+impl SurfelMapDiff {
+    /// The larger of the two unmatched fractions.
+    pub fn unmatched_fraction(&self) -> f64 {
+        self.unmatched_a_fraction.max(self.unmatched_b_fraction)
+    }
+}
+
+/// The largest difference of each kind over the frames compared (and the maps).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Worst {
+    pub vertex_max_abs_m: f64,
+    pub normal_max_deg: f64,
+    pub validity_mismatch_fraction: f64,
+    pub system_rel_diff: f64,
+    pub pose_diff_mm: f64,
+    pub pose_diff_deg: f64,
+    /// Relative surfel-count differences after fusion and after the frame.
+    pub fused_surfels_rel_diff: f64,
+    pub surfels_rel_diff: f64,
+    /// Unmatched fraction (larger side) and largest match distance (m) over the map
+    /// comparisons.
+    pub map_unmatched_fraction: f64,
+    pub map_max_match_m: f64,
+}
+
+impl Worst {
+    fn add_frame(&mut self, d: &FrameDiff) {
+        self.vertex_max_abs_m = self.vertex_max_abs_m.max(d.maps.vertex_max_abs_m);
+        self.normal_max_deg = self.normal_max_deg.max(d.maps.normal_max_deg);
+        self.validity_mismatch_fraction = self
+            .validity_mismatch_fraction
+            .max(d.maps.validity_mismatch_fraction);
+        self.system_rel_diff = self.system_rel_diff.max(d.system_rel_diff.unwrap_or(0.0));
+        self.pose_diff_mm = self.pose_diff_mm.max(d.pose_diff_mm);
+        self.pose_diff_deg = self.pose_diff_deg.max(d.pose_diff_deg);
+        if let Some(f) = d.fused_surfels {
+            self.fused_surfels_rel_diff = self.fused_surfels_rel_diff.max(count_rel_diff(f));
+        }
+        self.surfels_rel_diff = self.surfels_rel_diff.max(count_rel_diff(d.surfels));
+        if let Some(m) = &d.map {
+            self.add_map(m);
+        }
+    }
+
+    fn add_map(&mut self, m: &SurfelMapDiff) {
+        self.map_unmatched_fraction = self.map_unmatched_fraction.max(m.unmatched_fraction());
+        self.map_max_match_m = self.map_max_match_m.max(m.max_match_m);
+    }
 }
 
 /// The whole comparison.
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
+    /// How the backends were driven.
+    pub mode: Mode,
     pub backends: (String, String),
     pub frames: Vec<FrameDiff>,
+    /// The maps after the last frame.
     pub map: SurfelMapDiff,
-    /// Every tolerance exceeded, in words (empty when the backends agree).
+    pub worst: Worst,
+    /// Every tolerance exceeded, in words, each naming its frame and stage (empty when the
+    /// backends agree).
     pub violations: Vec<String>,
 }
 
@@ -159,50 +333,154 @@ pub fn system_rel_diff(a: &[f64; ICP_SYSTEM_LEN], b: &[f64; ICP_SYSTEM_LEN]) -> 
     h.max(g)
 }
 
-/// Fraction of `a`'s points with no point of `b` within `radius` metres, and the mean
-/// distance of the matched ones. A uniform hash grid with cells of `radius`.
-pub fn unmatched_fraction(a: &SurfelMap, b: &SurfelMap, radius: f32) -> (f64, f64) {
-    let cell = |p: &[f32; 4]| {
-        (
-            (p[0] / radius).floor() as i32,
-            (p[1] / radius).floor() as i32,
-            (p[2] / radius).floor() as i32,
-        )
-    };
-    let mut grid: HashMap<(i32, i32, i32), Vec<u32>> = HashMap::new();
-    for (i, p) in b.position_weight.iter().enumerate() {
-        grid.entry(cell(p)).or_default().push(i as u32);
-    }
-    let (mut unmatched, mut sum, mut matched) = (0usize, 0.0f64, 0usize);
-    for p in &a.position_weight {
-        let c = cell(p);
-        let mut best = f32::INFINITY;
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    if let Some(ids) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
-                        for &j in ids {
-                            let q = b.position_weight[j as usize];
-                            let d2 = (p[0] - q[0]).powi(2)
-                                + (p[1] - q[1]).powi(2)
-                                + (p[2] - q[2]).powi(2);
-                            best = best.min(d2);
-                        }
-                    }
-                }
-            }
-        }
-        if best.sqrt() <= radius {
+/// How `a`'s points match `b`'s within a radius (see [`unmatched_fraction`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Matches {
+    /// Fraction of `a`'s points with no point of `b` within the radius.
+    pub unmatched_fraction: f64,
+    /// Mean and largest distance to the nearest `b` point over the matched points, metres.
+    pub mean_m: f64,
+    pub max_m: f64,
+}
+
+/// Matches each of `a`'s points with its nearest point of `b` within `radius` metres
+/// (through a [`Grid`] of `b`, queries in parallel).
+pub fn unmatched_fraction(a: &SurfelMap, b: &SurfelMap, radius: f32) -> Matches {
+    let grid = Grid::new(&b.position_weight, 2.0 * radius);
+    let nearest: Vec<f32> = a
+        .position_weight
+        .par_iter()
+        .map(|p| grid.nearest_within_half_cell(&b.position_weight, p))
+        .collect();
+    let (mut unmatched, mut sum, mut max, mut matched) = (0usize, 0.0f64, 0.0f64, 0usize);
+    for d in nearest {
+        if d <= radius {
             matched += 1;
-            sum += best.sqrt() as f64;
+            sum += d as f64;
+            max = max.max(d as f64);
         } else {
             unmatched += 1;
         }
     }
-    (
-        unmatched as f64 / a.len().max(1) as f64,
-        sum / matched.max(1) as f64,
-    )
+    Matches {
+        unmatched_fraction: unmatched as f64 / a.len().max(1) as f64,
+        mean_m: sum / matched.max(1) as f64,
+        max_m: max,
+    }
+}
+
+/// Points bucketed by a uniform grid of cubic cells: their indices sorted by cell, and
+/// each occupied cell's range of that order.
+struct Grid {
+    cell_m: f32,
+    order: Vec<u32>,
+    ranges: HashMap<u64, (u32, u32), BuildHasherDefault<CellHasher>>,
+}
+
+impl Grid {
+    fn new(points: &[[f32; 4]], cell_m: f32) -> Grid {
+        let mut keyed: Vec<(u64, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (Self::key(Self::cell(cell_m, p).map(|c| c as i32)), i as u32))
+            .collect();
+        keyed.sort_unstable();
+        let mut ranges = HashMap::with_capacity_and_hasher(keyed.len(), Default::default());
+        let mut start = 0;
+        for (i, k) in keyed.iter().enumerate() {
+            if keyed.get(i + 1).map(|n| n.0) != Some(k.0) {
+                ranges.insert(k.0, (start as u32, i as u32 + 1));
+                start = i + 1;
+            }
+        }
+        Grid {
+            cell_m,
+            order: keyed.into_iter().map(|(_, i)| i).collect(),
+            ranges,
+        }
+    }
+
+    /// Cell coordinates of `p` (fractional: the integer part is the cell).
+    fn cell(cell_m: f32, p: &[f32; 4]) -> [f32; 3] {
+        [p[0] / cell_m, p[1] / cell_m, p[2] / cell_m].map(f32::floor)
+    }
+
+    /// One key per cell: 21 bits per coordinate (wrapping, so far-apart cells may share a
+    /// key; that only adds candidates, whose distances are computed exactly).
+    fn key(c: [i32; 3]) -> u64 {
+        let bits = |x: i32| (x as u32 & 0x1f_ffff) as u64;
+        bits(c[0]) | bits(c[1]) << 21 | bits(c[2]) << 42
+    }
+
+    /// Distance from `p` to its nearest point, exact when it is at most half a cell (else
+    /// a larger value or infinity): a ball of half a cell overlaps at most two cells per
+    /// axis, `p`'s own and the neighbour on its nearer side, so 8 cells are searched.
+    fn nearest_within_half_cell(&self, points: &[[f32; 4]], p: &[f32; 4]) -> f32 {
+        let axis = |x: f32| {
+            let c = x / self.cell_m;
+            let own = c.floor();
+            let other = if c - own < 0.5 { own - 1.0 } else { own + 1.0 };
+            [own as i32, other as i32]
+        };
+        let (cx, cy, cz) = (axis(p[0]), axis(p[1]), axis(p[2]));
+        let mut best = f32::INFINITY;
+        for x in cx {
+            for y in cy {
+                for z in cz {
+                    let Some(&(from, to)) = self.ranges.get(&Self::key([x, y, z])) else {
+                        continue;
+                    };
+                    for &j in &self.order[from as usize..to as usize] {
+                        let q = points[j as usize];
+                        let d2 =
+                            (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+                        best = best.min(d2);
+                    }
+                }
+            }
+        }
+        best.sqrt()
+    }
+}
+
+/// A multiplicative hash for [`Grid`]'s u64 cell keys (the standard SipHash made the map
+/// comparison several times slower; no attacker chooses these keys).
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        // MurmurHash3's 64-bit finaliser: every key bit moves every hash bit (the table
+        // indexes by the low bits, which a plain multiply fills from the key's low bits only).
+        let mut h = self.0 ^ x;
+        h = (h ^ (h >> 33)).wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h = (h ^ (h >> 33)).wrapping_mul(0xc4ce_b9fe_1a85_ec53);
+        self.0 = h ^ (h >> 33);
+    }
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Compares two maps both ways within `radius` metres.
+pub fn diff_surfel_maps(a: &SurfelMap, b: &SurfelMap, radius: f32) -> SurfelMapDiff {
+    let (ab, ba) = (
+        unmatched_fraction(a, b, radius),
+        unmatched_fraction(b, a, radius),
+    );
+    SurfelMapDiff {
+        surfels: (a.len(), b.len()),
+        match_radius_m: radius,
+        unmatched_a_fraction: ab.unmatched_fraction,
+        unmatched_b_fraction: ba.unmatched_fraction,
+        mean_match_m: ab.mean_m,
+        max_match_m: ab.max_m,
+    }
 }
 
 /// Pose difference of two camera-to-world poses: translation (mm) and rotation (degrees).
@@ -214,7 +492,12 @@ pub fn pose_diff(a: &DMat4, b: &DMat4) -> (f64, f64) {
     )
 }
 
-/// Runs `a` (the reference) and `b` over frames `first..=last` and compares them.
+/// |a - b| / a for a pair of surfel counts (A the reference).
+fn count_rel_diff((a, b): (usize, usize)) -> f64 {
+    a.abs_diff(b) as f64 / a.max(1) as f64
+}
+
+/// Runs `a` (the reference) and `b` over frames `first..=last` in `mode` and compares them.
 pub fn compare<A: Backend, B: Backend>(
     a: A,
     b: B,
@@ -222,17 +505,31 @@ pub fn compare<A: Backend, B: Backend>(
     first: usize,
     last: usize,
     params: SlamParams,
+    mode: Mode,
 ) -> Result<Comparison> {
-    use tolerance::*;
     let names = (a.name().to_string(), b.name().to_string());
+    let compacts = params.unstable_removal.is_some();
     let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
     let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
+    let limits = Limits::of(mode, (first..=last).count());
     let mut frames = Vec::new();
     let mut violations = Vec::new();
-    for i in first..=last {
+    let mut worst = Worst::default();
+    // Lockstep: A's map as B is to start the next frame from.
+    let mut a_map = match mode {
+        Mode::Lockstep { .. } => Some(sa.backend.download_map()?),
+        Mode::Free => None,
+    };
+    for (k, i) in (first..=last).enumerate() {
+        if let Some(map) = &a_map {
+            sb.backend.upload_map(map)?;
+            sb.set_t_world_to_cam(sa.t_world_to_cam());
+        }
         let raw = seq.load(i)?;
         let rgba = packed_rgba(&raw);
         let gt = seq.frames[i].gt_cam_to_world;
+        sa.backend.clear_frame();
+        sb.backend.clear_frame();
         let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let maps = diff_frame_maps(&sa.backend.download_frame()?, &sb.backend.download_frame()?);
@@ -248,6 +545,19 @@ pub fn compare<A: Backend, B: Backend>(
             _ => (None, None),
         };
         let (mm, deg) = pose_diff(&ra.t_cam_to_world, &rb.t_cam_to_world);
+        let fused_surfels = sa.backend.fused_surfels.zip(sb.backend.fused_surfels);
+        let map = match (&mut a_map, mode) {
+            (Some(a_map), Mode::Lockstep { map_every }) => {
+                *a_map = sa.backend.download_map()?;
+                if (k + 1) % map_every.max(1) == 0 || i == last {
+                    let b_map = sb.backend.download_map()?;
+                    Some(diff_surfel_maps(a_map, &b_map, limits.map_match_radius_m))
+                } else {
+                    None
+                }
+            }
+            _ => None,
+        };
         let d = FrameDiff {
             index: i,
             maps,
@@ -255,70 +565,116 @@ pub fn compare<A: Backend, B: Backend>(
             inliers,
             pose_diff_mm: mm,
             pose_diff_deg: deg,
+            fused_surfels,
             surfels: (ra.surfels, rb.surfels),
+            map,
         };
-        let mut check = |ok: bool, what: String| {
-            if !ok {
-                violations.push(format!("frame {i}: {what}"));
-            }
-        };
-        check(
-            d.maps.vertex_max_abs_m <= VERTEX_MAX_ABS_M,
-            format!("vertex difference {:.3e} m", d.maps.vertex_max_abs_m),
-        );
-        check(
-            d.maps.normal_max_deg <= NORMAL_MAX_DEG,
-            format!("normal difference {:.4} deg", d.maps.normal_max_deg),
-        );
-        check(
-            d.maps.validity_mismatch_fraction <= VALIDITY_MISMATCH_MAX_FRACTION,
-            format!(
-                "validity differs on {:.4}% of pixels",
-                d.maps.validity_mismatch_fraction * 100.0
-            ),
-        );
-        if let Some(r) = d.system_rel_diff {
-            check(
-                r <= SYSTEM_REL_DIFF_MAX,
-                format!("ICP system relative difference {r:.3e}"),
-            );
-        }
-        check(
-            mm <= POSE_MAX_MM && deg <= POSE_MAX_DEG,
-            format!("pose difference {mm:.4} mm, {deg:.5} deg"),
-        );
-        let (ca, cb) = d.surfels;
-        let rel = (ca as f64 - cb as f64).abs() / ca.max(1) as f64;
-        check(
-            rel <= SURFEL_COUNT_REL_DIFF_MAX,
-            format!("surfel counts {ca} vs {cb}"),
-        );
+        check_frame(&d, &limits, compacts, &mut violations);
+        worst.add_frame(&d);
         frames.push(d);
     }
-    let (ma, mb) = (sa.backend.download_map()?, sb.backend.download_map()?);
-    let (ua, mean) = unmatched_fraction(&ma, &mb, MAP_MATCH_RADIUS_M);
-    let (ub, _) = unmatched_fraction(&mb, &ma, MAP_MATCH_RADIUS_M);
-    let unmatched_max = map_unmatched_max_fraction(frames.len());
-    if ua > unmatched_max || ub > unmatched_max {
-        violations.push(format!(
-            "final map: {:.4}% / {:.4}% of points unmatched within {} mm (limit {:.4}% for {} \
-             frames)",
-            ua * 100.0,
-            ub * 100.0,
-            MAP_MATCH_RADIUS_M * 1e3,
-            unmatched_max * 100.0,
-            frames.len()
-        ));
-    }
+    let map = match frames.last().and_then(|f| f.map.clone()) {
+        Some(m) => m,
+        None => {
+            let (ma, mb) = (sa.backend.download_map()?, sb.backend.download_map()?);
+            let m = diff_surfel_maps(&ma, &mb, limits.map_match_radius_m);
+            if m.unmatched_fraction() > limits.map_unmatched_fraction {
+                violations.push(format!(
+                    "final map: {} (limit {:.4}% for {} frames)",
+                    describe_unmatched(&m),
+                    limits.map_unmatched_fraction * 100.0,
+                    frames.len()
+                ));
+            }
+            worst.add_map(&m);
+            m
+        }
+    };
     Ok(Comparison {
+        mode,
         backends: names,
         frames,
-        map: SurfelMapDiff {
-            surfels: (ma.len(), mb.len()),
-            unmatched_a_fraction: ua,
-            unmatched_b_fraction: ub,
-            mean_match_m: mean,
-        },
+        map,
+        worst,
         violations,
     })
+}
+
+/// "x% / y% of points unmatched within r mm".
+fn describe_unmatched(m: &SurfelMapDiff) -> String {
+    format!(
+        "{:.4}% / {:.4}% of points unmatched within {} mm",
+        m.unmatched_a_fraction * 100.0,
+        m.unmatched_b_fraction * 100.0,
+        m.match_radius_m * 1e3
+    )
+}
+
+/// Pushes a line per bound `d` exceeds, naming the frame and the stage. `compacts`: the
+/// profile removes unstable surfels (otherwise the count after the frame is the fused one).
+fn check_frame(d: &FrameDiff, limits: &Limits, compacts: bool, violations: &mut Vec<String>) {
+    use tolerance::*;
+    let i = d.index;
+    let mut check = |ok: bool, stage: &str, what: String| {
+        if !ok {
+            violations.push(format!("frame {i}: {stage}: {what}"));
+        }
+    };
+    check(
+        d.maps.vertex_max_abs_m <= VERTEX_MAX_ABS_M,
+        "preprocess",
+        format!("vertex difference {:.3e} m", d.maps.vertex_max_abs_m),
+    );
+    check(
+        d.maps.normal_max_deg <= NORMAL_MAX_DEG,
+        "preprocess",
+        format!("normal difference {:.4} deg", d.maps.normal_max_deg),
+    );
+    check(
+        d.maps.validity_mismatch_fraction <= VALIDITY_MISMATCH_MAX_FRACTION,
+        "preprocess",
+        format!(
+            "validity differs on {:.4}% of pixels",
+            d.maps.validity_mismatch_fraction * 100.0
+        ),
+    );
+    if let Some(r) = d.system_rel_diff {
+        check(
+            r <= limits.system_rel_diff,
+            "first ICP system",
+            format!("relative difference {r:.3e}"),
+        );
+    }
+    let (mm, deg) = (d.pose_diff_mm, d.pose_diff_deg);
+    check(
+        mm <= limits.pose_mm && deg <= limits.pose_deg,
+        "pose after ICP",
+        format!("difference {mm:.5} mm, {deg:.6} deg"),
+    );
+    if let Some((ca, cb)) = d.fused_surfels {
+        check(
+            count_rel_diff((ca, cb)) <= limits.surfel_count_rel_diff,
+            "fusion",
+            format!("surfel counts {ca} vs {cb}"),
+        );
+    }
+    if compacts || d.fused_surfels.is_none() {
+        let (ca, cb) = d.surfels;
+        check(
+            count_rel_diff((ca, cb)) <= limits.surfel_count_rel_diff,
+            if compacts { "compaction" } else { "surfels" },
+            format!("surfel counts {ca} vs {cb}"),
+        );
+    }
+    if let Some(m) = &d.map {
+        check(
+            m.unmatched_fraction() <= limits.map_unmatched_fraction,
+            "map after the frame",
+            format!(
+                "{} (limit {:.4}%)",
+                describe_unmatched(m),
+                limits.map_unmatched_fraction * 100.0
+            ),
+        );
+    }
 }
