@@ -20,13 +20,14 @@ use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction, Pyr
 use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;
-/// `frame_systems` holds the 29-float ICP systems of the frame in flight, in order (cleared
+/// `frame_systems` holds the pyramid level and 29-float ICP system of every iteration of
+/// the frame in flight, in order (cleared
 /// by `preprocess`, so after a frame it holds that frame's iterations); `fused_surfels` the
 /// surfel count `fuse` returned in that frame (before `compact`), `None` if it did not fuse.
 pub struct Instrumented<B: Backend> {
     pub inner: B,
     pub stages: BTreeMap<&'static str, (u64, f64)>,
-    pub frame_systems: Vec<[f64; ICP_SYSTEM_LEN]>,
+    pub frame_systems: Vec<(usize, [f64; ICP_SYSTEM_LEN])>,
     pub fused_surfels: Option<usize>,
     timing: bool,
 }
@@ -95,7 +96,7 @@ impl<B: Backend> Backend for Instrumented<B> {
     }
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         let system = self.step("icp_iteration", |b| b.icp_system(level, params))?;
-        self.frame_systems.push(system);
+        self.frame_systems.push((level, system));
         Ok(system)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {

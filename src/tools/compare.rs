@@ -72,11 +72,14 @@ pub mod tolerance {
     /// robust` and `--profile assignment`; each comment gives the worst frame of the four
     /// runs. The frame-map bounds and the match radius are the ones above.
     pub mod lockstep {
-        /// The first ICP system, from the same prediction (same map, same pose) and the
-        /// same frame: f32 partial sums per workgroup on the GPU against f64 on the CPU.
-        /// Worst 1.5e-4 (noisy, robust: Huber and noise weights); 7.8e-5 noise-free and
-        /// 7.1e-5 noisy with the assignment profile. 3.3x headroom.
-        pub const SYSTEM_REL_DIFF_MAX: f64 = 5e-4;
+        /// The first ICP system at the finest pyramid level, from the same prediction (same
+        /// map, same starting pose) and the same frame: f32 partial sums per workgroup on
+        /// the GPU against f64 on the CPU, at poses the coarser levels moved by slightly
+        /// different amounts (the robust profile's pyramid). Worst with one level 1.5e-4
+        /// (noisy, robust: Huber and noise weights), 7.8e-5 noise-free and 7.1e-5 noisy
+        /// with the assignment profile; with the robust profile's three levels 3.9e-4
+        /// (noisy) and 4.4e-4 (noise-free). 2.3x headroom.
+        pub const SYSTEM_REL_DIFF_MAX: f64 = 1e-3;
         /// The pose after ICP, from the same starting pose: the systems' rounding
         /// differences pass through every iteration, and a frame may stop one iteration
         /// earlier on one side (an increment just below the convergence threshold, 1e-5
@@ -533,13 +536,19 @@ pub fn compare<A: Backend, B: Backend>(
         let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let maps = diff_frame_maps(&sa.backend.download_frame()?, &sb.backend.download_frame()?);
+        // The first system at the finest level: the most rows, so a row whose gate one
+        // backend decides the other way by an ulp moves it least (at the coarsest level,
+        // 80x60, one such row of a large residual moved it by 2.3e-3 on noisy frame 40).
+        let finest = |s: &[(usize, [f64; ICP_SYSTEM_LEN])]| {
+            s.iter().find(|(level, _)| *level == 0).map(|(_, sys)| *sys)
+        };
         let (first_a, first_b) = (
-            sa.backend.frame_systems.first(),
-            sb.backend.frame_systems.first(),
+            finest(&sa.backend.frame_systems),
+            finest(&sb.backend.frame_systems),
         );
         let (system_rel_diff, inliers) = match (first_a, first_b) {
             (Some(x), Some(y)) => (
-                Some(system_rel_diff(x, y)),
+                Some(system_rel_diff(&x, &y)),
                 Some((x[ICP_COUNT_INDEX] as u64, y[ICP_COUNT_INDEX] as u64)),
             ),
             _ => (None, None),
