@@ -90,6 +90,34 @@ pub struct PyramidParams {
     pub _pad: u32,
 }
 
+impl PyramidParams {
+    /// The level below `fine` (its intrinsics halved, `Intrinsics::downsampled(2)`), with
+    /// the window half-width and the depth gate (metres, and its growth with depth², 1/m).
+    pub fn halving(
+        fine: &Intrinsics,
+        radius_px: u32,
+        max_depth_diff_m: f32,
+        max_depth_diff_per_m2: f32,
+    ) -> PyramidParams {
+        let coarse = fine.downsampled(2);
+        let [fx, fy, cx, cy] = camera_floats(&coarse);
+        PyramidParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: coarse.width,
+            height: coarse.height,
+            fine_width: fine.width,
+            fine_height: fine.height,
+            radius_px,
+            max_depth_diff_m,
+            max_depth_diff_per_m2,
+            _pad: 0,
+        }
+    }
+}
+
 /// Parameters of `bilateral_filter` (mirrors `BilateralParams` in common.wgsl).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]

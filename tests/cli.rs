@@ -21,17 +21,17 @@ fn text(o: &std::process::Output) -> String {
     )
 }
 
+/// `wgslam run` on the CPU over bundled `frames` into `out`, with `extra` flags.
+fn run_bundled(out: &std::path::Path, frames: &str, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["run", "--backend", "cpu", "--frames", frames];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+    wgslam(&args)
+}
+
 fn run_writes_all_outputs_on_bundled_data() {
     let out = common::temp_dir("cli-run");
-    let o = wgslam(&[
-        "run",
-        "--backend",
-        "cpu",
-        "--frames",
-        "1..4",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = run_bundled(&out, "1..4", &[]);
     assert!(o.status.success(), "{}", text(&o));
     for f in [
         "trajectory.tum",
@@ -149,17 +149,7 @@ fn bench_rounds_write_every_round() {
 /// tracked frame's iterations in frames.json name their level, coarse to fine.
 fn run_with_an_icp_schedule() {
     let out = common::temp_dir("cli-levels");
-    let o = wgslam(&[
-        "run",
-        "--backend",
-        "cpu",
-        "--frames",
-        "1..3",
-        "--icp-level-iters",
-        "3,2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = run_bundled(&out, "1..3", &["--icp-level-iters", "3,2"]);
     assert!(o.status.success(), "{}", text(&o));
     let read = |f: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(out.join(f)).unwrap()).unwrap()
@@ -200,31 +190,28 @@ fn icp_two_frames_prints_iterations_and_error() {
 /// assignment's profile with the robust fusion's values and others overridden.
 fn profile_values_are_flags_recorded_in_metrics() {
     let out = common::temp_dir("cli-overrides");
-    let o = wgslam(&[
-        "run",
-        "--backend",
-        "cpu",
-        "--frames",
+    let o = run_bundled(
+        &out,
         "1..3",
-        "--profile",
-        "assignment",
-        "--fuse-association",
-        "best-candidate",
-        "--confidence-sigma",
-        "0.3",
-        "--min-depth",
-        "0.2",
-        "--icp-noise-weight",
-        "true",
-        "--icp-min-increment",
-        "2e-6",
-        "--removal-every",
-        "3",
-        "--pyramid-radius",
-        "2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+        &[
+            "--profile",
+            "assignment",
+            "--fuse-association",
+            "best-candidate",
+            "--confidence-sigma",
+            "0.3",
+            "--min-depth",
+            "0.2",
+            "--icp-noise-weight",
+            "true",
+            "--icp-min-increment",
+            "2e-6",
+            "--removal-every",
+            "3",
+            "--pyramid-radius",
+            "2",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();

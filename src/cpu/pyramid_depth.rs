@@ -97,22 +97,7 @@ mod tests {
     use crate::layout::camera_floats;
 
     fn params(fine: Intrinsics, radius_px: u32, gate_m: f32) -> PyramidParams {
-        let coarse = fine.downsampled(2);
-        let [fx, fy, cx, cy] = camera_floats(&coarse);
-        PyramidParams {
-            fx,
-            fy,
-            cx,
-            cy,
-            width: coarse.width,
-            height: coarse.height,
-            fine_width: fine.width,
-            fine_height: fine.height,
-            radius_px,
-            max_depth_diff_m: gate_m,
-            max_depth_diff_per_m2: 0.0,
-            _pad: 0,
-        }
+        PyramidParams::halving(&fine, radius_px, gate_m, 0.0)
     }
 
     /// A fronto-parallel plane keeps its depth, and each coarse vertex is the finer vertex

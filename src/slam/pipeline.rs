@@ -727,22 +727,13 @@ impl<B: Backend> Slam<B> {
                     self.level_intrinsics(level - 1),
                     self.level_intrinsics(level),
                 );
-                let [fx, fy, cx, cy] = camera_floats(&coarse);
                 PyramidLevel {
-                    down: PyramidParams {
-                        fx,
-                        fy,
-                        cx,
-                        cy,
-                        width: coarse.width,
-                        height: coarse.height,
-                        fine_width: fine.width,
-                        fine_height: fine.height,
-                        radius_px: s.radius_px,
-                        max_depth_diff_m: s.max_depth_diff_m,
-                        max_depth_diff_per_m2: s.max_depth_diff_per_m2,
-                        _pad: 0,
-                    },
+                    down: PyramidParams::halving(
+                        &fine,
+                        s.radius_px,
+                        s.max_depth_diff_m,
+                        s.max_depth_diff_per_m2,
+                    ),
                     normal: NormalParams {
                         width: coarse.width,
                         height: coarse.height,
