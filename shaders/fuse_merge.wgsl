@@ -61,6 +61,14 @@ fn main(
         }
         let texel = vec2<u32>(uv);
         let pix = texel.y * params.width + texel.x;
+        // Best candidate: only the pixel that chose this surfel (fuse_select tested the
+        // gates, on a valid pixel), before any other load.
+        if params.association == ASSOCIATION_BEST_CANDIDATE {
+            let key = atomicLoad(&assoc[pix]);
+            if key == 0lu || u32(key) != i {
+                continue;
+            }
+        }
         // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
         let nd = textureLoad(normal_depth, texel, 0);
         if !is_valid(nd) {
@@ -70,13 +78,9 @@ fn main(
         let q_world = transform_point(params.t_cam_to_world, q_cam);
         let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
         let n_old = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel).xyz);
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            let key = atomicLoad(&assoc[pix]);
-            if key == 0lu || u32(key) != i {
-                continue;
-            }
-        } else if length(q_world - p_world) >= params.dist_threshold_m
-            || dot(n_old, nq_world) <= params.cos_normal_threshold {
+        if params.association == ASSOCIATION_PROJECTIVE
+            && (length(q_world - p_world) >= params.dist_threshold_m
+                || dot(n_old, nq_world) <= params.cos_normal_threshold) {
             continue;
         }
         let w = pw.w;

@@ -72,6 +72,14 @@ pub fn fuse_merge(
             continue;
         };
         let pix = (texel[1] * params.width + texel[0]) as usize;
+        // Best candidate: only the pixel that chose this surfel (fuse_select tested the
+        // gates, on a valid pixel), before any other load.
+        if params.association == ASSOCIATION_BEST_CANDIDATE {
+            let key = assoc[pix];
+            if key == 0 || key as u32 != i {
+                continue;
+            }
+        }
         // Valid normal (w = depth > 0) implies a valid vertex.
         let nd = normal_depth[pix];
         if !is_valid(nd) {
@@ -81,13 +89,9 @@ pub fn fuse_merge(
         let q_world = transform_point(&params.t_cam_to_world, q_cam);
         let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
         let n_old = normal_of(normal_frame[surfel]);
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            let key = assoc[pix];
-            if key == 0 || key as u32 != i {
-                continue;
-            }
-        } else if (q_world - p_world).length() >= params.dist_threshold_m
-            || n_old.dot(nq_world) <= params.cos_normal_threshold
+        if params.association == ASSOCIATION_PROJECTIVE
+            && ((q_world - p_world).length() >= params.dist_threshold_m
+                || n_old.dot(nq_world) <= params.cos_normal_threshold)
         {
             continue;
         }
