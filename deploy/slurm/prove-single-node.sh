@@ -98,8 +98,10 @@ on_exit() {
 }
 stop_daemons
 rm -rf "$WORK"
-mkdir -p -m 700 "$WORK"/{run,log,state,spool}
-mkdir -p -m 711 "$WORK/munge" # munged wants its socket folder searchable by all
+mkdir -p "$WORK"
+chmod 700 "$WORK"
+mkdir -m 700 "$WORK"/{run,log,state,spool}
+mkdir -m 711 "$WORK/munge" # munged wants its socket folder searchable by all
 trap on_exit EXIT
 trap 'exit 130' INT
 trap 'exit 143' TERM
@@ -222,6 +224,7 @@ all_completed() {
 # --- 5. smoke test: a trivial array ------------------------------------------------------
 t=$(date +%s.%N)
 mkdir -p "$WORK/smoke"
+# shellcheck disable=SC2016 # expanded by the task, not here
 smoke=$(sbatch --parsable --array=0-3 --output="$WORK/smoke/%A_%a.out" \
   --wrap 'echo "task $SLURM_ARRAY_TASK_ID of $SLURM_ARRAY_TASK_COUNT on $(hostname -s)"')
 smoke=${smoke%%;*}
@@ -252,7 +255,7 @@ log "binary ready ($BUILD_S s): $(tail -n 1 "$WORK/list.txt")"
 
 # GPU (lavapipe) jobs need a runtime dir; the sbatch script makes one if it is unset.
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/xdg}
-mkdir -p -m 700 "$XDG_RUNTIME_DIR"
+mkdir -p "$XDG_RUNTIME_DIR"
 
 # --- 7. the array and the dependent collect job, through submit.sh ----------------------
 t=$(date +%s.%N)
