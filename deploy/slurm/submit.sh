@@ -29,7 +29,7 @@ command -v "$WGSLAM_BIN" >/dev/null || {
 WGSLAM_BIN=$(realpath "$(command -v "$WGSLAM_BIN")")
 
 # `wgslam batch list` ends with "N jobs"; it also checks the manifest before anything is queued.
-N=$("$WGSLAM_BIN" batch list "$MANIFEST" | awk '/^[0-9]+ jobs?$/ { print $1 }')
+N=$("$WGSLAM_BIN" batch list "$MANIFEST" | awk '/^[0-9]+ jobs?( |$)/ { print $1 }')
 if [[ -z $N || $N -lt 1 ]]; then
   echo "submit.sh: $MANIFEST has no jobs" >&2
   exit 1
