@@ -269,7 +269,14 @@ wait_jobs "$TIMEOUT_S" "$array" "$collect"
 SLURM_S=$(elapsed "$t")
 job_states "$array" >"$WORK/array-states.txt"
 job_states "$collect" >>"$WORK/array-states.txt"
-all_completed "$array" || fail "array $array: some task failed (logs: $SLURM_OUT/slurm-logs)"
+if ! all_completed "$array"; then
+  for task in $(job_states "$array" | grep -v 'JobState=COMPLETED ExitCode=0:0' \
+    | sed -n 's/.*ArrayTaskId=\([0-9]*\).*/\1/p'); do
+    echo "--- $SLURM_OUT/slurm-logs/batch-${array}_$task.out (last lines) ---" >&2
+    tail -n 20 "$SLURM_OUT/slurm-logs/batch-${array}_$task.out" >&2 || true
+  done
+  fail "array $array: some task failed (logs: $SLURM_OUT/slurm-logs)"
+fi
 all_completed "$collect" || fail "collect job $collect failed (log: $SLURM_OUT/slurm-logs)"
 for f in summary.csv summary.json report.html; do
   [[ -s $SLURM_OUT/$f ]] || fail "collect job wrote no $SLURM_OUT/$f"
