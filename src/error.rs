@@ -53,6 +53,12 @@ pub enum Error {
     /// A numerical step could not produce a trustworthy answer (e.g. a singular system).
     #[error("numerical failure: {0}")]
     Numerical(String),
+    /// A batch finished with failed jobs, or two batches' numbers differ.
+    #[error("batch: {0}")]
+    Batch(String),
+    /// Ctrl-C or SIGTERM stopped the work; what it says was left unfinished.
+    #[error("interrupted: {0}")]
+    Interrupted(String),
 }
 
 /// Result with the wgslam [`Error`].

@@ -14,8 +14,10 @@
 //! | [`eval`], [`stats`] | ATE / RPE with the TUM benchmark's definitions; medians |
 //! | [`render`] | headless pictures of maps and overlays, trajectory plots |
 //! | [`tools`] | the jobs: run, two-frame ICP, CPU-vs-GPU compare, bench |
+//! | [`batch`] | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
 //! | [`cli`] | argument parsing and printing only |
 
+pub mod batch;
 pub mod cli;
 pub mod cpu;
 pub mod dataset;

@@ -8,7 +8,11 @@ fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
-            std::process::ExitCode::FAILURE
+            match e {
+                // 128 + SIGINT, as a shell reports a process Ctrl-C stopped.
+                wgslam::Error::Interrupted(_) => std::process::ExitCode::from(130),
+                _ => std::process::ExitCode::FAILURE,
+            }
         }
     }
 }

@@ -1,5 +1,6 @@
 //! Command-line interface: argument parsing and printing only; no algorithm code here.
 
+pub mod batch;
 pub mod render;
 pub mod scan;
 
@@ -51,6 +52,10 @@ pub enum Command {
     BenchScan(crate::cli::scan::BenchScanArgs),
     /// Render a map PLY headlessly to a PNG (colour, normals, weight or depth view).
     Render(crate::cli::render::RenderArgs),
+    /// Run a TOML manifest of jobs (sequences x settings x backends), resumable and
+    /// shardable (`--shard I/N`, Slurm / Kubernetes array indices); `batch collect DIR`
+    /// writes summary.csv, summary.json and report.html; `batch diff A B` compares two.
+    Batch(crate::cli::batch::BatchArgs),
 }
 
 /// Pose source for `run`.
@@ -297,6 +302,9 @@ pub struct RunArgs {
     /// Output directory.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
+    /// (for `wgslam batch`) Print `progress DONE TOTAL` on stdout after every frame.
+    #[arg(long, hide = true)]
+    pub progress_lines: bool,
 }
 
 #[derive(Debug, Args)]
@@ -596,6 +604,7 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Odometry(a) => crate::cli::scan::run_odometry(&a).map(|_| ()),
         Command::Render(a) => cmd_render(a),
         Command::BenchScan(a) => crate::cli::scan::run_bench_scan(&a).map(|_| ()),
+        Command::Batch(a) => crate::cli::batch::execute(a),
     }
 }
 
@@ -612,9 +621,15 @@ fn cmd_run(a: RunArgs) -> Result<()> {
     };
     let params = a.pipeline.params(poses)?;
     let bar = progress_bar(range.clone().count());
+    let total = range.clone().count();
     let on_frame = |f: &run::FrameOutcome| {
         bar.set_message(format!("{} surfels", f.report.surfels));
         bar.inc(1);
+        if a.progress_lines {
+            use std::io::Write;
+            println!("progress {} {total}", bar.position());
+            let _ = std::io::stdout().flush();
+        }
         if let crate::slam::pipeline::TrackStatus::Lost(why) = &f.report.status {
             bar.println(format!(
                 "frame {}: tracking lost ({why}); not fused",

@@ -1,0 +1,365 @@
+//! One batch job: `wgslam run` once per backend, each in a child process of this
+//! executable (so each run's peak memory is its own, and a crash or a lost GPU device
+//! fails one job, not the batch), then the GPU-vs-CPU comparison, then `job.json`.
+//!
+//! `job.json` is written last, atomically: a job is complete exactly when it holds status
+//! `ok` for the same [`JobSpec`]. Starting a job first removes its folder, so what an
+//! earlier, interrupted or failed attempt left cannot pass for this one's outputs.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+
+use super::gpu_vs_cpu::{self, GpuVsCpu};
+use super::interrupt;
+use super::manifest::JobSpec;
+use crate::{Error, Result};
+
+/// The record's file name inside a job folder.
+pub const RECORD: &str = "job.json";
+/// The comparison's file name inside a job folder (jobs that ran both backends).
+pub const COMPARISON: &str = "comparison.json";
+/// The run outputs a backend's folder must hold for the job to count as complete.
+pub const RUN_OUTPUTS: [&str; 4] = ["trajectory.tum", "map.ply", "metrics.json", "frames.json"];
+/// The hidden `wgslam run` flag that makes it print `progress DONE TOTAL` lines on stdout.
+pub const PROGRESS_FLAG: &str = "--progress-lines";
+/// How often the job loop looks at the child and the interrupt flag.
+const POLL: Duration = Duration::from_millis(50);
+/// Lines of a failed run's log quoted in its error.
+const LOG_TAIL_LINES: usize = 6;
+
+/// Whether the job ran to the end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobStatus {
+    Ok,
+    Failed,
+}
+
+/// One backend's numbers, read from its `metrics.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunNumbers {
+    pub frames: u64,
+    pub map_points: u64,
+    /// Frames whose tracking was lost (not fused).
+    pub lost_frames: u64,
+    /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
+    /// ground truth), millimetres and degrees.
+    pub ate_rmse_mm: Option<f64>,
+    pub rpe_trans_rmse_mm: Option<f64>,
+    pub rpe_rot_rmse_deg: Option<f64>,
+    /// Pipeline time per frame (median), milliseconds; whole-run wall time, seconds.
+    pub time_per_frame_median_ms: f64,
+    pub wall_s: f64,
+    /// Peak resident memory of the run's process, MiB (None where the OS does not say).
+    pub peak_memory_mib: Option<f64>,
+}
+
+/// What `job.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobRecord {
+    /// The job's number in the manifest.
+    pub index: usize,
+    pub spec: JobSpec,
+    pub status: JobStatus,
+    /// Why the job failed (the first failing step, with the end of its log).
+    pub error: Option<String>,
+    /// Per backend that finished.
+    pub runs: BTreeMap<String, RunNumbers>,
+    /// With both backends finished.
+    pub gpu_vs_cpu: Option<GpuVsCpu>,
+    /// Wall time of the whole job, seconds.
+    pub wall_s: f64,
+}
+
+/// What became of a job this time.
+#[derive(Debug)]
+pub enum Outcome {
+    /// Its outputs were complete already; nothing ran.
+    Skipped(Box<JobRecord>),
+    /// It ran (successfully or not): the record written.
+    Ran(Box<JobRecord>),
+    /// Ctrl-C or SIGTERM: the run in flight was stopped; no record written.
+    Interrupted,
+}
+
+/// Where a batch's jobs live and how their runs are started.
+pub struct Runner {
+    /// This executable (`wgslam`), started as `wgslam run ...` per backend.
+    pub exe: PathBuf,
+    /// The batch folder.
+    pub out: PathBuf,
+    /// Whether a `wgslam run` option is a switch (`--bilateral`) rather than taking a value.
+    pub is_switch: fn(&str) -> bool,
+}
+
+impl Runner {
+    /// The folder of job `id`.
+    pub fn job_dir(&self, id: &str) -> PathBuf {
+        self.out.join("jobs").join(id)
+    }
+
+    /// The `wgslam run` arguments of one backend of `spec`, writing into `out`.
+    pub fn run_args(&self, spec: &JobSpec, backend: &str, out: &Path) -> Vec<String> {
+        let mut a = vec!["run".to_string(), spec.sequence.display().to_string()];
+        if let Some(f) = &spec.frames {
+            a.extend(["--frames".into(), f.clone()]);
+        }
+        a.extend([
+            "--downsample".into(),
+            spec.downsample.to_string(),
+            "--profile".into(),
+            spec.profile.clone(),
+            "--backend".into(),
+            backend.into(),
+        ]);
+        for (k, v) in &spec.overrides {
+            if (self.is_switch)(k) {
+                // A switch is on with `true` and left out with `false`.
+                if v == "true" {
+                    a.push(format!("--{k}"));
+                }
+            } else {
+                a.extend([format!("--{k}"), v.clone()]);
+            }
+        }
+        a.extend(["--out".into(), out.display().to_string()]);
+        a
+    }
+
+    /// The job's record when its outputs are complete for `spec`; otherwise why not.
+    pub fn completed(&self, spec: &JobSpec) -> std::result::Result<JobRecord, String> {
+        let dir = self.job_dir(&spec.id);
+        let path = dir.join(RECORD);
+        let text = std::fs::read_to_string(&path).map_err(|_| "not run yet".to_string())?;
+        let rec: JobRecord = serde_json::from_str(&text)
+            .map_err(|e| format!("{} unreadable ({e})", path.display()))?;
+        if rec.spec != *spec {
+            return Err("the manifest changed this job".into());
+        }
+        if rec.status != JobStatus::Ok {
+            return Err("failed last time".into());
+        }
+        for b in &spec.backends {
+            for f in RUN_OUTPUTS {
+                if !dir.join(b).join(f).is_file() {
+                    return Err(format!("{b}/{f} is missing"));
+                }
+            }
+        }
+        if spec.backends.len() == 2 && !dir.join(COMPARISON).is_file() {
+            return Err(format!("{COMPARISON} is missing"));
+        }
+        Ok(rec)
+    }
+
+    /// Runs job `index` unless complete; `progress(done, total)` follows the frames of the
+    /// run in flight.
+    pub fn run(
+        &self,
+        index: usize,
+        spec: &JobSpec,
+        progress: &dyn Fn(&str, u64, u64),
+    ) -> Result<Outcome> {
+        if let Ok(rec) = self.completed(spec) {
+            return Ok(Outcome::Skipped(Box::new(rec)));
+        }
+        let dir = self.job_dir(&spec.id);
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
+        }
+        std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
+        let start = Instant::now();
+        let mut rec = JobRecord {
+            index,
+            spec: spec.clone(),
+            status: JobStatus::Ok,
+            error: None,
+            runs: BTreeMap::new(),
+            gpu_vs_cpu: None,
+            wall_s: 0.0,
+        };
+        for backend in &spec.backends {
+            let out = dir.join(backend);
+            let log = dir.join(format!("{backend}.log"));
+            let args = self.run_args(spec, backend, &out);
+            match self.run_child(&args, &log, &|done, total| progress(backend, done, total))? {
+                ChildEnd::Interrupted => return Ok(Outcome::Interrupted),
+                ChildEnd::Exited(status) if status.success() => {
+                    match read_numbers(&out.join("metrics.json")) {
+                        Ok(n) => {
+                            rec.runs.insert(backend.clone(), n);
+                        }
+                        Err(e) => {
+                            rec.fail(format!("{backend} run: {e}"));
+                            break;
+                        }
+                    }
+                }
+                ChildEnd::Exited(status) => {
+                    rec.fail(format!(
+                        "{backend} run exited with {status}; end of {}:\n{}",
+                        log.display(),
+                        log_tail(&log)
+                    ));
+                    break;
+                }
+            }
+        }
+        if rec.status == JobStatus::Ok && spec.backends.len() == 2 {
+            match gpu_vs_cpu::compare_outputs(&dir.join("cpu"), &dir.join("gpu")) {
+                Ok(c) => {
+                    crate::tools::run::write_json(&dir.join(COMPARISON), &c)?;
+                    rec.gpu_vs_cpu = Some(c);
+                }
+                Err(e) => rec.fail(format!("GPU-vs-CPU comparison: {e}")),
+            }
+        }
+        if interrupt::requested() {
+            return Ok(Outcome::Interrupted);
+        }
+        rec.wall_s = start.elapsed().as_secs_f64();
+        crate::tools::run::write_json(&dir.join(RECORD), &rec)?;
+        Ok(Outcome::Ran(Box::new(rec)))
+    }
+
+    /// Starts `wgslam ARGS`, stdout and stderr into `log` (progress lines to `progress`),
+    /// and waits for it, killing it on an interrupt.
+    fn run_child(
+        &self,
+        args: &[String],
+        log: &Path,
+        progress: &dyn Fn(u64, u64),
+    ) -> Result<ChildEnd> {
+        let file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
+        let err_file = file.try_clone().map_err(|e| Error::write(log, e))?;
+        let mut cmd = Command::new(&self.exe);
+        cmd.args(args)
+            .arg(PROGRESS_FLAG)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(err_file);
+        let mut child = cmd.spawn().map_err(|e| Error::io(&self.exe, e))?;
+        let (tx, rx) = mpsc::channel();
+        let stdout = child.stdout.take().expect("stdout was piped");
+        let reader = std::thread::spawn(move || copy_output(stdout, file, tx));
+        let end = loop {
+            for (done, total) in rx.try_iter() {
+                progress(done, total);
+            }
+            if interrupt::requested() {
+                stop(&mut child);
+                break ChildEnd::Interrupted;
+            }
+            match child.try_wait() {
+                Ok(Some(status)) => break self.classify(status),
+                Ok(None) => std::thread::sleep(POLL),
+                Err(e) => {
+                    stop(&mut child);
+                    return Err(Error::io(&self.exe, e));
+                }
+            }
+        };
+        let _ = reader.join();
+        Ok(end)
+    }
+
+    /// A child that died of SIGINT or SIGTERM was interrupted with the batch (a terminal's
+    /// Ctrl-C reaches the whole process group), even if the flag is not set yet.
+    fn classify(&self, status: ExitStatus) -> ChildEnd {
+        #[cfg(unix)]
+        {
+            use std::os::unix::process::ExitStatusExt;
+            const SIGINT: i32 = 2;
+            const SIGTERM: i32 = 15;
+            if matches!(status.signal(), Some(SIGINT | SIGTERM)) {
+                return ChildEnd::Interrupted;
+            }
+        }
+        // The handler may run a moment after the child died of the same Ctrl-C.
+        if !status.success() {
+            std::thread::sleep(POLL * 2);
+            if interrupt::requested() {
+                return ChildEnd::Interrupted;
+            }
+        }
+        ChildEnd::Exited(status)
+    }
+}
+
+impl JobRecord {
+    fn fail(&mut self, why: String) {
+        self.status = JobStatus::Failed;
+        self.error = Some(why);
+    }
+}
+
+enum ChildEnd {
+    Exited(ExitStatus),
+    Interrupted,
+}
+
+fn stop(child: &mut Child) {
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Copies the child's stdout into its log, sending `progress DONE TOTAL` lines to `tx`
+/// instead.
+fn copy_output(
+    stdout: std::process::ChildStdout,
+    mut log: std::fs::File,
+    tx: mpsc::Sender<(u64, u64)>,
+) {
+    for line in BufReader::new(stdout).lines() {
+        let Ok(line) = line else { break };
+        let mut words = line.split_whitespace();
+        if words.next() == Some("progress") {
+            if let (Some(Ok(d)), Some(Ok(t))) =
+                (words.next().map(str::parse), words.next().map(str::parse))
+            {
+                let _ = tx.send((d, t));
+                continue;
+            }
+        }
+        let _ = writeln!(log, "{line}");
+    }
+}
+
+/// The last lines of a log, for an error message.
+fn log_tail(log: &Path) -> String {
+    let text = std::fs::read_to_string(log).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    let from = lines.len().saturating_sub(LOG_TAIL_LINES);
+    lines[from..].join("\n")
+}
+
+/// A run's numbers from its `metrics.json`.
+pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let m: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not JSON: {e}")))?;
+    let num = |v: &serde_json::Value, what: &str| {
+        v.as_f64()
+            .ok_or_else(|| Error::format(path, format!("no number `{what}`")))
+    };
+    let acc = &m["accuracy"];
+    let opt = |k: &str, scale: f64| acc[k].as_f64().map(|x| x * scale);
+    Ok(RunNumbers {
+        frames: num(&m["frames"], "frames")? as u64,
+        map_points: num(&m["map_points"], "map_points")? as u64,
+        lost_frames: num(&m["tracking"]["lost"], "tracking.lost")? as u64,
+        ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
+        rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
+        rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
+        time_per_frame_median_ms: num(&m["time_per_frame_median_s"], "time_per_frame_median_s")?
+            * 1e3,
+        wall_s: num(&m["wall_total_s"], "wall_total_s")?,
+        peak_memory_mib: m["peak_memory_mib"].as_f64(),
+    })
+}

@@ -1,0 +1,406 @@
+//! Batch manifests: a TOML file of jobs and grids, expanded into a numbered job list.
+//!
+//! ```toml
+//! output = "batch-out"            # the batch folder, relative to this file's folder
+//! [defaults]                      # every job's values unless the job sets its own
+//! frames = "1..60"                # as `wgslam run --frames` (absent: the run's default)
+//! downsample = 2
+//! profile = "robust"              # robust | assignment
+//! backend = "both"                # cpu | gpu | both (both adds the GPU-vs-CPU comparison)
+//! [defaults.overrides]            # any other `wgslam run` option, without the dashes
+//! icp-dist = 0.1
+//!
+//! [[job]]                         # one job
+//! name = "bundled"                # its id (default: made from its values)
+//! sequence = "assets/icl_living_room_kt2"
+//!
+//! [[grid]]                        # every combination of its list values is a job
+//! name = "icl"
+//! sequence = ["data/kt2", "data/kt2_noisy"]
+//! profile = ["robust", "assignment"]
+//! overrides = { icp-dist = [0.08, 0.1] }
+//! ```
+//!
+//! Jobs are numbered from 0: the `[[job]]` tables in file order, then each `[[grid]]`'s
+//! combinations (sequence, frames, downsample, profile, backend, then the overrides by
+//! name, the last varying fastest). The numbers are what `--index`, `--shard` and the
+//! schedulers' array indices pick. Relative sequence paths are taken from the manifest's
+//! folder, so a manifest means the same jobs wherever it is run from.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// One expanded job: what `wgslam run` is asked to do, once per backend.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobSpec {
+    /// Unique within the manifest; the job's folder name.
+    pub id: String,
+    /// Sequence folder (relative paths already joined to the manifest's folder).
+    pub sequence: PathBuf,
+    /// `--frames` value, or `None` for the run's default range.
+    pub frames: Option<String>,
+    /// `--downsample` value.
+    pub downsample: u32,
+    /// `--profile` value: `robust` or `assignment`.
+    pub profile: String,
+    /// Backends to run, each into its own subfolder: `["cpu"]`, `["gpu"]` or both.
+    pub backends: Vec<String>,
+    /// Further `wgslam run` options, `(name without dashes, value)`, sorted by name.
+    pub overrides: Vec<(String, String)>,
+}
+
+/// A parsed manifest: where its outputs go by default and its jobs in index order.
+#[derive(Debug, Clone)]
+pub struct Manifest {
+    /// The manifest file.
+    pub path: PathBuf,
+    /// Its `output` key (joined to its folder), if any.
+    pub output: Option<PathBuf>,
+    pub jobs: Vec<JobSpec>,
+}
+
+/// Options the batch sets itself for every job; an override may not set them.
+pub const RESERVED_OPTIONS: [&str; 6] =
+    ["frames", "downsample", "profile", "backend", "out", "poses"];
+
+/// Backend names a job may ask for.
+const BACKENDS: [&str; 2] = ["cpu", "gpu"];
+/// Profile names (those of `wgslam run --profile`).
+const PROFILES: [&str; 2] = ["robust", "assignment"];
+
+/// Defaults of values neither the job nor `[defaults]` sets (those of `wgslam run`,
+/// but for the backend: a batch checks the GPU against the CPU unless told otherwise).
+const DEFAULT_DOWNSAMPLE: u32 = 2;
+const DEFAULT_PROFILE: &str = "robust";
+const DEFAULT_BACKEND: &str = "both";
+
+/// A scalar or a list of scalars (a grid axis). `Many` first: an untagged enum takes the
+/// first variant that fits, and a list fits a `toml::Value` too.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+enum OneOrMany<T> {
+    Many(Vec<T>),
+    One(T),
+}
+
+impl<T: Clone> OneOrMany<T> {
+    fn len(&self) -> usize {
+        match self {
+            OneOrMany::One(_) => 1,
+            OneOrMany::Many(v) => v.len(),
+        }
+    }
+
+    fn values(&self) -> Vec<T> {
+        match self {
+            OneOrMany::One(v) => vec![v.clone()],
+            OneOrMany::Many(v) => v.clone(),
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileToml {
+    output: Option<PathBuf>,
+    #[serde(default)]
+    defaults: Fields,
+    #[serde(default)]
+    job: Vec<Fields>,
+    #[serde(default)]
+    grid: Vec<Fields>,
+}
+
+/// The fields of a `[[job]]`, `[[grid]]` or `[defaults]` table; lists only in a grid.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Fields {
+    name: Option<String>,
+    sequence: Option<OneOrMany<PathBuf>>,
+    frames: Option<OneOrMany<String>>,
+    downsample: Option<OneOrMany<u32>>,
+    profile: Option<OneOrMany<String>>,
+    backend: Option<OneOrMany<String>>,
+    #[serde(default)]
+    overrides: BTreeMap<String, OneOrMany<toml::Value>>,
+}
+
+impl Fields {
+    /// Each field's number of values, by axis name (`override:NAME` for overrides).
+    fn axis_lengths(&self) -> Vec<(String, usize)> {
+        let mut v: Vec<(String, usize)> = [
+            ("sequence", self.sequence.as_ref().map(OneOrMany::len)),
+            ("frames", self.frames.as_ref().map(OneOrMany::len)),
+            ("downsample", self.downsample.as_ref().map(OneOrMany::len)),
+            ("profile", self.profile.as_ref().map(OneOrMany::len)),
+            ("backend", self.backend.as_ref().map(OneOrMany::len)),
+        ]
+        .into_iter()
+        .filter_map(|(k, l)| l.map(|l| (k.to_string(), l)))
+        .collect();
+        v.extend(
+            self.overrides
+                .iter()
+                .map(|(k, a)| (format!("override:{k}"), a.len())),
+        );
+        v
+    }
+}
+
+/// One job's values before validation, every field resolved against `[defaults]`.
+#[derive(Debug, Clone)]
+struct Combination {
+    sequence: Option<PathBuf>,
+    frames: Option<String>,
+    downsample: u32,
+    profile: String,
+    backend: String,
+    overrides: BTreeMap<String, toml::Value>,
+}
+
+impl Manifest {
+    /// Reads and expands `path`; every error names the manifest and, where it can, the job.
+    pub fn read(path: &Path) -> Result<Manifest> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Manifest::parse(path, &text)
+    }
+
+    /// Parses manifest `text` as if read from `path` (relative paths join its folder).
+    pub fn parse(path: &Path, text: &str) -> Result<Manifest> {
+        let file: FileToml = toml::from_str(text)
+            .map_err(|e| Error::format(path, format!("not a batch manifest: {e}")))?;
+        let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        let d = &file.defaults;
+        single_valued(path, "[defaults]", d)?;
+        if d.name.is_some() {
+            return Err(Error::format(
+                path,
+                "[defaults] cannot set a name: names are per job",
+            ));
+        }
+        let base = Combination {
+            sequence: None,
+            frames: None,
+            downsample: DEFAULT_DOWNSAMPLE,
+            profile: DEFAULT_PROFILE.into(),
+            backend: DEFAULT_BACKEND.into(),
+            overrides: BTreeMap::new(),
+        };
+        let base = expand(&base, d).remove(0);
+        let mut jobs = Vec::new();
+        for (k, j) in file.job.iter().enumerate() {
+            let origin = format!("[[job]] number {}", k + 1);
+            single_valued(path, &origin, j)?;
+            let c = expand(&base, j).remove(0);
+            let id = match &j.name {
+                Some(n) => n.clone(),
+                None => generated_id(None, &c, &all_axes(&c)),
+            };
+            jobs.push(resolve(path, &dir, &id, &c, &origin)?);
+        }
+        for (k, g) in file.grid.iter().enumerate() {
+            let origin = format!("[[grid]] number {}", k + 1);
+            let lengths = g.axis_lengths();
+            if let Some((axis, _)) = lengths.iter().find(|(_, n)| *n == 0) {
+                return Err(Error::format(
+                    path,
+                    format!("{origin}: `{axis}` is an empty list"),
+                ));
+            }
+            let varying = lengths
+                .into_iter()
+                .filter(|(_, n)| *n > 1)
+                .map(|(a, _)| a)
+                .collect();
+            for c in expand(&base, g) {
+                let id = generated_id(g.name.as_deref(), &c, &varying);
+                jobs.push(resolve(path, &dir, &id, &c, &origin)?);
+            }
+        }
+        if jobs.is_empty() {
+            return Err(Error::format(
+                path,
+                "no jobs: add a [[job]] or a [[grid]] table",
+            ));
+        }
+        let mut seen = BTreeSet::new();
+        for j in &jobs {
+            if !seen.insert(j.id.as_str()) {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "two jobs have the id {:?}: give them different `name`s",
+                        j.id
+                    ),
+                ));
+            }
+        }
+        Ok(Manifest {
+            path: path.to_path_buf(),
+            output: file.output.map(|o| dir.join(o)),
+            jobs,
+        })
+    }
+}
+
+/// Lists belong in a `[[grid]]`: a `[[job]]` or `[defaults]` with one is an error.
+fn single_valued(path: &Path, origin: &str, t: &Fields) -> Result<()> {
+    match t.axis_lengths().into_iter().find(|(_, n)| *n != 1) {
+        Some((axis, _)) => Err(Error::format(
+            path,
+            format!("{origin}: `{axis}` is a list; lists make a grid, use a [[grid]] table"),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Every combination of a table's values over `base`, in index order (the last field
+/// varying fastest); one combination for a table without lists.
+fn expand(base: &Combination, t: &Fields) -> Vec<Combination> {
+    fn axis<T: Clone>(
+        combos: Vec<Combination>,
+        values: Option<&OneOrMany<T>>,
+        set: impl Fn(&mut Combination, T),
+    ) -> Vec<Combination> {
+        let Some(values) = values else {
+            return combos;
+        };
+        let mut out = Vec::new();
+        for c in combos {
+            for v in values.values() {
+                let mut c = c.clone();
+                set(&mut c, v);
+                out.push(c);
+            }
+        }
+        out
+    }
+    let mut out = vec![base.clone()];
+    out = axis(out, t.sequence.as_ref(), |c, v| c.sequence = Some(v));
+    out = axis(out, t.frames.as_ref(), |c, v| c.frames = Some(v));
+    out = axis(out, t.downsample.as_ref(), |c, v| c.downsample = v);
+    out = axis(out, t.profile.as_ref(), |c, v| c.profile = v);
+    out = axis(out, t.backend.as_ref(), |c, v| c.backend = v);
+    for (name, values) in &t.overrides {
+        out = axis(out, Some(values), |c, v| {
+            c.overrides.insert(name.clone(), v);
+        });
+    }
+    out
+}
+
+/// Every field of a job (an unnamed `[[job]]` is named by all its values).
+fn all_axes(c: &Combination) -> BTreeSet<String> {
+    let mut v: BTreeSet<String> = ["sequence", "frames", "downsample", "profile", "backend"]
+        .into_iter()
+        .map(String::from)
+        .collect();
+    v.extend(c.overrides.keys().map(|k| format!("override:{k}")));
+    v
+}
+
+/// `prefix-value-value...`: the grid's name (or the sequence's folder name) and the values
+/// of `axes`, in index order, reduced to `[A-Za-z0-9._=-]`.
+fn generated_id(prefix: Option<&str>, c: &Combination, axes: &BTreeSet<String>) -> String {
+    let seq_name = c
+        .sequence
+        .as_ref()
+        .and_then(|s| s.file_name())
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "sequence".into());
+    let mut parts = vec![prefix.map(String::from).unwrap_or_else(|| seq_name.clone())];
+    let has = |a: &str| axes.contains(a);
+    if has("sequence") && prefix.is_some() {
+        parts.push(seq_name);
+    }
+    if has("frames") {
+        parts.push(format!("f{}", c.frames.as_deref().unwrap_or("all")));
+    }
+    if has("downsample") {
+        parts.push(format!("ds{}", c.downsample));
+    }
+    if has("profile") {
+        parts.push(c.profile.clone());
+    }
+    if has("backend") {
+        parts.push(c.backend.clone());
+    }
+    for (k, v) in &c.overrides {
+        if has(&format!("override:{k}")) {
+            parts.push(format!("{k}={}", option_value(v).unwrap_or_default()));
+        }
+    }
+    parts
+        .join("-")
+        .chars()
+        .map(|ch| {
+            if ch.is_ascii_alphanumeric() || "._=-".contains(ch) {
+                ch
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// A TOML scalar as a command-line value (`None` for tables, arrays and dates).
+fn option_value(v: &toml::Value) -> Option<String> {
+    match v {
+        toml::Value::String(s) => Some(s.clone()),
+        toml::Value::Integer(i) => Some(i.to_string()),
+        toml::Value::Float(f) => Some(f.to_string()),
+        toml::Value::Boolean(b) => Some(b.to_string()),
+        _ => None,
+    }
+}
+
+/// Checks a combination's values and makes its [`JobSpec`].
+fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> Result<JobSpec> {
+    let bad = |what: String| Error::format(path, format!("{origin} ({id}): {what}"));
+    if id.is_empty() || id.starts_with('.') || id.contains(['/', '\\']) {
+        return Err(bad(format!("the job name {id:?} cannot be a folder name")));
+    }
+    let Some(sequence) = &c.sequence else {
+        return Err(bad(
+            "no `sequence` (set it in the job or in [defaults])".into()
+        ));
+    };
+    if !PROFILES.contains(&c.profile.as_str()) {
+        return Err(bad(format!(
+            "profile {:?}: want one of {PROFILES:?}",
+            c.profile
+        )));
+    }
+    let backends: Vec<String> = match c.backend.as_str() {
+        "both" => BACKENDS.iter().map(|b| b.to_string()).collect(),
+        b if BACKENDS.contains(&b) => vec![b.to_string()],
+        b => return Err(bad(format!("backend {b:?}: want cpu, gpu or both"))),
+    };
+    if c.downsample == 0 {
+        return Err(bad("downsample must be at least 1".into()));
+    }
+    let mut overrides = Vec::new();
+    for (k, v) in &c.overrides {
+        if RESERVED_OPTIONS.contains(&k.as_str()) {
+            return Err(bad(format!(
+                "override {k:?} is a job field or set by the batch; set it as a field, not an override"
+            )));
+        }
+        let value = option_value(v)
+            .ok_or_else(|| bad(format!("override {k:?}: want a string, number or boolean")))?;
+        overrides.push((k.clone(), value));
+    }
+    Ok(JobSpec {
+        id: id.to_string(),
+        sequence: dir.join(sequence),
+        frames: c.frames.clone(),
+        downsample: c.downsample,
+        profile: c.profile.clone(),
+        backends,
+        overrides,
+    })
+}

@@ -1,0 +1,306 @@
+//! `wgslam batch`: argument parsing and printing for the batch layer ([`crate::batch`]).
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, CommandFactory, Parser, Subcommand};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+
+use crate::batch::job::{Outcome, Runner};
+use crate::batch::manifest::Manifest;
+use crate::batch::select::{self, Selection};
+use crate::batch::summary::{self, Summary};
+use crate::batch::{interrupt, report};
+use crate::{Error, Result};
+
+/// `wgslam batch MANIFEST` runs a manifest's jobs; `list`, `collect` and `diff` inspect
+/// manifests and batch folders.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct BatchArgs {
+    #[command(subcommand)]
+    pub action: Option<BatchAction>,
+    #[command(flatten)]
+    pub run: BatchRunArgs,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BatchAction {
+    /// Print the manifest's jobs, one line each: index, id, and the `wgslam run` commands.
+    List { manifest: PathBuf },
+    /// Write DIR/summary.csv, DIR/summary.json and DIR/report.html from the jobs that have
+    /// finished (the others listed as pending).
+    Collect { dir: PathBuf },
+    /// Compare two batches' numbers job by job (status, frames, map size, lost frames, ATE,
+    /// RPE, GPU-vs-CPU differences; not times or memory); exits non-zero if any differ.
+    /// A and B: batch folders or summary.json files.
+    Diff { a: PathBuf, b: PathBuf },
+}
+
+#[derive(Debug, Args)]
+pub struct BatchRunArgs {
+    /// The manifest (TOML): jobs and grids of sequence, frames, downsample, profile,
+    /// backend (cpu, gpu, both) and `wgslam run` option overrides (README: Batch runs).
+    #[arg(required = true)]
+    pub manifest: Option<PathBuf>,
+    /// Batch folder (default: the manifest's `output`, relative to the manifest).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Run only the jobs whose index is I modulo N ("I/N", 0-based).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+    /// Run only job I (as a scheduler array task would; default from SLURM_ARRAY_TASK_ID or
+    /// JOB_COMPLETION_INDEX, with SLURM_ARRAY_TASK_COUNT or WGSLAM_SHARD_COUNT as the
+    /// number of shards when set).
+    #[arg(long, value_name = "I")]
+    pub index: Option<usize>,
+    /// Print the jobs this invocation would run (and skip), and run nothing.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+/// Runs `wgslam batch ...`.
+pub fn execute(a: BatchArgs) -> Result<()> {
+    match a.action {
+        Some(BatchAction::List { manifest }) => list(&manifest),
+        Some(BatchAction::Collect { dir }) => collect(&dir).map(|_| ()),
+        Some(BatchAction::Diff { a, b }) => diff(&a, &b),
+        None => run(a.run),
+    }
+}
+
+/// Whether `wgslam run --NAME` is a switch (no value).
+fn is_run_switch(name: &str) -> bool {
+    let cmd = crate::cli::Cli::command();
+    cmd.find_subcommand("run")
+        .and_then(|run| run.get_arguments().find(|a| a.get_long() == Some(name)))
+        .is_some_and(|a| matches!(a.get_action(), clap::ArgAction::SetTrue))
+}
+
+fn runner(out: PathBuf) -> Result<Runner> {
+    Ok(Runner {
+        exe: std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?,
+        out,
+        is_switch: is_run_switch,
+    })
+}
+
+/// Reads a manifest and checks every job's `wgslam run` command line parses (so a typo in
+/// an override fails before the first job, naming the job).
+fn read_checked(path: &Path) -> Result<Manifest> {
+    let m = Manifest::read(path)?;
+    let r = runner(PathBuf::from("out"))?;
+    for job in &m.jobs {
+        for b in &job.backends {
+            let args = r.run_args(job, b, Path::new("out"));
+            if let Err(e) =
+                crate::cli::Cli::try_parse_from(std::iter::once("wgslam".to_string()).chain(args))
+            {
+                let msg = e.to_string();
+                let first = msg.lines().next().unwrap_or_default();
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "job {:?}: its `wgslam run` options do not parse: {first}",
+                        job.id
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(m)
+}
+
+fn list(path: &Path) -> Result<()> {
+    let m = read_checked(path)?;
+    let r = runner(m.output.clone().unwrap_or_else(|| PathBuf::from("OUT")))?;
+    for (i, job) in m.jobs.iter().enumerate() {
+        println!("{i:4}  {}", job.id);
+        for b in &job.backends {
+            let args = r.run_args(job, b, &r.job_dir(&job.id).join(b));
+            println!("        wgslam {}", args.join(" "));
+        }
+    }
+    println!(
+        "{} jobs (array indices 0..={}; Slurm: --array=0-{})",
+        m.jobs.len(),
+        m.jobs.len() - 1,
+        m.jobs.len() - 1
+    );
+    Ok(())
+}
+
+fn run(a: BatchRunArgs) -> Result<()> {
+    let path = a
+        .manifest
+        .as_deref()
+        .ok_or_else(|| Error::Argument("no manifest given".into()))?;
+    let m = read_checked(path)?;
+    let out = a.out.clone().or_else(|| m.output.clone()).ok_or_else(|| {
+        Error::Argument("no batch folder: set `output` in the manifest or pass --out DIR".into())
+    })?;
+    let chosen = select::choose(a.shard.as_deref(), a.index, m.jobs.len(), |v| {
+        std::env::var(v).ok()
+    })?;
+    chosen.selection.check(m.jobs.len())?;
+    let picked: Vec<usize> = (0..m.jobs.len())
+        .filter(|&i| chosen.selection.picks(i))
+        .collect();
+    eprintln!(
+        "batch {}: {} of {} jobs ({}) into {}",
+        path.display(),
+        picked.len(),
+        m.jobs.len(),
+        match chosen.selection {
+            Selection::All => "all".to_string(),
+            Selection::Shard { index, count } =>
+                format!("index {index} of {count}, from {}", chosen.source),
+        },
+        out.display()
+    );
+    let r = runner(out.clone())?;
+    if a.dry_run {
+        for &i in &picked {
+            let job = &m.jobs[i];
+            let state = match r.completed(job) {
+                Ok(_) => "complete, would skip".to_string(),
+                Err(why) => format!("would run ({why})"),
+            };
+            println!("{i:4}  {}: {state}", job.id);
+        }
+        return Ok(());
+    }
+    summary::write_plan(&out, &m)?;
+    interrupt::install();
+    let multi = MultiProgress::new();
+    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let batch_bar = multi.add(ProgressBar::new(picked.len() as u64));
+    batch_bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} jobs {msg}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let job_bar = multi.add(ProgressBar::new(0));
+    job_bar.set_style(
+        ProgressStyle::with_template("  {msg} [{bar:30}] {pos}/{len} frames")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let say = |line: String| {
+        if tty {
+            let _ = multi.println(line);
+        } else {
+            eprintln!("{line}");
+        }
+    };
+    let (mut failed, mut interrupted) = (Vec::new(), None);
+    for (k, &i) in picked.iter().enumerate() {
+        let job = &m.jobs[i];
+        batch_bar.set_message(job.id.clone());
+        let progress = |backend: &str, done: u64, total: u64| {
+            job_bar.set_message(format!("{} {backend}", job.id));
+            job_bar.set_length(total);
+            job_bar.set_position(done);
+        };
+        let tag = format!("[{}/{}] job {i} {}", k + 1, picked.len(), job.id);
+        if !tty {
+            eprintln!("{tag}: starting");
+        }
+        match r.run(i, job, &progress)? {
+            Outcome::Skipped(_) => say(format!("{tag}: outputs complete, skipped")),
+            Outcome::Ran(rec) => match &rec.error {
+                None => say(format!("{tag}: ok in {:.1} s", rec.wall_s)),
+                Some(e) => {
+                    say(format!("{tag}: FAILED: {e}"));
+                    failed.push(job.id.clone());
+                }
+            },
+            Outcome::Interrupted => {
+                interrupted = Some(job.id.clone());
+                break;
+            }
+        }
+        batch_bar.inc(1);
+    }
+    job_bar.finish_and_clear();
+    batch_bar.finish_and_clear();
+    if let Some(id) = interrupted {
+        return Err(Error::Interrupted(format!(
+            "job {id} was stopped and left unfinished (no job.json); finished jobs keep their \
+             records; run the same command again to resume"
+        )));
+    }
+    let s = collect(&out)?;
+    if !failed.is_empty() {
+        return Err(Error::Batch(format!(
+            "{} of {} jobs failed: {} (their errors are in summary.csv and their job.json)",
+            failed.len(),
+            picked.len(),
+            failed.join(", ")
+        )));
+    }
+    if s.pending > 0 {
+        eprintln!(
+            "note: {} jobs of the manifest are not finished yet (other shards?)",
+            s.pending
+        );
+    }
+    Ok(())
+}
+
+/// Collects, writes the summaries and the report, and prints the table.
+fn collect(dir: &Path) -> Result<Summary> {
+    let s = summary::collect(dir)?;
+    summary::write(dir, &s)?;
+    report::write(dir, &s)?;
+    println!(
+        "{:>4}  {:<40} {:>8} {:>10} {:>10} {:>9} {:>9}",
+        "#", "job", "status", "cpu ATE mm", "gpu ATE mm", "cpu ms/f", "gpu ms/f"
+    );
+    for r in &s.rows {
+        let n = |b: &str| r.record.as_ref().and_then(|rec| rec.runs.get(b));
+        let f =
+            |x: Option<f64>, d: usize| x.map(|v| format!("{v:.d$}")).unwrap_or_else(|| "-".into());
+        println!(
+            "{:>4}  {:<40} {:>8} {:>10} {:>10} {:>9} {:>9}",
+            r.index,
+            r.id,
+            r.status,
+            f(n("cpu").and_then(|n| n.ate_rmse_mm), 3),
+            f(n("gpu").and_then(|n| n.ate_rmse_mm), 3),
+            f(n("cpu").map(|n| n.time_per_frame_median_ms), 1),
+            f(n("gpu").map(|n| n.time_per_frame_median_ms), 1),
+        );
+    }
+    println!(
+        "{} jobs: {} ok, {} failed, {} pending; wrote {}/{{summary.csv, summary.json, report.html}}",
+        s.jobs,
+        s.ok,
+        s.failed,
+        s.pending,
+        dir.display()
+    );
+    Ok(s)
+}
+
+fn diff(a: &Path, b: &Path) -> Result<()> {
+    let (sa, sb) = (summary::load(a)?, summary::load(b)?);
+    let d = summary::diff(&sa, &sb);
+    if d.is_empty() {
+        println!(
+            "equal: {} jobs, the same status and numbers in {} and {}",
+            sa.rows.len(),
+            a.display(),
+            b.display()
+        );
+        return Ok(());
+    }
+    for line in &d {
+        println!("differs: {line}");
+    }
+    Err(Error::Batch(format!(
+        "{} jobs differ between {} and {}",
+        d.len(),
+        a.display(),
+        b.display()
+    )))
+}
