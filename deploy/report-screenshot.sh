@@ -2,7 +2,7 @@
 # Screenshot of a batch's report (DIR/report.html, from `wgslam batch collect DIR`) with
 # headless Chromium, offline: every host name resolves to nothing, so the PNG shows only
 # what the report carries itself. Also fails if the HTML loads anything from the network
-# (an http(s):// URL in a src=, href= of a <link>, or CSS url()).
+# (an http(s):// or //host URL in a src=, a <link href=>, CSS url() or @import).
 #
 # Usage: deploy/report-screenshot.sh DIR OUT.png [WIDTHxHEIGHT]   [1600x2400]
 # Installs Debian's chromium package when no chromium is on PATH (root only).
@@ -21,12 +21,46 @@ size=${3:-1600x2400}
 }
 
 # 1. No network: the report must be self-contained (inline CSS, data: images, no CDN).
-remote=$(grep -noiE '(<(script|img|iframe|source|video|audio|embed)[^>]*[[:space:]]src|<link[^>]*[[:space:]]href)[[:space:]]*=[[:space:]]*["'"'"']?[[:space:]]*(https?:)?//[^"'"'"' >]*|url\([[:space:]]*["'"'"']?(https?:)?//[^)]*\)|@import[^;]*//' "$report" || true)
-if [[ -n $remote ]]; then
-  echo "report-screenshot: $report loads from the network:" >&2
-  echo "$remote" >&2
-  exit 1
-fi
+# An HTML parser, not a regex: the report inlines megabytes of base64 images on one line.
+python3 - "$report" <<'PY' || exit 1
+import html.parser, re, sys
+
+# Attributes that make a browser fetch something, by tag (<a href> is only a link).
+LOADS = {"script": ["src"], "img": ["src", "srcset"], "iframe": ["src"], "frame": ["src"],
+         "source": ["src", "srcset"], "video": ["src", "poster"], "audio": ["src"],
+         "embed": ["src"], "object": ["data"], "input": ["src"], "track": ["src"],
+         "link": ["href"], "image": ["href", "xlink:href"], "use": ["href", "xlink:href"]}
+REMOTE = re.compile(r"^\s*(https?:|ftp:)?//", re.I)
+CSS_REMOTE = re.compile(r"(url\(\s*[\"']?\s*|@import\s+[\"']?)((https?:)?//[^\"')\s;]*)", re.I)
+
+class Check(html.parser.HTMLParser):
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.found, self.in_style = [], False
+    def handle_starttag(self, tag, attrs):
+        for name, value in attrs:
+            value = value or ""
+            if name in LOADS.get(tag, []) and any(REMOTE.match(v.split()[0]) for v in value.split(",") if v.strip()):
+                self.found.append(f"line {self.getpos()[0]}: <{tag} {name}={value[:100]!r}>")
+            if name == "style":
+                self.css(value)
+        self.in_style = tag == "style"
+    def handle_endtag(self, tag):
+        self.in_style = False
+    def handle_data(self, data):
+        if self.in_style:
+            self.css(data)
+    def css(self, text):
+        for m in CSS_REMOTE.finditer(text):
+            self.found.append(f"line {self.getpos()[0]}: CSS {m.group(2)[:100]}")
+
+c = Check()
+with open(sys.argv[1], encoding="utf-8", errors="replace") as f:
+    c.feed(f.read())
+if c.found:
+    print(f"report-screenshot: {sys.argv[1]} loads from the network:", *c.found, sep="\n", file=sys.stderr)
+    sys.exit(1)
+PY
 
 # 2. Chromium from Debian's packages.
 browser=$(command -v chromium || command -v chromium-browser || true)

@@ -121,7 +121,7 @@ fn table_rows(h: &mut String, r: &Row) {
                 c.map(|c| format!("{:.3} / {:.4}", c.pose_max_mm, c.pose_max_deg))
                     .unwrap_or_else(|| "-".into()),
                 c.map(|c| format!(
-                    "{:.3} % ({} mm)",
+                    "{:.3} % ({:.1} mm)",
                     c.map_unmatched_fraction * 100.0,
                     c.map_match_radius_m * 1e3
                 ))
