@@ -2,13 +2,16 @@
 # Proof that the Slurm array scripts work: brings up a throw-away single-node Slurm
 # cluster on THIS machine (Debian's slurm-wlm and munge packages, daemons started by hand,
 # no systemd, no cgroups, no slurmdbd), submits deploy/manifests/proof.toml as a job array
-# with deploy/slurm/submit.sh, waits for it and for the dependent collect job, runs the
-# same manifest as one plain local `wgslam batch`, and checks that `wgslam batch diff`
-# finds the two outputs equal. The daemons are stopped on exit, whatever happens.
+# with deploy/slurm/submit.sh, waits for it and for the dependent collect job, resubmits
+# it (every job must then be skipped as complete), runs the same manifest as one plain
+# local `wgslam batch`, and checks that `wgslam batch diff` finds the two outputs equal. The daemons are stopped on exit, whatever happens.
 #
 # Usage (as root, from anywhere):
 #   deploy/slurm/prove-single-node.sh               # the whole proof
 #   deploy/slurm/prove-single-node.sh --smoke-only  # bring-up + `sbatch --array=0-3 --wrap`
+#   deploy/slurm/prove-single-node.sh --up    # the same, and leave the cluster running
+#                                             # (prints the SLURM_CONF to export)
+#   deploy/slurm/prove-single-node.sh --down  # stop a cluster left running by --up
 #
 # Environment (all optional):
 #   WGSLAM_PROOF_DIR   scratch folder, wiped at the start  [/tmp/wgslam-slurm-proof]
@@ -22,11 +25,16 @@
 # through the pid files in WGSLAM_PROOF_DIR and stopped before the folder is wiped.
 set -euo pipefail
 
-SMOKE_ONLY=0
+SMOKE_ONLY=0 KEEP_UP=0
 case "${1:-}" in
   --smoke-only) SMOKE_ONLY=1 ;;
+  --up) SMOKE_ONLY=1 KEEP_UP=1 ;;
+  --down) DOWN_ONLY=1 ;;
   "") ;;
-  *) echo "usage: $0 [--smoke-only]" >&2; exit 2 ;;
+  *)
+    echo "usage: $0 [--smoke-only | --up | --down]" >&2
+    exit 2
+    ;;
 esac
 
 REPO=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -53,7 +61,8 @@ need=()
 for pair in slurmctld:slurm-wlm slurmd:slurm-wlm sbatch:slurm-wlm munged:munge; do
   command -v "${pair%%:*}" >/dev/null || need+=("${pair#*:}")
 done
-if ((${#need[@]})); then
+mapfile -t need < <(printf '%s\n' "${need[@]}" | sort -u | grep .)
+if ((${#need[@]})) && [[ -z ${DOWN_ONLY:-} ]]; then
   log "installing ${need[*]} from Debian's packages"
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq || fail "apt-get update"
@@ -89,6 +98,10 @@ stop_daemons() {
 }
 on_exit() {
   local rc=$?
+  if ((KEEP_UP && rc == 0)); then
+    log "cluster left running: export SLURM_CONF=$SLURM_CONF; stop it with $0 --down"
+    return
+  fi
   stop_daemons
   if ((rc != 0)); then
     echo "--- logs under $WORK/log (last lines) ---" >&2
@@ -97,6 +110,10 @@ on_exit() {
   log "daemons stopped; exit $rc (total $(elapsed "$T0") s)"
 }
 stop_daemons
+if [[ -n ${DOWN_ONLY:-} ]]; then
+  log "stopped what ran from $WORK"
+  exit 0
+fi
 rm -rf "$WORK"
 mkdir -p "$WORK"
 chmod 700 "$WORK"
@@ -251,6 +268,8 @@ export WGSLAM_BIN
 BUILD_S=$(elapsed "$t")
 "$WGSLAM_BIN" batch list "$MANIFEST" >"$WORK/list.txt" \
   || fail "$WGSLAM_BIN batch list $MANIFEST (does this binary have the batch command?)"
+N_JOBS=$(awk '/^[0-9]+ jobs?( |$)/ { print $1 }' "$WORK/list.txt")
+[[ -n $N_JOBS ]] || fail "no 'N jobs' line in 'wgslam batch list' (see $WORK/list.txt)"
 log "binary ready ($BUILD_S s): $(tail -n 1 "$WORK/list.txt")"
 
 # GPU (lavapipe) jobs need a runtime dir; the sbatch script makes one if it is unset.
@@ -281,9 +300,24 @@ all_completed "$collect" || fail "collect job $collect failed (log: $SLURM_OUT/s
 for f in summary.csv summary.json report.html; do
   [[ -s $SLURM_OUT/$f ]] || fail "collect job wrote no $SLURM_OUT/$f"
 done
-log "array $array ($(grep -c . "$WORK/array-states.txt") jobs incl. collect) all COMPLETED 0:0 ($SLURM_S s)"
+log "array $array ($N_JOBS tasks) and collect job $collect all COMPLETED 0:0 ($SLURM_S s)"
 
-# --- 8. the same manifest as one plain local batch, and the diff -------------------------
+# --- 8. resubmitting the same array skips every job (outputs complete) ------------------
+t=$(date +%s.%N)
+"$REPO/deploy/slurm/submit.sh" "$MANIFEST" "$SLURM_OUT" | tee "$WORK/resubmit.txt" \
+  || fail "deploy/slurm/submit.sh (resubmission)"
+array2=$(awk '/^array job/ { print $3 }' "$WORK/resubmit.txt")
+collect2=$(awk '/^collect job/ { print $3 }' "$WORK/resubmit.txt")
+wait_jobs "$TIMEOUT_S" "$array2" "$collect2"
+all_completed "$array2" || fail "resubmitted array $array2: some task failed"
+all_completed "$collect2" || fail "resubmitted collect job $collect2 failed"
+skipped=$(cat "$SLURM_OUT/slurm-logs/batch-${array2}"_*.out | grep -c 'outputs complete, skipped' || true)
+((skipped == N_JOBS)) \
+  || fail "resubmitted array $array2: $skipped of $N_JOBS jobs skipped as complete"
+RESUBMIT_S=$(elapsed "$t")
+log "resubmitted array $array2: all $skipped jobs skipped as complete ($RESUBMIT_S s)"
+
+# --- 9. the same manifest as one plain local batch, and the diff -------------------------
 t=$(date +%s.%N)
 LOCAL_OUT=$WORK/out-local
 # Outside Slurm: make sure no index or shard variable leaks in, so every job runs.
@@ -300,7 +334,8 @@ cat >"$WORK/timings.txt" <<EOF
 apt_install_s=$APT_S
 build_s=$BUILD_S
 slurm_array_and_collect_s=$SLURM_S
+slurm_resubmit_s=$RESUBMIT_S
 local_batch_s=$LOCAL_S
 total_s=$(elapsed "$T0")
 EOF
-log "PASSED: apt $APT_S s, build $BUILD_S s, Slurm array + collect $SLURM_S s, local batch $LOCAL_S s"
+log "PASSED: apt $APT_S s, build $BUILD_S s, Slurm array + collect $SLURM_S s, resubmission $RESUBMIT_S s, local batch $LOCAL_S s"
