@@ -169,6 +169,9 @@ SwitchType=switch/none
 MailProg=/bin/true
 MpiDefault=none
 SchedulerType=sched/backfill
+# Start the next array task as soon as one ends: with the defaults slurmctld waited ~3 s
+# between allocations here (a 10-task array of 0.1 s tasks took 18.2 s; with these, 6.1 s).
+SchedulerParameters=batch_sched_delay=0,sched_min_interval=0
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
 # Keep finished jobs in slurmctld's memory long enough for scontrol to report them.
