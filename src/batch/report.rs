@@ -153,7 +153,7 @@ fn job_section(h: &mut String, out: &Path, r: &Row) {
             .collect::<String>()),
     );
     if let Some(e) = r.record.as_ref().and_then(|rec| rec.error.as_ref()) {
-        let _ = write!(h, "<pre>{}</pre>\n", esc(e));
+        let _ = writeln!(h, "<pre>{}</pre>", esc(e));
     }
     h.push_str("<div class=pics>");
     for b in &r.spec.backends {
