@@ -386,11 +386,6 @@ mod tests {
             assert!(parse_range(bad).is_err(), "{bad:?} accepted");
         }
     }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
 
     #[test]
     fn revisiting_goes_back_and_forth_with_increasing_stamps() {
