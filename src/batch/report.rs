@@ -19,16 +19,16 @@ use crate::{Error, Result};
 const PICTURES: [(&str, &str); 2] = [
     (
         "trajectory.png",
-        "trajectory (top view) against ground truth",
+        "trajectory from above against ground truth, and its error over frames",
     ),
-    ("map_color.png", "map, coloured, from above the trajectory"),
+    ("map_color.png", "map render (colour)"),
 ];
 
 const STYLE: &str = "body{font-family:sans-serif;margin:1.5em;color:#222}\
 table{border-collapse:collapse;font-size:13px}th,td{border:1px solid #bbb;padding:3px 6px;\
 text-align:right}th{background:#eee}td.l{text-align:left}tr.failed{background:#fdd}\
-tr.pending{background:#ffd}.pics{display:flex;flex-wrap:wrap;gap:12px}\
-figure{margin:0}figure img{width:380px;border:1px solid #ccc}figcaption{font-size:12px}\
+tr.pending{background:#ffd}.pics{display:flex;flex-wrap:wrap;gap:12px;margin-bottom:10px}\
+figure{margin:0}figure img{height:260px;border:1px solid #ccc}figcaption{font-size:12px}\
 pre{background:#f6f6f6;padding:6px;white-space:pre-wrap}";
 
 /// Writes `out/report.html` for `s`, reading the pictures from the job folders.
@@ -121,7 +121,7 @@ fn table_rows(h: &mut String, r: &Row) {
                 c.map(|c| format!("{:.3} / {:.4}", c.pose_max_mm, c.pose_max_deg))
                     .unwrap_or_else(|| "-".into()),
                 c.map(|c| format!(
-                    "{:.3} % ({:.1} mm)",
+                    "{:.3} % (radius {:.1} mm)",
                     c.map_unmatched_fraction * 100.0,
                     c.map_match_radius_m * 1e3
                 ))
@@ -153,10 +153,10 @@ fn job_section(h: &mut String, out: &Path, r: &Row) {
             .collect::<String>()),
     );
     if let Some(e) = r.record.as_ref().and_then(|rec| rec.error.as_ref()) {
-        let _ = write!(h, "<pre>{}</pre>\n", esc(e));
+        let _ = writeln!(h, "<pre>{}</pre>", esc(e));
     }
-    h.push_str("<div class=pics>");
     for b in &r.spec.backends {
+        h.push_str("<div class=pics>");
         for (file, caption) in PICTURES {
             let path = out.join("jobs").join(&r.id).join(b).join(file);
             if let Ok(bytes) = std::fs::read(&path) {
@@ -170,8 +170,8 @@ fn job_section(h: &mut String, out: &Path, r: &Row) {
                 );
             }
         }
+        h.push_str("</div>\n");
     }
-    h.push_str("</div>\n");
 }
 
 /// Escapes text for HTML element content and double-quoted attributes.

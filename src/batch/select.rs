@@ -115,3 +115,101 @@ pub fn choose(
         source: format!("{source}{count_source}"),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
+        move |k| {
+            vars.iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    }
+
+    #[test]
+    fn flags_then_slurm_then_kubernetes_then_all() {
+        let shard = |i, n| Selection::Shard { index: i, count: n };
+        let pick = |s: Option<&str>, i: Option<usize>, vars: &[(&str, &str)]| {
+            choose(s, i, 8, env(vars)).unwrap().selection
+        };
+        assert_eq!(pick(None, None, &[]), Selection::All);
+        assert_eq!(
+            pick(Some("1/3"), Some(5), &[("SLURM_ARRAY_TASK_ID", "2")]),
+            shard(1, 3)
+        );
+        assert_eq!(
+            pick(None, Some(5), &[("SLURM_ARRAY_TASK_ID", "2")]),
+            shard(5, 8)
+        );
+        assert_eq!(
+            pick(None, None, &[("SLURM_ARRAY_TASK_ID", "2")]),
+            shard(2, 8)
+        );
+        assert_eq!(
+            pick(
+                None,
+                None,
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "2"),
+                    ("SLURM_ARRAY_TASK_COUNT", "4")
+                ]
+            ),
+            shard(2, 4)
+        );
+        assert_eq!(
+            pick(None, None, &[("JOB_COMPLETION_INDEX", "7")]),
+            shard(7, 8)
+        );
+        assert_eq!(
+            pick(
+                None,
+                None,
+                &[("JOB_COMPLETION_INDEX", "1"), ("WGSLAM_SHARD_COUNT", "2")]
+            ),
+            shard(1, 2)
+        );
+        // Slurm's count does not apply to a Kubernetes index.
+        assert_eq!(
+            pick(
+                None,
+                None,
+                &[
+                    ("JOB_COMPLETION_INDEX", "1"),
+                    ("SLURM_ARRAY_TASK_COUNT", "2")
+                ]
+            ),
+            shard(1, 8)
+        );
+    }
+
+    #[test]
+    fn shards_cover_every_job_once() {
+        let n = 4;
+        for job in 0..11 {
+            let owners = (0..n)
+                .filter(|&i| Selection::Shard { index: i, count: n }.picks(job))
+                .count();
+            assert_eq!(owners, 1);
+        }
+    }
+
+    #[test]
+    fn bad_indices_are_errors() {
+        assert!(parse_shard("3/3").is_err());
+        assert!(parse_shard("1").is_err());
+        assert!(parse_shard("a/2").is_err());
+        assert!(parse_shard("0/0").is_err());
+        assert!(choose(None, None, 8, env(&[("SLURM_ARRAY_TASK_ID", "x")])).is_err());
+        let past = Selection::Shard { index: 8, count: 8 };
+        assert!(past.check(8).unwrap_err().to_string().contains("0..=7"));
+        assert!(Selection::Shard { index: 2, count: 4 }.check(8).is_ok());
+        assert!(Selection::Shard {
+            index: 3,
+            count: 10
+        }
+        .check(3)
+        .is_err());
+    }
+}

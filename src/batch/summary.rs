@@ -189,19 +189,24 @@ pub fn load(path: &Path) -> Result<Summary> {
     serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not a summary.json: {e}")))
 }
 
+/// A backend's numbers that must be equal between two runs of the same job (not its
+/// times or memory).
+#[derive(Debug, PartialEq)]
+struct RunFacts<'a> {
+    backend: &'a str,
+    frames: u64,
+    map_points: u64,
+    lost_frames: u64,
+    ate_rmse_mm: Option<f64>,
+    rpe_trans_rmse_mm: Option<f64>,
+    rpe_rot_rmse_deg: Option<f64>,
+}
+
 /// The numbers of a row that must be equal between two runs of the same job.
 #[derive(Debug, PartialEq)]
 struct Deterministic<'a> {
     status: &'a str,
-    runs: Vec<(
-        &'a str,
-        u64,
-        u64,
-        u64,
-        Option<f64>,
-        Option<f64>,
-        Option<f64>,
-    )>,
+    runs: Vec<RunFacts<'a>>,
     gpu_vs_cpu: Option<&'a super::gpu_vs_cpu::GpuVsCpu>,
 }
 
@@ -210,16 +215,14 @@ fn deterministic(r: &Row) -> Deterministic<'_> {
         .record
         .iter()
         .flat_map(|rec| rec.runs.iter())
-        .map(|(b, n)| {
-            (
-                b.as_str(),
-                n.frames,
-                n.map_points,
-                n.lost_frames,
-                n.ate_rmse_mm,
-                n.rpe_trans_rmse_mm,
-                n.rpe_rot_rmse_deg,
-            )
+        .map(|(b, n)| RunFacts {
+            backend: b,
+            frames: n.frames,
+            map_points: n.map_points,
+            lost_frames: n.lost_frames,
+            ate_rmse_mm: n.ate_rmse_mm,
+            rpe_trans_rmse_mm: n.rpe_trans_rmse_mm,
+            rpe_rot_rmse_deg: n.rpe_rot_rmse_deg,
         })
         .collect();
     Deterministic {

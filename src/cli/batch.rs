@@ -196,6 +196,9 @@ fn run(a: BatchRunArgs) -> Result<()> {
     for (k, &i) in picked.iter().enumerate() {
         let job = &m.jobs[i];
         batch_bar.set_message(job.id.clone());
+        job_bar.reset();
+        job_bar.set_length(0);
+        job_bar.set_message(job.id.clone());
         let progress = |backend: &str, done: u64, total: u64| {
             job_bar.set_message(format!("{} {backend}", job.id));
             job_bar.set_length(total);

@@ -299,6 +299,10 @@ pub struct RunArgs {
     /// Poses from tracking or from ground truth.
     #[arg(long, value_enum, default_value_t = PosesChoice::Track)]
     pub poses: PosesChoice,
+    /// Play the frame range forwards, backwards, forwards ... for this many frames (a long
+    /// sequence that revisits the same scene; stamps become positions 0, 1, ...).
+    #[arg(long, value_name = "FRAMES")]
+    pub revisit: Option<usize>,
     /// Output directory.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
@@ -389,6 +393,12 @@ pub struct BenchArgs {
     /// speed between runs (runs both backends whatever --backends lists; needs a GPU).
     #[arg(long)]
     pub interleaved: bool,
+    /// The long-sequence benchmark instead: each backend runs (`wgslam run --revisit N`, in
+    /// a child process) over the frame range played forwards, backwards, ... for N frames;
+    /// prints time per frame over the first and last 100 frames, the map after each pass,
+    /// peak memory and ATE.
+    #[arg(long, value_name = "N")]
+    pub revisit: Option<usize>,
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -614,7 +624,15 @@ fn cmd_run(a: RunArgs) -> Result<()> {
         Some(r) => dataset::parse_range(r)?,
         None => (default_first_frame(&seq), seq.len() - 1),
     };
-    let range = seq.select(first, last)?;
+    let mut range = seq.select(first, last)?;
+    let seq = match a.revisit {
+        Some(total) => {
+            let long = seq.revisiting(first, last, total)?;
+            range = 0..=total - 1;
+            long
+        }
+        None => seq,
+    };
     let poses = match a.poses {
         PosesChoice::Track => PoseSource::Track,
         PosesChoice::Gt => PoseSource::GroundTruth,
@@ -904,6 +922,9 @@ fn cmd_compare(a: CompareArgs) -> Result<()> {
 }
 
 fn cmd_bench(a: BenchArgs) -> Result<()> {
+    if let Some(total) = a.revisit {
+        return bench_revisit(&a, total);
+    }
     let mut rounds = Vec::new();
     for round in 0..a.rounds {
         let mut order = a.backends.clone();
@@ -949,6 +970,66 @@ fn cmd_bench(a: BenchArgs) -> Result<()> {
             path,
             &serde_json::json!({ "rounds": rounds, "interleaved": interleaved }),
         )?;
+    }
+    Ok(())
+}
+
+/// `bench --revisit N`: each backend's long run in a child `wgslam run`, then the table.
+fn bench_revisit(a: &BenchArgs, total: usize) -> Result<()> {
+    let seq = a.data.open()?;
+    let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
+    seq.revisiting(first, last, total)?;
+    let exe = std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?;
+    let tmp = std::env::temp_dir().join(format!("wgslam-bench-revisit-{}", std::process::id()));
+    let mut runs = Vec::new();
+    for b in &a.backends {
+        let name = format!("{b:?}").to_lowercase();
+        let out = tmp.join(&name);
+        eprintln!("{name}: {total} frames over {first}..{last} forwards and backwards ...");
+        let mut args = vec!["run".to_string()];
+        // The range is given below, once, as resolved here.
+        let child = a.child_args();
+        let mut it = child.into_iter();
+        while let Some(x) = it.next() {
+            if x == "--frames" {
+                it.next();
+            } else {
+                args.push(x);
+            }
+        }
+        args.extend([
+            "--frames".into(),
+            format!("{first}..{last}"),
+            "--revisit".into(),
+            total.to_string(),
+            "--backend".into(),
+            name.clone(),
+            "--out".into(),
+            out.display().to_string(),
+        ]);
+        let o = std::process::Command::new(&exe)
+            .args(&args)
+            .stdin(std::process::Stdio::null())
+            .output()
+            .map_err(|e| Error::io(&exe, e))?;
+        if !o.status.success() {
+            let _ = std::fs::remove_dir_all(&tmp);
+            return Err(Error::Numerical(format!(
+                "the {name} long run failed ({}): {}",
+                o.status,
+                String::from_utf8_lossy(&o.stderr).trim()
+            )));
+        }
+        runs.push(crate::tools::long_run::summarise(
+            &out,
+            &name,
+            last - first,
+        )?);
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    crate::tools::long_run::print(&runs);
+    if let Some(path) = &a.json {
+        run::write_json(path, &serde_json::json!({ "revisit": runs }))?;
     }
     Ok(())
 }

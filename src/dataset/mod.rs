@@ -309,6 +309,41 @@ impl Sequence {
         )
     }
 
+    /// A long sequence that revisits frames `first..=last`: forwards, backwards, forwards
+    /// ... until `total` frames (for the long-sequence benchmark: the camera passes over
+    /// the same scene again and again, as a long real sequence does). Each frame keeps its
+    /// images and ground truth; its stamp becomes its new position (0, 1, ...), so stamps
+    /// increase and the trajectory associates with [`Sequence::ground_truth`] by stamp.
+    /// A pass is `last - first` frames (the turning frames are not repeated).
+    pub fn revisiting(&self, first: usize, last: usize, total: usize) -> Result<Sequence> {
+        self.select(first, last)?;
+        if last == first || total == 0 {
+            return Err(Error::Argument(format!(
+                "a revisiting sequence needs at least two frames to go back and forth over and \
+                 a length of at least one (got frames {first}..{last}, length {total})"
+            )));
+        }
+        let period = 2 * (last - first);
+        let frames = (0..total)
+            .map(|k| {
+                let phase = k % period;
+                let i = if phase <= last - first {
+                    first + phase
+                } else {
+                    last - (phase - (last - first))
+                };
+                FrameRecord {
+                    timestamp: k as f64,
+                    ..self.frames[i].clone()
+                }
+            })
+            .collect();
+        Ok(Sequence {
+            frames,
+            ..self.clone()
+        })
+    }
+
     /// True when at least one frame has a ground-truth pose.
     pub fn has_ground_truth(&self) -> bool {
         self.frames.iter().any(|f| f.gt_cam_to_world.is_some())
@@ -350,5 +385,43 @@ mod tests {
         for bad in ["", "5", "5..", "..5", "a..b", "9..2", "-1..3", "1..=3"] {
             assert!(parse_range(bad).is_err(), "{bad:?} accepted");
         }
+    }
+
+    #[test]
+    fn revisiting_goes_back_and_forth_with_increasing_stamps() {
+        let frame = |i: usize| FrameRecord {
+            timestamp: 100.0 + i as f64,
+            rgb_path: PathBuf::from(format!("rgb{i}")),
+            depth_path: PathBuf::from(format!("d{i}")),
+            gt_cam_to_world: Some(DMat4::from_translation(glam::DVec3::X * i as f64)),
+        };
+        let seq = Sequence {
+            root: PathBuf::from("r"),
+            layout: Layout::Tum,
+            intrinsics: Intrinsics::ICL_NUIM,
+            depth_scale: DEFAULT_DEPTH_SCALE,
+            frames: (0..6).map(frame).collect(),
+        };
+        let r = seq.revisiting(1, 3, 9).unwrap();
+        let order: Vec<String> = r
+            .frames
+            .iter()
+            .map(|f| f.rgb_path.display().to_string())
+            .collect();
+        assert_eq!(
+            order,
+            ["rgb1", "rgb2", "rgb3", "rgb2", "rgb1", "rgb2", "rgb3", "rgb2", "rgb1"]
+        );
+        for (k, f) in r.frames.iter().enumerate() {
+            assert_eq!(f.timestamp, k as f64);
+            let i: f64 = f.depth_path.display().to_string()[1..].parse().unwrap();
+            assert_eq!(
+                f.gt_cam_to_world.unwrap().w_axis.x,
+                i,
+                "ground truth follows the frame"
+            );
+        }
+        assert!(seq.revisiting(2, 2, 5).is_err());
+        assert!(seq.revisiting(1, 6, 5).is_err());
     }
 }

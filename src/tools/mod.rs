@@ -5,5 +5,6 @@
 
 pub mod bench;
 pub mod compare;
+pub mod long_run;
 pub mod run;
 pub mod two_frame;

@@ -1,0 +1,378 @@
+//! `wgslam batch` as a user runs it: manifests in, job folders, summaries and report out;
+//! resuming, failing jobs, interruption, shards and scheduler indices, and `batch diff`.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode, Output};
+use std::time::{Duration, Instant};
+
+use common::harness::{gpu, plain, shared};
+
+fn wgslam(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_wgslam"));
+    c.args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    // The scheduler variables of the machine running the tests must not pick jobs here.
+    for k in [
+        "SLURM_ARRAY_TASK_ID",
+        "SLURM_ARRAY_TASK_COUNT",
+        "JOB_COMPLETION_INDEX",
+        "WGSLAM_SHARD_COUNT",
+    ] {
+        if !env.iter().any(|(n, _)| *n == k) {
+            c.env_remove(k);
+        }
+    }
+    c.output().expect("run wgslam")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Writes `body` as `dir/batch.toml` with `output = "out"`; returns the manifest path.
+fn manifest(dir: &Path, body: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join("batch.toml");
+    std::fs::write(&path, format!("output = \"out\"\n{body}")).unwrap();
+    path
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn summary(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+}
+
+/// Three short CPU jobs over the bundled frames (a grid of two profiles and a named job).
+fn cpu_grid(frames: &str) -> String {
+    let seq = common::bundled_icl();
+    format!(
+        "[defaults]\nframes = \"{frames}\"\ndownsample = 4\nbackend = \"cpu\"\n\
+         [[job]]\nname = \"named\"\nsequence = \"{}\"\noverrides = {{ icp-dist = 0.08 }}\n\
+         [[grid]]\nname = \"g\"\nsequence = \"{}\"\nprofile = [\"robust\", \"assignment\"]\n",
+        seq.display(),
+        seq.display()
+    )
+}
+
+/// ATE bound for 4 bundled frames at 160x120 against the ground truth: both profiles
+/// track these noise-free frames to well under a millimetre (measured 0.13-0.18 mm).
+const SHORT_RUN_ATE_MAX_MM: f64 = 1.0;
+
+fn runs_resumes_and_reports() {
+    let dir = common::temp_dir("batch-basic");
+    let m = manifest(&dir, &cpu_grid("1..4"));
+    let out = dir.join("out");
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let sum = summary(&out);
+    assert_eq!(
+        (sum["jobs"].as_u64(), sum["ok"].as_u64()),
+        (Some(3), Some(3)),
+        "{sum}"
+    );
+    let ids: Vec<&str> = sum["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(ids, ["named", "g-robust", "g-assignment"]);
+    for r in sum["rows"].as_array().unwrap() {
+        let cpu = &r["record"]["runs"]["cpu"];
+        assert_eq!(cpu["frames"], 4);
+        let ate = cpu["ate_rmse_mm"].as_f64().unwrap();
+        assert!(ate < SHORT_RUN_ATE_MAX_MM, "{}: ATE {ate} mm", r["id"]);
+    }
+    // The named job's override reached its run.
+    let metrics: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("jobs/named/cpu/metrics.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(
+        (metrics["params"]["icp_dist_m"].as_f64().unwrap() - 0.08).abs() < 1e-6,
+        "{metrics}"
+    );
+    let csv = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 4, "{csv}");
+    assert!(csv.lines().nth(1).unwrap().starts_with("0,named,ok,"));
+    // The report is self-contained: pictures inline, nothing fetched.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("data:image/png;base64,"));
+    for bad in ["src=\"http", "href=\"http", "<script", "<link"] {
+        assert!(!html.contains(bad), "report.html has {bad}");
+    }
+    // A re-run skips every complete job and leaves its record alone.
+    let record = out.join("jobs/g-robust/job.json");
+    let before = std::fs::read_to_string(&record).unwrap();
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        text(&o).matches("outputs complete, skipped").count(),
+        3,
+        "{}",
+        text(&o)
+    );
+    assert_eq!(std::fs::read_to_string(&record).unwrap(), before);
+    // A changed job runs again; the others are still skipped.
+    std::fs::write(
+        &m,
+        std::fs::read_to_string(&m).unwrap().replace("0.08", "0.09"),
+    )
+    .unwrap();
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        text(&o).matches("outputs complete, skipped").count(),
+        2,
+        "{}",
+        text(&o)
+    );
+}
+
+fn a_failing_job_is_recorded_and_the_batch_goes_on() {
+    let dir = common::temp_dir("batch-fail");
+    let body = format!(
+        "{}[[job]]\nname = \"missing\"\nsequence = \"no/such/sequence\"\n",
+        cpu_grid("1..2")
+    );
+    let m = manifest(&dir, &body);
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        text(&o).contains("1 of 4 jobs failed: missing"),
+        "{}",
+        text(&o)
+    );
+    let sum = summary(&dir.join("out"));
+    assert_eq!(
+        (sum["ok"].as_u64(), sum["failed"].as_u64()),
+        (Some(3), Some(1))
+    );
+    // [[job]] tables come first, in file order, then the grid.
+    let row = &sum["rows"][1];
+    assert_eq!(row["id"], "missing");
+    assert_eq!(row["status"], "failed");
+    let err = row["record"]["error"].as_str().unwrap();
+    assert!(
+        err.contains("no/such/sequence"),
+        "the run's own error is quoted: {err}"
+    );
+    let csv = std::fs::read_to_string(dir.join("out/summary.csv")).unwrap();
+    assert!(
+        csv.lines().nth(2).unwrap().starts_with("1,missing,failed,"),
+        "{csv}"
+    );
+}
+
+fn manifest_mistakes_fail_before_any_job() {
+    let dir = common::temp_dir("batch-typo");
+    let body = cpu_grid("1..2").replace("icp-dist", "icp-dits");
+    let m = manifest(&dir, &body);
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("job \"named\"") && text(&o).contains("icp-dits"),
+        "{}",
+        text(&o)
+    );
+    assert!(!dir.join("out").exists(), "nothing may run");
+    let o = wgslam(&["batch", s(&dir.join("absent.toml"))], &[]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("absent.toml"), "{}", text(&o));
+}
+
+fn shards_and_scheduler_indices_split_the_jobs() {
+    let dir = common::temp_dir("batch-shards");
+    let m = manifest(&dir, &cpu_grid("1..2"));
+    let out = dir.join("out");
+    // Slurm's array index picks one job; the summary lists the others as pending.
+    let o = wgslam(&["batch", s(&m)], &[("SLURM_ARRAY_TASK_ID", "1")]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("1 of 3 jobs (index 1 of 3, from SLURM_ARRAY_TASK_ID"),
+        "{}",
+        text(&o)
+    );
+    let sum = summary(&out);
+    assert_eq!(
+        (sum["ok"].as_u64(), sum["pending"].as_u64()),
+        (Some(1), Some(2))
+    );
+    assert_eq!(sum["rows"][1]["status"], "ok");
+    // A Kubernetes index and a shard flag fill in the rest (job 1 is already complete).
+    let o = wgslam(&["batch", s(&m)], &[("JOB_COMPLETION_INDEX", "2")]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = wgslam(&["batch", s(&m), "--shard", "0/2"], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("job 2 g-assignment: outputs complete, skipped"),
+        "{}",
+        text(&o)
+    );
+    let o = wgslam(&["batch", "collect", s(&out)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(summary(&out)["ok"].as_u64(), Some(3));
+    // An index past the last job is a mis-sized array, not a silent success.
+    let o = wgslam(&["batch", s(&m)], &[("SLURM_ARRAY_TASK_ID", "3")]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("picks no job"), "{}", text(&o));
+}
+
+/// How long the interrupted batch may take to reach its second job.
+const FIRST_JOB_TIMEOUT: Duration = Duration::from_secs(120);
+
+fn sigterm_half_way_then_resume_equals_an_uninterrupted_run() {
+    let dir = common::temp_dir("batch-kill");
+    let m = manifest(&dir, &cpu_grid("1..12"));
+    let out = dir.join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_wgslam"))
+        .args(["batch", s(&m)])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until the first job is complete and the second has started, then SIGTERM.
+    let start = Instant::now();
+    while !out.join("jobs/g-robust/cpu.log").exists() {
+        assert!(
+            start.elapsed() < FIRST_JOB_TIMEOUT,
+            "the batch did not reach its second job"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "the batch ended early");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "interrupted batches exit 130");
+    assert!(
+        out.join("jobs/named/job.json").is_file(),
+        "the finished job keeps its record"
+    );
+    assert!(
+        !out.join("jobs/g-robust/job.json").exists(),
+        "the stopped job must not look complete"
+    );
+    assert!(!out.join("jobs/g-assignment").exists());
+    // Resume: the finished job is skipped, the rest run.
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        text(&o).matches("outputs complete, skipped").count(),
+        1,
+        "{}",
+        text(&o)
+    );
+    // The same numbers as an uninterrupted batch.
+    let o = wgslam(&["batch", s(&m), "--out", s(&dir.join("whole"))], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = wgslam(&["batch", "diff", s(&out), s(&dir.join("whole"))], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("equal: 3 jobs"), "{}", text(&o));
+    // ...and diff does see a changed number.
+    let mut sum = summary(&out);
+    sum["rows"][2]["record"]["runs"]["cpu"]["map_points"] = serde_json::json!(1);
+    let edited = dir.join("edited.json");
+    std::fs::write(&edited, sum.to_string()).unwrap();
+    let o = wgslam(&["batch", "diff", s(&edited), s(&dir.join("whole"))], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("differs: g-assignment"), "{}", text(&o));
+}
+
+/// GPU vs CPU over 4 bundled frames end to end: each backend tracks on its own, so the
+/// bound is `wgslam compare --free`'s per-frame pose tolerance.
+const BOTH_POSE_MAX_MM: f64 = wgslam::tools::compare::tolerance::POSE_MAX_MM;
+
+fn both_backends_write_the_gpu_vs_cpu_comparison() {
+    let dir = common::temp_dir("batch-both");
+    let seq = common::bundled_icl();
+    let m = manifest(
+        &dir,
+        &format!(
+            "[[job]]\nname = \"both\"\nsequence = \"{}\"\nframes = \"1..4\"\ndownsample = 4\n",
+            seq.display()
+        ),
+    );
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = dir.join("out/jobs/both");
+    for f in ["cpu/map.ply", "gpu/map.ply", "comparison.json", "job.json"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let row = &summary(&dir.join("out"))["rows"][0];
+    let c = &row["record"]["gpu_vs_cpu"];
+    assert_eq!(c["poses"], 4);
+    assert!(c["pose_max_mm"].as_f64().unwrap() < BOTH_POSE_MAX_MM, "{c}");
+    assert_eq!(row["record"]["runs"]["gpu"]["frames"], 4);
+    let html = std::fs::read_to_string(dir.join("out/report.html")).unwrap();
+    assert!(
+        html.contains("gpu trajectory.png"),
+        "both backends' pictures"
+    );
+}
+
+/// The full noisy sequence: the batch's numbers are the run's, on the real ground truth.
+const NOISY_ATE_MAX_MM: f64 = 15.0;
+
+fn noisy_sequence_job_tracks_against_ground_truth(data: &Path) {
+    let dir = common::temp_dir("batch-noisy");
+    let seq = common::shared_icl_noisy(data);
+    let m = manifest(
+        &dir,
+        &format!(
+            "[[job]]\nname = \"noisy\"\nsequence = \"{}\"\nframes = \"1..40\"\ndownsample = 4\nbackend = \"cpu\"\n",
+            seq.display()
+        ),
+    );
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let ate = summary(&dir.join("out"))["rows"][0]["record"]["runs"]["cpu"]["ate_rmse_mm"]
+        .as_f64()
+        .unwrap();
+    assert!(ate < NOISY_ATE_MAX_MM, "ATE {ate} mm");
+}
+
+fn main() -> ExitCode {
+    common::harness::run(vec![
+        plain("runs_resumes_and_reports", runs_resumes_and_reports),
+        plain(
+            "a_failing_job_is_recorded_and_the_batch_goes_on",
+            a_failing_job_is_recorded_and_the_batch_goes_on,
+        ),
+        plain(
+            "manifest_mistakes_fail_before_any_job",
+            manifest_mistakes_fail_before_any_job,
+        ),
+        plain(
+            "shards_and_scheduler_indices_split_the_jobs",
+            shards_and_scheduler_indices_split_the_jobs,
+        ),
+        plain(
+            "sigterm_half_way_then_resume_equals_an_uninterrupted_run",
+            sigterm_half_way_then_resume_equals_an_uninterrupted_run,
+        ),
+        gpu("both_backends_write_the_gpu_vs_cpu_comparison", |_ctx| {
+            both_backends_write_the_gpu_vs_cpu_comparison()
+        }),
+        shared(
+            "noisy_sequence_job_tracks_against_ground_truth",
+            noisy_sequence_job_tracks_against_ground_truth,
+        ),
+    ])
+}
