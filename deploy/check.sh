@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
 status=0
 if command -v shellcheck >/dev/null; then
-  shellcheck ./*.sh slurm/*.sh slurm/*.sbatch || status=1
+  shellcheck ./*.sh slurm/*.sh slurm/*.sbatch k8s/*.sh || status=1
   echo "shellcheck: done"
 else
   echo "shellcheck: not installed, skipped"
