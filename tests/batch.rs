@@ -204,6 +204,12 @@ fn shards_and_scheduler_indices_split_the_jobs() {
         "{}",
         text(&o)
     );
+    assert!(
+        !out.join("summary.json").exists(),
+        "an array task leaves the summary to collect"
+    );
+    let o = wgslam(&["batch", "collect", s(&out)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
     let sum = summary(&out);
     assert_eq!(
         (sum["ok"].as_u64(), sum["pending"].as_u64()),

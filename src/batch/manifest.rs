@@ -347,6 +347,27 @@ fn generated_id(prefix: Option<&str>, c: &Combination, axes: &BTreeSet<String>) 
         .collect()
 }
 
+/// `path` with `.` dropped and `x/..` folded, without touching the file system (the
+/// sequence may exist only on the cluster's nodes); a leading `..` stays.
+fn lexically_normal(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => match out.components().next_back() {
+                Some(Component::Normal(_)) => {
+                    out.pop();
+                }
+                Some(Component::RootDir) | Some(Component::Prefix(_)) => {}
+                _ => out.push(".."),
+            },
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
+}
+
 /// A TOML scalar as a command-line value (`None` for tables, arrays and dates).
 fn option_value(v: &toml::Value) -> Option<String> {
     match v {
@@ -396,7 +417,7 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
     }
     Ok(JobSpec {
         id: id.to_string(),
-        sequence: dir.join(sequence),
+        sequence: lexically_normal(&dir.join(sequence)),
         frames: c.frames.clone(),
         downsample: c.downsample,
         profile: c.profile.clone(),
@@ -469,6 +490,21 @@ mod tests {
             ]
         );
         assert_eq!(m.jobs[0].backends, ["cpu"]);
+    }
+
+    #[test]
+    fn sequence_paths_are_folded() {
+        let m = Manifest::parse(
+            Path::new("deploy/manifests/m.toml"),
+            "[[job]]\nsequence = \"../../assets/./kt2\"\n[[job]]\nname = \"b\"\nsequence = \"../../../data\"\n",
+        )
+        .unwrap();
+        assert_eq!(m.jobs[0].sequence, PathBuf::from("assets/kt2"));
+        assert_eq!(m.jobs[1].sequence, PathBuf::from("../data"));
+        assert_eq!(
+            lexically_normal(Path::new("/a/../../b")),
+            PathBuf::from("/b")
+        );
     }
 
     #[test]

@@ -159,7 +159,7 @@ fn job_section(h: &mut String, out: &Path, r: &Row) {
         h.push_str("<div class=pics>");
         for (file, caption) in PICTURES {
             let path = out.join("jobs").join(&r.id).join(b).join(file);
-            if let Ok(bytes) = std::fs::read(&path) {
+            if let Some(bytes) = thumbnail_png(&path) {
                 let _ = write!(
                     h,
                     "<figure><img alt=\"{b} {file}\" src=\"data:image/png;base64,{}\">\
@@ -172,6 +172,30 @@ fn job_section(h: &mut String, out: &Path, r: &Row) {
         }
         h.push_str("</div>\n");
     }
+}
+
+/// Pictures are shown 260 CSS pixels tall and embedded at 1.5x that, sharp enough on
+/// high-DPI screens; full-size renders made a 10-job report 15.7 MB.
+const THUMBNAIL_HEIGHT_PX: u32 = 390;
+
+/// The PNG at `path`, scaled down to [`THUMBNAIL_HEIGHT_PX`] if taller; `None` if it is
+/// missing or unreadable (the report then leaves it out).
+fn thumbnail_png(path: &Path) -> Option<Vec<u8>> {
+    let img = image::open(path).ok()?;
+    let img = if img.height() > THUMBNAIL_HEIGHT_PX {
+        let w = (img.width() as u64 * THUMBNAIL_HEIGHT_PX as u64 / img.height() as u64) as u32;
+        img.resize(w.max(1), THUMBNAIL_HEIGHT_PX, image::imageops::FilterType::Triangle)
+    } else {
+        img
+    };
+    let mut bytes = Vec::new();
+    let png = image::codecs::png::PngEncoder::new_with_quality(
+        &mut bytes,
+        image::codecs::png::CompressionType::Best,
+        image::codecs::png::FilterType::Adaptive,
+    );
+    img.to_rgb8().write_with_encoder(png).ok()?;
+    Some(bytes)
 }
 
 /// Escapes text for HTML element content and double-quoted attributes.

@@ -114,7 +114,12 @@ fn list(path: &Path) -> Result<()> {
     let m = read_checked(path)?;
     let r = runner(m.output.clone().unwrap_or_else(|| PathBuf::from("OUT")))?;
     for (i, job) in m.jobs.iter().enumerate() {
-        println!("{i:4}  {}", job.id);
+        let missing = if job.sequence.is_dir() {
+            ""
+        } else {
+            "  (sequence folder not found here)"
+        };
+        println!("{i:4}  {}{missing}", job.id);
         for b in &job.backends {
             let args = r.run_args(job, b, &r.job_dir(&job.id).join(b));
             println!("        wgslam {}", args.join(" "));
@@ -232,7 +237,18 @@ fn run(a: BatchRunArgs) -> Result<()> {
              records; run the same command again to resume"
         )));
     }
-    let s = collect(&out)?;
+    // One array task of many writes no summary: the others are still running, and a
+    // thousand tasks each rewriting the report is waste; `batch collect` merges them.
+    let pending = if chosen.selection == Selection::All {
+        collect(&out)?.pending
+    } else {
+        eprintln!(
+            "this task's jobs are done; when all tasks are, `wgslam batch collect {}` writes \
+             the summary and the report",
+            out.display()
+        );
+        0
+    };
     if !failed.is_empty() {
         return Err(Error::Batch(format!(
             "{} of {} jobs failed: {} (their errors are in summary.csv and their job.json)",
@@ -241,11 +257,8 @@ fn run(a: BatchRunArgs) -> Result<()> {
             failed.join(", ")
         )));
     }
-    if s.pending > 0 {
-        eprintln!(
-            "note: {} jobs of the manifest are not finished yet (other shards?)",
-            s.pending
-        );
+    if pending > 0 {
+        eprintln!("note: {pending} jobs of the manifest are not finished yet");
     }
     Ok(())
 }
@@ -255,8 +268,9 @@ fn collect(dir: &Path) -> Result<Summary> {
     let s = summary::collect(dir)?;
     summary::write(dir, &s)?;
     report::write(dir, &s)?;
+    let w = s.rows.iter().map(|r| r.id.len()).max().unwrap_or(0).max(3);
     println!(
-        "{:>4}  {:<40} {:>8} {:>10} {:>10} {:>9} {:>9}",
+        "{:>4}  {:<w$} {:>8} {:>10} {:>10} {:>9} {:>9}",
         "#", "job", "status", "cpu ATE mm", "gpu ATE mm", "cpu ms/f", "gpu ms/f"
     );
     for r in &s.rows {
@@ -264,7 +278,7 @@ fn collect(dir: &Path) -> Result<Summary> {
         let f =
             |x: Option<f64>, d: usize| x.map(|v| format!("{v:.d$}")).unwrap_or_else(|| "-".into());
         println!(
-            "{:>4}  {:<40} {:>8} {:>10} {:>10} {:>9} {:>9}",
+            "{:>4}  {:<w$} {:>8} {:>10} {:>10} {:>9} {:>9}",
             r.index,
             r.id,
             r.status,
