@@ -83,7 +83,7 @@ impl RerunLog {
             .enabled(true)
             .save(&tmp)
             .map_err(|e| Error::write(&tmp, std::io::Error::other(e.to_string())))?;
-        let mut log = RerunLog {
+        let log = RerunLog {
             rec: Some(rec),
             path: path.to_path_buf(),
             tmp,
