@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Command, ExitCode, Output};
 
 use common::harness::plain;
-use rerun::external::arrow::array::Array;
+use rerun::external::arrow::array::{Array, AsArray};
 use rerun::external::re_log_encoding::DecoderApp;
 use rerun::log::{Chunk, LogMsg};
 
@@ -40,7 +40,8 @@ fn text(o: &Output) -> String {
 }
 
 /// What one entity holds in a recording: static rows, and per-frame rows as (frame
-/// timeline value, instances of the first component that has any) in file order.
+/// timeline value, points: positions of a point cloud, points over all strips of a line
+/// strip, 0 otherwise) in file order.
 #[derive(Debug, Default)]
 struct EntityRows {
     static_rows: usize,
@@ -73,14 +74,29 @@ fn read_recording(path: &Path) -> BTreeMap<String, EntityRows> {
             chunk.entity_path()
         );
         rows.frames.extend_from_slice(frame.times_raw());
-        // Instances per row of the chunk's largest component (positions for points).
-        let list = chunk
-            .components()
-            .list_arrays()
-            .max_by_key(|a| a.values().len())
-            .expect("a chunk with a component");
+        // Points per row: a point cloud's positions, or the points over all of a line
+        // strip's strips (images and poses count nothing).
+        let points = [
+            rerun::Points3D::descriptor_positions(),
+            rerun::LineStrips3D::descriptor_strips(),
+        ]
+        .into_iter()
+        .find_map(|d| chunk.components().get_array(d.component));
         rows.instances
-            .extend((0..chunk.num_rows()).map(|r| list.value_length(r) as usize));
+            .extend((0..chunk.num_rows()).map(|r| match points {
+                None => 0,
+                Some(list) => {
+                    let row = list.value(r);
+                    match row.as_list_opt::<i32>() {
+                        // `values()` is the whole child array of a sliced list: count
+                        // by offsets.
+                        Some(strips) => (0..strips.len())
+                            .map(|i| strips.value_length(i) as usize)
+                            .sum(),
+                        None => row.len(),
+                    }
+                }
+            }));
     }
     entities
 }
