@@ -283,7 +283,7 @@ fn rerun_flag_names_the_missing_feature() {
 }
 
 fn main() -> ExitCode {
-    let mut tests = vec![
+    let tests = vec![
         plain(
             "run_writes_all_outputs_on_bundled_data",
             run_writes_all_outputs_on_bundled_data,
@@ -304,9 +304,13 @@ fn main() -> ExitCode {
         plain("clear_errors_for_bad_input", clear_errors_for_bad_input),
     ];
     #[cfg(not(feature = "rerun"))]
-    tests.push(plain(
-        "rerun_flag_names_the_missing_feature",
-        rerun_flag_names_the_missing_feature,
-    ));
+    let tests = {
+        let mut tests = tests;
+        tests.push(plain(
+            "rerun_flag_names_the_missing_feature",
+            rerun_flag_names_the_missing_feature,
+        ));
+        tests
+    };
     common::harness::run(tests)
 }
