@@ -265,8 +265,25 @@ fn clear_errors_for_bad_input() {
     }
 }
 
+/// Without the `rerun` feature, `run --rerun FILE` fails before running, names the feature
+/// and writes no file (with the feature, tests/rerun.rs covers the flag).
+#[cfg(not(feature = "rerun"))]
+fn rerun_flag_names_the_missing_feature() {
+    let out = common::temp_dir("cli-rerun");
+    let rrd = out.join("run.rrd");
+    let o = run_bundled(&out, "1..2", &["--rerun", rrd.to_str().unwrap()]);
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("--features rerun"),
+        "no hint at the feature: {}",
+        text(&o)
+    );
+    assert!(!rrd.exists());
+    assert!(!out.join("trajectory.tum").exists(), "the run went ahead");
+}
+
 fn main() -> ExitCode {
-    common::harness::run(vec![
+    let tests = vec![
         plain(
             "run_writes_all_outputs_on_bundled_data",
             run_writes_all_outputs_on_bundled_data,
@@ -285,5 +302,15 @@ fn main() -> ExitCode {
             profile_values_are_flags_recorded_in_metrics,
         ),
         plain("clear_errors_for_bad_input", clear_errors_for_bad_input),
-    ])
+    ];
+    #[cfg(not(feature = "rerun"))]
+    let tests = {
+        let mut tests = tests;
+        tests.push(plain(
+            "rerun_flag_names_the_missing_feature",
+            rerun_flag_names_the_missing_feature,
+        ));
+        tests
+    };
+    common::harness::run(tests)
 }

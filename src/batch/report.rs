@@ -184,7 +184,11 @@ fn thumbnail_png(path: &Path) -> Option<Vec<u8>> {
     let img = image::open(path).ok()?;
     let img = if img.height() > THUMBNAIL_HEIGHT_PX {
         let w = (img.width() as u64 * THUMBNAIL_HEIGHT_PX as u64 / img.height() as u64) as u32;
-        img.resize(w.max(1), THUMBNAIL_HEIGHT_PX, image::imageops::FilterType::Triangle)
+        img.resize(
+            w.max(1),
+            THUMBNAIL_HEIGHT_PX,
+            image::imageops::FilterType::Triangle,
+        )
     } else {
         img
     };

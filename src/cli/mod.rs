@@ -309,6 +309,15 @@ pub struct RunArgs {
     /// (for `wgslam batch`) Print `progress DONE TOTAL` on stdout after every frame.
     #[arg(long, hide = true)]
     pub progress_lines: bool,
+    /// Also write a Rerun recording of the run here (camera path, ground truth, colour and
+    /// depth images, the map every few frames; open it with `rerun FILE.rrd`). Needs a
+    /// binary built with `--features rerun`; without it this flag fails with a message.
+    #[arg(long, value_name = "FILE.rrd")]
+    pub rerun: Option<PathBuf>,
+    /// With --rerun: log the map (at most 100k of its surfels) after every N-th frame, and
+    /// after the last.
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub rerun_map_every: usize,
 }
 
 #[derive(Debug, Args)]
@@ -658,23 +667,87 @@ fn cmd_run(a: RunArgs) -> Result<()> {
             bar.println(format!("frame {}: no valid depth; skipped", f.index));
         }
     };
+    let mut recording = open_recording(&a, &seq, &range)?;
     let backend = any_backend::open(a.pipeline.backend)?;
-    let result = run::run(
+    let result = run::run_observed(
         backend,
         &seq,
-        *range.start(),
-        *range.end(),
+        range,
         params,
+        run::Decode::Overlapped,
         on_frame,
+        recording.as_mut().map(|r| r as &mut dyn run::FrameObserver),
     )?;
     bar.finish_and_clear();
     run::write_outputs(&a.out, &result)?;
     let pictures = run::write_pictures(&a.out, &result, &seq)?;
+    let recorded = recording.map(|r| r.finish(&result.map)).transpose()?;
     print_summary(&result.metrics, &a.out);
-    for p in pictures {
+    for p in pictures.iter().chain(&recorded) {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// `run --rerun FILE`'s recording.
+#[cfg(feature = "rerun")]
+use crate::tools::rerun_log::RerunLog as Recording;
+
+/// Without the `rerun` feature there is never a recording (`--rerun` fails up front), so
+/// the type has no values and its methods cannot be called.
+#[cfg(not(feature = "rerun"))]
+enum Recording {}
+
+#[cfg(not(feature = "rerun"))]
+impl Recording {
+    fn finish(self, _map: &crate::slam::map::SurfelMap) -> Result<PathBuf> {
+        match self {}
+    }
+}
+
+#[cfg(not(feature = "rerun"))]
+impl run::FrameObserver for Recording {
+    fn wants_map(&mut self, _index: usize) -> bool {
+        match *self {}
+    }
+    fn frame(
+        &mut self,
+        _raw: &dataset::RawFrame,
+        _outcome: &run::FrameOutcome,
+        _map: Option<&crate::slam::map::SurfelMap>,
+    ) -> Result<()> {
+        match *self {}
+    }
+}
+
+/// The recording `--rerun` asks for, started over the run's frames.
+#[cfg(feature = "rerun")]
+fn open_recording(
+    a: &RunArgs,
+    seq: &dataset::Sequence,
+    range: &std::ops::RangeInclusive<usize>,
+) -> Result<Option<Recording>> {
+    a.rerun
+        .as_deref()
+        .map(|path| Recording::create(path, seq, *range.start(), *range.end(), a.rerun_map_every))
+        .transpose()
+}
+
+/// Without the `rerun` feature: an error naming the feature when `--rerun` is given.
+#[cfg(not(feature = "rerun"))]
+fn open_recording(
+    a: &RunArgs,
+    _seq: &dataset::Sequence,
+    _range: &std::ops::RangeInclusive<usize>,
+) -> Result<Option<Recording>> {
+    match &a.rerun {
+        Some(_) => Err(Error::Argument(
+            "--rerun needs a wgslam built with the `rerun` feature \
+             (cargo build --release --features rerun); this binary was built without it"
+                .into(),
+        )),
+        None => Ok(None),
+    }
 }
 
 /// Without `--frames`, a run starts at the first frame with ground truth (ICL-NUIM's frame 0

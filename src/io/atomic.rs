@@ -48,7 +48,7 @@ where
 }
 
 /// `<dir>/.<name>.tmp-<pid>-<n>` next to `path`.
-fn temp_path(path: &Path) -> Result<PathBuf> {
+pub(crate) fn temp_path(path: &Path) -> Result<PathBuf> {
     let name = path.file_name().ok_or_else(|| {
         Error::Argument(format!("output path {} has no file name", path.display()))
     })?;

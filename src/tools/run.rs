@@ -131,6 +131,25 @@ pub fn run_frames<B: Backend>(
     run_frames_with(slam, seq, first, last, Decode::Overlapped, on_frame)
 }
 
+/// Watches a run frame by frame with more than [`FrameOutcome`] holds: the decoded images,
+/// and the map when it asks for it (`wgslam run --rerun`). Called on the pipeline's thread
+/// after each frame's `on_frame`, outside the frame's timed work (its time shows in the
+/// wall-clock total only).
+pub trait FrameObserver {
+    /// True when [`FrameObserver::frame`] wants the map after the frame at sequence position
+    /// `index`: a whole-map download from the backend (on the GPU a read-back of 48 bytes per
+    /// surfel), so ask every few frames, not every frame.
+    fn wants_map(&mut self, index: usize) -> bool;
+    /// After frame `outcome.index`: its raw images (full resolution, as decoded), what the
+    /// pipeline did, and the map after the frame when [`FrameObserver::wants_map`] said so.
+    fn frame(
+        &mut self,
+        raw: &RawFrame,
+        outcome: &FrameOutcome,
+        map: Option<&SurfelMap>,
+    ) -> Result<()>;
+}
+
 /// [`run_frames`] with a choice of where frames are decoded.
 pub fn run_frames_with<B: Backend>(
     slam: &mut Slam<B>,
@@ -138,8 +157,21 @@ pub fn run_frames_with<B: Backend>(
     first: usize,
     last: usize,
     decode: Decode,
-    mut on_frame: impl FnMut(&FrameOutcome),
+    on_frame: impl FnMut(&FrameOutcome),
 ) -> Result<(Vec<FrameOutcome>, f64)> {
+    run_frames_observed(slam, seq, first..=last, decode, on_frame, None)
+}
+
+/// [`run_frames_with`] over `frames`, showing each frame to `observer` when there is one.
+fn run_frames_observed<B: Backend>(
+    slam: &mut Slam<B>,
+    seq: &Sequence,
+    frames: std::ops::RangeInclusive<usize>,
+    decode: Decode,
+    mut on_frame: impl FnMut(&FrameOutcome),
+    mut observer: Option<&mut dyn FrameObserver>,
+) -> Result<(Vec<FrameOutcome>, f64)> {
+    let (first, last) = (*frames.start(), *frames.end());
     let wall = Instant::now();
     let mut outcomes = Vec::with_capacity(last + 1 - first);
     let mut process = |i: usize, frame: Result<RawFrame>, decode_seconds: f64| -> Result<()> {
@@ -156,6 +188,13 @@ pub fn run_frames_with<B: Backend>(
             report,
         };
         on_frame(&out);
+        if let Some(observer) = observer.as_deref_mut() {
+            let map = match observer.wants_map(i) {
+                true => Some(slam.backend.download_map()?),
+                false => None,
+            };
+            observer.frame(&frame, &out, map.as_ref())?;
+        }
         outcomes.push(out);
         Ok(())
     };
@@ -249,8 +288,23 @@ pub fn run_with<B: Backend>(
     decode: Decode,
     on_frame: impl FnMut(&FrameOutcome),
 ) -> Result<RunResult> {
+    run_observed(backend, seq, first..=last, params, decode, on_frame, None)
+}
+
+/// [`run_with`] over `frames`, showing each frame (images, outcome, and the map when it
+/// asks) to `observer` when there is one; the final map is in the [`RunResult`].
+pub fn run_observed<B: Backend>(
+    backend: B,
+    seq: &Sequence,
+    frames: std::ops::RangeInclusive<usize>,
+    params: SlamParams,
+    decode: Decode,
+    on_frame: impl FnMut(&FrameOutcome),
+    observer: Option<&mut dyn FrameObserver>,
+) -> Result<RunResult> {
+    let (first, last) = (*frames.start(), *frames.end());
     let mut slam = Slam::for_sequence(backend, seq, params);
-    let (frames, wall) = run_frames_with(&mut slam, seq, first, last, decode, on_frame)?;
+    let (frames, wall) = run_frames_observed(&mut slam, seq, frames, decode, on_frame, observer)?;
     let map = slam.backend.download_map()?;
     let mut counts = TrackingCounts::default();
     for f in &frames {
