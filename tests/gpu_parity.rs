@@ -1105,6 +1105,48 @@ fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
 }
 
+/// icp_reduce_final against its twin, bit for bit, over partials shaped as on lavapipe (16
+/// workgroups) and on a GPU (1024): entries of mixed sign and magnitude (as AᵀA, Aᵀb,
+/// counts and residuals are), so the order of the f32 adds shows in the result.
+fn icp_reduce_final_matches_twin(ctx: GpuContext) {
+    use wgslam::gpu::backend::bindings::ICP_REDUCE_FINAL;
+    use wgslam::gpu::{GpuArray, Kernel, Readback};
+    use wgslam::layout::ICP_SYSTEM_LEN;
+    let kernel = Kernel::new(&ctx, "icp_reduce_final", &ICP_REDUCE_FINAL).unwrap();
+    for groups in [1usize, 16, 1024] {
+        let n = groups * ICP_SYSTEM_LEN;
+        let partials: Vec<f32> = (0..n)
+            .map(|i| {
+                let x = ((i as u64 * 2_654_435_761) % 1_000_003) as f32 / 1_000_003.0 - 0.3;
+                x * 10f32.powi((i % 7) as i32 - 3)
+            })
+            .collect();
+        let twin = cpu::icp_reduce_final::icp_reduce_final(&partials);
+        let input = GpuArray::from_slice(&ctx, "partials", &partials).unwrap();
+        let mut system = GpuArray::<f32>::new(&ctx, "system", ICP_SYSTEM_LEN).unwrap();
+        system.set_len(ICP_SYSTEM_LEN);
+        let mut readback = Readback::new(&ctx, "system read-back", ICP_SYSTEM_LEN);
+        let bg = kernel.bind_group(&ctx, &[input.binding(), system.binding()]);
+        let mut enc = ctx.encoder("icp_reduce_final");
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            kernel.dispatch(&ctx, &mut pass, &bg, 1).unwrap();
+        }
+        readback.copy_from(&mut enc, &system, ICP_SYSTEM_LEN);
+        ctx.submit(enc);
+        let gpu = readback.read(&ctx).unwrap();
+        for k in 0..ICP_SYSTEM_LEN {
+            assert_eq!(
+                gpu[k].to_bits(),
+                twin[k].to_bits(),
+                "{groups} workgroups, entry {k}: gpu {} twin {}",
+                gpu[k],
+                twin[k]
+            );
+        }
+    }
+}
+
 fn main() -> ExitCode {
     common::harness::run(vec![
         gpu("preprocess_matches_twins", |ctx| {
@@ -1119,6 +1161,10 @@ fn main() -> ExitCode {
         gpu("icp_system_matches_twin", |ctx| {
             icp_system_matches_twin(gpu_backend(ctx))
         }),
+        gpu(
+            "icp_reduce_final_matches_twin",
+            icp_reduce_final_matches_twin,
+        ),
         gpu("pyramid_depth_matches_twin", |ctx| {
             pyramid_depth_matches_twin(gpu_backend(ctx))
         }),

@@ -22,6 +22,7 @@ pub mod fuse_flags;
 pub mod fuse_merge;
 pub mod fuse_select;
 pub mod icp_reduce;
+pub mod icp_reduce_final;
 pub mod nn_brute;
 pub mod nn_grid;
 pub mod predict_model;

@@ -14,8 +14,9 @@
 //! per-frame textures are sized at the first `preprocess` and reused (re-created only if the
 //! frame size changes); the surfel map lives on the GPU for the whole run and grows
 //! geometrically (x1.5, a GPU-side copy) before a fusion could overflow it. Per frame the
-//! host reads back only the ICP partials (one 29-float system per workgroup per iteration)
-//! and the 4-byte surfel counter; maps are downloaded only on request.
+//! host reads back only the ICP system (per iteration, `icp_reduce`'s per-workgroup
+//! partials summed on the GPU by `icp_reduce_final`: 29 floats, 116 bytes) and the 4-byte
+//! surfel counter; maps are downloaded only on request.
 //! With the bilateral filter on, `preprocess` runs three kernels and `vertex_to_normal`
 //! reads the filtered-vertex texture through a second bind group; the unfiltered vertex
 //! texture is kept (the filtered one is allocated either way, one frame map's worth).
@@ -125,6 +126,10 @@ pub mod bindings {
         Binding::texture_f32("normal_depth: target, camera frame, w = depth"),
         Binding::read_write("partials: 29 f32 per workgroup"),
     ];
+    pub const ICP_REDUCE_FINAL: [Binding; 2] = [
+        Binding::read("partials: 29 f32 per icp_reduce workgroup"),
+        Binding::read_write("system: the 29 summed f32"),
+    ];
     pub const FUSE_SELECT: [Binding; 6] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
@@ -192,6 +197,7 @@ struct Kernels {
     predict_model: Kernel,
     pyramid_model: Kernel,
     icp_reduce: Kernel,
+    icp_reduce_final: Kernel,
     fuse_select: Kernel,
     fuse_merge: Kernel,
     fuse_flags: Kernel,
@@ -318,7 +324,11 @@ pub struct GpuBackend {
     u_fuse: ParamBuffer<FuseParams>,
     reduction_workgroups: u32,
     partials: GpuArray<f32>,
-    partials_readback: Readback<f32>,
+    /// The summed system (`icp_reduce_final`), the one read-back per ICP iteration.
+    system: GpuArray<f32>,
+    system_readback: Readback<f32>,
+    /// `icp_reduce_final` over `partials` into `system` (neither is ever re-created).
+    icp_final_group: wgpu::BindGroup,
     counter: GpuArray<u32>,
     counter_readback: Readback<u32>,
     frame: Option<FrameBuffers>,
@@ -480,6 +490,11 @@ impl GpuBackend {
                 predict_model: Kernel::new(&ctx, "predict_model", &bindings::PREDICT_MODEL)?,
                 pyramid_model: Kernel::new(&ctx, "pyramid_model", &bindings::PYRAMID_MODEL)?,
                 icp_reduce: Kernel::new(&ctx, "icp_reduce", &bindings::ICP_REDUCE)?,
+                icp_reduce_final: Kernel::new(
+                    &ctx,
+                    "icp_reduce_final",
+                    &bindings::ICP_REDUCE_FINAL,
+                )?,
                 fuse_select: Kernel::new(&ctx, "fuse_select", &bindings::FUSE_SELECT)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
                 fuse_flags: Kernel::new(&ctx, "fuse_flags", &bindings::FUSE_FLAGS)?,
@@ -500,9 +515,12 @@ impl GpuBackend {
             partials.set_len(system_floats);
             let mut counter = GpuArray::new(&ctx, "surfel counter", 1)?;
             counter.set_len(1);
+            let mut system = GpuArray::new(&ctx, "icp system", ICP_SYSTEM_LEN)?;
+            system.set_len(ICP_SYSTEM_LEN);
             let small = (
                 partials,
-                Readback::new(&ctx, "icp partials read-back", system_floats),
+                system,
+                Readback::new(&ctx, "icp system read-back", ICP_SYSTEM_LEN),
                 counter,
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
@@ -510,7 +528,10 @@ impl GpuBackend {
             Ok((kernels, uniforms, small, map))
         })?;
         let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
-        let (partials, partials_readback, counter, counter_readback) = small;
+        let (partials, system, system_readback, counter, counter_readback) = small;
+        let icp_final_group = kernels
+            .icp_reduce_final
+            .bind_group(&ctx, &[partials.binding(), system.binding()]);
         let u_compact = ParamBuffer::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
         let u_fuse_scan =
             ParamBuffer::new(&ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed());
@@ -525,7 +546,9 @@ impl GpuBackend {
             u_fuse,
             reduction_workgroups,
             partials,
-            partials_readback,
+            system,
+            system_readback,
+            icp_final_group,
             counter,
             counter_readback,
             frame: None,
@@ -1127,23 +1150,27 @@ impl Backend for GpuBackend {
             0 => &bg.icp_reduce,
             l => &bg.levels[l - 1].icp_reduce,
         };
-        let partials = ctx.scoped("icp_reduce", || {
+        let final_group = &self.icp_final_group;
+        let system = ctx.scoped("icp_reduce", || {
             self.u_icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
-            record_passes(ctx, profiler, &mut enc, &[(&k.icp_reduce, group, [wg, 1])])?;
-            self.partials_readback.copy_from(
+            record_passes(
+                ctx,
+                profiler,
                 &mut enc,
-                &self.partials,
-                wg as usize * ICP_SYSTEM_LEN,
-            );
+                &[
+                    (&k.icp_reduce, group, [wg, 1]),
+                    (&k.icp_reduce_final, final_group, [1, 1]),
+                ],
+            )?;
+            self.system_readback
+                .copy_from(&mut enc, &self.system, ICP_SYSTEM_LEN);
             submit_profiled(ctx, profiler, enc)?;
-            self.partials_readback.read(ctx)
+            self.system_readback.read(ctx)
         })?;
         let mut sys = [0.0f64; ICP_SYSTEM_LEN];
-        for part in partials.chunks_exact(ICP_SYSTEM_LEN) {
-            for (s, &p) in sys.iter_mut().zip(part) {
-                *s += p as f64;
-            }
+        for (s, &x) in sys.iter_mut().zip(&system) {
+            *s = x as f64;
         }
         Ok(sys)
     }

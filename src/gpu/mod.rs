@@ -47,6 +47,7 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
         ("project_model", &b::PROJECT_MODEL),
         ("predict_model", &b::PREDICT_MODEL),
         ("icp_reduce", &b::ICP_REDUCE),
+        ("icp_reduce_final", &b::ICP_REDUCE_FINAL),
         ("fuse_select", &b::FUSE_SELECT),
         ("fuse_merge", &b::FUSE_MERGE),
         ("fuse_flags", &b::FUSE_FLAGS),

@@ -54,6 +54,10 @@ pub const KERNELS: &[(&str, &str)] = &[
     ),
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     (
+        "icp_reduce_final",
+        include_str!("../../shaders/icp_reduce_final.wgsl"),
+    ),
+    (
         "fuse_select",
         include_str!("../../shaders/fuse_select.wgsl"),
     ),
