@@ -4,38 +4,11 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitCode, Output};
+use std::process::{Command, ExitCode};
 use std::time::{Duration, Instant};
 
+use common::cli::{text, wgslam_env as wgslam};
 use common::harness::{gpu, plain, shared};
-
-fn wgslam(args: &[&str], env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_wgslam"));
-    c.args(args);
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    // The scheduler variables of the machine running the tests must not pick jobs here.
-    for k in [
-        "SLURM_ARRAY_TASK_ID",
-        "SLURM_ARRAY_TASK_COUNT",
-        "JOB_COMPLETION_INDEX",
-        "WGSLAM_SHARD_COUNT",
-    ] {
-        if !env.iter().any(|(n, _)| *n == k) {
-            c.env_remove(k);
-        }
-    }
-    c.output().expect("run wgslam")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// Writes `body` as `dir/batch.toml` with `output = "out"`; returns the manifest path.
 fn manifest(dir: &Path, body: &str) -> PathBuf {
@@ -43,6 +16,14 @@ fn manifest(dir: &Path, body: &str) -> PathBuf {
     let path = dir.join("batch.toml");
     std::fs::write(&path, format!("output = \"out\"\n{body}")).unwrap();
     path
+}
+
+/// A `[[job]]` table named `name` over `seq` with more `fields` (TOML lines).
+fn one_job(name: &str, seq: &Path, fields: &str) -> String {
+    format!(
+        "[[job]]\nname = \"{name}\"\nsequence = \"{}\"\n{fields}",
+        seq.display()
+    )
 }
 
 fn s(p: &Path) -> &str {
@@ -142,10 +123,7 @@ fn runs_resumes_and_reports() {
 
 fn a_failing_job_is_recorded_and_the_batch_goes_on() {
     let dir = common::temp_dir("batch-fail");
-    let body = format!(
-        "{}[[job]]\nname = \"missing\"\nsequence = \"no/such/sequence\"\n",
-        cpu_grid("1..2")
-    );
+    let body = cpu_grid("1..2") + &one_job("missing", Path::new("no/such/sequence"), "");
     let m = manifest(&dir, &body);
     let o = wgslam(&["batch", s(&m)], &[]);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
@@ -310,10 +288,7 @@ fn both_backends_write_the_gpu_vs_cpu_comparison() {
     let seq = common::bundled_icl();
     let m = manifest(
         &dir,
-        &format!(
-            "[[job]]\nname = \"both\"\nsequence = \"{}\"\nframes = \"1..4\"\ndownsample = 4\n",
-            seq.display()
-        ),
+        &one_job("both", &seq, "frames = \"1..4\"\ndownsample = 4\n"),
     );
     let o = wgslam(&["batch", s(&m)], &[]);
     assert!(o.status.success(), "{}", text(&o));
@@ -341,9 +316,10 @@ fn noisy_sequence_job_tracks_against_ground_truth(data: &Path) {
     let seq = common::shared_icl_noisy(data);
     let m = manifest(
         &dir,
-        &format!(
-            "[[job]]\nname = \"noisy\"\nsequence = \"{}\"\nframes = \"1..40\"\ndownsample = 4\nbackend = \"cpu\"\n",
-            seq.display()
+        &one_job(
+            "noisy",
+            &seq,
+            "frames = \"1..40\"\ndownsample = 4\nbackend = \"cpu\"\n",
         ),
     );
     let o = wgslam(&["batch", s(&m)], &[]);

@@ -5,8 +5,9 @@
 
 mod common;
 
-use std::process::{Command, ExitCode};
+use std::process::ExitCode;
 
+use common::cli::wgslam;
 use common::harness::{gpu, plain};
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
@@ -154,13 +155,6 @@ fn lockstep_names_the_stage_of_a_perturbed_map() {
     eprintln!("2 % of the map 5 mm off: {:#?}", some.violations);
     assert_eq!(frames_naming(&some, "map after the frame"), 2);
     assert_eq!(frames_naming(&some, "preprocess"), 0);
-}
-
-fn wgslam(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_wgslam"))
-        .args(args)
-        .output()
-        .expect("run wgslam")
 }
 
 /// The command line: lockstep by default, `--free` for the end-to-end mode; the printed

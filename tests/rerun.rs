@@ -7,8 +7,9 @@ mod common;
 use std::collections::BTreeMap;
 use std::io::BufReader;
 use std::path::Path;
-use std::process::{Command, ExitCode, Output};
+use std::process::ExitCode;
 
+use common::cli::{text, wgslam};
 use common::harness::plain;
 use rerun::external::arrow::array::{Array, AsArray};
 use rerun::external::re_log_encoding::DecoderApp;
@@ -23,21 +24,6 @@ const MAP_EVERY: usize = 2;
 /// (900 KiB) and its u16 depth (600 KiB) and the file is LZ4-compressed; a tenth of the
 /// raw bytes is far below what real images compress to, and far above an empty recording.
 const MIN_RECORDING_BYTES: u64 = FRAME_COUNT as u64 * 150 * 1024;
-
-fn wgslam(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wgslam"))
-        .args(args)
-        .output()
-        .expect("run wgslam")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// What one entity holds in a recording: static rows, and per-frame rows as (frame
 /// timeline value, points: positions of a point cloud, points over all strips of a line

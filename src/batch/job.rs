@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::gpu_vs_cpu::{self, GpuVsCpu};
 use super::interrupt;
 use super::manifest::JobSpec;
+use crate::tools::run::{read_numbers, RunNumbers};
 use crate::{Error, Result};
 
 /// The record's file name inside a job folder.
@@ -39,25 +40,6 @@ const LOG_TAIL_LINES: usize = 6;
 pub enum JobStatus {
     Ok,
     Failed,
-}
-
-/// One backend's numbers, read from its `metrics.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunNumbers {
-    pub frames: u64,
-    pub map_points: u64,
-    /// Frames whose tracking was lost (not fused).
-    pub lost_frames: u64,
-    /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
-    /// ground truth), millimetres and degrees.
-    pub ate_rmse_mm: Option<f64>,
-    pub rpe_trans_rmse_mm: Option<f64>,
-    pub rpe_rot_rmse_deg: Option<f64>,
-    /// Pipeline time per frame (median), milliseconds; whole-run wall time, seconds.
-    pub time_per_frame_median_ms: f64,
-    pub wall_s: f64,
-    /// Peak resident memory of the run's process, MiB (None where the OS does not say).
-    pub peak_memory_mib: Option<f64>,
 }
 
 /// What `job.json` holds.
@@ -337,29 +319,4 @@ fn log_tail(log: &Path) -> String {
     let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
     let from = lines.len().saturating_sub(LOG_TAIL_LINES);
     lines[from..].join("\n")
-}
-
-/// A run's numbers from its `metrics.json`.
-pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let m: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not JSON: {e}")))?;
-    let num = |v: &serde_json::Value, what: &str| {
-        v.as_f64()
-            .ok_or_else(|| Error::format(path, format!("no number `{what}`")))
-    };
-    let acc = &m["accuracy"];
-    let opt = |k: &str, scale: f64| acc[k].as_f64().map(|x| x * scale);
-    Ok(RunNumbers {
-        frames: num(&m["frames"], "frames")? as u64,
-        map_points: num(&m["map_points"], "map_points")? as u64,
-        lost_frames: num(&m["tracking"]["lost"], "tracking.lost")? as u64,
-        ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
-        rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
-        rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
-        time_per_frame_median_ms: num(&m["time_per_frame_median_s"], "time_per_frame_median_s")?
-            * 1e3,
-        wall_s: num(&m["wall_total_s"], "wall_total_s")?,
-        peak_memory_mib: m["peak_memory_mib"].as_f64(),
-    })
 }

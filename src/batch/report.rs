@@ -10,9 +10,9 @@ use std::path::Path;
 
 use base64::Engine as _;
 
-use super::job::RunNumbers;
 use super::summary::{Row, Summary};
 use crate::io::atomic::write_atomic;
+use crate::tools::run::RunNumbers;
 use crate::{Error, Result};
 
 /// The pictures shown per backend, from its run folder, with their captions.

@@ -11,9 +11,10 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::job::{JobRecord, JobStatus, RunNumbers, RECORD};
+use super::job::{JobRecord, JobStatus, RECORD};
 use super::manifest::{JobSpec, Manifest};
 use crate::io::atomic::write_atomic;
+use crate::tools::run::RunNumbers;
 use crate::{Error, Result};
 
 /// The expanded job list a batch folder was started with.

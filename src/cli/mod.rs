@@ -1052,54 +1052,26 @@ fn bench_revisit(a: &BenchArgs, total: usize) -> Result<()> {
     let seq = a.data.open()?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     seq.revisiting(first, last, total)?;
-    let exe = std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?;
-    let tmp = std::env::temp_dir().join(format!("wgslam-bench-revisit-{}", std::process::id()));
     let mut runs = Vec::new();
     for b in &a.backends {
         let name = format!("{b:?}").to_lowercase();
-        let out = tmp.join(&name);
         eprintln!("{name}: {total} frames over {first}..{last} forwards and backwards ...");
+        // `child_args` carries --frames when given; without it the child's default range
+        // is the one resolved here (from the first frame with ground truth).
         let mut args = vec!["run".to_string()];
-        // The range is given below, once, as resolved here.
-        let child = a.child_args();
-        let mut it = child.into_iter();
-        while let Some(x) = it.next() {
-            if x == "--frames" {
-                it.next();
-            } else {
-                args.push(x);
-            }
-        }
+        args.extend(a.child_args());
         args.extend([
-            "--frames".into(),
-            format!("{first}..{last}"),
             "--revisit".into(),
             total.to_string(),
             "--backend".into(),
             name.clone(),
-            "--out".into(),
-            out.display().to_string(),
         ]);
-        let o = std::process::Command::new(&exe)
-            .args(&args)
-            .stdin(std::process::Stdio::null())
-            .output()
-            .map_err(|e| Error::io(&exe, e))?;
-        if !o.status.success() {
-            let _ = std::fs::remove_dir_all(&tmp);
-            return Err(Error::Numerical(format!(
-                "the {name} long run failed ({}): {}",
-                o.status,
-                String::from_utf8_lossy(&o.stderr).trim()
-            )));
-        }
-        runs.push(crate::tools::long_run::summarise(
-            &out,
+        runs.push(crate::tools::long_run::run_in_child(
+            &args,
             &name,
             last - first,
         )?);
     }
-    let _ = std::fs::remove_dir_all(&tmp);
     crate::tools::long_run::print(&runs);
     if let Some(path) = &a.json {
         run::write_json(path, &serde_json::json!({ "revisit": runs }))?;

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::tools::run::read_numbers;
 use crate::{Error, Result};
 
 /// Frames at each end of the run whose mean time per frame is compared.
@@ -37,18 +38,47 @@ pub struct LongRun {
     pub lost_frames: u64,
 }
 
+/// Runs `wgslam RUN_ARGS --out TMP` (a `wgslam run --revisit ...` of one backend) in a
+/// child process of this executable, so its peak memory is its own, and summarises it;
+/// the outputs go to a temporary folder, removed afterwards.
+pub fn run_in_child(run_args: &[String], backend: &str, pass_frames: usize) -> Result<LongRun> {
+    let exe = std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?;
+    let out = std::env::temp_dir().join(format!(
+        "wgslam-bench-revisit-{}-{backend}",
+        std::process::id()
+    ));
+    let o = std::process::Command::new(&exe)
+        .args(run_args)
+        .arg("--out")
+        .arg(&out)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .map_err(|e| Error::io(&exe, e));
+    let result = o.and_then(|o| {
+        if o.status.success() {
+            summarise(&out, backend, pass_frames)
+        } else {
+            Err(Error::Numerical(format!(
+                "the {backend} long run failed ({}): {}",
+                o.status,
+                String::from_utf8_lossy(&o.stderr).trim()
+            )))
+        }
+    });
+    let _ = std::fs::remove_dir_all(&out);
+    result
+}
+
 /// Reads `frames.json` and `metrics.json` of a finished `wgslam run --revisit` in `dir`.
 pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRun> {
-    let read = |name: &str| -> Result<serde_json::Value> {
-        let path = dir.join(name);
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("not JSON: {e}")))
-    };
-    let frames = read("frames.json")?;
-    let metrics = read("metrics.json")?;
+    let path = dir.join("frames.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let frames: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("not JSON: {e}")))?;
+    let numbers = read_numbers(&dir.join("metrics.json"))?;
     let frames = frames
         .as_array()
-        .ok_or_else(|| Error::format(dir.join("frames.json"), "not a list of frames"))?;
+        .ok_or_else(|| Error::format(&path, "not a list of frames"))?;
     let seconds: Vec<f64> = frames
         .iter()
         .map(|f| f["seconds"].as_f64().unwrap_or(f64::NAN))
@@ -58,7 +88,7 @@ pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRu
         .map(|f| f["report"]["surfels"].as_u64().unwrap_or(0) as usize)
         .collect();
     if seconds.is_empty() || seconds.iter().any(|s| !s.is_finite()) || pass_frames == 0 {
-        return Err(Error::format(dir.join("frames.json"), "no frame times"));
+        return Err(Error::format(&path, "no frame times"));
     }
     let n = seconds.len();
     let k = END_FRAMES.min(n);
@@ -73,8 +103,6 @@ pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRu
     if (n - 1) % pass_frames != 0 || map_after_pass.is_empty() {
         map_after_pass.push(surfels[n - 1]);
     }
-    let mut sorted = seconds.clone();
-    sorted.sort_by(f64::total_cmp);
     Ok(LongRun {
         backend: backend.to_string(),
         frames: n,
@@ -82,15 +110,13 @@ pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRu
         first_mean_ms,
         last_mean_ms,
         last_over_first: last_mean_ms / first_mean_ms,
-        median_ms: sorted[n / 2] * 1e3,
+        median_ms: crate::stats::median(&seconds) * 1e3,
         map_last_over_first: *map_after_pass.last().unwrap() as f64
             / map_after_pass[0].max(1) as f64,
         map_after_pass,
-        peak_memory_mib: metrics["peak_memory_mib"].as_f64(),
-        ate_rmse_mm: metrics["accuracy"]["ate_rmse_aligned_m"]
-            .as_f64()
-            .map(|m| m * 1e3),
-        lost_frames: metrics["tracking"]["lost"].as_u64().unwrap_or(0),
+        peak_memory_mib: numbers.peak_memory_mib,
+        ate_rmse_mm: numbers.ate_rmse_mm,
+        lost_frames: numbers.lost_frames,
     })
 }
 

@@ -13,7 +13,7 @@ use std::sync::mpsc;
 use std::time::Instant;
 
 use glam::DMat4;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::dataset::{RawFrame, Sequence};
 use crate::eval;
@@ -21,7 +21,7 @@ use crate::io;
 use crate::layout::pack_rgba8;
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, FrameReport, Slam, SlamParams, TrackStatus};
-use crate::Result;
+use crate::{Error, Result};
 
 /// One processed frame: where it sits in the sequence and what the pipeline did.
 #[derive(Debug, Clone, Serialize)]
@@ -397,4 +397,49 @@ pub fn write_pictures(out: &Path, result: &RunResult, seq: &Sequence) -> Result<
         written.push(path);
     }
     Ok(written)
+}
+
+/// A finished run's headline numbers, read back from its `metrics.json` (by `wgslam batch`
+/// per job and backend, and by the long-sequence benchmark).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunNumbers {
+    pub frames: u64,
+    pub map_points: u64,
+    /// Frames whose tracking was lost (not fused).
+    pub lost_frames: u64,
+    /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
+    /// ground truth), millimetres and degrees.
+    pub ate_rmse_mm: Option<f64>,
+    pub rpe_trans_rmse_mm: Option<f64>,
+    pub rpe_rot_rmse_deg: Option<f64>,
+    /// Pipeline time per frame (median), milliseconds; whole-run wall time, seconds.
+    pub time_per_frame_median_ms: f64,
+    pub wall_s: f64,
+    /// Peak resident memory of the run's process, MiB (None where the OS does not say).
+    pub peak_memory_mib: Option<f64>,
+}
+
+/// A run's numbers from its `metrics.json`.
+pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let m: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not JSON: {e}")))?;
+    let num = |v: &serde_json::Value, what: &str| {
+        v.as_f64()
+            .ok_or_else(|| Error::format(path, format!("no number `{what}`")))
+    };
+    let acc = &m["accuracy"];
+    let opt = |k: &str, scale: f64| acc[k].as_f64().map(|x| x * scale);
+    Ok(RunNumbers {
+        frames: num(&m["frames"], "frames")? as u64,
+        map_points: num(&m["map_points"], "map_points")? as u64,
+        lost_frames: num(&m["tracking"]["lost"], "tracking.lost")? as u64,
+        ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
+        rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
+        rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
+        time_per_frame_median_ms: num(&m["time_per_frame_median_s"], "time_per_frame_median_s")?
+            * 1e3,
+        wall_s: num(&m["wall_total_s"], "wall_total_s")?,
+        peak_memory_mib: m["peak_memory_mib"].as_f64(),
+    })
 }

@@ -1,10 +1,11 @@
-//! Shared helpers for the integration tests: the harness that shows a skipped test as
+//! Shared helpers for the integration tests: running the executable ([`cli`]), the harness that shows a skipped test as
 //! ignored with its reason ([`harness`]), naga checks of WGSL ([`wgsl`]), raw bundled
 //! frames and ground truth ([`frames`]), the bundled LiDAR pair and nearest-neighbour
 //! kernel inputs ([`scans`]), and where the data is. Each test file includes it with `mod common;` and uses what it needs.
 
 #![allow(dead_code)]
 
+pub mod cli;
 pub mod frames;
 pub mod harness;
 pub mod scans;
