@@ -141,13 +141,97 @@ const ICP_ATB_OFFSET: u32 = 21u;
 const ICP_COUNT_INDEX: u32 = 27u;
 const ICP_RESIDUAL_INDEX: u32 = 28u;
 
-// Texels per row of the surfel-map textures (mirrors `layout::MAP_TEXTURE_WIDTH`): surfel i
-// is texel (i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH).
-const MAP_TEXTURE_WIDTH: u32 = 4096u;
+// Mirrors `layout::MapChunk`: one chunk of the surfel map (three storage arrays of `slots`
+// surfels; surfel i of the map is element i - base of the chunk that holds it). Kernels
+// that walk the map are dispatched once per chunk. See src/gpu/map_buffers.rs.
+struct MapChunk {
+    base: u32,
+    slots: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
 
-// The texel of surfel `i` in a surfel-map texture.
-fn surfel_texel(i: u32) -> vec2<u32> {
-    return vec2<u32>(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH);
+// Mirrors `layout::BoundsParams` (block_bounds).
+struct BoundsParams {
+    surfel_count: u32,
+    block_from: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Surfels per culling block (mirrors `layout::BLOCK_SURFELS`): block b holds map slots
+// b * BLOCK_SURFELS .. (b + 1) * BLOCK_SURFELS; its box is entries 2b (min) and 2b + 1 (max)
+// of block_bounds, as vec4<u32> of ordered_from_f32 values (w unused).
+const BLOCK_SURFELS: u32 = 1024u;
+
+// An f32 as a u32 whose unsigned order is the float order, so boxes grow with atomicMin /
+// atomicMax. Mirrors `layout::ordered_from_f32`.
+fn ordered_from_f32(x: f32) -> u32 {
+    let bits = bitcast<u32>(x);
+    if (bits & 0x80000000u) != 0u {
+        return ~bits;
+    }
+    return bits | 0x80000000u;
+}
+
+// The inverse of ordered_from_f32. Mirrors `layout::f32_from_ordered`.
+fn f32_from_ordered(u: u32) -> f32 {
+    if (u & 0x80000000u) != 0u {
+        return bitcast<f32>(u & 0x7fffffffu);
+    }
+    return bitcast<f32>(~u);
+}
+
+// (blocks, end): the blocks `chunk` spans and the end (map-wide index, exclusive) of its
+// surfels when the map holds surfel_count; the loop bounds of every map-walking kernel.
+// Mirrors `cpu::chunk_blocks`.
+fn chunk_blocks(chunk: MapChunk, surfel_count: u32) -> vec2<u32> {
+    let end = min(surfel_count, chunk.base + chunk.slots);
+    if end <= chunk.base {
+        return vec2<u32>(0u, chunk.base);
+    }
+    return vec2<u32>((end - chunk.base + BLOCK_SURFELS - 1u) / BLOCK_SURFELS, end);
+}
+
+// A box corner decoded from block_bounds.
+fn decode_corner(v: vec4<u32>) -> vec3<f32> {
+    return vec3<f32>(f32_from_ordered(v.x), f32_from_ordered(v.y), f32_from_ordered(v.z));
+}
+
+// How much wider than the image, in pixels, the culling frustum is: block_visible must
+// never cull a surfel that project_to_texel would put in the image, and the box corners
+// are transformed in f32 like the surfel (errors of ~1e-6 of the coordinates), so a
+// 2-pixel band is far more than rounding can move a projection.
+const CULL_MARGIN_PX: f32 = 2.0;
+// Same for the near plane, metres: a box is behind the camera only if every corner is at
+// least this far behind it.
+const CULL_NEAR_MARGIN_M: f32 = 0.001;
+
+// False only when no point of the world-frame box lo..hi can project into the width x
+// height image (project_to_texel's filter 1): every corner lies outside one of five
+// half-spaces of the camera frame, behind the camera or beyond an image edge (by
+// CULL_MARGIN_PX), written without dividing by z (u = fx x / z + cx + 0.5 < -margin is
+// fx x + (cx + 0.5 + margin) z < 0 for z > 0, any sign of fx). Each half-space is convex,
+// so holding the 8 corners means holding the box; points behind the camera fail filter 1
+// anyway. Conservative: a box it keeps may still be invisible. `t` = world to camera,
+// cam = (fx, fy, cx, cy). Mirrors `cpu::block_visible`.
+fn block_visible(t: mat4x4<f32>, cam: vec4<f32>, width: u32, height: u32, lo: vec3<f32>, hi: vec3<f32>) -> bool {
+    let m = CULL_MARGIN_PX;
+    var behind = true;
+    var left = true;
+    var right = true;
+    var top = true;
+    var bottom = true;
+    for (var k = 0u; k < 8u; k++) {
+        let pick = vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u);
+        let p = transform_point(t, select(lo, hi, pick));
+        behind = behind && p.z < -CULL_NEAR_MARGIN_M;
+        left = left && cam.x * p.x + (cam.z + 0.5 + m) * p.z < 0.0;
+        right = right && cam.x * p.x + (cam.z + 0.5 - f32(width) - m) * p.z > 0.0;
+        top = top && cam.y * p.y + (cam.w + 0.5 + m) * p.z < 0.0;
+        bottom = bottom && cam.y * p.y + (cam.w + 0.5 - f32(height) - m) * p.z > 0.0;
+    }
+    return !(behind || left || right || top || bottom);
 }
 
 // The invalid map entry (mirrors `cpu::INVALID`).

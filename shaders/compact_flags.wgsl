@@ -2,21 +2,25 @@
 // (Keller et al. 2013): a surfel seen fewer than `stable_weight` times whose last
 // observation is more than `max_age_frames` frames old is dropped. First of the three
 // stream-compaction kernels (then prefix_sum, compact_scatter). CPU twin:
-// src/cpu/compact_flags.rs.
+// src/cpu/compact_flags.rs. Dispatched once per map chunk.
 //
 // Bindings (@group(0)):
 //   0 params           storage read CompactParams (surfel_count, frame_id, stable_weight,
 //                      max_age_frames)
-//   1 position_weight  texture_2d<f32> (rgba32float): xyz world frame, w = weight
-//   2 normal_frame     texture_2d<u32> (rgba32uint): normal bits, w = last_frame
-//   3 flags            storage rw array<u32>: out, 1 keep / 0 remove, surfel_count entries
-//   (surfel i is texel surfel_texel(i) of each map texture; see src/gpu/map_textures.rs)
+//   1 chunk            storage read MapChunk: the chunk's first map-wide index and slots
+//   2 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world
+//                      frame, w = weight
+//   3 normal_frame     storage read array<vec4<u32>>: normal bits, w = last_frame
+//   4 flags            storage rw array<u32>: out, 1 keep / 0 remove per map-wide index,
+//                      surfel_count entries (this pass writes the chunk's)
+//   (see src/gpu/map_buffers.rs)
 // Grid-stride loop over surfels; each thread writes only its own flag.
 
 @group(0) @binding(0) var<storage, read> params: CompactParams;
-@group(0) @binding(1) var position_weight: texture_2d<f32>;
-@group(0) @binding(2) var normal_frame: texture_2d<u32>;
-@group(0) @binding(3) var<storage, read_write> flags: array<u32>;
+@group(0) @binding(1) var<storage, read> chunk: MapChunk;
+@group(0) @binding(2) var<storage, read> position_weight: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> normal_frame: array<vec4<u32>>;
+@group(0) @binding(4) var<storage, read_write> flags: array<u32>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -35,10 +39,11 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let stride = nwg.x * WORKGROUP_SIZE;
-    for (var i = gid.x; i < params.surfel_count; i += stride) {
-        let surfel = surfel_texel(i);
-        let weight = textureLoad(position_weight, surfel, 0).w;
-        let last_frame = textureLoad(normal_frame, surfel, 0).w;
+    let end = chunk_blocks(chunk, params.surfel_count).y;
+    for (var i = chunk.base + gid.x; i < end; i += stride) {
+        let surfel = i - chunk.base;
+        let weight = position_weight[surfel].w;
+        let last_frame = normal_frame[surfel].w;
         flags[i] = select(0u, 1u, keep_surfel(weight, last_frame, params.frame_id));
     }
 }

@@ -2,7 +2,8 @@
 // merged with or covers) as a new surfel at slot surfel_count + offsets[pix] (prefix_sum of
 // the flags, so new surfels lie in pixel order, as on the CPU, and two runs write the same
 // map): world frame, weight pixel_confidence, radius surfel_radius. Last of three kernels
-// (fuse_flags, prefix_sum, fuse_add). CPU twin: src/cpu/fuse_add.rs.
+// (fuse_flags, prefix_sum, fuse_add). Dispatched once per map chunk: each pass writes the
+// new surfels whose slots the chunk holds. CPU twin: src/cpu/fuse_add.rs.
 //
 // Bindings (@group(0)):
 //   0 params      storage read FuseParams (t_cam_to_world, surfel_count, frame_id, capacity)
@@ -12,10 +13,12 @@
 //   2 color_map   texture_2d<f32>: width x height, RGB 0..255
 //   3 flags       storage read   array<u32>: 1 where the pixel becomes a new surfel
 //   4 offsets     storage read   array<u32>: exclusive prefix sum of flags
-//   5 position_weight  storage texture rgba32float, write: xyz world frame, w = confidence
-//   6 normal_frame     storage texture rgba32uint, write: normal bits, w = last_frame
-//   7 color            storage texture rgba32float, write: RGB 0..255, a = radius (m)
-//   (surfel i is texel surfel_texel(i) of each; capacity slots; see src/gpu/map_textures.rs)
+//   5 chunk       storage read MapChunk: the chunk's first map-wide index and slots
+//   6 position_weight  storage rw array<vec4<f32>>: out, xyz world frame, w = confidence
+//   7 normal_frame     storage rw array<vec4<u32>>: out, normal bits, w = last_frame
+//   8 color            storage rw array<vec4<f32>>: out, RGB 0..255, a = radius (m)
+//   (map-wide surfel i is element i - chunk.base of the chunk's arrays; see
+//   src/gpu/map_buffers.rs)
 // One thread per pixel (8x8 workgroups). Never writes at or past params.capacity (the host
 // grows the map first so that every pixel fits).
 
@@ -24,9 +27,10 @@
 @group(0) @binding(2) var color_map: texture_2d<f32>;
 @group(0) @binding(3) var<storage, read> flags: array<u32>;
 @group(0) @binding(4) var<storage, read> offsets: array<u32>;
-@group(0) @binding(5) var position_weight: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(6) var normal_frame: texture_storage_2d<rgba32uint, write>;
-@group(0) @binding(7) var color: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(5) var<storage, read> chunk: MapChunk;
+@group(0) @binding(6) var<storage, read_write> position_weight: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> normal_frame: array<vec4<u32>>;
+@group(0) @binding(8) var<storage, read_write> color: array<vec4<f32>>;
 
 // One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
 @compute @workgroup_size(8, 8)
@@ -40,7 +44,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let nd = textureLoad(normal_depth, gid.xy, 0);
     let i = params.surfel_count + offsets[pix];
-    if i >= params.capacity {
+    // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
+    let slot = i - chunk.base;
+    if i >= params.capacity || slot >= chunk.slots {
         return;
     }
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
@@ -49,8 +55,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n = transform_dir(params.t_cam_to_world, xyz(nd));
     let w = pixel_confidence(cam, gid.xy, params.confidence_sigma);
     let r = surfel_radius(params.fx, q_cam, xyz(nd));
-    let surfel = surfel_texel(i);
-    textureStore(position_weight, surfel, vec4<f32>(p, w));
-    textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));
-    textureStore(color, surfel, vec4<f32>(textureLoad(color_map, gid.xy, 0).xyz, r));
+    position_weight[slot] = vec4<f32>(p, w);
+    normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
+    color[slot] = vec4<f32>(textureLoad(color_map, gid.xy, 0).xyz, r);
 }

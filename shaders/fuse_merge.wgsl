@@ -2,8 +2,9 @@
 // averages of position, normal, colour and radius; weight + confidence; last_frame =
 // frame_id). With projective association (the assignment) the gates are tested here and
 // merged pixels are flagged; with best-candidate association a surfel merges only with the
-// pixel whose fuse_select chose it. CPU twin: src/cpu/fuse_merge.rs (its header states both
-// filter passes).
+// pixel whose fuse_select chose it. Dispatched once per map chunk; a merge that moves a
+// surfel out of its block's box grows the box. CPU twin: src/cpu/fuse_merge.rs (its header
+// states both filter passes).
 //
 // Bindings (@group(0)):
 //   0 params      storage read FuseParams (tracked poses, intrinsics, surfel_count, gates,
@@ -12,25 +13,33 @@
 //                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
 //                   is rebuilt with back_project, as in the twin
 //   2 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   3 position_weight  storage texture rgba32float, read_write: xyz world frame (metres),
-//                      w = confidence
-//   4 normal_frame     storage texture rgba32uint, read_write: bits of the unit normal
-//                      (world frame), w = frame that last touched the surfel
-//   5 color            storage texture rgba32float, read_write: RGB 0..255, a = radius (m)
-//   6 assoc            storage rw array<atomic<u64>>: one key per pixel, cleared by the
+//   3 chunk            storage read MapChunk: the chunk's first map-wide index and slots
+//   4 block_bounds     storage rw array<atomic<u32>>: per block 8 words, min xyz, pad,
+//                      max xyz, pad (ordered_from_f32; the vec4<u32> pairs other kernels
+//                      read); grown with atomicMin/atomicMax to hold every merged surfel
+//   5 position_weight  storage rw array<vec4<f32>>: the chunk's surfels, xyz world frame
+//                      (metres), w = confidence
+//   6 normal_frame     storage rw array<vec4<u32>>: bits of the unit normal (world frame),
+//                      w = frame that last touched the surfel
+//   7 color            storage rw array<vec4<f32>>: RGB 0..255, a = radius (m)
+//   8 assoc            storage rw array<atomic<u64>>: one key per pixel, cleared by the
 //                      host; projective: max with 1 where merged; best candidate:
-//                      fuse_select's choice (surfel index in the low 32 bits)
-//   (surfel i is texel surfel_texel(i) of each map texture; see src/gpu/map_textures.rs)
-// Grid-stride loop over surfels; each thread writes only its own surfel, so the result
-// does not depend on thread order (several surfels may flag the same pixel).
+//                      fuse_select's choice (map-wide surfel index in the low 32 bits)
+//   (see src/gpu/map_buffers.rs)
+// Workgroups stride over the chunk's blocks, skipping those block_visible rejects (their
+// surfels cannot project into the image); threads stride over a block. Each thread writes
+// only its own surfels, so the result does not depend on thread order (several surfels may
+// flag the same pixel); boxes only grow, by min/max, which no order changes.
 
 @group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var color_map: texture_2d<f32>;
-@group(0) @binding(3) var position_weight: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(4) var normal_frame: texture_storage_2d<rgba32uint, read_write>;
-@group(0) @binding(5) var color: texture_storage_2d<rgba32float, read_write>;
-@group(0) @binding(6) var<storage, read_write> assoc: array<atomic<u64>>;
+@group(0) @binding(3) var<storage, read> chunk: MapChunk;
+@group(0) @binding(4) var<storage, read_write> block_bounds: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> position_weight: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> normal_frame: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read_write> color: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read_write> assoc: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -43,59 +52,95 @@ fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
+// Word k of block b's box (0..2 min xyz, 4..6 max xyz) as a float.
+fn box_word(block: u32, k: u32) -> f32 {
+    return f32_from_ordered(atomicLoad(&block_bounds[8u * block + k]));
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
-    let stride = nwg.x * WORKGROUP_SIZE;
-    for (var i = gid.x; i < params.surfel_count; i += stride) {
-        let surfel = surfel_texel(i);
-        let pw = textureLoad(position_weight, surfel);
-        let p_world = xyz(pw);
-        let p_cam = transform_point(params.t_world_to_cam, p_world);
-        let uv = project_to_texel(cam, params.width, params.height, p_cam);
-        if uv.x < 0 {
+    let span = chunk_blocks(chunk, params.surfel_count);
+    for (var b = wid.x; b < span.x; b += nwg.x) {
+        let block = chunk.base / BLOCK_SURFELS + b;
+        let lo = vec3<f32>(box_word(block, 0u), box_word(block, 1u), box_word(block, 2u));
+        let hi = vec3<f32>(box_word(block, 4u), box_word(block, 5u), box_word(block, 6u));
+        if !block_visible(params.t_world_to_cam, cam, params.width, params.height, lo, hi) {
             continue;
         }
-        let texel = vec2<u32>(uv);
-        let pix = texel.y * params.width + texel.x;
-        // Best candidate: only the pixel that chose this surfel (fuse_select tested the
-        // gates, on a valid pixel), before any other load.
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            let key = atomicLoad(&assoc[pix]);
-            if key == 0lu || u32(key) != i {
-                continue;
+        // The box grown by this thread's merged surfels.
+        var grown_lo = lo;
+        var grown_hi = hi;
+        let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            let moved = merge_surfel(i, i - chunk.base, cam);
+            if moved.w > 0.0 {
+                grown_lo = min(grown_lo, moved.xyz);
+                grown_hi = max(grown_hi, moved.xyz);
             }
         }
-        // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
-        let nd = textureLoad(normal_depth, texel, 0);
-        if !is_valid(nd) {
-            continue;
-        }
-        let q_cam = back_project(cam, texel, nd.w);
-        let q_world = transform_point(params.t_cam_to_world, q_cam);
-        let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
-        let n_old = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel).xyz);
-        if params.association == ASSOCIATION_PROJECTIVE
-            && (length(q_world - p_world) >= params.dist_threshold_m
-                || dot(n_old, nq_world) <= params.cos_normal_threshold) {
-            continue;
-        }
-        let w = pw.w;
-        let wq = pixel_confidence(cam, texel, params.confidence_sigma);
-        let inv = 1.0 / (w + wq);
-        let p = (p_world * w + q_world * wq) * inv;
-        let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
-        let c = textureLoad(color, surfel);
-        let cq = textureLoad(color_map, texel, 0);
-        let r = (c.w * w + surfel_radius(params.fx, q_cam, xyz(nd)) * wq) * inv;
-        textureStore(position_weight, surfel, vec4<f32>(p, w + wq));
-        textureStore(normal_frame, surfel, vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id));
-        textureStore(color, surfel, vec4<f32>((c.xyz * w + cq.xyz * wq) * inv, r));
-        if params.association == ASSOCIATION_PROJECTIVE {
-            atomicMax(&assoc[pix], 1lu);
+        for (var k = 0u; k < 3u; k++) {
+            if grown_lo[k] < lo[k] {
+                atomicMin(&block_bounds[8u * block + k], ordered_from_f32(grown_lo[k]));
+            }
+            if grown_hi[k] > hi[k] {
+                atomicMax(&block_bounds[8u * block + 4u + k], ordered_from_f32(grown_hi[k]));
+            }
         }
     }
+}
+
+// Merges surfel i (map-wide index; `slot` in the chunk's arrays) with its pixel when the
+// filters pass: returns its new world-frame position with w = 1, or w = 0 if unmerged.
+fn merge_surfel(i: u32, slot: u32, cam: vec4<f32>) -> vec4<f32> {
+    let pw = position_weight[slot];
+    let p_world = xyz(pw);
+    let p_cam = transform_point(params.t_world_to_cam, p_world);
+    let uv = project_to_texel(cam, params.width, params.height, p_cam);
+    if uv.x < 0 {
+        return INVALID;
+    }
+    let texel = vec2<u32>(uv);
+    let pix = texel.y * params.width + texel.x;
+    // Best candidate: only the pixel that chose this surfel (fuse_select tested the
+    // gates, on a valid pixel), before any other load.
+    if params.association == ASSOCIATION_BEST_CANDIDATE {
+        let key = atomicLoad(&assoc[pix]);
+        if key == 0lu || u32(key) != i {
+            return INVALID;
+        }
+    }
+    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
+    let nd = textureLoad(normal_depth, texel, 0);
+    if !is_valid(nd) {
+        return INVALID;
+    }
+    let q_cam = back_project(cam, texel, nd.w);
+    let q_world = transform_point(params.t_cam_to_world, q_cam);
+    let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
+    let n_old = bitcast<vec3<f32>>(normal_frame[slot].xyz);
+    if params.association == ASSOCIATION_PROJECTIVE
+        && (length(q_world - p_world) >= params.dist_threshold_m
+            || dot(n_old, nq_world) <= params.cos_normal_threshold) {
+        return INVALID;
+    }
+    let w = pw.w;
+    let wq = pixel_confidence(cam, texel, params.confidence_sigma);
+    let inv = 1.0 / (w + wq);
+    let p = (p_world * w + q_world * wq) * inv;
+    let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
+    let c = color[slot];
+    let cq = textureLoad(color_map, texel, 0);
+    let r = (c.w * w + surfel_radius(params.fx, q_cam, xyz(nd)) * wq) * inv;
+    position_weight[slot] = vec4<f32>(p, w + wq);
+    normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
+    color[slot] = vec4<f32>((c.xyz * w + cq.xyz * wq) * inv, r);
+    if params.association == ASSOCIATION_PROJECTIVE {
+        atomicMax(&assoc[pix], 1lu);
+    }
+    return vec4<f32>(p, 1.0);
 }

@@ -1,23 +1,27 @@
 // predict_model.wgsl: turns the index map into the predicted (model) vertex and normal
-// maps in the WORLD frame, the ICP source. CPU twin: src/cpu/predict_model.rs.
+// maps in the WORLD frame, the ICP source. Dispatched once per map chunk: each pass writes
+// the pixels whose surfel the chunk holds, and the first chunk's pass also the pixels with
+// no surfel, so every pixel is written exactly once. CPU twin: src/cpu/predict_model.rs.
 //
 // Bindings (@group(0)):
 //   0 params       storage read ProjectParams (only width and height are used)
 //   1 index_map    storage read   array<vec2<u32>>: the u64 keys of project_model, low word
-//                                 (surfel index) first; (0, 0) means no surfel
-//   2 position_weight  texture_2d<f32>: surfel xyz (world frame) + weight, surfel_texel(i)
-//   3 normal_frame     texture_2d<u32>: bits of the surfel normal (world frame) + last_frame
-//   (the packing is documented in src/gpu/map_textures.rs)
-//   4 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
-//   5 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
+//                                 (map-wide surfel index) first; (0, 0) means no surfel
+//   2 chunk        storage read MapChunk: the chunk's first map-wide index and slots
+//   3 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world frame
+//   4 normal_frame     storage read array<vec4<u32>>: bits of the surfel normal (world
+//                      frame) + last_frame (the packing: src/gpu/map_buffers.rs)
+//   5 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
+//   6 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 // One thread per pixel (8x8 workgroups).
 
 @group(0) @binding(0) var<storage, read> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
-@group(0) @binding(2) var position_weight: texture_2d<f32>;
-@group(0) @binding(3) var normal_frame: texture_2d<u32>;
-@group(0) @binding(4) var pred_vertex: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(5) var pred_normal: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(2) var<storage, read> chunk: MapChunk;
+@group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> normal_frame: array<vec4<u32>>;
+@group(0) @binding(5) var pred_vertex: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(6) var pred_normal: texture_storage_2d<rgba32float, write>;
 
 // One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
 @compute @workgroup_size(8, 8)
@@ -29,11 +33,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var vertex = INVALID;
     var normal = INVALID;
     if key.x != 0u || key.y != 0u {
-        let surfel = surfel_texel(key.x);
-        let p = textureLoad(position_weight, surfel, 0).xyz;
-        let n = bitcast<vec3<f32>>(textureLoad(normal_frame, surfel, 0).xyz);
+        // key.x - chunk.base wraps to a huge value below the chunk: one test for both ends.
+        let slot = key.x - chunk.base;
+        if slot >= chunk.slots {
+            return;
+        }
+        let p = position_weight[slot].xyz;
+        let n = bitcast<vec3<f32>>(normal_frame[slot].xyz);
         vertex = vec4<f32>(p, 1.0);
         normal = vec4<f32>(n, 1.0);
+    } else if chunk.base != 0u {
+        return;
     }
     textureStore(pred_vertex, gid.xy, vertex);
     textureStore(pred_normal, gid.xy, normal);

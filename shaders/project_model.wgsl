@@ -1,34 +1,51 @@
-// project_model.wgsl: splats every surfel into an index map with a depth test, one packed
-// 64-bit key per pixel. CPU twin: src/cpu/project_model.rs.
+// project_model.wgsl: splats every surfel of one map chunk into an index map with a depth
+// test, one packed 64-bit key per pixel, skipping blocks the camera cannot see. Dispatched
+// once per chunk. CPU twin: src/cpu/project_model.rs.
 //
 // Bindings (@group(0)):
 //   0 params     storage read ProjectParams (t_world_to_cam, intrinsics, map size, surfel_count)
-//   1 position_weight  texture_2d<f32>: surfel xyz (world frame, metres) + weight,
-//                      surfel i at surfel_texel(i) (see src/gpu/map_textures.rs)
-//   2 index_map  storage rw     array<atomic<u64>>: width x height, cleared to 0 by the host
-// Key = (u64(~bitcast<u32>(z_cam)) << 32) | surfel index; the pixel keeps the maximum
-// (nearest surfel, ties to the larger index); 0 means no surfel. Needs the
-// SHADER_INT64_ATOMIC_MIN_MAX feature. Grid-stride loop over surfels: the host dispatches
-// at most max_compute_workgroups_per_dimension workgroups.
+//   1 chunk      storage read MapChunk: the chunk's first map-wide index and slots
+//   2 block_bounds  storage read array<vec4<u32>>: per block, min (2b) and max (2b + 1)
+//                   corner of its surfels' world-frame box, ordered_from_f32 encoded
+//   3 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world frame
+//                      (metres) + weight (see src/gpu/map_buffers.rs)
+//   4 index_map  storage rw     array<atomic<u64>>: width x height, cleared to 0 by the host
+// Key = (u64(~bitcast<u32>(z_cam)) << 32) | map-wide surfel index; the pixel keeps the
+// maximum (nearest surfel, ties to the larger index); 0 means no surfel. Needs the
+// SHADER_INT64_ATOMIC_MIN_MAX feature. Workgroups stride over the chunk's blocks; a block
+// whose box block_visible rejects is skipped whole (conservative: no surfel that would
+// land in the image is skipped); the workgroup's threads stride over a visible block.
 
 @group(0) @binding(0) var<storage, read> params: ProjectParams;
-@group(0) @binding(1) var position_weight: texture_2d<f32>;
-@group(0) @binding(2) var<storage, read_write> index_map: array<atomic<u64>>;
+@group(0) @binding(1) var<storage, read> chunk: MapChunk;
+@group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> index_map: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
-    let stride = nwg.x * WORKGROUP_SIZE;
-    for (var i = gid.x; i < params.surfel_count; i += stride) {
-        let p = transform_point(params.t_world_to_cam, xyz(textureLoad(position_weight, surfel_texel(i), 0)));
-        let pix = project_to_pixel(cam, params.width, params.height, p);
-        if pix >= 0 {
-            atomicMax(&index_map[pix], pack_depth_index(p.z, i));
+    let span = chunk_blocks(chunk, params.surfel_count);
+    for (var b = wid.x; b < span.x; b += nwg.x) {
+        let block = chunk.base / BLOCK_SURFELS + b;
+        let lo = decode_corner(block_bounds[2u * block]);
+        let hi = decode_corner(block_bounds[2u * block + 1u]);
+        if !block_visible(params.t_world_to_cam, cam, params.width, params.height, lo, hi) {
+            continue;
+        }
+        let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            let p = transform_point(params.t_world_to_cam, xyz(position_weight[i - chunk.base]));
+            let pix = project_to_pixel(cam, params.width, params.height, p);
+            if pix >= 0 {
+                atomicMax(&index_map[pix], pack_depth_index(p.z, i));
+            }
         }
     }
 }

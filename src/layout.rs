@@ -269,11 +269,79 @@ pub const ICP_COUNT_INDEX: usize = 27;
 /// Index of the sum of squared residuals (m²) in the system.
 pub const ICP_RESIDUAL_INDEX: usize = 28;
 
-/// Texels per row of the GPU surfel-map textures (mirrors `MAP_TEXTURE_WIDTH` in
-/// common.wgsl): surfel `i` lives at texel `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)`.
-/// 4096 is below the 8192 every WebGPU device allows per side, and a 4096-texel rgba32float
-/// row is 64 KiB, a multiple of the 256-byte copy pitch.
-pub const MAP_TEXTURE_WIDTH: u32 = 4096;
+/// Surfels per culling block (mirrors `BLOCK_SURFELS` in common.wgsl): the map is cut into
+/// runs of this many consecutive slots, each with a world-frame bounding box
+/// (`block_bounds`), and the kernels that walk the map (`project_model`, `fuse_select`,
+/// `fuse_merge`) skip a block whose box the camera cannot see. 1024 slots: a box per 16 KiB
+/// of positions, small enough that the surfels a frame appends (in pixel order) make
+/// compact boxes, large enough that the boxes cost nothing to test.
+pub const BLOCK_SURFELS: u32 = 1024;
+
+/// u32s per block in `block_bounds`: the box's min xyz, a pad, its max xyz, a pad, each
+/// coordinate as [`ordered_from_f32`] so that unsigned `atomicMin`/`atomicMax` order them
+/// as floats.
+pub const BLOCK_BOUNDS_U32S: usize = 8;
+
+/// One chunk of the GPU surfel map (mirrors `MapChunk` in common.wgsl): the map is a list of
+/// chunks, each three storage buffers of `slots` surfels (see `gpu::map_buffers`), and a
+/// kernel that walks the map is dispatched once per chunk with the chunk's `MapChunk`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Pod, Zeroable)]
+pub struct MapChunk {
+    /// Map-wide index of the chunk's slot 0 (a multiple of [`BLOCK_SURFELS`]).
+    pub base: u32,
+    /// Slots in the chunk (a multiple of [`BLOCK_SURFELS`]).
+    pub slots: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+impl MapChunk {
+    /// The whole map as one chunk of `slots` slots (the CPU backend's map, and tests that
+    /// call a twin on a whole map).
+    pub fn whole(slots: usize) -> MapChunk {
+        MapChunk {
+            base: 0,
+            slots: slots as u32,
+            _pad0: 0,
+            _pad1: 0,
+        }
+    }
+}
+
+/// Parameters of `block_bounds` (mirrors `BoundsParams` in common.wgsl): recompute the
+/// boxes of blocks `block_from..` up to the block of the last surfel.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Pod, Zeroable)]
+pub struct BoundsParams {
+    /// Surfels in the map.
+    pub surfel_count: u32,
+    /// First block whose box is recomputed.
+    pub block_from: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// An f32 as a u32 whose unsigned order is the float order (negative floats: all bits
+/// flipped; others: the sign bit set), so boxes can grow with integer atomics. Mirrors
+/// `ordered_from_f32` in common.wgsl.
+pub fn ordered_from_f32(x: f32) -> u32 {
+    let bits = x.to_bits();
+    if bits & 0x8000_0000 != 0 {
+        !bits
+    } else {
+        bits | 0x8000_0000
+    }
+}
+
+/// The inverse of [`ordered_from_f32`]. Mirrors `f32_from_ordered` in common.wgsl.
+pub fn f32_from_ordered(u: u32) -> f32 {
+    if u & 0x8000_0000 != 0 {
+        f32::from_bits(u & 0x7fff_ffff)
+    } else {
+        f32::from_bits(!u)
+    }
+}
 
 /// Packs RGB8 into the `u32` layout the GPU reads (`r | g << 8 | b << 16 | 255 << 24`).
 pub fn pack_rgba8(rgb: [u8; 3]) -> u32 {

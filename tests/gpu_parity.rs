@@ -14,7 +14,9 @@ use wgslam::cpu;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
-use wgslam::layout::{CompactParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
+use wgslam::layout::{
+    CompactParams, FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS,
+};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
 use wgslam::slam::pipeline::{
@@ -294,11 +296,14 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
 
     let n = (proj.width * proj.height) as usize;
     let mut index_cpu = vec![0u64; n];
-    cpu::project_model::project_model(&proj, &map.position_weight, &mut index_cpu);
+    let whole = MapChunk::whole(map.len());
+    let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
+    cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut index_cpu);
     let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
     cpu::predict_model::predict_model(
         &proj,
         &index_cpu,
+        &whole,
         &map.position_weight,
         &map.normal_frame,
         &mut pv_cpu,
@@ -710,6 +715,8 @@ fn check_fuse_select(
     cpu::fuse_select::fuse_select(
         &params,
         &frame.normal_depth,
+        &MapChunk::whole(map.len()),
+        &cpu::block_bounds::whole_map_bounds(&map.position_weight),
         &map.position_weight,
         &map.normal_frame,
         &map.color,
@@ -763,7 +770,13 @@ fn check_compaction(gpu: &mut GpuBackend, map: &SurfelMap, params: &CompactParam
     };
     // The twins, kernel by kernel.
     let mut flags = vec![0u32; n];
-    cpu::compact_flags::compact_flags(&params, &map.position_weight, &map.normal_frame, &mut flags);
+    cpu::compact_flags::compact_flags(
+        &params,
+        &MapChunk::whole(n),
+        &map.position_weight,
+        &map.normal_frame,
+        &mut flags,
+    );
     let mut offsets = vec![0u32; n];
     let mut kept = 0u32;
     cpu::prefix_sum::prefix_sum(&params, &flags, &mut offsets, &mut kept);
@@ -1008,9 +1021,19 @@ fn compaction_follows_map_growth(ctx: GpuContext) {
     );
 }
 
+/// Map chunks small enough that a few bundled frames fill many of them, so every map
+/// kernel runs across chunk boundaries (8 culling blocks per chunk).
+const SMALL_CHUNK_SURFELS: usize = 8 * BLOCK_SURFELS as usize;
+
+/// A backend whose map is made of [`SMALL_CHUNK_SURFELS`]-surfel chunks.
+fn small_chunk_backend(ctx: GpuContext) -> GpuBackend {
+    GpuBackend::with_map_layout(ctx, SMALL_CHUNK_SURFELS, SMALL_CHUNK_SURFELS).unwrap()
+}
+
 fn map_grows_from_a_tiny_capacity(ctx: GpuContext) {
-    let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
-    assert_eq!(gpu.capacity(), 1000);
+    let gpu = GpuBackend::with_map_layout(ctx, 1000, SMALL_CHUNK_SURFELS).unwrap();
+    // Slots come in whole culling blocks.
+    assert_eq!(gpu.capacity(), BLOCK_SURFELS as usize);
     let gt = load_gt(&root());
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
@@ -1027,10 +1050,12 @@ fn map_grows_from_a_tiny_capacity(ctx: GpuContext) {
     }
     let cap = g.backend.capacity();
     eprintln!(
-        "capacity grew 1000 -> {cap}; surfels cpu {} gpu {}",
+        "capacity grew 1024 -> {cap} in {} chunks; surfels cpu {} gpu {}",
+        g.backend.map_chunks(),
         c.backend.surfel_count(),
         g.backend.surfel_count()
     );
+    assert!(g.backend.map_chunks() > 1, "the map grew past one chunk");
     assert!(cap >= g.backend.surfel_count() + 76_800);
     let allowed = (c.backend.surfel_count() as f64 * RUN_SURFEL_FRACTION_TOL).ceil() as usize;
     assert!(c.backend.surfel_count().abs_diff(g.backend.surfel_count()) <= allowed);
@@ -1185,6 +1210,15 @@ fn main() -> ExitCode {
         }),
         gpu("compaction_sizes_match_twins", |ctx| {
             compaction_sizes_match_twins(gpu_backend(ctx))
+        }),
+        gpu("predict_matches_twins_in_small_chunks", |ctx| {
+            predict_matches_twins(small_chunk_backend(ctx))
+        }),
+        gpu("robust_fuse_matches_twins_in_small_chunks", |ctx| {
+            fuse_matches_twins(small_chunk_backend(ctx), Profile::Robust)
+        }),
+        gpu("compaction_matches_twins_in_small_chunks", |ctx| {
+            compaction_matches_twins(small_chunk_backend(ctx))
         }),
         gpu("tracked_run_matches_cpu_and_ground_truth", |ctx| {
             tracked_run_matches_cpu_and_ground_truth(gpu_backend(ctx))

@@ -113,6 +113,18 @@ fn rust_layouts() -> Vec<RustLayout> {
             stable_weight,
             max_age_frames
         }),
+        rust_layout!(MapChunk {
+            base,
+            slots,
+            _pad0,
+            _pad1
+        }),
+        rust_layout!(BoundsParams {
+            surfel_count,
+            block_from,
+            _pad0,
+            _pad1
+        }),
     ]
 }
 
@@ -159,12 +171,40 @@ fn icp_system_len_matches() {
     assert_eq!(wgslam::layout::ICP_RESIDUAL_INDEX + 1, ICP_SYSTEM_LEN);
 }
 
-/// The `MAP_TEXTURE_WIDTH` constant agrees on both sides.
-fn map_texture_width_matches() {
+/// The culling block size agrees on both sides, and chunks of whole blocks fit it.
+fn block_surfels_matches() {
+    assert_eq!(wgsl_u32_const("BLOCK_SURFELS"), BLOCK_SURFELS);
     assert_eq!(
-        wgsl_u32_const("MAP_TEXTURE_WIDTH"),
-        wgslam::layout::MAP_TEXTURE_WIDTH
+        wgslam::gpu::map_buffers::DEFAULT_CHUNK_SURFELS % BLOCK_SURFELS as usize,
+        0
     );
+}
+
+/// The ordered encoding of the block boxes keeps the float order (negative, zero, positive,
+/// infinities) and round-trips exactly, so integer atomicMin/atomicMax grow boxes right.
+fn ordered_encoding_keeps_float_order() {
+    let xs = [
+        f32::NEG_INFINITY,
+        -1.0e30,
+        -3.5,
+        -1.0,
+        -1.0e-30,
+        -0.0,
+        0.0,
+        1.0e-30,
+        0.25,
+        1.0,
+        7.0,
+        1.0e30,
+        f32::INFINITY,
+    ];
+    for w in xs.windows(2) {
+        let (a, b) = (ordered_from_f32(w[0]), ordered_from_f32(w[1]));
+        assert!(a <= b, "{} -> {a:#x} vs {} -> {b:#x}", w[0], w[1]);
+    }
+    for &x in &xs {
+        assert_eq!(f32_from_ordered(ordered_from_f32(x)).to_bits(), x.to_bits());
+    }
 }
 
 fn main() -> ExitCode {
@@ -174,6 +214,10 @@ fn main() -> ExitCode {
             rust_and_wgsl_structs_have_the_same_layout,
         ),
         plain("icp_system_len_matches", icp_system_len_matches),
-        plain("map_texture_width_matches", map_texture_width_matches),
+        plain("block_surfels_matches", block_surfels_matches),
+        plain(
+            "ordered_encoding_keeps_float_order",
+            ordered_encoding_keeps_float_order,
+        ),
     ])
 }

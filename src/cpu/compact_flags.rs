@@ -3,8 +3,8 @@
 //! `last_frame` is more than `max_age_frames` frames before `frame_id` is removed (flag 0);
 //! every other surfel is kept (flag 1).
 
-use super::surfel_texel;
-use crate::layout::CompactParams;
+use super::chunk_blocks;
+use crate::layout::{CompactParams, MapChunk};
 
 /// True when the surfel stays: it is stable (`weight >= stable_weight`) or was seen within
 /// the last `max_age_frames` frames. Mirrors `keep_surfel` in compact_flags.wgsl.
@@ -18,17 +18,21 @@ pub fn keep_surfel(params: &CompactParams, weight: f32, last_frame: u32, frame_i
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
 /// - 0 `params`: `CompactParams` (`surfel_count`, `frame_id`, `stable_weight`,
 ///   `max_age_frames`)
-/// - 1 `position_weight`: xyz world frame, w = weight
-/// - 2 `normal_frame`: normal bits, w = last frame
-/// - 3 `flags` (out): 1 keep / 0 remove, `surfel_count` entries
+/// - 1 `chunk`: the chunk's first map-wide index and slots
+/// - 2 `position_weight`: the chunk's surfels, xyz world frame, w = weight
+/// - 3 `normal_frame`: normal bits, w = last frame
+/// - 4 `flags` (out): 1 keep / 0 remove per map-wide index, `surfel_count` entries (this
+///   call writes the chunk's)
 pub fn compact_flags(
     params: &CompactParams,
+    chunk: &MapChunk,
     position_weight: &[[f32; 4]],
     normal_frame: &[[u32; 4]],
     flags: &mut [u32],
 ) {
-    for i in 0..params.surfel_count {
-        let surfel = surfel_texel(i);
+    let (_, end) = chunk_blocks(chunk, params.surfel_count);
+    for i in chunk.base..end {
+        let surfel = (i - chunk.base) as usize;
         let weight = position_weight[surfel][3];
         let last_frame = normal_frame[surfel][3];
         flags[i as usize] = keep_surfel(params, weight, last_frame, params.frame_id) as u32;

@@ -3,24 +3,23 @@
 //! offsets[pix]` (`prefix_sum` of the flags: pixel order on both backends): world frame,
 //! weight `pixel_confidence` (1 for the assignment), radius `surfel_radius`. Never writes
 //! at or past `params.capacity` (the host grows the map first so that every pixel fits).
+//! Called once per map chunk: each call writes the new surfels whose slots the chunk holds.
 
-use super::{
-    back_project, pixel_confidence, surfel_radius, surfel_texel, transform_dir, transform_point,
-    xyz,
-};
-use crate::layout::FuseParams;
+use super::{back_project, pixel_confidence, surfel_radius, transform_dir, transform_point, xyz};
+use crate::layout::{FuseParams, MapChunk};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, each
-/// holding at least `capacity` entries):
+/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, the
+/// chunk's `slots` entries each):
 /// - 0 `params`: `FuseParams` (`t_cam_to_world`, `surfel_count`, `frame_id`, `capacity`)
 /// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
 ///   zero where invalid (see `vertex_to_normal`)
 /// - 2 `color_map`: width x height, RGB 0..255
 /// - 3 `flags`: 1 where the pixel becomes a new surfel (`fuse_flags`)
 /// - 4 `offsets`: exclusive prefix sum of `flags` (`prefix_sum`)
-/// - 5 `position_weight` (out): xyz world frame, w = confidence
-/// - 6 `normal_frame` (out): normal bits, w = last frame
-/// - 7 `color` (out): RGB 0..255, a = radius (metres)
+/// - 5 `chunk`: the chunk's first map-wide index and slots
+/// - 6 `position_weight` (out): xyz world frame, w = confidence
+/// - 7 `normal_frame` (out): normal bits, w = last frame
+/// - 8 `color` (out): RGB 0..255, a = radius (metres)
 #[allow(clippy::too_many_arguments)]
 pub fn fuse_add(
     params: &FuseParams,
@@ -28,6 +27,7 @@ pub fn fuse_add(
     color_map: &[[f32; 4]],
     flags: &[u32],
     offsets: &[u32],
+    chunk: &MapChunk,
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &mut [[f32; 4]],
@@ -41,7 +41,9 @@ pub fn fuse_add(
             }
             let nd = normal_depth[pix];
             let i = params.surfel_count + offsets[pix];
-            if i >= params.capacity {
+            // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
+            let slot = i.wrapping_sub(chunk.base);
+            if i >= params.capacity || slot >= chunk.slots {
                 continue;
             }
             let q_cam = back_project(cam, [u, v], nd[3]);
@@ -49,7 +51,7 @@ pub fn fuse_add(
             let n = transform_dir(&params.t_cam_to_world, xyz(nd));
             let w = pixel_confidence(cam, [u, v], params.confidence_sigma);
             let r = surfel_radius(params.fx, q_cam, xyz(nd));
-            let surfel = surfel_texel(i);
+            let surfel = slot as usize;
             position_weight[surfel] = [p.x, p.y, p.z, w];
             normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
             let c = color_map[pix];

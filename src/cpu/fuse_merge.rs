@@ -17,14 +17,21 @@
 //! `last_frame = frame_id`, where `c = pixel_confidence(...)` (1 with
 //! `confidence_sigma = 0`: the assignment's counts) and the new radius is `surfel_radius`
 //! of the measurement.
+//!
+//! Called once per map chunk, walking its blocks and skipping those the camera cannot see
+//! ([`block_visible`]); a merge that moves a surfel out of its block's box grows the box
+//! (the shader does it with `atomicMin`/`atomicMax` on the ordered encoding).
 
 use glam::Vec3;
 
 use super::{
-    back_project, is_valid, pixel_confidence, project_to_texel, surfel_radius, surfel_texel,
-    transform_dir, transform_point, xyz,
+    back_project, block_visible, chunk_blocks, is_valid, pixel_confidence, project_to_texel,
+    surfel_radius, transform_dir, transform_point, xyz,
 };
-use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE, ASSOCIATION_PROJECTIVE};
+use crate::layout::{
+    f32_from_ordered, ordered_from_f32, FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE,
+    ASSOCIATION_PROJECTIVE, BLOCK_SURFELS,
+};
 
 /// `v / |v|`, or zero when `|v|` is zero. Mirrors `normalize_or_zero` in fuse_merge.wgsl.
 #[inline]
@@ -47,68 +54,146 @@ fn normal_of(nf: [u32; 4]) -> Vec3 {
 /// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
 ///   zero where invalid (see `vertex_to_normal`)
 /// - 2 `color_map`: width x height, RGB 0..255
-/// - 3 `position_weight` (in/out): xyz world frame (metres), w = confidence
-/// - 4 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
-/// - 5 `color` (in/out): RGB 0..255, a = radius (metres)
-/// - 6 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; projective
+/// - 3 `chunk`: the chunk's first map-wide index and slots
+/// - 4 `block_bounds` (in/out): per block 8 words, min xyz, pad, max xyz, pad
+///   (ordered-encoded), grown to hold every merged surfel
+/// - 5 `position_weight` (in/out): the chunk's surfels, xyz world frame (metres), w =
+///   confidence
+/// - 6 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
+/// - 7 `color` (in/out): RGB 0..255, a = radius (metres)
+/// - 8 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; projective
 ///   association marks merged pixels (max with 1), best-candidate association reads the
-///   choice of `fuse_select` (the chosen surfel's index in the low 32 bits)
+///   choice of `fuse_select` (the chosen surfel's map-wide index in the low 32 bits)
+#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn fuse_merge(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
+    chunk: &MapChunk,
+    block_bounds: &mut [u32],
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &mut [[f32; 4]],
     assoc: &mut [u64],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    for i in 0..params.surfel_count {
-        let surfel = surfel_texel(i);
-        let pw = position_weight[surfel];
-        let p_world = xyz(pw);
-        let p_cam = transform_point(&params.t_world_to_cam, p_world);
-        let Some(texel) = project_to_texel(cam, params.width, params.height, p_cam) else {
+    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
+    let mut map = ChunkMut {
+        position_weight,
+        normal_frame,
+        color,
+    };
+    for b in 0..blocks {
+        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
+        let word = |k: usize| f32_from_ordered(block_bounds[8 * block + k]);
+        let lo = Vec3::new(word(0), word(1), word(2));
+        let hi = Vec3::new(word(4), word(5), word(6));
+        if !block_visible(
+            &params.t_world_to_cam,
+            cam,
+            params.width,
+            params.height,
+            lo,
+            hi,
+        ) {
             continue;
-        };
-        let pix = (texel[1] * params.width + texel[0]) as usize;
-        // Best candidate: only the pixel that chose this surfel (fuse_select tested the
-        // gates, on a valid pixel), before any other load.
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            let key = assoc[pix];
-            if key == 0 || key as u32 != i {
-                continue;
+        }
+        // The box grown by the merged surfels.
+        let mut grown_lo = lo;
+        let mut grown_hi = hi;
+        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
+        for i in chunk.base + b * BLOCK_SURFELS..end {
+            if let Some(moved) = merge_surfel(
+                params,
+                normal_depth,
+                color_map,
+                &mut map,
+                assoc,
+                i,
+                i - chunk.base,
+                cam,
+            ) {
+                grown_lo = grown_lo.min(moved);
+                grown_hi = grown_hi.max(moved);
             }
         }
-        // Valid normal (w = depth > 0) implies a valid vertex.
-        let nd = normal_depth[pix];
-        if !is_valid(nd) {
-            continue;
-        }
-        let q_cam = back_project(cam, texel, nd[3]);
-        let q_world = transform_point(&params.t_cam_to_world, q_cam);
-        let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
-        let n_old = normal_of(normal_frame[surfel]);
-        if params.association == ASSOCIATION_PROJECTIVE
-            && ((q_world - p_world).length() >= params.dist_threshold_m
-                || n_old.dot(nq_world) <= params.cos_normal_threshold)
-        {
-            continue;
-        }
-        let w = pw[3];
-        let wq = pixel_confidence(cam, texel, params.confidence_sigma);
-        let inv = 1.0 / (w + wq);
-        let p = (p_world * w + q_world * wq) * inv;
-        let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
-        let c = color[surfel];
-        let cq = color_map[pix];
-        let r = (c[3] * w + surfel_radius(params.fx, q_cam, xyz(nd)) * wq) * inv;
-        position_weight[surfel] = [p.x, p.y, p.z, w + wq];
-        normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
-        let c = (xyz(c) * w + xyz(cq) * wq) * inv;
-        color[surfel] = [c.x, c.y, c.z, r];
-        if params.association == ASSOCIATION_PROJECTIVE {
-            assoc[pix] = assoc[pix].max(1);
+        for k in 0..3 {
+            if grown_lo[k] < lo[k] {
+                let w = &mut block_bounds[8 * block + k];
+                *w = (*w).min(ordered_from_f32(grown_lo[k]));
+            }
+            if grown_hi[k] > hi[k] {
+                let w = &mut block_bounds[8 * block + 4 + k];
+                *w = (*w).max(ordered_from_f32(grown_hi[k]));
+            }
         }
     }
+}
+
+/// The chunk's three arrays (the shader's bindings 5..7).
+struct ChunkMut<'a> {
+    position_weight: &'a mut [[f32; 4]],
+    normal_frame: &'a mut [[u32; 4]],
+    color: &'a mut [[f32; 4]],
+}
+
+/// Merges surfel `i` (map-wide index; `slot` in the chunk's arrays) with its pixel when the
+/// filters pass: its new world-frame position, or `None` if unmerged (the shader returns
+/// w = 1 / w = 0).
+#[allow(clippy::too_many_arguments)]
+fn merge_surfel(
+    params: &FuseParams,
+    normal_depth: &[[f32; 4]],
+    color_map: &[[f32; 4]],
+    map: &mut ChunkMut,
+    assoc: &mut [u64],
+    i: u32,
+    slot: u32,
+    cam: [f32; 4],
+) -> Option<Vec3> {
+    let surfel = slot as usize;
+    let pw = map.position_weight[surfel];
+    let p_world = xyz(pw);
+    let p_cam = transform_point(&params.t_world_to_cam, p_world);
+    let texel = project_to_texel(cam, params.width, params.height, p_cam)?;
+    let pix = (texel[1] * params.width + texel[0]) as usize;
+    // Best candidate: only the pixel that chose this surfel (fuse_select tested the
+    // gates, on a valid pixel), before any other load.
+    if params.association == ASSOCIATION_BEST_CANDIDATE {
+        let key = assoc[pix];
+        if key == 0 || key as u32 != i {
+            return None;
+        }
+    }
+    // Valid normal (w = depth > 0) implies a valid vertex.
+    let nd = normal_depth[pix];
+    if !is_valid(nd) {
+        return None;
+    }
+    let q_cam = back_project(cam, texel, nd[3]);
+    let q_world = transform_point(&params.t_cam_to_world, q_cam);
+    let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
+    let n_old = normal_of(map.normal_frame[surfel]);
+    if params.association == ASSOCIATION_PROJECTIVE
+        && ((q_world - p_world).length() >= params.dist_threshold_m
+            || n_old.dot(nq_world) <= params.cos_normal_threshold)
+    {
+        return None;
+    }
+    let w = pw[3];
+    let wq = pixel_confidence(cam, texel, params.confidence_sigma);
+    let inv = 1.0 / (w + wq);
+    let p = (p_world * w + q_world * wq) * inv;
+    let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
+    let c = map.color[surfel];
+    let cq = color_map[pix];
+    let r = (c[3] * w + surfel_radius(params.fx, q_cam, xyz(nd)) * wq) * inv;
+    map.position_weight[surfel] = [p.x, p.y, p.z, w + wq];
+    map.normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+    let c = (xyz(c) * w + xyz(cq) * wq) * inv;
+    map.color[surfel] = [c.x, c.y, c.z, r];
+    if params.association == ASSOCIATION_PROJECTIVE {
+        assoc[pix] = assoc[pix].max(1);
+    }
+    Some(p)
 }

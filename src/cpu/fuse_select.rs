@@ -20,10 +20,10 @@
 //! (`compact_flags`) takes it away.
 
 use super::{
-    back_project, is_valid, pack_depth_index, project_to_texel, surfel_texel, transform_dir,
-    transform_point, xyz,
+    back_project, block_visible, chunk_blocks, decode_corner, is_valid, pack_depth_index,
+    project_to_texel, transform_dir, transform_point, xyz,
 };
-use crate::layout::FuseParams;
+use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 
 /// Largest half-width, pixels, of the window a surfel's disc covers: 1 (3x3). Discs are
 /// at most 2 sqrt(2) pixel footprints wide (`surfel_radius`) where they were made, so a
@@ -34,61 +34,109 @@ pub const MAX_SELECT_RADIUS_PX: i32 = 1;
 /// - 0 `params`: `FuseParams` (tracked pose, intrinsics, `surfel_count`, gates)
 /// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w, zero where
 ///   invalid
-/// - 2 `position_weight`: xyz world frame (metres), w = confidence
-/// - 3 `normal_frame`: bits of the unit normal (world frame), w = last frame
-/// - 4 `color`: RGB 0..255, a = radius (metres)
-/// - 5 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; the chosen
-///   surfel's `pack_depth_index(off_ray_m, index)`
+/// - 2 `chunk`: the chunk's first map-wide index and slots
+/// - 3 `block_bounds`: per block, min (`2b`) and max (`2b + 1`) corner, ordered-encoded
+/// - 4 `position_weight`: the chunk's surfels, xyz world frame (metres), w = confidence
+/// - 5 `normal_frame`: bits of the unit normal (world frame), w = last frame
+/// - 6 `color`: RGB 0..255, a = radius (metres)
+/// - 7 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; the chosen
+///   surfel's `pack_depth_index(off_ray_m, map-wide index)`
+#[allow(clippy::too_many_arguments)] // the shader's eight bindings, in order
 pub fn fuse_select(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
+    chunk: &MapChunk,
+    block_bounds: &[[u32; 4]],
     position_weight: &[[f32; 4]],
     normal_frame: &[[u32; 4]],
     color: &[[f32; 4]],
     assoc: &mut [u64],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    for i in 0..params.surfel_count {
-        let surfel = surfel_texel(i);
-        let p_cam = transform_point(&params.t_world_to_cam, xyz(position_weight[surfel]));
-        let Some(centre) = project_to_texel(cam, params.width, params.height, p_cam) else {
+    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
+    let map = Chunk {
+        position_weight,
+        normal_frame,
+        color,
+    };
+    for b in 0..blocks {
+        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
+        let lo = decode_corner(block_bounds[2 * block]);
+        let hi = decode_corner(block_bounds[2 * block + 1]);
+        if !block_visible(
+            &params.t_world_to_cam,
+            cam,
+            params.width,
+            params.height,
+            lo,
+            hi,
+        ) {
             continue;
-        };
-        let nf = normal_frame[surfel];
-        let n_world = glam::Vec3::new(
-            f32::from_bits(nf[0]),
-            f32::from_bits(nf[1]),
-            f32::from_bits(nf[2]),
-        );
-        let n_cam = transform_dir(&params.t_world_to_cam, n_world);
-        let radius = color[surfel][3];
-        let reach = ((radius * params.fx / p_cam.z) as i32).min(MAX_SELECT_RADIUS_PX);
-        for dv in -reach..=reach {
-            for du in -reach..=reach {
-                let u = centre[0] as i32 + du;
-                let v = centre[1] as i32 + dv;
-                if u < 0 || v < 0 || u >= params.width as i32 || v >= params.height as i32 {
-                    continue;
-                }
-                let texel = [u as u32, v as u32];
-                let pix = (texel[1] * params.width + texel[0]) as usize;
-                let nd = normal_depth[pix];
-                if !is_valid(nd) {
-                    continue;
-                }
-                let q = back_project(cam, texel, nd[3]);
-                let ray = q / q.length();
-                let d = p_cam - q;
-                let along = d.dot(ray);
-                let off_ray = (d - ray * along).length();
-                if along.abs() >= params.dist_threshold_m
-                    || off_ray >= radius
-                    || n_cam.dot(xyz(nd)) <= params.cos_normal_threshold
-                {
-                    continue;
-                }
-                assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
+        }
+        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
+        for i in chunk.base + b * BLOCK_SURFELS..end {
+            select_for_surfel(params, normal_depth, &map, assoc, i, i - chunk.base, cam);
+        }
+    }
+}
+
+/// The chunk's three arrays (the shader's bindings 4..6).
+struct Chunk<'a> {
+    position_weight: &'a [[f32; 4]],
+    normal_frame: &'a [[u32; 4]],
+    color: &'a [[f32; 4]],
+}
+
+/// The pixels surfel `i` (map-wide index; `slot` in the chunk's arrays) covers and passes
+/// the gates of keep the better of their key and this surfel's.
+fn select_for_surfel(
+    params: &FuseParams,
+    normal_depth: &[[f32; 4]],
+    map: &Chunk,
+    assoc: &mut [u64],
+    i: u32,
+    slot: u32,
+    cam: [f32; 4],
+) {
+    let slot = slot as usize;
+    let p_cam = transform_point(&params.t_world_to_cam, xyz(map.position_weight[slot]));
+    let Some(centre) = project_to_texel(cam, params.width, params.height, p_cam) else {
+        return;
+    };
+    let nf = map.normal_frame[slot];
+    let n_world = glam::Vec3::new(
+        f32::from_bits(nf[0]),
+        f32::from_bits(nf[1]),
+        f32::from_bits(nf[2]),
+    );
+    let n_cam = transform_dir(&params.t_world_to_cam, n_world);
+    let radius = map.color[slot][3];
+    let reach = ((radius * params.fx / p_cam.z) as i32).min(MAX_SELECT_RADIUS_PX);
+    for dv in -reach..=reach {
+        for du in -reach..=reach {
+            let u = centre[0] as i32 + du;
+            let v = centre[1] as i32 + dv;
+            if u < 0 || v < 0 || u >= params.width as i32 || v >= params.height as i32 {
+                continue;
             }
+            let texel = [u as u32, v as u32];
+            let pix = (texel[1] * params.width + texel[0]) as usize;
+            let nd = normal_depth[pix];
+            if !is_valid(nd) {
+                continue;
+            }
+            let q = back_project(cam, texel, nd[3]);
+            let ray = q / q.length();
+            let d = p_cam - q;
+            let along = d.dot(ray);
+            let off_ray = (d - ray * along).length();
+            if along.abs() >= params.dist_threshold_m
+                || off_ray >= radius
+                || n_cam.dot(xyz(nd)) <= params.cos_normal_threshold
+            {
+                continue;
+            }
+            assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
         }
     }
 }

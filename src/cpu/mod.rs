@@ -10,9 +10,13 @@
 //! the GPU).
 //!
 //! Textures become row-major slices: texel `(u, v)` of a `width`-wide map is element
-//! `v * width + u`, and surfel `i` of a map texture is element `i` ([`surfel_texel`]).
+//! `v * width + u`. The GPU's surfel map is a list of chunks (`layout::MapChunk`), each
+//! three storage arrays; a twin of a kernel that walks the map takes one chunk's `MapChunk`
+//! and arrays, as the shader does per dispatch (the CPU backend passes its whole map as one
+//! chunk).
 
 pub mod bilateral_filter;
+pub mod block_bounds;
 pub mod compact_flags;
 pub mod compact_scatter;
 pub mod cross_covariance;
@@ -36,14 +40,65 @@ pub mod vertex_to_normal;
 
 use glam::{Mat4, Vec3, Vec4};
 
-use crate::layout::GpuMat4;
+use crate::layout::{f32_from_ordered, GpuMat4, MapChunk, BLOCK_SURFELS};
 
-/// The element of surfel `i` in a packed map array. The GPU stores surfel `i` at texel
-/// `(i % MAP_TEXTURE_WIDTH, i / MAP_TEXTURE_WIDTH)` of each map texture; read back
-/// row-major, that texel is element `i`. Mirrors `surfel_texel` in common.wgsl.
+/// Margin, pixels, by which [`block_visible`]'s frustum is wider than the image (see
+/// `CULL_MARGIN_PX` in common.wgsl for why 2). Mirrors `CULL_MARGIN_PX`.
+pub const CULL_MARGIN_PX: f32 = 2.0;
+/// Margin, metres, behind the camera for [`block_visible`]. Mirrors `CULL_NEAR_MARGIN_M`.
+pub const CULL_NEAR_MARGIN_M: f32 = 0.001;
+
+/// A box corner decoded from `block_bounds` (xyz of one `[u32; 4]` entry). Mirrors
+/// `decode_corner` in common.wgsl.
 #[inline]
-pub fn surfel_texel(i: u32) -> usize {
-    i as usize
+pub fn decode_corner(v: [u32; 4]) -> Vec3 {
+    Vec3::new(
+        f32_from_ordered(v[0]),
+        f32_from_ordered(v[1]),
+        f32_from_ordered(v[2]),
+    )
+}
+
+/// False only when no point of the world-frame box `lo..hi` can project into the image
+/// (filter 1): all 8 corners lie behind the camera or beyond one image edge (widened by
+/// [`CULL_MARGIN_PX`]). Conservative, so culling never changes a kernel's output. `t` =
+/// world to camera, `cam` = `(fx, fy, cx, cy)`. Mirrors `block_visible` in common.wgsl
+/// (whose comment has the derivation).
+pub fn block_visible(
+    t: &GpuMat4,
+    cam: [f32; 4],
+    width: u32,
+    height: u32,
+    lo: Vec3,
+    hi: Vec3,
+) -> bool {
+    let m = CULL_MARGIN_PX;
+    let (mut behind, mut left, mut right, mut top, mut bottom) = (true, true, true, true, true);
+    for k in 0..8u32 {
+        let corner = Vec3::new(
+            if k & 1 != 0 { hi.x } else { lo.x },
+            if k & 2 != 0 { hi.y } else { lo.y },
+            if k & 4 != 0 { hi.z } else { lo.z },
+        );
+        let p = transform_point(t, corner);
+        behind = behind && p.z < -CULL_NEAR_MARGIN_M;
+        left = left && cam[0] * p.x + (cam[2] + 0.5 + m) * p.z < 0.0;
+        right = right && cam[0] * p.x + (cam[2] + 0.5 - width as f32 - m) * p.z > 0.0;
+        top = top && cam[1] * p.y + (cam[3] + 0.5 + m) * p.z < 0.0;
+        bottom = bottom && cam[1] * p.y + (cam[3] + 0.5 - height as f32 - m) * p.z > 0.0;
+    }
+    !(behind || left || right || top || bottom)
+}
+
+/// Blocks `chunk` spans and the end (map-wide index, exclusive) of its surfels when the map
+/// holds `surfel_count`: the loop bounds every map-walking kernel starts with.
+#[inline]
+pub fn chunk_blocks(chunk: &MapChunk, surfel_count: u32) -> (u32, u32) {
+    let end = surfel_count.min(chunk.base + chunk.slots);
+    if end <= chunk.base {
+        return (0, chunk.base);
+    }
+    ((end - chunk.base).div_ceil(BLOCK_SURFELS), end)
 }
 
 /// The invalid map entry. Mirrors `INVALID` in common.wgsl.

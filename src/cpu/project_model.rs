@@ -1,27 +1,57 @@
-//! CPU twin of `shaders/project_model.wgsl`: splats every surfel into an index map with a
-//! depth test, one packed 64-bit key per pixel.
+//! CPU twin of `shaders/project_model.wgsl`: splats every surfel of one map chunk into an
+//! index map with a depth test, one packed 64-bit key per pixel, skipping blocks the
+//! camera cannot see ([`block_visible`]).
 //!
-//! Key = [`pack_depth_index`]`(z_cam, surfel)`; the pixel keeps the maximum key, i.e. the
-//! nearest surfel, ties broken by the larger index. 0 means no surfel. The GPU does the
-//! same with one `atomicMax` on `u64`, so both backends pick the same surfel.
+//! Key = [`pack_depth_index`]`(z_cam, surfel)` with the map-wide surfel index; the pixel
+//! keeps the maximum key, i.e. the nearest surfel, ties broken by the larger index. 0 means
+//! no surfel. The GPU does the same with one `atomicMax` on `u64`, so both backends pick
+//! the same surfel whatever the chunking.
 
-use super::{pack_depth_index, project_to_pixel, surfel_texel, transform_point, xyz};
-use crate::layout::ProjectParams;
+use super::{
+    block_visible, chunk_blocks, decode_corner, pack_depth_index, project_to_pixel,
+    transform_point, xyz,
+};
+use crate::layout::{MapChunk, ProjectParams, BLOCK_SURFELS};
 
 /// Bindings (as in the shader header):
 /// - 0 `params`: `ProjectParams` (`t_world_to_cam`, intrinsics, map size, `surfel_count`)
-/// - 1 `position_weight`: surfel xyz (world frame, metres) + weight, `surfel_count` used
-/// - 2 `index_map` (in/out): width x height keys, cleared to 0 by the caller
-pub fn project_model(params: &ProjectParams, position_weight: &[[f32; 4]], index_map: &mut [u64]) {
+/// - 1 `chunk`: the chunk's first map-wide index and slots
+/// - 2 `block_bounds`: per block, min (`2b`) and max (`2b + 1`) corner, ordered-encoded
+/// - 3 `position_weight`: the chunk's surfels, xyz world frame (metres) + weight
+/// - 4 `index_map` (in/out): width x height keys, cleared to 0 by the caller
+pub fn project_model(
+    params: &ProjectParams,
+    chunk: &MapChunk,
+    block_bounds: &[[u32; 4]],
+    position_weight: &[[f32; 4]],
+    index_map: &mut [u64],
+) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     assert_eq!(index_map.len(), (params.width * params.height) as usize);
-    for i in 0..params.surfel_count {
-        let p = transform_point(
+    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
+    for b in 0..blocks {
+        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
+        let lo = decode_corner(block_bounds[2 * block]);
+        let hi = decode_corner(block_bounds[2 * block + 1]);
+        if !block_visible(
             &params.t_world_to_cam,
-            xyz(position_weight[surfel_texel(i)]),
-        );
-        if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
-            index_map[pix] = index_map[pix].max(pack_depth_index(p.z, i));
+            cam,
+            params.width,
+            params.height,
+            lo,
+            hi,
+        ) {
+            continue;
+        }
+        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
+        for i in chunk.base + b * BLOCK_SURFELS..end {
+            let p = transform_point(
+                &params.t_world_to_cam,
+                xyz(position_weight[(i - chunk.base) as usize]),
+            );
+            if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
+                index_map[pix] = index_map[pix].max(pack_depth_index(p.z, i));
+            }
         }
     }
 }

@@ -8,12 +8,18 @@
 //! The frame's normal map carries the vertex's depth in w (`normal_depth`), so the kernels
 //! that associate with the frame fetch one texel and rebuild the vertex (see
 //! vertex_to_normal.wgsl), as does the twin; `download_frame` reads it as it is.
-//! The surfel map is three packed textures ([`MapTextures`]); only the index map, the
-//! association flags, the counter and the ICP partials are storage buffers (atomics).
+//! The surfel map is chunks of three storage buffers each ([`MapBuffers`]), and every kernel
+//! that walks it is recorded once per chunk, with bind groups made per chunk; the index
+//! map, the association flags, the counter and the ICP partials are storage buffers too
+//! (atomics). Each block of [`BLOCK_SURFELS`] map slots has a world-frame box in
+//! `block_bounds`: `project_model`, `fuse_select` and `fuse_merge` skip the blocks the
+//! camera cannot see, `fuse_merge` grows a box a merge moved a surfel out of, and
+//! `block_bounds` recomputes the boxes of the blocks fusion appended to (all of them after
+//! a compaction or an upload) at the start of the next `predict` or `fuse` submission.
 //! Every pipeline, uniform and small buffer is created once in [`GpuBackend::new`]; the
 //! per-frame textures are sized at the first `preprocess` and reused (re-created only if the
-//! frame size changes); the surfel map lives on the GPU for the whole run and grows
-//! geometrically (x1.5, a GPU-side copy) before a fusion could overflow it. Per frame the
+//! frame size changes); the surfel map lives on the GPU for the whole run and grows before
+//! a fusion could overflow it (its last chunk x1.5 by a GPU-side copy, then new chunks). Per frame the
 //! host reads back only the ICP system (per iteration, `icp_reduce`'s per-workgroup
 //! partials summed on the GPU by `icp_reduce_final`: 29 floats, 116 bytes) and the 4-byte
 //! surfel counter; maps are downloaded only on request.
@@ -23,8 +29,9 @@
 //! The `compact` step (robust profile) runs `compact_flags`, `prefix_sum` and
 //! `compact_scatter` in one submission and reads back only the 4-byte counter that
 //! `prefix_sum` writes; its flags, offsets (one `u32` per surfel slot, storage buffers) and
-//! second set of map textures are allocated at its first call and re-allocated when the map
-//! grows, and after the scatter the two map sets swap (so the bind groups are rebuilt).
+//! second map of the same chunk sizes are allocated at its first call and follow the map
+//! as it grows; `compact_scatter` runs once per (input chunk, output chunk) pair, and after
+//! it the two map sets swap (and so do their bind groups).
 //! The ICP pyramid's coarser levels (a schedule of more than one level) are textures of
 //! their own (`LevelBuffers`: the frame's vertex and normal-depth maps, the model's
 //! predicted maps, and their `pyramid_depth` / `vertex_to_normal` uniforms), made with the
@@ -41,17 +48,18 @@ use std::collections::BTreeMap;
 use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
 use super::images::GpuImage;
-use super::kernel::{Binding, Kernel, TexelFormat};
-use super::map_textures::MapTextures;
+use super::kernel::{Binding, Kernel};
+use super::map_buffers::MapBuffers;
 use super::timing::StageTimer;
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
-    ProjectParams, PyramidParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, NormalParams,
+    PreprocessParams, ProjectParams, PyramidParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{
-    Backend, BackendCounters, FrameLevel, FrameMaps, Prediction, PyramidLevel, MAX_ICP_LEVELS,
+    Backend, BackendCounters, FrameLevel, FrameMaps, Prediction, PyramidLevel,
 };
 use crate::{Error, Result};
 
@@ -66,17 +74,19 @@ pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
-/// Storage buffers bound at once by the largest kernel (`prefix_sum`: flags, offsets,
-/// counter; `fuse_add`: assoc, counter).
-const MAX_STORAGE_BUFFERS_USED: u32 = 3;
-/// Storage textures bound at once by the largest kernel (`fuse_merge`, `fuse_add`: the
-/// three packed map textures; `depth_to_vertex`, `predict_model`: two maps).
-const MAX_STORAGE_TEXTURES_USED: u32 = 3;
+/// Storage buffers bound at once by the largest kernel (`compact_scatter`: params, flags,
+/// offsets, and an input and an output chunk's `MapChunk` and three arrays).
+const MAX_STORAGE_BUFFERS_USED: u32 = 11;
+/// Storage textures bound at once by the largest kernel (`depth_to_vertex`,
+/// `predict_model`: two maps).
+const MAX_STORAGE_TEXTURES_USED: u32 = 2;
+/// Passes one submission may time when profiling (a few per map chunk and pyramid level).
+const PROFILED_PASSES_MAX: u32 = 64;
 
 /// Bindings of each dense-SLAM kernel, in the order of its CPU twin's arguments
 /// (`@binding(i)`); `kernel::layout_entries` turns them into the layout.
 pub mod bindings {
-    use super::{Binding, TexelFormat};
+    use super::Binding;
     pub const DEPTH_TO_VERTEX: [Binding; 5] = [
         Binding::params("params: PreprocessParams"),
         Binding::texture_u32("raw_depth: r16uint"),
@@ -106,16 +116,25 @@ pub mod bindings {
         Binding::write_texture("coarse_vertex: world frame"),
         Binding::write_texture("coarse_normal: world frame"),
     ];
-    pub const PROJECT_MODEL: [Binding; 3] = [
+    pub const BLOCK_BOUNDS: [Binding; 4] = [
+        Binding::params("params: BoundsParams"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read("position_weight: the chunk's, world frame"),
+        Binding::read_write("block_bounds: min/max corner per block"),
+    ];
+    pub const PROJECT_MODEL: [Binding; 5] = [
         Binding::params("params: ProjectParams"),
-        Binding::texture_f32("position_weight: world frame"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read("block_bounds: min/max corner per block"),
+        Binding::read("position_weight: the chunk's, world frame"),
         Binding::read_write("index_map: atomic u64 keys"),
     ];
-    pub const PREDICT_MODEL: [Binding; 6] = [
+    pub const PREDICT_MODEL: [Binding; 7] = [
         Binding::params("params: ProjectParams"),
         Binding::read("index_map: u64 keys as vec2<u32>"),
-        Binding::texture_f32("position_weight: world frame"),
-        Binding::texture_u32("normal_frame: world frame normal bits"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read("position_weight: the chunk's, world frame"),
+        Binding::read("normal_frame: the chunk's normal bits"),
         Binding::write_texture("pred_vertex: world frame"),
         Binding::write_texture("pred_normal: world frame"),
     ];
@@ -130,21 +149,25 @@ pub mod bindings {
         Binding::read("partials: 29 f32 per icp_reduce workgroup"),
         Binding::read_write("system: the 29 summed f32"),
     ];
-    pub const FUSE_SELECT: [Binding; 6] = [
+    pub const FUSE_SELECT: [Binding; 8] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
-        Binding::texture_f32("position_weight: w = confidence"),
-        Binding::texture_u32("normal_frame: w = last_frame"),
-        Binding::texture_f32("color: a = radius"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read("block_bounds: min/max corner per block"),
+        Binding::read("position_weight: w = confidence"),
+        Binding::read("normal_frame: w = last_frame"),
+        Binding::read("color: a = radius"),
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
-    pub const FUSE_MERGE: [Binding; 7] = [
+    pub const FUSE_MERGE: [Binding; 9] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
-        Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
-        Binding::storage_texture(TexelFormat::Rgba32U, true, "normal_frame"),
-        Binding::storage_texture(TexelFormat::Rgba32F, true, "color"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read_write("block_bounds: atomic min/max words per block"),
+        Binding::read_write("position_weight"),
+        Binding::read_write("normal_frame"),
+        Binding::read_write("color"),
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
     pub const FUSE_FLAGS: [Binding; 4] = [
@@ -153,20 +176,22 @@ pub mod bindings {
         Binding::read("assoc: u64 key per pixel"),
         Binding::read_write("flags: 1 new surfel / 0 per pixel"),
     ];
-    pub const FUSE_ADD: [Binding; 8] = [
+    pub const FUSE_ADD: [Binding; 9] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
         Binding::read("flags: new surfel per pixel"),
         Binding::read("offsets: prefix sum of flags"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "position_weight"),
-        Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "color"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read_write("position_weight"),
+        Binding::read_write("normal_frame"),
+        Binding::read_write("color"),
     ];
-    pub const COMPACT_FLAGS: [Binding; 4] = [
+    pub const COMPACT_FLAGS: [Binding; 5] = [
         Binding::params("params: CompactParams"),
-        Binding::texture_f32("position_weight: w = weight"),
-        Binding::texture_u32("normal_frame: w = last_frame"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read("position_weight: w = weight"),
+        Binding::read("normal_frame: w = last_frame"),
         Binding::read_write("flags: 1 keep / 0 remove per surfel"),
     ];
     pub const PREFIX_SUM: [Binding; 4] = [
@@ -175,16 +200,18 @@ pub mod bindings {
         Binding::read_write("offsets: exclusive prefix sum of flags"),
         Binding::read_write("counter: surfels kept"),
     ];
-    pub const COMPACT_SCATTER: [Binding; 9] = [
+    pub const COMPACT_SCATTER: [Binding; 11] = [
         Binding::params("params: CompactParams"),
         Binding::read("flags"),
         Binding::read("offsets"),
-        Binding::texture_f32("position_weight"),
-        Binding::texture_u32("normal_frame"),
-        Binding::texture_f32("color"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "out_position_weight"),
-        Binding::storage_texture(TexelFormat::Rgba32U, false, "out_normal_frame"),
-        Binding::storage_texture(TexelFormat::Rgba32F, false, "out_color"),
+        Binding::params("chunk: MapChunk, input"),
+        Binding::read("position_weight"),
+        Binding::read("normal_frame"),
+        Binding::read("color"),
+        Binding::params("out_chunk: MapChunk, output"),
+        Binding::read_write("out_position_weight"),
+        Binding::read_write("out_normal_frame"),
+        Binding::read_write("out_color"),
     ];
 }
 
@@ -193,6 +220,7 @@ struct Kernels {
     bilateral_filter: Kernel,
     vertex_to_normal: Kernel,
     pyramid_depth: Kernel,
+    block_bounds: Kernel,
     project_model: Kernel,
     predict_model: Kernel,
     pyramid_model: Kernel,
@@ -209,23 +237,24 @@ struct Kernels {
 
 /// What the `compact` step needs besides the map, allocated at its first call (the
 /// assignment profile never pays for it) and re-allocated when the map grows: one flag and
-/// one offset per surfel slot, and a second set of map textures of the same capacity that
+/// one offset per surfel slot, and a second map of the same chunk sizes that
 /// `compact_scatter` writes and that then swaps with the map.
 struct Compaction {
     flags: GpuArray<u32>,
     offsets: GpuArray<u32>,
-    spare: MapTextures,
+    spare: MapBuffers,
     /// The three passes' bind groups for the live map (`groups`) and for the spare one
     /// (`spare_groups`), made once each and swapped with the maps.
     groups: Option<CompactionGroups>,
     spare_groups: Option<CompactionGroups>,
 }
 
-/// Bind groups of `compact_flags`, `prefix_sum` and `compact_scatter` for one map set.
+/// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
+/// input chunk and output chunk no later than it) for one map set.
 struct CompactionGroups {
-    flags: wgpu::BindGroup,
+    flags: Vec<wgpu::BindGroup>,
     scan: wgpu::BindGroup,
-    scatter: wgpu::BindGroup,
+    scatter: Vec<wgpu::BindGroup>,
 }
 
 /// Buffers sized by the frame: raw inputs, per-pixel maps, prediction, association flags.
@@ -287,15 +316,17 @@ struct BindGroups {
     vertex_to_normal: wgpu::BindGroup,
     /// ... and reading the filtered one (filter on).
     vertex_to_normal_filtered: wgpu::BindGroup,
-    project_model: wgpu::BindGroup,
-    predict_model: wgpu::BindGroup,
+    /// The map kernels' bind groups, one per map chunk.
+    block_bounds: Vec<wgpu::BindGroup>,
+    project_model: Vec<wgpu::BindGroup>,
+    predict_model: Vec<wgpu::BindGroup>,
     icp_reduce: wgpu::BindGroup,
-    fuse_select: wgpu::BindGroup,
-    fuse_merge: wgpu::BindGroup,
+    fuse_select: Vec<wgpu::BindGroup>,
+    fuse_merge: Vec<wgpu::BindGroup>,
     fuse_flags: wgpu::BindGroup,
     /// `prefix_sum` over the new-surfel flags (one per pixel).
     fuse_scan: wgpu::BindGroup,
-    fuse_add: wgpu::BindGroup,
+    fuse_add: Vec<wgpu::BindGroup>,
     /// Per coarser pyramid level (1, 2, ...).
     levels: Vec<LevelBindGroups>,
 }
@@ -332,7 +363,15 @@ pub struct GpuBackend {
     counter: GpuArray<u32>,
     counter_readback: Readback<u32>,
     frame: Option<FrameBuffers>,
-    map: MapTextures,
+    map: MapBuffers,
+    /// Per culling block of map slots, its box: entries `2b` (min) and `2b + 1` (max),
+    /// ordered-encoded (see `block_bounds.wgsl`); one buffer for both map sets.
+    block_bounds: GpuArray<[u32; 4]>,
+    /// `block_bounds`' parameters.
+    u_bounds: ParamBuffer<BoundsParams>,
+    /// Blocks from the one holding this surfel index on have stale boxes (fusion appended
+    /// to them, or the map was compacted or uploaded); recomputed before the next culling.
+    bounds_dirty_from: usize,
     /// Surfels in the map (the GPU counter as last read back).
     count: usize,
     /// Largest map the backend may allocate, in surfels.
@@ -437,6 +476,29 @@ impl GpuBackend {
     /// A backend whose map starts with `capacity` surfel slots (tests force growth with a
     /// tiny value).
     pub fn with_initial_capacity(ctx: GpuContext, capacity: usize) -> Result<GpuBackend> {
+        let chunk_surfels = MapBuffers::device_chunk_surfels(&ctx);
+        Self::with_map_layout(ctx, capacity, chunk_surfels)
+    }
+
+    /// A backend whose map starts with `capacity` surfel slots in chunks of
+    /// `chunk_surfels` (a positive multiple of [`BLOCK_SURFELS`], at most what the device
+    /// allows; tests use small chunks to run every kernel across chunk boundaries).
+    pub fn with_map_layout(
+        ctx: GpuContext,
+        capacity: usize,
+        chunk_surfels: usize,
+    ) -> Result<GpuBackend> {
+        let block = BLOCK_SURFELS as usize;
+        if chunk_surfels == 0
+            || chunk_surfels % block != 0
+            || chunk_surfels > MapBuffers::device_chunk_surfels(&ctx)
+        {
+            return Err(Error::Argument(format!(
+                "map chunks of {chunk_surfels} surfels: need a positive multiple of {block} \
+                 of at most {}",
+                MapBuffers::device_chunk_surfels(&ctx)
+            )));
+        }
         if !ctx.has_int64_atomics() {
             return Err(Error::Gpu(format!(
                 "adapter \"{}\" lacks 64-bit atomics (SHADER_INT64 + SHADER_INT64_ATOMIC_MIN_MAX), \
@@ -448,7 +510,7 @@ impl GpuBackend {
         if per_stage < MAX_STORAGE_BUFFERS_USED {
             return Err(Error::Gpu(format!(
                 "adapter \"{}\" allows {per_stage} storage buffers per shader stage; \
-                 prefix_sum needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
+                 compact_scatter needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
                 ctx.adapter_info().name
             )));
         }
@@ -456,15 +518,7 @@ impl GpuBackend {
         if per_stage < MAX_STORAGE_TEXTURES_USED {
             return Err(Error::Gpu(format!(
                 "adapter \"{}\" allows {per_stage} storage textures per shader stage; \
-                 fuse_merge needs {MAX_STORAGE_TEXTURES_USED}; use --backend cpu",
-                ctx.adapter_info().name
-            )));
-        }
-        if !ctx.has_read_write_rgba32() {
-            return Err(Error::Gpu(format!(
-                "adapter \"{}\" cannot read and write rgba32float/rgba32uint storage textures \
-                 (TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES), which fuse_merge needs for the \
-                 surfel map; use --backend cpu",
+                 predict_model needs {MAX_STORAGE_TEXTURES_USED}; use --backend cpu",
                 ctx.adapter_info().name
             )));
         }
@@ -486,6 +540,7 @@ impl GpuBackend {
                     &bindings::VERTEX_TO_NORMAL,
                 )?,
                 pyramid_depth: Kernel::new(&ctx, "pyramid_depth", &bindings::PYRAMID_DEPTH)?,
+                block_bounds: Kernel::new(&ctx, "block_bounds", &bindings::BLOCK_BOUNDS)?,
                 project_model: Kernel::new(&ctx, "project_model", &bindings::PROJECT_MODEL)?,
                 predict_model: Kernel::new(&ctx, "predict_model", &bindings::PREDICT_MODEL)?,
                 pyramid_model: Kernel::new(&ctx, "pyramid_model", &bindings::PYRAMID_MODEL)?,
@@ -524,15 +579,19 @@ impl GpuBackend {
                 counter,
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
-            let map = MapTextures::new(&ctx, capacity)?;
-            Ok((kernels, uniforms, small, map))
+            let map = MapBuffers::new(&ctx, capacity, chunk_surfels)?;
+            let mut block_bounds = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
+            block_bounds.set_len(bounds_entries(&map));
+            Ok((kernels, uniforms, small, (map, block_bounds)))
         })?;
         let (u_preprocess, u_bilateral, u_normal, u_project, u_icp, u_fuse) = uniforms;
         let (partials, system, system_readback, counter, counter_readback) = small;
+        let (map, block_bounds) = map;
         let icp_final_group = kernels
             .icp_reduce_final
             .bind_group(&ctx, &[partials.binding(), system.binding()]);
         let u_compact = ParamBuffer::new(&ctx, "CompactParams", &bytemuck::Zeroable::zeroed());
+        let u_bounds = ParamBuffer::new(&ctx, "BoundsParams", &bytemuck::Zeroable::zeroed());
         let u_fuse_scan =
             ParamBuffer::new(&ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed());
         Ok(GpuBackend {
@@ -553,6 +612,9 @@ impl GpuBackend {
             counter_readback,
             frame: None,
             map,
+            block_bounds,
+            u_bounds,
+            bounds_dirty_from: 0,
             count: 0,
             max_surfels,
             bind_groups: None,
@@ -571,19 +633,16 @@ impl GpuBackend {
         self
     }
 
-    /// Most surfels the device's texture size limit allows.
-    fn device_max_surfels(ctx: &GpuContext) -> usize {
-        MapTextures::device_max_surfels(ctx)
+    /// Most surfels the chunked map can index (u32 indices).
+    fn device_max_surfels(_ctx: &GpuContext) -> usize {
+        MapBuffers::max_surfels()
     }
 
     /// Turns on per-kernel timing (GPU timestamps when the device has them, else wall time
     /// per step). Costs a wait after every step: use for profiling, not for throughput.
     pub fn enable_kernel_timing(&mut self) {
         self.profiler = Some(Profiler {
-            // At most three kernels per submission (preprocess with the bilateral filter,
-            // compact; predict and fuse have two) plus two per coarser pyramid level
-            // (preprocess; predict adds one).
-            timer: StageTimer::new(&self.ctx, 3 + 2 * (MAX_ICP_LEVELS as u32 - 1)),
+            timer: StageTimer::new(&self.ctx, PROFILED_PASSES_MAX),
             totals: BTreeMap::new(),
         });
     }
@@ -605,6 +664,11 @@ impl GpuBackend {
     /// Allocated surfel slots.
     pub fn capacity(&self) -> usize {
         self.map.capacity()
+    }
+
+    /// Chunks the map is made of (see [`MapBuffers`]).
+    pub fn map_chunks(&self) -> usize {
+        self.map.chunks.len()
     }
 
     /// The cap set by [`GpuBackend::with_max_surfels`] or the device limit.
@@ -702,53 +766,70 @@ impl GpuBackend {
         Ok(())
     }
 
-    /// Grows the map arrays (x1.5, keeping contents) so `needed` surfels fit, or
-    /// [`Error::Capacity`] when `needed` exceeds [`GpuBackend::max_surfels`].
+    /// Grows the map (its last chunk x1.5 keeping contents, then new chunks) and the block
+    /// boxes so `needed` surfels fit, or [`Error::Capacity`] when `needed` exceeds
+    /// [`GpuBackend::max_surfels`].
     fn ensure_capacity(&mut self, needed: usize) -> Result<()> {
         if needed <= self.capacity() {
             return Ok(());
         }
         if needed > self.max_surfels {
             return Err(Error::Capacity(format!(
-                "fusing this frame may need {needed} surfels ({} bytes of positions) but the \
-                 GPU map is limited to {} surfels ({} bytes; the device allows {} surfels: \
-                 {} texels per row x {} rows)",
-                needed * 16,
+                "fusing this frame may need {needed} surfels ({} bytes of map) but the GPU \
+                 map is limited to {} surfels ({} bytes; the chunked map indexes at most {})",
+                needed * 48,
                 self.max_surfels,
-                self.max_surfels * 16,
+                self.max_surfels * 48,
                 Self::device_max_surfels(&self.ctx),
-                crate::layout::MAP_TEXTURE_WIDTH,
-                self.ctx.limits().max_texture_dimension_2d
             )));
         }
         let grown = (self.capacity() * GROWTH_NUM / GROWTH_DEN)
             .max(needed)
             .min(self.max_surfels);
         self.map.grow(&self.ctx, grown, self.count)?;
-        // The spare map is re-made at the new capacity by the next `compact`.
+        self.block_bounds
+            .grow(&self.ctx, bounds_entries(&self.map))?;
+        self.block_bounds.set_len(bounds_entries(&self.map));
+        // The spare map follows the new layout at the next `compact`.
         self.bind_groups = None;
         self.spare_bind_groups = None;
         Ok(())
     }
 
-    /// Allocates the `compact` step's flags, offsets and second map for the current
-    /// capacity (first call, or after the map grew). [`Error::Capacity`] when a flag per
+    /// Allocates the `compact` step's flags, offsets and second map for the current map
+    /// layout (first call, or after the map grew). [`Error::Capacity`] when a flag per
     /// surfel slot outgrows the device's storage-buffer binding limit.
     fn ensure_compaction(&mut self) -> Result<()> {
         let cap = self.capacity();
-        if self.compaction.as_ref().map(|c| c.spare.capacity()) == Some(cap) {
+        let ctx = &self.ctx;
+        if let Some(c) = self.compaction.as_mut() {
+            let relaid = c.spare.match_layout(ctx, &self.map)?;
+            if c.flags.capacity() >= cap && !relaid {
+                return Ok(());
+            }
+            if c.flags.capacity() < cap {
+                c.flags = GpuArray::new(ctx, "compact flags", cap)?;
+                c.offsets = GpuArray::new(ctx, "compact offsets", cap)?;
+            }
+            c.flags.set_len(cap);
+            c.offsets.set_len(cap);
+            c.groups = None;
+            c.spare_groups = None;
+            self.spare_bind_groups = None;
             return Ok(());
         }
-        let ctx = &self.ctx;
+        let map = &self.map;
         let compaction = ctx.scoped("allocating the compaction buffers", || {
             let mut flags = GpuArray::new(ctx, "compact flags", cap)?;
             flags.set_len(cap);
             let mut offsets = GpuArray::new(ctx, "compact offsets", cap)?;
             offsets.set_len(cap);
+            let mut spare = MapBuffers::new(ctx, 1, map.chunk_surfels())?;
+            spare.match_layout(ctx, map)?;
             Ok(Compaction {
                 flags,
                 offsets,
-                spare: MapTextures::new(ctx, cap)?,
+                spare,
                 groups: None,
                 spare_groups: None,
             })
@@ -766,7 +847,23 @@ impl GpuBackend {
                 .as_ref()
                 .expect("preprocess() runs before any other step");
             let (c, k, m) = (&self.ctx, &self.kernels, &self.map);
+            let bounds = &self.block_bounds;
+            // One bind group per map chunk.
+            let per_chunk = |make: &dyn Fn(&super::map_buffers::Chunk) -> wgpu::BindGroup| {
+                m.chunks.iter().map(make).collect::<Vec<_>>()
+            };
             self.bind_groups = Some(BindGroups {
+                block_bounds: per_chunk(&|ch| {
+                    k.block_bounds.bind_group(
+                        c,
+                        &[
+                            self.u_bounds.binding(),
+                            ch.info_buffer.binding(),
+                            ch.position_weight.binding(),
+                            bounds.binding(),
+                        ],
+                    )
+                }),
                 depth_to_vertex: k.depth_to_vertex.bind_group(
                     c,
                     &[
@@ -801,25 +898,32 @@ impl GpuBackend {
                         f.normal_depth.binding(),
                     ],
                 ),
-                project_model: k.project_model.bind_group(
-                    c,
-                    &[
-                        self.u_project.binding(),
-                        m.position_weight.binding(),
-                        f.index_map.binding(),
-                    ],
-                ),
-                predict_model: k.predict_model.bind_group(
-                    c,
-                    &[
-                        self.u_project.binding(),
-                        f.index_map.binding(),
-                        m.position_weight.binding(),
-                        m.normal_frame.binding(),
-                        f.pred_vertex.binding(),
-                        f.pred_normal.binding(),
-                    ],
-                ),
+                project_model: per_chunk(&|ch| {
+                    k.project_model.bind_group(
+                        c,
+                        &[
+                            self.u_project.binding(),
+                            ch.info_buffer.binding(),
+                            bounds.binding(),
+                            ch.position_weight.binding(),
+                            f.index_map.binding(),
+                        ],
+                    )
+                }),
+                predict_model: per_chunk(&|ch| {
+                    k.predict_model.bind_group(
+                        c,
+                        &[
+                            self.u_project.binding(),
+                            f.index_map.binding(),
+                            ch.info_buffer.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            f.pred_vertex.binding(),
+                            f.pred_normal.binding(),
+                        ],
+                    )
+                }),
                 icp_reduce: k.icp_reduce.bind_group(
                     c,
                     &[
@@ -830,29 +934,37 @@ impl GpuBackend {
                         self.partials.binding(),
                     ],
                 ),
-                fuse_select: k.fuse_select.bind_group(
-                    c,
-                    &[
-                        self.u_fuse.binding(),
-                        f.normal_depth.binding(),
-                        m.position_weight.binding(),
-                        m.normal_frame.binding(),
-                        m.color.binding(),
-                        f.assoc.binding(),
-                    ],
-                ),
-                fuse_merge: k.fuse_merge.bind_group(
-                    c,
-                    &[
-                        self.u_fuse.binding(),
-                        f.normal_depth.binding(),
-                        f.color.binding(),
-                        m.position_weight.binding(),
-                        m.normal_frame.binding(),
-                        m.color.binding(),
-                        f.assoc.binding(),
-                    ],
-                ),
+                fuse_select: per_chunk(&|ch| {
+                    k.fuse_select.bind_group(
+                        c,
+                        &[
+                            self.u_fuse.binding(),
+                            f.normal_depth.binding(),
+                            ch.info_buffer.binding(),
+                            bounds.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            ch.color.binding(),
+                            f.assoc.binding(),
+                        ],
+                    )
+                }),
+                fuse_merge: per_chunk(&|ch| {
+                    k.fuse_merge.bind_group(
+                        c,
+                        &[
+                            self.u_fuse.binding(),
+                            f.normal_depth.binding(),
+                            f.color.binding(),
+                            ch.info_buffer.binding(),
+                            bounds.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            ch.color.binding(),
+                            f.assoc.binding(),
+                        ],
+                    )
+                }),
                 fuse_flags: k.fuse_flags.bind_group(
                     c,
                     &[
@@ -871,19 +983,22 @@ impl GpuBackend {
                         self.counter.binding(),
                     ],
                 ),
-                fuse_add: k.fuse_add.bind_group(
-                    c,
-                    &[
-                        self.u_fuse.binding(),
-                        f.normal_depth.binding(),
-                        f.color.binding(),
-                        f.add_flags.binding(),
-                        f.add_offsets.binding(),
-                        m.position_weight.binding(),
-                        m.normal_frame.binding(),
-                        m.color.binding(),
-                    ],
-                ),
+                fuse_add: per_chunk(&|ch| {
+                    k.fuse_add.bind_group(
+                        c,
+                        &[
+                            self.u_fuse.binding(),
+                            f.normal_depth.binding(),
+                            f.color.binding(),
+                            f.add_flags.binding(),
+                            f.add_offsets.binding(),
+                            ch.info_buffer.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            ch.color.binding(),
+                        ],
+                    )
+                }),
                 levels: (0..f.levels.len())
                     .map(|l| {
                         let level = &f.levels[l];
@@ -955,6 +1070,61 @@ impl GpuBackend {
         kernel.workgroups_for(n).min(self.ctx.grid_workgroups_cap())
     }
 
+    /// Per map chunk, the workgroups of a block-walking kernel (`project_model`,
+    /// `fuse_select`, `fuse_merge`: one workgroup per block, capped like
+    /// [`GpuBackend::grid_stride_workgroups`]) and of a grid-stride kernel over the chunk's
+    /// live surfels (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size.
+    fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<(u32, u32)> {
+        let cap = self.ctx.grid_workgroups_cap();
+        self.map
+            .chunks
+            .iter()
+            .map(|ch| {
+                let live = self
+                    .count
+                    .saturating_sub(ch.info.base as usize)
+                    .min(ch.info.slots as usize);
+                let blocks = live.div_ceil(BLOCK_SURFELS as usize) as u32;
+                (blocks.min(cap), kernel.workgroups_for(live).min(cap))
+            })
+            .collect()
+    }
+
+    /// Records `block_bounds` over the blocks whose boxes are stale (see
+    /// `bounds_dirty_from`) into `passes`, one per chunk holding any, and marks them fresh.
+    /// Every submission that culls starts with these.
+    fn stale_bounds_passes(&mut self) -> Vec<(usize, u32)> {
+        let from_block = self.bounds_dirty_from / BLOCK_SURFELS as usize;
+        let block = BLOCK_SURFELS as usize;
+        let mut out = Vec::new();
+        if self.bounds_dirty_from < self.count {
+            for (c, ch) in self.map.chunks.iter().enumerate() {
+                let first = ch.info.base as usize / block;
+                let live = self
+                    .count
+                    .saturating_sub(ch.info.base as usize)
+                    .min(ch.info.slots as usize);
+                let blocks = live.div_ceil(block);
+                let todo = (first + blocks).saturating_sub(from_block.max(first));
+                if todo > 0 {
+                    let wg = self.grid_stride_workgroups(&self.kernels.block_bounds, todo);
+                    out.push((c, wg));
+                }
+            }
+            self.u_bounds.write(
+                &self.ctx,
+                &BoundsParams {
+                    surfel_count: self.count as u32,
+                    block_from: from_block as u32,
+                    _pad0: 0,
+                    _pad1: 0,
+                },
+            );
+        }
+        self.bounds_dirty_from = self.count;
+        out
+    }
+
     fn frame(&self) -> &FrameBuffers {
         self.frame
             .as_ref()
@@ -991,6 +1161,11 @@ fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -> Result<()
         fine = coarse;
     }
     Ok(())
+}
+
+/// Entries of `block_bounds` for `map`'s slots: a min and a max corner per block.
+fn bounds_entries(map: &MapBuffers) -> usize {
+    2 * map.capacity().div_ceil(BLOCK_SURFELS as usize)
 }
 
 /// A per-pixel `[f32; 4]` map read back row-major.
@@ -1102,11 +1277,11 @@ impl Backend for GpuBackend {
                 "predict() asked for pyramid levels {asked:?} but preprocess() made {made:?}"
             )));
         }
-        let surfel_wg = self.grid_stride_workgroups(&self.kernels.project_model, self.count);
         let pix_wg = self
             .kernels
             .predict_model
             .workgroups_for_image(f.width, f.height);
+        let chunk_wg = self.chunk_workgroups(&self.kernels.project_model);
         let level_wg: Vec<[u32; 2]> = f
             .levels
             .iter()
@@ -1116,6 +1291,7 @@ impl Backend for GpuBackend {
                     .workgroups_for_image(l.width, l.height)
             })
             .collect();
+        let bounds = self.stale_bounds_passes();
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
@@ -1125,10 +1301,16 @@ impl Backend for GpuBackend {
             self.u_project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
             f.index_map.clear(&mut enc);
-            let mut passes = vec![
-                (&k.project_model, &bg.project_model, [surfel_wg, 1]),
-                (&k.predict_model, &bg.predict_model, pix_wg),
-            ];
+            let mut passes: Vec<_> = bounds
+                .iter()
+                .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
+                .collect();
+            for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
+                passes.push((&k.project_model, &bg.project_model[c], [blocks_wg, 1]));
+            }
+            for g in &bg.predict_model {
+                passes.push((&k.predict_model, g, pix_wg));
+            }
             for (g, &wg) in bg.levels.iter().zip(&level_wg) {
                 passes.push((&k.pyramid_model, &g.pyramid_model, wg));
             }
@@ -1181,7 +1363,8 @@ impl Backend for GpuBackend {
         let mut params = *params;
         params.surfel_count = self.count as u32;
         params.capacity = self.capacity() as u32;
-        let surfel_wg = self.grid_stride_workgroups(&self.kernels.fuse_merge, self.count);
+        let chunk_wg = self.chunk_workgroups(&self.kernels.fuse_merge);
+        let bounds = self.stale_bounds_passes();
         let f = self.frame();
         let pix_wg = self
             .kernels
@@ -1197,18 +1380,23 @@ impl Backend for GpuBackend {
             self.u_fuse_scan.write(ctx, &scan_params(n));
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
-            let select = (&k.fuse_select, &bg.fuse_select, [surfel_wg, 1]);
-            let merge_add = [
-                (&k.fuse_merge, &bg.fuse_merge, [surfel_wg, 1]),
-                (&k.fuse_flags, &bg.fuse_flags, pix_wg),
-                (&k.prefix_sum, &bg.fuse_scan, [1, 1]),
-                (&k.fuse_add, &bg.fuse_add, pix_wg),
-            ];
-            let passes: Vec<_> = (params.association == ASSOCIATION_BEST_CANDIDATE)
-                .then_some(select)
-                .into_iter()
-                .chain(merge_add)
+            let mut passes: Vec<_> = bounds
+                .iter()
+                .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
                 .collect();
+            if params.association == ASSOCIATION_BEST_CANDIDATE {
+                for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
+                    passes.push((&k.fuse_select, &bg.fuse_select[c], [blocks_wg, 1]));
+                }
+            }
+            for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
+                passes.push((&k.fuse_merge, &bg.fuse_merge[c], [blocks_wg, 1]));
+            }
+            passes.push((&k.fuse_flags, &bg.fuse_flags, pix_wg));
+            passes.push((&k.prefix_sum, &bg.fuse_scan, [1, 1]));
+            for g in &bg.fuse_add {
+                passes.push((&k.fuse_add, g, pix_wg));
+            }
             record_passes(ctx, profiler, &mut enc, &passes)?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             submit_profiled(ctx, profiler, enc)?;
@@ -1222,6 +1410,8 @@ impl Backend for GpuBackend {
                 self.count, params.capacity
             )));
         }
+        // The blocks from the one that held the old last surfel on have new surfels.
+        self.bounds_dirty_from = self.bounds_dirty_from.min(self.count);
         self.count = total;
         Ok(total)
     }
@@ -1234,21 +1424,28 @@ impl Backend for GpuBackend {
         self.ensure_compaction()?;
         let mut params = *params;
         params.surfel_count = n as u32;
-        let surfel_wg = self.grid_stride_workgroups(&self.kernels.compact_flags, n);
-        let scatter_wg = self.grid_stride_workgroups(&self.kernels.compact_scatter, n);
+        let flags_wg = self.chunk_workgroups(&self.kernels.compact_flags);
+        let scatter_wg = self.chunk_workgroups(&self.kernels.compact_scatter);
         let (ctx, k, m) = (&self.ctx, &self.kernels, &self.map);
         let c = self.compaction.as_mut().expect("ensure_compaction made it");
         // Made once per map set (live and spare swap every call, and so do these).
         let g = c.groups.get_or_insert_with(|| CompactionGroups {
-            flags: k.compact_flags.bind_group(
-                ctx,
-                &[
-                    self.u_compact.binding(),
-                    m.position_weight.binding(),
-                    m.normal_frame.binding(),
-                    c.flags.binding(),
-                ],
-            ),
+            flags: m
+                .chunks
+                .iter()
+                .map(|ch| {
+                    k.compact_flags.bind_group(
+                        ctx,
+                        &[
+                            self.u_compact.binding(),
+                            ch.info_buffer.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            c.flags.binding(),
+                        ],
+                    )
+                })
+                .collect(),
             scan: k.prefix_sum.bind_group(
                 ctx,
                 &[
@@ -1258,35 +1455,50 @@ impl Backend for GpuBackend {
                     self.counter.binding(),
                 ],
             ),
-            scatter: k.compact_scatter.bind_group(
-                ctx,
-                &[
-                    self.u_compact.binding(),
-                    c.flags.binding(),
-                    c.offsets.binding(),
-                    m.position_weight.binding(),
-                    m.normal_frame.binding(),
-                    m.color.binding(),
-                    c.spare.position_weight.binding(),
-                    c.spare.normal_frame.binding(),
-                    c.spare.color.binding(),
-                ],
-            ),
+            // Input chunk s, output chunk d <= s (offsets[i] <= i), at s (s + 1) / 2 + d.
+            scatter: m
+                .chunks
+                .iter()
+                .enumerate()
+                .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
+                .map(|(from, to)| {
+                    k.compact_scatter.bind_group(
+                        ctx,
+                        &[
+                            self.u_compact.binding(),
+                            c.flags.binding(),
+                            c.offsets.binding(),
+                            from.info_buffer.binding(),
+                            from.position_weight.binding(),
+                            from.normal_frame.binding(),
+                            from.color.binding(),
+                            to.info_buffer.binding(),
+                            to.position_weight.binding(),
+                            to.normal_frame.binding(),
+                            to.color.binding(),
+                        ],
+                    )
+                })
+                .collect(),
         });
         let profiler = &mut self.profiler;
         let kept = ctx.scoped("compact", || {
             self.u_compact.write(ctx, &params);
             let mut enc = ctx.encoder("compact");
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.compact_flags, &g.flags, [surfel_wg, 1]),
-                    (&k.prefix_sum, &g.scan, [1, 1]),
-                    (&k.compact_scatter, &g.scatter, [scatter_wg, 1]),
-                ],
-            )?;
+            let mut passes: Vec<_> = g
+                .flags
+                .iter()
+                .zip(&flags_wg)
+                .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
+                .collect();
+            passes.push((&k.prefix_sum, &g.scan, [1, 1]));
+            for (s, &(_, wg)) in scatter_wg.iter().enumerate() {
+                for d in 0..=s {
+                    let group = &g.scatter[s * (s + 1) / 2 + d];
+                    passes.push((&k.compact_scatter, group, [wg, 1]));
+                }
+            }
+            record_passes(ctx, profiler, &mut enc, &passes)?;
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
@@ -1301,6 +1513,8 @@ impl Backend for GpuBackend {
         std::mem::swap(&mut c.groups, &mut c.spare_groups);
         std::mem::swap(&mut self.bind_groups, &mut self.spare_bind_groups);
         self.count = kept;
+        // Every surfel may have moved to another block.
+        self.bounds_dirty_from = 0;
         Ok(kept)
     }
 
@@ -1317,15 +1531,16 @@ impl Backend for GpuBackend {
         })
     }
 
-    /// Writes `map` into the live map textures (growing them first if needed) and sets
+    /// Writes `map` into the live map chunks (growing them first if needed) and sets
     /// the count; the spare map set is untouched (compaction overwrites it).
     fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
         map.assert_consistent();
         let n = map.len();
         self.ensure_capacity(n)?;
-        let (ctx, m) = (&self.ctx, &self.map);
+        let (ctx, m) = (&self.ctx, &mut self.map);
         ctx.scoped("upload map", || m.upload(ctx, map))?;
         self.count = n;
+        self.bounds_dirty_from = 0;
         Ok(())
     }
 

@@ -19,12 +19,10 @@ pub const BACKENDS: wgpu::Backends = wgpu::Backends::VULKAN
 
 /// Features the kernels use when the adapter offers them: 64-bit integers and 64-bit
 /// `atomicMax` (the packed depth + surfel index map of `project_model`) and timestamp
-/// queries (per-stage timing in [`super::timing`]), and adapter-specific format features
-/// (read-write rgba32float storage textures for the surfel map).
+/// queries (per-stage timing in [`super::timing`]).
 pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::SHADER_INT64
     .union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
-    .union(wgpu::Features::TIMESTAMP_QUERY)
-    .union(wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES);
+    .union(wgpu::Features::TIMESTAMP_QUERY);
 
 /// Reduction workgroups on a CPU adapter (lavapipe): few workgroups with grid-stride
 /// loops, each thread summing many pixels in registers; measured best around 16 at 640x480.
@@ -172,24 +170,6 @@ impl GpuContext {
     /// The adapter itself (e.g. for format queries).
     pub fn adapter(&self) -> &wgpu::Adapter {
         &self.adapter
-    }
-
-    /// True when rgba32float and rgba32uint storage textures can be read and written in
-    /// one kernel (the packed surfel map in `fuse_merge`).
-    pub fn has_read_write_rgba32(&self) -> bool {
-        self.features
-            .contains(wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES)
-            && [
-                wgpu::TextureFormat::Rgba32Float,
-                wgpu::TextureFormat::Rgba32Uint,
-            ]
-            .iter()
-            .all(|&f| {
-                self.adapter
-                    .get_texture_format_features(f)
-                    .flags
-                    .contains(wgpu::TextureFormatFeatureFlags::STORAGE_READ_WRITE)
-            })
     }
 
     /// True when 64-bit integer atomics (`atomicMax` on `u64`) are available.

@@ -9,7 +9,7 @@
 //! - [`kernel`]: pipeline + explicit bind-group layout + workgroup size; dispatch.
 //! - [`buffers`]: typed storage arrays, uniforms, read-back, byte accounting.
 //! - [`images`]: per-pixel maps as 2D textures (fast loads on lavapipe), read-back.
-//! - [`map_textures`]: the surfel map as three packed textures that grow by GPU copy.
+//! - [`map_buffers`]: the surfel map as chunks of storage buffers (structure of arrays).
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
@@ -19,7 +19,7 @@ pub mod buffers;
 pub mod context;
 pub mod images;
 pub mod kernel;
-pub mod map_textures;
+pub mod map_buffers;
 pub mod shaders;
 pub mod test_support;
 pub mod timing;

@@ -29,6 +29,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/depth_to_vertex.wgsl"),
     ),
     (
+        "block_bounds",
+        include_str!("../../shaders/block_bounds.wgsl"),
+    ),
+    (
         "bilateral_filter",
         include_str!("../../shaders/bilateral_filter.wgsl"),
     ),

@@ -1,13 +1,17 @@
 //! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors.
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
-//! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap.
+//! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
+//! and is passed to the map twins as one chunk (`MapChunk { base: 0, slots: len }`). It
+//! keeps the culling blocks' boxes as the GPU backend does (recomputed for the blocks
+//! fusion appended to, all of them after a compaction or an upload, before the next
+//! culling step), so its cost per frame also follows what the camera sees.
 
 use crate::cpu;
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
-    ProjectParams, ASSOCIATION_BEST_CANDIDATE, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, MapChunk, NormalParams,
+    PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{Backend, FrameLevel, FrameMaps, Prediction, PyramidLevel};
@@ -31,6 +35,10 @@ pub struct CpuBackend {
     flags: Vec<u32>,
     offsets: Vec<u32>,
     spare: SurfelMap,
+    /// Per culling block, its box: entries `2b` (min), `2b + 1` (max), ordered-encoded.
+    block_bounds: Vec<[u32; 4]>,
+    /// Blocks from the one holding this surfel index on have stale boxes.
+    bounds_dirty_from: usize,
 }
 
 impl CpuBackend {
@@ -52,6 +60,34 @@ impl CpuBackend {
     /// The map without copying.
     pub fn map(&self) -> &SurfelMap {
         &self.map
+    }
+
+    /// Recomputes the stale block boxes (`block_bounds`, as the GPU backend records it at
+    /// the start of a culling submission).
+    fn refresh_bounds(&mut self) {
+        let n = self.map.len();
+        if self.bounds_dirty_from < n {
+            let blocks = n.div_ceil(BLOCK_SURFELS as usize);
+            self.block_bounds.resize(2 * blocks, [0; 4]);
+            let params = BoundsParams {
+                surfel_count: n as u32,
+                block_from: (self.bounds_dirty_from / BLOCK_SURFELS as usize) as u32,
+                _pad0: 0,
+                _pad1: 0,
+            };
+            cpu::block_bounds::block_bounds(
+                &params,
+                &MapChunk::whole(n),
+                &self.map.position_weight,
+                &mut self.block_bounds,
+            );
+        }
+        self.bounds_dirty_from = n;
+    }
+
+    /// The block boxes (for tests: every surfel must lie in its block's box).
+    pub fn block_bounds(&self) -> &[[u32; 4]] {
+        &self.block_bounds
     }
 }
 
@@ -130,10 +166,20 @@ impl Backend for CpuBackend {
         let (pred_vertex, pred_normal) = &mut self.prediction[0];
         pred_vertex.resize(n, cpu::INVALID);
         pred_normal.resize(n, cpu::INVALID);
-        cpu::project_model::project_model(&params, &self.map.position_weight, &mut self.index_map);
+        self.refresh_bounds();
+        let (pred_vertex, pred_normal) = &mut self.prediction[0];
+        let chunk = MapChunk::whole(self.map.len());
+        cpu::project_model::project_model(
+            &params,
+            &chunk,
+            &self.block_bounds,
+            &self.map.position_weight,
+            &mut self.index_map,
+        );
         cpu::predict_model::predict_model(
             &params,
             &self.index_map,
+            &chunk,
             &self.map.position_weight,
             &self.map.normal_frame,
             pred_vertex,
@@ -187,11 +233,15 @@ impl Backend for CpuBackend {
         params.capacity = (count + n_pix) as u32;
         self.assoc.clear();
         self.assoc.resize(n_pix, 0);
+        self.refresh_bounds();
         let m = &mut self.map;
+        let chunk = MapChunk::whole(count);
         if params.association == ASSOCIATION_BEST_CANDIDATE {
             cpu::fuse_select::fuse_select(
                 &params,
                 &self.frame.normal_depth,
+                &chunk,
+                &self.block_bounds,
                 &m.position_weight,
                 &m.normal_frame,
                 &m.color,
@@ -202,6 +252,8 @@ impl Backend for CpuBackend {
             &params,
             &self.frame.normal_depth,
             &self.frame.color,
+            &chunk,
+            bytemuck::cast_slice_mut(&mut self.block_bounds),
             &mut m.position_weight,
             &mut m.normal_frame,
             &mut m.color,
@@ -230,12 +282,15 @@ impl Backend for CpuBackend {
             &self.frame.color,
             &self.add_flags,
             &self.add_offsets,
+            &MapChunk::whole(params.capacity as usize),
             &mut m.position_weight,
             &mut m.normal_frame,
             &mut m.color,
         );
         let new_len = count + added as usize;
         m.resize(new_len);
+        // The blocks from the one that held the old last surfel on have new surfels.
+        self.bounds_dirty_from = self.bounds_dirty_from.min(count);
         Ok(new_len)
     }
 
@@ -245,8 +300,10 @@ impl Backend for CpuBackend {
         params.surfel_count = n as u32;
         let m = &self.map;
         self.flags.resize(n, 0);
+        let chunk = MapChunk::whole(n);
         cpu::compact_flags::compact_flags(
             &params,
+            &chunk,
             &m.position_weight,
             &m.normal_frame,
             &mut self.flags,
@@ -261,15 +318,19 @@ impl Backend for CpuBackend {
             &params,
             &self.flags,
             &self.offsets,
+            &chunk,
             &m.position_weight,
             &m.normal_frame,
             &m.color,
+            &chunk,
             &mut out.position_weight,
             &mut out.normal_frame,
             &mut out.color,
         );
         out.resize(counter as usize);
         std::mem::swap(&mut self.map, &mut self.spare);
+        // Every surfel may have moved to another block.
+        self.bounds_dirty_from = 0;
         Ok(self.map.len())
     }
 
@@ -284,6 +345,7 @@ impl Backend for CpuBackend {
     fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
         map.assert_consistent();
         self.map.clone_from(map);
+        self.bounds_dirty_from = 0;
         Ok(())
     }
 
