@@ -1051,16 +1051,17 @@ impl Backend for GpuBackend {
             Ok(())
         })?;
         let (w, h) = (params.width, params.height);
-        let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
-        let bf_wg = self.kernels.bilateral_filter.workgroups_for_image(w, h);
-        let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
+        let (k, ctx) = (&self.kernels, &self.ctx);
+        let d2v_wg = k.depth_to_vertex.grid_workgroups_for_image(ctx, w, h);
+        let bf_wg = k.bilateral_filter.grid_workgroups_for_image(ctx, w, h);
+        let v2n_wg = k.vertex_to_normal.grid_workgroups_for_image(ctx, w, h);
         let level_wg: Vec<([u32; 2], [u32; 2])> = pyramid
             .iter()
             .map(|p| {
                 let (w, h) = (p.down.width, p.down.height);
                 (
-                    self.kernels.pyramid_depth.workgroups_for_image(w, h),
-                    self.kernels.vertex_to_normal.workgroups_for_image(w, h),
+                    k.pyramid_depth.grid_workgroups_for_image(ctx, w, h),
+                    k.vertex_to_normal.grid_workgroups_for_image(ctx, w, h),
                 )
             })
             .collect();
@@ -1113,7 +1114,7 @@ impl Backend for GpuBackend {
             .map(|l| {
                 self.kernels
                     .pyramid_model
-                    .workgroups_for_image(l.width, l.height)
+                    .grid_workgroups_for_image(&self.ctx, l.width, l.height)
             })
             .collect();
         let (ctx, k, bg, profiler) = encoding_parts!(self);
@@ -1187,6 +1188,10 @@ impl Backend for GpuBackend {
             .kernels
             .fuse_add
             .workgroups_for_image(f.width, f.height);
+        let flags_wg = self
+            .kernels
+            .fuse_flags
+            .grid_workgroups_for_image(&self.ctx, f.width, f.height);
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
@@ -1200,7 +1205,7 @@ impl Backend for GpuBackend {
             let select = (&k.fuse_select, &bg.fuse_select, [surfel_wg, 1]);
             let merge_add = [
                 (&k.fuse_merge, &bg.fuse_merge, [surfel_wg, 1]),
-                (&k.fuse_flags, &bg.fuse_flags, pix_wg),
+                (&k.fuse_flags, &bg.fuse_flags, flags_wg),
                 (&k.prefix_sum, &bg.fuse_scan, [1, 1]),
                 (&k.fuse_add, &bg.fuse_add, pix_wg),
             ];
