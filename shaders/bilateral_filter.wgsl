@@ -12,14 +12,15 @@
 // (clipped at the border), weight exp(-d_px^2 / (2 sigma_space^2)) *
 // exp(-(z_n - z)^2 / (2 sigma_depth^2)), as one exp of the summed exponents; the pixel
 // itself has weight 1, so the sum of weights is >= 1. Invalid pixels stay invalid.
-// One thread per pixel (8x8 workgroups).
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
 @group(0) @binding(0) var<storage, read> params: BilateralParams;
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
 @group(0) @binding(2) var filtered_vertex: texture_storage_2d<rgba32float, write>;
 
 // The filtered vertex of pixel (u, v), or INVALID where the pixel's vertex is invalid.
-fn filtered_at(u: u32, v: u32) -> vec4<f32> {
+// `params` is main's copy of the binding (see vertex_to_normal's main).
+fn filtered_at(params: BilateralParams, u: u32, v: u32) -> vec4<f32> {
     let c = textureLoad(vertex_map, vec2<u32>(u, v), 0);
     if !is_valid(c) {
         return INVALID;
@@ -51,11 +52,19 @@ fn filtered_at(u: u32, v: u32) -> vec4<f32> {
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_wz / sum_w));
 }
 
-// One thread per pixel in 8x8 tiles, like vertex_to_normal (the fastest shape on lavapipe).
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
+const TILE: u32 = 8u;
+
+// A 2-D grid-stride loop in 8x8 tiles over a copy of the params, like vertex_to_normal.
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    let p = params;
+    for (var v = gid.y; v < p.height; v += stride.y) {
+        for (var u = gid.x; u < p.width; u += stride.x) {
+            textureStore(filtered_vertex, vec2<u32>(u, v), filtered_at(p, u, v));
+        }
     }
-    textureStore(filtered_vertex, gid.xy, filtered_at(gid.x, gid.y));
 }

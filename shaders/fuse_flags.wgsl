@@ -11,21 +11,32 @@
 //   2 assoc         storage read array<vec2<u32>>: the u64 key per pixel (low word first),
 //                   non-zero where a surfel merged with or was chosen by the pixel
 //   3 flags         storage rw array<u32>: out, 1 new surfel / 0 not, width x height
-// One thread per pixel (8x8 workgroups).
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
 @group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read> assoc: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read_write> flags: array<u32>;
 
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
+const TILE: u32 = 8u;
+
+// A 2-D grid-stride loop in 8x8 tiles, like vertex_to_normal (the size read once per
+// thread).
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    let size = vec2<u32>(params.width, params.height);
+    for (var v = gid.y; v < size.y; v += stride.y) {
+        for (var u = gid.x; u < size.x; u += stride.x) {
+            let pix = v * size.x + u;
+            let key = assoc[pix];
+            // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
+            let new_surfel = key.x == 0u && key.y == 0u
+                && is_valid(textureLoad(normal_depth, vec2<u32>(u, v), 0));
+            flags[pix] = select(0u, 1u, new_surfel);
+        }
     }
-    let pix = gid.y * params.width + gid.x;
-    let key = assoc[pix];
-    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
-    let new_surfel = key.x == 0u && key.y == 0u && is_valid(textureLoad(normal_depth, gid.xy, 0));
-    flags[pix] = select(0u, 1u, new_surfel);
 }

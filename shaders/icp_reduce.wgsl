@@ -63,8 +63,9 @@ fn huber_weight(b: f32, delta: f32) -> f32 {
 
 // The row of source pixel `src_texel`, or valid = false when a filter rejects it; weighted rows
 // are scaled by sqrt(weight), so AᵀA and Aᵀb carry the weight once.
-// Mirrors `icp_row` in src/cpu/icp_reduce.rs.
-fn icp_row(src_texel: vec2<u32>) -> IcpRow {
+// Mirrors `icp_row` in src/cpu/icp_reduce.rs. `params` is main's copy of the binding (see
+// main).
+fn icp_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
     let src_world = textureLoad(pred_vertex, src_texel, 0);
@@ -154,16 +155,19 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     var sys: array<f32, ICP_SYSTEM_LEN>;
-    let n_pix = params.width * params.height;
+    // The params copied once per thread: read inside the loop, lavapipe loads them from the
+    // storage buffer again for every pixel.
+    let p = params;
+    let n_pix = p.width * p.height;
     let stride = nwg.x * WORKGROUP_SIZE;
     // (u, v) of `pix`, stepped along with it: one division per thread, not per pixel.
-    let w = params.width;
+    let w = p.width;
     var u = gid.x % w;
     var v = gid.x / w;
     let du = stride % w;
     let dv = stride / w;
     for (var pix = gid.x; pix < n_pix; pix += stride) {
-        let row = icp_row(vec2<u32>(u, v));
+        let row = icp_row(p, vec2<u32>(u, v));
         if row.valid {
             accumulate(&sys, row.a, row.b);
         }

@@ -13,14 +13,15 @@
 // Coarse pixel (u, v) samples finer pixel (2u, 2v): invalid where that pixel is invalid,
 // else the plain mean of the valid depths in the (2r+1)^2 window around it (clipped at the
 // border) that lie within the depth gate of its depth (the pixel itself always does).
-// One thread per coarse pixel (8x8 workgroups).
+// A 2-D grid-stride loop over the coarse pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
 @group(0) @binding(0) var<storage, read> params: PyramidParams;
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
 @group(0) @binding(2) var coarse_vertex: texture_storage_2d<rgba32float, write>;
 
-// The coarse vertex of pixel (u, v), or INVALID (the rules of the header).
-fn coarse_at(u: u32, v: u32) -> vec4<f32> {
+// The coarse vertex of pixel (u, v), or INVALID (the rules of the header). `params` is
+// main's copy of the binding (see vertex_to_normal's main).
+fn coarse_at(params: PyramidParams, u: u32, v: u32) -> vec4<f32> {
     let fu = 2u * u;
     let fv = 2u * v;
     let c = textureLoad(fine_vertex, vec2<u32>(fu, fv), 0);
@@ -48,11 +49,20 @@ fn coarse_at(u: u32, v: u32) -> vec4<f32> {
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_z / count));
 }
 
-// One thread per coarse pixel in 8x8 tiles, like vertex_to_normal.
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
+const TILE: u32 = 8u;
+
+// A 2-D grid-stride loop over the coarse pixels in 8x8 tiles over a copy of the params,
+// like vertex_to_normal.
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    let p = params;
+    for (var v = gid.y; v < p.height; v += stride.y) {
+        for (var u = gid.x; u < p.width; u += stride.x) {
+            textureStore(coarse_vertex, vec2<u32>(u, v), coarse_at(p, u, v));
+        }
     }
-    textureStore(coarse_vertex, gid.xy, coarse_at(gid.x, gid.y));
 }

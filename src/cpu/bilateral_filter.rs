@@ -112,7 +112,8 @@ pub fn bilateral_filter(
         w * h,
         "filtered_vertex has the wrong size"
     );
-    // One shader thread per pixel (u, v).
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
+    // row by row.
     for v in 0..params.height {
         for u in 0..params.width {
             filtered_vertex[v as usize * w + u as usize] = filtered_at(params, vertex_map, u, v);

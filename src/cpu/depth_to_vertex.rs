@@ -29,22 +29,39 @@ pub fn depth_to_vertex(
         raw_depth.len(),
         (params.raw_width * params.raw_height) as usize
     );
-    for pix in 0..w * h {
-        let (u, v) = ((pix % w) as u32, (pix / w) as u32);
-        let raw = (v * params.stride * params.raw_width + u * params.stride) as usize;
-        let z = raw_depth[raw] as f32 / params.depth_scale;
-        let c = raw_rgba[raw];
-        color_map[pix] = [
-            (c & 255) as f32,
-            ((c >> 8) & 255) as f32,
-            ((c >> 16) & 255) as f32,
-            255.0,
-        ];
-        let mut vertex = INVALID;
-        if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
-            let cam = [params.fx, params.fy, params.cx, params.cy];
-            vertex = valid_entry(back_project(cam, [u, v], z));
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
+    // row by row.
+    for v in 0..params.height {
+        for u in 0..params.width {
+            convert_at(params, raw_depth, raw_rgba, vertex_map, color_map, u, v);
         }
-        vertex_map[pix] = vertex;
     }
+}
+
+/// Converts output pixel `(u, v)`. Mirrors `convert_at` in depth_to_vertex.wgsl.
+fn convert_at(
+    params: &PreprocessParams,
+    raw_depth: &[u16],
+    raw_rgba: &[u32],
+    vertex_map: &mut [[f32; 4]],
+    color_map: &mut [[f32; 4]],
+    u: u32,
+    v: u32,
+) {
+    let texel = (v * params.width + u) as usize;
+    let raw = (v * params.stride * params.raw_width + u * params.stride) as usize;
+    let z = raw_depth[raw] as f32 / params.depth_scale;
+    let c = raw_rgba[raw];
+    color_map[texel] = [
+        (c & 255) as f32,
+        ((c >> 8) & 255) as f32,
+        ((c >> 16) & 255) as f32,
+        255.0,
+    ];
+    let mut vertex = INVALID;
+    if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
+        let cam = [params.fx, params.fy, params.cx, params.cy];
+        vertex = valid_entry(back_project(cam, [u, v], z));
+    }
+    vertex_map[texel] = vertex;
 }

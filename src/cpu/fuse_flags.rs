@@ -19,6 +19,8 @@ pub fn fuse_flags(
     assoc: &[u64],
     flags: &mut [u32],
 ) {
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
+    // row by row.
     for v in 0..params.height {
         for u in 0..params.width {
             let pix = (v * params.width + u) as usize;

@@ -82,7 +82,8 @@ pub fn pyramid_depth(
         params.fine_width,
         params.fine_height
     );
-    // One shader thread per coarse pixel (u, v).
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
+    // row by row.
     for v in 0..params.height {
         for u in 0..params.width {
             coarse_vertex[v as usize * w + u as usize] = coarse_at(params, fine_vertex, u, v);

@@ -30,7 +30,8 @@ pub fn pyramid_model(
     assert!(fine_vertex.len() == fine_normal.len() && fine_vertex.len() % fine_w == 0);
     assert!(coarse_vertex.len() == w * h && coarse_normal.len() == w * h);
     assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_vertex.len() / fine_w);
-    // One shader thread per coarse pixel (u, v).
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
+    // row by row.
     for v in 0..h {
         for u in 0..w {
             let fine = 2 * v * fine_w + 2 * u;

@@ -64,7 +64,8 @@ pub fn vertex_to_normal(
     let (w, h) = (params.width as usize, params.height as usize);
     assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
     assert_eq!(normal_depth.len(), w * h, "normal_depth has the wrong size");
-    // One shader thread per pixel (u, v).
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
+    // row by row.
     for v in 0..params.height {
         for u in 0..params.width {
             normal_depth[v as usize * w + u as usize] = normal_at(params, vertex_map, u, v);

@@ -1226,16 +1226,17 @@ impl Backend for GpuBackend {
             Ok(())
         })?;
         let (w, h) = (params.width, params.height);
-        let d2v_wg = self.kernels.depth_to_vertex.workgroups_for_image(w, h);
-        let bf_wg = self.kernels.bilateral_filter.workgroups_for_image(w, h);
-        let v2n_wg = self.kernels.vertex_to_normal.workgroups_for_image(w, h);
+        let (k, ctx) = (&self.kernels, &self.ctx);
+        let d2v_wg = k.depth_to_vertex.grid_workgroups_for_image(ctx, w, h);
+        let bf_wg = k.bilateral_filter.grid_workgroups_for_image(ctx, w, h);
+        let v2n_wg = k.vertex_to_normal.grid_workgroups_for_image(ctx, w, h);
         let level_wg: Vec<([u32; 2], [u32; 2])> = pyramid
             .iter()
             .map(|p| {
                 let (w, h) = (p.down.width, p.down.height);
                 (
-                    self.kernels.pyramid_depth.workgroups_for_image(w, h),
-                    self.kernels.vertex_to_normal.workgroups_for_image(w, h),
+                    k.pyramid_depth.grid_workgroups_for_image(ctx, w, h),
+                    k.vertex_to_normal.grid_workgroups_for_image(ctx, w, h),
                 )
             })
             .collect();
@@ -1288,7 +1289,7 @@ impl Backend for GpuBackend {
             .map(|l| {
                 self.kernels
                     .pyramid_model
-                    .workgroups_for_image(l.width, l.height)
+                    .grid_workgroups_for_image(&self.ctx, l.width, l.height)
             })
             .collect();
         let bounds = self.stale_bounds_passes();
@@ -1370,6 +1371,10 @@ impl Backend for GpuBackend {
             .kernels
             .fuse_add
             .workgroups_for_image(f.width, f.height);
+        let flags_wg = self
+            .kernels
+            .fuse_flags
+            .grid_workgroups_for_image(&self.ctx, f.width, f.height);
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
@@ -1392,7 +1397,7 @@ impl Backend for GpuBackend {
             for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
                 passes.push((&k.fuse_merge, &bg.fuse_merge[c], [blocks_wg, 1]));
             }
-            passes.push((&k.fuse_flags, &bg.fuse_flags, pix_wg));
+            passes.push((&k.fuse_flags, &bg.fuse_flags, flags_wg));
             passes.push((&k.prefix_sum, &bg.fuse_scan, [1, 1]));
             for g in &bg.fuse_add {
                 passes.push((&k.fuse_add, g, pix_wg));

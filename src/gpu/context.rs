@@ -188,6 +188,12 @@ impl GpuContext {
         }
     }
 
+    /// True on a CPU adapter (lavapipe, llvmpipe, SwiftShader), where workgroups run as
+    /// SIMD lanes on CPU cores and grid-stride kernels want few of them.
+    pub fn is_cpu_adapter(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
     /// Most workgroups a grid-stride kernel over pixels or surfels is dispatched with:
     /// [`CPU_GRID_WORKGROUPS`] on a CPU adapter, the per-dimension limit on a GPU (where
     /// one thread per item is best).
