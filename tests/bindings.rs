@@ -51,24 +51,18 @@ fn every_kernel_layout_matches_its_wgsl() {
 /// The check itself fails on a wrong table, and reports every mismatch at once (so a
 /// passing run above means something).
 fn a_wrong_table_is_reported_binding_by_binding() {
-    // fuse_add with binding 5 read-write instead of write-only, binding 3 a read-write
-    // buffer instead of read-only, and binding 7 missing.
-    let wrong = [
-        Binding::params("params"),
-        Binding::texture_f32("normal_depth"),
-        Binding::texture_f32("color_map"),
-        Binding::read_write("flags"),
-        Binding::read("offsets"),
-        Binding::storage_texture(TexelFormat::Rgba32F, true, "position_weight"),
-        Binding::storage_texture(TexelFormat::Rgba32U, false, "normal_frame"),
-    ];
+    // fuse_add's table with binding 3 a read-write buffer instead of read-only, binding 6
+    // a storage texture instead of a buffer, and binding 8 missing.
+    let mut wrong = gpu::backend::bindings::FUSE_ADD[..8].to_vec();
+    wrong[3] = Binding::read_write("flags");
+    wrong[6] = Binding::storage_texture(TexelFormat::Rgba32F, false, "position_weight");
     let problems = gpu::layout_mismatches(
         "fuse_add",
         &shaders::source("fuse_add"),
         &gpu::layout_entries(&wrong),
     );
     assert_eq!(problems.len(), 3, "got: {problems:#?}");
-    for (b, var) in [(3, "flags"), (5, "position_weight"), (7, "color")] {
+    for (b, var) in [(3, "flags"), (6, "position_weight"), (8, "color")] {
         let tag = format!("kernel `fuse_add` binding {b} (`{var}`)");
         assert!(
             problems.iter().any(|p| p.starts_with(&tag)),
@@ -83,14 +77,14 @@ fn a_wrong_table_is_reported_binding_by_binding() {
         view_dimension: wgpu::TextureViewDimension::D2,
         multisampled: false,
     };
-    let wrong_format = Binding::storage_texture(TexelFormat::Rgba32U, false, "pred_normal");
+    let wrong_format = Binding::storage_texture(TexelFormat::Rgba32U, false, "pred_vertex");
     wrong[5] = gpu::layout_entries(&[wrong_format])[0];
     wrong[5].binding = 5;
     let problems =
         gpu::layout_mismatches("predict_model", &shaders::source("predict_model"), &wrong);
     assert_eq!(problems.len(), 2, "got: {problems:#?}");
-    assert!(problems[0].starts_with("kernel `predict_model` binding 3 (`normal_frame`)"));
-    assert!(problems[1].starts_with("kernel `predict_model` binding 5 (`pred_normal`)"));
+    assert!(problems[0].starts_with("kernel `predict_model` binding 3 (`position_weight`)"));
+    assert!(problems[1].starts_with("kernel `predict_model` binding 5 (`pred_vertex`)"));
 }
 
 fn main() -> ExitCode {

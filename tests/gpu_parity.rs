@@ -8,7 +8,7 @@ mod common;
 use std::process::ExitCode;
 
 use common::frames::{gt_at, load_frame, load_gt};
-use common::harness::gpu;
+use common::harness::{gpu, plain};
 use glam::DMat4;
 use wgslam::cpu;
 use wgslam::geometry::camera::Intrinsics;
@@ -1172,6 +1172,123 @@ fn icp_reduce_final_matches_twin(ctx: GpuContext) {
     }
 }
 
+// ---------------------------------------------------------------------------------------
+// Culling by block boxes.
+
+/// True when every surfel lies inside its block's box (`bounds` as the backends keep it).
+fn surfels_in_their_boxes(map: &SurfelMap, bounds: &[[u32; 4]]) -> Result<(), String> {
+    for i in 0..map.len() {
+        let b = i / BLOCK_SURFELS as usize;
+        let (lo, hi) = (
+            cpu::decode_corner(bounds[2 * b]),
+            cpu::decode_corner(bounds[2 * b + 1]),
+        );
+        let p = glam::Vec3::from(map.position(i));
+        if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+            return Err(format!(
+                "surfel {i} at {p} outside block {b}'s box {lo}..{hi}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Culling never drops a surfel that would land in the image: project_model's twin with
+/// the real boxes gives the same index map as with boxes that hold the whole world, from a
+/// pose that sees the map and from one turned away from it (where every block is culled).
+fn culling_is_conservative() {
+    let params = SlamParams::profile(Profile::Robust);
+    let (mut s, gt) = cpu_map_from_gt(4, &params);
+    let map = s.backend.download_map().unwrap();
+    let whole = MapChunk::whole(map.len());
+    let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
+    surfels_in_their_boxes(&map, &bounds).unwrap();
+    // One box per block holding the whole world (1000 km either way).
+    let corner = |x: f32| {
+        let e = wgslam::layout::ordered_from_f32(x);
+        [e, e, e, 0]
+    };
+    let world: Vec<[u32; 4]> = (0..bounds.len())
+        .map(|e| corner(if e % 2 == 0 { -1.0e6 } else { 1.0e6 }))
+        .collect();
+    let t_seen = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
+    let turned = glam::DMat4::from_rotation_y(std::f64::consts::PI) * t_seen;
+    for (label, t_world_to_cam, expect_all_culled) in
+        [("seen", t_seen, false), ("turned away", turned, true)]
+    {
+        let proj = s.project_params(&t_world_to_cam);
+        let proj = wgslam::layout::ProjectParams {
+            surfel_count: map.len() as u32,
+            ..proj
+        };
+        let n = (proj.width * proj.height) as usize;
+        let splat = |b: &[[u32; 4]]| {
+            let mut index = vec![0u64; n];
+            cpu::project_model::project_model(&proj, &whole, b, &map.position_weight, &mut index);
+            index
+        };
+        let (culled_index, full_index) = (splat(&bounds), splat(&world));
+        let blocks = bounds.len() / 2;
+        let culled = (0..blocks)
+            .filter(|&b| {
+                let cam = [proj.fx, proj.fy, proj.cx, proj.cy];
+                let (lo, hi) = (
+                    cpu::decode_corner(bounds[2 * b]),
+                    cpu::decode_corner(bounds[2 * b + 1]),
+                );
+                !cpu::block_visible(&proj.t_world_to_cam, cam, proj.width, proj.height, lo, hi)
+            })
+            .count();
+        let covered = full_index.iter().filter(|&&k| k != 0).count();
+        eprintln!("{label}: {culled} of {blocks} blocks culled; {covered} pixels covered");
+        assert_eq!(
+            culled_index, full_index,
+            "{label}: culling changed the index map"
+        );
+        if expect_all_culled {
+            assert_eq!(covered, 0, "{label}: nothing is in view");
+            assert_eq!(culled, blocks, "{label}: every block is culled");
+        } else {
+            assert!(covered > 1000, "{label}: the map is in view");
+        }
+    }
+}
+
+/// After a robust run (merges moving surfels, compaction, appends) every surfel lies in
+/// its block's box on both backends, the GPU's map in small chunks.
+fn block_boxes_hold_their_surfels(ctx: GpuContext) {
+    let gt = load_gt(&root());
+    let params = SlamParams::profile(Profile::Robust);
+    let mut c = slam(CpuBackend::new(), params.clone());
+    let mut g = slam(small_chunk_backend(ctx), params);
+    let last = 12;
+    for i in 1..=last {
+        let f = load_frame(&root(), i);
+        c.process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+        g.process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
+            .unwrap();
+    }
+    // A predict refreshes the boxes of the blocks the last fusion appended to.
+    let proj = c.project_params(&se3::inverse_rigid(gt_at(&gt, last).unwrap()));
+    let pyramid = c.pyramid_levels();
+    c.backend.predict(&proj, &pyramid).unwrap();
+    g.backend.predict(&proj, &pyramid).unwrap();
+    let cm = c.backend.download_map().unwrap();
+    surfels_in_their_boxes(&cm, c.backend.block_bounds()).unwrap();
+    let gm = g.backend.download_map().unwrap();
+    let gb = g.backend.download_block_bounds().unwrap();
+    surfels_in_their_boxes(&gm, &gb).unwrap();
+    eprintln!(
+        "{} / {} surfels in {} / {} blocks inside their boxes ({} GPU chunks)",
+        cm.len(),
+        gm.len(),
+        cm.len().div_ceil(BLOCK_SURFELS as usize),
+        gb.len() / 2,
+        g.backend.map_chunks()
+    );
+}
+
 fn main() -> ExitCode {
     common::harness::run(vec![
         gpu("preprocess_matches_twins", |ctx| {
@@ -1211,6 +1328,11 @@ fn main() -> ExitCode {
         gpu("compaction_sizes_match_twins", |ctx| {
             compaction_sizes_match_twins(gpu_backend(ctx))
         }),
+        plain("culling_is_conservative", culling_is_conservative),
+        gpu(
+            "block_boxes_hold_their_surfels",
+            block_boxes_hold_their_surfels,
+        ),
         gpu("predict_matches_twins_in_small_chunks", |ctx| {
             predict_matches_twins(small_chunk_backend(ctx))
         }),

@@ -1636,6 +1636,17 @@ impl GpuBackend {
 }
 
 impl GpuBackend {
+    /// The culling blocks' boxes of the live map (entries `2b` min, `2b + 1` max,
+    /// ordered-encoded), for tests; boxes of blocks fusion appended to since the last
+    /// `predict` or `fuse` are stale until the next one.
+    pub fn download_block_bounds(&mut self) -> Result<Vec<[u32; 4]>> {
+        let (ctx, b) = (&self.ctx, &self.block_bounds);
+        let n = 2 * self.count.div_ceil(BLOCK_SURFELS as usize);
+        ctx.scoped("download block bounds", || b.read_back_range(ctx, 0..n))
+    }
+}
+
+impl GpuBackend {
     /// The last `fuse`'s per-pixel association keys (for the parity test of
     /// `fuse_select`); empty before the first frame.
     pub fn download_assoc(&mut self) -> Result<Vec<u64>> {

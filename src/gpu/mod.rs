@@ -44,6 +44,7 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
         ("vertex_to_normal", &b::VERTEX_TO_NORMAL),
         ("pyramid_depth", &b::PYRAMID_DEPTH),
         ("pyramid_model", &b::PYRAMID_MODEL),
+        ("block_bounds", &b::BLOCK_BOUNDS),
         ("project_model", &b::PROJECT_MODEL),
         ("predict_model", &b::PREDICT_MODEL),
         ("icp_reduce", &b::ICP_REDUCE),
