@@ -314,6 +314,38 @@ fn surfel_radius(focal_px: f32, q_cam: vec3<f32>, n_cam: vec3<f32>) -> f32 {
     return footprint / max(cos_view, 0.5);
 }
 
+// v / |v|, or zero when |v| is zero (glam's `normalize_or_zero` in the twin).
+// Mirrors `cpu::normalize_or_zero`.
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let len = length(v);
+    if len > 0.0 {
+        return v * (1.0 / len);
+    }
+    return vec3<f32>(0.0);
+}
+
+// A surfel after merging one measurement into it. Mirrors `cpu::MergedSurfel`.
+struct MergedSurfel {
+    position_weight: vec4<f32>,
+    normal: vec3<f32>,
+    color: vec4<f32>,
+}
+
+// Fusion's merge (Keller et al. 2013, Sec. 4.2): the confidence-weighted averages
+// (w x + wq x_q) / (w + wq) of position, normal (renormalised), colour and radius, and the
+// weight w + wq, of a surfel (pw: world position + weight w; n_old: world normal; c: RGB +
+// radius) and a measurement (q_world, nq_world: world frame; cq: RGB; wq: its confidence;
+// r_q: its radius, metres). fuse_merge and fuse_merge_chosen share it. Mirrors
+// `cpu::merged_surfel`.
+fn merged_surfel(pw: vec4<f32>, n_old: vec3<f32>, c: vec4<f32>, q_world: vec3<f32>, nq_world: vec3<f32>, cq: vec3<f32>, wq: f32, r_q: f32) -> MergedSurfel {
+    let w = pw.w;
+    let inv = 1.0 / (w + wq);
+    let p = (pw.xyz * w + q_world * wq) * inv;
+    let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
+    let r = (c.w * w + r_q * wq) * inv;
+    return MergedSurfel(vec4<f32>(p, w + wq), n, vec4<f32>((c.xyz * w + cq * wq) * inv, r));
+}
+
 // Confidence of the measurement at pixel `texel`: a Gaussian over its distance from the
 // principal point, normalised so the corner at distance |(cx, cy)| is 1 (Keller et al.
 // 2013: the lens is worst at the border), or 1 when sigma is 0 (plain counts).

@@ -1,14 +1,13 @@
-// fuse_merge.wgsl: merges the new frame into the surfels it sees (confidence-weighted
-// averages of position, normal, colour and radius; weight + confidence; last_frame =
-// frame_id). With projective association (the assignment) the gates are tested here and
-// merged pixels are flagged; with best-candidate association a surfel merges only with the
-// pixel whose fuse_select chose it. Dispatched once per map chunk; a merge that moves a
-// surfel out of its block's box grows the box. CPU twin: src/cpu/fuse_merge.rs (its header
-// states both filter passes).
+// fuse_merge.wgsl: merges the new frame into the surfels it sees with projective
+// association (the assignment): every surfel that lands on a pixel whose measurement passes
+// the gates takes merged_surfel's averages (last_frame = frame_id), and the pixel is
+// flagged. Best-candidate association merges from the pixels instead (fuse_merge_chosen).
+// Dispatched once per map chunk; a merge that moves a surfel out of its block's box grows
+// the box. CPU twin: src/cpu/fuse_merge.rs (its header states both filter passes).
 //
 // Bindings (@group(0)):
 //   0 params      storage read FuseParams (tracked poses, intrinsics, surfel_count, gates,
-//                 association, confidence_sigma)
+//                 confidence_sigma)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
 //                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
 //                   is rebuilt with back_project, as in the twin
@@ -23,8 +22,7 @@
 //                      w = frame that last touched the surfel
 //   7 color            storage rw array<vec4<f32>>: RGB 0..255, a = radius (m)
 //   8 assoc            storage rw array<atomic<u64>>: one key per pixel, cleared by the
-//                      host; projective: max with 1 where merged; best candidate:
-//                      fuse_select's choice (map-wide surfel index in the low 32 bits)
+//                      host; max with 1 where merged
 //   (see src/gpu/map_buffers.rs)
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (their
 // surfels cannot project into the image); threads stride over a block. Each thread writes
@@ -42,15 +40,6 @@
 @group(0) @binding(8) var<storage, read_write> assoc: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
-
-// v / |v|, or zero when |v| is zero (glam's `normalize_or_zero` in the twin).
-fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
-    let len = length(v);
-    if len > 0.0 {
-        return v * (1.0 / len);
-    }
-    return vec3<f32>(0.0);
-}
 
 // Word k of block b's box (0..2 min xyz, 4..6 max xyz) as a float.
 fn box_word(block: u32, k: u32) -> f32 {
@@ -77,7 +66,7 @@ fn main(
         var grown_hi = hi;
         let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
         for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            let moved = merge_surfel(i, i - chunk.base, cam);
+            let moved = merge_surfel(i - chunk.base, cam);
             if moved.w > 0.0 {
                 grown_lo = min(grown_lo, moved.xyz);
                 grown_hi = max(grown_hi, moved.xyz);
@@ -94,9 +83,8 @@ fn main(
     }
 }
 
-// Merges surfel i (map-wide index; `slot` in the chunk's arrays) with its pixel when the
-// filters pass: returns its new world-frame position with w = 1, or w = 0 if unmerged.
-fn merge_surfel(i: u32, slot: u32, cam: vec4<f32>) -> vec4<f32> {
+// Merges surfel `slot` of the chunk with its pixel when the filters pass: returns its new world-frame position with w = 1, or w = 0 if unmerged.
+fn merge_surfel(slot: u32, cam: vec4<f32>) -> vec4<f32> {
     let pw = position_weight[slot];
     let p_world = xyz(pw);
     let p_cam = transform_point(params.t_world_to_cam, p_world);
@@ -106,14 +94,6 @@ fn merge_surfel(i: u32, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     }
     let texel = vec2<u32>(uv);
     let pix = texel.y * params.width + texel.x;
-    // Best candidate: only the pixel that chose this surfel (fuse_select tested the
-    // gates, on a valid pixel), before any other load.
-    if params.association == ASSOCIATION_BEST_CANDIDATE {
-        let key = atomicLoad(&assoc[pix]);
-        if key == 0lu || u32(key) != i {
-            return INVALID;
-        }
-    }
     // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
     let nd = textureLoad(normal_depth, texel, 0);
     if !is_valid(nd) {
@@ -123,24 +103,17 @@ fn merge_surfel(i: u32, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     let q_world = transform_point(params.t_cam_to_world, q_cam);
     let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
     let n_old = bitcast<vec3<f32>>(normal_frame[slot].xyz);
-    if params.association == ASSOCIATION_PROJECTIVE
-        && (length(q_world - p_world) >= params.dist_threshold_m
-            || dot(n_old, nq_world) <= params.cos_normal_threshold) {
+    if length(q_world - p_world) >= params.dist_threshold_m
+        || dot(n_old, nq_world) <= params.cos_normal_threshold {
         return INVALID;
     }
-    let w = pw.w;
     let wq = pixel_confidence(cam, texel, params.confidence_sigma);
-    let inv = 1.0 / (w + wq);
-    let p = (p_world * w + q_world * wq) * inv;
-    let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
-    let c = color[slot];
-    let cq = textureLoad(color_map, texel, 0);
-    let r = (c.w * w + surfel_radius(params.fx, q_cam, xyz(nd)) * wq) * inv;
-    position_weight[slot] = vec4<f32>(p, w + wq);
-    normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
-    color[slot] = vec4<f32>((c.xyz * w + cq.xyz * wq) * inv, r);
-    if params.association == ASSOCIATION_PROJECTIVE {
-        atomicMax(&assoc[pix], 1lu);
-    }
-    return vec4<f32>(p, 1.0);
+    let cq = textureLoad(color_map, texel, 0).xyz;
+    let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+    let m = merged_surfel(pw, n_old, color[slot], q_world, nq_world, cq, wq, r_q);
+    position_weight[slot] = m.position_weight;
+    normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(m.normal), params.frame_id);
+    color[slot] = m.color;
+    atomicMax(&assoc[pix], 1lu);
+    return vec4<f32>(m.position_weight.xyz, 1.0);
 }

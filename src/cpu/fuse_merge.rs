@@ -1,19 +1,17 @@
-//! CPU twin of `shaders/fuse_merge.wgsl`: merges the new frame into the surfels it sees.
+//! CPU twin of `shaders/fuse_merge.wgsl`: merges the new frame into the surfels it sees
+//! with projective association (the assignment).
 //!
 //! For every surfel (world frame): move it into the tracked camera and project it. Filter
 //! pass 1: it lands inside the image with `z > 0` on a pixel with a valid `normal_depth`
-//! texel (a valid normal implies a valid vertex). Filter pass 2 depends on
-//! `params.association`:
-//! - [`ASSOCIATION_PROJECTIVE`] (the assignment): the frame's point at that pixel (rebuilt
-//!   with `back_project`), moved to the world, is closer than `dist_threshold_m`, and the
-//!   angle between the normals is below the threshold (`cos > cos_normal_threshold`); the
-//!   pixel is then marked in `assoc` so `fuse_add` does not add it again. Several surfels
-//!   may merge with one pixel (as in the assignment).
-//! - [`ASSOCIATION_BEST_CANDIDATE`]: `fuse_select` already chose one surfel per pixel
-//!   (gates included); the surfel merges only when its pixel chose it.
+//! texel (a valid normal implies a valid vertex). Filter pass 2: the frame's point at that
+//! pixel (rebuilt with `back_project`), moved to the world, is closer than
+//! `dist_threshold_m`, and the angle between the normals is below the threshold
+//! (`cos > cos_normal_threshold`); the pixel is then marked in `assoc` so `fuse_add` does
+//! not add it again. Several surfels may merge with one pixel (as in the assignment).
+//! Best-candidate association merges from the pixels instead (`fuse_merge_chosen`).
 //!
-//! Associated surfels take the confidence-weighted average `(w x + c x_new) / (w + c)` of
-//! position, colour, normal (renormalised) and radius, weight `w + c` and
+//! Merged surfels take [`merged_surfel`]'s confidence-weighted averages `(w x + c x_new) /
+//! (w + c)` of position, colour, normal (renormalised) and radius, weight `w + c` and
 //! `last_frame = frame_id`, where `c = pixel_confidence(...)` (1 with
 //! `confidence_sigma = 0`: the assignment's counts) and the new radius is `surfel_radius`
 //! of the measurement.
@@ -25,19 +23,10 @@
 use glam::Vec3;
 
 use super::{
-    back_project, block_visible, chunk_blocks, is_valid, pixel_confidence, project_to_texel,
-    surfel_radius, transform_dir, transform_point, xyz,
+    back_project, block_visible, chunk_blocks, is_valid, merged_surfel, pixel_confidence,
+    project_to_texel, surfel_radius, transform_dir, transform_point, xyz,
 };
-use crate::layout::{
-    f32_from_ordered, ordered_from_f32, FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE,
-    ASSOCIATION_PROJECTIVE, BLOCK_SURFELS,
-};
-
-/// `v / |v|`, or zero when `|v|` is zero. Mirrors `normalize_or_zero` in fuse_merge.wgsl.
-#[inline]
-fn normalize_or_zero(v: Vec3) -> Vec3 {
-    v.normalize_or_zero()
-}
+use crate::layout::{f32_from_ordered, ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
 /// The unit normal stored as bits in `normal_frame`'s xyz (`bitcast<vec3<f32>>`).
 #[inline]
@@ -61,9 +50,8 @@ fn normal_of(nf: [u32; 4]) -> Vec3 {
 ///   confidence
 /// - 6 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
 /// - 7 `color` (in/out): RGB 0..255, a = radius (metres)
-/// - 8 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; projective
-///   association marks merged pixels (max with 1), best-candidate association reads the
-///   choice of `fuse_select` (the chosen surfel's map-wide index in the low 32 bits)
+/// - 8 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; merged pixels are
+///   marked (max with 1)
 #[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn fuse_merge(
     params: &FuseParams,
@@ -109,7 +97,6 @@ pub fn fuse_merge(
                 color_map,
                 &mut map,
                 assoc,
-                i,
                 i - chunk.base,
                 cam,
             ) {
@@ -137,8 +124,7 @@ struct ChunkMut<'a> {
     color: &'a mut [[f32; 4]],
 }
 
-/// Merges surfel `i` (map-wide index; `slot` in the chunk's arrays) with its pixel when the
-/// filters pass: its new world-frame position, or `None` if unmerged (the shader returns
+/// Merges surfel `slot` of the chunk with its pixel when the filters pass: its new world-frame position, or `None` if unmerged (the shader returns
 /// w = 1 / w = 0).
 #[allow(clippy::too_many_arguments)]
 fn merge_surfel(
@@ -147,7 +133,6 @@ fn merge_surfel(
     color_map: &[[f32; 4]],
     map: &mut ChunkMut,
     assoc: &mut [u64],
-    i: u32,
     slot: u32,
     cam: [f32; 4],
 ) -> Option<Vec3> {
@@ -157,14 +142,6 @@ fn merge_surfel(
     let p_cam = transform_point(&params.t_world_to_cam, p_world);
     let texel = project_to_texel(cam, params.width, params.height, p_cam)?;
     let pix = (texel[1] * params.width + texel[0]) as usize;
-    // Best candidate: only the pixel that chose this surfel (fuse_select tested the
-    // gates, on a valid pixel), before any other load.
-    if params.association == ASSOCIATION_BEST_CANDIDATE {
-        let key = assoc[pix];
-        if key == 0 || key as u32 != i {
-            return None;
-        }
-    }
     // Valid normal (w = depth > 0) implies a valid vertex.
     let nd = normal_depth[pix];
     if !is_valid(nd) {
@@ -174,26 +151,19 @@ fn merge_surfel(
     let q_world = transform_point(&params.t_cam_to_world, q_cam);
     let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
     let n_old = normal_of(map.normal_frame[surfel]);
-    if params.association == ASSOCIATION_PROJECTIVE
-        && ((q_world - p_world).length() >= params.dist_threshold_m
-            || n_old.dot(nq_world) <= params.cos_normal_threshold)
+    if (q_world - p_world).length() >= params.dist_threshold_m
+        || n_old.dot(nq_world) <= params.cos_normal_threshold
     {
         return None;
     }
-    let w = pw[3];
     let wq = pixel_confidence(cam, texel, params.confidence_sigma);
-    let inv = 1.0 / (w + wq);
-    let p = (p_world * w + q_world * wq) * inv;
-    let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
-    let c = map.color[surfel];
-    let cq = color_map[pix];
-    let r = (c[3] * w + surfel_radius(params.fx, q_cam, xyz(nd)) * wq) * inv;
-    map.position_weight[surfel] = [p.x, p.y, p.z, w + wq];
+    let cq = xyz(color_map[pix]);
+    let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+    let m = merged_surfel(pw, n_old, map.color[surfel], q_world, nq_world, cq, wq, r_q);
+    map.position_weight[surfel] = m.position_weight;
+    let n = m.normal;
     map.normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
-    let c = (xyz(c) * w + xyz(cq) * wq) * inv;
-    map.color[surfel] = [c.x, c.y, c.z, r];
-    if params.association == ASSOCIATION_PROJECTIVE {
-        assoc[pix] = assoc[pix].max(1);
-    }
-    Some(p)
+    map.color[surfel] = m.color;
+    assoc[pix] = assoc[pix].max(1);
+    Some(xyz(m.position_weight))
 }

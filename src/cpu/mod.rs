@@ -24,6 +24,7 @@ pub mod depth_to_vertex;
 pub mod fuse_add;
 pub mod fuse_flags;
 pub mod fuse_merge;
+pub mod fuse_merge_chosen;
 pub mod fuse_select;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
@@ -181,6 +182,54 @@ pub fn valid_entry(p: Vec3) -> [f32; 4] {
 #[inline]
 pub fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
     ((!z_cam.to_bits()) as u64) << 32 | surfel as u64
+}
+
+/// `v / |v|`, or zero when `|v|` is zero. Mirrors `normalize_or_zero` in common.wgsl.
+#[inline]
+pub fn normalize_or_zero(v: Vec3) -> Vec3 {
+    v.normalize_or_zero()
+}
+
+/// A surfel after merging one measurement into it. Mirrors `MergedSurfel` in common.wgsl.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MergedSurfel {
+    /// World position (metres) and the new weight.
+    pub position_weight: [f32; 4],
+    /// World unit normal (zero if the average cancelled).
+    pub normal: Vec3,
+    /// RGB 0..255 and radius (metres).
+    pub color: [f32; 4],
+}
+
+/// Fusion's merge (Keller et al. 2013, Sec. 4.2): the confidence-weighted averages
+/// `(w x + wq x_q) / (w + wq)` of position, normal (renormalised), colour and radius, and
+/// the weight `w + wq`, of a surfel (`pw`: world position + weight; `n_old`: world normal;
+/// `c`: RGB + radius) and a measurement (`q_world`, `nq_world`: world frame; `cq`: RGB;
+/// `wq`: its confidence; `r_q`: its radius, metres). Mirrors `merged_surfel` in
+/// common.wgsl; `fuse_merge` and `fuse_merge_chosen` share it.
+#[allow(clippy::too_many_arguments)] // the shader function's arguments, in order
+#[inline]
+pub fn merged_surfel(
+    pw: [f32; 4],
+    n_old: Vec3,
+    c: [f32; 4],
+    q_world: Vec3,
+    nq_world: Vec3,
+    cq: Vec3,
+    wq: f32,
+    r_q: f32,
+) -> MergedSurfel {
+    let w = pw[3];
+    let inv = 1.0 / (w + wq);
+    let p = (xyz(pw) * w + q_world * wq) * inv;
+    let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
+    let r = (c[3] * w + r_q * wq) * inv;
+    let rgb = (xyz(c) * w + cq * wq) * inv;
+    MergedSurfel {
+        position_weight: [p.x, p.y, p.z, w + wq],
+        normal: n,
+        color: [rgb.x, rgb.y, rgb.z, r],
+    }
 }
 
 /// Radius (metres) of the disc a pixel's measurement covers (camera frame `q_cam`,

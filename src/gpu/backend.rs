@@ -170,6 +170,17 @@ pub mod bindings {
         Binding::read_write("color"),
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
+    pub const FUSE_MERGE_CHOSEN: [Binding; 9] = [
+        Binding::params("params: FuseParams"),
+        Binding::texture_f32("normal_depth: camera frame, w = depth"),
+        Binding::texture_f32("color_map"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read_write("block_bounds: atomic min/max words per block"),
+        Binding::read_write("position_weight"),
+        Binding::read_write("normal_frame"),
+        Binding::read_write("color"),
+        Binding::read("assoc: fuse_select's u64 key per pixel"),
+    ];
     pub const FUSE_FLAGS: [Binding; 4] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
@@ -228,6 +239,7 @@ struct Kernels {
     icp_reduce_final: Kernel,
     fuse_select: Kernel,
     fuse_merge: Kernel,
+    fuse_merge_chosen: Kernel,
     fuse_flags: Kernel,
     fuse_add: Kernel,
     compact_flags: Kernel,
@@ -323,6 +335,7 @@ struct BindGroups {
     icp_reduce: wgpu::BindGroup,
     fuse_select: Vec<wgpu::BindGroup>,
     fuse_merge: Vec<wgpu::BindGroup>,
+    fuse_merge_chosen: Vec<wgpu::BindGroup>,
     fuse_flags: wgpu::BindGroup,
     /// `prefix_sum` over the new-surfel flags (one per pixel).
     fuse_scan: wgpu::BindGroup,
@@ -552,6 +565,11 @@ impl GpuBackend {
                 )?,
                 fuse_select: Kernel::new(&ctx, "fuse_select", &bindings::FUSE_SELECT)?,
                 fuse_merge: Kernel::new(&ctx, "fuse_merge", &bindings::FUSE_MERGE)?,
+                fuse_merge_chosen: Kernel::new(
+                    &ctx,
+                    "fuse_merge_chosen",
+                    &bindings::FUSE_MERGE_CHOSEN,
+                )?,
                 fuse_flags: Kernel::new(&ctx, "fuse_flags", &bindings::FUSE_FLAGS)?,
                 fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
                 compact_flags: Kernel::new(&ctx, "compact_flags", &bindings::COMPACT_FLAGS)?,
@@ -983,6 +1001,22 @@ impl GpuBackend {
                         self.counter.binding(),
                     ],
                 ),
+                fuse_merge_chosen: per_chunk(&|ch| {
+                    k.fuse_merge_chosen.bind_group(
+                        c,
+                        &[
+                            self.u_fuse.binding(),
+                            f.normal_depth.binding(),
+                            f.color.binding(),
+                            ch.info_buffer.binding(),
+                            bounds.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            ch.color.binding(),
+                            f.assoc.binding(),
+                        ],
+                    )
+                }),
                 fuse_add: per_chunk(&|ch| {
                     k.fuse_add.bind_group(
                         c,
@@ -1375,6 +1409,10 @@ impl Backend for GpuBackend {
             .kernels
             .fuse_flags
             .grid_workgroups_for_image(&self.ctx, f.width, f.height);
+        let chosen_wg = self
+            .kernels
+            .fuse_merge_chosen
+            .grid_workgroups_for_image(&self.ctx, f.width, f.height);
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
@@ -1390,12 +1428,17 @@ impl Backend for GpuBackend {
                 .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
                 .collect();
             if params.association == ASSOCIATION_BEST_CANDIDATE {
+                // Surfels pick pixels, then each picked surfel merges from its pixel.
                 for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
                     passes.push((&k.fuse_select, &bg.fuse_select[c], [blocks_wg, 1]));
                 }
-            }
-            for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
-                passes.push((&k.fuse_merge, &bg.fuse_merge[c], [blocks_wg, 1]));
+                for g in &bg.fuse_merge_chosen {
+                    passes.push((&k.fuse_merge_chosen, g, chosen_wg));
+                }
+            } else {
+                for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
+                    passes.push((&k.fuse_merge, &bg.fuse_merge[c], [blocks_wg, 1]));
+                }
             }
             passes.push((&k.fuse_flags, &bg.fuse_flags, flags_wg));
             passes.push((&k.prefix_sum, &bg.fuse_scan, [1, 1]));

@@ -66,6 +66,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/fuse_select.wgsl"),
     ),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
+    (
+        "fuse_merge_chosen",
+        include_str!("../../shaders/fuse_merge_chosen.wgsl"),
+    ),
     ("fuse_flags", include_str!("../../shaders/fuse_flags.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
     (

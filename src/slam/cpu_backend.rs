@@ -248,17 +248,31 @@ impl Backend for CpuBackend {
                 &mut self.assoc,
             );
         }
-        cpu::fuse_merge::fuse_merge(
-            &params,
-            &self.frame.normal_depth,
-            &self.frame.color,
-            &chunk,
-            bytemuck::cast_slice_mut(&mut self.block_bounds),
-            &mut m.position_weight,
-            &mut m.normal_frame,
-            &mut m.color,
-            &mut self.assoc,
-        );
+        if params.association == ASSOCIATION_BEST_CANDIDATE {
+            cpu::fuse_merge_chosen::fuse_merge_chosen(
+                &params,
+                &self.frame.normal_depth,
+                &self.frame.color,
+                &chunk,
+                bytemuck::cast_slice_mut(&mut self.block_bounds),
+                &mut m.position_weight,
+                &mut m.normal_frame,
+                &mut m.color,
+                &self.assoc,
+            );
+        } else {
+            cpu::fuse_merge::fuse_merge(
+                &params,
+                &self.frame.normal_depth,
+                &self.frame.color,
+                &chunk,
+                bytemuck::cast_slice_mut(&mut self.block_bounds),
+                &mut m.position_weight,
+                &mut m.normal_frame,
+                &mut m.color,
+                &mut self.assoc,
+            );
+        }
         self.add_flags.resize(n_pix, 0);
         cpu::fuse_flags::fuse_flags(
             &params,

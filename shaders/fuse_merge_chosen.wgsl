@@ -1,0 +1,96 @@
+// fuse_merge_chosen.wgsl: the merge of best-candidate association (robust profile), driven
+// by the pixels: every pixel whose fuse_select key chose a surfel of this chunk merges its
+// measurement into that surfel (merged_surfel's averages, last_frame = frame_id) when the
+// surfel projects onto this very pixel, so each surfel has at most one writer. The same
+// merges as walking the surfels and asking their pixel whether it chose them, at the cost
+// of the image instead of the map. A merge that moves a surfel out of its block's box
+// grows the box. Dispatched once per map chunk. CPU twin: src/cpu/fuse_merge_chosen.rs.
+//
+// Bindings (@group(0)):
+//   0 params        storage read FuseParams (tracked poses, intrinsics, confidence_sigma)
+//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
+//                   depth in w, zero where invalid; the vertex is rebuilt with back_project
+//   2 color_map     texture_2d<f32>: width x height, RGB 0..255
+//   3 chunk         storage read MapChunk: the chunk's first map-wide index and slots
+//   4 block_bounds  storage rw array<atomic<u32>>: per block 8 words, min xyz, pad, max xyz,
+//                   pad (ordered_from_f32), grown to hold every merged surfel
+//   5 position_weight  storage rw array<vec4<f32>>: the chunk's surfels, xyz world frame
+//                      (metres), w = confidence
+//   6 normal_frame     storage rw array<vec4<u32>>: bits of the unit normal (world frame),
+//                      w = last frame
+//   7 color            storage rw array<vec4<f32>>: RGB 0..255, a = radius (m)
+//   8 assoc         storage read array<vec2<u32>>: fuse_select's u64 key per pixel (low
+//                   word, the chosen map-wide surfel index, first); (0, 0) = no choice
+//   (see src/gpu/map_buffers.rs)
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).
+
+@group(0) @binding(0) var<storage, read> params: FuseParams;
+@group(0) @binding(1) var normal_depth: texture_2d<f32>;
+@group(0) @binding(2) var color_map: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read> chunk: MapChunk;
+@group(0) @binding(4) var<storage, read_write> block_bounds: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> position_weight: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> normal_frame: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read_write> color: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read> assoc: array<vec2<u32>>;
+
+const TILE: u32 = 8u;
+
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    let size = vec2<u32>(params.width, params.height);
+    for (var v = gid.y; v < size.y; v += stride.y) {
+        for (var u = gid.x; u < size.x; u += stride.x) {
+            merge_chosen(vec2<u32>(u, v));
+        }
+    }
+}
+
+// Merges pixel `texel`'s measurement into the surfel it chose, if that surfel is in this
+// chunk and projects onto the pixel.
+fn merge_chosen(texel: vec2<u32>) {
+    let key = assoc[texel.y * params.width + texel.x];
+    if key.x == 0u && key.y == 0u {
+        return;
+    }
+    // key.x - chunk.base wraps to a huge value below the chunk: one test for both ends.
+    let slot = key.x - chunk.base;
+    if slot >= chunk.slots {
+        return;
+    }
+    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let pw = position_weight[slot];
+    let uv = project_to_texel(cam, params.width, params.height, transform_point(params.t_world_to_cam, xyz(pw)));
+    if uv.x != i32(texel.x) || uv.y != i32(texel.y) {
+        return;
+    }
+    // fuse_select chose only on a valid pixel (a valid normal implies a valid vertex).
+    let nd = textureLoad(normal_depth, texel, 0);
+    let q_cam = back_project(cam, texel, nd.w);
+    let q_world = transform_point(params.t_cam_to_world, q_cam);
+    let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
+    let n_old = bitcast<vec3<f32>>(normal_frame[slot].xyz);
+    let wq = pixel_confidence(cam, texel, params.confidence_sigma);
+    let cq = textureLoad(color_map, texel, 0).xyz;
+    let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+    let m = merged_surfel(pw, n_old, color[slot], q_world, nq_world, cq, wq, r_q);
+    position_weight[slot] = m.position_weight;
+    normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(m.normal), params.frame_id);
+    color[slot] = m.color;
+    // Grow the block's box if the surfel moved out of it.
+    let block = key.x / BLOCK_SURFELS;
+    let p = m.position_weight.xyz;
+    for (var k = 0u; k < 3u; k++) {
+        let e = ordered_from_f32(p[k]);
+        if e < atomicLoad(&block_bounds[8u * block + k]) {
+            atomicMin(&block_bounds[8u * block + k], e);
+        }
+        if e > atomicLoad(&block_bounds[8u * block + 4u + k]) {
+            atomicMax(&block_bounds[8u * block + 4u + k], e);
+        }
+    }
+}

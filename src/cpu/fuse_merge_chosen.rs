@@ -1,0 +1,83 @@
+//! CPU twin of `shaders/fuse_merge_chosen.wgsl`: the merge of best-candidate association,
+//! driven by the pixels. Every pixel whose `fuse_select` key chose a surfel of this chunk
+//! merges its measurement into that surfel ([`merged_surfel`], `last_frame = frame_id`)
+//! when the surfel projects onto this very pixel, so each surfel has at most one writer:
+//! the same merges as walking the surfels and asking their pixel whether it chose them,
+//! at the cost of the image instead of the map. A merge that moves a surfel out of its
+//! block's box grows the box.
+
+use super::{
+    back_project, merged_surfel, pixel_confidence, project_to_texel, surfel_radius, transform_dir,
+    transform_point, xyz,
+};
+use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
+
+/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
+/// - 0 `params`: `FuseParams` (tracked poses, intrinsics, `confidence_sigma`)
+/// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w
+/// - 2 `color_map`: width x height, RGB 0..255
+/// - 3 `chunk`: the chunk's first map-wide index and slots
+/// - 4 `block_bounds` (in/out): per block 8 words, min xyz, pad, max xyz, pad
+///   (ordered-encoded), grown to hold every merged surfel
+/// - 5 `position_weight`, 6 `normal_frame`, 7 `color` (in/out): the chunk's surfels
+/// - 8 `assoc`: `fuse_select`'s key per pixel (chosen map-wide index in the low 32 bits)
+#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
+pub fn fuse_merge_chosen(
+    params: &FuseParams,
+    normal_depth: &[[f32; 4]],
+    color_map: &[[f32; 4]],
+    chunk: &MapChunk,
+    block_bounds: &mut [u32],
+    position_weight: &mut [[f32; 4]],
+    normal_frame: &mut [[u32; 4]],
+    color: &mut [[f32; 4]],
+    assoc: &[u64],
+) {
+    // The shader's grid-stride loop as one thread whose stride is 1 x 1.
+    for v in 0..params.height {
+        for u in 0..params.width {
+            let key = assoc[(v * params.width + u) as usize];
+            if key == 0 {
+                continue;
+            }
+            // The index minus chunk.base wraps to a huge value below the chunk.
+            let slot = (key as u32).wrapping_sub(chunk.base);
+            if slot >= chunk.slots {
+                continue;
+            }
+            let s = slot as usize;
+            let texel = [u, v];
+            let pix = (v * params.width + u) as usize;
+            let cam = [params.fx, params.fy, params.cx, params.cy];
+            let pw = position_weight[s];
+            let p_cam = transform_point(&params.t_world_to_cam, xyz(pw));
+            if project_to_texel(cam, params.width, params.height, p_cam) != Some(texel) {
+                continue;
+            }
+            // fuse_select chose only on a valid pixel (a valid normal implies a valid
+            // vertex).
+            let nd = normal_depth[pix];
+            let q_cam = back_project(cam, texel, nd[3]);
+            let q_world = transform_point(&params.t_cam_to_world, q_cam);
+            let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
+            let n_old = xyz(normal_frame[s].map(f32::from_bits));
+            let wq = pixel_confidence(cam, texel, params.confidence_sigma);
+            let cq = xyz(color_map[pix]);
+            let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+            let m = merged_surfel(pw, n_old, color[s], q_world, nq_world, cq, wq, r_q);
+            position_weight[s] = m.position_weight;
+            let n = m.normal;
+            normal_frame[s] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+            color[s] = m.color;
+            // Grow the block's box if the surfel moved out of it.
+            let block = (key as u32 / BLOCK_SURFELS) as usize;
+            for k in 0..3 {
+                let e = ordered_from_f32(m.position_weight[k]);
+                let lo = &mut block_bounds[8 * block + k];
+                *lo = (*lo).min(e);
+                let hi = &mut block_bounds[8 * block + 4 + k];
+                *hi = (*hi).max(e);
+            }
+        }
+    }
+}
