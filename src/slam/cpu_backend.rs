@@ -31,7 +31,7 @@ pub struct CpuBackend {
     add_offsets: Vec<u32>,
     map: SurfelMap,
     /// Compaction's keep flags, offsets and second map, kept between frames (the map and
-    /// `spare` swap after each compaction, as the GPU's map textures do).
+    /// `spare` swap after each compaction, as the GPU's map chunks do).
     flags: Vec<u32>,
     offsets: Vec<u32>,
     spare: SurfelMap,

@@ -1,9 +1,9 @@
 //! The surfel map on the host, in the GPU's packed representation (CPU reference map and
 //! GPU download alike).
 //!
-//! Three arrays, one entry per surfel `i`, exactly the texels of the three map textures of
-//! `gpu::map_textures` (`surfel_texel` in `shaders/common.wgsl`), so upload and download are
-//! plain copies and the CPU twins read and write the same packing as the shaders:
+//! Three arrays, one entry per surfel `i`, exactly the elements of the three storage arrays
+//! of `gpu::map_buffers` (concatenated over its chunks), so upload and download are plain
+//! copies and the CPU twins read and write the same packing as the shaders:
 //!
 //! | array | x, y, z | w |
 //! |---|---|---|
@@ -13,7 +13,7 @@
 //!
 //! Outputs (PLY, renders, comparisons) read it through the accessors, not the packing.
 
-/// The fused point map, packed as the GPU's map textures (see the module header).
+/// The fused point map, packed as the GPU's map arrays (see the module header).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelMap {
     /// xyz: world-frame position in metres; w: weight (the confidences fused; with the
