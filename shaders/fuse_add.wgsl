@@ -19,7 +19,7 @@
 //   8 color            storage rw array<vec4<f32>>: out, RGB 0..255, a = radius (m)
 //   (map-wide surfel i is element i - chunk.base of the chunk's arrays; see
 //   src/gpu/map_buffers.rs)
-// One thread per pixel (8x8 workgroups). Never writes at or past params.capacity (the host
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes at or past params.capacity (the host
 // grows the map first so that every pixel fits).
 
 @group(0) @binding(0) var<storage, read> params: FuseParams;
@@ -32,17 +32,29 @@
 @group(0) @binding(7) var<storage, read_write> normal_frame: array<vec4<u32>>;
 @group(0) @binding(8) var<storage, read_write> color: array<vec4<f32>>;
 
-// One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
+const TILE: u32 = 8u;
+
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    let size = vec2<u32>(params.width, params.height);
+    for (var v = gid.y; v < size.y; v += stride.y) {
+        for (var u = gid.x; u < size.x; u += stride.x) {
+            add_pixel(vec2<u32>(u, v));
+        }
     }
-    let pix = gid.y * params.width + gid.x;
+}
+
+// Pixel `texel`'s new surfel, if the pixel is flagged and its slot is in this chunk.
+fn add_pixel(texel: vec2<u32>) {
+    let pix = texel.y * params.width + texel.x;
     if flags[pix] == 0u {
         return;
     }
-    let nd = textureLoad(normal_depth, gid.xy, 0);
+    let nd = textureLoad(normal_depth, texel, 0);
     let i = params.surfel_count + offsets[pix];
     // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
     let slot = i - chunk.base;
@@ -50,12 +62,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
-    let q_cam = back_project(cam, gid.xy, nd.w);
+    let q_cam = back_project(cam, texel, nd.w);
     let p = transform_point(params.t_cam_to_world, q_cam);
     let n = transform_dir(params.t_cam_to_world, xyz(nd));
-    let w = pixel_confidence(cam, gid.xy, params.confidence_sigma);
+    let w = pixel_confidence(cam, texel, params.confidence_sigma);
     let r = surfel_radius(params.fx, q_cam, xyz(nd));
     position_weight[slot] = vec4<f32>(p, w);
     normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
-    color[slot] = vec4<f32>(textureLoad(color_map, gid.xy, 0).xyz, r);
+    color[slot] = vec4<f32>(textureLoad(color_map, texel, 0).xyz, r);
 }

@@ -13,7 +13,7 @@
 //                      frame) + last_frame (the packing: src/gpu/map_buffers.rs)
 //   5 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
 //   6 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
-// One thread per pixel (8x8 workgroups).
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).
 
 @group(0) @binding(0) var<storage, read> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
@@ -23,13 +23,25 @@
 @group(0) @binding(5) var pred_vertex: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var pred_normal: texture_storage_2d<rgba32float, write>;
 
-// One thread per pixel in 8x8 tiles (see vertex_to_normal.wgsl).
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
+const TILE: u32 = 8u;
+
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    let size = vec2<u32>(params.width, params.height);
+    for (var v = gid.y; v < size.y; v += stride.y) {
+        for (var u = gid.x; u < size.x; u += stride.x) {
+            predict_pixel(vec2<u32>(u, v));
+        }
     }
-    let key = index_map[gid.y * params.width + gid.x];
+}
+
+// The predicted vertex and normal of pixel `texel`, if this chunk's pass writes it.
+fn predict_pixel(texel: vec2<u32>) {
+    let key = index_map[texel.y * params.width + texel.x];
     var vertex = INVALID;
     var normal = INVALID;
     if key.x != 0u || key.y != 0u {
@@ -45,6 +57,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     } else if chunk.base != 0u {
         return;
     }
-    textureStore(pred_vertex, gid.xy, vertex);
-    textureStore(pred_normal, gid.xy, normal);
+    textureStore(pred_vertex, texel, vertex);
+    textureStore(pred_normal, texel, normal);
 }

@@ -1315,7 +1315,7 @@ impl Backend for GpuBackend {
         let pix_wg = self
             .kernels
             .predict_model
-            .workgroups_for_image(f.width, f.height);
+            .grid_workgroups_for_image(&self.ctx, f.width, f.height);
         let chunk_wg = self.chunk_workgroups(&self.kernels.project_model);
         let level_wg: Vec<[u32; 2]> = f
             .levels
@@ -1404,7 +1404,7 @@ impl Backend for GpuBackend {
         let pix_wg = self
             .kernels
             .fuse_add
-            .workgroups_for_image(f.width, f.height);
+            .grid_workgroups_for_image(&self.ctx, f.width, f.height);
         let flags_wg = self
             .kernels
             .fuse_flags
