@@ -322,6 +322,19 @@ pub struct BoundsParams {
     pub _pad1: u32,
 }
 
+impl BoundsParams {
+    /// Recompute the boxes of a map of `surfel_count` surfels from the block holding surfel
+    /// `dirty_from` on (what fusion appended to; 0 after a compaction or an upload).
+    pub fn stale(surfel_count: usize, dirty_from: usize) -> BoundsParams {
+        BoundsParams {
+            surfel_count: surfel_count as u32,
+            block_from: (dirty_from / BLOCK_SURFELS as usize) as u32,
+            _pad0: 0,
+            _pad1: 0,
+        }
+    }
+}
+
 /// An f32 as a u32 whose unsigned order is the float order (negative floats: all bits
 /// flipped; others: the sign bit set), so boxes can grow with integer atomics. Mirrors
 /// `ordered_from_f32` in common.wgsl.

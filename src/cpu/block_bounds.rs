@@ -51,12 +51,11 @@ pub fn block_bounds(
 pub fn whole_map_bounds(position_weight: &[[f32; 4]]) -> Vec<[u32; 4]> {
     let n = position_weight.len();
     let mut bounds = vec![[0; 4]; 2 * n.div_ceil(BLOCK_SURFELS as usize)];
-    let params = BoundsParams {
-        surfel_count: n as u32,
-        block_from: 0,
-        _pad0: 0,
-        _pad1: 0,
-    };
-    block_bounds(&params, &MapChunk::whole(n), position_weight, &mut bounds);
+    block_bounds(
+        &BoundsParams::stale(n, 0),
+        &MapChunk::whole(n),
+        position_weight,
+        &mut bounds,
+    );
     bounds
 }

@@ -535,7 +535,7 @@ impl GpuBackend {
                 ctx.adapter_info().name
             )));
         }
-        let max_surfels = Self::device_max_surfels(&ctx);
+        let max_surfels = MapBuffers::max_surfels();
         let capacity = capacity.clamp(1, max_surfels);
         let reduction_workgroups = ctx.reduction_workgroups();
         let system_floats = reduction_workgroups as usize * ICP_SYSTEM_LEN;
@@ -647,13 +647,8 @@ impl GpuBackend {
     /// Caps the map at `max_surfels` surfels (below the device limit): a fusion that might
     /// need more fails with [`Error::Capacity`] (tests use it to force that error).
     pub fn with_max_surfels(mut self, max_surfels: usize) -> GpuBackend {
-        self.max_surfels = max_surfels.min(Self::device_max_surfels(&self.ctx));
+        self.max_surfels = max_surfels.min(MapBuffers::max_surfels());
         self
-    }
-
-    /// Most surfels the chunked map can index (u32 indices).
-    fn device_max_surfels(_ctx: &GpuContext) -> usize {
-        MapBuffers::max_surfels()
     }
 
     /// Turns on per-kernel timing (GPU timestamps when the device has them, else wall time
@@ -798,7 +793,7 @@ impl GpuBackend {
                 needed * 48,
                 self.max_surfels,
                 self.max_surfels * 48,
-                Self::device_max_surfels(&self.ctx),
+                MapBuffers::max_surfels(),
             )));
         }
         let grown = (self.capacity() * GROWTH_NUM / GROWTH_DEN)
@@ -1114,19 +1109,16 @@ impl GpuBackend {
             .chunks
             .iter()
             .map(|ch| {
-                let live = self
-                    .count
-                    .saturating_sub(ch.info.base as usize)
-                    .min(ch.info.slots as usize);
+                let live = ch.live(self.count);
                 let blocks = live.div_ceil(BLOCK_SURFELS as usize) as u32;
                 (blocks.min(cap), kernel.workgroups_for(live).min(cap))
             })
             .collect()
     }
 
-    /// Records `block_bounds` over the blocks whose boxes are stale (see
-    /// `bounds_dirty_from`) into `passes`, one per chunk holding any, and marks them fresh.
-    /// Every submission that culls starts with these.
+    /// The `block_bounds` passes, `(chunk, workgroups)`, that recompute the blocks whose
+    /// boxes are stale (see `bounds_dirty_from`), one per chunk holding any; writes their
+    /// params and marks the boxes fresh. Every submission that culls starts with these.
     fn stale_bounds_passes(&mut self) -> Vec<(usize, u32)> {
         let from_block = self.bounds_dirty_from / BLOCK_SURFELS as usize;
         let block = BLOCK_SURFELS as usize;
@@ -1134,11 +1126,7 @@ impl GpuBackend {
         if self.bounds_dirty_from < self.count {
             for (c, ch) in self.map.chunks.iter().enumerate() {
                 let first = ch.info.base as usize / block;
-                let live = self
-                    .count
-                    .saturating_sub(ch.info.base as usize)
-                    .min(ch.info.slots as usize);
-                let blocks = live.div_ceil(block);
+                let blocks = ch.live(self.count).div_ceil(block);
                 let todo = (first + blocks).saturating_sub(from_block.max(first));
                 if todo > 0 {
                     let wg = self.grid_stride_workgroups(&self.kernels.block_bounds, todo);
@@ -1147,12 +1135,7 @@ impl GpuBackend {
             }
             self.u_bounds.write(
                 &self.ctx,
-                &BoundsParams {
-                    surfel_count: self.count as u32,
-                    block_from: from_block as u32,
-                    _pad0: 0,
-                    _pad1: 0,
-                },
+                &BoundsParams::stale(self.count, self.bounds_dirty_from),
             );
         }
         self.bounds_dirty_from = self.count;

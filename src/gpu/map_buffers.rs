@@ -62,7 +62,7 @@ impl Chunk {
     }
 
     /// Live surfels of this chunk when the map holds `count`.
-    fn live(&self, count: usize) -> usize {
+    pub fn live(&self, count: usize) -> usize {
         count
             .saturating_sub(self.info.base as usize)
             .min(self.info.slots as usize)

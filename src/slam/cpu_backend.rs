@@ -69,14 +69,8 @@ impl CpuBackend {
         if self.bounds_dirty_from < n {
             let blocks = n.div_ceil(BLOCK_SURFELS as usize);
             self.block_bounds.resize(2 * blocks, [0; 4]);
-            let params = BoundsParams {
-                surfel_count: n as u32,
-                block_from: (self.bounds_dirty_from / BLOCK_SURFELS as usize) as u32,
-                _pad0: 0,
-                _pad1: 0,
-            };
             cpu::block_bounds::block_bounds(
-                &params,
+                &BoundsParams::stale(n, self.bounds_dirty_from),
                 &MapChunk::whole(n),
                 &self.map.position_weight,
                 &mut self.block_bounds,
@@ -159,6 +153,7 @@ impl Backend for CpuBackend {
         let mut params = *params;
         params.surfel_count = self.map.len() as u32;
         let n = (params.width * params.height) as usize;
+        self.refresh_bounds();
         self.index_map.clear();
         self.index_map.resize(n, 0);
         self.prediction
@@ -166,8 +161,6 @@ impl Backend for CpuBackend {
         let (pred_vertex, pred_normal) = &mut self.prediction[0];
         pred_vertex.resize(n, cpu::INVALID);
         pred_normal.resize(n, cpu::INVALID);
-        self.refresh_bounds();
-        let (pred_vertex, pred_normal) = &mut self.prediction[0];
         let chunk = MapChunk::whole(self.map.len());
         cpu::project_model::project_model(
             &params,
