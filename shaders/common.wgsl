@@ -164,6 +164,36 @@ struct BoundsParams {
 // of block_bounds, as vec4<u32> of ordered_from_f32 values (w unused).
 const BLOCK_SURFELS: u32 = 1024u;
 
+// Side, pixels, of the square tiles that order a frame's new surfels (mirrors
+// `layout::APPEND_TILE_PX`, which says why): fuse_add appends in append order, tiles in
+// Morton order, pixels row-major inside a tile, so a block's new surfels come from one
+// compact patch of the image and its box stays small.
+const APPEND_TILE_PX: u32 = 16u;
+
+// The low 16 bits of v moved to the even bit positions. Mirrors `layout::spread_bits`.
+fn spread_bits(v: u32) -> u32 {
+    var x = v & 0x0000ffffu;
+    x = (x | (x << 8u)) & 0x00ff00ffu;
+    x = (x | (x << 4u)) & 0x0f0f0f0fu;
+    x = (x | (x << 2u)) & 0x33333333u;
+    return (x | (x << 1u)) & 0x55555555u;
+}
+
+// Morton (Z-order) code of tile (x, y). Mirrors `layout::morton_2d`.
+fn morton_2d(x: u32, y: u32) -> u32 {
+    return spread_bits(x) | (spread_bits(y) << 1u);
+}
+
+// Position of pixel `texel` in append order: the index of its entry in fuse_flags' flags
+// and their prefix sum (arrays of `layout::append_slots(width, height)`). Mirrors
+// `cpu::append_index`.
+fn append_index(texel: vec2<u32>) -> u32 {
+    let tile = texel / APPEND_TILE_PX;
+    let inside = texel % APPEND_TILE_PX;
+    return morton_2d(tile.x, tile.y) * (APPEND_TILE_PX * APPEND_TILE_PX)
+        + inside.y * APPEND_TILE_PX + inside.x;
+}
+
 // An f32 as a u32 whose unsigned order is the float order, so boxes grow with atomicMin /
 // atomicMax. Mirrors `layout::ordered_from_f32`.
 fn ordered_from_f32(x: f32) -> u32 {

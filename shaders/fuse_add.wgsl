@@ -1,7 +1,7 @@
 // fuse_add.wgsl: appends every pixel fuse_flags flagged (a valid measurement no surfel
-// merged with or covers) as a new surfel at slot surfel_count + offsets[pix] (prefix_sum of
-// the flags, so new surfels lie in pixel order, as on the CPU, and two runs write the same
-// map): world frame, weight pixel_confidence, radius surfel_radius. Last of three kernels
+// merged with or covers) as a new surfel at slot surfel_count + offsets[append_index(pixel)]
+// (prefix_sum of the flags, so new surfels lie in append order, see layout::APPEND_TILE_PX,
+// as on the CPU, and two runs write the same map): world frame, weight pixel_confidence, radius surfel_radius. Last of three kernels
 // (fuse_flags, prefix_sum, fuse_add). Dispatched once per map chunk: each pass writes the
 // new surfels whose slots the chunk holds. CPU twin: src/cpu/fuse_add.rs.
 //
@@ -11,7 +11,8 @@
 //                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
 //                   is rebuilt with back_project, as in the twin
 //   2 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   3 flags       storage read   array<u32>: 1 where the pixel becomes a new surfel
+//   3 flags       storage read   array<u32>: 1 where the pixel becomes a new surfel, at
+//                 the pixel's append_index
 //   4 offsets     storage read   array<u32>: exclusive prefix sum of flags
 //   5 chunk       storage read MapChunk: the chunk's first map-wide index and slots
 //   6 position_weight  storage rw array<vec4<f32>>: out, xyz world frame, w = confidence
@@ -50,12 +51,12 @@ fn main(
 
 // Pixel `texel`'s new surfel, if the pixel is flagged and its slot is in this chunk.
 fn add_pixel(texel: vec2<u32>) {
-    let pix = texel.y * params.width + texel.x;
-    if flags[pix] == 0u {
+    let a = append_index(texel);
+    if flags[a] == 0u {
         return;
     }
     let nd = textureLoad(normal_depth, texel, 0);
-    let i = params.surfel_count + offsets[pix];
+    let i = params.surfel_count + offsets[a];
     // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
     let slot = i - chunk.base;
     if i >= params.capacity || slot >= chunk.slots {

@@ -1,8 +1,8 @@
 // fuse_flags.wgsl: one flag per pixel, 1 where the pixel becomes a new surfel: a valid
 // measurement that no surfel merged with (projective association) or covers (best
-// candidate). First of fuse_add's three kernels (then prefix_sum over the pixels, which
-// gives each new surfel its slot in pixel order, then fuse_add). CPU twin:
-// src/cpu/fuse_flags.rs.
+// candidate), at the pixel's append_index. First of fuse_add's three kernels (then
+// prefix_sum over the flags, which gives each new surfel its slot in append order, see
+// `layout::APPEND_TILE_PX`, then fuse_add). CPU twin: src/cpu/fuse_flags.rs.
 //
 // Bindings (@group(0)):
 //   0 params        storage read FuseParams (width, height)
@@ -10,7 +10,9 @@
 //                   w, zero where invalid
 //   2 assoc         storage read array<vec2<u32>>: the u64 key per pixel (low word first),
 //                   non-zero where a surfel merged with or was chosen by the pixel
-//   3 flags         storage rw array<u32>: out, 1 new surfel / 0 not, width x height
+//   3 flags         storage rw array<u32>: out, 1 new surfel / 0 not, at append_index of
+//                   the pixel (layout::append_slots(width, height) entries; the holes, no
+//                   pixel's, are never written and stay 0)
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
 @group(0) @binding(0) var<storage, read> params: FuseParams;
@@ -36,7 +38,7 @@ fn main(
             // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
             let new_surfel = key.x == 0u && key.y == 0u
                 && is_valid(textureLoad(normal_depth, vec2<u32>(u, v), 0));
-            flags[pix] = select(0u, 1u, new_surfel);
+            flags[append_index(vec2<u32>(u, v))] = select(0u, 1u, new_surfel);
         }
     }
 }

@@ -273,9 +273,49 @@ pub const ICP_RESIDUAL_INDEX: usize = 28;
 /// runs of this many consecutive slots, each with a world-frame bounding box
 /// (`block_bounds`), and the kernels that walk the map (`project_model`, `fuse_select`,
 /// `fuse_merge`) skip a block whose box the camera cannot see. 1024 slots: a box per 16 KiB
-/// of positions, small enough that the surfels a frame appends (in pixel order) make
-/// compact boxes, large enough that the boxes cost nothing to test.
+/// of positions, small enough that the surfels a frame appends (in append order, see
+/// [`APPEND_TILE_PX`]) make compact boxes, large enough that the boxes cost nothing to test.
 pub const BLOCK_SURFELS: u32 = 1024;
+
+/// Side, pixels, of the square image tiles that order a frame's new surfels (mirrors
+/// `APPEND_TILE_PX` in common.wgsl). `fuse_add` appends in *append order*: tiles in Morton
+/// (Z) order over the tile grid, pixels row-major inside a tile (`cpu::append_index`). So a
+/// block of consecutive new surfels comes from one compact patch of the image, and its box
+/// is small in every direction; in pixel order a block was a strip of rows across the whole
+/// image, which no turn of the camera could cull. 16: a tile's 256 pixels are a quarter of
+/// a block, so a fully new frame fills each block from a 32 x 32 pixel square.
+pub const APPEND_TILE_PX: u32 = 16;
+
+/// Length of the per-pixel arrays indexed in append order (`fuse_flags`' flags and their
+/// prefix sum) for a `width` x `height` image: one past the largest
+/// `cpu::append_index`. The Morton order leaves holes for tiles outside the image (about
+/// 0.7x more slots than pixels at 640 x 480); they stay zero, so the prefix sum skips them.
+pub fn append_slots(width: u32, height: u32) -> usize {
+    let tiles = |n: u32| n.div_ceil(APPEND_TILE_PX);
+    let last_tile = (0..tiles(width))
+        .flat_map(|tx| (0..tiles(height)).map(move |ty| morton_2d(tx, ty)))
+        .max()
+        .unwrap_or(0);
+    (last_tile as usize + 1) * (APPEND_TILE_PX * APPEND_TILE_PX) as usize
+}
+
+/// Interleaves the bits of `x` (even bits) and `y` (odd bits), each below 2^16: the Morton
+/// (Z-order) code of a tile. Mirrors `morton_2d` in common.wgsl.
+#[inline]
+pub fn morton_2d(x: u32, y: u32) -> u32 {
+    spread_bits(x) | (spread_bits(y) << 1)
+}
+
+/// The low 16 bits of `v` moved to the even bit positions (bit k to bit 2k). Mirrors
+/// `spread_bits` in common.wgsl.
+#[inline]
+fn spread_bits(v: u32) -> u32 {
+    let mut x = v & 0x0000_ffff;
+    x = (x | (x << 8)) & 0x00ff_00ff;
+    x = (x | (x << 4)) & 0x0f0f_0f0f;
+    x = (x | (x << 2)) & 0x3333_3333;
+    (x | (x << 1)) & 0x5555_5555
+}
 
 /// u32s per block in `block_bounds`: the box's min xyz, a pad, its max xyz, a pad, each
 /// coordinate as [`ordered_from_f32`] so that unsigned `atomicMin`/`atomicMax` order them

@@ -638,7 +638,7 @@ fn check_surfel(what: &str, c: &SurfelMap, ic: usize, g: &SurfelMap, ig: usize) 
 
 /// fuse_select (robust profile), fuse_merge, fuse_flags, prefix_sum and fuse_add against
 /// their twins, for each profile: the association keys pixel by pixel; merged surfels
-/// keep their index and appended ones are in pixel order, so the maps are compared slot
+/// keep their index and appended ones are in append order, so the maps are compared slot
 /// by slot.
 fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
     let params = SlamParams::profile(profile);
@@ -690,7 +690,7 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
         n_cpu.abs_diff(n_gpu) <= allowed,
         "surfel counts cpu {n_cpu} gpu {n_gpu}"
     );
-    // New surfels lie in pixel order on both backends (fuse_flags + prefix_sum), so the
+    // New surfels lie in append order on both backends (fuse_flags + prefix_sum), so the
     // maps match slot by slot: the GPU map's bytes do not depend on thread order.
     if flips.is_empty() && n_cpu == n_gpu {
         for i in before.len()..n_cpu {

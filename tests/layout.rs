@@ -207,6 +207,47 @@ fn ordered_encoding_keeps_float_order() {
     }
 }
 
+/// Append order (`cpu::append_index`, the order `fuse_add` appends new surfels in) has the
+/// same tile size on both sides, sends every pixel of an image to its own entry below
+/// `append_slots`, and makes compact blocks: when every pixel of a 640 x 480 frame is new,
+/// each run of `BLOCK_SURFELS` consecutive surfels comes from one 32 x 32 pixel square.
+fn append_order_is_a_compact_bijection() {
+    assert_eq!(wgsl_u32_const("APPEND_TILE_PX"), APPEND_TILE_PX);
+    for (w, h) in [(640, 480), (320, 240), (160, 120), (17, 9), (1, 1)] {
+        let slots = append_slots(w, h);
+        let mut owner = vec![None; slots];
+        for v in 0..h {
+            for u in 0..w {
+                let a = wgslam::cpu::append_index([u, v]);
+                assert!(a < slots, "{w}x{h}: pixel ({u}, {v}) at {a} of {slots}");
+                assert_eq!(owner[a], None, "{w}x{h}: ({u}, {v}) shares entry {a}");
+                owner[a] = Some((u, v));
+            }
+        }
+        // The holes (tiles outside the image) cost at most 2x the pixels at these sizes.
+        assert!(slots <= 2 * (w * h) as usize + (APPEND_TILE_PX * APPEND_TILE_PX) as usize * 4);
+        if (w, h) == (640, 480) {
+            let pixels: Vec<(u32, u32)> = owner.iter().flatten().copied().collect();
+            for block in pixels.chunks(BLOCK_SURFELS as usize) {
+                let (u0, u1) = (
+                    block.iter().map(|p| p.0).min(),
+                    block.iter().map(|p| p.0).max(),
+                );
+                let (v0, v1) = (
+                    block.iter().map(|p| p.1).min(),
+                    block.iter().map(|p| p.1).max(),
+                );
+                let span = (u1.unwrap() - u0.unwrap() + 1, v1.unwrap() - v0.unwrap() + 1);
+                assert_eq!(
+                    span,
+                    (32, 32),
+                    "a block of a new frame spans {span:?} pixels"
+                );
+            }
+        }
+    }
+}
+
 fn main() -> ExitCode {
     common::harness::run(vec![
         plain(
@@ -215,6 +256,10 @@ fn main() -> ExitCode {
         ),
         plain("icp_system_len_matches", icp_system_len_matches),
         plain("block_surfels_matches", block_surfels_matches),
+        plain(
+            "append_order_is_a_compact_bijection",
+            append_order_is_a_compact_bijection,
+        ),
         plain(
             "ordered_encoding_keeps_float_order",
             ordered_encoding_keeps_float_order,

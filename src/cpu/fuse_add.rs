@@ -1,11 +1,15 @@
 //! CPU twin of `shaders/fuse_add.wgsl`: appends every pixel `fuse_flags` flagged (a valid
 //! measurement no surfel merged with or covers) as a new surfel at slot `surfel_count +
-//! offsets[pix]` (`prefix_sum` of the flags: pixel order on both backends): world frame,
+//! offsets[append_index(pixel)]` (`prefix_sum` of the flags: append order on both
+//! backends, see `layout::APPEND_TILE_PX`): world frame,
 //! weight `pixel_confidence` (1 for the assignment), radius `surfel_radius`. Never writes
 //! at or past `params.capacity` (the host grows the map first so that every pixel fits).
 //! Called once per map chunk: each call writes the new surfels whose slots the chunk holds.
 
-use super::{back_project, pixel_confidence, surfel_radius, transform_dir, transform_point, xyz};
+use super::{
+    append_index, back_project, pixel_confidence, surfel_radius, transform_dir, transform_point,
+    xyz,
+};
 use crate::layout::{FuseParams, MapChunk};
 
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, the
@@ -14,7 +18,8 @@ use crate::layout::{FuseParams, MapChunk};
 /// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
 ///   zero where invalid (see `vertex_to_normal`)
 /// - 2 `color_map`: width x height, RGB 0..255
-/// - 3 `flags`: 1 where the pixel becomes a new surfel (`fuse_flags`)
+/// - 3 `flags`: 1 where the pixel becomes a new surfel (`fuse_flags`), at the pixel's
+///   `append_index`
 /// - 4 `offsets`: exclusive prefix sum of `flags` (`prefix_sum`)
 /// - 5 `chunk`: the chunk's first map-wide index and slots
 /// - 6 `position_weight` (out): xyz world frame, w = confidence
@@ -36,11 +41,12 @@ pub fn fuse_add(
     for v in 0..params.height {
         for u in 0..params.width {
             let pix = (v * params.width + u) as usize;
-            if flags[pix] == 0 {
+            let a = append_index([u, v]);
+            if flags[a] == 0 {
                 continue;
             }
             let nd = normal_depth[pix];
-            let i = params.surfel_count + offsets[pix];
+            let i = params.surfel_count + offsets[a];
             // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
             let slot = i.wrapping_sub(chunk.base);
             if i >= params.capacity || slot >= chunk.slots {

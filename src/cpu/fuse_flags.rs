@@ -1,9 +1,10 @@
 //! CPU twin of `shaders/fuse_flags.wgsl`: one flag per pixel, 1 where the pixel becomes a
-//! new surfel (a valid measurement no surfel merged with or covers). With `prefix_sum`
-//! over the pixels it gives `fuse_add` each new surfel's slot in pixel order, on both
-//! backends, so the GPU map has the CPU map's order and two runs write the same bytes.
+//! new surfel (a valid measurement no surfel merged with or covers), stored at the pixel's
+//! `append_index`. With `prefix_sum` over the flags it gives `fuse_add` each new surfel's
+//! slot in append order (`layout::APPEND_TILE_PX`), on both backends, so the GPU map has
+//! the CPU map's order and two runs write the same bytes.
 
-use super::is_valid;
+use super::{append_index, is_valid};
 use crate::layout::FuseParams;
 
 /// Bindings (as in the shader header):
@@ -12,7 +13,8 @@ use crate::layout::FuseParams;
 ///   where invalid
 /// - 2 `assoc`: one key per pixel, non-zero where a surfel merged with or was chosen by the
 ///   pixel
-/// - 3 `flags` (out): 1 new surfel / 0 not, width x height
+/// - 3 `flags` (out): 1 new surfel / 0 not, `layout::append_slots(width, height)` entries
+///   indexed by `append_index` (the holes, no pixel's, are never written: they stay 0)
 pub fn fuse_flags(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
@@ -26,7 +28,7 @@ pub fn fuse_flags(
             let pix = (v * params.width + u) as usize;
             // Valid normal (w = depth > 0) implies a valid vertex.
             let new_surfel = assoc[pix] == 0 && is_valid(normal_depth[pix]);
-            flags[pix] = new_surfel as u32;
+            flags[append_index([u, v])] = new_surfel as u32;
         }
     }
 }

@@ -41,7 +41,9 @@ pub mod vertex_to_normal;
 
 use glam::{Mat4, Vec3, Vec4};
 
-use crate::layout::{f32_from_ordered, GpuMat4, MapChunk, BLOCK_SURFELS};
+use crate::layout::{
+    f32_from_ordered, morton_2d, GpuMat4, MapChunk, APPEND_TILE_PX, BLOCK_SURFELS,
+};
 
 /// Margin, pixels, by which [`block_visible`]'s frustum is wider than the image (see
 /// `CULL_MARGIN_PX` in common.wgsl for why 2). Mirrors `CULL_MARGIN_PX`.
@@ -153,6 +155,19 @@ pub fn back_project(cam: [f32; 4], texel: [u32; 2], z: f32) -> Vec3 {
     let x = (texel[0] as f32 - cam[2]) * z / cam[0];
     let y = (texel[1] as f32 - cam[3]) * z / cam[1];
     Vec3::new(x, y, z)
+}
+
+/// Position of pixel `texel = (u, v)` in append order (tiles of [`APPEND_TILE_PX`] in Morton
+/// order, pixels row-major inside a tile): the index of its entry in `fuse_flags`' flags and
+/// their prefix sum, arrays of `layout::append_slots(width, height)`. Mirrors
+/// `append_index` in common.wgsl.
+#[inline]
+pub fn append_index(texel: [u32; 2]) -> usize {
+    let tile = [texel[0] / APPEND_TILE_PX, texel[1] / APPEND_TILE_PX];
+    let inside = [texel[0] % APPEND_TILE_PX, texel[1] % APPEND_TILE_PX];
+    (morton_2d(tile[0], tile[1]) * (APPEND_TILE_PX * APPEND_TILE_PX)
+        + inside[1] * APPEND_TILE_PX
+        + inside[0]) as usize
 }
 
 /// xyz of a `vec4` map entry. Mirrors `xyz` in common.wgsl.

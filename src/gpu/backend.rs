@@ -51,7 +51,7 @@ use super::images::GpuImage;
 use super::kernel::{Binding, Kernel};
 use super::map_buffers::MapBuffers;
 use super::timing::StageTimer;
-use crate::layout::scan_params;
+use crate::layout::{append_slots, scan_params};
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, NormalParams,
     PreprocessParams, ProjectParams, PyramidParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS,
@@ -731,10 +731,12 @@ impl GpuBackend {
         index_map.set_len(n);
         let mut assoc = GpuArray::new(ctx, "assoc", n)?;
         assoc.set_len(n);
-        let mut add_flags = GpuArray::new(ctx, "new-surfel flags", n)?;
-        add_flags.set_len(n);
-        let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n)?;
-        add_offsets.set_len(n);
+        // In append order, with holes for tiles outside the image that stay 0.
+        let n_append = append_slots(p.width, p.height);
+        let mut add_flags = GpuArray::new(ctx, "new-surfel flags", n_append)?;
+        add_flags.set_len(n_append);
+        let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n_append)?;
+        add_offsets.set_len(n_append);
         let levels = pyramid
             .iter()
             .map(|l| {
@@ -1403,7 +1405,8 @@ impl Backend for GpuBackend {
             .expect("preprocess() runs before fuse()");
         let added = ctx.scoped("fuse", || {
             self.u_fuse.write(ctx, &params);
-            self.u_fuse_scan.write(ctx, &scan_params(n));
+            self.u_fuse_scan
+                .write(ctx, &scan_params(append_slots(f.width, f.height)));
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
             let mut passes: Vec<_> = bounds

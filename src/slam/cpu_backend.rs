@@ -8,7 +8,7 @@
 //! culling step), so its cost per frame also follows what the camera sees.
 
 use crate::cpu;
-use crate::layout::scan_params;
+use crate::layout::{append_slots, scan_params};
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, MapChunk, NormalParams,
     PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS, ICP_SYSTEM_LEN,
@@ -266,17 +266,19 @@ impl Backend for CpuBackend {
                 &mut self.assoc,
             );
         }
-        self.add_flags.resize(n_pix, 0);
+        // Flags and offsets in append order (holes for tiles outside the image stay 0).
+        let n_slots = append_slots(params.width, params.height);
+        self.add_flags.resize(n_slots, 0);
         cpu::fuse_flags::fuse_flags(
             &params,
             &self.frame.normal_depth,
             &self.assoc,
             &mut self.add_flags,
         );
-        self.add_offsets.resize(n_pix, 0);
+        self.add_offsets.resize(n_slots, 0);
         let mut added = 0u32;
         cpu::prefix_sum::prefix_sum(
-            &scan_params(n_pix),
+            &scan_params(n_slots),
             &self.add_flags,
             &mut self.add_offsets,
             &mut added,
