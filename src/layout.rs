@@ -227,7 +227,7 @@ pub struct FuseParams {
 }
 
 /// `prefix_sum`'s parameters for a scan of `n` flags that are not surfels (fusion's
-/// new-surfel flags, one per pixel): only `surfel_count` (= n) is read.
+/// new-surfel flags, one per entry of append order): only `surfel_count` (= n) is read.
 pub fn scan_params(n: usize) -> CompactParams {
     CompactParams {
         surfel_count: n as u32,

@@ -292,7 +292,8 @@ struct FrameBuffers {
     pred_normal: GpuImage,
     /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
     assoc: GpuArray<u64>,
-    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`).
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
+    /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     add_flags: GpuArray<u32>,
     add_offsets: GpuArray<u32>,
     /// The ICP pyramid's coarser levels 1, 2, ... (none with a one-level schedule).
@@ -337,7 +338,7 @@ struct BindGroups {
     fuse_merge: Vec<wgpu::BindGroup>,
     fuse_merge_chosen: Vec<wgpu::BindGroup>,
     fuse_flags: wgpu::BindGroup,
-    /// `prefix_sum` over the new-surfel flags (one per pixel).
+    /// `prefix_sum` over the new-surfel flags (in append order, `append_slots` entries).
     fuse_scan: wgpu::BindGroup,
     fuse_add: Vec<wgpu::BindGroup>,
     /// Per coarser pyramid level (1, 2, ...).
@@ -399,7 +400,7 @@ pub struct GpuBackend {
     /// Buffers of the `compact` step, `None` until its first call.
     compaction: Option<Compaction>,
     u_compact: ParamBuffer<CompactParams>,
-    /// `prefix_sum`'s parameters for fusion's scan over the pixels.
+    /// `prefix_sum`'s parameters for fusion's scan over the new-surfel flags.
     u_fuse_scan: ParamBuffer<CompactParams>,
 }
 

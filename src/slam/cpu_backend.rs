@@ -26,7 +26,8 @@ pub struct CpuBackend {
     /// The predicted vertex and normal maps per pyramid level, level 0 first.
     prediction: Vec<Prediction>,
     assoc: Vec<u64>,
-    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`).
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
+    /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     add_flags: Vec<u32>,
     add_offsets: Vec<u32>,
     map: SurfelMap,
