@@ -115,7 +115,7 @@ struct FuseParams {
     capacity: u32,
     association: u32,
     confidence_sigma: f32,
-    _pad0: u32,
+    prune_radius_scale: f32,
     _pad1: u32,
     _pad2: u32,
 }

@@ -221,7 +221,10 @@ pub struct FuseParams {
     /// the image centre (normalised: 1 at the corners); 0 gives every measurement weight 1
     /// (the assignment's counts). See `pixel_confidence` in common.wgsl.
     pub confidence_sigma: f32,
-    pub _pad0: u32,
+    /// Best-candidate association's pruning of duplicate surfels (`fuse_prune`): a surfel
+    /// that was not refreshed retires when its pixel's chosen surfel lies within this many
+    /// times the larger of their radii; 0 turns pruning off.
+    pub prune_radius_scale: f32,
     pub _pad1: u32,
     pub _pad2: u32,
 }

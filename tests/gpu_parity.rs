@@ -671,6 +671,19 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
         before.len()
     );
     assert!(merged > 1000, "too few merges for a real test");
+    // fuse_prune (robust profile) retires duplicates: weight 0 and last frame 0.
+    let retired = |m: &SurfelMap| {
+        (0..before.len())
+            .filter(|&i| m.weight(i) == 0.0 && m.last_frame(i) == 0 && before.weight(i) > 0.0)
+            .count()
+    };
+    let (retired_cpu, retired_gpu) = (retired(&c), retired(&g));
+    eprintln!("fuse_prune: retired cpu {retired_cpu}, gpu {retired_gpu}");
+    if fp.prune_radius_scale > 0.0 {
+        assert!(retired_cpu > 100, "too few retired surfels for a real test");
+    } else {
+        assert_eq!((retired_cpu, retired_gpu), (0, 0), "pruning is off");
+    }
     // Merge decisions on a threshold can flip for a few surfels (FMA); then the appended
     // sets differ by the same few pixels.
     let allowed = (before.len() as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;

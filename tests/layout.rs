@@ -103,7 +103,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             capacity,
             association,
             confidence_sigma,
-            _pad0,
+            prune_radius_scale,
             _pad1,
             _pad2
         }),

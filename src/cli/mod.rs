@@ -243,6 +243,12 @@ pub struct PipelineArgs {
     /// robust 0.6).
     #[arg(long)]
     pub confidence_sigma: Option<f32>,
+    /// Best-candidate fusion's duplicate pruning: a surfel that was not refreshed retires
+    /// when the surfel its pixel chose lies within this many times the larger radius (and
+    /// faces the same way, and is at least as confident); 0 turns it off (assignment 0,
+    /// robust 0.5).
+    #[arg(long)]
+    pub prune_scale: Option<f32>,
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
@@ -492,6 +498,7 @@ impl PipelineArgs {
             fuse_normal_deg: self.fuse_angle.unwrap_or(base.fuse_normal_deg),
             fuse_association: self.fuse_association.unwrap_or(base.fuse_association),
             fuse_confidence_sigma: self.confidence_sigma.unwrap_or(base.fuse_confidence_sigma),
+            fuse_prune_scale: self.prune_scale.unwrap_or(base.fuse_prune_scale),
             min_depth_m: self.min_depth.unwrap_or(base.min_depth_m),
             max_depth_m: self.max_depth.unwrap_or(base.max_depth_m),
             max_depth_jump_m: self.max_depth_jump.unwrap_or(base.max_depth_jump_m),
@@ -543,6 +550,12 @@ impl PipelineArgs {
             return Err(Error::Argument(format!(
                 "--confidence-sigma {} must be 0 (off) or positive",
                 p.fuse_confidence_sigma
+            )));
+        }
+        if !(p.fuse_prune_scale.is_finite() && p.fuse_prune_scale >= 0.0) {
+            return Err(Error::Argument(format!(
+                "--prune-scale {} must be 0 (off) or positive",
+                p.fuse_prune_scale
             )));
         }
         if !(p.icp_huber_m.is_finite() && p.icp_huber_m >= 0.0) {

@@ -103,13 +103,7 @@ fn select_for_surfel(
     let Some(centre) = project_to_texel(cam, params.width, params.height, p_cam) else {
         return;
     };
-    let nf = map.normal_frame[slot];
-    let n_world = glam::Vec3::new(
-        f32::from_bits(nf[0]),
-        f32::from_bits(nf[1]),
-        f32::from_bits(nf[2]),
-    );
-    let n_cam = transform_dir(&params.t_world_to_cam, n_world);
+    let n_cam = transform_dir(&params.t_world_to_cam, normal_of(map.normal_frame[slot]));
     let radius = map.color[slot][3];
     let reach = ((radius * params.fx / p_cam.z) as i32).min(MAX_SELECT_RADIUS_PX);
     for dv in -reach..=reach {
@@ -139,4 +133,13 @@ fn select_for_surfel(
             assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
         }
     }
+}
+
+/// The world-frame unit normal stored in a `normal_frame` entry (its xyz bits).
+pub(crate) fn normal_of(nf: [u32; 4]) -> glam::Vec3 {
+    glam::Vec3::new(
+        f32::from_bits(nf[0]),
+        f32::from_bits(nf[1]),
+        f32::from_bits(nf[2]),
+    )
 }

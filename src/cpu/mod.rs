@@ -25,6 +25,7 @@ pub mod fuse_add;
 pub mod fuse_flags;
 pub mod fuse_merge;
 pub mod fuse_merge_chosen;
+pub mod fuse_prune;
 pub mod fuse_select;
 pub mod icp_reduce;
 pub mod icp_reduce_final;

@@ -181,6 +181,15 @@ pub mod bindings {
         Binding::read_write("color"),
         Binding::read("assoc: fuse_select's u64 key per pixel"),
     ];
+    pub const FUSE_PRUNE: [Binding; 7] = [
+        Binding::params("params: FuseParams"),
+        Binding::params("chunk: MapChunk"),
+        Binding::read("block_bounds: min/max corner per block"),
+        Binding::read_write("position_weight"),
+        Binding::read_write("normal_frame"),
+        Binding::read("color: a = radius"),
+        Binding::read("assoc: fuse_select's u64 key per pixel"),
+    ];
     pub const FUSE_FLAGS: [Binding; 4] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
@@ -240,6 +249,7 @@ struct Kernels {
     fuse_select: Kernel,
     fuse_merge: Kernel,
     fuse_merge_chosen: Kernel,
+    fuse_prune: Kernel,
     fuse_flags: Kernel,
     fuse_add: Kernel,
     compact_flags: Kernel,
@@ -337,6 +347,7 @@ struct BindGroups {
     fuse_select: Vec<wgpu::BindGroup>,
     fuse_merge: Vec<wgpu::BindGroup>,
     fuse_merge_chosen: Vec<wgpu::BindGroup>,
+    fuse_prune: Vec<wgpu::BindGroup>,
     fuse_flags: wgpu::BindGroup,
     /// `prefix_sum` over the new-surfel flags (in append order, `append_slots` entries).
     fuse_scan: wgpu::BindGroup,
@@ -571,6 +582,7 @@ impl GpuBackend {
                     "fuse_merge_chosen",
                     &bindings::FUSE_MERGE_CHOSEN,
                 )?,
+                fuse_prune: Kernel::new(&ctx, "fuse_prune", &bindings::FUSE_PRUNE)?,
                 fuse_flags: Kernel::new(&ctx, "fuse_flags", &bindings::FUSE_FLAGS)?,
                 fuse_add: Kernel::new(&ctx, "fuse_add", &bindings::FUSE_ADD)?,
                 compact_flags: Kernel::new(&ctx, "compact_flags", &bindings::COMPACT_FLAGS)?,
@@ -1015,6 +1027,20 @@ impl GpuBackend {
                         ],
                     )
                 }),
+                fuse_prune: per_chunk(&|ch| {
+                    k.fuse_prune.bind_group(
+                        c,
+                        &[
+                            self.u_fuse.binding(),
+                            ch.info_buffer.binding(),
+                            bounds.binding(),
+                            ch.position_weight.binding(),
+                            ch.normal_frame.binding(),
+                            ch.color.binding(),
+                            f.assoc.binding(),
+                        ],
+                    )
+                }),
                 fuse_add: per_chunk(&|ch| {
                     k.fuse_add.bind_group(
                         c,
@@ -1421,6 +1447,11 @@ impl Backend for GpuBackend {
                 }
                 for g in &bg.fuse_merge_chosen {
                     passes.push((&k.fuse_merge_chosen, g, chosen_wg));
+                }
+                if params.prune_radius_scale > 0.0 {
+                    for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {
+                        passes.push((&k.fuse_prune, &bg.fuse_prune[c], [blocks_wg, 1]));
+                    }
                 }
             } else {
                 for (c, &(blocks_wg, _)) in chunk_wg.iter().enumerate() {

@@ -52,6 +52,7 @@ pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
         ("fuse_select", &b::FUSE_SELECT),
         ("fuse_merge", &b::FUSE_MERGE),
         ("fuse_merge_chosen", &b::FUSE_MERGE_CHOSEN),
+        ("fuse_prune", &b::FUSE_PRUNE),
         ("fuse_flags", &b::FUSE_FLAGS),
         ("fuse_add", &b::FUSE_ADD),
         ("compact_flags", &b::COMPACT_FLAGS),

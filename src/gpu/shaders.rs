@@ -70,6 +70,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         "fuse_merge_chosen",
         include_str!("../../shaders/fuse_merge_chosen.wgsl"),
     ),
+    ("fuse_prune", include_str!("../../shaders/fuse_prune.wgsl")),
     ("fuse_flags", include_str!("../../shaders/fuse_flags.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
     (

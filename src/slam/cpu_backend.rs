@@ -254,6 +254,17 @@ impl Backend for CpuBackend {
                 &mut m.color,
                 &self.assoc,
             );
+            if params.prune_radius_scale > 0.0 {
+                cpu::fuse_prune::fuse_prune(
+                    &params,
+                    &chunk,
+                    &self.block_bounds,
+                    &mut m.position_weight,
+                    &mut m.normal_frame,
+                    &m.color,
+                    &self.assoc,
+                );
+            }
         } else {
             cpu::fuse_merge::fuse_merge(
                 &params,
