@@ -16,7 +16,7 @@ use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 /// Cosine of the largest angle between the normals of a pruned surfel and the chosen one:
 /// 45 degrees (Keller et al. 2013's merge of similar surfels). Mirrors `PRUNE_COS_NORMAL`
 /// in the shader.
-pub const PRUNE_COS_NORMAL: f32 = 0.707_106_78;
+pub const PRUNE_COS_NORMAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
 /// - 0 `params`: `FuseParams` (tracked pose, intrinsics, `surfel_count`, `frame_id`,
