@@ -33,7 +33,7 @@
 //! | `preprocess` (`depth_to_vertex`, with [`SlamParams::bilateral`] `bilateral_filter`, then `vertex_to_normal`; per coarser level `pyramid_depth` then `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame, unfiltered), `filtered_vertex` (camera frame; only with the filter), `normal_depth` (camera-frame normal, depth in w; from `filtered_vertex` with the filter, else from `vertex`), `color`; per level `l >= 1`: its `vertex` (from level `l - 1`'s normals' source) and `normal_depth` |
 //! | `predict` (`project_model`, `predict_model`; per coarser level `pyramid_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame); per level `l >= 1` its `pred_vertex`, `pred_normal` (from level `l - 1`'s) |
 //! | `icp_system` (`icp_reduce`), per iteration, at a level | that level's `pred_vertex`, `pred_normal`, `normal_depth`; the current `t_world_to_cam`; the level's intrinsics | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
-//! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen`; then `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, then appended), `assoc` (merged pixels), `counter` (surfel count) |
+//! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen` + with a prune scale `fuse_prune`; then `fuse_flags`, `prefix_sum`, `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, duplicates retired, then appended), `assoc` (merged pixels), `counter` (surfel count) |
 //! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`SlamParams::unstable_removal`] | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
 //!
 //! The tracking loop reads back only the system per iteration and the surfel count per
@@ -151,8 +151,8 @@ pub trait Backend {
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
     /// carry that level's size and intrinsics): the summed 29-entry system.
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
-    /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (best candidate),
-    /// then `fuse_add` (`surfel_count` and `capacity` are filled in by the
+    /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
+    /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and `capacity` are filled in by the
     /// backend, which grows the map first when needed). Returns surfels after fusion.
     fn fuse(&mut self, params: &FuseParams) -> Result<usize>;
     /// `compact_flags`, `prefix_sum`, then `compact_scatter` into a second map, which
@@ -259,8 +259,9 @@ pub enum Profile {
     /// Huber-weighted rows scaled by the depth-noise model and a convergence test that
     /// noisy data can meet; fusion with best-candidate association
     /// ([`Association::BestCandidate`]), confidence-weighted averages
-    /// ([`ROBUST_CONFIDENCE_SIGMA`]), surfel radii, wider gates ([`ROBUST_FUSE_DIST_M`]) and
-    /// the removal of unstable surfels ([`ROBUST_STABLE_WEIGHT`]).
+    /// ([`ROBUST_CONFIDENCE_SIGMA`]), surfel radii, wider gates ([`ROBUST_FUSE_DIST_M`]), the
+    /// retirement of duplicate surfels ([`ROBUST_PRUNE_RADIUS_SCALE`]) and the removal of
+    /// unstable surfels ([`ROBUST_STABLE_WEIGHT`]).
     Robust,
 }
 
