@@ -408,7 +408,10 @@ pub const ROBUST_REMOVAL_EVERY: u32 = 10;
 /// | 1.0 | 359,963 -> 289,987 (0.81x), 7.97 mm | |
 ///
 /// 0.5: the map stops growing over revisits and the ATE moves by 0.2 mm noisy and 0.01 mm
-/// noise-free. Wider, it removes surfels tracking needs.
+/// noise-free. Wider, it removes surfels tracking needs. The kernels (`fuse_prune`) give
+/// the 0.5 row on both backends (noisy 485,957 -> 437,327 CPU, 485,587 -> 437,398 GPU,
+/// ATE 6.85 / 6.83 mm; noise-free 0.11 mm); over noisy frames 1..200 the ATE is 7.45 mm
+/// against 7.10 without.
 pub const ROBUST_PRUNE_RADIUS_SCALE: f32 = 0.5;
 
 /// Age limit of the robust profile's removal rule, frames; see [`ROBUST_STABLE_WEIGHT`].
