@@ -1,9 +1,10 @@
 // fuse_add.wgsl: appends every pixel fuse_flags flagged (a valid measurement no surfel
 // merged with or covers) as a new surfel at slot surfel_count + offsets[append_index(pixel)]
 // (prefix_sum of the flags, so new surfels lie in append order, see layout::APPEND_TILE_PX,
-// as on the CPU, and two runs write the same map): world frame, weight pixel_confidence, radius surfel_radius. Last of three kernels
-// (fuse_flags, prefix_sum, fuse_add). Dispatched once per map chunk: each pass writes the
-// new surfels whose slots the chunk holds. CPU twin: src/cpu/fuse_add.rs.
+// as on the CPU, and two runs write the same map): world frame, weight pixel_confidence,
+// radius surfel_radius. Last of three kernels (fuse_flags, prefix_sum, fuse_add).
+// Dispatched once per map chunk: each pass writes the new surfels whose slots the chunk
+// holds. CPU twin: src/cpu/fuse_add.rs.
 //
 // Bindings (@group(0)):
 //   0 params      storage read FuseParams (t_cam_to_world, surfel_count, frame_id, capacity)

@@ -23,20 +23,10 @@
 use glam::Vec3;
 
 use super::{
-    back_project, block_visible, chunk_blocks, is_valid, merged_surfel, pixel_confidence,
-    project_to_texel, surfel_radius, transform_dir, transform_point, xyz,
+    back_project, block_visible, chunk_blocks, is_valid, merged_surfel, normal_of,
+    pixel_confidence, project_to_texel, surfel_radius, transform_dir, transform_point, xyz,
 };
 use crate::layout::{f32_from_ordered, ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
-
-/// The unit normal stored as bits in `normal_frame`'s xyz (`bitcast<vec3<f32>>`).
-#[inline]
-fn normal_of(nf: [u32; 4]) -> Vec3 {
-    Vec3::new(
-        f32::from_bits(nf[0]),
-        f32::from_bits(nf[1]),
-        f32::from_bits(nf[2]),
-    )
-}
 
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
 /// - 0 `params`: `FuseParams` (tracked poses, intrinsics, `surfel_count`, thresholds)

@@ -7,8 +7,8 @@
 //! block's box grows the box.
 
 use super::{
-    back_project, merged_surfel, pixel_confidence, project_to_texel, surfel_radius, transform_dir,
-    transform_point, xyz,
+    back_project, merged_surfel, normal_of, pixel_confidence, project_to_texel, surfel_radius,
+    transform_dir, transform_point, xyz,
 };
 use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
@@ -60,7 +60,7 @@ pub fn fuse_merge_chosen(
             let q_cam = back_project(cam, texel, nd[3]);
             let q_world = transform_point(&params.t_cam_to_world, q_cam);
             let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
-            let n_old = xyz(normal_frame[s].map(f32::from_bits));
+            let n_old = normal_of(normal_frame[s]);
             let wq = pixel_confidence(cam, texel, params.confidence_sigma);
             let cq = xyz(color_map[pix]);
             let r_q = surfel_radius(params.fx, q_cam, xyz(nd));

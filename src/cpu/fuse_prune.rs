@@ -9,8 +9,9 @@
 //! camera sees a denser map on every revisit (see `ROBUST_PRUNE_RADIUS_SCALE`). Called once
 //! per map chunk; a chosen surfel in another chunk is left alone.
 
-use super::fuse_select::normal_of;
-use super::{block_visible, chunk_blocks, decode_corner, project_to_texel, transform_point, xyz};
+use super::{
+    block_visible, chunk_blocks, decode_corner, normal_of, project_to_texel, transform_point, xyz,
+};
 use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 
 /// Cosine of the largest angle between the normals of a pruned surfel and the chosen one:

@@ -20,8 +20,8 @@
 //! (`compact_flags`) takes it away.
 
 use super::{
-    back_project, block_visible, chunk_blocks, decode_corner, is_valid, pack_depth_index,
-    project_to_texel, transform_dir, transform_point, xyz,
+    back_project, block_visible, chunk_blocks, decode_corner, is_valid, normal_of,
+    pack_depth_index, project_to_texel, transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 
@@ -133,13 +133,4 @@ fn select_for_surfel(
             assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
         }
     }
-}
-
-/// The world-frame unit normal stored in a `normal_frame` entry (its xyz bits).
-pub(crate) fn normal_of(nf: [u32; 4]) -> glam::Vec3 {
-    glam::Vec3::new(
-        f32::from_bits(nf[0]),
-        f32::from_bits(nf[1]),
-        f32::from_bits(nf[2]),
-    )
 }

@@ -171,6 +171,17 @@ pub fn append_index(texel: [u32; 2]) -> usize {
         + inside[0]) as usize
 }
 
+/// The world-frame unit normal stored as bits in a `normal_frame` entry's xyz (the shaders'
+/// `bitcast<vec3<f32>>(normal_frame[i].xyz)`).
+#[inline]
+pub fn normal_of(nf: [u32; 4]) -> Vec3 {
+    Vec3::new(
+        f32::from_bits(nf[0]),
+        f32::from_bits(nf[1]),
+        f32::from_bits(nf[2]),
+    )
+}
+
 /// xyz of a `vec4` map entry. Mirrors `xyz` in common.wgsl.
 #[inline]
 pub fn xyz(v: [f32; 4]) -> Vec3 {

@@ -1432,8 +1432,7 @@ impl Backend for GpuBackend {
             .expect("preprocess() runs before fuse()");
         let added = ctx.scoped("fuse", || {
             self.u_fuse.write(ctx, &params);
-            self.u_fuse_scan
-                .write(ctx, &scan_params(append_slots(f.width, f.height)));
+            self.u_fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
             let mut passes: Vec<_> = bounds

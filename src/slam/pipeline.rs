@@ -152,8 +152,9 @@ pub trait Backend {
     /// carry that level's size and intrinsics): the summed 29-entry system.
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
-    /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and `capacity` are filled in by the
-    /// backend, which grows the map first when needed). Returns surfels after fusion.
+    /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
+    /// `capacity` are filled in by the backend, which grows the map first when needed).
+    /// Returns surfels after fusion.
     fn fuse(&mut self, params: &FuseParams) -> Result<usize>;
     /// `compact_flags`, `prefix_sum`, then `compact_scatter` into a second map, which
     /// becomes the map: removes the unstable surfels and moves the survivors to the front
