@@ -244,9 +244,10 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub confidence_sigma: Option<f32>,
     /// Best-candidate fusion's duplicate pruning: a surfel that was not refreshed retires
-    /// when the surfel its pixel chose lies within this many times the larger radius (and
-    /// faces the same way, and is at least as confident); 0 turns it off (assignment 0,
-    /// robust 0.5).
+    /// when the surfel its pixel merged into lies within this many times the larger radius
+    /// (and faces the same way, and is at least as confident); 0 turns it off (assignment
+    /// 0, robust 0.5). It runs on the frames the unstable-surfel removal runs after
+    /// (--removal-every), or every frame without the removal.
     #[arg(long)]
     pub prune_scale: Option<f32>,
     /// Implementation: auto, cpu or gpu.

@@ -1,13 +1,14 @@
 //! CPU twin of `shaders/fuse_prune.wgsl`: duplicate removal of best-candidate fusion
 //! (robust profile), after `fuse_merge_chosen`. A surfel this frame did not refresh
-//! retires (weight 0, last frame 0, which the unstable-surfel removal drops at its next run
-//! after frame `max_age_frames`) when the pixel it projects to chose another surfel that
-//! this frame refreshed, lies within `prune_radius_scale` times the larger of their radii,
-//! faces the same way ([`PRUNE_COS_NORMAL`]) and is at least as confident: a layered copy
-//! of the surface the chosen surfel now stands for (Keller et al. 2013 merge such surfels).
-//! Without it, noisy depth leaves copies that different pixels keep refreshing, and the
-//! camera sees a denser map on every revisit (see `ROBUST_PRUNE_RADIUS_SCALE`). Called once
-//! per map chunk; a chosen surfel in another chunk is left alone.
+//! retires (weight 0, last frame 0, which the unstable-surfel removal drops at its next
+//! run) when the pixel it projects to merged its measurement into a surfel
+//! (`fuse_merge_chosen`'s `merged` entry) that lies within `prune_radius_scale` times the
+//! larger of their radii, faces the same way ([`PRUNE_COS_NORMAL`]) and is at least as
+//! confident: a layered copy of the surface the merged surfel now stands for (Keller et
+//! al. 2013 merge such surfels). Without it, noisy depth leaves copies that different
+//! pixels keep refreshing, and the camera sees a denser map on every revisit (see
+//! `ROBUST_PRUNE_RADIUS_SCALE`). Called once per map chunk; the merged surfel may be in
+//! any chunk, as its copy is per pixel.
 
 use super::{
     block_visible, chunk_blocks, decode_corner, normal_of, project_to_texel, transform_point, xyz,
@@ -28,8 +29,9 @@ pub const PRUNE_COS_NORMAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
 ///   confidence
 /// - 4 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
 /// - 5 `color`: RGB 0..255, a = radius (metres)
-/// - 6 `assoc`: `fuse_select`'s key per pixel (low 32 bits: the chosen map-wide index; 0 =
-///   no choice)
+/// - 6 `merged`: per pixel, the surfel it merged into (`fuse_merge_chosen`):
+///   `position_weight` at `2 pix` (w = 0: none), unit normal (world frame) and radius
+///   (metres) at `2 pix + 1`
 #[allow(clippy::too_many_arguments)] // the shader's seven bindings, in order
 pub fn fuse_prune(
     params: &FuseParams,
@@ -38,7 +40,7 @@ pub fn fuse_prune(
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &[[f32; 4]],
-    assoc: &[u64],
+    merged: &[[f32; 4]],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
@@ -60,12 +62,10 @@ pub fn fuse_prune(
         for i in chunk.base + b * BLOCK_SURFELS..end {
             prune_surfel(
                 params,
-                chunk,
                 position_weight,
                 normal_frame,
                 color,
-                assoc,
-                i,
+                merged,
                 (i - chunk.base) as usize,
                 cam,
             );
@@ -73,17 +73,14 @@ pub fn fuse_prune(
     }
 }
 
-/// Retires surfel `i` (map-wide index; `slot` in the chunk's arrays) if it duplicates the
-/// surfel its pixel chose.
-#[allow(clippy::too_many_arguments)]
+/// Retires the surfel at `slot` in the chunk's arrays if it duplicates the surfel its
+/// pixel merged into.
 fn prune_surfel(
     params: &FuseParams,
-    chunk: &MapChunk,
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &[[f32; 4]],
-    assoc: &[u64],
-    i: u32,
+    merged: &[[f32; 4]],
     slot: usize,
     cam: [f32; 4],
 ) {
@@ -100,22 +97,15 @@ fn prune_surfel(
     ) else {
         return;
     };
-    let key = assoc[(centre[1] * params.width + centre[0]) as usize];
-    let chosen = key as u32;
-    // chosen - chunk.base wraps to a huge value below the chunk: one test for both ends.
-    let t = chosen.wrapping_sub(chunk.base);
-    if key >> 32 == 0 || chosen == i || t >= chunk.slots {
+    let pix = (centre[1] * params.width + centre[0]) as usize;
+    let pw_t = merged[2 * pix];
+    if pw_t[3] <= 0.0 {
         return;
     }
-    let t = t as usize;
-    let nf_t = normal_frame[t];
-    if nf_t[3] != params.frame_id {
-        return;
-    }
-    let pw_t = position_weight[t];
-    let reach = params.prune_radius_scale * color[slot][3].max(color[t][3]);
+    let nr_t = merged[2 * pix + 1];
+    let reach = params.prune_radius_scale * color[slot][3].max(nr_t[3]);
     if xyz(pw).distance(xyz(pw_t)) < reach
-        && normal_of(nf).dot(normal_of(nf_t)) > PRUNE_COS_NORMAL
+        && normal_of(nf).dot(xyz(nr_t)) > PRUNE_COS_NORMAL
         && pw[3] <= pw_t[3]
     {
         position_weight[slot] = [pw[0], pw[1], pw[2], 0.0];

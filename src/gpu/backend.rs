@@ -170,7 +170,7 @@ pub mod bindings {
         Binding::read_write("color"),
         Binding::read_write("assoc: atomic u64 key per pixel"),
     ];
-    pub const FUSE_MERGE_CHOSEN: [Binding; 9] = [
+    pub const FUSE_MERGE_CHOSEN: [Binding; 10] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
@@ -180,6 +180,7 @@ pub mod bindings {
         Binding::read_write("normal_frame"),
         Binding::read_write("color"),
         Binding::read("assoc: fuse_select's u64 key per pixel"),
+        Binding::read_write("merged: the merged surfel per pixel"),
     ];
     pub const FUSE_PRUNE: [Binding; 7] = [
         Binding::params("params: FuseParams"),
@@ -188,7 +189,7 @@ pub mod bindings {
         Binding::read_write("position_weight"),
         Binding::read_write("normal_frame"),
         Binding::read("color: a = radius"),
-        Binding::read("assoc: fuse_select's u64 key per pixel"),
+        Binding::read("merged: the merged surfel per pixel"),
     ];
     pub const FUSE_FLAGS: [Binding; 4] = [
         Binding::params("params: FuseParams"),
@@ -302,6 +303,9 @@ struct FrameBuffers {
     pred_normal: GpuImage,
     /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
     assoc: GpuArray<u64>,
+    /// Per pixel, the surfel it merged into (two entries; see fuse_merge_chosen.wgsl),
+    /// cleared and filled on the frames fuse_prune runs.
+    merged: GpuArray<[f32; 4]>,
     /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     add_flags: GpuArray<u32>,
@@ -744,6 +748,8 @@ impl GpuBackend {
         index_map.set_len(n);
         let mut assoc = GpuArray::new(ctx, "assoc", n)?;
         assoc.set_len(n);
+        let mut merged = GpuArray::new(ctx, "merged surfel per pixel", 2 * n)?;
+        merged.set_len(2 * n);
         // In append order, with holes for tiles outside the image that stay 0.
         let n_append = append_slots(p.width, p.height);
         let mut add_flags = GpuArray::new(ctx, "new-surfel flags", n_append)?;
@@ -785,6 +791,7 @@ impl GpuBackend {
             pred_vertex: full("predicted vertex map")?,
             pred_normal: full("predicted normal map")?,
             assoc,
+            merged,
             add_flags,
             add_offsets,
             levels,
@@ -1024,6 +1031,7 @@ impl GpuBackend {
                             ch.normal_frame.binding(),
                             ch.color.binding(),
                             f.assoc.binding(),
+                            f.merged.binding(),
                         ],
                     )
                 }),
@@ -1037,7 +1045,7 @@ impl GpuBackend {
                             ch.position_weight.binding(),
                             ch.normal_frame.binding(),
                             ch.color.binding(),
-                            f.assoc.binding(),
+                            f.merged.binding(),
                         ],
                     )
                 }),
@@ -1435,6 +1443,9 @@ impl Backend for GpuBackend {
             self.u_fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
+            if params.prune_radius_scale > 0.0 {
+                f.merged.clear(&mut enc);
+            }
             let mut passes: Vec<_> = bounds
                 .iter()
                 .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))

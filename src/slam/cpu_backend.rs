@@ -26,6 +26,9 @@ pub struct CpuBackend {
     /// The predicted vertex and normal maps per pyramid level, level 0 first.
     prediction: Vec<Prediction>,
     assoc: Vec<u64>,
+    /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
+    /// on the frames `fuse_prune` runs.
+    merged: Vec<[f32; 4]>,
     /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     add_flags: Vec<u32>,
@@ -227,6 +230,10 @@ impl Backend for CpuBackend {
         params.capacity = (count + n_pix) as u32;
         self.assoc.clear();
         self.assoc.resize(n_pix, 0);
+        if params.prune_radius_scale > 0.0 {
+            self.merged.clear();
+            self.merged.resize(2 * n_pix, [0.0; 4]);
+        }
         self.refresh_bounds();
         let m = &mut self.map;
         let chunk = MapChunk::whole(count);
@@ -253,6 +260,7 @@ impl Backend for CpuBackend {
                 &mut m.normal_frame,
                 &mut m.color,
                 &self.assoc,
+                &mut self.merged,
             );
             if params.prune_radius_scale > 0.0 {
                 cpu::fuse_prune::fuse_prune(
@@ -262,7 +270,7 @@ impl Backend for CpuBackend {
                     &mut m.position_weight,
                     &mut m.normal_frame,
                     &m.color,
-                    &self.assoc,
+                    &self.merged,
                 );
             }
         } else {
