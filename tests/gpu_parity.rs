@@ -600,6 +600,25 @@ fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
     ));
 }
 
+/// Stride of [`interleaved`]: 64 surfels apart in the original order are neighbours in the
+/// new one, so a map of 73,000 surfels puts each original 1024-surfel block across all
+/// of them.
+const INTERLEAVE_STRIDE: usize = 64;
+
+/// `m` reordered: every `stride`-th surfel from 0, then every `stride`-th from 1, and so
+/// on, so surfels made from neighbouring pixels (neighbours in append order) end up far
+/// apart in the map.
+fn interleaved(m: &SurfelMap, stride: usize) -> SurfelMap {
+    let order: Vec<usize> = (0..stride)
+        .flat_map(|r| (r..m.len()).step_by(stride))
+        .collect();
+    SurfelMap {
+        position_weight: order.iter().map(|&i| m.position_weight[i]).collect(),
+        normal_frame: order.iter().map(|&i| m.normal_frame[i]).collect(),
+        color: order.iter().map(|&i| m.color[i]).collect(),
+    }
+}
+
 /// Sort key for order-independent map comparison: position bits, then frame.
 fn surfel_key(m: &SurfelMap, i: usize) -> ([u32; 3], u32) {
     let p = m.position(i);
@@ -640,10 +659,17 @@ fn check_surfel(what: &str, c: &SurfelMap, ic: usize, g: &SurfelMap, ig: usize) 
 /// their twins, for each profile: the association keys pixel by pixel; merged surfels
 /// keep their index and appended ones are in append order, so the maps are compared slot
 /// by slot.
-fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
+/// With `chunk_surfels` (the GPU map's chunk size), both backends start from the map in
+/// [`interleaved`] order, so neighbouring surfels lie in different chunks, and the test
+/// checks that surfels are retired across chunks.
+fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Option<usize>) {
     let params = SlamParams::profile(profile);
     let (mut s, gt) = cpu_map_from_gt(2, &params);
-    let before = s.backend.download_map().unwrap();
+    let mut before = s.backend.download_map().unwrap();
+    if chunk_surfels.is_some() {
+        before = interleaved(&before, INTERLEAVE_STRIDE);
+        s.backend.upload_map(&before).unwrap();
+    }
     gpu.upload_map(&before).unwrap();
     let frame = load_frame(&root(), 3);
     let (pp, bp, np) = (
@@ -700,6 +726,25 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile) {
             retired_cpu.abs_diff(retired_gpu) <= allowed,
             "retired cpu {retired_cpu} vs gpu {retired_gpu}"
         );
+        if let Some(chunk) = chunk_surfels {
+            // Retired surfels whose pixel chose a surfel in another GPU chunk: the merged
+            // surfel they were compared with came from that chunk, via `merged`.
+            let keys = gpu.download_assoc().unwrap();
+            let cam = [fp.fx, fp.fy, fp.cx, fp.cy];
+            let across = (0..before.len())
+                .filter(|&i| g.weight(i) == 0.0 && g.last_frame(i) == 0 && before.weight(i) > 0.0)
+                .filter(|&i| {
+                    let p = cpu::transform_point(&fp.t_world_to_cam, g.position(i).into());
+                    cpu::project_to_pixel(cam, fp.width, fp.height, p)
+                        .is_some_and(|pix| (keys[pix] as u32) as usize / chunk != i / chunk)
+                })
+                .count();
+            eprintln!("fuse_prune: {across} of {retired_gpu} retired across GPU chunks");
+            assert!(
+                across > 10,
+                "too few retirements across chunks for a real test"
+            );
+        }
     } else {
         assert_eq!((retired_cpu, retired_gpu), (0, 0), "pruning is off");
     }
@@ -1377,10 +1422,10 @@ fn main() -> ExitCode {
             coarse_icp_systems_match_twin(gpu_backend(ctx))
         }),
         gpu("fuse_matches_twins", |ctx| {
-            fuse_matches_twins(gpu_backend(ctx), Profile::Assignment)
+            fuse_matches_twins(gpu_backend(ctx), Profile::Assignment, None)
         }),
         gpu("robust_fuse_matches_twins", |ctx| {
-            fuse_matches_twins(gpu_backend(ctx), Profile::Robust)
+            fuse_matches_twins(gpu_backend(ctx), Profile::Robust, None)
         }),
         gpu("compaction_matches_twins", |ctx| {
             compaction_matches_twins(gpu_backend(ctx))
@@ -1397,7 +1442,11 @@ fn main() -> ExitCode {
             predict_matches_twins(small_chunk_backend(ctx))
         }),
         gpu("robust_fuse_matches_twins_in_small_chunks", |ctx| {
-            fuse_matches_twins(small_chunk_backend(ctx), Profile::Robust)
+            fuse_matches_twins(
+                small_chunk_backend(ctx),
+                Profile::Robust,
+                Some(SMALL_CHUNK_SURFELS),
+            )
         }),
         gpu("compaction_matches_twins_in_small_chunks", |ctx| {
             compaction_matches_twins(small_chunk_backend(ctx))
