@@ -1,13 +1,13 @@
 // fuse_prune.wgsl: duplicate removal of best-candidate fusion (robust profile), after
 // fuse_merge_chosen. A surfel this frame did not refresh retires (weight 0, last frame 0,
-// which the unstable-surfel removal drops at its next run) when the pixel it projects to
-// merged its measurement into a surfel (fuse_merge_chosen's `merged` entry) that lies
-// within prune_radius_scale times the larger of their radii, faces the same way
-// (PRUNE_COS_NORMAL) and is at least as confident: a layered copy of the surface the merged
-// surfel now stands for (Keller et al. 2013 merge such surfels). Without it, noisy depth
-// leaves copies that different pixels keep refreshing, and the camera sees a denser map on
-// every revisit. Dispatched once per map chunk; the merged surfel may be in any chunk, as
-// its copy is per pixel. CPU twin: src/cpu/fuse_prune.rs.
+// which the unstable-surfel removal drops at its first run after frame max_age_frames)
+// when the pixel it projects to merged its measurement into a surfel (fuse_merge_chosen's
+// `merged` entry) that lies within prune_radius_scale times the larger of their radii,
+// faces the same way (PRUNE_COS_NORMAL) and is at least as confident: a layered copy of
+// the surface the merged surfel now stands for (Keller et al. 2013 merge such surfels).
+// Without it, noisy depth leaves copies that different pixels keep refreshing, and the
+// camera sees a denser map on every revisit. Dispatched once per map chunk; the merged
+// surfel may be in any chunk, as its copy is per pixel. CPU twin: src/cpu/fuse_prune.rs.
 //
 // Bindings (@group(0)):
 //   0 params      storage read FuseParams (tracked pose, intrinsics, surfel_count,

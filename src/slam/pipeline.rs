@@ -307,8 +307,10 @@ pub struct SlamParams {
     /// the image centre (`pixel_confidence`); 0 weighs every measurement 1 (counts).
     pub fuse_confidence_sigma: f32,
     /// Best-candidate fusion's pruning of duplicate surfels (`fuse_prune`), in radii; 0
-    /// turns it off. It runs on the frames [`SlamParams::unstable_removal`] runs after
-    /// (which then drops what it retired at once), or on every frame without the removal.
+    /// turns it off. It runs on the frames [`SlamParams::unstable_removal`] runs after, or
+    /// on every frame without the removal. A retired surfel has weight 0 and last frame 0,
+    /// so the removal drops it once the frame is past `max_age_frames` (from frame 30 on
+    /// in the robust profile, at once; retired on frames 10 and 20, at frame 30).
     /// See [`ROBUST_PRUNE_RADIUS_SCALE`].
     pub fuse_prune_scale: f32,
     /// Tracking or ground-truth poses.
@@ -847,23 +849,29 @@ impl<B: Backend> Slam<B> {
     }
 
     /// `fuse_prune`'s radius scale for `frame_id`: [`SlamParams::fuse_prune_scale`] on the
-    /// frames the unstable-surfel removal runs after (which then drops what it retired
-    /// straight away), 0 (off) on the others; every frame when there is no removal.
+    /// frames the unstable-surfel removal runs after ([`Slam::removal_after`]), 0 (off) on
+    /// the others; every frame when there is no removal.
     fn prune_scale(&self, frame_id: u32) -> f32 {
-        match self.params.unstable_removal {
-            Some(r) if frame_id % r.every_frames.max(1) != 0 => 0.0,
-            _ => self.params.fuse_prune_scale,
+        if self.params.unstable_removal.is_none() || self.removal_after(frame_id).is_some() {
+            self.params.fuse_prune_scale
+        } else {
+            0.0
         }
+    }
+
+    /// The unstable-surfel removal's settings when it runs after fusing `frame_id`
+    /// ([`UnstableRemoval::every_frames`]), else `None`.
+    fn removal_after(&self, frame_id: u32) -> Option<UnstableRemoval> {
+        self.params
+            .unstable_removal
+            .filter(|r| frame_id % r.every_frames.max(1) == 0)
     }
 
     /// Parameters of the compaction kernels after fusing `frame_id` (count filled by the
     /// backend), or `None` when [`SlamParams::unstable_removal`] is off or does not run
     /// after this frame ([`UnstableRemoval::every_frames`]).
     pub fn compact_params(&self, frame_id: u32) -> Option<CompactParams> {
-        let r = self.params.unstable_removal?;
-        if frame_id % r.every_frames.max(1) != 0 {
-            return None;
-        }
+        let r = self.removal_after(frame_id)?;
         Some(CompactParams {
             surfel_count: self.backend.surfel_count() as u32,
             frame_id,
