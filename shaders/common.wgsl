@@ -312,6 +312,33 @@ fn back_project(cam: vec4<f32>, texel: vec2<u32>, z: f32) -> vec3<f32> {
     return vec3<f32>(x, y, z);
 }
 
+// Filter 2 of best-candidate association (fuse_select, fuse_flags): how far surfel centre
+// p_cam (camera frame, metres; unit normal n_cam, radius_m) lies off the ray of pixel
+// `texel`, whose measurement nd is its camera-frame normal with the depth in w (valid).
+// Negative when a gate fails: the distance along the ray is dist_m or more, the distance
+// off the ray radius_m or more (the disc misses the ray), or the normals' cosine is
+// cos_normal or less. Mirrors `cpu::candidate_off_ray`.
+fn candidate_off_ray(
+    cam: vec4<f32>,
+    texel: vec2<u32>,
+    nd: vec4<f32>,
+    p_cam: vec3<f32>,
+    n_cam: vec3<f32>,
+    radius_m: f32,
+    dist_m: f32,
+    cos_normal: f32,
+) -> f32 {
+    let q = back_project(cam, texel, nd.w);
+    let ray = q / length(q);
+    let d = p_cam - q;
+    let along = dot(d, ray);
+    let off_ray = length(d - ray * along);
+    if abs(along) >= dist_m || off_ray >= radius_m || dot(n_cam, xyz(nd)) <= cos_normal {
+        return -1.0;
+    }
+    return off_ray;
+}
+
 // xyz of a vec4 map entry. Mirrors `cpu::xyz`.
 fn xyz(v: vec4<f32>) -> vec3<f32> {
     return v.xyz;

@@ -2,15 +2,20 @@
 // measurement that no surfel merged with (projective association) or covers (best
 // candidate), at the pixel's append_index. First of fuse_add's three kernels (then
 // prefix_sum over the flags, which gives each new surfel its slot in append order, see
-// `layout::APPEND_TILE_PX`, then fuse_add). CPU twin: src/cpu/fuse_flags.rs.
+// `layout::APPEND_TILE_PX`, then fuse_add). CPU twin: src/cpu/fuse_flags.rs (its header
+// says why best-candidate association asks the neighbours).
 //
 // Bindings (@group(0)):
-//   0 params        storage read FuseParams (width, height)
+//   0 params        storage read FuseParams (tracked pose, intrinsics, size, association,
+//                   gates)
 //   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the depth in
 //                   w, zero where invalid
 //   2 assoc         storage read array<vec2<u32>>: the u64 key per pixel (low word first),
 //                   non-zero where a surfel merged with or was chosen by the pixel
-//   3 flags         storage rw array<u32>: out, 1 new surfel / 0 not, at append_index of
+//   3 merged        storage read array<vec4<f32>>: best-candidate association only, per
+//                   pixel the surfel it merged into (fuse_merge_chosen: position_weight at
+//                   2 pix, w > 0 where it merged; unit normal and radius at 2 pix + 1)
+//   4 flags         storage rw array<u32>: out, 1 new surfel / 0 not, at append_index of
 //                   the pixel (layout::append_slots(width, height) entries; the holes, no
 //                   pixel's, are never written and stay 0)
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see vertex_to_normal.wgsl).
@@ -18,7 +23,8 @@
 @group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read> assoc: array<vec2<u32>>;
-@group(0) @binding(3) var<storage, read_write> flags: array<u32>;
+@group(0) @binding(3) var<storage, read> merged: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> flags: array<u32>;
 
 const TILE: u32 = 8u;
 
@@ -33,12 +39,44 @@ fn main(
     let size = vec2<u32>(params.width, params.height);
     for (var v = gid.y; v < size.y; v += stride.y) {
         for (var u = gid.x; u < size.x; u += stride.x) {
-            let pix = v * size.x + u;
-            let key = assoc[pix];
+            let texel = vec2<u32>(u, v);
+            let key = assoc[v * size.x + u];
+            let nd = textureLoad(normal_depth, texel, 0);
             // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
-            let new_surfel = key.x == 0u && key.y == 0u
-                && is_valid(textureLoad(normal_depth, vec2<u32>(u, v), 0));
-            flags[append_index(vec2<u32>(u, v))] = select(0u, 1u, new_surfel);
+            var new_surfel = key.x == 0u && key.y == 0u && is_valid(nd);
+            if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
+                new_surfel = !neighbour_covers(texel, nd);
+            }
+            flags[append_index(texel)] = select(0u, 1u, new_surfel);
         }
     }
+}
+
+// Whether a surfel that one of the 8 neighbours of `texel` (measurement nd, valid) merged
+// into passes this pixel's gates (fuse_select's filter 2).
+fn neighbour_covers(texel: vec2<u32>, nd: vec4<f32>) -> bool {
+    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    for (var dv = -1; dv <= 1; dv++) {
+        for (var du = -1; du <= 1; du++) {
+            let u = i32(texel.x) + du;
+            let v = i32(texel.y) + dv;
+            if (du == 0 && dv == 0) || u < 0 || v < 0 || u >= i32(params.width)
+                || v >= i32(params.height) {
+                continue;
+            }
+            let pix = u32(v) * params.width + u32(u);
+            let pw = merged[2u * pix];
+            if !is_valid(pw) {
+                continue;
+            }
+            let nr = merged[2u * pix + 1u];
+            let p_cam = transform_point(params.t_world_to_cam, xyz(pw));
+            let n_cam = transform_dir(params.t_world_to_cam, xyz(nr));
+            if candidate_off_ray(cam, texel, nd, p_cam, n_cam, nr.w, params.dist_threshold_m,
+                params.cos_normal_threshold) >= 0.0 {
+                return true;
+            }
+        }
+    }
+    return false;
 }

@@ -21,11 +21,11 @@
 //   7 color            storage rw array<vec4<f32>>: RGB 0..255, a = radius (m)
 //   8 assoc         storage read array<vec2<u32>>: fuse_select's u64 key per pixel (low
 //                   word, the chosen map-wide surfel index, first); (0, 0) = no choice
-//   9 merged        storage rw array<vec4<f32>>: two entries per pixel, written only when
-//                   params.prune_radius_scale > 0 (the host clears it then): the surfel
-//                   this pixel merged into, position_weight (w > 0) at 2 pix, then its
-//                   unit normal (world frame) and radius (metres) at 2 pix + 1; zero where
-//                   the pixel merged nothing. fuse_prune reads it, whatever the chunk.
+//   9 merged        storage rw array<vec4<f32>>: two entries per pixel, cleared by the
+//                   host: the surfel this pixel merged into, position_weight (w > 0) at
+//                   2 pix, then its unit normal (world frame) and radius (metres) at
+//                   2 pix + 1; zero where the pixel merged nothing. fuse_flags and
+//                   fuse_prune read it, whatever the chunk.
 //   (see src/gpu/map_buffers.rs)
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).
 
@@ -88,10 +88,8 @@ fn merge_chosen(texel: vec2<u32>) {
     position_weight[slot] = m.position_weight;
     normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(m.normal), params.frame_id);
     color[slot] = m.color;
-    if params.prune_radius_scale > 0.0 {
-        merged[2u * pix] = m.position_weight;
-        merged[2u * pix + 1u] = vec4<f32>(m.normal, m.color.w);
-    }
+    merged[2u * pix] = m.position_weight;
+    merged[2u * pix + 1u] = vec4<f32>(m.normal, m.color.w);
     // Grow the block's box if the surfel moved out of it.
     let block = key.x / BLOCK_SURFELS;
     let p = m.position_weight.xyz;

@@ -1,6 +1,7 @@
-// fuse_select.wgsl: every pixel picks the one surfel it will fuse with (best-candidate
-// association, robust profile), before fuse_merge and fuse_add. Dispatched once per map
-// chunk. CPU twin: src/cpu/fuse_select.rs (its header states the gates and the choice).
+// fuse_select.wgsl: every pixel picks the one surfel it will fuse with among those whose
+// centres project into it (best-candidate association, robust profile), before
+// fuse_merge_chosen and fuse_add. Dispatched once per map chunk. CPU twin:
+// src/cpu/fuse_select.rs (its header states the gates and the choice).
 //
 // Bindings (@group(0)):
 //   0 params      storage read FuseParams (tracked pose, intrinsics, surfel_count, gates)
@@ -31,8 +32,6 @@
 @group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
-// Largest half-width of the window a disc covers (mirrors `MAX_SELECT_RADIUS_PX`).
-const MAX_SELECT_RADIUS_PX: i32 = 1;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
@@ -56,42 +55,24 @@ fn main(
     }
 }
 
-// The pixels surfel i (map-wide index; `slot` in the chunk's arrays) covers and passes the
-// gates of keep the better of their key and this surfel's.
+// The pixel surfel i (map-wide index; `slot` in the chunk's arrays) projects to keeps the
+// better of its key and this surfel's, if the surfel passes its gates.
 fn select_for_surfel(i: u32, slot: u32, cam: vec4<f32>) {
     let p_cam = transform_point(params.t_world_to_cam, xyz(position_weight[slot]));
-    let centre = project_to_texel(cam, params.width, params.height, p_cam);
-    if centre.x < 0 {
+    let uv = project_to_texel(cam, params.width, params.height, p_cam);
+    if uv.x < 0 {
         return;
     }
-    let n_world = bitcast<vec3<f32>>(normal_frame[slot].xyz);
-    let n_cam = transform_dir(params.t_world_to_cam, n_world);
-    let radius = color[slot].w;
-    let reach = min(i32(radius * params.fx / p_cam.z), MAX_SELECT_RADIUS_PX);
-    for (var dv = -reach; dv <= reach; dv++) {
-        for (var du = -reach; du <= reach; du++) {
-            let u = centre.x + du;
-            let v = centre.y + dv;
-            if u < 0 || v < 0 || u >= i32(params.width) || v >= i32(params.height) {
-                continue;
-            }
-            let texel = vec2<u32>(u32(u), u32(v));
-            let pix = texel.y * params.width + texel.x;
-            let nd = textureLoad(normal_depth, texel, 0);
-            if !is_valid(nd) {
-                continue;
-            }
-            let q = back_project(cam, texel, nd.w);
-            let ray = q / length(q);
-            let d = p_cam - q;
-            let along = dot(d, ray);
-            let off_ray = length(d - ray * along);
-            if abs(along) >= params.dist_threshold_m
-                || off_ray >= radius
-                || dot(n_cam, xyz(nd)) <= params.cos_normal_threshold {
-                continue;
-            }
-            atomicMax(&assoc[pix], pack_depth_index(off_ray, i));
-        }
+    let texel = vec2<u32>(uv);
+    let nd = textureLoad(normal_depth, texel, 0);
+    if !is_valid(nd) {
+        return;
     }
+    let n_cam = transform_dir(params.t_world_to_cam, bitcast<vec3<f32>>(normal_frame[slot].xyz));
+    let off_ray = candidate_off_ray(cam, texel, nd, p_cam, n_cam, color[slot].w,
+        params.dist_threshold_m, params.cos_normal_threshold);
+    if off_ray < 0.0 {
+        return;
+    }
+    atomicMax(&assoc[texel.y * params.width + texel.x], pack_depth_index(off_ray, i));
 }

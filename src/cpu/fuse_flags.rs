@@ -3,32 +3,92 @@
 //! `append_index`. With `prefix_sum` over the flags it gives `fuse_add` each new surfel's
 //! slot in append order (`layout::APPEND_TILE_PX`), on both backends, so the GPU map has
 //! the CPU map's order and two runs write the same bytes.
+//!
+//! Best-candidate association also asks the neighbours: `fuse_select` lets a pixel choose
+//! only among the surfels whose centres project into it, and the projected map has holes
+//! (surfels lie about a pixel apart, not on the pixel grid), so a pixel that chose nothing
+//! is still covered when a surfel that one of its 8 neighbours merged into (`merged`, after
+//! the merge) passes this pixel's gates ([`candidate_off_ray`]). Without this, revisits
+//! grow the map. It replaces a 3x3 window per surfel in `fuse_select`, at the cost of
+//! the image instead of the map.
 
-use super::{append_index, is_valid};
-use crate::layout::FuseParams;
+use super::{append_index, candidate_off_ray, is_valid, transform_dir, transform_point, xyz};
+use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
 /// Bindings (as in the shader header):
-/// - 0 `params`: `FuseParams` (width, height)
+/// - 0 `params`: `FuseParams` (tracked pose, intrinsics, size, association, gates)
 /// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w, zero
 ///   where invalid
 /// - 2 `assoc`: one key per pixel, non-zero where a surfel merged with or was chosen by the
 ///   pixel
-/// - 3 `flags` (out): 1 new surfel / 0 not, `layout::append_slots(width, height)` entries
+/// - 3 `merged`: best-candidate association only, per pixel the surfel it merged into
+///   (`fuse_merge_chosen`: `position_weight` at `2 pix`, w > 0 where it merged; unit normal
+///   and radius at `2 pix + 1`)
+/// - 4 `flags` (out): 1 new surfel / 0 not, `layout::append_slots(width, height)` entries
 ///   indexed by `append_index` (the holes, no pixel's, are never written: they stay 0)
 pub fn fuse_flags(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     assoc: &[u64],
+    merged: &[[f32; 4]],
     flags: &mut [u32],
 ) {
     // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
     // row by row.
     for v in 0..params.height {
         for u in 0..params.width {
+            let texel = [u, v];
             let pix = (v * params.width + u) as usize;
+            let nd = normal_depth[pix];
             // Valid normal (w = depth > 0) implies a valid vertex.
-            let new_surfel = assoc[pix] == 0 && is_valid(normal_depth[pix]);
-            flags[append_index([u, v])] = new_surfel as u32;
+            let mut new_surfel = assoc[pix] == 0 && is_valid(nd);
+            if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
+                new_surfel = !neighbour_covers(params, merged, texel, nd);
+            }
+            flags[append_index(texel)] = new_surfel as u32;
         }
     }
+}
+
+/// Whether a surfel that one of the 8 neighbours of `texel` (measurement `nd`, valid)
+/// merged into passes this pixel's gates (`fuse_select`'s filter 2).
+fn neighbour_covers(params: &FuseParams, merged: &[[f32; 4]], texel: [u32; 2], nd: [f32; 4]) -> bool {
+    let cam = [params.fx, params.fy, params.cx, params.cy];
+    for dv in -1..=1 {
+        for du in -1..=1 {
+            let u = texel[0] as i32 + du;
+            let v = texel[1] as i32 + dv;
+            if (du == 0 && dv == 0)
+                || u < 0
+                || v < 0
+                || u >= params.width as i32
+                || v >= params.height as i32
+            {
+                continue;
+            }
+            let pix = (v as u32 * params.width + u as u32) as usize;
+            let pw = merged[2 * pix];
+            if !is_valid(pw) {
+                continue;
+            }
+            let nr = merged[2 * pix + 1];
+            let p_cam = transform_point(&params.t_world_to_cam, xyz(pw));
+            let n_cam = transform_dir(&params.t_world_to_cam, xyz(nr));
+            if candidate_off_ray(
+                cam,
+                texel,
+                nd,
+                p_cam,
+                n_cam,
+                nr[3],
+                params.dist_threshold_m,
+                params.cos_normal_threshold,
+            )
+            .is_some()
+            {
+                return true;
+            }
+        }
+    }
+    false
 }

@@ -21,11 +21,10 @@ use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 ///   (ordered-encoded), grown to hold every merged surfel
 /// - 5 `position_weight`, 6 `normal_frame`, 7 `color` (in/out): the chunk's surfels
 /// - 8 `assoc`: `fuse_select`'s key per pixel (chosen map-wide index in the low 32 bits)
-/// - 9 `merged` (out): two entries per pixel, written only when
-///   `params.prune_radius_scale > 0` (the caller clears it then): the surfel this pixel
+/// - 9 `merged` (out): two entries per pixel, cleared by the caller: the surfel this pixel
 ///   merged into, `position_weight` (w > 0) at `2 pix`, then its unit normal (world frame)
-///   and radius (metres) at `2 pix + 1`; zero where the pixel merged nothing. `fuse_prune`
-///   reads it, whatever the chunk.
+///   and radius (metres) at `2 pix + 1`; zero where the pixel merged nothing. `fuse_flags`
+///   and `fuse_prune` read it, whatever the chunk.
 #[allow(clippy::too_many_arguments)] // the shader's ten bindings, in order
 pub fn fuse_merge_chosen(
     params: &FuseParams,
@@ -75,10 +74,8 @@ pub fn fuse_merge_chosen(
             let n = m.normal;
             normal_frame[s] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
             color[s] = m.color;
-            if params.prune_radius_scale > 0.0 {
-                merged[2 * pix] = m.position_weight;
-                merged[2 * pix + 1] = [n.x, n.y, n.z, m.color[3]];
-            }
+            merged[2 * pix] = m.position_weight;
+            merged[2 * pix + 1] = [n.x, n.y, n.z, m.color[3]];
             // Grow the block's box if the surfel moved out of it.
             let block = (key as u32 / BLOCK_SURFELS) as usize;
             for k in 0..3 {

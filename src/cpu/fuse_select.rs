@@ -1,34 +1,29 @@
 //! CPU twin of `shaders/fuse_select.wgsl`: every pixel picks the one surfel it will fuse
 //! with (the best-candidate association of the robust profile, Keller et al. 2013 Sec. 4.2,
-//! ElasticFusion), before `fuse_merge` and `fuse_add`.
+//! ElasticFusion), before `fuse_merge_chosen` and `fuse_add`.
 //!
 //! For every surfel (world frame): move it and its normal into the tracked camera and
-//! project it (filter 1: inside the image, `z > 0`). Its disc covers the pixels within
-//! its radius: the projected pixel and, when the radius spans at least one pixel at that
-//! depth, its 8 neighbours ([`MAX_SELECT_RADIUS_PX`]). For each covered pixel with a
-//! valid measurement `q` (camera frame, rebuilt with `back_project`), filter 2 has three
-//! gates: the distance along the pixel's ray `|(p - q) . ray| < dist_threshold_m` (depth),
-//! the distance off the ray `|(p - q) - ((p - q) . ray) ray| < radius` (the disc covers
-//! the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels that pass,
-//! the pixel keeps the one nearest its ray (smallest off-ray distance; ties to the larger
-//! index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the choice does
-//! not depend on thread order. `fuse_merge` then merges surfel `i` with its projected pixel
-//! only if that pixel chose `i`; `fuse_add` adds only pixels no surfel covers.
+//! project it (filter 1: inside the image, `z > 0`). If its pixel has a valid measurement
+//! `q` (camera frame, rebuilt with `back_project`), filter 2 ([`candidate_off_ray`]) has
+//! three gates: the distance along the pixel's ray `|(p - q) . ray| < dist_threshold_m`
+//! (depth), the distance off the ray `|(p - q) - ((p - q) . ray) ray| < radius` (the disc
+//! covers the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels
+//! that pass, the pixel keeps the one nearest its ray (smallest off-ray distance; ties to
+//! the larger index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the
+//! choice does not depend on thread order. As in ElasticFusion's index map, a pixel only
+//! chooses among the surfels whose centres project into it. `fuse_merge_chosen` then
+//! merges each chosen surfel with its pixel; `fuse_flags` adds only the pixels that chose
+//! nothing and that no neighbour's merged surfel covers (its header says why).
 //!
 //! Surfels that pass the gates but are not chosen are neither merged nor refreshed: a
-//! second copy of a surface stops gaining confidence and the removal of unstable surfels
-//! (`compact_flags`) takes it away.
+//! second copy of a surface stops gaining confidence, `fuse_prune` retires it when it lies
+//! on the merged one, and the removal of unstable surfels (`compact_flags`) takes it away.
 
 use super::{
-    back_project, block_visible, chunk_blocks, decode_corner, is_valid, normal_of,
+    block_visible, candidate_off_ray, chunk_blocks, decode_corner, is_valid, normal_of,
     pack_depth_index, project_to_texel, transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
-
-/// Largest half-width, pixels, of the window a surfel's disc covers: 1 (3x3). Discs are
-/// at most 2 sqrt(2) pixel footprints wide (`surfel_radius`) where they were made, so a
-/// wider window only matters for surfels seen again from much closer.
-pub const MAX_SELECT_RADIUS_PX: i32 = 1;
 
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
 /// - 0 `params`: `FuseParams` (tracked pose, intrinsics, `surfel_count`, gates)
@@ -87,8 +82,8 @@ struct Chunk<'a> {
     color: &'a [[f32; 4]],
 }
 
-/// The pixels surfel `i` (map-wide index; `slot` in the chunk's arrays) covers and passes
-/// the gates of keep the better of their key and this surfel's.
+/// The pixel surfel `i` (map-wide index; `slot` in the chunk's arrays) projects to keeps
+/// the better of its key and this surfel's, if the surfel passes its gates.
 fn select_for_surfel(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
@@ -100,37 +95,26 @@ fn select_for_surfel(
 ) {
     let slot = slot as usize;
     let p_cam = transform_point(&params.t_world_to_cam, xyz(map.position_weight[slot]));
-    let Some(centre) = project_to_texel(cam, params.width, params.height, p_cam) else {
+    let Some(texel) = project_to_texel(cam, params.width, params.height, p_cam) else {
         return;
     };
-    let n_cam = transform_dir(&params.t_world_to_cam, normal_of(map.normal_frame[slot]));
-    let radius = map.color[slot][3];
-    let reach = ((radius * params.fx / p_cam.z) as i32).min(MAX_SELECT_RADIUS_PX);
-    for dv in -reach..=reach {
-        for du in -reach..=reach {
-            let u = centre[0] as i32 + du;
-            let v = centre[1] as i32 + dv;
-            if u < 0 || v < 0 || u >= params.width as i32 || v >= params.height as i32 {
-                continue;
-            }
-            let texel = [u as u32, v as u32];
-            let pix = (texel[1] * params.width + texel[0]) as usize;
-            let nd = normal_depth[pix];
-            if !is_valid(nd) {
-                continue;
-            }
-            let q = back_project(cam, texel, nd[3]);
-            let ray = q / q.length();
-            let d = p_cam - q;
-            let along = d.dot(ray);
-            let off_ray = (d - ray * along).length();
-            if along.abs() >= params.dist_threshold_m
-                || off_ray >= radius
-                || n_cam.dot(xyz(nd)) <= params.cos_normal_threshold
-            {
-                continue;
-            }
-            assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
-        }
+    let pix = (texel[1] * params.width + texel[0]) as usize;
+    let nd = normal_depth[pix];
+    if !is_valid(nd) {
+        return;
     }
+    let n_cam = transform_dir(&params.t_world_to_cam, normal_of(map.normal_frame[slot]));
+    let Some(off_ray) = candidate_off_ray(
+        cam,
+        texel,
+        nd,
+        p_cam,
+        n_cam,
+        map.color[slot][3],
+        params.dist_threshold_m,
+        params.cos_normal_threshold,
+    ) else {
+        return;
+    };
+    assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
 }

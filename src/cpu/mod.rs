@@ -182,6 +182,36 @@ pub fn normal_of(nf: [u32; 4]) -> Vec3 {
     )
 }
 
+/// Filter 2 of best-candidate association (`fuse_select`, `fuse_flags`): how far surfel
+/// centre `p_cam` (camera frame, metres; unit normal `n_cam`, `radius_m`) lies off the ray
+/// of pixel `texel`, whose measurement `nd` is its camera-frame normal with the depth in w
+/// (valid). `None` when a gate fails: the distance along the ray is `dist_m` or more, the
+/// distance off the ray `radius_m` or more (the disc misses the ray), or the normals'
+/// cosine is `cos_normal` or less. Mirrors `candidate_off_ray` in common.wgsl (negative for
+/// `None`).
+#[allow(clippy::too_many_arguments)] // the shader function's parameters, in order
+#[inline]
+pub fn candidate_off_ray(
+    cam: [f32; 4],
+    texel: [u32; 2],
+    nd: [f32; 4],
+    p_cam: Vec3,
+    n_cam: Vec3,
+    radius_m: f32,
+    dist_m: f32,
+    cos_normal: f32,
+) -> Option<f32> {
+    let q = back_project(cam, texel, nd[3]);
+    let ray = q / q.length();
+    let d = p_cam - q;
+    let along = d.dot(ray);
+    let off_ray = (d - ray * along).length();
+    if along.abs() >= dist_m || off_ray >= radius_m || n_cam.dot(xyz(nd)) <= cos_normal {
+        return None;
+    }
+    Some(off_ray)
+}
+
 /// xyz of a `vec4` map entry. Mirrors `xyz` in common.wgsl.
 #[inline]
 pub fn xyz(v: [f32; 4]) -> Vec3 {

@@ -191,10 +191,11 @@ pub mod bindings {
         Binding::read("color: a = radius"),
         Binding::read("merged: the merged surfel per pixel"),
     ];
-    pub const FUSE_FLAGS: [Binding; 4] = [
+    pub const FUSE_FLAGS: [Binding; 5] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::read("assoc: u64 key per pixel"),
+        Binding::read("merged: the merged surfel per pixel"),
         Binding::read_write("flags: 1 new surfel / 0 per pixel"),
     ];
     pub const FUSE_ADD: [Binding; 9] = [
@@ -304,7 +305,8 @@ struct FrameBuffers {
     /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
     assoc: GpuArray<u64>,
     /// Per pixel, the surfel it merged into (two entries; see fuse_merge_chosen.wgsl),
-    /// cleared and filled on the frames fuse_prune runs.
+    /// cleared and filled on every frame of best-candidate association (fuse_flags and
+    /// fuse_prune read it).
     merged: GpuArray<[f32; 4]>,
     /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
@@ -1006,6 +1008,7 @@ impl GpuBackend {
                         self.u_fuse.binding(),
                         f.normal_depth.binding(),
                         f.assoc.binding(),
+                        f.merged.binding(),
                         f.add_flags.binding(),
                     ],
                 ),
@@ -1443,7 +1446,7 @@ impl Backend for GpuBackend {
             self.u_fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
             f.assoc.clear(&mut enc);
-            if params.prune_radius_scale > 0.0 {
+            if params.association == ASSOCIATION_BEST_CANDIDATE {
                 f.merged.clear(&mut enc);
             }
             let mut passes: Vec<_> = bounds

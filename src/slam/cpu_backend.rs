@@ -27,7 +27,7 @@ pub struct CpuBackend {
     prediction: Vec<Prediction>,
     assoc: Vec<u64>,
     /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
-    /// on the frames `fuse_prune` runs.
+    /// on every frame of best-candidate association (`fuse_flags`, `fuse_prune`).
     merged: Vec<[f32; 4]>,
     /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
@@ -230,7 +230,7 @@ impl Backend for CpuBackend {
         params.capacity = (count + n_pix) as u32;
         self.assoc.clear();
         self.assoc.resize(n_pix, 0);
-        if params.prune_radius_scale > 0.0 {
+        if params.association == ASSOCIATION_BEST_CANDIDATE {
             self.merged.clear();
             self.merged.resize(2 * n_pix, [0.0; 4]);
         }
@@ -293,6 +293,7 @@ impl Backend for CpuBackend {
             &params,
             &self.frame.normal_depth,
             &self.assoc,
+            &self.merged,
             &mut self.add_flags,
         );
         self.add_offsets.resize(n_slots, 0);
