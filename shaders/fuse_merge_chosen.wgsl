@@ -1,9 +1,9 @@
 // fuse_merge_chosen.wgsl: the merge of best-candidate association (robust profile), driven
 // by the pixels: every pixel whose fuse_select key chose a surfel of this chunk merges its
-// measurement into that surfel (merged_surfel's averages, last_frame = frame_id) when the
-// surfel projects onto this very pixel, so each surfel has at most one writer. The same
-// merges as walking the surfels and asking their pixel whether it chose them, at the cost
-// of the image instead of the map. A merge that moves a surfel out of its block's box
+// measurement into that surfel (merged_surfel's averages, last_frame = frame_id). A surfel
+// keys only the pixel its centre projects to, so each surfel has at most one writer. The
+// same merges as walking the surfels and asking their pixel whether it chose them, at the
+// cost of the image instead of the map. A merge that moves a surfel out of its block's box
 // grows the box. Dispatched once per map chunk. CPU twin: src/cpu/fuse_merge_chosen.rs.
 //
 // Bindings (@group(0)):
@@ -57,7 +57,7 @@ fn main(
 }
 
 // Merges pixel `texel`'s measurement into the surfel it chose, if that surfel is in this
-// chunk and projects onto the pixel.
+// chunk.
 fn merge_chosen(texel: vec2<u32>) {
     let pix = texel.y * params.width + texel.x;
     let key = assoc[pix];
@@ -71,10 +71,6 @@ fn merge_chosen(texel: vec2<u32>) {
     }
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
     let pw = position_weight[slot];
-    let uv = project_to_texel(cam, params.width, params.height, transform_point(params.t_world_to_cam, xyz(pw)));
-    if uv.x != i32(texel.x) || uv.y != i32(texel.y) {
-        return;
-    }
     // fuse_select chose only on a valid pixel (a valid normal implies a valid vertex).
     let nd = textureLoad(normal_depth, texel, 0);
     let q_cam = back_project(cam, texel, nd.w);

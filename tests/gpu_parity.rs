@@ -710,6 +710,21 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         before.len()
     );
     assert!(merged > 1000, "too few merges for a real test");
+    if fp.association == ASSOCIATION_BEST_CANDIDATE {
+        // fuse_flags: a valid pixel that chose nothing is added unless a neighbour's merged
+        // surfel covers it; the test must see such pixels.
+        let keys = gpu.download_assoc().unwrap();
+        let nd = s.backend.download_frame().unwrap().normal_depth;
+        let unchosen = (0..keys.len())
+            .filter(|&p| keys[p] == 0 && nd[p][3] > 0.0)
+            .count();
+        let covered = unchosen - (n_gpu - before.len());
+        eprintln!("fuse_flags: {unchosen} valid pixels chose nothing, {covered} covered");
+        assert!(
+            covered > 100,
+            "too few neighbour-covered pixels for a real test"
+        );
+    }
     // fuse_prune (robust profile) retires duplicates: weight 0 and last frame 0.
     let retired = |m: &SurfelMap| {
         (0..before.len())

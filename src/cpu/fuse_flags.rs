@@ -52,7 +52,12 @@ pub fn fuse_flags(
 
 /// Whether a surfel that one of the 8 neighbours of `texel` (measurement `nd`, valid)
 /// merged into passes this pixel's gates (`fuse_select`'s filter 2).
-fn neighbour_covers(params: &FuseParams, merged: &[[f32; 4]], texel: [u32; 2], nd: [f32; 4]) -> bool {
+fn neighbour_covers(
+    params: &FuseParams,
+    merged: &[[f32; 4]],
+    texel: [u32; 2],
+    nd: [f32; 4],
+) -> bool {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     for dv in -1..=1 {
         for du in -1..=1 {

@@ -1,14 +1,14 @@
 //! CPU twin of `shaders/fuse_merge_chosen.wgsl`: the merge of best-candidate association,
 //! driven by the pixels. Every pixel whose `fuse_select` key chose a surfel of this chunk
-//! merges its measurement into that surfel ([`merged_surfel`], `last_frame = frame_id`)
-//! when the surfel projects onto this very pixel, so each surfel has at most one writer:
-//! the same merges as walking the surfels and asking their pixel whether it chose them,
-//! at the cost of the image instead of the map. A merge that moves a surfel out of its
+//! merges its measurement into that surfel ([`merged_surfel`], `last_frame = frame_id`).
+//! A surfel keys only the pixel its centre projects to, so each surfel has at most one
+//! writer: the same merges as walking the surfels and asking their pixel whether it chose
+//! them, at the cost of the image instead of the map. A merge that moves a surfel out of its
 //! block's box grows the box.
 
 use super::{
-    back_project, merged_surfel, normal_of, pixel_confidence, project_to_texel, surfel_radius,
-    transform_dir, transform_point, xyz,
+    back_project, merged_surfel, normal_of, pixel_confidence, surfel_radius, transform_dir,
+    transform_point, xyz,
 };
 use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
@@ -55,10 +55,6 @@ pub fn fuse_merge_chosen(
             let texel = [u, v];
             let cam = [params.fx, params.fy, params.cx, params.cy];
             let pw = position_weight[s];
-            let p_cam = transform_point(&params.t_world_to_cam, xyz(pw));
-            if project_to_texel(cam, params.width, params.height, p_cam) != Some(texel) {
-                continue;
-            }
             // fuse_select chose only on a valid pixel (a valid normal implies a valid
             // vertex).
             let nd = normal_depth[pix];
