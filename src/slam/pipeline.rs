@@ -33,7 +33,7 @@
 //! | `preprocess` (`depth_to_vertex`, with [`SlamParams::bilateral`] `bilateral_filter`, then `vertex_to_normal`; per coarser level `pyramid_depth` then `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame, unfiltered), `filtered_vertex` (camera frame; only with the filter), `normal_depth` (camera-frame normal, depth in w; from `filtered_vertex` with the filter, else from `vertex`), `color`; per level `l >= 1`: its `vertex` (from level `l - 1`'s normals' source) and `normal_depth` |
 //! | `predict` (`project_model`, `predict_model`; per coarser level `pyramid_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame); per level `l >= 1` its `pred_vertex`, `pred_normal` (from level `l - 1`'s) |
 //! | `icp_system` (`icp_reduce`), per iteration, at a level | that level's `pred_vertex`, `pred_normal`, `normal_depth`; the current `t_world_to_cam`; the level's intrinsics | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
-//! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen` + with a prune scale, on removal frames, `fuse_prune`; then `fuse_flags`, `prefix_sum`, `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, duplicates retired, then appended), `assoc` (merged pixels), `merged` (the surfel each pixel merged into, when pruning), `counter` (surfel count) |
+//! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen` + with a prune scale, on removal frames, `fuse_prune`; then `fuse_flags`, `prefix_sum`, `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, duplicates retired, then appended), `assoc` (merged pixels), `merged` (the surfel each pixel merged into, best-candidate association), `counter` (surfel count) |
 //! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`SlamParams::unstable_removal`] | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
 //!
 //! The tracking loop reads back only the system per iteration and the surfel count per
@@ -332,9 +332,10 @@ pub enum Association {
     /// no surfel merged with becomes a new surfel.
     Projective,
     /// Keller et al. 2013 / ElasticFusion: each pixel picks the one surfel nearest its ray
-    /// among those whose disc covers it within the depth and angle gates (`fuse_select`);
-    /// only that surfel merges, from the pixel it projects to (`fuse_merge_chosen`), and a
-    /// pixel no disc covers becomes a new surfel.
+    /// among those whose centres project into it and whose disc covers its ray within the
+    /// depth and angle gates (`fuse_select`); only that surfel merges (`fuse_merge_chosen`).
+    /// A pixel that chose nothing becomes a new surfel unless the surfel a neighbouring
+    /// pixel merged into passes its gates (`fuse_flags`).
     BestCandidate,
 }
 
