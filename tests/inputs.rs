@@ -4,7 +4,7 @@
 mod common;
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 
 use common::harness::{plain, shared};
@@ -18,14 +18,6 @@ use wgslam::{geometry::se3, Error};
 /// Tiny frames keep every fixture under a few hundred bytes.
 const W: u32 = 4;
 const H: u32 = 3;
-
-/// Fresh empty directory under the system temp dir, unique per test and process.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wgslam-inputs-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn tiny_intrinsics() -> Intrinsics {
     Intrinsics {
@@ -61,8 +53,8 @@ fn write_rgb(path: &Path, w: u32, h: u32) {
 
 /// A TUM-layout sequence whose depth and colour stamps are deliberately interleaved so
 /// that only greedy nearest-first association gives the expected pairs.
-fn tum_fixture(name: &str) -> PathBuf {
-    let d = scratch(name);
+fn tum_fixture(name: &str) -> common::Scratch {
+    let d = common::temp_dir(&format!("inputs-{name}"));
     // depth: 1.000 1.033 1.066 1.100 ; rgb: 0.990 1.030 1.040 1.200 (1.200 matches nothing)
     // Candidate |dt| < 0.02: d0-r0 .010, d1-r1 .003, d1-r2 .007, d2-r2 .026 (no).
     // Greedy: d1-r1, d0-r0; d2 and d3 have no partner left.
@@ -90,8 +82,8 @@ fn tum_fixture(name: &str) -> PathBuf {
 }
 
 /// An ICL-layout sequence of `n` tiny frames with GT for frames 1.. (frame 0 has none).
-fn icl_fixture(name: &str, n: usize) -> PathBuf {
-    let d = scratch(name);
+fn icl_fixture(name: &str, n: usize) -> common::Scratch {
+    let d = common::temp_dir(&format!("inputs-{name}"));
     let mut assoc = String::new();
     let mut gt = String::new();
     for i in 0..n {
@@ -221,7 +213,7 @@ fn icl_layout_defaults_and_frame_index_stamps() {
 }
 
 fn missing_directory_and_files() {
-    let d = scratch("missing");
+    let d = common::temp_dir("inputs-missing");
     let msg = err_text(dataset::open(&d.join("nope"), &opts_tiny()));
     assert_contains(&msg, &["nope", "does not exist"]);
     let msg = err_text(dataset::open(&d, &opts_tiny()));
@@ -242,7 +234,7 @@ fn missing_directory_and_files() {
 }
 
 fn empty_sequence() {
-    let d = scratch("empty");
+    let d = common::temp_dir("inputs-empty");
     fs::write(d.join("associations.txt"), "# nothing here\n\n").unwrap();
     let msg = err_text(dataset::open(&d, &opts_tiny()));
     assert_contains(&msg, &["empty sequence"]);
@@ -370,7 +362,7 @@ fn shared_icl_sequence_if_present(data: &Path) {
 }
 
 fn trajectory_round_trip() {
-    let d = scratch("traj");
+    let d = common::temp_dir("inputs-traj");
     let poses: Vec<(f64, DMat4)> = (0..5)
         .map(|k| {
             let x = k as f64;
@@ -413,7 +405,7 @@ fn bundled_icl_ground_truth_reads() {
     assert_eq!(gt[0].0, 1.0);
     assert_eq!(gt[0].1.w_axis.truncate(), DVec3::new(0.0, 0.0, -2.25));
     // Round trip through write_tum keeps indices as integers and poses to 1e-8.
-    let d = scratch("icl-gt");
+    let d = common::temp_dir("inputs-icl-gt");
     let q = d.join("gt.txt");
     write_tum(&q, &gt).unwrap();
     let back = read_tum(&q).unwrap();
@@ -444,7 +436,7 @@ fn surfel_map() -> wgslam::slam::map::SurfelMap {
 }
 
 fn ply_round_trip() {
-    let d = scratch("ply-rt");
+    let d = common::temp_dir("inputs-ply-rt");
     let p = d.join("map.ply");
     let m = surfel_map();
     wgslam::io::write_surfel_map(&p, &m).unwrap();
@@ -479,7 +471,7 @@ fn ply_round_trip() {
 }
 
 fn ply_ascii_any_order_and_types() {
-    let d = scratch("ply-ascii");
+    let d = common::temp_dir("inputs-ply-ascii");
     let p = d.join("a.ply");
     fs::write(
         &p,
@@ -502,7 +494,7 @@ fn ply_ascii_any_order_and_types() {
 }
 
 fn ply_binary_skips_elements_before_vertices() {
-    let d = scratch("ply-bin");
+    let d = common::temp_dir("inputs-ply-bin");
     let p = d.join("b.ply");
     let mut b = b"ply\r\nformat binary_little_endian 1.0\nelement meta 2\nproperty short a\n\
 property list uchar uint ids\nelement vertex 2\nproperty double x\nproperty char q\n\
@@ -543,7 +535,7 @@ property float blue\nend_header\n"
 }
 
 fn ply_malformed() {
-    let d = scratch("ply-bad");
+    let d = common::temp_dir("inputs-ply-bad");
     let cases: [(&str, &[u8], &[&str]); 6] = [
         (
             "notply.ply",

@@ -16,14 +16,6 @@ use wgslam::scan::write::{encode_ply_xyz, format_matrix4, transform_points};
 use wgslam::scan::*;
 use wgslam::{geometry::se3, Error};
 
-/// A fresh empty directory under the system temp dir for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wgslam-scan-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, bytes).unwrap();
@@ -256,7 +248,7 @@ fn samples_parse() {
 const PCD_HEADER_XYZI: &str = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\n";
 
 fn pcd_ascii_reads_and_drops_nan() {
-    let d = temp_dir("pcd-ascii");
+    let d = common::temp_dir("scan-pcd-ascii");
     let p = write(
         &d,
         "a.pcd",
@@ -269,7 +261,7 @@ fn pcd_ascii_reads_and_drops_nan() {
 }
 
 fn pcd_binary_f64_with_extra_fields() {
-    let d = temp_dir("pcd-f64");
+    let d = common::temp_dir("scan-pcd-f64");
     let mut bytes = b"VERSION 0.7\nFIELDS rgb x y z\nSIZE 4 8 8 8\nTYPE U F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n".to_vec();
     for p in [[1.5f64, -2.0, 3.25], [0.0, 1.0, f64::INFINITY]] {
         bytes.extend_from_slice(&7u32.to_le_bytes());
@@ -287,7 +279,7 @@ fn err_text<T: std::fmt::Debug>(r: Result<T, Error>) -> String {
 }
 
 fn pcd_malformed_inputs_name_the_problem() {
-    let d = temp_dir("pcd-bad");
+    let d = common::temp_dir("scan-pcd-bad");
     let e = err_text(read_pcd(&write(
         &d,
         "c.pcd",
@@ -330,7 +322,7 @@ fn pcd_malformed_inputs_name_the_problem() {
 }
 
 fn ply_ascii_and_binary() {
-    let d = temp_dir("ply");
+    let d = common::temp_dir("scan-ply");
     let ascii = b"ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n1 2 3 255\n4 5 6 0\n3 0 1 1\n";
     let c = read_ply_xyz(&write(&d, "a.ply", ascii)).unwrap();
     assert_eq!(c.points, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
@@ -364,7 +356,7 @@ fn ply_ascii_and_binary() {
 }
 
 fn xyz_text_reader() {
-    let d = temp_dir("xyz");
+    let d = common::temp_dir("scan-xyz");
     let p = write(
         &d,
         "a.xyz",
@@ -384,7 +376,7 @@ fn xyz_text_reader() {
 }
 
 fn kitti_bin_reader() {
-    let d = temp_dir("kitti");
+    let d = common::temp_dir("scan-kitti");
     let mut bytes = Vec::new();
     for p in [
         [1.0f32, 2.0, 3.0, 0.5],
@@ -407,7 +399,7 @@ fn kitti_bin_reader() {
 }
 
 fn matrix4_reader() {
-    let d = temp_dir("mat");
+    let d = common::temp_dir("scan-mat");
     let t = known_motion();
     let back = read_matrix4(&write(&d, "t.txt", format_matrix4(&t).as_bytes())).unwrap();
     let (r, p) = pose_err(&back, &t);
@@ -552,7 +544,7 @@ fn icl_frames_10_to_20_recover_most_of_the_motion() {
 /// Synthetic odometry: 4 scans of the surface seen from poses moving 2 cm and 1 degree
 /// per step, written as text files, with a TUM ground-truth file keyed by file stem.
 fn odometry_chains_pairs_in_the_right_direction() {
-    let d = temp_dir("odo");
+    let d = common::temp_dir("scan-odo");
     let scans = d.join("scans");
     std::fs::create_dir_all(&scans).unwrap();
     let world = surface();
@@ -599,7 +591,7 @@ fn odometry_chains_pairs_in_the_right_direction() {
             min_z: None,
             max_z: None,
         },
-        out: Some(out.clone()),
+        out: Some(out.to_path_buf()),
     };
     let (seq, odo) = wgslam::cli::scan::run_odometry(&args).unwrap();
     assert_eq!(seq.scans.len(), 4);
@@ -643,7 +635,7 @@ fn airsim_layout_is_discovered_with_poses() {
 
 fn register_cli_writes_result_and_aligned_cloud() {
     let d = fast_gicp_dir();
-    let out = temp_dir("register-out");
+    let out = common::temp_dir("scan-register-out");
     let init = write(
         &out,
         "init.txt",
@@ -665,7 +657,7 @@ fn register_cli_writes_result_and_aligned_cloud() {
             max_z: None,
         },
         nn: wgslam::cli::scan::NnBackend::Kdtree,
-        out: Some(out.clone()),
+        out: Some(out.to_path_buf()),
     };
     let r = wgslam::cli::scan::run_register(&args).unwrap();
     let json: serde_json::Value =
@@ -691,7 +683,7 @@ const BENCH_VS_RESEEDED_ROT_TOL_DEG: f64 = 0.1;
 const BENCH_VS_RESEEDED_TRANS_TOL_M: f64 = 0.02;
 
 fn bench_scan_cpu_only_reports_sane_rows() {
-    let out = temp_dir("bench-scan");
+    let out = common::temp_dir("scan-bench-scan");
     let json_path = out.join("bench.json");
     let args = wgslam::cli::scan::BenchScanArgs {
         source: None,

@@ -67,6 +67,7 @@ pub(crate) fn temp_path(path: &Path) -> Result<PathBuf> {
 mod tests {
     use super::*;
 
+    /// A fresh empty directory; each test removes it when it passes.
     fn scratch(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("wgslam-atomic-{}-{}", std::process::id(), name));
         let _ = fs::remove_dir_all(&d);
@@ -89,6 +90,7 @@ mod tests {
             1,
             "temp file left behind"
         );
+        fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
@@ -107,6 +109,7 @@ mod tests {
             1,
             "temp file left behind"
         );
+        fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
@@ -115,5 +118,6 @@ mod tests {
         let p = d.join("no/such/dir/out.txt");
         let r = write_atomic(&p, |_| Ok(()));
         assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
+        fs::remove_dir_all(&d).unwrap();
     }
 }
