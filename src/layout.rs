@@ -223,8 +223,7 @@ pub struct FuseParams {
     pub confidence_sigma: f32,
     /// Best-candidate association's pruning of duplicate surfels (`fuse_prune`): a surfel
     /// that was not refreshed retires when the surfel its pixel merged into lies within
-    /// this many times the larger of their radii; 0 turns pruning off (and
-    /// `fuse_merge_chosen` then leaves `merged` alone).
+    /// this many times the larger of their radii; 0 turns pruning off.
     pub prune_radius_scale: f32,
     pub _pad1: u32,
     pub _pad2: u32,

@@ -710,10 +710,11 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         before.len()
     );
     assert!(merged > 1000, "too few merges for a real test");
+    // The GPU's association keys of this fuse step (fuse_select's choices).
+    let keys = gpu.download_assoc().unwrap();
     if fp.association == ASSOCIATION_BEST_CANDIDATE {
         // fuse_flags: a valid pixel that chose nothing is added unless a neighbour's merged
         // surfel covers it; the test must see such pixels.
-        let keys = gpu.download_assoc().unwrap();
         let nd = s.backend.download_frame().unwrap().normal_depth;
         let unchosen = (0..keys.len())
             .filter(|&p| keys[p] == 0 && nd[p][3] > 0.0)
@@ -744,7 +745,6 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         if let Some(chunk) = chunk_surfels {
             // Retired surfels whose pixel chose a surfel in another GPU chunk: the merged
             // surfel they were compared with came from that chunk, via `merged`.
-            let keys = gpu.download_assoc().unwrap();
             let cam = [fp.fx, fp.fy, fp.cx, fp.cy];
             let across = (0..before.len())
                 .filter(|&i| g.weight(i) == 0.0 && g.last_frame(i) == 0 && before.weight(i) > 0.0)
