@@ -19,6 +19,10 @@
 //   6 position_weight  storage rw array<vec4<f32>>: out, xyz world frame, w = confidence
 //   7 normal_frame     storage rw array<vec4<u32>>: out, normal bits, w = last_frame
 //   8 color            storage rw array<vec4<f32>>: out, RGB 0..255, a = radius (m)
+//   9 index_map     storage rw array<atomic<u64>>: with best-candidate association, the
+//                   index map fuse_select began; each new surfel competes for its own
+//                   pixel with pack_depth_index(z_cam, map-wide index), as project_model's
+//                   key (left alone otherwise)
 //   (map-wide surfel i is element i - chunk.base of the chunk's arrays; see
 //   src/gpu/map_buffers.rs)
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes at or past params.capacity (the host
@@ -33,6 +37,7 @@
 @group(0) @binding(6) var<storage, read_write> position_weight: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> normal_frame: array<vec4<u32>>;
 @group(0) @binding(8) var<storage, read_write> color: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read_write> index_map: array<atomic<u64>>;
 
 const TILE: u32 = 8u;
 
@@ -72,4 +77,7 @@ fn add_pixel(texel: vec2<u32>) {
     position_weight[slot] = vec4<f32>(p, w);
     normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
     color[slot] = vec4<f32>(textureLoad(color_map, texel, 0).xyz, r);
+    if params.association == ASSOCIATION_BEST_CANDIDATE {
+        atomicMax(&index_map[texel.y * params.width + texel.x], pack_depth_index(q_cam.z, i));
+    }
 }

@@ -16,11 +16,16 @@
 //   6 color            storage read array<vec4<f32>>: RGB 0..255, a = radius (metres)
 //   7 assoc       storage rw array<atomic<u64>>: one key per pixel, cleared to 0 by the
 //                 host; the chosen surfel's pack_depth_index(off_ray_m, map-wide index)
+//   8 index_map   storage rw array<atomic<u64>>: one key per pixel, cleared to 0 by the
+//                 host; project_model's key, pack_depth_index(z_cam, map-wide index), of
+//                 every surfel whose centre lands in the image, before this frame's
+//                 merges: the next frame's prediction at this pose (fuse_add adds the new
+//                 surfels), so predict skips project_model (see Backend::predict)
 //   (the chunk's arrays hold its surfels from slot 0; see src/gpu/map_buffers.rs)
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (a
 // surfel whose centre misses the image is skipped anyway); threads stride over a block.
-// The atomicMax keeps the surfel nearest each pixel's ray (ties to the larger index)
-// whatever the thread order. Needs SHADER_INT64_ATOMIC_MIN_MAX.
+// The atomicMaxes keep the surfel nearest each pixel's ray, and the one nearest the camera
+// (ties to the larger index), whatever the thread order. Needs SHADER_INT64_ATOMIC_MIN_MAX.
 
 @group(0) @binding(0) var<storage, read> params: FuseParams;
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
@@ -30,6 +35,7 @@
 @group(0) @binding(5) var<storage, read> normal_frame: array<vec4<u32>>;
 @group(0) @binding(6) var<storage, read> color: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u64>>;
+@group(0) @binding(8) var<storage, read_write> index_map: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -56,7 +62,8 @@ fn main(
 }
 
 // The pixel surfel i (map-wide index; `slot` in the chunk's arrays) projects to keeps the
-// better of its key and this surfel's, if the surfel passes its gates.
+// nearer of its index-map key and this surfel's, and the better of its association key and
+// this surfel's, if the surfel passes its gates.
 fn select_for_surfel(i: u32, slot: u32, cam: vec4<f32>) {
     let p_cam = transform_point(params.t_world_to_cam, xyz(position_weight[slot]));
     let uv = project_to_texel(cam, params.width, params.height, p_cam);
@@ -64,6 +71,8 @@ fn select_for_surfel(i: u32, slot: u32, cam: vec4<f32>) {
         return;
     }
     let texel = vec2<u32>(uv);
+    let pix = texel.y * params.width + texel.x;
+    atomicMax(&index_map[pix], pack_depth_index(p_cam.z, i));
     let nd = textureLoad(normal_depth, texel, 0);
     if !is_valid(nd) {
         return;
@@ -74,5 +83,5 @@ fn select_for_surfel(i: u32, slot: u32, cam: vec4<f32>) {
     if off_ray < 0.0 {
         return;
     }
-    atomicMax(&assoc[texel.y * params.width + texel.x], pack_depth_index(off_ray, i));
+    atomicMax(&assoc[pix], pack_depth_index(off_ray, i));
 }

@@ -52,8 +52,8 @@ fn every_kernel_layout_matches_its_wgsl() {
 /// passing run above means something).
 fn a_wrong_table_is_reported_binding_by_binding() {
     // fuse_add's table with binding 3 a read-write buffer instead of read-only, binding 6
-    // a storage texture instead of a buffer, and binding 8 missing.
-    let mut wrong = gpu::backend::bindings::FUSE_ADD[..8].to_vec();
+    // a storage texture instead of a buffer, and binding 9 (the last) missing.
+    let mut wrong = gpu::backend::bindings::FUSE_ADD[..9].to_vec();
     wrong[3] = Binding::read_write("flags");
     wrong[6] = Binding::storage_texture(TexelFormat::Rgba32F, false, "position_weight");
     let problems = gpu::layout_mismatches(
@@ -62,7 +62,7 @@ fn a_wrong_table_is_reported_binding_by_binding() {
         &gpu::layout_entries(&wrong),
     );
     assert_eq!(problems.len(), 3, "got: {problems:#?}");
-    for (b, var) in [(3, "flags"), (6, "position_weight"), (8, "color")] {
+    for (b, var) in [(3, "flags"), (6, "position_weight"), (9, "index_map")] {
         let tag = format!("kernel `fuse_add` binding {b} (`{var}`)");
         assert!(
             problems.iter().any(|p| p.starts_with(&tag)),

@@ -7,10 +7,10 @@
 //! Called once per map chunk: each call writes the new surfels whose slots the chunk holds.
 
 use super::{
-    append_index, back_project, pixel_confidence, surfel_radius, transform_dir, transform_point,
-    xyz,
+    append_index, back_project, pack_depth_index, pixel_confidence, surfel_radius, transform_dir,
+    transform_point, xyz,
 };
-use crate::layout::{FuseParams, MapChunk};
+use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
 
 /// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, the
 /// chunk's `slots` entries each):
@@ -25,6 +25,9 @@ use crate::layout::{FuseParams, MapChunk};
 /// - 6 `position_weight` (out): xyz world frame, w = confidence
 /// - 7 `normal_frame` (out): normal bits, w = last frame
 /// - 8 `color` (out): RGB 0..255, a = radius (metres)
+/// - 9 `index_map` (in/out): with best-candidate association, the index map `fuse_select`
+///   began; each new surfel competes for its own pixel with `pack_depth_index(z_cam,
+///   map-wide index)`, as `project_model`'s key (left alone otherwise)
 #[allow(clippy::too_many_arguments)]
 pub fn fuse_add(
     params: &FuseParams,
@@ -36,6 +39,7 @@ pub fn fuse_add(
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &mut [[f32; 4]],
+    index_map: &mut [u64],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     for v in 0..params.height {
@@ -62,6 +66,9 @@ pub fn fuse_add(
             normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
             let c = color_map[pix];
             color[surfel] = [c[0], c[1], c[2], r];
+            if params.association == ASSOCIATION_BEST_CANDIDATE {
+                index_map[pix] = index_map[pix].max(pack_depth_index(q_cam.z, i));
+            }
         }
     }
 }

@@ -36,7 +36,12 @@ use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 /// - 6 `color`: RGB 0..255, a = radius (metres)
 /// - 7 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; the chosen
 ///   surfel's `pack_depth_index(off_ray_m, map-wide index)`
-#[allow(clippy::too_many_arguments)] // the shader's eight bindings, in order
+/// - 8 `index_map` (in/out): one key per pixel, cleared to 0 by the caller;
+///   `project_model`'s key, `pack_depth_index(z_cam, map-wide index)`, of every surfel
+///   whose centre lands in the image, before this frame's merges: the next frame's
+///   prediction at this pose (`fuse_add` adds the new surfels), so `predict` skips
+///   `project_model` (see `Backend::predict`)
+#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn fuse_select(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
@@ -46,6 +51,7 @@ pub fn fuse_select(
     normal_frame: &[[u32; 4]],
     color: &[[f32; 4]],
     assoc: &mut [u64],
+    index_map: &mut [u64],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
@@ -70,7 +76,16 @@ pub fn fuse_select(
         }
         let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
         for i in chunk.base + b * BLOCK_SURFELS..end {
-            select_for_surfel(params, normal_depth, &map, assoc, i, i - chunk.base, cam);
+            select_for_surfel(
+                params,
+                normal_depth,
+                &map,
+                assoc,
+                index_map,
+                i,
+                i - chunk.base,
+                cam,
+            );
         }
     }
 }
@@ -83,12 +98,15 @@ struct Chunk<'a> {
 }
 
 /// The pixel surfel `i` (map-wide index; `slot` in the chunk's arrays) projects to keeps
-/// the better of its key and this surfel's, if the surfel passes its gates.
+/// the nearer of its index-map key and this surfel's, and the better of its association key
+/// and this surfel's, if the surfel passes its gates.
+#[allow(clippy::too_many_arguments)] // the shader's function plus the bindings it uses
 fn select_for_surfel(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     map: &Chunk,
     assoc: &mut [u64],
+    index_map: &mut [u64],
     i: u32,
     slot: u32,
     cam: [f32; 4],
@@ -99,6 +117,7 @@ fn select_for_surfel(
         return;
     };
     let pix = (texel[1] * params.width + texel[0]) as usize;
+    index_map[pix] = index_map[pix].max(pack_depth_index(p_cam.z, i));
     let nd = normal_depth[pix];
     if !is_valid(nd) {
         return;

@@ -59,7 +59,7 @@ use crate::layout::{
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::pipeline::{
-    Backend, BackendCounters, FrameLevel, FrameMaps, Prediction, PyramidLevel,
+    Backend, BackendCounters, FrameLevel, FrameMaps, FusedView, Prediction, PyramidLevel,
 };
 use crate::{Error, Result};
 
@@ -149,7 +149,7 @@ pub mod bindings {
         Binding::read("partials: 29 f32 per icp_reduce workgroup"),
         Binding::read_write("system: the 29 summed f32"),
     ];
-    pub const FUSE_SELECT: [Binding; 8] = [
+    pub const FUSE_SELECT: [Binding; 9] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::params("chunk: MapChunk"),
@@ -158,6 +158,7 @@ pub mod bindings {
         Binding::read("normal_frame: w = last_frame"),
         Binding::read("color: a = radius"),
         Binding::read_write("assoc: atomic u64 key per pixel"),
+        Binding::read_write("index_map: the next prediction's atomic u64 keys"),
     ];
     pub const FUSE_MERGE: [Binding; 9] = [
         Binding::params("params: FuseParams"),
@@ -198,7 +199,7 @@ pub mod bindings {
         Binding::read("merged: the merged surfel per pixel"),
         Binding::read_write("flags: 1 new surfel / 0 per pixel"),
     ];
-    pub const FUSE_ADD: [Binding; 9] = [
+    pub const FUSE_ADD: [Binding; 10] = [
         Binding::params("params: FuseParams"),
         Binding::texture_f32("normal_depth: camera frame, w = depth"),
         Binding::texture_f32("color_map"),
@@ -208,6 +209,7 @@ pub mod bindings {
         Binding::read_write("position_weight"),
         Binding::read_write("normal_frame"),
         Binding::read_write("color"),
+        Binding::read_write("index_map: the new surfels' keys (best candidate)"),
     ];
     pub const COMPACT_FLAGS: [Binding; 5] = [
         Binding::params("params: CompactParams"),
@@ -403,6 +405,9 @@ pub struct GpuBackend {
     /// Blocks from the one holding this surfel index on have stale boxes (fusion appended
     /// to them, or the map was compacted or uploaded); recomputed before the next culling.
     bounds_dirty_from: usize,
+    /// The view the frame's `index_map` was built at by the last `fuse`, while the map is
+    /// as that fusion left it (see [`FusedView`]).
+    fused_view: Option<FusedView>,
     /// Surfels in the map (the GPU counter as last read back).
     count: usize,
     /// Largest map the backend may allocate, in surfels.
@@ -652,6 +657,7 @@ impl GpuBackend {
             block_bounds,
             u_bounds,
             bounds_dirty_from: 0,
+            fused_view: None,
             count: 0,
             max_surfels,
             bind_groups: None,
@@ -729,6 +735,8 @@ impl GpuBackend {
                 return Ok(());
             }
         }
+        // A new index map holds no fusion's keys.
+        self.fused_view = None;
         let ctx = &self.ctx;
         let n = (p.width * p.height) as usize;
         let full = |label: &str| -> Result<GpuImage> {
@@ -983,6 +991,7 @@ impl GpuBackend {
                             ch.normal_frame.binding(),
                             ch.color.binding(),
                             f.assoc.binding(),
+                            f.index_map.binding(),
                         ],
                     )
                 }),
@@ -1065,6 +1074,7 @@ impl GpuBackend {
                             ch.position_weight.binding(),
                             ch.normal_frame.binding(),
                             ch.color.binding(),
+                            f.index_map.binding(),
                         ],
                     )
                 }),
@@ -1339,7 +1349,12 @@ impl Backend for GpuBackend {
             .kernels
             .predict_model
             .grid_workgroups_for_image(&self.ctx, f.width, f.height);
-        let chunk_wg = self.chunk_workgroups(&self.kernels.project_model);
+        let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
+        let chunk_wg = if project {
+            self.chunk_workgroups(&self.kernels.project_model)
+        } else {
+            Vec::new()
+        };
         let level_wg: Vec<[u32; 2]> = f
             .levels
             .iter()
@@ -1349,7 +1364,11 @@ impl Backend for GpuBackend {
                     .grid_workgroups_for_image(&self.ctx, l.width, l.height)
             })
             .collect();
-        let bounds = self.stale_bounds_passes();
+        let bounds = if project {
+            self.stale_bounds_passes()
+        } else {
+            Vec::new()
+        };
         let (ctx, k, bg, profiler) = encoding_parts!(self);
         let f = self
             .frame
@@ -1358,7 +1377,9 @@ impl Backend for GpuBackend {
         ctx.scoped("predict", || {
             self.u_project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
-            f.index_map.clear(&mut enc);
+            if project {
+                f.index_map.clear(&mut enc);
+            }
             let mut passes: Vec<_> = bounds
                 .iter()
                 .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
@@ -1417,6 +1438,7 @@ impl Backend for GpuBackend {
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         let n = self.frame().pixels();
+        self.fused_view = None;
         self.ensure_capacity(self.count + n)?;
         let mut params = *params;
         params.surfel_count = self.count as u32;
@@ -1448,6 +1470,7 @@ impl Backend for GpuBackend {
             f.assoc.clear(&mut enc);
             if params.association == ASSOCIATION_BEST_CANDIDATE {
                 f.merged.clear(&mut enc);
+                f.index_map.clear(&mut enc);
             }
             let mut passes: Vec<_> = bounds
                 .iter()
@@ -1492,6 +1515,7 @@ impl Backend for GpuBackend {
         // The blocks from the one that held the old last surfel on have new surfels.
         self.bounds_dirty_from = self.bounds_dirty_from.min(self.count);
         self.count = total;
+        self.fused_view = FusedView::of_fuse(&params);
         Ok(total)
     }
 
@@ -1592,8 +1616,9 @@ impl Backend for GpuBackend {
         std::mem::swap(&mut c.groups, &mut c.spare_groups);
         std::mem::swap(&mut self.bind_groups, &mut self.spare_bind_groups);
         self.count = kept;
-        // Every surfel may have moved to another block.
+        // Every surfel may have moved to another block, and to another index.
         self.bounds_dirty_from = 0;
+        self.fused_view = None;
         Ok(kept)
     }
 
@@ -1620,6 +1645,7 @@ impl Backend for GpuBackend {
         ctx.scoped("upload map", || m.upload(ctx, map))?;
         self.count = n;
         self.bounds_dirty_from = 0;
+        self.fused_view = None;
         Ok(())
     }
 

@@ -14,7 +14,7 @@ use crate::layout::{
     PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, FrameLevel, FrameMaps, Prediction, PyramidLevel};
+use crate::slam::pipeline::{Backend, FrameLevel, FrameMaps, FusedView, Prediction, PyramidLevel};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -22,7 +22,11 @@ use crate::Result;
 #[derive(Debug, Default)]
 pub struct CpuBackend {
     frame: FrameMaps,
+    /// `project_model`'s keys, or the last best-candidate fusion's (see [`FusedView`]).
     index_map: Vec<u64>,
+    /// The view `index_map` was built at by the last `fuse`, while the map is as that
+    /// fusion left it.
+    fused_view: Option<FusedView>,
     /// The predicted vertex and normal maps per pyramid level, level 0 first.
     prediction: Vec<Prediction>,
     assoc: Vec<u64>,
@@ -64,6 +68,12 @@ impl CpuBackend {
     /// The map without copying.
     pub fn map(&self) -> &SurfelMap {
         &self.map
+    }
+
+    /// The index map: `project_model`'s of the last `predict`, or the one the last
+    /// best-candidate `fuse` built (see [`FusedView`]); one packed key per pixel.
+    pub fn index_map(&self) -> &[u64] {
+        &self.index_map
     }
 
     /// Recomputes the stale block boxes (`block_bounds`, as the GPU backend records it at
@@ -157,22 +167,24 @@ impl Backend for CpuBackend {
         let mut params = *params;
         params.surfel_count = self.map.len() as u32;
         let n = (params.width * params.height) as usize;
-        self.refresh_bounds();
-        self.index_map.clear();
-        self.index_map.resize(n, 0);
+        let chunk = MapChunk::whole(self.map.len());
+        if !self.fused_view.is_some_and(|v| v.is_view_of(&params)) {
+            self.refresh_bounds();
+            self.index_map.clear();
+            self.index_map.resize(n, 0);
+            cpu::project_model::project_model(
+                &params,
+                &chunk,
+                &self.block_bounds,
+                &self.map.position_weight,
+                &mut self.index_map,
+            );
+        }
         self.prediction
             .resize_with(1 + pyramid.len(), Default::default);
         let (pred_vertex, pred_normal) = &mut self.prediction[0];
         pred_vertex.resize(n, cpu::INVALID);
         pred_normal.resize(n, cpu::INVALID);
-        let chunk = MapChunk::whole(self.map.len());
-        cpu::project_model::project_model(
-            &params,
-            &chunk,
-            &self.block_bounds,
-            &self.map.position_weight,
-            &mut self.index_map,
-        );
         cpu::predict_model::predict_model(
             &params,
             &self.index_map,
@@ -230,9 +242,12 @@ impl Backend for CpuBackend {
         params.capacity = (count + n_pix) as u32;
         self.assoc.clear();
         self.assoc.resize(n_pix, 0);
+        self.fused_view = None;
         if params.association == ASSOCIATION_BEST_CANDIDATE {
             self.merged.clear();
             self.merged.resize(2 * n_pix, [0.0; 4]);
+            self.index_map.clear();
+            self.index_map.resize(n_pix, 0);
         }
         self.refresh_bounds();
         let m = &mut self.map;
@@ -247,6 +262,7 @@ impl Backend for CpuBackend {
                 &m.normal_frame,
                 &m.color,
                 &mut self.assoc,
+                &mut self.index_map,
             );
         }
         if params.association == ASSOCIATION_BEST_CANDIDATE {
@@ -316,11 +332,13 @@ impl Backend for CpuBackend {
             &mut m.position_weight,
             &mut m.normal_frame,
             &mut m.color,
+            &mut self.index_map,
         );
         let new_len = count + added as usize;
         m.resize(new_len);
         // The blocks from the one that held the old last surfel on have new surfels.
         self.bounds_dirty_from = self.bounds_dirty_from.min(count);
+        self.fused_view = FusedView::of_fuse(&params);
         Ok(new_len)
     }
 
@@ -359,8 +377,9 @@ impl Backend for CpuBackend {
         );
         out.resize(counter as usize);
         std::mem::swap(&mut self.map, &mut self.spare);
-        // Every surfel may have moved to another block.
+        // Every surfel may have moved to another block, and to another index.
         self.bounds_dirty_from = 0;
+        self.fused_view = None;
         Ok(self.map.len())
     }
 
@@ -376,6 +395,7 @@ impl Backend for CpuBackend {
         map.assert_consistent();
         self.map.clone_from(map);
         self.bounds_dirty_from = 0;
+        self.fused_view = None;
         Ok(())
     }
 

@@ -45,8 +45,9 @@ use glam::DMat4;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
 use crate::layout::{
-    camera_floats, gpu_mat4, BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams,
-    PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
+    camera_floats, gpu_mat4, BilateralParams, CompactParams, FuseParams, GpuMat4, IcpParams,
+    NormalParams, PreprocessParams, ProjectParams, PyramidParams, ASSOCIATION_BEST_CANDIDATE,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::slam::solve::{increment_size, update_pose, NormalEquations, SolveError};
@@ -146,7 +147,9 @@ pub trait Backend {
     ) -> Result<()>;
     /// `project_model` then `predict_model` at `params.t_world_to_cam`
     /// (`surfel_count` is filled in by the backend), then `pyramid_model` for each entry of
-    /// `pyramid` (the same levels as the last `preprocess`'s).
+    /// `pyramid` (the same levels as the last `preprocess`'s). When the map last changed in
+    /// a best-candidate `fuse` at the same view ([`FusedView`]), that fusion's index map
+    /// stands in for `project_model`'s.
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
     /// carry that level's size and intrinsics): the summed 29-entry system.
@@ -181,6 +184,47 @@ pub trait Backend {
     /// a no-op for the CPU).
     fn finish(&mut self) -> Result<()> {
         Ok(())
+    }
+}
+
+/// The view a best-candidate `fuse` projected the map from. Its `fuse_select` builds
+/// `project_model`'s index map at that view on the way (every surfel whose centre lands in
+/// the image, nearest first) and its `fuse_add` adds the new surfels, so a backend keeps
+/// the view until the map changes otherwise (`compact`, `upload_map`, the next `fuse`) and
+/// its `predict` skips `project_model` when asked for the same view, as it is on every
+/// tracked frame: the next frame is predicted at the pose the last one was fused at. The
+/// one difference from projecting afresh: a surfel merged this frame keys the pixel its
+/// centre projected to before the merge moved it (by a fraction of its radius), with its
+/// depth from then; `predict_model` reads its merged position and normal either way.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusedView {
+    t_world_to_cam: GpuMat4,
+    /// fx, fy, cx, cy (pixels).
+    intrinsics: [f32; 4],
+    width: u32,
+    height: u32,
+}
+
+impl FusedView {
+    /// The view of a fusion, if its association builds the index map (best candidate).
+    pub fn of_fuse(p: &FuseParams) -> Option<Self> {
+        (p.association == ASSOCIATION_BEST_CANDIDATE).then_some(Self {
+            t_world_to_cam: p.t_world_to_cam,
+            intrinsics: [p.fx, p.fy, p.cx, p.cy],
+            width: p.width,
+            height: p.height,
+        })
+    }
+
+    /// Whether `predict(p)` asks for this view (bit for bit).
+    pub fn is_view_of(&self, p: &ProjectParams) -> bool {
+        *self
+            == Self {
+                t_world_to_cam: p.t_world_to_cam,
+                intrinsics: [p.fx, p.fy, p.cx, p.cy],
+                width: p.width,
+                height: p.height,
+            }
     }
 }
 
@@ -1018,4 +1062,35 @@ impl<B: Backend> Slam<B> {
 
 fn lost(e: &SolveError) -> TrackStatus {
     TrackStatus::Lost(e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::slam::cpu_backend::CpuBackend;
+
+    /// `predict` reuses a fusion's index map only for the very view it was built at, and
+    /// only after best-candidate association (the only one whose `fuse_select` builds it).
+    #[test]
+    fn fused_view_matches_only_its_own_view() {
+        let robust = Slam::new(
+            CpuBackend::new(),
+            Intrinsics::ICL_NUIM,
+            SlamParams::profile(Profile::Robust),
+        );
+        let t = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3]);
+        let view = FusedView::of_fuse(&robust.fuse_params(&t, 5)).expect("best candidate");
+        assert!(view.is_view_of(&robust.project_params(&t)));
+        let moved = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3001]);
+        assert!(!view.is_view_of(&robust.project_params(&moved)));
+        let mut other_size = robust.project_params(&t);
+        other_size.width /= 2;
+        assert!(!view.is_view_of(&other_size));
+        let assignment = Slam::new(
+            CpuBackend::new(),
+            Intrinsics::ICL_NUIM,
+            SlamParams::profile(Profile::Assignment),
+        );
+        assert_eq!(FusedView::of_fuse(&assignment.fuse_params(&t, 5)), None);
+    }
 }

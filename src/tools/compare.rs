@@ -4,7 +4,7 @@
 //! and by the parity tests (`tests/compare.rs`).
 //!
 //! Two [`Mode`]s. **Lockstep** (the default): before every frame B is put into A's state
-//! (A's map uploaded with [`Backend::upload_map`], A's last pose given to B's tracker), so
+//! (A's map uploaded with [`Backend::upload_map`] into both, A's last pose given to B's tracker), so
 //! a frame's differences come from that frame's kernels alone and the per-frame tolerances
 //! ([`tolerance::lockstep`]) can be tight. This is what proves the GPU kernels equal their
 //! CPU twins over a whole sequence: on noisy depth two trackers that each keep their own
@@ -525,6 +525,10 @@ pub fn compare<A: Backend, B: Backend>(
     };
     for (k, i) in (first..=last).enumerate() {
         if let Some(map) = &a_map {
+            // A too starts from its map as uploaded: a backend predicts from the index map
+            // its last fusion built (see `FusedView`), B from a fresh projection of the
+            // uploaded map, and the two differ at a few pixels.
+            sa.backend.upload_map(map)?;
             sb.backend.upload_map(map)?;
             sb.set_t_world_to_cam(sa.t_world_to_cam());
         }
