@@ -1150,18 +1150,22 @@ impl GpuBackend {
     }
 
     /// Per map chunk, the workgroups of a block-walking kernel (`project_model`,
-    /// `fuse_select`, `fuse_merge`: one workgroup per block, capped like
-    /// [`GpuBackend::grid_stride_workgroups`]) and of a grid-stride kernel over the chunk's
-    /// live surfels (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size.
+    /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block, capped by
+    /// [`GpuContext::block_workgroups_cap`]) and of a grid-stride kernel over the chunk's
+    /// live surfels (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size,
+    /// capped like [`GpuBackend::grid_stride_workgroups`].
     fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<(u32, u32)> {
-        let cap = self.ctx.grid_workgroups_cap();
+        let (block_cap, cap) = (
+            self.ctx.block_workgroups_cap(),
+            self.ctx.grid_workgroups_cap(),
+        );
         self.map
             .chunks
             .iter()
             .map(|ch| {
                 let live = ch.live(self.count);
                 let blocks = live.div_ceil(BLOCK_SURFELS as usize) as u32;
-                (blocks.min(cap), kernel.workgroups_for(live).min(cap))
+                (blocks.min(block_cap), kernel.workgroups_for(live).min(cap))
             })
             .collect()
     }

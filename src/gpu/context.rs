@@ -32,6 +32,13 @@ pub const CPU_REDUCTION_WORKGROUPS: u32 = 16;
 /// workgroups and ~2-3.5 ms in 256 (2 cores shared with other jobs; the whole pipeline
 /// showed no clear change under that load).
 pub const CPU_GRID_WORKGROUPS: u32 = 256;
+/// Workgroups of a block-walking kernel (`project_model`, `fuse_select`, `fuse_merge`,
+/// `fuse_prune`: a workgroup per culling block, striding over the blocks) on a CPU
+/// adapter. Fewer than [`CPU_GRID_WORKGROUPS`]: with about 500 blocks, noisy frames 1..200
+/// at 640x480 (`wgslam bench ... --downsample 1 --backends gpu --kernels`, one run each,
+/// 2 cores): `fuse_select` 17.0 ms per pass in 256 workgroups, 15.5 in 64, 15.0 in 32,
+/// 14.5 in 16; `fuse_prune` 13.8, 12.3, 12.0 and 11.1 ms.
+pub const CPU_BLOCK_WORKGROUPS: u32 = 16;
 /// Reduction workgroups on a real GPU, which needs thousands of threads in flight.
 pub const GPU_REDUCTION_WORKGROUPS: u32 = 1024;
 
@@ -200,6 +207,15 @@ impl GpuContext {
     pub fn grid_workgroups_cap(&self) -> u32 {
         match self.info.device_type {
             wgpu::DeviceType::Cpu => CPU_GRID_WORKGROUPS,
+            _ => self.limits.max_compute_workgroups_per_dimension,
+        }
+    }
+
+    /// Most workgroups a block-walking kernel is dispatched with: [`CPU_BLOCK_WORKGROUPS`]
+    /// on a CPU adapter, the per-dimension limit on a GPU (a workgroup per block).
+    pub fn block_workgroups_cap(&self) -> u32 {
+        match self.info.device_type {
+            wgpu::DeviceType::Cpu => CPU_BLOCK_WORKGROUPS,
             _ => self.limits.max_compute_workgroups_per_dimension,
         }
     }
