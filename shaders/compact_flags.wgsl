@@ -27,7 +27,8 @@ const WORKGROUP_SIZE: u32 = 64u;
 // True when the surfel stays: it is stable (weight >= stable_weight) or was seen within
 // the last max_age_frames frames (last_frame never exceeds frame_id; the test is written
 // so it cannot underflow).
-fn keep_surfel(weight: f32, last_frame: u32, frame_id: u32) -> bool {
+// `params` is main's copy of the binding.
+fn keep_surfel(params: CompactParams, weight: f32, last_frame: u32, frame_id: u32) -> bool {
     let unstable = weight < params.stable_weight;
     let old = last_frame < frame_id && frame_id - last_frame > params.max_age_frames;
     return !(unstable && old);
@@ -39,11 +40,13 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let stride = nwg.x * WORKGROUP_SIZE;
-    let end = chunk_blocks(chunk, params.surfel_count).y;
+    // The params copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let end = chunk_blocks(chunk, p.surfel_count).y;
     for (var i = chunk.base + gid.x; i < end; i += stride) {
         let surfel = i - chunk.base;
         let weight = position_weight[surfel].w;
         let last_frame = normal_frame[surfel].w;
-        flags[i] = select(0u, 1u, keep_surfel(weight, last_frame, params.frame_id));
+        flags[i] = select(0u, 1u, keep_surfel(p, weight, last_frame, p.frame_id));
     }
 }

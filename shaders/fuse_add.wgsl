@@ -47,16 +47,20 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let stride = TILE * groups.xy;
-    let size = vec2<u32>(params.width, params.height);
+    // The params and the chunk copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let ch = chunk;
+    let size = vec2<u32>(p.width, p.height);
     for (var v = gid.y; v < size.y; v += stride.y) {
         for (var u = gid.x; u < size.x; u += stride.x) {
-            add_pixel(vec2<u32>(u, v));
+            add_pixel(p, ch, vec2<u32>(u, v));
         }
     }
 }
 
 // Pixel `texel`'s new surfel, if the pixel is flagged and its slot is in this chunk.
-fn add_pixel(texel: vec2<u32>) {
+// `params` and `chunk` are main's copies of the bindings.
+fn add_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let a = append_index(texel);
     if flags[a] == 0u {
         return;

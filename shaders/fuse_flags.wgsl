@@ -28,15 +28,16 @@
 
 const TILE: u32 = 8u;
 
-// A 2-D grid-stride loop in 8x8 tiles, like vertex_to_normal (the size read once per
-// thread).
+// A 2-D grid-stride loop in 8x8 tiles, like vertex_to_normal, over a copy of the params
+// (see its main: lavapipe would load the pose from the buffer again for every neighbour).
 @compute @workgroup_size(TILE, TILE)
 fn main(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let stride = TILE * groups.xy;
-    let size = vec2<u32>(params.width, params.height);
+    let p = params;
+    let size = vec2<u32>(p.width, p.height);
     for (var v = gid.y; v < size.y; v += stride.y) {
         for (var u = gid.x; u < size.x; u += stride.x) {
             let texel = vec2<u32>(u, v);
@@ -44,8 +45,8 @@ fn main(
             let nd = textureLoad(normal_depth, texel, 0);
             // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
             var new_surfel = key.x == 0u && key.y == 0u && is_valid(nd);
-            if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
-                new_surfel = !neighbour_covers(texel, nd);
+            if new_surfel && p.association == ASSOCIATION_BEST_CANDIDATE {
+                new_surfel = !neighbour_covers(p, texel, nd);
             }
             flags[append_index(texel)] = select(0u, 1u, new_surfel);
         }
@@ -53,8 +54,9 @@ fn main(
 }
 
 // Whether a surfel that one of the 8 neighbours of `texel` (measurement nd, valid) merged
-// into passes this pixel's gates (fuse_select's filter 2).
-fn neighbour_covers(texel: vec2<u32>, nd: vec4<f32>) -> bool {
+// into passes this pixel's gates (fuse_select's filter 2). `params` is main's copy of the
+// binding.
+fn neighbour_covers(params: FuseParams, texel: vec2<u32>, nd: vec4<f32>) -> bool {
     let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
     for (var dv = -1; dv <= 1; dv++) {
         for (var du = -1; du <= 1; du++) {

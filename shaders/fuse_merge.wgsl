@@ -52,13 +52,15 @@ fn main(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
-    let span = chunk_blocks(chunk, params.surfel_count);
+    // The params copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let span = chunk_blocks(chunk, p.surfel_count);
     for (var b = wid.x; b < span.x; b += nwg.x) {
         let block = chunk.base / BLOCK_SURFELS + b;
         let lo = vec3<f32>(box_word(block, 0u), box_word(block, 1u), box_word(block, 2u));
         let hi = vec3<f32>(box_word(block, 4u), box_word(block, 5u), box_word(block, 6u));
-        if !block_visible(params.t_world_to_cam, cam, params.width, params.height, lo, hi) {
+        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
             continue;
         }
         // The box grown by this thread's merged surfels.
@@ -66,7 +68,7 @@ fn main(
         var grown_hi = hi;
         let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
         for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            let moved = merge_surfel(i - chunk.base, cam);
+            let moved = merge_surfel(p, i - chunk.base, cam);
             if moved.w > 0.0 {
                 grown_lo = min(grown_lo, moved.xyz);
                 grown_hi = max(grown_hi, moved.xyz);
@@ -84,7 +86,8 @@ fn main(
 }
 
 // Merges surfel `slot` of the chunk with its pixel when the filters pass: returns its new world-frame position with w = 1, or w = 0 if unmerged.
-fn merge_surfel(slot: u32, cam: vec4<f32>) -> vec4<f32> {
+// `params` is main's copy of the binding.
+fn merge_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     let pw = position_weight[slot];
     let p_world = xyz(pw);
     let p_cam = transform_point(params.t_world_to_cam, p_world);

@@ -48,17 +48,20 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let stride = TILE * groups.xy;
-    let size = vec2<u32>(params.width, params.height);
+    // The params and the chunk copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let ch = chunk;
+    let size = vec2<u32>(p.width, p.height);
     for (var v = gid.y; v < size.y; v += stride.y) {
         for (var u = gid.x; u < size.x; u += stride.x) {
-            merge_chosen(vec2<u32>(u, v));
+            merge_chosen(p, ch, vec2<u32>(u, v));
         }
     }
 }
 
 // Merges pixel `texel`'s measurement into the surfel it chose, if that surfel is in this
-// chunk.
-fn merge_chosen(texel: vec2<u32>) {
+// chunk. `params` and `chunk` are main's copies of the bindings.
+fn merge_chosen(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let pix = texel.y * params.width + texel.x;
     let key = assoc[pix];
     if key.x == 0u && key.y == 0u {

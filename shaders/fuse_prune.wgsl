@@ -46,25 +46,27 @@ fn main(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
-    let span = chunk_blocks(chunk, params.surfel_count);
+    // The params copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let span = chunk_blocks(chunk, p.surfel_count);
     for (var b = wid.x; b < span.x; b += nwg.x) {
         let block = chunk.base / BLOCK_SURFELS + b;
         let lo = decode_corner(block_bounds[2u * block]);
         let hi = decode_corner(block_bounds[2u * block + 1u]);
-        if !block_visible(params.t_world_to_cam, cam, params.width, params.height, lo, hi) {
+        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
             continue;
         }
         let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
         for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            prune_surfel(i - chunk.base, cam);
+            prune_surfel(p, i - chunk.base, cam);
         }
     }
 }
 
 // Retires the surfel at `slot` in the chunk's arrays if it duplicates the surfel its
-// pixel merged into.
-fn prune_surfel(slot: u32, cam: vec4<f32>) {
+// pixel merged into. `params` is main's copy of the binding.
+fn prune_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) {
     let nf = normal_frame[slot];
     if nf.w == params.frame_id {
         return;

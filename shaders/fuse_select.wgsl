@@ -45,26 +45,28 @@ fn main(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
-    let span = chunk_blocks(chunk, params.surfel_count);
+    // The params copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let span = chunk_blocks(chunk, p.surfel_count);
     for (var b = wid.x; b < span.x; b += nwg.x) {
         let block = chunk.base / BLOCK_SURFELS + b;
         let lo = decode_corner(block_bounds[2u * block]);
         let hi = decode_corner(block_bounds[2u * block + 1u]);
-        if !block_visible(params.t_world_to_cam, cam, params.width, params.height, lo, hi) {
+        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
             continue;
         }
         let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
         for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            select_for_surfel(i, i - chunk.base, cam);
+            select_for_surfel(p, i, i - chunk.base, cam);
         }
     }
 }
 
 // The pixel surfel i (map-wide index; `slot` in the chunk's arrays) projects to keeps the
 // nearer of its index-map key and this surfel's, and the better of its association key and
-// this surfel's, if the surfel passes its gates.
-fn select_for_surfel(i: u32, slot: u32, cam: vec4<f32>) {
+// this surfel's, if the surfel passes its gates. `params` is main's copy of the binding.
+fn select_for_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     let p_cam = transform_point(params.t_world_to_cam, xyz(position_weight[slot]));
     let uv = project_to_texel(cam, params.width, params.height, p_cam);
     if uv.x < 0 {

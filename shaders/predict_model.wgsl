@@ -31,16 +31,20 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let stride = TILE * groups.xy;
-    let size = vec2<u32>(params.width, params.height);
+    // The params and the chunk copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let ch = chunk;
+    let size = vec2<u32>(p.width, p.height);
     for (var v = gid.y; v < size.y; v += stride.y) {
         for (var u = gid.x; u < size.x; u += stride.x) {
-            predict_pixel(vec2<u32>(u, v));
+            predict_pixel(p, ch, vec2<u32>(u, v));
         }
     }
 }
 
 // The predicted vertex and normal of pixel `texel`, if this chunk's pass writes it.
-fn predict_pixel(texel: vec2<u32>) {
+// `params` and `chunk` are main's copies of the bindings.
+fn predict_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
     let key = index_map[texel.y * params.width + texel.x];
     var vertex = INVALID;
     var normal = INVALID;
