@@ -43,8 +43,10 @@ fn main(
     // The params copied once per thread (see vertex_to_normal's main).
     let p = params;
     let end = chunk_blocks(chunk, p.surfel_count).y;
-    for (var i = chunk.base + gid.x; i < end; i += stride) {
-        let surfel = i - chunk.base;
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
+    for (var i = base + gid.x; i < end; i += stride) {
+        let surfel = i - base;
         let weight = position_weight[surfel].w;
         let last_frame = normal_frame[surfel].w;
         flags[i] = select(0u, 1u, keep_surfel(p, weight, last_frame, p.frame_id));

@@ -42,13 +42,15 @@ fn main(
 ) {
     let stride = nwg.x * WORKGROUP_SIZE;
     let end = chunk_blocks(chunk, params.surfel_count).y;
-    for (var i = chunk.base + gid.x; i < end; i += stride) {
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
+    for (var i = base + gid.x; i < end; i += stride) {
         // offsets[i] - out_chunk.base wraps to a huge value below the output chunk.
         let dst = offsets[i] - out_chunk.base;
         if flags[i] == 0u || dst >= out_chunk.slots {
             continue;
         }
-        let src = i - chunk.base;
+        let src = i - base;
         out_position_weight[dst] = position_weight[src];
         out_normal_frame[dst] = normal_frame[src];
         out_color[dst] = color[src];

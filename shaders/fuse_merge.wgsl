@@ -56,8 +56,10 @@ fn main(
     let p = params;
     let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
     let span = chunk_blocks(chunk, p.surfel_count);
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
     for (var b = wid.x; b < span.x; b += nwg.x) {
-        let block = chunk.base / BLOCK_SURFELS + b;
+        let block = base / BLOCK_SURFELS + b;
         let lo = vec3<f32>(box_word(block, 0u), box_word(block, 1u), box_word(block, 2u));
         let hi = vec3<f32>(box_word(block, 4u), box_word(block, 5u), box_word(block, 6u));
         if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
@@ -66,9 +68,9 @@ fn main(
         // The box grown by this thread's merged surfels.
         var grown_lo = lo;
         var grown_hi = hi;
-        let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
-        for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            let moved = merge_surfel(p, i - chunk.base, cam);
+        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            let moved = merge_surfel(p, i - base, cam);
             if moved.w > 0.0 {
                 grown_lo = min(grown_lo, moved.xyz);
                 grown_hi = max(grown_hi, moved.xyz);

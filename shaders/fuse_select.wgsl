@@ -49,16 +49,18 @@ fn main(
     let p = params;
     let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
     let span = chunk_blocks(chunk, p.surfel_count);
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
     for (var b = wid.x; b < span.x; b += nwg.x) {
-        let block = chunk.base / BLOCK_SURFELS + b;
+        let block = base / BLOCK_SURFELS + b;
         let lo = decode_corner(block_bounds[2u * block]);
         let hi = decode_corner(block_bounds[2u * block + 1u]);
         if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
             continue;
         }
-        let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
-        for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            select_for_surfel(p, i, i - chunk.base, cam);
+        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            select_for_surfel(p, i, i - base, cam);
         }
     }
 }

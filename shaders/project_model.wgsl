@@ -34,16 +34,18 @@ fn main(
     let view = params;
     let cam = vec4<f32>(view.fx, view.fy, view.cx, view.cy);
     let span = chunk_blocks(chunk, view.surfel_count);
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
     for (var b = wid.x; b < span.x; b += nwg.x) {
-        let block = chunk.base / BLOCK_SURFELS + b;
+        let block = base / BLOCK_SURFELS + b;
         let lo = decode_corner(block_bounds[2u * block]);
         let hi = decode_corner(block_bounds[2u * block + 1u]);
         if !block_visible(view.t_world_to_cam, cam, view.width, view.height, lo, hi) {
             continue;
         }
-        let end = min(chunk.base + (b + 1u) * BLOCK_SURFELS, span.y);
-        for (var i = chunk.base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            let p = transform_point(view.t_world_to_cam, xyz(position_weight[i - chunk.base]));
+        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            let p = transform_point(view.t_world_to_cam, xyz(position_weight[i - base]));
             let pix = project_to_pixel(cam, view.width, view.height, p);
             if pix >= 0 {
                 atomicMax(&index_map[pix], pack_depth_index(p.z, i));
