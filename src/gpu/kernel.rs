@@ -38,9 +38,9 @@ pub enum BindingKind {
 /// Storage-texture formats the kernels use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TexelFormat {
-    /// vec4<f32>: maps, surfel position + weight, surfel colour.
+    /// `vec4<f32>`: maps, surfel position + weight, surfel colour.
     Rgba32F,
-    /// vec4<u32>: surfel normal bits + last_frame.
+    /// `vec4<u32>`: surfel normal bits + last_frame.
     Rgba32U,
 }
 

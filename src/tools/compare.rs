@@ -31,7 +31,7 @@ use crate::{geometry::se3, Result};
 
 /// Documented tolerances; `wgslam compare` exits non-zero beyond any of them. The frame-map
 /// bounds hold in both modes (the inputs are the same raw frame); the rest are for the
-/// free (end-to-end) mode, and [`lockstep`] has the per-frame ones.
+/// free (end-to-end) mode, and [`tolerance::lockstep`] has the per-frame ones.
 pub mod tolerance {
     /// Vertex maps: the same f32 expression, but GPUs may fuse multiply-adds: a few ulps of
     /// a value of ~5 m is ~1e-6 m.
@@ -347,7 +347,7 @@ pub struct Matches {
 }
 
 /// Matches each of `a`'s points with its nearest point of `b` within `radius` metres
-/// (through a [`Grid`] of `b`, queries in parallel).
+/// (through a `Grid` of `b`, queries in parallel).
 pub fn unmatched_fraction(a: &SurfelMap, b: &SurfelMap, radius: f32) -> Matches {
     let grid = Grid::new(&b.position_weight, 2.0 * radius);
     let nearest: Vec<f32> = a

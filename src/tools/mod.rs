@@ -1,6 +1,6 @@
 //! The jobs a user runs on top of the SLAM core, as library functions the CLI calls:
 //! the batch run over a sequence with its outputs ([`run`]), the two-frame ICP experiment
-//! ([`two_frame`]), the CPU-vs-GPU comparison ([`compare`]) and the benchmark ([`bench`]);
+//! ([`two_frame`]), the CPU-vs-GPU comparison ([`compare`]) and the benchmark ([`bench`](mod@bench));
 //! with the `rerun` feature, the Rerun recording of a run (`rerun_log`).
 //! They compute and write results; parsing arguments and printing tables is `crate::cli`.
 
