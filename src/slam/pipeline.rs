@@ -218,13 +218,19 @@ impl FusedView {
 
     /// Whether `predict(p)` asks for this view (bit for bit).
     pub fn is_view_of(&self, p: &ProjectParams) -> bool {
-        *self
-            == Self {
-                t_world_to_cam: p.t_world_to_cam,
-                intrinsics: [p.fx, p.fy, p.cx, p.cy],
-                width: p.width,
-                height: p.height,
-            }
+        let FusedView {
+            t_world_to_cam,
+            intrinsics,
+            width,
+            height,
+        } = *self;
+        (t_world_to_cam, intrinsics, width, height)
+            == (
+                p.t_world_to_cam,
+                [p.fx, p.fy, p.cx, p.cy],
+                p.width,
+                p.height,
+            )
     }
 }
 
