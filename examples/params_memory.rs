@@ -16,7 +16,9 @@
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
-use wgslam::slam::pipeline::{Backend, Profile, Slam, SlamParams};
+use wgslam::slam::backend::Backend;
+use wgslam::slam::params::{Profile, SlamParams};
+use wgslam::slam::pipeline::Slam;
 use wgslam::tools::run::packed_rgba;
 
 /// Resident set size of this process, MiB (Linux: /proc/self/statm).

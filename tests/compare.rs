@@ -15,9 +15,10 @@ use wgslam::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, ICP_SYSTEM_LEN,
 };
+use wgslam::slam::backend::{Backend, FrameMaps, Inspect, Prediction, PyramidLevel};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
-use wgslam::slam::pipeline::{Backend, FrameMaps, Prediction, Profile, PyramidLevel, SlamParams};
+use wgslam::slam::params::{Profile, SlamParams};
 use wgslam::tools::compare::{compare, Comparison, Mode};
 use wgslam::Result;
 
@@ -26,7 +27,12 @@ fn bundled_noisy() -> Sequence {
 }
 
 /// Lockstep over frames 1..=last of `seq` with the robust profile.
-fn lockstep<A: Backend, B: Backend>(a: A, b: B, seq: &Sequence, last: usize) -> Comparison {
+fn lockstep<A: Backend + Inspect, B: Backend + Inspect>(
+    a: A,
+    b: B,
+    seq: &Sequence,
+    last: usize,
+) -> Comparison {
     let params = SlamParams::profile(Profile::Robust);
     compare(a, b, seq, 1, last, params, Mode::LOCKSTEP).unwrap()
 }
@@ -80,13 +86,6 @@ impl<B: Backend> Backend for PerturbedMap<B> {
     fn name(&self) -> &'static str {
         "perturbed"
     }
-    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
-        let mut map = map.clone();
-        for p in map.position_weight.iter_mut().step_by(self.every) {
-            p[0] += self.shift_m;
-        }
-        self.inner.upload_map(&map)
-    }
     fn preprocess(
         &mut self,
         params: &PreprocessParams,
@@ -113,6 +112,16 @@ impl<B: Backend> Backend for PerturbedMap<B> {
     }
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()
+    }
+}
+
+impl<B: Inspect> Inspect for PerturbedMap<B> {
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        let mut map = map.clone();
+        for p in map.position_weight.iter_mut().step_by(self.every) {
+            p[0] += self.shift_m;
+        }
+        self.inner.upload_map(&map)
     }
     fn download_map(&mut self) -> Result<SurfelMap> {
         self.inner.download_map()

@@ -12,10 +12,10 @@ use std::process::ExitCode;
 use common::harness::{gpu, gpu_shared, plain, shared};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::pipeline::{
-    Backend, BilateralSettings, PoseSource, Profile, SlamParams, TrackStatus, UnstableRemoval,
-};
+use wgslam::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval};
+use wgslam::slam::pipeline::TrackStatus;
 use wgslam::tools::run;
 
 /// The bar for frames 1..200 at downsample 2: ATE RMSE after rigid alignment.
@@ -126,7 +126,7 @@ fn with_bilateral() -> SlamParams {
 /// The 23 bundled frames (1..=23) on `backend` with `params`: within [`ATE_BUNDLED_MAX_M`]
 /// of the ground truth with and without alignment, no frame lost, a map of a plausible size.
 /// With the bilateral filter on, the clean frames must track as well as without it.
-fn bundled_frames_track_to_ground_truth<B: Backend>(backend: B, params: SlamParams) {
+fn bundled_frames_track_to_ground_truth<B: Backend + Inspect>(backend: B, params: SlamParams) {
     let name = format!(
         "{}{}",
         backend.name(),
@@ -219,7 +219,7 @@ fn frame_without_ground_truth() {
 
 /// The headline figure on `backend`: frames 1..200 of the full sequence in
 /// `../shared/data` at downsample 2 within 1 mm ATE, no frame lost.
-fn shared_sequence_1_to_200_within_1mm<B: Backend>(backend: B, data: &Path) {
+fn shared_sequence_1_to_200_within_1mm<B: Backend + Inspect>(backend: B, data: &Path) {
     let name = backend.name();
     let seq = dataset::open(&common::shared_icl(data), &SequenceOptions::default()).unwrap();
     let r = run::run(
@@ -311,7 +311,7 @@ fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
 
 /// Runs `backend` over frames `first..=last` of `dir` with `params`; returns the aligned
 /// ATE (metres) and the map's size as a fraction of all pixels fused.
-fn ate_and_map_fraction<B: Backend>(
+fn ate_and_map_fraction<B: Backend + Inspect>(
     backend: B,
     dir: &Path,
     first: usize,
@@ -338,7 +338,7 @@ fn ate_and_map_fraction<B: Backend>(
 }
 
 /// The robust profile holds on the bundled noisy frames, where the assignment's drifts.
-fn robust_profile_tracks_bundled_noisy_frames<B: Backend>(backend: B) {
+fn robust_profile_tracks_bundled_noisy_frames<B: Backend + Inspect>(backend: B) {
     let dir = common::bundled_icl_noisy();
     let robust = SlamParams::profile(Profile::Robust);
     let (ate, _) = ate_and_map_fraction(backend, &dir, 1, 23, robust);
@@ -352,7 +352,7 @@ fn robust_profile_tracks_bundled_noisy_frames<B: Backend>(backend: B) {
 /// The robust profile tracks with its pyramid: every tracked frame's iterations run from
 /// the coarsest level to level 0, never more at a level than its budget, and the status is
 /// level 0's; a one-level schedule runs at level 0 only.
-fn robust_icp_runs_coarse_to_fine<B: Backend>(backend: B) {
+fn robust_icp_runs_coarse_to_fine<B: Backend + Inspect>(backend: B) {
     let seq = dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
     let robust = SlamParams::profile(Profile::Robust);
     let schedule = robust.icp_level_iters.clone();
@@ -393,7 +393,7 @@ fn robust_icp_runs_coarse_to_fine<B: Backend>(backend: B) {
 /// bound still holds, and the map is smaller than with the rule off (same backend). The
 /// profile's 20-frame age limit and 10-frame cadence leave nothing old enough in 23
 /// frames, so the rule runs here after every frame with a 5-frame age limit.
-fn removal_shrinks_the_bundled_noisy_map<B: Backend>(on: B, off: B) {
+fn removal_shrinks_the_bundled_noisy_map<B: Backend + Inspect>(on: B, off: B) {
     let dir = common::bundled_icl_noisy();
     let profile = SlamParams::profile(Profile::Robust);
     assert!(
@@ -437,7 +437,7 @@ fn robust_profile_tracks_clean_frames_too() {
 }
 
 /// The bar on the full noisy sequence at 320x240.
-fn shared_noisy_1_to_200_robust_within_15mm<B: Backend>(backend: B, data: &Path) {
+fn shared_noisy_1_to_200_robust_within_15mm<B: Backend + Inspect>(backend: B, data: &Path) {
     let dir = common::shared_icl_noisy(data);
     let robust = SlamParams::profile(Profile::Robust);
     let (ate, map_fraction) = ate_and_map_fraction(backend, &dir, 1, 200, robust);

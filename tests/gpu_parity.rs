@@ -17,12 +17,11 @@ use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::{
     CompactParams, FuseParams, MapChunk, ProjectParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS,
 };
+use wgslam::slam::backend::{Backend, FrameMaps, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
-use wgslam::slam::pipeline::{
-    Backend, BilateralSettings, FrameMaps, PoseSource, Profile, Slam, SlamParams, TrackStatus,
-    UnstableRemoval,
-};
+use wgslam::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval};
+use wgslam::slam::pipeline::{Slam, TrackStatus};
 use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::{system_rel_diffs, tolerance};
 use wgslam::Error;

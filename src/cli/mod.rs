@@ -11,7 +11,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::pipeline::{
+use crate::slam::params::{
     Association, BilateralSettings, PoseSource, Profile, PyramidSettings, SlamParams,
     UnstableRemoval, MAX_ICP_LEVELS,
 };

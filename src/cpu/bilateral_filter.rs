@@ -52,7 +52,7 @@
 //! larger windows track the noisy set better but bias the clean one (windows clipped at the
 //! image border and at depth edges are one-sided, so slanted and curved surfaces move with
 //! the view), and the clean set must stay within 0.5 mm; 3x3 is the largest that does. The
-//! defaults (in `slam::pipeline::BilateralSettings`) are therefore 3x3, sigma 1 px,
+//! defaults (in `slam::params::BilateralSettings`) are therefore 3x3, sigma 1 px,
 //! `sigma_depth = 0.01 z²`. The filter alone does not make noisy tracking good (fusion keeps
 //! the noise in the map).
 
@@ -125,7 +125,7 @@ pub fn bilateral_filter(
 mod tests {
     use super::*;
     use crate::cpu::back_project;
-    use crate::slam::pipeline::BilateralSettings;
+    use crate::slam::params::BilateralSettings;
 
     const W: u32 = 64;
     const H: u32 = 48;

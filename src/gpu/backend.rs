@@ -1,4 +1,4 @@
-//! The GPU backend: runs the dense-SLAM steps of [`crate::slam::pipeline::Backend`] as the WGSL
+//! The GPU backend: runs the dense-SLAM steps of [`crate::slam::backend::Backend`] as the WGSL
 //! kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`.
 //!
 //! Per-pixel maps (raw inputs, vertex / filtered-vertex / normal / colour maps, the
@@ -57,10 +57,11 @@ use crate::layout::{
     PreprocessParams, ProjectParams, PyramidParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS,
     ICP_SYSTEM_LEN,
 };
-use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{
-    Backend, BackendCounters, FrameLevel, FrameMaps, FusedView, Prediction, PyramidLevel,
+use crate::slam::backend::{
+    Backend, BackendCounters, FrameLevel, FrameMaps, Inspect, Prediction, PyramidLevel,
 };
+use crate::slam::fused_view::FusedView;
+use crate::slam::map::SurfelMap;
 use crate::{Error, Result};
 
 // Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
@@ -1630,6 +1631,12 @@ impl Backend for GpuBackend {
         self.count
     }
 
+    fn finish(&mut self) -> Result<()> {
+        self.ctx.wait_idle()
+    }
+}
+
+impl Inspect for GpuBackend {
     fn download_map(&mut self) -> Result<SurfelMap> {
         let (ctx, m) = (&self.ctx, &self.map);
         ctx.scoped("download map", || {
@@ -1706,10 +1713,6 @@ impl Backend for GpuBackend {
             readback_bytes: s.readback_bytes,
             submissions: s.submissions,
         }
-    }
-
-    fn finish(&mut self) -> Result<()> {
-        self.ctx.wait_idle()
     }
 }
 

@@ -1,5 +1,5 @@
 //! The GPU backend: wgpu context, embedded WGSL kernels, typed buffers, timing, and
-//! [`GpuBackend`], which runs `pipeline::Backend`'s steps as those kernels.
+//! [`GpuBackend`], which runs `slam::backend::Backend`'s steps as those kernels.
 //!
 //! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in `src/cpu/<kernel>.rs`; this
 //! module only knows how to run them on a device. Nothing here reads files.

@@ -5,8 +5,8 @@
 
 use crate::gpu::backend::GpuBackend;
 use crate::gpu::context::GpuContext;
+use crate::slam::backend::SlamBackend;
 use crate::slam::cpu_backend::CpuBackend;
-use crate::slam::pipeline::Backend;
 use crate::{Error, Result};
 
 /// Which implementation to run.
@@ -20,9 +20,10 @@ pub enum BackendChoice {
     Gpu,
 }
 
-/// The CPU or the GPU backend, chosen at run time. `Box<dyn Backend>` is itself a
-/// [`Backend`] (the forwarding impl next to the trait in `pipeline.rs`).
-pub type AnyBackend = Box<dyn Backend>;
+/// The CPU or the GPU backend, chosen at run time. `Box<dyn SlamBackend>` is itself a
+/// [`crate::slam::backend::Backend`] and [`crate::slam::backend::Inspect`] (the forwarding
+/// impls next to the traits in `backend.rs`).
+pub type AnyBackend = Box<dyn SlamBackend>;
 
 /// Opens the chosen backend.
 pub fn open(choice: BackendChoice) -> Result<AnyBackend> {

@@ -13,8 +13,9 @@ use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, MapChunk, NormalParams,
     PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
+use crate::slam::backend::{Backend, FrameLevel, FrameMaps, Inspect, Prediction, PyramidLevel};
+use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, FrameLevel, FrameMaps, FusedView, Prediction, PyramidLevel};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -386,7 +387,9 @@ impl Backend for CpuBackend {
     fn surfel_count(&self) -> usize {
         self.map.len()
     }
+}
 
+impl Inspect for CpuBackend {
     fn download_map(&mut self) -> Result<SurfelMap> {
         Ok(self.map.clone())
     }

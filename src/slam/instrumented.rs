@@ -15,8 +15,10 @@ use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, ICP_SYSTEM_LEN,
 };
+use crate::slam::backend::{
+    Backend, BackendCounters, FrameMaps, Inspect, Prediction, PyramidLevel,
+};
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, BackendCounters, FrameMaps, Prediction, PyramidLevel};
 use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;
@@ -110,6 +112,12 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()
     }
+    fn finish(&mut self) -> Result<()> {
+        self.inner.finish()
+    }
+}
+
+impl<B: Backend + Inspect> Inspect for Instrumented<B> {
     fn download_map(&mut self) -> Result<SurfelMap> {
         self.inner.download_map()
     }
@@ -124,8 +132,5 @@ impl<B: Backend> Backend for Instrumented<B> {
     }
     fn counters(&self) -> BackendCounters {
         self.inner.counters()
-    }
-    fn finish(&mut self) -> Result<()> {
-        self.inner.finish()
     }
 }

@@ -5,8 +5,12 @@
 //! The GPU backend itself lives in [`crate::gpu::backend`], beside the wgpu code it needs.
 
 pub mod any_backend;
+pub mod backend;
 pub mod cpu_backend;
+pub mod fused_view;
 pub mod instrumented;
 pub mod map;
+pub mod params;
 pub mod pipeline;
 pub mod solve;
+pub mod step_params;

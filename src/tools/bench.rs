@@ -13,9 +13,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::dataset::Sequence;
 use crate::gpu::backend::GpuBackend;
+use crate::slam::backend::{Backend, Inspect};
 use crate::slam::cpu_backend::CpuBackend;
 use crate::slam::instrumented::Instrumented;
-use crate::slam::pipeline::{Backend, SlamParams};
+use crate::slam::params::SlamParams;
 use crate::tools::run;
 use crate::Result;
 
@@ -58,7 +59,7 @@ fn decode_ms(frames: &[run::FrameOutcome]) -> f64 {
 
 /// Runs one backend once over the frames without per-stage timing: whole-frame times,
 /// peak memory and accuracy only (`stages` empty, counters zero).
-pub fn bench_frames<B: Backend, F: FnMut() -> Result<B>>(
+pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     mut make: F,
     seq: &Sequence,
     first: usize,
@@ -95,7 +96,7 @@ fn frames_result(backend: String, plain: &run::RunResult) -> BenchResult {
 }
 
 /// Runs one backend twice over the frames (plain, then timed per stage).
-pub fn bench_backend<B: Backend, F: FnMut() -> Result<B>>(
+pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     mut make: F,
     seq: &Sequence,
     first: usize,

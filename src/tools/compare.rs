@@ -22,9 +22,11 @@ use serde::Serialize;
 
 use crate::dataset::Sequence;
 use crate::layout::{ICP_COUNT_INDEX, ICP_SYSTEM_LEN};
+use crate::slam::backend::{Backend, FrameMaps, Inspect};
 use crate::slam::instrumented::Instrumented;
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, FrameMaps, Slam, SlamParams};
+use crate::slam::params::SlamParams;
+use crate::slam::pipeline::Slam;
 use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
@@ -501,7 +503,7 @@ fn count_rel_diff((a, b): (usize, usize)) -> f64 {
 }
 
 /// Runs `a` (the reference) and `b` over frames `first..=last` in `mode` and compares them.
-pub fn compare<A: Backend, B: Backend>(
+pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     a: A,
     b: B,
     seq: &Sequence,

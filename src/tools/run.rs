@@ -19,8 +19,10 @@ use crate::dataset::{RawFrame, Sequence};
 use crate::eval;
 use crate::io;
 use crate::layout::pack_rgba8;
+use crate::slam::backend::{Backend, Inspect};
 use crate::slam::map::SurfelMap;
-use crate::slam::pipeline::{Backend, FrameReport, Slam, SlamParams, TrackStatus};
+use crate::slam::params::SlamParams;
+use crate::slam::pipeline::{FrameReport, Slam, TrackStatus};
 use crate::{Error, Result};
 
 /// One processed frame: where it sits in the sequence and what the pipeline did.
@@ -121,7 +123,7 @@ pub fn peak_memory_mib() -> Option<f64> {
 
 /// Runs `slam` over frames `first..=last` of `seq`, calling `on_frame` after each frame
 /// (for progress). Frames are decoded one ahead on a helper thread.
-pub fn run_frames<B: Backend>(
+pub fn run_frames<B: Backend + Inspect>(
     slam: &mut Slam<B>,
     seq: &Sequence,
     first: usize,
@@ -151,7 +153,7 @@ pub trait FrameObserver {
 }
 
 /// [`run_frames`] with a choice of where frames are decoded.
-pub fn run_frames_with<B: Backend>(
+pub fn run_frames_with<B: Backend + Inspect>(
     slam: &mut Slam<B>,
     seq: &Sequence,
     first: usize,
@@ -163,7 +165,7 @@ pub fn run_frames_with<B: Backend>(
 }
 
 /// [`run_frames_with`] over `frames`, showing each frame to `observer` when there is one.
-fn run_frames_observed<B: Backend>(
+fn run_frames_observed<B: Backend + Inspect>(
     slam: &mut Slam<B>,
     seq: &Sequence,
     frames: std::ops::RangeInclusive<usize>,
@@ -259,7 +261,7 @@ pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accu
 }
 
 /// Runs the whole job on `backend` and computes the metrics (no files written).
-pub fn run<B: Backend>(
+pub fn run<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
     first: usize,
@@ -279,7 +281,7 @@ pub fn run<B: Backend>(
 }
 
 /// [`run`] with a choice of where frames are decoded.
-pub fn run_with<B: Backend>(
+pub fn run_with<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
     first: usize,
@@ -293,7 +295,7 @@ pub fn run_with<B: Backend>(
 
 /// [`run_with`] over `frames`, showing each frame (images, outcome, and the map when it
 /// asks) to `observer` when there is one; the final map is in the [`RunResult`].
-pub fn run_observed<B: Backend>(
+pub fn run_observed<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
     frames: std::ops::RangeInclusive<usize>,

@@ -10,7 +10,9 @@ use glam::DMat4;
 use serde::Serialize;
 
 use crate::dataset::Sequence;
-use crate::slam::pipeline::{Backend, IcpIteration, PoseSource, Slam, SlamParams, TrackStatus};
+use crate::slam::backend::{Backend, Inspect};
+use crate::slam::params::{PoseSource, SlamParams};
+use crate::slam::pipeline::{IcpIteration, Slam, TrackStatus};
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
 
@@ -38,7 +40,7 @@ pub struct TwoFrameResult {
 }
 
 /// Aligns frame `target` to frame `source` with `params` (its `poses` is ignored).
-pub fn align_frames<B: Backend>(
+pub fn align_frames<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
     source: usize,

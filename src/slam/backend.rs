@@ -1,0 +1,214 @@
+//! The two backend traits. [`Backend`] is the pipeline's steps (`preprocess`, `predict`,
+//! `icp_system`, `fuse`, `compact`), each one or a few kernels; [`Inspect`] copies maps in
+//! and out of a backend, which only the tools (outputs, `compare`, `bench`) and the tests
+//! need. Both are implemented by the CPU reference ([`crate::slam::cpu_backend`]) and the
+//! GPU ([`crate::gpu::backend`]); [`SlamBackend`] is the two together, for `Box<dyn _>`.
+//! Also the per-frame maps the traits exchange. Not the step order: see [`crate::slam::plan`].
+
+use crate::layout::{
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
+};
+use crate::slam::map::SurfelMap;
+use crate::Result;
+
+/// The per-frame maps a backend holds after `preprocess` (downloaded for comparison), in
+/// the kernels' representation: `depth_to_vertex`'s two outputs, `bilateral_filter`'s and
+/// `vertex_to_normal`'s.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameMaps {
+    /// Camera-frame vertices, metres, `w = 1` valid / `0` invalid: `depth_to_vertex`'s
+    /// output, unfiltered.
+    pub vertex: Vec<[f32; 4]>,
+    /// `bilateral_filter`'s output (same representation), which `normal_depth` was made
+    /// from; empty when the last `preprocess` ran without the filter.
+    pub filtered_vertex: Vec<[f32; 4]>,
+    /// Camera-frame unit normals with the vertex's depth (metres, > 0) in `w`; all zero
+    /// where invalid (see `cpu::vertex_to_normal`).
+    pub normal_depth: Vec<[f32; 4]>,
+    /// RGB 0..255.
+    pub color: Vec<[f32; 4]>,
+    /// The ICP pyramid's coarser levels 1, 2, ... (empty with a one-level schedule).
+    pub pyramid: Vec<FrameLevel>,
+}
+
+/// One coarser level of the frame's ICP pyramid (level `l >= 1`), in the representation
+/// of level 0's maps, at that level's size.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameLevel {
+    /// `pyramid_depth`'s output: camera-frame vertices, metres, `w = 1` / `0`.
+    pub vertex: Vec<[f32; 4]>,
+    /// `vertex_to_normal` of `vertex`: camera-frame normal, depth in w, zero where invalid.
+    pub normal_depth: Vec<[f32; 4]>,
+}
+
+/// The parameters that make one coarser level `l >= 1` of the frame's and the model's
+/// pyramids from level `l - 1`: `pyramid_depth`'s and `pyramid_model`'s, and
+/// `vertex_to_normal`'s at the level's size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PyramidLevel {
+    pub down: PyramidParams,
+    pub normal: NormalParams,
+}
+
+impl FrameMaps {
+    /// The normal map decoded from `normal_depth` (xyz, `w = 1` valid / `0` invalid), for
+    /// reports and comparisons.
+    pub fn normal_map(&self) -> Vec<[f32; 4]> {
+        Self::normal_map_of(&self.normal_depth)
+    }
+
+    /// The normal map decoded from any `normal_depth` map (a pyramid level's too).
+    pub fn normal_map_of(normal_depth: &[[f32; 4]]) -> Vec<[f32; 4]> {
+        normal_depth
+            .iter()
+            .map(|n| {
+                if n[3] > 0.0 {
+                    [n[0], n[1], n[2], 1.0]
+                } else {
+                    [0.0; 4]
+                }
+            })
+            .collect()
+    }
+}
+
+/// Predicted model vertex and normal maps of one pyramid level (world frame, `w = 1` valid).
+pub type Prediction = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
+/// Work counters a backend reports for the benchmark.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BackendCounters {
+    /// Bytes read back from the device since creation.
+    pub readback_bytes: u64,
+    /// Command submissions since creation.
+    pub submissions: u64,
+}
+
+/// Runs the kernel steps of one frame. Every method mirrors one or two kernels.
+pub trait Backend {
+    /// Short name for logs and reports (`cpu`, `gpu`).
+    fn name(&self) -> &'static str;
+    /// `depth_to_vertex`, then `bilateral_filter` when `bilateral` is given, then
+    /// `vertex_to_normal` on the filtered vertex map (or on the unfiltered one without the
+    /// filter) on a raw frame (`raw_depth`: u16 depth units; `raw_rgba`: packed RGBA8, both
+    /// raw_width x raw_height). The unfiltered vertex map is kept either way. Then, for
+    /// each entry of `pyramid` (levels 1, 2, ...), `pyramid_depth` from the finer level's
+    /// vertex map (at level 0 the one the normals were made from) and `vertex_to_normal`.
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
+        normal: &NormalParams,
+        pyramid: &[PyramidLevel],
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()>;
+    /// `project_model` then `predict_model` at `params.t_world_to_cam`
+    /// (`surfel_count` is filled in by the backend), then `pyramid_model` for each entry of
+    /// `pyramid` (the same levels as the last `preprocess`'s). When the map last changed in
+    /// a best-candidate `fuse` at the same view ([`crate::slam::fused_view::FusedView`]), that fusion's index map
+    /// stands in for `project_model`'s.
+    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
+    /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
+    /// carry that level's size and intrinsics): the summed 29-entry system.
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
+    /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
+    /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
+    /// `capacity` are filled in by the backend, which grows the map first when needed).
+    /// Returns surfels after fusion.
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize>;
+    /// `compact_flags`, `prefix_sum`, then `compact_scatter` into a second map, which
+    /// becomes the map: removes the unstable surfels and moves the survivors to the front
+    /// in their order (`surfel_count` is filled in by the backend). Returns surfels after.
+    fn compact(&mut self, params: &CompactParams) -> Result<usize>;
+    /// Surfels in the map.
+    fn surfel_count(&self) -> usize;
+    /// Blocks until all submitted work has finished (for per-stage wall-clock timing;
+    /// a no-op for the CPU).
+    fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Copies in and out of a backend, for outputs, comparisons and tests; the pipeline's
+/// steps never call these.
+pub trait Inspect {
+    /// The whole map (for export and comparison).
+    fn download_map(&mut self) -> Result<SurfelMap>;
+    /// Replaces the map with `map` (growing the storage if needed): to resume from a saved
+    /// map, or to put this backend into another's state (`wgslam compare`'s lockstep mode).
+    /// [`crate::Error::Capacity`] when the backend cannot hold it.
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()>;
+    /// The current frame's maps.
+    fn download_frame(&mut self) -> Result<FrameMaps>;
+    /// The predicted model vertex and normal maps (world frame) of pyramid level `level`
+    /// (0 = finest); empty before the first frame or beyond the pyramid.
+    fn download_prediction(&mut self, level: usize) -> Result<Prediction>;
+    /// Work counters (zero for the CPU).
+    fn counters(&self) -> BackendCounters {
+        BackendCounters::default()
+    }
+}
+
+/// A backend that can also be inspected: what the command line runs (`Box<dyn
+/// SlamBackend>`, see [`crate::slam::any_backend::AnyBackend`]).
+pub trait SlamBackend: Backend + Inspect {}
+
+impl<T: Backend + Inspect + ?Sized> SlamBackend for T {}
+
+/// A boxed backend is a backend (the CLI picks CPU or GPU at run time): every step goes to
+/// the box's content. The one hand-written forwarding of the trait besides
+/// [`crate::slam::instrumented::Instrumented`].
+impl<B: Backend + ?Sized> Backend for Box<B> {
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
+        normal: &NormalParams,
+        pyramid: &[PyramidLevel],
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()> {
+        (**self).preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba)
+    }
+    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
+        (**self).predict(params, pyramid)
+    }
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        (**self).icp_system(level, params)
+    }
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        (**self).fuse(params)
+    }
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        (**self).compact(params)
+    }
+    fn surfel_count(&self) -> usize {
+        (**self).surfel_count()
+    }
+    fn finish(&mut self) -> Result<()> {
+        (**self).finish()
+    }
+}
+
+impl<B: Inspect + ?Sized> Inspect for Box<B> {
+    fn download_map(&mut self) -> Result<SurfelMap> {
+        (**self).download_map()
+    }
+    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
+        (**self).upload_map(map)
+    }
+    fn download_frame(&mut self) -> Result<FrameMaps> {
+        (**self).download_frame()
+    }
+    fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
+        (**self).download_prediction(level)
+    }
+    fn counters(&self) -> BackendCounters {
+        (**self).counters()
+    }
+}

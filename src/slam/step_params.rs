@@ -1,0 +1,204 @@
+//! The kernels' parameter structs (`src/layout.rs`) for one frame, made from the tracker's
+//! [`SlamParams`](crate::slam::params::SlamParams), intrinsics and pose: the one place
+//! where the pipeline's settings become what the shaders read.
+
+use glam::DMat4;
+
+use crate::geometry::camera::Intrinsics;
+use crate::geometry::se3;
+use crate::layout::{
+    camera_floats, gpu_mat4, BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams,
+    PreprocessParams, ProjectParams, PyramidParams,
+};
+use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::params::UnstableRemoval;
+use crate::slam::pipeline::Slam;
+
+/// `IcpParams::cos_normal_threshold` that turns the angle gate off (below -1).
+const ANGLE_GATE_OFF: f32 = -2.0;
+
+impl<B: Backend> Slam<B> {
+    /// Parameters of `depth_to_vertex`.
+    pub fn preprocess_params(&self) -> PreprocessParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        PreprocessParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            raw_width: self.raw_intrinsics.width,
+            raw_height: self.raw_intrinsics.height,
+            stride: self.params.downsample.max(1),
+            depth_scale: self.params.depth_scale,
+            min_depth_m: self.params.min_depth_m,
+            max_depth_m: self.params.max_depth_m,
+        }
+    }
+
+    /// Parameters of `bilateral_filter`, or `None` when [`SlamParams::bilateral`] is off.
+    pub fn bilateral_params(&self) -> Option<BilateralParams> {
+        let b = self.params.bilateral?;
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        Some(BilateralParams {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            radius_px: b.radius_px,
+            sigma_space_px: b.sigma_space_px,
+            sigma_depth_m: b.sigma_depth_m,
+            sigma_depth_per_m2: b.sigma_depth_per_m2,
+            _pad1: 0,
+            _pad2: 0,
+        })
+    }
+
+    /// Parameters of `vertex_to_normal`.
+    pub fn normal_params(&self) -> NormalParams {
+        NormalParams {
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            max_depth_jump_m: self.params.max_depth_jump_m,
+            _pad: 0,
+        }
+    }
+
+    /// Pyramid levels of [`SlamParams::icp_level_iters`] (one per entry).
+    pub fn levels(&self) -> usize {
+        self.params.icp_level_iters.len()
+    }
+
+    /// Intrinsics of pyramid level `level`: level 0 is [`Slam::intrinsics`], each coarser
+    /// level halves the one before (coarse pixel `(u, v)` samples finer pixel `(2u, 2v)`).
+    pub fn level_intrinsics(&self, level: usize) -> Intrinsics {
+        (0..level).fold(self.intrinsics, |k, _| k.downsampled(2))
+    }
+
+    /// Parameters that make the coarser pyramid levels `1..levels()` (empty with one level).
+    pub fn pyramid_levels(&self) -> Vec<PyramidLevel> {
+        let s = self.params.pyramid;
+        (1..self.levels())
+            .map(|level| {
+                let (fine, coarse) = (
+                    self.level_intrinsics(level - 1),
+                    self.level_intrinsics(level),
+                );
+                PyramidLevel {
+                    down: PyramidParams::halving(
+                        &fine,
+                        s.radius_px,
+                        s.max_depth_diff_m,
+                        s.max_depth_diff_per_m2,
+                    ),
+                    normal: NormalParams {
+                        width: coarse.width,
+                        height: coarse.height,
+                        ..self.normal_params()
+                    },
+                }
+            })
+            .collect()
+    }
+
+    /// Parameters of `project_model`/`predict_model` at a world-to-camera pose.
+    pub fn project_params(&self, t_world_to_cam: &DMat4) -> ProjectParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        ProjectParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            surfel_count: self.backend.surfel_count() as u32,
+            _pad: 0,
+        }
+    }
+
+    /// Parameters of `icp_reduce` at the current estimate on pyramid level `level`.
+    pub fn icp_params(&self, level: usize, t_world_to_cam: &DMat4) -> IcpParams {
+        let k = self.level_intrinsics(level);
+        let [fx, fy, cx, cy] = camera_floats(&k);
+        IcpParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            fx,
+            fy,
+            cx,
+            cy,
+            width: k.width,
+            height: k.height,
+            dist_threshold_m: self.params.icp_dist_m,
+            cos_normal_threshold: if self.params.icp_normal_deg >= 180.0 {
+                ANGLE_GATE_OFF
+            } else {
+                self.params.icp_normal_deg.to_radians().cos()
+            },
+            huber_delta_m: self.params.icp_huber_m,
+            noise_weighting: self.params.icp_noise_weight as u32,
+            _pad0: 0,
+            _pad1: 0,
+        }
+    }
+
+    /// Parameters of `fuse_merge`/`fuse_add` (count and capacity filled by the backend).
+    pub fn fuse_params(&self, t_world_to_cam: &DMat4, frame_id: u32) -> FuseParams {
+        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
+        FuseParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            t_cam_to_world: gpu_mat4(&se3::inverse_rigid(t_world_to_cam)),
+            fx,
+            fy,
+            cx,
+            cy,
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            surfel_count: self.backend.surfel_count() as u32,
+            frame_id,
+            dist_threshold_m: self.params.fuse_dist_m,
+            cos_normal_threshold: self.params.fuse_normal_deg.to_radians().cos(),
+            capacity: 0,
+            association: self.params.fuse_association.code(),
+            confidence_sigma: self.params.fuse_confidence_sigma,
+            prune_radius_scale: self.prune_scale(frame_id),
+            _pad1: 0,
+            _pad2: 0,
+        }
+    }
+
+    /// `fuse_prune`'s radius scale for `frame_id`: [`SlamParams::fuse_prune_scale`] on the
+    /// frames the unstable-surfel removal runs after ([`Slam::removal_after`]), 0 (off) on
+    /// the others; every frame when there is no removal.
+    fn prune_scale(&self, frame_id: u32) -> f32 {
+        if self.params.unstable_removal.is_none() || self.removal_after(frame_id).is_some() {
+            self.params.fuse_prune_scale
+        } else {
+            0.0
+        }
+    }
+
+    /// The unstable-surfel removal's settings when it runs after fusing `frame_id`
+    /// ([`UnstableRemoval::every_frames`]), else `None`.
+    fn removal_after(&self, frame_id: u32) -> Option<UnstableRemoval> {
+        self.params
+            .unstable_removal
+            .filter(|r| frame_id % r.every_frames.max(1) == 0)
+    }
+
+    /// Parameters of the compaction kernels after fusing `frame_id` (count filled by the
+    /// backend), or `None` when [`SlamParams::unstable_removal`] is off or does not run
+    /// after this frame ([`UnstableRemoval::every_frames`]).
+    pub fn compact_params(&self, frame_id: u32) -> Option<CompactParams> {
+        let r = self.removal_after(frame_id)?;
+        Some(CompactParams {
+            surfel_count: self.backend.surfel_count() as u32,
+            frame_id,
+            stable_weight: r.stable_weight,
+            max_age_frames: r.max_age_frames,
+        })
+    }
+}
