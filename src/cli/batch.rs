@@ -39,7 +39,7 @@ pub enum BatchAction {
 #[derive(Debug, Args)]
 pub struct BatchRunArgs {
     /// The manifest (TOML): jobs and grids of sequence, frames, downsample, profile,
-    /// backend (cpu, gpu, both) and `wgslam run` option overrides (README: Batch runs).
+    /// backend (cpu, gpu, both) and `wgslam run` option overrides (docs/batch-and-clusters.md).
     #[arg(required = true)]
     pub manifest: Option<PathBuf>,
     /// Batch folder (default: the manifest's `output`, relative to the manifest).

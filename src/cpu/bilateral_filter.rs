@@ -24,7 +24,7 @@
 //! averages remove the noise without the filter's bias at slants and edges, as
 //! KinectFusion fuses raw depth) and the clean ones slightly worse; switching needs the
 //! unfiltered vertex map bound in the four fusion kernels and their twins, which is the
-//! next step (see the README).
+//! next step (see docs/profiles-and-parameters.md).
 //!
 //! The range sigma grows with depth, `sigma_depth_m + sigma_depth_per_m2 * z²` at the
 //! pixel's own depth `z`, because a structured-light sensor's depth noise does (disparity
