@@ -1,101 +1,83 @@
-//! Every kernel's binding table against its WGSL, without a GPU.
+//! Every kernel's binding layout as naga reflects it from the WGSL, without a GPU.
 //!
-//! For each kernel of `gpu::shaders::KERNELS`, naga reflects the `@group(0) @binding(i)`
-//! globals of the source the runtime builds (`gpu::shaders::source`) with their kind
-//! (uniform, storage read / read_write, texture sample type, storage texture format and
-//! access), and `gpu::layout_mismatches` compares them with the bind-group layout entries
-//! the GPU code creates (`gpu::layout_entries` of the kernel's table in
-//! `gpu::kernel_binding_tables`). Every mismatch of every kernel is reported at once, each
-//! naming the kernel and the binding. Until now these tables were only checked when a GPU
-//! pipeline was built.
+//! The layouts the GPU code creates are these reflections (`gpu::reflect`, used by
+//! `Kernel::new`): there is no hand-written table to disagree with. What is checked here is
+//! that every kernel of `gpu::shaders::KERNELS` reflects into bindings the kernels can bind
+//! (group 0, no uniforms, 2D textures of the formats in use, a `@compute fn main` with a one-
+//! or two-dimensional workgroup), every problem of every kernel reported at once, and that
+//! the reflection reports a broken declaration by kernel and binding name.
 
 mod common;
 
 use std::process::ExitCode;
 
 use common::harness::plain;
-use wgslam::gpu::{self, shaders, Binding, TexelFormat};
+use wgslam::gpu::{self, shaders};
 
-fn every_kernel_layout_matches_its_wgsl() {
-    let tables = gpu::kernel_binding_tables();
+fn every_kernel_reflects_into_bindable_layouts() {
     let mut failures = Vec::new();
+    let mut bindings = 0;
     for (name, _) in shaders::KERNELS {
-        let Some((_, table)) = tables.iter().find(|(n, _)| n == name) else {
-            failures.push(format!(
-                "kernel `{name}`: no binding table in gpu::kernel_binding_tables"
-            ));
-            continue;
-        };
-        failures.extend(gpu::layout_mismatches(
-            name,
-            &shaders::source(name),
-            &gpu::layout_entries(table),
-        ));
-    }
-    for (name, _) in &tables {
-        if shaders::kernel_text(name).is_none() {
-            failures.push(format!(
-                "gpu::kernel_binding_tables lists `{name}`, which is not a kernel"
-            ));
+        match gpu::reflect(name, &shaders::source(name)) {
+            Ok((reflected, _)) => {
+                bindings += reflected.len();
+                // Bindings are dense from 0, so a kernel's resources are all named.
+                for (i, b) in reflected.iter().enumerate() {
+                    if b.binding != i as u32 || b.name.is_empty() {
+                        failures.push(format!(
+                            "kernel `{name}`: binding {} (`{}`) at position {i}",
+                            b.binding, b.name
+                        ));
+                    }
+                }
+            }
+            Err(problems) => failures.extend(problems),
         }
     }
     assert!(
         failures.is_empty(),
-        "{} binding mismatch(es):\n{}",
+        "{} binding problem(s):\n{}",
         failures.len(),
         failures.join("\n")
     );
-    eprintln!("checked the layouts of {} kernels", tables.len());
+    eprintln!(
+        "reflected {bindings} bindings of {} kernels",
+        shaders::KERNELS.len()
+    );
 }
 
-/// The check itself fails on a wrong table, and reports every mismatch at once (so a
-/// passing run above means something).
-fn a_wrong_table_is_reported_binding_by_binding() {
-    // fuse_add's table with binding 3 a read-write buffer instead of read-only, binding 6
-    // a storage texture instead of a buffer, and binding 9 (the last) missing.
-    let mut wrong = gpu::backend::bindings::FUSE_ADD[..9].to_vec();
-    wrong[3] = Binding::read_write("flags");
-    wrong[6] = Binding::storage_texture(TexelFormat::Rgba32F, false, "position_weight");
-    let problems = gpu::layout_mismatches(
-        "fuse_add",
-        &shaders::source("fuse_add"),
-        &gpu::layout_entries(&wrong),
-    );
-    assert_eq!(problems.len(), 3, "got: {problems:#?}");
-    for (b, var) in [(3, "flags"), (6, "position_weight"), (9, "index_map")] {
-        let tag = format!("kernel `fuse_add` binding {b} (`{var}`)");
-        assert!(
-            problems.iter().any(|p| p.starts_with(&tag)),
-            "no report for {tag}: {problems:#?}"
-        );
-    }
-
-    // A texture format and a sample type.
-    let mut wrong = gpu::layout_entries(gpu::backend::bindings::PREDICT_MODEL.as_slice());
-    wrong[3].ty = wgpu::BindingType::Texture {
-        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    };
-    let wrong_format = Binding::storage_texture(TexelFormat::Rgba32U, false, "pred_vertex");
-    wrong[5] = gpu::layout_entries(&[wrong_format])[0];
-    wrong[5].binding = 5;
-    let problems =
-        gpu::layout_mismatches("predict_model", &shaders::source("predict_model"), &wrong);
+/// The reflection itself refuses what the kernels cannot bind, naming kernel and binding,
+/// all at once (so a passing run above means something).
+fn a_broken_declaration_is_reported_by_name() {
+    let wgsl = shaders::source("fuse_add")
+        .replace(
+            "var<storage, read> params: FuseParams",
+            "var<uniform> params: FuseParams",
+        )
+        .replace("@group(0) @binding(9)", "@group(1) @binding(9)");
+    let problems = gpu::reflect("fuse_add", &wgsl).expect_err("two broken bindings");
     assert_eq!(problems.len(), 2, "got: {problems:#?}");
-    assert!(problems[0].starts_with("kernel `predict_model` binding 3 (`position_weight`)"));
-    assert!(problems[1].starts_with("kernel `predict_model` binding 5 (`pred_vertex`)"));
+    assert!(
+        problems[0].starts_with("kernel `fuse_add` binding 0 (`params`): a uniform buffer"),
+        "{problems:#?}"
+    );
+    assert!(
+        problems[1].starts_with("kernel `fuse_add` binding 9 (`index_map`): @group(1)"),
+        "{problems:#?}"
+    );
+    let problems = gpu::reflect("fuse_add", "fn main() {}").expect_err("no entry point");
+    assert_eq!(problems, ["kernel `fuse_add` has no `@compute fn main`"]);
 }
 
 fn main() -> ExitCode {
     common::harness::run(vec![
         plain(
-            "every_kernel_layout_matches_its_wgsl",
-            every_kernel_layout_matches_its_wgsl,
+            "every_kernel_reflects_into_bindable_layouts",
+            every_kernel_reflects_into_bindable_layouts,
         ),
         plain(
-            "a_wrong_table_is_reported_binding_by_binding",
-            a_wrong_table_is_reported_binding_by_binding,
+            "a_broken_declaration_is_reported_by_name",
+            a_broken_declaration_is_reported_by_name,
         ),
     ])
 }

@@ -1324,10 +1324,9 @@ fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
 /// workgroups) and on a GPU (1024): entries of mixed sign and magnitude (as AᵀA, Aᵀb,
 /// counts and residuals are), so the order of the f32 adds shows in the result.
 fn icp_reduce_final_matches_twin(ctx: GpuContext) {
-    use wgslam::gpu::backend::bindings::ICP_REDUCE_FINAL;
     use wgslam::gpu::{GpuArray, Kernel, Readback};
     use wgslam::layout::ICP_SYSTEM_LEN;
-    let kernel = Kernel::new(&ctx, "icp_reduce_final", &ICP_REDUCE_FINAL).unwrap();
+    let kernel = Kernel::new(&ctx, "icp_reduce_final").unwrap();
     for groups in [1usize, 16, 1024] {
         let n = groups * ICP_SYSTEM_LEN;
         let partials: Vec<f32> = (0..n)
@@ -1341,7 +1340,10 @@ fn icp_reduce_final_matches_twin(ctx: GpuContext) {
         let mut system = GpuArray::<f32>::new(&ctx, "system", ICP_SYSTEM_LEN).unwrap();
         system.set_len(ICP_SYSTEM_LEN);
         let mut readback = Readback::new(&ctx, "system read-back", ICP_SYSTEM_LEN);
-        let bg = kernel.bind_group(&ctx, &[input.binding(), system.binding()]);
+        let bg = kernel.bind_group(
+            &ctx,
+            &[("partials", input.binding()), ("system", system.binding())],
+        );
         let mut enc = ctx.encoder("icp_reduce_final");
         {
             let mut pass = enc.begin_compute_pass(&Default::default());

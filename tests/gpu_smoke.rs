@@ -11,7 +11,7 @@ use libtest_mimic::Completion;
 use wgslam::gpu::buffers::{GpuArray, ParamBuffer};
 use wgslam::gpu::images::GpuImage;
 use wgslam::gpu::shaders;
-use wgslam::gpu::{Binding, GpuContext, Kernel, StageTimer};
+use wgslam::gpu::{GpuContext, Kernel, StageTimer};
 use wgslam::Error;
 
 /// `out[i] = 2 in[i] + offset` for `i < n`, using a helper from common.wgsl so the
@@ -43,12 +43,6 @@ struct AffineParams {
     _b: u32,
 }
 
-const AFFINE_BINDINGS: [Binding; 3] = [
-    Binding::params("params"),
-    Binding::read("input"),
-    Binding::read_write("output"),
-];
-
 fn trivial_kernel_runs_in_validation_scope(ctx: GpuContext) {
     eprintln!(
         "adapter {:?}, reduction workgroups {}, max storage binding {} bytes, features {:?}",
@@ -62,12 +56,7 @@ fn trivial_kernel_runs_in_validation_scope(ctx: GpuContext) {
     let input: Vec<u32> = (0..n as u32).map(|i| i * 7 % 97).collect();
     let got = ctx
         .scoped("affine smoke kernel", || {
-            let kernel = Kernel::from_source(
-                &ctx,
-                "affine",
-                &shaders::concat_with_common(AFFINE),
-                &AFFINE_BINDINGS,
-            )?;
+            let kernel = Kernel::from_source(&ctx, "affine", &shaders::concat_with_common(AFFINE))?;
             assert_eq!(kernel.workgroup_size, 64);
             assert_eq!(kernel.workgroups_for(n), 16);
             let params = ParamBuffer::new(
@@ -83,7 +72,14 @@ fn trivial_kernel_runs_in_validation_scope(ctx: GpuContext) {
             let inp = GpuArray::from_slice(&ctx, "input", &input)?;
             let mut out = GpuArray::<u32>::new(&ctx, "output", n)?;
             out.set_len(n);
-            let bg = kernel.bind_group(&ctx, &[params.binding(), inp.binding(), out.binding()]);
+            let bg = kernel.bind_group(
+                &ctx,
+                &[
+                    ("params", params.binding()),
+                    ("input", inp.binding()),
+                    ("output", out.binding()),
+                ],
+            );
             let mut timer = StageTimer::new(&ctx, 4);
             let mut enc = ctx.encoder("affine");
             {
@@ -129,16 +125,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         .collect();
     let got = ctx
         .scoped("u64 atomicMax", || {
-            let k = Kernel::from_source(
-                &ctx,
-                "atomic64",
-                &shaders::concat_with_common(SRC),
-                &[Binding::read("keys"), Binding::read_write("best")],
-            )?;
+            let k = Kernel::from_source(&ctx, "atomic64", &shaders::concat_with_common(SRC))?;
             let keys_buf = GpuArray::from_slice(&ctx, "keys", &keys)?;
             let mut best = GpuArray::<u64>::new(&ctx, "best", 4)?;
             best.set_len(4);
-            let bg = k.bind_group(&ctx, &[keys_buf.binding(), best.binding()]);
+            let bg = k.bind_group(
+                &ctx,
+                &[("keys", keys_buf.binding()), ("best", best.binding())],
+            );
             let mut enc = ctx.encoder("atomic64");
             best.clear(&mut enc);
             {

@@ -1,6 +1,9 @@
 //! A compute kernel: one pipeline, its explicit bind-group layout and its workgroup size,
-//! built once from a kernel name (`shaders/<name>.wgsl`, entry point `main`) and the list of
-//! its bindings. Dispatch computes nothing itself beyond skipping empty dispatches.
+//! built once from a kernel name (`shaders/<name>.wgsl`, entry point `main`). The layout is
+//! naga's reflection of the WGSL's `@group(0) @binding(i)` declarations, the one place a
+//! binding is written; bind groups are made by the WGSL variables' names, so a resource
+//! bound to the wrong binding fails at once with the kernel's and the binding's name.
+//! Dispatch computes nothing itself beyond skipping empty dispatches.
 //!
 //! Not a scheduler: which kernel runs when, on which buffers, is the backend's business.
 //! Layouts are explicit because with `layout: None` bindings an entry point does not use
@@ -10,108 +13,21 @@ use super::context::GpuContext;
 use super::shaders;
 use crate::{Error, Result};
 
-/// What one `@group(0) @binding(i)` is. Bindings are listed in `i` order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BindingKind {
-    /// `var<storage, read> params`: a params struct from `src/layout.rs` in a read-only
-    /// storage buffer, not a uniform buffer: lavapipe (Mesa 22.3) inlines the values of a
-    /// uniform buffer into the shader and compiles a new variant after every write of
-    /// it, keeping each (0.75 MB of JIT code per `icp_reduce` iteration, so a 200-frame
-    /// run grew by gigabytes and spent most of its time compiling; measured with
-    /// `examples/params_memory.rs`). Storage buffers are not inlined.
-    Params,
-    /// `var<storage, read>`.
-    StorageRead,
-    /// `var<storage, read_write>` (including atomics).
-    StorageReadWrite,
-    /// `var: texture_2d<f32>` read with `textureLoad` (rgba32float, unfilterable).
-    TextureF32,
-    /// `var: texture_2d<u32>` read with `textureLoad` (r16uint, rgba8uint).
-    TextureU32,
-    /// `var: texture_storage_2d<FORMAT, write>` or `<FORMAT, read_write>`.
-    StorageTexture {
-        format: TexelFormat,
-        read_write: bool,
-    },
-}
-
-/// Storage-texture formats the kernels use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TexelFormat {
-    /// `vec4<f32>`: maps, surfel position + weight, surfel colour.
-    Rgba32F,
-    /// `vec4<u32>`: surfel normal bits + last_frame.
-    Rgba32U,
-}
-
-impl TexelFormat {
-    /// The wgpu texture format.
-    pub const fn wgpu(self) -> wgpu::TextureFormat {
-        match self {
-            TexelFormat::Rgba32F => wgpu::TextureFormat::Rgba32Float,
-            TexelFormat::Rgba32U => wgpu::TextureFormat::Rgba32Uint,
-        }
-    }
-}
-
-/// One binding with a label for the layout (what the buffer is, for error messages).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Binding {
-    pub kind: BindingKind,
-    pub label: &'static str,
-}
-
-impl Binding {
-    /// A params struct (see [`BindingKind::Params`]).
-    pub const fn params(label: &'static str) -> Binding {
-        Binding {
-            kind: BindingKind::Params,
-            label,
-        }
-    }
-    /// A read-only storage array.
-    pub const fn read(label: &'static str) -> Binding {
-        Binding {
-            kind: BindingKind::StorageRead,
-            label,
-        }
-    }
-    /// A read-write storage array.
-    pub const fn read_write(label: &'static str) -> Binding {
-        Binding {
-            kind: BindingKind::StorageReadWrite,
-            label,
-        }
-    }
-    /// A float texture read with `textureLoad`.
-    pub const fn texture_f32(label: &'static str) -> Binding {
-        Binding {
-            kind: BindingKind::TextureF32,
-            label,
-        }
-    }
-    /// An unsigned-integer texture read with `textureLoad`.
-    pub const fn texture_u32(label: &'static str) -> Binding {
-        Binding {
-            kind: BindingKind::TextureU32,
-            label,
-        }
-    }
-    /// A write-only rgba32float storage texture.
-    pub const fn write_texture(label: &'static str) -> Binding {
-        Self::storage_texture(TexelFormat::Rgba32F, false, label)
-    }
-    /// A storage texture of `format`, write-only or read-write.
-    pub const fn storage_texture(
-        format: TexelFormat,
-        read_write: bool,
-        label: &'static str,
-    ) -> Binding {
-        Binding {
-            kind: BindingKind::StorageTexture { format, read_write },
-            label,
-        }
-    }
+/// One `@group(0) @binding(i)` of a kernel as naga reflects it from the WGSL: the layout
+/// is built from these, and bind groups are made by `name`. Parameter structs are
+/// `var<storage, read> params`, not uniforms: lavapipe (Mesa 22.3) inlines the values of a
+/// uniform buffer into the shader and compiles a new variant after every write of it,
+/// keeping each (0.75 MB of JIT code per `icp_reduce` iteration, so a 200-frame run grew by
+/// gigabytes; measured with `examples/params_memory.rs`). Storage buffers are not inlined;
+/// `tests/bindings.rs` checks that no kernel declares a uniform.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReflectedBinding {
+    /// `i` of `@binding(i)`.
+    pub binding: u32,
+    /// The WGSL variable's name.
+    pub name: String,
+    /// The layout entry type the declaration asks for.
+    pub ty: wgpu::BindingType,
 }
 
 /// A compute pipeline with its bind-group layout (group 0) and `@workgroup_size` (x, y:
@@ -126,30 +42,27 @@ pub struct Kernel {
     pub workgroup_size: u32,
     /// Threads per workgroup along y (1 for one-dimensional kernels).
     pub workgroup_size_y: u32,
-    bindings: Vec<Binding>,
+    bindings: Vec<ReflectedBinding>,
 }
 
 impl Kernel {
-    /// Builds the kernel `shaders/<name>.wgsl` (with `common.wgsl` prepended). Create every
-    /// kernel once: pipeline creation costs 60-130 ms on lavapipe.
+    /// Builds the kernel `shaders/<name>.wgsl` (with `common.wgsl` prepended), its layout
+    /// reflected from the WGSL. Create every kernel once: pipeline creation costs 60-130 ms
+    /// on lavapipe.
     ///
-    /// Panics when `bindings` disagree with the shader's declarations (an internal
-    /// contract); wgpu validation errors become [`Error::Gpu`].
-    pub fn new(ctx: &GpuContext, name: &str, bindings: &[Binding]) -> Result<Kernel> {
-        Self::from_source(ctx, name, &shaders::source(name), bindings)
+    /// [`Error::Gpu`] when the WGSL does not parse or declares a binding the kernels cannot
+    /// use; wgpu validation errors likewise.
+    pub fn new(ctx: &GpuContext, name: &str) -> Result<Kernel> {
+        Self::from_source(ctx, name, &shaders::source(name))
     }
 
     /// Builds a kernel from full WGSL text (used by [`Kernel::new`] and by tests with
     /// inline shaders).
-    pub fn from_source(
-        ctx: &GpuContext,
-        name: &str,
-        wgsl: &str,
-        bindings: &[Binding],
-    ) -> Result<Kernel> {
-        let [workgroup_size, workgroup_size_y] = check_shader_interface(name, wgsl, bindings)?;
+    pub fn from_source(ctx: &GpuContext, name: &str, wgsl: &str) -> Result<Kernel> {
+        let interface = reflect(name, wgsl).map_err(|problems| Error::Gpu(problems.join("\n")))?;
+        let (bindings, [workgroup_size, workgroup_size_y]) = interface;
         ctx.scoped(&format!("creating kernel `{name}`"), || {
-            let entries = layout_entries(bindings);
+            let entries = layout_entries(&bindings);
             let bind_group_layout =
                 ctx.device
                     .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -185,39 +98,76 @@ impl Kernel {
                 bind_group_layout,
                 workgroup_size,
                 workgroup_size_y,
-                bindings: bindings.to_vec(),
+                bindings,
             })
         })
     }
 
-    /// The bindings this kernel was built with, in `@binding` order.
-    pub fn bindings(&self) -> &[Binding] {
+    /// The bindings reflected from the kernel's WGSL, in `@binding` order.
+    pub fn bindings(&self) -> &[ReflectedBinding] {
         &self.bindings
     }
 
-    /// A bind group with `resources[i]` at `@binding(i)`. Panics when the count differs
-    /// from the kernel's bindings (an internal contract).
+    /// A bind group with each `(name, resource)` at the binding whose WGSL variable is
+    /// `name`; the order of `resources` does not matter.
+    ///
+    /// Panics (an internal contract) naming the kernel and the binding when a binding gets
+    /// no resource or two, a name is not one of the kernel's bindings, or a buffer is given
+    /// for a texture binding or the other way round.
     pub fn bind_group(
         &self,
         ctx: &GpuContext,
-        resources: &[wgpu::BindingResource<'_>],
+        resources: &[(&str, wgpu::BindingResource<'_>)],
     ) -> wgpu::BindGroup {
-        assert_eq!(
-            resources.len(),
-            self.bindings.len(),
-            "kernel `{}`: {} resources for bindings {:?}",
+        let mut problems = Vec::new();
+        for (name, _) in resources {
+            if !self.bindings.iter().any(|b| b.name == *name) {
+                problems.push(format!("`{name}` is not one of its bindings"));
+            }
+        }
+        let mut entries = Vec::with_capacity(self.bindings.len());
+        for b in &self.bindings {
+            let given: Vec<_> = resources.iter().filter(|(n, _)| *n == b.name).collect();
+            match given.as_slice() {
+                [(_, resource)] => {
+                    let is_buffer = matches!(resource, wgpu::BindingResource::Buffer(_));
+                    let wants_buffer = matches!(b.ty, wgpu::BindingType::Buffer { .. });
+                    if is_buffer != wants_buffer {
+                        problems.push(format!(
+                            "binding {} (`{}`) is {:?}, given a {}",
+                            b.binding,
+                            b.name,
+                            b.ty,
+                            if is_buffer {
+                                "buffer"
+                            } else {
+                                "texture or other resource"
+                            }
+                        ));
+                    }
+                    entries.push(wgpu::BindGroupEntry {
+                        binding: b.binding,
+                        resource: resource.clone(),
+                    });
+                }
+                [] => problems.push(format!(
+                    "binding {} (`{}`) has no resource",
+                    b.binding, b.name
+                )),
+                _ => problems.push(format!(
+                    "binding {} (`{}`) is given {} resources",
+                    b.binding,
+                    b.name,
+                    given.len()
+                )),
+            }
+        }
+        assert!(
+            problems.is_empty(),
+            "kernel `{}`: bind group does not match the WGSL:\n{}",
             self.name,
-            resources.len(),
-            self.bindings
+            problems.join("\n")
         );
-        let entries: Vec<wgpu::BindGroupEntry> = resources
-            .iter()
-            .enumerate()
-            .map(|(i, r)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: r.clone(),
-            })
-            .collect();
         ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&self.name),
             layout: &self.bind_group_layout,
@@ -327,39 +277,14 @@ fn texture(sample_type: wgpu::TextureSampleType) -> wgpu::BindingType {
     }
 }
 
-/// The bind-group layout entry type of one binding kind.
-fn layout_type(kind: BindingKind) -> wgpu::BindingType {
-    match kind {
-        BindingKind::Params => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
-        BindingKind::StorageRead => buffer(wgpu::BufferBindingType::Storage { read_only: true }),
-        BindingKind::StorageReadWrite => {
-            buffer(wgpu::BufferBindingType::Storage { read_only: false })
-        }
-        BindingKind::TextureF32 => texture(wgpu::TextureSampleType::Float { filterable: false }),
-        BindingKind::TextureU32 => texture(wgpu::TextureSampleType::Uint),
-        BindingKind::StorageTexture { format, read_write } => wgpu::BindingType::StorageTexture {
-            access: if read_write {
-                wgpu::StorageTextureAccess::ReadWrite
-            } else {
-                wgpu::StorageTextureAccess::WriteOnly
-            },
-            format: format.wgpu(),
-            view_dimension: wgpu::TextureViewDimension::D2,
-        },
-    }
-}
-
-/// The explicit bind-group layout entries of a binding table: `bindings[i]` at
-/// `@binding(i)`, compute stage only. Needs no device, so `tests/bindings.rs` checks the
-/// very entries [`Kernel::from_source`] creates its layout from.
-pub fn layout_entries(bindings: &[Binding]) -> Vec<wgpu::BindGroupLayoutEntry> {
+/// The explicit bind-group layout entries of reflected bindings, compute stage only.
+pub fn layout_entries(bindings: &[ReflectedBinding]) -> Vec<wgpu::BindGroupLayoutEntry> {
     bindings
         .iter()
-        .enumerate()
-        .map(|(i, b)| wgpu::BindGroupLayoutEntry {
-            binding: i as u32,
+        .map(|b| wgpu::BindGroupLayoutEntry {
+            binding: b.binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: layout_type(b.kind),
+            ty: b.ty,
             count: None,
         })
         .collect()
@@ -373,7 +298,11 @@ fn reflected_type(
     g: &naga::GlobalVariable,
 ) -> Result<wgpu::BindingType, String> {
     match g.space {
-        naga::AddressSpace::Uniform => Ok(buffer(wgpu::BufferBindingType::Uniform)),
+        naga::AddressSpace::Uniform => Err(
+            "a uniform buffer: declare it `var<storage, read>` (lavapipe recompiles a kernel \
+             after every write of a uniform; see ReflectedBinding)"
+                .into(),
+        ),
         naga::AddressSpace::Storage { access } => Ok(buffer(wgpu::BufferBindingType::Storage {
             read_only: !access.contains(naga::StorageAccess::STORE),
         })),
@@ -421,28 +350,24 @@ fn reflected_type(
     }
 }
 
-/// Every disagreement between the `@group(0) @binding(i)` globals of `wgsl` (reflected by
-/// naga) and the layout `entries` built for kernel `name`, one sentence each naming the
-/// kernel and the binding: a binding on one side only, a different type (uniform, storage
-/// access, texture sample type, storage-texture format or access), a group other than 0,
-/// a stage other than compute, an array count. Empty when they agree. A WGSL parse error
-/// is one entry.
-pub fn layout_mismatches(
+/// The interface of kernel `name`'s WGSL as naga reflects it: its `@group(0)
+/// @binding(i)` globals in binding order, with the layout type each asks for, and
+/// `@workgroup_size(x, y)` of its `@compute fn main`. `Err` lists every problem at once,
+/// one sentence each naming the kernel and the binding: a parse error, no `main`, a
+/// three-dimensional workgroup, a group other than 0, a binding declared twice, a type the
+/// kernels cannot bind. Needs no device (`tests/bindings.rs` runs it on every kernel).
+pub fn reflect(
     name: &str,
     wgsl: &str,
-    entries: &[wgpu::BindGroupLayoutEntry],
-) -> Vec<String> {
-    let module = match naga::front::wgsl::parse_str(wgsl) {
-        Ok(m) => m,
-        Err(e) => {
-            return vec![format!(
-                "kernel `{name}`: WGSL does not parse: {}",
-                e.message()
-            )]
-        }
-    };
+) -> std::result::Result<(Vec<ReflectedBinding>, [u32; 2]), Vec<String>> {
+    let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| {
+        vec![format!(
+            "kernel `{name}` does not parse:\n{}",
+            e.emit_to_string(wgsl)
+        )]
+    })?;
     let mut problems = Vec::new();
-    let mut declared = std::collections::BTreeMap::new();
+    let mut bindings: Vec<ReflectedBinding> = Vec::new();
     for (_, g) in module.global_variables.iter() {
         let Some(rb) = g.binding.as_ref() else {
             continue;
@@ -455,90 +380,49 @@ pub fn layout_mismatches(
             ));
             continue;
         }
+        if bindings.iter().any(|b| b.binding == rb.binding) {
+            problems.push(format!(
+                "kernel `{name}` binding {} (`{var}`): declared twice",
+                rb.binding
+            ));
+            continue;
+        }
         match reflected_type(&module, g) {
-            Ok(ty) => {
-                declared.insert(rb.binding, (var, ty));
-            }
+            Ok(ty) => bindings.push(ReflectedBinding {
+                binding: rb.binding,
+                name: var,
+                ty,
+            }),
             Err(why) => problems.push(format!(
                 "kernel `{name}` binding {} (`{var}`): {why}",
                 rb.binding
             )),
         }
     }
-    let mut listed = std::collections::BTreeMap::new();
-    for e in entries {
-        if listed.insert(e.binding, e).is_some() {
-            problems.push(format!(
-                "kernel `{name}` binding {}: listed twice in the layout",
-                e.binding
-            ));
-        }
-        if e.visibility != wgpu::ShaderStages::COMPUTE {
-            problems.push(format!(
-                "kernel `{name}` binding {}: layout visibility {:?}, not COMPUTE",
-                e.binding, e.visibility
-            ));
-        }
-        if e.count.is_some() {
-            problems.push(format!(
-                "kernel `{name}` binding {}: layout has an array count",
-                e.binding
-            ));
-        }
-    }
-    let all: std::collections::BTreeSet<u32> =
-        declared.keys().chain(listed.keys()).copied().collect();
-    for b in all {
-        match (declared.get(&b), listed.get(&b)) {
-            (Some((var, wgsl_ty)), Some(e)) if *wgsl_ty != e.ty => problems.push(format!(
-                "kernel `{name}` binding {b} (`{var}`): WGSL declares {wgsl_ty:?}, the layout \
-                 has {:?}",
-                e.ty
-            )),
-            (Some((var, wgsl_ty)), None) => problems.push(format!(
-                "kernel `{name}` binding {b} (`{var}`): declared in WGSL as {wgsl_ty:?}, missing \
-                 from the layout"
-            )),
-            (None, Some(e)) => problems.push(format!(
-                "kernel `{name}` binding {b}: in the layout as {:?}, not declared in WGSL",
-                e.ty
-            )),
-            _ => {}
-        }
-    }
-    problems
-}
-
-/// Checks `bindings` against the shader's declarations ([`layout_mismatches`]) and returns
-/// `@workgroup_size(x, y)` of the entry point `main`.
-///
-/// A WGSL parse error is [`Error::Gpu`] (it means the embedded shader is broken, which
-/// `tests/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug,
-/// which `tests/bindings.rs` catches without a GPU).
-fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Result<[u32; 2]> {
-    let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| {
-        Error::Gpu(format!(
-            "kernel `{name}` does not parse:\n{}",
-            e.emit_to_string(wgsl)
-        ))
-    })?;
-    let entry = module
+    bindings.sort_by_key(|b| b.binding);
+    let size = match module
         .entry_points
         .iter()
         .find(|e| e.name == "main" && e.stage == naga::ShaderStage::Compute)
-        .unwrap_or_else(|| panic!("kernel `{name}` has no `@compute fn main`"));
-    let problems = layout_mismatches(name, wgsl, &layout_entries(bindings));
-    assert!(
-        problems.is_empty(),
-        "kernel `{name}`: WGSL bindings differ from the Rust list:\n{}",
-        problems.join("\n")
-    );
-    let [x, y, z] = entry.workgroup_size;
-    assert!(
-        z == 1,
-        "kernel `{name}`: only one- and two-dimensional workgroups are supported"
-    );
-    Ok([x, y])
+    {
+        None => {
+            problems.push(format!("kernel `{name}` has no `@compute fn main`"));
+            [0, 0]
+        }
+        Some(entry) => {
+            let [x, y, z] = entry.workgroup_size;
+            if z != 1 {
+                problems.push(format!(
+                    "kernel `{name}`: only one- and two-dimensional workgroups are supported"
+                ));
+            }
+            [x, y]
+        }
+    };
+    match problems.is_empty() {
+        true => Ok((bindings, size)),
+        false => Err(problems),
+    }
 }
 
 #[cfg(test)]

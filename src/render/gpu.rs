@@ -9,26 +9,8 @@ use image::RgbImage;
 
 use super::layout::RenderParams;
 use super::{render_params, rgba_to_image, Cloud, RenderCamera, RenderSettings, View};
-use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, ParamBuffer};
+use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
 use crate::{Error, Result};
-
-/// Bindings of `render_splat` (order of `@binding(i)`).
-pub const RENDER_SPLAT: [Binding; 4] = [
-    Binding::params("params: RenderParams"),
-    Binding::read("positions: world frame"),
-    Binding::read("normals: world frame (back-face culling)"),
-    Binding::read_write("index_map: atomic u64 depth|index keys"),
-];
-
-/// Bindings of `render_resolve` (order of `@binding(i)`).
-pub const RENDER_RESOLVE: [Binding; 6] = [
-    Binding::params("params: RenderParams"),
-    Binding::read("index_map: u64 keys as vec2<u32>"),
-    Binding::read("normals: world frame"),
-    Binding::read("colors: RGB 0..255"),
-    Binding::read("weights"),
-    Binding::read_write("out_rgba: packed RGBA8"),
-];
 
 /// The two render kernels, created once per context.
 #[derive(Debug)]
@@ -48,8 +30,8 @@ impl GpuRenderer {
             )));
         }
         Ok(GpuRenderer {
-            splat: Kernel::new(ctx, "render_splat", &RENDER_SPLAT)?,
-            resolve: Kernel::new(ctx, "render_resolve", &RENDER_RESOLVE)?,
+            splat: Kernel::new(ctx, "render_splat")?,
+            resolve: Kernel::new(ctx, "render_resolve")?,
         })
     }
 
@@ -90,21 +72,21 @@ impl GpuRenderer {
             let splat_bg = self.splat.bind_group(
                 ctx,
                 &[
-                    params_buf.binding(),
-                    positions.binding(),
-                    normals.binding(),
-                    index_map.binding(),
+                    ("params", params_buf.binding()),
+                    ("positions", positions.binding()),
+                    ("normals", normals.binding()),
+                    ("index_map", index_map.binding()),
                 ],
             );
             let resolve_bg = self.resolve.bind_group(
                 ctx,
                 &[
-                    params_buf.binding(),
-                    index_map.binding(),
-                    normals.binding(),
-                    colors.binding(),
-                    weights.binding(),
-                    out.binding(),
+                    ("params", params_buf.binding()),
+                    ("index_map", index_map.binding()),
+                    ("normals", normals.binding()),
+                    ("colors", colors.binding()),
+                    ("weights", weights.binding()),
+                    ("out_rgba", out.binding()),
                 ],
             );
             let mut enc = ctx.encoder("render");

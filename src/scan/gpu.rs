@@ -20,7 +20,7 @@ use super::layout::{
 use super::nn::NearestNeighbours;
 use crate::cpu::cross_covariance::decode;
 use crate::cpu::nn_grid::HashGrid;
-use crate::gpu::{Binding, GpuArray, GpuContext, Kernel, ParamBuffer};
+use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
 use crate::{Error, Result};
 
 /// Which nearest-neighbour kernel to run.
@@ -31,32 +31,6 @@ pub enum NnMethod {
     /// Hashed uniform grid with cells of the rejection radius: the 27 cells around a query.
     Grid,
 }
-
-/// Bindings of `nn_brute` (order of `@binding(i)`).
-pub const NN_BRUTE: [Binding; 4] = [
-    Binding::params("ScanNnParams"),
-    Binding::read("queries (vec4, metres)"),
-    Binding::read("targets (vec4, metres)"),
-    Binding::read_write("nn results"),
-];
-
-/// Bindings of `nn_grid` (order of `@binding(i)`).
-pub const NN_GRID: [Binding; 5] = [
-    Binding::params("ScanNnParams"),
-    Binding::read("queries (vec4, metres)"),
-    Binding::read("grid points sorted by bucket (w = index bits)"),
-    Binding::read("bucket start offsets"),
-    Binding::read_write("nn results"),
-];
-
-/// Bindings of `cross_covariance` (order of `@binding(i)`).
-pub const CROSS_COVARIANCE: [Binding; 5] = [
-    Binding::params("ScanCovParams"),
-    Binding::read("queries (vec4, metres)"),
-    Binding::read("targets (vec4, metres)"),
-    Binding::read("nn results"),
-    Binding::read_write("per-workgroup partials"),
-];
 
 /// The three scan kernels, created once per context (pipeline creation is slow).
 #[derive(Debug)]
@@ -70,9 +44,9 @@ impl ScanKernels {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<ScanKernels> {
         Ok(ScanKernels {
-            nn_brute: Kernel::new(ctx, "nn_brute", &NN_BRUTE)?,
-            nn_grid: Kernel::new(ctx, "nn_grid", &NN_GRID)?,
-            cross_covariance: Kernel::new(ctx, "cross_covariance", &CROSS_COVARIANCE)?,
+            nn_brute: Kernel::new(ctx, "nn_brute")?,
+            nn_grid: Kernel::new(ctx, "nn_grid")?,
+            cross_covariance: Kernel::new(ctx, "cross_covariance")?,
         })
     }
 }
@@ -217,20 +191,20 @@ impl<'a> GpuTarget<'a> {
                     (NnMethod::Grid, Some((_, pts, starts))) => self.kernels.nn_grid.bind_group(
                         ctx,
                         &[
-                            u.binding(),
-                            s.queries.binding(),
-                            pts.binding(),
-                            starts.binding(),
-                            s.results.binding(),
+                            ("params", u.binding()),
+                            ("queries", s.queries.binding()),
+                            ("grid_points", pts.binding()),
+                            ("bucket_start", starts.binding()),
+                            ("results", s.results.binding()),
                         ],
                     ),
                     _ => self.kernels.nn_brute.bind_group(
                         ctx,
                         &[
-                            u.binding(),
-                            s.queries.binding(),
-                            self.targets.binding(),
-                            s.results.binding(),
+                            ("params", u.binding()),
+                            ("queries", s.queries.binding()),
+                            ("targets", self.targets.binding()),
+                            ("results", s.results.binding()),
                         ],
                     ),
                 })
@@ -243,11 +217,11 @@ impl<'a> GpuTarget<'a> {
                 self.kernels.cross_covariance.bind_group(
                     ctx,
                     &[
-                        p.binding(),
-                        s.queries.binding(),
-                        self.targets.binding(),
-                        s.results.binding(),
-                        s.partials.binding(),
+                        ("params", p.binding()),
+                        ("queries", s.queries.binding()),
+                        ("targets", self.targets.binding()),
+                        ("nn", s.results.binding()),
+                        ("partials", s.partials.binding()),
                     ],
                 )
             });

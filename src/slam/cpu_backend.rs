@@ -1,4 +1,5 @@
-//! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors.
+//! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors, each step in
+//! the order of its plan ([`crate::slam::plan`], shared with the GPU backend).
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
@@ -11,11 +12,12 @@ use crate::cpu;
 use crate::layout::{append_slots, scan_params};
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, MapChunk, NormalParams,
-    PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE, BLOCK_SURFELS, ICP_SYSTEM_LEN,
+    PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, FrameLevel, FrameMaps, Inspect, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
+use crate::slam::plan::{self, Buffer, Call};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -115,51 +117,64 @@ impl Backend for CpuBackend {
         raw_rgba: &[u32],
     ) -> Result<()> {
         let n = (params.width * params.height) as usize;
-        self.frame.vertex.resize(n, cpu::INVALID);
-        self.frame.color.resize(n, cpu::INVALID);
-        self.frame.normal_depth.resize(n, cpu::INVALID);
-        cpu::depth_to_vertex::depth_to_vertex(
-            params,
-            raw_depth,
-            raw_rgba,
-            &mut self.frame.vertex,
-            &mut self.frame.color,
-        );
-        // The normals (and through normal_depth, ICP and fusion) see the filtered map when
-        // the filter is on; `vertex` stays unfiltered either way.
         let f = &mut self.frame;
-        let normals_from = match bilateral {
-            Some(b) => {
-                f.filtered_vertex.resize(n, cpu::INVALID);
-                cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
-                &f.filtered_vertex
-            }
-            None => {
-                f.filtered_vertex.clear();
-                &f.vertex
-            }
-        };
-        cpu::vertex_to_normal::vertex_to_normal(normal, normals_from, &mut f.normal_depth);
-        // The coarser levels, each from the finer one's vertex map (level 0's: the one
-        // the normals were made from).
+        f.vertex.resize(n, cpu::INVALID);
+        f.color.resize(n, cpu::INVALID);
+        f.normal_depth.resize(n, cpu::INVALID);
         f.pyramid.resize_with(pyramid.len(), FrameLevel::default);
-        for (l, p) in pyramid.iter().enumerate() {
-            let (finer, coarser) = f.pyramid.split_at_mut(l);
-            let fine_vertex = match finer.last() {
-                Some(level) => &level.vertex,
-                None if bilateral.is_some() => &f.filtered_vertex,
-                None => &f.vertex,
-            };
-            let level = &mut coarser[0];
-            let n = (p.down.width * p.down.height) as usize;
-            level.vertex.resize(n, cpu::INVALID);
-            level.normal_depth.resize(n, cpu::INVALID);
-            cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut level.vertex);
-            cpu::vertex_to_normal::vertex_to_normal(
-                &p.normal,
-                &level.vertex,
-                &mut level.normal_depth,
-            );
+        // `filtered_vertex` is empty without the filter (see `FrameMaps`).
+        if bilateral.is_none() {
+            f.filtered_vertex.clear();
+        }
+        for call in plan::preprocess(bilateral.is_some(), pyramid.len()) {
+            match call {
+                Call::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
+                    params,
+                    raw_depth,
+                    raw_rgba,
+                    &mut f.vertex,
+                    &mut f.color,
+                ),
+                Call::BilateralFilter => {
+                    let b = bilateral.expect("the plan filters only with filter params");
+                    f.filtered_vertex.resize(n, cpu::INVALID);
+                    cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
+                }
+                // The normals (and through normal_depth, ICP and fusion) see the filtered
+                // map when the filter is on; `vertex` stays unfiltered either way.
+                Call::VertexToNormal { level: 0, filtered } => {
+                    let from = match filtered {
+                        true => &f.filtered_vertex,
+                        false => &f.vertex,
+                    };
+                    cpu::vertex_to_normal::vertex_to_normal(normal, from, &mut f.normal_depth);
+                }
+                Call::VertexToNormal { level, .. } => {
+                    let l = &mut f.pyramid[level - 1];
+                    cpu::vertex_to_normal::vertex_to_normal(
+                        &pyramid[level - 1].normal,
+                        &l.vertex,
+                        &mut l.normal_depth,
+                    );
+                }
+                // Each coarser level from the finer one's vertex map (level 0's: the one
+                // the normals were made from).
+                Call::PyramidDepth { level, filtered } => {
+                    let p = &pyramid[level - 1];
+                    let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
+                    let fine_vertex = match finer.last() {
+                        Some(l) => &l.vertex,
+                        None if filtered => &f.filtered_vertex,
+                        None => &f.vertex,
+                    };
+                    let l = &mut coarser[0];
+                    let n = (p.down.width * p.down.height) as usize;
+                    l.vertex.resize(n, cpu::INVALID);
+                    l.normal_depth.resize(n, cpu::INVALID);
+                    cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
+                }
+                other => unreachable!("{other:?} is not a preprocessing kernel"),
+            }
         }
         Ok(())
     }
@@ -169,46 +184,55 @@ impl Backend for CpuBackend {
         params.surfel_count = self.map.len() as u32;
         let n = (params.width * params.height) as usize;
         let chunk = MapChunk::whole(self.map.len());
-        if !self.fused_view.is_some_and(|v| v.is_view_of(&params)) {
-            self.refresh_bounds();
-            self.index_map.clear();
-            self.index_map.resize(n, 0);
-            cpu::project_model::project_model(
-                &params,
-                &chunk,
-                &self.block_bounds,
-                &self.map.position_weight,
-                &mut self.index_map,
-            );
-        }
+        let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
         self.prediction
             .resize_with(1 + pyramid.len(), Default::default);
-        let (pred_vertex, pred_normal) = &mut self.prediction[0];
-        pred_vertex.resize(n, cpu::INVALID);
-        pred_normal.resize(n, cpu::INVALID);
-        cpu::predict_model::predict_model(
-            &params,
-            &self.index_map,
-            &chunk,
-            &self.map.position_weight,
-            &self.map.normal_frame,
-            pred_vertex,
-            pred_normal,
-        );
-        for (l, p) in pyramid.iter().enumerate() {
-            let (finer, coarser) = self.prediction.split_at_mut(l + 1);
-            let (fine_vertex, fine_normal) = &finer[l];
-            let (coarse_vertex, coarse_normal) = &mut coarser[0];
-            let n = (p.down.width * p.down.height) as usize;
-            coarse_vertex.resize(n, cpu::INVALID);
-            coarse_normal.resize(n, cpu::INVALID);
-            cpu::pyramid_model::pyramid_model(
-                &p.down,
-                fine_vertex,
-                fine_normal,
-                coarse_vertex,
-                coarse_normal,
-            );
+        for call in plan::predict(project, pyramid.len()) {
+            match call {
+                Call::BlockBounds => self.refresh_bounds(),
+                Call::Clear(Buffer::IndexMap) => {
+                    self.index_map.clear();
+                    self.index_map.resize(n, 0);
+                }
+                Call::ProjectModel => cpu::project_model::project_model(
+                    &params,
+                    &chunk,
+                    &self.block_bounds,
+                    &self.map.position_weight,
+                    &mut self.index_map,
+                ),
+                Call::PredictModel => {
+                    let (pred_vertex, pred_normal) = &mut self.prediction[0];
+                    pred_vertex.resize(n, cpu::INVALID);
+                    pred_normal.resize(n, cpu::INVALID);
+                    cpu::predict_model::predict_model(
+                        &params,
+                        &self.index_map,
+                        &chunk,
+                        &self.map.position_weight,
+                        &self.map.normal_frame,
+                        pred_vertex,
+                        pred_normal,
+                    );
+                }
+                Call::PyramidModel { level } => {
+                    let p = &pyramid[level - 1];
+                    let (finer, coarser) = self.prediction.split_at_mut(level);
+                    let (fine_vertex, fine_normal) = &finer[level - 1];
+                    let (coarse_vertex, coarse_normal) = &mut coarser[0];
+                    let n = (p.down.width * p.down.height) as usize;
+                    coarse_vertex.resize(n, cpu::INVALID);
+                    coarse_normal.resize(n, cpu::INVALID);
+                    cpu::pyramid_model::pyramid_model(
+                        &p.down,
+                        fine_vertex,
+                        fine_normal,
+                        coarse_vertex,
+                        coarse_normal,
+                    );
+                }
+                other => unreachable!("{other:?} is not a prediction kernel"),
+            }
         }
         Ok(())
     }
@@ -241,46 +265,51 @@ impl Backend for CpuBackend {
         let mut params = *params;
         params.surfel_count = count as u32;
         params.capacity = (count + n_pix) as u32;
-        self.assoc.clear();
-        self.assoc.resize(n_pix, 0);
         self.fused_view = None;
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            self.merged.clear();
-            self.merged.resize(2 * n_pix, [0.0; 4]);
-            self.index_map.clear();
-            self.index_map.resize(n_pix, 0);
-        }
-        self.refresh_bounds();
-        let m = &mut self.map;
         let chunk = MapChunk::whole(count);
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            cpu::fuse_select::fuse_select(
-                &params,
-                &self.frame.normal_depth,
-                &chunk,
-                &self.block_bounds,
-                &m.position_weight,
-                &m.normal_frame,
-                &m.color,
-                &mut self.assoc,
-                &mut self.index_map,
-            );
-        }
-        if params.association == ASSOCIATION_BEST_CANDIDATE {
-            cpu::fuse_merge_chosen::fuse_merge_chosen(
-                &params,
-                &self.frame.normal_depth,
-                &self.frame.color,
-                &chunk,
-                bytemuck::cast_slice_mut(&mut self.block_bounds),
-                &mut m.position_weight,
-                &mut m.normal_frame,
-                &mut m.color,
-                &self.assoc,
-                &mut self.merged,
-            );
-            if params.prune_radius_scale > 0.0 {
-                cpu::fuse_prune::fuse_prune(
+        // Flags and offsets in append order (holes for tiles outside the image stay 0).
+        let n_slots = append_slots(params.width, params.height);
+        let mut added = 0u32;
+        for call in plan::fuse(&params) {
+            let m = &mut self.map;
+            match call {
+                Call::Clear(Buffer::Assoc) => {
+                    self.assoc.clear();
+                    self.assoc.resize(n_pix, 0);
+                }
+                Call::Clear(Buffer::Merged) => {
+                    self.merged.clear();
+                    self.merged.resize(2 * n_pix, [0.0; 4]);
+                }
+                Call::Clear(Buffer::IndexMap) => {
+                    self.index_map.clear();
+                    self.index_map.resize(n_pix, 0);
+                }
+                Call::BlockBounds => self.refresh_bounds(),
+                Call::FuseSelect => cpu::fuse_select::fuse_select(
+                    &params,
+                    &self.frame.normal_depth,
+                    &chunk,
+                    &self.block_bounds,
+                    &m.position_weight,
+                    &m.normal_frame,
+                    &m.color,
+                    &mut self.assoc,
+                    &mut self.index_map,
+                ),
+                Call::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
+                    &params,
+                    &self.frame.normal_depth,
+                    &self.frame.color,
+                    &chunk,
+                    bytemuck::cast_slice_mut(&mut self.block_bounds),
+                    &mut m.position_weight,
+                    &mut m.normal_frame,
+                    &mut m.color,
+                    &self.assoc,
+                    &mut self.merged,
+                ),
+                Call::FusePrune => cpu::fuse_prune::fuse_prune(
                     &params,
                     &chunk,
                     &self.block_bounds,
@@ -288,55 +317,58 @@ impl Backend for CpuBackend {
                     &mut m.normal_frame,
                     &m.color,
                     &self.merged,
-                );
+                ),
+                Call::FuseMerge => cpu::fuse_merge::fuse_merge(
+                    &params,
+                    &self.frame.normal_depth,
+                    &self.frame.color,
+                    &chunk,
+                    bytemuck::cast_slice_mut(&mut self.block_bounds),
+                    &mut m.position_weight,
+                    &mut m.normal_frame,
+                    &mut m.color,
+                    &mut self.assoc,
+                ),
+                Call::FuseFlags => {
+                    self.add_flags.resize(n_slots, 0);
+                    cpu::fuse_flags::fuse_flags(
+                        &params,
+                        &self.frame.normal_depth,
+                        &self.assoc,
+                        &self.merged,
+                        &mut self.add_flags,
+                    );
+                }
+                Call::FuseScan => {
+                    self.add_offsets.resize(n_slots, 0);
+                    cpu::prefix_sum::prefix_sum(
+                        &scan_params(n_slots),
+                        &self.add_flags,
+                        &mut self.add_offsets,
+                        &mut added,
+                    );
+                }
+                Call::FuseAdd => {
+                    // Room for every pixel, as the GPU backend guarantees before its dispatch.
+                    m.resize(params.capacity as usize);
+                    cpu::fuse_add::fuse_add(
+                        &params,
+                        &self.frame.normal_depth,
+                        &self.frame.color,
+                        &self.add_flags,
+                        &self.add_offsets,
+                        &MapChunk::whole(params.capacity as usize),
+                        &mut m.position_weight,
+                        &mut m.normal_frame,
+                        &mut m.color,
+                        &mut self.index_map,
+                    );
+                }
+                other => unreachable!("{other:?} is not a fusion kernel"),
             }
-        } else {
-            cpu::fuse_merge::fuse_merge(
-                &params,
-                &self.frame.normal_depth,
-                &self.frame.color,
-                &chunk,
-                bytemuck::cast_slice_mut(&mut self.block_bounds),
-                &mut m.position_weight,
-                &mut m.normal_frame,
-                &mut m.color,
-                &mut self.assoc,
-            );
         }
-        // Flags and offsets in append order (holes for tiles outside the image stay 0).
-        let n_slots = append_slots(params.width, params.height);
-        self.add_flags.resize(n_slots, 0);
-        cpu::fuse_flags::fuse_flags(
-            &params,
-            &self.frame.normal_depth,
-            &self.assoc,
-            &self.merged,
-            &mut self.add_flags,
-        );
-        self.add_offsets.resize(n_slots, 0);
-        let mut added = 0u32;
-        cpu::prefix_sum::prefix_sum(
-            &scan_params(n_slots),
-            &self.add_flags,
-            &mut self.add_offsets,
-            &mut added,
-        );
-        // Room for every pixel, as the GPU backend guarantees before its dispatch.
-        m.resize(params.capacity as usize);
-        cpu::fuse_add::fuse_add(
-            &params,
-            &self.frame.normal_depth,
-            &self.frame.color,
-            &self.add_flags,
-            &self.add_offsets,
-            &MapChunk::whole(params.capacity as usize),
-            &mut m.position_weight,
-            &mut m.normal_frame,
-            &mut m.color,
-            &mut self.index_map,
-        );
         let new_len = count + added as usize;
-        m.resize(new_len);
+        self.map.resize(new_len);
         // The blocks from the one that held the old last surfel on have new surfels.
         self.bounds_dirty_from = self.bounds_dirty_from.min(count);
         self.fused_view = FusedView::of_fuse(&params);
@@ -348,35 +380,51 @@ impl Backend for CpuBackend {
         let mut params = *params;
         params.surfel_count = n as u32;
         let m = &self.map;
-        self.flags.resize(n, 0);
         let chunk = MapChunk::whole(n);
-        cpu::compact_flags::compact_flags(
-            &params,
-            &chunk,
-            &m.position_weight,
-            &m.normal_frame,
-            &mut self.flags,
-        );
-        self.offsets.resize(n, 0);
         let mut counter = 0u32;
-        cpu::prefix_sum::prefix_sum(&params, &self.flags, &mut self.offsets, &mut counter);
-        // The second map, as large as the first (as on the GPU), cut to the survivors.
-        let out = &mut self.spare;
-        out.resize(n);
-        cpu::compact_scatter::compact_scatter(
-            &params,
-            &self.flags,
-            &self.offsets,
-            &chunk,
-            &m.position_weight,
-            &m.normal_frame,
-            &m.color,
-            &chunk,
-            &mut out.position_weight,
-            &mut out.normal_frame,
-            &mut out.color,
-        );
-        out.resize(counter as usize);
+        for call in plan::compact() {
+            match call {
+                Call::CompactFlags => {
+                    self.flags.resize(n, 0);
+                    cpu::compact_flags::compact_flags(
+                        &params,
+                        &chunk,
+                        &m.position_weight,
+                        &m.normal_frame,
+                        &mut self.flags,
+                    );
+                }
+                Call::CompactScan => {
+                    self.offsets.resize(n, 0);
+                    cpu::prefix_sum::prefix_sum(
+                        &params,
+                        &self.flags,
+                        &mut self.offsets,
+                        &mut counter,
+                    );
+                }
+                // The second map, as large as the first (as on the GPU), cut to the survivors.
+                Call::CompactScatter => {
+                    let out = &mut self.spare;
+                    out.resize(n);
+                    cpu::compact_scatter::compact_scatter(
+                        &params,
+                        &self.flags,
+                        &self.offsets,
+                        &chunk,
+                        &m.position_weight,
+                        &m.normal_frame,
+                        &m.color,
+                        &chunk,
+                        &mut out.position_weight,
+                        &mut out.normal_frame,
+                        &mut out.color,
+                    );
+                    out.resize(counter as usize);
+                }
+                other => unreachable!("{other:?} is not a compaction kernel"),
+            }
+        }
         std::mem::swap(&mut self.map, &mut self.spare);
         // Every surfel may have moved to another block, and to another index.
         self.bounds_dirty_from = 0;

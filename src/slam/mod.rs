@@ -12,5 +12,6 @@ pub mod instrumented;
 pub mod map;
 pub mod params;
 pub mod pipeline;
+pub mod plan;
 pub mod solve;
 pub mod step_params;

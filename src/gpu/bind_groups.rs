@@ -1,0 +1,396 @@
+//! The GPU backend's bind groups: every kernel's resources, bound by the names of the WGSL
+//! variables (`("normal_depth", ...)`), made once per set of buffers and re-made only when
+//! a buffer they refer to is re-created (a new frame size, a grown map). The kernels that
+//! walk the map get one bind group per map chunk.
+
+use super::buffers::GpuArray;
+use super::compaction::Compaction;
+use super::context::GpuContext;
+use super::images::GpuImage;
+use super::kernels::Kernels;
+use super::map_buffers::{Chunk, MapBuffers};
+use super::resources::{FrameBuffers, Uniforms};
+
+/// The bind groups of the per-frame steps for one map set.
+pub(super) struct BindGroups {
+    pub depth_to_vertex: wgpu::BindGroup,
+    pub bilateral_filter: wgpu::BindGroup,
+    /// `vertex_to_normal` reading the unfiltered vertex map (filter off) ...
+    pub vertex_to_normal: wgpu::BindGroup,
+    /// ... and reading the filtered one (filter on).
+    pub vertex_to_normal_filtered: wgpu::BindGroup,
+    /// The map kernels' bind groups, one per map chunk.
+    pub block_bounds: Vec<wgpu::BindGroup>,
+    pub project_model: Vec<wgpu::BindGroup>,
+    pub predict_model: Vec<wgpu::BindGroup>,
+    pub icp_reduce: wgpu::BindGroup,
+    pub fuse_select: Vec<wgpu::BindGroup>,
+    pub fuse_merge: Vec<wgpu::BindGroup>,
+    pub fuse_merge_chosen: Vec<wgpu::BindGroup>,
+    pub fuse_prune: Vec<wgpu::BindGroup>,
+    pub fuse_flags: wgpu::BindGroup,
+    /// `prefix_sum` over the new-surfel flags (in append order, `append_slots` entries).
+    pub fuse_scan: wgpu::BindGroup,
+    pub fuse_add: Vec<wgpu::BindGroup>,
+    /// Per coarser pyramid level (1, 2, ...).
+    pub levels: Vec<LevelBindGroups>,
+}
+
+/// The bind groups of one coarser pyramid level.
+pub(super) struct LevelBindGroups {
+    /// `pyramid_depth` reading the finer level's vertex map: at level 1 the unfiltered
+    /// one (filter off) ...
+    pub pyramid_depth: wgpu::BindGroup,
+    /// ... or the filtered one (filter on); at levels 2 and up the same as `pyramid_depth`.
+    pub pyramid_depth_filtered: wgpu::BindGroup,
+    pub vertex_to_normal: wgpu::BindGroup,
+    pub pyramid_model: wgpu::BindGroup,
+    pub icp_reduce: wgpu::BindGroup,
+}
+
+/// What the bind groups refer to besides the kernels: the buffers a backend owns.
+pub(super) struct Resources<'a> {
+    pub uniforms: &'a Uniforms,
+    pub frame: &'a FrameBuffers,
+    pub map: &'a MapBuffers,
+    /// Per culling block its box (see `block_bounds.wgsl`).
+    pub block_bounds: &'a GpuArray<[u32; 4]>,
+    /// `icp_reduce`'s per-workgroup partial systems.
+    pub partials: &'a GpuArray<f32>,
+    /// `prefix_sum`'s total.
+    pub counter: &'a GpuArray<u32>,
+}
+
+impl BindGroups {
+    /// Every per-frame step's bind groups over `r`.
+    pub fn new(ctx: &GpuContext, k: &Kernels, r: &Resources) -> BindGroups {
+        let (u, f, bounds) = (r.uniforms, r.frame, r.block_bounds);
+        // One bind group per map chunk.
+        let per_chunk = |make: &dyn Fn(&Chunk) -> wgpu::BindGroup| {
+            r.map.chunks.iter().map(make).collect::<Vec<_>>()
+        };
+        let vertex_to_normal = |vertex_map: &GpuImage| {
+            k.vertex_to_normal.bind_group(
+                ctx,
+                &[
+                    ("params", u.normal.binding()),
+                    ("vertex_map", vertex_map.binding()),
+                    ("normal_depth", f.normal_depth.binding()),
+                ],
+            )
+        };
+        BindGroups {
+            block_bounds: per_chunk(&|ch| {
+                k.block_bounds.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.bounds.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("block_bounds", bounds.binding()),
+                    ],
+                )
+            }),
+            depth_to_vertex: k.depth_to_vertex.bind_group(
+                ctx,
+                &[
+                    ("params", u.preprocess.binding()),
+                    ("raw_depth", f.raw_depth.binding()),
+                    ("raw_rgba", f.raw_rgba.binding()),
+                    ("vertex_map", f.vertex.binding()),
+                    ("color_map", f.color.binding()),
+                ],
+            ),
+            bilateral_filter: k.bilateral_filter.bind_group(
+                ctx,
+                &[
+                    ("params", u.bilateral.binding()),
+                    ("vertex_map", f.vertex.binding()),
+                    ("filtered_vertex", f.filtered_vertex.binding()),
+                ],
+            ),
+            vertex_to_normal: vertex_to_normal(&f.vertex),
+            vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
+            project_model: per_chunk(&|ch| {
+                k.project_model.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.project.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("block_bounds", bounds.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("index_map", f.index_map.binding()),
+                    ],
+                )
+            }),
+            predict_model: per_chunk(&|ch| {
+                k.predict_model.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.project.binding()),
+                        ("index_map", f.index_map.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("normal_frame", ch.normal_frame.binding()),
+                        ("pred_vertex", f.pred_vertex.binding()),
+                        ("pred_normal", f.pred_normal.binding()),
+                    ],
+                )
+            }),
+            icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
+            fuse_select: per_chunk(&|ch| {
+                k.fuse_select.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.fuse.binding()),
+                        ("normal_depth", f.normal_depth.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("block_bounds", bounds.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("normal_frame", ch.normal_frame.binding()),
+                        ("color", ch.color.binding()),
+                        ("assoc", f.assoc.binding()),
+                        ("index_map", f.index_map.binding()),
+                    ],
+                )
+            }),
+            fuse_merge: per_chunk(&|ch| {
+                k.fuse_merge.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.fuse.binding()),
+                        ("normal_depth", f.normal_depth.binding()),
+                        ("color_map", f.color.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("block_bounds", bounds.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("normal_frame", ch.normal_frame.binding()),
+                        ("color", ch.color.binding()),
+                        ("assoc", f.assoc.binding()),
+                    ],
+                )
+            }),
+            fuse_flags: k.fuse_flags.bind_group(
+                ctx,
+                &[
+                    ("params", u.fuse.binding()),
+                    ("normal_depth", f.normal_depth.binding()),
+                    ("assoc", f.assoc.binding()),
+                    ("merged", f.merged.binding()),
+                    ("flags", f.add_flags.binding()),
+                ],
+            ),
+            fuse_scan: k.prefix_sum.bind_group(
+                ctx,
+                &[
+                    ("params", u.fuse_scan.binding()),
+                    ("flags", f.add_flags.binding()),
+                    ("offsets", f.add_offsets.binding()),
+                    ("counter", r.counter.binding()),
+                ],
+            ),
+            fuse_merge_chosen: per_chunk(&|ch| {
+                k.fuse_merge_chosen.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.fuse.binding()),
+                        ("normal_depth", f.normal_depth.binding()),
+                        ("color_map", f.color.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("block_bounds", bounds.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("normal_frame", ch.normal_frame.binding()),
+                        ("color", ch.color.binding()),
+                        ("assoc", f.assoc.binding()),
+                        ("merged", f.merged.binding()),
+                    ],
+                )
+            }),
+            fuse_prune: per_chunk(&|ch| {
+                k.fuse_prune.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.fuse.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("block_bounds", bounds.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("normal_frame", ch.normal_frame.binding()),
+                        ("color", ch.color.binding()),
+                        ("merged", f.merged.binding()),
+                    ],
+                )
+            }),
+            fuse_add: per_chunk(&|ch| {
+                k.fuse_add.bind_group(
+                    ctx,
+                    &[
+                        ("params", u.fuse.binding()),
+                        ("normal_depth", f.normal_depth.binding()),
+                        ("color_map", f.color.binding()),
+                        ("flags", f.add_flags.binding()),
+                        ("offsets", f.add_offsets.binding()),
+                        ("chunk", ch.info_buffer.binding()),
+                        ("position_weight", ch.position_weight.binding()),
+                        ("normal_frame", ch.normal_frame.binding()),
+                        ("color", ch.color.binding()),
+                        ("index_map", f.index_map.binding()),
+                    ],
+                )
+            }),
+            levels: (0..f.levels.len())
+                .map(|l| LevelBindGroups::new(ctx, k, r, l))
+                .collect(),
+        }
+    }
+}
+
+impl LevelBindGroups {
+    /// The bind groups of coarser level `l + 1` (`f.levels[l]`).
+    fn new(ctx: &GpuContext, k: &Kernels, r: &Resources, l: usize) -> LevelBindGroups {
+        let f = r.frame;
+        let level = &f.levels[l];
+        // The finer level's maps: level 0's, or the previous level's.
+        let (fine_vertex, fine_pred_vertex, fine_pred_normal) = match l {
+            0 => (&f.vertex, &f.pred_vertex, &f.pred_normal),
+            _ => {
+                let p = &f.levels[l - 1];
+                (&p.vertex, &p.pred_vertex, &p.pred_normal)
+            }
+        };
+        let pyramid_depth = |fine: &GpuImage| {
+            k.pyramid_depth.bind_group(
+                ctx,
+                &[
+                    ("params", level.u_pyramid.binding()),
+                    ("fine_vertex", fine.binding()),
+                    ("coarse_vertex", level.vertex.binding()),
+                ],
+            )
+        };
+        let unfiltered = pyramid_depth(fine_vertex);
+        let filtered = match l {
+            0 => pyramid_depth(&f.filtered_vertex),
+            _ => unfiltered.clone(),
+        };
+        LevelBindGroups {
+            pyramid_depth: unfiltered,
+            pyramid_depth_filtered: filtered,
+            vertex_to_normal: k.vertex_to_normal.bind_group(
+                ctx,
+                &[
+                    ("params", level.u_normal.binding()),
+                    ("vertex_map", level.vertex.binding()),
+                    ("normal_depth", level.normal_depth.binding()),
+                ],
+            ),
+            pyramid_model: k.pyramid_model.bind_group(
+                ctx,
+                &[
+                    ("params", level.u_pyramid.binding()),
+                    ("fine_vertex", fine_pred_vertex.binding()),
+                    ("fine_normal", fine_pred_normal.binding()),
+                    ("coarse_vertex", level.pred_vertex.binding()),
+                    ("coarse_normal", level.pred_normal.binding()),
+                ],
+            ),
+            icp_reduce: icp_reduce(
+                ctx,
+                k,
+                r,
+                [&level.pred_vertex, &level.pred_normal, &level.normal_depth],
+            ),
+        }
+    }
+}
+
+/// `icp_reduce` over one pyramid level's predicted maps and frame normals.
+fn icp_reduce(
+    ctx: &GpuContext,
+    k: &Kernels,
+    r: &Resources,
+    [pred_vertex, pred_normal, normal_depth]: [&GpuImage; 3],
+) -> wgpu::BindGroup {
+    k.icp_reduce.bind_group(
+        ctx,
+        &[
+            ("params", r.uniforms.icp.binding()),
+            ("pred_vertex", pred_vertex.binding()),
+            ("pred_normal", pred_normal.binding()),
+            ("normal_depth", normal_depth.binding()),
+            ("partials", r.partials.binding()),
+        ],
+    )
+}
+
+/// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
+/// input chunk and output chunk no later than it) for one map set.
+pub(super) struct CompactionGroups {
+    pub flags: Vec<wgpu::BindGroup>,
+    pub scan: wgpu::BindGroup,
+    /// Input chunk s, output chunk d <= s (offsets[i] <= i), at s (s + 1) / 2 + d.
+    pub scatter: Vec<wgpu::BindGroup>,
+}
+
+impl CompactionGroups {
+    /// The compaction's bind groups from `map` into `c.spare`.
+    pub fn new(
+        ctx: &GpuContext,
+        k: &Kernels,
+        u: &Uniforms,
+        counter: &GpuArray<u32>,
+        map: &MapBuffers,
+        c: &Compaction,
+    ) -> CompactionGroups {
+        CompactionGroups {
+            flags: map
+                .chunks
+                .iter()
+                .map(|ch| {
+                    k.compact_flags.bind_group(
+                        ctx,
+                        &[
+                            ("params", u.compact.binding()),
+                            ("chunk", ch.info_buffer.binding()),
+                            ("position_weight", ch.position_weight.binding()),
+                            ("normal_frame", ch.normal_frame.binding()),
+                            ("flags", c.flags.binding()),
+                        ],
+                    )
+                })
+                .collect(),
+            scan: k.prefix_sum.bind_group(
+                ctx,
+                &[
+                    ("params", u.compact.binding()),
+                    ("flags", c.flags.binding()),
+                    ("offsets", c.offsets.binding()),
+                    ("counter", counter.binding()),
+                ],
+            ),
+            scatter: map
+                .chunks
+                .iter()
+                .enumerate()
+                .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
+                .map(|(from, to)| {
+                    k.compact_scatter.bind_group(
+                        ctx,
+                        &[
+                            ("params", u.compact.binding()),
+                            ("flags", c.flags.binding()),
+                            ("offsets", c.offsets.binding()),
+                            ("chunk", from.info_buffer.binding()),
+                            ("position_weight", from.position_weight.binding()),
+                            ("normal_frame", from.normal_frame.binding()),
+                            ("color", from.color.binding()),
+                            ("out_chunk", to.info_buffer.binding()),
+                            ("out_position_weight", to.position_weight.binding()),
+                            ("out_normal_frame", to.normal_frame.binding()),
+                            ("out_color", to.color.binding()),
+                        ],
+                    )
+                })
+                .collect(),
+        }
+    }
+}

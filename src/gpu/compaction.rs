@@ -1,0 +1,62 @@
+//! What the GPU's `compact` step needs besides the map, allocated at its first call (the
+//! assignment profile never pays for it) and re-allocated when the map grows: one keep
+//! flag and one offset per surfel slot, and a second map of the same chunk sizes that
+//! `compact_scatter` writes and that then swaps with the map.
+
+use super::bind_groups::CompactionGroups;
+use super::buffers::GpuArray;
+use super::context::GpuContext;
+use super::map_buffers::MapBuffers;
+use crate::Result;
+
+pub(super) struct Compaction {
+    pub flags: GpuArray<u32>,
+    pub offsets: GpuArray<u32>,
+    pub spare: MapBuffers,
+    /// The three passes' bind groups for the live map (`groups`) and for the spare one
+    /// (`spare_groups`), made once each and swapped with the maps.
+    pub groups: Option<CompactionGroups>,
+    pub spare_groups: Option<CompactionGroups>,
+}
+
+impl Compaction {
+    /// Flags, offsets and a spare map for `map` (all `map.capacity()` slots).
+    pub fn new(ctx: &GpuContext, map: &MapBuffers) -> Result<Compaction> {
+        let cap = map.capacity();
+        ctx.scoped("allocating the compaction buffers", || {
+            let mut flags = GpuArray::new(ctx, "compact flags", cap)?;
+            flags.set_len(cap);
+            let mut offsets = GpuArray::new(ctx, "compact offsets", cap)?;
+            offsets.set_len(cap);
+            let mut spare = MapBuffers::new(ctx, 1, map.chunk_surfels())?;
+            spare.match_layout(ctx, map)?;
+            Ok(Compaction {
+                flags,
+                offsets,
+                spare,
+                groups: None,
+                spare_groups: None,
+            })
+        })
+    }
+
+    /// Follows `map`'s layout after it grew: re-makes what no longer fits. Returns whether
+    /// anything changed (then every compaction bind group is dropped, and the caller drops
+    /// the spare map set's other bind groups).
+    pub fn follow(&mut self, ctx: &GpuContext, map: &MapBuffers) -> Result<bool> {
+        let cap = map.capacity();
+        let relaid = self.spare.match_layout(ctx, map)?;
+        if self.flags.capacity() >= cap && !relaid {
+            return Ok(false);
+        }
+        if self.flags.capacity() < cap {
+            self.flags = GpuArray::new(ctx, "compact flags", cap)?;
+            self.offsets = GpuArray::new(ctx, "compact offsets", cap)?;
+        }
+        self.flags.set_len(cap);
+        self.offsets.set_len(cap);
+        self.groups = None;
+        self.spare_groups = None;
+        Ok(true)
+    }
+}

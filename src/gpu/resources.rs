@@ -1,0 +1,191 @@
+//! The GPU backend's per-frame resources: the kernels' parameter buffers ([`Uniforms`],
+//! made once) and the buffers sized by the frame ([`FrameBuffers`]: raw inputs, per-pixel
+//! maps as textures, the prediction, the association buffers, the pyramid's coarser levels),
+//! made at the first `preprocess` and again only when the frame size or the pyramid changes.
+//! The surfel map is [`super::map_buffers::MapBuffers`]; the bind groups over all of them are
+//! [`super::bind_groups`].
+
+use super::buffers::{GpuArray, ParamBuffer};
+use super::context::GpuContext;
+use super::images::GpuImage;
+use crate::layout::append_slots;
+use crate::layout::{
+    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, NormalParams,
+    PreprocessParams, ProjectParams, PyramidParams,
+};
+use crate::slam::backend::PyramidLevel;
+use crate::Result;
+
+/// One parameter buffer per kernel parameter struct, written before each step (one per
+/// step at a time: a step's passes share its buffer).
+pub(super) struct Uniforms {
+    pub preprocess: ParamBuffer<PreprocessParams>,
+    pub bilateral: ParamBuffer<BilateralParams>,
+    pub normal: ParamBuffer<NormalParams>,
+    pub project: ParamBuffer<ProjectParams>,
+    pub icp: ParamBuffer<IcpParams>,
+    pub fuse: ParamBuffer<FuseParams>,
+    /// `prefix_sum`'s parameters for fusion's scan over the new-surfel flags.
+    pub fuse_scan: ParamBuffer<CompactParams>,
+    pub compact: ParamBuffer<CompactParams>,
+    /// `block_bounds`' parameters.
+    pub bounds: ParamBuffer<BoundsParams>,
+}
+
+impl Uniforms {
+    /// Every parameter buffer, zeroed.
+    pub fn new(ctx: &GpuContext) -> Uniforms {
+        Uniforms {
+            preprocess: ParamBuffer::new(ctx, "PreprocessParams", &bytemuck::Zeroable::zeroed()),
+            bilateral: ParamBuffer::new(ctx, "BilateralParams", &bytemuck::Zeroable::zeroed()),
+            normal: ParamBuffer::new(ctx, "NormalParams", &bytemuck::Zeroable::zeroed()),
+            project: ParamBuffer::new(ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
+            icp: ParamBuffer::new(ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
+            fuse: ParamBuffer::new(ctx, "FuseParams", &bytemuck::Zeroable::zeroed()),
+            fuse_scan: ParamBuffer::new(ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed()),
+            compact: ParamBuffer::new(ctx, "CompactParams", &bytemuck::Zeroable::zeroed()),
+            bounds: ParamBuffer::new(ctx, "BoundsParams", &bytemuck::Zeroable::zeroed()),
+        }
+    }
+}
+
+/// Buffers sized by the frame: raw inputs, per-pixel maps, prediction, association flags.
+pub(super) struct FrameBuffers {
+    pub raw_width: u32,
+    pub raw_height: u32,
+    pub width: u32,
+    pub height: u32,
+    pub raw_depth: GpuImage,
+    pub raw_rgba: GpuImage,
+    /// `depth_to_vertex`'s output, never filtered.
+    pub vertex: GpuImage,
+    /// `bilateral_filter`'s output; meaningful only when `filtered` is set.
+    pub filtered_vertex: GpuImage,
+    /// Whether the last `preprocess` ran the filter (and made the normals from
+    /// `filtered_vertex`).
+    pub filtered: bool,
+    /// The normal map with the vertex's depth in w (see vertex_to_normal.wgsl).
+    pub normal_depth: GpuImage,
+    pub color: GpuImage,
+    pub index_map: GpuArray<u64>,
+    pub pred_vertex: GpuImage,
+    pub pred_normal: GpuImage,
+    /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
+    pub assoc: GpuArray<u64>,
+    /// Per pixel, the surfel it merged into (two entries; see fuse_merge_chosen.wgsl),
+    /// cleared and filled on every frame of best-candidate association (fuse_flags and
+    /// fuse_prune read it).
+    pub merged: GpuArray<[f32; 4]>,
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
+    /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
+    pub add_flags: GpuArray<u32>,
+    pub add_offsets: GpuArray<u32>,
+    /// The ICP pyramid's coarser levels 1, 2, ... (none with a one-level schedule).
+    pub levels: Vec<LevelBuffers>,
+}
+
+/// One coarser level (1, 2, ...) of the ICP pyramid: the frame's and the model's maps at
+/// its size, and the uniforms of the kernels that make them (one per level: `preprocess`
+/// records every level's passes in one submission, so they cannot share one).
+pub(super) struct LevelBuffers {
+    pub width: u32,
+    pub height: u32,
+    /// `pyramid_depth`'s output.
+    pub vertex: GpuImage,
+    pub normal_depth: GpuImage,
+    /// `pyramid_model`'s outputs.
+    pub pred_vertex: GpuImage,
+    pub pred_normal: GpuImage,
+    pub u_pyramid: ParamBuffer<PyramidParams>,
+    pub u_normal: ParamBuffer<NormalParams>,
+}
+
+impl FrameBuffers {
+    /// The buffers for frames of `p`'s raw and map sizes with `pyramid`'s coarser levels.
+    pub fn new(ctx: &GpuContext, p: &PreprocessParams, pyramid: &[PyramidLevel]) -> Result<Self> {
+        let n = (p.width * p.height) as usize;
+        let full = |label: &str| -> Result<GpuImage> {
+            GpuImage::new(
+                ctx,
+                label,
+                p.width,
+                p.height,
+                wgpu::TextureFormat::Rgba32Float,
+                true,
+            )
+        };
+        let raw = |label: &str, format| -> Result<GpuImage> {
+            GpuImage::new(ctx, label, p.raw_width, p.raw_height, format, false)
+        };
+        let raw_depth = raw("raw depth", wgpu::TextureFormat::R16Uint)?;
+        let raw_rgba = raw("raw rgba", wgpu::TextureFormat::Rgba8Uint)?;
+        let mut index_map = GpuArray::new(ctx, "index map", n)?;
+        index_map.set_len(n);
+        let mut assoc = GpuArray::new(ctx, "assoc", n)?;
+        assoc.set_len(n);
+        let mut merged = GpuArray::new(ctx, "merged surfel per pixel", 2 * n)?;
+        merged.set_len(2 * n);
+        // In append order, with holes for tiles outside the image that stay 0.
+        let n_append = append_slots(p.width, p.height);
+        let mut add_flags = GpuArray::new(ctx, "new-surfel flags", n_append)?;
+        add_flags.set_len(n_append);
+        let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n_append)?;
+        add_offsets.set_len(n_append);
+        let levels = pyramid
+            .iter()
+            .map(|l| {
+                let (w, h) = (l.down.width, l.down.height);
+                let map = |label: &str| {
+                    GpuImage::new(ctx, label, w, h, wgpu::TextureFormat::Rgba32Float, true)
+                };
+                Ok(LevelBuffers {
+                    width: w,
+                    height: h,
+                    vertex: map("pyramid vertex map")?,
+                    normal_depth: map("pyramid normal-depth map")?,
+                    pred_vertex: map("pyramid predicted vertex map")?,
+                    pred_normal: map("pyramid predicted normal map")?,
+                    u_pyramid: ParamBuffer::new(ctx, "PyramidParams", &l.down),
+                    u_normal: ParamBuffer::new(ctx, "NormalParams (pyramid)", &l.normal),
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(FrameBuffers {
+            raw_width: p.raw_width,
+            raw_height: p.raw_height,
+            width: p.width,
+            height: p.height,
+            raw_depth,
+            raw_rgba,
+            vertex: full("vertex map")?,
+            filtered_vertex: full("filtered vertex map")?,
+            filtered: false,
+            normal_depth: full("normal-depth map")?,
+            color: full("color map")?,
+            index_map,
+            pred_vertex: full("predicted vertex map")?,
+            pred_normal: full("predicted normal map")?,
+            assoc,
+            merged,
+            add_flags,
+            add_offsets,
+            levels,
+        })
+    }
+
+    /// Whether these buffers fit frames of `p`'s sizes with `pyramid`'s levels.
+    pub fn fits(&self, p: &PreprocessParams, pyramid: &[PyramidLevel]) -> bool {
+        (self.raw_width, self.raw_height, self.width, self.height)
+            == (p.raw_width, p.raw_height, p.width, p.height)
+            && self.levels.len() == pyramid.len()
+            && self
+                .levels
+                .iter()
+                .zip(pyramid)
+                .all(|(l, p)| (l.width, l.height) == (p.down.width, p.down.height))
+    }
+
+    pub fn pixels(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+}
