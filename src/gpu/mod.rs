@@ -15,7 +15,7 @@
 //! - [`backend`]: the dense-SLAM steps on the GPU, each recorded from its plan
 //!   ([`crate::slam::plan`]); beside it, private: `kernels` (the pipelines), `resources`
 //!   (parameter and frame buffers), `bind_groups`, `compaction`, `recording` (passes and
-//!   per-kernel timing), `inspect` (downloads and uploads).
+//!   per-kernel timing), `steps` (the steps' passes), `inspect` (downloads and uploads).
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
 
 pub mod backend;
@@ -31,6 +31,7 @@ pub mod map_buffers;
 mod recording;
 mod resources;
 pub mod shaders;
+mod steps;
 pub mod test_support;
 pub mod timing;
 

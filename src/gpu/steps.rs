@@ -1,0 +1,527 @@
+//! The GPU backend's steps ([`Backend`] for [`GpuBackend`]): each step writes its
+//! parameters, then records one compute pass per kernel of its plan
+//! ([`crate::slam::plan`]; once per map chunk for the kernels that walk the map) in one
+//! submission, and reads back at most the ICP system or the surfel counter.
+
+use std::collections::BTreeMap;
+
+use super::backend::GpuBackend;
+use super::bind_groups::{BindGroups, CompactionGroups};
+use super::kernel::Kernel;
+use super::kernels::Kernels;
+use super::recording::{record_passes, submit_profiled, Pass};
+use crate::layout::scan_params;
+use crate::layout::{
+    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
+};
+use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::fused_view::FusedView;
+use crate::slam::plan::{self, Buffer, Call};
+use crate::{Error, Result};
+
+/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
+/// submit its passes: `(ctx, kernels, bind groups, profiler)`. A macro rather than a method
+/// so the borrows stay per field: the step still reads its uniforms, frame buffers and
+/// read-backs while the profiler is borrowed mutably.
+macro_rules! encoding_parts {
+    ($backend:ident) => {{
+        $backend.bind_groups();
+        (
+            &$backend.ctx,
+            &$backend.kernels,
+            $backend.bind_groups.as_ref().expect("just built"),
+            &mut $backend.profiler,
+        )
+    }};
+}
+
+/// The workgroups of one step's passes, worked out before its bind groups are lent out.
+#[derive(Default)]
+struct StepGrid {
+    /// The stale block boxes' `block_bounds` passes, `(chunk, workgroups)`.
+    bounds: Vec<(usize, u32)>,
+    /// Per map chunk, block-walking and grid-stride workgroups (see `chunk_workgroups`).
+    chunks: Vec<(u32, u32)>,
+    /// Per-pixel kernels at the frame's size, by kernel name.
+    image: BTreeMap<&'static str, [u32; 2]>,
+    /// Per coarser pyramid level, the grids of the level's kernels, by kernel name.
+    levels: Vec<BTreeMap<&'static str, [u32; 2]>>,
+}
+
+impl StepGrid {
+    fn image(&self, kernel: &str) -> [u32; 2] {
+        self.image[kernel]
+    }
+    fn level(&self, level: usize, kernel: &str) -> [u32; 2] {
+        self.levels[level - 1][kernel]
+    }
+    /// One pass of `kernel` per map chunk with the chunk's block-walking workgroups.
+    fn per_block<'a>(&self, kernel: &'a Kernel, groups: &'a [wgpu::BindGroup]) -> Vec<Pass<'a>> {
+        groups
+            .iter()
+            .zip(&self.chunks)
+            .map(|(g, &(blocks, _))| (kernel, g, [blocks, 1]))
+            .collect()
+    }
+    /// The `block_bounds` passes over the stale boxes.
+    fn bounds<'a>(&self, k: &'a Kernels, bg: &'a BindGroups) -> Vec<Pass<'a>> {
+        self.bounds
+            .iter()
+            .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
+            .collect()
+    }
+}
+
+/// [`Error::Argument`] unless each pyramid level halves the one before (rounded up), the
+/// first level 0's `width` x `height`: the kernels read finer pixel `(2u, 2v)` for coarse
+/// pixel `(u, v)` without a bounds check of their own.
+fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -> Result<()> {
+    let mut fine = (width, height);
+    for (l, p) in pyramid.iter().enumerate() {
+        let d = &p.down;
+        let coarse = (fine.0.div_ceil(2), fine.1.div_ceil(2));
+        if (d.fine_width, d.fine_height) != fine
+            || (d.width, d.height) != coarse
+            || (p.normal.width, p.normal.height) != coarse
+        {
+            return Err(Error::Argument(format!(
+                "pyramid level {}: a {}x{} level (normals {}x{}) made from {}x{} does not halve \
+                 the {}x{} level before it",
+                l + 1,
+                d.width,
+                d.height,
+                p.normal.width,
+                p.normal.height,
+                d.fine_width,
+                d.fine_height,
+                fine.0,
+                fine.1
+            )));
+        }
+        fine = coarse;
+    }
+    Ok(())
+}
+
+impl Backend for GpuBackend {
+    fn name(&self) -> &'static str {
+        "gpu"
+    }
+
+    fn preprocess(
+        &mut self,
+        params: &PreprocessParams,
+        bilateral: Option<&BilateralParams>,
+        normal: &NormalParams,
+        pyramid: &[PyramidLevel],
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<()> {
+        let raw_n = (params.raw_width * params.raw_height) as usize;
+        if raw_depth.len() != raw_n || raw_rgba.len() != raw_n {
+            return Err(Error::Argument(format!(
+                "frame of {}x{} pixels needs {raw_n} depth and colour values, got {} and {}",
+                params.raw_width,
+                params.raw_height,
+                raw_depth.len(),
+                raw_rgba.len()
+            )));
+        }
+        if params.stride == 0
+            || params.width * params.stride > params.raw_width
+            || params.height * params.stride > params.raw_height
+        {
+            return Err(Error::Argument(format!(
+                "a {}x{} map with stride {} does not fit a {}x{} frame",
+                params.width, params.height, params.stride, params.raw_width, params.raw_height
+            )));
+        }
+        check_pyramid(params.width, params.height, pyramid)?;
+        self.ensure_frame(params, pyramid)?;
+        let ctx = &self.ctx;
+        let u = &self.uniforms;
+        ctx.scoped("preprocess", || {
+            let f = self.frame.as_mut().expect("ensure_frame made it");
+            f.raw_depth.upload(ctx, raw_depth)?;
+            f.raw_rgba.upload(ctx, raw_rgba)?;
+            f.filtered = bilateral.is_some();
+            u.preprocess.write(ctx, params);
+            if let Some(b) = bilateral {
+                u.bilateral.write(ctx, b);
+            }
+            u.normal.write(ctx, normal);
+            for (level, p) in f.levels.iter().zip(pyramid) {
+                level.u_pyramid.write(ctx, &p.down);
+                level.u_normal.write(ctx, &p.normal);
+            }
+            Ok(())
+        })?;
+        let (w, h) = (params.width, params.height);
+        let (k, ctx) = (&self.kernels, &self.ctx);
+        let grid = StepGrid {
+            image: [&k.depth_to_vertex, &k.bilateral_filter, &k.vertex_to_normal]
+                .map(|kernel| {
+                    (
+                        kernel_name(kernel),
+                        kernel.grid_workgroups_for_image(ctx, w, h),
+                    )
+                })
+                .into(),
+            levels: pyramid
+                .iter()
+                .map(|p| {
+                    let (w, h) = (p.down.width, p.down.height);
+                    [&k.pyramid_depth, &k.vertex_to_normal]
+                        .map(|kernel| {
+                            (
+                                kernel_name(kernel),
+                                kernel.grid_workgroups_for_image(ctx, w, h),
+                            )
+                        })
+                        .into()
+                })
+                .collect(),
+            ..StepGrid::default()
+        };
+        let plan = plan::preprocess(bilateral.is_some(), pyramid.len());
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        ctx.scoped("preprocess", || {
+            let mut enc = ctx.encoder("preprocess");
+            for call in plan {
+                let pass: Pass = match call {
+                    Call::DepthToVertex => (
+                        &k.depth_to_vertex,
+                        &bg.depth_to_vertex,
+                        grid.image("depth_to_vertex"),
+                    ),
+                    Call::BilateralFilter => (
+                        &k.bilateral_filter,
+                        &bg.bilateral_filter,
+                        grid.image("bilateral_filter"),
+                    ),
+                    Call::VertexToNormal { level: 0, filtered } => (
+                        &k.vertex_to_normal,
+                        match filtered {
+                            true => &bg.vertex_to_normal_filtered,
+                            false => &bg.vertex_to_normal,
+                        },
+                        grid.image("vertex_to_normal"),
+                    ),
+                    Call::VertexToNormal { level, .. } => (
+                        &k.vertex_to_normal,
+                        &bg.levels[level - 1].vertex_to_normal,
+                        grid.level(level, "vertex_to_normal"),
+                    ),
+                    Call::PyramidDepth { level, filtered } => {
+                        let g = &bg.levels[level - 1];
+                        (
+                            &k.pyramid_depth,
+                            match filtered {
+                                true => &g.pyramid_depth_filtered,
+                                false => &g.pyramid_depth,
+                            },
+                            grid.level(level, "pyramid_depth"),
+                        )
+                    }
+                    other => unreachable!("{other:?} is not a preprocessing kernel"),
+                };
+                record_passes(ctx, profiler, &mut enc, &[pass])?;
+            }
+            submit_profiled(ctx, profiler, enc)
+        })
+    }
+
+    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
+        let mut params = *params;
+        params.surfel_count = self.count as u32;
+        let f = self.frame();
+        let made: Vec<(u32, u32)> = f.levels.iter().map(|l| (l.width, l.height)).collect();
+        let asked: Vec<(u32, u32)> = pyramid
+            .iter()
+            .map(|l| (l.down.width, l.down.height))
+            .collect();
+        if made != asked {
+            return Err(Error::Argument(format!(
+                "predict() asked for pyramid levels {asked:?} but preprocess() made {made:?}"
+            )));
+        }
+        let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
+        let plan = plan::predict(project, pyramid.len());
+        let (k, ctx) = (&self.kernels, &self.ctx);
+        let mut grid = StepGrid {
+            image: [(
+                "predict_model",
+                k.predict_model
+                    .grid_workgroups_for_image(ctx, f.width, f.height),
+            )]
+            .into(),
+            levels: f
+                .levels
+                .iter()
+                .map(|l| {
+                    [(
+                        "pyramid_model",
+                        k.pyramid_model
+                            .grid_workgroups_for_image(ctx, l.width, l.height),
+                    )]
+                    .into()
+                })
+                .collect(),
+            chunks: self.chunk_workgroups(&self.kernels.project_model),
+            ..StepGrid::default()
+        };
+        if plan.contains(&Call::BlockBounds) {
+            grid.bounds = self.stale_bounds_passes();
+        }
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let f = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before predict()");
+        let u = &self.uniforms;
+        ctx.scoped("predict", || {
+            u.project.write(ctx, &params);
+            let mut enc = ctx.encoder("predict");
+            for call in plan {
+                let passes = match call {
+                    Call::BlockBounds => grid.bounds(k, bg),
+                    Call::Clear(Buffer::IndexMap) => {
+                        f.index_map.clear(&mut enc);
+                        Vec::new()
+                    }
+                    Call::ProjectModel => grid.per_block(&k.project_model, &bg.project_model),
+                    Call::PredictModel => bg
+                        .predict_model
+                        .iter()
+                        .map(|g| (&k.predict_model, g, grid.image("predict_model")))
+                        .collect(),
+                    Call::PyramidModel { level } => vec![(
+                        &k.pyramid_model,
+                        &bg.levels[level - 1].pyramid_model,
+                        grid.level(level, "pyramid_model"),
+                    )],
+                    other => unreachable!("{other:?} is not a prediction kernel"),
+                };
+                record_passes(ctx, profiler, &mut enc, &passes)?;
+            }
+            submit_profiled(ctx, profiler, enc)
+        })
+    }
+
+    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
+        let levels = 1 + self.frame().levels.len();
+        if level >= levels {
+            return Err(Error::Argument(format!(
+                "ICP at pyramid level {level}, but preprocess() made {levels} level(s)"
+            )));
+        }
+        let wg = self.reduction_workgroups;
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let group = match level {
+            0 => &bg.icp_reduce,
+            l => &bg.levels[l - 1].icp_reduce,
+        };
+        let final_group = &self.icp_final_group;
+        let u = &self.uniforms;
+        let system = ctx.scoped("icp_reduce", || {
+            u.icp.write(ctx, params);
+            let mut enc = ctx.encoder("icp_reduce");
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.icp_reduce, group, [wg, 1]),
+                    (&k.icp_reduce_final, final_group, [1, 1]),
+                ],
+            )?;
+            self.system_readback
+                .copy_from(&mut enc, &self.system, ICP_SYSTEM_LEN);
+            submit_profiled(ctx, profiler, enc)?;
+            self.system_readback.read(ctx)
+        })?;
+        let mut sys = [0.0f64; ICP_SYSTEM_LEN];
+        for (s, &x) in sys.iter_mut().zip(&system) {
+            *s = x as f64;
+        }
+        Ok(sys)
+    }
+
+    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        let n = self.frame().pixels();
+        self.fused_view = None;
+        self.ensure_capacity(self.count + n)?;
+        let mut params = *params;
+        params.surfel_count = self.count as u32;
+        params.capacity = self.capacity() as u32;
+        let plan = plan::fuse(&params);
+        let (f, k, ctx) = (self.frame(), &self.kernels, &self.ctx);
+        let mut grid = StepGrid {
+            image: [&k.fuse_add, &k.fuse_flags, &k.fuse_merge_chosen]
+                .map(|kernel| {
+                    (
+                        kernel_name(kernel),
+                        kernel.grid_workgroups_for_image(ctx, f.width, f.height),
+                    )
+                })
+                .into(),
+            chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
+            ..StepGrid::default()
+        };
+        if plan.contains(&Call::BlockBounds) {
+            grid.bounds = self.stale_bounds_passes();
+        }
+        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let f = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before fuse()");
+        let u = &self.uniforms;
+        let added = ctx.scoped("fuse", || {
+            u.fuse.write(ctx, &params);
+            u.fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
+            let mut enc = ctx.encoder("fuse");
+            for call in plan {
+                let passes = match call {
+                    Call::Clear(Buffer::Assoc) => {
+                        f.assoc.clear(&mut enc);
+                        Vec::new()
+                    }
+                    Call::Clear(Buffer::Merged) => {
+                        f.merged.clear(&mut enc);
+                        Vec::new()
+                    }
+                    Call::Clear(Buffer::IndexMap) => {
+                        f.index_map.clear(&mut enc);
+                        Vec::new()
+                    }
+                    Call::BlockBounds => grid.bounds(k, bg),
+                    // Surfels pick pixels, then each picked surfel merges from its pixel.
+                    Call::FuseSelect => grid.per_block(&k.fuse_select, &bg.fuse_select),
+                    Call::FuseMergeChosen => bg
+                        .fuse_merge_chosen
+                        .iter()
+                        .map(|g| (&k.fuse_merge_chosen, g, grid.image("fuse_merge_chosen")))
+                        .collect(),
+                    Call::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
+                    Call::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
+                    Call::FuseFlags => {
+                        vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
+                    }
+                    Call::FuseScan => vec![(&k.prefix_sum, &bg.fuse_scan, [1, 1])],
+                    Call::FuseAdd => bg
+                        .fuse_add
+                        .iter()
+                        .map(|g| (&k.fuse_add, g, grid.image("fuse_add")))
+                        .collect(),
+                    other => unreachable!("{other:?} is not a fusion kernel"),
+                };
+                record_passes(ctx, profiler, &mut enc, &passes)?;
+            }
+            self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            submit_profiled(ctx, profiler, enc)?;
+            self.counter_readback.read(ctx)
+        })?[0] as usize;
+        let total = self.count + added;
+        if total > params.capacity as usize {
+            return Err(Error::Capacity(format!(
+                "fusion added {added} surfels to {} but only {} slots exist; surfels past \
+                 the capacity were dropped (the host should have grown the map first)",
+                self.count, params.capacity
+            )));
+        }
+        // The blocks from the one that held the old last surfel on have new surfels.
+        self.bounds_dirty_from = self.bounds_dirty_from.min(self.count);
+        self.count = total;
+        self.fused_view = FusedView::of_fuse(&params);
+        Ok(total)
+    }
+
+    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        let n = self.count;
+        if n == 0 {
+            return Ok(0);
+        }
+        self.ensure_compaction()?;
+        let mut params = *params;
+        params.surfel_count = n as u32;
+        let flags_wg = self.chunk_workgroups(&self.kernels.compact_flags);
+        let scatter_wg = self.chunk_workgroups(&self.kernels.compact_scatter);
+        let (ctx, k, u) = (&self.ctx, &self.kernels, &self.uniforms);
+        let c = self.compaction.as_mut().expect("ensure_compaction made it");
+        // Made once per map set (live and spare swap every call, and so do these).
+        if c.groups.is_none() {
+            c.groups = Some(CompactionGroups::new(
+                ctx,
+                k,
+                u,
+                &self.counter,
+                &self.map,
+                c,
+            ));
+        }
+        let g = c.groups.as_ref().expect("just made");
+        let profiler = &mut self.profiler;
+        let kept = ctx.scoped("compact", || {
+            u.compact.write(ctx, &params);
+            let mut enc = ctx.encoder("compact");
+            for call in plan::compact() {
+                let passes: Vec<Pass> = match call {
+                    Call::CompactFlags => g
+                        .flags
+                        .iter()
+                        .zip(&flags_wg)
+                        .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
+                        .collect(),
+                    Call::CompactScan => vec![(&k.prefix_sum, &g.scan, [1, 1])],
+                    Call::CompactScatter => scatter_wg
+                        .iter()
+                        .enumerate()
+                        .flat_map(|(s, &(_, wg))| {
+                            (0..=s).map(move |d| {
+                                (&k.compact_scatter, &g.scatter[s * (s + 1) / 2 + d], [wg, 1])
+                            })
+                        })
+                        .collect(),
+                    other => unreachable!("{other:?} is not a compaction kernel"),
+                };
+                record_passes(ctx, profiler, &mut enc, &passes)?;
+            }
+            self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            submit_profiled(ctx, profiler, enc)?;
+            self.counter_readback.read(ctx)
+        })?[0] as usize;
+        if kept > n {
+            return Err(Error::Gpu(format!(
+                "prefix_sum kept {kept} of {n} surfels (an internal contract)"
+            )));
+        }
+        let c = self.compaction.as_mut().expect("ensure_compaction made it");
+        std::mem::swap(&mut self.map, &mut c.spare);
+        std::mem::swap(&mut c.groups, &mut c.spare_groups);
+        std::mem::swap(&mut self.bind_groups, &mut self.spare_bind_groups);
+        self.count = kept;
+        // Every surfel may have moved to another block, and to another index.
+        self.bounds_dirty_from = 0;
+        self.fused_view = None;
+        Ok(kept)
+    }
+
+    fn surfel_count(&self) -> usize {
+        self.count
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        self.ctx.wait_idle()
+    }
+}
+
+/// A kernel's name as the `'static` key of a [`StepGrid`] map.
+fn kernel_name(kernel: &Kernel) -> &'static str {
+    crate::gpu::shaders::KERNELS
+        .iter()
+        .map(|(name, _)| *name)
+        .find(|name| *name == kernel.name)
+        .expect("every kernel is in shaders::KERNELS")
+}
