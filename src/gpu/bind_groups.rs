@@ -1,12 +1,16 @@
 //! The GPU backend's bind groups: every kernel's resources, bound by the names of the WGSL
-//! variables (`("normal_depth", ...)`), made once per set of buffers and re-made only when
-//! a buffer they refer to is re-created (a new frame size, a grown map). The kernels that
-//! walk the map get one bind group per map chunk.
+//! variables, made once per set of buffers and re-made only when a buffer they refer to is
+//! re-created (a new frame size, a grown map). The frame's buffers and each map chunk's
+//! arrays are pools of named resources (`("normal_depth", ...)`) from which a kernel takes
+//! what its WGSL declares; what differs per kernel (its `params`, which vertex map a
+//! preprocessing kernel reads, a pyramid level's maps) is bound explicitly. The kernels
+//! that walk the map get one bind group per map chunk.
 
 use super::buffers::GpuArray;
 use super::compaction::Compaction;
 use super::context::GpuContext;
 use super::images::GpuImage;
+use super::kernel::Kernel;
 use super::kernels::Kernels;
 use super::map_buffers::{Chunk, MapBuffers};
 use super::resources::{FrameBuffers, Uniforms};
@@ -61,13 +65,62 @@ pub(super) struct Resources<'a> {
     pub counter: &'a GpuArray<u32>,
 }
 
+/// A pool of named resources (see [`super::kernel::Kernel::bind_group_from`]).
+type Pool<'a> = Vec<(&'static str, wgpu::BindingResource<'a>)>;
+
+/// The frame's maps and association buffers, by the names the kernels declare them with.
+/// Not the vertex maps: `vertex_map` means a different map to each preprocessing kernel.
+fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
+    vec![
+        ("normal_depth", f.normal_depth.binding()),
+        ("color_map", f.color.binding()),
+        ("index_map", f.index_map.binding()),
+        ("pred_vertex", f.pred_vertex.binding()),
+        ("pred_normal", f.pred_normal.binding()),
+        ("assoc", f.assoc.binding()),
+        ("merged", f.merged.binding()),
+        // Fusion's new-surfel flags and their prefix sum (compaction binds its own).
+        ("flags", f.add_flags.binding()),
+        ("offsets", f.add_offsets.binding()),
+    ]
+}
+
+/// One map chunk's arrays and the culling blocks' boxes.
+fn chunk_pool<'a>(ch: &'a Chunk, block_bounds: &'a GpuArray<[u32; 4]>) -> Pool<'a> {
+    vec![
+        ("chunk", ch.info_buffer.binding()),
+        ("position_weight", ch.position_weight.binding()),
+        ("normal_frame", ch.normal_frame.binding()),
+        ("color", ch.color.binding()),
+        ("block_bounds", block_bounds.binding()),
+    ]
+}
+
 impl BindGroups {
     /// Every per-frame step's bind groups over `r`.
     pub fn new(ctx: &GpuContext, k: &Kernels, r: &Resources) -> BindGroups {
-        let (u, f, bounds) = (r.uniforms, r.frame, r.block_bounds);
-        // One bind group per map chunk.
-        let per_chunk = |make: &dyn Fn(&Chunk) -> wgpu::BindGroup| {
-            r.map.chunks.iter().map(make).collect::<Vec<_>>()
+        let (u, f) = (r.uniforms, r.frame);
+        let frame = frame_pool(f);
+        // `kernel` with `params` over the frame's pool (and `extra`).
+        let over_frame = |kernel: &Kernel, params: wgpu::BindingResource, extra: Pool| {
+            let mut pool = vec![("params", params)];
+            pool.extend(extra);
+            pool.extend(frame.iter().cloned());
+            kernel.bind_group_from(ctx, &pool)
+        };
+        // `kernel` with its `params` over each map chunk's pool and the frame's: one bind
+        // group per chunk.
+        let per_chunk = |kernel: &Kernel, params: wgpu::BindingResource| {
+            r.map
+                .chunks
+                .iter()
+                .map(|ch| {
+                    let mut pool = vec![("params", params.clone())];
+                    pool.extend(chunk_pool(ch, r.block_bounds));
+                    pool.extend(frame.iter().cloned());
+                    kernel.bind_group_from(ctx, &pool)
+                })
+                .collect::<Vec<_>>()
         };
         let vertex_to_normal = |vertex_map: &GpuImage| {
             k.vertex_to_normal.bind_group(
@@ -80,17 +133,7 @@ impl BindGroups {
             )
         };
         BindGroups {
-            block_bounds: per_chunk(&|ch| {
-                k.block_bounds.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.bounds.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("block_bounds", bounds.binding()),
-                    ],
-                )
-            }),
+            block_bounds: per_chunk(&k.block_bounds, u.bounds.binding()),
             depth_to_vertex: k.depth_to_vertex.bind_group(
                 ctx,
                 &[
@@ -111,132 +154,24 @@ impl BindGroups {
             ),
             vertex_to_normal: vertex_to_normal(&f.vertex),
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
-            project_model: per_chunk(&|ch| {
-                k.project_model.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.project.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("block_bounds", bounds.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("index_map", f.index_map.binding()),
-                    ],
-                )
-            }),
-            predict_model: per_chunk(&|ch| {
-                k.predict_model.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.project.binding()),
-                        ("index_map", f.index_map.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("normal_frame", ch.normal_frame.binding()),
-                        ("pred_vertex", f.pred_vertex.binding()),
-                        ("pred_normal", f.pred_normal.binding()),
-                    ],
-                )
-            }),
-            icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
-            fuse_select: per_chunk(&|ch| {
-                k.fuse_select.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.fuse.binding()),
-                        ("normal_depth", f.normal_depth.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("block_bounds", bounds.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("normal_frame", ch.normal_frame.binding()),
-                        ("color", ch.color.binding()),
-                        ("assoc", f.assoc.binding()),
-                        ("index_map", f.index_map.binding()),
-                    ],
-                )
-            }),
-            fuse_merge: per_chunk(&|ch| {
-                k.fuse_merge.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.fuse.binding()),
-                        ("normal_depth", f.normal_depth.binding()),
-                        ("color_map", f.color.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("block_bounds", bounds.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("normal_frame", ch.normal_frame.binding()),
-                        ("color", ch.color.binding()),
-                        ("assoc", f.assoc.binding()),
-                    ],
-                )
-            }),
-            fuse_flags: k.fuse_flags.bind_group(
-                ctx,
-                &[
-                    ("params", u.fuse.binding()),
-                    ("normal_depth", f.normal_depth.binding()),
-                    ("assoc", f.assoc.binding()),
-                    ("merged", f.merged.binding()),
-                    ("flags", f.add_flags.binding()),
-                ],
+            project_model: per_chunk(&k.project_model, u.project.binding()),
+            predict_model: per_chunk(&k.predict_model, u.project.binding()),
+            icp_reduce: over_frame(
+                &k.icp_reduce,
+                u.icp.binding(),
+                vec![("partials", r.partials.binding())],
             ),
-            fuse_scan: k.prefix_sum.bind_group(
-                ctx,
-                &[
-                    ("params", u.fuse_scan.binding()),
-                    ("flags", f.add_flags.binding()),
-                    ("offsets", f.add_offsets.binding()),
-                    ("counter", r.counter.binding()),
-                ],
+            fuse_select: per_chunk(&k.fuse_select, u.fuse.binding()),
+            fuse_merge: per_chunk(&k.fuse_merge, u.fuse.binding()),
+            fuse_merge_chosen: per_chunk(&k.fuse_merge_chosen, u.fuse.binding()),
+            fuse_prune: per_chunk(&k.fuse_prune, u.fuse.binding()),
+            fuse_flags: over_frame(&k.fuse_flags, u.fuse.binding(), Vec::new()),
+            fuse_scan: over_frame(
+                &k.prefix_sum,
+                u.fuse_scan.binding(),
+                vec![("counter", r.counter.binding())],
             ),
-            fuse_merge_chosen: per_chunk(&|ch| {
-                k.fuse_merge_chosen.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.fuse.binding()),
-                        ("normal_depth", f.normal_depth.binding()),
-                        ("color_map", f.color.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("block_bounds", bounds.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("normal_frame", ch.normal_frame.binding()),
-                        ("color", ch.color.binding()),
-                        ("assoc", f.assoc.binding()),
-                        ("merged", f.merged.binding()),
-                    ],
-                )
-            }),
-            fuse_prune: per_chunk(&|ch| {
-                k.fuse_prune.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.fuse.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("block_bounds", bounds.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("normal_frame", ch.normal_frame.binding()),
-                        ("color", ch.color.binding()),
-                        ("merged", f.merged.binding()),
-                    ],
-                )
-            }),
-            fuse_add: per_chunk(&|ch| {
-                k.fuse_add.bind_group(
-                    ctx,
-                    &[
-                        ("params", u.fuse.binding()),
-                        ("normal_depth", f.normal_depth.binding()),
-                        ("color_map", f.color.binding()),
-                        ("flags", f.add_flags.binding()),
-                        ("offsets", f.add_offsets.binding()),
-                        ("chunk", ch.info_buffer.binding()),
-                        ("position_weight", ch.position_weight.binding()),
-                        ("normal_frame", ch.normal_frame.binding()),
-                        ("color", ch.color.binding()),
-                        ("index_map", f.index_map.binding()),
-                    ],
-                )
-            }),
+            fuse_add: per_chunk(&k.fuse_add, u.fuse.binding()),
             levels: (0..f.levels.len())
                 .map(|l| LevelBindGroups::new(ctx, k, r, l))
                 .collect(),

@@ -175,6 +175,26 @@ impl Kernel {
         })
     }
 
+    /// A bind group from a pool of named resources: each of the kernel's bindings takes
+    /// the pool's resource of its WGSL variable's name; the pool may hold resources other
+    /// kernels need. Names the pool holds twice are taken from the first entry, so a pool
+    /// can start with the kernel's own resources (its `params`) and go on with shared ones.
+    ///
+    /// Panics (an internal contract) naming the kernel and the binding when the pool has no
+    /// resource of a binding's name, or one of the wrong kind (see [`Kernel::bind_group`]).
+    pub fn bind_group_from(
+        &self,
+        ctx: &GpuContext,
+        pool: &[(&str, wgpu::BindingResource<'_>)],
+    ) -> wgpu::BindGroup {
+        let chosen: Vec<(&str, wgpu::BindingResource<'_>)> = self
+            .bindings
+            .iter()
+            .filter_map(|b| pool.iter().find(|(name, _)| *name == b.name).cloned())
+            .collect();
+        self.bind_group(ctx, &chosen)
+    }
+
     /// Workgroups needed to give each of `n` items one thread: `ceil(n / workgroup_size)`.
     pub fn workgroups_for(&self, n: usize) -> u32 {
         n.div_ceil(self.workgroup_size as usize) as u32
