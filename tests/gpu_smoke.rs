@@ -248,11 +248,64 @@ fn images_round_trip_unaligned_rows_and_prefixes(ctx: GpuContext) {
     ));
 }
 
+/// A bind group is made by binding name: a resource under a wrong name, a missing one and
+/// a buffer for a texture binding each stop it with the kernel's and the binding's name.
+fn bind_groups_fail_by_kernel_and_binding_name(ctx: GpuContext) {
+    let kernel = Kernel::from_source(&ctx, "affine", &shaders::concat_with_common(AFFINE))
+        .expect("affine kernel");
+    let params = GpuArray::<u32>::from_slice(&ctx, "params", &[0; 4]).expect("buffer");
+    let input = GpuArray::<u32>::from_slice(&ctx, "input", &[0; 4]).expect("buffer");
+    let panic_message = |resources: &[(&str, wgpu::BindingResource)]| {
+        let err = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            kernel.bind_group(&ctx, resources);
+        }))
+        .expect_err("a wrong bind group must not be made");
+        err.downcast_ref::<String>().cloned().unwrap_or_default()
+    };
+    // `outptu` for `output`: an unknown name, and binding 2 left without a resource.
+    let msg = panic_message(&[
+        ("params", params.binding()),
+        ("input", input.binding()),
+        ("outptu", input.binding()),
+    ]);
+    assert!(msg.contains("kernel `affine`"), "{msg}");
+    assert!(msg.contains("`outptu` is not one of its bindings"), "{msg}");
+    assert!(
+        msg.contains("binding 2 (`output`) has no resource"),
+        "{msg}"
+    );
+    // The same name twice.
+    let msg = panic_message(&[
+        ("params", params.binding()),
+        ("input", input.binding()),
+        ("input", input.binding()),
+        ("output", input.binding()),
+    ]);
+    assert!(
+        msg.contains("binding 1 (`input`) is given 2 resources"),
+        "{msg}"
+    );
+    // A texture where the kernel declares a buffer.
+    let image =
+        GpuImage::new(&ctx, "image", 2, 2, wgpu::TextureFormat::Rgba32Float, true).expect("image");
+    let msg = panic_message(&[
+        ("params", params.binding()),
+        ("input", image.binding()),
+        ("output", input.binding()),
+    ]);
+    assert!(msg.contains("binding 1 (`input`)"), "{msg}");
+    assert!(msg.contains("given a texture"), "{msg}");
+}
+
 fn main() -> ExitCode {
     common::harness::run(vec![
         gpu(
             "trivial_kernel_runs_in_validation_scope",
             trivial_kernel_runs_in_validation_scope,
+        ),
+        gpu(
+            "bind_groups_fail_by_kernel_and_binding_name",
+            bind_groups_fail_by_kernel_and_binding_name,
         ),
         gpu(
             "int64_atomic_max_packs_depth_and_index",
