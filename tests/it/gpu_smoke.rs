@@ -2,9 +2,7 @@
 //! buffer upload / read-back / grow, capacity errors, error scopes, timing.
 //! Every trial shows as ignored without an adapter (tests/common/harness.rs).
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::{gpu, skipped};
 use libtest_mimic::Completion;
@@ -254,8 +252,8 @@ fn images_round_trip_unaligned_rows_and_prefixes(ctx: GpuContext) {
     ));
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         gpu(
             "trivial_kernel_runs_in_validation_scope",
             trivial_kernel_runs_in_validation_scope,
@@ -280,5 +278,5 @@ fn main() -> ExitCode {
             "images_round_trip_unaligned_rows_and_prefixes",
             images_round_trip_unaligned_rows_and_prefixes,
         ),
-    ])
+    ]
 }

@@ -1,8 +1,6 @@
 //! The `wgslam` executable as a user runs it: outputs written, errors clear, exit codes.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::cli::{text, wgslam};
 use common::harness::plain;
@@ -310,7 +308,7 @@ fn bench_revisit_reports_each_pass() {
     );
 }
 
-fn main() -> ExitCode {
+pub fn tests() -> Vec<common::harness::Test> {
     let tests = vec![
         plain(
             "run_writes_all_outputs_on_bundled_data",
@@ -344,5 +342,5 @@ fn main() -> ExitCode {
         ));
         tests
     };
-    common::harness::run(tests)
+    tests
 }

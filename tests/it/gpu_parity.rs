@@ -3,9 +3,7 @@
 //! GPU map's growth and capacity error. Every trial shows as ignored without a GPU adapter
 //! (tests/common/harness.rs).
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::frames::{gt_at, load_frame, load_gt};
 use common::harness::{gpu, plain};
@@ -1507,8 +1505,8 @@ fn block_boxes_hold_their_surfels(ctx: GpuContext) {
     );
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         gpu("preprocess_matches_twins", |ctx| {
             preprocess_matches_twins(gpu_backend(ctx))
         }),
@@ -1579,5 +1577,5 @@ fn main() -> ExitCode {
         gpu("bad_frame_size_is_an_argument_error", |ctx| {
             bad_frame_size_is_an_argument_error(gpu_backend(ctx))
         }),
-    ])
+    ]
 }

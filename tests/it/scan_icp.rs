@@ -2,10 +2,9 @@
 //! transform, readers on good and malformed input, and real data against references
 //! (bundled `assets/`; the full data set in `../shared/data` only for extra checks).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use common::harness::{plain, shared};
 use common::scans::fast_gicp_dir;
@@ -859,8 +858,8 @@ fn shared_airsim_odometry_report(data: &Path) {
     }
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "arun_recovers_exact_transform",
             arun_recovers_exact_transform,
@@ -939,5 +938,5 @@ fn main() -> ExitCode {
             "shared_airsim_odometry_report",
             shared_airsim_odometry_report,
         ),
-    ])
+    ]
 }

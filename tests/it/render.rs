@@ -2,10 +2,9 @@
 //! test's key order, overlays, trajectory plots, bad input, and (with a GPU) GPU-vs-CPU
 //! parity. Set `WGSLAM_RENDER_OUT=DIR` to keep the pictures for a look.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use common::frames::{load_frame, load_gt, Frame};
 use common::harness::{gpu, plain, skipped};
@@ -756,8 +755,8 @@ fn lidar_overlay_from_above() {
     }
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "render_from_the_frames_own_pose_matches_its_photo",
             render_from_the_frames_own_pose_matches_its_photo,
@@ -807,5 +806,5 @@ fn main() -> ExitCode {
             gpu_matches_cpu_on_a_small_map,
         ),
         plain("lidar_overlay_from_above", lidar_overlay_from_above),
-    ])
+    ]
 }

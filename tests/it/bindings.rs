@@ -9,9 +9,7 @@
 //! naming the kernel and the binding. Until now these tables were only checked when a GPU
 //! pipeline was built.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::plain;
 use wgslam::gpu::{self, shaders, Binding, TexelFormat};
@@ -87,8 +85,8 @@ fn a_wrong_table_is_reported_binding_by_binding() {
     assert!(problems[1].starts_with("kernel `predict_model` binding 5 (`pred_vertex`)"));
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "every_kernel_layout_matches_its_wgsl",
             every_kernel_layout_matches_its_wgsl,
@@ -97,5 +95,5 @@ fn main() -> ExitCode {
             "a_wrong_table_is_reported_binding_by_binding",
             a_wrong_table_is_reported_binding_by_binding,
         ),
-    ])
+    ]
 }
