@@ -350,7 +350,7 @@ fn layout_type(kind: BindingKind) -> wgpu::BindingType {
 }
 
 /// The explicit bind-group layout entries of a binding table: `bindings[i]` at
-/// `@binding(i)`, compute stage only. Needs no device, so `tests/bindings.rs` checks the
+/// `@binding(i)`, compute stage only. Needs no device, so `tests/it/bindings.rs` checks the
 /// very entries [`Kernel::from_source`] creates its layout from.
 pub fn layout_entries(bindings: &[Binding]) -> Vec<wgpu::BindGroupLayoutEntry> {
     bindings
@@ -513,8 +513,8 @@ pub fn layout_mismatches(
 /// `@workgroup_size(x, y)` of the entry point `main`.
 ///
 /// A WGSL parse error is [`Error::Gpu`] (it means the embedded shader is broken, which
-/// `tests/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug,
-/// which `tests/bindings.rs` catches without a GPU).
+/// `tests/it/shaders.rs` also catches); a binding mismatch panics (a Rust/WGSL contract bug,
+/// which `tests/it/bindings.rs` catches without a GPU).
 fn check_shader_interface(name: &str, wgsl: &str, bindings: &[Binding]) -> Result<[u32; 2]> {
     let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| {
         Error::Gpu(format!(

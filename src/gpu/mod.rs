@@ -32,7 +32,7 @@ pub use timing::{StageTime, StageTimer};
 
 /// The binding table of every kernel in [`shaders::KERNELS`], as `(kernel name, table)`:
 /// the tables the dense backend, the scan registration and the renderer build their
-/// layouts from. `tests/bindings.rs` checks each against naga's reflection of the kernel's
+/// layouts from. `tests/it/bindings.rs` checks each against naga's reflection of the kernel's
 /// WGSL, without a GPU.
 pub fn kernel_binding_tables() -> Vec<(&'static str, &'static [Binding])> {
     use crate::render::gpu::{RENDER_RESOLVE, RENDER_SPLAT};

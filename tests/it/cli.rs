@@ -250,7 +250,7 @@ fn clear_errors_for_bad_input() {
 }
 
 /// Without the `rerun` feature, `run --rerun FILE` fails before running, names the feature
-/// and writes no file (with the feature, tests/rerun.rs covers the flag).
+/// and writes no file (with the feature, tests/it/rerun.rs covers the flag).
 #[cfg(not(feature = "rerun"))]
 fn rerun_flag_names_the_missing_feature() {
     let out = common::temp_dir("cli-rerun");

@@ -2,7 +2,7 @@
 //! checked against the real ground truth. The bundled-frame and full-sequence bodies run
 //! once per backend (CPU reference, GPU); the other checks are on the CPU reference, and
 //! the interleaved benchmark runs both backends in one trial. GPU trials show as ignored
-//! without an adapter, full-sequence trials without `../shared/data` (tests/common/harness.rs).
+//! without an adapter, full-sequence trials without `../shared/data` (tests/it/common/harness.rs).
 
 use crate::common;
 

@@ -1,6 +1,6 @@
 //! GPU infrastructure end to end: context, a trivial kernel inside the validation scope,
 //! buffer upload / read-back / grow, capacity errors, error scopes, timing.
-//! Every trial shows as ignored without an adapter (tests/common/harness.rs).
+//! Every trial shows as ignored without an adapter (tests/it/common/harness.rs).
 
 use crate::common;
 

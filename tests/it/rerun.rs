@@ -1,6 +1,7 @@
-//! `wgslam run --rerun FILE.rrd` (cargo feature `rerun`; Cargo.toml's `required-features`
-//! keeps this file out of a default `cargo test`): the recording is written whole, and the
-//! rerun crate's own decoder reads back every entity with the rows a short run logs.
+//! `wgslam run --rerun FILE.rrd` (cargo feature `rerun`; the `#[cfg(feature = "rerun")]` on
+//! its `mod` in main.rs keeps this file out of a default `cargo test`): the recording is
+//! written whole, and the rerun crate's own decoder reads back every entity with the rows a
+//! short run logs.
 
 use crate::common;
 

@@ -1,6 +1,6 @@
 //! Scan kernels on the GPU against their CPU twins (`src/cpu/nn_brute.rs`, `nn_grid.rs`,
 //! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Every
-//! trial shows as ignored without a GPU adapter (tests/common/harness.rs).
+//! trial shows as ignored without a GPU adapter (tests/it/common/harness.rs).
 
 use crate::common;
 
