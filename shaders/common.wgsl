@@ -3,8 +3,8 @@
 //
 // Prepended to each `shaders/<kernel>.wgsl` by `src/gpu/shaders.rs` (WGSL has no
 // includes), so this file declares no bindings and no entry point. Each struct mirrors the
-// `#[repr(C)]` struct of the same name in `src/layout.rs` (checked by `tests/layout.rs`;
-// RenderParams: `src/render/layout.rs`, checked by `tests/render.rs`); each helper mirrors
+// `#[repr(C)]` struct of the same name in `src/layout.rs` (checked by `tests/it/layout.rs`;
+// RenderParams: `src/render/layout.rs`, checked by `tests/it/render/gpu.rs`); each helper mirrors
 // the function of the same name in `src/cpu/mod.rs`, its one Rust twin.
 // Conventions: metres; pixel centres at integer (u, v); maps are row-major `v * width + u`;
 // a `vec4` map entry is valid when `w > 0` (vertices and normals use w = 1, normal_depth

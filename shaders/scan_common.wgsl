@@ -5,7 +5,7 @@
 // has no includes; these kernels need neither the dense-SLAM structs nor 64-bit integers),
 // so this file declares no bindings and no entry point. Each struct mirrors the
 // `#[repr(C)]` struct of the same name in `src/scan/layout.rs` (checked by
-// `tests/scan_kernels.rs`); each helper mirrors the function of the same name in
+// `tests/it/scan_kernels.rs`); each helper mirrors the function of the same name in
 // `src/cpu/mod.rs`.
 
 // Mirrors `scan::layout::ScanNnParams`.

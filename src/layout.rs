@@ -2,7 +2,7 @@
 //!
 //! Each struct is `#[repr(C)]` + `bytemuck::Pod` and mirrors the WGSL struct of the same
 //! name in `shaders/common.wgsl` (which points back here). No `vec3`/`mat3`: only scalars,
-//! 4-vectors and 4x4 matrices, padded explicitly to 16 bytes. `tests/layout.rs` checks
+//! 4-vectors and 4x4 matrices, padded explicitly to 16 bytes. `tests/it/layout.rs` checks
 //! sizes and offsets against naga's layout of the WGSL side.
 //!
 //! Per-pixel and per-surfel arrays are plain arrays of texels, not structs: vertex maps,

@@ -19,7 +19,7 @@ use crate::{Error, Result};
 /// uniform buffer into the shader and compiles a new variant after every write of it,
 /// keeping each (0.75 MB of JIT code per `icp_reduce` iteration, so a 200-frame run grew by
 /// gigabytes; measured with `examples/params_memory.rs`). Storage buffers are not inlined;
-/// `tests/bindings.rs` checks that no kernel declares a uniform.
+/// `tests/it/bindings.rs` checks that no kernel declares a uniform.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReflectedBinding {
     /// `i` of `@binding(i)`.
@@ -375,7 +375,7 @@ fn reflected_type(
 /// `@workgroup_size(x, y)` of its `@compute fn main`. `Err` lists every problem at once,
 /// one sentence each naming the kernel and the binding: a parse error, no `main`, a
 /// three-dimensional workgroup, a group other than 0, a binding declared twice, a type the
-/// kernels cannot bind. Needs no device (`tests/bindings.rs` runs it on every kernel).
+/// kernels cannot bind. Needs no device (`tests/it/bindings.rs` runs it on every kernel).
 pub fn reflect(
     name: &str,
     wgsl: &str,

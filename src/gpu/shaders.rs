@@ -4,7 +4,7 @@
 //! WGSL has no includes, so a kernel's source is its prefix followed by
 //! `shaders/<kernel>.wgsl`: `scan_common.wgsl` for the scan kernels ([`SCAN_KERNELS`]),
 //! `common.wgsl` for every other. [`source`] builds it; the runtime (pipeline creation)
-//! and the naga tests (`tests/shaders.rs`, `tests/bindings.rs`) both use it, so what is
+//! and the naga tests (`tests/it/shaders.rs`, `tests/it/bindings.rs`) both use it, so what is
 //! validated is what runs. This module does not compile anything; see [`super::kernel`].
 
 /// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`
@@ -22,7 +22,7 @@ pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN
 pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 
 /// Every kernel as `(name, text of shaders/<name>.wgsl)`. Keep in sync with the directory:
-/// `tests/shaders.rs` fails when a `.wgsl` file is missing here.
+/// `tests/it/shaders.rs` fails when a `.wgsl` file is missing here.
 pub const KERNELS: &[(&str, &str)] = &[
     (
         "depth_to_vertex",

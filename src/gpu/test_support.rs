@@ -1,5 +1,5 @@
 //! Opening the GPU for a test (integration tests, examples), with the skip-or-fail rule in
-//! one place. Not a test harness: the integration tests' harness (`tests/common/harness.rs`)
+//! one place. Not a test harness: the integration tests' harness (`tests/it/common/harness.rs`)
 //! turns a skip into an `ignored` trial with its reason.
 //!
 //! Without an adapter a GPU test is skipped, unless the environment sets

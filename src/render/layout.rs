@@ -3,7 +3,7 @@
 //!
 //! `#[repr(C)]` + `bytemuck::Pod`, only scalars and a 4x4 matrix, padded to 16 bytes; it
 //! mirrors `struct RenderParams` in `shaders/common.wgsl`, which both render kernels are
-//! prefixed with (it points back here). `tests/render.rs` checks its size
+//! prefixed with (it points back here). `tests/it/render/gpu.rs` checks its size
 //! and offsets against naga's layout of the WGSL side.
 
 use bytemuck::{Pod, Zeroable};

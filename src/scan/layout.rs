@@ -2,7 +2,7 @@
 //! `cross_covariance.wgsl`): `#[repr(C)]` Pod structs, each mirroring the WGSL struct of the
 //! same name in `shaders/common.wgsl`, which those kernels are prefixed with (it points
 //! back here). Only scalars and 4-vectors, padded to 16 bytes. Checked against naga's
-//! layout in `tests/scan_kernels.rs`.
+//! layout in `tests/it/scan_kernels.rs`.
 //!
 //! Point arrays are `[f32; 4]` (`vec4<f32>`): xyz in metres, `w` unused except in the
 //! sorted grid points, where it holds the original target index bit-cast to f32.

@@ -1,7 +1,7 @@
 //! Runs two backends, A (the reference) and B, over the same frames and measures how far
 //! apart they are, stage by stage: the frame maps, the first ICP system, the pose, the
 //! surfel counts after fusion and after compaction, and the map. Used by `wgslam compare`
-//! and by the parity tests (`tests/compare.rs`).
+//! and by the parity tests (`tests/it/compare.rs`).
 //!
 //! Two [`Mode`]s. **Lockstep** (the default): before every frame B is put into A's state
 //! (A's map uploaded with [`Backend::upload_map`] into both, A's last pose given to B's tracker), so

@@ -1,10 +1,10 @@
 //! `wgslam batch` as a user runs it: manifests in, job folders, summaries and report out;
 //! resuming, failing jobs, interruption, shards and scheduler indices, and `batch diff`.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitCode};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use common::cli::{text, wgslam_env as wgslam};
@@ -330,8 +330,8 @@ fn noisy_sequence_job_tracks_against_ground_truth(data: &Path) {
     assert!(ate < NOISY_ATE_MAX_MM, "ATE {ate} mm");
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain("runs_resumes_and_reports", runs_resumes_and_reports),
         plain(
             "a_failing_job_is_recorded_and_the_batch_goes_on",
@@ -356,5 +356,5 @@ fn main() -> ExitCode {
             "noisy_sequence_job_tracks_against_ground_truth",
             noisy_sequence_job_tracks_against_ground_truth,
         ),
-    ])
+    ]
 }

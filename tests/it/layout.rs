@@ -1,10 +1,8 @@
 //! Compares each `#[repr(C)]` struct of `src/layout.rs` with naga's layout of the WGSL
 //! struct of the same name in `shaders/common.wgsl`: size, member names, order and offsets
-//! (through `tests/common/wgsl.rs`), and the constants shared by both sides. No GPU needed.
+//! (through `tests/it/common/wgsl.rs`), and the constants shared by both sides. No GPU needed.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::plain;
 use common::wgsl::{self, rust_layout, RustLayout};
@@ -248,8 +246,8 @@ fn append_order_is_a_compact_bijection() {
     }
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "rust_and_wgsl_structs_have_the_same_layout",
             rust_and_wgsl_structs_have_the_same_layout,
@@ -264,5 +262,5 @@ fn main() -> ExitCode {
             "ordered_encoding_keeps_float_order",
             ordered_encoding_keeps_float_order,
         ),
-    ])
+    ]
 }

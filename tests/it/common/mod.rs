@@ -1,7 +1,8 @@
 //! Shared helpers for the integration tests: running the executable ([`cli`]), the harness that shows a skipped test as
 //! ignored with its reason ([`harness`]), naga checks of WGSL ([`wgsl`]), raw bundled
 //! frames and ground truth ([`frames`]), the bundled LiDAR pair and nearest-neighbour
-//! kernel inputs ([`scans`]), and where the data is. Each test file includes it with `mod common;` and uses what it needs.
+//! kernel inputs ([`scans`]), and where the data is. `tests/it/main.rs` declares it (`mod common;`);
+//! each test module takes it with `use crate::common;` and uses what it needs.
 
 #![allow(dead_code)]
 

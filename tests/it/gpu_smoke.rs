@@ -1,10 +1,8 @@
 //! GPU infrastructure end to end: context, a trivial kernel inside the validation scope,
 //! buffer upload / read-back / grow, capacity errors, error scopes, timing.
-//! Every trial shows as ignored without an adapter (tests/common/harness.rs).
+//! Every trial shows as ignored without an adapter (tests/it/common/harness.rs).
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::{gpu, skipped};
 use libtest_mimic::Completion;
@@ -297,8 +295,8 @@ fn bind_groups_fail_by_kernel_and_binding_name(ctx: GpuContext) {
     assert!(msg.contains("given a texture"), "{msg}");
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         gpu(
             "trivial_kernel_runs_in_validation_scope",
             trivial_kernel_runs_in_validation_scope,
@@ -327,5 +325,5 @@ fn main() -> ExitCode {
             "images_round_trip_unaligned_rows_and_prefixes",
             images_round_trip_unaligned_rows_and_prefixes,
         ),
-    ])
+    ]
 }

@@ -1,19 +1,22 @@
-//! The harness of every integration test file (`harness = false` in Cargo.toml), on
-//! libtest-mimic: a test that cannot run here (no GPU adapter, no `../shared/data`) is an
-//! `ignored` trial whose reason is shown, never a silent pass.
+//! The harness of the integration tests (the one test crate `it`, `harness = false` in
+//! Cargo.toml), on libtest-mimic: a test that cannot run here (no GPU adapter, no
+//! `../shared/data`) is an `ignored` trial whose reason is shown, never a silent pass.
 //!
-//! A test file keeps its tests as plain functions and ends with
+//! A module of `it` (one file, or a directory) keeps its tests as plain functions and ends with
 //!
 //! ```ignore
-//! fn main() -> std::process::ExitCode {
-//!     common::harness::run(vec![
+//! pub fn tests() -> Vec<common::harness::Test> {
+//!     vec![
 //!         plain("name", a_plain_test),                   // fn()
 //!         gpu("gpu_name", a_gpu_test),                   // fn(GpuContext)
 //!         shared("shared_name", a_full_sequence_test),   // fn(&Path): ../shared/data
 //!         gpu_shared("both", |ctx, data| ...),           // fn(GpuContext, &Path)
-//!     ])
+//!     ]
 //! }
 //! ```
+//!
+//! `tests/it/main.rs` collects every module's tests, names each `MODULE::name` ([`in_module`],
+//! so that `cargo test --test it MODULE` runs one module) and passes them all to [`run`].
 //!
 //! Whether a GPU adapter exists is decided once per process (only when a selected trial
 //! needs one), as is whether `../shared/data` is a directory. A trial that cannot run is
@@ -86,7 +89,7 @@ type Body = Box<dyn FnOnce(Option<GpuContext>, Option<&Path>) -> Completion + Se
 
 /// One registered test: its name, what it needs, and its body.
 pub struct Test {
-    name: &'static str,
+    name: String,
     needs_gpu: bool,
     needs_data: bool,
     body: Body,
@@ -95,7 +98,7 @@ pub struct Test {
 /// A test that needs neither a GPU nor `../shared/data`.
 pub fn plain<R: Finish>(name: &'static str, f: impl FnOnce() -> R + Send + 'static) -> Test {
     Test {
-        name,
+        name: name.to_string(),
         needs_gpu: false,
         needs_data: false,
         body: Box::new(move |_, _| f().finish()),
@@ -108,7 +111,7 @@ pub fn gpu<R: Finish>(
     f: impl FnOnce(GpuContext) -> R + Send + 'static,
 ) -> Test {
     Test {
-        name,
+        name: name.to_string(),
         needs_gpu: true,
         needs_data: false,
         body: Box::new(move |ctx, _| f(ctx.expect("a GPU test gets a context")).finish()),
@@ -118,7 +121,7 @@ pub fn gpu<R: Finish>(
 /// A test that reads the full data sets in `../shared/data` (it gets that directory).
 pub fn shared<R: Finish>(name: &'static str, f: impl FnOnce(&Path) -> R + Send + 'static) -> Test {
     Test {
-        name,
+        name: name.to_string(),
         needs_gpu: false,
         needs_data: true,
         body: Box::new(move |_, data| f(data.expect("a data test gets the directory")).finish()),
@@ -131,7 +134,7 @@ pub fn gpu_shared<R: Finish>(
     f: impl FnOnce(GpuContext, &Path) -> R + Send + 'static,
 ) -> Test {
     Test {
-        name,
+        name: name.to_string(),
         needs_gpu: true,
         needs_data: true,
         body: Box::new(move |ctx, data| {
@@ -200,9 +203,25 @@ fn run_one(test: Test) -> Result<Completion, Failed> {
     Ok((test.body)(ctx, data))
 }
 
+/// The tests of the module `module` of `it`, each renamed `module::name`.
+pub fn in_module(module: &str, tests: Vec<Test>) -> Vec<Test> {
+    tests
+        .into_iter()
+        .map(|test| Test {
+            name: format!("{module}::{}", test.name),
+            ..test
+        })
+        .collect()
+}
+
 /// Parses libtest's arguments, marks the tests that cannot run here as ignored (printing
 /// why), runs them, and returns the exit code (non-zero when any failed).
 pub fn run(tests: Vec<Test>) -> ExitCode {
+    let mut names: Vec<&str> = tests.iter().map(|t| t.name.as_str()).collect();
+    names.sort_unstable();
+    if let Some(twice) = names.windows(2).find(|w| w[0] == w[1]) {
+        panic!("two tests are named {}", twice[0]);
+    }
     let mut args = Arguments::from_args();
     if args.test_threads.is_none() {
         args.test_threads = std::env::var("RUST_TEST_THREADS")
@@ -212,13 +231,13 @@ pub fn run(tests: Vec<Test>) -> ExitCode {
     // Probe the GPU only if a test the filter selects needs it.
     let gpu_skip = tests
         .iter()
-        .any(|t| t.needs_gpu && selected(&args, t.name))
+        .any(|t| t.needs_gpu && selected(&args, &t.name))
         .then(gpu_skip_reason)
         .flatten();
     let data_skip = data_status().ok().flatten();
 
     // Tests skipped for the same reason(s), listed before the run: (kind, reason, names).
-    let mut skipped_by_reason: Vec<(String, String, Vec<&str>)> = Vec::new();
+    let mut skipped_by_reason: Vec<(String, String, Vec<String>)> = Vec::new();
     let mut trials = Vec::with_capacity(tests.len());
     for test in tests {
         let mut kinds = Vec::new();
@@ -231,12 +250,12 @@ pub fn run(tests: Vec<Test>) -> ExitCode {
             kinds.push(NO_DATA_KIND);
             whys.push(why.as_str());
         }
-        let name = test.name;
-        let mut trial = Trial::ignorable_test(name, move || run_one(test));
+        let name = test.name.clone();
+        let mut trial = Trial::ignorable_test(name.clone(), move || run_one(test));
         if !kinds.is_empty() {
             let (kind, why) = (kinds.join(", "), whys.join("; "));
             trial = trial.with_kind(kind.clone()).with_ignored_flag(true);
-            if selected(&args, name) {
+            if selected(&args, &name) {
                 match skipped_by_reason.iter_mut().find(|(k, _, _)| *k == kind) {
                     Some((_, _, names)) => names.push(name),
                     None => skipped_by_reason.push((kind, why, vec![name])),

@@ -5,10 +5,9 @@
 //! show up even before any kernel exists. All failures are reported at once, each with the
 //! file and line it comes from.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
-use std::process::ExitCode;
 
 use common::harness::plain;
 use common::wgsl;
@@ -100,8 +99,8 @@ fn a_broken_kernel_is_reported_with_file_and_line() {
     );
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "every_shader_parses_and_validates",
             every_shader_parses_and_validates,
@@ -110,5 +109,5 @@ fn main() -> ExitCode {
             "a_broken_kernel_is_reported_with_file_and_line",
             a_broken_kernel_is_reported_with_file_and_line,
         ),
-    ])
+    ]
 }

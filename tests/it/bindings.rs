@@ -7,9 +7,7 @@
 //! or two-dimensional workgroup), every problem of every kernel reported at once, and that
 //! the reflection reports a broken declaration by kernel and binding name.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::plain;
 use wgslam::gpu::{self, shaders};
@@ -69,8 +67,8 @@ fn a_broken_declaration_is_reported_by_name() {
     assert_eq!(problems, ["kernel `fuse_add` has no `@compute fn main`"]);
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "every_kernel_reflects_into_bindable_layouts",
             every_kernel_reflects_into_bindable_layouts,
@@ -79,5 +77,5 @@ fn main() -> ExitCode {
             "a_broken_declaration_is_reported_by_name",
             a_broken_declaration_is_reported_by_name,
         ),
-    ])
+    ]
 }

@@ -2,12 +2,11 @@
 //! checked against the real ground truth. The bundled-frame and full-sequence bodies run
 //! once per backend (CPU reference, GPU); the other checks are on the CPU reference, and
 //! the interleaved benchmark runs both backends in one trial. GPU trials show as ignored
-//! without an adapter, full-sequence trials without `../shared/data` (tests/common/harness.rs).
+//! without an adapter, full-sequence trials without `../shared/data` (tests/it/common/harness.rs).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
-use std::process::ExitCode;
 
 use common::harness::{gpu, gpu_shared, plain, shared};
 use wgslam::dataset::{self, SequenceOptions};
@@ -37,8 +36,8 @@ const ATE_NOISY_320_MAX_M: f64 = 15e-3;
 /// issue's target is 0.02; 0.012 is 1.5x the measurement and fails projective fusion.
 const NOISY_MAP_FRACTION_MAX: f64 = 0.012;
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain("bundled_frames_track_to_ground_truth", || {
             bundled_frames_track_to_ground_truth(
                 CpuBackend::new(),
@@ -108,7 +107,7 @@ fn main() -> ExitCode {
             "interleaved_bench_tracks_both_backends",
             interleaved_bench_tracks_both_backends,
         ),
-    ])
+    ]
 }
 
 fn gpu_backend(ctx: GpuContext) -> GpuBackend {

@@ -1,10 +1,8 @@
 //! Scan kernels on the GPU against their CPU twins (`src/cpu/nn_brute.rs`, `nn_grid.rs`,
 //! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Every
-//! trial shows as ignored without a GPU adapter (tests/common/harness.rs).
+//! trial shows as ignored without a GPU adapter (tests/it/common/harness.rs).
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::gpu;
 use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
@@ -201,8 +199,8 @@ fn gpu_icp_matches_cpu_icp_on_fast_gicp_pair(ctx: GpuContext) {
     }
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         gpu("gpu_nn_kernels_match_twins", gpu_nn_kernels_match_twins),
         gpu(
             "gpu_cross_covariance_matches_twin",
@@ -212,5 +210,5 @@ fn main() -> ExitCode {
             "gpu_icp_matches_cpu_icp_on_fast_gicp_pair",
             gpu_icp_matches_cpu_icp_on_fast_gicp_pair,
         ),
-    ])
+    ]
 }

@@ -3,9 +3,7 @@
 //! backend against itself, and names the stage of a real difference; the free mode stays
 //! available and the report says which mode ran.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::cli::wgslam;
 use common::harness::{gpu, plain};
@@ -198,8 +196,8 @@ fn cli_reports_the_mode() {
     }
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         gpu("lockstep_passes_on_bundled_noisy_frames", |ctx| {
             lockstep_passes_on_bundled_noisy_frames(GpuBackend::new(ctx).unwrap())
         }),
@@ -212,5 +210,5 @@ fn main() -> ExitCode {
             lockstep_names_the_stage_of_a_perturbed_map,
         ),
         gpu("cli_reports_the_mode", |_ctx| cli_reports_the_mode()),
-    ])
+    ]
 }

@@ -1,13 +1,13 @@
-//! `wgslam run --rerun FILE.rrd` (cargo feature `rerun`; Cargo.toml's `required-features`
-//! keeps this file out of a default `cargo test`): the recording is written whole, and the
-//! rerun crate's own decoder reads back every entity with the rows a short run logs.
+//! `wgslam run --rerun FILE.rrd` (cargo feature `rerun`; the `#[cfg(feature = "rerun")]` on
+//! its `mod` in main.rs keeps this file out of a default `cargo test`): the recording is
+//! written whole, and the rerun crate's own decoder reads back every entity with the rows a
+//! short run logs.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::io::BufReader;
 use std::path::Path;
-use std::process::ExitCode;
 
 use common::cli::{text, wgslam};
 use common::harness::plain;
@@ -221,8 +221,8 @@ fn failed_run_leaves_no_recording() {
     assert!(!rrd.exists());
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "run_writes_a_recording_the_decoder_reads",
             run_writes_a_recording_the_decoder_reads,
@@ -231,5 +231,5 @@ fn main() -> ExitCode {
             "failed_run_leaves_no_recording",
             failed_run_leaves_no_recording,
         ),
-    ])
+    ]
 }

@@ -1,11 +1,10 @@
 //! Bad and good inputs for the dataset loaders and file readers, written as real files
 //! into a fresh temp directory per test (tiny PNGs generated here, no binary fixtures).
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::path::Path;
-use std::process::ExitCode;
 
 use common::harness::{plain, shared};
 use glam::{DMat4, DVec3};
@@ -582,8 +581,8 @@ property float z\nend_header\n1 two 3\n",
     assert_contains(&msg, &["absent.ply"]);
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "tum_association_is_greedy_nearest_first",
             tum_association_is_greedy_nearest_first,
@@ -622,5 +621,5 @@ fn main() -> ExitCode {
             ply_binary_skips_elements_before_vertices,
         ),
         plain("ply_malformed", ply_malformed),
-    ])
+    ]
 }

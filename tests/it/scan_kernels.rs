@@ -2,9 +2,7 @@
 //! parses and validates with naga, its structs match `scan::layout`, and the CPU twins
 //! agree with the KD-tree and with the f64 reduction of the ICP on real scans.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::harness::plain;
 use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
@@ -235,8 +233,8 @@ fn cross_covariance_twin_matches_f64_reduction() {
     );
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain("scan_shaders_validate", scan_shaders_validate),
         plain(
             "scan_structs_match_wgsl_layout",
@@ -250,5 +248,5 @@ fn main() -> ExitCode {
             "cross_covariance_twin_matches_f64_reduction",
             cross_covariance_twin_matches_f64_reduction,
         ),
-    ])
+    ]
 }

@@ -1,10 +1,9 @@
 //! Trajectory evaluation on synthetic trajectories with known answers, and on the bundled
 //! ICL-NUIM ground truth.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
-use std::process::ExitCode;
 
 use common::harness::plain;
 use glam::{DMat4, DVec3};
@@ -199,8 +198,8 @@ fn bundled_icl_ground_truth_evaluates_against_itself() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-fn main() -> ExitCode {
-    common::harness::run(vec![
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![
         plain(
             "rotated_translated_copy_aligns_to_zero",
             rotated_translated_copy_aligns_to_zero,
@@ -226,5 +225,5 @@ fn main() -> ExitCode {
             "bundled_icl_ground_truth_evaluates_against_itself",
             bundled_icl_ground_truth_evaluates_against_itself,
         ),
-    ])
+    ]
 }

@@ -1,8 +1,6 @@
 //! The `wgslam` executable as a user runs it: outputs written, errors clear, exit codes.
 
-mod common;
-
-use std::process::ExitCode;
+use crate::common;
 
 use common::cli::{text, wgslam};
 use common::harness::plain;
@@ -252,7 +250,7 @@ fn clear_errors_for_bad_input() {
 }
 
 /// Without the `rerun` feature, `run --rerun FILE` fails before running, names the feature
-/// and writes no file (with the feature, tests/rerun.rs covers the flag).
+/// and writes no file (with the feature, tests/it/rerun.rs covers the flag).
 #[cfg(not(feature = "rerun"))]
 fn rerun_flag_names_the_missing_feature() {
     let out = common::temp_dir("cli-rerun");
@@ -310,7 +308,7 @@ fn bench_revisit_reports_each_pass() {
     );
 }
 
-fn main() -> ExitCode {
+pub fn tests() -> Vec<common::harness::Test> {
     let tests = vec![
         plain(
             "run_writes_all_outputs_on_bundled_data",
@@ -344,5 +342,5 @@ fn main() -> ExitCode {
         ));
         tests
     };
-    common::harness::run(tests)
+    tests
 }

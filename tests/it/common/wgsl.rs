@@ -1,7 +1,7 @@
 //! WGSL checked with naga at test time, no GPU: parse and validate a source, reporting a
 //! failure with its file and line; and compare a Rust `#[repr(C)]` struct with naga's
 //! layout of the WGSL struct of the same name (size, member names, order and offsets).
-//! Used by `tests/shaders.rs`, `tests/layout.rs`, `tests/render.rs`, `tests/scan_kernels.rs`.
+//! Used by the modules `shaders`, `layout`, `render` and `scan_kernels`.
 
 /// The capabilities the dense-SLAM kernels need (and lavapipe offers): 64-bit integers and
 /// 64-bit `atomicMax` for the packed depth + surfel index map.

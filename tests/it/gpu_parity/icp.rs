@@ -1,0 +1,209 @@
+//! Tracking's normal equations: icp_reduce and icp_reduce_final against their twins, at
+//! level 0 and on the coarser pyramid levels.
+
+use super::{cpu_map_from_gt, gpu_backend, robust_pyramids_on_both, root};
+use super::{INCREMENT_TOL, INLIER_FRACTION_TOL, SYSTEM_REL_TOL};
+use crate::common::frames::{gt_at, load_frame};
+use crate::common::harness::{gpu, Test};
+use wgslam::cpu;
+use wgslam::geometry::camera::Intrinsics;
+use wgslam::geometry::se3;
+use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::slam::backend::{Backend, Inspect};
+use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::params::{Profile, SlamParams};
+use wgslam::slam::pipeline::Slam;
+use wgslam::slam::solve::NormalEquations;
+use wgslam::tools::compare::system_rel_diffs;
+use wgslam::Error;
+
+/// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
+/// at a pose perturbed from the ground truth.
+fn icp_system_matches_twin(mut gpu: GpuBackend) {
+    let params = SlamParams::profile(Profile::Assignment);
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
+    let frame = load_frame(&root(), 4);
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    s.backend
+        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+        .unwrap();
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+        .unwrap();
+    // Predict from frame 3's pose, track frame 4 from a perturbed estimate.
+    let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
+    let proj = s.project_params(&t_prev);
+    s.backend.predict(&proj, &[]).unwrap();
+    gpu.predict(&proj, &[]).unwrap();
+    let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
+    // The robust profile's gates and weights too (angle gate, Huber, depth noise), with
+    // the parameters its pipeline builds.
+    let robust = Slam::new(
+        CpuBackend::new(),
+        Intrinsics::ICL_NUIM,
+        SlamParams::profile(Profile::Robust),
+    );
+    let cases = [
+        ("true pose", s.icp_params(0, &t_true)),
+        ("perturbed pose", s.icp_params(0, &(nudge * t_true))),
+        (
+            "robust, perturbed pose",
+            robust.icp_params(0, &(nudge * t_true)),
+        ),
+    ];
+    assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
+    for (label, ip) in cases {
+        let (sys_c, sys_g) = (
+            s.backend.icp_system(0, &ip).unwrap(),
+            gpu.icp_system(0, &ip).unwrap(),
+        );
+        let (c, g) = (
+            NormalEquations::decode(&sys_c),
+            NormalEquations::decode(&sys_g),
+        );
+        // The measure `wgslam compare` uses (Aᵀb against its Cauchy-Schwarz bound).
+        let (ata, atb) = system_rel_diffs(&sys_c, &sys_g);
+        let inl = c.inliers.abs_diff(g.inliers) as f64 / c.inliers as f64;
+        eprintln!(
+            "{label}: inliers cpu {} gpu {}; rel diff AᵀA {ata:e} Aᵀb {atb:e}; \
+             residual² cpu {:e} gpu {:e}",
+            c.inliers, g.inliers, c.residual_sq_sum, g.residual_sq_sum
+        );
+        assert!(
+            c.inliers > 10_000,
+            "{label}: too few inliers for a real test"
+        );
+        assert!(
+            inl <= INLIER_FRACTION_TOL,
+            "{label}: inliers {} vs {}",
+            c.inliers,
+            g.inliers
+        );
+        assert!(
+            ata <= SYSTEM_REL_TOL,
+            "{label}: AᵀA relative difference {ata:e}"
+        );
+        assert!(
+            atb <= SYSTEM_REL_TOL,
+            "{label}: Aᵀb relative difference {atb:e}"
+        );
+        let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
+        let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
+        eprintln!("{label}: increment cpu {xc:?}\n      gpu {xg:?}; difference {dx:e}");
+        assert!(dx <= INCREMENT_TOL, "{label}: increments differ by {dx:e}");
+    }
+}
+
+/// icp_reduce on the coarser pyramid levels against its twin: the kernel is level 0's, with
+/// the level's textures, size and intrinsics bound; the decoded systems and increments
+/// agree as at level 0 (robust profile, a perturbed pose).
+fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
+    let (mut s, gt) = robust_pyramids_on_both(&mut gpu, 4, 3);
+    let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
+    let t = nudge * se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    for level in 1..3 {
+        let ip = s.icp_params(level, &t);
+        let pixels = s.level_intrinsics(level).pixels();
+        assert_eq!(ip.width as usize * ip.height as usize, pixels);
+        let (sys_c, sys_g) = (
+            s.backend.icp_system(level, &ip).unwrap(),
+            gpu.icp_system(level, &ip).unwrap(),
+        );
+        let (c, g) = (
+            NormalEquations::decode(&sys_c),
+            NormalEquations::decode(&sys_g),
+        );
+        let (ata, atb) = system_rel_diffs(&sys_c, &sys_g);
+        eprintln!(
+            "level {level}: inliers cpu {} gpu {} of {pixels} pixels; rel diff AᵀA {ata:e} \
+             Aᵀb {atb:e}",
+            c.inliers, g.inliers
+        );
+        assert!(
+            c.inliers as usize > pixels / 4,
+            "level {level}: too few inliers for a real test"
+        );
+        let allowed = (c.inliers as f64 * INLIER_FRACTION_TOL).ceil() as u64;
+        assert!(
+            c.inliers.abs_diff(g.inliers) <= allowed,
+            "level {level}: inliers {} vs {}",
+            c.inliers,
+            g.inliers
+        );
+        assert!(
+            ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
+            "level {level}"
+        );
+        let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
+        let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
+        assert!(
+            dx <= INCREMENT_TOL,
+            "level {level}: increments differ by {dx:e}"
+        );
+    }
+    // A level the pyramid does not have is an argument error, not a panic.
+    assert!(matches!(
+        gpu.icp_system(3, &s.icp_params(2, &t)),
+        Err(Error::Argument(_))
+    ));
+}
+
+/// icp_reduce_final against its twin, bit for bit, over partials shaped as on lavapipe (16
+/// workgroups) and on a GPU (1024): entries of mixed sign and magnitude (as AᵀA, Aᵀb,
+/// counts and residuals are), so the order of the f32 adds shows in the result.
+fn icp_reduce_final_matches_twin(ctx: GpuContext) {
+    use wgslam::gpu::{GpuArray, Kernel, Readback};
+    use wgslam::layout::ICP_SYSTEM_LEN;
+    let kernel = Kernel::new(&ctx, "icp_reduce_final").unwrap();
+    for groups in [1usize, 16, 1024] {
+        let n = groups * ICP_SYSTEM_LEN;
+        let partials: Vec<f32> = (0..n)
+            .map(|i| {
+                let x = ((i as u64 * 2_654_435_761) % 1_000_003) as f32 / 1_000_003.0 - 0.3;
+                x * 10f32.powi((i % 7) as i32 - 3)
+            })
+            .collect();
+        let twin = cpu::icp_reduce_final::icp_reduce_final(&partials);
+        let input = GpuArray::from_slice(&ctx, "partials", &partials).unwrap();
+        let mut system = GpuArray::<f32>::new(&ctx, "system", ICP_SYSTEM_LEN).unwrap();
+        system.set_len(ICP_SYSTEM_LEN);
+        let mut readback = Readback::new(&ctx, "system read-back", ICP_SYSTEM_LEN);
+        let bg = kernel.bind_group(
+            &ctx,
+            &[("partials", input.binding()), ("system", system.binding())],
+        );
+        let mut enc = ctx.encoder("icp_reduce_final");
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            kernel.dispatch(&ctx, &mut pass, &bg, 1).unwrap();
+        }
+        readback.copy_from(&mut enc, &system, ICP_SYSTEM_LEN);
+        ctx.submit(enc);
+        let gpu = readback.read(&ctx).unwrap();
+        for k in 0..ICP_SYSTEM_LEN {
+            assert_eq!(
+                gpu[k].to_bits(),
+                twin[k].to_bits(),
+                "{groups} workgroups, entry {k}: gpu {} twin {}",
+                gpu[k],
+                twin[k]
+            );
+        }
+    }
+}
+
+pub(super) fn tests() -> Vec<Test> {
+    vec![
+        gpu("icp_system_matches_twin", |ctx| {
+            icp_system_matches_twin(gpu_backend(ctx))
+        }),
+        gpu(
+            "icp_reduce_final_matches_twin",
+            icp_reduce_final_matches_twin,
+        ),
+        gpu("coarse_icp_systems_match_twin", |ctx| {
+            coarse_icp_systems_match_twin(gpu_backend(ctx))
+        }),
+    ]
+}

@@ -1,0 +1,93 @@
+//! The map's prediction at a pose: project_model and predict_model against their twins
+//! (also in small map chunks) and pyramid_model's coarser levels.
+
+use super::{check_index_maps, check_vec4_map, cpu_map_from_gt, robust_pyramids_on_both};
+use super::{gpu_backend, root, small_chunk_backend};
+use crate::common::frames::{gt_at, load_frame};
+use crate::common::harness::{gpu, Test};
+use wgslam::cpu;
+use wgslam::geometry::se3;
+use wgslam::gpu::GpuBackend;
+use wgslam::layout::MapChunk;
+use wgslam::slam::backend::{Backend, Inspect};
+use wgslam::slam::params::{Profile, SlamParams};
+
+/// project_model and predict_model against their twins on a real fused map, viewed from a
+/// later frame's ground-truth pose.
+fn predict_matches_twins(mut gpu: GpuBackend) {
+    let params = SlamParams::profile(Profile::Assignment);
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    let map = s.backend.download_map().unwrap();
+    gpu.upload_map(&map).unwrap();
+    let frame = load_frame(&root(), 6);
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+        .unwrap();
+    let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
+    let proj = s.project_params(&t_world_to_cam);
+    assert_eq!(proj.surfel_count as usize, map.len());
+
+    let n = (proj.width * proj.height) as usize;
+    let mut index_cpu = vec![0u64; n];
+    let whole = MapChunk::whole(map.len());
+    let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
+    cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut index_cpu);
+    let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
+    cpu::predict_model::predict_model(
+        &proj,
+        &index_cpu,
+        &whole,
+        &map.position_weight,
+        &map.normal_frame,
+        &mut pv_cpu,
+        &mut pn_cpu,
+    );
+    gpu.predict(&proj, &[]).unwrap();
+    let index_gpu = gpu.download_index_map().unwrap();
+    let (pv_gpu, pn_gpu) = gpu.download_prediction(0).unwrap();
+    check_index_maps("index map", &index_cpu, &index_gpu);
+    // The same surfel gives bit-identical copies of its position and normal.
+    check_vec4_map("predicted vertex", &pv_cpu, &pv_gpu, 0.0);
+    check_vec4_map("predicted normal", &pn_cpu, &pn_gpu, 0.0);
+}
+
+/// pyramid_model against its twin, through `predict` with the robust profile's three
+/// levels: each coarser level copies the finer level's pixel (2u, 2v), bit for bit, on
+/// both backends.
+fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
+    let (mut s, _) = robust_pyramids_on_both(&mut gpu, 6, 6);
+    for level in 0..3 {
+        let k = s.level_intrinsics(level);
+        let (cv, cn) = s.backend.download_prediction(level).unwrap();
+        let (gv, gn) = gpu.download_prediction(level).unwrap();
+        assert_eq!(
+            (cv.len(), gv.len()),
+            (k.pixels(), k.pixels()),
+            "level {level}"
+        );
+        check_vec4_map(&format!("level {level} predicted vertex"), &cv, &gv, 0.0);
+        check_vec4_map(&format!("level {level} predicted normal"), &cn, &gn, 0.0);
+        if level > 0 {
+            // The twin's rule on its own finer level.
+            let (fv, _) = s.backend.download_prediction(level - 1).unwrap();
+            let fine_w = s.level_intrinsics(level - 1).width as usize;
+            let (u, v) = (k.width as usize / 2, k.height as usize / 2);
+            assert_eq!(cv[v * k.width as usize + u], fv[2 * v * fine_w + 2 * u]);
+        }
+    }
+    assert!(gpu.download_prediction(3).unwrap().0.is_empty());
+}
+
+pub(super) fn tests() -> Vec<Test> {
+    vec![
+        gpu("predict_matches_twins", |ctx| {
+            predict_matches_twins(gpu_backend(ctx))
+        }),
+        gpu("predict_matches_twins_in_small_chunks", |ctx| {
+            predict_matches_twins(small_chunk_backend(ctx))
+        }),
+        gpu("pyramid_model_matches_twin", |ctx| {
+            pyramid_model_matches_twin(gpu_backend(ctx))
+        }),
+    ]
+}

@@ -1,0 +1,224 @@
+//! The frame's preprocessing on both backends: depth_to_vertex and vertex_to_normal,
+//! bilateral_filter and pyramid_depth against their twins, and a frame of the wrong size.
+
+use super::{check_vec4_map, gpu_backend, root, slam};
+use super::{FILTERED_VERTEX_TOL_M, NORMAL_TOL, VERTEX_TOL_M};
+use crate::common::frames::load_frame;
+use crate::common::harness::{gpu, Test};
+use wgslam::geometry::camera::Intrinsics;
+use wgslam::gpu::GpuBackend;
+use wgslam::slam::backend::{Backend, FrameMaps, Inspect};
+use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::params::{BilateralSettings, Profile, SlamParams};
+use wgslam::Error;
+
+/// depth_to_vertex and vertex_to_normal against their twins, at downsample 2 and 1.
+fn preprocess_matches_twins(mut gpu: GpuBackend) {
+    let frame = load_frame(&root(), 5);
+    for downsample in [2, 1] {
+        let params = SlamParams {
+            downsample,
+            ..SlamParams::profile(Profile::Assignment)
+        };
+        let s = slam(CpuBackend::new(), params);
+        let (pp, np) = (s.preprocess_params(), s.normal_params());
+        let mut cpu_b = s.backend;
+        cpu_b
+            .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+            .unwrap();
+        gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+            .unwrap();
+        let c = cpu_b.download_frame().unwrap();
+        let g = gpu.download_frame().unwrap();
+        let tag = format!("downsample {downsample}");
+        check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
+        // Colour is integer-valued: exact.
+        assert_eq!(c.color, g.color, "{tag}: colour maps differ");
+        let (c_normal, g_normal) = (c.normal_map(), g.normal_map());
+        check_vec4_map(&format!("{tag} normal"), &c_normal, &g_normal, NORMAL_TOL);
+        let valid = c_normal.iter().filter(|n| n[3] > 0.0).count();
+        assert!(
+            valid > c_normal.len() / 2,
+            "{tag}: only {valid} valid normals"
+        );
+    }
+}
+
+/// bilateral_filter against its twin, through `preprocess` with the filter on (so the GPU
+/// pipeline's wiring is checked too): the unfiltered vertex map is kept, the filtered one
+/// matches the twin, and the normals are made from it; at downsample 2 and 1, with the
+/// default 3x3 window and depth-dependent sigma and with KinectFusion's 7x7 window and
+/// constant 30 mm sigma.
+fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
+    let frame = load_frame(&root(), 5);
+    let kinect_fusion = BilateralSettings {
+        radius_px: 3,
+        sigma_space_px: 2.25,
+        sigma_depth_m: 0.03,
+        sigma_depth_per_m2: 0.0,
+    };
+    for (downsample, settings) in [
+        (2, BilateralSettings::default()),
+        (1, BilateralSettings::default()),
+        (2, kinect_fusion),
+    ] {
+        let params = SlamParams {
+            downsample,
+            bilateral: Some(settings),
+            ..SlamParams::profile(Profile::Assignment)
+        };
+        let s = slam(CpuBackend::new(), params);
+        let (pp, bp, np) = (
+            s.preprocess_params(),
+            s.bilateral_params(),
+            s.normal_params(),
+        );
+        assert!(bp.is_some());
+        let mut cpu_b = s.backend;
+        cpu_b
+            .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
+            .unwrap();
+        gpu.preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
+            .unwrap();
+        let c = cpu_b.download_frame().unwrap();
+        let g = gpu.download_frame().unwrap();
+        let tag = format!("bilateral {settings:?}, downsample {downsample}");
+        check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
+        assert_eq!(c.filtered_vertex.len(), c.vertex.len());
+        check_vec4_map(
+            &format!("{tag} filtered vertex"),
+            &c.filtered_vertex,
+            &g.filtered_vertex,
+            FILTERED_VERTEX_TOL_M,
+        );
+        // The filter keeps the validity mask exactly (invalid stays invalid, valid stays
+        // valid) and moves depths: the twin's output is not the unfiltered map.
+        let moved = (0..c.vertex.len())
+            .filter(|&i| c.vertex[i][3] > 0.0 && c.vertex[i][2] != c.filtered_vertex[i][2])
+            .count();
+        assert!(
+            c.vertex
+                .iter()
+                .zip(&c.filtered_vertex)
+                .all(|(a, b)| (a[3] > 0.0) == (b[3] > 0.0)),
+            "{tag}: the filter changed the validity mask"
+        );
+        assert!(
+            moved > c.vertex.len() / 4,
+            "{tag}: only {moved} depths moved"
+        );
+        let (c_normal, g_normal) = (c.normal_map(), g.normal_map());
+        check_vec4_map(&format!("{tag} normal"), &c_normal, &g_normal, NORMAL_TOL);
+        // normal_depth carries the filtered depth.
+        let i = (0..c.vertex.len())
+            .find(|&i| c.normal_depth[i][3] > 0.0)
+            .expect("a valid normal");
+        assert_eq!(
+            c.normal_depth[i][3], c.filtered_vertex[i][2],
+            "{tag}: pixel {i}"
+        );
+    }
+    // Back to the filter off: the frame has no filtered map again.
+    let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+        .unwrap();
+    assert!(gpu.download_frame().unwrap().filtered_vertex.is_empty());
+}
+
+/// pyramid_depth (with vertex_to_normal per level) against its twin, through `preprocess`
+/// with the robust profile's three levels, with the bilateral filter on (level 1 made from
+/// the filtered map) and off (from the unfiltered one), at downsample 2 and 1.
+fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
+    let frame = load_frame(&root(), 5);
+    let robust = SlamParams::profile(Profile::Robust);
+    assert_eq!(robust.icp_level_iters.len(), 3);
+    for (downsample, bilateral) in [(2, robust.bilateral), (2, None), (1, robust.bilateral)] {
+        let params = SlamParams {
+            downsample,
+            bilateral,
+            ..robust.clone()
+        };
+        let s = slam(CpuBackend::new(), params);
+        let (pp, bp, np, pyr) = (
+            s.preprocess_params(),
+            s.bilateral_params(),
+            s.normal_params(),
+            s.pyramid_levels(),
+        );
+        assert_eq!(pyr.len(), 2);
+        let level_intrinsics: Vec<Intrinsics> = (1..3).map(|l| s.level_intrinsics(l)).collect();
+        let mut cpu_b = s.backend;
+        cpu_b
+            .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+            .unwrap();
+        gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
+            .unwrap();
+        let (c, g) = (
+            cpu_b.download_frame().unwrap(),
+            gpu.download_frame().unwrap(),
+        );
+        assert_eq!((c.pyramid.len(), g.pyramid.len()), (2, 2));
+        for (l, (cl, gl)) in c.pyramid.iter().zip(&g.pyramid).enumerate() {
+            let k = level_intrinsics[l];
+            let tag = format!(
+                "downsample {downsample}, filter {}, level {} ({}x{})",
+                bilateral.is_some(),
+                l + 1,
+                k.width,
+                k.height
+            );
+            assert_eq!(cl.vertex.len(), k.pixels(), "{tag}");
+            // A mean of up to 9 depths that differ by the filtered maps' tolerance.
+            check_vec4_map(
+                &format!("{tag} vertex"),
+                &cl.vertex,
+                &gl.vertex,
+                FILTERED_VERTEX_TOL_M,
+            );
+            let (cn, gn) = (
+                FrameMaps::normal_map_of(&cl.normal_depth),
+                FrameMaps::normal_map_of(&gl.normal_depth),
+            );
+            check_vec4_map(&format!("{tag} normal"), &cn, &gn, NORMAL_TOL);
+            let valid = cn.iter().filter(|n| n[3] > 0.0).count();
+            assert!(valid > cn.len() / 2, "{tag}: only {valid} valid normals");
+        }
+    }
+}
+
+/// A frame whose buffers do not match its stated size is a user error, not a panic or a
+/// GPU fault; downloads before the first frame are empty, as on the CPU.
+fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
+    assert_eq!(gpu.download_frame().unwrap(), Default::default());
+    assert!(gpu.download_prediction(0).unwrap().0.is_empty());
+    let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    let short = vec![0u16; 100];
+    match gpu.preprocess(&pp, None, &np, &[], &short, &vec![0u32; 100]) {
+        Err(Error::Argument(msg)) => assert!(msg.contains("640x480"), "{msg}"),
+        other => panic!("expected Error::Argument, got {other:?}"),
+    }
+    // The backend still works afterwards.
+    let f = load_frame(&root(), 1);
+    gpu.preprocess(&pp, None, &np, &[], &f.depth, &f.rgba)
+        .unwrap();
+    assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
+}
+
+pub(super) fn tests() -> Vec<Test> {
+    vec![
+        gpu("preprocess_matches_twins", |ctx| {
+            preprocess_matches_twins(gpu_backend(ctx))
+        }),
+        gpu("bilateral_filter_matches_twin", |ctx| {
+            bilateral_filter_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("pyramid_depth_matches_twin", |ctx| {
+            pyramid_depth_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("bad_frame_size_is_an_argument_error", |ctx| {
+            bad_frame_size_is_an_argument_error(gpu_backend(ctx))
+        }),
+    ]
+}

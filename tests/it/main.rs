@@ -1,0 +1,62 @@
+//! The integration tests: one test crate (`it`, so one binary linking wgpu instead of one per
+//! file), one module per topic, all run by the harness of `common/harness.rs` (libtest-mimic;
+//! a test that cannot run here shows as `ignored` with its reason). Each module's
+//! `tests()` lists its tests; each is named `MODULE::name`, so `cargo test --test it MODULE`
+//! runs one module. `#[test]` does nothing here (`harness = false`); `suite` checks that no
+//! file uses it and that every file is a module.
+
+mod common;
+
+mod batch;
+mod bindings;
+mod cli;
+mod compare;
+mod end_to_end;
+mod eval;
+mod gpu_parity;
+mod gpu_smoke;
+mod inputs;
+mod layout;
+mod render;
+// `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
+#[cfg(feature = "rerun")]
+mod rerun;
+mod scan_gpu;
+mod scan_icp;
+mod scan_kernels;
+mod shaders;
+mod suite;
+
+use std::process::ExitCode;
+
+/// The tests of each named module, named `MODULE::name`.
+macro_rules! tests_of {
+    ($($module:ident),* $(,)?) => {
+        vec![$(common::harness::in_module(stringify!($module), $module::tests())),*]
+    };
+}
+
+fn main() -> ExitCode {
+    #[allow(unused_mut)]
+    let mut modules = tests_of![
+        batch,
+        bindings,
+        cli,
+        compare,
+        end_to_end,
+        eval,
+        gpu_parity,
+        gpu_smoke,
+        inputs,
+        layout,
+        render,
+        scan_gpu,
+        scan_icp,
+        scan_kernels,
+        shaders,
+        suite,
+    ];
+    #[cfg(feature = "rerun")]
+    modules.extend(tests_of![rerun]);
+    common::harness::run(modules.into_iter().flatten().collect())
+}
