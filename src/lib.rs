@@ -1,5 +1,29 @@
 //! wgslam: dense RGB-D SLAM with point-based fusion, and point-to-point ICP, on wgpu.
 //!
+//! ## The library's API
+//!
+//! What a program needs is re-exported at the crate root: open a sequence
+//! ([`open_sequence`], [`SequenceOptions`], [`Sequence`]), configure ([`SlamParams`],
+//! [`Profile`]), choose a backend ([`open_backend`],
+//! [`BackendChoice`]), run ([`run`], giving a [`RunResult`]) and read the results
+//! ([`Metrics`], the [`SurfelMap`], the per-frame [`FrameOutcome`]s) or write them as the
+//! command line does ([`write_outputs`]); [`Error`] says what went wrong.
+//!
+//! ```no_run
+//! use std::path::Path;
+//!
+//! let seq = wgslam::open_sequence(Path::new("assets/icl_living_room_kt2"), &Default::default())?;
+//! let params = wgslam::SlamParams::profile(wgslam::Profile::Robust);
+//! let backend = wgslam::open_backend(wgslam::BackendChoice::Auto)?;
+//! let result = wgslam::run(backend, &seq, 0, seq.len() - 1, params, |_frame| {})?;
+//! println!("{} surfels, ATE {:?}", result.map.len(), result.metrics.accuracy);
+//! # Ok::<(), wgslam::Error>(())
+//! ```
+//!
+//! The modules below are public so that the tool's own binary, tests, examples and
+//! benchmarks can reach the kernels, twins and buffers they check; they are hidden from
+//! these docs and carry no stability promise.
+//!
 //! The tree is the architecture:
 //!
 //! | module | what |
@@ -17,20 +41,40 @@
 //! | [`batch`] | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
 //! | [`cli`] | argument parsing and printing only |
 
+#[doc(hidden)]
 pub mod batch;
+#[doc(hidden)]
 pub mod cli;
+#[doc(hidden)]
 pub mod cpu;
+#[doc(hidden)]
 pub mod dataset;
 pub mod error;
+#[doc(hidden)]
 pub mod eval;
+#[doc(hidden)]
 pub mod geometry;
+#[doc(hidden)]
 pub mod gpu;
+#[doc(hidden)]
 pub mod io;
+#[doc(hidden)]
 pub mod layout;
+#[doc(hidden)]
 pub mod render;
+#[doc(hidden)]
 pub mod scan;
+#[doc(hidden)]
 pub mod slam;
+#[doc(hidden)]
 pub mod stats;
+#[doc(hidden)]
 pub mod tools;
 
 pub use error::{Error, Result};
+
+pub use dataset::{open as open_sequence, Sequence, SequenceOptions};
+pub use slam::any_backend::{open as open_backend, AnyBackend, BackendChoice};
+pub use slam::map::SurfelMap;
+pub use slam::params::{Profile, SlamParams};
+pub use tools::run::{run, write_outputs, FrameOutcome, Metrics, RunResult};

@@ -328,7 +328,7 @@ pub(crate) fn map_read<R>(
 
 /// A read-only storage buffer holding one `T` (a params struct from `src/layout.rs`),
 /// bound as `var<storage, read> params`; not a uniform buffer, see
-/// [`super::kernel::BindingKind::Params`].
+/// [`super::kernel::ReflectedBinding`] (why params are storage buffers).
 pub struct ParamBuffer<T: Pod> {
     buffer: wgpu::Buffer,
     stats: Arc<GpuStats>,

@@ -39,7 +39,7 @@ pub struct SlamParams {
     pub profile: Profile,
     /// Keep every N-th pixel in each direction (the assignment uses 2).
     pub downsample: u32,
-    /// Raw depth units per metre (the sequence's own: [`Slam::for_sequence`] sets it).
+    /// Raw depth units per metre (the sequence's own: [`crate::slam::pipeline::Slam::for_sequence`] sets it).
     pub depth_scale: f32,
     /// Valid depth range, metres.
     pub min_depth_m: f32,

@@ -4,7 +4,7 @@
 //! and by the parity tests (`tests/it/compare.rs`).
 //!
 //! Two [`Mode`]s. **Lockstep** (the default): before every frame B is put into A's state
-//! (A's map uploaded with [`Backend::upload_map`] into both, A's last pose given to B's tracker), so
+//! (A's map uploaded with [`Inspect::upload_map`](crate::slam::backend::Inspect::upload_map) into both, A's last pose given to B's tracker), so
 //! a frame's differences come from that frame's kernels alone and the per-frame tolerances
 //! ([`tolerance::lockstep`]) can be tight. This is what proves the GPU kernels equal their
 //! CPU twins over a whole sequence: on noisy depth two trackers that each keep their own
