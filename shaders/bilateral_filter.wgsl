@@ -2,20 +2,20 @@
 // camera-frame vertex map. CPU twin: src/cpu/bilateral_filter.rs (its header states the
 // rules, the defaults and why sigma_depth grows with depth squared).
 //
-// Bindings (@group(0)):
-//   0 params           storage read BilateralParams
-//   1 vertex_map       texture_2d<f32>: width x height, camera frame (depth_to_vertex's
-//                      output), w = 1 valid / 0 invalid; its z is the depth in metres
-//   2 filtered_vertex  storage texture rgba32float, write: width x height, camera frame,
-//                      the vertex re-built (back_project) from the filtered depth, w = 1 / 0
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // For each valid pixel, the weighted mean of the valid depths in its (2r+1)^2 window
 // (clipped at the border), weight exp(-d_px^2 / (2 sigma_space^2)) *
 // exp(-(z_n - z)^2 / (2 sigma_depth^2)), as one exp of the summed exponents; the pixel
 // itself has weight 1, so the sum of weights is >= 1. Invalid pixels stay invalid.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
+// The intrinsics, size, window radius and sigmas (BilateralParams).
 @group(0) @binding(0) var<storage, read> params: BilateralParams;
+// width x height, camera frame (depth_to_vertex's output), metres, w = 1 valid / 0
+// invalid; its z is the depth in metres.
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
+// Out: width x height, camera frame (metres), the vertex re-built (back_project) from the
+// filtered depth, w = 1 / 0.
 @group(0) @binding(2) var filtered_vertex: texture_storage_2d<rgba32float, write>;
 
 // The filtered vertex of pixel (u, v), or INVALID where the pixel's vertex is invalid.

@@ -3,17 +3,17 @@
 // compaction or an upload), the boxes project_model, fuse_select and fuse_merge cull with.
 // Dispatched once per chunk. CPU twin: src/cpu/block_bounds.rs.
 //
-// Bindings (@group(0)):
-//   0 params        storage read BoundsParams (surfel_count, block_from)
-//   1 chunk         storage read MapChunk: the chunk's first map-wide index and slots
-//   2 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world frame
-//   3 block_bounds  storage rw array<vec4<u32>>: out, per block min (2b) and max (2b + 1)
-//                   of its surfels' positions, ordered_from_f32 encoded, w = 0
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // One thread per block (grid-stride over the chunk's blocks); each writes only its own box.
 
+// Uses surfel_count and block_from.
 @group(0) @binding(0) var<storage, read> params: BoundsParams;
+// The chunk's first map-wide index and slots.
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
+// The chunk's surfels, xyz world frame (metres).
 @group(0) @binding(2) var<storage, read> position_weight: array<vec4<f32>>;
+// Out: per block, min (2b) and max (2b + 1) of its surfels' positions, ordered_from_f32
+// encoded, w = 0.
 @group(0) @binding(3) var<storage, read_write> block_bounds: array<vec4<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;

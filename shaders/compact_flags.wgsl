@@ -4,22 +4,19 @@
 // stream-compaction kernels (then prefix_sum, compact_scatter). CPU twin:
 // src/cpu/compact_flags.rs. Dispatched once per map chunk.
 //
-// Bindings (@group(0)):
-//   0 params           storage read CompactParams (surfel_count, frame_id, stable_weight,
-//                      max_age_frames)
-//   1 chunk            storage read MapChunk: the chunk's first map-wide index and slots
-//   2 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world
-//                      frame, w = weight
-//   3 normal_frame     storage read array<vec4<u32>>: normal bits, w = last_frame
-//   4 flags            storage rw array<u32>: out, 1 keep / 0 remove per map-wide index,
-//                      surfel_count entries (this pass writes the chunk's)
-//   (see src/gpu/map_buffers.rs)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over surfels; each thread writes only its own flag.
 
+// Uses surfel_count, frame_id, stable_weight and max_age_frames.
 @group(0) @binding(0) var<storage, read> params: CompactParams;
+// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
+// The chunk's surfels, xyz world frame, w = weight.
 @group(0) @binding(2) var<storage, read> position_weight: array<vec4<f32>>;
+// Normal bits, w = last_frame.
 @group(0) @binding(3) var<storage, read> normal_frame: array<vec4<u32>>;
+// Out: 1 keep / 0 remove per map-wide index, surfel_count entries (this pass writes the
+// chunk's).
 @group(0) @binding(4) var<storage, read_write> flags: array<u32>;
 
 const WORKGROUP_SIZE: u32 = 64u;

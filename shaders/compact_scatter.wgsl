@@ -5,32 +5,31 @@
 // later than the input's, as offsets[i] <= i): each pass copies the input chunk's kept
 // surfels whose new slot the output chunk holds. CPU twin: src/cpu/compact_scatter.rs.
 //
-// Bindings (@group(0)):
-//   0 params               storage read CompactParams (surfel_count)
-//   1 flags                storage read array<u32>: 1 keep / 0 remove (compact_flags)
-//   2 offsets              storage read array<u32>: exclusive prefix sum of flags
-//                          (prefix_sum)
-//   3 chunk                storage read MapChunk: the input chunk (first map-wide index, slots)
-//   4 position_weight      storage read array<vec4<f32>>: xyz world frame, w = weight
-//   5 normal_frame         storage read array<vec4<u32>>: normal bits, w = last_frame
-//   6 color                storage read array<vec4<f32>>: RGB 0..255, a = radius
-//   7 out_chunk            storage read MapChunk: the output chunk
-//   8 out_position_weight  storage rw array<vec4<f32>>: out
-//   9 out_normal_frame     storage rw array<vec4<u32>>: out
-//   10 out_color           storage rw array<vec4<f32>>: out
-//   (see src/gpu/map_buffers.rs; the output map has the input's chunks)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over the input chunk's surfels; each kept surfel has its own output slot.
 
+// Uses surfel_count.
 @group(0) @binding(0) var<storage, read> params: CompactParams;
+// 1 keep / 0 remove (compact_flags).
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
+// Exclusive prefix sum of flags (prefix_sum).
 @group(0) @binding(2) var<storage, read> offsets: array<u32>;
+// The input chunk (first map-wide index, slots); see src/gpu/map_buffers.rs.
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
+// The input chunk's surfels: xyz world frame, w = weight.
 @group(0) @binding(4) var<storage, read> position_weight: array<vec4<f32>>;
+// Normal bits, w = last_frame.
 @group(0) @binding(5) var<storage, read> normal_frame: array<vec4<u32>>;
+// RGB 0..255, a = radius.
 @group(0) @binding(6) var<storage, read> color: array<vec4<f32>>;
+// The output chunk: a chunk of the second map, which has the input's chunks.
 @group(0) @binding(7) var<storage, read> out_chunk: MapChunk;
+// Out: the output chunk's surfels (its slots entries, packed as position_weight); only
+// the kept surfels whose new slot this chunk holds are written.
 @group(0) @binding(8) var<storage, read_write> out_position_weight: array<vec4<f32>>;
+// Out: as normal_frame.
 @group(0) @binding(9) var<storage, read_write> out_normal_frame: array<vec4<u32>>;
+// Out: as color.
 @group(0) @binding(10) var<storage, read_write> out_color: array<vec4<f32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;

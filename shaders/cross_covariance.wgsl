@@ -4,22 +4,22 @@
 // and thread 0 writes one ScanCovPartial. The host sums partials in f64 and solves the SVD.
 // CPU twin: src/cpu/cross_covariance.rs (same loops and reduction order).
 //
-// Bindings (group 0):
-//   0 storage read        params:   ScanCovParams (anchor, pair count, thread count, radius^2)
-//   1 storage read   queries:  array<vec4<f32>>     transformed source points p, metres
-//   2 storage read   targets:  array<vec4<f32>>     target cloud, metres
-//   3 storage read   nn:       array<ScanNnResult>  nearest target of each query
-//   4 storage rw     partials: array<ScanCovPartial> one per workgroup
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Assumes: params.n_threads = workgroups * 64. Points are shifted by params.anchor (the
 // queries' centroid) before accumulation so f32 sums of products stay well conditioned.
 
 // ScanNnResult, ScanCovParams, ScanCovPartial and SCAN_NN_NONE live in scan_common.wgsl
 // (prepended by src/gpu/shaders.rs).
 
+// The anchor, pair count, thread count and radius^2.
 @group(0) @binding(0) var<storage, read> params: ScanCovParams;
+// The transformed source points p, metres.
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
+// The target cloud, metres.
 @group(0) @binding(2) var<storage, read> targets: array<vec4<f32>>;
+// The nearest target of each query.
 @group(0) @binding(3) var<storage, read> nn: array<ScanNnResult>;
+// Out: one partial per workgroup.
 @group(0) @binding(4) var<storage, read_write> partials: array<ScanCovPartial>;
 
 var<workgroup> scratch: array<ScanCovPartial, 64>;

@@ -1,19 +1,19 @@
 // depth_to_vertex.wgsl: raw 16-bit depth and RGBA8 to a camera-frame vertex map (metres)
 // and a colour map, keeping every `stride`-th raw pixel. CPU twin: src/cpu/depth_to_vertex.rs.
 //
-// Bindings (@group(0)):
-//   0 params      storage read PreprocessParams
-//   1 raw_depth   texture_2d<u32> (r16uint): raw_width x raw_height, depth units
-//   2 raw_rgba    texture_2d<u32> (rgba8uint): raw_width x raw_height, RGBA 0..255
-//   3 vertex_map  storage texture rgba32float, write: width x height, camera frame, w = 1 / 0
-//   4 color_map   storage texture rgba32float, write: width x height, RGB 0..255, a = 255
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the output pixels in 4x16 tiles (see main and vertex_to_normal.wgsl).
 // Assumes raw_width >= stride * width (and the same for height).
 
+// Intrinsics, output and raw sizes, stride, depth scale and range (PreprocessParams).
 @group(0) @binding(0) var<storage, read> params: PreprocessParams;
+// r16uint: raw_width x raw_height, depth units.
 @group(0) @binding(1) var raw_depth: texture_2d<u32>;
+// rgba8uint: raw_width x raw_height, RGBA 0..255.
 @group(0) @binding(2) var raw_rgba: texture_2d<u32>;
+// Out: width x height, camera frame (metres), w = 1 / 0.
 @group(0) @binding(3) var vertex_map: texture_storage_2d<rgba32float, write>;
+// Out: width x height, RGB 0..255, a = 255.
 @group(0) @binding(4) var color_map: texture_storage_2d<rgba32float, write>;
 
 // Converts output pixel (u, v). `params` is main's copy of the binding (see main).

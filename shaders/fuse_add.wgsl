@@ -6,37 +6,33 @@
 // Dispatched once per map chunk: each pass writes the new surfels whose slots the chunk
 // holds. CPU twin: src/cpu/fuse_add.rs.
 //
-// Bindings (@group(0)):
-//   0 params      storage read FuseParams (t_cam_to_world, surfel_count, frame_id, capacity)
-//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
-//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
-//                   is rebuilt with back_project, as in the twin
-//   2 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   3 flags       storage read   array<u32>: 1 where the pixel becomes a new surfel, at
-//                 the pixel's append_index
-//   4 offsets     storage read   array<u32>: exclusive prefix sum of flags
-//   5 chunk       storage read MapChunk: the chunk's first map-wide index and slots
-//   6 position_weight  storage rw array<vec4<f32>>: out, xyz world frame, w = confidence
-//   7 normal_frame     storage rw array<vec4<u32>>: out, normal bits, w = last_frame
-//   8 color            storage rw array<vec4<f32>>: out, RGB 0..255, a = radius (m)
-//   9 index_map     storage rw array<atomic<u64>>: with best-candidate association, the
-//                   index map fuse_select began; each new surfel competes for its own
-//                   pixel with pack_depth_index(z_cam, map-wide index), as project_model's
-//                   key (left alone otherwise)
-//   (map-wide surfel i is element i - chunk.base of the chunk's arrays; see
-//   src/gpu/map_buffers.rs)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes at or past params.capacity (the host
 // grows the map first so that every pixel fits).
 
+// Uses t_cam_to_world, surfel_count, frame_id and capacity.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the vertex's depth in w, zero where invalid
+// (see vertex_to_normal.wgsl); the vertex is rebuilt with back_project, as in the twin.
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// width x height, RGB 0..255.
 @group(0) @binding(2) var color_map: texture_2d<f32>;
+// 1 where the pixel becomes a new surfel (fuse_flags), at the pixel's append_index.
 @group(0) @binding(3) var<storage, read> flags: array<u32>;
+// Exclusive prefix sum of flags (prefix_sum).
 @group(0) @binding(4) var<storage, read> offsets: array<u32>;
+// The chunk's first map-wide index and slots: map-wide surfel i is element i - chunk.base
+// of the chunk's arrays, which hold chunk.slots entries each (see src/gpu/map_buffers.rs).
 @group(0) @binding(5) var<storage, read> chunk: MapChunk;
+// Out: xyz world frame, w = confidence.
 @group(0) @binding(6) var<storage, read_write> position_weight: array<vec4<f32>>;
+// Out: normal bits, w = last_frame.
 @group(0) @binding(7) var<storage, read_write> normal_frame: array<vec4<u32>>;
+// Out: RGB 0..255, a = radius (metres).
 @group(0) @binding(8) var<storage, read_write> color: array<vec4<f32>>;
+// With best-candidate association, the index map fuse_select began; each new surfel
+// competes for its own pixel with pack_depth_index(z_cam, map-wide index), as
+// project_model's key (left alone otherwise).
 @group(0) @binding(9) var<storage, read_write> index_map: array<atomic<u64>>;
 
 const TILE: u32 = 8u;

@@ -5,25 +5,22 @@
 // `layout::APPEND_TILE_PX`, then fuse_add). CPU twin: src/cpu/fuse_flags.rs (its header
 // says why best-candidate association asks the neighbours).
 //
-// Bindings (@group(0)):
-//   0 params        storage read FuseParams (tracked pose, intrinsics, size, association,
-//                   gates)
-//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the depth in
-//                   w, zero where invalid
-//   2 assoc         storage read array<vec2<u32>>: the u64 key per pixel (low word first),
-//                   non-zero where a surfel merged with or was chosen by the pixel
-//   3 merged        storage read array<vec4<f32>>: best-candidate association only, per
-//                   pixel the surfel it merged into (fuse_merge_chosen: position_weight at
-//                   2 pix, w > 0 where it merged; unit normal and radius at 2 pix + 1)
-//   4 flags         storage rw array<u32>: out, 1 new surfel / 0 not, at append_index of
-//                   the pixel (layout::append_slots(width, height) entries; the holes, no
-//                   pixel's, are never written and stay 0)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
+// Tracked pose, intrinsics, size, association, gates.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the depth in w, zero where invalid.
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// The u64 key per pixel (low word first), non-zero where a surfel merged with or was
+// chosen by the pixel.
 @group(0) @binding(2) var<storage, read> assoc: array<vec2<u32>>;
+// Best-candidate association only: per pixel the surfel it merged into
+// (fuse_merge_chosen: position_weight at 2 pix, w > 0 where it merged; unit normal and
+// radius at 2 pix + 1).
 @group(0) @binding(3) var<storage, read> merged: array<vec4<f32>>;
+// Out: 1 new surfel / 0 not, at append_index of the pixel (layout::append_slots(width,
+// height) entries; the holes, no pixel's, are never written and stay 0).
 @group(0) @binding(4) var<storage, read_write> flags: array<u32>;
 
 const TILE: u32 = 8u;

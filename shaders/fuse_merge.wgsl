@@ -5,38 +5,31 @@
 // Dispatched once per map chunk; a merge that moves a surfel out of its block's box grows
 // the box. CPU twin: src/cpu/fuse_merge.rs (its header states both filter passes).
 //
-// Bindings (@group(0)):
-//   0 params      storage read FuseParams (tracked poses, intrinsics, surfel_count, gates,
-//                 confidence_sigma)
-//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
-//                   depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
-//                   is rebuilt with back_project, as in the twin
-//   2 color_map   texture_2d<f32>: width x height, RGB 0..255
-//   3 chunk            storage read MapChunk: the chunk's first map-wide index and slots
-//   4 block_bounds     storage rw array<atomic<u32>>: per block 8 words, min xyz, pad,
-//                      max xyz, pad (ordered_from_f32; the vec4<u32> pairs other kernels
-//                      read); grown with atomicMin/atomicMax to hold every merged surfel
-//   5 position_weight  storage rw array<vec4<f32>>: the chunk's surfels, xyz world frame
-//                      (metres), w = confidence
-//   6 normal_frame     storage rw array<vec4<u32>>: bits of the unit normal (world frame),
-//                      w = frame that last touched the surfel
-//   7 color            storage rw array<vec4<f32>>: RGB 0..255, a = radius (m)
-//   8 assoc            storage rw array<atomic<u64>>: one key per pixel, cleared by the
-//                      host; max with 1 where merged
-//   (see src/gpu/map_buffers.rs)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (their
 // surfels cannot project into the image); threads stride over a block. Each thread writes
 // only its own surfels, so the result does not depend on thread order (several surfels may
 // flag the same pixel); boxes only grow, by min/max, which no order changes.
 
+// Tracked poses, intrinsics, surfel_count, gates, confidence_sigma.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the vertex's depth in w, zero where invalid
+// (see vertex_to_normal.wgsl); the vertex is rebuilt with back_project, as in the twin.
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// width x height, RGB 0..255.
 @group(0) @binding(2) var color_map: texture_2d<f32>;
+// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
+// Per block 8 words, min xyz, pad, max xyz, pad (ordered_from_f32; the vec4<u32> pairs
+// other kernels read); grown with atomicMin/atomicMax to hold every merged surfel.
 @group(0) @binding(4) var<storage, read_write> block_bounds: array<atomic<u32>>;
+// The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(5) var<storage, read_write> position_weight: array<vec4<f32>>;
+// Bits of the unit normal (world frame), w = frame that last touched the surfel.
 @group(0) @binding(6) var<storage, read_write> normal_frame: array<vec4<u32>>;
+// RGB 0..255, a = radius (metres).
 @group(0) @binding(7) var<storage, read_write> color: array<vec4<f32>>;
+// One key per pixel, cleared to 0 by the host; max with 1 where merged.
 @group(0) @binding(8) var<storage, read_write> assoc: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;

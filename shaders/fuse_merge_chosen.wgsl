@@ -6,38 +6,34 @@
 // cost of the image instead of the map. A merge that moves a surfel out of its block's box
 // grows the box. Dispatched once per map chunk. CPU twin: src/cpu/fuse_merge_chosen.rs.
 //
-// Bindings (@group(0)):
-//   0 params        storage read FuseParams (tracked poses, intrinsics, confidence_sigma)
-//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the vertex's
-//                   depth in w, zero where invalid; the vertex is rebuilt with back_project
-//   2 color_map     texture_2d<f32>: width x height, RGB 0..255
-//   3 chunk         storage read MapChunk: the chunk's first map-wide index and slots
-//   4 block_bounds  storage rw array<atomic<u32>>: per block 8 words, min xyz, pad, max xyz,
-//                   pad (ordered_from_f32), grown to hold every merged surfel
-//   5 position_weight  storage rw array<vec4<f32>>: the chunk's surfels, xyz world frame
-//                      (metres), w = confidence
-//   6 normal_frame     storage rw array<vec4<u32>>: bits of the unit normal (world frame),
-//                      w = last frame
-//   7 color            storage rw array<vec4<f32>>: RGB 0..255, a = radius (m)
-//   8 assoc         storage read array<vec2<u32>>: fuse_select's u64 key per pixel (low
-//                   word, the chosen map-wide surfel index, first); (0, 0) = no choice
-//   9 merged        storage rw array<vec4<f32>>: two entries per pixel, cleared by the
-//                   host: the surfel this pixel merged into, position_weight (w > 0) at
-//                   2 pix, then its unit normal (world frame) and radius (metres) at
-//                   2 pix + 1; zero where the pixel merged nothing. fuse_flags and
-//                   fuse_prune read it, whatever the chunk.
-//   (see src/gpu/map_buffers.rs)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).
 
+// Tracked poses, intrinsics, confidence_sigma.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the vertex's depth in w, zero where invalid;
+// the vertex is rebuilt with back_project.
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// width x height, RGB 0..255.
 @group(0) @binding(2) var color_map: texture_2d<f32>;
+// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
+// Per block 8 words, min xyz, pad, max xyz, pad (ordered_from_f32), grown to hold every
+// merged surfel.
 @group(0) @binding(4) var<storage, read_write> block_bounds: array<atomic<u32>>;
+// The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(5) var<storage, read_write> position_weight: array<vec4<f32>>;
+// Bits of the unit normal (world frame), w = last frame.
 @group(0) @binding(6) var<storage, read_write> normal_frame: array<vec4<u32>>;
+// RGB 0..255, a = radius (metres).
 @group(0) @binding(7) var<storage, read_write> color: array<vec4<f32>>;
+// fuse_select's u64 key per pixel (low word, the chosen map-wide surfel index, first);
+// (0, 0) = no choice.
 @group(0) @binding(8) var<storage, read> assoc: array<vec2<u32>>;
+// Out: two entries per pixel, cleared by the host: the surfel this pixel merged into,
+// position_weight (w > 0) at 2 pix, then its unit normal (world frame) and radius (metres)
+// at 2 pix + 1; zero where the pixel merged nothing. fuse_flags and fuse_prune read it,
+// whatever the chunk.
 @group(0) @binding(9) var<storage, read_write> merged: array<vec4<f32>>;
 
 const TILE: u32 = 8u;

@@ -9,30 +9,26 @@
 // camera sees a denser map on every revisit. Dispatched once per map chunk; the merged
 // surfel may be in any chunk, as its copy is per pixel. CPU twin: src/cpu/fuse_prune.rs.
 //
-// Bindings (@group(0)):
-//   0 params      storage read FuseParams (tracked pose, intrinsics, surfel_count,
-//                 frame_id, prune_radius_scale)
-//   1 chunk       storage read MapChunk: the chunk's first map-wide index and slots
-//   2 block_bounds  storage read array<vec4<u32>>: per block, min (2b) and max (2b + 1)
-//                   corner of its surfels' world-frame box, ordered_from_f32 encoded
-//   3 position_weight  storage rw array<vec4<f32>>: xyz world frame (metres), w = confidence
-//   4 normal_frame     storage rw array<vec4<u32>>: bits of the unit normal (world frame),
-//                      w = last frame
-//   5 color            storage read array<vec4<f32>>: RGB 0..255, a = radius (metres)
-//   6 merged      storage read array<vec4<f32>>: per pixel, the surfel it merged into
-//                 (fuse_merge_chosen): position_weight at 2 pix (w = 0: none), unit normal
-//                 (world frame) and radius (metres) at 2 pix + 1
-//   (see src/gpu/map_buffers.rs)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects; threads
 // stride over a block. A thread writes only its own surfel, and only one this frame did not
 // refresh; the merged surfels it compares with are per-pixel copies.
 
+// Tracked pose, intrinsics, surfel_count, frame_id, prune_radius_scale.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
+// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
+// Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
+// ordered_from_f32 encoded.
 @group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
+// The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(3) var<storage, read_write> position_weight: array<vec4<f32>>;
+// Bits of the unit normal (world frame), w = last frame.
 @group(0) @binding(4) var<storage, read_write> normal_frame: array<vec4<u32>>;
+// RGB 0..255, a = radius (metres).
 @group(0) @binding(5) var<storage, read> color: array<vec4<f32>>;
+// Per pixel, the surfel it merged into (fuse_merge_chosen): position_weight at 2 pix
+// (w = 0: none), unit normal (world frame) and radius (metres) at 2 pix + 1.
 @group(0) @binding(6) var<storage, read> merged: array<vec4<f32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;

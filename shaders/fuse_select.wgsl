@@ -3,38 +3,36 @@
 // fuse_merge_chosen and fuse_add. Dispatched once per map chunk. CPU twin:
 // src/cpu/fuse_select.rs (its header states the gates and the choice).
 //
-// Bindings (@group(0)):
-//   0 params      storage read FuseParams (tracked pose, intrinsics, surfel_count, gates)
-//   1 normal_depth  texture_2d<f32>: width x height, camera-frame normal with the depth in
-//                   w, zero where invalid; the vertex is rebuilt with back_project
-//   2 chunk       storage read MapChunk: the chunk's first map-wide index and slots
-//   3 block_bounds  storage read array<vec4<u32>>: per block, min (2b) and max (2b + 1)
-//                   corner of its surfels' world-frame box, ordered_from_f32 encoded
-//   4 position_weight  storage read array<vec4<f32>>: xyz world frame (metres), w = confidence
-//   5 normal_frame     storage read array<vec4<u32>>: bits of the unit normal (world
-//                      frame), w = last frame
-//   6 color            storage read array<vec4<f32>>: RGB 0..255, a = radius (metres)
-//   7 assoc       storage rw array<atomic<u64>>: one key per pixel, cleared to 0 by the
-//                 host; the chosen surfel's pack_depth_index(off_ray_m, map-wide index)
-//   8 index_map   storage rw array<atomic<u64>>: one key per pixel, cleared to 0 by the
-//                 host; project_model's key, pack_depth_index(z_cam, map-wide index), of
-//                 every surfel whose centre lands in the image, before this frame's
-//                 merges: the next frame's prediction at this pose (fuse_add adds the new
-//                 surfels), so predict skips project_model (see Backend::predict)
-//   (the chunk's arrays hold its surfels from slot 0; see src/gpu/map_buffers.rs)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (a
 // surfel whose centre misses the image is skipped anyway); threads stride over a block.
 // The atomicMaxes keep the surfel nearest each pixel's ray, and the one nearest the camera
 // (ties to the larger index), whatever the thread order. Needs SHADER_INT64_ATOMIC_MIN_MAX.
 
+// Tracked pose, intrinsics, surfel_count, gates.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the depth in w, zero where invalid; the vertex
+// is rebuilt with back_project.
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// The chunk's first map-wide index and slots; the chunk's arrays hold its surfels from
+// slot 0 (see src/gpu/map_buffers.rs).
 @group(0) @binding(2) var<storage, read> chunk: MapChunk;
+// Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
+// ordered_from_f32 encoded.
 @group(0) @binding(3) var<storage, read> block_bounds: array<vec4<u32>>;
+// The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(4) var<storage, read> position_weight: array<vec4<f32>>;
+// Bits of the unit normal (world frame), w = last frame.
 @group(0) @binding(5) var<storage, read> normal_frame: array<vec4<u32>>;
+// RGB 0..255, a = radius (metres).
 @group(0) @binding(6) var<storage, read> color: array<vec4<f32>>;
+// One key per pixel, cleared to 0 by the host; the chosen surfel's
+// pack_depth_index(off_ray_m, map-wide index).
 @group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u64>>;
+// One key per pixel, cleared to 0 by the host; project_model's key,
+// pack_depth_index(z_cam, map-wide index), of every surfel whose centre lands in the
+// image, before this frame's merges: the next frame's prediction at this pose (fuse_add
+// adds the new surfels), so predict skips project_model (see Backend::predict).
 @group(0) @binding(8) var<storage, read_write> index_map: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;

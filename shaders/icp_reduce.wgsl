@@ -2,26 +2,22 @@
 // row and the reduction to one 29-float normal-equation partial per workgroup.
 // CPU twin: src/cpu/icp_reduce.rs (its header states the maths, the filters and weights).
 //
-// Bindings (@group(0)):
-//   0 params       storage read IcpParams (current t_world_to_cam, intrinsics, the gates and
-//                  the weights)
-//   1 pred_vertex  texture_2d<f32>: source, width x height, WORLD frame
-//   2 pred_normal  texture_2d<f32>: the source's unit normals, WORLD frame (angle gate)
-//   3 normal_depth texture_2d<f32>: target normals (camera frame) with the target vertex's
-//                  depth in w, zero where invalid (see vertex_to_normal.wgsl); the vertex
-//                  is rebuilt with back_project, as in the twin
-//   4 partials     storage rw     array<f32>: ICP_SYSTEM_LEN floats per workgroup
-//                                 (21 of AᵀA upper triangle row-major, 6 of Aᵀb, count,
-//                                 sum of squared weighted residuals); the host sums them
-//                                 in f64
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over pixels with few workgroups (few on a CPU adapter, many on a GPU):
 // each thread sums its pixels in registers (f32), then, after one barrier, thread k sums
 // entry k over the workgroup's threads (no tree reduction; see main).
 
+// Current t_world_to_cam, intrinsics, the gates and the weights.
 @group(0) @binding(0) var<storage, read> params: IcpParams;
+// The source: width x height, WORLD frame, w = 1 / 0.
 @group(0) @binding(1) var pred_vertex: texture_2d<f32>;
+// The source's unit normals, WORLD frame, w = 1 / 0 (angle gate).
 @group(0) @binding(2) var pred_normal: texture_2d<f32>;
+// Target normals (camera frame) with the target vertex's depth in w, zero where invalid
+// (see vertex_to_normal.wgsl); the vertex is rebuilt with back_project, as in the twin.
 @group(0) @binding(3) var normal_depth: texture_2d<f32>;
+// Out: ICP_SYSTEM_LEN floats per workgroup (21 of AᵀA upper triangle row-major, 6 of
+// Aᵀb, count, sum of squared weighted residuals); the host sums them in f64.
 @group(0) @binding(4) var<storage, read_write> partials: array<f32>;
 
 const WORKGROUP_SIZE: u32 = 64u;

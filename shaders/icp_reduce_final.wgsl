@@ -4,14 +4,14 @@
 // workgroups, 116 KB on a GPU's 1024).
 // CPU twin: src/cpu/icp_reduce_final.rs.
 //
-// Bindings (@group(0)):
-//   0 partials  storage read  array<f32>: ICP_SYSTEM_LEN floats per icp_reduce workgroup
-//                             (the buffer holds exactly the dispatched workgroups' partials)
-//   1 system    storage rw    array<f32>: ICP_SYSTEM_LEN floats, the summed system
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // One workgroup; thread k sums entry k over the partials in workgroup order, in f32, one
 // add at a time (plain adds: the same result on every adapter and in the twin).
 
+// ICP_SYSTEM_LEN floats per icp_reduce workgroup (the buffer holds exactly the dispatched
+// workgroups' partials).
 @group(0) @binding(0) var<storage, read> partials: array<f32>;
+// Out: ICP_SYSTEM_LEN floats, the summed system.
 @group(0) @binding(1) var<storage, read_write> system: array<f32>;
 
 @compute @workgroup_size(32)

@@ -2,11 +2,7 @@
 // the rejection radius. CPU twin: src/cpu/nn_brute.rs (same loops, same tie rule: equal
 // squared distances go to the lower target index).
 //
-// Bindings (group 0):
-//   0 storage read        params:  ScanNnParams (counts, radius^2, grid-stride thread count)
-//   1 storage read   queries: array<vec4<f32>>   xyz metres in the target frame, w unused
-//   2 storage read   targets: array<vec4<f32>>   xyz metres, w unused
-//   3 storage rw     results: array<ScanNnResult> one per query
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Assumes: dispatched with params.n_threads = workgroups * 64 threads; each thread walks
 // the queries with a grid stride. One dispatch scans targets [target_begin, target_end)
 // and continues from results[q] when target_begin > 0: llvmpipe (lavapipe) stops an
@@ -15,9 +11,13 @@
 // ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
 // live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
 
+// Counts, radius^2, grid-stride thread count.
 @group(0) @binding(0) var<storage, read> params: ScanNnParams;
+// xyz metres in the target frame, w unused.
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
+// xyz metres, w unused.
 @group(0) @binding(2) var<storage, read> targets: array<vec4<f32>>;
+// One per query.
 @group(0) @binding(3) var<storage, read_write> results: array<ScanNnResult>;
 
 @compute @workgroup_size(64)

@@ -3,23 +3,21 @@
 // equals brute force within the radius. CPU twin: src/cpu/nn_grid.rs (same loops, same
 // hash, same tie rule), which also builds the grid (`HashGrid::build`).
 //
-// Bindings (group 0):
-//   0 storage read        params:       ScanNnParams (counts, radius^2, thread count, cell, mask)
-//   1 storage read   queries:      array<vec4<f32>>  xyz metres in the target frame
-//   2 storage read   grid_points:  array<vec4<f32>>  target points sorted by bucket; w holds
-//                                  the original target index (bitcast<u32>)
-//   3 storage read   bucket_start: array<u32>  bucket b is [bucket_start[b], bucket_start[b+1])
-//   4 storage rw     results:      array<ScanNnResult> one per query, index into the
-//                                  ORIGINAL target cloud
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Assumes: params.n_threads = workgroups * 64 (grid-stride over queries).
 
 // ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
 // live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
 
+// Counts, radius^2, thread count, cell, mask.
 @group(0) @binding(0) var<storage, read> params: ScanNnParams;
+// xyz metres in the target frame.
 @group(0) @binding(1) var<storage, read> queries: array<vec4<f32>>;
+// The target points sorted by bucket; w holds the original target index (bitcast<u32>).
 @group(0) @binding(2) var<storage, read> grid_points: array<vec4<f32>>;
+// Bucket b is [bucket_start[b], bucket_start[b+1]).
 @group(0) @binding(3) var<storage, read> bucket_start: array<u32>;
+// One per query, index into the ORIGINAL target cloud.
 @group(0) @binding(4) var<storage, read_write> results: array<ScanNnResult>;
 
 // Mirrors `scan_cell_of` in src/cpu/nn_grid.rs.

@@ -3,24 +3,24 @@
 // the pixels whose surfel the chunk holds, and the first chunk's pass also the pixels with
 // no surfel, so every pixel is written exactly once. CPU twin: src/cpu/predict_model.rs.
 //
-// Bindings (@group(0)):
-//   0 params       storage read ProjectParams (only width and height are used)
-//   1 index_map    storage read   array<vec2<u32>>: the u64 keys of project_model, low word
-//                                 (map-wide surfel index) first; (0, 0) means no surfel
-//   2 chunk        storage read MapChunk: the chunk's first map-wide index and slots
-//   3 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world frame
-//   4 normal_frame     storage read array<vec4<u32>>: bits of the surfel normal (world
-//                      frame) + last_frame (the packing: src/gpu/map_buffers.rs)
-//   5 pred_vertex  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
-//   6 pred_normal  storage texture rgba32float, write: width x height, world frame, w = 1 / 0
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).
 
+// Only width and height are used.
 @group(0) @binding(0) var<storage, read> params: ProjectParams;
+// The u64 keys of project_model, low word (map-wide surfel index) first; (0, 0) means no
+// surfel.
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
+// The chunk's first map-wide index and slots.
 @group(0) @binding(2) var<storage, read> chunk: MapChunk;
+// The chunk's surfels, xyz world frame + weight.
 @group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
+// Bits of the surfel normal (world frame) + last_frame (the packing:
+// src/gpu/map_buffers.rs).
 @group(0) @binding(4) var<storage, read> normal_frame: array<vec4<u32>>;
+// Out: width x height, world frame, w = 1 / 0.
 @group(0) @binding(5) var pred_vertex: texture_storage_2d<rgba32float, write>;
+// Out: width x height, world frame, w = 1 / 0.
 @group(0) @binding(6) var pred_normal: texture_storage_2d<rgba32float, write>;
 
 const TILE: u32 = 8u;

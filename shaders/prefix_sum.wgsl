@@ -2,12 +2,7 @@
 // and their total (the surfel count after compaction). Second of the three
 // stream-compaction kernels. CPU twin: src/cpu/prefix_sum.rs.
 //
-// Bindings (@group(0)):
-//   0 params   storage read CompactParams (surfel_count = n, the flags to scan)
-//   1 flags    storage read array<u32>: 0 or 1 per surfel (compact_flags), n entries
-//   2 offsets  storage rw array<u32>: out, offsets[i] = flags[0] + ... + flags[i - 1]
-//   3 counter  storage rw array<u32>: out, counter[0] = flags[0] + ... + flags[n - 1]
-//              (the backend's surfel counter, which fuse_add counts with)
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // One workgroup of SCAN_THREADS threads, dispatched as [1, 1]: thread t owns the contiguous
 // chunk [t c, (t + 1) c) with c = ceil(n / SCAN_THREADS); it sums its chunk serially, the
 // workgroup scans the SCAN_THREADS sums in shared memory (Hillis-Steele), and each thread
@@ -16,9 +11,14 @@
 // surfels on lavapipe, where a workgroup runs on one core anyway; a large map on a real GPU
 // would want a multi-workgroup scan (reduce, scan the block sums, then scan-and-add).
 
+// Uses surfel_count = n, the number of flags to scan.
 @group(0) @binding(0) var<storage, read> params: CompactParams;
+// 0 or 1 per surfel (compact_flags), n entries.
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
+// Out: n entries, offsets[i] = flags[0] + ... + flags[i - 1].
 @group(0) @binding(2) var<storage, read_write> offsets: array<u32>;
+// Out: counter[0] = flags[0] + ... + flags[n - 1] (the backend's surfel counter, which
+// fuse_add counts with).
 @group(0) @binding(3) var<storage, read_write> counter: array<u32>;
 
 const SCAN_THREADS: u32 = 256u;

@@ -2,24 +2,23 @@
 // test, one packed 64-bit key per pixel, skipping blocks the camera cannot see. Dispatched
 // once per chunk. CPU twin: src/cpu/project_model.rs.
 //
-// Bindings (@group(0)):
-//   0 params     storage read ProjectParams (t_world_to_cam, intrinsics, map size, surfel_count)
-//   1 chunk      storage read MapChunk: the chunk's first map-wide index and slots
-//   2 block_bounds  storage read array<vec4<u32>>: per block, min (2b) and max (2b + 1)
-//                   corner of its surfels' world-frame box, ordered_from_f32 encoded
-//   3 position_weight  storage read array<vec4<f32>>: the chunk's surfels, xyz world frame
-//                      (metres) + weight (see src/gpu/map_buffers.rs)
-//   4 index_map  storage rw     array<atomic<u64>>: width x height, cleared to 0 by the host
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Key = (u64(~bitcast<u32>(z_cam)) << 32) | map-wide surfel index; the pixel keeps the
 // maximum (nearest surfel, ties to the larger index); 0 means no surfel. Needs the
 // SHADER_INT64_ATOMIC_MIN_MAX feature. Workgroups stride over the chunk's blocks; a block
 // whose box block_visible rejects is skipped whole (conservative: no surfel that would
 // land in the image is skipped); the workgroup's threads stride over a visible block.
 
+// Uses t_world_to_cam, the intrinsics, the map size and surfel_count.
 @group(0) @binding(0) var<storage, read> params: ProjectParams;
+// The chunk's first map-wide index and slots.
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
+// Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
+// ordered_from_f32 encoded.
 @group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
+// The chunk's surfels, xyz world frame (metres) + weight (see src/gpu/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
+// width x height keys, cleared to 0 by the host.
 @group(0) @binding(4) var<storage, read_write> index_map: array<atomic<u64>>;
 
 const WORKGROUP_SIZE: u32 = 64u;

@@ -2,21 +2,19 @@
 // average of the finer level's depth (KinectFusion's pyramid step). CPU twin:
 // src/cpu/pyramid_depth.rs (its header states the rules and the sampling convention).
 //
-// Bindings (@group(0)):
-//   0 params        storage read PyramidParams (coarse intrinsics and size, the finer size,
-//                   the window and the depth gate)
-//   1 fine_vertex   texture_2d<f32>: fine_width x fine_height, camera frame, w = 1 / 0 (the
-//                   finer level's vertex map: at level 0 the one the normals are made from)
-//   2 coarse_vertex storage texture rgba32float, write: width x height, camera frame, the
-//                   vertex re-built (back_project, coarse intrinsics) from the mean depth,
-//                   w = 1 / 0
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Coarse pixel (u, v) samples finer pixel (2u, 2v): invalid where that pixel is invalid,
 // else the plain mean of the valid depths in the (2r+1)^2 window around it (clipped at the
 // border) that lie within the depth gate of its depth (the pixel itself always does).
 // A 2-D grid-stride loop over the coarse pixels in 8x8 tiles (see vertex_to_normal.wgsl).
 
+// Coarse intrinsics and size, the finer size, the window and the depth gate.
 @group(0) @binding(0) var<storage, read> params: PyramidParams;
+// fine_width x fine_height, camera frame (metres), w = 1 / 0 (the finer level's vertex
+// map: at level 0 the one the normals are made from).
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
+// Out: width x height, camera frame (metres), the vertex re-built (back_project, coarse
+// intrinsics) from the mean depth, w = 1 / 0.
 @group(0) @binding(2) var coarse_vertex: texture_storage_2d<rgba32float, write>;
 
 // The coarse vertex of pixel (u, v), or INVALID (the rules of the header). `params` is

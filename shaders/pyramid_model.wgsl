@@ -1,20 +1,20 @@
 // pyramid_model.wgsl: the next coarser level of the predicted (model) maps, the ICP source,
 // by subsampling. CPU twin: src/cpu/pyramid_model.rs (its header says why subsampling).
 //
-// Bindings (@group(0)):
-//   0 params       storage read PyramidParams (only width and height, the coarse size, are used)
-//   1 fine_vertex  texture_2d<f32>: the finer level's pred_vertex, WORLD frame, w = 1 / 0
-//   2 fine_normal  texture_2d<f32>: the finer level's pred_normal, WORLD frame, w = 1 / 0
-//   3 coarse_vertex storage texture rgba32float, write: width x height, WORLD frame
-//   4 coarse_normal storage texture rgba32float, write: width x height, WORLD frame
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Coarse pixel (u, v) is a copy of finer pixel (2u, 2v) (the frame pyramid's sampling);
 // the finer level is at least 2 width - 1 by 2 height - 1, so the texel exists.
 // A 2-D grid-stride loop over the coarse pixels in 4x16 tiles (see main and vertex_to_normal.wgsl).
 
+// Only width and height, the coarse size, are used.
 @group(0) @binding(0) var<storage, read> params: PyramidParams;
+// The finer level's pred_vertex, WORLD frame, w = 1 / 0.
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
+// The finer level's pred_normal, WORLD frame, w = 1 / 0.
 @group(0) @binding(2) var fine_normal: texture_2d<f32>;
+// Out: width x height, WORLD frame.
 @group(0) @binding(3) var coarse_vertex: texture_storage_2d<rgba32float, write>;
+// Out: width x height, WORLD frame.
 @group(0) @binding(4) var coarse_normal: texture_storage_2d<rgba32float, write>;
 
 // Tiles 4 pixels wide and 16 high: on lavapipe this copy-and-convert kernel measured 0.6-0.7x

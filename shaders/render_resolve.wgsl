@@ -2,14 +2,8 @@
 // surfel (colour, normal, weight or depth), background where empty.
 // CPU twin: src/cpu/render_resolve.rs.
 //
-// Prepended with common.wgsl. Bindings:
-//   0 params     storage read RenderParams (mirrors src/render/layout.rs)
-//   1 index_map  array<vec2<u32>>, width x height: the u64 keys of render_splat read as
-//                (low, high) words, little-endian: x = surfel index, y = ~bits(z_cam)
-//   2 normals    array<vec4<f32>>, world frame (VIEW_NORMALS only)
-//   3 colors     array<vec4<f32>>, RGB 0..255 (VIEW_COLOR only)
-//   4 weights    array<f32> (VIEW_WEIGHT only)
-//   5 out_rgba   array<u32>, width x height, r | g << 8 | b << 16 | 255 << 24
+// Prepended with common.wgsl. Bindings (@group(0)): each is described by the
+// comment above its declaration.
 // One pixel per invocation (grid-stride, so any workgroup count works).
 
 // RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
@@ -25,11 +19,18 @@ const RAMP_LOW: vec3<f32> = vec3<f32>(0.267, 0.005, 0.329);
 const RAMP_MID: vec3<f32> = vec3<f32>(0.128, 0.567, 0.551);
 const RAMP_HIGH: vec3<f32> = vec3<f32>(0.993, 0.906, 0.144);
 
+// The view (RenderParams mirrors src/render/layout.rs).
 @group(0) @binding(0) var<storage, read> params: RenderParams;
+// width x height: the u64 keys of render_splat read as (low, high) words,
+// little-endian: x = surfel index, y = ~bits(z_cam).
 @group(0) @binding(1) var<storage, read> index_map: array<vec2<u32>>;
+// Per surfel index, the normal, world frame (VIEW_NORMALS only).
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+// Per surfel index, the colour, RGB 0..255 (VIEW_COLOR only).
 @group(0) @binding(3) var<storage, read> colors: array<vec4<f32>>;
+// Per surfel index, the weight (VIEW_WEIGHT only).
 @group(0) @binding(4) var<storage, read> weights: array<f32>;
+// Out: width x height, r | g << 8 | b << 16 | 255 << 24.
 @group(0) @binding(5) var<storage, read_write> out_rgba: array<u32>;
 
 // Colour (RGB 0..1) of t on the two-segment ramp. Mirrors `cpu::render_resolve::ramp`.

@@ -2,11 +2,7 @@
 // pictures of the map (not for tracking). CPU twin: src/cpu/render_splat.rs.
 //
 // Prepended with common.wgsl (transform_point, transform_dir, xyz, pack_depth_index).
-// Bindings:
-//   0 params     storage read RenderParams (mirrors src/render/layout.rs)
-//   1 positions  array<vec4<f32>>, world frame, metres; surfel_count entries read
-//   2 normals    array<vec4<f32>>, world frame; read only when cull_backfaces == 1
-//   3 index_map  array<atomic<u64>>, width x height, row-major, cleared to 0 by the host
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // Each covered pixel keeps max((~bitcast<u32>(z_cam)) << 32 | index): the nearest surfel
 // (by centre depth) wins, ties to the larger index, 0 = empty; as in project_model.
 // Needs SHADER_INT64 and SHADER_INT64_ATOMIC_MIN_MAX. Grid-stride loop over surfels, so
@@ -17,9 +13,13 @@
 // Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
 const MAX_PROJECTED_PX: f32 = 1.0e7;
 
+// The view and splat sizes (RenderParams mirrors src/render/layout.rs).
 @group(0) @binding(0) var<storage, read> params: RenderParams;
+// Surfel centres, world frame, metres; surfel_count entries read.
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+// Surfel normals, world frame; read only when cull_backfaces == 1.
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+// width x height, row-major, cleared to 0 by the host.
 @group(0) @binding(3) var<storage, read_write> index_map: array<atomic<u64>>;
 
 // Pixel radius of a splat at camera depth z. Mirrors `cpu::render_splat::splat_radius_px`.

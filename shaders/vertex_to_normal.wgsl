@@ -1,12 +1,7 @@
 // vertex_to_normal.wgsl: normal map from the vertex map by central differences, oriented
 // towards the camera. CPU twin: src/cpu/vertex_to_normal.rs (its header states the rules).
 //
-// Bindings (@group(0)):
-//   0 params        storage read NormalParams
-//   1 vertex_map    texture_2d<f32>: width x height, camera frame, w = 1 / 0
-//   2 normal_depth  storage texture rgba32float, write: width x height; xyz = the unit
-//                   normal (camera frame), w = the vertex's depth z (metres, > 0) where the
-//                   normal is valid; all zero where it is not
+// Bindings (@group(0)): each is described by the comment above its declaration.
 // A valid normal implies a valid vertex, and every later kernel that reads this frame needs
 // both, so the normal and the depth share one texel and those kernels (icp_reduce,
 // fuse_merge, fuse_add, and their twins) rebuild the vertex with back_project
@@ -15,8 +10,12 @@
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see main). Invalid on the border, next to an invalid vertex, across a depth
 // jump larger than max_depth_jump_m, or where the cross product vanishes.
 
+// The size and max_depth_jump_m.
 @group(0) @binding(0) var<storage, read> params: NormalParams;
+// width x height, camera frame (metres), w = 1 / 0.
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
+// Out: width x height; xyz = the unit normal (camera frame), w = the vertex's depth z
+// (metres, > 0) where the normal is valid; all zero where it is not.
 @group(0) @binding(2) var normal_depth: texture_storage_2d<rgba32float, write>;
 
 // The normal of pixel (u, v) with the pixel's depth in w, or INVALID (the rules of the

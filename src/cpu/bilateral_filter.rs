@@ -96,10 +96,8 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
     valid_entry(back_project(cam, [u, v], sum_wz / sum_w))
 }
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `BilateralParams`
-/// - 1 `vertex_map`: width x height, camera frame, metres, w = 1 / 0 (`depth_to_vertex`)
-/// - 2 `filtered_vertex` (out): width x height, camera frame, metres, w = 1 / 0
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/bilateral_filter.wgsl` for shapes, units and frames.
 pub fn bilateral_filter(
     params: &BilateralParams,
     vertex_map: &[[f32; 4]],

@@ -9,11 +9,8 @@
 use super::{chunk_blocks, xyz};
 use crate::layout::{ordered_from_f32, BoundsParams, MapChunk, BLOCK_SURFELS};
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `BoundsParams` (`surfel_count`, `block_from`)
-/// - 1 `chunk`: the chunk's first map-wide index and slots
-/// - 2 `position_weight`: the chunk's surfels, xyz world frame (metres)
-/// - 3 `block_bounds` (out): per block min (`2b`) and max (`2b + 1`), ordered-encoded, w = 0
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/block_bounds.wgsl` for shapes, units and frames.
 pub fn block_bounds(
     params: &BoundsParams,
     chunk: &MapChunk,

@@ -15,14 +15,8 @@ pub fn keep_surfel(params: &CompactParams, weight: f32, last_frame: u32, frame_i
     !(unstable && old)
 }
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
-/// - 0 `params`: `CompactParams` (`surfel_count`, `frame_id`, `stable_weight`,
-///   `max_age_frames`)
-/// - 1 `chunk`: the chunk's first map-wide index and slots
-/// - 2 `position_weight`: the chunk's surfels, xyz world frame, w = weight
-/// - 3 `normal_frame`: normal bits, w = last frame
-/// - 4 `flags` (out): 1 keep / 0 remove per map-wide index, `surfel_count` entries (this
-///   call writes the chunk's)
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/compact_flags.wgsl` for shapes, units and frames.
 pub fn compact_flags(
     params: &CompactParams,
     chunk: &MapChunk,

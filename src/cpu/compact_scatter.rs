@@ -5,14 +5,8 @@
 use super::chunk_blocks;
 use crate::layout::{CompactParams, MapChunk};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, the
-/// outputs holding at least as many entries as kept surfels):
-/// - 0 `params`: `CompactParams` (`surfel_count`)
-/// - 1 `flags`: 1 keep / 0 remove (`compact_flags`)
-/// - 2 `offsets`: exclusive prefix sum of `flags` (`prefix_sum`)
-/// - 3 `chunk`, 4 `position_weight`, 5 `normal_frame`, 6 `color`: one chunk of the map
-/// - 7 `out_chunk`, 8 `out_position_weight`, 9 `out_normal_frame`, 10 `out_color` (out):
-///   one chunk of the compacted map; only surfels whose new slot it holds are written
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames.
 #[allow(clippy::too_many_arguments)]
 pub fn compact_scatter(
     params: &CompactParams,

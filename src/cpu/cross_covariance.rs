@@ -52,6 +52,9 @@ pub fn scan_cov_pair(acc: &mut ScanCovPartial, p: [f32; 3], q: [f32; 3]) {
 /// (inlier: index valid and `dist_sq <= radius_sq`) into one partial per workgroup;
 /// `partials.len()` is the workgroup count and `params.n_threads` must equal
 /// `partials.len() * 64`.
+///
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/cross_covariance.wgsl` for shapes, units and frames.
 pub fn cross_covariance(
     params: &ScanCovParams,
     queries: &[[f32; 4]],

@@ -9,12 +9,11 @@
 use super::{back_project, valid_entry, INVALID};
 use crate::layout::PreprocessParams;
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `PreprocessParams`
-/// - 1 `raw_depth`: u16 depth units, raw_width x raw_height (r16uint texture on the GPU)
-/// - 2 `raw_rgba`: packed RGBA8 (`r | g << 8 | b << 16 | a << 24`), raw_width x raw_height
-/// - 3 `vertex_map` (out): width x height, camera frame, metres, w = 1 / 0
-/// - 4 `color_map` (out): width x height, RGB 0..255, a = 255
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/depth_to_vertex.wgsl` for shapes, units and frames.
+///
+/// `raw_depth` holds the r16uint texture's texels as `u16`, and `raw_rgba` the rgba8uint
+/// texture's texels packed as `r | g << 8 | b << 16 | a << 24`.
 pub fn depth_to_vertex(
     params: &PreprocessParams,
     raw_depth: &[u16],

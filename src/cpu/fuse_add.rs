@@ -12,22 +12,8 @@ use super::{
 };
 use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`, the
-/// chunk's `slots` entries each):
-/// - 0 `params`: `FuseParams` (`t_cam_to_world`, `surfel_count`, `frame_id`, `capacity`)
-/// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
-///   zero where invalid (see `vertex_to_normal`)
-/// - 2 `color_map`: width x height, RGB 0..255
-/// - 3 `flags`: 1 where the pixel becomes a new surfel (`fuse_flags`), at the pixel's
-///   `append_index`
-/// - 4 `offsets`: exclusive prefix sum of `flags` (`prefix_sum`)
-/// - 5 `chunk`: the chunk's first map-wide index and slots
-/// - 6 `position_weight` (out): xyz world frame, w = confidence
-/// - 7 `normal_frame` (out): normal bits, w = last frame
-/// - 8 `color` (out): RGB 0..255, a = radius (metres)
-/// - 9 `index_map` (in/out): with best-candidate association, the index map `fuse_select`
-///   began; each new surfel competes for its own pixel with `pack_depth_index(z_cam,
-///   map-wide index)`, as `project_model`'s key (left alone otherwise)
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/fuse_add.wgsl` for shapes, units and frames.
 #[allow(clippy::too_many_arguments)]
 pub fn fuse_add(
     params: &FuseParams,

@@ -15,17 +15,8 @@
 use super::{append_index, candidate_off_ray, is_valid, transform_dir, transform_point, xyz};
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `FuseParams` (tracked pose, intrinsics, size, association, gates)
-/// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w, zero
-///   where invalid
-/// - 2 `assoc`: one key per pixel, non-zero where a surfel merged with or was chosen by the
-///   pixel
-/// - 3 `merged`: best-candidate association only, per pixel the surfel it merged into
-///   (`fuse_merge_chosen`: `position_weight` at `2 pix`, w > 0 where it merged; unit normal
-///   and radius at `2 pix + 1`)
-/// - 4 `flags` (out): 1 new surfel / 0 not, `layout::append_slots(width, height)` entries
-///   indexed by `append_index` (the holes, no pixel's, are never written: they stay 0)
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/fuse_flags.wgsl` for shapes, units and frames.
 pub fn fuse_flags(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],

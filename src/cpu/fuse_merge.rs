@@ -28,20 +28,8 @@ use super::{
 };
 use crate::layout::{f32_from_ordered, ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
-/// - 0 `params`: `FuseParams` (tracked poses, intrinsics, `surfel_count`, thresholds)
-/// - 1 `normal_depth`: width x height, camera-frame normal with the vertex's depth in w,
-///   zero where invalid (see `vertex_to_normal`)
-/// - 2 `color_map`: width x height, RGB 0..255
-/// - 3 `chunk`: the chunk's first map-wide index and slots
-/// - 4 `block_bounds` (in/out): per block 8 words, min xyz, pad, max xyz, pad
-///   (ordered-encoded), grown to hold every merged surfel
-/// - 5 `position_weight` (in/out): the chunk's surfels, xyz world frame (metres), w =
-///   confidence
-/// - 6 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
-/// - 7 `color` (in/out): RGB 0..255, a = radius (metres)
-/// - 8 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; merged pixels are
-///   marked (max with 1)
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/fuse_merge.wgsl` for shapes, units and frames.
 #[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn fuse_merge(
     params: &FuseParams,

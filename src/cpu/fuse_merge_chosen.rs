@@ -12,19 +12,8 @@ use super::{
 };
 use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
-/// - 0 `params`: `FuseParams` (tracked poses, intrinsics, `confidence_sigma`)
-/// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w
-/// - 2 `color_map`: width x height, RGB 0..255
-/// - 3 `chunk`: the chunk's first map-wide index and slots
-/// - 4 `block_bounds` (in/out): per block 8 words, min xyz, pad, max xyz, pad
-///   (ordered-encoded), grown to hold every merged surfel
-/// - 5 `position_weight`, 6 `normal_frame`, 7 `color` (in/out): the chunk's surfels
-/// - 8 `assoc`: `fuse_select`'s key per pixel (chosen map-wide index in the low 32 bits)
-/// - 9 `merged` (out): two entries per pixel, cleared by the caller: the surfel this pixel
-///   merged into, `position_weight` (w > 0) at `2 pix`, then its unit normal (world frame)
-///   and radius (metres) at `2 pix + 1`; zero where the pixel merged nothing. `fuse_flags`
-///   and `fuse_prune` read it, whatever the chunk.
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/fuse_merge_chosen.wgsl` for shapes, units and frames.
 #[allow(clippy::too_many_arguments)] // the shader's ten bindings, in order
 pub fn fuse_merge_chosen(
     params: &FuseParams,

@@ -20,18 +20,8 @@ use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 /// in the shader.
 pub const PRUNE_COS_NORMAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
-/// - 0 `params`: `FuseParams` (tracked pose, intrinsics, `surfel_count`, `frame_id`,
-///   `prune_radius_scale`)
-/// - 1 `chunk`: the chunk's first map-wide index and slots
-/// - 2 `block_bounds`: per block, min (`2b`) and max (`2b + 1`) corner, ordered-encoded
-/// - 3 `position_weight` (in/out): the chunk's surfels, xyz world frame (metres), w =
-///   confidence
-/// - 4 `normal_frame` (in/out): bits of the unit normal (world frame), w = last frame
-/// - 5 `color`: RGB 0..255, a = radius (metres)
-/// - 6 `merged`: per pixel, the surfel it merged into (`fuse_merge_chosen`):
-///   `position_weight` at `2 pix` (w = 0: none), unit normal (world frame) and radius
-///   (metres) at `2 pix + 1`
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/fuse_prune.wgsl` for shapes, units and frames.
 #[allow(clippy::too_many_arguments)] // the shader's seven bindings, in order
 pub fn fuse_prune(
     params: &FuseParams,

@@ -25,22 +25,8 @@ use super::{
 };
 use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
-/// - 0 `params`: `FuseParams` (tracked pose, intrinsics, `surfel_count`, gates)
-/// - 1 `normal_depth`: width x height, camera-frame normal with the depth in w, zero where
-///   invalid
-/// - 2 `chunk`: the chunk's first map-wide index and slots
-/// - 3 `block_bounds`: per block, min (`2b`) and max (`2b + 1`) corner, ordered-encoded
-/// - 4 `position_weight`: the chunk's surfels, xyz world frame (metres), w = confidence
-/// - 5 `normal_frame`: bits of the unit normal (world frame), w = last frame
-/// - 6 `color`: RGB 0..255, a = radius (metres)
-/// - 7 `assoc` (in/out): one key per pixel, cleared to 0 by the caller; the chosen
-///   surfel's `pack_depth_index(off_ray_m, map-wide index)`
-/// - 8 `index_map` (in/out): one key per pixel, cleared to 0 by the caller;
-///   `project_model`'s key, `pack_depth_index(z_cam, map-wide index)`, of every surfel
-///   whose centre lands in the image, before this frame's merges: the next frame's
-///   prediction at this pose (`fuse_add` adds the new surfels), so `predict` skips
-///   `project_model` (see `Backend::predict`)
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/fuse_select.wgsl` for shapes, units and frames.
 #[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn fuse_select(
     params: &FuseParams,

@@ -119,14 +119,11 @@ pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
     sys[ICP_RESIDUAL_INDEX] += b as f64 * b as f64;
 }
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `IcpParams` (current `t_world_to_cam`, intrinsics, the gates and weights)
-/// - 1 `pred_vertex`: source, width x height, WORLD frame, w = 1 / 0
-/// - 2 `pred_normal`: the source's unit normals, WORLD frame, w = 1 / 0 (angle gate)
-/// - 3 `normal_depth`: target normals (camera frame) with the target vertex's depth in w,
-///   zero where invalid (see `vertex_to_normal`)
-/// - 4 `partials`: returned instead of written: the summed system (the GPU writes one f32
-///   partial per workgroup; the host sums them in f64)
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/icp_reduce.wgsl` for shapes, units and frames.
+///
+/// `partials` is returned instead of written: the summed system, in f64 (the GPU writes
+/// one f32 partial per workgroup; the host sums them in f64).
 pub fn icp_reduce(
     params: &IcpParams,
     pred_vertex: &[[f32; 4]],

@@ -7,9 +7,10 @@
 
 use crate::layout::ICP_SYSTEM_LEN;
 
-/// Bindings (as in the shader header):
-/// - 0 `partials`: `ICP_SYSTEM_LEN` floats per `icp_reduce` workgroup
-/// - 1 `system`: returned instead of written: the summed system, f32
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/icp_reduce_final.wgsl` for shapes, units and frames.
+///
+/// `system` is returned instead of written: the summed system, f32.
 pub fn icp_reduce_final(partials: &[f32]) -> [f32; ICP_SYSTEM_LEN] {
     let groups = partials.len() / ICP_SYSTEM_LEN;
     let mut system = [0.0f32; ICP_SYSTEM_LEN];

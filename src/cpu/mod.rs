@@ -10,7 +10,8 @@
 //! the GPU).
 //!
 //! Textures become row-major slices: texel `(u, v)` of a `width`-wide map is element
-//! `v * width + u`. The GPU's surfel map is a list of chunks (`layout::MapChunk`), each
+//! `v * width + u`. A 64-bit key map (`atomic<u64>`, or `vec2<u32>` read low word first)
+//! becomes a `u64` slice. The GPU's surfel map is a list of chunks (`layout::MapChunk`), each
 //! three storage arrays; a twin of a kernel that walks the map takes one chunk's `MapChunk`
 //! and arrays, as the shader does per dispatch (the CPU backend passes its whole map as one
 //! chunk).

@@ -11,6 +11,9 @@ use crate::scan::layout::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
 /// `params.target_begin..params.target_end`, continuing from `results` when
 /// `target_begin > 0`; when `target_end == n_targets`, `index = SCAN_NN_NONE` if the
 /// nearest is beyond `radius_sq`. `results` has one entry per query.
+///
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/nn_brute.wgsl` for shapes, units and frames.
 pub fn nn_brute(
     params: &ScanNnParams,
     queries: &[[f32; 4]],

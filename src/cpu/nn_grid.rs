@@ -83,7 +83,9 @@ impl HashGrid {
 /// For every query, the nearest grid point within `radius_sq` (searching the 27 cells
 /// around the query's cell), as an index into the ORIGINAL target cloud; `SCAN_NN_NONE`
 /// with `dist_sq` = the best squared distance seen (`f32::MAX` if none) otherwise.
-/// Arguments follow the shader's bindings.
+///
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/nn_grid.wgsl` for shapes, units and frames.
 pub fn nn_grid(
     params: &ScanNnParams,
     queries: &[[f32; 4]],

@@ -6,15 +6,8 @@
 use super::INVALID;
 use crate::layout::{MapChunk, ProjectParams};
 
-/// Bindings (as in the shader header; map arrays in the packing of `map::SurfelMap`):
-/// - 0 `params`: `ProjectParams` (only width and height are used)
-/// - 1 `index_map`: the u64 keys of `project_model` (the GPU reads each as `vec2<u32>`, low
-///   word = surfel index first); 0 means no surfel
-/// - 2 `chunk`: the chunk's first map-wide index and slots
-/// - 3 `position_weight`: the chunk's surfels, xyz (world frame) + weight
-/// - 4 `normal_frame`: the chunk's normal bits (world frame) + last frame
-/// - 5 `pred_vertex` (out): width x height, world frame, w = 1 / 0
-/// - 6 `pred_normal` (out): width x height, world frame, w = 1 / 0
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/predict_model.wgsl` for shapes, units and frames.
 pub fn predict_model(
     params: &ProjectParams,
     index_map: &[u64],

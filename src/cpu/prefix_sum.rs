@@ -8,11 +8,10 @@ use crate::layout::CompactParams;
 /// Threads of the shader's one workgroup (`SCAN_THREADS` in prefix_sum.wgsl).
 pub const SCAN_THREADS: u32 = 256;
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `CompactParams` (`surfel_count` = n)
-/// - 1 `flags`: 0 or 1 per surfel, n entries
-/// - 2 `offsets` (out): `offsets[i] = flags[0] + ... + flags[i - 1]`, n entries
-/// - 3 `counter` (out): `flags[0] + ... + flags[n - 1]`
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/prefix_sum.wgsl` for shapes, units and frames.
+///
+/// `counter` is the one element of the shader's `counter` array.
 pub fn prefix_sum(params: &CompactParams, flags: &[u32], offsets: &mut [u32], counter: &mut u32) {
     let n = params.surfel_count;
     let chunk = n.div_ceil(SCAN_THREADS);

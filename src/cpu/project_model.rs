@@ -13,12 +13,8 @@ use super::{
 };
 use crate::layout::{MapChunk, ProjectParams, BLOCK_SURFELS};
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `ProjectParams` (`t_world_to_cam`, intrinsics, map size, `surfel_count`)
-/// - 1 `chunk`: the chunk's first map-wide index and slots
-/// - 2 `block_bounds`: per block, min (`2b`) and max (`2b + 1`) corner, ordered-encoded
-/// - 3 `position_weight`: the chunk's surfels, xyz world frame (metres) + weight
-/// - 4 `index_map` (in/out): width x height keys, cleared to 0 by the caller
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/project_model.wgsl` for shapes, units and frames.
 pub fn project_model(
     params: &ProjectParams,
     chunk: &MapChunk,

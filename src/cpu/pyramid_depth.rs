@@ -55,11 +55,8 @@ pub fn coarse_at(params: &PyramidParams, fine_vertex: &[[f32; 4]], u: u32, v: u3
     valid_entry(back_project(cam, [u, v], sum_z / count))
 }
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `PyramidParams` (coarse intrinsics and size, the finer size, the window
-///   and the depth gate)
-/// - 1 `fine_vertex`: fine_width x fine_height, camera frame, metres, w = 1 / 0
-/// - 2 `coarse_vertex` (out): width x height, camera frame, metres, w = 1 / 0
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/pyramid_depth.wgsl` for shapes, units and frames.
 pub fn pyramid_depth(
     params: &PyramidParams,
     fine_vertex: &[[f32; 4]],

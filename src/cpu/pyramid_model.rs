@@ -11,13 +11,11 @@
 
 use crate::layout::PyramidParams;
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `PyramidParams` (the shader uses only `width` and `height`, the coarse
-///   size; here `fine_width` is also the row length of the finer slices)
-/// - 1 `fine_vertex`: the finer level's `pred_vertex`, world frame, w = 1 / 0
-/// - 2 `fine_normal`: the finer level's `pred_normal`, world frame, w = 1 / 0
-/// - 3 `coarse_vertex` (out): width x height, world frame
-/// - 4 `coarse_normal` (out): width x height, world frame
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/pyramid_model.wgsl` for shapes, units and frames.
+///
+/// Of `params`, the shader uses only `width` and `height` (the coarse size); here
+/// `fine_width` is also the row length of the finer slices.
 pub fn pyramid_model(
     params: &PyramidParams,
     fine_vertex: &[[f32; 4]],

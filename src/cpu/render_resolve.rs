@@ -58,8 +58,8 @@ pub fn shade(
     }
 }
 
-/// Bindings: 0 `params`, 1 `index_map` (width x height keys of `render_splat`), 2 `normals`,
-/// 3 `colors`, 4 `weights` (each read only by its view), 5 `out_rgba` (width x height).
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/render_resolve.wgsl` for shapes, units and frames.
 pub fn render_resolve(
     params: &RenderParams,
     index_map: &[u64],

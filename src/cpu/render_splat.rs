@@ -21,9 +21,8 @@ pub fn splat_radius_px(params: &RenderParams, z: f32) -> f32 {
     (params.splat_radius_m * f / z).clamp(params.min_radius_px, params.max_radius_px)
 }
 
-/// Bindings: 0 `params`, 1 `positions` (world, metres, `surfel_count` used), 2 `normals`
-/// (world, read only when `cull_backfaces == 1`), 3 `index_map` (in/out, width x height,
-/// row-major, cleared to 0 by the caller).
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/render_splat.wgsl` for shapes, units and frames.
 pub fn render_splat(
     params: &RenderParams,
     positions: &[[f32; 4]],

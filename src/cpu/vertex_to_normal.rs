@@ -51,11 +51,8 @@ pub fn normal_at(params: &NormalParams, vertex_map: &[[f32; 4]], u: u32, v: u32)
     [nn.x, nn.y, nn.z, c[2]]
 }
 
-/// Bindings (as in the shader header):
-/// - 0 `params`: `NormalParams`
-/// - 1 `vertex_map`: width x height, camera frame, metres, w = 1 / 0
-/// - 2 `normal_depth` (out): width x height; xyz = unit normal (camera frame), w = the
-///   vertex's depth (metres, > 0) where valid; all zero where not
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/vertex_to_normal.wgsl` for shapes, units and frames.
 pub fn vertex_to_normal(
     params: &NormalParams,
     vertex_map: &[[f32; 4]],

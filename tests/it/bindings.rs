@@ -67,6 +67,178 @@ fn a_broken_declaration_is_reported_by_name() {
     assert_eq!(problems, ["kernel `fuse_add` has no `@compute fn main`"]);
 }
 
+/// Bindings a CPU twin returns instead of taking as an argument: `(kernel, binding, why)`.
+/// Every other binding of every kernel is a parameter of `pub fn <kernel>` in
+/// `src/cpu/<kernel>.rs`, in `@binding` order and under the WGSL variable's name.
+const TWIN_RETURNS: &[(&str, &str, &str)] = &[
+    (
+        "icp_reduce",
+        "partials",
+        "the twin returns the summed system (f64) instead of one f32 partial per workgroup",
+    ),
+    (
+        "icp_reduce_final",
+        "system",
+        "the twin returns the summed system instead of writing it",
+    ),
+];
+
+/// The parameter names of `pub fn <name>(...)` in `source`, or why they cannot be read: the
+/// text from the `(` to its matching `)`, split on top-level commas, each parameter's name
+/// the identifier before its `:` (a leading `mut` dropped). Also whether a `->` follows.
+fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), String> {
+    let head = format!("pub fn {name}(");
+    let start = match source.matches(&head).count() {
+        1 => source.find(&head).unwrap() + head.len(),
+        0 => return Err(format!("no `{head}` found")),
+        n => return Err(format!("`{head}` found {n} times")),
+    };
+    let text = &source[start..];
+    let (mut depth, mut end, mut param, mut params) = (0usize, None, String::new(), Vec::new());
+    let mut chars = text.char_indices().peekable();
+    let mut previous = ' ';
+    while let Some((i, c)) = chars.next() {
+        match c {
+            // A comment inside the list runs to the end of its line.
+            '/' if chars.peek().is_some_and(|&(_, n)| n == '/') => {
+                for (_, n) in chars.by_ref() {
+                    if n == '\n' {
+                        break;
+                    }
+                }
+                previous = ' ';
+                continue;
+            }
+            '(' | '[' | '{' | '<' => depth += 1,
+            '>' if previous == '-' => {} // the arrow of a `fn(..) -> T` type
+            ')' | ']' | '}' | '>' if depth > 0 => depth -= 1,
+            ')' => {
+                end = Some(i);
+                params.push(std::mem::take(&mut param));
+                break;
+            }
+            ',' if depth == 0 => {
+                params.push(std::mem::take(&mut param));
+                previous = c;
+                continue;
+            }
+            _ => {}
+        }
+        param.push(c);
+        previous = c;
+    }
+    let end = end.ok_or_else(|| format!("`{head}` has no matching `)`"))?;
+    let mut names = Vec::new();
+    for param in params.iter().map(|p| p.trim()).filter(|p| !p.is_empty()) {
+        let (pattern, _) = param
+            .split_once(':')
+            .ok_or_else(|| format!("parameter `{param}` has no `:`"))?;
+        let pattern = pattern.trim();
+        let ident = pattern.strip_prefix("mut ").unwrap_or(pattern).trim();
+        if ident.is_empty() || !ident.chars().all(|c| c == '_' || c.is_alphanumeric()) {
+            return Err(format!("parameter `{param}` is not `name: Type`"));
+        }
+        names.push(ident.to_string());
+    }
+    let returns = text[end + 1..].trim_start().starts_with("->");
+    Ok((names, returns))
+}
+
+/// Every kernel's CPU twin takes the shader's bindings as its parameters, in `@binding` order
+/// and named as the WGSL variables (less the bindings of [`TWIN_RETURNS`], which it returns),
+/// so the binding descriptions at the WGSL declarations describe the twin's arguments too.
+/// Every mismatch of every kernel is reported at once; a missing twin file or function is a
+/// mismatch, not a skip, and so is an exception that names no binding of its kernel.
+fn every_twin_takes_its_shaders_bindings_in_order() {
+    let cpu = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/cpu");
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for (name, _) in shaders::KERNELS {
+        let bindings = match gpu::reflect(name, &shaders::source(name)) {
+            Ok((reflected, _)) => reflected,
+            Err(problems) => {
+                failures.extend(problems);
+                continue;
+            }
+        };
+        let returned: Vec<&str> = TWIN_RETURNS
+            .iter()
+            .filter(|(kernel, _, _)| kernel == name)
+            .map(|&(_, binding, _)| binding)
+            .collect();
+        for binding in &returned {
+            if !bindings.iter().any(|b| b.name == *binding) {
+                failures.push(format!(
+                    "kernel `{name}`: TWIN_RETURNS names `{binding}`, which is not one of its \
+                     bindings"
+                ));
+            }
+        }
+        let path = cpu.join(format!("{name}.rs"));
+        let source = match std::fs::read_to_string(&path) {
+            Ok(source) => source,
+            Err(e) => {
+                failures.push(format!(
+                    "kernel `{name}`: cannot read its twin {}: {e}",
+                    path.display()
+                ));
+                continue;
+            }
+        };
+        let (params, returns) = match twin_parameters(name, &source) {
+            Ok(found) => found,
+            Err(why) => {
+                failures.push(format!("kernel `{name}`: twin {}: {why}", path.display()));
+                continue;
+            }
+        };
+        if !returned.is_empty() && !returns {
+            failures.push(format!(
+                "kernel `{name}`: TWIN_RETURNS says the twin returns {returned:?}, but \
+                 `pub fn {name}` returns nothing"
+            ));
+        }
+        let expected: Vec<(u32, &str)> = bindings
+            .iter()
+            .filter(|b| !returned.contains(&b.name.as_str()))
+            .map(|b| (b.binding, b.name.as_str()))
+            .collect();
+        for i in 0..expected.len().max(params.len()) {
+            match (expected.get(i), params.get(i)) {
+                (Some((_, binding)), Some(param)) if binding == param => {}
+                (Some((b, binding)), Some(param)) => failures.push(format!(
+                    "kernel `{name}`: twin parameter {i} is `{param}`, expected binding {b} \
+                     `{binding}`"
+                )),
+                (Some((b, binding)), None) => failures.push(format!(
+                    "kernel `{name}`: twin has no parameter {i}, expected binding {b} \
+                     `{binding}`"
+                )),
+                (None, Some(param)) => failures.push(format!(
+                    "kernel `{name}`: twin parameter {i} `{param}` is no binding (the shader \
+                     has {} binding(s), {} returned)",
+                    bindings.len(),
+                    returned.len()
+                )),
+                (None, None) => unreachable!(),
+            }
+        }
+        checked += params.len();
+    }
+    assert!(
+        failures.is_empty(),
+        "{} twin/shader mismatch(es) (a binding a twin returns instead belongs in \
+         TWIN_RETURNS, with the reason):\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    eprintln!(
+        "{checked} twin parameters of {} kernels match their bindings ({} returned)",
+        shaders::KERNELS.len(),
+        TWIN_RETURNS.len()
+    );
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     vec![
         plain(
@@ -76,6 +248,10 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "a_broken_declaration_is_reported_by_name",
             a_broken_declaration_is_reported_by_name,
+        ),
+        plain(
+            "every_twin_takes_its_shaders_bindings_in_order",
+            every_twin_takes_its_shaders_bindings_in_order,
         ),
     ]
 }
