@@ -173,10 +173,8 @@ fn cpu_map_from_gt(n: usize, params: &SlamParams) -> (Slam<CpuBackend>, Vec<Opti
 fn preprocess_matches_twins(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
     for downsample in [2, 1] {
-        let params = SlamParams {
-            downsample,
-            ..SlamParams::profile(Profile::Assignment)
-        };
+        let mut params = SlamParams::profile(Profile::Assignment);
+        params.input.downsample = downsample;
         let s = slam(CpuBackend::new(), params);
         let (pp, np) = (s.preprocess_params(), s.normal_params());
         let mut cpu_b = s.backend;
@@ -219,11 +217,9 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         (1, BilateralSettings::default()),
         (2, kinect_fusion),
     ] {
-        let params = SlamParams {
-            downsample,
-            bilateral: Some(settings),
-            ..SlamParams::profile(Profile::Assignment)
-        };
+        let mut params = SlamParams::profile(Profile::Assignment);
+        params.input.downsample = downsample;
+        params.bilateral = Some(settings);
         let s = slam(CpuBackend::new(), params);
         let (pp, bp, np) = (
             s.preprocess_params(),
@@ -443,13 +439,11 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
 fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
     let robust = SlamParams::profile(Profile::Robust);
-    assert_eq!(robust.icp_level_iters.len(), 3);
+    assert_eq!(robust.icp.level_iters.len(), 3);
     for (downsample, bilateral) in [(2, robust.bilateral), (2, None), (1, robust.bilateral)] {
-        let params = SlamParams {
-            downsample,
-            bilateral,
-            ..robust.clone()
-        };
+        let mut params = robust.clone();
+        params.input.downsample = downsample;
+        params.bilateral = bilateral;
         let s = slam(CpuBackend::new(), params);
         let (pp, bp, np, pyr) = (
             s.preprocess_params(),
@@ -695,16 +689,16 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
     let mut fp = s.fuse_params(&t_world_to_cam, 3);
     // The pipeline prunes only on the frames the unstable-surfel removal runs after; the
     // kernels are checked with the profile's scale whatever the frame.
-    let removal_frame = params.unstable_removal.map_or(1, |r| r.every_frames);
+    let removal_frame = params.fusion.unstable_removal.map_or(1, |r| r.every_frames);
     assert_eq!(
         s.fuse_params(&t_world_to_cam, removal_frame)
             .prune_radius_scale,
-        params.fuse_prune_scale
+        params.fusion.prune_scale
     );
-    if params.unstable_removal.is_some() {
+    if params.fusion.unstable_removal.is_some() {
         assert_eq!(fp.prune_radius_scale, 0.0, "frame 3 is not a removal frame");
     }
-    fp.prune_radius_scale = params.fuse_prune_scale;
+    fp.prune_radius_scale = params.fusion.prune_scale;
     if fp.association == ASSOCIATION_BEST_CANDIDATE {
         check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
     }
@@ -1035,10 +1029,8 @@ fn check_compaction(gpu: &mut GpuBackend, map: &SurfelMap, params: &CompactParam
 /// removal after frame 8 with a short age limit (so part of the map goes), and with rules
 /// that keep everything and remove every unstable surfel.
 fn compaction_matches_twins(mut gpu: GpuBackend) {
-    let params = SlamParams {
-        unstable_removal: None,
-        ..SlamParams::profile(Profile::Robust)
-    };
+    let mut params = SlamParams::profile(Profile::Robust);
+    params.fusion.unstable_removal = None;
     let (mut s, _) = cpu_map_from_gt(8, &params);
     let map = s.backend.download_map().unwrap();
     let n = map.len();
@@ -1172,15 +1164,15 @@ fn tracked_run_matches_cpu_and_ground_truth(gpu: GpuBackend) {
 fn compaction_follows_map_growth(ctx: GpuContext) {
     let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
     let gt = load_gt(&root());
-    let params = SlamParams {
+    let mut params = SlamParams {
         poses: PoseSource::GroundTruth,
-        unstable_removal: Some(UnstableRemoval {
-            stable_weight: 3.0,
-            max_age_frames: 1,
-            every_frames: 1,
-        }),
         ..SlamParams::profile(Profile::Robust)
     };
+    params.fusion.unstable_removal = Some(UnstableRemoval {
+        stable_weight: 3.0,
+        max_age_frames: 1,
+        every_frames: 1,
+    });
     let mut c = slam(CpuBackend::new(), params.clone());
     let mut g = slam(gpu, params);
     let mut obeyed = 0;
