@@ -368,7 +368,10 @@ fn params_file_sets_values_and_flags_win() {
         let o = run_bundled(&out, "1..2", &["--params", file.to_str().unwrap()]);
         assert!(!o.status.success(), "{body} accepted");
         assert!(text(&o).contains(needle), "{body}: {}", text(&o));
-        assert!(!out.join("trajectory.tum").exists(), "{body}: the run went ahead");
+        assert!(
+            !out.join("trajectory.tum").exists(),
+            "{body}: the run went ahead"
+        );
     }
     let o = run_bundled(&dir.join("x"), "1..2", &["--params", "/nonexistent/p.toml"]);
     assert!(!o.status.success());

@@ -417,7 +417,10 @@ impl JobSpec {
     pub fn params_toml(&self) -> String {
         let mut t = toml::Table::new();
         t.insert("profile".into(), toml::Value::String(self.profile.clone()));
-        t.insert("downsample".into(), toml::Value::Integer(self.downsample.into()));
+        t.insert(
+            "downsample".into(),
+            toml::Value::Integer(self.downsample.into()),
+        );
         for (k, v) in &self.overrides {
             t.insert(k.clone(), toml_value(v));
         }

@@ -14,8 +14,6 @@ use crate::{Error, Result};
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
-    #[command(flatten)]
-    pub pipeline: PipelineArgs,
     /// Inclusive frame range "A..B" (default: all frames from the first with ground truth).
     #[arg(long)]
     pub frames: Option<String>,
@@ -48,6 +46,10 @@ pub struct BenchArgs {
     /// bench-one only: time whole frames only (no per-stage pass, no kernels).
     #[arg(long, hide = true)]
     pub frames_only: bool,
+    // The sequence, a parameter file and the parameters (last, so their help heading
+    // follows this command's own options).
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
 }
 
 /// Runs `wgslam bench`.
@@ -168,4 +170,3 @@ pub fn execute_one(a: BenchArgs) -> Result<()> {
     );
     Ok(())
 }
-

@@ -13,8 +13,6 @@ use crate::{Error, Result};
 
 #[derive(Debug, Args)]
 pub struct CompareArgs {
-    #[command(flatten)]
-    pub pipeline: PipelineArgs,
     /// Inclusive frame range "A..B" (default: 20 frames from the first with ground truth).
     #[arg(long)]
     pub frames: Option<String>,
@@ -28,6 +26,10 @@ pub struct CompareArgs {
     /// Write the full comparison as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    // The sequence, a parameter file and the parameters (last, so their help heading
+    // follows this command's own options).
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
 }
 
 /// Runs `wgslam compare`.
@@ -128,4 +130,3 @@ pub fn execute(a: CompareArgs) -> Result<()> {
         )))
     }
 }
-

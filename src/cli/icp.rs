@@ -12,8 +12,6 @@ use crate::Result;
 
 #[derive(Debug, Args)]
 pub struct IcpArgs {
-    #[command(flatten)]
-    pub pipeline: PipelineArgs,
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
@@ -28,6 +26,10 @@ pub struct IcpArgs {
     /// here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    // The sequence, a parameter file and the parameters (last, so their help heading
+    // follows this command's own options).
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
 }
 
 /// Runs `wgslam icp`.

@@ -106,9 +106,7 @@ fn clap_reason(e: &clap::Error) -> String {
 mod tests {
     use super::*;
     use crate::cli::pipeline_args::PipelineArgs;
-    use crate::slam::params::{
-        Association, BilateralSettings, PoseSource, Profile, SlamParams,
-    };
+    use crate::slam::params::{Association, BilateralSettings, PoseSource, Profile, SlamParams};
     use clap::Parser;
 
     /// The overrides `wgslam run ARGS` parses to.
@@ -133,19 +131,20 @@ mod tests {
             ("fuse-dist = 0.05", &["--fuse-dist", "0.05"]),
             ("icp-min-increment = 1e-5", &["--icp-min-increment", "1e-5"]),
             ("bilateral = true", &["--bilateral"]),
-            ("icp-level-iters = [10, 5, 4]", &["--icp-level-iters", "10,5,4"]),
+            (
+                "icp-level-iters = [10, 5, 4]",
+                &["--icp-level-iters", "10,5,4"],
+            ),
             ("icp-level-iters = \"3,2\"", &["--icp-level-iters", "3,2"]),
             ("profile = \"assignment\"", &["--profile", "assignment"]),
             (
                 "fuse-association = \"projective\"\nstable-weight = 0",
                 &["--fuse-association", "projective", "--stable-weight", "0"],
             ),
-            ("downsample = 4\nicp-noise-weight = false", &[
-                "--downsample",
-                "4",
-                "--icp-noise-weight",
-                "false",
-            ]),
+            (
+                "downsample = 4\nicp-noise-weight = false",
+                &["--downsample", "4", "--icp-noise-weight", "false"],
+            ),
         ];
         for (file, args) in cases {
             let from_file = ParamOverrides::from_toml(file).unwrap();
@@ -228,7 +227,7 @@ mod tests {
             icp_min_increment: Some(1e-5),
             pyramid_radius: Some(2),
             pyramid_depth_gate_z2: Some(0.1),
-            fuse_dist: Some(0.0123456789),
+            fuse_dist: Some(0.012_345_679),
             fuse_angle: Some(33.3),
             fuse_association: Some(Association::BestCandidate),
             confidence_sigma: Some(0.7),

@@ -223,8 +223,7 @@ impl ParamOverrides {
             bilateral_radius: bilateral_radius.or(lower.bilateral_radius),
             bilateral_sigma_space: bilateral_sigma_space.or(lower.bilateral_sigma_space),
             bilateral_sigma_depth: bilateral_sigma_depth.or(lower.bilateral_sigma_depth),
-            bilateral_sigma_depth_z2: bilateral_sigma_depth_z2
-                .or(lower.bilateral_sigma_depth_z2),
+            bilateral_sigma_depth_z2: bilateral_sigma_depth_z2.or(lower.bilateral_sigma_depth_z2),
         }
     }
 
@@ -266,7 +265,7 @@ impl ParamOverrides {
             self.unstable_max_age,
             self.removal_every,
         ) {
-            (Some(w), _, _) if w == 0.0 => None,
+            (Some(0.0), _, _) => None,
             (None, None, None) => fusion.unstable_removal,
             (w, age, every) => {
                 let base = fusion.unstable_removal.unwrap_or_default();

@@ -24,8 +24,6 @@ pub enum PosesChoice {
 
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    #[command(flatten)]
-    pub pipeline: PipelineArgs,
     /// Implementation: auto, cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
@@ -55,6 +53,10 @@ pub struct RunArgs {
     /// after the last.
     #[arg(long, value_name = "N", default_value_t = 10)]
     pub rerun_map_every: usize,
+    // The sequence, a parameter file and the parameters (last, so their help heading
+    // follows this command's own options).
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
 }
 
 /// A progress bar on stderr, hidden when stderr is not a terminal.
@@ -234,4 +236,3 @@ fn print_summary(m: &run::Metrics, out: &Path) {
         out.display()
     );
 }
-

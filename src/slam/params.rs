@@ -331,7 +331,9 @@ impl SlamParams {
 
     /// Checks every value's range; the error ([`Error::Argument`]) names the option that
     /// sets it (`--icp-dist`, also the parameter file's key without the dashes). Every
-    /// command validates its parameters before running.
+    /// command validates its parameters before running (the CLI's `ParamOverrides::
+    /// slam_params`), and so do the jobs `tools::run`, `tools::two_frame` and
+    /// `tools::compare`.
     pub fn validate(&self) -> Result<()> {
         let fail = |msg: String| Err(Error::Argument(msg));
         let positive = |v: f64| v.is_finite() && v > 0.0;
@@ -530,7 +532,9 @@ mod tests {
             ("--fuse-angle", |p| p.fusion.normal_deg = f32::INFINITY),
             ("--confidence-sigma", |p| p.fusion.confidence_sigma = -1.0),
             ("--prune-scale", |p| p.fusion.prune_scale = f32::NAN),
-            ("--stable-weight", |p| removal(p, |r| r.stable_weight = -1.0)),
+            ("--stable-weight", |p| {
+                removal(p, |r| r.stable_weight = -1.0)
+            }),
             ("--removal-every", |p| removal(p, |r| r.every_frames = 0)),
             ("--fuse-dist", |p| p.fusion.dist_m = 0.0),
         ];

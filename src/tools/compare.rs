@@ -512,6 +512,7 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     params: SlamParams,
     mode: Mode,
 ) -> Result<Comparison> {
+    params.validate()?;
     let names = (a.name().to_string(), b.name().to_string());
     let compacts = params.fusion.unstable_removal.is_some();
     let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
