@@ -1,6 +1,7 @@
-//! One batch job: `wgslam run` once per backend, each in a child process of this
-//! executable (so each run's peak memory is its own, and a crash or a lost GPU device
-//! fails one job, not the batch), then the GPU-vs-CPU comparison, then `job.json`.
+//! One batch job: its parameters into `params.toml` in its folder, then `wgslam run
+//! --params params.toml` once per backend, each in a child process of this executable (so
+//! each run's peak memory is its own, and a crash or a lost GPU device fails one job, not
+//! the batch), then the GPU-vs-CPU comparison, then `job.json`.
 //!
 //! `job.json` is written last, atomically: a job is complete exactly when it holds status
 //! `ok` for the same [`JobSpec`]. Starting a job first removes its folder, so what an
@@ -25,6 +26,9 @@ use crate::{Error, Result};
 pub const RECORD: &str = "job.json";
 /// The comparison's file name inside a job folder (jobs that ran both backends).
 pub const COMPARISON: &str = "comparison.json";
+/// The job's parameter file inside its folder, which each backend's `wgslam run --params`
+/// reads.
+pub const PARAMS: &str = "params.toml";
 /// The run outputs a backend's folder must hold for the job to count as complete.
 pub const RUN_OUTPUTS: [&str; 4] = ["trajectory.tum", "map.ply", "metrics.json", "frames.json"];
 /// The hidden `wgslam run` flag that makes it print `progress DONE TOTAL` lines on stdout.
@@ -76,8 +80,6 @@ pub struct Runner {
     pub exe: PathBuf,
     /// The batch folder.
     pub out: PathBuf,
-    /// Whether a `wgslam run` option is a switch (`--bilateral`) rather than taking a value.
-    pub is_switch: fn(&str) -> bool,
 }
 
 impl Runner {
@@ -86,31 +88,30 @@ impl Runner {
         self.out.join("jobs").join(id)
     }
 
-    /// The `wgslam run` arguments of one backend of `spec`, writing into `out`.
+    /// The parameter file of job `id` ([`JobSpec::params_toml`], [`PARAMS`]).
+    pub fn params_path(&self, id: &str) -> PathBuf {
+        self.job_dir(id).join(PARAMS)
+    }
+
+    /// The `wgslam run` arguments of one backend of `spec`, writing into `out`: the
+    /// sequence, the job's parameter file, the frames and the backend (every parameter is
+    /// in the file).
     pub fn run_args(&self, spec: &JobSpec, backend: &str, out: &Path) -> Vec<String> {
-        let mut a = vec!["run".to_string(), spec.sequence.display().to_string()];
+        let mut a = vec![
+            "run".to_string(),
+            spec.sequence.display().to_string(),
+            "--params".into(),
+            self.params_path(&spec.id).display().to_string(),
+        ];
         if let Some(f) = &spec.frames {
             a.extend(["--frames".into(), f.clone()]);
         }
         a.extend([
-            "--downsample".into(),
-            spec.downsample.to_string(),
-            "--profile".into(),
-            spec.profile.clone(),
             "--backend".into(),
             backend.into(),
+            "--out".into(),
+            out.display().to_string(),
         ]);
-        for (k, v) in &spec.overrides {
-            if (self.is_switch)(k) {
-                // A switch is on with `true` and left out with `false`.
-                if v == "true" {
-                    a.push(format!("--{k}"));
-                }
-            } else {
-                a.extend([format!("--{k}"), v.clone()]);
-            }
-        }
-        a.extend(["--out".into(), out.display().to_string()]);
         a
     }
 
@@ -156,6 +157,11 @@ impl Runner {
             std::fs::remove_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
         }
         std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
+        let params = spec.params_toml();
+        crate::io::atomic::write_atomic(&self.params_path(&spec.id), |w| {
+            w.write_all(params.as_bytes())
+                .map_err(|e| Error::write(self.params_path(&spec.id), e))
+        })?;
         let start = Instant::now();
         let mut rec = JobRecord {
             index,

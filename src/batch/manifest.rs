@@ -7,7 +7,7 @@
 //! downsample = 2
 //! profile = "robust"              # robust | assignment
 //! backend = "both"                # cpu | gpu | both (both adds the GPU-vs-CPU comparison)
-//! [defaults.overrides]            # any other `wgslam run` option, without the dashes
+//! [defaults.overrides]            # parameters: the keys of a `--params` file (docs/params-file.md)
 //! icp-dist = 0.1
 //!
 //! [[job]]                         # one job
@@ -49,7 +49,9 @@ pub struct JobSpec {
     pub profile: String,
     /// Backends to run, each into its own subfolder: `["cpu"]`, `["gpu"]` or both.
     pub backends: Vec<String>,
-    /// Further `wgslam run` options, `(name without dashes, value)`, sorted by name.
+    /// Further parameters, `(key, value)` in the command-line form, sorted by key: the keys
+    /// of a parameter file (`wgslam run --params`, docs/params-file.md), written with the
+    /// profile and downsampling into the job's [`JobSpec::params_toml`].
     pub overrides: Vec<(String, String)>,
 }
 
@@ -368,14 +370,65 @@ fn lexically_normal(path: &Path) -> PathBuf {
     out
 }
 
-/// A TOML scalar as a command-line value (`None` for tables, arrays and dates).
-fn option_value(v: &toml::Value) -> Option<String> {
+/// A TOML value as the command-line value it stands for: a scalar as written, a list of
+/// scalars joined by commas (`[10, 5, 4]` is `10,5,4`, as `--icp-level-iters 10,5,4`);
+/// `None` for tables, nested lists and dates. The value forms of manifest overrides and of
+/// parameter files (`wgslam run --params`, docs/params-file.md) both.
+pub fn option_value(v: &toml::Value) -> Option<String> {
     match v {
         toml::Value::String(s) => Some(s.clone()),
         toml::Value::Integer(i) => Some(i.to_string()),
         toml::Value::Float(f) => Some(f.to_string()),
         toml::Value::Boolean(b) => Some(b.to_string()),
+        toml::Value::Array(items) => items
+            .iter()
+            .map(|item| match item {
+                toml::Value::Array(_) => None,
+                scalar => option_value(scalar),
+            })
+            .collect::<Option<Vec<_>>>()
+            .map(|parts| parts.join(",")),
         _ => None,
+    }
+}
+
+/// The TOML value whose [`option_value`] is `s`: a boolean, integer or float when `s` reads
+/// back as exactly that, else a string (so a parameter file written from command-line
+/// values gives the same values back).
+pub fn toml_value(s: &str) -> toml::Value {
+    let typed = if let Ok(b) = s.parse::<bool>() {
+        Some(toml::Value::Boolean(b))
+    } else if let Ok(i) = s.parse::<i64>() {
+        Some(toml::Value::Integer(i))
+    } else if let Ok(f) = s.parse::<f64>() {
+        Some(toml::Value::Float(f)).filter(|_| f.is_finite())
+    } else {
+        None
+    };
+    typed
+        .filter(|v| option_value(v).as_deref() == Some(s))
+        .unwrap_or_else(|| toml::Value::String(s.to_string()))
+}
+
+impl JobSpec {
+    /// The job's parameter file (`wgslam run --params`, docs/params-file.md): its profile,
+    /// downsampling and overrides, keys sorted. `wgslam batch` writes it into the job's
+    /// folder and checks every job's before the first runs.
+    pub fn params_toml(&self) -> String {
+        let mut t = toml::Table::new();
+        t.insert("profile".into(), toml::Value::String(self.profile.clone()));
+        t.insert(
+            "downsample".into(),
+            toml::Value::Integer(self.downsample.into()),
+        );
+        for (k, v) in &self.overrides {
+            t.insert(k.clone(), toml_value(v));
+        }
+        format!(
+            "# wgslam parameters of batch job {:?} (written by `wgslam batch`)\n{}",
+            self.id,
+            toml::to_string(&t).expect("a table of scalars is TOML")
+        )
     }
 }
 
@@ -411,8 +464,11 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
                 "override {k:?} is a job field or set by the batch; set it as a field, not an override"
             )));
         }
-        let value = option_value(v)
-            .ok_or_else(|| bad(format!("override {k:?}: want a string, number or boolean")))?;
+        let value = option_value(v).ok_or_else(|| {
+            bad(format!(
+                "override {k:?}: want a string, number, boolean or a list of them"
+            ))
+        })?;
         overrides.push((k.clone(), value));
     }
     Ok(JobSpec {

@@ -12,7 +12,8 @@
 //! | [`report`] | the self-contained `report.html` |
 //!
 //! A batch folder holds `batch.json` (the expanded job list), `jobs/<id>/` per job (one
-//! subfolder of run outputs per backend, `<backend>.log`, `comparison.json` with both
+//! subfolder of run outputs per backend, `params.toml` (the parameters every backend's
+//! run read), `<backend>.log`, `comparison.json` with both
 //! backends, and `job.json`, written last and atomically: a job is complete exactly when
 //! its `job.json` says `ok` for the same spec), and the summaries.
 

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use clap::{Args, CommandFactory, Parser, Subcommand};
+use clap::{Args, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 use crate::batch::job::{Outcome, Runner};
@@ -10,6 +10,8 @@ use crate::batch::manifest::Manifest;
 use crate::batch::select::{self, Selection};
 use crate::batch::summary::{self, Summary};
 use crate::batch::{interrupt, report};
+use crate::cli::pipeline_args::ParamOverrides;
+use crate::slam::params::PoseSource;
 use crate::{Error, Result};
 
 /// `wgslam batch MANIFEST` runs a manifest's jobs; `list`, `collect` and `diff` inspect
@@ -25,7 +27,8 @@ pub struct BatchArgs {
 
 #[derive(Debug, Subcommand)]
 pub enum BatchAction {
-    /// Print the manifest's jobs, one line each: index, id, and the `wgslam run` commands.
+    /// Print the manifest's jobs: index and id, the parameter file each writes, and the
+    /// `wgslam run` commands.
     List { manifest: PathBuf },
     /// Write DIR/summary.csv, DIR/summary.json and DIR/report.html from the jobs that have
     /// finished (the others listed as pending).
@@ -39,7 +42,8 @@ pub enum BatchAction {
 #[derive(Debug, Args)]
 pub struct BatchRunArgs {
     /// The manifest (TOML): jobs and grids of sequence, frames, downsample, profile,
-    /// backend (cpu, gpu, both) and `wgslam run` option overrides (docs/batch-and-clusters.md).
+    /// backend (cpu, gpu, both) and parameter overrides, the keys of a `--params` file
+    /// (docs/batch-and-clusters.md; docs/params-file.md).
     #[arg(required = true)]
     pub manifest: Option<PathBuf>,
     /// Batch folder (default: the manifest's `output`, relative to the manifest).
@@ -68,44 +72,28 @@ pub fn execute(a: BatchArgs) -> Result<()> {
     }
 }
 
-/// Whether `wgslam run --NAME` is a switch (no value).
-fn is_run_switch(name: &str) -> bool {
-    let cmd = crate::cli::Cli::command();
-    cmd.find_subcommand("run")
-        .and_then(|run| run.get_arguments().find(|a| a.get_long() == Some(name)))
-        .is_some_and(|a| matches!(a.get_action(), clap::ArgAction::SetTrue))
-}
-
 fn runner(out: PathBuf) -> Result<Runner> {
     Ok(Runner {
         exe: std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?,
         out,
-        is_switch: is_run_switch,
     })
 }
 
-/// Reads a manifest and checks every job's `wgslam run` command line parses (so a typo in
-/// an override fails before the first job, naming the job).
+/// Reads a manifest and checks every job's parameter file parses and its parameters are
+/// in range (so a typo in an override fails before the first job, naming the job).
 fn read_checked(path: &Path) -> Result<Manifest> {
     let m = Manifest::read(path)?;
-    let r = runner(PathBuf::from("out"))?;
     for job in &m.jobs {
-        for b in &job.backends {
-            let args = r.run_args(job, b, Path::new("out"));
-            if let Err(e) =
-                crate::cli::Cli::try_parse_from(std::iter::once("wgslam".to_string()).chain(args))
-            {
-                let msg = e.to_string();
-                let first = msg.lines().next().unwrap_or_default();
-                return Err(Error::format(
-                    path,
-                    format!(
-                        "job {:?}: its `wgslam run` options do not parse: {first}",
-                        job.id
-                    ),
-                ));
-            }
-        }
+        let bad = |why: String| {
+            Error::format(
+                path,
+                format!("job {:?}: its `wgslam run` parameters: {why}", job.id),
+            )
+        };
+        let set = ParamOverrides::from_toml(&job.params_toml()).map_err(bad)?;
+        set.sequence_options()
+            .and_then(|_| set.slam_params(PoseSource::Track))
+            .map_err(|e| bad(e.to_string()))?;
     }
     Ok(m)
 }
@@ -120,6 +108,17 @@ fn list(path: &Path) -> Result<()> {
             "  (sequence folder not found here)"
         };
         println!("{i:4}  {}{missing}", job.id);
+        let params: Vec<String> = job
+            .params_toml()
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .map(String::from)
+            .collect();
+        println!(
+            "        {}: {}",
+            r.params_path(&job.id).display(),
+            params.join(", ")
+        );
         for b in &job.backends {
             let args = r.run_args(job, b, &r.job_dir(&job.id).join(b));
             println!("        wgslam {}", args.join(" "));

@@ -251,3 +251,16 @@ pub fn open_gpu(
         (Err(e), _) => Err(e),
     }
 }
+
+/// Runs `wgslam render`, printing the warnings and what was drawn.
+pub fn execute(a: RenderArgs) -> Result<()> {
+    let r = run_render(&a)?;
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "rendered {} points ({:?} view, {}x{}, {})",
+        r.points, r.view, r.size.0, r.size.1, r.backend
+    );
+    Ok(())
+}

@@ -3,6 +3,8 @@
 //! measurements behind them in `docs/robust-profile.md`). Turning these into the kernels'
 //! parameter structs is `step_params.rs`'s job.
 
+use crate::{Error, Result};
+
 /// Where the poses come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum PoseSource {
@@ -32,60 +34,106 @@ pub enum Profile {
     Robust,
 }
 
-/// Every tunable of the dense pipeline. `Default` is the robust profile.
-#[derive(Debug, Clone, serde::Serialize)]
+/// Every tunable of the dense pipeline, grouped by the stage that reads it (as kiss-icp
+/// groups its configuration by module). `Default` is the robust profile. Each leaf is one
+/// `wgslam run` option (named in its documentation) and one key of a parameter file
+/// (`docs/params-file.md`); [`SlamParams::validate`] checks their ranges.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SlamParams {
-    /// The profile these values started from (each may have been overridden since).
+    /// The profile these values started from (each may have been overridden since;
+    /// `--profile`).
     pub profile: Profile,
-    /// Keep every N-th pixel in each direction (the assignment uses 2).
+    /// Tracking or ground-truth poses (`run --poses`).
+    pub poses: PoseSource,
+    /// How raw frames become the maps every later stage reads (`depth_to_vertex`).
+    pub input: InputSettings,
+    /// The normal map (`vertex_to_normal`).
+    pub normals: NormalSettings,
+    /// The edge-preserving bilateral depth filter between `depth_to_vertex` and
+    /// `vertex_to_normal`; `None` runs without it (`--bilateral` and its settings).
+    pub bilateral: Option<BilateralSettings>,
+    /// Frame-to-model ICP (`icp_reduce`, the solve and its schedule).
+    pub icp: IcpSettings,
+    /// Surfel fusion (`fuse_*`) and the removal of unstable surfels (`compact`).
+    pub fusion: FusionSettings,
+}
+
+/// How raw frames are read into the (downsampled) vertex maps (`depth_to_vertex`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct InputSettings {
+    /// Keep every N-th pixel in each direction, 1 to [`MAX_DOWNSAMPLE`] (`--downsample`;
+    /// both profiles 2).
     pub downsample: u32,
-    /// Raw depth units per metre (the sequence's own: [`crate::slam::pipeline::Slam::for_sequence`] sets it).
+    /// Raw depth units per metre. The sequence's own replaces it ([`Slam::for_sequence`]);
+    /// set it with the dataset option `--depth-scale`.
+    ///
+    /// [`Slam::for_sequence`]: crate::slam::pipeline::Slam::for_sequence
     pub depth_scale: f32,
-    /// Valid depth range, metres.
+    /// Nearer pixels are invalid, metres (`--min-depth`).
     pub min_depth_m: f32,
+    /// Farther pixels are invalid, metres (`--max-depth`).
     pub max_depth_m: f32,
-    /// Normals across a depth jump larger than this (metres) are invalid.
+}
+
+/// The normal map (`vertex_to_normal`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct NormalSettings {
+    /// Normals across a depth jump larger than this (metres) are invalid
+    /// (`--max-depth-jump`).
     pub max_depth_jump_m: f32,
-    /// ICP filter 2: maximum point distance, metres.
-    pub icp_dist_m: f32,
-    /// ICP filter 2: maximum angle between model and frame normals, degrees; 180 or more
-    /// turns the gate off.
-    pub icp_normal_deg: f32,
-    /// Huber threshold on the point-to-plane residual, metres; 0 turns the weight off.
-    pub icp_huber_m: f32,
-    /// Weight each ICP row by the depth-noise model (`cpu::icp_reduce::noise_weight`).
-    pub icp_noise_weight: bool,
-    /// ICP iterations per pyramid level at most, coarse to fine: one entry per level, the
-    /// last for level 0 (the full maps). `[10]` (the assignment's) is single-level ICP;
-    /// the robust profile's is [`ROBUST_ICP_LEVEL_ITERS`]. Must not be empty.
-    pub icp_level_iters: Vec<usize>,
+}
+
+/// Frame-to-model ICP: the association gates and row weights of `icp_reduce`, the
+/// coarse-to-fine schedule and the convergence test.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct IcpSettings {
+    /// Filter 2: maximum point distance, metres (`--icp-dist`).
+    pub dist_m: f32,
+    /// Filter 2: maximum angle between model and frame normals, degrees; 180 or more turns
+    /// the gate off (`--icp-angle`).
+    pub normal_deg: f32,
+    /// Huber threshold on the point-to-plane residual, metres; 0 turns the weight off
+    /// (`--icp-huber`).
+    pub huber_m: f32,
+    /// Weight each row by the depth-noise model (`cpu::icp_reduce::noise_weight`;
+    /// `--icp-noise-weight`).
+    pub noise_weight: bool,
+    /// Iterations per pyramid level at most, coarse to fine: one entry per level, the last
+    /// for level 0 (the full maps). `[10]` (the assignment's) is single-level ICP; the
+    /// robust profile's is [`ROBUST_ICP_LEVEL_ITERS`]. 1 to [`MAX_ICP_LEVELS`] entries, each
+    /// at least 1 (`--icp-level-iters`).
+    pub level_iters: Vec<usize>,
+    /// Stop iterating when the increment's rotation (rad) and translation (m) are both
+    /// below (`--icp-min-increment`).
+    pub min_increment: f64,
     /// How the frame's coarser pyramid levels are made (used with more than one level).
     pub pyramid: PyramidSettings,
-    /// Stop iterating when the increment's rotation (rad) and translation (m) are both below.
-    pub icp_min_increment: f64,
-    /// Fusion filter 2: maximum point distance, metres.
-    pub fuse_dist_m: f32,
-    /// Fusion filter 2: maximum normal angle, degrees.
-    pub fuse_normal_deg: f32,
-    /// How fusion pairs pixels with surfels.
-    pub fuse_association: Association,
+}
+
+/// Surfel fusion: the association and its gates, the measurements' weights, duplicate
+/// pruning and the removal of unstable surfels.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FusionSettings {
+    /// Filter 2: maximum point distance, metres (`--fuse-dist`).
+    pub dist_m: f32,
+    /// Filter 2: maximum normal angle, degrees (`--fuse-angle`).
+    pub normal_deg: f32,
+    /// How fusion pairs pixels with surfels (`--fuse-association`).
+    pub association: Association,
     /// Standard deviation of a measurement's confidence over its normalised distance from
-    /// the image centre (`pixel_confidence`); 0 weighs every measurement 1 (counts).
-    pub fuse_confidence_sigma: f32,
+    /// the image centre (`pixel_confidence`); 0 weighs every measurement 1 (counts;
+    /// `--confidence-sigma`).
+    pub confidence_sigma: f32,
     /// Best-candidate fusion's pruning of duplicate surfels (`fuse_prune`), in radii; 0
-    /// turns it off. It runs on the frames [`SlamParams::unstable_removal`] runs after, or
-    /// on every frame without the removal. A retired surfel has weight 0 and last frame 0,
-    /// so the removal drops it once the frame is past `max_age_frames` (from frame 30 on
-    /// in the robust profile, at once; retired on frames 10 and 20, at frame 30).
-    /// See [`ROBUST_PRUNE_RADIUS_SCALE`].
-    pub fuse_prune_scale: f32,
-    /// Tracking or ground-truth poses.
-    pub poses: PoseSource,
-    /// The edge-preserving bilateral depth filter between `depth_to_vertex` and
-    /// `vertex_to_normal`; `None` (the default) runs without it.
-    pub bilateral: Option<BilateralSettings>,
+    /// turns it off (`--prune-scale`). It runs on the frames
+    /// [`FusionSettings::unstable_removal`] runs after, or on every frame without the
+    /// removal. A retired surfel has weight 0 and last frame 0, so the removal drops it
+    /// once the frame is past `max_age_frames` (from frame 30 on in the robust profile, at
+    /// once; retired on frames 10 and 20, at frame 30). See [`ROBUST_PRUNE_RADIUS_SCALE`].
+    pub prune_scale: f32,
     /// Removal of unstable surfels after each fusion (the `compact` step); `None` (the
-    /// assignment) keeps every surfel.
+    /// assignment) keeps every surfel (`--stable-weight`, `--unstable-max-age`,
+    /// `--removal-every`).
     pub unstable_removal: Option<UnstableRemoval>,
 }
 
@@ -226,48 +274,168 @@ impl SlamParams {
     pub fn profile(profile: Profile) -> Self {
         let assignment = SlamParams {
             profile,
-            downsample: 2,
-            depth_scale: 5000.0,
-            min_depth_m: 0.1,
-            max_depth_m: 10.0,
-            max_depth_jump_m: 0.1,
-            icp_dist_m: 0.07,
-            icp_normal_deg: 180.0,
-            icp_huber_m: 0.0,
-            icp_noise_weight: false,
-            icp_level_iters: vec![10],
-            pyramid: PyramidSettings::default(),
-            icp_min_increment: 1e-6,
-            fuse_dist_m: 0.03,
-            fuse_normal_deg: 5.0,
-            fuse_association: Association::Projective,
-            fuse_confidence_sigma: 0.0,
-            fuse_prune_scale: 0.0,
             poses: PoseSource::Track,
+            input: InputSettings {
+                downsample: 2,
+                depth_scale: 5000.0,
+                min_depth_m: 0.1,
+                max_depth_m: 10.0,
+            },
+            normals: NormalSettings {
+                max_depth_jump_m: 0.1,
+            },
             bilateral: None,
-            unstable_removal: None,
+            icp: IcpSettings {
+                dist_m: 0.07,
+                normal_deg: 180.0,
+                huber_m: 0.0,
+                noise_weight: false,
+                level_iters: vec![10],
+                min_increment: 1e-6,
+                pyramid: PyramidSettings::default(),
+            },
+            fusion: FusionSettings {
+                dist_m: 0.03,
+                normal_deg: 5.0,
+                association: Association::Projective,
+                confidence_sigma: 0.0,
+                prune_scale: 0.0,
+                unstable_removal: None,
+            },
         };
         match profile {
             Profile::Assignment => assignment,
             Profile::Robust => SlamParams {
-                icp_dist_m: 0.10,
-                icp_normal_deg: 20.0,
-                icp_huber_m: ROBUST_HUBER_M,
-                icp_noise_weight: true,
-                icp_level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
-                icp_min_increment: ROBUST_MIN_INCREMENT,
-                fuse_dist_m: ROBUST_FUSE_DIST_M,
-                fuse_normal_deg: ROBUST_FUSE_NORMAL_DEG,
-                fuse_association: Association::BestCandidate,
-                fuse_confidence_sigma: ROBUST_CONFIDENCE_SIGMA,
-                fuse_prune_scale: ROBUST_PRUNE_RADIUS_SCALE,
                 bilateral: Some(BilateralSettings::default()),
-                unstable_removal: Some(UnstableRemoval::default()),
+                icp: IcpSettings {
+                    dist_m: 0.10,
+                    normal_deg: 20.0,
+                    huber_m: ROBUST_HUBER_M,
+                    noise_weight: true,
+                    level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
+                    min_increment: ROBUST_MIN_INCREMENT,
+                    ..assignment.icp
+                },
+                fusion: FusionSettings {
+                    dist_m: ROBUST_FUSE_DIST_M,
+                    normal_deg: ROBUST_FUSE_NORMAL_DEG,
+                    association: Association::BestCandidate,
+                    confidence_sigma: ROBUST_CONFIDENCE_SIGMA,
+                    prune_scale: ROBUST_PRUNE_RADIUS_SCALE,
+                    unstable_removal: Some(UnstableRemoval::default()),
+                },
                 ..assignment
             },
         }
     }
+
+    /// Checks every value's range; the error ([`Error::Argument`]) names the option that
+    /// sets it (`--icp-dist`, also the parameter file's key without the dashes). Every
+    /// command validates its parameters before running (the CLI's `ParamOverrides::
+    /// slam_params`), and so do the jobs `tools::run`, `tools::two_frame` and
+    /// `tools::compare`.
+    pub fn validate(&self) -> Result<()> {
+        let fail = |msg: String| Err(Error::Argument(msg));
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        let off_or_positive = |v: f64| v.is_finite() && v >= 0.0;
+        let i = &self.input;
+        if i.downsample == 0 || i.downsample > MAX_DOWNSAMPLE {
+            return fail(format!(
+                "--downsample {} must be between 1 and {MAX_DOWNSAMPLE}",
+                i.downsample
+            ));
+        }
+        if !positive(i.depth_scale as f64) {
+            return fail(format!("--depth-scale {} must be positive", i.depth_scale));
+        }
+        if !(i.min_depth_m.is_finite()
+            && i.min_depth_m >= 0.0
+            && i.max_depth_m.is_finite()
+            && i.max_depth_m > i.min_depth_m)
+        {
+            return fail(format!(
+                "--min-depth {} and --max-depth {} must be a range 0 <= min < max",
+                i.min_depth_m, i.max_depth_m
+            ));
+        }
+        if let Some(b) = &self.bilateral {
+            if b.radius_px > MAX_BILATERAL_RADIUS {
+                return fail(format!(
+                    "--bilateral-radius {} must be at most {MAX_BILATERAL_RADIUS}",
+                    b.radius_px
+                ));
+            }
+            if !positive(b.sigma_space_px as f64) {
+                return fail(format!(
+                    "--bilateral-sigma-space {} must be a positive number",
+                    b.sigma_space_px
+                ));
+            }
+            let (depth, z2) = (b.sigma_depth_m, b.sigma_depth_per_m2);
+            if !(depth >= 0.0 && z2 >= 0.0 && depth + z2 > 0.0 && (depth + z2).is_finite()) {
+                return fail(format!(
+                    "--bilateral-sigma-depth {depth} and --bilateral-sigma-depth-z2 {z2} must \
+                     be non-negative numbers, not both zero"
+                ));
+            }
+        }
+        let icp = &self.icp;
+        let s = &icp.level_iters;
+        if s.is_empty() || s.len() > MAX_ICP_LEVELS || s.contains(&0) {
+            return fail(format!(
+                "--icp-level-iters {s:?}: want 1 to {MAX_ICP_LEVELS} iteration counts, coarse \
+                 to fine, each at least 1 (e.g. 10,5,4)"
+            ));
+        }
+        let f = &self.fusion;
+        if !positive(icp.min_increment) {
+            return fail(format!(
+                "--icp-min-increment {} must be positive",
+                icp.min_increment
+            ));
+        }
+        for (flag, v) in [
+            ("--max-depth-jump", self.normals.max_depth_jump_m),
+            ("--pyramid-depth-gate-z2", icp.pyramid.max_depth_diff_per_m2),
+            ("--icp-dist", icp.dist_m),
+            ("--icp-angle", icp.normal_deg),
+            ("--fuse-dist", f.dist_m),
+            ("--fuse-angle", f.normal_deg),
+        ] {
+            if !positive(v as f64) {
+                return fail(format!("{flag} {v} must be positive"));
+            }
+        }
+        for (flag, v) in [
+            ("--icp-huber", icp.huber_m),
+            ("--confidence-sigma", f.confidence_sigma),
+            ("--prune-scale", f.prune_scale),
+        ] {
+            if !off_or_positive(v as f64) {
+                return fail(format!("{flag} {v} must be 0 (off) or positive"));
+            }
+        }
+        if let Some(r) = &f.unstable_removal {
+            if !off_or_positive(r.stable_weight as f64) {
+                return fail(format!(
+                    "--stable-weight {} must be 0 (off) or positive",
+                    r.stable_weight
+                ));
+            }
+            if r.every_frames == 0 {
+                return fail("--removal-every must be at least 1".into());
+            }
+        }
+        Ok(())
+    }
 }
+
+/// Largest [`InputSettings::downsample`]: 16 is 40x30 maps from 640x480 frames.
+pub const MAX_DOWNSAMPLE: u32 = 16;
+
+/// Largest [`BilateralSettings::radius_px`]: a 33x33 window is already far past any
+/// useful one.
+pub const MAX_BILATERAL_RADIUS: u32 = 16;
 
 /// Huber threshold of the robust profile, metres: about 3 sigma of the depth noise at 2 m
 /// (sigma(2 m) = 6 mm by the model in `cpu::icp_reduce`), so residuals of well-matched
@@ -302,3 +470,103 @@ pub const ROBUST_ICP_LEVEL_ITERS: [usize; 3] = [10, 5, 4];
 /// at the default 320x240, a fifth would be 20x15, too few pixels to constrain a pose
 /// ([`crate::slam::solve::MIN_INLIERS`] correspondences at the least).
 pub const MAX_ICP_LEVELS: usize = 4;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_profiles_are_valid() {
+        for profile in [Profile::Assignment, Profile::Robust] {
+            SlamParams::profile(profile).validate().unwrap();
+        }
+    }
+
+    /// Each value out of its range is refused, the error naming the option that sets it.
+    #[test]
+    fn each_out_of_range_value_names_its_option() {
+        fn bilateral(p: &mut SlamParams, f: fn(&mut BilateralSettings)) {
+            let mut b = BilateralSettings::default();
+            f(&mut b);
+            p.bilateral = Some(b);
+        }
+        fn removal(p: &mut SlamParams, f: fn(&mut UnstableRemoval)) {
+            let mut r = UnstableRemoval::default();
+            f(&mut r);
+            p.fusion.unstable_removal = Some(r);
+        }
+        type Spoil = fn(&mut SlamParams);
+        let cases: [(&str, Spoil); 26] = [
+            ("--downsample", |p| p.input.downsample = 0),
+            ("--downsample", |p| p.input.downsample = MAX_DOWNSAMPLE + 1),
+            ("--depth-scale", |p| p.input.depth_scale = 0.0),
+            ("--min-depth", |p| p.input.min_depth_m = -0.1),
+            ("--max-depth", |p| p.input.max_depth_m = 0.05),
+            ("--max-depth", |p| p.input.max_depth_m = f32::INFINITY),
+            ("--max-depth-jump", |p| p.normals.max_depth_jump_m = 0.0),
+            ("--bilateral-radius", |p| {
+                bilateral(p, |b| b.radius_px = MAX_BILATERAL_RADIUS + 1)
+            }),
+            ("--bilateral-sigma-space", |p| {
+                bilateral(p, |b| b.sigma_space_px = 0.0)
+            }),
+            ("--bilateral-sigma-depth", |p| {
+                bilateral(p, |b| b.sigma_depth_m = -0.01)
+            }),
+            ("--bilateral-sigma-depth-z2", |p| {
+                bilateral(p, |b| b.sigma_depth_per_m2 = 0.0)
+            }),
+            ("--icp-dist", |p| p.icp.dist_m = 0.0),
+            ("--icp-angle", |p| p.icp.normal_deg = -20.0),
+            ("--icp-huber", |p| p.icp.huber_m = -0.02),
+            ("--icp-level-iters", |p| p.icp.level_iters = vec![]),
+            ("--icp-level-iters", |p| p.icp.level_iters = vec![10, 0, 4]),
+            ("--icp-level-iters", |p| {
+                p.icp.level_iters = vec![1; MAX_ICP_LEVELS + 1]
+            }),
+            ("--icp-min-increment", |p| p.icp.min_increment = 0.0),
+            ("--pyramid-depth-gate-z2", |p| {
+                p.icp.pyramid.max_depth_diff_per_m2 = f32::NAN
+            }),
+            ("--fuse-dist", |p| p.fusion.dist_m = -0.05),
+            ("--fuse-angle", |p| p.fusion.normal_deg = f32::INFINITY),
+            ("--confidence-sigma", |p| p.fusion.confidence_sigma = -1.0),
+            ("--prune-scale", |p| p.fusion.prune_scale = f32::NAN),
+            ("--stable-weight", |p| {
+                removal(p, |r| r.stable_weight = -1.0)
+            }),
+            ("--removal-every", |p| removal(p, |r| r.every_frames = 0)),
+            ("--fuse-dist", |p| p.fusion.dist_m = 0.0),
+        ];
+        for profile in [Profile::Assignment, Profile::Robust] {
+            for (option, spoil) in cases {
+                let mut p = SlamParams::profile(profile);
+                spoil(&mut p);
+                match p.validate() {
+                    Err(Error::Argument(why)) => {
+                        assert!(why.contains(option), "{option}: {why}")
+                    }
+                    other => panic!("{option} ({profile:?}): {other:?}"),
+                }
+            }
+        }
+    }
+
+    /// The edges of each range are accepted: zero where it means off, the largest sizes.
+    #[test]
+    fn range_edges_are_accepted() {
+        let mut p = SlamParams::profile(Profile::Robust);
+        p.input.downsample = MAX_DOWNSAMPLE;
+        p.input.min_depth_m = 0.0;
+        p.icp.huber_m = 0.0;
+        p.icp.normal_deg = 180.0;
+        p.icp.level_iters = vec![1; MAX_ICP_LEVELS];
+        p.fusion.confidence_sigma = 0.0;
+        p.fusion.prune_scale = 0.0;
+        p.bilateral = Some(BilateralSettings {
+            radius_px: MAX_BILATERAL_RADIUS,
+            ..BilateralSettings::default()
+        });
+        p.validate().unwrap();
+    }
+}

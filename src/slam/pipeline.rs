@@ -5,10 +5,10 @@
 //! frame but the first `predict` (render the map at the previous pose into a model
 //! vertex/normal map, once per frame so each ICP iteration is O(pixels), not O(map), and
 //! subsample it into the pyramid's coarser levels), ICP coarse to fine
-//! ([`SlamParams::icp_level_iters`]: at each level up to its budget of iterations of
+//! ([`IcpSettings::level_iters`](crate::slam::params::IcpSettings::level_iters): at each level up to its budget of iterations of
 //! `icp_system` + host solve + left-multiplicative update, until the increment test
 //! passes), then `fuse` (merge + add, at the finest level), and with
-//! [`SlamParams::unstable_removal`] (the robust profile) `compact` (remove unstable
+//! [`FusionSettings::unstable_removal`](crate::slam::params::FusionSettings::unstable_removal) (the robust profile) `compact` (remove unstable
 //! surfels, move the rest to the front). The pipeline knows steps and parameters, not
 //! backends: the CPU twins and the GPU kernels implement [`Backend`], so the same loop runs
 //! on both.
@@ -34,7 +34,7 @@
 //! | `predict` (`project_model` unless the last fusion built the index map at this view, see [`FusedView`](crate::slam::fused_view::FusedView); `predict_model`; per coarser level `pyramid_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame); per level `l >= 1` its `pred_vertex`, `pred_normal` (from level `l - 1`'s) |
 //! | `icp_system` (`icp_reduce`), per iteration, at a level | that level's `pred_vertex`, `pred_normal`, `normal_depth`; the current `t_world_to_cam`; the level's intrinsics | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
 //! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen` + with a prune scale, on removal frames, `fuse_prune`; then `fuse_flags`, `prefix_sum`, `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, duplicates retired, then appended), `assoc` (merged pixels), `merged` (the surfel each pixel merged into, best-candidate association), `index_map` (best candidate: the next prediction's, by `fuse_select` and `fuse_add`), `counter` (surfel count) |
-//! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`SlamParams::unstable_removal`] | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
+//! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`FusionSettings::unstable_removal`](crate::slam::params::FusionSettings::unstable_removal) | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
 //!
 //! The tracking loop reads back only the system per iteration and the surfel count per
 //! frame (twice with `compact`); the `download_*` methods copy maps to the host for outputs and comparisons,
@@ -106,19 +106,17 @@ pub struct Slam<B: Backend> {
 impl<B: Backend> Slam<B> {
     /// A pipeline over `backend` for raw frames with `raw_intrinsics`.
     /// A tracker for `seq`: its raw intrinsics, and its depth scale in place of
-    /// `params.depth_scale` (the sequence knows its units; this is the one place that
+    /// `params.input.depth_scale` (the sequence knows its units; this is the one place that
     /// copies them into the parameters).
     pub fn for_sequence(backend: B, seq: &crate::dataset::Sequence, params: SlamParams) -> Self {
-        let params = SlamParams {
-            depth_scale: seq.depth_scale,
-            ..params
-        };
+        let mut params = params;
+        params.input.depth_scale = seq.depth_scale;
         Self::new(backend, seq.intrinsics, params)
     }
 
-    /// A tracker for frames with `raw_intrinsics` and `params.depth_scale` as given.
+    /// A tracker for frames with `raw_intrinsics` and `params.input.depth_scale` as given.
     pub fn new(backend: B, raw_intrinsics: Intrinsics, params: SlamParams) -> Self {
-        let intrinsics = raw_intrinsics.downsampled(params.downsample.max(1));
+        let intrinsics = raw_intrinsics.downsampled(params.input.downsample.max(1));
         Slam {
             backend,
             params,
@@ -154,9 +152,9 @@ impl<B: Backend> Slam<B> {
             }
             (PoseSource::Track, Some(_), _) => None,
         };
-        if self.params.icp_level_iters.is_empty() {
+        if self.params.icp.level_iters.is_empty() {
             return Err(crate::Error::Argument(
-                "the ICP schedule (icp_level_iters) needs at least one level".into(),
+                "the ICP schedule (icp.level_iters) needs at least one level".into(),
             ));
         }
         let valid = raw_depth.iter().filter(|&&d| d > 0).count();
@@ -223,7 +221,7 @@ impl<B: Backend> Slam<B> {
         let mut t = t_prev;
         let mut iterations = Vec::new();
         let mut status = TrackStatus::MaxIterations;
-        let schedule = self.params.icp_level_iters.clone();
+        let schedule = self.params.icp.level_iters.clone();
         for (i, &max_iters) in schedule.iter().enumerate() {
             let level = schedule.len() - 1 - i;
             status = TrackStatus::MaxIterations;
@@ -241,7 +239,7 @@ impl<B: Backend> Slam<B> {
                     Ok(x) => {
                         t = update_pose(&t, &x);
                         let (r, tr) = increment_size(&x);
-                        let min = self.params.icp_min_increment;
+                        let min = self.params.icp.min_increment;
                         if r < min && tr < min {
                             status = TrackStatus::Converged;
                             break;

@@ -30,10 +30,10 @@ impl<B: Backend> Slam<B> {
             height: self.intrinsics.height,
             raw_width: self.raw_intrinsics.width,
             raw_height: self.raw_intrinsics.height,
-            stride: self.params.downsample.max(1),
-            depth_scale: self.params.depth_scale,
-            min_depth_m: self.params.min_depth_m,
-            max_depth_m: self.params.max_depth_m,
+            stride: self.params.input.downsample.max(1),
+            depth_scale: self.params.input.depth_scale,
+            min_depth_m: self.params.input.min_depth_m,
+            max_depth_m: self.params.input.max_depth_m,
         }
     }
 
@@ -62,14 +62,14 @@ impl<B: Backend> Slam<B> {
         NormalParams {
             width: self.intrinsics.width,
             height: self.intrinsics.height,
-            max_depth_jump_m: self.params.max_depth_jump_m,
+            max_depth_jump_m: self.params.normals.max_depth_jump_m,
             _pad: 0,
         }
     }
 
-    /// Pyramid levels of [`SlamParams::icp_level_iters`] (one per entry).
+    /// Pyramid levels of [`IcpSettings::level_iters`](crate::slam::params::IcpSettings::level_iters) (one per entry).
     pub fn levels(&self) -> usize {
-        self.params.icp_level_iters.len()
+        self.params.icp.level_iters.len()
     }
 
     /// Intrinsics of pyramid level `level`: level 0 is [`Slam::intrinsics`], each coarser
@@ -80,7 +80,7 @@ impl<B: Backend> Slam<B> {
 
     /// Parameters that make the coarser pyramid levels `1..levels()` (empty with one level).
     pub fn pyramid_levels(&self) -> Vec<PyramidLevel> {
-        let s = self.params.pyramid;
+        let s = self.params.icp.pyramid;
         (1..self.levels())
             .map(|level| {
                 let (fine, coarse) = (
@@ -132,14 +132,14 @@ impl<B: Backend> Slam<B> {
             cy,
             width: k.width,
             height: k.height,
-            dist_threshold_m: self.params.icp_dist_m,
-            cos_normal_threshold: if self.params.icp_normal_deg >= 180.0 {
+            dist_threshold_m: self.params.icp.dist_m,
+            cos_normal_threshold: if self.params.icp.normal_deg >= 180.0 {
                 ANGLE_GATE_OFF
             } else {
-                self.params.icp_normal_deg.to_radians().cos()
+                self.params.icp.normal_deg.to_radians().cos()
             },
-            huber_delta_m: self.params.icp_huber_m,
-            noise_weighting: self.params.icp_noise_weight as u32,
+            huber_delta_m: self.params.icp.huber_m,
+            noise_weighting: self.params.icp.noise_weight as u32,
             _pad0: 0,
             _pad1: 0,
         }
@@ -159,23 +159,23 @@ impl<B: Backend> Slam<B> {
             height: self.intrinsics.height,
             surfel_count: self.backend.surfel_count() as u32,
             frame_id,
-            dist_threshold_m: self.params.fuse_dist_m,
-            cos_normal_threshold: self.params.fuse_normal_deg.to_radians().cos(),
+            dist_threshold_m: self.params.fusion.dist_m,
+            cos_normal_threshold: self.params.fusion.normal_deg.to_radians().cos(),
             capacity: 0,
-            association: self.params.fuse_association.code(),
-            confidence_sigma: self.params.fuse_confidence_sigma,
+            association: self.params.fusion.association.code(),
+            confidence_sigma: self.params.fusion.confidence_sigma,
             prune_radius_scale: self.prune_scale(frame_id),
             _pad1: 0,
             _pad2: 0,
         }
     }
 
-    /// `fuse_prune`'s radius scale for `frame_id`: [`SlamParams::fuse_prune_scale`] on the
+    /// `fuse_prune`'s radius scale for `frame_id`: [`FusionSettings::prune_scale`](crate::slam::params::FusionSettings::prune_scale) on the
     /// frames the unstable-surfel removal runs after ([`Slam::removal_after`]), 0 (off) on
     /// the others; every frame when there is no removal.
     fn prune_scale(&self, frame_id: u32) -> f32 {
-        if self.params.unstable_removal.is_none() || self.removal_after(frame_id).is_some() {
-            self.params.fuse_prune_scale
+        if self.params.fusion.unstable_removal.is_none() || self.removal_after(frame_id).is_some() {
+            self.params.fusion.prune_scale
         } else {
             0.0
         }
@@ -185,12 +185,13 @@ impl<B: Backend> Slam<B> {
     /// ([`UnstableRemoval::every_frames`]), else `None`.
     fn removal_after(&self, frame_id: u32) -> Option<UnstableRemoval> {
         self.params
+            .fusion
             .unstable_removal
             .filter(|r| frame_id % r.every_frames.max(1) == 0)
     }
 
     /// Parameters of the compaction kernels after fusing `frame_id` (count filled by the
-    /// backend), or `None` when [`SlamParams::unstable_removal`] is off or does not run
+    /// backend), or `None` when [`FusionSettings::unstable_removal`](crate::slam::params::FusionSettings::unstable_removal) is off or does not run
     /// after this frame ([`UnstableRemoval::every_frames`]).
     pub fn compact_params(&self, frame_id: u32) -> Option<CompactParams> {
         let r = self.removal_after(frame_id)?;

@@ -235,7 +235,7 @@ pub fn bench_interleaved<G: Backend>(
     let ate = |f: &[run::FrameOutcome]| -> Result<Option<f64>> {
         Ok(run::accuracy(&run::trajectory(f), &gt)?.map(|a| a.ate_rmse_aligned_m))
     };
-    let camera = seq.intrinsics.downsampled(params.downsample.max(1));
+    let camera = seq.intrinsics.downsampled(params.input.downsample.max(1));
     Ok(InterleavedResult {
         frames: cpu_frames.len(),
         width: camera.width,
@@ -365,7 +365,8 @@ pub fn print_table(results: &[BenchResult]) {
 
 /// Runs `wgslam bench-one <child_args> --backends <backend>` in a child process (so its
 /// peak memory is its own) and parses the result it prints as JSON. `child_args` name the
-/// dataset, frames and resolution (see the CLI's `BenchArgs`); `frames_only` asks for
+/// dataset folder, the parameter file (`--params`) and the frames (the CLI's `bench`
+/// writes them); `frames_only` asks for
 /// whole-frame times only, `kernels` for GPU kernel times as well.
 pub fn bench_in_child(
     child_args: &[String],

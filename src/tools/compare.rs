@@ -512,8 +512,9 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     params: SlamParams,
     mode: Mode,
 ) -> Result<Comparison> {
+    params.validate()?;
     let names = (a.name().to_string(), b.name().to_string());
-    let compacts = params.unstable_removal.is_some();
+    let compacts = params.fusion.unstable_removal.is_some();
     let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
     let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
     let limits = Limits::of(mode, (first..=last).count());

@@ -294,7 +294,8 @@ pub fn run_with<B: Backend + Inspect>(
 }
 
 /// [`run_with`] over `frames`, showing each frame (images, outcome, and the map when it
-/// asks) to `observer` when there is one; the final map is in the [`RunResult`].
+/// asks) to `observer` when there is one; the final map is in the [`RunResult`]. Parameters
+/// out of range ([`SlamParams::validate`]) are refused before the first frame.
 pub fn run_observed<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
@@ -304,6 +305,7 @@ pub fn run_observed<B: Backend + Inspect>(
     on_frame: impl FnMut(&FrameOutcome),
     observer: Option<&mut dyn FrameObserver>,
 ) -> Result<RunResult> {
+    params.validate()?;
     let (first, last) = (*frames.start(), *frames.end());
     let mut slam = Slam::for_sequence(backend, seq, params);
     let (frames, wall) = run_frames_observed(&mut slam, seq, frames, decode, on_frame, observer)?;

@@ -47,6 +47,7 @@ pub fn align_frames<B: Backend + Inspect>(
     target: usize,
     params: SlamParams,
 ) -> Result<TwoFrameResult> {
+    params.validate()?;
     let mut params = params;
     params.poses = PoseSource::Track;
     let mut slam = Slam::for_sequence(backend, seq, params);

@@ -81,9 +81,12 @@ fn runs_resumes_and_reports() {
     )
     .unwrap();
     assert!(
-        (metrics["params"]["icp_dist_m"].as_f64().unwrap() - 0.08).abs() < 1e-6,
+        (metrics["params"]["icp"]["dist_m"].as_f64().unwrap() - 0.08).abs() < 1e-6,
         "{metrics}"
     );
+    // ...through the job's parameter file, which `wgslam run --params` reads.
+    let params = std::fs::read_to_string(out.join("jobs/named/params.toml")).unwrap();
+    assert!(params.contains("icp-dist = 0.08"), "{params}");
     let csv = std::fs::read_to_string(out.join("summary.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
     assert!(csv.lines().nth(1).unwrap().starts_with("0,named,ok,"));

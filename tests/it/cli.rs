@@ -3,7 +3,7 @@
 use crate::common;
 
 use common::cli::{text, wgslam};
-use common::harness::plain;
+use common::harness::{gpu, plain};
 
 /// `wgslam run` on the CPU over bundled `frames` into `out`, with `extra` flags.
 fn run_bundled(out: &std::path::Path, frames: &str, extra: &[&str]) -> std::process::Output {
@@ -139,7 +139,7 @@ fn run_with_an_icp_schedule() {
         serde_json::from_str(&std::fs::read_to_string(out.join(f)).unwrap()).unwrap()
     };
     let m = read("metrics.json");
-    assert_eq!(m["params"]["icp_level_iters"], serde_json::json!([3, 2]));
+    assert_eq!(m["params"]["icp"]["level_iters"], serde_json::json!([3, 2]));
     assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
     let frames = read("frames.json");
     for f in &frames.as_array().unwrap()[1..] {
@@ -201,16 +201,16 @@ fn profile_values_are_flags_recorded_in_metrics() {
         serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     let p = &m["params"];
     assert_eq!(p["profile"], "assignment");
-    assert_eq!(p["fuse_association"], "best-candidate");
-    assert_eq!(p["fuse_confidence_sigma"].as_f64(), Some(0.3));
-    assert_eq!(p["min_depth_m"].as_f64(), Some(0.2));
-    assert_eq!(p["icp_noise_weight"], true);
-    assert_eq!(p["icp_min_increment"].as_f64(), Some(2e-6));
-    assert_eq!(p["unstable_removal"]["every_frames"], 3);
-    assert_eq!(p["pyramid"]["radius_px"], 2);
+    assert_eq!(p["fusion"]["association"], "best-candidate");
+    assert_eq!(p["fusion"]["confidence_sigma"].as_f64(), Some(0.3));
+    assert_eq!(p["input"]["min_depth_m"].as_f64(), Some(0.2));
+    assert_eq!(p["icp"]["noise_weight"], true);
+    assert_eq!(p["icp"]["min_increment"].as_f64(), Some(2e-6));
+    assert_eq!(p["fusion"]["unstable_removal"]["every_frames"], 3);
+    assert_eq!(p["icp"]["pyramid"]["radius_px"], 2);
     // Values not overridden stay the assignment's.
-    assert_eq!(p["fuse_normal_deg"].as_f64(), Some(5.0));
-    assert_eq!(p["icp_level_iters"], serde_json::json!([10]));
+    assert_eq!(p["fusion"]["normal_deg"].as_f64(), Some(5.0));
+    assert_eq!(p["icp"]["level_iters"], serde_json::json!([10]));
 }
 
 fn clear_errors_for_bad_input() {
@@ -308,6 +308,101 @@ fn bench_revisit_reports_each_pass() {
     );
 }
 
+/// `--params FILE.toml`: the file's values reach the run as the flags' would, a flag given
+/// too wins, and an unknown key, a bad value or an out-of-range one fails before anything
+/// runs, naming it. `bench` hands the same file to its children.
+fn params_file_sets_values_and_flags_win() {
+    let dir = common::temp_dir("cli-params");
+    let file = dir.join("p.toml");
+    let write = |body: &str| std::fs::write(&file, body).unwrap();
+    write(
+        "profile = \"assignment\"\nicp-level-iters = [3, 2]\nicp-dist = 0.08\n\
+         bilateral = true\ndownsample = 4\n",
+    );
+    let out = dir.join("run");
+    let o = run_bundled(
+        &out,
+        "1..3",
+        &["--params", file.to_str().unwrap(), "--icp-dist", "0.09"],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let p = &m["params"];
+    assert_eq!(p["profile"], "assignment", "from the file");
+    assert_eq!(p["icp"]["level_iters"], serde_json::json!([3, 2]));
+    assert_eq!(p["input"]["downsample"], 4);
+    assert!(p["bilateral"].is_object(), "{p}");
+    let icp_dist = p["icp"]["dist_m"].as_f64().unwrap();
+    assert!((icp_dist - 0.09).abs() < 1e-6, "the flag wins: {icp_dist}");
+    assert_eq!(m["width"], 160);
+    // bench's children read the same parameters (160x120 from the file's downsample).
+    let json = dir.join("bench.json");
+    let o = wgslam(&[
+        "bench",
+        "--backends",
+        "cpu",
+        "--frames",
+        "1..2",
+        "--params",
+        file.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let b: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(b["rounds"][0][0]["width"], 160, "{b}");
+    for (body, needle) in [
+        ("icp-dits = 0.1", "icp-dits"),
+        ("fuse-association = \"nearest\"", "fuse-association"),
+        ("icp-dist = \"far\"", "icp-dist"),
+        ("fuse-dist = 0", "--fuse-dist"),
+        ("icp-level-iters = [10, 0]", "--icp-level-iters"),
+        ("frames = \"1..2\"", "unknown key `frames`"),
+    ] {
+        write(body);
+        let out = dir.join("refused");
+        let o = run_bundled(&out, "1..2", &["--params", file.to_str().unwrap()]);
+        assert!(!o.status.success(), "{body} accepted");
+        assert!(text(&o).contains(needle), "{body}: {}", text(&o));
+        assert!(
+            !out.join("trajectory.tum").exists(),
+            "{body}: the run went ahead"
+        );
+    }
+    let o = run_bundled(&dir.join("x"), "1..2", &["--params", "/nonexistent/p.toml"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("/nonexistent/p.toml"), "{}", text(&o));
+}
+
+/// `compare` takes every pipeline option `run` does (`--fuse-dist` among them) and checks
+/// them before opening a backend.
+fn compare_takes_the_pipeline_options() {
+    let o = wgslam(&["compare", "--frames", "1..2", "--fuse-dist", "0"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("--fuse-dist"), "{}", text(&o));
+    let help = text(&wgslam(&["compare", "--help"]));
+    for flag in ["--fuse-dist", "--icp-dist", "--stable-weight", "--params"] {
+        assert!(help.contains(flag), "compare --help lacks {flag}");
+    }
+}
+
+/// `compare --fuse-dist` runs (lockstep on the GPU against the CPU) within the tolerances.
+fn compare_runs_with_fuse_dist() {
+    let o = wgslam(&[
+        "compare",
+        "--frames",
+        "1..3",
+        "--downsample",
+        "4",
+        "--fuse-dist",
+        "0.04",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("backends agree"), "{}", text(&o));
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     let tests = vec![
         plain(
@@ -332,6 +427,17 @@ pub fn tests() -> Vec<common::harness::Test> {
             "bench_revisit_reports_each_pass",
             bench_revisit_reports_each_pass,
         ),
+        plain(
+            "params_file_sets_values_and_flags_win",
+            params_file_sets_values_and_flags_win,
+        ),
+        plain(
+            "compare_takes_the_pipeline_options",
+            compare_takes_the_pipeline_options,
+        ),
+        gpu("compare_runs_with_fuse_dist", |_ctx| {
+            compare_runs_with_fuse_dist()
+        }),
     ];
     #[cfg(not(feature = "rerun"))]
     let tests = {

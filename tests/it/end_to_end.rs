@@ -163,10 +163,8 @@ fn bundled_frames_track_to_ground_truth<B: Backend + Inspect>(backend: B, params
 
 fn full_resolution_tracks_too() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let params = SlamParams {
-        downsample: 1,
-        ..SlamParams::profile(Profile::Assignment)
-    };
+    let mut params = SlamParams::profile(Profile::Assignment);
+    params.input.downsample = 1;
     let r = run::run(CpuBackend::new(), &seq, 1, 8, params, |_| {}).unwrap();
     let acc = r.metrics.accuracy.unwrap();
     assert!(acc.ate_rmse_unaligned_m < ATE_BUNDLED_MAX_M, "{acc:?}");
@@ -354,7 +352,7 @@ fn robust_profile_tracks_bundled_noisy_frames<B: Backend + Inspect>(backend: B) 
 fn robust_icp_runs_coarse_to_fine<B: Backend + Inspect>(backend: B) {
     let seq = dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
     let robust = SlamParams::profile(Profile::Robust);
-    let schedule = robust.icp_level_iters.clone();
+    let schedule = robust.icp.level_iters.clone();
     assert!(schedule.len() > 1, "the robust profile has a pyramid");
     let r = run::run(backend, &seq, 1, 6, robust, |_| {}).unwrap();
     for f in &r.frames[1..] {
@@ -385,7 +383,7 @@ fn robust_icp_runs_coarse_to_fine<B: Backend + Inspect>(backend: B) {
     }
     let acc = r.metrics.accuracy.expect("ground truth");
     assert!(acc.ate_rmse_aligned_m < ATE_BUNDLED_NOISY_MAX_M, "{acc:?}");
-    assert_eq!(r.metrics.params.icp_level_iters, schedule);
+    assert_eq!(r.metrics.params.icp.level_iters, schedule);
 }
 
 /// The robust profile's removal of unstable surfels on the bundled noisy frames: the ATE
@@ -396,21 +394,17 @@ fn removal_shrinks_the_bundled_noisy_map<B: Backend + Inspect>(on: B, off: B) {
     let dir = common::bundled_icl_noisy();
     let profile = SlamParams::profile(Profile::Robust);
     assert!(
-        profile.unstable_removal.is_some(),
+        profile.fusion.unstable_removal.is_some(),
         "the robust profile removes"
     );
-    let robust = SlamParams {
-        unstable_removal: Some(UnstableRemoval {
-            max_age_frames: 5,
-            every_frames: 1,
-            ..UnstableRemoval::default()
-        }),
-        ..profile
-    };
-    let without = SlamParams {
-        unstable_removal: None,
-        ..robust.clone()
-    };
+    let mut robust = profile;
+    robust.fusion.unstable_removal = Some(UnstableRemoval {
+        max_age_frames: 5,
+        every_frames: 1,
+        ..UnstableRemoval::default()
+    });
+    let mut without = robust.clone();
+    without.fusion.unstable_removal = None;
     let (ate, fraction_on) = ate_and_map_fraction(on, &dir, 1, 23, robust);
     let (_, fraction_off) = ate_and_map_fraction(off, &dir, 1, 23, without);
     assert!(

@@ -101,10 +101,8 @@ fn check_compaction(gpu: &mut GpuBackend, map: &SurfelMap, params: &CompactParam
 /// removal after frame 8 with a short age limit (so part of the map goes), and with rules
 /// that keep everything and remove every unstable surfel.
 fn compaction_matches_twins(mut gpu: GpuBackend) {
-    let params = SlamParams {
-        unstable_removal: None,
-        ..SlamParams::profile(Profile::Robust)
-    };
+    let mut params = SlamParams::profile(Profile::Robust);
+    params.fusion.unstable_removal = None;
     let (mut s, _) = cpu_map_from_gt(8, &params);
     let map = s.backend.download_map().unwrap();
     let n = map.len();
@@ -166,15 +164,15 @@ fn compaction_sizes_match_twins(mut gpu: GpuBackend) {
 fn compaction_follows_map_growth(ctx: GpuContext) {
     let gpu = GpuBackend::with_initial_capacity(ctx, 1000).unwrap();
     let gt = load_gt(&root());
-    let params = SlamParams {
+    let mut params = SlamParams {
         poses: PoseSource::GroundTruth,
-        unstable_removal: Some(UnstableRemoval {
-            stable_weight: 3.0,
-            max_age_frames: 1,
-            every_frames: 1,
-        }),
         ..SlamParams::profile(Profile::Robust)
     };
+    params.fusion.unstable_removal = Some(UnstableRemoval {
+        stable_weight: 3.0,
+        max_age_frames: 1,
+        every_frames: 1,
+    });
     let mut c = slam(CpuBackend::new(), params.clone());
     let mut g = slam(gpu, params);
     let mut obeyed = 0;

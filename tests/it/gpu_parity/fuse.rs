@@ -64,16 +64,16 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
     let mut fp = s.fuse_params(&t_world_to_cam, 3);
     // The pipeline prunes only on the frames the unstable-surfel removal runs after; the
     // kernels are checked with the profile's scale whatever the frame.
-    let removal_frame = params.unstable_removal.map_or(1, |r| r.every_frames);
+    let removal_frame = params.fusion.unstable_removal.map_or(1, |r| r.every_frames);
     assert_eq!(
         s.fuse_params(&t_world_to_cam, removal_frame)
             .prune_radius_scale,
-        params.fuse_prune_scale
+        params.fusion.prune_scale
     );
-    if params.unstable_removal.is_some() {
+    if params.fusion.unstable_removal.is_some() {
         assert_eq!(fp.prune_radius_scale, 0.0, "frame 3 is not a removal frame");
     }
-    fp.prune_radius_scale = params.fuse_prune_scale;
+    fp.prune_radius_scale = params.fusion.prune_scale;
     if fp.association == ASSOCIATION_BEST_CANDIDATE {
         check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
     }

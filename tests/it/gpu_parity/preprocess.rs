@@ -16,10 +16,8 @@ use wgslam::Error;
 fn preprocess_matches_twins(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
     for downsample in [2, 1] {
-        let params = SlamParams {
-            downsample,
-            ..SlamParams::profile(Profile::Assignment)
-        };
+        let mut params = SlamParams::profile(Profile::Assignment);
+        params.input.downsample = downsample;
         let s = slam(CpuBackend::new(), params);
         let (pp, np) = (s.preprocess_params(), s.normal_params());
         let mut cpu_b = s.backend;
@@ -62,11 +60,9 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         (1, BilateralSettings::default()),
         (2, kinect_fusion),
     ] {
-        let params = SlamParams {
-            downsample,
-            bilateral: Some(settings),
-            ..SlamParams::profile(Profile::Assignment)
-        };
+        let mut params = SlamParams::profile(Profile::Assignment);
+        params.input.downsample = downsample;
+        params.bilateral = Some(settings);
         let s = slam(CpuBackend::new(), params);
         let (pp, bp, np) = (
             s.preprocess_params(),
@@ -132,13 +128,11 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
 fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
     let robust = SlamParams::profile(Profile::Robust);
-    assert_eq!(robust.icp_level_iters.len(), 3);
+    assert_eq!(robust.icp.level_iters.len(), 3);
     for (downsample, bilateral) in [(2, robust.bilateral), (2, None), (1, robust.bilateral)] {
-        let params = SlamParams {
-            downsample,
-            bilateral,
-            ..robust.clone()
-        };
+        let mut params = robust.clone();
+        params.input.downsample = downsample;
+        params.bilateral = bilateral;
         let s = slam(CpuBackend::new(), params);
         let (pp, bp, np, pyr) = (
             s.preprocess_params(),

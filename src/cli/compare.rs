@@ -1,0 +1,132 @@
+//! `wgslam compare`: the CPU reference and the GPU on the same frames, their differences
+//! per stage and frame against the documented tolerances.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use super::pipeline_args::{frame_range, PipelineArgs};
+use crate::slam::any_backend::{self, BackendChoice};
+use crate::slam::params::PoseSource;
+use crate::tools::{compare, run};
+use crate::{Error, Result};
+
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// Inclusive frame range "A..B" (default: 20 frames from the first with ground truth).
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Let each backend track on its own state (end to end, as two separate runs) instead
+    /// of the default lockstep, where the GPU starts every frame from the CPU's map and pose.
+    #[arg(long)]
+    pub free: bool,
+    /// Lockstep: compare the maps after every K-th frame (and after the last).
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub map_every: usize,
+    /// Write the full comparison as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    // The sequence, a parameter file and the parameters (last, so their help heading
+    // follows this command's own options).
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+}
+
+/// Runs `wgslam compare`.
+pub fn execute(a: CompareArgs) -> Result<()> {
+    let setup = a.pipeline.resolve()?;
+    let seq = setup.open_sequence()?;
+    let (first, last) = frame_range(&seq, &a.frames, 20)?;
+    let params = setup.slam_params(PoseSource::Track)?;
+    let mode = if a.free {
+        compare::Mode::Free
+    } else {
+        compare::Mode::Lockstep {
+            map_every: a.map_every.max(1),
+        }
+    };
+    let gpu = any_backend::open(BackendChoice::Gpu)?;
+    let cpu = any_backend::open(BackendChoice::Cpu)?;
+    println!(
+        "mode: {}",
+        match mode {
+            compare::Mode::Lockstep { map_every } => format!(
+                "lockstep (the GPU starts every frame from the CPU's map and pose; maps \
+                 compared every {map_every} frame(s) and after the last)"
+            ),
+            compare::Mode::Free => "free (each backend tracks on its own state)".into(),
+        }
+    );
+    let c = compare::compare(cpu, gpu, &seq, first, last, params, mode)?;
+    println!(
+        "frame  vertex(m)  normal(deg)  valid-mismatch  system-rel   pose(mm)  pose(deg)  \
+         fused cpu/gpu    surfels cpu/gpu  map-unmatched"
+    );
+    for f in &c.frames {
+        let opt = |x: Option<String>| x.unwrap_or_else(|| "-".into());
+        println!(
+            "{:5}  {:9.2e}  {:11.5}  {:13.5}%  {:>10}  {:9.5}  {:9.6}  {:>15}  {:>15}  {:>13}",
+            f.index,
+            f.maps.vertex_max_abs_m,
+            f.maps.normal_max_deg,
+            f.maps.validity_mismatch_fraction * 100.0,
+            opt(f.system_rel_diff.map(|r| format!("{r:.2e}"))),
+            f.pose_diff_mm,
+            f.pose_diff_deg,
+            opt(f.fused_surfels.map(|(a, b)| format!("{a}/{b}"))),
+            format!("{}/{}", f.surfels.0, f.surfels.1),
+            opt(f
+                .map
+                .as_ref()
+                .map(|m| format!("{:.4}%", m.unmatched_fraction() * 100.0))),
+        );
+    }
+    println!(
+        "map after the last frame: {} vs {} surfels; unmatched within {} mm: {:.4}% cpu, \
+         {:.4}% gpu; match distance mean {:.2e} m, max {:.2e} m",
+        c.map.surfels.0,
+        c.map.surfels.1,
+        c.map.match_radius_m * 1e3,
+        c.map.unmatched_a_fraction * 100.0,
+        c.map.unmatched_b_fraction * 100.0,
+        c.map.mean_match_m,
+        c.map.max_match_m
+    );
+    let w = &c.worst;
+    println!(
+        "worst ({} mode, {} frames): vertex {:.2e} m, normal {:.5} deg, validity {:.5}%, \
+         system {:.2e}, pose {:.5} mm / {:.6} deg, surfel counts {:.2e} fused / {:.2e} after \
+         the frame, map unmatched {:.4}% (max match {:.2e} m)",
+        c.mode.name(),
+        c.frames.len(),
+        w.vertex_max_abs_m,
+        w.normal_max_deg,
+        w.validity_mismatch_fraction * 100.0,
+        w.system_rel_diff,
+        w.pose_diff_mm,
+        w.pose_diff_deg,
+        w.fused_surfels_rel_diff,
+        w.surfels_rel_diff,
+        w.map_unmatched_fraction * 100.0,
+        w.map_max_match_m
+    );
+    if let Some(path) = &a.json {
+        run::write_json(path, &c)?;
+    }
+    if c.violations.is_empty() {
+        println!(
+            "backends agree within the documented {} tolerances (src/tools/compare.rs)",
+            c.mode.name()
+        );
+        Ok(())
+    } else {
+        for v in &c.violations {
+            println!("beyond tolerance: {v}");
+        }
+        Err(Error::Numerical(format!(
+            "{} comparisons beyond the {} tolerances",
+            c.violations.len(),
+            c.mode.name()
+        )))
+    }
+}

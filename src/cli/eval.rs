@@ -1,0 +1,49 @@
+//! `wgslam eval`: ATE and RPE of an estimated TUM trajectory against a ground truth.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::{eval, io, Result};
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Estimated trajectory, TUM format.
+    pub estimate: PathBuf,
+    /// Ground truth trajectory, TUM format (ICL-NUIM's *.gt.freiburg works).
+    pub ground_truth: PathBuf,
+    /// RPE frame distance.
+    #[arg(long, default_value_t = 1)]
+    pub delta: usize,
+    /// Write a trajectory plot (estimate vs ground truth from above, and the error over
+    /// frames) to this PNG.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Runs `wgslam eval`.
+pub fn execute(a: EvalArgs) -> Result<()> {
+    let est = io::trajectory::read_tum(&a.estimate)?;
+    let gt = io::trajectory::read_tum(&a.ground_truth)?;
+    let aligned = eval::ate(&est, &gt, true)?;
+    let unaligned = eval::ate(&est, &gt, false)?;
+    let rpe = eval::rpe(&est, &gt, a.delta)?;
+    println!(
+        "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned ({} poses)",
+        aligned.rmse_m * 1e3,
+        unaligned.rmse_m * 1e3,
+        aligned.pairs
+    );
+    println!(
+        "RPE (delta {}): translation RMSE {:.3} mm, rotation RMSE {:.4} deg ({} pairs)",
+        a.delta,
+        rpe.trans_rmse_m * 1e3,
+        rpe.rot_rmse_deg,
+        rpe.pairs
+    );
+    if let Some(path) = &a.plot {
+        crate::render::plot::write_trajectory_plot(path, &est, &gt)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

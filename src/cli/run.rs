@@ -1,0 +1,238 @@
+//! `wgslam run`: dense SLAM over a sequence, its outputs written and summarised.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+
+use super::pipeline_args::{default_first_frame, PipelineArgs};
+use crate::dataset;
+use crate::slam::any_backend::{self, BackendChoice};
+use crate::slam::params::PoseSource;
+use crate::tools::run;
+#[cfg(not(feature = "rerun"))]
+use crate::Error;
+use crate::Result;
+
+/// Pose source for `run`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PosesChoice {
+    /// Frame-to-model ICP tracking.
+    Track,
+    /// Ground-truth poses, no tracking (fusion only).
+    Gt,
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Implementation: auto, cpu or gpu.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Inclusive frame range "A..B" by position in the sequence (default: all frames from
+    /// the first with ground truth).
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Poses from tracking or from ground truth.
+    #[arg(long, value_enum, default_value_t = PosesChoice::Track)]
+    pub poses: PosesChoice,
+    /// Play the frame range forwards, backwards, forwards ... for this many frames (a long
+    /// sequence that revisits the same scene; stamps become positions 0, 1, ...).
+    #[arg(long, value_name = "FRAMES")]
+    pub revisit: Option<usize>,
+    /// Output directory.
+    #[arg(long, default_value = "out")]
+    pub out: PathBuf,
+    /// (for `wgslam batch`) Print `progress DONE TOTAL` on stdout after every frame.
+    #[arg(long, hide = true)]
+    pub progress_lines: bool,
+    /// Also write a Rerun recording of the run here (camera path, ground truth, colour and
+    /// depth images, the map every few frames; open it with `rerun FILE.rrd`). Needs a
+    /// binary built with `--features rerun`; without it this flag fails with a message.
+    #[arg(long, value_name = "FILE.rrd")]
+    pub rerun: Option<PathBuf>,
+    /// With --rerun: log the map (at most 100k of its surfels) after every N-th frame, and
+    /// after the last.
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub rerun_map_every: usize,
+    // The sequence, a parameter file and the parameters (last, so their help heading
+    // follows this command's own options).
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal.
+fn progress_bar(len: usize) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} frames {msg}",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Runs `wgslam run`.
+pub fn execute(a: RunArgs) -> Result<()> {
+    let setup = a.pipeline.resolve()?;
+    let seq = setup.open_sequence()?;
+    let (first, last) = match &a.frames {
+        Some(r) => dataset::parse_range(r)?,
+        None => (default_first_frame(&seq), seq.len() - 1),
+    };
+    let mut range = seq.select(first, last)?;
+    let seq = match a.revisit {
+        Some(total) => {
+            let long = seq.revisiting(first, last, total)?;
+            range = 0..=total - 1;
+            long
+        }
+        None => seq,
+    };
+    let poses = match a.poses {
+        PosesChoice::Track => PoseSource::Track,
+        PosesChoice::Gt => PoseSource::GroundTruth,
+    };
+    let params = setup.slam_params(poses)?;
+    let bar = progress_bar(range.clone().count());
+    let total = range.clone().count();
+    let on_frame = |f: &run::FrameOutcome| {
+        bar.set_message(format!("{} surfels", f.report.surfels));
+        bar.inc(1);
+        if a.progress_lines {
+            use std::io::Write;
+            println!("progress {} {total}", bar.position());
+            let _ = std::io::stdout().flush();
+        }
+        if let crate::slam::pipeline::TrackStatus::Lost(why) = &f.report.status {
+            bar.println(format!(
+                "frame {}: tracking lost ({why}); not fused",
+                f.index
+            ));
+        }
+        if f.report.status == crate::slam::pipeline::TrackStatus::EmptyDepth {
+            bar.println(format!("frame {}: no valid depth; skipped", f.index));
+        }
+    };
+    let mut recording = open_recording(&a, &seq, &range)?;
+    let backend = any_backend::open(a.backend)?;
+    let result = run::run_observed(
+        backend,
+        &seq,
+        range,
+        params,
+        run::Decode::Overlapped,
+        on_frame,
+        recording.as_mut().map(|r| r as &mut dyn run::FrameObserver),
+    )?;
+    bar.finish_and_clear();
+    run::write_outputs(&a.out, &result)?;
+    let pictures = run::write_pictures(&a.out, &result, &seq)?;
+    let recorded = recording.map(|r| r.finish(&result.map)).transpose()?;
+    print_summary(&result.metrics, &a.out);
+    for p in pictures.iter().chain(&recorded) {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// `run --rerun FILE`'s recording.
+#[cfg(feature = "rerun")]
+use crate::tools::rerun_log::RerunLog as Recording;
+
+/// Without the `rerun` feature there is never a recording (`--rerun` fails up front), so
+/// the type has no values and its methods cannot be called.
+#[cfg(not(feature = "rerun"))]
+enum Recording {}
+
+#[cfg(not(feature = "rerun"))]
+impl Recording {
+    fn finish(self, _map: &crate::slam::map::SurfelMap) -> Result<PathBuf> {
+        match self {}
+    }
+}
+
+#[cfg(not(feature = "rerun"))]
+impl run::FrameObserver for Recording {
+    fn wants_map(&mut self, _index: usize) -> bool {
+        match *self {}
+    }
+    fn frame(
+        &mut self,
+        _raw: &dataset::RawFrame,
+        _outcome: &run::FrameOutcome,
+        _map: Option<&crate::slam::map::SurfelMap>,
+    ) -> Result<()> {
+        match *self {}
+    }
+}
+
+/// The recording `--rerun` asks for, started over the run's frames.
+#[cfg(feature = "rerun")]
+fn open_recording(
+    a: &RunArgs,
+    seq: &dataset::Sequence,
+    range: &std::ops::RangeInclusive<usize>,
+) -> Result<Option<Recording>> {
+    a.rerun
+        .as_deref()
+        .map(|path| Recording::create(path, seq, *range.start(), *range.end(), a.rerun_map_every))
+        .transpose()
+}
+
+/// Without the `rerun` feature: an error naming the feature when `--rerun` is given.
+#[cfg(not(feature = "rerun"))]
+fn open_recording(
+    a: &RunArgs,
+    _seq: &dataset::Sequence,
+    _range: &std::ops::RangeInclusive<usize>,
+) -> Result<Option<Recording>> {
+    match &a.rerun {
+        Some(_) => Err(Error::Argument(
+            "--rerun needs a wgslam built with the `rerun` feature \
+             (cargo build --release --features rerun); this binary was built without it"
+                .into(),
+        )),
+        None => Ok(None),
+    }
+}
+
+fn print_summary(m: &run::Metrics, out: &Path) {
+    println!(
+        "{} frames {}..{} on {} ({}x{}): {:.1} ms/frame median, {:.2} s total",
+        m.frames,
+        m.first_frame,
+        m.last_frame,
+        m.backend,
+        m.width,
+        m.height,
+        m.time_per_frame_median_s * 1e3,
+        m.time_total_s
+    );
+    println!(
+        "map: {} points, compression ratio {:.4}",
+        m.map_points, m.compression_ratio
+    );
+    let t = &m.tracking;
+    println!(
+        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
+        t.given, t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
+    );
+    if let Some(acc) = &m.accuracy {
+        println!(
+            "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",
+            acc.ate_rmse_aligned_m * 1e3,
+            acc.ate_rmse_unaligned_m * 1e3,
+            acc.rpe_trans_rmse_m * 1e3,
+            acc.rpe_rot_rmse_deg,
+            acc.pairs
+        );
+    }
+    if let Some(mem) = m.peak_memory_mib {
+        println!("peak memory {mem:.0} MiB");
+    }
+    println!(
+        "wrote {}/{{trajectory.tum, map.ply, metrics.json, frames.json}}",
+        out.display()
+    );
+}
