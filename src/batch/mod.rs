@@ -11,11 +11,11 @@
 //! | [`summary`] | `collect`: `summary.csv`, `summary.json`; `diff` of two batches' numbers |
 //! | [`report`] | the self-contained `report.html` |
 //!
-//! A batch folder holds `batch.json` (the expanded job list), `jobs/<id>/` per job (one
-//! subfolder of run outputs per backend, `params.toml` (the parameters every backend's
-//! run read), `<backend>.log`, `comparison.json` with both
-//! backends, and `job.json`, written last and atomically: a job is complete exactly when
-//! its `job.json` says `ok` for the same spec), and the summaries.
+//! A batch folder holds `batch.json` (the expanded job list), `jobs/<id>/` per job
+//! (`params.toml`, the parameter file each backend's run reads; one subfolder of run
+//! outputs per backend, `<backend>.log`, `comparison.json` with both backends, and
+//! `job.json`, written last and atomically: a job is complete exactly when its `job.json`
+//! says `ok` for the same spec), and the summaries.
 
 pub mod gpu_vs_cpu;
 pub mod interrupt;

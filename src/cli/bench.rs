@@ -62,7 +62,7 @@ pub fn execute(a: BenchArgs) -> Result<()> {
         return bench_revisit(&a, &setup, total);
     }
     let params_file = setup.child_params("bench")?;
-    let child_args = with_frames(setup.child_args(&params_file), &a.frames);
+    let bench_one_args = with_frames(setup.handoff_args(&params_file), &a.frames);
     let mut rounds = Vec::new();
     for round in 0..a.rounds {
         let mut order = a.backends.clone();
@@ -75,7 +75,7 @@ pub fn execute(a: BenchArgs) -> Result<()> {
             let frames_only = round > 0;
             let kernels = a.kernels && !frames_only;
             results.push(bench::bench_in_child(
-                &child_args,
+                &bench_one_args,
                 &name,
                 frames_only,
                 kernels,
@@ -132,7 +132,7 @@ fn bench_revisit(a: &BenchArgs, setup: &Setup, total: usize) -> Result<()> {
         let name = format!("{b:?}").to_lowercase();
         eprintln!("{name}: {total} frames over {first}..{last} forwards and backwards ...");
         let mut args = vec!["run".to_string()];
-        args.extend(with_frames(setup.child_args(&params_file), &a.frames));
+        args.extend(with_frames(setup.handoff_args(&params_file), &a.frames));
         args.extend([
             "--revisit".into(),
             total.to_string(),

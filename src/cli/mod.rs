@@ -4,7 +4,7 @@
 //! |---|---|
 //! | [`pipeline_args`] | the options `run`, `icp`, `compare` and `bench` share: the sequence, `--params FILE.toml`, every parameter override (the key table of parameter files and manifests) |
 //! | [`params_file`] | reading and writing parameter files: the one parser of `--params` files and manifest overrides |
-//! | [`run`], [`icp`], [`compare`], [`bench`] | the dense pipeline's commands |
+//! | [`run`](mod@run), [`icp`](mod@icp), [`compare`](mod@compare), [`bench`](mod@bench) | the dense pipeline's commands |
 //! | [`eval`] | ATE / RPE of two trajectories |
 //! | [`render`] | `render`: a map PLY to a PNG |
 //! | [`scan`] | point-cloud registration, odometry and its benchmark |

@@ -392,7 +392,7 @@ impl Setup {
 
     /// A child's arguments for the same sequence and parameters: the dataset folder (when
     /// given) and `--params FILE`.
-    pub fn child_args(&self, params: &ChildParams) -> Vec<String> {
+    pub fn handoff_args(&self, params: &ChildParams) -> Vec<String> {
         let mut args: Vec<String> = self
             .dataset
             .iter()

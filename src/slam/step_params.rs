@@ -37,7 +37,8 @@ impl<B: Backend> Slam<B> {
         }
     }
 
-    /// Parameters of `bilateral_filter`, or `None` when [`SlamParams::bilateral`] is off.
+    /// Parameters of `bilateral_filter`, or `None` when
+    /// [`SlamParams::bilateral`](crate::slam::params::SlamParams::bilateral) is off.
     pub fn bilateral_params(&self) -> Option<BilateralParams> {
         let b = self.params.bilateral?;
         let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);

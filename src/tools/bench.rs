@@ -363,20 +363,20 @@ pub fn print_table(results: &[BenchResult]) {
     }
 }
 
-/// Runs `wgslam bench-one <child_args> --backends <backend>` in a child process (so its
-/// peak memory is its own) and parses the result it prints as JSON. `child_args` name the
-/// dataset folder, the parameter file (`--params`) and the frames (the CLI's `bench`
-/// writes them); `frames_only` asks for
-/// whole-frame times only, `kernels` for GPU kernel times as well.
+/// Runs `wgslam bench-one <bench_one_args> --backends <backend>` in a child process (so
+/// its peak memory is its own) and parses the result it prints as JSON. `bench_one_args`
+/// name the dataset folder, the parameter file (`--params`) and the frames (the CLI's
+/// `bench` writes them); `frames_only` asks for whole-frame times only, `kernels` for GPU
+/// kernel times as well.
 pub fn bench_in_child(
-    child_args: &[String],
+    bench_one_args: &[String],
     backend: &str,
     frames_only: bool,
     kernels: bool,
 ) -> Result<BenchResult> {
     let exe = std::env::current_exe().map_err(|e| crate::Error::io("current executable", e))?;
     let mut cmd = std::process::Command::new(&exe);
-    cmd.arg("bench-one").args(child_args);
+    cmd.arg("bench-one").args(bench_one_args);
     cmd.args(["--backends", backend]);
     if frames_only {
         cmd.arg("--frames-only");
