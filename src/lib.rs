@@ -4,7 +4,7 @@
 //!
 //! What a program needs is re-exported at the crate root: open a sequence
 //! ([`open_sequence`], [`SequenceOptions`], [`Sequence`]), configure ([`SlamParams`],
-//! [`Profile`]), choose a backend ([`open_backend`],
+//! [`Profile`], [`SlamParams::validate`]), choose a backend ([`open_backend`],
 //! [`BackendChoice`]), run ([`run`], giving a [`RunResult`]) and read the results
 //! ([`Metrics`], the [`SurfelMap`], the per-frame [`FrameOutcome`]s) or write them as the
 //! command line does ([`write_outputs`]); [`Error`] says what went wrong.
@@ -14,6 +14,7 @@
 //!
 //! let seq = wgslam::open_sequence(Path::new("assets/icl_living_room_kt2"), &Default::default())?;
 //! let params = wgslam::SlamParams::profile(wgslam::Profile::Robust);
+//! params.validate()?;
 //! let backend = wgslam::open_backend(wgslam::BackendChoice::Auto)?;
 //! let result = wgslam::run(backend, &seq, 0, seq.len() - 1, params, |_frame| {})?;
 //! println!("{} surfels, ATE {:?}", result.map.len(), result.metrics.accuracy);
