@@ -115,7 +115,7 @@ pub fn execute(a: CompareArgs) -> Result<()> {
     }
     if c.violations.is_empty() {
         println!(
-            "backends agree within the documented {} tolerances (src/tools/compare.rs)",
+            "backends agree within the documented {} tolerances (src/tools/compare/mod.rs)",
             c.mode.name()
         );
         Ok(())

@@ -1,0 +1,182 @@
+//! Order-independent comparison of two surfel maps: each point of one map matched with its
+//! nearest point of the other within a radius, through a hash grid, queries in parallel.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::slam::map::SurfelMap;
+
+/// Order-independent comparison of two surfel maps.
+#[derive(Debug, Clone, Serialize)]
+pub struct SurfelMapDiff {
+    pub surfels: (usize, usize),
+    /// The match radius used, metres.
+    pub match_radius_m: f32,
+    /// Fraction of A's points without a B point within the match radius (and vice versa).
+    pub unmatched_a_fraction: f64,
+    pub unmatched_b_fraction: f64,
+    /// Mean and largest distance to the nearest point of the other map over A's matched
+    /// points, metres.
+    pub mean_match_m: f64,
+    pub max_match_m: f64,
+}
+
+impl SurfelMapDiff {
+    /// The larger of the two unmatched fractions.
+    pub fn unmatched_fraction(&self) -> f64 {
+        self.unmatched_a_fraction.max(self.unmatched_b_fraction)
+    }
+}
+
+/// How `a`'s points match `b`'s within a radius (see [`unmatched_fraction`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Matches {
+    /// Fraction of `a`'s points with no point of `b` within the radius.
+    pub unmatched_fraction: f64,
+    /// Mean and largest distance to the nearest `b` point over the matched points, metres.
+    pub mean_m: f64,
+    pub max_m: f64,
+}
+
+/// Matches each of `a`'s points with its nearest point of `b` within `radius` metres
+/// (through a `Grid` of `b`, queries in parallel).
+pub fn unmatched_fraction(a: &SurfelMap, b: &SurfelMap, radius: f32) -> Matches {
+    let grid = Grid::new(&b.position_weight, 2.0 * radius);
+    let nearest: Vec<f32> = a
+        .position_weight
+        .par_iter()
+        .map(|p| grid.nearest_within_half_cell(&b.position_weight, p))
+        .collect();
+    let (mut unmatched, mut sum, mut max, mut matched) = (0usize, 0.0f64, 0.0f64, 0usize);
+    for d in nearest {
+        if d <= radius {
+            matched += 1;
+            sum += d as f64;
+            max = max.max(d as f64);
+        } else {
+            unmatched += 1;
+        }
+    }
+    Matches {
+        unmatched_fraction: unmatched as f64 / a.len().max(1) as f64,
+        mean_m: sum / matched.max(1) as f64,
+        max_m: max,
+    }
+}
+
+/// Points bucketed by a uniform grid of cubic cells: their indices sorted by cell, and
+/// each occupied cell's range of that order.
+struct Grid {
+    cell_m: f32,
+    order: Vec<u32>,
+    ranges: HashMap<u64, (u32, u32), BuildHasherDefault<CellHasher>>,
+}
+
+impl Grid {
+    fn new(points: &[[f32; 4]], cell_m: f32) -> Grid {
+        let mut keyed: Vec<(u64, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (Self::key(Self::cell(cell_m, p).map(|c| c as i32)), i as u32))
+            .collect();
+        keyed.sort_unstable();
+        let mut ranges = HashMap::with_capacity_and_hasher(keyed.len(), Default::default());
+        let mut start = 0;
+        for (i, k) in keyed.iter().enumerate() {
+            if keyed.get(i + 1).map(|n| n.0) != Some(k.0) {
+                ranges.insert(k.0, (start as u32, i as u32 + 1));
+                start = i + 1;
+            }
+        }
+        Grid {
+            cell_m,
+            order: keyed.into_iter().map(|(_, i)| i).collect(),
+            ranges,
+        }
+    }
+
+    /// Cell coordinates of `p` (fractional: the integer part is the cell).
+    fn cell(cell_m: f32, p: &[f32; 4]) -> [f32; 3] {
+        [p[0] / cell_m, p[1] / cell_m, p[2] / cell_m].map(f32::floor)
+    }
+
+    /// One key per cell: 21 bits per coordinate (wrapping, so far-apart cells may share a
+    /// key; that only adds candidates, whose distances are computed exactly).
+    fn key(c: [i32; 3]) -> u64 {
+        let bits = |x: i32| (x as u32 & 0x1f_ffff) as u64;
+        bits(c[0]) | bits(c[1]) << 21 | bits(c[2]) << 42
+    }
+
+    /// Distance from `p` to its nearest point, exact when it is at most half a cell (else
+    /// a larger value or infinity): a ball of half a cell overlaps at most two cells per
+    /// axis, `p`'s own and the neighbour on its nearer side, so 8 cells are searched.
+    fn nearest_within_half_cell(&self, points: &[[f32; 4]], p: &[f32; 4]) -> f32 {
+        let axis = |x: f32| {
+            let c = x / self.cell_m;
+            let own = c.floor();
+            let other = if c - own < 0.5 { own - 1.0 } else { own + 1.0 };
+            [own as i32, other as i32]
+        };
+        let (cx, cy, cz) = (axis(p[0]), axis(p[1]), axis(p[2]));
+        let mut best = f32::INFINITY;
+        for x in cx {
+            for y in cy {
+                for z in cz {
+                    let Some(&(from, to)) = self.ranges.get(&Self::key([x, y, z])) else {
+                        continue;
+                    };
+                    for &j in &self.order[from as usize..to as usize] {
+                        let q = points[j as usize];
+                        let d2 =
+                            (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+                        best = best.min(d2);
+                    }
+                }
+            }
+        }
+        best.sqrt()
+    }
+}
+
+/// A multiplicative hash for [`Grid`]'s u64 cell keys (the standard SipHash made the map
+/// comparison several times slower; no attacker chooses these keys).
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        // MurmurHash3's 64-bit finaliser: every key bit moves every hash bit (the table
+        // indexes by the low bits, which a plain multiply fills from the key's low bits only).
+        let mut h = self.0 ^ x;
+        h = (h ^ (h >> 33)).wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h = (h ^ (h >> 33)).wrapping_mul(0xc4ce_b9fe_1a85_ec53);
+        self.0 = h ^ (h >> 33);
+    }
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Compares two maps both ways within `radius` metres.
+pub fn diff_surfel_maps(a: &SurfelMap, b: &SurfelMap, radius: f32) -> SurfelMapDiff {
+    let (ab, ba) = (
+        unmatched_fraction(a, b, radius),
+        unmatched_fraction(b, a, radius),
+    );
+    SurfelMapDiff {
+        surfels: (a.len(), b.len()),
+        match_radius_m: radius,
+        unmatched_a_fraction: ab.unmatched_fraction,
+        unmatched_b_fraction: ba.unmatched_fraction,
+        mean_match_m: ab.mean_m,
+        max_match_m: ab.max_m,
+    }
+}
