@@ -60,12 +60,12 @@ pub fn execute(a: CompareArgs) -> Result<()> {
     let c = compare::compare(cpu, gpu, &seq, first, last, params, mode)?;
     println!(
         "frame  vertex(m)  normal(deg)  valid-mismatch  system-rel   pose(mm)  pose(deg)  \
-         fused cpu/gpu    surfels cpu/gpu  map-unmatched"
+         fused cpu/gpu    surfels cpu/gpu  map-unmatched  fusion assoc/flags/offsets"
     );
     for f in &c.frames {
         let opt = |x: Option<String>| x.unwrap_or_else(|| "-".into());
         println!(
-            "{:5}  {:9.2e}  {:11.5}  {:13.5}%  {:>10}  {:9.5}  {:9.6}  {:>15}  {:>15}  {:>13}",
+            "{:5}  {:9.2e}  {:11.5}  {:13.5}%  {:>10}  {:9.5}  {:9.6}  {:>15}  {:>15}  {:>13}  {:>26}",
             f.index,
             f.maps.vertex_max_abs_m,
             f.maps.normal_max_deg,
@@ -79,6 +79,11 @@ pub fn execute(a: CompareArgs) -> Result<()> {
                 .map
                 .as_ref()
                 .map(|m| format!("{:.4}%", m.unmatched_fraction() * 100.0))),
+            // Fusion kernel by kernel: pixels or slots that differ (lockstep mode).
+            opt(f.fusion.as_ref().map(|k| format!(
+                "{}/{}/{}",
+                k.assoc_pixels, k.flag_slots, k.offset_slots
+            ))),
         );
     }
     println!(

@@ -6,7 +6,9 @@ use super::backend::GpuBackend;
 use super::context::GpuContext;
 use super::images::GpuImage;
 use crate::layout::BLOCK_SURFELS;
-use crate::slam::backend::{BackendCounters, FrameLevel, FrameMaps, Inspect, Prediction};
+use crate::slam::backend::{
+    BackendCounters, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction,
+};
 use crate::slam::map::SurfelMap;
 use crate::Result;
 
@@ -83,6 +85,21 @@ impl Inspect for GpuBackend {
         let ctx = &self.ctx;
         ctx.scoped("download prediction", || {
             Ok((read_map(ctx, vertex)?, read_map(ctx, normal)?))
+        })
+    }
+
+    fn download_fusion(&mut self) -> Result<FusionBuffers> {
+        // Before the first frame there is nothing to download (as on the CPU).
+        let (ctx, Some(f)) = (&self.ctx, self.frame.as_ref()) else {
+            return Ok(FusionBuffers::default());
+        };
+        ctx.scoped("download fusion buffers", || {
+            Ok(FusionBuffers {
+                assoc: f.assoc.read_back_range(ctx, 0..f.pixels())?,
+                merged: f.merged.read_back(ctx)?,
+                flags: f.add_flags.read_back(ctx)?,
+                offsets: f.add_offsets.read_back(ctx)?,
+            })
         })
     }
 

@@ -76,6 +76,23 @@ impl FrameMaps {
 /// Predicted model vertex and normal maps of one pyramid level (world frame, `w = 1` valid).
 pub type Prediction = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
+/// What the last `fuse` left in its per-pixel buffers, one kernel's output each, none of
+/// them overwritten by a later kernel of the step: `wgslam compare` checks fusion kernel by
+/// kernel with these. Empty before the first fusion.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FusionBuffers {
+    /// `fuse_select`'s choice per pixel (`pack_depth_index(off_ray_m, surfel)`), or with
+    /// projective association `fuse_merge`'s merged flag; width x height.
+    pub assoc: Vec<u64>,
+    /// `fuse_merge_chosen`'s merged surfel per pixel (two entries each; see the kernel),
+    /// best-candidate association only (left as the last such fusion wrote it otherwise).
+    pub merged: Vec<[f32; 4]>,
+    /// `fuse_flags`' new-surfel flag per append slot (`layout::append_slots`).
+    pub flags: Vec<u32>,
+    /// `prefix_sum`'s slot per new surfel, per append slot.
+    pub offsets: Vec<u32>,
+}
+
 /// Work counters a backend reports for the benchmark.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct BackendCounters {
@@ -145,6 +162,8 @@ pub trait Inspect {
     /// The predicted model vertex and normal maps (world frame) of pyramid level `level`
     /// (0 = finest); empty before the first frame or beyond the pyramid.
     fn download_prediction(&mut self, level: usize) -> Result<Prediction>;
+    /// The last `fuse`'s per-pixel buffers ([`FusionBuffers`]).
+    fn download_fusion(&mut self) -> Result<FusionBuffers>;
     /// Work counters (zero for the CPU).
     fn counters(&self) -> BackendCounters {
         BackendCounters::default()
@@ -207,6 +226,9 @@ impl<B: Inspect + ?Sized> Inspect for Box<B> {
     }
     fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
         (**self).download_prediction(level)
+    }
+    fn download_fusion(&mut self) -> Result<FusionBuffers> {
+        (**self).download_fusion()
     }
     fn counters(&self) -> BackendCounters {
         (**self).counters()

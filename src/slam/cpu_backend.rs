@@ -14,7 +14,9 @@ use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, MapChunk, NormalParams,
     PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::{Backend, FrameLevel, FrameMaps, Inspect, Prediction, PyramidLevel};
+use crate::slam::backend::{
+    Backend, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
+};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
 use crate::slam::plan::{self, Buffer, Call};
@@ -456,6 +458,15 @@ impl Inspect for CpuBackend {
 
     fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
         Ok(self.prediction.get(level).cloned().unwrap_or_default())
+    }
+
+    fn download_fusion(&mut self) -> Result<FusionBuffers> {
+        Ok(FusionBuffers {
+            assoc: self.assoc.clone(),
+            merged: self.merged.clone(),
+            flags: self.add_flags.clone(),
+            offsets: self.add_offsets.clone(),
+        })
     }
 }
 

@@ -16,7 +16,7 @@ use crate::layout::{
     ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
-    Backend, BackendCounters, FrameMaps, Inspect, Prediction, PyramidLevel,
+    Backend, BackendCounters, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
 };
 use crate::slam::map::SurfelMap;
 use crate::Result;
@@ -129,6 +129,9 @@ impl<B: Backend + Inspect> Inspect for Instrumented<B> {
     }
     fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
         self.inner.download_prediction(level)
+    }
+    fn download_fusion(&mut self) -> Result<FusionBuffers> {
+        self.inner.download_fusion()
     }
     fn counters(&self) -> BackendCounters {
         self.inner.counters()

@@ -22,9 +22,9 @@ use serde::Serialize;
 
 use crate::dataset::Sequence;
 use crate::layout::{ICP_COUNT_INDEX, ICP_SYSTEM_LEN};
-use crate::slam::backend::{Backend, FrameMaps, Inspect};
+use crate::slam::backend::{Backend, FrameMaps, FusionBuffers, Inspect};
 use crate::slam::instrumented::Instrumented;
-use crate::slam::params::SlamParams;
+use crate::slam::params::{Association, SlamParams};
 use crate::slam::pipeline::Slam;
 use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
@@ -198,6 +198,84 @@ pub struct FrameDiff {
     pub surfels: (usize, usize),
     /// The maps after this frame (lockstep mode, on the frames whose map is compared).
     pub map: Option<SurfelMapDiff>,
+    /// Fusion kernel by kernel (lockstep mode, frames both backends fused).
+    pub fusion: Option<FusionKernelDiff>,
+}
+
+/// Fusion's per-pixel outputs compared kernel by kernel, in the order of the step's plan
+/// ([`crate::slam::plan::fuse`]): the buffers no later kernel of the step overwrites
+/// ([`FusionBuffers`]). Reported with a fusion violation, to say which kernel the backends
+/// first parted at; it sets no limit of its own.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct FusionKernelDiff {
+    /// Best-candidate association: pixels where `fuse_select` chose another surfel (or one
+    /// backend none); projective: pixels whose `fuse_merge` flag differs.
+    pub assoc_pixels: usize,
+    /// Largest difference of any component of `fuse_merge_chosen`'s merged surfel per
+    /// pixel (best candidate only; metres for positions and radii).
+    pub merged_max_abs: f64,
+    /// Append slots whose new-surfel flag (`fuse_flags`) differs.
+    pub flag_slots: usize,
+    /// Append slots whose new-surfel slot (`prefix_sum` over the flags) differs.
+    pub offset_slots: usize,
+}
+
+impl FusionKernelDiff {
+    /// Compares two backends' fusion buffers.
+    pub fn of(a: &FusionBuffers, b: &FusionBuffers, best_candidate: bool) -> Self {
+        // The surfel a key names (low word), or none (key 0).
+        let choice = |k: u64| (k != 0).then_some(k as u32);
+        let assoc_pixels = a
+            .assoc
+            .iter()
+            .zip(&b.assoc)
+            .filter(|&(&x, &y)| match best_candidate {
+                true => choice(x) != choice(y),
+                false => (x != 0) != (y != 0),
+            })
+            .count()
+            + a.assoc.len().abs_diff(b.assoc.len());
+        let merged_max_abs = match best_candidate && a.merged.len() == b.merged.len() {
+            true => a
+                .merged
+                .iter()
+                .zip(&b.merged)
+                .flat_map(|(x, y)| x.iter().zip(y).map(|(p, q)| (p - q).abs() as f64))
+                .fold(0.0, f64::max),
+            false => 0.0,
+        };
+        let differ = |x: &[u32], y: &[u32]| {
+            x.iter().zip(y).filter(|(p, q)| p != q).count() + x.len().abs_diff(y.len())
+        };
+        FusionKernelDiff {
+            assoc_pixels,
+            merged_max_abs,
+            flag_slots: differ(&a.flags, &b.flags),
+            offset_slots: differ(&a.offsets, &b.offsets),
+        }
+    }
+
+    /// The first kernel, in plan order, whose output differs, and how.
+    pub fn first_difference(&self, best_candidate: bool) -> Option<String> {
+        let assoc_kernel = match best_candidate {
+            true => "fuse_select",
+            false => "fuse_merge",
+        };
+        if self.assoc_pixels > 0 {
+            Some(format!("{assoc_kernel} ({} pixels)", self.assoc_pixels))
+        } else if self.merged_max_abs > 0.0 {
+            Some(format!(
+                "fuse_merge_chosen (merged surfels up to {:.3e} apart)",
+                self.merged_max_abs
+            ))
+        } else if self.flag_slots > 0 {
+            Some(format!("fuse_flags ({} slots)", self.flag_slots))
+        } else if self.offset_slots > 0 {
+            Some(format!("prefix_sum ({} slots)", self.offset_slots))
+        } else {
+            None
+        }
+    }
 }
 
 /// The largest difference of each kind over the frames compared (and the maps).
@@ -342,6 +420,7 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     params.validate()?;
     let names = (a.name().to_string(), b.name().to_string());
     let compacts = params.fusion.unstable_removal.is_some();
+    let best_candidate = params.fusion.association == Association::BestCandidate;
     let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
     let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
     let limits = Limits::of(mode, (first..=last).count());
@@ -389,6 +468,14 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
         };
         let (mm, deg) = pose_diff(&ra.t_cam_to_world, &rb.t_cam_to_world);
         let fused_surfels = sa.backend.fused_surfels.zip(sb.backend.fused_surfels);
+        let fusion = match (mode, fused_surfels) {
+            (Mode::Lockstep { .. }, Some(_)) => Some(FusionKernelDiff::of(
+                &sa.backend.download_fusion()?,
+                &sb.backend.download_fusion()?,
+                best_candidate,
+            )),
+            _ => None,
+        };
         let map = match (&mut a_map, mode) {
             (Some(a_map), Mode::Lockstep { map_every }) => {
                 *a_map = sa.backend.download_map()?;
@@ -411,8 +498,9 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
             fused_surfels,
             surfels: (ra.surfels, rb.surfels),
             map,
+            fusion,
         };
-        check_frame(&d, &limits, compacts, &mut violations);
+        check_frame(&d, &limits, compacts, best_candidate, &mut violations);
         worst.add_frame(&d);
         frames.push(d);
     }
@@ -455,7 +543,13 @@ fn describe_unmatched(m: &SurfelMapDiff) -> String {
 
 /// Pushes a line per bound `d` exceeds, naming the frame and the stage. `compacts`: the
 /// profile removes unstable surfels (otherwise the count after the frame is the fused one).
-fn check_frame(d: &FrameDiff, limits: &Limits, compacts: bool, violations: &mut Vec<String>) {
+fn check_frame(
+    d: &FrameDiff,
+    limits: &Limits,
+    compacts: bool,
+    best_candidate: bool,
+    violations: &mut Vec<String>,
+) {
     use tolerance::*;
     let i = d.index;
     let mut check = |ok: bool, stage: &str, what: String| {
@@ -498,7 +592,16 @@ fn check_frame(d: &FrameDiff, limits: &Limits, compacts: bool, violations: &mut 
         check(
             count_rel_diff((ca, cb)) <= limits.surfel_count_rel_diff,
             "fusion",
-            format!("surfel counts {ca} vs {cb}"),
+            match d
+                .fusion
+                .as_ref()
+                .and_then(|k| k.first_difference(best_candidate))
+            {
+                Some(first) => {
+                    format!("surfel counts {ca} vs {cb}; first kernel to differ: {first}")
+                }
+                None => format!("surfel counts {ca} vs {cb}"),
+            },
         );
     }
     if compacts || d.fused_surfels.is_none() {
