@@ -36,14 +36,13 @@
 //! | [`scan`] | point-to-point ICP for point clouds (readers, nearest neighbours, odometry) |
 //! | [`geometry`] | SE(3), intrinsics, the rigid-alignment rotation |
 //! | [`dataset`], [`io`] | sequences in; trajectories, PLY and atomic writes |
-//! | [`eval`], [`stats`] | ATE / RPE with the TUM benchmark's definitions; medians |
+//! | `eval`, `stats` | ATE / RPE with the TUM benchmark's definitions; medians |
 //! | [`render`] | headless pictures of maps and overlays, trajectory plots |
 //! | [`tools`] | the jobs: run, two-frame ICP, CPU-vs-GPU compare, bench |
-//! | [`batch`] | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
+//! | `batch` | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
 //! | [`cli`] | argument parsing and printing only |
 
-#[doc(hidden)]
-pub mod batch;
+pub(crate) mod batch;
 #[doc(hidden)]
 pub mod cli;
 #[doc(hidden)]
@@ -67,8 +66,7 @@ pub mod render;
 pub mod scan;
 #[doc(hidden)]
 pub mod slam;
-#[doc(hidden)]
-pub mod stats;
+pub(crate) mod stats;
 #[doc(hidden)]
 pub mod tools;
 

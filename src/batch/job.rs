@@ -67,7 +67,7 @@ pub struct JobRecord {
 #[derive(Debug)]
 pub enum Outcome {
     /// Its outputs were complete already; nothing ran.
-    Skipped(Box<JobRecord>),
+    Skipped,
     /// It ran (successfully or not): the record written.
     Ran(Box<JobRecord>),
     /// Ctrl-C or SIGTERM: the run in flight was stopped; no record written.
@@ -149,8 +149,8 @@ impl Runner {
         spec: &JobSpec,
         progress: &dyn Fn(&str, u64, u64),
     ) -> Result<Outcome> {
-        if let Ok(rec) = self.completed(spec) {
-            return Ok(Outcome::Skipped(Box::new(rec)));
+        if self.completed(spec).is_ok() {
+            return Ok(Outcome::Skipped);
         }
         let dir = self.job_dir(&spec.id);
         if dir.exists() {

@@ -213,7 +213,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
             eprintln!("{tag}: starting");
         }
         match r.run(i, job, &progress)? {
-            Outcome::Skipped(_) => say(format!("{tag}: outputs complete, skipped")),
+            Outcome::Skipped => say(format!("{tag}: outputs complete, skipped")),
             Outcome::Ran(rec) => match &rec.error {
                 None => say(format!("{tag}: ok in {:.1} s", rec.wall_s)),
                 Some(e) => {

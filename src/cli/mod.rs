@@ -2,23 +2,23 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`pipeline_args`] | the options `run`, `icp`, `compare` and `bench` share: the sequence, `--params FILE.toml`, every parameter override (the key table of parameter files and manifests) |
-//! | [`params_file`] | reading and writing parameter files: the one parser of `--params` files and manifest overrides |
-//! | [`run`](mod@run), [`icp`](mod@icp), [`compare`](mod@compare), [`bench`](mod@bench) | the dense pipeline's commands |
-//! | [`eval`] | ATE / RPE of two trajectories |
+//! | `pipeline_args` | the options `run`, `icp`, `compare` and `bench` share: the sequence, `--params FILE.toml`, every parameter override (the key table of parameter files and manifests) |
+//! | `params_file` | reading and writing parameter files: the one parser of `--params` files and manifest overrides |
+//! | `run`, `icp`, `compare`, `bench` | the dense pipeline's commands |
+//! | `eval` | ATE / RPE of two trajectories |
 //! | [`render`] | `render`: a map PLY to a PNG |
 //! | [`scan`] | point-cloud registration, odometry and its benchmark |
-//! | [`batch`] | `batch`: manifests of many runs |
+//! | `batch` | `batch`: manifests of many runs |
 
-pub mod batch;
-pub mod bench;
-pub mod compare;
-pub mod eval;
-pub mod icp;
-pub mod params_file;
-pub mod pipeline_args;
+pub(crate) mod batch;
+pub(crate) mod bench;
+pub(crate) mod compare;
+pub(crate) mod eval;
+pub(crate) mod icp;
+pub(crate) mod params_file;
+pub(crate) mod pipeline_args;
 pub mod render;
-pub mod run;
+pub(crate) mod run;
 pub mod scan;
 
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Command-line front ends of scan registration: `register`, `odometry` and `bench-scan`
 //! (clap argument structs and run functions the main CLI dispatches to). Parsing and
 //! printing only; the algorithms live in [`crate::scan`], the bench-scan benchmark in
-//! [`crate::scan::bench_scan`].
+//! `crate::scan::bench_scan`.
 
 use std::path::{Path, PathBuf};
 

@@ -5,9 +5,9 @@
 //! metres (divide by [`Sequence::depth_scale`]), filtering and downsampling happen elsewhere.
 //! Ground-truth poses are `t_cam_to_world` in metres, exactly as the dataset gives them.
 
-pub mod frame;
-pub mod icl;
-pub mod tum;
+pub(crate) mod frame;
+pub(crate) mod icl;
+pub(crate) mod tum;
 
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};

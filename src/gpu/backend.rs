@@ -1,6 +1,6 @@
 //! The GPU backend: runs the dense-SLAM steps of [`crate::slam::backend::Backend`] as the
 //! WGSL kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`, in the order
-//! of each step's plan ([`crate::slam::plan`], shared with the CPU backend): one compute
+//! of each step's plan (`crate::slam::plan`, shared with the CPU backend): one compute
 //! pass per planned kernel (one per map chunk for the kernels that walk the map), one
 //! submission per step.
 //!

@@ -13,7 +13,7 @@
 //! - [`map_buffers`]: the surfel map as chunks of storage buffers (structure of arrays).
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU, each recorded from its plan
-//!   ([`crate::slam::plan`]); beside it, private: `kernels` (the pipelines), `resources`
+//!   (`crate::slam::plan`); beside it, private: `kernels` (the pipelines), `resources`
 //!   (parameter and frame buffers), `bind_groups`, `compaction`, `recording` (passes and
 //!   per-kernel timing), `steps` (the steps' passes), `inspect` (downloads and uploads).
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.

@@ -3,9 +3,9 @@
 //! This module only reads and writes files; it holds no algorithm code. Every output file
 //! goes through [`atomic::write_atomic`], so a failed run never leaves a half-written file.
 
-pub mod atomic;
+pub(crate) mod atomic;
 pub mod ply;
-pub mod text;
+pub(crate) mod text;
 pub mod trajectory;
 
 pub use atomic::write_atomic;

@@ -7,20 +7,20 @@
 //! the GPU pass lives in [`gpu`]. This module knows cameras, views and images, not files
 //! other than the PNG it is asked to write; trajectory plots are in `crate::render::plot`.
 //!
-//! Submodules: [`view`] (what a pixel shows, image sizes), [`framing`] (virtual cameras
-//! that frame a cloud), [`overlay`] (ICP before/after pictures), [`outputs`] (the pictures
+//! Submodules: `view` (what a pixel shows, image sizes), `framing` (virtual cameras
+//! that frame a cloud), `overlay` (ICP before/after pictures), `outputs` (the pictures
 //! a run writes), [`gpu`] and [`layout`] (the GPU pass and its parameter struct).
 //!
 //! Virtual cameras use the pinhole model of [`Intrinsics`] with `fy > 0` (x right, y down,
 //! z ahead); a dataset camera with negative `fy` can be passed as is to render what it saw.
 
-pub mod framing;
+pub(crate) mod framing;
 pub mod gpu;
 pub mod layout;
 pub mod outputs;
-pub mod overlay;
+pub(crate) mod overlay;
 pub mod plot;
-pub mod view;
+pub(crate) mod view;
 
 pub use framing::{
     default_camera, framing_camera, framing_intrinsics, look_rotation, robust_bounds,

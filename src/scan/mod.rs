@@ -4,14 +4,14 @@
 //! maps SOURCE coordinates into TARGET coordinates (metres). Trajectories are
 //! `t_scan_to_world`. This is not the dense RGB-D tracker (point-to-plane, projective).
 
-pub mod align;
-pub mod bench;
-pub mod bench_scan;
-pub mod cloud;
+pub(crate) mod align;
+pub(crate) mod bench;
+pub(crate) mod bench_scan;
+pub(crate) mod cloud;
 pub mod gpu;
-pub mod icp;
+pub(crate) mod icp;
 pub mod layout;
-pub mod nn;
+pub(crate) mod nn;
 pub mod odometry;
 pub mod read;
 pub mod write;

@@ -3,7 +3,7 @@
 //! and out of a backend, which only the tools (outputs, `compare`, `bench`) and the tests
 //! need. Both are implemented by the CPU reference ([`crate::slam::cpu_backend`]) and the
 //! GPU ([`crate::gpu::backend`]); [`SlamBackend`] is the two together, for `Box<dyn _>`.
-//! Also the per-frame maps the traits exchange. Not the step order: see [`crate::slam::plan`].
+//! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
     BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
@@ -124,7 +124,7 @@ pub trait Backend {
     /// `project_model` then `predict_model` at `params.t_world_to_cam`
     /// (`surfel_count` is filled in by the backend), then `pyramid_model` for each entry of
     /// `pyramid` (the same levels as the last `preprocess`'s). When the map last changed in
-    /// a best-candidate `fuse` at the same view ([`crate::slam::fused_view::FusedView`]), that fusion's index map
+    /// a best-candidate `fuse` at the same view (`crate::slam::fused_view::FusedView`), that fusion's index map
     /// stands in for `project_model`'s.
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`

@@ -1,5 +1,5 @@
 //! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors, each step in
-//! the order of its plan ([`crate::slam::plan`], shared with the GPU backend).
+//! the order of its plan (`crate::slam::plan`, shared with the GPU backend).
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap

@@ -1,17 +1,17 @@
 //! Dense RGB-D SLAM's frame loop and the backends that run it: the fixed step list
 //! ([`pipeline`]), the host-side 6x6 solve ([`solve`]), the surfel map as the host holds it
 //! ([`map`]), the CPU reference backend ([`cpu_backend`]), the run-time choice between it
-//! and the GPU backend ([`any_backend`]) and a step-watching decorator ([`instrumented`]).
+//! and the GPU backend (`any_backend`) and a step-watching decorator (`instrumented`).
 //! The GPU backend itself lives in [`crate::gpu::backend`], beside the wgpu code it needs.
 
 pub mod any_backend;
 pub mod backend;
 pub mod cpu_backend;
-pub mod fused_view;
-pub mod instrumented;
+pub(crate) mod fused_view;
+pub(crate) mod instrumented;
 pub mod map;
 pub mod params;
 pub mod pipeline;
-pub mod plan;
+pub(crate) mod plan;
 pub mod solve;
-pub mod step_params;
+pub(crate) mod step_params;

@@ -4,7 +4,7 @@
 //! Each backend runs in its own child process (`wgslam bench-one`), so peak memory (VmHWM)
 //! is that backend's alone, and both are measured in the same `wgslam bench` invocation so
 //! the GPU/CPU ratio compares like with like. Per-stage times come from a second pass with
-//! [`crate::slam::instrumented::Instrumented`], which waits for the device after each stage; frame times come
+//! `crate::slam::instrumented::Instrumented`, which waits for the device after each stage; frame times come
 //! from the first pass, which does not. Every pass decodes each frame before processing it
 //! ([`run::Decode::BeforeEachFrame`]), so decoding never competes with a backend for a
 //! core; its time is reported on its own line.

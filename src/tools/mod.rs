@@ -1,13 +1,13 @@
 //! The jobs a user runs on top of the SLAM core, as library functions the CLI calls:
 //! the batch run over a sequence with its outputs ([`run`]), the two-frame ICP experiment
-//! ([`two_frame`]), the CPU-vs-GPU comparison ([`compare`]) and the benchmark ([`bench`](mod@bench));
+//! (`two_frame`), the CPU-vs-GPU comparison (`compare`) and the benchmark (`bench`);
 //! with the `rerun` feature, the Rerun recording of a run (`rerun_log`).
 //! They compute and write results; parsing arguments and printing tables is `crate::cli`.
 
 pub mod bench;
 pub mod compare;
-pub mod long_run;
+pub(crate) mod long_run;
 #[cfg(feature = "rerun")]
-pub mod rerun_log;
+pub(crate) mod rerun_log;
 pub mod run;
-pub mod two_frame;
+pub(crate) mod two_frame;

@@ -26,6 +26,7 @@ use crate::slam::backend::{Backend, FrameMaps, FusionBuffers, Inspect};
 use crate::slam::instrumented::Instrumented;
 use crate::slam::params::{Association, SlamParams};
 use crate::slam::pipeline::Slam;
+use crate::slam::plan::Call;
 use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
@@ -203,7 +204,7 @@ pub struct FrameDiff {
 }
 
 /// Fusion's per-pixel outputs compared kernel by kernel, in the order of the step's plan
-/// ([`crate::slam::plan::fuse`]): the buffers no later kernel of the step overwrites
+/// (`crate::slam::plan::fuse`): the buffers no later kernel of the step overwrites
 /// ([`FusionBuffers`]). Reported with a fusion violation, to say which kernel the backends
 /// first parted at; it sets no limit of its own.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -258,20 +259,30 @@ impl FusionKernelDiff {
     /// The first kernel, in plan order, whose output differs, and how.
     pub fn first_difference(&self, best_candidate: bool) -> Option<String> {
         let assoc_kernel = match best_candidate {
-            true => "fuse_select",
-            false => "fuse_merge",
-        };
+            true => Call::FuseSelect,
+            false => Call::FuseMerge,
+        }
+        .kernel();
         if self.assoc_pixels > 0 {
             Some(format!("{assoc_kernel} ({} pixels)", self.assoc_pixels))
         } else if self.merged_max_abs > 0.0 {
             Some(format!(
-                "fuse_merge_chosen (merged surfels up to {:.3e} apart)",
+                "{} (merged surfels up to {:.3e} apart)",
+                Call::FuseMergeChosen.kernel(),
                 self.merged_max_abs
             ))
         } else if self.flag_slots > 0 {
-            Some(format!("fuse_flags ({} slots)", self.flag_slots))
+            Some(format!(
+                "{} ({} slots)",
+                Call::FuseFlags.kernel(),
+                self.flag_slots
+            ))
         } else if self.offset_slots > 0 {
-            Some(format!("prefix_sum ({} slots)", self.offset_slots))
+            Some(format!(
+                "{} ({} slots)",
+                Call::FuseScan.kernel(),
+                self.offset_slots
+            ))
         } else {
             None
         }
