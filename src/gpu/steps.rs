@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use super::backend::GpuBackend;
 use super::bind_groups::{BindGroups, CompactionGroups};
+use super::context::GpuContext;
 use super::kernel::Kernel;
 use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
@@ -160,26 +161,17 @@ impl Backend for GpuBackend {
         let (w, h) = (params.width, params.height);
         let (k, ctx) = (&self.kernels, &self.ctx);
         let grid = StepGrid {
-            image: [&k.depth_to_vertex, &k.bilateral_filter, &k.vertex_to_normal]
-                .map(|kernel| {
-                    (
-                        kernel_name(kernel),
-                        kernel.grid_workgroups_for_image(ctx, w, h),
-                    )
-                })
-                .into(),
+            image: image_grids(
+                ctx,
+                &[&k.depth_to_vertex, &k.bilateral_filter, &k.vertex_to_normal],
+                w,
+                h,
+            ),
             levels: pyramid
                 .iter()
                 .map(|p| {
-                    let (w, h) = (p.down.width, p.down.height);
-                    [&k.pyramid_depth, &k.vertex_to_normal]
-                        .map(|kernel| {
-                            (
-                                kernel_name(kernel),
-                                kernel.grid_workgroups_for_image(ctx, w, h),
-                            )
-                        })
-                        .into()
+                    let kernels = [&k.pyramid_depth, &k.vertex_to_normal];
+                    image_grids(ctx, &kernels, p.down.width, p.down.height)
                 })
                 .collect(),
             ..StepGrid::default()
@@ -250,23 +242,11 @@ impl Backend for GpuBackend {
         let plan = plan::predict(project, pyramid.len());
         let (k, ctx) = (&self.kernels, &self.ctx);
         let mut grid = StepGrid {
-            image: [(
-                "predict_model",
-                k.predict_model
-                    .grid_workgroups_for_image(ctx, f.width, f.height),
-            )]
-            .into(),
+            image: image_grids(ctx, &[&k.predict_model], f.width, f.height),
             levels: f
                 .levels
                 .iter()
-                .map(|l| {
-                    [(
-                        "pyramid_model",
-                        k.pyramid_model
-                            .grid_workgroups_for_image(ctx, l.width, l.height),
-                    )]
-                    .into()
-                })
+                .map(|l| image_grids(ctx, &[&k.pyramid_model], l.width, l.height))
                 .collect(),
             chunks: self.chunk_workgroups(&self.kernels.project_model),
             ..StepGrid::default()
@@ -358,14 +338,12 @@ impl Backend for GpuBackend {
         let plan = plan::fuse(&params);
         let (f, k, ctx) = (self.frame(), &self.kernels, &self.ctx);
         let mut grid = StepGrid {
-            image: [&k.fuse_add, &k.fuse_flags, &k.fuse_merge_chosen]
-                .map(|kernel| {
-                    (
-                        kernel_name(kernel),
-                        kernel.grid_workgroups_for_image(ctx, f.width, f.height),
-                    )
-                })
-                .into(),
+            image: image_grids(
+                ctx,
+                &[&k.fuse_add, &k.fuse_flags, &k.fuse_merge_chosen],
+                f.width,
+                f.height,
+            ),
             chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
             ..StepGrid::default()
         };
@@ -515,6 +493,24 @@ impl Backend for GpuBackend {
     fn finish(&mut self) -> Result<()> {
         self.ctx.wait_idle()
     }
+}
+
+/// The image grids of per-pixel `kernels` over a `width x height` map, by kernel name.
+fn image_grids(
+    ctx: &GpuContext,
+    kernels: &[&Kernel],
+    width: u32,
+    height: u32,
+) -> BTreeMap<&'static str, [u32; 2]> {
+    kernels
+        .iter()
+        .map(|k| {
+            (
+                kernel_name(k),
+                k.grid_workgroups_for_image(ctx, width, height),
+            )
+        })
+        .collect()
 }
 
 /// A kernel's name as the `'static` key of a [`StepGrid`] map.
