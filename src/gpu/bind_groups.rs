@@ -156,11 +156,7 @@ impl BindGroups {
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
             project_model: per_chunk(&k.project_model, u.project.binding()),
             predict_model: per_chunk(&k.predict_model, u.project.binding()),
-            icp_reduce: over_frame(
-                &k.icp_reduce,
-                u.icp.binding(),
-                vec![("partials", r.partials.binding())],
-            ),
+            icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
             fuse_select: per_chunk(&k.fuse_select, u.fuse.binding()),
             fuse_merge: per_chunk(&k.fuse_merge, u.fuse.binding()),
             fuse_merge_chosen: per_chunk(&k.fuse_merge_chosen, u.fuse.binding()),

@@ -103,11 +103,6 @@ impl Kernel {
         })
     }
 
-    /// The bindings reflected from the kernel's WGSL, in `@binding` order.
-    pub fn bindings(&self) -> &[ReflectedBinding] {
-        &self.bindings
-    }
-
     /// A bind group with each `(name, resource)` at the binding whose WGSL variable is
     /// `name`; the order of `resources` does not matter.
     ///
@@ -298,7 +293,7 @@ fn texture(sample_type: wgpu::TextureSampleType) -> wgpu::BindingType {
 }
 
 /// The explicit bind-group layout entries of reflected bindings, compute stage only.
-pub fn layout_entries(bindings: &[ReflectedBinding]) -> Vec<wgpu::BindGroupLayoutEntry> {
+fn layout_entries(bindings: &[ReflectedBinding]) -> Vec<wgpu::BindGroupLayoutEntry> {
     bindings
         .iter()
         .map(|b| wgpu::BindGroupLayoutEntry {

@@ -38,5 +38,5 @@ pub mod timing;
 pub use backend::GpuBackend;
 pub use buffers::{GpuArray, ParamBuffer, Readback, StatsSnapshot};
 pub use context::GpuContext;
-pub use kernel::{layout_entries, reflect, Kernel, ReflectedBinding};
+pub use kernel::{reflect, Kernel, ReflectedBinding};
 pub use timing::{StageTime, StageTimer};

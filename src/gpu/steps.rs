@@ -248,9 +248,12 @@ impl Backend for GpuBackend {
                 .iter()
                 .map(|l| image_grids(ctx, &[&k.pyramid_model], l.width, l.height))
                 .collect(),
-            chunks: self.chunk_workgroups(&self.kernels.project_model),
             ..StepGrid::default()
         };
+        // Only a fresh projection walks the map (see `plan::predict`).
+        if plan.contains(&Call::ProjectModel) {
+            grid.chunks = self.chunk_workgroups(&self.kernels.project_model);
+        }
         if plan.contains(&Call::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
