@@ -52,6 +52,31 @@ struct PyramidParams {
     _pad: u32,
 }
 
+// Mirrors `layout::FernParams` (fern_encode): the level-0 size and one fern cell's size.
+struct FernParams {
+    width: u32,
+    height: u32,
+    cell_width: u32,
+    cell_height: u32,
+    fern_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// Mirrors `layout::Fern`: a cell of the fern grid and the red, green, blue (0..255) and
+// depth (metres) thresholds.
+struct Fern {
+    cell_u: u32,
+    cell_v: u32,
+    _pad0: u32,
+    _pad1: u32,
+    threshold: vec4<f32>,
+}
+
+// The code of a fern whose cell has no valid depth (mirrors `layout::FERN_NO_DEPTH`).
+const FERN_NO_DEPTH: u32 = 16u;
+
 // Mirrors `layout::BilateralParams` (bilateral_filter).
 struct BilateralParams {
     fx: f32,
@@ -133,13 +158,16 @@ struct CompactParams {
 }
 
 // Floats in one reduced ICP system (mirrors `layout::ICP_SYSTEM_LEN`): 21 of AᵀA (upper
-// triangle, row-major), 6 of Aᵀb, the inlier count and the sum of squared residuals.
-const ICP_SYSTEM_LEN: u32 = 29u;
+// triangle, row-major), 6 of Aᵀb, the inlier count, the sum of squared residuals and the
+// candidate count (pixels past filter 1).
+const ICP_SYSTEM_LEN: u32 = 30u;
 // Where the parts start (mirror `layout::ICP_ATB_OFFSET`, `ICP_COUNT_INDEX`,
-// `ICP_RESIDUAL_INDEX`): Aᵀb at 21..27, the count at 27, the squared residuals at 28.
+// `ICP_RESIDUAL_INDEX`, `ICP_CANDIDATE_INDEX`): Aᵀb at 21..27, the count at 27, the
+// squared residuals at 28, the candidates at 29.
 const ICP_ATB_OFFSET: u32 = 21u;
 const ICP_COUNT_INDEX: u32 = 27u;
 const ICP_RESIDUAL_INDEX: u32 = 28u;
+const ICP_CANDIDATE_INDEX: u32 = 29u;
 
 // Mirrors `layout::MapChunk`: one chunk of the surfel map (three storage arrays of `slots`
 // surfels; surfel i of the map is element i - base of the chunk that holds it). Kernels

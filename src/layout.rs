@@ -262,15 +262,61 @@ pub struct CompactParams {
     pub max_age_frames: u32,
 }
 
+/// Parameters of `fern_encode` (mirrors `FernParams` in common.wgsl): the frame's level-0
+/// size and the cell each fern averages over (the image cut into a grid of
+/// [`FERN_GRID`] cells, rounded up, as ElasticFusion's ferns read an image downsampled
+/// to 80 x 60).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct FernParams {
+    /// Level-0 map size, pixels.
+    pub width: u32,
+    pub height: u32,
+    /// One cell's size, pixels.
+    pub cell_width: u32,
+    pub cell_height: u32,
+    /// Ferns to encode (entries of `ferns` and `codes`).
+    pub fern_count: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+/// One randomised fern (mirrors `Fern` in common.wgsl): a cell of the grid and four
+/// thresholds; its code is four bits, mean red, green and blue (0..255) and mean depth
+/// (metres) of the cell's valid pixels each above its threshold.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct Fern {
+    /// Cell column and row in the [`FERN_GRID`].
+    pub cell_u: u32,
+    pub cell_v: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    /// Red, green, blue (0..255) and depth (metres) thresholds.
+    pub threshold: [f32; 4],
+}
+
+/// The fern grid, cells across and down (ElasticFusion's 80 x 60 small image).
+pub const FERN_GRID: [u32; 2] = [80, 60];
+/// The code of a fern whose cell has no valid depth (mirrors `FERN_NO_DEPTH` in
+/// common.wgsl): never equal to a real code (0..15).
+pub const FERN_NO_DEPTH: u32 = 16;
+
 /// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major) + 6 (Aᵀb)
-/// + inlier count + sum of squared residuals (mirrors `ICP_SYSTEM_LEN` in common.wgsl).
-pub const ICP_SYSTEM_LEN: usize = 29;
+/// + inlier count + sum of squared residuals + candidate count (mirrors `ICP_SYSTEM_LEN`
+/// in common.wgsl).
+pub const ICP_SYSTEM_LEN: usize = 30;
 /// Index of the first of the 6 Aᵀb entries in the system (after the 21 of AᵀA).
 pub const ICP_ATB_OFFSET: usize = 21;
 /// Index of the inlier count in the system.
 pub const ICP_COUNT_INDEX: usize = 27;
 /// Index of the sum of squared residuals (m²) in the system.
 pub const ICP_RESIDUAL_INDEX: usize = 28;
+/// Index of the candidate count in the system: source pixels that passed filter 1 (inside
+/// the image, onto a valid target), inliers or not; the tracking-health inlier fraction is
+/// inliers / candidates.
+pub const ICP_CANDIDATE_INDEX: usize = 29;
 
 /// Surfels per culling block (mirrors `BLOCK_SURFELS` in common.wgsl): the map is cut into
 /// runs of this many consecutive slots, each with a world-frame bounding box

@@ -22,6 +22,7 @@ pub mod compact_flags;
 pub mod compact_scatter;
 pub mod cross_covariance;
 pub mod depth_to_vertex;
+pub mod fern_encode;
 pub mod fuse_add;
 pub mod fuse_flags;
 pub mod fuse_merge;

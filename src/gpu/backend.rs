@@ -23,7 +23,7 @@
 //! surfel map lives on the GPU for the whole run and grows before a fusion could overflow
 //! it (its last chunk x1.5 by a GPU-side copy, then new chunks). Per frame the host reads
 //! back only the ICP system (per iteration, `icp_reduce`'s per-workgroup partials summed on
-//! the GPU by `icp_reduce_final`: 29 floats, 116 bytes) and the 4-byte surfel counter.
+//! the GPU by `icp_reduce_final`: 30 floats, 120 bytes) and the 4-byte surfel counter.
 //! The `compact` step's flags, offsets and second map (`Compaction`) are allocated at its
 //! first call and follow the map as it grows; after it the two map sets swap (and so do
 //! their bind groups).
@@ -101,6 +101,8 @@ pub struct GpuBackend {
     pub(super) profiler: Option<Profiler>,
     /// Buffers of the `compact` step, `None` until its first call.
     pub(super) compaction: Option<Compaction>,
+    /// Buffers of `fern_encode`, `None` until its first call.
+    pub(super) ferns: Option<super::ferns::FernBuffers>,
 }
 
 impl GpuBackend {
@@ -223,6 +225,7 @@ impl GpuBackend {
             spare_bind_groups: None,
             profiler: None,
             compaction: None,
+            ferns: None,
         })
     }
 

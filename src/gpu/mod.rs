@@ -22,6 +22,7 @@ pub mod backend;
 mod bind_groups;
 pub mod buffers;
 mod compaction;
+mod ferns;
 pub mod context;
 pub mod images;
 mod inspect;

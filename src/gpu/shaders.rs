@@ -56,6 +56,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         "pyramid_model",
         include_str!("../../shaders/pyramid_model.wgsl"),
     ),
+    (
+        "fern_encode",
+        include_str!("../../shaders/fern_encode.wgsl"),
+    ),
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     (
         "icp_reduce_final",

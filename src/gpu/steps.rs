@@ -13,7 +13,7 @@ use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, PyramidLevel};
@@ -227,6 +227,12 @@ impl Backend for GpuBackend {
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         let mut params = *params;
         params.surfel_count = self.count as u32;
+        let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
+        if project {
+            // The index map is about to hold another view (a relocalisation attempt
+            // predicts at a keyframe's pose): the fused one is gone.
+            self.fused_view = None;
+        }
         let f = self.frame();
         let made: Vec<(u32, u32)> = f.levels.iter().map(|l| (l.width, l.height)).collect();
         let asked: Vec<(u32, u32)> = pyramid
@@ -238,7 +244,6 @@ impl Backend for GpuBackend {
                 "predict() asked for pyramid levels {asked:?} but preprocess() made {made:?}"
             )));
         }
-        let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
         let plan = plan::predict(project, pyramid.len());
         let (k, ctx) = (&self.kernels, &self.ctx);
         let mut grid = StepGrid {
@@ -329,6 +334,10 @@ impl Backend for GpuBackend {
             *s = x as f64;
         }
         Ok(sys)
+    }
+
+    fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
+        self.encode_ferns_on_gpu(params, ferns)
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {

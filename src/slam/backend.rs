@@ -6,7 +6,7 @@
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
-    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
@@ -128,8 +128,11 @@ pub trait Backend {
     /// stands in for `project_model`'s.
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
-    /// carry that level's size and intrinsics): the summed 29-entry system.
+    /// carry that level's size and intrinsics): the summed 30-entry system.
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
+    /// `fern_encode` over the last `preprocess`'s level-0 maps: the code of each of the
+    /// first `params.fern_count` of `ferns` (for the relocalisation keyframe database).
+    fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>>;
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
     /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
     /// `capacity` are filled in by the backend, which grows the map first when needed).
@@ -199,6 +202,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         (**self).icp_system(level, params)
+    }
+    fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
+        (**self).encode_ferns(params, ferns)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         (**self).fuse(params)

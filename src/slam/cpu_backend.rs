@@ -11,7 +11,7 @@
 use crate::cpu;
 use crate::layout::{append_slots, scan_params};
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, MapChunk, NormalParams,
+    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, MapChunk, NormalParams,
     PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
@@ -187,6 +187,11 @@ impl Backend for CpuBackend {
         let n = (params.width * params.height) as usize;
         let chunk = MapChunk::whole(self.map.len());
         let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
+        if project {
+            // The index map is about to hold another view (a relocalisation attempt
+            // predicts at a keyframe's pose): the fused one is gone.
+            self.fused_view = None;
+        }
         self.prediction
             .resize_with(1 + pyramid.len(), Default::default);
         for call in plan::predict(project, pyramid.len()) {
@@ -259,6 +264,18 @@ impl Backend for CpuBackend {
             pred_normal,
             normal_depth,
         ))
+    }
+
+    fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
+        let mut codes = vec![0; params.fern_count as usize];
+        cpu::fern_encode::fern_encode(
+            params,
+            ferns,
+            &self.frame.normal_depth,
+            &self.frame.color,
+            &mut codes,
+        );
+        Ok(codes)
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {

@@ -1,0 +1,79 @@
+//! The GPU side of the relocalisation keyframe database's encoding: `fern_encode`'s
+//! buffers (made at the first call, grown when more ferns are asked for) and its dispatch
+//! and read-back of one `u32` code per fern (2 KB for the default 500 ferns).
+
+use super::backend::GpuBackend;
+use super::buffers::{GpuArray, ParamBuffer, Readback};
+use super::context::GpuContext;
+use super::recording::{record_passes, submit_profiled};
+use crate::layout::{Fern, FernParams};
+use crate::Result;
+
+/// `fern_encode`'s parameters, ferns, codes and the codes' read-back.
+pub(super) struct FernBuffers {
+    params: ParamBuffer<FernParams>,
+    ferns: GpuArray<Fern>,
+    codes: GpuArray<u32>,
+    readback: Readback<u32>,
+}
+
+impl FernBuffers {
+    fn new(ctx: &GpuContext, params: &FernParams, count: usize) -> Result<Self> {
+        let mut ferns = GpuArray::new(ctx, "ferns", count)?;
+        ferns.set_len(count);
+        let mut codes = GpuArray::new(ctx, "fern codes", count)?;
+        codes.set_len(count);
+        Ok(FernBuffers {
+            params: ParamBuffer::new(ctx, "FernParams", params),
+            ferns,
+            codes,
+            readback: Readback::new(ctx, "fern codes read-back", count),
+        })
+    }
+}
+
+impl GpuBackend {
+    /// `fern_encode` over the frame's level-0 maps; see `Backend::encode_ferns`.
+    pub(super) fn encode_ferns_on_gpu(
+        &mut self,
+        params: &FernParams,
+        ferns: &[Fern],
+    ) -> Result<Vec<u32>> {
+        let n = params.fern_count as usize;
+        assert!(ferns.len() >= n, "{} ferns for fern_count {n}", ferns.len());
+        if n == 0 {
+            return Ok(vec![]);
+        }
+        let ctx = &self.ctx;
+        if self.ferns.as_ref().is_none_or(|b| b.ferns.capacity() < n) {
+            self.ferns = Some(FernBuffers::new(ctx, params, n)?);
+        }
+        let b = self.ferns.as_mut().expect("just made");
+        let frame = self.frame.as_ref().expect("preprocess() runs before any other step");
+        ctx.scoped("fern_encode", || {
+            b.params.write(ctx, params);
+            b.ferns.upload(ctx, &ferns[..n])?;
+            let group = self.kernels.fern_encode.bind_group(
+                ctx,
+                &[
+                    ("params", b.params.binding()),
+                    ("ferns", b.ferns.binding()),
+                    ("normal_depth", frame.normal_depth.binding()),
+                    ("color", frame.color.binding()),
+                    ("codes", b.codes.binding()),
+                ],
+            );
+            let workgroups = (n as u32).div_ceil(64).min(ctx.reduction_workgroups().max(1));
+            let mut enc = ctx.encoder("fern_encode");
+            record_passes(
+                ctx,
+                &mut self.profiler,
+                &mut enc,
+                &[(&self.kernels.fern_encode, &group, [workgroups, 1])],
+            )?;
+            b.readback.copy_from(&mut enc, &b.codes, n);
+            submit_profiled(ctx, &mut self.profiler, enc)?;
+            b.readback.read(ctx)
+        })
+    }
+}
