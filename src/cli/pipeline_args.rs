@@ -82,6 +82,27 @@ pub struct ParamOverrides {
     /// this (assignment 1e-6, robust 1e-5).
     #[arg(long)]
     pub icp_min_increment: Option<f64>,
+    /// Degenerate geometry: eigen-directions of the ICP system below this fraction of the
+    /// largest eigenvalue get no update (robust 1e-4); 0 refuses such a system instead
+    /// (assignment).
+    #[arg(long)]
+    pub icp_degenerate_ratio: Option<f64>,
+    /// Report frames whose tracking fails the health test as lost instead of fusing them
+    /// (both profiles true; false accepts every pose ICP returns).
+    #[arg(long)]
+    pub tracking_health: Option<bool>,
+    /// Health test: lost below this fraction of candidate pixels that are ICP inliers
+    /// (0.3).
+    #[arg(long)]
+    pub health_min_inliers: Option<f64>,
+    /// Health test: lost when the RMS residual is above this many times its typical value
+    /// (4).
+    #[arg(long)]
+    pub health_max_residual_ratio: Option<f64>,
+    /// After a lost frame, try ICP from the poses of similar keyframes (randomised-fern
+    /// database) (both profiles true; false retries only from the last tracked pose).
+    #[arg(long)]
+    pub relocalise: Option<bool>,
     /// Coarser ICP pyramid levels: half-width of the averaging window, pixels of the finer
     /// level (1).
     #[arg(long)]
@@ -173,6 +194,11 @@ impl ParamOverrides {
             icp_level_iters,
             icp_noise_weight,
             icp_min_increment,
+            icp_degenerate_ratio,
+            tracking_health,
+            health_min_inliers,
+            health_max_residual_ratio,
+            relocalise,
             pyramid_radius,
             pyramid_depth_gate_z2,
             fuse_dist,
@@ -206,6 +232,12 @@ impl ParamOverrides {
             icp_level_iters: icp_level_iters.or(lower.icp_level_iters),
             icp_noise_weight: icp_noise_weight.or(lower.icp_noise_weight),
             icp_min_increment: icp_min_increment.or(lower.icp_min_increment),
+            icp_degenerate_ratio: icp_degenerate_ratio.or(lower.icp_degenerate_ratio),
+            tracking_health: tracking_health.or(lower.tracking_health),
+            health_min_inliers: health_min_inliers.or(lower.health_min_inliers),
+            health_max_residual_ratio: health_max_residual_ratio
+                .or(lower.health_max_residual_ratio),
+            relocalise: relocalise.or(lower.relocalise),
             pyramid_radius: pyramid_radius.or(lower.pyramid_radius),
             pyramid_depth_gate_z2: pyramid_depth_gate_z2.or(lower.pyramid_depth_gate_z2),
             fuse_dist: fuse_dist.or(lower.fuse_dist),
@@ -248,6 +280,17 @@ impl ParamOverrides {
         set(&mut icp.level_iters, &self.icp_level_iters);
         set(&mut icp.noise_weight, &self.icp_noise_weight);
         set(&mut icp.min_increment, &self.icp_min_increment);
+        set(&mut icp.degenerate_eigen_ratio, &self.icp_degenerate_ratio);
+        if self.tracking_health == Some(false) {
+            p.health = None;
+        }
+        if let Some(h) = &mut p.health {
+            set(&mut h.min_inlier_fraction, &self.health_min_inliers);
+            set(&mut h.max_residual_ratio, &self.health_max_residual_ratio);
+        }
+        if self.relocalise == Some(false) {
+            p.relocalisation = None;
+        }
         set(&mut icp.pyramid.radius_px, &self.pyramid_radius);
         set(
             &mut icp.pyramid.max_depth_diff_per_m2,

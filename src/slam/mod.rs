@@ -13,5 +13,7 @@ pub mod map;
 pub mod params;
 pub mod pipeline;
 pub(crate) mod plan;
+pub mod health;
+pub mod keyframes;
 pub mod solve;
 pub(crate) mod step_params;

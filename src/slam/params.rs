@@ -56,6 +56,61 @@ pub struct SlamParams {
     pub icp: IcpSettings,
     /// Surfel fusion (`fuse_*`) and the removal of unstable surfels (`compact`).
     pub fusion: FusionSettings,
+    /// The tracking-health test that reports a frame as lost instead of fusing it at a
+    /// wrong pose (`slam::health`); `None` accepts every pose ICP returns, as before
+    /// (`--tracking-health false`).
+    pub health: Option<HealthSettings>,
+    /// Relocalisation after a lost frame from a fern keyframe database
+    /// (`slam::keyframes`); `None` only retries from the last tracked pose
+    /// (`--relocalise false`). Needs [`SlamParams::health`].
+    pub relocalisation: Option<RelocalisationSettings>,
+}
+
+/// The tracking-health test of a frame's final ICP state (see `slam::health` for the
+/// measurements behind the defaults).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct HealthSettings {
+    /// Lost below this fraction of candidate pixels (past filter 1) that are inliers at the
+    /// finest level's last iteration (`--health-min-inliers`).
+    pub min_inlier_fraction: f64,
+    /// Lost when the finest level's RMS residual is above this many times its typical
+    /// value (the median over the last tracked frames) (`--health-max-residual-ratio`).
+    pub max_residual_ratio: f64,
+    /// Lost when the frame's motion (translation or rotation) is above this many times its
+    /// typical per-frame value and above the floors below.
+    pub max_motion_ratio: f64,
+    /// Motion below these is never suspicious, metres and degrees per frame.
+    pub motion_floor_m: f64,
+    pub motion_floor_deg: f64,
+    /// Tracked frames before the residual and motion tests start (they need a typical
+    /// value); the inlier test holds from the second frame on.
+    pub warmup_frames: usize,
+    /// A recovery (a relocalisation attempt, or tracking from the last pose after lost
+    /// frames) must have a residual ratio at most this ...
+    pub recovery_max_residual_ratio: f64,
+    /// ... and an inlier fraction at least this times the typical one.
+    pub recovery_min_inlier_ratio: f64,
+}
+
+/// Relocalisation from the fern keyframe database.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct RelocalisationSettings {
+    /// Ferns per frame code.
+    pub ferns: usize,
+    /// A tracked frame becomes a keyframe when its dissimilarity to every keyframe (the
+    /// fraction of fern codes that differ) is above this.
+    pub keyframe_dissimilarity: f64,
+    /// Keyframes tried (ICP from their poses against the map) per lost frame, most alike
+    /// first.
+    pub candidates: usize,
+    /// Keyframes less alike than this are not tried.
+    pub min_similarity: f64,
+    /// A tracked frame also becomes a keyframe when every keyframe's pose is farther than
+    /// this (metres) or turned more than `keyframe_angle_deg` (degrees).
+    pub keyframe_distance_m: f64,
+    pub keyframe_angle_deg: f64,
+    /// The database's size limit (memory stays bounded on any sequence).
+    pub max_keyframes: usize,
 }
 
 /// How raw frames are read into the (downsampled) vertex maps (`depth_to_vertex`).
@@ -108,6 +163,11 @@ pub struct IcpSettings {
     pub min_increment: f64,
     /// How the frame's coarser pyramid levels are made (used with more than one level).
     pub pyramid: PyramidSettings,
+    /// Degenerate geometry: eigen-directions of AᵀA with an eigenvalue below this fraction
+    /// of the largest get no update (`solve::NormalEquations::solve_guarded`); 0 refuses a
+    /// system below `solve::MIN_RECIPROCAL_CONDITION` instead (the assignment's)
+    /// (`--icp-degenerate-ratio`).
+    pub degenerate_eigen_ratio: f64,
 }
 
 /// Surfel fusion: the association and its gates, the measurements' weights, duplicate
@@ -262,6 +322,35 @@ impl Default for BilateralSettings {
     }
 }
 
+impl Default for HealthSettings {
+    fn default() -> Self {
+        HealthSettings {
+            min_inlier_fraction: HEALTH_MIN_INLIER_FRACTION,
+            max_residual_ratio: HEALTH_MAX_RESIDUAL_RATIO,
+            max_motion_ratio: HEALTH_MAX_MOTION_RATIO,
+            motion_floor_m: HEALTH_MOTION_FLOOR_M,
+            motion_floor_deg: HEALTH_MOTION_FLOOR_DEG,
+            warmup_frames: HEALTH_WARMUP_FRAMES,
+            recovery_max_residual_ratio: HEALTH_RECOVERY_MAX_RESIDUAL_RATIO,
+            recovery_min_inlier_ratio: HEALTH_RECOVERY_MIN_INLIER_RATIO,
+        }
+    }
+}
+
+impl Default for RelocalisationSettings {
+    fn default() -> Self {
+        RelocalisationSettings {
+            ferns: RELOC_FERNS,
+            keyframe_dissimilarity: RELOC_KEYFRAME_DISSIMILARITY,
+            candidates: RELOC_CANDIDATES,
+            min_similarity: RELOC_MIN_SIMILARITY,
+            keyframe_distance_m: RELOC_KEYFRAME_DISTANCE_M,
+            keyframe_angle_deg: RELOC_KEYFRAME_ANGLE_DEG,
+            max_keyframes: RELOC_MAX_KEYFRAMES,
+        }
+    }
+}
+
 impl Default for SlamParams {
     /// The robust profile, as on the command line.
     fn default() -> Self {
@@ -293,6 +382,7 @@ impl SlamParams {
                 level_iters: vec![10],
                 min_increment: 1e-6,
                 pyramid: PyramidSettings::default(),
+                degenerate_eigen_ratio: 0.0,
             },
             fusion: FusionSettings {
                 dist_m: 0.03,
@@ -302,6 +392,8 @@ impl SlamParams {
                 prune_scale: 0.0,
                 unstable_removal: None,
             },
+            health: Some(HealthSettings::default()),
+            relocalisation: Some(RelocalisationSettings::default()),
         };
         match profile {
             Profile::Assignment => assignment,
@@ -314,6 +406,7 @@ impl SlamParams {
                     noise_weight: true,
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
                     min_increment: ROBUST_MIN_INCREMENT,
+                    degenerate_eigen_ratio: ROBUST_DEGENERATE_EIGEN_RATIO,
                     ..assignment.icp
                 },
                 fusion: FusionSettings {
@@ -415,6 +508,41 @@ impl SlamParams {
                 return fail(format!("{flag} {v} must be 0 (off) or positive"));
             }
         }
+        if !(icp.degenerate_eigen_ratio.is_finite()
+            && (0.0..1.0).contains(&icp.degenerate_eigen_ratio))
+        {
+            return fail(format!(
+                "--icp-degenerate-ratio {} must be 0 (off) or a fraction below 1",
+                icp.degenerate_eigen_ratio
+            ));
+        }
+        if let Some(h) = &self.health {
+            if !(0.0..=1.0).contains(&h.min_inlier_fraction) {
+                return fail(format!(
+                    "--health-min-inliers {} must be a fraction between 0 and 1",
+                    h.min_inlier_fraction
+                ));
+            }
+            for (flag, v) in [
+                ("--health-max-residual-ratio", h.max_residual_ratio),
+                ("health.max_motion_ratio", h.max_motion_ratio),
+                ("health.motion_floor_m", h.motion_floor_m),
+                ("health.motion_floor_deg", h.motion_floor_deg),
+            ] {
+                if !positive(v) {
+                    return fail(format!("{flag} {v} must be positive"));
+                }
+            }
+        }
+        if let Some(r) = &self.relocalisation {
+            if r.ferns == 0 || r.ferns > MAX_FERNS || r.candidates == 0 || r.max_keyframes == 0 {
+                return fail(format!(
+                    "relocalisation: ferns ({}, at most {MAX_FERNS}), candidates ({}) and \
+                     max_keyframes ({}) must be at least 1",
+                    r.ferns, r.candidates, r.max_keyframes
+                ));
+            }
+        }
         if let Some(r) = &f.unstable_removal {
             if !off_or_positive(r.stable_weight as f64) {
                 return fail(format!(
@@ -432,6 +560,9 @@ impl SlamParams {
 
 /// Largest [`InputSettings::downsample`]: 16 is 40x30 maps from 640x480 frames.
 pub const MAX_DOWNSAMPLE: u32 = 16;
+
+/// Ferns per code at most (the database stores a byte per fern per keyframe).
+pub const MAX_FERNS: usize = 4096;
 
 /// Largest [`BilateralSettings::radius_px`]: a 33x33 window is already far past any
 /// useful one.
@@ -570,3 +701,31 @@ mod tests {
         p.validate().unwrap();
     }
 }
+
+/// The robust profile's degenerate-direction guard: well below the smallest eigenvalue
+/// ratio of any frame of the sequences here, far above a plane's (see `slam::health`).
+pub const ROBUST_DEGENERATE_EIGEN_RATIO: f64 = 1e-4;
+
+/// Tracking-health defaults (both profiles); the measurements are in `slam::health`'s
+/// header.
+pub const HEALTH_MIN_INLIER_FRACTION: f64 = 0.3;
+pub const HEALTH_MAX_RESIDUAL_RATIO: f64 = 4.0;
+pub const HEALTH_MAX_MOTION_RATIO: f64 = 8.0;
+pub const HEALTH_MOTION_FLOOR_M: f64 = 0.10;
+pub const HEALTH_MOTION_FLOOR_DEG: f64 = 8.0;
+pub const HEALTH_WARMUP_FRAMES: usize = 5;
+pub const HEALTH_RECOVERY_MAX_RESIDUAL_RATIO: f64 = 1.3;
+pub const HEALTH_RECOVERY_MIN_INLIER_RATIO: f64 = 0.75;
+
+/// Relocalisation defaults: ElasticFusion's 500 ferns and its keyframe threshold (0.3095,
+/// rounded), five candidates per lost frame, candidates at least 30 % alike (its
+/// `blockHDAware > 0.3`), at most 10,000 keyframes (5 MB of codes).
+pub const RELOC_FERNS: usize = 500;
+pub const RELOC_KEYFRAME_DISSIMILARITY: f64 = 0.3;
+pub const RELOC_CANDIDATES: usize = 5;
+/// Keyframes at least every 0.15 m or 10 degrees of the path: within the basin of ICP's
+/// 0.10 m / 20 degree gates from any point of the path.
+pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
+pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
+pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
+pub const RELOC_MAX_KEYFRAMES: usize = 10_000;

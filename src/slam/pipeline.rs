@@ -45,8 +45,10 @@ use glam::DMat4;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
 use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::health::{HealthMonitor, TrackingHealth};
+use crate::slam::keyframes::{KeyframeDatabase, Match};
 use crate::slam::params::{PoseSource, SlamParams};
-use crate::slam::solve::{increment_size, update_pose, NormalEquations, SolveError};
+use crate::slam::solve::{increment_size, update_pose, NormalEquations};
 use crate::Result;
 
 /// One ICP iteration's statistics.
@@ -56,8 +58,14 @@ pub struct IcpIteration {
     pub level: usize,
     /// Correspondences that passed both filters.
     pub inliers: u64,
+    /// Source pixels that passed filter 1 (inside the image, onto a valid target).
+    pub candidates: u64,
     /// Mean squared point-to-plane residual before the update, m².
     pub mean_sq_residual: f64,
+    /// Smallest over largest eigenvalue of AᵀA; `None` when the system was refused.
+    pub eigen_ratio: Option<f64>,
+    /// Eigen-directions the guarded solve held (degenerate geometry).
+    pub held_directions: usize,
 }
 
 /// How a frame's pose was obtained.
@@ -72,26 +80,68 @@ pub enum TrackStatus {
     /// ICP refused a later system at the finest level; the last good pose is kept. (A
     /// refused system at a coarser level ends that level only; the finer ones go on.)
     Stopped(String),
-    /// ICP refused the first system (at the coarsest level): tracking lost, previous pose
-    /// kept, frame not fused.
+    /// Tracking from the last pose failed, and ICP from the pose of the keyframe that was
+    /// frame `keyframe_frame` passed the health test: the frame is fused there.
+    Relocalised { keyframe_frame: u32 },
+    /// Tracking lost: ICP refused the first system, or its result failed the health test,
+    /// and no relocalisation passed. The frame is not fused and has no tracked pose.
     Lost(String),
-    /// No valid depth pixel: skipped, previous pose kept, frame not fused.
+    /// No valid depth pixel: skipped, not fused, no tracked pose.
     EmptyDepth,
+}
+
+impl TrackStatus {
+    /// Whether the frame has a pose the run stands by (written to `trajectory.tum`, fused).
+    pub fn is_tracked(&self) -> bool {
+        !matches!(self, TrackStatus::Lost(_) | TrackStatus::EmptyDepth)
+    }
+}
+
+/// One relocalisation attempt: ICP from a keyframe's pose against the map.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RelocalisationAttempt {
+    /// The keyframe and how alike its fern code is.
+    pub keyframe: Match,
+    /// The result's health (`None` when ICP refused its first system).
+    pub health: Option<TrackingHealth>,
+    /// `None` when accepted, else why not.
+    pub rejected: Option<String>,
 }
 
 /// What the pipeline did with one frame.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct FrameReport {
-    /// Pose of the camera, camera to world.
+    /// Pose of the camera, camera to world: the tracked pose, or for a frame without one
+    /// (lost, empty depth) the last tracked pose, which is not written as this frame's.
     #[serde(skip)]
     pub t_cam_to_world: DMat4,
     pub status: TrackStatus,
+    /// ICP iterations of the tracking attempt from the last tracked pose.
     pub iterations: Vec<IcpIteration>,
+    /// The health of that attempt (`None` for a given pose or without the test).
+    pub health: Option<TrackingHealth>,
+    /// Relocalisation attempts after it failed, in order (empty when none were made).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub relocalisation: Vec<RelocalisationAttempt>,
+    /// Whether the frame became a relocalisation keyframe.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub keyframe: bool,
     /// Surfels after fusing this frame.
     pub surfels: usize,
 }
 
-/// Drives a backend frame by frame; holds the pose and the frame counter.
+/// One ICP run from a start pose and what the health test made of it.
+struct Attempt {
+    t_world_to_cam: DMat4,
+    status: TrackStatus,
+    iterations: Vec<IcpIteration>,
+    health: Option<TrackingHealth>,
+    /// `Err(why)` when ICP refused its first system or the health test failed.
+    verdict: std::result::Result<(), String>,
+}
+
+/// Drives a backend frame by frame; holds the pose, the tracking health's running values
+/// and the relocalisation keyframe database.
 pub struct Slam<B: Backend> {
     pub backend: B,
     pub params: SlamParams,
@@ -99,12 +149,15 @@ pub struct Slam<B: Backend> {
     pub raw_intrinsics: Intrinsics,
     /// Intrinsics of the (downsampled) maps.
     pub intrinsics: Intrinsics,
-    /// Last accepted world-to-camera pose, `None` before the first frame.
+    /// Last tracked world-to-camera pose, `None` before the first frame.
     t_world_to_cam: Option<DMat4>,
+    /// Frames processed since the last tracked one (0 right after a tracked frame).
+    frames_since_tracked: u32,
+    monitor: HealthMonitor,
+    keyframes: Option<KeyframeDatabase>,
 }
 
 impl<B: Backend> Slam<B> {
-    /// A pipeline over `backend` for raw frames with `raw_intrinsics`.
     /// A tracker for `seq`: its raw intrinsics, and its depth scale in place of
     /// `params.input.depth_scale` (the sequence knows its units; this is the one place that
     /// copies them into the parameters).
@@ -117,12 +170,19 @@ impl<B: Backend> Slam<B> {
     /// A tracker for frames with `raw_intrinsics` and `params.input.depth_scale` as given.
     pub fn new(backend: B, raw_intrinsics: Intrinsics, params: SlamParams) -> Self {
         let intrinsics = raw_intrinsics.downsampled(params.input.downsample.max(1));
+        let keyframes = match (&params.health, &params.relocalisation) {
+            (Some(_), Some(r)) => Some(KeyframeDatabase::new(r)),
+            _ => None,
+        };
         Slam {
             backend,
             params,
             raw_intrinsics,
             intrinsics,
             t_world_to_cam: None,
+            frames_since_tracked: 0,
+            monitor: HealthMonitor::default(),
+            keyframes,
         }
     }
 
@@ -159,69 +219,216 @@ impl<B: Backend> Slam<B> {
         }
         let valid = raw_depth.iter().filter(|&&d| d > 0).count();
         if valid == 0 {
-            return Ok(self.report(self.t_world_to_cam, TrackStatus::EmptyDepth, vec![]));
+            self.frames_since_tracked += 1;
+            return Ok(self.untracked(TrackStatus::EmptyDepth, vec![], None, vec![]));
         }
         let pyramid = self.pyramid_levels();
         self.backend
             .preprocess(&pp, bp.as_ref(), &np, &pyramid, raw_depth, raw_rgba)?;
-        let (t_world_to_cam, status, iterations) = match given {
-            Some(t) => (t, TrackStatus::Given, vec![]),
-            None => self.track(&pyramid)?,
+        let Some(t_prev) = self.t_world_to_cam.filter(|_| given.is_none()) else {
+            let t = given.expect("a first frame or a ground-truth pose");
+            return self.accept(frame_id, t, TrackStatus::Given, vec![], None, vec![], false);
         };
-        if let TrackStatus::Lost(_) = status {
-            return Ok(self.report(self.t_world_to_cam, status, iterations));
+        let gap = self.frames_since_tracked + 1;
+        let first = self.attempt(&pyramid, t_prev, Some(gap))?;
+        if first.verdict.is_ok() {
+            let motion_counts = gap == 1;
+            return self.accept(
+                frame_id,
+                first.t_world_to_cam,
+                first.status,
+                first.iterations,
+                first.health,
+                vec![],
+                motion_counts,
+            );
         }
+        let why = first.verdict.clone().unwrap_err();
+        let (relocalised, tried) = self.relocalise(&pyramid)?;
+        if let Some((att, keyframe_frame)) = relocalised {
+            return self.accept(
+                frame_id,
+                att.t_world_to_cam,
+                TrackStatus::Relocalised { keyframe_frame },
+                first.iterations,
+                first.health,
+                tried,
+                false,
+            );
+        }
+        self.frames_since_tracked += 1;
+        Ok(self.untracked(TrackStatus::Lost(why), first.iterations, first.health, tried))
+    }
+
+    /// The last tracked pose (the next frame's ICP starts from it), `None` before the
+    /// first frame.
+    pub fn t_world_to_cam(&self) -> Option<DMat4> {
+        self.t_world_to_cam
+    }
+
+    /// Replaces the last tracked pose: the next frame tracks from `t_world_to_cam` (`None`:
+    /// as before the first frame). With [`Inspect::upload_map`], puts this tracker into
+    /// another's state (`wgslam compare`'s lockstep mode).
+    ///
+    /// [`Inspect::upload_map`]: crate::slam::backend::Inspect::upload_map
+    pub fn set_t_world_to_cam(&mut self, t_world_to_cam: Option<DMat4>) {
+        self.t_world_to_cam = t_world_to_cam;
+    }
+
+    /// Keyframes in the relocalisation database (0 without relocalisation).
+    pub fn keyframe_count(&self) -> usize {
+        self.keyframes.as_ref().map_or(0, |k| k.len())
+    }
+
+    /// Fuses the frame at `t_world_to_cam` (world to camera), records its health, and
+    /// offers it to the keyframe database.
+    #[allow(clippy::too_many_arguments)]
+    fn accept(
+        &mut self,
+        frame_id: u32,
+        t_world_to_cam: DMat4,
+        status: TrackStatus,
+        iterations: Vec<IcpIteration>,
+        health: Option<TrackingHealth>,
+        relocalisation: Vec<RelocalisationAttempt>,
+        motion_counts: bool,
+    ) -> Result<FrameReport> {
         self.t_world_to_cam = Some(t_world_to_cam);
+        self.frames_since_tracked = 0;
         self.backend
             .fuse(&self.fuse_params(&t_world_to_cam, frame_id))?;
         if let Some(cp) = self.compact_params(frame_id) {
             self.backend.compact(&cp)?;
         }
-        Ok(self.report(Some(t_world_to_cam), status, iterations))
-    }
-
-    /// The last accepted world-to-camera pose (the next frame's ICP starts from it),
-    /// `None` before the first frame.
-    pub fn t_world_to_cam(&self) -> Option<DMat4> {
-        self.t_world_to_cam
-    }
-
-    /// Replaces the last accepted pose: the next frame tracks from `t_world_to_cam` (`None`:
-    /// as before the first frame). With [`Backend::upload_map`], puts this tracker into
-    /// another's state (`wgslam compare`'s lockstep mode).
-    pub fn set_t_world_to_cam(&mut self, t_world_to_cam: Option<DMat4>) {
-        self.t_world_to_cam = t_world_to_cam;
-    }
-
-    fn report(
-        &self,
-        t_world_to_cam: Option<DMat4>,
-        status: TrackStatus,
-        iterations: Vec<IcpIteration>,
-    ) -> FrameReport {
-        FrameReport {
-            t_cam_to_world: se3::inverse_rigid(&t_world_to_cam.unwrap_or(DMat4::IDENTITY)),
+        // The health of the pose the frame was fused at: the attempt's from the last pose,
+        // or for a relocalised frame the accepted attempt's.
+        let fused_health = relocalisation
+            .iter()
+            .find(|a| a.rejected.is_none())
+            .and_then(|a| a.health)
+            .or(health);
+        if let Some(h) = &fused_health {
+            self.monitor.record(h, motion_counts);
+        }
+        let mut keyframe = false;
+        if let Some(db) = &self.keyframes {
+            let p = db.params(self.intrinsics.width, self.intrinsics.height);
+            let codes = self.backend.encode_ferns(&p, db.ferns())?;
+            let db = self.keyframes.as_mut().expect("checked");
+            keyframe = db.add_if_novel(frame_id, t_world_to_cam, &codes);
+        }
+        Ok(FrameReport {
+            t_cam_to_world: se3::inverse_rigid(&t_world_to_cam),
             status,
             iterations,
+            health,
+            relocalisation,
+            keyframe,
+            surfels: self.backend.surfel_count(),
+        })
+    }
+
+    /// The report of a frame that is not fused (lost or without depth).
+    fn untracked(
+        &self,
+        status: TrackStatus,
+        iterations: Vec<IcpIteration>,
+        health: Option<TrackingHealth>,
+        relocalisation: Vec<RelocalisationAttempt>,
+    ) -> FrameReport {
+        FrameReport {
+            t_cam_to_world: se3::inverse_rigid(&self.t_world_to_cam.unwrap_or(DMat4::IDENTITY)),
+            status,
+            iterations,
+            health,
+            relocalisation,
+            keyframe: false,
             surfels: self.backend.surfel_count(),
         }
     }
 
-    /// Frame-to-model ICP from the previous pose: predict once (every level), then iterate
+    /// ICP from `t_start` and the health test of its result (`motion_gap`: see
+    /// [`HealthMonitor::measure`]).
+    fn attempt(
+        &mut self,
+        pyramid: &[PyramidLevel],
+        t_start: DMat4,
+        motion_gap: Option<u32>,
+    ) -> Result<Attempt> {
+        let (t, status, iterations) = self.track(pyramid, t_start)?;
+        let health = self.params.health.as_ref().and_then(|s| {
+            self.monitor
+                .measure(s, &iterations, &t_start, &t, motion_gap)
+        });
+        // A recovery: after lost frames, or from a keyframe's pose.
+        let recovery = motion_gap != Some(1);
+        let verdict = match (&status, &self.params.health, &health) {
+            (TrackStatus::Lost(why), _, _) => Err(why.clone()),
+            (_, Some(s), Some(h)) if recovery => self.monitor.judge_recovery(s, h),
+            (_, Some(s), Some(h)) => self.monitor.judge(s, h),
+            _ => Ok(()),
+        };
+        Ok(Attempt {
+            t_world_to_cam: t,
+            status,
+            iterations,
+            health,
+            verdict,
+        })
+    }
+
+    /// After a failed attempt: ICP from the poses of the keyframes most like this frame,
+    /// most alike first, until one passes the health test. Returns the accepted attempt
+    /// and its keyframe's frame, and every attempt made.
+    #[allow(clippy::type_complexity)]
+    fn relocalise(
+        &mut self,
+        pyramid: &[PyramidLevel],
+    ) -> Result<(Option<(Attempt, u32)>, Vec<RelocalisationAttempt>)> {
+        let (Some(db), Some(settings)) = (&self.keyframes, &self.params.relocalisation) else {
+            return Ok((None, vec![]));
+        };
+        if db.is_empty() {
+            return Ok((None, vec![]));
+        }
+        let p = db.params(self.intrinsics.width, self.intrinsics.height);
+        let codes = self.backend.encode_ferns(&p, db.ferns())?;
+        let db = self.keyframes.as_ref().expect("checked");
+        let candidates: Vec<(Match, DMat4)> = db
+            .nearest(&codes, settings.candidates)
+            .into_iter()
+            .filter(|m| m.similarity >= settings.min_similarity)
+            .map(|m| (m, db.keyframe(m.keyframe).t_world_to_cam))
+            .collect();
+        let mut tried = Vec::new();
+        for (m, t_keyframe) in candidates {
+            let att = self.attempt(pyramid, t_keyframe, None)?;
+            tried.push(RelocalisationAttempt {
+                keyframe: m,
+                health: att.health,
+                rejected: att.verdict.clone().err(),
+            });
+            if att.verdict.is_ok() {
+                return Ok((Some((att, m.frame_id)), tried));
+            }
+        }
+        Ok((None, tried))
+    }
+
+    /// Frame-to-model ICP from `t_start`: predict once (every level) at it, then iterate
     /// coarse to fine, each level starting from the pose the coarser one reached.
     fn track(
         &mut self,
         pyramid: &[PyramidLevel],
+        t_start: DMat4,
     ) -> Result<(DMat4, TrackStatus, Vec<IcpIteration>)> {
-        let t_prev = self
-            .t_world_to_cam
-            .expect("track() is only called after a first frame");
         self.backend
-            .predict(&self.project_params(&t_prev), pyramid)?;
-        let mut t = t_prev;
+            .predict(&self.project_params(&t_start), pyramid)?;
+        let mut t = t_start;
         let mut iterations = Vec::new();
         let mut status = TrackStatus::MaxIterations;
         let schedule = self.params.icp.level_iters.clone();
+        let guard = self.params.icp.degenerate_eigen_ratio;
         for (i, &max_iters) in schedule.iter().enumerate() {
             let level = schedule.len() - 1 - i;
             status = TrackStatus::MaxIterations;
@@ -230,15 +437,23 @@ impl<B: Backend> Slam<B> {
                     .backend
                     .icp_system(level, &self.icp_params(level, &t))?;
                 let eq = NormalEquations::decode(&sys);
+                let solved = eq.solve_guarded(guard);
+                let (eigen_ratio, held_directions) = match &solved {
+                    Ok(s) => (Some(s.eigen_ratio), s.held_directions),
+                    Err(_) => (None, 0),
+                };
                 iterations.push(IcpIteration {
                     level,
                     inliers: eq.inliers,
+                    candidates: eq.candidates,
                     mean_sq_residual: eq.mean_sq_residual(),
+                    eigen_ratio,
+                    held_directions,
                 });
-                match eq.solve() {
-                    Ok(x) => {
-                        t = update_pose(&t, &x);
-                        let (r, tr) = increment_size(&x);
+                match solved {
+                    Ok(s) => {
+                        t = update_pose(&t, &s.x);
+                        let (r, tr) = increment_size(&s.x);
                         let min = self.params.icp.min_increment;
                         if r < min && tr < min {
                             status = TrackStatus::Converged;
@@ -246,7 +461,9 @@ impl<B: Backend> Slam<B> {
                         }
                     }
                     // The very first system: nothing to start from.
-                    Err(e) if iterations.len() == 1 => return Ok((t_prev, lost(&e), iterations)),
+                    Err(e) if iterations.len() == 1 => {
+                        return Ok((t_start, TrackStatus::Lost(e.to_string()), iterations))
+                    }
                     // A later one: keep the last good pose and go on at the next finer
                     // level (at the finest, stop there).
                     Err(e) => {
@@ -259,8 +476,4 @@ impl<B: Backend> Slam<B> {
         // The finest level's outcome.
         Ok((t, status, iterations))
     }
-}
-
-fn lost(e: &SolveError) -> TrackStatus {
-    TrackStatus::Lost(e.to_string())
 }

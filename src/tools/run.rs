@@ -65,8 +65,19 @@ pub struct TrackingCounts {
     pub converged: usize,
     pub max_iterations: usize,
     pub stopped: usize,
+    /// Frames placed by relocalisation after tracking from the last pose failed.
+    pub relocalised: usize,
+    /// Frames whose tracking was lost (not fused, no tracked pose).
     pub lost: usize,
     pub empty_depth: usize,
+    /// Frames whose finest-level solve held at least one degenerate direction.
+    pub degenerate: usize,
+    /// Keyframes in the relocalisation database at the end.
+    pub keyframes: usize,
+    /// The longest run of consecutive frames without a tracked pose (lost or empty).
+    pub longest_untracked_run: usize,
+    /// The first lost frame's sequence position, if any.
+    pub first_lost_frame: Option<usize>,
 }
 
 /// ATE and RPE against ground truth (TUM benchmark definitions).
@@ -233,14 +244,43 @@ fn run_frames_observed<B: Backend + Inspect>(
     Ok((outcomes, wall.elapsed().as_secs_f64()))
 }
 
-/// The estimated trajectory `(stamp, t_cam_to_world)`: every frame from the first one that
-/// was placed on (frames before it, with empty depth, have no pose).
+/// The estimated trajectory `(stamp, t_cam_to_world)`: the tracked frames only (a lost
+/// frame or one without depth has no pose; see [`TrackStatus::is_tracked`]).
 pub fn trajectory(frames: &[FrameOutcome]) -> Vec<(f64, DMat4)> {
     frames
         .iter()
-        .skip_while(|f| f.report.status == TrackStatus::EmptyDepth)
+        .filter(|f| f.report.status.is_tracked())
         .map(|f| (f.timestamp, f.report.t_cam_to_world))
         .collect()
+}
+
+/// How the run's frames were tracked (`keyframes`: the database's size at the end).
+pub fn tracking_counts(frames: &[FrameOutcome], keyframes: usize) -> TrackingCounts {
+    let mut counts = TrackingCounts {
+        keyframes,
+        ..TrackingCounts::default()
+    };
+    let mut run = 0;
+    for f in frames {
+        match f.report.status {
+            TrackStatus::Given => counts.given += 1,
+            TrackStatus::Converged => counts.converged += 1,
+            TrackStatus::MaxIterations => counts.max_iterations += 1,
+            TrackStatus::Stopped(_) => counts.stopped += 1,
+            TrackStatus::Relocalised { .. } => counts.relocalised += 1,
+            TrackStatus::Lost(_) => {
+                counts.lost += 1;
+                counts.first_lost_frame.get_or_insert(f.index);
+            }
+            TrackStatus::EmptyDepth => counts.empty_depth += 1,
+        }
+        if f.report.health.is_some_and(|h| h.held_directions > 0) {
+            counts.degenerate += 1;
+        }
+        run = if f.report.status.is_tracked() { 0 } else { run + 1 };
+        counts.longest_untracked_run = counts.longest_untracked_run.max(run);
+    }
+    counts
 }
 
 /// ATE/RPE of an estimated trajectory against ground truth, `None` without common stamps.
@@ -310,17 +350,7 @@ pub fn run_observed<B: Backend + Inspect>(
     let mut slam = Slam::for_sequence(backend, seq, params);
     let (frames, wall) = run_frames_observed(&mut slam, seq, frames, decode, on_frame, observer)?;
     let map = slam.backend.download_map()?;
-    let mut counts = TrackingCounts::default();
-    for f in &frames {
-        match f.report.status {
-            TrackStatus::Given => counts.given += 1,
-            TrackStatus::Converged => counts.converged += 1,
-            TrackStatus::MaxIterations => counts.max_iterations += 1,
-            TrackStatus::Stopped(_) => counts.stopped += 1,
-            TrackStatus::Lost(_) => counts.lost += 1,
-            TrackStatus::EmptyDepth => counts.empty_depth += 1,
-        }
-    }
+    let counts = tracking_counts(&frames, slam.keyframe_count());
     let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
     let total: f64 = times.iter().sum();
     let est = trajectory(&frames);
