@@ -21,7 +21,8 @@ use crate::{Error, Result};
 /// `compare` and `bench`, so they all accept the same options.
 #[derive(Debug, Clone, Default, Args)]
 pub struct PipelineArgs {
-    /// Sequence directory (TUM RGB-D or ICL-NUIM layout); default: the bundled frames.
+    /// Sequence directory in any layout wgslam reads (TUM RGB-D, ICL-NUIM, ETH3D, Bonn,
+    /// 7-Scenes/3DMatch, ScanNet, Replica; detected); default: the bundled frames.
     pub dataset: Option<PathBuf>,
     /// Read parameters from this TOML file: the options below without the dashes, e.g.
     /// `icp-dist = 0.08`, `bilateral = true`, `icp-level-iters = [10, 5, 4]`, `profile =
@@ -401,13 +402,18 @@ pub struct Setup {
 }
 
 impl Setup {
-    /// Opens the sequence with the dataset options applied.
+    /// Opens the sequence with the dataset options applied, and prints what opening it
+    /// decided on the user's behalf ([`dataset::Sequence::notes`]) on stderr.
     pub fn open_sequence(&self) -> Result<dataset::Sequence> {
         let root = self
             .dataset
             .clone()
             .unwrap_or_else(crate::cli::bundled_dataset);
-        dataset::open(&root, &self.set.sequence_options()?)
+        let seq = dataset::open(&root, &self.set.sequence_options()?)?;
+        for note in &seq.notes {
+            eprintln!("note: {note}");
+        }
+        Ok(seq)
     }
 
     /// The pipeline's parameters ([`ParamOverrides::slam_params`]), validated.

@@ -1,11 +1,16 @@
-//! One RGB-D frame decoded from its two PNG files, full resolution, row-major.
+//! One RGB-D frame decoded from its two image files (16-bit PNG depth; PNG or JPEG colour),
+//! at the depth image's full resolution, row-major.
 //!
-//! Decoding only: no depth scaling, filtering or downsampling (depth stays raw `u16`).
+//! Decoding, the layout's "no reading" depth value set to 0, and colour from a camera of
+//! another size resampled onto the depth image; no depth scaling, filtering or
+//! downsampling (depth stays raw `u16`).
 
 use std::path::Path;
 
 use image::{DynamicImage, ImageReader};
 
+use super::FrameConventions;
+use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
 /// One frame as decoded from disk, full resolution, row-major (`index = v * width + u`).
@@ -42,7 +47,7 @@ fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
         .map_err(|e| Error::io(path, e))?;
     reader.decode().map_err(|e| Error::Image {
         path: path.to_path_buf(),
-        what: format!("cannot decode {role} PNG (unreadable or truncated): {e}"),
+        what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
     })
 }
 
@@ -74,7 +79,16 @@ pub fn load_depth(path: &Path) -> Result<(u32, u32, Vec<u16>)> {
     }
 }
 
-/// Decodes a colour PNG, which must be 8-bit RGB or RGBA (alpha is dropped).
+/// Width and height of an image from its header, without decoding it.
+pub fn image_size(path: &Path) -> Result<(u32, u32)> {
+    image::image_dimensions(path).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        what: format!("cannot read the image's size: {e}"),
+    })
+}
+
+/// Decodes a colour image (PNG or JPEG), which must be 8-bit RGB or RGBA (alpha is
+/// dropped).
 pub fn load_rgb(path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
     match decode(path, "colour")? {
         DynamicImage::ImageRgb8(img) => {
@@ -90,27 +104,66 @@ pub fn load_rgb(path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
         other => Err(Error::Image {
             path: path.to_path_buf(),
             what: format!(
-                "colour must be an 8-bit RGB or RGBA PNG, found {}",
+                "colour must be an 8-bit RGB or RGBA image (PNG or JPEG), found {}",
                 describe(&other)
             ),
         }),
     }
 }
 
-/// Decodes both images of a frame and checks their sizes against each other and against
-/// the expected `(width, height)` of the intrinsics.
-pub fn load_frame(rgb_path: &Path, depth_path: &Path, expected: (u32, u32)) -> Result<RawFrame> {
-    let (dw, dh, depth) = load_depth(depth_path)?;
-    let (cw, ch, rgb) = load_rgb(rgb_path)?;
-    if (dw, dh) != (cw, ch) {
-        return Err(Error::Image {
-            path: rgb_path.to_path_buf(),
-            what: format!(
-                "colour image is {cw}x{ch} but its depth image {} is {dw}x{dh}",
-                depth_path.display()
-            ),
-        });
+/// Colour of a camera with intrinsics `color_k` (an image of `color_k.width` x
+/// `color_k.height`) seen at each pixel of a depth image with intrinsics `depth_k`,
+/// assuming both cameras share their optical centre and axes (ScanNet's exports): each
+/// depth pixel's ray is projected into the colour image and sampled bilinearly; rays that
+/// leave the colour image get black.
+pub fn resample_color(rgb: &[[u8; 3]], color_k: &Intrinsics, depth_k: &Intrinsics) -> Vec<[u8; 3]> {
+    let (cw, ch) = (color_k.width as usize, color_k.height as usize);
+    let mut out = Vec::with_capacity(depth_k.pixels());
+    for v in 0..depth_k.height {
+        let y = (v as f32 - depth_k.cy) / depth_k.fy;
+        let vc = color_k.fy * y + color_k.cy;
+        for u in 0..depth_k.width {
+            let x = (u as f32 - depth_k.cx) / depth_k.fx;
+            let uc = color_k.fx * x + color_k.cx;
+            if !(uc >= 0.0 && vc >= 0.0 && uc <= (cw - 1) as f32 && vc <= (ch - 1) as f32) {
+                out.push([0; 3]);
+                continue;
+            }
+            let (u0, v0) = (uc.floor() as usize, vc.floor() as usize);
+            let (u1, v1) = ((u0 + 1).min(cw - 1), (v0 + 1).min(ch - 1));
+            let (a, b) = (uc - u0 as f32, vc - v0 as f32);
+            let px = |uu: usize, vv: usize| rgb[vv * cw + uu];
+            let mut c = [0u8; 3];
+            for (k, ck) in c.iter_mut().enumerate() {
+                let top = (1.0 - a) * px(u0, v0)[k] as f32 + a * px(u1, v0)[k] as f32;
+                let bottom = (1.0 - a) * px(u0, v1)[k] as f32 + a * px(u1, v1)[k] as f32;
+                *ck = ((1.0 - b) * top + b * bottom).round() as u8;
+            }
+            out.push(c);
+        }
     }
+    out
+}
+
+/// Decodes both images of a frame and checks their sizes against each other and against
+/// the depth intrinsics `depth_k`; applies the layout's `conventions` (its "no reading"
+/// depth value becomes 0; colour from a camera with its own intrinsics is resampled onto
+/// the depth image).
+pub fn load_frame(
+    rgb_path: &Path,
+    depth_path: &Path,
+    depth_k: &Intrinsics,
+    conventions: &FrameConventions,
+) -> Result<RawFrame> {
+    let expected = (depth_k.width, depth_k.height);
+    let (dw, dh, mut depth) = load_depth(depth_path)?;
+    if let Some(invalid) = conventions.invalid_depth_raw {
+        depth
+            .iter_mut()
+            .filter(|d| **d == invalid)
+            .for_each(|d| *d = 0);
+    }
+    let (cw, ch, mut rgb) = load_rgb(rgb_path)?;
     if (dw, dh) != expected {
         return Err(Error::Image {
             path: depth_path.to_path_buf(),
@@ -120,10 +173,69 @@ pub fn load_frame(rgb_path: &Path, depth_path: &Path, expected: (u32, u32)) -> R
             ),
         });
     }
+    match &conventions.color_intrinsics {
+        Some(color_k) => {
+            if (cw, ch) != (color_k.width, color_k.height) {
+                return Err(Error::Image {
+                    path: rgb_path.to_path_buf(),
+                    what: format!(
+                        "colour image is {cw}x{ch} but the colour intrinsics are for {}x{}",
+                        color_k.width, color_k.height
+                    ),
+                });
+            }
+            rgb = resample_color(&rgb, color_k, depth_k);
+        }
+        None if (dw, dh) != (cw, ch) => {
+            return Err(Error::Image {
+                path: rgb_path.to_path_buf(),
+                what: format!(
+                    "colour image is {cw}x{ch} but its depth image {} is {dw}x{dh} (and the \
+                     layout gives no colour intrinsics to map one onto the other)",
+                    depth_path.display()
+                ),
+            });
+        }
+        None => {}
+    }
     Ok(RawFrame {
         width: dw,
         height: dh,
         depth,
         rgb,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resampling_a_double_size_colour_camera_picks_the_matching_pixels() {
+        let depth_k = Intrinsics {
+            width: 4,
+            height: 2,
+            fx: 2.0,
+            fy: 2.0,
+            cx: 1.5,
+            cy: 0.5,
+        };
+        // The same field of view at twice the size: depth pixel (u, v) is colour pixel
+        // (2u + 0.5, 2v + 0.5), halfway between four colour pixels.
+        let color_k = Intrinsics {
+            width: 8,
+            height: 4,
+            fx: 4.0,
+            fy: 4.0,
+            cx: 3.5,
+            cy: 1.5,
+        };
+        let rgb: Vec<[u8; 3]> = (0..32)
+            .map(|i| [(i % 8 * 10) as u8, (i / 8 * 10) as u8, 7])
+            .collect();
+        let out = resample_color(&rgb, &color_k, &depth_k);
+        assert_eq!(out.len(), 8);
+        assert_eq!(out[0], [5, 5, 7]);
+        assert_eq!(out[4 + 3], [65, 25, 7]);
+    }
 }

@@ -1,12 +1,27 @@
-//! RGB-D sequences on disk: layout detection (TUM RGB-D or ICL-NUIM), frame lists,
-//! ground truth, intrinsics, and decoding one frame at a time.
+//! RGB-D sequences on disk as the public datasets ship them: layout detection, frame lists,
+//! ground truth (one trajectory file or a pose file per frame), intrinsics and depth scale
+//! from the dataset's own files, and decoding one frame at a time.
 //!
-//! Not a preprocessor: frames come back at full resolution with raw `u16` depth; scaling to
-//! metres (divide by [`Sequence::depth_scale`]), filtering and downsampling happen elsewhere.
-//! Ground-truth poses are `t_cam_to_world` in metres, exactly as the dataset gives them.
+//! Layouts ([`Layout`]): TUM RGB-D, ICL-NUIM, ETH3D SLAM, Bonn (`tum.rs`, `icl.rs`,
+//! `eth3d.rs`, `bonn.rs`), the 7-Scenes / 3DMatch / tsdf-fusion frame files
+//! (`seven_scenes.rs`), ScanNet's SensReader export (`scannet.rs`) and Replica as NICE-SLAM
+//! ships it (`replica.rs`); `detect.rs` picks one.
+//!
+//! Not a preprocessor: frames come back at the depth image's full resolution with raw `u16`
+//! depth; scaling to metres (divide by [`Sequence::depth_scale`]), filtering and
+//! downsampling happen elsewhere. Ground-truth poses are `t_cam_to_world` in metres,
+//! exactly as the dataset gives them.
 
+pub(crate) mod bonn;
+pub(crate) mod detect;
+pub(crate) mod eth3d;
 pub(crate) mod frame;
 pub(crate) mod icl;
+pub(crate) mod matrix_file;
+pub(crate) mod numbered;
+pub(crate) mod replica;
+pub(crate) mod scannet;
+pub(crate) mod seven_scenes;
 pub(crate) mod tum;
 
 use std::ops::RangeInclusive;
@@ -21,7 +36,8 @@ use crate::{Error, Result};
 
 pub use frame::RawFrame;
 
-/// Raw depth units per metre when neither the options nor `camera.json` say otherwise.
+/// Raw depth units per metre when neither the options, `camera.json` nor the layout say
+/// otherwise (TUM RGB-D, ICL-NUIM, ETH3D and Bonn all use 5000).
 pub const DEFAULT_DEPTH_SCALE: f32 = 5000.0;
 /// Default association window in seconds (the TUM benchmark tools' default).
 pub const DEFAULT_MAX_TIME_DIFF: f64 = 0.02;
@@ -29,13 +45,17 @@ pub const DEFAULT_MAX_TIME_DIFF: f64 = 0.02;
 /// How to open a sequence; every field overrides what the directory says.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceOptions {
-    /// Ground-truth trajectory to use instead of the layout's default file.
+    /// Ground-truth trajectory (TUM format, associated by stamp) to use instead of the
+    /// layout's own ground truth.
     pub gt_path: Option<PathBuf>,
-    /// Intrinsics to use instead of `camera.json` or the layout's default.
+    /// Intrinsics to use instead of `camera.json` or the layout's. For layouts whose frames
+    /// carry no size elsewhere (7-Scenes, ScanNet, Replica) the image size is the depth
+    /// images' and only `fx, fy, cx, cy` are taken from here.
     pub intrinsics: Option<Intrinsics>,
-    /// Raw depth units per metre instead of `camera.json`'s or [`DEFAULT_DEPTH_SCALE`].
+    /// Raw depth units per metre instead of `camera.json`'s or the layout's.
     pub depth_scale: Option<f32>,
-    /// Largest |dt| in seconds (index units for ICL-NUIM) when associating streams.
+    /// Largest |dt| in seconds (frame-number units where stamps are frame numbers) when
+    /// associating streams and ground truth.
     pub max_time_diff: f64,
 }
 
@@ -57,17 +77,72 @@ pub enum Layout {
     Tum,
     /// ICL-NUIM TUM-compatible: `associations.txt` and `*.gt.freiburg` (stamps are indices).
     IclNuim,
+    /// ETH3D SLAM: TUM-like, with `associated.txt` and the intrinsics in `calibration.txt`.
+    Eth3d,
+    /// Bonn RGB-D Dynamic: the TUM layout in a folder named `rgbd_bonn_*`, with the Bonn
+    /// sensor's published intrinsics.
+    Bonn,
+    /// 7-Scenes / 3DMatch / tsdf-fusion: `frame-NNNNNN.{color.jpg|color.png, depth.png,
+    /// pose.txt}`, optional `camera-intrinsics.txt`, optionally in `seq-NN/` folders
+    /// (stamps are frame numbers).
+    SevenScenes,
+    /// ScanNet SensReader export: `color/N.jpg`, `depth/N.png`, `pose/N.txt`,
+    /// `intrinsic/intrinsic_{depth,color}.txt` (stamps are frame numbers).
+    ScanNet,
+    /// Replica as NICE-SLAM ships it: `results/frameNNNNNN.jpg`, `results/depthNNNNNN.png`,
+    /// `traj.txt`, `cam_params.json` (stamps are frame numbers).
+    Replica,
+}
+
+impl Layout {
+    /// The order [`detect::detect`] tries the layouts in: the TUM-like layouts with an
+    /// extra telltale (ETH3D's `calibration.txt`, Bonn's folder name) before plain TUM.
+    pub const DETECTION_ORDER: [Layout; 7] = [
+        Layout::Eth3d,
+        Layout::Bonn,
+        Layout::Tum,
+        Layout::IclNuim,
+        Layout::SevenScenes,
+        Layout::ScanNet,
+        Layout::Replica,
+    ];
+
+    /// The layout's name as users know it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Tum => "TUM RGB-D",
+            Layout::IclNuim => "ICL-NUIM",
+            Layout::Eth3d => "ETH3D SLAM",
+            Layout::Bonn => "Bonn RGB-D Dynamic",
+            Layout::SevenScenes => "7-Scenes/3DMatch frame files",
+            Layout::ScanNet => "ScanNet export",
+            Layout::Replica => "Replica (NICE-SLAM)",
+        }
+    }
 }
 
 /// One associated frame: its stamp, both image paths and its ground truth if any.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameRecord {
-    /// Depth stamp in seconds (TUM) or the frame index (ICL-NUIM).
+    /// Depth stamp in seconds (TUM, ETH3D, Bonn), or the frame index or number (ICL-NUIM,
+    /// 7-Scenes, ScanNet, Replica).
     pub timestamp: f64,
     pub rgb_path: PathBuf,
     pub depth_path: PathBuf,
-    /// Ground-truth camera-to-world pose (metres), nearest GT stamp within the window.
+    /// Ground-truth camera-to-world pose (metres): the frame's pose file, or the nearest
+    /// ground-truth stamp within the window.
     pub gt_cam_to_world: Option<DMat4>,
+}
+
+/// What a layout's images need beyond decoding to become a [`RawFrame`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameConventions {
+    /// A raw depth value that also means "no reading", besides 0 (65535 in 7-Scenes).
+    pub invalid_depth_raw: Option<u16>,
+    /// Intrinsics of the colour camera when its images are not the depth images' pixels
+    /// (ScanNet's 1296x968 colour): colour is resampled onto the depth image through them
+    /// (same optical centre, as ScanNet's exports assume).
+    pub color_intrinsics: Option<Intrinsics>,
 }
 
 /// An opened sequence: the associated frame list, intrinsics and depth scale.
@@ -75,12 +150,36 @@ pub struct FrameRecord {
 pub struct Sequence {
     pub root: PathBuf,
     pub layout: Layout,
-    /// Intrinsics of the full-resolution images.
+    /// Intrinsics of the full-resolution depth images.
     pub intrinsics: Intrinsics,
     /// Raw depth units per metre.
     pub depth_scale: f32,
     /// Frames in order of depth stamp; positions in this list are "frame numbers".
     pub frames: Vec<FrameRecord>,
+    /// How frames are decoded (invalid depth value, colour camera).
+    pub conventions: FrameConventions,
+    /// What opening decided on the user's behalf (defaults used, frames without ground
+    /// truth), one line each, for the command line to print.
+    pub notes: Vec<String>,
+}
+
+/// What a layout's own files say about a sequence, before the options apply.
+pub(crate) struct Listing {
+    /// Frames in order, with ground truth where the layout has it per frame.
+    pub frames: Vec<FrameRecord>,
+    /// A TUM trajectory to associate with the frames by stamp.
+    pub gt_file: Option<PathBuf>,
+    /// Intrinsics from the dataset's files (or the layout's published ones).
+    pub intrinsics: Option<Intrinsics>,
+    /// Why there are none and how to give them, when `intrinsics` is `None`.
+    pub no_intrinsics: String,
+    /// The depth images' size, for layouts with no other record of it: given intrinsics
+    /// take this size.
+    pub image_size: Option<(u32, u32)>,
+    /// Raw depth units per metre from the dataset or the layout's convention.
+    pub depth_scale: Option<f32>,
+    pub conventions: FrameConventions,
+    pub notes: Vec<String>,
 }
 
 /// `camera.json` in a dataset directory: intrinsics in pixels, optional depth scale.
@@ -119,89 +218,11 @@ fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
     Ok(Some(cam))
 }
 
-fn detect_layout(root: &Path) -> Result<Layout> {
-    if !root.is_dir() {
-        let kind = if root.exists() {
-            std::io::ErrorKind::NotADirectory
-        } else {
-            std::io::ErrorKind::NotFound
-        };
-        return Err(Error::io(
-            root,
-            std::io::Error::new(kind, "dataset directory does not exist"),
-        ));
-    }
-    // rgb.txt/depth.txt win: TUM users often add an associations.txt of their own.
-    if root.join("rgb.txt").is_file() && root.join("depth.txt").is_file() {
-        Ok(Layout::Tum)
-    } else if root.join("associations.txt").is_file() {
-        Ok(Layout::IclNuim)
-    } else {
-        Err(Error::format(
-            root,
-            "not a dataset: expected rgb.txt and depth.txt (TUM RGB-D) or associations.txt \
-             (ICL-NUIM)",
-        ))
-    }
-}
-
-/// Opens the sequence in `root`: detects the layout, associates frames, attaches ground
-/// truth and settles intrinsics (override > `camera.json` > layout default; TUM has no
-/// default) and depth scale (override > `camera.json` > 5000). Every listed image file
-/// must exist; images are only decoded by [`Sequence::load`].
-pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
-    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
-        return Err(Error::Argument(format!(
-            "max time difference must be finite and >= 0, got {}",
-            opts.max_time_diff
-        )));
-    }
-    let layout = detect_layout(root)?;
-    let camera = read_camera_json(&root.join("camera.json"))?;
-
-    let intrinsics = match (opts.intrinsics, &camera, layout) {
-        (Some(k), _, _) => k,
-        (None, Some(c), _) => Intrinsics {
-            width: c.width,
-            height: c.height,
-            fx: c.fx,
-            fy: c.fy,
-            cx: c.cx,
-            cy: c.cy,
-        },
-        (None, None, Layout::IclNuim) => Intrinsics::ICL_NUIM,
-        (None, None, Layout::Tum) => {
-            return Err(Error::Argument(format!(
-                "{}: TUM RGB-D sequences do not record their intrinsics; pass --intrinsics \
-                 (a preset such as fr1, fr2, fr3, or fx,fy,cx,cy) or add a camera.json",
-                root.display()
-            )))
-        }
-    };
-    let depth_scale = opts
-        .depth_scale
-        .or(camera.as_ref().and_then(|c| c.depth_scale))
-        .unwrap_or(DEFAULT_DEPTH_SCALE);
-    if !(depth_scale.is_finite() && depth_scale > 0.0) {
-        return Err(Error::Argument(format!(
-            "depth scale must be positive, got {depth_scale}"
-        )));
-    }
-
+/// The TUM-like layouts (TUM, ICL-NUIM, ETH3D, Bonn): frames from the association lists,
+/// ground truth from one trajectory file.
+fn stamped_listing(root: &Path, layout: Layout, max_time_diff: f64) -> Result<Listing> {
     // (stamp, rgb, depth) in order of depth stamp.
-    let (pairs, default_gt): (Vec<(f64, PathBuf, PathBuf)>, Option<PathBuf>) = match layout {
-        Layout::Tum => {
-            let rgb = tum::read_list(&root.join("rgb.txt"))?;
-            let depth = tum::read_list(&root.join("depth.txt"))?;
-            let rs: Vec<f64> = rgb.iter().map(|e| e.stamp).collect();
-            let ds: Vec<f64> = depth.iter().map(|e| e.stamp).collect();
-            let pairs = tum::associate(&ds, &rs, opts.max_time_diff)
-                .into_iter()
-                .map(|(id, ir)| (ds[id], root.join(&rgb[ir].path), root.join(&depth[id].path)))
-                .collect();
-            let gt = root.join("groundtruth.txt");
-            (pairs, gt.is_file().then_some(gt))
-        }
+    let (pairs, gt_file): (Vec<(f64, PathBuf, PathBuf)>, Option<PathBuf>) = match layout {
         Layout::IclNuim => {
             let assoc = icl::read_associations(&root.join("associations.txt"))?;
             let pairs = assoc
@@ -210,22 +231,141 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
                 .collect();
             (pairs, icl::find_ground_truth(root)?)
         }
+        Layout::Eth3d if root.join("associated.txt").is_file() => {
+            let pairs = eth3d::read_associated(&root.join("associated.txt"))?
+                .into_iter()
+                .map(|a| (a.stamp, root.join(a.rgb_path), root.join(a.depth_path)))
+                .collect();
+            let gt = root.join("groundtruth.txt");
+            (pairs, gt.is_file().then_some(gt))
+        }
+        _ => {
+            let rgb = tum::read_list(&root.join("rgb.txt"))?;
+            let depth = tum::read_list(&root.join("depth.txt"))?;
+            let rs: Vec<f64> = rgb.iter().map(|e| e.stamp).collect();
+            let ds: Vec<f64> = depth.iter().map(|e| e.stamp).collect();
+            let pairs = tum::associate(&ds, &rs, max_time_diff)
+                .into_iter()
+                .map(|(id, ir)| (ds[id], root.join(&rgb[ir].path), root.join(&depth[id].path)))
+                .collect();
+            let gt = root.join("groundtruth.txt");
+            (pairs, gt.is_file().then_some(gt))
+        }
     };
     if pairs.is_empty() {
         return Err(Error::format(
             root,
             format!(
                 "empty sequence: no colour/depth pairs{}",
-                if layout == Layout::Tum {
-                    format!(" within {} s of each other", opts.max_time_diff)
+                if matches!(layout, Layout::Tum | Layout::Bonn | Layout::Eth3d) {
+                    format!(" within {max_time_diff} s of each other")
                 } else {
                     String::new()
                 }
             ),
         ));
     }
-    for (_, rgb, depth) in &pairs {
-        for p in [rgb, depth] {
+    let mut image_size = None;
+    let (intrinsics, no_intrinsics) = match layout {
+        Layout::IclNuim => (Some(Intrinsics::ICL_NUIM), String::new()),
+        Layout::Bonn => (Some(bonn::INTRINSICS), String::new()),
+        Layout::Eth3d => {
+            // calibration.txt has no image size: the depth images have it.
+            let [fx, fy, cx, cy] = eth3d::read_calibration(&root.join(eth3d::CALIBRATION))?;
+            let (width, height) = frame::image_size(&pairs[0].2)?;
+            image_size = Some((width, height));
+            let k = Intrinsics {
+                width,
+                height,
+                fx,
+                fy,
+                cx,
+                cy,
+            };
+            (Some(k), String::new())
+        }
+        _ => (
+            None,
+            format!(
+                "{}: TUM RGB-D sequences do not record their intrinsics; pass --intrinsics \
+                 (a preset such as fr1, fr2, fr3, or fx,fy,cx,cy) or add a camera.json",
+                root.display()
+            ),
+        ),
+    };
+    Ok(Listing {
+        frames: pairs
+            .into_iter()
+            .map(|(timestamp, rgb_path, depth_path)| FrameRecord {
+                timestamp,
+                rgb_path,
+                depth_path,
+                gt_cam_to_world: None,
+            })
+            .collect(),
+        gt_file,
+        intrinsics,
+        no_intrinsics,
+        image_size,
+        depth_scale: None,
+        conventions: FrameConventions::default(),
+        notes: Vec::new(),
+    })
+}
+
+/// Opens the sequence in `root`: detects the layout ([`Layout`]), lists and associates the
+/// frames, attaches ground truth (`opts.gt_path` > the layout's trajectory file or pose
+/// files) and settles intrinsics (override > `camera.json` > the dataset's intrinsics file
+/// or the layout's published values; plain TUM has none) and depth scale (override >
+/// `camera.json` > the layout's > 5000). Every listed image file must exist; images are
+/// only decoded by [`Sequence::load`].
+pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
+    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
+        return Err(Error::Argument(format!(
+            "max time difference must be finite and >= 0, got {}",
+            opts.max_time_diff
+        )));
+    }
+    let layout = detect::detect(root)?;
+    let camera = read_camera_json(&root.join("camera.json"))?;
+    let listing = match layout {
+        Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn => {
+            stamped_listing(root, layout, opts.max_time_diff)?
+        }
+        Layout::SevenScenes => seven_scenes::list(root)?,
+        Layout::ScanNet => scannet::list(root)?,
+        Layout::Replica => replica::list(root)?,
+    };
+
+    let intrinsics = match (opts.intrinsics, &camera, listing.intrinsics) {
+        (Some(k), _, _) => match listing.image_size {
+            Some((width, height)) => Intrinsics { width, height, ..k },
+            None => k,
+        },
+        (None, Some(c), _) => Intrinsics {
+            width: c.width,
+            height: c.height,
+            fx: c.fx,
+            fy: c.fy,
+            cx: c.cx,
+            cy: c.cy,
+        },
+        (None, None, Some(k)) => k,
+        (None, None, None) => return Err(Error::Argument(listing.no_intrinsics)),
+    };
+    let depth_scale = opts
+        .depth_scale
+        .or(camera.as_ref().and_then(|c| c.depth_scale))
+        .or(listing.depth_scale)
+        .unwrap_or(DEFAULT_DEPTH_SCALE);
+    if !(depth_scale.is_finite() && depth_scale > 0.0) {
+        return Err(Error::Argument(format!(
+            "depth scale must be positive, got {depth_scale}"
+        )));
+    }
+
+    for f in &listing.frames {
+        for p in [&f.rgb_path, &f.depth_path] {
             if !p.is_file() {
                 return Err(Error::io(
                     p,
@@ -238,26 +378,16 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         }
     }
 
-    let gt_path = opts.gt_path.clone().or(default_gt);
-    let gt = match &gt_path {
-        Some(p) => {
-            let mut g = read_tum(p)?;
-            g.sort_by(|a, b| a.0.total_cmp(&b.0));
-            g
+    let mut frames = listing.frames;
+    if let Some(path) = opts.gt_path.as_ref().or(listing.gt_file.as_ref()) {
+        let mut gt = read_tum(path)?;
+        gt.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
+        for f in &mut frames {
+            f.gt_cam_to_world =
+                tum::nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
         }
-        None => Vec::new(),
-    };
-    let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
-    let frames = pairs
-        .into_iter()
-        .map(|(stamp, rgb_path, depth_path)| FrameRecord {
-            timestamp: stamp,
-            rgb_path,
-            depth_path,
-            gt_cam_to_world: tum::nearest_within(&gt_stamps, stamp, opts.max_time_diff)
-                .map(|k| gt[k].1),
-        })
-        .collect();
+    }
 
     Ok(Sequence {
         root: root.to_path_buf(),
@@ -265,6 +395,8 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         intrinsics,
         depth_scale,
         frames,
+        conventions: listing.conventions,
+        notes: listing.notes,
     })
 }
 
@@ -294,7 +426,8 @@ impl Sequence {
     }
 
     /// Decodes frame `i` (position in [`Sequence::frames`]); checks pixel formats, that
-    /// colour and depth have the same size, and that the size matches the intrinsics.
+    /// colour and depth have the same size (or resamples colour through the colour camera's
+    /// intrinsics, [`FrameConventions`]), and that the size matches the intrinsics.
     pub fn load(&self, i: usize) -> Result<RawFrame> {
         let f = self.frames.get(i).ok_or_else(|| {
             Error::Argument(format!(
@@ -305,7 +438,8 @@ impl Sequence {
         frame::load_frame(
             &f.rgb_path,
             &f.depth_path,
-            (self.intrinsics.width, self.intrinsics.height),
+            &self.intrinsics,
+            &self.conventions,
         )
     }
 
@@ -401,6 +535,8 @@ mod tests {
             intrinsics: Intrinsics::ICL_NUIM,
             depth_scale: DEFAULT_DEPTH_SCALE,
             frames: (0..6).map(frame).collect(),
+            conventions: FrameConventions::default(),
+            notes: Vec::new(),
         };
         let r = seq.revisiting(1, 3, 9).unwrap();
         let order: Vec<String> = r

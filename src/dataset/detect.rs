@@ -1,0 +1,128 @@
+//! Which layout a folder is in: each layout's telltale files, tried in a fixed order, and
+//! for a folder that fits none, an error listing every layout tried and what the closest
+//! one lacks.
+
+use std::path::Path;
+
+use super::numbered;
+use super::{replica, scannet, seven_scenes, Layout};
+use crate::{Error, Result};
+
+/// One layout's telltale files in `root`: `(what, present)` for each.
+fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
+    let file = |name: &str| (name.to_string(), root.join(name).is_file());
+    match layout {
+        Layout::Eth3d => vec![
+            file("calibration.txt"),
+            (
+                "associated.txt (or rgb.txt and depth.txt)".into(),
+                root.join("associated.txt").is_file()
+                    || (root.join("rgb.txt").is_file() && root.join("depth.txt").is_file()),
+            ),
+        ],
+        Layout::Bonn => vec![
+            file("rgb.txt"),
+            file("depth.txt"),
+            (
+                "a folder name starting with rgbd_bonn_".into(),
+                super::bonn::is_bonn_name(root),
+            ),
+        ],
+        Layout::Tum => vec![file("rgb.txt"), file("depth.txt")],
+        Layout::IclNuim => vec![file("associations.txt")],
+        Layout::SevenScenes => vec![
+            (
+                format!(
+                    "{} files (here or in a seq-NN folder)",
+                    seven_scenes::DEPTH.describe()
+                ),
+                seven_scenes::has_depth_frames(root),
+            ),
+            (
+                format!(
+                    "{} or {} files",
+                    seven_scenes::COLOR_JPG.describe(),
+                    seven_scenes::COLOR_PNG.describe()
+                ),
+                seven_scenes::has_color_frames(root),
+            ),
+        ],
+        Layout::ScanNet => vec![
+            (
+                format!("depth/{}", scannet::DEPTH.describe()),
+                numbered::any(&root.join("depth"), scannet::DEPTH),
+            ),
+            (
+                format!("color/{}", scannet::COLOR.describe()),
+                numbered::any(&root.join("color"), scannet::COLOR),
+            ),
+        ],
+        Layout::Replica => vec![
+            (
+                format!("results/{}", replica::DEPTH.describe()),
+                numbered::any(&root.join("results"), replica::DEPTH),
+            ),
+            (
+                format!("results/{}", replica::COLOR.describe()),
+                numbered::any(&root.join("results"), replica::COLOR),
+            ),
+        ],
+    }
+}
+
+/// The layout of `root`: the first of [`Layout::DETECTION_ORDER`] whose telltale files are
+/// all there. A folder that fits none is an error listing the layouts tried and, for the
+/// one with the most telltales present, what is missing.
+pub fn detect(root: &Path) -> Result<Layout> {
+    if !root.is_dir() {
+        let kind = if root.exists() {
+            std::io::ErrorKind::NotADirectory
+        } else {
+            std::io::ErrorKind::NotFound
+        };
+        return Err(Error::io(
+            root,
+            std::io::Error::new(kind, "dataset directory does not exist"),
+        ));
+    }
+    let mut closest: Option<(usize, Layout, Vec<String>)> = None;
+    let mut tried = Vec::new();
+    for layout in Layout::DETECTION_ORDER {
+        let t = telltales(layout, root);
+        if t.iter().all(|(_, present)| *present) {
+            return Ok(layout);
+        }
+        let present = t.iter().filter(|(_, p)| *p).count();
+        let missing: Vec<String> = t
+            .iter()
+            .filter(|(_, p)| !*p)
+            .map(|(w, _)| w.clone())
+            .collect();
+        tried.push(format!(
+            "{} ({})",
+            layout.name(),
+            t.iter()
+                .map(|(w, _)| w.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        if present > 0 && closest.as_ref().is_none_or(|(best, _, _)| present > *best) {
+            closest = Some((present, layout, missing));
+        }
+    }
+    let verdict = match closest {
+        Some((_, layout, missing)) => format!(
+            "the closest is {}, which lacks {}",
+            layout.name(),
+            missing.join(" and ")
+        ),
+        None => "no file of any of them is here".to_string(),
+    };
+    Err(Error::format(
+        root,
+        format!(
+            "not a dataset in any layout wgslam reads; tried {}; {verdict}",
+            tried.join("; ")
+        ),
+    ))
+}

@@ -1,0 +1,127 @@
+//! Frame files named by number (`frame-000012.depth.png`, ScanNet's `12.jpg`, Replica's
+//! `depth000012.png`): listing a folder's files of one pattern, ordered by their number as
+//! a number (`2` before `10`), not as a string.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::{Error, Result};
+
+/// A file name pattern: `prefix`, then one or more ASCII digits, then `suffix`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Pattern {
+    pub prefix: &'static str,
+    pub suffix: &'static str,
+}
+
+impl Pattern {
+    /// The frame number in `name` when it fits the pattern.
+    pub fn number(&self, name: &str) -> Option<u64> {
+        let digits = name.strip_prefix(self.prefix)?.strip_suffix(self.suffix)?;
+        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        digits.parse().ok()
+    }
+
+    /// The pattern as a user reads it, e.g. `frame-N.depth.png`.
+    pub fn describe(&self) -> String {
+        format!("{}N{}", self.prefix, self.suffix)
+    }
+}
+
+/// The files in `dir` that fit `pattern`, by frame number, ascending. Two files with the
+/// same number (`7.png` and `07.png`) are an error naming both. A missing `dir` lists
+/// nothing.
+pub fn list(dir: &Path, pattern: Pattern) -> Result<BTreeMap<u64, PathBuf>> {
+    let mut out = BTreeMap::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(out);
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let name = entry.file_name();
+        let Some(n) = pattern.number(&name.to_string_lossy()) else {
+            continue;
+        };
+        if let Some(previous) = out.insert(n, entry.path()) {
+            return Err(Error::format(
+                dir,
+                format!(
+                    "two files with frame number {n}: {} and {}",
+                    previous.display(),
+                    entry.path().display()
+                ),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// True when `dir` holds at least one file that fits `pattern` (for layout detection).
+pub fn any(dir: &Path, pattern: Pattern) -> bool {
+    std::fs::read_dir(dir).is_ok_and(|entries| {
+        entries
+            .flatten()
+            .any(|e| pattern.number(&e.file_name().to_string_lossy()).is_some())
+    })
+}
+
+/// Pairs two numbered lists frame by frame into `(number, colour path, depth path)`, by
+/// number; a number in one list but not in the other is an error naming the file that has
+/// no partner and both counts.
+pub fn pair(
+    depth: &BTreeMap<u64, PathBuf>,
+    color: &BTreeMap<u64, PathBuf>,
+    depth_pattern: Pattern,
+    color_pattern: Pattern,
+) -> Result<Vec<(u64, PathBuf, PathBuf)>> {
+    let lonely = depth
+        .iter()
+        .find(|(n, _)| !color.contains_key(n))
+        .map(|(n, p)| (p, color_pattern, n))
+        .or_else(|| {
+            color
+                .iter()
+                .find(|(n, _)| !depth.contains_key(n))
+                .map(|(n, p)| (p, depth_pattern, n))
+        });
+    if let Some((path, missing, n)) = lonely {
+        return Err(Error::format(
+            path,
+            format!(
+                "has no partner: {} depth and {} colour images, and frame {n} has no {} file",
+                depth.len(),
+                color.len(),
+                missing.describe()
+            ),
+        ));
+    }
+    Ok(depth
+        .iter()
+        .map(|(&n, d)| (n, color[&n].clone(), d.clone()))
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_parse_only_where_the_pattern_fits() {
+        let p = Pattern {
+            prefix: "frame-",
+            suffix: ".depth.png",
+        };
+        assert_eq!(p.number("frame-000012.depth.png"), Some(12));
+        assert_eq!(p.number("frame-.depth.png"), None);
+        assert_eq!(p.number("frame-12.color.png"), None);
+        assert_eq!(p.number("frame-1a.depth.png"), None);
+        let bare = Pattern {
+            prefix: "",
+            suffix: ".jpg",
+        };
+        assert_eq!(bare.number("10.jpg"), Some(10));
+        assert_eq!(bare.number("+1.jpg"), None);
+    }
+}

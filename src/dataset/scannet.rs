@@ -1,0 +1,147 @@
+//! ScanNet as its SensReader exports a scan: `color/N.jpg` (1296x968 in ScanNet v2),
+//! `depth/N.png` (16-bit millimetres, 640x480), `pose/N.txt` (4x4 camera-to-world, metres;
+//! all `-inf` where ScanNet's reconstruction lost the camera) and
+//! `intrinsic/intrinsic_depth.txt`, `intrinsic/intrinsic_color.txt` (4x4, K upper-left).
+//! File numbers have no zero padding and are ordered as numbers. A frame's stamp is its
+//! number.
+//!
+//! Colour at another size than depth is resampled onto the depth image through the two
+//! intrinsics ([`super::frame::resample_color`]); ScanNet's exports treat the two cameras
+//! as sharing their pose (`extrinsic_*.txt` are identities), and so does wgslam.
+
+use std::path::Path;
+
+use super::matrix_file::{read_k, read_pose};
+use super::numbered::{self, Pattern};
+use super::{FrameConventions, FrameRecord, Listing};
+use crate::geometry::camera::Intrinsics;
+use crate::{Error, Result};
+
+/// `depth/N.png`.
+pub const DEPTH: Pattern = Pattern {
+    prefix: "",
+    suffix: ".png",
+};
+/// `color/N.jpg`.
+pub const COLOR: Pattern = Pattern {
+    prefix: "",
+    suffix: ".jpg",
+};
+/// `pose/N.txt`.
+pub const POSE: Pattern = Pattern {
+    prefix: "",
+    suffix: ".txt",
+};
+/// Millimetres.
+pub const DEPTH_SCALE: f32 = 1000.0;
+
+fn intrinsics(k: [f32; 4], (width, height): (u32, u32)) -> Intrinsics {
+    Intrinsics {
+        width,
+        height,
+        fx: k[0],
+        fy: k[1],
+        cx: k[2],
+        cy: k[3],
+    }
+}
+
+/// Lists the frames of `root` with their poses and reads both intrinsics files.
+pub fn list(root: &Path) -> Result<Listing> {
+    let depth = numbered::list(&root.join("depth"), DEPTH)?;
+    let color = numbered::list(&root.join("color"), COLOR)?;
+    let pairs = numbered::pair(&depth, &color, DEPTH, COLOR)?;
+    let poses = numbered::list(&root.join("pose"), POSE)?;
+    let mut notes = Vec::new();
+    let mut frames = Vec::with_capacity(pairs.len());
+    let mut failed = Vec::new();
+    for (n, rgb_path, depth_path) in pairs {
+        let gt = match poses.get(&n) {
+            Some(p) => {
+                let gt = read_pose(p)?;
+                if gt.is_none() {
+                    failed.push(n);
+                }
+                gt
+            }
+            None => None,
+        };
+        frames.push(FrameRecord {
+            timestamp: n as f64,
+            rgb_path,
+            depth_path,
+            gt_cam_to_world: gt,
+        });
+    }
+    let without_file = frames.len()
+        - frames
+            .iter()
+            .filter(|f| poses.contains_key(&(f.timestamp as u64)))
+            .count();
+    if poses.is_empty() {
+        notes.push(format!(
+            "no pose/N.txt files in {}: no ground truth",
+            root.display()
+        ));
+    } else if without_file > 0 {
+        notes.push(format!(
+            "{without_file} of {} frames have no pose/N.txt: no ground truth for them",
+            frames.len()
+        ));
+    }
+    if !failed.is_empty() {
+        notes.push(format!(
+            "{} pose file(s) are -inf (ScanNet lost the camera there; first: pose/{}.txt): no \
+             ground truth for those frames",
+            failed.len(),
+            failed[0]
+        ));
+    }
+    let first = frames
+        .first()
+        .ok_or_else(|| Error::format(root.join("depth"), "no frames"))?;
+    let depth_size = super::frame::image_size(&first.depth_path)?;
+    let color_size = super::frame::image_size(&first.rgb_path)?;
+
+    let depth_k_path = root.join("intrinsic/intrinsic_depth.txt");
+    let depth_k = if depth_k_path.is_file() {
+        Some(intrinsics(read_k(&depth_k_path)?, depth_size))
+    } else {
+        None
+    };
+    let color_k_path = root.join("intrinsic/intrinsic_color.txt");
+    let color_intrinsics = if color_k_path.is_file() {
+        Some(intrinsics(read_k(&color_k_path)?, color_size))
+    } else if color_size != depth_size {
+        return Err(Error::io(
+            &color_k_path,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!(
+                    "colour images are {}x{} and depth images {}x{}: the colour intrinsics \
+                     are needed to map colour onto depth",
+                    color_size.0, color_size.1, depth_size.0, depth_size.1
+                ),
+            ),
+        ));
+    } else {
+        None
+    };
+    Ok(Listing {
+        frames,
+        gt_file: None,
+        intrinsics: depth_k,
+        no_intrinsics: format!(
+            "{} is missing: ScanNet's depth intrinsics are needed (or pass --intrinsics \
+             fx,fy,cx,cy)",
+            depth_k_path.display()
+        ),
+        image_size: Some(depth_size),
+        depth_scale: Some(DEPTH_SCALE),
+        conventions: FrameConventions {
+            invalid_depth_raw: None,
+            color_intrinsics,
+        },
+        notes,
+    })
+}
