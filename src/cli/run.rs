@@ -104,14 +104,31 @@ pub fn execute(a: RunArgs) -> Result<()> {
             println!("progress {} {total}", bar.position());
             let _ = std::io::stdout().flush();
         }
-        if let crate::slam::pipeline::TrackStatus::Lost(why) = &f.report.status {
-            bar.println(format!(
-                "frame {}: tracking lost ({why}); not fused",
+        use crate::slam::pipeline::TrackStatus;
+        let event = match &f.report.status {
+            TrackStatus::Lost(why) => Some(format!(
+                "frame {}: tracking lost ({why}); not fused{}",
+                f.index,
+                match f.report.relocalisation.len() {
+                    0 => String::new(),
+                    n => format!(", {n} relocalisation attempt(s) failed"),
+                }
+            )),
+            TrackStatus::Relocalised { keyframe_frame } => Some(format!(
+                "frame {}: relocalised from the keyframe of frame {keyframe_frame}",
                 f.index
-            ));
-        }
-        if f.report.status == crate::slam::pipeline::TrackStatus::EmptyDepth {
-            bar.println(format!("frame {}: no valid depth; skipped", f.index));
+            )),
+            TrackStatus::EmptyDepth => Some(format!("frame {}: no valid depth; skipped", f.index)),
+            _ => None,
+        };
+        // Every frame without a tracked pose is reported, on a terminal above the bar and
+        // in a log (no terminal, the bar hidden) on stderr.
+        if let Some(line) = event {
+            if bar.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                bar.println(line);
+            }
         }
     };
     let mut recording = open_recording(&a, &seq, &range)?;
@@ -215,9 +232,18 @@ fn print_summary(m: &run::Metrics, out: &Path) {
     );
     let t = &m.tracking;
     println!(
-        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} lost, {} empty",
-        t.given, t.converged, t.max_iterations, t.stopped, t.lost, t.empty_depth
+        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} \
+         relocalised, {} lost, {} empty; {} keyframes",
+        t.given,
+        t.converged,
+        t.max_iterations,
+        t.stopped,
+        t.relocalised,
+        t.lost,
+        t.empty_depth,
+        t.keyframes
     );
+    println!("tracking health: {}", t.verdict());
     if let Some(acc) = &m.accuracy {
         println!(
             "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",

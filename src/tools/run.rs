@@ -78,6 +78,40 @@ pub struct TrackingCounts {
     pub longest_untracked_run: usize,
     /// The first lost frame's sequence position, if any.
     pub first_lost_frame: Option<usize>,
+    /// Frames at the end of the run without a tracked pose (the run ended lost).
+    pub untracked_at_end: usize,
+    /// [`TrackingCounts::flag`]: `ok`, `recovered` or `LOST`.
+    pub health: String,
+}
+
+impl TrackingCounts {
+    /// The run's health in a word: `ok` (no lost frame), `recovered` (lost frames, but the
+    /// run ended tracking), `LOST` (the run ended without a tracked pose).
+    pub fn flag(&self) -> &'static str {
+        match (self.lost, self.untracked_at_end) {
+            (0, _) => "ok",
+            (_, 0) => "recovered",
+            _ => "LOST",
+        }
+    }
+
+    /// One line for the run summary.
+    pub fn verdict(&self) -> String {
+        match self.flag() {
+            "ok" => "ok (no frame lost)".into(),
+            flag => format!(
+                "{flag}: {} frame(s) lost from frame {} on (longest run {}), {} relocalised{}",
+                self.lost,
+                self.first_lost_frame.unwrap_or_default(),
+                self.longest_untracked_run,
+                self.relocalised,
+                match self.untracked_at_end {
+                    0 => String::new(),
+                    n => format!("; the last {n} frame(s) have no pose"),
+                }
+            ),
+        }
+    }
 }
 
 /// ATE and RPE against ground truth (TUM benchmark definitions).
@@ -280,6 +314,14 @@ pub fn tracking_counts(frames: &[FrameOutcome], keyframes: usize) -> TrackingCou
         run = if f.report.status.is_tracked() { 0 } else { run + 1 };
         counts.longest_untracked_run = counts.longest_untracked_run.max(run);
     }
+    // Empty frames at the very start are not a failure (the run starts at the first
+    // usable one); at the end they are.
+    counts.untracked_at_end = if frames.iter().any(|f| f.report.status.is_tracked()) {
+        run
+    } else {
+        frames.len()
+    };
+    counts.health = counts.flag().to_string();
     counts
 }
 
