@@ -10,7 +10,7 @@ use common::harness::{gpu, plain};
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{
-    BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
     ProjectParams, ICP_SYSTEM_LEN,
 };
 use wgslam::slam::backend::{Backend, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel};
@@ -133,6 +133,9 @@ impl<B: Backend> Backend for PerturbedMap<B> {
     }
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         self.inner.icp_system(level, params)
+    }
+    fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
+        self.inner.encode_ferns(params, ferns)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         self.inner.fuse(params)

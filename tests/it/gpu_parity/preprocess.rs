@@ -1,5 +1,6 @@
 //! The frame's preprocessing on both backends: depth_to_vertex and vertex_to_normal,
-//! bilateral_filter and pyramid_depth against their twins, and a frame of the wrong size.
+//! bilateral_filter and pyramid_depth against their twins, fern_encode (the relocalisation
+//! code of the preprocessed frame) against its twin, and a frame of the wrong size.
 
 use super::{check_vec4_map, gpu_backend, root, slam};
 use super::{FILTERED_VERTEX_TOL_M, NORMAL_TOL, VERTEX_TOL_M};
@@ -10,6 +11,9 @@ use wgslam::gpu::GpuBackend;
 use wgslam::slam::backend::{Backend, FrameMaps, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{BilateralSettings, Profile, SlamParams};
+use wgslam::cpu::fern_encode::fern_encode;
+use wgslam::layout::FERN_NO_DEPTH;
+use wgslam::slam::keyframes::KeyframeDatabase;
 use wgslam::Error;
 
 /// depth_to_vertex and vertex_to_normal against their twins, at downsample 2 and 1.
@@ -181,6 +185,37 @@ fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
     }
 }
 
+/// fern_encode against its twin on the GPU's own level-0 maps of a real frame, at
+/// downsample 2 and 1: every code equal (the twin compares sums of the same values in the
+/// same order, so there is nothing to round differently), and the codes are not trivial
+/// (several distinct codes, few cells without depth).
+fn fern_encode_matches_twin(mut gpu: GpuBackend) {
+    let frame = load_frame(&root(), 5);
+    for downsample in [2, 1] {
+        let mut params = SlamParams::profile(Profile::Robust);
+        params.input.downsample = downsample;
+        let s = slam(CpuBackend::new(), params.clone());
+        let (pp, np) = (s.preprocess_params(), s.normal_params());
+        gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+            .unwrap();
+        let db = KeyframeDatabase::new(params.relocalisation.as_ref().unwrap());
+        let fp = db.params(pp.width, pp.height);
+        let g = gpu.encode_ferns(&fp, db.ferns()).unwrap();
+        let maps = gpu.download_frame().unwrap();
+        let mut c = vec![0; db.ferns().len()];
+        fern_encode(&fp, db.ferns(), &maps.normal_depth, &maps.color, &mut c);
+        assert_eq!(c, g, "downsample {downsample}: fern codes differ");
+        let distinct: std::collections::BTreeSet<u32> = c.iter().copied().collect();
+        let no_depth = c.iter().filter(|&&x| x == FERN_NO_DEPTH).count();
+        eprintln!(
+            "downsample {downsample}: {} distinct codes, {no_depth} of {} ferns without depth",
+            distinct.len(),
+            c.len()
+        );
+        assert!(distinct.len() >= 8 && no_depth < c.len() / 10);
+    }
+}
+
 /// A frame whose buffers do not match its stated size is a user error, not a panic or a
 /// GPU fault; downloads before the first frame are empty, as on the CPU.
 fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
@@ -210,6 +245,9 @@ pub(super) fn tests() -> Vec<Test> {
         }),
         gpu("pyramid_depth_matches_twin", |ctx| {
             pyramid_depth_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("fern_encode_matches_twin", |ctx| {
+            fern_encode_matches_twin(gpu_backend(ctx))
         }),
         gpu("bad_frame_size_is_an_argument_error", |ctx| {
             bad_frame_size_is_an_argument_error(gpu_backend(ctx))
