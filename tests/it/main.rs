@@ -26,6 +26,7 @@ mod scan_icp;
 mod scan_kernels;
 mod shaders;
 mod suite;
+mod tracking_health;
 
 use std::process::ExitCode;
 
@@ -55,6 +56,7 @@ fn main() -> ExitCode {
         scan_kernels,
         shaders,
         suite,
+        tracking_health,
     ];
     #[cfg(feature = "rerun")]
     modules.extend(tests_of![rerun]);
