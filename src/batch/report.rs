@@ -29,7 +29,8 @@ table{border-collapse:collapse;font-size:13px}th,td{border:1px solid #bbb;paddin
 text-align:right}th{background:#eee}td.l{text-align:left}tr.failed{background:#fdd}\
 tr.pending{background:#ffd}.pics{display:flex;flex-wrap:wrap;gap:12px;margin-bottom:10px}\
 figure{margin:0}figure img{height:260px;border:1px solid #ccc}figcaption{font-size:12px}\
-pre{background:#f6f6f6;padding:6px;white-space:pre-wrap}";
+pre{background:#f6f6f6;padding:6px;white-space:pre-wrap}\
+td.health-LOST{background:#f88;font-weight:bold}td.health-recovered{background:#fd8}";
 
 /// Writes `out/report.html` for `s`, reading the pictures from the job folders.
 pub fn write(out: &Path, s: &Summary) -> Result<()> {
@@ -50,17 +51,22 @@ pub fn render(out: &Path, s: &Summary) -> String {
          <style>{STYLE}</style></head><body>\n<h1>wgslam batch: {} jobs</h1>\n\
          <p>{} ok, {} failed, {} pending. Folder: <code>{}</code>. ATE: RMSE after rigid \
          alignment; RPE: consecutive frames; GPU vs CPU: each backend tracked on its own, \
-         largest camera difference and map points without a match within the radius.</p>\n",
+         largest camera difference and map points without a match within the radius. \
+         Tracking health (no ground truth needed): ok, recovered (frames were lost, not \
+         fused, and tracking came back), LOST (the run ended without a tracked pose).</p>\n\
+         <p>Tracking health: {}</p>\n",
         s.jobs,
         s.ok,
         s.failed,
         s.pending,
-        esc(&out.display().to_string())
+        esc(&out.display().to_string()),
+        health_line(s)
     );
     h.push_str(
         "<table><tr><th>#</th><th>job</th><th>status</th><th>sequence</th><th>frames</th>\
          <th>profile</th><th>backend</th><th>ATE mm</th><th>RPE mm</th><th>RPE deg</th>\
          <th>ms/frame</th><th>peak MiB</th><th>map points</th><th>lost</th>\
+         <th>relocalised</th><th>health</th>\
          <th>GPU vs CPU pose mm / deg</th><th>map unmatched</th></tr>\n",
     );
     for r in &s.rows {
@@ -72,6 +78,26 @@ pub fn render(out: &Path, s: &Summary) -> String {
     }
     h.push_str("</body></html>\n");
     h
+}
+
+/// How many runs are in each tracking-health state, e.g. "3 ok, 1 recovered, 1 LOST".
+fn health_line(s: &Summary) -> String {
+    let mut counts = std::collections::BTreeMap::<&str, usize>::new();
+    for r in &s.rows {
+        for n in r.record.iter().flat_map(|rec| rec.runs.values()) {
+            if !n.health.is_empty() {
+                *counts.entry(n.health.as_str()).or_default() += 1;
+            }
+        }
+    }
+    if counts.is_empty() {
+        return "-".into();
+    }
+    ["ok", "recovered", "LOST"]
+        .iter()
+        .filter_map(|k| counts.get(k).map(|n| format!("{n} {k}")))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// One table row per backend of a job (the job's cells spanning them).
@@ -112,6 +138,19 @@ fn table_rows(h: &mut String, r: &Row) {
             f(n.and_then(|n| n.peak_memory_mib), 0),
             n.map(|n| n.map_points.to_string()).unwrap_or_else(|| "-".into()),
             n.map(|n| n.lost_frames.to_string()).unwrap_or_else(|| "-".into()),
+        );
+        let health = n.map(|n| n.health.as_str()).unwrap_or("");
+        let _ = write!(
+            h,
+            "<td>{}</td><td class=\"health-{}\">{}</td>",
+            n.map(|n| n.relocalised_frames.to_string())
+                .unwrap_or_else(|| "-".into()),
+            esc(health),
+            if health.is_empty() {
+                "-".to_string()
+            } else {
+                esc(health)
+            },
         );
         if k == 0 {
             let c = rec.and_then(|rec| rec.gpu_vs_cpu.as_ref());

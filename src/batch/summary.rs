@@ -110,7 +110,9 @@ pub fn collect(out: &Path) -> Result<Summary> {
 /// the GPU-vs-CPU differences (empty where a job has no such value).
 const CSV_HEADER: &str = "index,id,status,sequence,frames,downsample,profile,backends,overrides,\
 cpu_frames,cpu_ate_mm,cpu_rpe_mm,cpu_rpe_deg,cpu_ms_per_frame,cpu_peak_mib,cpu_map_points,cpu_lost,\
+cpu_relocalised,cpu_health,\
 gpu_frames,gpu_ate_mm,gpu_rpe_mm,gpu_rpe_deg,gpu_ms_per_frame,gpu_peak_mib,gpu_map_points,gpu_lost,\
+gpu_relocalised,gpu_health,\
 gpu_vs_cpu_pose_max_mm,gpu_vs_cpu_pose_max_deg,gpu_vs_cpu_map_unmatched,wall_s,error";
 
 /// Writes `summary.json` and `summary.csv` into `out`, each completely or not at all.
@@ -156,6 +158,8 @@ fn csv_line(r: &Row) -> String {
             opt(n.and_then(|n| n.peak_memory_mib)),
             n.map(|n| n.map_points.to_string()).unwrap_or_default(),
             n.map(|n| n.lost_frames.to_string()).unwrap_or_default(),
+            n.map(|n| n.relocalised_frames.to_string()).unwrap_or_default(),
+            n.map(|n| n.health.clone()).unwrap_or_default(),
         ]);
     }
     let c = r.record.as_ref().and_then(|rec| rec.gpu_vs_cpu.as_ref());
@@ -198,6 +202,8 @@ struct RunFacts<'a> {
     frames: u64,
     map_points: u64,
     lost_frames: u64,
+    relocalised_frames: u64,
+    health: &'a str,
     ate_rmse_mm: Option<f64>,
     rpe_trans_rmse_mm: Option<f64>,
     rpe_rot_rmse_deg: Option<f64>,
@@ -221,6 +227,8 @@ fn deterministic(r: &Row) -> Deterministic<'_> {
             frames: n.frames,
             map_points: n.map_points,
             lost_frames: n.lost_frames,
+            relocalised_frames: n.relocalised_frames,
+            health: &n.health,
             ate_rmse_mm: n.ate_rmse_mm,
             rpe_trans_rmse_mm: n.rpe_trans_rmse_mm,
             rpe_rot_rmse_deg: n.rpe_rot_rmse_deg,

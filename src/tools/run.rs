@@ -483,6 +483,13 @@ pub struct RunNumbers {
     pub map_points: u64,
     /// Frames whose tracking was lost (not fused).
     pub lost_frames: u64,
+    /// Frames placed by relocalisation (0 in outputs from before relocalisation).
+    #[serde(default)]
+    pub relocalised_frames: u64,
+    /// The run's tracking health: `ok`, `recovered` or `LOST` (see
+    /// [`TrackingCounts::flag`]; empty in outputs from before the health test).
+    #[serde(default)]
+    pub health: String,
     /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
     /// ground truth), millimetres and degrees.
     pub ate_rmse_mm: Option<f64>,
@@ -510,6 +517,8 @@ pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
         frames: num(&m["frames"], "frames")? as u64,
         map_points: num(&m["map_points"], "map_points")? as u64,
         lost_frames: num(&m["tracking"]["lost"], "tracking.lost")? as u64,
+        relocalised_frames: m["tracking"]["relocalised"].as_u64().unwrap_or(0),
+        health: m["tracking"]["health"].as_str().unwrap_or_default().to_string(),
         ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
         rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
         rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
