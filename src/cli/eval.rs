@@ -10,7 +10,9 @@ use crate::{eval, io, Result};
 pub struct EvalArgs {
     /// Estimated trajectory, TUM format.
     pub estimate: PathBuf,
-    /// Ground truth trajectory, TUM format (ICL-NUIM's *.gt.freiburg works).
+    /// Ground truth: a TUM trajectory file (ICL-NUIM's *.gt.freiburg works), or a dataset
+    /// folder in any layout `run` reads, whose own ground truth is used (7-Scenes and
+    /// ScanNet pose files, Replica's traj.txt, ...).
     pub ground_truth: PathBuf,
     /// RPE frame distance.
     #[arg(long, default_value_t = 1)]
@@ -24,7 +26,19 @@ pub struct EvalArgs {
 /// Runs `wgslam eval`.
 pub fn execute(a: EvalArgs) -> Result<()> {
     let est = io::trajectory::read_tum(&a.estimate)?;
-    let gt = io::trajectory::read_tum(&a.ground_truth)?;
+    let gt = if a.ground_truth.is_dir() {
+        let seq =
+            crate::dataset::open(&a.ground_truth, &crate::dataset::SequenceOptions::default())?;
+        if !seq.has_ground_truth() {
+            return Err(crate::Error::format(
+                &a.ground_truth,
+                format!("the {} dataset here has no ground truth", seq.layout.name()),
+            ));
+        }
+        seq.ground_truth()
+    } else {
+        io::trajectory::read_tum(&a.ground_truth)?
+    };
     let aligned = eval::ate(&est, &gt, true)?;
     let unaligned = eval::ate(&est, &gt, false)?;
     let rpe = eval::rpe(&est, &gt, a.delta)?;

@@ -11,7 +11,9 @@ use std::path::Path;
 
 use crate::geometry::camera::Intrinsics;
 
-/// The Bonn dataset's published intrinsics of its Asus Xtion Pro Live (640x480).
+/// The Bonn dataset's published intrinsics of its Asus Xtion Pro Live (640x480), as the
+/// dataset prints them (more digits than an f32 holds).
+#[allow(clippy::excessive_precision)]
 pub const INTRINSICS: Intrinsics = Intrinsics {
     width: 640,
     height: 480,

@@ -81,8 +81,10 @@ fn read_traj(path: &Path) -> Result<Vec<Option<glam::DMat4>>> {
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let v = parse_numbers(path, line)?;
-        let pose = pose_from_row_major(path, &v)
-            .map_err(|e| Error::parse(path, lineno, format!("{e}: {line:?}")))?;
+        let pose = pose_from_row_major(path, &v).map_err(|e| match e {
+            Error::Format { what, .. } => Error::parse(path, lineno, what),
+            other => other,
+        })?;
         out.push(pose);
     }
     Ok(out)

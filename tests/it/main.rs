@@ -11,6 +11,7 @@ mod batch;
 mod bindings;
 mod cli;
 mod compare;
+mod datasets;
 mod end_to_end;
 mod eval;
 mod gpu_parity;
@@ -44,6 +45,7 @@ fn main() -> ExitCode {
         bindings,
         cli,
         compare,
+        datasets,
         end_to_end,
         eval,
         gpu_parity,
