@@ -303,9 +303,9 @@ pub const FERN_GRID: [u32; 2] = [80, 60];
 /// common.wgsl): never equal to a real code (0..15).
 pub const FERN_NO_DEPTH: u32 = 16;
 
-/// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major) + 6 (Aᵀb)
-/// + inlier count + sum of squared residuals + candidate count (mirrors `ICP_SYSTEM_LEN`
-/// in common.wgsl).
+/// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major), 6 (Aᵀb), the
+/// inlier count, the sum of squared residuals and the candidate count (mirrors
+/// `ICP_SYSTEM_LEN` in common.wgsl).
 pub const ICP_SYSTEM_LEN: usize = 30;
 /// Index of the first of the 6 Aᵀb entries in the system (after the 21 of AᵀA).
 pub const ICP_ATB_OFFSET: usize = 21;

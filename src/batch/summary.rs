@@ -158,7 +158,8 @@ fn csv_line(r: &Row) -> String {
             opt(n.and_then(|n| n.peak_memory_mib)),
             n.map(|n| n.map_points.to_string()).unwrap_or_default(),
             n.map(|n| n.lost_frames.to_string()).unwrap_or_default(),
-            n.map(|n| n.relocalised_frames.to_string()).unwrap_or_default(),
+            n.map(|n| n.relocalised_frames.to_string())
+                .unwrap_or_default(),
             n.map(|n| n.health.clone()).unwrap_or_default(),
         ]);
     }

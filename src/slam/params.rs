@@ -602,6 +602,34 @@ pub const ROBUST_ICP_LEVEL_ITERS: [usize; 3] = [10, 5, 4];
 /// ([`crate::slam::solve::MIN_INLIERS`] correspondences at the least).
 pub const MAX_ICP_LEVELS: usize = 4;
 
+/// The robust profile's degenerate-direction guard: well below the smallest eigenvalue
+/// ratio of any frame of the sequences here, far above a plane's (see `slam::health`).
+pub const ROBUST_DEGENERATE_EIGEN_RATIO: f64 = 1e-4;
+
+/// Tracking-health defaults (both profiles); the measurements are in `slam::health`'s
+/// header.
+pub const HEALTH_MIN_INLIER_FRACTION: f64 = 0.3;
+pub const HEALTH_MAX_RESIDUAL_RATIO: f64 = 4.0;
+pub const HEALTH_MAX_MOTION_RATIO: f64 = 8.0;
+pub const HEALTH_MOTION_FLOOR_M: f64 = 0.10;
+pub const HEALTH_MOTION_FLOOR_DEG: f64 = 8.0;
+pub const HEALTH_WARMUP_FRAMES: usize = 5;
+pub const HEALTH_RECOVERY_MAX_RESIDUAL_RATIO: f64 = 1.3;
+pub const HEALTH_RECOVERY_MIN_INLIER_RATIO: f64 = 0.75;
+
+/// Relocalisation defaults: ElasticFusion's 500 ferns and its keyframe threshold (0.3095,
+/// rounded), five candidates per lost frame, candidates at least 30 % alike (its
+/// `blockHDAware > 0.3`), at most 10,000 keyframes (5 MB of codes).
+pub const RELOC_FERNS: usize = 500;
+pub const RELOC_KEYFRAME_DISSIMILARITY: f64 = 0.3;
+pub const RELOC_CANDIDATES: usize = 5;
+/// Keyframes at least every 0.15 m or 10 degrees of the path: within the basin of ICP's
+/// 0.10 m / 20 degree gates from any point of the path.
+pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
+pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
+pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
+pub const RELOC_MAX_KEYFRAMES: usize = 10_000;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -701,31 +729,3 @@ mod tests {
         p.validate().unwrap();
     }
 }
-
-/// The robust profile's degenerate-direction guard: well below the smallest eigenvalue
-/// ratio of any frame of the sequences here, far above a plane's (see `slam::health`).
-pub const ROBUST_DEGENERATE_EIGEN_RATIO: f64 = 1e-4;
-
-/// Tracking-health defaults (both profiles); the measurements are in `slam::health`'s
-/// header.
-pub const HEALTH_MIN_INLIER_FRACTION: f64 = 0.3;
-pub const HEALTH_MAX_RESIDUAL_RATIO: f64 = 4.0;
-pub const HEALTH_MAX_MOTION_RATIO: f64 = 8.0;
-pub const HEALTH_MOTION_FLOOR_M: f64 = 0.10;
-pub const HEALTH_MOTION_FLOOR_DEG: f64 = 8.0;
-pub const HEALTH_WARMUP_FRAMES: usize = 5;
-pub const HEALTH_RECOVERY_MAX_RESIDUAL_RATIO: f64 = 1.3;
-pub const HEALTH_RECOVERY_MIN_INLIER_RATIO: f64 = 0.75;
-
-/// Relocalisation defaults: ElasticFusion's 500 ferns and its keyframe threshold (0.3095,
-/// rounded), five candidates per lost frame, candidates at least 30 % alike (its
-/// `blockHDAware > 0.3`), at most 10,000 keyframes (5 MB of codes).
-pub const RELOC_FERNS: usize = 500;
-pub const RELOC_KEYFRAME_DISSIMILARITY: f64 = 0.3;
-pub const RELOC_CANDIDATES: usize = 5;
-/// Keyframes at least every 0.15 m or 10 degrees of the path: within the basin of ICP's
-/// 0.10 m / 20 degree gates from any point of the path.
-pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
-pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
-pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
-pub const RELOC_MAX_KEYFRAMES: usize = 10_000;

@@ -311,7 +311,11 @@ pub fn tracking_counts(frames: &[FrameOutcome], keyframes: usize) -> TrackingCou
         if f.report.health.is_some_and(|h| h.held_directions > 0) {
             counts.degenerate += 1;
         }
-        run = if f.report.status.is_tracked() { 0 } else { run + 1 };
+        run = if f.report.status.is_tracked() {
+            0
+        } else {
+            run + 1
+        };
         counts.longest_untracked_run = counts.longest_untracked_run.max(run);
     }
     // Empty frames at the very start are not a failure (the run starts at the first
@@ -518,7 +522,10 @@ pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
         map_points: num(&m["map_points"], "map_points")? as u64,
         lost_frames: num(&m["tracking"]["lost"], "tracking.lost")? as u64,
         relocalised_frames: m["tracking"]["relocalised"].as_u64().unwrap_or(0),
-        health: m["tracking"]["health"].as_str().unwrap_or_default().to_string(),
+        health: m["tracking"]["health"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string(),
         ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
         rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
         rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
