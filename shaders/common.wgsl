@@ -77,6 +77,29 @@ struct Fern {
 // The code of a fern whose cell has no valid depth (mirrors `layout::FERN_NO_DEPTH`).
 const FERN_NO_DEPTH: u32 = 16u;
 
+// Mirrors `layout::KeypointParams` (keypoint_detect, keypoint_describe).
+struct KeypointParams {
+    width: u32,
+    height: u32,
+    threshold: f32,
+    capacity: u32,
+    count: u32,
+    tests: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Mirrors `layout::Keypoint`: a corner's pixel and Harris response.
+struct Keypoint {
+    u: u32,
+    v: u32,
+    score: f32,
+    _pad: u32,
+}
+
+// Words of one descriptor (mirrors `layout::DESCRIPTOR_WORDS`).
+const DESCRIPTOR_WORDS: u32 = 8u;
+
 // Mirrors `layout::BilateralParams` (bilateral_filter).
 struct BilateralParams {
     fx: f32,

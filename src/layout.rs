@@ -303,6 +303,39 @@ pub const FERN_GRID: [u32; 2] = [80, 60];
 /// common.wgsl): never equal to a real code (0..15).
 pub const FERN_NO_DEPTH: u32 = 16;
 
+/// Parameters of `keypoint_detect` and `keypoint_describe` (mirrors `KeypointParams` in
+/// common.wgsl): corners of the level-0 colour for feature-based relocalisation.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct KeypointParams {
+    /// Level-0 map size, pixels.
+    pub width: u32,
+    pub height: u32,
+    /// `keypoint_detect`: a pixel is a corner when its Harris response (grey levels 0..255,
+    /// 3x3 window of central differences) is above this and above its 8 neighbours'.
+    pub threshold: f32,
+    /// `keypoint_detect`: room in the candidate list (more are counted, not stored).
+    pub capacity: u32,
+    /// `keypoint_describe`: keypoints to describe, and binary tests per descriptor.
+    pub count: u32,
+    pub tests: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// A detected corner (mirrors `Keypoint` in common.wgsl): its pixel and Harris response.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct Keypoint {
+    pub u: u32,
+    pub v: u32,
+    pub score: f32,
+    pub _pad: u32,
+}
+
+/// Binary tests per keypoint descriptor (BRIEF's 256), in 32-bit words.
+pub const DESCRIPTOR_WORDS: usize = 8;
+
 /// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major), 6 (Aᵀb), the
 /// inlier count, the sum of squared residuals and the candidate count (mirrors
 /// `ICP_SYSTEM_LEN` in common.wgsl).

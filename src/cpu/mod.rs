@@ -31,6 +31,8 @@ pub mod fuse_prune;
 pub mod fuse_select;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
+pub mod keypoint_describe;
+pub mod keypoint_detect;
 pub mod nn_brute;
 pub mod nn_grid;
 pub mod predict_model;

@@ -103,6 +103,8 @@ pub struct GpuBackend {
     pub(super) compaction: Option<Compaction>,
     /// Buffers of `fern_encode`, `None` until its first call.
     pub(super) ferns: Option<super::ferns::FernBuffers>,
+    /// Buffers of the keypoint kernels, `None` until their first call.
+    pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
 }
 
 impl GpuBackend {
@@ -226,6 +228,7 @@ impl GpuBackend {
             profiler: None,
             compaction: None,
             ferns: None,
+            keypoints: None,
         })
     }
 

@@ -24,6 +24,7 @@ pub mod buffers;
 mod compaction;
 pub mod context;
 mod ferns;
+mod keypoints;
 pub mod images;
 mod inspect;
 pub mod kernel;

@@ -60,6 +60,14 @@ pub const KERNELS: &[(&str, &str)] = &[
         "fern_encode",
         include_str!("../../shaders/fern_encode.wgsl"),
     ),
+    (
+        "keypoint_detect",
+        include_str!("../../shaders/keypoint_detect.wgsl"),
+    ),
+    (
+        "keypoint_describe",
+        include_str!("../../shaders/keypoint_describe.wgsl"),
+    ),
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     (
         "icp_reduce_final",

@@ -13,7 +13,8 @@ use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    KeypointParams, DESCRIPTOR_WORDS, NormalParams,
     PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, PyramidLevel};
@@ -338,6 +339,19 @@ impl Backend for GpuBackend {
 
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.encode_ferns_on_gpu(params, ferns)
+    }
+
+    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
+        self.detect_keypoints_on_gpu(params)
+    }
+
+    fn describe_keypoints(
+        &mut self,
+        params: &KeypointParams,
+        keypoints: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+        self.describe_keypoints_on_gpu(params, keypoints, pattern)
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {

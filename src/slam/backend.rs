@@ -6,7 +6,7 @@
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS, NormalParams,
     PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
@@ -133,6 +133,17 @@ pub trait Backend {
     /// `fern_encode` over the last `preprocess`'s level-0 maps: the code of each of the
     /// first `params.fern_count` of `ferns` (for the relocalisation keyframe database).
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>>;
+    /// `keypoint_detect` over the last `preprocess`'s level-0 maps: the corners found (at
+    /// most `params.capacity`, in no particular order) and how many there were.
+    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)>;
+    /// `keypoint_describe` of the first `params.count` of `keypoints` with the first
+    /// `params.tests` tests of `pattern`: each one's descriptor and camera-frame vertex.
+    fn describe_keypoints(
+        &mut self,
+        params: &KeypointParams,
+        keypoints: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)>;
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
     /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
     /// `capacity` are filled in by the backend, which grows the map first when needed).
@@ -205,6 +216,17 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         (**self).encode_ferns(params, ferns)
+    }
+    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
+        (**self).detect_keypoints(params)
+    }
+    fn describe_keypoints(
+        &mut self,
+        params: &KeypointParams,
+        keypoints: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+        (**self).describe_keypoints(params, keypoints, pattern)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         (**self).fuse(params)

@@ -11,7 +11,7 @@
 use crate::cpu;
 use crate::layout::{append_slots, scan_params};
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams,
+    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS,
     MapChunk, NormalParams, PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
@@ -276,6 +276,45 @@ impl Backend for CpuBackend {
             &mut codes,
         );
         Ok(codes)
+    }
+
+    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
+        let mut keypoints = vec![bytemuck::Zeroable::zeroed(); params.capacity as usize];
+        let mut counter = [0u32];
+        cpu::keypoint_detect::keypoint_detect(
+            params,
+            &self.frame.color,
+            &self.frame.normal_depth,
+            &mut keypoints,
+            &mut counter,
+        );
+        keypoints.truncate(counter[0].min(params.capacity) as usize);
+        Ok((keypoints, counter[0]))
+    }
+
+    fn describe_keypoints(
+        &mut self,
+        params: &KeypointParams,
+        keypoints: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+        let n = params.count as usize;
+        let mut words = vec![0u32; n * DESCRIPTOR_WORDS];
+        let mut points = vec![[0.0f32; 4]; n];
+        cpu::keypoint_describe::keypoint_describe(
+            params,
+            &self.frame.color,
+            &self.frame.vertex,
+            keypoints,
+            pattern,
+            &mut words,
+            &mut points,
+        );
+        let descriptors = words
+            .chunks_exact(DESCRIPTOR_WORDS)
+            .map(|c| c.try_into().expect("chunks of DESCRIPTOR_WORDS"))
+            .collect();
+        Ok((descriptors, points))
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {

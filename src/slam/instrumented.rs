@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS, NormalParams,
     PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
@@ -103,6 +103,19 @@ impl<B: Backend> Backend for Instrumented<B> {
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.step("encode_ferns", |b| b.encode_ferns(params, ferns))
+    }
+    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
+        self.step("detect_keypoints", |b| b.detect_keypoints(params))
+    }
+    fn describe_keypoints(
+        &mut self,
+        params: &KeypointParams,
+        keypoints: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+        self.step("describe_keypoints", |b| {
+            b.describe_keypoints(params, keypoints, pattern)
+        })
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         let surfels = self.step("fuse", |b| b.fuse(params))?;

@@ -13,9 +13,11 @@
 //! and code, so it costs the matching entries, not keyframes x ferns.
 //!
 //! The ferns come from a fixed seed, so every run (and both backends) use the same ones.
-//! The database holds a pose and one byte per fern per keyframe (500 B for the default
-//! 500 ferns), at most [`RelocalisationSettings::max_keyframes`] of them; past that no new
-//! keyframe is added (logged once), so memory stays bounded on any sequence length.
+//! The database holds per keyframe a pose, one byte per fern (500 B for the default 500
+//! ferns) and its features for feature-based relocalisation (`slam::features`: up to 500
+//! points and descriptors, 28 KB), at most [`RelocalisationSettings::max_keyframes`] of
+//! them (2,000: 57 MB at most); past that no new keyframe is added (logged once), so memory
+//! stays bounded on any sequence length.
 
 use glam::DMat4;
 
@@ -40,6 +42,9 @@ pub struct Keyframe {
     codes: Vec<u8>,
     /// Ferns with a valid code.
     valid: u32,
+    /// Its corners and descriptors, points in the WORLD frame (`slam::features`); empty
+    /// until [`KeyframeDatabase::set_features`].
+    pub features: crate::slam::features::Features,
 }
 
 /// A keyframe found by [`KeyframeDatabase::nearest`] and how alike it is.
@@ -234,8 +239,14 @@ impl KeyframeDatabase {
             t_world_to_cam,
             codes: codes.iter().map(|&c| c.min(FERN_NO_DEPTH) as u8).collect(),
             valid,
+            features: Default::default(),
         });
         true
+    }
+
+    /// Stores the features of the keyframe at `index` (points in the world frame).
+    pub fn set_features(&mut self, index: usize, features: crate::slam::features::Features) {
+        self.keyframes[index].features = features;
     }
 }
 

@@ -619,7 +619,7 @@ pub const HEALTH_RECOVERY_MIN_INLIER_RATIO: f64 = 0.75;
 
 /// Relocalisation defaults: ElasticFusion's 500 ferns and its keyframe threshold (0.3095,
 /// rounded), five candidates per lost frame, candidates at least 30 % alike (its
-/// `blockHDAware > 0.3`), at most 10,000 keyframes (5 MB of codes).
+/// `blockHDAware > 0.3`), at most 2,000 keyframes (57 MB of codes and features).
 pub const RELOC_FERNS: usize = 500;
 pub const RELOC_KEYFRAME_DISSIMILARITY: f64 = 0.3;
 pub const RELOC_CANDIDATES: usize = 5;
@@ -628,7 +628,7 @@ pub const RELOC_CANDIDATES: usize = 5;
 pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
 pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
 pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
-pub const RELOC_MAX_KEYFRAMES: usize = 10_000;
+pub const RELOC_MAX_KEYFRAMES: usize = 2_000;
 
 #[cfg(test)]
 mod tests {

@@ -10,7 +10,7 @@ use common::harness::{gpu, plain};
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS, NormalParams,
     PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use wgslam::slam::backend::{Backend, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel};
@@ -136,6 +136,17 @@ impl<B: Backend> Backend for PerturbedMap<B> {
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.inner.encode_ferns(params, ferns)
+    }
+    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
+        self.inner.detect_keypoints(params)
+    }
+    fn describe_keypoints(
+        &mut self,
+        params: &KeypointParams,
+        keypoints: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+        self.inner.describe_keypoints(params, keypoints, pattern)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         self.inner.fuse(params)
