@@ -145,7 +145,10 @@ mod tests {
         let found = run(&nd);
         assert_eq!(found.len(), 4, "{found:?}");
         for (u, v) in &found {
-            assert!([7, 8, 15, 16].contains(u) && [7, 8, 15, 16].contains(v), "{found:?}");
+            assert!(
+                [7, 8, 15, 16].contains(u) && [7, 8, 15, 16].contains(v),
+                "{found:?}"
+            );
         }
         let (u0, v0) = found[0];
         nd[(v0 * w + u0) as usize][3] = 0.0;

@@ -61,7 +61,12 @@ impl KeypointBuffers {
 
 impl GpuBackend {
     /// Buffers for at least `capacity` keypoints and `tests` tests.
-    fn keypoint_buffers(&mut self, p: &KeypointParams, capacity: usize, tests: usize) -> Result<()> {
+    fn keypoint_buffers(
+        &mut self,
+        p: &KeypointParams,
+        capacity: usize,
+        tests: usize,
+    ) -> Result<()> {
         let fits = self
             .keypoints
             .as_ref()
@@ -81,12 +86,16 @@ impl GpuBackend {
     ) -> Result<(Vec<Keypoint>, u32)> {
         self.keypoint_buffers(params, params.capacity as usize, 1)?;
         let b = self.keypoints.as_mut().expect("just made");
-        let frame = self.frame.as_ref().expect("preprocess() runs before any other step");
+        let frame = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before any other step");
         let ctx = &self.ctx;
-        let grid = self
-            .kernels
-            .keypoint_detect
-            .grid_workgroups_for_image(ctx, params.width, params.height);
+        let grid = self.kernels.keypoint_detect.grid_workgroups_for_image(
+            ctx,
+            params.width,
+            params.height,
+        );
         ctx.scoped("keypoint_detect", || {
             b.params.write(ctx, params);
             let group = self.kernels.keypoint_detect.bind_group(
@@ -132,7 +141,10 @@ impl GpuBackend {
         }
         self.keypoint_buffers(params, n, params.tests as usize)?;
         let b = self.keypoints.as_mut().expect("just made");
-        let frame = self.frame.as_ref().expect("preprocess() runs before any other step");
+        let frame = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before any other step");
         let ctx = &self.ctx;
         ctx.scoped("keypoint_describe", || {
             b.params.write(ctx, params);
@@ -150,7 +162,9 @@ impl GpuBackend {
                     ("points", b.points.binding()),
                 ],
             );
-            let workgroups = (n as u32).div_ceil(64).min(ctx.reduction_workgroups().max(1));
+            let workgroups = (n as u32)
+                .div_ceil(64)
+                .min(ctx.reduction_workgroups().max(1));
             let mut enc = ctx.encoder("keypoint_describe");
             record_passes(
                 ctx,

@@ -14,8 +14,8 @@ use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, DESCRIPTOR_WORDS, NormalParams,
-    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, DESCRIPTOR_WORDS,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, PyramidLevel};
 use crate::slam::fused_view::FusedView;

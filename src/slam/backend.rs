@@ -6,8 +6,9 @@
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS, NormalParams,
-    PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, PyramidParams, DESCRIPTOR_WORDS,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::Result;

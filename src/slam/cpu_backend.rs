@@ -11,8 +11,9 @@
 use crate::cpu;
 use crate::layout::{append_slots, scan_params};
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS,
-    MapChunk, NormalParams, PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams,
+    Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams, ProjectParams,
+    BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,

@@ -12,8 +12,9 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams, DESCRIPTOR_WORDS, NormalParams,
-    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, DESCRIPTOR_WORDS,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, BackendCounters, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,

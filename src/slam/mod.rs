@@ -7,8 +7,8 @@
 pub mod any_backend;
 pub mod backend;
 pub mod cpu_backend;
-pub(crate) mod fused_view;
 pub mod features;
+pub(crate) mod fused_view;
 pub mod health;
 pub(crate) mod instrumented;
 pub mod keyframes;
