@@ -7,6 +7,7 @@ use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
 use super::recording::{record_passes, submit_profiled};
 use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
+use crate::slam::backend::Described;
 use crate::Result;
 
 /// The keypoint kernels' buffers, sized for `capacity` keypoints and `tests` tests.
@@ -133,7 +134,7 @@ impl GpuBackend {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+    ) -> Result<Described> {
         let n = params.count as usize;
         assert!(keypoints.len() >= n && pattern.len() >= params.tests as usize);
         if n == 0 {

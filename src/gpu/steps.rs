@@ -14,10 +14,9 @@ use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, DESCRIPTOR_WORDS,
-    ICP_SYSTEM_LEN,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::backend::{Backend, Described, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::plan::{self, Buffer, Call};
 use crate::{Error, Result};
@@ -350,7 +349,7 @@ impl Backend for GpuBackend {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+    ) -> Result<Described> {
         self.describe_keypoints_on_gpu(params, keypoints, pattern)
     }
 

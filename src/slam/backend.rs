@@ -103,6 +103,10 @@ pub struct BackendCounters {
     pub submissions: u64,
 }
 
+/// `describe_keypoints`' result: each keypoint's descriptor, and its vertex (CAMERA frame,
+/// metres, `w = 1` valid / `0`).
+pub type Described = (Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>);
+
 /// Runs the kernel steps of one frame. Every method mirrors one or two kernels.
 pub trait Backend {
     /// Short name for logs and reports (`cpu`, `gpu`).
@@ -144,7 +148,7 @@ pub trait Backend {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)>;
+    ) -> Result<Described>;
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
     /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
     /// `capacity` are filled in by the backend, which grows the map first when needed).
@@ -226,7 +230,7 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+    ) -> Result<Described> {
         (**self).describe_keypoints(params, keypoints, pattern)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {

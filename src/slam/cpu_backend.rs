@@ -16,7 +16,7 @@ use crate::layout::{
     BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
-    Backend, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
+    Backend, Described, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
 };
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
@@ -298,7 +298,7 @@ impl Backend for CpuBackend {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+    ) -> Result<Described> {
         let n = params.count as usize;
         let mut words = vec![0u32; n * DESCRIPTOR_WORDS];
         let mut points = vec![[0.0f32; 4]; n];

@@ -13,11 +13,11 @@ use std::time::Instant;
 
 use crate::layout::{
     BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, DESCRIPTOR_WORDS,
-    ICP_SYSTEM_LEN,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
-    Backend, BackendCounters, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
+    Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
+    PyramidLevel,
 };
 use crate::slam::map::SurfelMap;
 use crate::Result;
@@ -113,7 +113,7 @@ impl<B: Backend> Backend for Instrumented<B> {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+    ) -> Result<Described> {
         self.step("describe_keypoints", |b| {
             b.describe_keypoints(params, keypoints, pattern)
         })

@@ -11,10 +11,11 @@ use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{
     BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, DESCRIPTOR_WORDS,
-    ICP_SYSTEM_LEN,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use wgslam::slam::backend::{Backend, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel};
+use wgslam::slam::backend::{
+    Backend, Described, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
+};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::map::SurfelMap;
 use wgslam::slam::params::{Profile, SlamParams};
@@ -146,7 +147,7 @@ impl<B: Backend> Backend for PerturbedMap<B> {
         params: &KeypointParams,
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
-    ) -> Result<(Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>)> {
+    ) -> Result<Described> {
         self.inner.describe_keypoints(params, keypoints, pattern)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
