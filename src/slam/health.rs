@@ -24,8 +24,9 @@
 //! Tests 2 and 3 start after [`HealthSettings::warmup_frames`] tracked frames (they need a
 //! typical value); test 1 holds from the second frame on. A lost frame is not fused, its
 //! pose is not written as tracked, and the pipeline tries to relocalise
-//! (`slam::keyframes`). A relocalisation attempt passes tests 1 and 2 (its motion is a
-//! jump by design).
+//! (`slam::keyframes`, `slam::features`). A recovery (after lost frames, or from a
+//! keyframe's pose) must pass the stricter [`HealthMonitor::judge_recovery`]; ICP from a
+//! pose that matched features gave passes the tracking test and must agree with that pose.
 //!
 //! ## Measured (release build, both backends, robust profile, 320x240 unless said)
 //!
