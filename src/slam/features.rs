@@ -19,6 +19,7 @@ use glam::{DMat4, DVec3};
 
 use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
 use crate::slam::backend::Backend;
+use crate::slam::seeded::SplitMix;
 use crate::Result;
 
 /// Corners kept per frame (the strongest).
@@ -51,28 +52,12 @@ pub struct Features {
     pub descriptors: Vec<[u32; DESCRIPTOR_WORDS]>,
 }
 
-/// A splitmix64 stream for the pattern and RANSAC's samples (fixed seeds: repeatable runs).
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
-
 /// The descriptor's test pattern: [`DESCRIPTOR_TESTS`] pairs of offsets, uniform in the
 /// patch (BRIEF's "G I" sampling), from a fixed seed.
 pub fn pattern() -> Vec<[i32; 4]> {
     let mut rng = SplitMix(0xb41e_f0f0_2010_0001);
     let side = (2 * PATCH_RADIUS + 1) as usize;
-    let mut offset = || rng.below(side) as i32 - PATCH_RADIUS;
+    let mut offset = || rng.below(side as u64) as i32 - PATCH_RADIUS;
     (0..DESCRIPTOR_TESTS)
         .map(|_| [offset(), offset(), offset(), offset()])
         .collect()
@@ -189,11 +174,8 @@ pub fn estimate_pose(query: &Features, keyframe: &Features) -> Option<(DMat4, us
     let mut rng = SplitMix(0x5a4c_ac01_2016_0001);
     let mut best: Vec<usize> = Vec::new();
     for _ in 0..RANSAC_ITERATIONS {
-        let s = [
-            rng.below(src.len()),
-            rng.below(src.len()),
-            rng.below(src.len()),
-        ];
+        let n = src.len() as u64;
+        let s = [rng.below(n), rng.below(n), rng.below(n)].map(|k| k as usize);
         if s[0] == s[1] || s[1] == s[2] || s[0] == s[2] {
             continue;
         }
@@ -221,7 +203,7 @@ mod tests {
     #[test]
     fn ransac_recovers_a_far_pose_through_outliers() {
         let mut rng = SplitMix(3);
-        let mut unit = || (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut unit = || rng.unit_f64();
         let t_cam_to_world = se3::exp(&[0.1, 0.5, -0.05, 0.5, 0.1, -0.45]);
         let (mut query, mut keyframe) = (Features::default(), Features::default());
         for k in 0..120u32 {

@@ -23,6 +23,7 @@ use glam::DMat4;
 
 use crate::layout::{Fern, FernParams, FERN_GRID, FERN_NO_DEPTH};
 use crate::slam::params::RelocalisationSettings;
+use crate::slam::seeded::SplitMix;
 
 /// The depth thresholds' range, metres: ElasticFusion draws them from 0.4 m to its depth
 /// cut-off; 4 m covers the indoor range of the sequences here (ICL-NUIM 1.4-5.3 m,
@@ -70,37 +71,14 @@ pub struct KeyframeDatabase {
     full_noted: bool,
 }
 
-/// A small, fixed-seed generator for the ferns (splitmix64): repeatable everywhere, no
-/// dependency for a few hundred numbers.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    /// Uniform in `[0, n)`.
-    fn below(&mut self, n: u32) -> u32 {
-        (self.next() % n as u64) as u32
-    }
-    /// Uniform in `[lo, hi)`.
-    fn between(&mut self, lo: f32, hi: f32) -> f32 {
-        let unit = (self.next() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * unit
-    }
-}
-
 impl KeyframeDatabase {
     /// An empty database with `settings.ferns` ferns from the fixed seed.
     pub fn new(settings: &RelocalisationSettings) -> Self {
         let mut rng = SplitMix(FERN_SEED);
         let ferns = (0..settings.ferns)
             .map(|_| Fern {
-                cell_u: rng.below(FERN_GRID[0]),
-                cell_v: rng.below(FERN_GRID[1]),
+                cell_u: rng.below(FERN_GRID[0] as u64) as u32,
+                cell_v: rng.below(FERN_GRID[1] as u64) as u32,
                 _pad0: 0,
                 _pad1: 0,
                 threshold: [

@@ -16,5 +16,6 @@ pub mod map;
 pub mod params;
 pub mod pipeline;
 pub(crate) mod plan;
+pub(crate) mod seeded;
 pub mod solve;
 pub(crate) mod step_params;
