@@ -70,7 +70,7 @@ pub const RESERVED_OPTIONS: [&str; 6] =
     ["frames", "downsample", "profile", "backend", "out", "poses"];
 
 /// Backend names a job may ask for.
-const BACKENDS: [&str; 2] = ["cpu", "gpu"];
+pub const BACKENDS: [&str; 2] = ["cpu", "gpu"];
 /// Profile names (those of `wgslam run --profile`).
 const PROFILES: [&str; 2] = ["robust", "assignment"];
 

@@ -9,7 +9,7 @@ use crate::batch::job::{Outcome, Runner};
 use crate::batch::manifest::Manifest;
 use crate::batch::select::{self, Selection};
 use crate::batch::summary::{self, Summary};
-use crate::batch::{interrupt, report};
+use crate::batch::{folder, interrupt, report};
 use crate::cli::pipeline_args::ParamOverrides;
 use crate::slam::params::PoseSource;
 use crate::{Error, Result};
@@ -162,6 +162,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
         out.display()
     );
     let r = runner(out.clone())?;
+    folder::claim(&out, path, !a.dry_run)?;
     if a.dry_run {
         for &i in &picked {
             let job = &m.jobs[i];

@@ -311,7 +311,11 @@ pub fn tracking_counts(frames: &[FrameOutcome], keyframes: usize) -> TrackingCou
         if f.report.health.is_some_and(|h| h.held_directions > 0) {
             counts.degenerate += 1;
         }
-        run = if f.report.status.is_tracked() { 0 } else { run + 1 };
+        run = if f.report.status.is_tracked() {
+            0
+        } else {
+            run + 1
+        };
         counts.longest_untracked_run = counts.longest_untracked_run.max(run);
     }
     // Empty frames at the very start are not a failure (the run starts at the first
@@ -423,6 +427,20 @@ pub fn run_observed<B: Backend + Inspect>(
         metrics,
     })
 }
+
+/// Every file `wgslam run` writes into its `--out` folder: [`write_outputs`]'s and
+/// [`write_pictures`]'s.
+pub const OUTPUT_FILES: [&str; 9] = [
+    "trajectory.tum",
+    "map.ply",
+    "metrics.json",
+    "frames.json",
+    "trajectory.png",
+    "map_color.png",
+    "map_normals.png",
+    "last_camera_color.png",
+    "last_camera_normals.png",
+];
 
 /// Writes `trajectory.tum`, `map.ply`, `metrics.json` and `frames.json` into `out`
 /// (created if missing), each file completely or not at all.

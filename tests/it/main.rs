@@ -15,6 +15,7 @@ mod end_to_end;
 mod eval;
 mod gpu_parity;
 mod gpu_smoke;
+mod hostile;
 mod inputs;
 mod layout;
 mod render;
@@ -48,6 +49,7 @@ fn main() -> ExitCode {
         eval,
         gpu_parity,
         gpu_smoke,
+        hostile,
         inputs,
         layout,
         render,
