@@ -432,11 +432,71 @@ impl JobSpec {
     }
 }
 
+/// The longest job id: it names a folder and a lock file, whose names file systems cap
+/// at 255 bytes.
+pub const MAX_ID_BYTES: usize = 200;
+
+/// Why `id` cannot be a job id (a folder name inside the batch folder), or `None`.
+fn id_problem(id: &str) -> Option<String> {
+    if id.is_empty() || id.starts_with('.') || id.contains(['/', '\\']) {
+        return Some(format!("the job name {id:?} cannot be a folder name"));
+    }
+    if id.chars().any(char::is_control) {
+        return Some(format!(
+            "the job name {id:?} holds a control character (NUL, newline, ...); it names a folder"
+        ));
+    }
+    if id.len() > MAX_ID_BYTES {
+        return Some(format!(
+            "the job name is {} bytes long, more than {MAX_ID_BYTES}; it names a folder",
+            id.len()
+        ));
+    }
+    None
+}
+
+impl JobSpec {
+    /// Checks a job read back from a batch folder (`batch.json`) as the manifest's reader
+    /// checked it when it was written: its id a plain folder name, a known profile, one or
+    /// both known backends, downsampling of at least 1, no reserved override. A batch
+    /// folder is only files; nothing read from it is trusted further than that.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        if let Some(why) = id_problem(&self.id) {
+            return Err(why);
+        }
+        if !PROFILES.contains(&self.profile.as_str()) {
+            return Err(format!(
+                "profile {:?}: want one of {PROFILES:?}",
+                self.profile
+            ));
+        }
+        let known = self.backends.iter().all(|b| BACKENDS.contains(&b.as_str()));
+        let distinct = self.backends.first() != self.backends.get(1);
+        if self.backends.is_empty() || self.backends.len() > 2 || !known || !distinct {
+            return Err(format!(
+                "backends {:?}: want [\"cpu\"], [\"gpu\"] or both",
+                self.backends
+            ));
+        }
+        if self.downsample == 0 {
+            return Err("downsample must be at least 1".into());
+        }
+        if let Some((k, _)) = self
+            .overrides
+            .iter()
+            .find(|(k, _)| RESERVED_OPTIONS.contains(&k.as_str()))
+        {
+            return Err(format!("override {k:?} is set by the batch"));
+        }
+        Ok(())
+    }
+}
+
 /// Checks a combination's values and makes its [`JobSpec`].
 fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> Result<JobSpec> {
-    let bad = |what: String| Error::format(path, format!("{origin} ({id}): {what}"));
-    if id.is_empty() || id.starts_with('.') || id.contains(['/', '\\']) {
-        return Err(bad(format!("the job name {id:?} cannot be a folder name")));
+    let bad = |what: String| Error::format(path, format!("{origin} ({id:?}): {what}"));
+    if let Some(why) = id_problem(id) {
+        return Err(bad(why));
     }
     let Some(sequence) = &c.sequence else {
         return Err(bad(

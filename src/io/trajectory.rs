@@ -22,8 +22,10 @@ pub const QUATERNION_NORM_TOL: f64 = 1e-2;
 /// One pose per line: `(stamp, t_cam_to_world)`, in file order.
 pub type Trajectory = Vec<(f64, DMat4)>;
 
-/// Reads a TUM trajectory file. Errors name `path:line` and quote the offending text for
-/// a wrong number of fields, an unparsable or non-finite number, or a non-unit quaternion.
+/// Reads a TUM trajectory file. Errors name `path:line` and the field for a wrong number
+/// of fields, an unparsable or non-finite number, or a non-unit quaternion. They never
+/// quote the file's text: a ground-truth path can name any file (a batch manifest's `gt`
+/// override), and an error ends up in logs and in a batch's report.
 pub fn read_tum(path: &Path) -> Result<Trajectory> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     parse_tum(path, &text)
@@ -39,7 +41,7 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
                 path,
                 lineno,
                 format!(
-                    "expected 8 fields `stamp tx ty tz qx qy qz qw`, found {}: {line:?}",
+                    "expected 8 fields `stamp tx ty tz qx qy qz qw`, found {}",
                     fields.len()
                 ),
             ));
@@ -47,17 +49,13 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
         let mut v = [0.0f64; 8];
         for (k, f) in fields.iter().enumerate() {
             v[k] = f.parse::<f64>().map_err(|_| {
-                Error::parse(
-                    path,
-                    lineno,
-                    format!("field {} {f:?} is not a number: {line:?}", k + 1),
-                )
+                Error::parse(path, lineno, format!("field {} is not a number", k + 1))
             })?;
             if !v[k].is_finite() {
                 return Err(Error::parse(
                     path,
                     lineno,
-                    format!("field {} is not finite: {line:?}", k + 1),
+                    format!("field {} is not finite", k + 1),
                 ));
             }
         }
@@ -67,7 +65,7 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
             return Err(Error::parse(
                 path,
                 lineno,
-                format!("quaternion (qx qy qz qw) has norm {norm:.6}, expected 1: {line:?}"),
+                format!("quaternion (qx qy qz qw) has norm {norm:.6}, expected 1"),
             ));
         }
         out.push((v[0], se3::from_tum([v[1], v[2], v[3]], q)));
