@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 
 use super::pipeline_args::{default_first_frame, PipelineArgs};
 use crate::dataset;
+use crate::io::outputs::OutputSet;
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::params::PoseSource;
 use crate::tools::run;
@@ -131,6 +132,9 @@ pub fn execute(a: RunArgs) -> Result<()> {
             }
         }
     };
+    // The outputs are staged beside --out and moved into it as a set after the run; a bad
+    // --out (a file, a folder of other files) fails here, before any frame.
+    let outputs = OutputSet::begin(&a.out, &run::OUTPUT_FILES)?;
     let mut recording = open_recording(&a, &seq, &range)?;
     let backend = any_backend::open(a.backend)?;
     let result = run::run_observed(
@@ -143,8 +147,13 @@ pub fn execute(a: RunArgs) -> Result<()> {
         recording.as_mut().map(|r| r as &mut dyn run::FrameObserver),
     )?;
     bar.finish_and_clear();
-    run::write_outputs(&a.out, &result)?;
-    let pictures = run::write_pictures(&a.out, &result, &seq)?;
+    run::write_outputs(outputs.dir(), &result)?;
+    let pictures = run::write_pictures(outputs.dir(), &result, &seq)?;
+    let pictures: Vec<PathBuf> = pictures
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| a.out.join(n)))
+        .collect();
+    outputs.commit()?;
     let recorded = recording.map(|r| r.finish(&result.map)).transpose()?;
     print_summary(&result.metrics, &a.out);
     for p in pictures.iter().chain(&recorded) {

@@ -154,6 +154,7 @@ impl OutputSet {
             _ => PathBuf::from("."),
         };
         fs::create_dir_all(&parent).map_err(|e| Error::write(&parent, e))?;
+        remove_stale_staging(&parent, &file_name.to_string_lossy(), &names);
         let n = STAGING_COUNTER.fetch_add(1, Ordering::Relaxed);
         let mut staging_name = std::ffi::OsString::from(".");
         staging_name.push(file_name);
@@ -222,6 +223,40 @@ impl Drop for OutputSet {
             // Everything in the staging folder was written by this process.
             let _ = remove_owned(&self.staging, &|_, _| true);
         }
+    }
+}
+
+/// Removes the staging folders (and the old sets moved aside) for target `name` in `parent`
+/// that a process no longer alive on this machine left (killed, or stopped by Ctrl-C,
+/// before it could clean up); only the set's files are deleted. Best effort, Linux only
+/// (a process is alive when `/proc/<pid>` exists).
+fn remove_stale_staging(parent: &Path, name: &str, names: &[String]) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = fs::read_dir(parent) else {
+        return;
+    };
+    let prefix = format!(".{name}.tmp-");
+    let known: Vec<&str> = names.iter().map(String::as_str).collect();
+    for entry in entries.flatten() {
+        let entry_name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = entry_name
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.split('-').next())
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid == std::process::id() || Path::new("/proc").join(pid.to_string()).exists() {
+            continue;
+        }
+        let _ = remove_owned(&entry.path(), &|rel: &Path, is_dir: bool| {
+            !is_dir
+                && rel
+                    .to_str()
+                    .is_some_and(|n| known.contains(&n) || is_temp_of(n, &known))
+        });
     }
 }
 
