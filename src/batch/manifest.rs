@@ -176,6 +176,24 @@ impl Manifest {
         let file: FileToml = toml::from_str(text)
             .map_err(|e| Error::format(path, format!("not a batch manifest: {e}")))?;
         let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        let max_jobs = crate::io::input::max_jobs()?;
+        let total = file.grid.iter().fold(file.job.len() as u64, |total, g| {
+            let n = g
+                .axis_lengths()
+                .iter()
+                .try_fold(1u64, |a, (_, l)| a.checked_mul(*l as u64))
+                .unwrap_or(u64::MAX);
+            total.saturating_add(n)
+        });
+        if total > max_jobs {
+            return Err(Error::format(
+                path,
+                format!(
+                    "the manifest makes {total} jobs, more than the limit of {max_jobs} \
+                     (WGSLAM_MAX_JOBS raises it); split it into several manifests"
+                ),
+            ));
+        }
         let d = &file.defaults;
         single_valued(path, "[defaults]", d)?;
         if d.name.is_some() {

@@ -84,6 +84,13 @@ pub fn execute(a: RunArgs) -> Result<()> {
     let mut range = seq.select(first, last)?;
     let seq = match a.revisit {
         Some(total) => {
+            let max = crate::io::input::max_revisit_frames()?;
+            if total as u64 > max {
+                return Err(Error::Argument(format!(
+                    "--revisit {total}: more than {max} frames (WGSLAM_MAX_REVISIT_FRAMES \
+                     raises the limit)"
+                )));
+            }
             let long = seq.revisiting(first, last, total)?;
             range = 0..=total - 1;
             long

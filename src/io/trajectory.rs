@@ -27,7 +27,7 @@ pub type Trajectory = Vec<(f64, DMat4)>;
 /// quote the file's text: a ground-truth path can name any file (a batch manifest's `gt`
 /// override), and an error ends up in logs and in a batch's report.
 pub fn read_tum(path: &Path) -> Result<Trajectory> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_input_string(path)?;
     parse_tum(path, &text)
 }
 
@@ -137,7 +137,7 @@ mod tests {
         let e = parse_tum(p, "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n").unwrap_err();
         assert!(matches!(e, Error::Parse { line: 3, .. }), "{e}");
         let e = parse_tum(p, "1 0 0 x 0 0 0 1\n").unwrap_err();
-        assert!(e.to_string().contains("\"x\""), "{e}");
+        assert!(e.to_string().contains("field 4 is not a number"), "{e}");
         let e = parse_tum(p, "1 0 0 0 0 0 0 2\n").unwrap_err();
         assert!(e.to_string().contains("norm 2.0"), "{e}");
         let e = parse_tum(p, "1 0 0 NaN 0 0 0 1\n").unwrap_err();

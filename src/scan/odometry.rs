@@ -137,7 +137,7 @@ fn numbers(path: &Path, line_no: usize, line: &str, n: usize) -> Result<Vec<f64>
 /// Reads an AirSim pose file: line 1 `x, y, z` (metres, NED), line 2 quaternion
 /// `x, y, z, w`; returns `t_scan_to_world` (`p_world = R(q) p_scan + t`).
 pub fn read_airsim_pose(path: &Path) -> Result<DMat4> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_input_string(path)?;
     let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
     if lines.len() < 2 {
         return Err(Error::format(
