@@ -19,6 +19,10 @@ use crate::{Error, Result};
 /// not rounding.
 pub const QUATERNION_NORM_TOL: f64 = 1e-2;
 
+/// The largest position coordinate read, metres: far beyond any trajectory (UTM northings
+/// are ~1e7 m), far below where squared distances overflow (1e300 printed "ATE NaN mm").
+pub const MAX_COORDINATE_M: f64 = 1e9;
+
 /// One pose per line: `(stamp, t_cam_to_world)`, in file order.
 pub type Trajectory = Vec<(f64, DMat4)>;
 
@@ -58,6 +62,17 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
                     format!("field {} is not finite", k + 1),
                 ));
             }
+        }
+        if let Some(k) = (1..4).find(|&k| v[k].abs() > MAX_COORDINATE_M) {
+            return Err(Error::parse(
+                path,
+                lineno,
+                format!(
+                    "field {} is beyond {MAX_COORDINATE_M:e} m: not a camera position (the \
+                     errors of such numbers overflow)",
+                    k + 1
+                ),
+            ));
         }
         let q = [v[4], v[5], v[6], v[7]];
         let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
