@@ -41,7 +41,7 @@ pub struct RpeStats {
 }
 
 /// Greedy nearest-stamp association of estimate and ground truth (like the TUM
-/// `associate.py`: pairs with `|dt| < max_dt`, best first, each pose used once).
+/// `associate.py`: pairs with `|dt| <= max_dt`, best first, each pose used once).
 /// Returns `(est_index, gt_index)` sorted by estimate stamp.
 pub fn associate(est: &[(f64, DMat4)], gt: &[(f64, DMat4)], max_dt: f64) -> Vec<(usize, usize)> {
     let a: Vec<f64> = est.iter().map(|p| p.0).collect();

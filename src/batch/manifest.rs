@@ -83,7 +83,11 @@ const DEFAULT_BACKEND: &str = "both";
 /// A scalar or a list of scalars (a grid axis). `Many` first: an untagged enum takes the
 /// first variant that fits, and a list fits a `toml::Value` too.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "a value of this field's type (downsample: a whole number; sequence, frames, \
+                 profile, backend: a string), or in a [[grid]] a list of them"
+)]
 enum OneOrMany<T> {
     Many(Vec<T>),
     One(T),
