@@ -1002,6 +1002,24 @@ fn a_closed_pipe_ends_the_output_quietly() {
     assert_ne!(o.status.code(), Some(101), "{err}");
 }
 
+// ---- 7. a map cap ----------------------------------------------------------------------
+
+fn the_map_cap_stops_the_run_with_a_clear_message() {
+    // `--profile assignment` over 1000 revisiting frames grew to 75 M surfels unwarned.
+    let dir = common::temp_dir("hostile-map-cap");
+    let out = dir.join("out");
+    let mut args = run_args(3, &out);
+    args.extend(["--max-surfels".into(), "1000".into()]);
+    let o = wgslam(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        text(&o).contains("map capacity exceeded") && text(&o).contains("--max-surfels 1000"),
+        "{}",
+        text(&o)
+    );
+    assert!(!out.exists(), "outputs of a capped run");
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     #[allow(unused_mut)]
     let mut v = vec![
@@ -1080,6 +1098,10 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "a_closed_pipe_ends_the_output_quietly",
             a_closed_pipe_ends_the_output_quietly,
+        ),
+        plain(
+            "the_map_cap_stops_the_run_with_a_clear_message",
+            the_map_cap_stops_the_run_with_a_clear_message,
         ),
     ];
     #[cfg(unix)]
