@@ -92,28 +92,10 @@ mod tests {
             ..Zeroable::zeroed()
         };
         let nd = |z: f32| [0.0, 0.0, 1.0, z];
-        let normal_depth = [
-            nd(1.0),
-            nd(3.0),
-            nd(0.0),
-            nd(0.0),
-            nd(2.0),
-            nd(0.0),
-            nd(0.0),
-            nd(0.0),
-        ];
+        let normal_depth = [nd(1.0), nd(3.0), nd(0.0), nd(0.0), nd(2.0), nd(0.0), nd(0.0), nd(0.0)];
         let c = |r: f32| [r, 100.0, 0.0, 255.0];
         // Mean red of the valid pixels 20, of all four 35 (the invalid one is 100).
-        let color = [
-            c(10.0),
-            c(20.0),
-            c(0.0),
-            c(0.0),
-            c(30.0),
-            c(100.0),
-            c(0.0),
-            c(0.0),
-        ];
+        let color = [c(10.0), c(20.0), c(0.0), c(0.0), c(30.0), c(100.0), c(0.0), c(0.0)];
         let fern = |cell_u, t: [f32; 4]| Fern {
             cell_u,
             threshold: t,

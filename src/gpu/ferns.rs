@@ -49,10 +49,7 @@ impl GpuBackend {
             self.ferns = Some(FernBuffers::new(ctx, params, n)?);
         }
         let b = self.ferns.as_mut().expect("just made");
-        let frame = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before any other step");
+        let frame = self.frame.as_ref().expect("preprocess() runs before any other step");
         ctx.scoped("fern_encode", || {
             b.params.write(ctx, params);
             b.ferns.upload(ctx, &ferns[..n])?;
@@ -66,9 +63,7 @@ impl GpuBackend {
                     ("codes", b.codes.binding()),
                 ],
             );
-            let workgroups = (n as u32)
-                .div_ceil(64)
-                .min(ctx.reduction_workgroups().max(1));
+            let workgroups = (n as u32).div_ceil(64).min(ctx.reduction_workgroups().max(1));
             let mut enc = ctx.encoder("fern_encode");
             record_passes(
                 ctx,

@@ -13,8 +13,8 @@ use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
-    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, PyramidLevel};
 use crate::slam::fused_view::FusedView;

@@ -6,8 +6,8 @@
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
-    PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::Result;

@@ -11,8 +11,8 @@
 use crate::cpu;
 use crate::layout::{append_slots, scan_params};
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams,
-    MapChunk, NormalParams, PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, MapChunk, NormalParams,
+    PreprocessParams, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,

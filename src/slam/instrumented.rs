@@ -12,8 +12,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
-    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, BackendCounters, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,

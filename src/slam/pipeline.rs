@@ -257,12 +257,7 @@ impl<B: Backend> Slam<B> {
             );
         }
         self.frames_since_tracked += 1;
-        Ok(self.untracked(
-            TrackStatus::Lost(why),
-            first.iterations,
-            first.health,
-            tried,
-        ))
+        Ok(self.untracked(TrackStatus::Lost(why), first.iterations, first.health, tried))
     }
 
     /// The last tracked pose (the next frame's ICP starts from it), `None` before the

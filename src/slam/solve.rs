@@ -251,19 +251,11 @@ mod tests {
             seed as f32 / u32::MAX as f32 - 0.5
         };
         for i in 0..2000 {
-            let p = glam::Vec3::new(
-                (i % 40) as f32 * 0.05 - 1.0,
-                (i / 40) as f32 * 0.04 - 1.0,
-                2.0,
-            );
+            let p = glam::Vec3::new((i % 40) as f32 * 0.05 - 1.0, (i / 40) as f32 * 0.04 - 1.0, 2.0);
             // Normals tilted by about 0.01 rad of noise, residuals of about 1 mm.
             let n = glam::Vec3::new(0.01 * noise(), 0.01 * noise(), 1.0).normalize();
             let pxn = p.cross(n);
-            accumulate(
-                &mut sys,
-                &[pxn.x, pxn.y, pxn.z, n.x, n.y, n.z],
-                0.002 * noise(),
-            );
+            accumulate(&mut sys, &[pxn.x, pxn.y, pxn.z, n.x, n.y, n.z], 0.002 * noise());
         }
         let eq = NormalEquations::decode(&sys);
         // The held eigen-directions are the free axes up to the normals' 0.01 rad tilt, so
@@ -275,14 +267,8 @@ mod tests {
         let guarded = eq.solve_guarded(1e-3).unwrap();
         assert_eq!(guarded.held_directions, 3, "{guarded:?}");
         let (gamma, tx, ty) = (guarded.x[2], guarded.x[3], guarded.x[4]);
-        assert!(
-            gamma.abs().max(tx.abs()).max(ty.abs()) < HELD_LEAK,
-            "{guarded:?}"
-        );
+        assert!(gamma.abs().max(tx.abs()).max(ty.abs()) < HELD_LEAK, "{guarded:?}");
         let free = eq.solve_guarded(0.0).unwrap().x;
-        assert!(
-            free[3].abs().max(free[4].abs()) > INVENTED_STEP_M,
-            "unguarded {free:?}"
-        );
+        assert!(free[3].abs().max(free[4].abs()) > INVENTED_STEP_M, "unguarded {free:?}");
     }
 }

@@ -10,8 +10,8 @@ use common::harness::{gpu, plain};
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams,
-    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, NormalParams, PreprocessParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use wgslam::slam::backend::{Backend, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel};
 use wgslam::slam::cpu_backend::CpuBackend;

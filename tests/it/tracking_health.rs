@@ -35,9 +35,7 @@ fn gpu_backend(ctx: GpuContext) -> GpuBackend {
 }
 
 fn assets(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("assets")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
 }
 
 fn run_all<B: Backend + Inspect>(backend: B, root: &Path) -> RunResult {
@@ -47,11 +45,7 @@ fn run_all<B: Backend + Inspect>(backend: B, root: &Path) -> RunResult {
 }
 
 fn ate_m(r: &RunResult) -> f64 {
-    r.metrics
-        .accuracy
-        .as_ref()
-        .expect("ground truth")
-        .ate_rmse_aligned_m
+    r.metrics.accuracy.as_ref().expect("ground truth").ate_rmse_aligned_m
 }
 
 fn statuses(r: &RunResult) -> Vec<&TrackStatus> {
@@ -73,33 +67,19 @@ fn bundled_splice_is_lost_then_recovers<B: Backend + Inspect>(backend: B, noisy:
     assert_eq!(s.len(), 39);
     for (i, st) in s.iter().enumerate() {
         match i {
-            23..=26 => assert!(
-                matches!(st, TrackStatus::Lost(why) if !why.is_empty()),
-                "{i}: {st:?}"
-            ),
+            23..=26 => assert!(matches!(st, TrackStatus::Lost(why) if !why.is_empty()), "{i}: {st:?}"),
             27..=28 => assert_eq!(**st, TrackStatus::EmptyDepth, "{i}"),
             _ => assert!(st.is_tracked(), "frame {i} lost on clean tracking: {st:?}"),
         }
     }
     let before = r.frames[22].report.surfels;
     for f in &r.frames[23..=28] {
-        assert_eq!(
-            f.report.surfels, before,
-            "frame {} changed the map",
-            f.index
-        );
+        assert_eq!(f.report.surfels, before, "frame {} changed the map", f.index);
     }
     let t = &r.metrics.tracking;
-    assert_eq!(
-        (t.lost, t.empty_depth, t.health.as_str()),
-        (4, 2, "recovered")
-    );
+    assert_eq!((t.lost, t.empty_depth, t.health.as_str()), (4, 2, "recovered"));
     assert_eq!(run::trajectory(&r.frames).len(), 33, "tracked poses only");
-    let bar = if noisy {
-        ATE_NOISY_MAX_M
-    } else {
-        ATE_CLEAN_MAX_M
-    };
+    let bar = if noisy { ATE_NOISY_MAX_M } else { ATE_CLEAN_MAX_M };
     let ate = ate_m(&r);
     eprintln!("{name}: ATE {:.3} mm over {} poses", ate * 1e3, 33);
     assert!(ate < bar, "ATE {ate} m");
@@ -131,18 +111,11 @@ fn kidnapped_tracker_relocalises<B: Backend>(backend: B) {
         r.relocalisation
     );
     for i in [13, 14, 15] {
-        let r = if i == 13 {
-            r.clone()
-        } else {
-            process(&mut slam, i)
-        };
+        let r = if i == 13 { r.clone() } else { process(&mut slam, i) };
         assert!(r.status.is_tracked(), "{i}: {:?}", r.status);
         let gt = seq.frames[i].gt_cam_to_world.unwrap();
         let err = (r.t_cam_to_world.w_axis - gt.w_axis).truncate().length();
-        assert!(
-            err < ATE_NOISY_MAX_M,
-            "frame {i}: {err} m from the ground truth"
-        );
+        assert!(err < ATE_NOISY_MAX_M, "frame {i}: {err} m from the ground truth");
     }
 }
 
@@ -154,11 +127,7 @@ fn empty_first_frames_start_at_the_first_usable() {
     for i in 1..=6 {
         let f = seq.load(i).unwrap();
         let rgba = run::packed_rgba(&f);
-        let depth = if i <= 2 {
-            vec![0; f.depth.len()]
-        } else {
-            f.depth
-        };
+        let depth = if i <= 2 { vec![0; f.depth.len()] } else { f.depth };
         let gt = seq.frames[i].gt_cam_to_world;
         let r = slam.process(i as u32, &depth, &rgba, gt.as_ref()).unwrap();
         match i {
@@ -227,12 +196,7 @@ fn icl_jump_recovers<B: Backend + Inspect>(backend: B, data: &Path, noisy: bool)
     } else {
         common::shared_icl(data)
     };
-    splice_icl(
-        &common::shared_icl(data),
-        &depth,
-        &[(1, 60), (80, 200)],
-        &dir,
-    );
+    splice_icl(&common::shared_icl(data), &depth, &[(1, 60), (80, 200)], &dir);
     let r = run_all(backend, &dir);
     let after = &r.frames[60..];
     assert!(
@@ -244,10 +208,7 @@ fn icl_jump_recovers<B: Backend + Inspect>(backend: B, data: &Path, noisy: bool)
         after[0].report.status
     );
     assert!(r.frames[..60].iter().all(|f| f.report.status.is_tracked()));
-    let tracked = after
-        .iter()
-        .filter(|f| f.report.status.is_tracked())
-        .count();
+    let tracked = after.iter().filter(|f| f.report.status.is_tracked()).count();
     let ate = ate_m(&r);
     eprintln!(
         "noisy {noisy}: {tracked} of {} frames after the jump tracked, ATE {:.3} mm",
@@ -255,13 +216,7 @@ fn icl_jump_recovers<B: Backend + Inspect>(backend: B, data: &Path, noisy: bool)
         ate * 1e3
     );
     assert!(tracked as f64 >= RECOVERED_MIN_FRACTION * after.len() as f64);
-    assert!(
-        ate < if noisy {
-            ATE_NOISY_MAX_M
-        } else {
-            ATE_CLEAN_MAX_M
-        }
-    );
+    assert!(ate < if noisy { ATE_NOISY_MAX_M } else { ATE_CLEAN_MAX_M });
 }
 
 /// ICL-NUIM 1..60 then 140..200: every frame after the jump is at least 0.7 m and 34
@@ -274,11 +229,7 @@ fn icl_unreachable_jump_is_never_fused(data: &Path) {
     let r = run_all(CpuBackend::new(), &dir);
     let before = r.frames[59].report.surfels;
     for f in &r.frames[60..] {
-        assert!(
-            matches!(f.report.status, TrackStatus::Lost(_)),
-            "{}",
-            f.index
-        );
+        assert!(matches!(f.report.status, TrackStatus::Lost(_)), "{}", f.index);
         assert_eq!(f.report.surfels, before);
     }
     assert_eq!(r.metrics.tracking.health, "LOST");
@@ -316,15 +267,8 @@ fn no_false_alarms_on_real_sequences(data: &Path) {
     ];
     for (root, first, last) in runs {
         let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
-        let r = run::run(
-            CpuBackend::new(),
-            &seq,
-            first,
-            last,
-            SlamParams::default(),
-            |_| {},
-        )
-        .unwrap();
+        let r = run::run(CpuBackend::new(), &seq, first, last, SlamParams::default(), |_| {})
+            .unwrap();
         let t = &r.metrics.tracking;
         eprintln!(
             "{}: {} frames, {} lost, {} relocalised, {} keyframes, ATE {:.2} mm",
@@ -342,11 +286,8 @@ fn no_false_alarms_on_real_sequences(data: &Path) {
 /// The assignment profile keeps the health test: the bundled splice's unseen frames are
 /// lost there too.
 fn assignment_profile_reports_lost_frames() {
-    let seq = dataset::open(
-        &assets("icl_living_room_kt2_spliced"),
-        &SequenceOptions::default(),
-    )
-    .unwrap();
+    let seq = dataset::open(&assets("icl_living_room_kt2_spliced"), &SequenceOptions::default())
+        .unwrap();
     let r = run::run(
         CpuBackend::new(),
         &seq,

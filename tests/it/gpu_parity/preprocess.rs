@@ -6,14 +6,14 @@ use super::{check_vec4_map, gpu_backend, root, slam};
 use super::{FILTERED_VERTEX_TOL_M, NORMAL_TOL, VERTEX_TOL_M};
 use crate::common::frames::load_frame;
 use crate::common::harness::{gpu, Test};
-use wgslam::cpu::fern_encode::fern_encode;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::gpu::GpuBackend;
-use wgslam::layout::FERN_NO_DEPTH;
 use wgslam::slam::backend::{Backend, FrameMaps, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::keyframes::KeyframeDatabase;
 use wgslam::slam::params::{BilateralSettings, Profile, SlamParams};
+use wgslam::cpu::fern_encode::fern_encode;
+use wgslam::layout::FERN_NO_DEPTH;
+use wgslam::slam::keyframes::KeyframeDatabase;
 use wgslam::Error;
 
 /// depth_to_vertex and vertex_to_normal against their twins, at downsample 2 and 1.
