@@ -152,15 +152,18 @@ fn batch_refuses_the_root_and_a_file() {
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
 }
 
-/// Holds `path`'s flock(2) lock in a child `flock` process until killed; returns once the
-/// lock is held.
+/// Holds `path`'s flock(2) lock in a child `flock` process until [`release`]; returns once
+/// the lock is held.
 fn hold_lock(path: &Path) -> Child {
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    // -o: the lock stays with flock(1) itself, not with `sleep`, so killing flock frees it.
-    let child = Command::new("flock")
+    // -o: the lock stays with flock(1) itself, not with `cat`; `cat` ends when its stdin
+    // closes, and flock with it, freeing the lock.
+    let mut child = Command::new("flock")
         .arg("-o")
         .arg(path)
-        .args(["sleep", "60"])
+        .arg("cat")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::null())
         .spawn()
         .expect("flock(1) from util-linux");
     for _ in 0..200 {
@@ -176,7 +179,14 @@ fn hold_lock(path: &Path) -> Child {
         }
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
+    release(child);
     panic!("flock never took {}", path.display());
+}
+
+/// Ends a [`hold_lock`] holder and waits for it.
+fn release(mut child: Child) {
+    drop(child.stdin.take());
+    let _ = child.wait();
 }
 
 fn a_second_batch_on_a_running_job_is_refused_by_its_lock() {
@@ -185,10 +195,9 @@ fn a_second_batch_on_a_running_job_is_refused_by_its_lock() {
     let o = wgslam(&["batch", s(&m)]);
     assert!(o.status.success(), "{}", text(&o));
     std::fs::remove_file(dir.join("out/jobs/myjob/job.json")).unwrap();
-    let mut holder = hold_lock(&dir.join("out/locks/myjob.lock"));
+    let holder = hold_lock(&dir.join("out/locks/myjob.lock"));
     let o = wgslam(&["batch", s(&m)]);
-    let _ = holder.kill();
-    let _ = holder.wait();
+    release(holder);
     assert!(!o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("being run by another"), "{}", text(&o));
     assert!(
