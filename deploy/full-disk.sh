@@ -4,7 +4,7 @@
 # that `wgslam run` over an earlier run's outputs that runs out of space keeps the old set
 # whole and leaves no temporary file or folder, and that `wgslam register` on a full disk
 # leaves neither result.json nor aligned.ply.
-# Usage: tests/full-disk.sh [WGSLAM_BINARY]   (default: target/release/wgslam, else debug)
+# Usage: deploy/full-disk.sh [WGSLAM_BINARY]   (default: target/release/wgslam, else debug)
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 BIN=${1:-}
@@ -36,7 +36,7 @@ grep -q "No space left" "$LOG" || fail "not a full-disk error: $(tail -2 "$LOG")
 [[ $(sha256sum "$MNT"/out/* | sha256sum) == "$before" ]] || fail "run: the old set changed"
 leftovers=$(find "$MNT" -name '.*tmp-*')
 [[ -z $leftovers ]] || fail "run: temporaries left: $leftovers"
-echo "ok: run on a full disk kept the old set ($(ls "$MNT/out" | wc -l) files), no temporaries"
+echo "ok: run on a full disk kept the old set ($(find "$MNT/out" -type f | wc -l) files), no temporaries"
 umount "$MNT"
 
 # 2. register: a disk too small for aligned.ply.
