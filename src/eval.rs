@@ -41,7 +41,7 @@ pub struct RpeStats {
 }
 
 /// Greedy nearest-stamp association of estimate and ground truth (like the TUM
-/// `associate.py`: pairs with `|dt| < max_dt`, best first, each pose used once).
+/// `associate.py`: pairs with `|dt| <= max_dt`, best first, each pose used once).
 /// Returns `(est_index, gt_index)` sorted by estimate stamp.
 pub fn associate(est: &[(f64, DMat4)], gt: &[(f64, DMat4)], max_dt: f64) -> Vec<(usize, usize)> {
     let a: Vec<f64> = est.iter().map(|p| p.0).collect();
@@ -119,6 +119,13 @@ pub fn ate_with(
         .zip(&g)
         .map(|(e, g)| (t.transform_point3(*e) - *g).length())
         .collect();
+    if d.iter().any(|x| !x.is_finite()) {
+        return Err(Error::Numerical(
+            "ATE is not finite: the positions are too large for the alignment (read \
+             trajectories keep coordinates within 1e9 m)"
+                .into(),
+        ));
+    }
     let n = d.len() as f64;
     let rmse_m = (d.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
     let mean_m = d.iter().sum::<f64>() / n;
@@ -153,8 +160,26 @@ pub fn rpe_with(
     if delta_frames == 0 {
         return Err(Error::Argument("RPE delta must be at least 1 frame".into()));
     }
+    if est.len() <= delta_frames {
+        return Err(Error::Argument(format!(
+            "RPE over {delta_frames} frame(s) needs at least {} estimated poses; the estimate \
+             has {}",
+            delta_frames + 1,
+            est.len()
+        )));
+    }
     let mut est_sorted: Vec<&(f64, DMat4)> = est.iter().collect();
     est_sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Pairs are consecutive poses by stamp: with repeated stamps their order, and so every
+    // pair, would be arbitrary (all stamps equal made 22 "pairs" of one pose).
+    if let Some(w) = est_sorted.windows(2).find(|w| w[0].0 == w[1].0) {
+        let repeats = est_sorted.windows(2).filter(|w| w[0].0 == w[1].0).count();
+        return Err(Error::Argument(format!(
+            "the estimate repeats stamps ({repeats} poses share a stamp with the one before, \
+             e.g. {}); RPE pairs poses in stamp order, so stamps must be distinct",
+            w[0].0
+        )));
+    }
     let mut gt_sorted: Vec<&(f64, DMat4)> = gt.iter().collect();
     gt_sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
     let gt_stamps: Vec<f64> = gt_sorted.iter().map(|p| p.0).collect();

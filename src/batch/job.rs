@@ -4,8 +4,9 @@
 //! the batch), then the GPU-vs-CPU comparison, then `job.json`.
 //!
 //! `job.json` is written last, atomically: a job is complete exactly when it holds status
-//! `ok` for the same [`JobSpec`]. Starting a job first removes its folder, so what an
-//! earlier, interrupted or failed attempt left cannot pass for this one's outputs.
+//! `ok` for the same [`JobSpec`]. Starting a job first removes its folder (only the files a
+//! job writes; see [`super::folder`]), so what an earlier, interrupted or failed attempt
+//! left cannot pass for this one's outputs. The job's lock is held meanwhile.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Write};
@@ -16,6 +17,7 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
+use super::folder;
 use super::gpu_vs_cpu::{self, GpuVsCpu};
 use super::interrupt;
 use super::manifest::JobSpec;
@@ -149,14 +151,15 @@ impl Runner {
         spec: &JobSpec,
         progress: &dyn Fn(&str, u64, u64),
     ) -> Result<Outcome> {
+        let _lock = folder::lock_job(&self.out, &spec.id)?;
         if self.completed(spec).is_ok() {
             return Ok(Outcome::Skipped);
         }
         let dir = self.job_dir(&spec.id);
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
-        }
-        std::fs::create_dir_all(&dir).map_err(|e| Error::write(&dir, e))?;
+        folder::remove_job_dir(&dir)?;
+        let jobs = self.out.join(folder::JOBS);
+        std::fs::create_dir_all(&jobs).map_err(|e| Error::write(&jobs, e))?;
+        std::fs::create_dir(&dir).map_err(|e| Error::write(&dir, e))?;
         let params = spec.params_toml();
         crate::io::atomic::write_atomic(&self.params_path(&spec.id), |w| {
             w.write_all(params.as_bytes())

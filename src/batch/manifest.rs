@@ -70,7 +70,7 @@ pub const RESERVED_OPTIONS: [&str; 6] =
     ["frames", "downsample", "profile", "backend", "out", "poses"];
 
 /// Backend names a job may ask for.
-const BACKENDS: [&str; 2] = ["cpu", "gpu"];
+pub const BACKENDS: [&str; 2] = ["cpu", "gpu"];
 /// Profile names (those of `wgslam run --profile`).
 const PROFILES: [&str; 2] = ["robust", "assignment"];
 
@@ -83,7 +83,11 @@ const DEFAULT_BACKEND: &str = "both";
 /// A scalar or a list of scalars (a grid axis). `Many` first: an untagged enum takes the
 /// first variant that fits, and a list fits a `toml::Value` too.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "a value of this field's type (downsample: a whole number; sequence, frames, \
+                 profile, backend: a string), or in a [[grid]] a list of them"
+)]
 enum OneOrMany<T> {
     Many(Vec<T>),
     One(T),
@@ -176,6 +180,24 @@ impl Manifest {
         let file: FileToml = toml::from_str(text)
             .map_err(|e| Error::format(path, format!("not a batch manifest: {e}")))?;
         let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        let max_jobs = crate::io::input::max_jobs()?;
+        let total = file.grid.iter().fold(file.job.len() as u64, |total, g| {
+            let n = g
+                .axis_lengths()
+                .iter()
+                .try_fold(1u64, |a, (_, l)| a.checked_mul(*l as u64))
+                .unwrap_or(u64::MAX);
+            total.saturating_add(n)
+        });
+        if total > max_jobs {
+            return Err(Error::format(
+                path,
+                format!(
+                    "the manifest makes {total} jobs, more than the limit of {max_jobs} \
+                     (WGSLAM_MAX_JOBS raises it); split it into several manifests"
+                ),
+            ));
+        }
         let d = &file.defaults;
         single_valued(path, "[defaults]", d)?;
         if d.name.is_some() {
@@ -432,11 +454,71 @@ impl JobSpec {
     }
 }
 
+/// The longest job id: it names a folder and a lock file, whose names file systems cap
+/// at 255 bytes.
+pub const MAX_ID_BYTES: usize = 200;
+
+/// Why `id` cannot be a job id (a folder name inside the batch folder), or `None`.
+fn id_problem(id: &str) -> Option<String> {
+    if id.is_empty() || id.starts_with('.') || id.contains(['/', '\\']) {
+        return Some(format!("the job name {id:?} cannot be a folder name"));
+    }
+    if id.chars().any(char::is_control) {
+        return Some(format!(
+            "the job name {id:?} holds a control character (NUL, newline, ...); it names a folder"
+        ));
+    }
+    if id.len() > MAX_ID_BYTES {
+        return Some(format!(
+            "the job name is {} bytes long, more than {MAX_ID_BYTES}; it names a folder",
+            id.len()
+        ));
+    }
+    None
+}
+
+impl JobSpec {
+    /// Checks a job read back from a batch folder (`batch.json`) as the manifest's reader
+    /// checked it when it was written: its id a plain folder name, a known profile, one or
+    /// both known backends, downsampling of at least 1, no reserved override. A batch
+    /// folder is only files; nothing read from it is trusted further than that.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        if let Some(why) = id_problem(&self.id) {
+            return Err(why);
+        }
+        if !PROFILES.contains(&self.profile.as_str()) {
+            return Err(format!(
+                "profile {:?}: want one of {PROFILES:?}",
+                self.profile
+            ));
+        }
+        let known = self.backends.iter().all(|b| BACKENDS.contains(&b.as_str()));
+        let distinct = self.backends.first() != self.backends.get(1);
+        if self.backends.is_empty() || self.backends.len() > 2 || !known || !distinct {
+            return Err(format!(
+                "backends {:?}: want [\"cpu\"], [\"gpu\"] or both",
+                self.backends
+            ));
+        }
+        if self.downsample == 0 {
+            return Err("downsample must be at least 1".into());
+        }
+        if let Some((k, _)) = self
+            .overrides
+            .iter()
+            .find(|(k, _)| RESERVED_OPTIONS.contains(&k.as_str()))
+        {
+            return Err(format!("override {k:?} is set by the batch"));
+        }
+        Ok(())
+    }
+}
+
 /// Checks a combination's values and makes its [`JobSpec`].
 fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> Result<JobSpec> {
-    let bad = |what: String| Error::format(path, format!("{origin} ({id}): {what}"));
-    if id.is_empty() || id.starts_with('.') || id.contains(['/', '\\']) {
-        return Err(bad(format!("the job name {id:?} cannot be a folder name")));
+    let bad = |what: String| Error::format(path, format!("{origin} ({id:?}): {what}"));
+    if let Some(why) = id_problem(id) {
+        return Err(bad(why));
     }
     let Some(sequence) = &c.sequence else {
         return Err(bad(

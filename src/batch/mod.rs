@@ -5,6 +5,7 @@
 //! |---|---|
 //! | [`manifest`] | the TOML manifest and its expansion into numbered [`manifest::JobSpec`]s |
 //! | [`select`] | which jobs this process runs: `--index`, `--shard I/N`, Slurm / Kubernetes variables |
+//! | [`folder`] | the batch folder's marker, job locks, deleting only what a batch wrote |
 //! | [`job`] | one job: `wgslam run` per backend in a child process, its record `job.json` |
 //! | [`gpu_vs_cpu`] | the GPU run's trajectory and map against the CPU run's, from their output files |
 //! | [`interrupt`] | Ctrl-C / SIGTERM: stop the job in flight, leave it looking unfinished |
@@ -17,6 +18,7 @@
 //! `job.json`, written last and atomically: a job is complete exactly when its `job.json`
 //! says `ok` for the same spec), and the summaries.
 
+pub mod folder;
 pub mod gpu_vs_cpu;
 pub mod interrupt;
 pub mod job;

@@ -3,7 +3,10 @@
 //!
 //! Self-contained: the pictures are embedded as `data:` URIs and the style is inline, so
 //! the file opens from anywhere (a cluster's shared disk, an e-mail attachment) with no
-//! network and no files beside it. No scripts.
+//! network and no files beside it. No scripts, and none can be injected: every string goes
+//! through [`esc`] and every attribute value is quoted; the job ids and backends that name
+//! picture files were checked by [`super::summary::collect`], so no picture outside the
+//! batch folder is read.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -110,9 +113,9 @@ fn table_rows(h: &mut String, r: &Row) {
         if k == 0 {
             let _ = write!(
                 h,
-                "<td rowspan={span}>{}</td><td class=l rowspan={span}><a href=\"#job-{}\">{}</a></td>\
-                 <td class=l rowspan={span}>{}</td><td class=l rowspan={span}>{}</td>\
-                 <td rowspan={span}>{}</td><td class=l rowspan={span}>{}</td>",
+                "<td rowspan=\"{span}\">{}</td><td class=\"l\" rowspan=\"{span}\"><a href=\"#job-{}\">{}</a></td>\
+                 <td class=\"l\" rowspan=\"{span}\">{}</td><td class=\"l\" rowspan=\"{span}\">{}</td>\
+                 <td rowspan=\"{span}\">{}</td><td class=\"l\" rowspan=\"{span}\">{}</td>",
                 r.index,
                 esc(&r.id),
                 esc(&r.id),
@@ -129,7 +132,7 @@ fn table_rows(h: &mut String, r: &Row) {
         };
         let _ = write!(
             h,
-            "<td class=l>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
+            "<td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
             esc(b),
             f(n.and_then(|n| n.ate_rmse_mm), 3),
             f(n.and_then(|n| n.rpe_trans_rmse_mm), 3),
@@ -156,7 +159,7 @@ fn table_rows(h: &mut String, r: &Row) {
             let c = rec.and_then(|rec| rec.gpu_vs_cpu.as_ref());
             let _ = write!(
                 h,
-                "<td rowspan={span}>{}</td><td rowspan={span}>{}</td>",
+                "<td rowspan=\"{span}\">{}</td><td rowspan=\"{span}\">{}</td>",
                 c.map(|c| format!("{:.3} / {:.4}", c.pose_max_mm, c.pose_max_deg))
                     .unwrap_or_else(|| "-".into()),
                 c.map(|c| format!(
@@ -195,17 +198,18 @@ fn job_section(h: &mut String, out: &Path, r: &Row) {
         let _ = writeln!(h, "<pre>{}</pre>", esc(e));
     }
     for b in &r.spec.backends {
-        h.push_str("<div class=pics>");
+        h.push_str("<div class=\"pics\">");
         for (file, caption) in PICTURES {
             let path = out.join("jobs").join(&r.id).join(b).join(file);
             if let Some(bytes) = thumbnail_png(&path) {
                 let _ = write!(
                     h,
-                    "<figure><img alt=\"{b} {file}\" src=\"data:image/png;base64,{}\">\
+                    "<figure><img alt=\"{}\" src=\"data:image/png;base64,{}\">\
                      <figcaption>{}: {}</figcaption></figure>",
+                    esc(&format!("{b} {file}")),
                     base64::engine::general_purpose::STANDARD.encode(bytes),
                     esc(b),
-                    caption
+                    esc(caption)
                 );
             }
         }
@@ -241,10 +245,22 @@ fn thumbnail_png(path: &Path) -> Option<Vec<u8>> {
     Some(bytes)
 }
 
-/// Escapes text for HTML element content and double-quoted attributes.
+/// Escapes text for HTML element content and quoted attribute values (double or single
+/// quotes): the page's one escaping function. Every string that reaches the page goes
+/// through it, numbers formatted by the page itself excepted; attribute values are always
+/// quoted. Text from a batch folder is never trusted (a crafted `batch.json` or
+/// `job.json` can hold anything).
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+    let mut out = String::with_capacity(s.len());
+    for ch in s.chars() {
+        match ch {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
 }

@@ -61,7 +61,10 @@ pub struct Summary {
     pub rows: Vec<Row>,
 }
 
-/// Reads the batch folder `out`: the plan's jobs with their records.
+/// Reads the batch folder `out`: the plan's jobs with their records. Every job of
+/// `batch.json` is checked as the manifest's were ([`JobSpec::validate`]): an id that is not
+/// a plain folder name (`../x`), an unknown backend or profile is an error, never a path
+/// or a string passed on to the report.
 pub fn collect(out: &Path) -> Result<Summary> {
     let plan_path = out.join(PLAN);
     let text = std::fs::read_to_string(&plan_path).map_err(|e| {
@@ -72,6 +75,23 @@ pub fn collect(out: &Path) -> Result<Summary> {
     })?;
     let plan: Plan = serde_json::from_str(&text)
         .map_err(|e| Error::format(&plan_path, format!("unreadable: {e}")))?;
+    let mut seen = std::collections::BTreeSet::new();
+    for (index, spec) in plan.jobs.iter().enumerate() {
+        let bad = |why: String| {
+            Error::format(
+                &plan_path,
+                format!(
+                    "job {index} ({:?}): {why}; this batch.json was not written by wgslam as it \
+                     is, so nothing is collected from it",
+                    spec.id
+                ),
+            )
+        };
+        spec.validate().map_err(bad)?;
+        if !seen.insert(spec.id.as_str()) {
+            return Err(bad("a second job with this id".into()));
+        }
+    }
     let mut rows = Vec::new();
     for (index, spec) in plan.jobs.into_iter().enumerate() {
         let path = out.join("jobs").join(&spec.id).join(RECORD);

@@ -9,7 +9,7 @@ use crate::batch::job::{Outcome, Runner};
 use crate::batch::manifest::Manifest;
 use crate::batch::select::{self, Selection};
 use crate::batch::summary::{self, Summary};
-use crate::batch::{interrupt, report};
+use crate::batch::{folder, interrupt, report};
 use crate::cli::pipeline_args::ParamOverrides;
 use crate::slam::params::PoseSource;
 use crate::{Error, Result};
@@ -83,7 +83,15 @@ fn runner(out: PathBuf) -> Result<Runner> {
 /// in range (so a typo in an override fails before the first job, naming the job).
 fn read_checked(path: &Path) -> Result<Manifest> {
     let m = Manifest::read(path)?;
-    for job in &m.jobs {
+    let all: Vec<usize> = (0..m.jobs.len()).collect();
+    check_jobs(path, &m, &all)?;
+    Ok(m)
+}
+
+/// Checks the parameter files of jobs `picked` of `m` (an array task checks its own jobs
+/// only: `batch list`, which sizes the array, and a run of all jobs check them all).
+fn check_jobs(path: &Path, m: &Manifest, picked: &[usize]) -> Result<()> {
+    for job in picked.iter().map(|&i| &m.jobs[i]) {
         let bad = |why: String| {
             Error::format(
                 path,
@@ -95,7 +103,7 @@ fn read_checked(path: &Path) -> Result<Manifest> {
             .and_then(|_| set.slam_params(PoseSource::Track))
             .map_err(|e| bad(e.to_string()))?;
     }
-    Ok(m)
+    Ok(())
 }
 
 fn list(path: &Path) -> Result<()> {
@@ -138,7 +146,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
         .manifest
         .as_deref()
         .ok_or_else(|| Error::Argument("no manifest given".into()))?;
-    let m = read_checked(path)?;
+    let m = Manifest::read(path)?;
     let out = a.out.clone().or_else(|| m.output.clone()).ok_or_else(|| {
         Error::Argument("no batch folder: set `output` in the manifest or pass --out DIR".into())
     })?;
@@ -149,6 +157,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
     let picked: Vec<usize> = (0..m.jobs.len())
         .filter(|&i| chosen.selection.picks(i))
         .collect();
+    check_jobs(path, &m, &picked)?;
     eprintln!(
         "batch {}: {} of {} jobs ({}) into {}",
         path.display(),
@@ -162,6 +171,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
         out.display()
     );
     let r = runner(out.clone())?;
+    folder::claim(&out, path, !a.dry_run)?;
     if a.dry_run {
         for &i in &picked {
             let job = &m.jobs[i];

@@ -353,9 +353,10 @@ impl ParamOverrides {
                 .map(|x| x.trim().parse::<f32>())
                 .collect::<std::result::Result<_, _>>()
                 .map_err(|_| Error::Argument(format!("--intrinsics {s:?}: want fx,fy,cx,cy")))?;
-            if v.len() != 4 || v[0] == 0.0 || v[1] == 0.0 {
+            if v.len() != 4 || v[0] == 0.0 || v[1] == 0.0 || v.iter().any(|x| !x.is_finite()) {
                 return Err(Error::Argument(format!(
-                    "--intrinsics {s:?}: want four numbers fx,fy,cx,cy with fx, fy non-zero"
+                    "--intrinsics {s:?}: want four finite numbers fx,fy,cx,cy with fx, fy \
+                     non-zero"
                 )));
             }
             let base = intrinsics.unwrap_or(Intrinsics::ICL_NUIM);

@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 
 use super::pipeline_args::{default_first_frame, PipelineArgs};
 use crate::dataset;
+use crate::io::outputs::OutputSet;
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::params::PoseSource;
 use crate::tools::run;
@@ -41,6 +42,12 @@ pub struct RunArgs {
     /// Output directory.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
+    /// Stop with an error when the map passes this many surfels (about 92 bytes each in
+    /// memory and 31 in map.ply: the default is ~1.8 GB and a 620 MB map.ply). The
+    /// assignment profile never removes surfels, so a long revisiting run grows without
+    /// end (1000 frames made 75 M).
+    #[arg(long, value_name = "SURFELS", default_value_t = DEFAULT_MAX_SURFELS)]
+    pub max_surfels: usize,
     /// (for `wgslam batch`) Print `progress DONE TOTAL` on stdout after every frame.
     #[arg(long, hide = true)]
     pub progress_lines: bool,
@@ -60,6 +67,50 @@ pub struct RunArgs {
 }
 
 /// A progress bar on stderr, hidden when stderr is not a terminal.
+/// Default of `run --max-surfels`.
+pub const DEFAULT_MAX_SURFELS: usize = 20_000_000;
+
+/// Checks the map's size after every frame against `--max-surfels`, then shows the frame
+/// to the recording when there is one.
+struct MapCap<'a> {
+    max_surfels: usize,
+    recording: Option<&'a mut dyn run::FrameObserver>,
+}
+
+impl run::FrameObserver for MapCap<'_> {
+    fn wants_map(&mut self, index: usize) -> bool {
+        self.recording
+            .as_deref_mut()
+            .is_some_and(|r| r.wants_map(index))
+    }
+
+    fn frame(
+        &mut self,
+        raw: &dataset::RawFrame,
+        outcome: &run::FrameOutcome,
+        map: Option<&crate::slam::map::SurfelMap>,
+    ) -> Result<()> {
+        let surfels = outcome.report.surfels;
+        if surfels > self.max_surfels {
+            return Err(Error::Capacity(format!(
+                "after frame {} the map holds {surfels} surfels, more than --max-surfels {} \
+                 (about {:.0} MB in memory); nothing was written. Raise --max-surfels, run \
+                 fewer frames, or use --profile robust, which removes unstable surfels",
+                outcome.index,
+                self.max_surfels,
+                surfels as f64 * SURFEL_BYTES_IN_MEMORY / 1e6
+            )));
+        }
+        match self.recording.as_deref_mut() {
+            Some(r) => r.frame(raw, outcome, map),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Memory per surfel, measured: 75 M surfels took 6.9 GB.
+const SURFEL_BYTES_IN_MEMORY: f64 = 92.0;
+
 fn progress_bar(len: usize) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(len as u64);
     bar.set_style(
@@ -83,6 +134,13 @@ pub fn execute(a: RunArgs) -> Result<()> {
     let mut range = seq.select(first, last)?;
     let seq = match a.revisit {
         Some(total) => {
+            let max = crate::io::input::max_revisit_frames()?;
+            if total as u64 > max {
+                return Err(Error::Argument(format!(
+                    "--revisit {total}: more than {max} frames (WGSLAM_MAX_REVISIT_FRAMES \
+                     raises the limit)"
+                )));
+            }
             let long = seq.revisiting(first, last, total)?;
             range = 0..=total - 1;
             long
@@ -131,6 +189,9 @@ pub fn execute(a: RunArgs) -> Result<()> {
             }
         }
     };
+    // The outputs are staged beside --out and moved into it as a set after the run; a bad
+    // --out (a file, a folder of other files) fails here, before any frame.
+    let outputs = OutputSet::begin(&a.out, &run::OUTPUT_FILES)?;
     let mut recording = open_recording(&a, &seq, &range)?;
     let backend = any_backend::open(a.backend)?;
     let result = run::run_observed(
@@ -140,11 +201,19 @@ pub fn execute(a: RunArgs) -> Result<()> {
         params,
         run::Decode::Overlapped,
         on_frame,
-        recording.as_mut().map(|r| r as &mut dyn run::FrameObserver),
+        Some(&mut MapCap {
+            max_surfels: a.max_surfels,
+            recording: recording.as_mut().map(|r| r as &mut dyn run::FrameObserver),
+        }),
     )?;
     bar.finish_and_clear();
-    run::write_outputs(&a.out, &result)?;
-    let pictures = run::write_pictures(&a.out, &result, &seq)?;
+    run::write_outputs(outputs.dir(), &result)?;
+    let pictures = run::write_pictures(outputs.dir(), &result, &seq)?;
+    let pictures: Vec<PathBuf> = pictures
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| a.out.join(n)))
+        .collect();
+    outputs.commit()?;
     let recorded = recording.map(|r| r.finish(&result.map)).transpose()?;
     print_summary(&result.metrics, &a.out);
     for p in pictures.iter().chain(&recorded) {

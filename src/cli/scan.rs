@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DMat4;
 
+use crate::io::outputs::OutputSet;
 use crate::scan::bench_scan::{
     bench_scan, bench_scan_params, BenchScanOptions, BenchScanReport, BENCH_BRUTE_MAX_ITERS,
     BENCH_BRUTE_MAX_QUERIES, BENCH_ROW_BUDGET_S, BENCH_SAMPLES,
@@ -107,6 +108,11 @@ pub struct RegisterArgs {
     pub out: Option<PathBuf>,
 }
 
+/// What `register --out` writes, as a set.
+const REGISTER_OUTPUTS: [&str; 2] = ["result.json", "aligned.ply"];
+/// What `odometry --out` writes, as a set.
+const ODOMETRY_OUTPUTS: [&str; 3] = ["trajectory.tum", "pairs.tsv", "errors.json"];
+
 /// JSON written as `result.json` by `register`.
 #[derive(serde::Serialize)]
 struct RegisterReport<'a> {
@@ -126,14 +132,16 @@ struct RegisterReport<'a> {
     seconds: f64,
 }
 
-fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))
-}
-
 /// Runs `register`: prints the transform, iterations, inlier RMSE and outlier ratio, and
 /// with `--out` writes `result.json` and `aligned.ply`. A registration that does not
 /// converge is printed with its status and returned, not turned into an error.
 pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
+    // Staged beside --out and moved in as a set; a bad --out fails before the work.
+    let outputs = args
+        .out
+        .as_deref()
+        .map(|d| OutputSet::begin(d, &REGISTER_OUTPUTS))
+        .transpose()?;
     let source = read_cloud(&args.source)?;
     let target = read_cloud(&args.target)?;
     let init = match &args.init {
@@ -186,8 +194,8 @@ pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
         result.final_stats.radius
     );
     println!("time:          {seconds:.3} s");
-    if let Some(dir) = &args.out {
-        create_dir(dir)?;
+    if let Some(outputs) = outputs {
+        let dir = outputs.dir();
         let report = RegisterReport {
             source: &args.source,
             target: &args.target,
@@ -210,7 +218,9 @@ pub fn run_register(args: &RegisterArgs) -> Result<IcpResult> {
             &dir.join("aligned.ply"),
             &transform_points(&result.t_source_to_target, &source.points),
         )?;
-        println!("wrote {}/result.json and aligned.ply", dir.display());
+        let target = outputs.target().to_path_buf();
+        outputs.commit()?;
+        println!("wrote {}/result.json and aligned.ply", target.display());
     }
     Ok(result)
 }
@@ -236,6 +246,11 @@ pub struct OdometryArgs {
 /// Runs `odometry`: prints one line per pair and, with ground truth, the error summary;
 /// with `--out` writes `trajectory.tum`, `pairs.tsv` and (with ground truth) `errors.json`.
 pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
+    let outputs = args
+        .out
+        .as_deref()
+        .map(|d| OutputSet::begin(d, &ODOMETRY_OUTPUTS))
+        .transpose()?;
     let mut seq = odometry::discover(&args.scans_dir)?;
     if let Some(gt) = &args.gt {
         seq.gt_scan_to_world = Some(odometry::read_ground_truth(gt, &seq)?);
@@ -271,8 +286,8 @@ pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
         failed,
         seconds
     );
-    if let Some(dir) = &args.out {
-        create_dir(dir)?;
+    if let Some(outputs) = outputs {
+        let dir = outputs.dir();
         let poses: Vec<(f64, DMat4)> = (odo.t_scan_to_world.iter().enumerate())
             .map(|(i, t)| (seq.stamp(i), *t))
             .collect();
@@ -282,7 +297,9 @@ pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
             let json = serde_json::to_vec_pretty(s).map_err(|e| Error::encode("errors.json", e))?;
             write_atomic(&dir.join("errors.json"), &json)?;
         }
-        println!("wrote {}/trajectory.tum and pairs.tsv", dir.display());
+        let target = outputs.target().to_path_buf();
+        outputs.commit()?;
+        println!("wrote {}/trajectory.tum and pairs.tsv", target.display());
     }
     Ok((seq, odo))
 }

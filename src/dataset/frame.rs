@@ -31,16 +31,24 @@ impl RawFrame {
     }
 }
 
+/// Checks that image `path` is a regular file: a missing one "does not exist", a folder
+/// or a device says what it is instead.
+pub(crate) fn check_image_file(path: &Path, what: &str) -> Result<()> {
+    let why = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => return Ok(()),
+        Ok(m) if m.is_dir() => format!("{what} is a folder, not an image file"),
+        Ok(_) => format!("{what} is not a regular file (a device, a FIFO or a socket)"),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => format!("{what} does not exist"),
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    Err(Error::io(
+        path,
+        std::io::Error::new(std::io::ErrorKind::InvalidInput, why),
+    ))
+}
+
 fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
-    if !path.is_file() {
-        return Err(Error::io(
-            path,
-            std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!("{role} image does not exist"),
-            ),
-        ));
-    }
+    check_image_file(path, &format!("{role} image"))?;
     let reader = ImageReader::open(path).map_err(|e| Error::io(path, e))?;
     let reader = reader
         .with_guessed_format()

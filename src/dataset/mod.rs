@@ -366,15 +366,7 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
 
     for f in &listing.frames {
         for p in [&f.rgb_path, &f.depth_path] {
-            if !p.is_file() {
-                return Err(Error::io(
-                    p,
-                    std::io::Error::new(
-                        std::io::ErrorKind::NotFound,
-                        "image listed by the dataset does not exist",
-                    ),
-                ));
-            }
+            frame::check_image_file(p, "image listed by the dataset")?;
         }
     }
 

@@ -48,7 +48,10 @@ pub fn read_list(path: &Path) -> Result<Vec<ListEntry>> {
 }
 
 /// Greedy association as in the TUM benchmark's `associate.py`: every pair `(a, b)` with
-/// `|stamp_a - stamp_b| < max_dt` is a candidate; candidates are taken in order of
+/// `|stamp_a - stamp_b| <= max_dt` is a candidate (inclusive, as [`nearest_within`], so
+/// `--max-time-diff 0` pairs identical stamps, and stamps so large that `stamp ± max_dt`
+/// rounds back to the stamp, ICL-NUIM indices near 1e15, still pair with equal ones);
+/// candidates are taken in order of
 /// increasing `|dt|` when neither side is used yet. Returns index pairs `(ia, ib)` sorted by
 /// `a`'s stamp. Ties in `|dt|` are broken by index so the result is deterministic.
 pub fn associate(a: &[f64], b: &[f64], max_dt: f64) -> Vec<(usize, usize)> {
@@ -58,12 +61,14 @@ pub fn associate(a: &[f64], b: &[f64], max_dt: f64) -> Vec<(usize, usize)> {
     let b_sorted: Vec<f64> = b_order.iter().map(|&i| b[i]).collect();
     let mut cand: Vec<(f64, usize, usize)> = Vec::new();
     for (ia, &sa) in a.iter().enumerate() {
-        let lo = b_sorted.partition_point(|&sb| sb <= sa - max_dt);
+        let lo = b_sorted.partition_point(|&sb| sb < sa - max_dt);
         for (k, &sb) in b_sorted.iter().enumerate().skip(lo) {
-            if sb >= sa + max_dt {
+            if sb > sa + max_dt {
                 break;
             }
-            cand.push(((sa - sb).abs(), ia, b_order[k]));
+            if (sa - sb).abs() <= max_dt {
+                cand.push(((sa - sb).abs(), ia, b_order[k]));
+            }
         }
     }
     cand.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
@@ -99,6 +104,15 @@ pub fn nearest_within(sorted: &[f64], t: f64, max_dt: f64) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn association_is_inclusive_and_survives_large_stamps() {
+        // `--max-time-diff 0` with identical stamps used to pair nothing.
+        assert_eq!(associate(&[1.0, 2.0], &[2.0, 1.0], 0.0), [(0, 1), (1, 0)]);
+        // Near 1e15, `stamp - 0.02` rounds back to the stamp (1 ulp is 0.125).
+        let a: Vec<f64> = (0..3).map(|i| 1e15 + i as f64).collect();
+        assert_eq!(associate(&a, &a, 0.02), [(0, 0), (1, 1), (2, 2)]);
+    }
 
     #[test]
     fn greedy_takes_best_pairs_first() {

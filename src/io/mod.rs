@@ -4,6 +4,8 @@
 //! goes through [`atomic::write_atomic`], so a failed run never leaves a half-written file.
 
 pub(crate) mod atomic;
+pub mod input;
+pub mod outputs;
 pub mod ply;
 pub(crate) mod text;
 pub mod trajectory;

@@ -285,7 +285,7 @@ fn to_color(v: f64, ty: Scalar) -> u8 {
 /// Errors: not a PLY, big-endian, bad header line (with line number), no vertex element or
 /// no `x y z`, truncated body (byte offset in binary files, line in ASCII ones).
 pub fn read_ply(path: &Path) -> Result<PlyCloud> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::input::read_input(path)?;
     let (format, elements, body) = parse_header(path, &bytes)?;
     let vi = elements
         .iter()
@@ -293,7 +293,12 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
         .ok_or_else(|| Error::format(path, "PLY file has no `vertex` element"))?;
     let (cols, types) = columns(path, &elements[vi])?;
     let n = elements[vi].count;
-    let mut rows: Vec<f64> = Vec::with_capacity(n.min(1 << 24) * types.len());
+    // Every value takes at least one byte of the body (two in ASCII): reserve no more than
+    // the file can hold, whatever the header declares.
+    let mut rows: Vec<f64> = Vec::with_capacity(
+        n.saturating_mul(types.len())
+            .min(bytes.len().saturating_sub(body)),
+    );
 
     match format {
         Format::BinaryLe => {
@@ -308,7 +313,40 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
             };
             let mut pos = body;
             for el in &elements[..vi] {
+                // Scalar properties only: a fixed record size, skipped in one step.
+                let fixed: Option<usize> = el
+                    .props
+                    .iter()
+                    .map(|p| match p {
+                        Property::Scalar { ty, .. } => Some(ty.size()),
+                        Property::List { .. } => None,
+                    })
+                    .sum();
+                if let Some(row) = fixed {
+                    pos = el
+                        .count
+                        .checked_mul(row)
+                        .and_then(|b| b.checked_add(pos))
+                        .filter(|&end| end <= bytes.len())
+                        .ok_or_else(|| {
+                            Error::format(
+                                path,
+                                format!(
+                                    "truncated PLY body: {} `{}` records of {row} bytes from \
+                                     byte offset {pos} do not fit in the file's {} bytes",
+                                    el.count,
+                                    el.name,
+                                    bytes.len()
+                                ),
+                            )
+                        })?;
+                    continue;
+                }
                 for _ in 0..el.count {
+                    // Each record takes at least a byte: the loop ends with the file.
+                    if pos > bytes.len() {
+                        return Err(truncated(pos, &format!("element {}", el.name)));
+                    }
                     for p in &el.props {
                         match p {
                             Property::Scalar { ty, .. } => pos += ty.size(),
@@ -324,7 +362,10 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
                                         format!("negative list length at byte offset {pos}"),
                                     ));
                                 }
-                                pos = end + k as usize * item.size();
+                                pos = (k as usize)
+                                    .checked_mul(item.size())
+                                    .and_then(|b| b.checked_add(end))
+                                    .unwrap_or(usize::MAX);
                             }
                         }
                     }
@@ -358,7 +399,9 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
                 .enumerate()
                 .map(|(i, l)| (header_lines + i + 1, l.trim()))
                 .filter(|(_, l)| !l.is_empty());
-            let skip: usize = elements[..vi].iter().map(|e| e.count).sum();
+            let skip = elements[..vi]
+                .iter()
+                .fold(0usize, |a, e| a.saturating_add(e.count));
             for _ in 0..skip {
                 lines.next().ok_or_else(|| {
                     Error::format(path, "truncated PLY body: ends before the vertex element")

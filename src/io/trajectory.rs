@@ -19,13 +19,19 @@ use crate::{Error, Result};
 /// not rounding.
 pub const QUATERNION_NORM_TOL: f64 = 1e-2;
 
+/// The largest position coordinate read, metres: far beyond any trajectory (UTM northings
+/// are ~1e7 m), far below where squared distances overflow (1e300 printed "ATE NaN mm").
+pub const MAX_COORDINATE_M: f64 = 1e9;
+
 /// One pose per line: `(stamp, t_cam_to_world)`, in file order.
 pub type Trajectory = Vec<(f64, DMat4)>;
 
-/// Reads a TUM trajectory file. Errors name `path:line` and quote the offending text for
-/// a wrong number of fields, an unparsable or non-finite number, or a non-unit quaternion.
+/// Reads a TUM trajectory file. Errors name `path:line` and the field for a wrong number
+/// of fields, an unparsable or non-finite number, or a non-unit quaternion. They never
+/// quote the file's text: a ground-truth path can name any file (a batch manifest's `gt`
+/// override), and an error ends up in logs and in a batch's report.
 pub fn read_tum(path: &Path) -> Result<Trajectory> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_input_string(path)?;
     parse_tum(path, &text)
 }
 
@@ -39,7 +45,7 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
                 path,
                 lineno,
                 format!(
-                    "expected 8 fields `stamp tx ty tz qx qy qz qw`, found {}: {line:?}",
+                    "expected 8 fields `stamp tx ty tz qx qy qz qw`, found {}",
                     fields.len()
                 ),
             ));
@@ -47,19 +53,26 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
         let mut v = [0.0f64; 8];
         for (k, f) in fields.iter().enumerate() {
             v[k] = f.parse::<f64>().map_err(|_| {
-                Error::parse(
-                    path,
-                    lineno,
-                    format!("field {} {f:?} is not a number: {line:?}", k + 1),
-                )
+                Error::parse(path, lineno, format!("field {} is not a number", k + 1))
             })?;
             if !v[k].is_finite() {
                 return Err(Error::parse(
                     path,
                     lineno,
-                    format!("field {} is not finite: {line:?}", k + 1),
+                    format!("field {} is not finite", k + 1),
                 ));
             }
+        }
+        if let Some(k) = (1..4).find(|&k| v[k].abs() > MAX_COORDINATE_M) {
+            return Err(Error::parse(
+                path,
+                lineno,
+                format!(
+                    "field {} is beyond {MAX_COORDINATE_M:e} m: not a camera position (the \
+                     errors of such numbers overflow)",
+                    k + 1
+                ),
+            ));
         }
         let q = [v[4], v[5], v[6], v[7]];
         let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -67,7 +80,7 @@ pub fn parse_tum(path: &Path, text: &str) -> Result<Trajectory> {
             return Err(Error::parse(
                 path,
                 lineno,
-                format!("quaternion (qx qy qz qw) has norm {norm:.6}, expected 1: {line:?}"),
+                format!("quaternion (qx qy qz qw) has norm {norm:.6}, expected 1"),
             ));
         }
         out.push((v[0], se3::from_tum([v[1], v[2], v[3]], q)));
@@ -139,7 +152,7 @@ mod tests {
         let e = parse_tum(p, "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n").unwrap_err();
         assert!(matches!(e, Error::Parse { line: 3, .. }), "{e}");
         let e = parse_tum(p, "1 0 0 x 0 0 0 1\n").unwrap_err();
-        assert!(e.to_string().contains("\"x\""), "{e}");
+        assert!(e.to_string().contains("field 4 is not a number"), "{e}");
         let e = parse_tum(p, "1 0 0 0 0 0 0 2\n").unwrap_err();
         assert!(e.to_string().contains("norm 2.0"), "{e}");
         let e = parse_tum(p, "1 0 0 NaN 0 0 0 1\n").unwrap_err();

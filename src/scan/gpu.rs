@@ -59,6 +59,10 @@ struct Scratch {
     partials: GpuArray<ScanCovPartial>,
 }
 
+/// The most grid cells between the origin and a target point along an axis: 2^20, so the
+/// f32 quotient `p / cell` keeps 3 bits below the cell (see [`GpuTarget::new`]).
+pub const GRID_MAX_CELLS_FROM_ORIGIN: f32 = (1u32 << 20) as f32;
+
 /// A target cloud resident on the GPU, answering nearest-neighbour queries (radius-limited
 /// to `radius` metres) and reducing inlier pairs, with the kernel chosen by [`NnMethod`].
 pub struct GpuTarget<'a> {
@@ -95,6 +99,24 @@ impl<'a> GpuTarget<'a> {
             return Err(Error::Argument(format!(
                 "rejection radius must be a positive number of metres, got {radius}"
             )));
+        }
+        if method == NnMethod::Grid {
+            // Cell indices are `floor(p / cell)` in f32 on the GPU and on the CPU that built
+            // the grid: past 2^20 cells from the origin the quotient's rounding (a GPU
+            // division may be 1 ulp off) moves points across many cells, and exact matches
+            // were lost (577 of 1000 at a 1e-9 m radius).
+            let reach = target
+                .iter()
+                .flat_map(|p| p.iter())
+                .fold(0.0f32, |m, c| m.max(c.abs()));
+            let min_radius = reach / GRID_MAX_CELLS_FROM_ORIGIN;
+            if radius < min_radius {
+                return Err(Error::Argument(format!(
+                    "radius {radius} m is too small for the GPU grid over coordinates up to \
+                     {reach} m (f32 cell indices): at least {min_radius:.3e} m, or use \
+                     --nn kdtree or gpu-brute"
+                )));
+            }
         }
         let targets = GpuArray::from_slice(ctx, "scan targets", &to_vec4(target))?;
         let grid = match method {

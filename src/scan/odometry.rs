@@ -37,13 +37,49 @@ fn stem_number(p: &Path) -> Option<f64> {
     p.file_stem()?.to_str()?.parse::<f64>().ok()
 }
 
+/// The entries of `dir` in natural order ([`natural_cmp`]): `2.bin` before `10.bin`, as
+/// scans numbered without leading zeros are meant.
 fn list_dir(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
         out.push(e.map_err(|e| Error::io(dir, e))?.path());
     }
-    out.sort();
+    out.sort_by(|a, b| {
+        natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()).then_with(|| a.cmp(b))
+    });
     Ok(out)
+}
+
+/// Compares names with runs of digits taken as numbers (`scan2` < `scan10`), the rest
+/// character by character; equal numbers with different zero padding compare equal.
+pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    let (mut a, mut b) = (a, b);
+    loop {
+        let (Some(ca), Some(cb)) = (a.chars().next(), b.chars().next()) else {
+            return a.len().cmp(&b.len());
+        };
+        if ca.is_ascii_digit() && cb.is_ascii_digit() {
+            let run = |s: &str| s.find(|c: char| !c.is_ascii_digit()).unwrap_or(s.len());
+            let (ra, rb) = (run(a), run(b));
+            let (da, db) = (
+                a[..ra].trim_start_matches('0'),
+                b[..rb].trim_start_matches('0'),
+            );
+            let by_number = da.len().cmp(&db.len()).then_with(|| da.cmp(db));
+            if by_number != Ordering::Equal {
+                return by_number;
+            }
+            a = &a[ra..];
+            b = &b[rb..];
+        } else {
+            if ca != cb {
+                return ca.cmp(&cb);
+            }
+            a = &a[ca.len_utf8()..];
+            b = &b[cb.len_utf8()..];
+        }
+    }
 }
 
 /// Finds the scans of `dir`: the AirSim layout (`lidar/<vehicle>/NNNNNN.bin` with
@@ -137,7 +173,7 @@ fn numbers(path: &Path, line_no: usize, line: &str, n: usize) -> Result<Vec<f64>
 /// Reads an AirSim pose file: line 1 `x, y, z` (metres, NED), line 2 quaternion
 /// `x, y, z, w`; returns `t_scan_to_world` (`p_world = R(q) p_scan + t`).
 pub fn read_airsim_pose(path: &Path) -> Result<DMat4> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_input_string(path)?;
     let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
     if lines.len() < 2 {
         return Err(Error::format(

@@ -42,8 +42,10 @@ pub fn is_cloud_file(path: &Path) -> bool {
     )
 }
 
+/// A regular file of bounded size ([`crate::io::input::read_input`]): never `/dev/zero`
+/// or a FIFO.
 fn read_bytes(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| Error::io(path, e))
+    crate::io::input::read_input(path)
 }
 
 /// Splits off the next `\n`-terminated line at `*pos`; returns it without `\r\n`.
@@ -197,9 +199,20 @@ pub fn read_pcd(path: &Path) -> Result<PointCloud> {
             ),
         ));
     }
+    if let Some(i) = sizes.iter().position(|s| ![1, 2, 4, 8].contains(s)) {
+        return Err(Error::format(
+            path,
+            format!(
+                "PCD field `{}` has SIZE {}: sizes are 1, 2, 4 or 8 bytes",
+                fields[i], sizes[i]
+            ),
+        ));
+    }
     let n_points = match (points, width, height) {
         (Some(p), _, _) => p,
-        (None, Some(w), Some(h)) => w * h,
+        (None, Some(w), Some(h)) => w
+            .checked_mul(h)
+            .ok_or_else(|| Error::format(path, format!("PCD WIDTH {w} x HEIGHT {h} overflows")))?,
         _ => {
             return Err(Error::format(
                 path,
@@ -236,8 +249,23 @@ pub fn read_pcd(path: &Path) -> Result<PointCloud> {
             layout.token_index[axis] = layout.record_tokens;
             found[axis] = true;
         }
-        layout.record_bytes += sizes[i] * counts[i];
-        layout.record_tokens += counts[i];
+        let overflow = || {
+            Error::format(
+                path,
+                format!(
+                    "PCD COUNT {} of field `{}` is too large",
+                    counts[i], fields[i]
+                ),
+            )
+        };
+        layout.record_bytes = sizes[i]
+            .checked_mul(counts[i])
+            .and_then(|b| b.checked_add(layout.record_bytes))
+            .ok_or_else(overflow)?;
+        layout.record_tokens = layout
+            .record_tokens
+            .checked_add(counts[i])
+            .ok_or_else(overflow)?;
     }
     if found.iter().any(|f| !f) {
         return Err(Error::format(
@@ -270,7 +298,10 @@ fn read_ascii_records(
     layout: &XyzLayout,
 ) -> Result<PointCloud> {
     let mut cloud = PointCloud::default();
-    cloud.points.reserve(n_points);
+    // A record takes at least two bytes a value ("0 "): reserve no more than the rest of
+    // the file can hold, whatever the header declares.
+    let fit = bytes.len().saturating_sub(pos) / (2 * layout.record_tokens).max(1);
+    cloud.points.reserve(n_points.min(fit));
     while cloud.stats.records < n_points {
         let Some(raw) = next_line(bytes, &mut pos) else {
             return Err(Error::format(
@@ -324,7 +355,7 @@ fn read_binary_records(
     n_points: usize,
     layout: &XyzLayout,
 ) -> Result<PointCloud> {
-    let need = n_points * layout.record_bytes;
+    let need = n_points.saturating_mul(layout.record_bytes);
     let have = bytes.len().saturating_sub(start);
     if have < need {
         let full = have / layout.record_bytes.max(1);
@@ -430,7 +461,7 @@ const RIGID_TOL: f64 = 1e-4;
 /// The matrix must be rigid (orthonormal rotation, bottom row `0 0 0 1`, within 1e-4);
 /// the rotation is re-orthonormalised so rounding in the file does not leak a scale.
 pub fn read_matrix4(path: &Path) -> Result<DMat4> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_input_string(path)?;
     let mut v: Vec<f64> = Vec::with_capacity(16);
     for (i, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("");

@@ -428,6 +428,20 @@ pub fn run_observed<B: Backend + Inspect>(
     })
 }
 
+/// Every file `wgslam run` writes into its `--out` folder: [`write_outputs`]'s and
+/// [`write_pictures`]'s.
+pub const OUTPUT_FILES: [&str; 9] = [
+    "trajectory.tum",
+    "map.ply",
+    "metrics.json",
+    "frames.json",
+    "trajectory.png",
+    "map_color.png",
+    "map_normals.png",
+    "last_camera_color.png",
+    "last_camera_normals.png",
+];
+
 /// Writes `trajectory.tum`, `map.ply`, `metrics.json` and `frames.json` into `out`
 /// (created if missing), each file completely or not at all.
 pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {

@@ -16,6 +16,7 @@ mod end_to_end;
 mod eval;
 mod gpu_parity;
 mod gpu_smoke;
+mod hostile;
 mod inputs;
 mod layout;
 mod render;
@@ -50,6 +51,7 @@ fn main() -> ExitCode {
         eval,
         gpu_parity,
         gpu_smoke,
+        hostile,
         inputs,
         layout,
         render,

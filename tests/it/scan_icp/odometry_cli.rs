@@ -111,9 +111,11 @@ fn airsim_layout_is_discovered_with_poses() {
 
 fn register_cli_writes_result_and_aligned_cloud() {
     let d = fast_gicp_dir();
-    let out = common::temp_dir("scan-register-out");
+    let dir = common::temp_dir("scan-register-out");
+    // The output folder holds only register's outputs (they replace it as a set).
+    let out = dir.join("out");
     let init = write(
-        &out,
+        &dir,
         "init.txt",
         format_matrix4(&DMat4::IDENTITY).as_bytes(),
     );
