@@ -480,6 +480,12 @@ impl SlamParams {
                  to fine, each at least 1 (e.g. 10,5,4)"
             ));
         }
+        if icp.pyramid.radius_px > MAX_BILATERAL_RADIUS {
+            return fail(format!(
+                "--pyramid-radius {} must be at most {MAX_BILATERAL_RADIUS}",
+                icp.pyramid.radius_px
+            ));
+        }
         let f = &self.fusion;
         if !positive(icp.min_increment) {
             return fail(format!(
@@ -564,8 +570,8 @@ pub const MAX_DOWNSAMPLE: u32 = 16;
 /// Ferns per code at most (the database stores a byte per fern per keyframe).
 pub const MAX_FERNS: usize = 4096;
 
-/// Largest [`BilateralSettings::radius_px`]: a 33x33 window is already far past any
-/// useful one.
+/// Largest [`BilateralSettings::radius_px`] and [`PyramidSettings::radius_px`]: a 33x33
+/// window is already far past any useful one.
 pub const MAX_BILATERAL_RADIUS: u32 = 16;
 
 /// Huber threshold of the robust profile, metres: about 3 sigma of the depth noise at 2 m

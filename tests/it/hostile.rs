@@ -158,7 +158,7 @@ fn hold_lock(path: &Path) -> Child {
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();
     // -o: the lock stays with flock(1) itself, not with `cat`; `cat` ends when its stdin
     // closes, and flock with it, freeing the lock.
-    let mut child = Command::new("flock")
+    let child = Command::new("flock")
         .arg("-o")
         .arg(path)
         .arg("cat")
