@@ -181,16 +181,13 @@ struct CompactParams {
 }
 
 // Floats in one reduced ICP system (mirrors `layout::ICP_SYSTEM_LEN`): 21 of AᵀA (upper
-// triangle, row-major), 6 of Aᵀb, the inlier count, the sum of squared residuals and the
-// candidate count (pixels past filter 1).
-const ICP_SYSTEM_LEN: u32 = 30u;
+// triangle, row-major), 6 of Aᵀb, the inlier count and the sum of squared residuals.
+const ICP_SYSTEM_LEN: u32 = 29u;
 // Where the parts start (mirror `layout::ICP_ATB_OFFSET`, `ICP_COUNT_INDEX`,
-// `ICP_RESIDUAL_INDEX`, `ICP_CANDIDATE_INDEX`): Aᵀb at 21..27, the count at 27, the
-// squared residuals at 28, the candidates at 29.
+// `ICP_RESIDUAL_INDEX`): Aᵀb at 21..27, the count at 27, the squared residuals at 28.
 const ICP_ATB_OFFSET: u32 = 21u;
 const ICP_COUNT_INDEX: u32 = 27u;
 const ICP_RESIDUAL_INDEX: u32 = 28u;
-const ICP_CANDIDATE_INDEX: u32 = 29u;
 
 // Mirrors `layout::MapChunk`: one chunk of the surfel map (three storage arrays of `slots`
 // surfels; surfel i of the map is element i - base of the chunk that holds it). Kernels

@@ -1,5 +1,5 @@
 // icp_reduce.wgsl: projective data association, both filters, the weighted point-to-plane
-// row and the reduction to one ICP_SYSTEM_LEN-float normal-equation partial per workgroup.
+// row and the reduction to one 29-float normal-equation partial per workgroup.
 // CPU twin: src/cpu/icp_reduce.rs (its header states the maths, the filters and weights).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
@@ -17,23 +17,20 @@
 // (see vertex_to_normal.wgsl); the vertex is rebuilt with back_project, as in the twin.
 @group(0) @binding(3) var normal_depth: texture_2d<f32>;
 // Out: ICP_SYSTEM_LEN floats per workgroup (21 of AᵀA upper triangle row-major, 6 of
-// Aᵀb, count, sum of squared weighted residuals, candidates); the host sums them in f64.
+// Aᵀb, count, sum of squared weighted residuals); the host sums them in f64.
 @group(0) @binding(4) var<storage, read_write> partials: array<f32>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
-// One thread's partial system per lane: 64 x 30 x 4 = 7680 bytes of workgroup memory
+// One thread's partial system per lane: 64 x 29 x 4 = 7424 bytes of workgroup memory
 // (the WebGPU minimum is 16384).
 var<workgroup> scratch: array<array<f32, ICP_SYSTEM_LEN>, WORKGROUP_SIZE>;
 
-// One correspondence: Jacobian row `a`, residual `b`, whether both filters passed, and
-// whether filter 1 passed (a candidate: the source projects inside the image onto a valid
-// target; the denominator of the tracking-health inlier fraction).
+// One correspondence: Jacobian row `a`, residual `b`, and whether both filters passed.
 struct IcpRow {
     a: array<f32, 6>,
     b: f32,
     valid: bool,
-    candidate: bool,
 }
 
 // Axial depth noise of a Kinect-like sensor at depth z (metres), after Nguyen, Izadi and
@@ -67,7 +64,6 @@ fn huber_weight(b: f32, delta: f32) -> f32 {
 fn icp_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
-    row.candidate = false;
     let src_world = textureLoad(pred_vertex, src_texel, 0);
     if !is_valid(src_world) {
         return row;
@@ -84,7 +80,6 @@ fn icp_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     if !is_valid(nd) {
         return row;
     }
-    row.candidate = true;
     let q = back_project(cam, target_texel, nd.w);
     let n = xyz(nd);
     let d = p - q;
@@ -113,7 +108,7 @@ fn icp_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     return row;
 }
 
-// Adds one row to an ICP_SYSTEM_LEN-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs: the
+// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs: the
 // twin's two loops written out in the same k order (row r, column c >= r), because
 // constant indices let lavapipe keep `sys` in registers instead of per-lane stack memory.
 fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, b: f32) {
@@ -171,9 +166,6 @@ fn main(
         let row = icp_row(p, vec2<u32>(u, v));
         if row.valid {
             accumulate(&sys, row.a, row.b);
-        }
-        if row.candidate {
-            sys[ICP_CANDIDATE_INDEX] += 1.0;
         }
         u += du;
         v += dv;

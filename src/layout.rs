@@ -336,20 +336,15 @@ pub struct Keypoint {
 /// Binary tests per keypoint descriptor (BRIEF's 256), in 32-bit words.
 pub const DESCRIPTOR_WORDS: usize = 8;
 
-/// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major), 6 (Aᵀb), the
-/// inlier count, the sum of squared residuals and the candidate count (mirrors
-/// `ICP_SYSTEM_LEN` in common.wgsl).
-pub const ICP_SYSTEM_LEN: usize = 30;
+/// Floats in one reduced ICP system: 21 (upper triangle of AᵀA, row-major) + 6 (Aᵀb)
+/// + inlier count + sum of squared residuals (mirrors `ICP_SYSTEM_LEN` in common.wgsl).
+pub const ICP_SYSTEM_LEN: usize = 29;
 /// Index of the first of the 6 Aᵀb entries in the system (after the 21 of AᵀA).
 pub const ICP_ATB_OFFSET: usize = 21;
 /// Index of the inlier count in the system.
 pub const ICP_COUNT_INDEX: usize = 27;
 /// Index of the sum of squared residuals (m²) in the system.
 pub const ICP_RESIDUAL_INDEX: usize = 28;
-/// Index of the candidate count in the system: source pixels that passed filter 1 (inside
-/// the image, onto a valid target), inliers or not; the tracking-health inlier fraction is
-/// inliers / candidates.
-pub const ICP_CANDIDATE_INDEX: usize = 29;
 
 /// Surfels per culling block (mirrors `BLOCK_SURFELS` in common.wgsl): the map is cut into
 /// runs of this many consecutive slots, each with a world-frame bounding box

@@ -1,5 +1,5 @@
 //! CPU twin of `shaders/icp_reduce.wgsl`: projective data association, both filters, the
-//! weighted point-to-plane row and the reduction to the 30-float normal-equation system.
+//! weighted point-to-plane row and the reduction to the 29-float normal-equation system.
 //!
 //! Source: the predicted model map (world frame), one point per pixel, moved into the
 //! new camera with the current estimate `T_world_to_cam`: `p' = T p`. Filter 1: `p'`
@@ -16,15 +16,13 @@
 //!
 //! Weights (robust profile; both off in the assignment's): a Huber weight on `b`
 //! ([`huber_weight`]) times a depth-noise weight of the target depth ([`noise_weight`]).
-//! The row is scaled by `sqrt(w)`, so the system stays 30 floats: AᵀWA, AᵀWb, the inlier
-//! count, the weighted squared residuals, and the candidates (pixels past filter 1, for the
-//! tracking-health inlier fraction). With both off `w` is exactly 1 and the row
+//! The row is scaled by `sqrt(w)`, so the system stays 29 floats: AᵀWA, AᵀWb, the inlier
+//! count and the weighted squared residuals. With both off `w` is exactly 1 and the row
 //! is the unweighted one bit for bit.
 
 use super::{back_project, is_valid, project_to_texel, transform_dir, transform_point, xyz};
 use crate::layout::{
-    IcpParams, ICP_ATB_OFFSET, ICP_CANDIDATE_INDEX, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX,
-    ICP_SYSTEM_LEN,
+    IcpParams, ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN,
 };
 
 /// Axial depth noise of a Kinect-like sensor, after Nguyen, Izadi and Lovell (2012):
@@ -53,27 +51,8 @@ pub fn huber_weight(b: f32, delta: f32) -> f32 {
     delta / b.abs()
 }
 
-/// One correspondence: Jacobian row `a`, residual `b`, whether both filters passed, and
-/// whether filter 1 passed (a candidate: the source projects inside the image onto a valid
-/// target; the denominator of the tracking-health inlier fraction). Mirrors `IcpRow` in
-/// icp_reduce.wgsl.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct IcpRow {
-    pub a: [f32; 6],
-    pub b: f32,
-    pub valid: bool,
-    pub candidate: bool,
-}
-
-impl IcpRow {
-    /// `(a, b)` of a row that passed both filters.
-    pub fn inlier(&self) -> Option<([f32; 6], f32)> {
-        self.valid.then_some((self.a, self.b))
-    }
-}
-
 /// The weighted Jacobian row `A` and residual `b` of source pixel `src_texel` (both scaled
-/// by `sqrt(weight)`), or `valid = false` when a filter rejects it. Mirrors `icp_row` in
+/// by `sqrt(weight)`), or `None` when a filter rejects it. Mirrors `icp_row` in
 /// icp_reduce.wgsl.
 #[inline]
 pub fn icp_row(
@@ -82,37 +61,33 @@ pub fn icp_row(
     pred_vertex: &[[f32; 4]],
     pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
-) -> IcpRow {
-    let mut row = IcpRow::default();
+) -> Option<([f32; 6], f32)> {
     let src = src_texel[1] as usize * params.width as usize + src_texel[0] as usize;
     let src_world = pred_vertex[src];
     if !is_valid(src_world) {
-        return row;
+        return None;
     }
     let cam = [params.fx, params.fy, params.cx, params.cy];
     let p = transform_point(&params.t_world_to_cam, xyz(src_world));
-    let Some(target_texel) = project_to_texel(cam, params.width, params.height, p) else {
-        return row;
-    };
+    let target_texel = project_to_texel(cam, params.width, params.height, p)?;
     // Valid normal (w = depth > 0) implies a valid vertex.
     let nd =
         normal_depth[target_texel[1] as usize * params.width as usize + target_texel[0] as usize];
     if !is_valid(nd) {
-        return row;
+        return None;
     }
-    row.candidate = true;
     let q = back_project(cam, target_texel, nd[3]);
     let n = xyz(nd);
     let d = p - q;
     if d.length() >= params.dist_threshold_m {
-        return row;
+        return None;
     }
     // The angle gate reads the source normal only when it is on.
     if params.cos_normal_threshold >= -1.0 {
         let src_normal_world = pred_normal[src];
         let n_p = transform_dir(&params.t_world_to_cam, xyz(src_normal_world));
         if !is_valid(src_normal_world) || n_p.dot(n) <= params.cos_normal_threshold {
-            return row;
+            return None;
         }
     }
     let b = n.dot(d);
@@ -123,13 +98,10 @@ pub fn icp_row(
     let s = w.sqrt();
     let pxn = p.cross(n) * s;
     let ns = n * s;
-    row.a = [pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z];
-    row.b = b * s;
-    row.valid = true;
-    row
+    Some(([pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z], b * s))
 }
 
-/// Adds one row to a 30-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
+/// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
 /// the count and the squared residual. Mirrors `accumulate` in icp_reduce.wgsl.
 #[inline]
 pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
@@ -161,12 +133,8 @@ pub fn icp_reduce(
     let mut sys = [0.0f64; ICP_SYSTEM_LEN];
     for v in 0..params.height {
         for u in 0..params.width {
-            let row = icp_row(params, [u, v], pred_vertex, pred_normal, normal_depth);
-            if row.valid {
-                accumulate(&mut sys, &row.a, row.b);
-            }
-            if row.candidate {
-                sys[ICP_CANDIDATE_INDEX] += 1.0;
+            if let Some((a, b)) = icp_row(params, [u, v], pred_vertex, pred_normal, normal_depth) {
+                accumulate(&mut sys, &a, b);
             }
         }
     }
@@ -206,7 +174,7 @@ mod tests {
         let mut pn = vec![[0.0; 4]; n];
         pv[0] = p;
         pn[0] = n_p;
-        icp_row(params, [0, 0], &pv, &pn, nd).inlier()
+        icp_row(params, [0, 0], &pv, &pn, nd)
     }
 
     /// The analytic row matches finite differences of the exact residual

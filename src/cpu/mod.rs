@@ -29,6 +29,7 @@ pub mod fuse_merge;
 pub mod fuse_merge_chosen;
 pub mod fuse_prune;
 pub mod fuse_select;
+pub mod icp_candidates;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
 pub mod keypoint_describe;

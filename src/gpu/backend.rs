@@ -23,7 +23,7 @@
 //! surfel map lives on the GPU for the whole run and grows before a fusion could overflow
 //! it (its last chunk x1.5 by a GPU-side copy, then new chunks). Per frame the host reads
 //! back only the ICP system (per iteration, `icp_reduce`'s per-workgroup partials summed on
-//! the GPU by `icp_reduce_final`: 30 floats, 120 bytes) and the 4-byte surfel counter.
+//! the GPU by `icp_reduce_final`: 29 floats, 116 bytes) and the 4-byte surfel counter.
 //! The `compact` step's flags, offsets and second map (`Compaction`) are allocated at its
 //! first call and follow the map as it grows; after it the two map sets swap (and so do
 //! their bind groups).
@@ -103,6 +103,8 @@ pub struct GpuBackend {
     pub(super) compaction: Option<Compaction>,
     /// Buffers of `fern_encode`, `None` until its first call.
     pub(super) ferns: Option<super::ferns::FernBuffers>,
+    /// Buffers of `icp_candidates`, `None` until its first call.
+    pub(super) candidates: Option<super::candidates::CandidateBuffers>,
     /// Buffers of the keypoint kernels, `None` until their first call.
     pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
 }
@@ -228,6 +230,7 @@ impl GpuBackend {
             profiler: None,
             compaction: None,
             ferns: None,
+            candidates: None,
             keypoints: None,
         })
     }

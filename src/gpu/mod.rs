@@ -20,6 +20,7 @@
 
 pub mod backend;
 mod bind_groups;
+mod candidates;
 pub mod buffers;
 mod compaction;
 pub mod context;

@@ -68,6 +68,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         "keypoint_describe",
         include_str!("../../shaders/keypoint_describe.wgsl"),
     ),
+    (
+        "icp_candidates",
+        include_str!("../../shaders/icp_candidates.wgsl"),
+    ),
     ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
     (
         "icp_reduce_final",

@@ -340,6 +340,10 @@ impl Backend for GpuBackend {
         self.encode_ferns_on_gpu(params, ferns)
     }
 
+    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        self.icp_candidates_on_gpu(params)
+    }
+
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         self.detect_keypoints_on_gpu(params)
     }

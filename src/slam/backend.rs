@@ -133,8 +133,11 @@ pub trait Backend {
     /// stands in for `project_model`'s.
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
-    /// carry that level's size and intrinsics): the summed 30-entry system.
+    /// carry that level's size and intrinsics): the summed 29-entry system.
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
+    /// `icp_candidates` at level 0 (`params` at level 0's size and intrinsics): source
+    /// pixels of the last `predict` that pass ICP's filter 1 at `params.t_world_to_cam`.
+    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64>;
     /// `fern_encode` over the last `preprocess`'s level-0 maps: the code of each of the
     /// first `params.fern_count` of `ferns` (for the relocalisation keyframe database).
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>>;
@@ -221,6 +224,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         (**self).encode_ferns(params, ferns)
+    }
+    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        (**self).icp_candidates(params)
     }
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         (**self).detect_keypoints(params)

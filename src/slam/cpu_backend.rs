@@ -267,6 +267,20 @@ impl Backend for CpuBackend {
         ))
     }
 
+    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        if self.prediction.is_empty() {
+            return Err(crate::Error::Argument(
+                "icp_candidates() before predict()".into(),
+            ));
+        }
+        let (pred_vertex, _) = &self.prediction[0];
+        Ok(cpu::icp_candidates::icp_candidates(
+            params,
+            pred_vertex,
+            &self.frame.normal_depth,
+        ))
+    }
+
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         let mut codes = vec![0; params.fern_count as usize];
         cpu::fern_encode::fern_encode(

@@ -7,7 +7,8 @@
 //! the finest level's last ICP iteration and the motion the frame implies:
 //!
 //! 1. **Inlier fraction**: inliers (past both filters) over candidates (source pixels that
-//!    project inside the image onto a valid target, `icp_reduce`'s candidate count). A
+//!    project inside the image onto a valid target, counted by `icp_candidates` once at
+//!    the final pose). A
 //!    frame that overlaps the prediction but disagrees with it loses most of its
 //!    correspondences to the distance and angle gates.
 //! 2. **Residual ratio**: the RMS point-to-plane residual over its typical value, the median
@@ -132,12 +133,14 @@ impl HealthMonitor {
     }
 
     /// The health of an ICP result: `iterations` of the attempt (the last level-0 one is
-    /// read), and the pose it started from and reached. `motion_gap`: frames since the last
-    /// tracked one, or `None` not to judge the motion (a relocalisation attempt).
+    /// read), the candidates at the final pose, and the pose it started from and reached.
+    /// `motion_gap`: frames since the last tracked one, or `None` not to judge the motion (a
+    /// relocalisation attempt).
     pub fn measure(
         &self,
         settings: &HealthSettings,
         iterations: &[IcpIteration],
+        candidates: u64,
         t_start: &DMat4,
         t_end: &DMat4,
         motion_gap: Option<u32>,
@@ -161,11 +164,11 @@ impl HealthMonitor {
         };
         Some(TrackingHealth {
             inliers: last.inliers,
-            candidates: last.candidates,
-            inlier_fraction: if last.candidates == 0 {
+            candidates,
+            inlier_fraction: if candidates == 0 {
                 0.0
             } else {
-                last.inliers as f64 / last.candidates as f64
+                (last.inliers as f64 / candidates as f64).min(1.0)
             },
             rms_residual_m: rms,
             residual_ratio,
@@ -264,11 +267,10 @@ mod tests {
     use super::*;
     use crate::geometry::se3;
 
-    fn iteration(inliers: u64, candidates: u64, rms_m: f64) -> IcpIteration {
+    fn iteration(inliers: u64, rms_m: f64) -> IcpIteration {
         IcpIteration {
             level: 0,
             inliers,
-            candidates,
             mean_sq_residual: rms_m * rms_m,
             eigen_ratio: Some(0.01),
             held_directions: 0,
@@ -284,36 +286,36 @@ mod tests {
         let still = DMat4::IDENTITY;
         let step = se3::exp(&[0.0, 0.0, 0.0, 0.01, 0.0, 0.0]);
         let few = m
-            .measure(&s, &[iteration(100, 1000, 0.002)], &still, &step, Some(1))
+            .measure(&s, &[iteration(100, 0.002)], 1000, &still, &step, Some(1))
             .unwrap();
         assert!(m.judge(&s, &few).unwrap_err().contains("10 % of 1000"));
         for _ in 0..s.warmup_frames {
             let h = m
-                .measure(&s, &[iteration(900, 1000, 0.002)], &still, &step, Some(1))
+                .measure(&s, &[iteration(900, 0.002)], 1000, &still, &step, Some(1))
                 .unwrap();
             assert_eq!(h.residual_ratio, None);
             m.judge(&s, &h).unwrap();
             m.record(&h, true);
         }
         let noisy = m
-            .measure(&s, &[iteration(900, 1000, 0.02)], &still, &step, Some(1))
+            .measure(&s, &[iteration(900, 0.02)], 1000, &still, &step, Some(1))
             .unwrap();
         assert!((noisy.residual_ratio.unwrap() - 10.0).abs() < 1e-9);
         assert!(m.judge(&s, &noisy).unwrap_err().contains("RMS residual"));
         let jump = se3::exp(&[0.0, 0.0, 0.0, 0.5, 0.0, 0.0]);
         let far = m
-            .measure(&s, &[iteration(900, 1000, 0.002)], &still, &jump, Some(1))
+            .measure(&s, &[iteration(900, 0.002)], 1000, &still, &jump, Some(1))
             .unwrap();
         assert!(m.judge(&s, &far).unwrap_err().contains("moved 500 mm"));
         // The same jump after 60 untracked frames is within 60 typical motions.
         let later = m
-            .measure(&s, &[iteration(900, 1000, 0.002)], &still, &jump, Some(60))
+            .measure(&s, &[iteration(900, 0.002)], 1000, &still, &jump, Some(60))
             .unwrap();
         m.judge(&s, &later).unwrap();
         // Below the floors a large ratio is no failure (a camera that starts still).
         let nudge = se3::exp(&[0.0, 0.0, 0.0, 0.09, 0.0, 0.0]);
         let small = m
-            .measure(&s, &[iteration(900, 1000, 0.002)], &still, &nudge, Some(1))
+            .measure(&s, &[iteration(900, 0.002)], 1000, &still, &nudge, Some(1))
             .unwrap();
         assert!(small.motion_ratio.unwrap() > s.max_motion_ratio);
         m.judge(&s, &small).unwrap();

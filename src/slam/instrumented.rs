@@ -23,7 +23,7 @@ use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;
-/// `frame_systems` holds the pyramid level and 30-float ICP system of every iteration of
+/// `frame_systems` holds the pyramid level and 29-float ICP system of every iteration of
 /// the frame in flight, in order (cleared
 /// by `preprocess`, so after a frame it holds that frame's iterations); `fused_surfels` the
 /// surfel count `fuse` returned in that frame (before `compact`), `None` if it did not fuse.
@@ -101,6 +101,9 @@ impl<B: Backend> Backend for Instrumented<B> {
         let system = self.step("icp_iteration", |b| b.icp_system(level, params))?;
         self.frame_systems.push((level, system));
         Ok(system)
+    }
+    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        self.step("icp_candidates", |b| b.icp_candidates(params))
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.step("encode_ferns", |b| b.encode_ferns(params, ferns))

@@ -32,7 +32,7 @@
 //! |---|---|---|
 //! | `preprocess` (`depth_to_vertex`, with [`SlamParams::bilateral`] `bilateral_filter`, then `vertex_to_normal`; per coarser level `pyramid_depth` then `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame, unfiltered), `filtered_vertex` (camera frame; only with the filter), `normal_depth` (camera-frame normal, depth in w; from `filtered_vertex` with the filter, else from `vertex`), `color`; per level `l >= 1`: its `vertex` (from level `l - 1`'s normals' source) and `normal_depth` |
 //! | `predict` (`project_model` unless the last fusion built the index map at this view, see `FusedView`; `predict_model`; per coarser level `pyramid_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame); per level `l >= 1` its `pred_vertex`, `pred_normal` (from level `l - 1`'s) |
-//! | `icp_system` (`icp_reduce`), per iteration, at a level | that level's `pred_vertex`, `pred_normal`, `normal_depth`; the current `t_world_to_cam`; the level's intrinsics | the 30-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
+//! | `icp_system` (`icp_reduce`), per iteration, at a level | that level's `pred_vertex`, `pred_normal`, `normal_depth`; the current `t_world_to_cam`; the level's intrinsics | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
 //! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen` + with a prune scale, on removal frames, `fuse_prune`; then `fuse_flags`, `prefix_sum`, `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, duplicates retired, then appended), `assoc` (merged pixels), `merged` (the surfel each pixel merged into, best-candidate association), `index_map` (best candidate: the next prediction's, by `fuse_select` and `fuse_add`), `counter` (surfel count) |
 //! | `compact` (`compact_flags`, `prefix_sum`, `compact_scatter`), only with [`FusionSettings::unstable_removal`](crate::slam::params::FusionSettings::unstable_removal) | map `position_weight` (w = weight), `normal_frame` (w = last frame); the frame id | `flags`, `offsets` (GPU: storage buffers of one `u32` per surfel), the second map (compacted; then the two swap), `counter` (surfels kept) |
 //!
@@ -59,8 +59,6 @@ pub struct IcpIteration {
     pub level: usize,
     /// Correspondences that passed both filters.
     pub inliers: u64,
-    /// Source pixels that passed filter 1 (inside the image, onto a valid target).
-    pub candidates: u64,
     /// Mean squared point-to-plane residual before the update, m².
     pub mean_sq_residual: f64,
     /// Smallest over largest eigenvalue of AᵀA; `None` when the system was refused.
@@ -399,10 +397,16 @@ impl<B: Backend> Slam<B> {
         recovery: bool,
     ) -> Result<Attempt> {
         let (t, status, iterations) = self.track(pyramid, t_start)?;
-        let health = self.params.health.as_ref().and_then(|s| {
-            self.monitor
-                .measure(s, &iterations, &t_start, &t, motion_gap)
-        });
+        let candidates = match status {
+            TrackStatus::Lost(_) => None,
+            _ => self.candidates_at(&t)?,
+        };
+        let health = match (&self.params.health, candidates) {
+            (Some(s), Some(c)) => self
+                .monitor
+                .measure(s, &iterations, c, &t_start, &t, motion_gap),
+            _ => None,
+        };
         let verdict = match (&status, &self.params.health, &health) {
             (TrackStatus::Lost(why), _, _) => Err(why.clone()),
             (_, Some(s), Some(h)) if recovery => self.monitor.judge_recovery(s, h),
@@ -529,7 +533,6 @@ impl<B: Backend> Slam<B> {
                 iterations.push(IcpIteration {
                     level,
                     inliers: eq.inliers,
-                    candidates: eq.candidates,
                     mean_sq_residual: eq.mean_sq_residual(),
                     eigen_ratio,
                     held_directions,
@@ -559,5 +562,14 @@ impl<B: Backend> Slam<B> {
         }
         // The finest level's outcome.
         Ok((t, status, iterations))
+    }
+
+    /// Source pixels that pass filter 1 at level 0 at `t` (`icp_candidates`), for the
+    /// health test's inlier fraction; `None` without the test.
+    fn candidates_at(&mut self, t: &DMat4) -> Result<Option<u64>> {
+        match self.params.health {
+            Some(_) => Ok(Some(self.backend.icp_candidates(&self.icp_params(0, t))?)),
+            None => Ok(None),
+        }
     }
 }

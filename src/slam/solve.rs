@@ -1,4 +1,4 @@
-//! Host side of one ICP iteration: decode the 30-float system, solve the 6x6 normal
+//! Host side of one ICP iteration: decode the 29-float system, solve the 6x6 normal
 //! equations in f64, and update the pose by left multiplication.
 //!
 //! The system comes from `cpu::icp_reduce` or the GPU's summed workgroup partials. An
@@ -21,9 +21,7 @@ use glam::DMat4;
 use nalgebra::{Matrix6, Vector6};
 
 use crate::geometry::se3;
-use crate::layout::{
-    ICP_ATB_OFFSET, ICP_CANDIDATE_INDEX, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN,
-};
+use crate::layout::{ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN};
 
 /// The decoded normal equations `AᵀA x = -Aᵀb` of one ICP iteration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,9 +34,6 @@ pub struct NormalEquations {
     pub inliers: u64,
     /// Sum of squared point-to-plane residuals, m².
     pub residual_sq_sum: f64,
-    /// Source pixels that passed filter 1 (inside the image, onto a valid target): the
-    /// inliers' denominator in the tracking-health inlier fraction.
-    pub candidates: u64,
 }
 
 /// A solved increment and how well the system constrained it.
@@ -89,18 +84,9 @@ impl NormalEquations {
             atb,
             inliers: sys[ICP_COUNT_INDEX].round().max(0.0) as u64,
             residual_sq_sum: sys[ICP_RESIDUAL_INDEX],
-            candidates: sys[ICP_CANDIDATE_INDEX].round().max(0.0) as u64,
         }
     }
 
-    /// Inliers over candidates (0 without candidates).
-    pub fn inlier_fraction(&self) -> f64 {
-        if self.candidates == 0 {
-            0.0
-        } else {
-            self.inliers as f64 / self.candidates as f64
-        }
-    }
 
     /// Mean squared point-to-plane residual (m²), 0 without inliers.
     pub fn mean_sq_residual(&self) -> f64 {

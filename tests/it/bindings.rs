@@ -81,6 +81,11 @@ const TWIN_RETURNS: &[(&str, &str, &str)] = &[
         "system",
         "the twin returns the summed system instead of writing it",
     ),
+    (
+        "icp_candidates",
+        "counts",
+        "the twin returns the total instead of one count per workgroup",
+    ),
 ];
 
 /// The parameter names of `pub fn <name>(...)` in `source`, or why they cannot be read: the

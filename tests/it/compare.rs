@@ -136,6 +136,9 @@ impl<B: Backend> Backend for PerturbedMap<B> {
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         self.inner.icp_system(level, params)
     }
+    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        self.inner.icp_candidates(params)
+    }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.inner.encode_ferns(params, ferns)
     }

@@ -170,23 +170,20 @@ fn wgsl_u32_const(name: &str) -> u32 {
     }
 }
 
-/// The 30-float system's length and the indices of its parts agree on both sides.
+/// The 29-float system's length and the indices of its parts agree on both sides.
 fn icp_system_len_matches() {
     assert_eq!(wgsl_u32_const("ICP_SYSTEM_LEN") as usize, ICP_SYSTEM_LEN);
     for (name, rust) in [
         ("ICP_ATB_OFFSET", wgslam::layout::ICP_ATB_OFFSET),
         ("ICP_COUNT_INDEX", wgslam::layout::ICP_COUNT_INDEX),
         ("ICP_RESIDUAL_INDEX", wgslam::layout::ICP_RESIDUAL_INDEX),
-        ("ICP_CANDIDATE_INDEX", wgslam::layout::ICP_CANDIDATE_INDEX),
     ] {
         assert_eq!(wgsl_u32_const(name) as usize, rust, "{name}");
     }
-    // 21 of AᵀA, then 6 of Aᵀb, the count, the squared residuals and the candidates,
-    // nothing left over.
+    // 21 of AᵀA, then 6 of Aᵀb, the count and the squared residuals, nothing left over.
     assert_eq!(wgslam::layout::ICP_ATB_OFFSET, 21);
     assert_eq!(wgslam::layout::ICP_COUNT_INDEX, 21 + 6);
-    assert_eq!(wgslam::layout::ICP_RESIDUAL_INDEX, 21 + 6 + 1);
-    assert_eq!(wgslam::layout::ICP_CANDIDATE_INDEX + 1, ICP_SYSTEM_LEN);
+    assert_eq!(wgslam::layout::ICP_RESIDUAL_INDEX + 1, ICP_SYSTEM_LEN);
 }
 
 /// The culling block size agrees on both sides, and chunks of whole blocks fit it; so does

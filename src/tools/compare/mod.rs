@@ -301,7 +301,7 @@ pub fn diff_frame_maps(a: &FrameMaps, b: &FrameMaps) -> MapDiff {
     d
 }
 
-/// Relative differences of two 30-entry systems, `(AᵀA, Aᵀb)`, `a` the reference: AᵀA's
+/// Relative differences of two 29-entry systems, `(AᵀA, Aᵀb)`, `a` the reference: AᵀA's
 /// Frobenius difference over its norm; Aᵀb's difference over the Cauchy-Schwarz bound of
 /// its terms, `sqrt(trace(AᵀA) Σb²)`, not over itself, because Aᵀb nearly cancels near the
 /// optimum (a tiny denominator would make rounding look like a disagreement).

@@ -1,0 +1,48 @@
+//! CPU twin of `shaders/icp_candidates.wgsl`: how many source pixels pass ICP's filter 1
+//! at a pose (the predicted point moved into the camera projects inside the image onto a
+//! texel with a valid normal), the denominator of the tracking-health inlier fraction
+//! (`slam::health`). The same test as the first half of `icp_row` (`cpu::icp_reduce`).
+
+use super::{is_valid, project_to_texel, transform_point, xyz};
+use crate::layout::IcpParams;
+
+/// Whether source pixel `src_texel` passes filter 1. Mirrors `is_candidate` in
+/// icp_candidates.wgsl.
+pub fn is_candidate(
+    p: &IcpParams,
+    src_texel: [u32; 2],
+    pred_vertex: &[[f32; 4]],
+    normal_depth: &[[f32; 4]],
+) -> bool {
+    let src_world = pred_vertex[(src_texel[1] * p.width + src_texel[0]) as usize];
+    if !is_valid(src_world) {
+        return false;
+    }
+    let cam = [p.fx, p.fy, p.cx, p.cy];
+    let q = transform_point(&p.t_world_to_cam, xyz(src_world));
+    match project_to_texel(cam, p.width, p.height, q) {
+        Some(t) => is_valid(normal_depth[(t[1] * p.width + t[0]) as usize]),
+        None => false,
+    }
+}
+
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/icp_candidates.wgsl`.
+///
+/// `counts` is returned instead of written: the total (the GPU writes one count per
+/// workgroup; the host sums them).
+pub fn icp_candidates(
+    params: &IcpParams,
+    pred_vertex: &[[f32; 4]],
+    normal_depth: &[[f32; 4]],
+) -> u64 {
+    let mut n = 0;
+    for v in 0..params.height {
+        for u in 0..params.width {
+            if is_candidate(params, [u, v], pred_vertex, normal_depth) {
+                n += 1;
+            }
+        }
+    }
+    n
+}
