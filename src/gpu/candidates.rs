@@ -25,7 +25,10 @@ impl GpuBackend {
             self.candidates = Some(CandidateBuffers { counts, readback });
         }
         let b = self.candidates.as_mut().expect("just made");
-        let frame = self.frame.as_ref().expect("preprocess() runs before any other step");
+        let frame = self
+            .frame
+            .as_ref()
+            .expect("preprocess() runs before any other step");
         let u = &self.uniforms;
         ctx.scoped("icp_candidates", || {
             u.icp.write(ctx, params);

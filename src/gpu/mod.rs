@@ -20,8 +20,8 @@
 
 pub mod backend;
 mod bind_groups;
-mod candidates;
 pub mod buffers;
+mod candidates;
 mod compaction;
 pub mod context;
 mod ferns;

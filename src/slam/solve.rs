@@ -87,7 +87,6 @@ impl NormalEquations {
         }
     }
 
-
     /// Mean squared point-to-plane residual (m²), 0 without inliers.
     pub fn mean_sq_residual(&self) -> f64 {
         if self.inliers == 0 {

@@ -1,8 +1,9 @@
 //! Tracking's normal equations: icp_reduce and icp_reduce_final against their twins, at
-//! level 0 and on the coarser pyramid levels.
+//! level 0 and on the coarser pyramid levels; icp_candidates (the health test's
+//! denominator) against its twin.
 
 use super::{cpu_map_from_gt, gpu_backend, robust_pyramids_on_both, root};
-use super::{INCREMENT_TOL, INLIER_FRACTION_TOL, SYSTEM_REL_TOL};
+use super::{INCREMENT_TOL, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
 use wgslam::cpu;
@@ -193,8 +194,48 @@ fn icp_reduce_final_matches_twin(ctx: GpuContext) {
     }
 }
 
+/// icp_candidates against its twin on the same maps (the CPU map uploaded to the GPU, the
+/// same frame, predicted at frame 3's pose), at the true and a perturbed pose: the counts
+/// agree within the validity-mask allowance (a projection can land on the other side of a
+/// texel border after an FMA), and they are real counts (most of the image).
+fn icp_candidates_matches_twin(mut gpu: GpuBackend) {
+    let params = SlamParams::profile(Profile::Robust);
+    let (mut s, gt) = cpu_map_from_gt(3, &params);
+    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
+    let frame = load_frame(&root(), 4);
+    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    s.backend
+        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+        .unwrap();
+    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
+        .unwrap();
+    let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
+    let proj = s.project_params(&t_prev);
+    s.backend.predict(&proj, &[]).unwrap();
+    gpu.predict(&proj, &[]).unwrap();
+    let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    let nudge = se3::exp(&[0.01, -0.02, 0.01, 0.05, 0.02, -0.03]);
+    for (label, t) in [("true pose", t_true), ("perturbed pose", nudge * t_true)] {
+        let ip = s.icp_params(0, &t);
+        let (c, g) = (
+            s.backend.icp_candidates(&ip).unwrap(),
+            gpu.icp_candidates(&ip).unwrap(),
+        );
+        eprintln!("{label}: candidates cpu {c} gpu {g}");
+        let pixels = (ip.width * ip.height) as u64;
+        assert!(c > pixels / 2, "{label}: only {c} candidates");
+        assert!(
+            c.abs_diff(g) as f64 <= MASK_MISMATCH_FRACTION * pixels as f64,
+            "{label}: {c} vs {g}"
+        );
+    }
+}
+
 pub(super) fn tests() -> Vec<Test> {
     vec![
+        gpu("icp_candidates_matches_twin", |ctx| {
+            icp_candidates_matches_twin(gpu_backend(ctx))
+        }),
         gpu("icp_system_matches_twin", |ctx| {
             icp_system_matches_twin(gpu_backend(ctx))
         }),
