@@ -10,9 +10,7 @@ use crate::io::outputs::OutputSet;
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::params::PoseSource;
 use crate::tools::run;
-#[cfg(not(feature = "rerun"))]
-use crate::Error;
-use crate::Result;
+use crate::{Error, Result};
 
 /// Pose source for `run`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
