@@ -189,8 +189,26 @@ pub fn execute(a: RunArgs) -> Result<()> {
     };
     // The outputs are staged beside --out and moved into it as a set after the run; a bad
     // --out (a file, a folder of other files) fails here, before any frame.
-    let outputs = OutputSet::begin(&a.out, &run::OUTPUT_FILES)?;
-    let mut recording = open_recording(&a, &seq, &range)?;
+    if a.rerun.is_some() && a.rerun_map_every == 0 {
+        return Err(Error::Argument(
+            "--rerun-map-every must be at least 1".into(),
+        ));
+    }
+    // A recording asked for inside --out is one of the set: staged and moved in with it.
+    let rerun_in_out = a
+        .rerun
+        .as_deref()
+        .filter(|p| p.parent().is_some_and(|dir| same_folder(dir, &a.out)))
+        .and_then(|p| p.file_name())
+        .map(|n| n.to_string_lossy().into_owned());
+    let mut names: Vec<&str> = run::OUTPUT_FILES.to_vec();
+    names.extend(rerun_in_out.as_deref());
+    let outputs = OutputSet::begin(&a.out, &names)?;
+    let rerun_path = match &rerun_in_out {
+        Some(name) => Some(outputs.dir().join(name)),
+        None => a.rerun.clone(),
+    };
+    let mut recording = open_recording(rerun_path.as_deref(), a.rerun_map_every, &seq, &range)?;
     let backend = any_backend::open(a.backend)?;
     let result = run::run_observed(
         backend,
@@ -211,8 +229,12 @@ pub fn execute(a: RunArgs) -> Result<()> {
         .iter()
         .filter_map(|p| p.file_name().map(|n| a.out.join(n)))
         .collect();
-    outputs.commit()?;
     let recorded = recording.map(|r| r.finish(&result.map)).transpose()?;
+    let recorded = recorded.map(|p| match &rerun_in_out {
+        Some(name) => a.out.join(name),
+        None => p,
+    });
+    outputs.commit()?;
     print_summary(&result.metrics, &a.out);
     for p in pictures.iter().chain(&recorded) {
         println!("wrote {}", p.display());
@@ -254,24 +276,24 @@ impl run::FrameObserver for Recording {
 /// The recording `--rerun` asks for, started over the run's frames.
 #[cfg(feature = "rerun")]
 fn open_recording(
-    a: &RunArgs,
+    path: Option<&Path>,
+    map_every: usize,
     seq: &dataset::Sequence,
     range: &std::ops::RangeInclusive<usize>,
 ) -> Result<Option<Recording>> {
-    a.rerun
-        .as_deref()
-        .map(|path| Recording::create(path, seq, *range.start(), *range.end(), a.rerun_map_every))
+    path.map(|path| Recording::create(path, seq, *range.start(), *range.end(), map_every))
         .transpose()
 }
 
 /// Without the `rerun` feature: an error naming the feature when `--rerun` is given.
 #[cfg(not(feature = "rerun"))]
 fn open_recording(
-    a: &RunArgs,
+    path: Option<&Path>,
+    _map_every: usize,
     _seq: &dataset::Sequence,
     _range: &std::ops::RangeInclusive<usize>,
 ) -> Result<Option<Recording>> {
-    match &a.rerun {
+    match path {
         Some(_) => Err(Error::Argument(
             "--rerun needs a wgslam built with the `rerun` feature \
              (cargo build --release --features rerun); this binary was built without it"
@@ -328,4 +350,13 @@ fn print_summary(m: &run::Metrics, out: &Path) {
         "wrote {}/{{trajectory.tum, map.ply, metrics.json, frames.json}}",
         out.display()
     );
+}
+
+/// Whether `a` and `b` name the same folder: by their canonical paths where both exist,
+/// else as written.
+fn same_folder(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
 }
