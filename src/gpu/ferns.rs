@@ -15,6 +15,8 @@ pub(super) struct FernBuffers {
     ferns: GpuArray<Fern>,
     codes: GpuArray<u32>,
     readback: Readback<u32>,
+    /// The ferns last uploaded (a run's are fixed: uploaded once, not every frame).
+    uploaded: Vec<Fern>,
 }
 
 impl FernBuffers {
@@ -28,6 +30,7 @@ impl FernBuffers {
             ferns,
             codes,
             readback: Readback::new(ctx, "fern codes read-back", count),
+            uploaded: Vec::new(),
         })
     }
 }
@@ -55,7 +58,10 @@ impl GpuBackend {
             .expect("preprocess() runs before any other step");
         ctx.scoped("fern_encode", || {
             b.params.write(ctx, params);
-            b.ferns.upload(ctx, &ferns[..n])?;
+            if b.uploaded[..] != ferns[..n] {
+                b.ferns.upload(ctx, &ferns[..n])?;
+                b.uploaded = ferns[..n].to_vec();
+            }
             let group = self.kernels.fern_encode.bind_group(
                 ctx,
                 &[
