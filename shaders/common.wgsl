@@ -199,6 +199,24 @@ struct MapChunk {
     _pad1: u32,
 }
 
+// Mirrors `layout::DeformParams` (deform_surfels).
+struct DeformParams {
+    surfel_count: u32,
+    node_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Mirrors `layout::DeformNode` (deform_surfels): a pose-graph node's frame and its
+// world-frame correction, rows of [R | t].
+struct DeformNode {
+    frame: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    rows: array<vec4<f32>, 3>,
+}
+
 // Mirrors `layout::BoundsParams` (block_bounds).
 struct BoundsParams {
     surfel_count: u32,

@@ -262,6 +262,36 @@ pub struct CompactParams {
     pub max_age_frames: u32,
 }
 
+/// Parameters of `deform_surfels`, the map's deformation after a loop closure (mirrors
+/// `DeformParams` in common.wgsl).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct DeformParams {
+    /// Surfels in the map (filled in by the backend).
+    pub surfel_count: u32,
+    /// Entries of the node table (at least 1).
+    pub node_count: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// One node of `deform_surfels`' table (mirrors `DeformNode` in common.wgsl): a frame of
+/// the pose graph and the correction its optimisation gave, a world-frame rigid transform
+/// (new pose times old pose inverse, camera to world) as the top three rows of a 4x4
+/// matrix. The table is sorted by `frame`; a surfel blends the corrections of the two
+/// nodes whose frames bracket its `last_frame` (see `cpu::deform_surfels`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct DeformNode {
+    /// Sequence position of the node's frame.
+    pub frame: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+    /// Row `r` of the correction: `[R_r0, R_r1, R_r2, t_r]`, metres.
+    pub rows: [[f32; 4]; 3],
+}
+
 /// Parameters of `fern_encode` (mirrors `FernParams` in common.wgsl): the frame's level-0
 /// size and the cell each fern averages over (the image cut into a grid of
 /// [`FERN_GRID`] cells, rounded up, as ElasticFusion's ferns read an image downsampled

@@ -21,6 +21,7 @@ pub mod block_bounds;
 pub mod compact_flags;
 pub mod compact_scatter;
 pub mod cross_covariance;
+pub mod deform_surfels;
 pub mod depth_to_vertex;
 pub mod fern_encode;
 pub mod fuse_add;

@@ -107,6 +107,8 @@ pub struct GpuBackend {
     pub(super) candidates: Option<super::candidates::CandidateBuffers>,
     /// Buffers of the keypoint kernels, `None` until their first call.
     pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
+    /// `deform_surfels`' kernel and buffers, `None` until the first loop closure.
+    pub(super) deform: Option<super::loops::DeformBuffers>,
 }
 
 impl GpuBackend {
@@ -232,6 +234,7 @@ impl GpuBackend {
             ferns: None,
             candidates: None,
             keypoints: None,
+            deform: None,
         })
     }
 

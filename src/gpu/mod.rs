@@ -30,6 +30,7 @@ mod inspect;
 pub mod kernel;
 mod kernels;
 mod keypoints;
+mod loops;
 pub mod map_buffers;
 mod recording;
 mod resources;

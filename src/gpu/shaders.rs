@@ -94,6 +94,11 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/compact_flags.wgsl"),
     ),
     ("prefix_sum", include_str!("../../shaders/prefix_sum.wgsl")),
+    // Loop closure's map deformation (src/gpu/loops.rs), built at the first closure.
+    (
+        "deform_surfels",
+        include_str!("../../shaders/deform_surfels.wgsl"),
+    ),
     (
         "compact_scatter",
         include_str!("../../shaders/compact_scatter.wgsl"),

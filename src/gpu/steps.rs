@@ -13,10 +13,10 @@ use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::{Backend, Described, PyramidLevel};
+use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::plan::{self, Buffer, Call};
 use crate::{Error, Result};
@@ -513,6 +513,23 @@ impl Backend for GpuBackend {
         self.bounds_dirty_from = 0;
         self.fused_view = None;
         Ok(kept)
+    }
+
+    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        self.deform_on_gpu(nodes)
+    }
+
+    fn frame_level(&mut self, level: usize) -> Result<Prediction> {
+        self.frame_level_on_gpu(level)
+    }
+
+    fn set_prediction(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()> {
+        self.set_prediction_on_gpu(level, vertex, normal)
     }
 
     fn surfel_count(&self) -> usize {

@@ -6,7 +6,7 @@
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, PyramidParams, DESCRIPTOR_WORDS,
     ICP_SYSTEM_LEN,
 };
@@ -161,6 +161,22 @@ pub trait Backend {
     /// becomes the map: removes the unstable surfels and moves the survivors to the front
     /// in their order (`surfel_count` is filled in by the backend). Returns surfels after.
     fn compact(&mut self, params: &CompactParams) -> Result<usize>;
+    /// `deform_surfels` (after a loop closure): every surfel moves with the corrections of
+    /// the two `nodes` (sorted by frame) nearest its last frame. Then the culling boxes
+    /// are stale and no fused view stands in for the next prediction.
+    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()>;
+    /// The last `preprocess`'s maps at pyramid `level` (0 = finest): the camera-frame
+    /// vertex map and `normal_depth` (a loop-closure keyframe's snapshot).
+    fn frame_level(&mut self, level: usize) -> Result<Prediction>;
+    /// Replaces pyramid `level`'s predicted vertex and normal maps (world frame, `w = 1`
+    /// valid, that level's size) until the next `predict`: ICP at that level then
+    /// registers the frame against them (a loop closure's verification).
+    fn set_prediction(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()>;
     /// Surfels in the map.
     fn surfel_count(&self) -> usize;
     /// Blocks until all submitted work has finished (for per-stage wall-clock timing;
@@ -244,6 +260,20 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         (**self).compact(params)
+    }
+    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        (**self).deform(nodes)
+    }
+    fn frame_level(&mut self, level: usize) -> Result<Prediction> {
+        (**self).frame_level(level)
+    }
+    fn set_prediction(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()> {
+        (**self).set_prediction(level, vertex, normal)
     }
     fn surfel_count(&self) -> usize {
         (**self).surfel_count()

@@ -11,9 +11,9 @@
 use crate::cpu;
 use crate::layout::{append_slots, scan_params};
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, Fern, FernParams, FuseParams, IcpParams,
-    Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams, ProjectParams,
-    BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams,
+    FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
+    ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, Described, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
@@ -503,6 +503,66 @@ impl Backend for CpuBackend {
         self.bounds_dirty_from = 0;
         self.fused_view = None;
         Ok(self.map.len())
+    }
+
+    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        let n = self.map.len();
+        if nodes.is_empty() || n == 0 {
+            return Ok(());
+        }
+        let params = DeformParams {
+            surfel_count: n as u32,
+            node_count: nodes.len() as u32,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        cpu::deform_surfels::deform_surfels(
+            &params,
+            &MapChunk::whole(n),
+            nodes,
+            &mut self.map.position_weight,
+            &mut self.map.normal_frame,
+        );
+        // Every surfel may have left its block's box; the fused view is of the old map.
+        self.bounds_dirty_from = 0;
+        self.fused_view = None;
+        Ok(())
+    }
+
+    fn frame_level(&mut self, level: usize) -> Result<Prediction> {
+        let f = &self.frame;
+        Ok(match level {
+            0 => (f.vertex.clone(), f.normal_depth.clone()),
+            l => {
+                let lv = f.pyramid.get(l - 1).unwrap_or_else(|| {
+                    panic!(
+                        "frame_level({l}): the pyramid has {} levels",
+                        1 + f.pyramid.len()
+                    )
+                });
+                (lv.vertex.clone(), lv.normal_depth.clone())
+            }
+        })
+    }
+
+    fn set_prediction(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()> {
+        let prediction = self
+            .prediction
+            .get_mut(level)
+            .unwrap_or_else(|| panic!("set_prediction({level}) before a predict() of that level"));
+        assert_eq!(
+            vertex.len(),
+            prediction.0.len(),
+            "prediction size at level {level}"
+        );
+        prediction.0.copy_from_slice(vertex);
+        prediction.1.copy_from_slice(normal);
+        Ok(())
     }
 
     fn surfel_count(&self) -> usize {

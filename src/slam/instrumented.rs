@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
@@ -128,6 +128,22 @@ impl<B: Backend> Backend for Instrumented<B> {
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.step("compact", |b| b.compact(params))
+    }
+    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        self.step("deform", |b| b.deform(nodes))
+    }
+    fn frame_level(&mut self, level: usize) -> Result<Prediction> {
+        self.step("loop_snapshot", |b| b.frame_level(level))
+    }
+    fn set_prediction(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()> {
+        self.step("loop_prediction", |b| {
+            b.set_prediction(level, vertex, normal)
+        })
     }
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()

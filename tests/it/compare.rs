@@ -10,7 +10,7 @@ use common::harness::{gpu, plain};
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{
-    BilateralParams, CompactParams, Fern, FernParams, FuseParams, IcpParams, Keypoint,
+    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use wgslam::slam::backend::{
@@ -158,6 +158,20 @@ impl<B: Backend> Backend for PerturbedMap<B> {
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.inner.compact(params)
+    }
+    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        self.inner.deform(nodes)
+    }
+    fn frame_level(&mut self, level: usize) -> Result<Prediction> {
+        self.inner.frame_level(level)
+    }
+    fn set_prediction(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()> {
+        self.inner.set_prediction(level, vertex, normal)
     }
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()

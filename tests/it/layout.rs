@@ -55,6 +55,19 @@ fn rust_layouts() -> Vec<RustLayout> {
             _pad1,
             _pad2
         }),
+        rust_layout!(DeformParams {
+            surfel_count,
+            node_count,
+            _pad0,
+            _pad1
+        }),
+        rust_layout!(DeformNode {
+            frame,
+            _pad0,
+            _pad1,
+            _pad2,
+            rows
+        }),
         rust_layout!(Fern {
             cell_u,
             cell_v,
