@@ -15,6 +15,7 @@ pub mod keyframes;
 pub mod map;
 pub mod params;
 pub mod pipeline;
+pub mod pose_graph;
 pub(crate) mod plan;
 pub(crate) mod seeded;
 pub mod solve;
