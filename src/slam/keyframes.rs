@@ -222,6 +222,19 @@ impl KeyframeDatabase {
         true
     }
 
+    /// Moves every keyframe with a loop closure's correction of its frame
+    /// (`correction_of(frame)`: a world-frame transform applied to camera-to-world poses):
+    /// its pose and its features' world points.
+    pub fn correct(&mut self, correction_of: impl Fn(u32) -> DMat4) {
+        for kf in &mut self.keyframes {
+            let c = correction_of(kf.frame_id);
+            kf.t_world_to_cam *= crate::geometry::se3::inverse_rigid(&c);
+            for p in &mut kf.features.points {
+                *p = c.transform_point3(*p);
+            }
+        }
+    }
+
     /// Stores the features of the keyframe at `index` (points in the world frame).
     pub fn set_features(&mut self, index: usize, features: crate::slam::features::Features) {
         self.keyframes[index].features = features;

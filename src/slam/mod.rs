@@ -12,6 +12,7 @@ pub(crate) mod fused_view;
 pub mod health;
 pub(crate) mod instrumented;
 pub mod keyframes;
+pub mod loops;
 pub mod map;
 pub mod params;
 pub mod pipeline;

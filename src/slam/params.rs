@@ -64,6 +64,45 @@ pub struct SlamParams {
     /// (`slam::keyframes`); `None` only retries from the last tracked pose
     /// (`--relocalise false`). Needs [`SlamParams::health`].
     pub relocalisation: Option<RelocalisationSettings>,
+    /// Loop closure: loops to old keyframes verified by ICP, a pose graph, and the map
+    /// deformed with it (`slam::loops`); `None` tracks without (`--loop-closure off`).
+    /// Needs [`SlamParams::relocalisation`] (its keyframe database).
+    pub loop_closure: Option<LoopSettings>,
+}
+
+/// Loop closure (`slam::loops`; the defaults' reasons are at [`LOOP_MIN_GAP_FRAMES`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LoopSettings {
+    /// A keyframe is a loop candidate only this many frames or more before the frame.
+    pub min_gap_frames: u32,
+    /// Frames between two loop searches (a search costs a verification ICP).
+    pub search_every_frames: u32,
+    /// Frames after an accepted loop before the next search.
+    pub cooldown_frames: u32,
+    /// Global loops: keyframes at least this fern-alike.
+    pub min_similarity: f64,
+    /// Local loops: keyframes whose pose (as now estimated) is within this of the frame's,
+    /// metres and degrees.
+    pub local_radius_m: f64,
+    pub local_angle_deg: f64,
+    /// ICP iterations of a verification, at the pyramid level of the snapshots.
+    pub verify_iterations: usize,
+    /// A verified loop: inliers at least this fraction of the keyframe snapshot's valid
+    /// pixels ...
+    pub min_inlier_fraction: f64,
+    /// ... an RMS residual at most this (metres) ...
+    pub max_rms_m: f64,
+    /// ... and a correction of the frame's pose at most this, metres and degrees.
+    pub max_correction_m: f64,
+    pub max_correction_deg: f64,
+    /// A loop whose correction is below both of these is accepted without optimising
+    /// (the trajectory already agrees), metres and degrees.
+    pub min_correction_m: f64,
+    pub min_correction_deg: f64,
+    /// A pose-graph node every this many tracked frames (and one per keyframe).
+    pub node_stride: u32,
+    /// A loop edge's weight against an odometry edge's 1.
+    pub loop_weight: f64,
 }
 
 /// The tracking-health test of a frame's final ICP state (see `slam::health` for the
@@ -351,6 +390,28 @@ impl Default for RelocalisationSettings {
     }
 }
 
+impl Default for LoopSettings {
+    fn default() -> Self {
+        LoopSettings {
+            min_gap_frames: LOOP_MIN_GAP_FRAMES,
+            search_every_frames: LOOP_SEARCH_EVERY_FRAMES,
+            cooldown_frames: LOOP_COOLDOWN_FRAMES,
+            min_similarity: LOOP_MIN_SIMILARITY,
+            local_radius_m: LOOP_LOCAL_RADIUS_M,
+            local_angle_deg: LOOP_LOCAL_ANGLE_DEG,
+            verify_iterations: LOOP_VERIFY_ITERATIONS,
+            min_inlier_fraction: LOOP_MIN_INLIER_FRACTION,
+            max_rms_m: LOOP_MAX_RMS_M,
+            max_correction_m: LOOP_MAX_CORRECTION_M,
+            max_correction_deg: LOOP_MAX_CORRECTION_DEG,
+            min_correction_m: LOOP_MIN_CORRECTION_M,
+            min_correction_deg: LOOP_MIN_CORRECTION_DEG,
+            node_stride: LOOP_NODE_STRIDE,
+            loop_weight: LOOP_WEIGHT,
+        }
+    }
+}
+
 impl Default for SlamParams {
     /// The robust profile, as on the command line.
     fn default() -> Self {
@@ -394,6 +455,8 @@ impl SlamParams {
             },
             health: Some(HealthSettings::default()),
             relocalisation: Some(RelocalisationSettings::default()),
+            // The assignment's algorithm has no loop closure.
+            loop_closure: None,
         };
         match profile {
             Profile::Assignment => assignment,
@@ -417,6 +480,7 @@ impl SlamParams {
                     prune_scale: ROBUST_PRUNE_RADIUS_SCALE,
                     unstable_removal: Some(UnstableRemoval::default()),
                 },
+                loop_closure: Some(LoopSettings::default()),
                 ..assignment
             },
         }
@@ -549,6 +613,33 @@ impl SlamParams {
                 ));
             }
         }
+        if let Some(l) = &self.loop_closure {
+            if self.relocalisation.is_none() || self.health.is_none() {
+                return fail(
+                    "loop closure needs the keyframe database: --loop-closure off, or \
+                     --tracking-health and --relocalise on"
+                        .into(),
+                );
+            }
+            if l.search_every_frames == 0 || l.node_stride == 0 || l.verify_iterations == 0 {
+                return fail(
+                    "loop closure: search_every_frames, node_stride and verify_iterations \
+                     must be at least 1"
+                        .into(),
+                );
+            }
+            for (name, v) in [
+                ("loop.min_inlier_fraction", l.min_inlier_fraction),
+                ("loop.max_rms_m", l.max_rms_m),
+                ("loop.max_correction_m", l.max_correction_m),
+                ("loop.max_correction_deg", l.max_correction_deg),
+                ("loop.loop_weight", l.loop_weight),
+            ] {
+                if !positive(v) {
+                    return fail(format!("{name} {v} must be positive"));
+                }
+            }
+        }
         if let Some(r) = &f.unstable_removal {
             if !off_or_positive(r.stable_weight as f64) {
                 return fail(format!(
@@ -635,6 +726,40 @@ pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
 pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
 pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
 pub const RELOC_MAX_KEYFRAMES: usize = 2_000;
+
+/// Loop-closure defaults. A loop is a return after at least 60 frames (2 s at 30 Hz:
+/// nearer keyframes are what tracking itself aligns against); searched every 5 frames and
+/// not for 30 frames after a closure (a return is seen over many frames; one closure per
+/// return is enough, and a search costs an ICP of 10 iterations at the snapshots' level).
+pub const LOOP_MIN_GAP_FRAMES: u32 = 60;
+pub const LOOP_SEARCH_EVERY_FRAMES: u32 = 5;
+pub const LOOP_COOLDOWN_FRAMES: u32 = 30;
+/// Global candidates at least 50 % fern-alike (relocalisation tries from 30 %: a loop
+/// changes the map, so it asks for more).
+pub const LOOP_MIN_SIMILARITY: f64 = 0.5;
+/// Local candidates: keyframes within ICP's basin (about 0.25 m / 12 degrees, see
+/// `slam::pipeline::FEATURE_ICP_AGREEMENT_M`) of the frame's pose as estimated.
+pub const LOOP_LOCAL_RADIUS_M: f64 = 0.25;
+pub const LOOP_LOCAL_ANGLE_DEG: f64 = 12.0;
+pub const LOOP_VERIFY_ITERATIONS: usize = 10;
+/// Verification: half the snapshot's pixels inliers (tracking's health test asks 30 % of
+/// the candidates; a loop's view overlaps its keyframe's by construction), an RMS
+/// residual of at most 15 mm (tracking's typical residual on the real sequences here is
+/// 5-10 mm at the coarse levels), and a correction within ICP's basin.
+pub const LOOP_MIN_INLIER_FRACTION: f64 = 0.5;
+pub const LOOP_MAX_RMS_M: f64 = 0.015;
+pub const LOOP_MAX_CORRECTION_M: f64 = 0.25;
+pub const LOOP_MAX_CORRECTION_DEG: f64 = 12.0;
+/// Corrections below 5 mm and 0.5 degrees are within tracking's own noise: such a loop is
+/// recorded, but the graph is not optimised and the map not deformed.
+pub const LOOP_MIN_CORRECTION_M: f64 = 0.005;
+pub const LOOP_MIN_CORRECTION_DEG: f64 = 0.5;
+/// A pose-graph node every 10 tracked frames (a 1,000-frame run: about 100 nodes plus
+/// keyframes, a solve of milliseconds).
+pub const LOOP_NODE_STRIDE: u32 = 10;
+/// A loop edge weighs as 10 odometry edges: it is one verified measurement against a
+/// chain whose drift it is there to undo.
+pub const LOOP_WEIGHT: f64 = 10.0;
 
 #[cfg(test)]
 mod tests {

@@ -48,6 +48,7 @@ use crate::slam::backend::{Backend, PyramidLevel};
 use crate::slam::features;
 use crate::slam::health::{HealthMonitor, TrackingHealth};
 use crate::slam::keyframes::{KeyframeDatabase, Match};
+use crate::slam::loops::{LoopClosure, LoopRecord, Snapshot};
 use crate::slam::params::{PoseSource, SlamParams};
 use crate::slam::solve::{increment_size, update_pose, NormalEquations};
 use crate::Result;
@@ -129,6 +130,9 @@ pub struct FrameReport {
     /// Whether the frame became a relocalisation keyframe.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub keyframe: bool,
+    /// Loop candidates verified at this frame, accepted or rejected (empty when none).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub loops: Vec<LoopRecord>,
     /// Surfels after fusing this frame.
     pub surfels: usize,
 }
@@ -140,6 +144,16 @@ pub const FEATURE_KEYFRAMES: usize = 30;
 /// basin is about 0.25 m / 12 degrees, so a result farther away went somewhere else.
 pub const FEATURE_ICP_AGREEMENT_M: f64 = 0.10;
 pub const FEATURE_ICP_AGREEMENT_DEG: f64 = 5.0;
+
+/// How ICP at one pyramid level ended ([`Slam::icp_level`]).
+enum LevelEnd {
+    /// The increment test passed.
+    Converged,
+    /// The level's budget of iterations ran out.
+    MaxIterations,
+    /// A system was refused (why); the last good pose is kept.
+    Refused(String),
+}
 
 /// One ICP run from a start pose and what the health test made of it.
 struct Attempt {
@@ -168,6 +182,8 @@ pub struct Slam<B: Backend> {
     keyframes: Option<KeyframeDatabase>,
     /// The keypoint descriptors' test pattern (`slam::features::pattern`).
     pattern: Vec<[i32; 4]>,
+    /// Loop closure's state (`None` with `--loop-closure off`).
+    loops: Option<LoopClosure>,
 }
 
 impl<B: Backend> Slam<B> {
@@ -187,6 +203,13 @@ impl<B: Backend> Slam<B> {
             (Some(_), Some(r)) => Some(KeyframeDatabase::new(r)),
             _ => None,
         };
+        // Snapshots at the ICP pyramid's second-coarsest level (80 x 60 with the robust
+        // schedule at 320 x 240), the finest with one level.
+        let loop_level = params.icp.level_iters.len().saturating_sub(2);
+        let loops = match (&keyframes, params.loop_closure) {
+            (Some(_), Some(l)) => Some(LoopClosure::new(l, loop_level)),
+            _ => None,
+        };
         Slam {
             backend,
             params,
@@ -200,6 +223,7 @@ impl<B: Backend> Slam<B> {
                 None => vec![],
             },
             keyframes,
+            loops,
         }
     }
 
@@ -297,6 +321,12 @@ impl<B: Backend> Slam<B> {
         self.t_world_to_cam = t_world_to_cam;
     }
 
+    /// Loop closure's state: the trajectory as now estimated and the loops found; `None`
+    /// without loop closure.
+    pub fn loop_closure(&self) -> Option<&LoopClosure> {
+        self.loops.as_ref()
+    }
+
     /// Keyframes in the relocalisation database (0 without relocalisation).
     pub fn keyframe_count(&self) -> usize {
         self.keyframes.as_ref().map_or(0, |k| k.len())
@@ -333,9 +363,10 @@ impl<B: Backend> Slam<B> {
             self.monitor.record(h, motion_counts);
         }
         let mut keyframe = false;
+        let mut codes = Vec::new();
         if let Some(db) = &self.keyframes {
             let p = db.params(self.intrinsics.width, self.intrinsics.height);
-            let codes = self.backend.encode_ferns(&p, db.ferns())?;
+            codes = self.backend.encode_ferns(&p, db.ferns())?;
             let db = self.keyframes.as_mut().expect("checked");
             keyframe = db.add_if_novel(frame_id, t_world_to_cam, &codes);
             if keyframe {
@@ -346,6 +377,10 @@ impl<B: Backend> Slam<B> {
                 db.set_features(index, f.to_world(&se3::inverse_rigid(&t_world_to_cam)));
             }
         }
+        let loops = match self.loops.is_some() {
+            true => self.close_loops(frame_id, t_world_to_cam, keyframe, &codes)?,
+            false => vec![],
+        };
         Ok(FrameReport {
             t_cam_to_world: se3::inverse_rigid(&t_world_to_cam),
             status,
@@ -353,8 +388,65 @@ impl<B: Backend> Slam<B> {
             health,
             relocalisation,
             keyframe,
+            loops,
             surfels: self.backend.surfel_count(),
         })
+    }
+
+    /// Loop closure after a frame was fused at `t_world_to_cam`: records its pose (and a
+    /// keyframe's snapshot), and when it searches, verifies its candidates most likely
+    /// first until one is accepted; an accepted loop above noise moves the trajectory,
+    /// the keyframes, the map and this tracker's pose. Returns the candidates verified.
+    fn close_loops(
+        &mut self,
+        frame_id: u32,
+        t_world_to_cam: DMat4,
+        keyframe: bool,
+        codes: &[u32],
+    ) -> Result<Vec<LoopRecord>> {
+        let lc = self.loops.as_mut().expect("called with loop closure");
+        let level = lc.level();
+        let snapshot = match keyframe {
+            true => {
+                let (vertex, normal_depth) = self.backend.frame_level(level)?;
+                Some(Snapshot::new(vertex, normal_depth))
+            }
+            false => None,
+        };
+        let lc = self.loops.as_mut().expect("called with loop closure");
+        let t_cam_to_world = se3::inverse_rigid(&t_world_to_cam);
+        lc.record(frame_id, t_cam_to_world, snapshot);
+        let (Some(db), true) = (&self.keyframes, lc.searches(frame_id)) else {
+            return Ok(vec![]);
+        };
+        let candidates = lc.candidates(frame_id, &t_cam_to_world, codes, db);
+        let before = lc.loops().len();
+        let iters = self.params.loop_closure.map_or(0, |l| l.verify_iterations);
+        for c in candidates {
+            let lc = self.loops.as_ref().expect("called with loop closure");
+            let (vertex, normal) = lc.prediction(c.keyframe_frame, &lc.keyframe_pose(c.keyframe_frame));
+            self.backend.set_prediction(level, &vertex, &normal)?;
+            let mut t = t_world_to_cam;
+            let mut iterations = Vec::new();
+            let refused = match self.icp_level(level, iters, &mut t, &mut iterations)? {
+                LevelEnd::Refused(why) => Some(why),
+                _ => None,
+            };
+            let t_loop = se3::inverse_rigid(&t);
+            let lc = self.loops.as_mut().expect("called with loop closure");
+            let verdict = lc.judge(frame_id, &c, &iterations, refused, &t_cam_to_world, &t_loop);
+            if verdict.is_ok() {
+                let db = self.keyframes.as_mut().expect("loop closure has keyframes");
+                let (nodes, t_new) = lc.close(frame_id, c.keyframe_frame, &t_loop, db);
+                if let Some(nodes) = nodes {
+                    self.backend.deform(&nodes)?;
+                    self.t_world_to_cam = Some(se3::inverse_rigid(&t_new));
+                }
+                break;
+            }
+        }
+        let lc = self.loops.as_ref().expect("called with loop closure");
+        Ok(lc.loops()[before..].to_vec())
     }
 
     /// The report of a frame that is not fused (lost or without depth).
@@ -372,6 +464,7 @@ impl<B: Backend> Slam<B> {
             health,
             relocalisation,
             keyframe: false,
+            loops: vec![],
             surfels: self.backend.surfel_count(),
         }
     }
@@ -516,52 +609,66 @@ impl<B: Backend> Slam<B> {
         let mut iterations = Vec::new();
         let mut status = TrackStatus::MaxIterations;
         let schedule = self.params.icp.level_iters.clone();
-        let guard = self.params.icp.degenerate_eigen_ratio;
         for (i, &max_iters) in schedule.iter().enumerate() {
             let level = schedule.len() - 1 - i;
-            status = TrackStatus::MaxIterations;
-            for _ in 0..max_iters {
-                let sys = self
-                    .backend
-                    .icp_system(level, &self.icp_params(level, &t))?;
-                let eq = NormalEquations::decode(&sys);
-                let solved = eq.solve_guarded(guard);
-                let (eigen_ratio, held_directions) = match &solved {
-                    Ok(s) => (Some(s.eigen_ratio), s.held_directions),
-                    Err(_) => (None, 0),
-                };
-                iterations.push(IcpIteration {
-                    level,
-                    inliers: eq.inliers,
-                    mean_sq_residual: eq.mean_sq_residual(),
-                    eigen_ratio,
-                    held_directions,
-                });
-                match solved {
-                    Ok(s) => {
-                        t = update_pose(&t, &s.x);
-                        let (r, tr) = increment_size(&s.x);
-                        let min = self.params.icp.min_increment;
-                        if r < min && tr < min {
-                            status = TrackStatus::Converged;
-                            break;
-                        }
-                    }
-                    // The very first system: nothing to start from.
-                    Err(e) if iterations.len() == 1 => {
-                        return Ok((t_start, TrackStatus::Lost(e.to_string()), iterations))
-                    }
-                    // A later one: keep the last good pose and go on at the next finer
-                    // level (at the finest, stop there).
-                    Err(e) => {
-                        status = TrackStatus::Stopped(e.to_string());
-                        break;
-                    }
+            status = match self.icp_level(level, max_iters, &mut t, &mut iterations)? {
+                LevelEnd::Converged => TrackStatus::Converged,
+                LevelEnd::MaxIterations => TrackStatus::MaxIterations,
+                // The very first system: nothing to start from.
+                LevelEnd::Refused(why) if iterations.len() == 1 => {
+                    return Ok((t_start, TrackStatus::Lost(why), iterations))
                 }
-            }
+                // A later one: keep the last good pose and go on at the next finer level
+                // (at the finest, stop there).
+                LevelEnd::Refused(why) => TrackStatus::Stopped(why),
+            };
         }
         // The finest level's outcome.
         Ok((t, status, iterations))
+    }
+
+    /// Up to `max_iters` ICP iterations at pyramid `level` against its prediction, from
+    /// `t` (world to camera), which each solved system updates; each iteration is
+    /// appended to `iterations`. Ends at convergence, at the budget, or at a refused
+    /// system (`t` then keeps the last good pose).
+    fn icp_level(
+        &mut self,
+        level: usize,
+        max_iters: usize,
+        t: &mut DMat4,
+        iterations: &mut Vec<IcpIteration>,
+    ) -> Result<LevelEnd> {
+        let guard = self.params.icp.degenerate_eigen_ratio;
+        for _ in 0..max_iters {
+            let sys = self
+                .backend
+                .icp_system(level, &self.icp_params(level, t))?;
+            let eq = NormalEquations::decode(&sys);
+            let solved = eq.solve_guarded(guard);
+            let (eigen_ratio, held_directions) = match &solved {
+                Ok(s) => (Some(s.eigen_ratio), s.held_directions),
+                Err(_) => (None, 0),
+            };
+            iterations.push(IcpIteration {
+                level,
+                inliers: eq.inliers,
+                mean_sq_residual: eq.mean_sq_residual(),
+                eigen_ratio,
+                held_directions,
+            });
+            match solved {
+                Ok(s) => {
+                    *t = update_pose(t, &s.x);
+                    let (r, tr) = increment_size(&s.x);
+                    let min = self.params.icp.min_increment;
+                    if r < min && tr < min {
+                        return Ok(LevelEnd::Converged);
+                    }
+                }
+                Err(e) => return Ok(LevelEnd::Refused(e.to_string())),
+            }
+        }
+        Ok(LevelEnd::MaxIterations)
     }
 
     /// Source pixels that pass filter 1 at level 0 at `t` (`icp_candidates`), for the
