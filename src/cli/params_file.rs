@@ -230,6 +230,7 @@ mod tests {
             health_min_inliers: Some(0.25),
             health_max_residual_ratio: Some(5.0),
             relocalise: Some(false),
+            loop_closure: Some(true),
             pyramid_radius: Some(2),
             pyramid_depth_gate_z2: Some(0.1),
             fuse_dist: Some(0.012_345_679),

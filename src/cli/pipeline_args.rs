@@ -104,6 +104,11 @@ pub struct ParamOverrides {
     /// database) (both profiles true; false retries only from the last tracked pose).
     #[arg(long)]
     pub relocalise: Option<bool>,
+    /// Loop closure: verified loops to old keyframes bend the trajectory and the map
+    /// (robust on, assignment off; `off` gives the trajectories of a run without it, bit
+    /// for bit). Takes on/off or true/false.
+    #[arg(long, value_parser = clap::builder::BoolishValueParser::new())]
+    pub loop_closure: Option<bool>,
     /// Coarser ICP pyramid levels: half-width of the averaging window, pixels of the finer
     /// level (1).
     #[arg(long)]
@@ -200,6 +205,7 @@ impl ParamOverrides {
             health_min_inliers,
             health_max_residual_ratio,
             relocalise,
+            loop_closure,
             pyramid_radius,
             pyramid_depth_gate_z2,
             fuse_dist,
@@ -239,6 +245,7 @@ impl ParamOverrides {
             health_max_residual_ratio: health_max_residual_ratio
                 .or(lower.health_max_residual_ratio),
             relocalise: relocalise.or(lower.relocalise),
+            loop_closure: loop_closure.or(lower.loop_closure),
             pyramid_radius: pyramid_radius.or(lower.pyramid_radius),
             pyramid_depth_gate_z2: pyramid_depth_gate_z2.or(lower.pyramid_depth_gate_z2),
             fuse_dist: fuse_dist.or(lower.fuse_dist),
@@ -291,6 +298,25 @@ impl ParamOverrides {
         }
         if self.relocalise == Some(false) {
             p.relocalisation = None;
+        }
+        match self.loop_closure {
+            Some(false) => p.loop_closure = None,
+            Some(true) if p.loop_closure.is_none() => {
+                p.loop_closure = Some(crate::slam::params::LoopSettings::default())
+            }
+            _ => {}
+        }
+        // Loop closure reuses the relocalisation keyframes: without them it is off, and
+        // refused when asked for by name.
+        if p.relocalisation.is_none() || p.health.is_none() {
+            if self.loop_closure == Some(true) {
+                return Err(crate::Error::Argument(
+                    "--loop-closure on needs the keyframe database: --tracking-health and \
+                     --relocalise must be on"
+                        .into(),
+                ));
+            }
+            p.loop_closure = None;
         }
         set(&mut icp.pyramid.radius_px, &self.pyramid_radius);
         set(

@@ -161,6 +161,31 @@ pub fn execute(a: RunArgs) -> Result<()> {
             let _ = std::io::stdout().flush();
         }
         use crate::slam::pipeline::TrackStatus;
+        let mut events: Vec<String> = f
+            .report
+            .loops
+            .iter()
+            .map(|l| match &l.rejected {
+                None => format!(
+                    "frame {}: loop to the keyframe of frame {} ({:?}) accepted, correction \
+                     {:.1} mm / {:.2} deg{}",
+                    l.frame,
+                    l.keyframe_frame,
+                    l.kind,
+                    1e3 * l.correction_m,
+                    l.correction_deg,
+                    if l.optimised.is_some() {
+                        "; trajectory and map bent"
+                    } else {
+                        " (within noise: nothing moved)"
+                    }
+                ),
+                Some(why) => format!(
+                    "frame {}: loop candidate, keyframe of frame {} ({:?}), rejected: {why}",
+                    l.frame, l.keyframe_frame, l.kind
+                ),
+            })
+            .collect();
         let event = match &f.report.status {
             TrackStatus::Lost(why) => Some(format!(
                 "frame {}: tracking lost ({why}); not fused{}",
@@ -179,7 +204,8 @@ pub fn execute(a: RunArgs) -> Result<()> {
         };
         // Every frame without a tracked pose is reported, on a terminal above the bar and
         // in a log (no terminal, the bar hidden) on stderr.
-        if let Some(line) = event {
+        events.extend(event);
+        for line in events {
             if bar.is_hidden() {
                 eprintln!("{line}");
             } else {
@@ -333,6 +359,25 @@ fn print_summary(m: &run::Metrics, out: &Path) {
         t.keyframes
     );
     println!("tracking health: {}", t.verdict());
+    if let Some(l) = &m.loop_closure {
+        println!(
+            "loop closure: {} candidate(s) verified, {} accepted ({} bent the map), {} rejected; \
+             pose graph {} nodes, {} edges{}",
+            l.candidates,
+            l.accepted,
+            l.optimisations,
+            l.rejected,
+            l.graph_nodes,
+            l.graph_edges,
+            match &l.odometry_accuracy {
+                Some(a) => format!(
+                    "; ATE before closures {:.3} mm aligned",
+                    a.ate_rmse_aligned_m * 1e3
+                ),
+                None => String::new(),
+            }
+        );
+    }
     if let Some(acc) = &m.accuracy {
         println!(
             "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",

@@ -173,7 +173,10 @@ impl LoopClosure {
         if let Some(s) = snapshot {
             self.snapshots.insert(frame, s);
         }
-        if self.graph.nodes().is_empty() || keyframe || self.tracked_since_node + 1 >= self.settings.node_stride {
+        if self.graph.nodes().is_empty()
+            || keyframe
+            || self.tracked_since_node + 1 >= self.settings.node_stride
+        {
             self.graph.add_node(frame, t_cam_to_world, 1.0);
             self.tracked_since_node = 0;
         } else {
@@ -209,7 +212,11 @@ impl LoopClosure {
             .nearest(codes, db.len())
             .into_iter()
             .filter(|m| m.similarity >= s.min_similarity && old_enough(m.frame_id))
-            .max_by(|a, b| a.similarity.total_cmp(&b.similarity).then(b.frame_id.cmp(&a.frame_id)));
+            .max_by(|a, b| {
+                a.similarity
+                    .total_cmp(&b.similarity)
+                    .then(b.frame_id.cmp(&a.frame_id))
+            });
         if let Some(m) = global {
             out.push(Candidate {
                 keyframe_frame: m.frame_id,
@@ -241,7 +248,11 @@ impl LoopClosure {
     /// The snapshot of the keyframe of `frame` placed in the world at `t_cam_to_world`
     /// (the keyframe's pose as now estimated): a prediction's vertex and normal maps
     /// (world frame, `w = 1` valid, zero where invalid).
-    pub fn prediction(&self, keyframe_frame: u32, t_cam_to_world: &DMat4) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    pub fn prediction(
+        &self,
+        keyframe_frame: u32,
+        t_cam_to_world: &DMat4,
+    ) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
         let s = &self.snapshots[&keyframe_frame];
         let t = t_cam_to_world.as_mat4();
         s.vertex
@@ -333,7 +344,8 @@ impl LoopClosure {
         self.next_search = frame + self.settings.cooldown_frames;
         let s = self.settings;
         let record = self.loops.last_mut().expect("judge() recorded the loop");
-        let small = record.correction_m < s.min_correction_m && record.correction_deg < s.min_correction_deg;
+        let small = record.correction_m < s.min_correction_m
+            && record.correction_deg < s.min_correction_deg;
         let current = self.poses.last().expect("the frame was recorded").estimate;
         if small {
             return (None, current);

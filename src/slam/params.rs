@@ -66,7 +66,9 @@ pub struct SlamParams {
     pub relocalisation: Option<RelocalisationSettings>,
     /// Loop closure: loops to old keyframes verified by ICP, a pose graph, and the map
     /// deformed with it (`slam::loops`); `None` tracks without (`--loop-closure off`).
-    /// Needs [`SlamParams::relocalisation`] (its keyframe database).
+    /// Needs [`SlamParams::relocalisation`] and [`SlamParams::health`] (the keyframe
+    /// database): without them the pipeline runs without loop closure (the command line
+    /// refuses `--loop-closure on` with either off).
     pub loop_closure: Option<LoopSettings>,
 }
 
@@ -614,13 +616,6 @@ impl SlamParams {
             }
         }
         if let Some(l) = &self.loop_closure {
-            if self.relocalisation.is_none() || self.health.is_none() {
-                return fail(
-                    "loop closure needs the keyframe database: --loop-closure off, or \
-                     --tracking-health and --relocalise on"
-                        .into(),
-                );
-            }
             if l.search_every_frames == 0 || l.node_stride == 0 || l.verify_iterations == 0 {
                 return fail(
                     "loop closure: search_every_frames, node_stride and verify_iterations \

@@ -424,7 +424,8 @@ impl<B: Backend> Slam<B> {
         let iters = self.params.loop_closure.map_or(0, |l| l.verify_iterations);
         for c in candidates {
             let lc = self.loops.as_ref().expect("called with loop closure");
-            let (vertex, normal) = lc.prediction(c.keyframe_frame, &lc.keyframe_pose(c.keyframe_frame));
+            let (vertex, normal) =
+                lc.prediction(c.keyframe_frame, &lc.keyframe_pose(c.keyframe_frame));
             self.backend.set_prediction(level, &vertex, &normal)?;
             let mut t = t_world_to_cam;
             let mut iterations = Vec::new();
@@ -640,9 +641,7 @@ impl<B: Backend> Slam<B> {
     ) -> Result<LevelEnd> {
         let guard = self.params.icp.degenerate_eigen_ratio;
         for _ in 0..max_iters {
-            let sys = self
-                .backend
-                .icp_system(level, &self.icp_params(level, t))?;
+            let sys = self.backend.icp_system(level, &self.icp_params(level, t))?;
             let eq = NormalEquations::decode(&sys);
             let solved = eq.solve_guarded(guard);
             let (eigen_ratio, held_directions) = match &solved {

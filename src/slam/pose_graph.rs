@@ -104,7 +104,10 @@ impl PoseGraph {
             if last.frame == frame {
                 return self.nodes.len() - 1;
             }
-            assert!(last.frame < frame, "pose-graph nodes are added in frame order");
+            assert!(
+                last.frame < frame,
+                "pose-graph nodes are added in frame order"
+            );
             let z = se3::inverse_rigid(&last.t_cam_to_world) * t_cam_to_world;
             let from = self.nodes.len() - 1;
             self.edges.push(Edge {

@@ -56,6 +56,39 @@ pub struct RunResult {
     pub frames: Vec<FrameOutcome>,
     pub map: SurfelMap,
     pub metrics: Metrics,
+    /// With loop closure, the tracked frames' poses after every closure `(stamp,
+    /// t_cam_to_world)`; `None` without (the trajectory is then the frames' own poses).
+    pub optimised: Option<Vec<(f64, DMat4)>>,
+}
+
+impl RunResult {
+    /// The run's trajectory (`trajectory.tum`): after loop closure when it ran, else as
+    /// tracked.
+    pub fn trajectory(&self) -> Vec<(f64, DMat4)> {
+        match &self.optimised {
+            Some(t) => t.clone(),
+            None => trajectory(&self.frames),
+        }
+    }
+}
+
+/// Loop closure's part of `metrics.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoopMetrics {
+    /// Loop candidates verified.
+    pub candidates: usize,
+    /// Accepted ones (a closure each; those above noise optimised the graph).
+    pub accepted: usize,
+    pub optimisations: usize,
+    pub rejected: usize,
+    /// Nodes and edges of the pose graph at the end.
+    pub graph_nodes: usize,
+    pub graph_edges: usize,
+    /// ATE/RPE of the trajectory as tracked, before any closure (`trajectory_odometry.tum`;
+    /// `accuracy` is the optimised trajectory's).
+    pub odometry_accuracy: Option<Accuracy>,
+    /// Every verified candidate, accepted or rejected, in order.
+    pub loops: Vec<crate::slam::loops::LoopRecord>,
 }
 
 /// Counts of how frames were tracked.
@@ -149,6 +182,8 @@ pub struct Metrics {
     pub compression_ratio: f64,
     pub tracking: TrackingCounts,
     pub accuracy: Option<Accuracy>,
+    /// Loop closure's loops and the odometry's accuracy; `None` without loop closure.
+    pub loop_closure: Option<LoopMetrics>,
     /// Peak resident memory of the process (VmHWM), MiB; None where not available.
     pub peak_memory_mib: Option<f64>,
 }
@@ -399,8 +434,35 @@ pub fn run_observed<B: Backend + Inspect>(
     let counts = tracking_counts(&frames, slam.keyframe_count());
     let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
     let total: f64 = times.iter().sum();
-    let est = trajectory(&frames);
-    let accuracy = accuracy(&est, &seq.ground_truth())?;
+    let gt = seq.ground_truth();
+    let odometry = trajectory(&frames);
+    let (optimised, loop_closure) = match slam.loop_closure() {
+        Some(lc) => {
+            let stamp: std::collections::HashMap<usize, f64> =
+                frames.iter().map(|f| (f.index, f.timestamp)).collect();
+            let est: Vec<(f64, DMat4)> = lc
+                .poses()
+                .iter()
+                .map(|p| (stamp[&(p.frame as usize)], p.estimate))
+                .collect();
+            let loops = lc.loops().to_vec();
+            let accepted = loops.iter().filter(|l| l.rejected.is_none()).count();
+            let metrics = LoopMetrics {
+                candidates: loops.len(),
+                accepted,
+                optimisations: loops.iter().filter(|l| l.optimised.is_some()).count(),
+                rejected: loops.len() - accepted,
+                graph_nodes: lc.graph().nodes().len(),
+                graph_edges: lc.graph().edges().len(),
+                odometry_accuracy: accuracy(&odometry, &gt)?,
+                loops,
+            };
+            (Some(est), Some(metrics))
+        }
+        None => (None, None),
+    };
+    let est = optimised.clone().unwrap_or(odometry);
+    let accuracy = accuracy(&est, &gt)?;
     let k = slam.intrinsics;
     let metrics = Metrics {
         backend: slam.backend.name().to_string(),
@@ -419,19 +481,22 @@ pub fn run_observed<B: Backend + Inspect>(
         compression_ratio: map.len() as f64 / (frames.len().max(1) * k.pixels()) as f64,
         tracking: counts,
         accuracy,
+        loop_closure,
         peak_memory_mib: peak_memory_mib(),
     };
     Ok(RunResult {
         frames,
         map,
         metrics,
+        optimised,
     })
 }
 
 /// Every file `wgslam run` writes into its `--out` folder: [`write_outputs`]'s and
 /// [`write_pictures`]'s.
-pub const OUTPUT_FILES: [&str; 9] = [
+pub const OUTPUT_FILES: [&str; 10] = [
     "trajectory.tum",
+    "trajectory_odometry.tum",
     "map.ply",
     "metrics.json",
     "frames.json",
@@ -442,11 +507,17 @@ pub const OUTPUT_FILES: [&str; 9] = [
     "last_camera_normals.png",
 ];
 
-/// Writes `trajectory.tum`, `map.ply`, `metrics.json` and `frames.json` into `out`
+/// Writes `trajectory.tum`, `trajectory_odometry.tum`, `map.ply`, `metrics.json` and
+/// `frames.json` into `out`
 /// (created if missing), each file completely or not at all.
 pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| crate::Error::write(out, e))?;
-    io::trajectory::write_tum(&out.join("trajectory.tum"), &trajectory(&result.frames))?;
+    io::trajectory::write_tum(&out.join("trajectory.tum"), &result.trajectory())?;
+    // As tracked, before any loop closure (the same poses without loop closure).
+    io::trajectory::write_tum(
+        &out.join("trajectory_odometry.tum"),
+        &trajectory(&result.frames),
+    )?;
     io::ply::write_surfel_map(&out.join("map.ply"), &result.map)?;
     write_json(&out.join("metrics.json"), &result.metrics)?;
     write_json(&out.join("frames.json"), &result.frames)?;
@@ -471,7 +542,7 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
 /// map renders (`map_{color,normals}.png`, `last_camera_{color,normals}.png`). Drawn by the
 /// CPU renderer, which needs no device and takes tens of milliseconds at this size.
 pub fn write_pictures(out: &Path, result: &RunResult, seq: &Sequence) -> Result<Vec<PathBuf>> {
-    let est = trajectory(&result.frames);
+    let est = result.trajectory();
     if result.map.is_empty() {
         eprintln!("note: the map is empty; no renders written");
         return Ok(vec![]);
