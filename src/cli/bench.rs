@@ -125,7 +125,7 @@ fn with_frames(mut args: Vec<String>, frames: &Option<String>) -> Vec<String> {
 fn bench_revisit(a: &BenchArgs, setup: &Setup, total: usize) -> Result<()> {
     let seq = setup.open_sequence()?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-    seq.revisiting(first, last, total)?;
+    let gt = seq.revisiting(first, last, total)?.ground_truth();
     let params_file = setup.child_params("bench")?;
     let mut runs = Vec::new();
     for b in &a.backends {
@@ -139,7 +139,7 @@ fn bench_revisit(a: &BenchArgs, setup: &Setup, total: usize) -> Result<()> {
             "--backend".into(),
             name.clone(),
         ]);
-        runs.push(long_run::run_in_child(&args, &name, last - first)?);
+        runs.push(long_run::run_in_child(&args, &name, last - first, &gt)?);
     }
     long_run::print(&runs);
     if let Some(path) = &a.json {

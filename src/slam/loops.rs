@@ -6,8 +6,10 @@
 //! Per tracked frame ([`LoopClosure::record`]): its pose joins the trajectory; every
 //! [`LoopSettings::node_stride`] tracked frames, and at every keyframe, a pose-graph node
 //! (tied to the previous one by tracking's relative motion). A keyframe also keeps a
-//! snapshot: its camera-frame vertex and normal maps at one coarse pyramid level
-//! ([`LoopClosure::level`]), 80 x 60 at the default 320 x 240 (115 KB).
+//! snapshot: its camera-frame vertex and normal maps at one pyramid level
+//! ([`LoopClosure::level`]: the second-coarsest, 160 x 120 at the default 320 x 240 with
+//! the robust three-level schedule: 614 KB per keyframe, so at most 1.2 GB at the
+//! keyframe database's limit of 2,000; 40 keyframes, 25 MB, on 7-Scenes frames 0..299).
 //!
 //! Every [`LoopSettings::search_every_frames`] frames ([`LoopClosure::candidates`]): two
 //! kinds of candidate keyframe, each at least [`LoopSettings::min_gap_frames`] old:

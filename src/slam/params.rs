@@ -752,9 +752,9 @@ pub const LOOP_MIN_CORRECTION_DEG: f64 = 0.5;
 /// A pose-graph node every 10 tracked frames (a 1,000-frame run: about 100 nodes plus
 /// keyframes, a solve of milliseconds).
 pub const LOOP_NODE_STRIDE: u32 = 10;
-/// A loop edge weighs as 10 odometry edges: it is one verified measurement against a
-/// chain whose drift it is there to undo.
-pub const LOOP_WEIGHT: f64 = 10.0;
+/// A loop edge weighs as an odometry edge: measured with weight 10 on 7-Scenes 0..299
+/// and noisy ICL-NUIM 0..209 (GPU), the ATE was 19.34 / 7.64 mm, with 1 19.32 / 7.55 mm.
+pub const LOOP_WEIGHT: f64 = 1.0;
 
 #[cfg(test)]
 mod tests {

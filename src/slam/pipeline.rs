@@ -203,8 +203,8 @@ impl<B: Backend> Slam<B> {
             (Some(_), Some(r)) => Some(KeyframeDatabase::new(r)),
             _ => None,
         };
-        // Snapshots at the ICP pyramid's second-coarsest level (80 x 60 with the robust
-        // schedule at 320 x 240), the finest with one level.
+        // Snapshots at the ICP pyramid's second-coarsest level (160 x 120 with the robust
+        // three-level schedule at 320 x 240), the finest with one level.
         let loop_level = params.icp.level_iters.len().saturating_sub(2);
         let loops = match (&keyframes, params.loop_closure) {
             (Some(_), Some(l)) => Some(LoopClosure::new(l, loop_level)),

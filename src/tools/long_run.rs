@@ -36,12 +36,22 @@ pub struct LongRun {
     /// ATE RMSE after rigid alignment over every frame, mm.
     pub ate_rmse_mm: Option<f64>,
     pub lost_frames: u64,
+    /// Per pass (as `map_after_pass`): loops accepted in it (empty without loop closure).
+    pub loops_per_pass: Vec<usize>,
+    /// Per pass: ATE RMSE of its frames without alignment, mm (the run starts at the
+    /// ground truth's first pose, so drift shows as growth from pass to pass).
+    pub ate_per_pass_mm: Vec<f64>,
 }
 
 /// Runs `wgslam RUN_ARGS --out TMP` (a `wgslam run --revisit ...` of one backend) in a
 /// child process of this executable, so its peak memory is its own, and summarises it;
 /// the outputs go to a temporary folder, removed afterwards.
-pub fn run_in_child(run_args: &[String], backend: &str, pass_frames: usize) -> Result<LongRun> {
+pub fn run_in_child(
+    run_args: &[String],
+    backend: &str,
+    pass_frames: usize,
+    gt: &[(f64, glam::DMat4)],
+) -> Result<LongRun> {
     let exe = std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?;
     let out = std::env::temp_dir().join(format!(
         "wgslam-bench-revisit-{}-{backend}",
@@ -56,7 +66,7 @@ pub fn run_in_child(run_args: &[String], backend: &str, pass_frames: usize) -> R
         .map_err(|e| Error::io(&exe, e));
     let result = o.and_then(|o| {
         if o.status.success() {
-            summarise(&out, backend, pass_frames)
+            summarise(&out, backend, pass_frames, gt)
         } else {
             Err(Error::Numerical(format!(
                 "the {backend} long run failed ({}): {}",
@@ -69,8 +79,14 @@ pub fn run_in_child(run_args: &[String], backend: &str, pass_frames: usize) -> R
     result
 }
 
-/// Reads `frames.json` and `metrics.json` of a finished `wgslam run --revisit` in `dir`.
-pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRun> {
+/// Reads `frames.json`, `metrics.json` and `trajectory.tum` of a finished `wgslam run
+/// --revisit` in `dir`; `gt` is the revisiting sequence's ground truth (stamps = positions).
+pub fn summarise(
+    dir: &Path,
+    backend: &str,
+    pass_frames: usize,
+    gt: &[(f64, glam::DMat4)],
+) -> Result<LongRun> {
     let path = dir.join("frames.json");
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
     let frames: serde_json::Value =
@@ -103,6 +119,37 @@ pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRu
     if (n - 1) % pass_frames != 0 || map_after_pass.is_empty() {
         map_after_pass.push(surfels[n - 1]);
     }
+    let passes = map_after_pass.len();
+    // Frame k belongs to pass (k - 1) / pass_frames (frame 0 to the first).
+    let pass_of = |k: usize| (k.saturating_sub(1) / pass_frames).min(passes - 1);
+    let metrics_path = dir.join("metrics.json");
+    let metrics_text =
+        std::fs::read_to_string(&metrics_path).map_err(|e| Error::io(&metrics_path, e))?;
+    let metrics: serde_json::Value = serde_json::from_str(&metrics_text)
+        .map_err(|e| Error::format(&metrics_path, format!("not JSON: {e}")))?;
+    let mut loops_per_pass = Vec::new();
+    if let Some(loops) = metrics["loop_closure"]["loops"].as_array() {
+        loops_per_pass = vec![0; passes];
+        for l in loops.iter().filter(|l| l["rejected"].is_null()) {
+            if let Some(frame) = l["frame"].as_u64() {
+                loops_per_pass[pass_of(frame as usize)] += 1;
+            }
+        }
+    }
+    let est = crate::io::trajectory::read_tum(&dir.join("trajectory.tum"))?;
+    let mut ate_per_pass_mm = Vec::new();
+    if !gt.is_empty() {
+        for p in 0..passes {
+            let pass: Vec<(f64, glam::DMat4)> = est
+                .iter()
+                .copied()
+                .filter(|(stamp, _)| pass_of(*stamp as usize) == p)
+                .collect();
+            if pass.len() >= 2 {
+                ate_per_pass_mm.push(crate::eval::ate(&pass, gt, false)?.rmse_m * 1e3);
+            }
+        }
+    }
     Ok(LongRun {
         backend: backend.to_string(),
         frames: n,
@@ -117,6 +164,8 @@ pub fn summarise(dir: &Path, backend: &str, pass_frames: usize) -> Result<LongRu
         peak_memory_mib: numbers.peak_memory_mib,
         ate_rmse_mm: numbers.ate_rmse_mm,
         lost_frames: numbers.lost_frames,
+        loops_per_pass,
+        ate_per_pass_mm,
     })
 }
 
@@ -153,6 +202,20 @@ pub fn print(runs: &[LongRun]) {
                 .map(|m| m.to_string())
                 .collect::<Vec<_>>()
                 .join(" "),
+        );
+    }
+    for r in runs {
+        let join = |v: Vec<String>| v.join(" ");
+        println!(
+            "{}: loops accepted per pass [{}]; ATE per pass (unaligned, mm) [{}]",
+            r.backend,
+            join(r.loops_per_pass.iter().map(|n| n.to_string()).collect()),
+            join(
+                r.ate_per_pass_mm
+                    .iter()
+                    .map(|a| format!("{a:.1}"))
+                    .collect()
+            ),
         );
     }
 }

@@ -7,6 +7,7 @@
 mod compact;
 mod fuse;
 mod icp;
+mod loops;
 mod map;
 mod predict;
 mod preprocess;
@@ -32,6 +33,7 @@ pub fn tests() -> Vec<common::harness::Test> {
         preprocess::tests(),
         predict::tests(),
         icp::tests(),
+        loops::tests(),
         fuse::tests(),
         compact::tests(),
         map::tests(),

@@ -1,0 +1,158 @@
+//! Loop closure end to end, against the real ground truth on both backends: a revisiting
+//! run over the bundled noisy ICL-NUIM frames finds and accepts loops on its later passes
+//! and stays within the noisy-data bar; loop closure that finds no loop leaves the run bit
+//! for bit as without it; and on `../shared` 7-Scenes (real Kinect v1) closing loops does
+//! not make the trajectory worse.
+
+use std::path::{Path, PathBuf};
+
+use crate::common;
+use common::harness::{gpu, gpu_shared, plain, Test};
+use wgslam::dataset::{self, SequenceOptions};
+use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::slam::backend::{Backend, Inspect};
+use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::params::SlamParams;
+use wgslam::tools::run::{self, RunResult};
+
+/// ATE over a noisy ICL-NUIM run, metres: the bar of the tracking tests (10 mm).
+const ATE_NOISY_MAX_M: f64 = 0.010;
+/// 7-Scenes against its KinectFusion reference poses (good to 1-2 cm): measured 19-20 mm
+/// on frames 0..299 with and without loop closure.
+const ATE_7SCENES_MAX_M: f64 = 0.030;
+/// Closing loops may move the ATE by noise either way; it must not grow by more than
+/// this (metres): a millimetre, a tenth of the noisy bar.
+const LOOP_ATE_SLACK_M: f64 = 0.001;
+/// Frames of the revisiting run over bundled frames 1..23 (22 per pass): 150 frames, so
+/// passes 3 to 7 return to keyframes more than `LOOP_MIN_GAP_FRAMES` (60) old.
+const REVISIT_FRAMES: usize = 150;
+
+fn assets(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("assets")
+        .join(name)
+}
+
+fn ate_m(r: &RunResult) -> f64 {
+    r.metrics
+        .accuracy
+        .as_ref()
+        .expect("ground truth")
+        .ate_rmse_aligned_m
+}
+
+fn without_loops() -> SlamParams {
+    SlamParams {
+        loop_closure: None,
+        ..SlamParams::default()
+    }
+}
+
+/// The revisiting run over the bundled noisy frames, with loop closure on `with` and
+/// without on `without` (two backends of one kind).
+fn revisit_finds_loops<B: Backend + Inspect>(with: B, without: B) {
+    let seq = dataset::open(
+        &assets("icl_living_room_kt2_noisy"),
+        &SequenceOptions::default(),
+    )
+    .unwrap()
+    .revisiting(1, 23, REVISIT_FRAMES)
+    .unwrap();
+    let last = REVISIT_FRAMES - 1;
+    let on = run::run(with, &seq, 0, last, SlamParams::default(), |_| {}).unwrap();
+    let off = run::run(without, &seq, 0, last, without_loops(), |_| {}).unwrap();
+    let lc = on.metrics.loop_closure.as_ref().expect("loop closure ran");
+    assert!(off.metrics.loop_closure.is_none());
+    // Loops are found where the camera returns after 60 frames or more, and not before.
+    let accepted: Vec<u32> = lc
+        .loops
+        .iter()
+        .filter(|l| l.rejected.is_none())
+        .map(|l| l.frame)
+        .collect();
+    assert!(
+        accepted.len() >= 2,
+        "accepted loops at frames {accepted:?}; all: {:?}",
+        lc.loops
+    );
+    assert!(
+        lc.loops.iter().all(|l| l.frame >= l.keyframe_frame + 60),
+        "{:?}",
+        lc.loops
+    );
+    assert_eq!(lc.accepted + lc.rejected, lc.candidates);
+    // Every frame tracked, and the trajectory within the noisy bar of the ground truth,
+    // not worse than without loop closure.
+    assert_eq!(on.metrics.tracking.lost, 0);
+    let (a_on, a_off) = (ate_m(&on), ate_m(&off));
+    assert!(a_on <= ATE_NOISY_MAX_M, "ATE {a_on} m with loop closure");
+    assert!(
+        a_on <= a_off + LOOP_ATE_SLACK_M,
+        "ATE {a_on} m with loop closure, {a_off} m without"
+    );
+    // The odometry's own accuracy is reported beside the optimised one.
+    assert!(lc.odometry_accuracy.is_some());
+    assert_eq!(on.trajectory().len(), REVISIT_FRAMES);
+}
+
+/// On a run too short for any loop (the bundled 24 frames: no keyframe is 60 frames old),
+/// loop closure's bookkeeping (snapshots, the graph) changes nothing: poses and map bit for
+/// bit as without it.
+fn no_loop_changes_nothing<B: Backend + Inspect>(with: B, without: B) {
+    let seq = dataset::open(
+        &assets("icl_living_room_kt2_noisy"),
+        &SequenceOptions::default(),
+    )
+    .unwrap();
+    let last = seq.len() - 1;
+    let on = run::run(with, &seq, 0, last, SlamParams::default(), |_| {}).unwrap();
+    let off = run::run(without, &seq, 0, last, without_loops(), |_| {}).unwrap();
+    assert!(on.metrics.loop_closure.as_ref().unwrap().loops.is_empty());
+    let bits = |r: &RunResult| -> Vec<[u64; 16]> {
+        r.trajectory()
+            .iter()
+            .map(|(_, t)| t.to_cols_array().map(f64::to_bits))
+            .collect()
+    };
+    assert_eq!(bits(&on), bits(&off), "trajectories");
+    assert_eq!(on.map, off.map, "maps");
+}
+
+/// 7-Scenes kitchen frames 0..299 on the GPU: within the reference poses' bar with loop
+/// closure, and not worse than without.
+fn seven_scenes_not_worse(ctx: GpuContext, data: &Path) {
+    let seq = dataset::open(
+        &data.join("7scenes_redkitchen"),
+        &SequenceOptions::default(),
+    )
+    .unwrap();
+    let backend = GpuBackend::new(ctx).unwrap();
+    let on = run::run(backend, &seq, 0, 299, SlamParams::default(), |_| {}).unwrap();
+    let lc = on.metrics.loop_closure.as_ref().unwrap();
+    let off_ate = lc.odometry_accuracy.as_ref().unwrap().ate_rmse_aligned_m;
+    let a_on = ate_m(&on);
+    assert!(lc.accepted >= 1, "{:?}", lc.loops);
+    assert!(a_on <= ATE_7SCENES_MAX_M, "ATE {a_on} m");
+    assert!(
+        a_on <= off_ate + LOOP_ATE_SLACK_M,
+        "ATE {a_on} m after closures, {off_ate} m as tracked"
+    );
+}
+
+pub fn tests() -> Vec<Test> {
+    vec![
+        plain("revisit_finds_loops_cpu", || {
+            revisit_finds_loops(CpuBackend::new(), CpuBackend::new())
+        }),
+        gpu("revisit_finds_loops_gpu", |ctx| {
+            revisit_finds_loops(GpuBackend::new(ctx).unwrap(), GpuBackend::open().unwrap())
+        }),
+        plain("no_loop_changes_nothing_cpu", || {
+            no_loop_changes_nothing(CpuBackend::new(), CpuBackend::new())
+        }),
+        gpu("no_loop_changes_nothing_gpu", |ctx| {
+            no_loop_changes_nothing(GpuBackend::new(ctx).unwrap(), GpuBackend::open().unwrap())
+        }),
+        gpu_shared("seven_scenes_not_worse_gpu", seven_scenes_not_worse),
+    ]
+}
