@@ -129,7 +129,7 @@ impl<B: Backend + Inspect> TestBackend for B {
 
 pub fn tests() -> Vec<Test> {
     vec![
-        gpu("deform_matches_twin", deform_matches_twin),
+        gpu("deform_surfels_matches_twin", deform_matches_twin),
         gpu("loop_copies_round_trip", loop_copies_round_trip),
     ]
 }
