@@ -160,6 +160,7 @@ pub fn execute(a: RunArgs) -> Result<()> {
             println!("progress {} {total}", bar.position());
             let _ = std::io::stdout().flush();
         }
+        use crate::slam::loops::LoopAction;
         use crate::slam::pipeline::TrackStatus;
         let mut events: Vec<String> = f
             .report
@@ -174,10 +175,12 @@ pub fn execute(a: RunArgs) -> Result<()> {
                     l.kind,
                     1e3 * l.correction_m,
                     l.correction_deg,
-                    if l.optimised.is_some() {
-                        "; trajectory and map bent"
-                    } else {
-                        " (within noise: nothing moved)"
+                    match l.action {
+                        Some(LoopAction::Bent) => "; confirmed: trajectory and map bent",
+                        Some(LoopAction::AwaitingConfirmation) => {
+                            "; above noise: awaiting a second verification"
+                        }
+                        _ => " (within noise: nothing moved)",
                     }
                 ),
                 Some(why) => format!(

@@ -139,6 +139,105 @@ fn seven_scenes_not_worse(ctx: GpuContext, data: &Path) {
     );
 }
 
+/// Frames of the injected-drift run (bundled clean frames 1..23 back and forth) and the
+/// frame after which the drift is injected: pass 4 starts at 66, where the camera is back
+/// among keyframes more than 60 frames old.
+const DRIFT_RUN_FRAMES: usize = 130;
+const DRIFT_AT_FRAME: usize = 70;
+/// The injected drift: 30 mm along x and 1.5 degrees about the vertical, the size of the
+/// drift 7-Scenes accumulates over 60-90 frames (13-35 mm, 0.3-1.5 degrees against its
+/// reference poses).
+const DRIFT_M: f64 = 0.030;
+const DRIFT_DEG: f64 = 1.5;
+/// After the closure, the last 30 frames' unaligned ATE must be below this fraction of the
+/// same frames' without loop closure: the loop must undo most of the drift.
+const DRIFT_UNDONE_FRACTION: f64 = 0.5;
+
+/// Drift injected into a revisiting run: after frame [`DRIFT_AT_FRAME`] the map fused
+/// since frame 60 and the tracked pose are moved by a rigid offset (what tracking drift
+/// does to both: `deform_surfels` with nodes at frames 59 (identity) and 60 (the
+/// offset)). Tracking goes on in the drifted frame; the loops to keyframes of the first
+/// passes must see the offset, confirm it, and bend the trajectory back: the last frames'
+/// poses (unaligned, against the ground truth) much nearer than without loop closure.
+fn injected_drift_is_undone<B: Backend + Inspect>(with: B, without: B) {
+    use glam::{DMat4, DVec3};
+    use wgslam::geometry::se3;
+    use wgslam::layout::DeformNode;
+    use wgslam::slam::pipeline::Slam;
+
+    let seq = dataset::open(&assets("icl_living_room_kt2"), &SequenceOptions::default())
+        .unwrap()
+        .revisiting(1, 23, DRIFT_RUN_FRAMES)
+        .unwrap();
+    let drift = DMat4::from_translation(DVec3::new(DRIFT_M, 0.0, 0.0))
+        * se3::exp(&[0.0, DRIFT_DEG.to_radians(), 0.0, 0.0, 0.0, 0.0]);
+    let node = |frame: u32, c: &DMat4| {
+        let m = c.as_mat4();
+        DeformNode {
+            frame,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
+            rows: [0, 1, 2].map(|r| {
+                let row = m.row(r);
+                [row.x, row.y, row.z, row.w]
+            }),
+        }
+    };
+    let gt = seq.ground_truth();
+    let mut last_frames_ate = Vec::new();
+    for (backend, params) in [(with, SlamParams::default()), (without, without_loops())] {
+        let mut slam = Slam::for_sequence(backend, &seq, params);
+        let mut reports = Vec::new();
+        for i in 0..DRIFT_RUN_FRAMES {
+            let f = seq.load(i).unwrap();
+            let rec = &seq.frames[i];
+            let r = slam
+                .process(
+                    i as u32,
+                    &f.depth,
+                    &run::packed_rgba(&f),
+                    rec.gt_cam_to_world.as_ref(),
+                )
+                .unwrap();
+            assert!(r.status.is_tracked(), "frame {i}: {:?}", r.status);
+            reports.push((rec.timestamp, r.t_cam_to_world));
+            if i == DRIFT_AT_FRAME {
+                slam.backend
+                    .deform(&[node(59, &DMat4::IDENTITY), node(60, &drift)])
+                    .unwrap();
+                let t = slam.t_world_to_cam().unwrap();
+                slam.set_t_world_to_cam(Some(t * se3::inverse_rigid(&drift)));
+            }
+        }
+        let est: Vec<(f64, DMat4)> = match slam.loop_closure() {
+            Some(lc) => {
+                let bent = lc
+                    .loops()
+                    .iter()
+                    .filter(|l| l.action == Some(wgslam::slam::loops::LoopAction::Bent))
+                    .count();
+                assert!(bent >= 1, "no loop bent the drifted run: {:?}", lc.loops());
+                lc.poses()
+                    .iter()
+                    .map(|p| (p.frame as f64, p.estimate))
+                    .collect()
+            }
+            None => reports,
+        };
+        let tail = &est[est.len() - 30..];
+        last_frames_ate.push(wgslam::eval::ate(tail, &gt, false).unwrap().rmse_m);
+    }
+    let (a_with, a_without) = (last_frames_ate[0], last_frames_ate[1]);
+    eprintln!(
+        "injected drift: last 30 frames' ATE {a_with} m with loop closure, {a_without} m without"
+    );
+    assert!(
+        a_with < DRIFT_UNDONE_FRACTION * a_without,
+        "last 30 frames' ATE {a_with} m with loop closure, {a_without} m without"
+    );
+}
+
 pub fn tests() -> Vec<Test> {
     vec![
         plain("revisit_finds_loops_cpu", || {
@@ -154,5 +253,11 @@ pub fn tests() -> Vec<Test> {
             no_loop_changes_nothing(GpuBackend::new(ctx).unwrap(), GpuBackend::open().unwrap())
         }),
         gpu_shared("seven_scenes_not_worse_gpu", seven_scenes_not_worse),
+        plain("injected_drift_is_undone_cpu", || {
+            injected_drift_is_undone(CpuBackend::new(), CpuBackend::new())
+        }),
+        gpu("injected_drift_is_undone_gpu", |ctx| {
+            injected_drift_is_undone(GpuBackend::new(ctx).unwrap(), GpuBackend::open().unwrap())
+        }),
     ]
 }
