@@ -225,6 +225,26 @@ fn injected_drift_is_undone<B: Backend + Inspect>(with: B, without: B) {
             }
             None => reports,
         };
+        // Pictures of both maps for a person to look at, when asked for.
+        if let Some(dir) = std::env::var_os("WGSLAM_LOOP_RENDERS") {
+            let name = if slam.loop_closure().is_some() {
+                "with"
+            } else {
+                "without"
+            };
+            let dir = PathBuf::from(dir).join(format!("{}_{name}", slam.backend.name()));
+            let map = slam.backend.download_map().unwrap();
+            std::fs::create_dir_all(&dir).unwrap();
+            wgslam::render::outputs::write_map_renders(
+                &wgslam::render::RenderBackend::Cpu,
+                &dir,
+                &map,
+                &est,
+                &seq.intrinsics,
+                wgslam::render::DEFAULT_SIZE,
+            )
+            .unwrap();
+        }
         let tail = &est[est.len() - 30..];
         last_frames_ate.push(wgslam::eval::ate(tail, &gt, false).unwrap().rmse_m);
     }
