@@ -94,7 +94,7 @@ fn check_equal(what: &str, keys: &[u64], portable_words: &[u32]) {
 /// (the index map, and the same new surfels) and render_splat, on a map fused from bundled
 /// frames and on that map doubled (ties at every pixel, broken towards the larger index).
 fn portable_twins_equal_the_64_bit_twins() {
-    let root = common::bundled_icl_noisy();
+    let root = common::bundled_icl();
     let gt = load_gt(&root);
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
