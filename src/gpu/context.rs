@@ -98,7 +98,8 @@ impl DeviceOptions {
     pub fn features_from(&self, offered: wgpu::Features) -> wgpu::Features {
         let mut features = offered & WANTED_FEATURES;
         if self.features == GpuFeatures::Portable {
-            features.remove(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
+            features
+                .remove(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
         }
         if self.limits == GpuLimits::Webgpu {
             features = wgpu::Features::empty();

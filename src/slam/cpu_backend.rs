@@ -482,10 +482,36 @@ impl Backend for CpuBackend {
                     out.resize(n);
                     // One call per attribute, as the kernel is dispatched.
                     let (flags, offsets) = (&self.flags, &self.offsets);
+                    use bytemuck::{cast_slice, cast_slice_mut};
                     use cpu::compact_scatter::compact_scatter as scatter;
-                    scatter(&params, flags, offsets, &chunk, &m.position_weight, &chunk, &mut out.position_weight);
-                    scatter(&params, flags, offsets, &chunk, &m.normal_frame, &chunk, &mut out.normal_frame);
-                    scatter(&params, flags, offsets, &chunk, &m.color, &chunk, &mut out.color);
+                    let (pw, c) = (cast_slice(&m.position_weight), cast_slice(&m.color));
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        pw,
+                        &chunk,
+                        cast_slice_mut(&mut out.position_weight),
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        &m.normal_frame,
+                        &chunk,
+                        &mut out.normal_frame,
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        c,
+                        &chunk,
+                        cast_slice_mut(&mut out.color),
+                    );
                     out.resize(counter as usize);
                 }
                 other => unreachable!("{other:?} is not a compaction kernel"),
