@@ -1,25 +1,23 @@
-//! CPU twin of `shaders/compact_scatter.wgsl`: copies every kept surfel `i` to slot
-//! `offsets[i]` of the output map arrays, so the survivors end up at the front in their
-//! current order (stream compaction).
+//! CPU twin of `shaders/compact_scatter.wgsl`: copies one surfel array of every kept surfel
+//! `i` to slot `offsets[i]` of the output map array, so the survivors end up at the front
+//! in their current order (stream compaction). Called once per surfel array, as the kernel is
+//! dispatched.
 
 use super::chunk_blocks;
 use crate::layout::{CompactParams, MapChunk};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames.
-#[allow(clippy::too_many_arguments)]
+/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames. The arrays
+/// are read as `[u32; 4]` bits, as the kernel reads them (`bytemuck::cast_slice` of the
+/// `[f32; 4]` arrays).
 pub fn compact_scatter(
     params: &CompactParams,
     flags: &[u32],
     offsets: &[u32],
     chunk: &MapChunk,
-    position_weight: &[[f32; 4]],
-    normal_frame: &[[u32; 4]],
-    color: &[[f32; 4]],
+    surfel_array: &[[u32; 4]],
     out_chunk: &MapChunk,
-    out_position_weight: &mut [[f32; 4]],
-    out_normal_frame: &mut [[u32; 4]],
-    out_color: &mut [[f32; 4]],
+    out_surfel_array: &mut [[u32; 4]],
 ) {
     let (_, end) = chunk_blocks(chunk, params.surfel_count);
     for i in chunk.base..end {
@@ -30,8 +28,6 @@ pub fn compact_scatter(
         }
         let src = (i - chunk.base) as usize;
         let dst = dst as usize;
-        out_position_weight[dst] = position_weight[src];
-        out_normal_frame[dst] = normal_frame[src];
-        out_color[dst] = color[src];
+        out_surfel_array[dst] = surfel_array[src];
     }
 }

@@ -480,18 +480,37 @@ impl Backend for CpuBackend {
                 Call::CompactScatter => {
                     let out = &mut self.spare;
                     out.resize(n);
-                    cpu::compact_scatter::compact_scatter(
+                    // One call per attribute, as the kernel is dispatched.
+                    let (flags, offsets) = (&self.flags, &self.offsets);
+                    use bytemuck::{cast_slice, cast_slice_mut};
+                    use cpu::compact_scatter::compact_scatter as scatter;
+                    let (pw, c) = (cast_slice(&m.position_weight), cast_slice(&m.color));
+                    scatter(
                         &params,
-                        &self.flags,
-                        &self.offsets,
+                        flags,
+                        offsets,
                         &chunk,
-                        &m.position_weight,
+                        pw,
+                        &chunk,
+                        cast_slice_mut(&mut out.position_weight),
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
                         &m.normal_frame,
-                        &m.color,
                         &chunk,
-                        &mut out.position_weight,
                         &mut out.normal_frame,
-                        &mut out.color,
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        c,
+                        &chunk,
+                        cast_slice_mut(&mut out.color),
                     );
                     out.resize(counter as usize);
                 }

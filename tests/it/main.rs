@@ -20,6 +20,7 @@ mod hostile;
 mod inputs;
 mod layout;
 mod loop_closure;
+mod portable;
 mod render;
 // `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
 #[cfg(feature = "rerun")]
@@ -56,6 +57,7 @@ fn main() -> ExitCode {
         inputs,
         layout,
         loop_closure,
+        portable,
         render,
         scan_gpu,
         scan_icp,
