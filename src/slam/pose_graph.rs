@@ -216,10 +216,10 @@ impl PoseGraph {
                     break;
                 };
                 let step = chol.solve(&(-g));
-                for node in 1..n {
+                for (node, pose) in poses.iter_mut().enumerate().skip(1) {
                     let o = 6 * (node - 1);
                     let d = [0, 1, 2, 3, 4, 5].map(|k| step[o + k]);
-                    poses[node] = se3::exp(&d) * poses[node];
+                    *pose = se3::exp(&d) * *pose;
                 }
                 if step.amax() < CONVERGED_STEP {
                     break;
