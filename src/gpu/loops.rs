@@ -85,22 +85,30 @@ impl GpuBackend {
         Ok(())
     }
 
+    /// Pyramid `level`'s frame `vertex` and `normal_depth` and predicted vertex and normal
+    /// maps (level 0: the full maps).
+    fn level_images(&self, level: usize) -> [&GpuImage; 4] {
+        let f = self.frame();
+        match level {
+            0 => [&f.vertex, &f.normal_depth, &f.pred_vertex, &f.pred_normal],
+            l => {
+                let lv = f.levels.get(l - 1).unwrap_or_else(|| {
+                    panic!("level {l}: the pyramid has {} levels", 1 + f.levels.len())
+                });
+                [
+                    &lv.vertex,
+                    &lv.normal_depth,
+                    &lv.pred_vertex,
+                    &lv.pred_normal,
+                ]
+            }
+        }
+    }
+
     /// The frame's `vertex` and `normal_depth` maps at pyramid `level`; see
     /// `Backend::frame_level`.
     pub(super) fn frame_level_on_gpu(&mut self, level: usize) -> Result<Prediction> {
-        let f = self.frame();
-        let (vertex, normal_depth): (&GpuImage, &GpuImage) = match level {
-            0 => (&f.vertex, &f.normal_depth),
-            l => {
-                let lv = f.levels.get(l - 1).unwrap_or_else(|| {
-                    panic!(
-                        "frame_level({l}): the pyramid has {} levels",
-                        1 + f.levels.len()
-                    )
-                });
-                (&lv.vertex, &lv.normal_depth)
-            }
-        };
+        let [vertex, normal_depth, _, _] = self.level_images(level);
         let ctx = &self.ctx;
         ctx.scoped("download frame level", || {
             Ok((vertex.read_back(ctx)?, normal_depth.read_back(ctx)?))
@@ -115,19 +123,7 @@ impl GpuBackend {
         vertex: &[[f32; 4]],
         normal: &[[f32; 4]],
     ) -> Result<()> {
-        let f = self.frame();
-        let (pv, pn): (&GpuImage, &GpuImage) = match level {
-            0 => (&f.pred_vertex, &f.pred_normal),
-            l => {
-                let lv = f.levels.get(l - 1).unwrap_or_else(|| {
-                    panic!(
-                        "set_prediction({l}): the pyramid has {} levels",
-                        1 + f.levels.len()
-                    )
-                });
-                (&lv.pred_vertex, &lv.pred_normal)
-            }
-        };
+        let [_, _, pv, pn] = self.level_images(level);
         let ctx = &self.ctx;
         ctx.scoped("upload prediction", || {
             pv.upload(ctx, vertex)?;

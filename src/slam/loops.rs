@@ -417,22 +417,26 @@ impl LoopClosure {
         let nodes = frames
             .iter()
             .zip(&corrections)
-            .map(|(&frame, c)| {
-                let m = c.as_mat4();
-                DeformNode {
-                    frame,
-                    _pad0: 0,
-                    _pad1: 0,
-                    _pad2: 0,
-                    rows: [0, 1, 2].map(|r| {
-                        let row = m.row(r);
-                        [row.x, row.y, row.z, row.w]
-                    }),
-                }
-            })
+            .map(|(&frame, c)| deform_node(frame, c))
             .collect();
         let new_current = self.poses.last().expect("recorded").estimate;
         (Some(nodes), new_current)
+    }
+}
+
+/// `deform_surfels`' table entry for the node of `frame` with the world-frame rigid
+/// `correction` (f64 to f32: rounding of a few micrometres at room scale).
+pub fn deform_node(frame: u32, correction: &DMat4) -> DeformNode {
+    let m = correction.as_mat4();
+    DeformNode {
+        frame,
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
+        rows: [0, 1, 2].map(|r| {
+            let row = m.row(r);
+            [row.x, row.y, row.z, row.w]
+        }),
     }
 }
 

@@ -162,7 +162,6 @@ const DRIFT_UNDONE_FRACTION: f64 = 0.5;
 fn injected_drift_is_undone<B: Backend + Inspect>(with: B, without: B) {
     use glam::{DMat4, DVec3};
     use wgslam::geometry::se3;
-    use wgslam::layout::DeformNode;
     use wgslam::slam::pipeline::Slam;
 
     let seq = dataset::open(&assets("icl_living_room_kt2"), &SequenceOptions::default())
@@ -171,19 +170,7 @@ fn injected_drift_is_undone<B: Backend + Inspect>(with: B, without: B) {
         .unwrap();
     let drift = DMat4::from_translation(DVec3::new(DRIFT_M, 0.0, 0.0))
         * se3::exp(&[0.0, DRIFT_DEG.to_radians(), 0.0, 0.0, 0.0, 0.0]);
-    let node = |frame: u32, c: &DMat4| {
-        let m = c.as_mat4();
-        DeformNode {
-            frame,
-            _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
-            rows: [0, 1, 2].map(|r| {
-                let row = m.row(r);
-                [row.x, row.y, row.z, row.w]
-            }),
-        }
-    };
+    let node = wgslam::slam::loops::deform_node;
     let gt = seq.ground_truth();
     let mut last_frames_ate = Vec::new();
     for (backend, params) in [(with, SlamParams::default()), (without, without_loops())] {

@@ -11,6 +11,7 @@ use wgslam::gpu::GpuContext;
 use wgslam::layout::DeformNode;
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::loops::deform_node;
 use wgslam::slam::params::SlamParams;
 
 /// A node at `frame` correcting by a rotation of `deg` degrees about `axis` and a
@@ -18,17 +19,7 @@ use wgslam::slam::params::SlamParams;
 fn node(frame: u32, axis: DVec3, deg: f64, t: DVec3) -> DeformNode {
     let w = axis.normalize() * deg.to_radians();
     let c = DMat4::from_translation(t) * se3::exp(&[w.x, w.y, w.z, 0.0, 0.0, 0.0]);
-    let m = c.as_mat4();
-    DeformNode {
-        frame,
-        _pad0: 0,
-        _pad1: 0,
-        _pad2: 0,
-        rows: [0, 1, 2].map(|r| {
-            let row = m.row(r);
-            [row.x, row.y, row.z, row.w]
-        }),
-    }
+    deform_node(frame, &c)
 }
 
 /// The map of bundled frames 1..=6 (last frames 1..6) deformed on both backends by three
