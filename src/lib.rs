@@ -42,7 +42,10 @@
 //! | `batch` | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
 //! | [`cli`] | argument parsing and printing only |
 
+// The command line and `wgslam batch` (signals, file locks, processes) are native only.
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) mod batch;
+#[cfg(not(target_arch = "wasm32"))]
 #[doc(hidden)]
 pub mod cli;
 #[doc(hidden)]

@@ -59,6 +59,27 @@ fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     })
 }
 
+/// Decodes image `path` from `files` when given (an in-memory sequence, see
+/// [`super::InMemoryFiles`]), else from disk.
+fn decode_from(files: Option<&super::InMemoryFiles>, path: &Path, role: &str) -> Result<DynamicImage> {
+    let Some(files) = files else {
+        return decode(path, role);
+    };
+    let bytes = files.get(path).ok_or_else(|| {
+        Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!("{role} image is not among the sequence's in-memory files"),
+            ),
+        )
+    })?;
+    image::load_from_memory(bytes).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
+    })
+}
+
 /// Human name of a decoded image's pixel format, for error messages.
 fn describe(img: &DynamicImage) -> String {
     let c = img.color();
@@ -72,7 +93,12 @@ fn describe(img: &DynamicImage) -> String {
 
 /// Decodes a depth PNG, which must be 16-bit single channel.
 pub fn load_depth(path: &Path) -> Result<(u32, u32, Vec<u16>)> {
-    match decode(path, "depth")? {
+    depth_of(decode(path, "depth")?, path)
+}
+
+/// A decoded depth image's pixels; `path` names it in errors.
+fn depth_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<u16>)> {
+    match img {
         DynamicImage::ImageLuma16(img) => {
             let (w, h) = img.dimensions();
             Ok((w, h, img.into_raw()))
@@ -98,7 +124,12 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
 /// Decodes a colour image (PNG or JPEG), which must be 8-bit RGB or RGBA (alpha is
 /// dropped).
 pub fn load_rgb(path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
-    match decode(path, "colour")? {
+    rgb_of(decode(path, "colour")?, path)
+}
+
+/// A decoded colour image's pixels; `path` names it in errors.
+fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
+    match img {
         DynamicImage::ImageRgb8(img) => {
             let (w, h) = img.dimensions();
             let px = img.pixels().map(|p| p.0).collect();
@@ -163,15 +194,27 @@ pub fn load_frame(
     depth_k: &Intrinsics,
     conventions: &FrameConventions,
 ) -> Result<RawFrame> {
+    load_frame_from(None, rgb_path, depth_path, depth_k, conventions)
+}
+
+/// [`load_frame`] reading the images from `files` when given (an in-memory sequence), else
+/// from disk.
+pub(crate) fn load_frame_from(
+    files: Option<&super::InMemoryFiles>,
+    rgb_path: &Path,
+    depth_path: &Path,
+    depth_k: &Intrinsics,
+    conventions: &FrameConventions,
+) -> Result<RawFrame> {
     let expected = (depth_k.width, depth_k.height);
-    let (dw, dh, mut depth) = load_depth(depth_path)?;
+    let (dw, dh, mut depth) = depth_of(decode_from(files, depth_path, "depth")?, depth_path)?;
     if let Some(invalid) = conventions.invalid_depth_raw {
         depth
             .iter_mut()
             .filter(|d| **d == invalid)
             .for_each(|d| *d = 0);
     }
-    let (cw, ch, mut rgb) = load_rgb(rgb_path)?;
+    let (cw, ch, mut rgb) = rgb_of(decode_from(files, rgb_path, "colour")?, rgb_path)?;
     if (dw, dh) != expected {
         return Err(Error::Image {
             path: depth_path.to_path_buf(),

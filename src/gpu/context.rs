@@ -13,9 +13,13 @@ use crate::{Error, Result};
 
 /// Backends wgslam asks for. Never `GL`: on CPU-only machines it falls back to llvmpipe's
 /// OpenGL, where a single compute shader took 235 s to compile.
+#[cfg(not(target_arch = "wasm32"))]
 pub const BACKENDS: wgpu::Backends = wgpu::Backends::VULKAN
     .union(wgpu::Backends::METAL)
     .union(wgpu::Backends::DX12);
+/// Backends wgslam asks for in a browser: WebGPU only (never WebGL, which has no compute).
+#[cfg(target_arch = "wasm32")]
+pub const BACKENDS: wgpu::Backends = wgpu::Backends::BROWSER_WEBGPU;
 
 /// Features the kernels use when the adapter offers them: 64-bit integers and 64-bit
 /// `atomicMax` (the packed depth + surfel index map of `project_model`) and timestamp
@@ -87,7 +91,7 @@ impl GpuContext {
             ..wgpu::InstanceDescriptor::new_without_display_handle()
         });
         let adapter =
-            match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            match super::wait::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
                 power_preference: wgpu::PowerPreference::HighPerformance,
                 force_fallback_adapter: false,
                 compatible_surface: None,
@@ -97,7 +101,7 @@ impl GpuContext {
                 Ok(a) => a,
                 Err(e) => {
                     let seen: Vec<String> =
-                        pollster::block_on(instance.enumerate_adapters(BACKENDS))
+                        super::wait::block_on(instance.enumerate_adapters(BACKENDS))
                             .iter()
                             .map(|a| {
                                 let i = a.get_info();
@@ -117,7 +121,7 @@ impl GpuContext {
         );
         let features = adapter.features() & WANTED_FEATURES;
         let limits = adapter.limits();
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        let (device, queue) = super::wait::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("wgslam device"),
             required_features: features,
             required_limits: limits.clone(),
@@ -252,8 +256,7 @@ impl GpuContext {
 
     /// Blocks until all submitted work is done; device loss or a timeout is [`Error::Gpu`].
     pub fn wait_idle(&self) -> Result<()> {
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
+        super::wait::wait_for_submitted(&self.device, &self.queue)
             .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
         self.check_device()
     }
@@ -281,8 +284,8 @@ impl GpuContext {
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let result = work();
         // Scopes pop in reverse order of their pushing.
-        let validation_err = pollster::block_on(validation.pop());
-        let oom_err = pollster::block_on(oom.pop());
+        let validation_err = super::wait::block_on(validation.pop());
+        let oom_err = super::wait::block_on(oom.pop());
         let mut msgs = Vec::new();
         if let Some(e) = validation_err {
             msgs.push(format!("validation: {e}"));

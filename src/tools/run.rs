@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::DMat4;
 use serde::{Deserialize, Serialize};
@@ -219,6 +219,12 @@ fn run_frames_observed<B: Backend + Inspect>(
     mut observer: Option<&mut dyn FrameObserver>,
 ) -> Result<(Vec<FrameOutcome>, f64)> {
     let (first, last) = (*frames.start(), *frames.end());
+    // A browser tab (wasm32) has no threads to decode on: decode before each frame.
+    #[cfg(target_arch = "wasm32")]
+    let decode = {
+        let _ = decode;
+        Decode::BeforeEachFrame
+    };
     let wall = Instant::now();
     let mut outcomes = Vec::with_capacity(last + 1 - first);
     let mut process = |i: usize, frame: Result<RawFrame>, decode_seconds: f64| -> Result<()> {
