@@ -420,11 +420,13 @@ fn valid_entry(p: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(p, 1.0);
 }
 
-// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
-// key is the nearer surfel, ties to the larger index, 0 = none (project_model,
-// render_splat). Mirrors `cpu::pack_depth_index`.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(~bitcast<u32>(z_cam)) << 32u) | u64(surfel);
+// The high word of an index-map key: the complement of a camera depth's bits (metres,
+// > 0), so the larger word is the nearer surfel and 0 means none. The 64-bit kernels pack
+// it with the surfel index (pack_depth_index, kept in those kernels so that this file
+// needs no 64-bit integers); the portable kernels keep it and the index as two u32 words
+// (keep_nearer). Mirrors `cpu::depth_key`.
+fn depth_key(z_cam: f32) -> u32 {
+    return ~bitcast<u32>(z_cam);
 }
 
 // Radius (metres) of the disc a pixel's measurement covers: the pixel's footprint at depth

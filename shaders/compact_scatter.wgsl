@@ -1,9 +1,11 @@
-// compact_scatter.wgsl: copies every kept surfel i to slot offsets[i] of a second map
-// (chunk set), so the survivors end up at the front in their current order (stream
-// compaction); the host then swaps the two sets. Last of the three stream-compaction
-// kernels. Dispatched once per pair of input chunk and output chunk (output chunks no
-// later than the input's, as offsets[i] <= i): each pass copies the input chunk's kept
-// surfels whose new slot the output chunk holds. CPU twin: src/cpu/compact_scatter.rs.
+// compact_scatter.wgsl: copies one attribute of every kept surfel i to slot offsets[i] of
+// a second map (chunk set), so the survivors end up at the front in their current order
+// (stream compaction); the host then swaps the two sets. Last of the three
+// stream-compaction kernels. Dispatched once per pair of input chunk and output chunk
+// (output chunks no later than the input's, as offsets[i] <= i) and per attribute
+// (position_weight, normal_frame, color: one at a time keeps the kernel within WebGPU's 8
+// storage buffers per stage): each pass copies the input chunk's kept surfels whose new
+// slot the output chunk holds. CPU twin: src/cpu/compact_scatter.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over the input chunk's surfels; each kept surfel has its own output slot.
@@ -16,21 +18,14 @@
 @group(0) @binding(2) var<storage, read> offsets: array<u32>;
 // The input chunk (first map-wide index, slots); see src/gpu/map_buffers.rs.
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
-// The input chunk's surfels: xyz world frame, w = weight.
-@group(0) @binding(4) var<storage, read> position_weight: array<vec4<f32>>;
-// Normal bits, w = last_frame.
-@group(0) @binding(5) var<storage, read> normal_frame: array<vec4<u32>>;
-// RGB 0..255, a = radius.
-@group(0) @binding(6) var<storage, read> color: array<vec4<f32>>;
+// One of the input chunk's surfel arrays (position_weight, normal_frame or color, see
+// src/gpu/map_buffers.rs), its 16-byte entries copied as bits.
+@group(0) @binding(4) var<storage, read> attribute: array<vec4<u32>>;
 // The output chunk: a chunk of the second map, which has the input's chunks.
-@group(0) @binding(7) var<storage, read> out_chunk: MapChunk;
-// Out: the output chunk's surfels (its slots entries, packed as position_weight); only
-// the kept surfels whose new slot this chunk holds are written.
-@group(0) @binding(8) var<storage, read_write> out_position_weight: array<vec4<f32>>;
-// Out: as normal_frame.
-@group(0) @binding(9) var<storage, read_write> out_normal_frame: array<vec4<u32>>;
-// Out: as color.
-@group(0) @binding(10) var<storage, read_write> out_color: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> out_chunk: MapChunk;
+// Out: the same array of the output chunk (its slots entries); only the kept surfels
+// whose new slot this chunk holds are written.
+@group(0) @binding(6) var<storage, read_write> out_attribute: array<vec4<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -50,8 +45,6 @@ fn main(
             continue;
         }
         let src = i - base;
-        out_position_weight[dst] = position_weight[src];
-        out_normal_frame[dst] = normal_frame[src];
-        out_color[dst] = color[src];
+        out_attribute[dst] = attribute[src];
     }
 }

@@ -29,8 +29,10 @@
 @group(0) @binding(6) var<storage, read_write> normal_frame: array<vec4<u32>>;
 // RGB 0..255, a = radius (metres).
 @group(0) @binding(7) var<storage, read_write> color: array<vec4<f32>>;
-// One key per pixel, cleared to 0 by the host; max with 1 where merged.
-@group(0) @binding(8) var<storage, read_write> assoc: array<atomic<u64>>;
+// One 64-bit key per pixel as (low, high) u32 words, cleared to 0 by the host; the low
+// word is maxed with 1 where merged, so the key reads 1 (as a u64, the word order of
+// fuse_select's keys) and no 64-bit integers are needed.
+@group(0) @binding(8) var<storage, read_write> assoc: array<atomic<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -112,6 +114,6 @@ fn merge_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     position_weight[slot] = m.position_weight;
     normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(m.normal), params.frame_id);
     color[slot] = m.color;
-    atomicMax(&assoc[pix], 1lu);
+    atomicMax(&assoc[2u * pix], 1u);
     return vec4<f32>(m.position_weight.xyz, 1.0);
 }

@@ -52,3 +52,10 @@ fn main(
         }
     }
 }
+
+// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
+// key is the nearer surfel, ties to the larger index, 0 = none. Needs SHADER_INT64, so it
+// lives in each 64-bit kernel, not in common.wgsl. Mirrors `cpu::pack_depth_index`.
+fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
+    return (u64(depth_key(z_cam)) << 32u) | u64(surfel);
+}

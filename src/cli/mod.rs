@@ -25,6 +25,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
 
+use crate::gpu::context::{GpuFeatures, GpuLimits, FEATURES_ENV, LIMITS_ENV};
 use crate::Result;
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -36,6 +37,16 @@ pub const BUNDLED_DATASET: &str = "assets/icl_living_room_kt2";
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// GPU kernels: `auto` takes the 64-bit key kernels where the adapter has 64-bit
+    /// atomics, `portable` the two-pass 32-bit kernels everywhere (same results). Sets
+    /// WGSLAM_GPU_FEATURES for this command and the processes it starts.
+    #[arg(long, global = true, value_enum, value_name = "auto|portable")]
+    pub gpu_features: Option<GpuFeatures>,
+    /// GPU limits: `adapter` asks for the adapter's own limits, `webgpu` for exactly
+    /// WebGPU's defaults and no optional feature (as in a browser tab). Sets
+    /// WGSLAM_GPU_LIMITS for this command and the processes it starts.
+    #[arg(long, global = true, value_enum, value_name = "adapter|webgpu")]
+    pub gpu_limits: Option<GpuLimits>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -79,8 +90,20 @@ pub fn bundled_dataset() -> PathBuf {
     }
 }
 
+/// Sets `var` to the option's command-line name when it was given.
+fn set_env<T: clap::ValueEnum>(var: &str, value: Option<T>) {
+    if let Some(name) = value.as_ref().and_then(|v| v.to_possible_value()) {
+        // Before any thread of this process starts (execute is called first thing).
+        std::env::set_var(var, name.get_name());
+    }
+}
+
 /// Runs the parsed command.
 pub fn execute(cli: Cli) -> Result<()> {
+    // Through the environment, so that child processes (bench-one, batch jobs) and every
+    // GPU context of this one (GpuContext::new reads it) make the same device.
+    set_env(FEATURES_ENV, cli.gpu_features);
+    set_env(LIMITS_ENV, cli.gpu_limits);
     match cli.command {
         Command::Run(a) => run::execute(a),
         Command::Icp(a) => icp::execute(a),

@@ -1,25 +1,23 @@
-//! CPU twin of `shaders/compact_scatter.wgsl`: copies every kept surfel `i` to slot
-//! `offsets[i]` of the output map arrays, so the survivors end up at the front in their
-//! current order (stream compaction).
+//! CPU twin of `shaders/compact_scatter.wgsl`: copies one attribute of every kept surfel
+//! `i` to slot `offsets[i]` of the output map array, so the survivors end up at the front
+//! in their current order (stream compaction). Called once per attribute, as the kernel is
+//! dispatched.
 
 use super::chunk_blocks;
 use crate::layout::{CompactParams, MapChunk};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames.
-#[allow(clippy::too_many_arguments)]
-pub fn compact_scatter(
+/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames. `T` is the
+/// attribute's 16-byte entry (`[f32; 4]` or `[u32; 4]`), copied whole as the kernel copies
+/// its bits.
+pub fn compact_scatter<T: Copy>(
     params: &CompactParams,
     flags: &[u32],
     offsets: &[u32],
     chunk: &MapChunk,
-    position_weight: &[[f32; 4]],
-    normal_frame: &[[u32; 4]],
-    color: &[[f32; 4]],
+    attribute: &[T],
     out_chunk: &MapChunk,
-    out_position_weight: &mut [[f32; 4]],
-    out_normal_frame: &mut [[u32; 4]],
-    out_color: &mut [[f32; 4]],
+    out_attribute: &mut [T],
 ) {
     let (_, end) = chunk_blocks(chunk, params.surfel_count);
     for i in chunk.base..end {
@@ -30,8 +28,6 @@ pub fn compact_scatter(
         }
         let src = (i - chunk.base) as usize;
         let dst = dst as usize;
-        out_position_weight[dst] = position_weight[src];
-        out_normal_frame[dst] = normal_frame[src];
-        out_color[dst] = color[src];
+        out_attribute[dst] = attribute[src];
     }
 }

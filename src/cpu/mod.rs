@@ -25,11 +25,13 @@ pub mod deform_surfels;
 pub mod depth_to_vertex;
 pub mod fern_encode;
 pub mod fuse_add;
+pub mod fuse_add_portable;
 pub mod fuse_flags;
 pub mod fuse_merge;
 pub mod fuse_merge_chosen;
 pub mod fuse_prune;
 pub mod fuse_select;
+pub mod fuse_select_portable;
 pub mod icp_candidates;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
@@ -40,10 +42,12 @@ pub mod nn_grid;
 pub mod predict_model;
 pub mod prefix_sum;
 pub mod project_model;
+pub mod project_model_portable;
 pub mod pyramid_depth;
 pub mod pyramid_model;
 pub mod render_resolve;
 pub mod render_splat;
+pub mod render_splat_portable;
 pub mod vertex_to_normal;
 
 use glam::{Mat4, Vec3, Vec4};
@@ -238,13 +242,35 @@ pub fn valid_entry(p: Vec3) -> [f32; 4] {
     Vec4::new(p.x, p.y, p.z, 1.0).to_array()
 }
 
+/// The high word of an index-map key: the complement of a camera depth's bits (metres,
+/// > 0), larger = nearer, never 0. Mirrors `depth_key` in common.wgsl.
+#[inline]
+pub fn depth_key(z_cam: f32) -> u32 {
+    !z_cam.to_bits()
+}
+
+/// One pass of the portable kernels' two-pass maximum of the 64-bit key `(high, index)` at
+/// pixel `pix` of a map of `(low, high)` u32 word pairs (the little-endian layout of the
+/// 64-bit keys): pass 0 raises the high word; pass 1 raises the low word to `index` if
+/// `high` is the pixel's high word. After pass 0 over every surfel and then pass 1 over
+/// every surfel, each pair equals the maximum 64-bit key ([`pack_depth_index`]) bit for
+/// bit. Mirrors `keep_nearer` in the `*_portable.wgsl` kernels.
+#[inline]
+pub fn keep_nearer(map: &mut [u32], pix: usize, high: u32, index: u32, key_pass: u32) {
+    if key_pass == 0 {
+        map[2 * pix + 1] = map[2 * pix + 1].max(high);
+    } else if map[2 * pix + 1] == high {
+        map[2 * pix] = map[2 * pix].max(index);
+    }
+}
+
 /// Packs a camera depth (metres, > 0) and a surfel index into an index-map key:
 /// `(!bits(z_cam) as u64) << 32 | surfel`. The larger key is the nearer surfel (for positive
 /// floats the bit pattern grows with the value, so its complement shrinks), ties go to the
 /// larger index, and 0 means no surfel. Mirrors `pack_depth_index` in common.wgsl.
 #[inline]
 pub fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    ((!z_cam.to_bits()) as u64) << 32 | surfel as u64
+    (depth_key(z_cam) as u64) << 32 | surfel as u64
 }
 
 /// `v / |v|`, or zero when `|v|` is zero. Mirrors `normalize_or_zero` in common.wgsl.

@@ -56,9 +56,9 @@ pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
-/// Storage buffers bound at once by the largest kernel (`compact_scatter`: params, flags,
-/// offsets, and an input and an output chunk's `MapChunk` and three arrays).
-const MAX_STORAGE_BUFFERS_USED: u32 = 11;
+/// Storage buffers bound at once by the largest kernels (`fuse_select`, `fuse_add`,
+/// `fuse_merge_chosen`): WebGPU's default of 8 per shader stage.
+const MAX_STORAGE_BUFFERS_USED: u32 = 8;
 /// Storage textures bound at once by the largest kernel (`depth_to_vertex`,
 /// `predict_model`: two maps).
 const MAX_STORAGE_TEXTURES_USED: u32 = 2;
@@ -152,18 +152,11 @@ impl GpuBackend {
                 MapBuffers::device_chunk_surfels(&ctx)
             )));
         }
-        if !ctx.has_int64_atomics() {
-            return Err(Error::Gpu(format!(
-                "adapter \"{}\" lacks 64-bit atomics (SHADER_INT64 + SHADER_INT64_ATOMIC_MIN_MAX), \
-                 which project_model needs; use --backend cpu",
-                ctx.adapter_info().name
-            )));
-        }
         let per_stage = ctx.limits().max_storage_buffers_per_shader_stage;
         if per_stage < MAX_STORAGE_BUFFERS_USED {
             return Err(Error::Gpu(format!(
                 "adapter \"{}\" allows {per_stage} storage buffers per shader stage; \
-                 compact_scatter needs {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
+                 the fusion kernels need {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
                 ctx.adapter_info().name
             )));
         }

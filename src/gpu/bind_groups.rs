@@ -154,10 +154,10 @@ impl BindGroups {
             ),
             vertex_to_normal: vertex_to_normal(&f.vertex),
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
-            project_model: per_chunk(&k.project_model, u.project.binding()),
+            project_model: per_chunk(k.project_model.first(), u.project.binding()),
             predict_model: per_chunk(&k.predict_model, u.project.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
-            fuse_select: per_chunk(&k.fuse_select, u.fuse.binding()),
+            fuse_select: per_chunk(k.fuse_select.first(), u.fuse.binding()),
             fuse_merge: per_chunk(&k.fuse_merge, u.fuse.binding()),
             fuse_merge_chosen: per_chunk(&k.fuse_merge_chosen, u.fuse.binding()),
             fuse_prune: per_chunk(&k.fuse_prune, u.fuse.binding()),
@@ -167,7 +167,7 @@ impl BindGroups {
                 u.fuse_scan.binding(),
                 vec![("counter", r.counter.binding())],
             ),
-            fuse_add: per_chunk(&k.fuse_add, u.fuse.binding()),
+            fuse_add: per_chunk(k.fuse_add.first(), u.fuse.binding()),
             levels: (0..f.levels.len())
                 .map(|l| LevelBindGroups::new(ctx, k, r, l))
                 .collect(),
@@ -253,12 +253,16 @@ fn icp_reduce(
     )
 }
 
+/// The surfel arrays `compact_scatter` copies, one dispatch each.
+pub(super) const SCATTER_ATTRIBUTES: usize = 3;
+
 /// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
-/// input chunk and output chunk no later than it) for one map set.
+/// input chunk and output chunk no later than it, and per attribute) for one map set.
 pub(super) struct CompactionGroups {
     pub flags: Vec<wgpu::BindGroup>,
     pub scan: wgpu::BindGroup,
-    /// Input chunk s, output chunk d <= s (offsets[i] <= i), at s (s + 1) / 2 + d.
+    /// Input chunk s, output chunk d <= s (offsets[i] <= i), attribute a (position_weight,
+    /// normal_frame, color) at [`SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
     pub scatter: Vec<wgpu::BindGroup>,
 }
 
@@ -303,23 +307,27 @@ impl CompactionGroups {
                 .iter()
                 .enumerate()
                 .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
-                .map(|(from, to)| {
-                    k.compact_scatter.bind_group(
-                        ctx,
-                        &[
-                            ("params", u.compact.binding()),
-                            ("flags", c.flags.binding()),
-                            ("offsets", c.offsets.binding()),
-                            ("chunk", from.info_buffer.binding()),
-                            ("position_weight", from.position_weight.binding()),
-                            ("normal_frame", from.normal_frame.binding()),
-                            ("color", from.color.binding()),
-                            ("out_chunk", to.info_buffer.binding()),
-                            ("out_position_weight", to.position_weight.binding()),
-                            ("out_normal_frame", to.normal_frame.binding()),
-                            ("out_color", to.color.binding()),
-                        ],
-                    )
+                .flat_map(|(from, to)| {
+                    // One bind group per attribute, in the order of SCATTER_ATTRIBUTES.
+                    [
+                        (from.position_weight.binding(), to.position_weight.binding()),
+                        (from.normal_frame.binding(), to.normal_frame.binding()),
+                        (from.color.binding(), to.color.binding()),
+                    ]
+                    .map(|(attribute, out_attribute)| {
+                        k.compact_scatter.bind_group(
+                            ctx,
+                            &[
+                                ("params", u.compact.binding()),
+                                ("flags", c.flags.binding()),
+                                ("offsets", c.offsets.binding()),
+                                ("chunk", from.info_buffer.binding()),
+                                ("attribute", attribute),
+                                ("out_chunk", to.info_buffer.binding()),
+                                ("out_attribute", out_attribute),
+                            ],
+                        )
+                    })
                 })
                 .collect(),
         }

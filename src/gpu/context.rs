@@ -28,6 +28,97 @@ pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::SHADER_INT64
     .union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
     .union(wgpu::Features::TIMESTAMP_QUERY);
 
+/// Environment variable choosing the kernels' integer width: `portable` creates the device
+/// without 64-bit integers, so the two-pass 32-bit key kernels (`*_portable`) run even where
+/// the adapter has 64-bit atomics; `auto` (or unset) takes them where offered. The
+/// command line's `--gpu-features` sets it for the process and its children.
+pub const FEATURES_ENV: &str = "WGSLAM_GPU_FEATURES";
+/// Environment variable choosing the device's limits: `webgpu` asks for exactly
+/// `wgpu::Limits::default()` (WebGPU's defaults: 8 storage buffers per stage, 128 MiB per
+/// binding, ...) and no optional feature at all (so also the portable kernels and no
+/// timestamp queries), as a browser tab gets; `adapter` (or unset) asks for the adapter's
+/// own limits. The command line's `--gpu-limits` sets it.
+pub const LIMITS_ENV: &str = "WGSLAM_GPU_LIMITS";
+
+/// Which optional features the device is created with (see [`FEATURES_ENV`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum GpuFeatures {
+    /// Every [`WANTED_FEATURES`] flag the adapter offers: the 64-bit key kernels where the
+    /// adapter has 64-bit atomics, the portable ones where it does not.
+    #[default]
+    Auto,
+    /// No 64-bit integers whatever the adapter offers: the portable key kernels.
+    Portable,
+}
+
+/// Which limits the device is created with (see [`LIMITS_ENV`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum GpuLimits {
+    /// The adapter's own limits, as large as the hardware allows.
+    #[default]
+    Adapter,
+    /// Exactly `wgpu::Limits::default()` and no optional feature: what WebGPU guarantees.
+    Webgpu,
+}
+
+/// How the device is created: features and limits, read from [`FEATURES_ENV`] and
+/// [`LIMITS_ENV`] by [`DeviceOptions::from_env`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DeviceOptions {
+    /// 64-bit key kernels where offered, or the portable ones.
+    pub features: GpuFeatures,
+    /// The adapter's limits or WebGPU's defaults.
+    pub limits: GpuLimits,
+}
+
+impl DeviceOptions {
+    /// The options the environment asks for; unset variables take the defaults.
+    ///
+    /// [`Error::Argument`] naming the variable for a value that is not one of the choices.
+    pub fn from_env() -> Result<DeviceOptions> {
+        use clap::ValueEnum;
+        fn read<T: ValueEnum + Default>(var: &str) -> Result<T> {
+            match std::env::var(var) {
+                Err(_) => Ok(T::default()),
+                Ok(v) if v.is_empty() => Ok(T::default()),
+                Ok(v) => T::from_str(&v, true).map_err(|_| {
+                    let names: Vec<String> = T::value_variants()
+                        .iter()
+                        .filter_map(|c| c.to_possible_value().map(|p| p.get_name().to_string()))
+                        .collect();
+                    Error::Argument(format!("{var}={v}: want one of {}", names.join(", ")))
+                }),
+            }
+        }
+        Ok(DeviceOptions {
+            features: read(FEATURES_ENV)?,
+            limits: read(LIMITS_ENV)?,
+        })
+    }
+
+    /// The features to ask of an adapter that offers `offered`: the [`WANTED_FEATURES`] it
+    /// has, less the 64-bit integers under [`GpuFeatures::Portable`], and none at all under
+    /// [`GpuLimits::Webgpu`].
+    pub fn features_from(&self, offered: wgpu::Features) -> wgpu::Features {
+        let mut features = offered & WANTED_FEATURES;
+        if self.features == GpuFeatures::Portable {
+            features.remove(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
+        }
+        if self.limits == GpuLimits::Webgpu {
+            features = wgpu::Features::empty();
+        }
+        features
+    }
+
+    /// The limits to ask of an adapter whose own are `offered`.
+    pub fn limits_from(&self, offered: wgpu::Limits) -> wgpu::Limits {
+        match self.limits {
+            GpuLimits::Adapter => offered,
+            GpuLimits::Webgpu => wgpu::Limits::default(),
+        }
+    }
+}
+
 /// Reduction workgroups on a CPU adapter (lavapipe): few workgroups with grid-stride
 /// loops, each thread summing many pixels in registers; measured best around 16 at 640x480.
 pub const CPU_REDUCTION_WORKGROUPS: u32 = 16;
@@ -83,9 +174,19 @@ impl GpuContext {
     /// adapter's own limits (so `max_storage_buffer_binding_size`, `max_buffer_size` and
     /// storage buffers per stage are as large as the hardware allows).
     ///
+    /// The features and limits are those [`DeviceOptions::from_env`] asks for (by default
+    /// all of the above).
+    ///
     /// Errors: [`Error::NoAdapter`] naming the backends tried and the adapters seen;
-    /// [`Error::Gpu`] when the device cannot be created.
+    /// [`Error::Gpu`] when the device cannot be created; [`Error::Argument`] for a bad
+    /// [`FEATURES_ENV`] or [`LIMITS_ENV`].
     pub fn new() -> Result<GpuContext> {
+        Self::with_options(DeviceOptions::from_env()?)
+    }
+
+    /// [`GpuContext::new`] with the device's features and limits chosen by `options`
+    /// rather than the environment.
+    pub fn with_options(options: DeviceOptions) -> Result<GpuContext> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
             backends: BACKENDS,
             ..wgpu::InstanceDescriptor::new_without_display_handle()
@@ -119,8 +220,11 @@ impl GpuContext {
             "wgslam: GPU adapter \"{}\" backend {:?} type {:?} driver \"{} {}\"",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
         );
-        let features = adapter.features() & WANTED_FEATURES;
-        let limits = adapter.limits();
+        let features = options.features_from(adapter.features());
+        let limits = options.limits_from(adapter.limits());
+        if options != DeviceOptions::default() {
+            eprintln!("wgslam: GPU device with {options:?}: features {features:?}");
+        }
         let (device, queue) = super::wait::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("wgslam device"),
             required_features: features,
@@ -163,7 +267,7 @@ impl GpuContext {
         })
     }
 
-    /// The device's limits (equal to the adapter's: requested in full).
+    /// The device's limits (the adapter's, requested in full, or WebGPU's defaults).
     pub fn limits(&self) -> &wgpu::Limits {
         &self.limits
     }
@@ -183,7 +287,8 @@ impl GpuContext {
         &self.adapter
     }
 
-    /// True when 64-bit integer atomics (`atomicMax` on `u64`) are available.
+    /// True when 64-bit integer atomics (`atomicMax` on `u64`) are enabled on the device:
+    /// the key kernels are then the 64-bit ones, else their `*_portable` twins.
     pub fn has_int64_atomics(&self) -> bool {
         self.features
             .contains(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)

@@ -59,16 +59,47 @@ impl Kernel {
     /// Builds a kernel from full WGSL text (used by [`Kernel::new`] and by tests with
     /// inline shaders).
     pub fn from_source(ctx: &GpuContext, name: &str, wgsl: &str) -> Result<Kernel> {
+        Self::build(ctx, name, wgsl, &[], None)
+    }
+
+    /// The passes of a portable key kernel (`shaders/<name>.wgsl`, see
+    /// [`shaders::PORTABLE_KERNELS`]): one kernel per value of its `override KEY_PASS` (0,
+    /// then 1), sharing one bind-group layout, so a bind group made with the first runs
+    /// both passes.
+    pub fn key_passes(ctx: &GpuContext, name: &str) -> Result<[Kernel; 2]> {
+        let wgsl = shaders::source(name);
+        let first = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 0.0)], None)?;
+        let layout = first.bind_group_layout.clone();
+        let second = Self::build(
+            ctx,
+            name,
+            &wgsl,
+            &[(shaders::KEY_PASS, 1.0)],
+            Some(layout),
+        )?;
+        Ok([first, second])
+    }
+
+    /// A kernel from full WGSL with its `override` constants set to `constants`, and with
+    /// `layout` as its bind-group layout (else one made from the reflected bindings).
+    fn build(
+        ctx: &GpuContext,
+        name: &str,
+        wgsl: &str,
+        constants: &[(&str, f64)],
+        layout: Option<wgpu::BindGroupLayout>,
+    ) -> Result<Kernel> {
         let interface = reflect(name, wgsl).map_err(|problems| Error::Gpu(problems.join("\n")))?;
         let (bindings, [workgroup_size, workgroup_size_y]) = interface;
         ctx.scoped(&format!("creating kernel `{name}`"), || {
             let entries = layout_entries(&bindings);
-            let bind_group_layout =
+            let bind_group_layout = layout.unwrap_or_else(|| {
                 ctx.device
                     .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                         label: Some(name),
                         entries: &entries,
-                    });
+                    })
+            });
             let layout = ctx
                 .device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -89,7 +120,10 @@ impl Kernel {
                     layout: Some(&layout),
                     module: &module,
                     entry_point: Some("main"),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants,
+                        ..Default::default()
+                    },
                     cache: None,
                 });
             Ok(Kernel {
@@ -251,6 +285,39 @@ impl Kernel {
         pass.set_bind_group(0, bind_group, &[]);
         pass.dispatch_workgroups(x, y, 1);
         Ok(())
+    }
+}
+
+/// A kernel that keeps the nearest surfel per pixel in a map of 64-bit keys: the 64-bit
+/// kernel in one pass where the device has 64-bit atomics, else its portable twin in two
+/// passes (see [`shaders::PORTABLE_KERNELS`]). Every pass runs over the same bind groups
+/// (made with [`KeyKernel::first`]); each pass covers every chunk before the next begins.
+#[derive(Debug)]
+pub struct KeyKernel {
+    /// One kernel (64-bit) or two (the portable kernel's `KEY_PASS` 0 and 1), in order.
+    pub passes: Vec<Kernel>,
+}
+
+impl KeyKernel {
+    /// The kernel `name` (one of the 64-bit kernels of [`shaders::PORTABLE_KERNELS`]) or,
+    /// on a device without 64-bit atomics, its portable twin.
+    pub fn new(ctx: &GpuContext, name: &str) -> Result<KeyKernel> {
+        let portable = shaders::PORTABLE_KERNELS
+            .iter()
+            .find(|(k, _)| *k == name)
+            .unwrap_or_else(|| panic!("`{name}` is not a 64-bit key kernel"))
+            .1;
+        let passes = if ctx.has_int64_atomics() {
+            vec![Kernel::new(ctx, name)?]
+        } else {
+            Kernel::key_passes(ctx, portable)?.into()
+        };
+        Ok(KeyKernel { passes })
+    }
+
+    /// The first pass: its layout makes the bind groups, its workgroup size the grid.
+    pub fn first(&self) -> &Kernel {
+        &self.passes[0]
     }
 }
 

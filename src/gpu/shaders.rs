@@ -21,6 +21,28 @@ pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN
 /// Kernels prefixed with `scan_common.wgsl` instead of `common.wgsl`.
 pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 
+/// The kernels that need 64-bit integers and 64-bit `atomicMax` (`SHADER_INT64` and
+/// `SHADER_INT64_ATOMIC_MIN_MAX`), each with its portable twin kernel: `(kernel, portable)`.
+/// The portable kernel keeps the same 64-bit key as two u32 words, (low = index, high =
+/// depth word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
+/// then 1), and decides the same winner bit for bit. Every other kernel, portable ones
+/// included, validates without 64-bit integers (`tests/it/shaders.rs`).
+pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
+    ("project_model", "project_model_portable"),
+    ("fuse_select", "fuse_select_portable"),
+    ("fuse_add", "fuse_add_portable"),
+    ("render_splat", "render_splat_portable"),
+];
+
+/// The name of the `override` constant that picks a portable kernel's pass (0: the high
+/// word, 1: the index word).
+pub const KEY_PASS: &str = "KEY_PASS";
+
+/// True for the kernels that need 64-bit integers (the first of each [`PORTABLE_KERNELS`]).
+pub fn needs_int64(kernel_name: &str) -> bool {
+    PORTABLE_KERNELS.iter().any(|(k, _)| *k == kernel_name)
+}
+
 /// Every kernel as `(name, text of shaders/<name>.wgsl)`. Keep in sync with the directory:
 /// `tests/it/shaders.rs` fails when a `.wgsl` file is missing here.
 pub const KERNELS: &[(&str, &str)] = &[
@@ -89,6 +111,19 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("fuse_prune", include_str!("../../shaders/fuse_prune.wgsl")),
     ("fuse_flags", include_str!("../../shaders/fuse_flags.wgsl")),
     ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
+    // The portable key kernels (two 32-bit passes each, see PORTABLE_KERNELS).
+    (
+        "project_model_portable",
+        include_str!("../../shaders/project_model_portable.wgsl"),
+    ),
+    (
+        "fuse_select_portable",
+        include_str!("../../shaders/fuse_select_portable.wgsl"),
+    ),
+    (
+        "fuse_add_portable",
+        include_str!("../../shaders/fuse_add_portable.wgsl"),
+    ),
     (
         "compact_flags",
         include_str!("../../shaders/compact_flags.wgsl"),
@@ -114,6 +149,10 @@ pub const KERNELS: &[(&str, &str)] = &[
     (
         "render_splat",
         include_str!("../../shaders/render_splat.wgsl"),
+    ),
+    (
+        "render_splat_portable",
+        include_str!("../../shaders/render_splat_portable.wgsl"),
     ),
     (
         "render_resolve",

@@ -6,9 +6,9 @@
 use std::collections::BTreeMap;
 
 use super::backend::GpuBackend;
-use super::bind_groups::{BindGroups, CompactionGroups};
+use super::bind_groups::{BindGroups, CompactionGroups, SCATTER_ATTRIBUTES};
 use super::context::GpuContext;
-use super::kernel::Kernel;
+use super::kernel::{Kernel, KeyKernel};
 use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
@@ -63,6 +63,20 @@ impl StepGrid {
             .iter()
             .zip(&self.chunks)
             .map(|(g, &(blocks, _))| (kernel, g, [blocks, 1]))
+            .collect()
+    }
+    /// [`StepGrid::per_block`] for each pass of a key kernel in turn: every chunk of a
+    /// pass before the next pass (the portable kernels' second pass reads the first's
+    /// result over the whole map).
+    fn per_block_keys<'a>(
+        &self,
+        kernel: &'a KeyKernel,
+        groups: &'a [wgpu::BindGroup],
+    ) -> Vec<Pass<'a>> {
+        kernel
+            .passes
+            .iter()
+            .flat_map(|pass| self.per_block(pass, groups))
             .collect()
     }
     /// The `block_bounds` passes over the stale boxes.
@@ -257,7 +271,7 @@ impl Backend for GpuBackend {
         };
         // Only a fresh projection walks the map (see `plan::predict`).
         if plan.contains(&Call::ProjectModel) {
-            grid.chunks = self.chunk_workgroups(&self.kernels.project_model);
+            grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
         }
         if plan.contains(&Call::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
@@ -278,7 +292,7 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::ProjectModel => grid.per_block(&k.project_model, &bg.project_model),
+                    Call::ProjectModel => grid.per_block_keys(&k.project_model, &bg.project_model),
                     Call::PredictModel => bg
                         .predict_model
                         .iter()
@@ -369,7 +383,7 @@ impl Backend for GpuBackend {
         let mut grid = StepGrid {
             image: image_grids(
                 ctx,
-                &[&k.fuse_add, &k.fuse_flags, &k.fuse_merge_chosen],
+                &[k.fuse_add.first(), &k.fuse_flags, &k.fuse_merge_chosen],
                 f.width,
                 f.height,
             ),
@@ -405,7 +419,7 @@ impl Backend for GpuBackend {
                     }
                     Call::BlockBounds => grid.bounds(k, bg),
                     // Surfels pick pixels, then each picked surfel merges from its pixel.
-                    Call::FuseSelect => grid.per_block(&k.fuse_select, &bg.fuse_select),
+                    Call::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
                     Call::FuseMergeChosen => bg
                         .fuse_merge_chosen
                         .iter()
@@ -417,10 +431,15 @@ impl Backend for GpuBackend {
                         vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
                     }
                     Call::FuseScan => vec![(&k.prefix_sum, &bg.fuse_scan, [1, 1])],
-                    Call::FuseAdd => bg
+                    // Each pass over every chunk (one pass, or the portable kernel's two).
+                    Call::FuseAdd => k
                         .fuse_add
+                        .passes
                         .iter()
-                        .map(|g| (&k.fuse_add, g, grid.image("fuse_add")))
+                        .flat_map(|pass| {
+                            let wg = grid.image(&k.fuse_add.first().name);
+                            bg.fuse_add.iter().map(move |g| (pass, g, wg))
+                        })
                         .collect(),
                     other => unreachable!("{other:?} is not a fusion kernel"),
                 };
@@ -486,8 +505,13 @@ impl Backend for GpuBackend {
                         .iter()
                         .enumerate()
                         .flat_map(|(s, &(_, wg))| {
-                            (0..=s).map(move |d| {
-                                (&k.compact_scatter, &g.scatter[s * (s + 1) / 2 + d], [wg, 1])
+                            // Pair (s, d) has SCATTER_ATTRIBUTES bind groups in a row.
+                            (0..=s).flat_map(move |d| {
+                                (0..SCATTER_ATTRIBUTES).map(move |a| {
+                                    let pair = s * (s + 1) / 2 + d;
+                                    let group = &g.scatter[SCATTER_ATTRIBUTES * pair + a];
+                                    (&k.compact_scatter, group, [wg, 1])
+                                })
                             })
                         })
                         .collect(),

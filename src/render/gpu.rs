@@ -2,35 +2,30 @@
 //! the same kernels as the CPU twins in `src/cpu/render_*.rs`.
 //!
 //! Thin wrapper: two kernels created once, buffers created per picture (a render is a
-//! one-off, not a per-frame step), one read-back of the packed pixels. Needs 64-bit
-//! atomics (`SHADER_INT64_ATOMIC_MIN_MAX`), like `project_model`.
+//! one-off, not a per-frame step), one read-back of the packed pixels. `render_splat` is
+//! a [`KeyKernel`]: the 64-bit kernel, or on a device without 64-bit atomics its portable
+//! twin `render_splat_portable` in two passes, with the same keys.
 
 use image::RgbImage;
 
 use super::layout::RenderParams;
 use super::{render_params, rgba_to_image, Cloud, RenderCamera, RenderSettings, View};
+use crate::gpu::kernel::KeyKernel;
 use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
-use crate::{Error, Result};
+use crate::Result;
 
 /// The two render kernels, created once per context.
 #[derive(Debug)]
 pub struct GpuRenderer {
-    splat: Kernel,
+    splat: KeyKernel,
     resolve: Kernel,
 }
 
 impl GpuRenderer {
-    /// Creates both pipelines. [`Error::Gpu`] when the adapter lacks 64-bit atomics.
+    /// Creates the pipelines (three on a device without 64-bit atomics).
     pub fn new(ctx: &GpuContext) -> Result<GpuRenderer> {
-        if !ctx.has_int64_atomics() {
-            return Err(Error::Gpu(format!(
-                "adapter \"{}\" lacks 64-bit atomics (SHADER_INT64 + \
-                 SHADER_INT64_ATOMIC_MIN_MAX), which render_splat needs; use --backend cpu",
-                ctx.adapter_info().name
-            )));
-        }
         Ok(GpuRenderer {
-            splat: Kernel::new(ctx, "render_splat")?,
+            splat: KeyKernel::new(ctx, "render_splat")?,
             resolve: Kernel::new(ctx, "render_resolve")?,
         })
     }
@@ -65,11 +60,12 @@ impl GpuRenderer {
         let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
         let splat_groups = self
             .splat
+            .first()
             .workgroups_for(params.surfel_count as usize)
             .min(max_groups);
         let resolve_groups = self.resolve.workgroups_for(n).min(max_groups);
         ctx.scoped("render", || {
-            let splat_bg = self.splat.bind_group(
+            let splat_bg = self.splat.first().bind_group(
                 ctx,
                 &[
                     ("params", params_buf.binding()),
@@ -91,10 +87,10 @@ impl GpuRenderer {
             );
             let mut enc = ctx.encoder("render");
             index_map.clear(&mut enc);
-            {
+            // One pass per key pass: the portable kernel's second reads its first's map.
+            for splat in &self.splat.passes {
                 let mut pass = enc.begin_compute_pass(&Default::default());
-                self.splat
-                    .dispatch(ctx, &mut pass, &splat_bg, splat_groups)?;
+                splat.dispatch(ctx, &mut pass, &splat_bg, splat_groups)?;
             }
             {
                 // A second pass: every splat must land before any pixel is resolved.

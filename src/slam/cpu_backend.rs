@@ -480,19 +480,12 @@ impl Backend for CpuBackend {
                 Call::CompactScatter => {
                     let out = &mut self.spare;
                     out.resize(n);
-                    cpu::compact_scatter::compact_scatter(
-                        &params,
-                        &self.flags,
-                        &self.offsets,
-                        &chunk,
-                        &m.position_weight,
-                        &m.normal_frame,
-                        &m.color,
-                        &chunk,
-                        &mut out.position_weight,
-                        &mut out.normal_frame,
-                        &mut out.color,
-                    );
+                    // One call per attribute, as the kernel is dispatched.
+                    let (flags, offsets) = (&self.flags, &self.offsets);
+                    use cpu::compact_scatter::compact_scatter as scatter;
+                    scatter(&params, flags, offsets, &chunk, &m.position_weight, &chunk, &mut out.position_weight);
+                    scatter(&params, flags, offsets, &chunk, &m.normal_frame, &chunk, &mut out.normal_frame);
+                    scatter(&params, flags, offsets, &chunk, &m.color, &chunk, &mut out.color);
                     out.resize(counter as usize);
                 }
                 other => unreachable!("{other:?} is not a compaction kernel"),

@@ -1,0 +1,102 @@
+// fuse_add_portable.wgsl: fuse_add without 64-bit integers (WebGPU, and every adapter
+// without SHADER_INT64_ATOMIC_MIN_MAX): appends every pixel fuse_flags flagged as a new
+// surfel at slot surfel_count + offsets[append_index(pixel)], as fuse_add (whose header
+// says more). Dispatched once per map chunk and pass: KEY_PASS 0 over every chunk writes
+// the new surfels and, with best-candidate association, raises the high (depth) word of
+// each new surfel's pixel in fuse_select_portable's index map; KEY_PASS 1 over every chunk
+// sets the pixel's index word where the new surfel's depth word won. A new surfel's index
+// is larger than every index already in the map (new surfels are appended), so where its
+// depth word is the pixel's the index word becomes its index, and the (low, high) pair
+// equals fuse_add's 64-bit key bit for bit. CPU twin: src/cpu/fuse_add_portable.rs.
+//
+// Bindings (@group(0)): each is described by the comment above its declaration.
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes
+// at or past params.capacity (the host grows the map first so that every pixel fits).
+
+// Which word this dispatch decides: 0 the depth word (and the new surfels), 1 the index.
+override KEY_PASS: u32;
+
+// Uses t_cam_to_world, surfel_count, frame_id and capacity.
+@group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the vertex's depth in w, zero where invalid
+// (see vertex_to_normal.wgsl); the vertex is rebuilt with back_project, as in the twin.
+@group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// width x height, RGB 0..255.
+@group(0) @binding(2) var color_map: texture_2d<f32>;
+// 1 where the pixel becomes a new surfel (fuse_flags), at the pixel's append_index.
+@group(0) @binding(3) var<storage, read> flags: array<u32>;
+// Exclusive prefix sum of flags (prefix_sum).
+@group(0) @binding(4) var<storage, read> offsets: array<u32>;
+// The chunk's first map-wide index and slots: map-wide surfel i is element i - chunk.base
+// of the chunk's arrays, which hold chunk.slots entries each (see src/gpu/map_buffers.rs).
+@group(0) @binding(5) var<storage, read> chunk: MapChunk;
+// Out: xyz world frame, w = confidence.
+@group(0) @binding(6) var<storage, read_write> position_weight: array<vec4<f32>>;
+// Out: normal bits, w = last_frame.
+@group(0) @binding(7) var<storage, read_write> normal_frame: array<vec4<u32>>;
+// Out: RGB 0..255, a = radius (metres).
+@group(0) @binding(8) var<storage, read_write> color: array<vec4<f32>>;
+// With best-candidate association, the index map fuse_select_portable began, (low, high)
+// u32 words per pixel; each new surfel competes for its own pixel with the key
+// (map-wide index, depth_key(z_cam)), as project_model_portable's (left alone otherwise).
+@group(0) @binding(9) var<storage, read_write> index_map: array<atomic<u32>>;
+
+const TILE: u32 = 8u;
+
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = TILE * groups.xy;
+    // The params and the chunk copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let ch = chunk;
+    let size = vec2<u32>(p.width, p.height);
+    for (var v = gid.y; v < size.y; v += stride.y) {
+        for (var u = gid.x; u < size.x; u += stride.x) {
+            add_pixel(p, ch, vec2<u32>(u, v));
+        }
+    }
+}
+
+// Pixel `texel`'s new surfel, if the pixel is flagged and its slot is in this chunk.
+// `params` and `chunk` are main's copies of the bindings.
+fn add_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
+    let a = append_index(texel);
+    if flags[a] == 0u {
+        return;
+    }
+    let nd = textureLoad(normal_depth, texel, 0);
+    let i = params.surfel_count + offsets[a];
+    // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
+    let slot = i - chunk.base;
+    if i >= params.capacity || slot >= chunk.slots {
+        return;
+    }
+    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let q_cam = back_project(cam, texel, nd.w);
+    let p = transform_point(params.t_cam_to_world, q_cam);
+    let n = transform_dir(params.t_cam_to_world, xyz(nd));
+    let w = pixel_confidence(cam, texel, params.confidence_sigma);
+    let r = surfel_radius(params.fx, q_cam, xyz(nd));
+    if KEY_PASS == 0u {
+        position_weight[slot] = vec4<f32>(p, w);
+        normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
+        color[slot] = vec4<f32>(textureLoad(color_map, texel, 0).xyz, r);
+    }
+    if params.association == ASSOCIATION_BEST_CANDIDATE {
+        keep_nearer(texel.y * params.width + texel.x, depth_key(q_cam.z), i);
+    }
+}
+
+// Pass KEY_PASS of the two-pass maximum of the key (depth_word, index) at pixel `pix`:
+// pass 0 raises the depth word; pass 1 raises the index word if this surfel's depth word
+// is the pixel's. Mirrors `cpu::keep_nearer`.
+fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
+    if KEY_PASS == 0u {
+        atomicMax(&index_map[2u * pix + 1u], depth_word);
+    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
+        atomicMax(&index_map[2u * pix], index);
+    }
+}

@@ -1,0 +1,113 @@
+// fuse_select_portable.wgsl: fuse_select without 64-bit integers (WebGPU, and every
+// adapter without SHADER_INT64_ATOMIC_MIN_MAX): every pixel picks the one surfel it will
+// fuse with, and begins the next frame's index map. Dispatched once per map chunk and
+// pass: KEY_PASS 0 over every chunk, then KEY_PASS 1 over every chunk. CPU twin:
+// src/cpu/fuse_select_portable.rs (fuse_select's header states the gates and the choice).
+//
+// Bindings (@group(0)): each is described by the comment above its declaration.
+// Both maps hold fuse_select's 64-bit keys as (low, high) u32 words: pass 0 keeps the
+// largest high word per pixel, pass 1 the largest index among the surfels whose high word
+// equals the pixel's (keep_nearer, keep_best), so each pair equals fuse_select's key bit
+// for bit whatever the thread order. Culling and striding as in fuse_select.
+
+// Which word this dispatch decides: 0 the high (depth or off-ray) word, 1 the index word.
+override KEY_PASS: u32;
+
+// Tracked pose, intrinsics, surfel_count, gates.
+@group(0) @binding(0) var<storage, read> params: FuseParams;
+// width x height, camera-frame normal with the depth in w, zero where invalid; the vertex
+// is rebuilt with back_project.
+@group(0) @binding(1) var normal_depth: texture_2d<f32>;
+// The chunk's first map-wide index and slots; the chunk's arrays hold its surfels from
+// slot 0 (see src/gpu/map_buffers.rs).
+@group(0) @binding(2) var<storage, read> chunk: MapChunk;
+// Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
+// ordered_from_f32 encoded.
+@group(0) @binding(3) var<storage, read> block_bounds: array<vec4<u32>>;
+// The chunk's surfels, xyz world frame (metres), w = confidence.
+@group(0) @binding(4) var<storage, read> position_weight: array<vec4<f32>>;
+// Bits of the unit normal (world frame), w = last frame.
+@group(0) @binding(5) var<storage, read> normal_frame: array<vec4<u32>>;
+// RGB 0..255, a = radius (metres).
+@group(0) @binding(6) var<storage, read> color: array<vec4<f32>>;
+// One key per pixel as (low, high) u32 words, cleared to 0 by the host before pass 0: the
+// chosen surfel's (map-wide index, depth_key(off_ray_m)).
+@group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u32>>;
+// One key per pixel as (low, high) u32 words, cleared to 0 by the host before pass 0;
+// project_model_portable's key, (map-wide index, depth_key(z_cam)), of every surfel whose centre lands in the
+// image, before this frame's merges: the next frame's prediction at this pose (fuse_add
+// adds the new surfels), so predict skips project_model (see Backend::predict).
+@group(0) @binding(8) var<storage, read_write> index_map: array<atomic<u32>>;
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    // The params copied once per thread (see vertex_to_normal's main).
+    let p = params;
+    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let span = chunk_blocks(chunk, p.surfel_count);
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
+    for (var b = wid.x; b < span.x; b += nwg.x) {
+        let block = base / BLOCK_SURFELS + b;
+        let lo = decode_corner(block_bounds[2u * block]);
+        let hi = decode_corner(block_bounds[2u * block + 1u]);
+        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
+            continue;
+        }
+        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            select_for_surfel(p, i, i - base, cam);
+        }
+    }
+}
+
+// Pass KEY_PASS for surfel i (map-wide index; `slot` in the chunk's arrays) at the pixel
+// it projects to: of its index-map key and of its association key (if the surfel passes
+// its gates), as fuse_select's select_for_surfel. `params` is main's copy of the binding.
+fn select_for_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
+    let p_cam = transform_point(params.t_world_to_cam, xyz(position_weight[slot]));
+    let uv = project_to_texel(cam, params.width, params.height, p_cam);
+    if uv.x < 0 {
+        return;
+    }
+    let texel = vec2<u32>(uv);
+    let pix = texel.y * params.width + texel.x;
+    keep_nearer(pix, depth_key(p_cam.z), i);
+    let nd = textureLoad(normal_depth, texel, 0);
+    if !is_valid(nd) {
+        return;
+    }
+    let n_cam = transform_dir(params.t_world_to_cam, bitcast<vec3<f32>>(normal_frame[slot].xyz));
+    let off_ray = candidate_off_ray(cam, texel, nd, p_cam, n_cam, color[slot].w,
+        params.dist_threshold_m, params.cos_normal_threshold);
+    if off_ray < 0.0 {
+        return;
+    }
+    keep_best(pix, depth_key(off_ray), i);
+}
+
+// Pass KEY_PASS of the two-pass maximum of the index-map key (depth_word, index) at pixel
+// `pix`: pass 0 raises the high word; pass 1 raises the index word if this surfel's high
+// word is the pixel's. Mirrors `cpu::keep_nearer`, as keep_best.
+fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
+    if KEY_PASS == 0u {
+        atomicMax(&index_map[2u * pix + 1u], depth_word);
+    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
+        atomicMax(&index_map[2u * pix], index);
+    }
+}
+
+// keep_nearer on the association map: the key (depth_key(off_ray), index).
+fn keep_best(pix: u32, off_word: u32, index: u32) {
+    if KEY_PASS == 0u {
+        atomicMax(&assoc[2u * pix + 1u], off_word);
+    } else if atomicLoad(&assoc[2u * pix + 1u]) == off_word {
+        atomicMax(&assoc[2u * pix], index);
+    }
+}

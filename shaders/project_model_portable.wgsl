@@ -1,0 +1,73 @@
+// project_model_portable.wgsl: project_model without 64-bit integers (WebGPU, and every
+// adapter without SHADER_INT64_ATOMIC_MIN_MAX): splats every surfel of one map chunk into
+// an index map with a depth test, skipping blocks the camera cannot see. Dispatched once
+// per chunk and pass: KEY_PASS 0 over every chunk, then KEY_PASS 1 over every chunk.
+// CPU twin: src/cpu/project_model_portable.rs.
+//
+// Bindings (@group(0)): each is described by the comment above its declaration.
+// The map holds project_model's 64-bit keys as (low, high) u32 words: high = depth_key
+// (z_cam), low = map-wide surfel index. Pass 0 keeps the largest depth word per pixel
+// (atomicMax); pass 1 keeps the largest index among the surfels whose depth word equals
+// the pixel's (keep_nearer), so the pair equals project_model's key bit for bit: the
+// nearest surfel, ties to the larger index, (0, 0) = none. Culling and striding as in
+// project_model.
+
+// Which word this dispatch decides: 0 the depth word, 1 the index word (keep_nearer).
+override KEY_PASS: u32;
+
+// Uses t_world_to_cam, the intrinsics, the map size and surfel_count.
+@group(0) @binding(0) var<storage, read> params: ProjectParams;
+// The chunk's first map-wide index and slots.
+@group(0) @binding(1) var<storage, read> chunk: MapChunk;
+// Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
+// ordered_from_f32 encoded.
+@group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
+// The chunk's surfels, xyz world frame (metres) + weight (see src/gpu/map_buffers.rs).
+@group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
+// width x height keys, 2 u32 words each (low = index, high = depth word), cleared to 0 by
+// the host before pass 0.
+@group(0) @binding(4) var<storage, read_write> index_map: array<atomic<u32>>;
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    // The params copied once per thread (see vertex_to_normal's main).
+    let view = params;
+    let cam = vec4<f32>(view.fx, view.fy, view.cx, view.cy);
+    let span = chunk_blocks(chunk, view.surfel_count);
+    // The chunk's first index copied once per thread, as the params.
+    let base = chunk.base;
+    for (var b = wid.x; b < span.x; b += nwg.x) {
+        let block = base / BLOCK_SURFELS + b;
+        let lo = decode_corner(block_bounds[2u * block]);
+        let hi = decode_corner(block_bounds[2u * block + 1u]);
+        if !block_visible(view.t_world_to_cam, cam, view.width, view.height, lo, hi) {
+            continue;
+        }
+        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
+        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
+            let p = transform_point(view.t_world_to_cam, xyz(position_weight[i - base]));
+            let pix = project_to_pixel(cam, view.width, view.height, p);
+            if pix >= 0 {
+                keep_nearer(u32(pix), depth_key(p.z), i);
+            }
+        }
+    }
+}
+
+// Pass KEY_PASS of the two-pass maximum of the key (depth_word, index) at pixel `pix`:
+// pass 0 raises the depth word; pass 1 raises the index word if this surfel's depth word
+// is the pixel's (every pass-0 dispatch has finished by then). Mirrors
+// `cpu::keep_nearer`.
+fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
+    if KEY_PASS == 0u {
+        atomicMax(&index_map[2u * pix + 1u], depth_word);
+    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
+        atomicMax(&index_map[2u * pix], index);
+    }
+}

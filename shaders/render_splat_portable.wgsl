@@ -1,0 +1,92 @@
+// render_splat_portable.wgsl: render_splat without 64-bit integers (WebGPU, and every
+// adapter without SHADER_INT64_ATOMIC_MIN_MAX): splats surfels as small discs into a
+// depth|index map, for pictures of the map. Dispatched twice: KEY_PASS 0, then KEY_PASS 1.
+// CPU twin: src/cpu/render_splat_portable.rs.
+//
+// Prepended with common.wgsl (transform_point, transform_dir, xyz, depth_key).
+// Bindings (@group(0)): each is described by the comment above its declaration.
+// The map holds render_splat's 64-bit keys as (low, high) u32 words: pass 0 keeps the
+// largest depth word per covered pixel, pass 1 the largest index among the surfels whose
+// depth word equals the pixel's (keep_nearer), so the pair equals render_splat's key bit
+// for bit. Grid-stride loop over surfels, so any workgroup count covers the whole map.
+
+// Which word this dispatch decides: 0 the depth word, 1 the index word (keep_nearer).
+override KEY_PASS: u32;
+
+// RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
+
+// Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
+const MAX_PROJECTED_PX: f32 = 1.0e7;
+
+// The view and splat sizes (RenderParams mirrors src/render/layout.rs).
+@group(0) @binding(0) var<storage, read> params: RenderParams;
+// Surfel centres, world frame, metres; surfel_count entries read.
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+// Surfel normals, world frame; read only when cull_backfaces == 1.
+@group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+// width x height, row-major, 2 u32 words (low = index, high = depth word) each, cleared to
+// 0 by the host before pass 0.
+@group(0) @binding(3) var<storage, read_write> index_map: array<atomic<u32>>;
+
+// Pixel radius of a splat at camera depth z. Mirrors `cpu::render_splat::splat_radius_px`.
+fn splat_radius_px(z: f32) -> f32 {
+    let f = max(abs(params.fx), abs(params.fy));
+    return clamp(params.splat_radius_m * f / z, params.min_radius_px, params.max_radius_px);
+}
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let stride = groups.x * 64u;
+    let w = params.width;
+    let h = params.height;
+    for (var i = gid.x; i < params.surfel_count; i += stride) {
+        let p = transform_point(params.t_world_to_cam, xyz(positions[i]));
+        // Negated so that a NaN depth is skipped too.
+        if !(p.z > params.near_m && p.z <= params.far_m) {
+            continue;
+        }
+        if params.cull_backfaces == 1u {
+            let n = transform_dir(params.t_world_to_cam, xyz(normals[i]));
+            if dot(n, p) > 0.0 {
+                continue;
+            }
+        }
+        let u = params.fx * p.x / p.z + params.cx;
+        let v = params.fy * p.y / p.z + params.cy;
+        if !(abs(u) < MAX_PROJECTED_PX && abs(v) < MAX_PROJECTED_PX) {
+            continue;
+        }
+        let r = splat_radius_px(p.z);
+        let u0 = max(ceil(u - r), 0.0);
+        let u1 = min(floor(u + r), f32(w - 1u));
+        let v0 = max(ceil(v - r), 0.0);
+        let v1 = min(floor(v + r), f32(h - 1u));
+        if u0 > u1 || v0 > v1 {
+            continue;
+        }
+        let depth_word = depth_key(p.z);
+        for (var py = u32(v0); py <= u32(v1); py++) {
+            let dv = f32(py) - v;
+            for (var px = u32(u0); px <= u32(u1); px++) {
+                let du = f32(px) - u;
+                if du * du + dv * dv <= r * r {
+                    keep_nearer(py * w + px, depth_word, i);
+                }
+            }
+        }
+    }
+}
+
+// Pass KEY_PASS of the two-pass maximum of the key (depth_word, index) at pixel `pix`:
+// pass 0 raises the depth word; pass 1 raises the index word if this surfel's depth word
+// is the pixel's. Mirrors `cpu::keep_nearer`.
+fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
+    if KEY_PASS == 0u {
+        atomicMax(&index_map[2u * pix + 1u], depth_word);
+    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
+        atomicMax(&index_map[2u * pix], index);
+    }
+}
