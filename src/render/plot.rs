@@ -8,11 +8,13 @@
 //! per-frame error (no alignment: both paths share the dataset's world frame).
 
 use std::path::Path;
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::Once;
 
 use glam::{DMat4, DVec3};
 use image::RgbImage;
 use plotters::prelude::*;
+#[cfg(not(target_arch = "wasm32"))]
 use plotters::style::FontStyle;
 
 use crate::eval::DEFAULT_MAX_DT;

@@ -434,6 +434,55 @@ pub fn run_observed<B: Backend + Inspect>(
     })
 }
 
+/// The run's summary as `wgslam run` prints it (time per frame, map size, tracking, ATE
+/// and RPE, peak memory), one line each; the browser page shows the same lines.
+pub fn summary_lines(m: &Metrics) -> Vec<String> {
+    let mut lines = Vec::new();
+    lines.push(format!(
+        "{} frames {}..{} on {} ({}x{}): {:.1} ms/frame median, {:.2} s total",
+        m.frames,
+        m.first_frame,
+        m.last_frame,
+        m.backend,
+        m.width,
+        m.height,
+        m.time_per_frame_median_s * 1e3,
+        m.time_total_s
+    ));
+    lines.push(format!(
+        "map: {} points, compression ratio {:.4}",
+        m.map_points, m.compression_ratio
+    ));
+    let t = &m.tracking;
+    lines.push(format!(
+        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} \
+         relocalised, {} lost, {} empty; {} keyframes",
+        t.given,
+        t.converged,
+        t.max_iterations,
+        t.stopped,
+        t.relocalised,
+        t.lost,
+        t.empty_depth,
+        t.keyframes
+    ));
+    lines.push(format!("tracking health: {}", t.verdict()));
+    if let Some(acc) = &m.accuracy {
+        lines.push(format!(
+            "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",
+            acc.ate_rmse_aligned_m * 1e3,
+            acc.ate_rmse_unaligned_m * 1e3,
+            acc.rpe_trans_rmse_m * 1e3,
+            acc.rpe_rot_rmse_deg,
+            acc.pairs
+        ));
+    }
+    if let Some(mem) = m.peak_memory_mib {
+        lines.push(format!("peak memory {mem:.0} MiB"));
+    }
+    lines
+}
+
 /// Every file `wgslam run` writes into its `--out` folder: [`write_outputs`]'s and
 /// [`write_pictures`]'s.
 pub const OUTPUT_FILES: [&str; 9] = [

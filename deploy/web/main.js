@@ -1,0 +1,148 @@
+// The page's driver: loads the WebAssembly build (pkg/, written by build.sh), hands it the
+// bundled frames (data/, copies of assets/icl_living_room_kt2 listed in data/files.json),
+// runs dense SLAM through `WebAssembly.promising` (the run suspends on every GPU wait, see
+// src/gpu/wait.rs), shows progress, then the command line's summary lines, the trajectory
+// against ground truth and the map render. Everything is fetched from this page's own
+// origin.
+//
+// Query parameters: `frames=A..B` (inclusive, default: every bundled frame).
+// For scripts (deploy/web/test): `document.body.dataset.state` becomes `done` or `error`,
+// and `window.wgslam` holds `{ state, error, result, wallSeconds }`.
+
+import init, {
+  add_file,
+  set_progress,
+  result_json,
+  render_rgba,
+  last_error,
+} from "./pkg/wgslam.js";
+
+const ROOT = "assets/icl_living_room_kt2";
+const $ = (id) => document.getElementById(id);
+window.wgslam = { state: "loading" };
+
+function finish(state, fields) {
+  Object.assign(window.wgslam, { state }, fields);
+  document.body.dataset.state = state;
+}
+
+function fail(message) {
+  $("status").textContent = `error: ${message}`;
+  $("status").style.color = "#b00";
+  finish("error", { error: message });
+}
+
+async function main() {
+  if (!navigator.gpu) {
+    return fail("this browser has no WebGPU (navigator.gpu is missing)");
+  }
+  if (typeof WebAssembly.promising !== "function" || typeof WebAssembly.Suspending !== "function") {
+    return fail("this browser has no JavaScript Promise Integration (WebAssembly.promising)");
+  }
+  const wasm = await init({ module_or_path: new URL("./pkg/wgslam_bg.wasm", import.meta.url) });
+
+  $("status").textContent = "loading frames…";
+  const list = await (await fetch("data/files.json")).json();
+  await Promise.all(
+    list.files.map(async (rel) => {
+      const response = await fetch(`data/${rel}`);
+      if (!response.ok) throw new Error(`data/${rel}: HTTP ${response.status}`);
+      add_file(`${ROOT}/${rel}`, new Uint8Array(await response.arrayBuffer()));
+    }),
+  );
+
+  const frames = new URLSearchParams(location.search).get("frames") ?? `0..${list.frames - 1}`;
+  const match = /^(\d+)\.\.(\d+)$/.exec(frames);
+  if (!match) return fail(`frames=${frames}: want A..B`);
+  const [first, last] = [Number(match[1]), Number(match[2])];
+
+  const progress = $("progress");
+  progress.max = last - first + 1;
+  set_progress((done, total, surfels, ms, status) => {
+    progress.value = done;
+    $("status").textContent =
+      `frame ${done} of ${total}: ${ms.toFixed(0)} ms, ${surfels} surfels, ${status}`;
+  });
+  $("status").textContent = "starting the GPU…";
+
+  const run = WebAssembly.promising(wasm.wgslam_web_run);
+  const t0 = performance.now();
+  const rc = await run(first, last);
+  const wallSeconds = (performance.now() - t0) / 1e3;
+  if (rc !== 0) return fail(last_error() ?? `run returned ${rc}`);
+
+  const result = JSON.parse(result_json());
+  $("summary").textContent = [
+    `WebGPU adapter: ${result.adapter}; ${result.key_kernels} key kernels`,
+    ...result.summary,
+    `wall time ${wallSeconds.toFixed(1)} s in this tab`,
+  ].join("\n");
+  drawTrajectory($("trajectory"), result.estimate, result.ground_truth);
+  drawMap($("map"), result.render_width, result.render_height, render_rgba());
+  $("status").textContent = "done";
+  finish("done", { result, wallSeconds });
+}
+
+// Top view: the two world axes along which the ground truth extends most (x and z for
+// ICL-NUIM, whose vertical axis is y), equal scale, a 10 cm bar.
+function drawTrajectory(canvas, est, gt) {
+  const g = canvas.getContext("2d");
+  g.fillStyle = "#fff";
+  g.fillRect(0, 0, canvas.width, canvas.height);
+  const ref = gt.length ? gt : est;
+  const extent = [1, 2, 3].map((k) => {
+    const v = ref.map((p) => p[k]);
+    return Math.max(...v) - Math.min(...v);
+  });
+  const axes = [1, 2, 3].sort((a, b) => extent[b - 1] - extent[a - 1]).slice(0, 2).sort();
+  const all = [...est, ...gt];
+  const lo = axes.map((k) => Math.min(...all.map((p) => p[k])));
+  const hi = axes.map((k) => Math.max(...all.map((p) => p[k])));
+  const margin = 40;
+  const scale = Math.min(
+    (canvas.width - 2 * margin) / Math.max(hi[0] - lo[0], 1e-6),
+    (canvas.height - 2 * margin) / Math.max(hi[1] - lo[1], 1e-6),
+  );
+  const at = (p) => [
+    margin + (p[axes[0]] - lo[0]) * scale,
+    canvas.height - margin - (p[axes[1]] - lo[1]) * scale,
+  ];
+  const path = (points, color) => {
+    g.strokeStyle = color;
+    g.lineWidth = 2;
+    g.beginPath();
+    points.forEach((p, i) => (i ? g.lineTo(...at(p)) : g.moveTo(...at(p))));
+    g.stroke();
+    g.fillStyle = color;
+    for (const p of points) {
+      const [x, y] = at(p);
+      g.fillRect(x - 2, y - 2, 4, 4);
+    }
+  };
+  path(gt, "#1e5ac8");
+  path(est, "#dc3c1e");
+  const names = ["x", "y", "z"];
+  g.fillStyle = "#222";
+  g.font = "14px sans-serif";
+  g.fillText(`${names[axes[0] - 1]} →, ${names[axes[1] - 1]} ↑ (world, metres)`, 10, 20);
+  g.fillStyle = "#1e5ac8";
+  g.fillText("ground truth", canvas.width - 210, 20);
+  g.fillStyle = "#dc3c1e";
+  g.fillText("estimate", canvas.width - 100, 20);
+  g.strokeStyle = "#222";
+  g.beginPath();
+  g.moveTo(10, canvas.height - 12);
+  g.lineTo(10 + 0.1 * scale, canvas.height - 12);
+  g.stroke();
+  g.fillStyle = "#222";
+  g.fillText("10 cm", 14 + 0.1 * scale, canvas.height - 8);
+}
+
+function drawMap(canvas, width, height, rgba) {
+  canvas.width = width;
+  canvas.height = height;
+  const image = new ImageData(new Uint8ClampedArray(rgba.buffer, rgba.byteOffset, rgba.length), width, height);
+  canvas.getContext("2d").putImageData(image, 0, 0);
+}
+
+main().catch((e) => fail(e?.stack ?? String(e)));
