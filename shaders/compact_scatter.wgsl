@@ -1,8 +1,8 @@
-// compact_scatter.wgsl: copies one attribute of every kept surfel i to slot offsets[i] of
+// compact_scatter.wgsl: copies one surfel array of every kept surfel i to slot offsets[i] of
 // a second map (chunk set), so the survivors end up at the front in their current order
 // (stream compaction); the host then swaps the two sets. Last of the three
 // stream-compaction kernels. Dispatched once per pair of input chunk and output chunk
-// (output chunks no later than the input's, as offsets[i] <= i) and per attribute
+// (output chunks no later than the input's, as offsets[i] <= i) and per surfel array
 // (position_weight, normal_frame, color: one at a time keeps the kernel within WebGPU's 8
 // storage buffers per stage): each pass copies the input chunk's kept surfels whose new
 // slot the output chunk holds. CPU twin: src/cpu/compact_scatter.rs.
@@ -20,12 +20,12 @@
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
 // One of the input chunk's surfel arrays (position_weight, normal_frame or color, see
 // src/gpu/map_buffers.rs), its 16-byte entries copied as bits.
-@group(0) @binding(4) var<storage, read> attribute: array<vec4<u32>>;
+@group(0) @binding(4) var<storage, read> surfel_array: array<vec4<u32>>;
 // The output chunk: a chunk of the second map, which has the input's chunks.
 @group(0) @binding(5) var<storage, read> out_chunk: MapChunk;
 // Out: the same array of the output chunk (its slots entries); only the kept surfels
 // whose new slot this chunk holds are written.
-@group(0) @binding(6) var<storage, read_write> out_attribute: array<vec4<u32>>;
+@group(0) @binding(6) var<storage, read_write> out_surfel_array: array<vec4<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -45,6 +45,6 @@ fn main(
             continue;
         }
         let src = i - base;
-        out_attribute[dst] = attribute[src];
+        out_surfel_array[dst] = surfel_array[src];
     }
 }

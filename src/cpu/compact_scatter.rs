@@ -1,6 +1,6 @@
-//! CPU twin of `shaders/compact_scatter.wgsl`: copies one attribute of every kept surfel
+//! CPU twin of `shaders/compact_scatter.wgsl`: copies one surfel array of every kept surfel
 //! `i` to slot `offsets[i]` of the output map array, so the survivors end up at the front
-//! in their current order (stream compaction). Called once per attribute, as the kernel is
+//! in their current order (stream compaction). Called once per surfel array, as the kernel is
 //! dispatched.
 
 use super::chunk_blocks;
@@ -8,16 +8,16 @@ use crate::layout::{CompactParams, MapChunk};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames. `T` is the
-/// attribute's 16-byte entry (`[f32; 4]` or `[u32; 4]`), copied whole as the kernel copies
+/// array's 16-byte entry (`[f32; 4]` or `[u32; 4]`), copied whole as the kernel copies
 /// its bits.
 pub fn compact_scatter<T: Copy>(
     params: &CompactParams,
     flags: &[u32],
     offsets: &[u32],
     chunk: &MapChunk,
-    attribute: &[T],
+    surfel_array: &[T],
     out_chunk: &MapChunk,
-    out_attribute: &mut [T],
+    out_surfel_array: &mut [T],
 ) {
     let (_, end) = chunk_blocks(chunk, params.surfel_count);
     for i in chunk.base..end {
@@ -28,6 +28,6 @@ pub fn compact_scatter<T: Copy>(
         }
         let src = (i - chunk.base) as usize;
         let dst = dst as usize;
-        out_attribute[dst] = attribute[src];
+        out_surfel_array[dst] = surfel_array[src];
     }
 }

@@ -257,11 +257,11 @@ fn icp_reduce(
 pub(super) const SCATTER_ATTRIBUTES: usize = 3;
 
 /// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
-/// input chunk and output chunk no later than it, and per attribute) for one map set.
+/// input chunk and output chunk no later than it, and per surfel array) for one map set.
 pub(super) struct CompactionGroups {
     pub flags: Vec<wgpu::BindGroup>,
     pub scan: wgpu::BindGroup,
-    /// Input chunk s, output chunk d <= s (offsets[i] <= i), attribute a (position_weight,
+    /// Input chunk s, output chunk d <= s (offsets[i] <= i), surfel array a (position_weight,
     /// normal_frame, color) at [`SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
     pub scatter: Vec<wgpu::BindGroup>,
 }
@@ -308,13 +308,13 @@ impl CompactionGroups {
                 .enumerate()
                 .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
                 .flat_map(|(from, to)| {
-                    // One bind group per attribute, in the order of SCATTER_ATTRIBUTES.
+                    // One bind group per surfel array, in the order of SCATTER_ATTRIBUTES.
                     [
                         (from.position_weight.binding(), to.position_weight.binding()),
                         (from.normal_frame.binding(), to.normal_frame.binding()),
                         (from.color.binding(), to.color.binding()),
                     ]
-                    .map(|(attribute, out_attribute)| {
+                    .map(|(surfel_array, out_surfel_array)| {
                         k.compact_scatter.bind_group(
                             ctx,
                             &[
@@ -322,9 +322,9 @@ impl CompactionGroups {
                                 ("flags", c.flags.binding()),
                                 ("offsets", c.offsets.binding()),
                                 ("chunk", from.info_buffer.binding()),
-                                ("attribute", attribute),
+                                ("surfel_array", surfel_array),
                                 ("out_chunk", to.info_buffer.binding()),
-                                ("out_attribute", out_attribute),
+                                ("out_surfel_array", out_surfel_array),
                             ],
                         )
                     })

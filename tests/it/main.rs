@@ -19,6 +19,7 @@ mod gpu_smoke;
 mod hostile;
 mod inputs;
 mod layout;
+mod portable;
 mod render;
 // `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
 #[cfg(feature = "rerun")]
@@ -54,6 +55,7 @@ fn main() -> ExitCode {
         hostile,
         inputs,
         layout,
+        portable,
         render,
         scan_gpu,
         scan_icp,

@@ -81,6 +81,66 @@ fn every_shader_parses_and_validates() {
     );
 }
 
+/// Without 64-bit integers (WebGPU, and adapters without SHADER_INT64): every prefix and
+/// every kernel but the 64-bit key kernels validates with no optional capability, and each
+/// 64-bit key kernel has a portable twin that does. The portable kernels' `override
+/// KEY_PASS` is left unset here (naga validates the module with its overrides).
+fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
+    let mut failures = Vec::new();
+    for (prefix, text) in shaders::PREFIXES {
+        if let Some(f) = wgsl::check(
+            &format!("{prefix}.wgsl alone"),
+            text,
+            naga::valid::Capabilities::empty(),
+            |l| (format!("shaders/{prefix}.wgsl"), l),
+        ) {
+            failures.push(f);
+        }
+    }
+    let mut portable = 0;
+    for (name, _) in shaders::KERNELS {
+        if shaders::needs_int64(name) {
+            continue;
+        }
+        portable += 1;
+        if let Some(f) = wgsl::check(
+            name,
+            &shaders::source(name),
+            naga::valid::Capabilities::empty(),
+            |l| shaders::origin_of_line(name, l),
+        ) {
+            failures.push(f);
+        }
+    }
+    for (int64, twin) in shaders::PORTABLE_KERNELS {
+        assert!(
+            shaders::kernel_text(int64).is_some() && shaders::kernel_text(twin).is_some(),
+            "{int64} / {twin}: not both in KERNELS"
+        );
+        // The 64-bit kernel really needs the capability (else it needs no twin).
+        assert!(
+            wgsl::check(
+                int64,
+                &shaders::source(int64),
+                naga::valid::Capabilities::empty(),
+                |l| shaders::origin_of_line(int64, l)
+            )
+            .is_some(),
+            "{int64} validates without 64-bit integers: drop it from PORTABLE_KERNELS"
+        );
+    }
+    assert!(
+        failures.is_empty(),
+        "{} kernel(s) need an optional capability:\n\n{}",
+        failures.len(),
+        failures.join("\n\n")
+    );
+    eprintln!(
+        "{portable} kernels validate without 64-bit integers; {} have portable twins",
+        shaders::PORTABLE_KERNELS.len()
+    );
+}
+
 /// The checker itself reports a broken shader with the right file and line (so a passing
 /// run above means something).
 fn a_broken_kernel_is_reported_with_file_and_line() {
@@ -104,6 +164,10 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "every_shader_parses_and_validates",
             every_shader_parses_and_validates,
+        ),
+        plain(
+            "every_kernel_but_the_64_bit_ones_needs_no_capability",
+            every_kernel_but_the_64_bit_ones_needs_no_capability,
         ),
         plain(
             "a_broken_kernel_is_reported_with_file_and_line",

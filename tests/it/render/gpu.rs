@@ -35,7 +35,7 @@ fn render_params_layout_matches_both_shaders() {
         background,
     });
     let mut failures = Vec::new();
-    for kernel in ["render_splat", "render_resolve"] {
+    for kernel in ["render_splat", "render_splat_portable", "render_resolve"] {
         let module = wgsl::parse(kernel, &shaders::source(kernel));
         failures.extend(wgsl::layout_mismatches(kernel, &module, &rust));
     }
