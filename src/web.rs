@@ -89,6 +89,10 @@ struct WebResult<'a> {
     key_kernels: &'static str,
     /// Tracked camera positions `[stamp, x, y, z]` (world frame, metres).
     estimate: Vec<[f64; 4]>,
+    /// The same, moved by the rigid alignment of the aligned ATE (`eval::align_rigid` over
+    /// the pairs `eval::ate` uses) into the ground truth's frame; empty without ground
+    /// truth. The run's own world frame is its first camera's, not the dataset's.
+    estimate_aligned: Vec<[f64; 4]>,
     /// Ground-truth camera positions `[stamp, x, y, z]` of the run's frames.
     ground_truth: Vec<[f64; 4]>,
     /// Pipeline milliseconds per frame, in order.
@@ -99,20 +103,22 @@ struct WebResult<'a> {
     render_backend: &'static str,
 }
 
-/// Runs dense SLAM over frames `first..=last` of the files given by [`add_file`] under
+/// Runs dense SLAM over frames `first..=last` (a negative `first`: the command line's
+/// default, the first frame with ground truth; a negative `last`: the last frame) of the files given by [`add_file`] under
 /// `assets/icl_living_room_kt2` with the default parameters of `wgslam run` (the robust
 /// profile, tracked poses) on the WebGPU adapter. Returns 0 on success, 1 on an error
 /// ([`last_error`]). Must be called through `WebAssembly.promising` (it suspends while the
 /// GPU works).
 #[no_mangle]
-pub extern "C" fn wgslam_web_run(first: u32, last: u32) -> u32 {
+pub extern "C" fn wgslam_web_run(first: i32, last: i32) -> u32 {
     // Earlier results go, so a failed run never shows a previous run's numbers.
     STATE.with_borrow_mut(|s| {
         s.result = None;
         s.render = None;
         s.error = None;
     });
-    match run(first as usize, last as usize) {
+    let frame = |i: i32| usize::try_from(i).ok();
+    match run(frame(first), frame(last)) {
         Ok((json, rgba)) => {
             STATE.with_borrow_mut(|s| {
                 s.result = Some(json);
@@ -131,16 +137,22 @@ pub extern "C" fn wgslam_web_run(first: u32, last: u32) -> u32 {
 /// `metrics.dataset` reads as the command line's.
 const ROOT: &str = "assets/icl_living_room_kt2";
 
-fn run(first: usize, last: usize) -> Result<(String, Vec<u8>)> {
+fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
     // The files stay in the state (a later run needs them again); the sequence gets a copy.
     let files = STATE.with_borrow(|s| s.files.clone());
     let seq = open_in_memory(Path::new(ROOT), files, DEFAULT_MAX_TIME_DIFF)?;
+    let first = first.unwrap_or_else(|| seq.default_first_frame());
+    let last = last.unwrap_or(seq.len() - 1);
     let range = seq.select(first, last)?;
     let total = range.clone().count();
     // The browser's own adapter and limits: features the adapter lacks (64-bit atomics
     // everywhere today) select the portable kernels.
     let ctx = GpuContext::with_options(DeviceOptions::default())?;
-    let adapter = format!("{} ({:?})", ctx.adapter_info().name, ctx.adapter_info().backend);
+    let adapter = format!(
+        "{} ({:?})",
+        ctx.adapter_info().name,
+        ctx.adapter_info().backend
+    );
     let key_kernels = if ctx.has_int64_atomics() {
         "64-bit"
     } else {
@@ -188,6 +200,25 @@ fn run(first: usize, last: usize) -> Result<(String, Vec<u8>)> {
         })
         .collect();
 
+    let gt_poses = seq.ground_truth();
+    let pairs = crate::eval::associate(&est, &gt_poses, crate::eval::DEFAULT_MAX_DT);
+    let estimate_aligned = if pairs.is_empty() {
+        Vec::new()
+    } else {
+        let e: Vec<_> = pairs
+            .iter()
+            .map(|&(i, _)| est[i].1.w_axis.truncate())
+            .collect();
+        let g: Vec<_> = pairs
+            .iter()
+            .map(|&(_, j)| gt_poses[j].1.w_axis.truncate())
+            .collect();
+        let t_est_to_gt = crate::eval::align_rigid(&e, &g)?;
+        est.iter()
+            .map(|(stamp, t)| position(&(*stamp, t_est_to_gt * *t)))
+            .collect()
+    };
+
     // The map from the default viewpoint of `map_color.png`, by the GPU renderer on a
     // device of its own (the run's went with its backend).
     let (w, h) = DEFAULT_SIZE;
@@ -220,6 +251,7 @@ fn run(first: usize, last: usize) -> Result<(String, Vec<u8>)> {
         adapter,
         key_kernels,
         estimate: est.iter().map(position).collect(),
+        estimate_aligned,
         ground_truth: gt,
         frame_ms: result.frames.iter().map(|f| f.seconds * 1e3).collect(),
         render_width: w,

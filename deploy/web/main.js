@@ -5,7 +5,8 @@
 // against ground truth and the map render. Everything is fetched from this page's own
 // origin.
 //
-// Query parameters: `frames=A..B` (inclusive, default: every bundled frame).
+// Query parameters: `frames=A..B` (inclusive; default as `wgslam run`: from the first
+// frame with ground truth to the last).
 // For scripts (deploy/web/test): `document.body.dataset.state` becomes `done` or `error`,
 // and `window.wgslam` holds `{ state, error, result, wallSeconds }`.
 
@@ -39,6 +40,9 @@ async function main() {
   if (typeof WebAssembly.promising !== "function" || typeof WebAssembly.Suspending !== "function") {
     return fail("this browser has no JavaScript Promise Integration (WebAssembly.promising)");
   }
+  const adapter = await navigator.gpu.requestAdapter();
+  const info = adapter?.info;
+  const adapterName = info ? [info.vendor, info.architecture, info.description].filter(Boolean).join(" ") : "";
   const wasm = await init({ module_or_path: new URL("./pkg/wgslam_bg.wasm", import.meta.url) });
 
   $("status").textContent = "loading frames…";
@@ -51,14 +55,16 @@ async function main() {
     }),
   );
 
-  const frames = new URLSearchParams(location.search).get("frames") ?? `0..${list.frames - 1}`;
-  const match = /^(\d+)\.\.(\d+)$/.exec(frames);
+  // Without `frames`, the command line's default: from the first frame with ground truth
+  // (-1 asks the module for it) to the last.
+  const frames = new URLSearchParams(location.search).get("frames");
+  const match = frames === null ? ["", "-1", String(list.frames - 1)] : /^(\d+)\.\.(\d+)$/.exec(frames);
   if (!match) return fail(`frames=${frames}: want A..B`);
   const [first, last] = [Number(match[1]), Number(match[2])];
 
   const progress = $("progress");
-  progress.max = last - first + 1;
   set_progress((done, total, surfels, ms, status) => {
+    progress.max = total;
     progress.value = done;
     $("status").textContent =
       `frame ${done} of ${total}: ${ms.toFixed(0)} ms, ${surfels} surfels, ${status}`;
@@ -73,18 +79,22 @@ async function main() {
 
   const result = JSON.parse(result_json());
   $("summary").textContent = [
-    `WebGPU adapter: ${result.adapter}; ${result.key_kernels} key kernels`,
+    `WebGPU adapter: ${adapterName || "(unnamed)"}; ${result.key_kernels} key kernels`,
     ...result.summary,
     `wall time ${wallSeconds.toFixed(1)} s in this tab`,
   ].join("\n");
-  drawTrajectory($("trajectory"), result.estimate, result.ground_truth);
+  const aligned = result.estimate_aligned.length > 0;
+  drawTrajectory($("trajectory"), aligned ? result.estimate_aligned : result.estimate, result.ground_truth);
+  $("trajectory-caption").textContent = aligned
+    ? "Camera path from above: ground truth (blue) and the estimate (orange) after the rigid alignment of the aligned ATE."
+    : "Camera path from above: the estimate (orange); the sequence has no ground truth.";
   drawMap($("map"), result.render_width, result.render_height, render_rgba());
   $("status").textContent = "done";
-  finish("done", { result, wallSeconds });
+  finish("done", { result, wallSeconds, adapterName });
 }
 
 // Top view: the two world axes along which the ground truth extends most (x and z for
-// ICL-NUIM, whose vertical axis is y), equal scale, a 10 cm bar.
+// ICL-NUIM, whose vertical axis is y), equal scale, a scale bar.
 function drawTrajectory(canvas, est, gt) {
   const g = canvas.getContext("2d");
   g.fillStyle = "#fff";
@@ -129,13 +139,15 @@ function drawTrajectory(canvas, est, gt) {
   g.fillText("ground truth", canvas.width - 210, 20);
   g.fillStyle = "#dc3c1e";
   g.fillText("estimate", canvas.width - 100, 20);
+  const bar = [1, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001].find((m) => m * scale <= canvas.width / 3) ?? 0.001;
+  const label = bar >= 1 ? `${bar} m` : bar >= 0.01 ? `${bar * 100} cm` : `${bar * 1000} mm`;
   g.strokeStyle = "#222";
   g.beginPath();
   g.moveTo(10, canvas.height - 12);
-  g.lineTo(10 + 0.1 * scale, canvas.height - 12);
+  g.lineTo(10 + bar * scale, canvas.height - 12);
   g.stroke();
   g.fillStyle = "#222";
-  g.fillText("10 cm", 14 + 0.1 * scale, canvas.height - 8);
+  g.fillText(label, 14 + bar * scale, canvas.height - 8);
 }
 
 function drawMap(canvas, width, height, rgba) {

@@ -7,8 +7,8 @@
 //! Called once per map chunk and pass, every chunk of pass 0 before pass 1.
 
 use super::{
-    append_index, back_project, depth_key, keep_nearer, pixel_confidence, surfel_radius, transform_dir,
-    transform_point, xyz,
+    append_index, back_project, depth_key, keep_nearer, pixel_confidence, surfel_radius,
+    transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
 

@@ -5,8 +5,8 @@
 //! fuse_select's key ([`keep_nearer`]).
 
 use super::{
-    block_visible, candidate_off_ray, chunk_blocks, decode_corner, is_valid, normal_of,
-    depth_key, keep_nearer, project_to_texel, transform_dir, transform_point, xyz,
+    block_visible, candidate_off_ray, chunk_blocks, decode_corner, depth_key, is_valid,
+    keep_nearer, normal_of, project_to_texel, transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 

@@ -61,7 +61,11 @@ fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
 
 /// Decodes image `path` from `files` when given (an in-memory sequence, see
 /// [`super::InMemoryFiles`]), else from disk.
-fn decode_from(files: Option<&super::InMemoryFiles>, path: &Path, role: &str) -> Result<DynamicImage> {
+fn decode_from(
+    files: Option<&super::InMemoryFiles>,
+    path: &Path,
+    role: &str,
+) -> Result<DynamicImage> {
     let Some(files) = files else {
         return decode(path, role);
     };
@@ -121,13 +125,8 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     })
 }
 
-/// Decodes a colour image (PNG or JPEG), which must be 8-bit RGB or RGBA (alpha is
-/// dropped).
-pub fn load_rgb(path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
-    rgb_of(decode(path, "colour")?, path)
-}
-
-/// A decoded colour image's pixels; `path` names it in errors.
+/// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);
+/// `path` names it in errors.
 fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
     match img {
         DynamicImage::ImageRgb8(img) => {
@@ -187,19 +186,9 @@ pub fn resample_color(rgb: &[[u8; 3]], color_k: &Intrinsics, depth_k: &Intrinsic
 /// Decodes both images of a frame and checks their sizes against each other and against
 /// the depth intrinsics `depth_k`; applies the layout's `conventions` (its "no reading"
 /// depth value becomes 0; colour from a camera with its own intrinsics is resampled onto
-/// the depth image).
-pub fn load_frame(
-    rgb_path: &Path,
-    depth_path: &Path,
-    depth_k: &Intrinsics,
-    conventions: &FrameConventions,
-) -> Result<RawFrame> {
-    load_frame_from(None, rgb_path, depth_path, depth_k, conventions)
-}
-
-/// [`load_frame`] reading the images from `files` when given (an in-memory sequence), else
-/// from disk.
-pub(crate) fn load_frame_from(
+/// the depth image). The images are read from `files` when given (an in-memory sequence),
+/// else from disk.
+pub(crate) fn load_frame(
     files: Option<&super::InMemoryFiles>,
     rgb_path: &Path,
     depth_path: &Path,

@@ -24,7 +24,11 @@ pub struct InMemoryFiles {
 impl std::fmt::Debug for InMemoryFiles {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let bytes: usize = self.files.values().map(Vec::len).sum();
-        write!(f, "InMemoryFiles({} files, {bytes} bytes)", self.files.len())
+        write!(
+            f,
+            "InMemoryFiles({} files, {bytes} bytes)",
+            self.files.len()
+        )
     }
 }
 

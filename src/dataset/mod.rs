@@ -438,7 +438,7 @@ impl Sequence {
                 self.frames.len().saturating_sub(1)
             ))
         })?;
-        frame::load_frame_from(
+        frame::load_frame(
             self.files.as_deref(),
             &f.rgb_path,
             &f.depth_path,
@@ -485,6 +485,16 @@ impl Sequence {
     /// True when at least one frame has a ground-truth pose.
     pub fn has_ground_truth(&self) -> bool {
         self.frames.iter().any(|f| f.gt_cam_to_world.is_some())
+    }
+
+    /// Where a run over the whole sequence starts by default: the first frame with ground
+    /// truth (ICL-NUIM's frame 0 has none), so the map and trajectory share the ground
+    /// truth's world frame; 0 without any.
+    pub fn default_first_frame(&self) -> usize {
+        self.frames
+            .iter()
+            .position(|f| f.gt_cam_to_world.is_some())
+            .unwrap_or(0)
     }
 
     /// `(timestamp, t_cam_to_world)` of every frame that has ground truth.

@@ -102,7 +102,8 @@ impl DeviceOptions {
     pub fn features_from(&self, offered: wgpu::Features) -> wgpu::Features {
         let mut features = offered & WANTED_FEATURES;
         if self.features == GpuFeatures::Portable {
-            features.remove(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
+            features
+                .remove(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
         }
         if self.limits == GpuLimits::Webgpu {
             features = wgpu::Features::empty();
@@ -225,15 +226,16 @@ impl GpuContext {
         if options != DeviceOptions::default() {
             eprintln!("wgslam: GPU device with {options:?}: features {features:?}");
         }
-        let (device, queue) = super::wait::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("wgslam device"),
-            required_features: features,
-            required_limits: limits.clone(),
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
-            memory_hints: wgpu::MemoryHints::Performance,
-            trace: wgpu::Trace::Off,
-        }))
-        .map_err(|e| Error::Gpu(format!("cannot create a device on \"{}\": {e}", info.name)))?;
+        let (device, queue) =
+            super::wait::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("wgslam device"),
+                required_features: features,
+                required_limits: limits.clone(),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            }))
+            .map_err(|e| Error::Gpu(format!("cannot create a device on \"{}\": {e}", info.name)))?;
 
         let lost = Arc::new(Mutex::new(None));
         let lost_cb = Arc::clone(&lost);

@@ -70,13 +70,7 @@ impl Kernel {
         let wgsl = shaders::source(name);
         let first = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 0.0)], None)?;
         let layout = first.bind_group_layout.clone();
-        let second = Self::build(
-            ctx,
-            name,
-            &wgsl,
-            &[(shaders::KEY_PASS, 1.0)],
-            Some(layout),
-        )?;
+        let second = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 1.0)], Some(layout))?;
         Ok([first, second])
     }
 

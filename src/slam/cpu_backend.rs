@@ -483,9 +483,33 @@ impl Backend for CpuBackend {
                     // One call per attribute, as the kernel is dispatched.
                     let (flags, offsets) = (&self.flags, &self.offsets);
                     use cpu::compact_scatter::compact_scatter as scatter;
-                    scatter(&params, flags, offsets, &chunk, &m.position_weight, &chunk, &mut out.position_weight);
-                    scatter(&params, flags, offsets, &chunk, &m.normal_frame, &chunk, &mut out.normal_frame);
-                    scatter(&params, flags, offsets, &chunk, &m.color, &chunk, &mut out.color);
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        &m.position_weight,
+                        &chunk,
+                        &mut out.position_weight,
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        &m.normal_frame,
+                        &chunk,
+                        &mut out.normal_frame,
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        &m.color,
+                        &chunk,
+                        &mut out.color,
+                    );
                     out.resize(counter as usize);
                 }
                 other => unreachable!("{other:?} is not a compaction kernel"),

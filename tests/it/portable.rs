@@ -185,7 +185,11 @@ fn portable_twins_equal_the_64_bit_twins() {
             );
         }
         check_equal(&format!("{name}: fuse_select assoc"), &assoc, &assoc_w);
-        check_equal(&format!("{name}: fuse_select index map"), &index_map, &index_w);
+        check_equal(
+            &format!("{name}: fuse_select index map"),
+            &index_map,
+            &index_w,
+        );
 
         // fuse_add: every pixel flagged, in append order, onto fuse_select's index map.
         let appended = (0..proj.height)
@@ -236,7 +240,10 @@ fn portable_twins_equal_the_64_bit_twins() {
             .iter()
             .filter(|&&k| k != 0 && (k as u32) as usize >= n_surfels)
             .count();
-        assert!(new_keys > 1000, "{name}: only {new_keys} pixels keep a new surfel");
+        assert!(
+            new_keys > 1000,
+            "{name}: only {new_keys} pixels keep a new surfel"
+        );
         assert!(
             added.position_weight == added_portable.position_weight
                 && added.normal_frame == added_portable.normal_frame

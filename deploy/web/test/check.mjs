@@ -123,7 +123,7 @@ async function main() {
     }
     const m = state.result.metrics;
     console.log("page summary:\n  " + state.result.summary.join("\n  "));
-    console.log(`page: ${state.result.adapter}, ${state.result.key_kernels} key kernels; ${pageSeconds.toFixed(1)} s from load to done`);
+    console.log(`page: ${state.adapterName} (${state.result.adapter}), ${state.result.key_kernels} key kernels; ${pageSeconds.toFixed(1)} s from load to done`);
 
     const failures = [];
     if (foreign.length) failures.push(`the page fetched from other hosts: ${foreign.join(", ")}`);
@@ -146,7 +146,7 @@ async function main() {
     }
     console.log(
       `time per frame (median): page ${(m.time_per_frame_median_s * 1e3).toFixed(1)} ms ` +
-        `(${m.backend} on ${state.result.adapter}), native ${(native.time_per_frame_median_s * 1e3).toFixed(1)} ms (${native.backend})`,
+        `(${m.backend} on ${state.adapterName}), native ${(native.time_per_frame_median_s * 1e3).toFixed(1)} ms (${native.backend})`,
     );
     console.log(`map points: page ${m.map_points}, native ${native.map_points}`);
     console.log(`screenshot: ${opt.screenshot}`);
