@@ -136,3 +136,63 @@ pub fn open_in_memory(root: &Path, files: InMemoryFiles, max_time_diff: f64) -> 
         files: Some(Arc::new(files)),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::{open, SequenceOptions, DEFAULT_MAX_TIME_DIFF};
+
+    /// Every file under `dir`, keyed by its path as `dir.join(relative)`.
+    fn read_folder(dir: &Path, files: &mut InMemoryFiles) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                read_folder(&path, files);
+            } else {
+                files.insert(path.clone(), std::fs::read(&path).unwrap());
+            }
+        }
+    }
+
+    #[test]
+    fn the_bundled_frames_in_memory_open_and_decode_as_from_disk() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+        let on_disk = open(&root, &SequenceOptions::default()).unwrap();
+        let mut files = InMemoryFiles::default();
+        read_folder(&root, &mut files);
+        let in_memory = open_in_memory(&root, files, DEFAULT_MAX_TIME_DIFF).unwrap();
+        assert_eq!(in_memory.frames, on_disk.frames);
+        assert_eq!(in_memory.intrinsics, on_disk.intrinsics);
+        assert_eq!(in_memory.depth_scale, on_disk.depth_scale);
+        assert_eq!(in_memory.layout, on_disk.layout);
+        assert_eq!(
+            in_memory.default_first_frame(),
+            1,
+            "ICL frame 0 has no ground truth"
+        );
+        for i in [0, on_disk.len() - 1] {
+            assert_eq!(
+                in_memory.load(i).unwrap(),
+                on_disk.load(i).unwrap(),
+                "frame {i}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_missing_image_is_named() {
+        let root = Path::new("seq");
+        let mut files = InMemoryFiles::default();
+        files.insert(
+            root.join("associations.txt"),
+            b"0 depth/0.png 0 rgb/0.png\n".to_vec(),
+        );
+        files.insert(
+            root.join("camera.json"),
+            br#"{"width": 4, "height": 2, "fx": 2, "fy": 2, "cx": 1.5, "cy": 0.5}"#.to_vec(),
+        );
+        files.insert(root.join("depth/0.png"), Vec::new());
+        let e = open_in_memory(root, files, DEFAULT_MAX_TIME_DIFF).unwrap_err();
+        assert!(e.to_string().contains("rgb/0.png"), "{e}");
+    }
+}

@@ -130,3 +130,22 @@ mod jspi {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_callback_called_before_or_after_the_wait_gives_its_value() {
+        let (call, value) = callback();
+        call(7);
+        assert_eq!(block_on(value), 7);
+        let (call, value) = callback();
+        let caller = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            call("later");
+        });
+        assert_eq!(block_on(value), "later");
+        caller.join().unwrap();
+    }
+}
