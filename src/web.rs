@@ -111,6 +111,15 @@ struct WebResult<'a> {
 /// GPU works).
 #[no_mangle]
 pub extern "C" fn wgslam_web_run(first: i32, last: i32) -> u32 {
+    // A panic aborts the module (a trap, which rejects the page's promise) and prints
+    // nothing on wasm32: leave its message where the page looks, `globalThis.wgslamPanic`.
+    std::panic::set_hook(Box::new(|info| {
+        let _ = js_sys::Reflect::set(
+            &js_sys::global(),
+            &"wgslamPanic".into(),
+            &info.to_string().into(),
+        );
+    }));
     // Earlier results go, so a failed run never shows a previous run's numbers.
     STATE.with_borrow_mut(|s| {
         s.result = None;

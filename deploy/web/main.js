@@ -113,29 +113,36 @@ function drawTrajectory(canvas, est, gt) {
     (canvas.width - 2 * margin) / Math.max(hi[0] - lo[0], 1e-6),
     (canvas.height - 2 * margin) / Math.max(hi[1] - lo[1], 1e-6),
   );
-  const at = (p) => [
-    margin + (p[axes[0]] - lo[0]) * scale,
-    canvas.height - margin - (p[axes[1]] - lo[1]) * scale,
+  // Centred in the canvas.
+  const pad = [
+    (canvas.width - (hi[0] - lo[0]) * scale) / 2,
+    (canvas.height - (hi[1] - lo[1]) * scale) / 2,
   ];
-  const path = (points, color) => {
+  const at = (p) => [
+    pad[0] + (p[axes[0]] - lo[0]) * scale,
+    canvas.height - pad[1] - (p[axes[1]] - lo[1]) * scale,
+  ];
+  // The ground truth wide and pale under the estimate: at sub-millimetre errors the two
+  // lines coincide.
+  const path = (points, color, width) => {
     g.strokeStyle = color;
-    g.lineWidth = 2;
+    g.lineWidth = width;
     g.beginPath();
     points.forEach((p, i) => (i ? g.lineTo(...at(p)) : g.moveTo(...at(p))));
     g.stroke();
     g.fillStyle = color;
     for (const p of points) {
       const [x, y] = at(p);
-      g.fillRect(x - 2, y - 2, 4, 4);
+      g.fillRect(x - width, y - width, 2 * width, 2 * width);
     }
   };
-  path(gt, "#1e5ac8");
-  path(est, "#dc3c1e");
+  path(gt, "#8fb0e8", 7);
+  path(est, "#dc3c1e", 1.5);
   const names = ["x", "y", "z"];
   g.fillStyle = "#222";
   g.font = "14px sans-serif";
   g.fillText(`${names[axes[0] - 1]} →, ${names[axes[1] - 1]} ↑ (world, metres)`, 10, 20);
-  g.fillStyle = "#1e5ac8";
+  g.fillStyle = "#5a86d6";
   g.fillText("ground truth", canvas.width - 210, 20);
   g.fillStyle = "#dc3c1e";
   g.fillText("estimate", canvas.width - 100, 20);
@@ -157,4 +164,5 @@ function drawMap(canvas, width, height, rgba) {
   canvas.getContext("2d").putImageData(image, 0, 0);
 }
 
-main().catch((e) => fail(e?.stack ?? String(e)));
+// A Rust panic traps the module; src/web.rs leaves its message in `wgslamPanic`.
+main().catch((e) => fail(globalThis.wgslamPanic ? `panic: ${globalThis.wgslamPanic}` : (e?.stack ?? String(e))));
