@@ -4,7 +4,8 @@
 // says more). Dispatched once per map chunk and pass: KEY_PASS 0 over every chunk writes
 // the new surfels and, with best-candidate association, raises the high (depth) word of
 // each new surfel's pixel in fuse_select_portable's index map; KEY_PASS 1 over every chunk
-// sets the pixel's index word where the new surfel's depth word won. A new surfel's index
+// (dispatched with best-candidate association only: it writes nothing else) sets the
+// pixel's index word where the new surfel's depth word won. A new surfel's index
 // is larger than every index already in the map (new surfels are appended), so where its
 // depth word is the pixel's the index word becomes its index, and the (low, high) pair
 // equals fuse_add's 64-bit key bit for bit. CPU twin: src/cpu/fuse_add_portable.rs.

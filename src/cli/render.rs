@@ -50,7 +50,7 @@ pub struct RenderArgs {
     /// viewpoint outside a room sees in through its walls).
     #[arg(long)]
     pub no_cull: bool,
-    /// Which implementation draws: auto (the GPU when an adapter with 64-bit atomics
+    /// Which implementation draws: auto (the GPU when a Vulkan, Metal or DX12 adapter
     /// exists, otherwise the CPU, saying so), cpu or gpu.
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,

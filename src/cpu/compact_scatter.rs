@@ -7,17 +7,17 @@ use super::chunk_blocks;
 use crate::layout::{CompactParams, MapChunk};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames. `T` is the
-/// array's 16-byte entry (`[f32; 4]` or `[u32; 4]`), copied whole as the kernel copies
-/// its bits.
-pub fn compact_scatter<T: Copy>(
+/// declarations in `shaders/compact_scatter.wgsl` for shapes, units and frames. The arrays
+/// are read as `[u32; 4]` bits, as the kernel reads them (`bytemuck::cast_slice` of the
+/// `[f32; 4]` arrays).
+pub fn compact_scatter(
     params: &CompactParams,
     flags: &[u32],
     offsets: &[u32],
     chunk: &MapChunk,
-    surfel_array: &[T],
+    surfel_array: &[[u32; 4]],
     out_chunk: &MapChunk,
-    out_surfel_array: &mut [T],
+    out_surfel_array: &mut [[u32; 4]],
 ) {
     let (_, end) = chunk_blocks(chunk, params.surfel_count);
     for i in chunk.base..end {

@@ -120,8 +120,9 @@ impl GpuBackend {
 
     /// A backend on `ctx` with [`DEFAULT_INITIAL_CAPACITY`] surfel slots.
     ///
-    /// [`Error::Gpu`] when the adapter lacks 64-bit atomics (`project_model`'s packed
-    /// `atomicMax`) or enough storage buffers per stage; kernel creation errors likewise.
+    /// [`Error::Gpu`] when the adapter allows too few storage buffers or textures per stage
+    /// (WebGPU's defaults suffice); kernel creation errors likewise. Without 64-bit atomics
+    /// the key kernels are the portable ones ([`crate::gpu::kernel::KeyKernel`]).
     pub fn new(ctx: GpuContext) -> Result<GpuBackend> {
         Self::with_initial_capacity(ctx, DEFAULT_INITIAL_CAPACITY)
     }

@@ -14,7 +14,8 @@ use super::recording::{record_passes, submit_profiled, Pass};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE,
+    ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
@@ -431,10 +432,11 @@ impl Backend for GpuBackend {
                         vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
                     }
                     Call::FuseScan => vec![(&k.prefix_sum, &bg.fuse_scan, [1, 1])],
-                    // Each pass over every chunk (one pass, or the portable kernel's two).
-                    Call::FuseAdd => k
-                        .fuse_add
-                        .passes
+                    // Each pass over every chunk (one pass, or the portable kernel's two;
+                    // its second only sets index words, which projective association
+                    // leaves alone, so it runs with best-candidate association only).
+                    Call::FuseAdd => k.fuse_add.passes
+                        [..key_passes_of_fuse_add(&params, &k.fuse_add)]
                         .iter()
                         .flat_map(|pass| {
                             let wg = grid.image(&k.fuse_add.first().name);
@@ -581,6 +583,17 @@ fn image_grids(
             )
         })
         .collect()
+}
+
+/// How many of `fuse_add`'s passes a fuse step runs: all with best-candidate association;
+/// without it only the first (the portable kernel's second pass only sets the index words
+/// of the index map, which projective association does not build).
+fn key_passes_of_fuse_add(params: &FuseParams, fuse_add: &KeyKernel) -> usize {
+    if params.association == ASSOCIATION_BEST_CANDIDATE {
+        fuse_add.passes.len()
+    } else {
+        1
+    }
 }
 
 /// A kernel's name as the `'static` key of a [`StepGrid`] map.

@@ -482,15 +482,17 @@ impl Backend for CpuBackend {
                     out.resize(n);
                     // One call per attribute, as the kernel is dispatched.
                     let (flags, offsets) = (&self.flags, &self.offsets);
+                    use bytemuck::{cast_slice, cast_slice_mut};
                     use cpu::compact_scatter::compact_scatter as scatter;
+                    let (pw, c) = (cast_slice(&m.position_weight), cast_slice(&m.color));
                     scatter(
                         &params,
                         flags,
                         offsets,
                         &chunk,
-                        &m.position_weight,
+                        pw,
                         &chunk,
-                        &mut out.position_weight,
+                        cast_slice_mut(&mut out.position_weight),
                     );
                     scatter(
                         &params,
@@ -506,9 +508,9 @@ impl Backend for CpuBackend {
                         flags,
                         offsets,
                         &chunk,
-                        &m.color,
+                        c,
                         &chunk,
-                        &mut out.color,
+                        cast_slice_mut(&mut out.color),
                     );
                     out.resize(counter as usize);
                 }

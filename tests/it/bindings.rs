@@ -203,21 +203,27 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
                  `pub fn {name}` returns nothing"
             ));
         }
-        let expected: Vec<(u32, &str)> = bindings
+        // The bindings, then the shader's `override` constants in snake case (the portable
+        // kernels' KEY_PASS is the twin's `key_pass`).
+        let module = common::wgsl::parse(name, &shaders::source(name));
+        let expected: Vec<(String, String)> = bindings
             .iter()
             .filter(|b| !returned.contains(&b.name.as_str()))
-            .map(|b| (b.binding, b.name.as_str()))
+            .map(|b| (format!("binding {}", b.binding), b.name.clone()))
+            .chain(module.overrides.iter().filter_map(|(_, o)| {
+                let n = o.name.as_ref()?;
+                Some((format!("override {n}"), n.to_lowercase()))
+            }))
             .collect();
         for i in 0..expected.len().max(params.len()) {
             match (expected.get(i), params.get(i)) {
                 (Some((_, binding)), Some(param)) if binding == param => {}
                 (Some((b, binding)), Some(param)) => failures.push(format!(
-                    "kernel `{name}`: twin parameter {i} is `{param}`, expected binding {b} \
+                    "kernel `{name}`: twin parameter {i} is `{param}`, expected {b} \
                      `{binding}`"
                 )),
                 (Some((b, binding)), None) => failures.push(format!(
-                    "kernel `{name}`: twin has no parameter {i}, expected binding {b} \
-                     `{binding}`"
+                    "kernel `{name}`: twin has no parameter {i}, expected {b} `{binding}`"
                 )),
                 (None, Some(param)) => failures.push(format!(
                     "kernel `{name}`: twin parameter {i} `{param}` is no binding (the shader \
