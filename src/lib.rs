@@ -40,7 +40,7 @@
 //! | [`render`] | headless pictures of maps and overlays, trajectory plots |
 //! | [`tools`] | the jobs: run, two-frame ICP, CPU-vs-GPU compare, bench |
 //! | `batch` | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
-//! | [`cli`] | argument parsing and printing only |
+//! | `cli` | argument parsing and printing only (native only, as `batch`) |
 //! | `web` | the browser build's entry points (wasm32 only; `deploy/web`) |
 
 // The command line's helpers in `tools` and `scan` are compiled but unused in the browser

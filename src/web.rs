@@ -58,13 +58,14 @@ pub fn set_progress(callback: js_sys::Function) {
     STATE.with_borrow_mut(|s| s.progress = Some(callback));
 }
 
-/// The last run's results as JSON (see [`WebResult`]), or `undefined` before one finished.
+/// The last run's results as JSON (the private `WebResult`: the summary lines, `Metrics`,
+/// both trajectories, per-frame times), or `undefined` before one finished.
 #[wasm_bindgen]
 pub fn result_json() -> Option<String> {
     STATE.with_borrow(|s| s.result.clone())
 }
 
-/// The last run's map render as RGBA8, `render_width x render_height` of [`WebResult`],
+/// The last run's map render as RGBA8, `render_width x render_height` of [`result_json`],
 /// row-major; `undefined` without one.
 #[wasm_bindgen]
 pub fn render_rgba() -> Option<Vec<u8>> {
