@@ -6,10 +6,13 @@
 // meanwhile, so WebGPU's callbacks fire. The future's waker calls `wake`, which settles it.
 
 let resume = null;
+// How many times the module waited for the event loop (the page shows it).
+globalThis.wgslamSuspensions = 0;
 
 export const suspend = new WebAssembly.Suspending(
   () =>
     new Promise((resolve) => {
+      globalThis.wgslamSuspensions += 1;
       resume = resolve;
     }),
 );

@@ -81,7 +81,8 @@ async function main() {
   $("summary").textContent = [
     `WebGPU adapter: ${adapterName || "(unnamed)"}; ${result.key_kernels} key kernels`,
     ...result.summary,
-    `wall time ${wallSeconds.toFixed(1)} s in this tab`,
+    `wall time ${wallSeconds.toFixed(1)} s in this tab; ${globalThis.wgslamSuspensions} GPU waits ` +
+      `(JSPI suspensions), ${(globalThis.wgslamSuspensions / result.metrics.frames).toFixed(0)} per frame`,
   ].join("\n");
   const aligned = result.estimate_aligned.length > 0;
   drawTrajectory($("trajectory"), aligned ? result.estimate_aligned : result.estimate, result.ground_truth);
@@ -90,7 +91,7 @@ async function main() {
     : "Camera path from above: the estimate (orange); the sequence has no ground truth.";
   drawMap($("map"), result.render_width, result.render_height, render_rgba());
   $("status").textContent = "done";
-  finish("done", { result, wallSeconds, adapterName });
+  finish("done", { result, wallSeconds, adapterName, suspensions: globalThis.wgslamSuspensions });
 }
 
 // Top view: the two world axes along which the ground truth extends most (x and z for
