@@ -84,9 +84,8 @@ struct WebResult<'a> {
     /// The lines `wgslam run` prints, from the same code.
     summary: Vec<String>,
     metrics: &'a Metrics,
-    /// The WebGPU adapter (as wgpu reports it) and whether the 64-bit or the portable key
-    /// kernels ran.
-    adapter: String,
+    /// Whether the 64-bit or the portable key kernels ran. (The adapter's name is the
+    /// page's to read: wgpu leaves it empty on WebGPU.)
     key_kernels: &'static str,
     /// Tracked camera positions `[stamp, x, y, z]` (world frame, metres).
     estimate: Vec<[f64; 4]>,
@@ -158,11 +157,6 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
     // The browser's own adapter and limits: features the adapter lacks (64-bit atomics
     // everywhere today) select the portable kernels.
     let ctx = GpuContext::with_options(DeviceOptions::default())?;
-    let adapter = format!(
-        "{} ({:?})",
-        ctx.adapter_info().name,
-        ctx.adapter_info().backend
-    );
     let key_kernels = if ctx.has_int64_atomics() {
         "64-bit"
     } else {
@@ -258,7 +252,6 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
     let out = WebResult {
         summary: summary_lines(&result.metrics),
         metrics: &result.metrics,
-        adapter,
         key_kernels,
         estimate: est.iter().map(position).collect(),
         estimate_aligned,

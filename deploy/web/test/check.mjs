@@ -123,7 +123,7 @@ async function main() {
     }
     const m = state.result.metrics;
     console.log("page summary:\n  " + state.result.summary.join("\n  "));
-    console.log(`page: ${state.adapterName} (${state.result.adapter}), ${state.result.key_kernels} key kernels; ${pageSeconds.toFixed(1)} s from load to done; ${state.suspensions} JSPI suspensions`);
+    console.log(`page: WebGPU adapter ${state.adapterName}, ${state.result.key_kernels} key kernels; ${pageSeconds.toFixed(1)} s from load to done; ${state.suspensions} JSPI suspensions`);
 
     const failures = [];
     if (foreign.length) failures.push(`the page fetched from other hosts: ${foreign.join(", ")}`);
