@@ -40,9 +40,17 @@
 //! | [`render`] | headless pictures of maps and overlays, trajectory plots |
 //! | [`tools`] | the jobs: run, two-frame ICP, CPU-vs-GPU compare, bench |
 //! | `batch` | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
-//! | [`cli`] | argument parsing and printing only |
+//! | `cli` | argument parsing and printing only (native only, as `batch`) |
+//! | `web` | the browser build's entry points (wasm32 only; `deploy/web`) |
 
+// The command line's helpers in `tools` and `scan` are compiled but unused in the browser
+// build, which has no command line.
+#![cfg_attr(target_arch = "wasm32", allow(dead_code))]
+
+// The command line and `wgslam batch` (signals, file locks, processes) are native only.
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) mod batch;
+#[cfg(not(target_arch = "wasm32"))]
 #[doc(hidden)]
 pub mod cli;
 #[doc(hidden)]
@@ -69,6 +77,9 @@ pub mod slam;
 pub(crate) mod stats;
 #[doc(hidden)]
 pub mod tools;
+// The browser build's entry points (deploy/web).
+#[cfg(target_arch = "wasm32")]
+pub mod web;
 
 pub use error::{Error, Result};
 

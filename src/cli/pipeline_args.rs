@@ -497,8 +497,8 @@ impl Drop for ChildParams {
 /// Without `--frames`, a run starts at the first frame with ground truth (ICL-NUIM's frame 0
 /// has none), so the map and trajectory share the ground truth's world frame.
 pub(crate) fn default_first_frame(seq: &dataset::Sequence) -> usize {
-    match seq.frames.iter().position(|f| f.gt_cam_to_world.is_some()) {
-        Some(i) if i > 0 => {
+    match seq.default_first_frame() {
+        i if i > 0 => {
             eprintln!(
                 "note: starting at frame {i}, the first with ground truth (use --frames to change)"
             );

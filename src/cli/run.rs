@@ -333,69 +333,11 @@ fn open_recording(
 }
 
 fn print_summary(m: &run::Metrics, out: &Path) {
-    println!(
-        "{} frames {}..{} on {} ({}x{}): {:.1} ms/frame median, {:.2} s total",
-        m.frames,
-        m.first_frame,
-        m.last_frame,
-        m.backend,
-        m.width,
-        m.height,
-        m.time_per_frame_median_s * 1e3,
-        m.time_total_s
-    );
-    println!(
-        "map: {} points, compression ratio {:.4}",
-        m.map_points, m.compression_ratio
-    );
-    let t = &m.tracking;
-    println!(
-        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} \
-         relocalised, {} lost, {} empty; {} keyframes",
-        t.given,
-        t.converged,
-        t.max_iterations,
-        t.stopped,
-        t.relocalised,
-        t.lost,
-        t.empty_depth,
-        t.keyframes
-    );
-    println!("tracking health: {}", t.verdict());
-    if let Some(l) = &m.loop_closure {
-        println!(
-            "loop closure: {} candidate(s) verified, {} accepted ({} bent the map), {} rejected; \
-             pose graph {} nodes, {} edges{}",
-            l.candidates,
-            l.accepted,
-            l.optimisations,
-            l.rejected,
-            l.graph_nodes,
-            l.graph_edges,
-            match &l.odometry_accuracy {
-                Some(a) => format!(
-                    "; ATE before closures {:.3} mm aligned",
-                    a.ate_rmse_aligned_m * 1e3
-                ),
-                None => String::new(),
-            }
-        );
-    }
-    if let Some(acc) = &m.accuracy {
-        println!(
-            "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",
-            acc.ate_rmse_aligned_m * 1e3,
-            acc.ate_rmse_unaligned_m * 1e3,
-            acc.rpe_trans_rmse_m * 1e3,
-            acc.rpe_rot_rmse_deg,
-            acc.pairs
-        );
-    }
-    if let Some(mem) = m.peak_memory_mib {
-        println!("peak memory {mem:.0} MiB");
+    for line in run::summary_lines(m) {
+        println!("{line}");
     }
     println!(
-        "wrote {}/{{trajectory.tum, map.ply, metrics.json, frames.json}}",
+        "wrote {}/{{trajectory.tum, trajectory_odometry.tum, map.ply, metrics.json, frames.json}}",
         out.display()
     );
 }

@@ -59,6 +59,31 @@ fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     })
 }
 
+/// Decodes image `path` from `files` when given (an in-memory sequence, see
+/// [`super::InMemoryFiles`]), else from disk.
+fn decode_from(
+    files: Option<&super::InMemoryFiles>,
+    path: &Path,
+    role: &str,
+) -> Result<DynamicImage> {
+    let Some(files) = files else {
+        return decode(path, role);
+    };
+    let bytes = files.get(path).ok_or_else(|| {
+        Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!("{role} image is not among the sequence's in-memory files"),
+            ),
+        )
+    })?;
+    image::load_from_memory(bytes).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
+    })
+}
+
 /// Human name of a decoded image's pixel format, for error messages.
 fn describe(img: &DynamicImage) -> String {
     let c = img.color();
@@ -72,7 +97,12 @@ fn describe(img: &DynamicImage) -> String {
 
 /// Decodes a depth PNG, which must be 16-bit single channel.
 pub fn load_depth(path: &Path) -> Result<(u32, u32, Vec<u16>)> {
-    match decode(path, "depth")? {
+    depth_of(decode(path, "depth")?, path)
+}
+
+/// A decoded depth image's pixels; `path` names it in errors.
+fn depth_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<u16>)> {
+    match img {
         DynamicImage::ImageLuma16(img) => {
             let (w, h) = img.dimensions();
             Ok((w, h, img.into_raw()))
@@ -95,10 +125,10 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     })
 }
 
-/// Decodes a colour image (PNG or JPEG), which must be 8-bit RGB or RGBA (alpha is
-/// dropped).
-pub fn load_rgb(path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
-    match decode(path, "colour")? {
+/// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);
+/// `path` names it in errors.
+fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
+    match img {
         DynamicImage::ImageRgb8(img) => {
             let (w, h) = img.dimensions();
             let px = img.pixels().map(|p| p.0).collect();
@@ -156,22 +186,24 @@ pub fn resample_color(rgb: &[[u8; 3]], color_k: &Intrinsics, depth_k: &Intrinsic
 /// Decodes both images of a frame and checks their sizes against each other and against
 /// the depth intrinsics `depth_k`; applies the layout's `conventions` (its "no reading"
 /// depth value becomes 0; colour from a camera with its own intrinsics is resampled onto
-/// the depth image).
-pub fn load_frame(
+/// the depth image). The images are read from `files` when given (an in-memory sequence),
+/// else from disk.
+pub(crate) fn load_frame(
+    files: Option<&super::InMemoryFiles>,
     rgb_path: &Path,
     depth_path: &Path,
     depth_k: &Intrinsics,
     conventions: &FrameConventions,
 ) -> Result<RawFrame> {
     let expected = (depth_k.width, depth_k.height);
-    let (dw, dh, mut depth) = load_depth(depth_path)?;
+    let (dw, dh, mut depth) = depth_of(decode_from(files, depth_path, "depth")?, depth_path)?;
     if let Some(invalid) = conventions.invalid_depth_raw {
         depth
             .iter_mut()
             .filter(|d| **d == invalid)
             .for_each(|d| *d = 0);
     }
-    let (cw, ch, mut rgb) = load_rgb(rgb_path)?;
+    let (cw, ch, mut rgb) = rgb_of(decode_from(files, rgb_path, "colour")?, rgb_path)?;
     if (dw, dh) != expected {
         return Err(Error::Image {
             path: depth_path.to_path_buf(),

@@ -21,8 +21,13 @@ pub struct Association {
 /// blank lines skipped). Errors name `file:line` and quote the line.
 pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    parse_associations(path, &text)
+}
+
+/// [`read_associations`] over the file's text; `path` names it in errors.
+pub fn parse_associations(path: &Path, text: &str) -> Result<Vec<Association>> {
     let mut out = Vec::new();
-    for (lineno, line) in crate::io::text::data_lines(&text) {
+    for (lineno, line) in crate::io::text::data_lines(text) {
         let f: Vec<&str> = line.split_whitespace().collect();
         if f.len() != 4 {
             return Err(Error::parse(

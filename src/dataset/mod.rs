@@ -17,6 +17,7 @@ pub(crate) mod detect;
 pub(crate) mod eth3d;
 pub(crate) mod frame;
 pub(crate) mod icl;
+pub(crate) mod in_memory;
 pub(crate) mod matrix_file;
 pub(crate) mod numbered;
 pub(crate) mod replica;
@@ -35,6 +36,7 @@ use crate::io::trajectory::read_tum;
 use crate::{Error, Result};
 
 pub use frame::RawFrame;
+pub use in_memory::{open_in_memory, InMemoryFiles};
 
 /// Raw depth units per metre when neither the options, `camera.json` nor the layout say
 /// otherwise (TUM RGB-D, ICL-NUIM, ETH3D and Bonn all use 5000).
@@ -161,6 +163,9 @@ pub struct Sequence {
     /// What opening decided on the user's behalf (defaults used, frames without ground
     /// truth), one line each, for the command line to print.
     pub notes: Vec<String>,
+    /// The images when they are in memory rather than on disk ([`open_in_memory`], the
+    /// browser build); `None` for a sequence opened from a folder.
+    pub files: Option<std::sync::Arc<InMemoryFiles>>,
 }
 
 /// What a layout's own files say about a sequence, before the options apply.
@@ -200,7 +205,12 @@ fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
         return Ok(None);
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let cam: CameraJson = serde_json::from_str(&text).map_err(|e| {
+    parse_camera_json(path, &text).map(Some)
+}
+
+/// `camera.json`'s text, checked; `path` names it in errors.
+fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
+    let cam: CameraJson = serde_json::from_str(text).map_err(|e| {
         Error::format(
             path,
             format!("expected {{width, height, fx, fy, cx, cy[, depth_scale]}}: {e}"),
@@ -215,7 +225,7 @@ fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
             "width/height must be positive and fx, fy finite and non-zero",
         ));
     }
-    Ok(Some(cam))
+    Ok(cam)
 }
 
 /// The TUM-like layouts (TUM, ICL-NUIM, ETH3D, Bonn): frames from the association lists,
@@ -389,6 +399,7 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         frames,
         conventions: listing.conventions,
         notes: listing.notes,
+        files: None,
     })
 }
 
@@ -428,6 +439,7 @@ impl Sequence {
             ))
         })?;
         frame::load_frame(
+            self.files.as_deref(),
             &f.rgb_path,
             &f.depth_path,
             &self.intrinsics,
@@ -473,6 +485,16 @@ impl Sequence {
     /// True when at least one frame has a ground-truth pose.
     pub fn has_ground_truth(&self) -> bool {
         self.frames.iter().any(|f| f.gt_cam_to_world.is_some())
+    }
+
+    /// Where a run over the whole sequence starts by default: the first frame with ground
+    /// truth (ICL-NUIM's frame 0 has none), so the map and trajectory share the ground
+    /// truth's world frame; 0 without any.
+    pub fn default_first_frame(&self) -> usize {
+        self.frames
+            .iter()
+            .position(|f| f.gt_cam_to_world.is_some())
+            .unwrap_or(0)
     }
 
     /// `(timestamp, t_cam_to_world)` of every frame that has ground truth.
@@ -529,6 +551,7 @@ mod tests {
             frames: (0..6).map(frame).collect(),
             conventions: FrameConventions::default(),
             notes: Vec::new(),
+            files: None,
         };
         let r = seq.revisiting(1, 3, 9).unwrap();
         let order: Vec<String> = r

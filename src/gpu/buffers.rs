@@ -305,16 +305,12 @@ pub(crate) fn map_read<R>(
     staging: &wgpu::Buffer,
     f: impl FnOnce(&[u8]) -> R,
 ) -> Result<R> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
-        // The receiver lives until after the poll below; a failed send cannot happen.
-        let _ = tx.send(r);
-    });
+    let (mapped, when_mapped) = super::wait::callback();
+    staging.map_async(wgpu::MapMode::Read, .., mapped);
     ctx.wait_idle()?;
-    match rx.recv() {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => return Err(Error::Gpu(format!("mapping a read-back buffer: {e}"))),
-        Err(_) => return Err(Error::Gpu("read-back map callback never ran".into())),
+    // Natively the wait above ran the callback; in a browser it may still be queued.
+    if let Err(e) = super::wait::block_on(when_mapped) {
+        return Err(Error::Gpu(format!("mapping a read-back buffer: {e}")));
     }
     let out = {
         let view = staging

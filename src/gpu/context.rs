@@ -13,9 +13,13 @@ use crate::{Error, Result};
 
 /// Backends wgslam asks for. Never `GL`: on CPU-only machines it falls back to llvmpipe's
 /// OpenGL, where a single compute shader took 235 s to compile.
+#[cfg(not(target_arch = "wasm32"))]
 pub const BACKENDS: wgpu::Backends = wgpu::Backends::VULKAN
     .union(wgpu::Backends::METAL)
     .union(wgpu::Backends::DX12);
+/// Backends wgslam asks for in a browser: WebGPU only (never WebGL, which has no compute).
+#[cfg(target_arch = "wasm32")]
+pub const BACKENDS: wgpu::Backends = wgpu::Backends::BROWSER_WEBGPU;
 
 /// Features the kernels use when the adapter offers them: 64-bit integers and 64-bit
 /// `atomicMax` (the packed depth + surfel index map of `project_model`) and timestamp
@@ -189,7 +193,7 @@ impl GpuContext {
             ..wgpu::InstanceDescriptor::new_without_display_handle()
         });
         let adapter =
-            match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            match super::wait::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
                 power_preference: wgpu::PowerPreference::HighPerformance,
                 force_fallback_adapter: false,
                 compatible_surface: None,
@@ -199,7 +203,7 @@ impl GpuContext {
                 Ok(a) => a,
                 Err(e) => {
                     let seen: Vec<String> =
-                        pollster::block_on(instance.enumerate_adapters(BACKENDS))
+                        super::wait::block_on(instance.enumerate_adapters(BACKENDS))
                             .iter()
                             .map(|a| {
                                 let i = a.get_info();
@@ -222,15 +226,16 @@ impl GpuContext {
         if options != DeviceOptions::default() {
             eprintln!("wgslam: GPU device with {options:?}: features {features:?}");
         }
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("wgslam device"),
-            required_features: features,
-            required_limits: limits.clone(),
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
-            memory_hints: wgpu::MemoryHints::Performance,
-            trace: wgpu::Trace::Off,
-        }))
-        .map_err(|e| Error::Gpu(format!("cannot create a device on \"{}\": {e}", info.name)))?;
+        let (device, queue) =
+            super::wait::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("wgslam device"),
+                required_features: features,
+                required_limits: limits.clone(),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            }))
+            .map_err(|e| Error::Gpu(format!("cannot create a device on \"{}\": {e}", info.name)))?;
 
         let lost = Arc::new(Mutex::new(None));
         let lost_cb = Arc::clone(&lost);
@@ -358,8 +363,7 @@ impl GpuContext {
 
     /// Blocks until all submitted work is done; device loss or a timeout is [`Error::Gpu`].
     pub fn wait_idle(&self) -> Result<()> {
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
+        super::wait::wait_for_submitted(&self.device, &self.queue)
             .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
         self.check_device()
     }
@@ -387,8 +391,8 @@ impl GpuContext {
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let result = work();
         // Scopes pop in reverse order of their pushing.
-        let validation_err = pollster::block_on(validation.pop());
-        let oom_err = pollster::block_on(oom.pop());
+        let validation_err = super::wait::block_on(validation.pop());
+        let oom_err = super::wait::block_on(oom.pop());
         let mut msgs = Vec::new();
         if let Some(e) = validation_err {
             msgs.push(format!("validation: {e}"));

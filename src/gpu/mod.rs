@@ -17,6 +17,7 @@
 //!   (parameter and frame buffers), `bind_groups`, `compaction`, `recording` (passes and
 //!   per-kernel timing), `steps` (the steps' passes), `inspect` (downloads and uploads).
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
+//! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
 
 pub mod backend;
 mod bind_groups;
@@ -38,6 +39,7 @@ pub mod shaders;
 mod steps;
 pub mod test_support;
 pub mod timing;
+pub mod wait;
 
 pub use backend::GpuBackend;
 pub use buffers::{GpuArray, ParamBuffer, Readback, StatsSnapshot};

@@ -5,7 +5,7 @@
 //! everything from the first pass to the read-back (one entry), because the host cannot
 //! see where one pass ends inside a submission.
 
-use std::time::Instant;
+use web_time::Instant;
 
 use super::buffers::map_read;
 use super::context::GpuContext;

@@ -38,11 +38,14 @@ where
     let file = File::create(tmp).map_err(|e| Error::write(tmp, e))?;
     let mut w = BufWriter::new(file);
     fill(&mut w)?;
-    let file = w
-        .into_inner()
-        .map_err(|e| Error::write(tmp, e.into_error()))?;
-    file.sync_all().map_err(|e| Error::write(tmp, e))?;
-    drop(file);
+    {
+        // Closed at the end of this block, before the rename. (A block, not `drop`: on
+        // wasm32, where files do not exist, `File` has no destructor and clippy objects.)
+        let file = w
+            .into_inner()
+            .map_err(|e| Error::write(tmp, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::write(tmp, e))?;
+    }
     fs::rename(tmp, path).map_err(|e| Error::write(path, e))?;
     Ok(())
 }

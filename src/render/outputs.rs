@@ -33,6 +33,30 @@ pub fn map_view_hint(normals: Option<&[[f32; 4]]>, up: DVec3) -> (DVec3, DVec3) 
 }
 
 /// Writes the map renders of a run into `out_dir` and returns their paths:
+/// The default viewpoint of `map_*.png`: a camera of `size` framing the whole map, looking
+/// down along the cameras' mean heading (`trajectory`: `t_cam_to_world` poses; the sign of
+/// `intrinsics.fy` fixes the handedness, as in [`write_map_renders`]).
+pub fn overview_camera(
+    map: &SurfelMap,
+    trajectory: &[(f64, DMat4)],
+    intrinsics: &Intrinsics,
+    size: (u32, u32),
+) -> Result<RenderCamera> {
+    let fy_negative = intrinsics.fy < 0.0;
+    let poses: Vec<DMat4> = trajectory.iter().map(|(_, t)| *t).collect();
+    let image_up = if fy_negative { DVec3::Y } else { DVec3::NEG_Y };
+    let (up, heading) = trajectory_view_hint(&poses, intrinsics.fy)
+        .unwrap_or_else(|| map_view_hint(MapCloud::new(map).cloud().normals, image_up));
+    default_camera(
+        &map.position_weight,
+        size.0,
+        size.1,
+        up,
+        heading,
+        fy_negative,
+    )
+}
+
 /// `map_color.png` and `map_normals.png` from the default viewpoint (framing the whole map,
 /// looking down along the cameras' mean heading), and `last_camera_color.png` and
 /// `last_camera_normals.png` from the last pose of `trajectory` with the run's
@@ -54,21 +78,9 @@ pub fn write_map_renders(
     let map_cloud = MapCloud::new(map);
     let cloud = map_cloud.cloud();
     let settings = RenderSettings::default();
-    let fy_negative = intrinsics.fy < 0.0;
-    let poses: Vec<DMat4> = trajectory.iter().map(|(_, t)| *t).collect();
-    let image_up = if fy_negative { DVec3::Y } else { DVec3::NEG_Y };
-    let (up, heading) = trajectory_view_hint(&poses, intrinsics.fy)
-        .unwrap_or_else(|| map_view_hint(cloud.normals, image_up));
-    let overview = default_camera(
-        &map.position_weight,
-        size.0,
-        size.1,
-        up,
-        heading,
-        fy_negative,
-    )?;
+    let overview = overview_camera(map, trajectory, intrinsics, size)?;
     let mut cameras = vec![("map", overview)];
-    if let Some(last) = poses.last() {
+    if let Some((_, last)) = trajectory.last() {
         cameras.push((
             "last_camera",
             RenderCamera {

@@ -8,11 +8,13 @@
 //! per-frame error (no alignment: both paths share the dataset's world frame).
 
 use std::path::Path;
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::Once;
 
 use glam::{DMat4, DVec3};
 use image::RgbImage;
 use plotters::prelude::*;
+#[cfg(not(target_arch = "wasm32"))]
 use plotters::style::FontStyle;
 
 use crate::eval::DEFAULT_MAX_DT;
@@ -26,6 +28,18 @@ const FONT_NAME: &str = "wgslam-sans";
 const EST_COLOR: RGBColor = RGBColor(220, 60, 30);
 const GT_COLOR: RGBColor = RGBColor(30, 90, 200);
 
+/// plotters draws no text on wasm32 (its font support is native only): the browser page
+/// draws its own trajectory plot on a canvas instead.
+#[cfg(target_arch = "wasm32")]
+fn register_font() -> Result<()> {
+    let _ = FONT_BYTES;
+    Err(Error::format(
+        "assets/fonts/DejaVuSans.ttf",
+        "plotters has no fonts in the browser build; the page draws the trajectory itself",
+    ))
+}
+
+#[cfg(not(target_arch = "wasm32"))]
 fn register_font() -> Result<()> {
     static ONCE: Once = Once::new();
     let mut ok = true;

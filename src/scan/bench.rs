@@ -3,7 +3,7 @@
 //! repeats, and it knows nothing about which backend it times (callers pass closures or a
 //! [`NearestNeighbours`]).
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::DMat4;
 

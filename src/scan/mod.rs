@@ -6,8 +6,12 @@
 
 pub(crate) mod align;
 pub(crate) mod bench;
+// The GPU nearest-neighbour search shares wgpu objects with rayon's threads (`Send +
+// Sync`), which the browser's WebGPU objects are not; scans are a native tool's job.
+#[cfg(not(target_arch = "wasm32"))]
 pub(crate) mod bench_scan;
 pub(crate) mod cloud;
+#[cfg(not(target_arch = "wasm32"))]
 pub mod gpu;
 pub(crate) mod icp;
 pub mod layout;

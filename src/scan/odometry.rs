@@ -8,7 +8,7 @@
 //! ground truth is given (identity otherwise). Not a mapper: no loop closure, no map.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::DMat4;
 use rayon::prelude::*;

@@ -9,7 +9,7 @@
 //! place that forwards the [`Backend`] trait step by step (besides `Box<dyn Backend>`).
 
 use std::collections::BTreeMap;
-use std::time::Instant;
+use web_time::Instant;
 
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,

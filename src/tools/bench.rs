@@ -208,7 +208,7 @@ pub fn bench_interleaved<G: Backend>(
         };
         let cpu_first = (i - first) % 2 == 0;
         for turn in 0..2 {
-            let t0 = std::time::Instant::now();
+            let t0 = web_time::Instant::now();
             if (turn == 0) == cpu_first {
                 let report = cpu.process(i as u32, &frame.depth, &rgba, gt)?;
                 cpu_frames.push(outcome(report, t0.elapsed().as_secs_f64()));

@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::DMat4;
 use serde::{Deserialize, Serialize};
@@ -254,6 +254,12 @@ fn run_frames_observed<B: Backend + Inspect>(
     mut observer: Option<&mut dyn FrameObserver>,
 ) -> Result<(Vec<FrameOutcome>, f64)> {
     let (first, last) = (*frames.start(), *frames.end());
+    // A browser tab (wasm32) has no threads to decode on: decode before each frame.
+    #[cfg(target_arch = "wasm32")]
+    let decode = {
+        let _ = decode;
+        Decode::BeforeEachFrame
+    };
     let wall = Instant::now();
     let mut outcomes = Vec::with_capacity(last + 1 - first);
     let mut process = |i: usize, frame: Result<RawFrame>, decode_seconds: f64| -> Result<()> {
@@ -490,6 +496,74 @@ pub fn run_observed<B: Backend + Inspect>(
         metrics,
         optimised,
     })
+}
+
+/// The run's summary as `wgslam run` prints it (time per frame, map size, tracking, ATE
+/// and RPE, peak memory), one line each; the browser page shows the same lines.
+pub fn summary_lines(m: &Metrics) -> Vec<String> {
+    let mut lines = Vec::new();
+    lines.push(format!(
+        "{} frames {}..{} on {} ({}x{}): {:.1} ms/frame median, {:.2} s total",
+        m.frames,
+        m.first_frame,
+        m.last_frame,
+        m.backend,
+        m.width,
+        m.height,
+        m.time_per_frame_median_s * 1e3,
+        m.time_total_s
+    ));
+    lines.push(format!(
+        "map: {} points, compression ratio {:.4}",
+        m.map_points, m.compression_ratio
+    ));
+    let t = &m.tracking;
+    lines.push(format!(
+        "tracking: {} given, {} converged, {} at max iterations, {} stopped early, {} \
+         relocalised, {} lost, {} empty; {} keyframes",
+        t.given,
+        t.converged,
+        t.max_iterations,
+        t.stopped,
+        t.relocalised,
+        t.lost,
+        t.empty_depth,
+        t.keyframes
+    ));
+    lines.push(format!("tracking health: {}", t.verdict()));
+    if let Some(l) = &m.loop_closure {
+        lines.push(format!(
+            "loop closure: {} candidate(s) verified, {} accepted ({} bent the map), {} rejected; \
+             pose graph {} nodes, {} edges{}",
+            l.candidates,
+            l.accepted,
+            l.optimisations,
+            l.rejected,
+            l.graph_nodes,
+            l.graph_edges,
+            match &l.odometry_accuracy {
+                Some(a) => format!(
+                    "; ATE before closures {:.3} mm aligned",
+                    a.ate_rmse_aligned_m * 1e3
+                ),
+                None => String::new(),
+            }
+        ));
+    }
+    if let Some(acc) = &m.accuracy {
+        lines.push(format!(
+            "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",
+            acc.ate_rmse_aligned_m * 1e3,
+            acc.ate_rmse_unaligned_m * 1e3,
+            acc.rpe_trans_rmse_m * 1e3,
+            acc.rpe_rot_rmse_deg,
+            acc.pairs
+        ));
+    }
+    if let Some(mem) = m.peak_memory_mib {
+        lines.push(format!("peak memory {mem:.0} MiB"));
+    }
+    lines
 }
 
 /// Every file `wgslam run` writes into its `--out` folder: [`write_outputs`]'s and

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Builds the browser page into deploy/web/dist (a static folder: serve it from any web
+# server, e.g. `python3 -m http.server -d deploy/web/dist`, and open index.html in a
+# browser with WebGPU and JSPI, such as Chromium 137 or later):
+#   - the library for wasm32-unknown-unknown (release), as a cdylib;
+#   - its JavaScript bindings by wasm-bindgen-cli, the version Cargo.lock pins for the
+#     wasm-bindgen crate (installed here with `cargo install` when missing or different);
+#   - the page (index.html, main.js, jspi.js) and copies of the bundled frames
+#     (assets/icl_living_room_kt2) with data/files.json listing them.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+# The bindings tool must match the crate exactly, or it refuses the module.
+want=$(awk '$0 == "name = \"wasm-bindgen\"" { getline; gsub(/"/, "", $3); print $3; exit }' Cargo.lock)
+have=$(wasm-bindgen --version 2>/dev/null | awk '{ print $2 }' || true)
+if [[ "$have" != "$want" ]]; then
+  echo "installing wasm-bindgen-cli $want (found: ${have:-none})"
+  # Not --locked: the tool's own lock file pins a webpki-roots release that crates.io
+  # mirrors do not all carry; the version of the tool itself is pinned all the same.
+  cargo install wasm-bindgen-cli --version "$want"
+fi
+
+# No debug info: wasm-bindgen would drop it anyway, and it triples the link's input.
+CARGO_PROFILE_RELEASE_DEBUG=false \
+  cargo rustc --lib --release --target wasm32-unknown-unknown --crate-type cdylib
+
+dist=deploy/web/dist
+rm -rf "$dist"
+mkdir -p "$dist/pkg" "$dist/data"
+wasm-bindgen --target web --no-typescript --out-dir "$dist/pkg" \
+  target/wasm32-unknown-unknown/release/wgslam.wasm
+cp deploy/web/index.html deploy/web/main.js deploy/web/jspi.js "$dist/"
+
+data=assets/icl_living_room_kt2
+cp -r "$data"/. "$dist/data/"
+frames=$(grep -cEv '^[[:space:]]*(#|$)' "$data/associations.txt")
+{
+  printf '{ "frames": %d, "files": [\n' "$frames"
+  (cd "$data" && find . -type f | sed 's|^\./||' | sort | sed 's/.*/  "&"/' | paste -sd, -)
+  printf ']}\n'
+} >"$dist/data/files.json"
+echo "built $dist ($(du -sh "$dist" | cut -f1)): $frames frames; wasm $(du -h "$dist/pkg/wgslam_bg.wasm" | cut -f1)"
