@@ -306,6 +306,23 @@ fn bench_revisit_reports_each_pass() {
         r["ate_rmse_mm"].as_f64().unwrap() < REVISIT_ATE_MAX_MM,
         "{r}"
     );
+    // Per pass: an ATE each (within the run's bound), and loop closure's count of loops
+    // (none here: no keyframe is 60 frames old).
+    let per_pass = r["ate_per_pass_mm"].as_array().unwrap();
+    assert_eq!(per_pass.len(), 3, "{r}");
+    assert!(
+        per_pass
+            .iter()
+            .all(|a| a.as_f64().unwrap() < REVISIT_ATE_MAX_MM),
+        "{r}"
+    );
+    let loops: Vec<u64> = r["loops_per_pass"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_u64().unwrap())
+        .collect();
+    assert_eq!(loops, vec![0, 0, 0], "{r}");
 }
 
 /// `--params FILE.toml`: the file's values reach the run as the flags' would, a flag given
