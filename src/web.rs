@@ -27,7 +27,7 @@ use crate::render::gpu::GpuRenderer;
 use crate::render::outputs::overview_camera;
 use crate::render::{MapCloud, RenderBackend, RenderSettings, View, DEFAULT_SIZE};
 use crate::slam::params::{Profile, SlamParams};
-use crate::tools::run::{run_observed, summary_lines, trajectory, Decode, FrameOutcome, Metrics};
+use crate::tools::run::{run_observed, summary_lines, Decode, FrameOutcome, Metrics};
 use crate::Result;
 
 /// What the page gave and what the last run left.
@@ -190,7 +190,8 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
         None,
     )?;
 
-    let est = trajectory(&result.frames);
+    // As `trajectory.tum`: after loop closure when a loop bent it.
+    let est = result.trajectory();
     let position = |(stamp, t): &(f64, DMat4)| {
         let p = t.w_axis;
         [*stamp, p.x, p.y, p.z]
