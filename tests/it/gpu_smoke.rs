@@ -300,8 +300,44 @@ fn bind_groups_fail_by_kernel_and_binding_name(ctx: GpuContext) {
     assert!(msg.contains("given a texture"), "{msg}");
 }
 
+/// A headless run's first lines are wgslam's own (issue 32, item 7): without a valid
+/// `XDG_RUNTIME_DIR`, Mesa's device-selection layer used to make libwayland print "error:
+/// XDG_RUNTIME_DIR is invalid or not set in the environment." twice before them.
+fn headless_run_prints_no_window_system_error(_ctx: GpuContext) {
+    let dir = common::temp_dir("gpu-smoke-headless");
+    let out = dir.join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_wgslam"))
+        .args([
+            "run",
+            "--backend",
+            "gpu",
+            "--frames",
+            "1..2",
+            "--downsample",
+            "4",
+            "--out",
+        ])
+        .arg(&out)
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run wgslam");
+    let text = common::cli::text(&o);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        !text.contains("XDG_RUNTIME_DIR"),
+        "a window-system message reached a headless run's output:\n{text}"
+    );
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     vec![
+        gpu(
+            "headless_run_prints_no_window_system_error",
+            headless_run_prints_no_window_system_error,
+        ),
         gpu(
             "trivial_kernel_runs_in_validation_scope",
             trivial_kernel_runs_in_validation_scope,

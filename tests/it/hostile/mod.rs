@@ -1,0 +1,77 @@
+//! Hostile inputs and faults (issue 27), as the cases were found: batch output folders that
+//! are not the batch's, a crafted `batch.json` against the report, runs that must leave
+//! their outputs complete or absent as a set, readers fed declared sizes they cannot hold,
+//! silently wrong results and unclear messages. Each test names the case it reproduces.
+
+use crate::common;
+
+mod batch_folders;
+mod messages;
+mod outputs;
+mod readers;
+mod report;
+mod wrong_results;
+
+pub(super) use std::path::{Path, PathBuf};
+pub(super) use std::process::{Child, Command};
+
+pub(super) use common::cli::{text, wgslam_env};
+pub(super) use common::harness::{gpu, plain};
+
+pub(super) fn wgslam(args: &[&str]) -> std::process::Output {
+    wgslam_env(args, &[])
+}
+
+pub(super) fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A one-job CPU manifest over 2 bundled frames at 160x120, job `name`, into `output`.
+pub(super) fn small_manifest(dir: &Path, file: &str, name: &str, output: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(file);
+    std::fs::write(
+        &path,
+        format!(
+            "output = \"{output}\"\n[defaults]\nframes = \"1..2\"\ndownsample = 4\n\
+             backend = \"cpu\"\n[[job]]\nname = \"{name}\"\nsequence = \"{}\"\n",
+            common::bundled_icl().display()
+        ),
+    )
+    .unwrap();
+    path
+}
+
+/// `wgslam run` over the bundled frames 1..`last` at 160x120 on the CPU into `out`.
+pub(super) fn run_args(last: u32, out: &Path) -> Vec<String> {
+    [
+        "run",
+        s(&common::bundled_icl()),
+        "--frames",
+        &format!("1..{last}"),
+        "--downsample",
+        "4",
+        "--backend",
+        "cpu",
+        "--out",
+        s(out),
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect()
+}
+
+/// Every hostile-input test, by topic.
+pub fn tests() -> Vec<common::harness::Test> {
+    let mut v = batch_folders::tests();
+    for more in [
+        report::tests(),
+        outputs::tests(),
+        readers::tests(),
+        wrong_results::tests(),
+        messages::tests(),
+    ] {
+        v.extend(more);
+    }
+    v
+}
