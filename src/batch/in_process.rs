@@ -96,6 +96,10 @@ mod tests {
             ran.fetch_add(1, Ordering::SeqCst);
             k < 4
         });
-        assert_eq!(ran.load(Ordering::SeqCst), 5, "items 0..=4, the last said stop");
+        assert_eq!(
+            ran.load(Ordering::SeqCst),
+            5,
+            "items 0..=4, the last said stop"
+        );
     }
 }

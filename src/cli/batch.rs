@@ -104,9 +104,9 @@ struct RunOnly {
 fn in_process_runs() -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
-        let a = RunOnly::try_parse_from(std::iter::once("wgslam run").chain(
-            args.iter().skip(1).map(String::as_str),
-        ))
+        let a = RunOnly::try_parse_from(
+            std::iter::once("wgslam run").chain(args.iter().skip(1).map(String::as_str)),
+        )
         .map_err(|e| Error::Argument(e.to_string()))?
         .run;
         let gpu = || -> Result<AnyBackend> {

@@ -75,8 +75,7 @@ impl Kernel {
             let wgsl = shaders::source(name);
             let first = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 0.0)], None)?;
             let layout = first.bind_group_layout.clone();
-            let second =
-                Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 1.0)], Some(layout))?;
+            let second = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 1.0)], Some(layout))?;
             Ok(vec![first, second])
         })?;
         let [first, second]: [Kernel; 2] = passes

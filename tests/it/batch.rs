@@ -364,8 +364,8 @@ fn concurrent_jobs_equal_one_at_a_time() {
             assert!(a == b, "{rel} differs between --concurrent 4 and 1");
         }
         // An in-process run's log holds what `wgslam run` prints.
-        let log = std::fs::read_to_string(at_once.join(format!("jobs/{job}/{backend}.log")))
-            .unwrap();
+        let log =
+            std::fs::read_to_string(at_once.join(format!("jobs/{job}/{backend}.log"))).unwrap();
         assert!(log.contains("wrote "), "{job} {backend}.log: {log}");
     }
     let o = wgslam(&["batch", "diff", s(&at_once), s(&one_by_one)], &[]);
@@ -380,6 +380,59 @@ fn concurrent_jobs_equal_one_at_a_time() {
         "{}",
         text(&o)
     );
+}
+
+fn sigterm_stops_concurrent_jobs_then_resume_completes() {
+    let dir = common::temp_dir("batch-kill-concurrent");
+    let m = manifest(&dir, &cpu_grid("1..12"));
+    let out = dir.join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_wgslam"))
+        .args(["batch", s(&m), "--concurrent", "2"])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // The third job starts when one of the first two is done: SIGTERM while it runs.
+    let start = Instant::now();
+    while !out.join("jobs/g-assignment/cpu.log").exists() {
+        assert!(
+            start.elapsed() < FIRST_JOB_TIMEOUT,
+            "the batch did not reach its third job"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "the batch ended early");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "interrupted batches exit 130");
+    assert!(
+        !out.join("jobs/g-assignment/job.json").exists(),
+        "the stopped job must not look complete"
+    );
+    assert!(
+        !out.join("jobs/g-assignment/cpu/map.ply").exists(),
+        "a stopped run writes no outputs"
+    );
+    // Resume with several at once: the rest run, and the numbers are an uninterrupted
+    // batch's.
+    let o = wgslam(&["batch", s(&m), "--concurrent", "2"], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("g-assignment: ok in"),
+        "the stopped job runs again: {}",
+        text(&o)
+    );
+    let o = wgslam(&["batch", s(&m), "--out", s(&dir.join("whole"))], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = wgslam(&["batch", "diff", s(&out), s(&dir.join("whole"))], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("equal: 3 jobs"), "{}", text(&o));
 }
 
 /// The full noisy sequence: the batch's numbers are the run's, on the real ground truth.
@@ -422,6 +475,10 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "sigterm_half_way_then_resume_equals_an_uninterrupted_run",
             sigterm_half_way_then_resume_equals_an_uninterrupted_run,
+        ),
+        plain(
+            "sigterm_stops_concurrent_jobs_then_resume_completes",
+            sigterm_stops_concurrent_jobs_then_resume_completes,
         ),
         gpu("both_backends_write_the_gpu_vs_cpu_comparison", |_ctx| {
             both_backends_write_the_gpu_vs_cpu_comparison()
