@@ -100,7 +100,7 @@ struct RunOnly {
 
 /// Runs a job's backend in this process: `args` parsed as `wgslam run`'s, the CPU backend
 /// or a GPU backend on its own share of one device, opened at the first GPU run and shared
-/// by all (pipelines included: see [`crate::gpu::GpuContext::share`]).
+/// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
 fn in_process_runs() -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
