@@ -1,7 +1,9 @@
 //! One batch job: its parameters into `params.toml` in its folder, then `wgslam run
 //! --params params.toml` once per backend, each in a child process of this executable (so
 //! each run's peak memory is its own, and a crash or a lost GPU device fails one job, not
-//! the batch), then the GPU-vs-CPU comparison, then `job.json`.
+//! the batch) or, with `--concurrent N` above 1, on this thread through
+//! [`Runner::in_process`] (see [`super::in_process`]), then the GPU-vs-CPU comparison, then
+//! `job.json`.
 //!
 //! `job.json` is written last, atomically: a job is complete exactly when it holds status
 //! `ok` for the same [`JobSpec`]. Starting a job first removes its folder (only the files a
@@ -19,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use super::folder;
 use super::gpu_vs_cpu::{self, GpuVsCpu};
+use super::in_process::{InProcessRun, RunHooks};
 use super::interrupt;
 use super::manifest::JobSpec;
 use crate::tools::run::{read_numbers, RunNumbers};
@@ -82,6 +85,9 @@ pub struct Runner {
     pub exe: PathBuf,
     /// The batch folder.
     pub out: PathBuf,
+    /// `None`: each backend's run is a child process of [`Runner::exe`]. `Some`: it runs in
+    /// this process, on the calling thread, given the `wgslam run` arguments.
+    pub in_process: Option<Box<InProcessRun>>,
 }
 
 impl Runner {
@@ -179,8 +185,21 @@ impl Runner {
             let out = dir.join(backend);
             let log = dir.join(format!("{backend}.log"));
             let args = self.run_args(spec, backend, &out);
-            match self.run_child(&args, &log, &|done, total| progress(backend, done, total))? {
+            let progress = |done, total| progress(backend, done, total);
+            let end = match &self.in_process {
+                None => self.run_child(&args, &log, &progress)?,
+                Some(launch) => run_here(launch.as_ref(), &args, &log, &progress)?,
+            };
+            match end {
                 ChildEnd::Interrupted => return Ok(Outcome::Interrupted),
+                ChildEnd::Failed(why) => {
+                    rec.fail(format!(
+                        "{backend} run failed: {why}; end of {}:\n{}",
+                        log.display(),
+                        log_tail(&log)
+                    ));
+                    break;
+                }
                 ChildEnd::Exited(status) if status.success() => {
                     match read_numbers(&out.join("metrics.json")) {
                         Ok(n) => {
@@ -292,7 +311,51 @@ impl JobRecord {
 
 enum ChildEnd {
     Exited(ExitStatus),
+    /// An in-process run's error or panic.
+    Failed(String),
     Interrupted,
+}
+
+/// Runs `wgslam ARGS` through `launch` on this thread, every line it prints into `log`
+/// (its error last, as `wgslam` prints it), stopping at the next frame on an interrupt.
+/// A panic in the run fails this run only.
+fn run_here(
+    launch: &InProcessRun,
+    args: &[String],
+    log: &Path,
+    progress: &dyn Fn(u64, u64),
+) -> Result<ChildEnd> {
+    let file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
+    let file = std::sync::Mutex::new(file);
+    let say = |line: &str| {
+        let mut f = file.lock().unwrap_or_else(|p| p.into_inner());
+        let _ = writeln!(f, "{line}");
+    };
+    let stop = interrupt::requested;
+    let hooks = RunHooks {
+        say: &say,
+        progress,
+        stop: &stop,
+    };
+    let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| launch(args, &hooks)));
+    let why = match ran {
+        // `ExitStatus::default()` is a successful exit.
+        Ok(Ok(())) => return Ok(ChildEnd::Exited(ExitStatus::default())),
+        Ok(Err(e)) => e.to_string(),
+        Err(panic) => format!(
+            "panicked: {}",
+            panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("(no message)")
+        ),
+    };
+    if interrupt::requested() {
+        return Ok(ChildEnd::Interrupted);
+    }
+    say(&format!("error: {why}"));
+    Ok(ChildEnd::Failed(why))
 }
 
 fn stop(child: &mut Child) {

@@ -2,6 +2,7 @@
 //!
 //! ```toml
 //! output = "batch-out"            # the batch folder, relative to this file's folder
+//! concurrent = 4                  # jobs at once in one process (`batch --concurrent` wins)
 //! [defaults]                      # every job's values unless the job sets its own
 //! frames = "1..60"                # as `wgslam run --frames` (absent: the run's default)
 //! downsample = 2
@@ -62,6 +63,8 @@ pub struct Manifest {
     pub path: PathBuf,
     /// Its `output` key (joined to its folder), if any.
     pub output: Option<PathBuf>,
+    /// Its `concurrent` key: jobs run at once in one process (`batch --concurrent`).
+    pub concurrent: Option<usize>,
     pub jobs: Vec<JobSpec>,
 }
 
@@ -113,6 +116,7 @@ impl<T: Clone> OneOrMany<T> {
 #[serde(deny_unknown_fields)]
 struct FileToml {
     output: Option<PathBuf>,
+    concurrent: Option<usize>,
     #[serde(default)]
     defaults: Fields,
     #[serde(default)]
@@ -266,6 +270,7 @@ impl Manifest {
         Ok(Manifest {
             path: path.to_path_buf(),
             output: file.output.map(|o| dir.join(o)),
+            concurrent: file.concurrent,
             jobs,
         })
     }

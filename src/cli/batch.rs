@@ -1,16 +1,22 @@
 //! `wgslam batch`: argument parsing and printing for the batch layer ([`crate::batch`]).
 
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, OnceLock};
 
-use clap::{Args, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
+use crate::batch::in_process::{self, Embedded, InProcessRun, RunHooks};
 use crate::batch::job::{Outcome, Runner};
 use crate::batch::manifest::Manifest;
 use crate::batch::select::{self, Selection};
 use crate::batch::summary::{self, Summary};
 use crate::batch::{folder, interrupt, report};
 use crate::cli::pipeline_args::ParamOverrides;
+use crate::gpu::backend::GpuBackend;
+use crate::gpu::context::GpuContext;
+use crate::slam::any_backend::{AnyBackend, BackendChoice};
+use crate::slam::cpu_backend::CpuBackend;
 use crate::slam::params::PoseSource;
 use crate::{Error, Result};
 
@@ -60,6 +66,10 @@ pub struct BatchRunArgs {
     /// Print the jobs this invocation would run (and skip), and run nothing.
     #[arg(long)]
     pub dry_run: bool,
+    /// Run up to N jobs at once, in this process on one shared GPU device (default: the
+    /// manifest's `concurrent`, else 1: one job at a time, each run in a child process).
+    #[arg(long, value_name = "N")]
+    pub concurrent: Option<usize>,
 }
 
 /// Runs `wgslam batch ...`.
@@ -76,6 +86,46 @@ fn runner(out: PathBuf) -> Result<Runner> {
     Ok(Runner {
         exe: std::env::current_exe().map_err(|e| Error::io("the wgslam executable", e))?,
         out,
+        in_process: None,
+    })
+}
+
+/// `wgslam run`'s arguments on their own, as a batch job's run is given them.
+#[derive(Debug, Parser)]
+#[command(name = "wgslam run")]
+struct RunOnly {
+    #[command(flatten)]
+    run: super::run::RunArgs,
+}
+
+/// Runs a job's backend in this process: `args` parsed as `wgslam run`'s, the CPU backend
+/// or a GPU backend on its own share of one device, opened at the first GPU run and shared
+/// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
+fn in_process_runs() -> Box<InProcessRun> {
+    let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
+    Box::new(move |args: &[String], hooks: &RunHooks| {
+        let a = RunOnly::try_parse_from(
+            std::iter::once("wgslam run").chain(args.iter().skip(1).map(String::as_str)),
+        )
+        .map_err(|e| Error::Argument(e.to_string()))?
+        .run;
+        let gpu = || -> Result<AnyBackend> {
+            let shared = device
+                .get_or_init(|| GpuContext::new().map_err(|e| e.to_string()))
+                .as_ref()
+                .map_err(|e| Error::Gpu(format!("opening the batch's GPU: {e}")))?;
+            Ok(Box::new(GpuBackend::new(shared.share())?))
+        };
+        let backend: AnyBackend = match a.backend {
+            BackendChoice::Cpu => Box::new(CpuBackend::new()),
+            BackendChoice::Gpu | BackendChoice::Auto => gpu()?,
+        };
+        let hooks = RunHooks {
+            say: hooks.say,
+            progress: hooks.progress,
+            stop: hooks.stop,
+        };
+        super::run::execute_in(a, Some(Embedded { backend, hooks }))
     })
 }
 
@@ -158,8 +208,14 @@ fn run(a: BatchRunArgs) -> Result<()> {
         .filter(|&i| chosen.selection.picks(i))
         .collect();
     check_jobs(path, &m, &picked)?;
+    let concurrent = a.concurrent.or(m.concurrent).unwrap_or(1);
+    if concurrent == 0 {
+        return Err(Error::Argument(
+            "--concurrent (or the manifest's `concurrent`) must be at least 1".into(),
+        ));
+    }
     eprintln!(
-        "batch {}: {} of {} jobs ({}) into {}",
+        "batch {}: {} of {} jobs ({}) into {}{}",
         path.display(),
         picked.len(),
         m.jobs.len(),
@@ -168,9 +224,13 @@ fn run(a: BatchRunArgs) -> Result<()> {
             Selection::Shard { index, count } =>
                 format!("index {index} of {count}, from {}", chosen.source),
         },
-        out.display()
+        out.display(),
+        match concurrent {
+            1 => String::new(),
+            n => format!(", up to {n} at once in this process"),
+        }
     );
-    let r = runner(out.clone())?;
+    let mut r = runner(out.clone())?;
     folder::claim(&out, path, !a.dry_run)?;
     if a.dry_run {
         for &i in &picked {
@@ -183,67 +243,27 @@ fn run(a: BatchRunArgs) -> Result<()> {
         }
         return Ok(());
     }
+    if concurrent > 1 {
+        r.in_process = Some(in_process_runs());
+    }
     summary::write_plan(&out, &m)?;
     interrupt::install();
-    let multi = MultiProgress::new();
-    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let batch_bar = multi.add(ProgressBar::new(picked.len() as u64));
-    batch_bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} jobs {msg}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
-    let job_bar = multi.add(ProgressBar::new(0));
-    job_bar.set_style(
-        ProgressStyle::with_template("  {msg} [{bar:30}] {pos}/{len} frames")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
-    let say = |line: String| {
-        if tty {
-            let _ = multi.println(line);
-        } else {
-            eprintln!("{line}");
-        }
-    };
-    let (mut failed, mut interrupted) = (Vec::new(), None);
-    for (k, &i) in picked.iter().enumerate() {
-        let job = &m.jobs[i];
-        batch_bar.set_message(job.id.clone());
-        job_bar.reset();
-        job_bar.set_length(0);
-        job_bar.set_message(job.id.clone());
-        let progress = |backend: &str, done: u64, total: u64| {
-            job_bar.set_message(format!("{} {backend}", job.id));
-            job_bar.set_length(total);
-            job_bar.set_position(done);
-        };
-        let tag = format!("[{}/{}] job {i} {}", k + 1, picked.len(), job.id);
-        if !tty {
-            eprintln!("{tag}: starting");
-        }
-        match r.run(i, job, &progress)? {
-            Outcome::Skipped => say(format!("{tag}: outputs complete, skipped")),
-            Outcome::Ran(rec) => match &rec.error {
-                None => say(format!("{tag}: ok in {:.1} s", rec.wall_s)),
-                Some(e) => {
-                    say(format!("{tag}: FAILED: {e}"));
-                    failed.push(job.id.clone());
-                }
-            },
-            Outcome::Interrupted => {
-                interrupted = Some(job.id.clone());
-                break;
-            }
-        }
-        batch_bar.inc(1);
+    let ended = run_jobs(&r, &m, &picked, concurrent);
+    let Ended {
+        mut failed,
+        interrupted,
+        error,
+    } = ended;
+    // In manifest order, whatever order concurrent jobs ended in.
+    failed.sort_by_key(|id| m.jobs.iter().position(|j| &j.id == id));
+    if let Some(e) = error {
+        return Err(e);
     }
-    job_bar.finish_and_clear();
-    batch_bar.finish_and_clear();
-    if let Some(id) = interrupted {
+    if !interrupted.is_empty() {
         return Err(Error::Interrupted(format!(
-            "job {id} was stopped and left unfinished (no job.json); finished jobs keep their \
-             records; run the same command again to resume"
+            "job {} was stopped and left unfinished (no job.json); finished jobs keep their \
+             records; run the same command again to resume",
+            interrupted.join(", ")
         )));
     }
     // One array task of many writes no summary: the others are still running, and a
@@ -270,6 +290,96 @@ fn run(a: BatchRunArgs) -> Result<()> {
         eprintln!("note: {pending} jobs of the manifest are not finished yet");
     }
     Ok(())
+}
+
+/// How the jobs of one `batch` invocation ended, beyond their records.
+#[derive(Default)]
+struct Ended {
+    /// Ids of the jobs that failed.
+    failed: Vec<String>,
+    /// Ids of the jobs an interrupt stopped.
+    interrupted: Vec<String>,
+    /// An error of the batch itself (a lock, a folder): the first one; it stops the queue.
+    error: Option<Error>,
+}
+
+/// Runs jobs `picked` of `m`, up to `concurrent` at once ([`in_process::run_queue`]), with
+/// a bar for the batch and one per job in flight on a terminal, and a line per job end
+/// (prefixed with its number and id) either way.
+fn run_jobs(r: &Runner, m: &Manifest, picked: &[usize], concurrent: usize) -> Ended {
+    let multi = MultiProgress::new();
+    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let batch_bar = multi.add(ProgressBar::new(picked.len() as u64));
+    batch_bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} jobs {msg}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let job_bars: Vec<ProgressBar> = (0..concurrent.clamp(1, picked.len().max(1)))
+        .map(|_| {
+            let bar = multi.add(ProgressBar::new(0));
+            bar.set_style(
+                ProgressStyle::with_template("  {msg} [{bar:30}] {pos}/{len} frames")
+                    .expect("static template")
+                    .progress_chars("=> "),
+            );
+            bar
+        })
+        .collect();
+    let say = |line: String| {
+        if tty {
+            let _ = multi.println(line);
+        } else {
+            eprintln!("{line}");
+        }
+    };
+    let ended = Mutex::new(Ended::default());
+    in_process::run_queue(picked, concurrent, |slot, k, &i| {
+        let job = &m.jobs[i];
+        let job_bar = &job_bars[slot];
+        if concurrent == 1 {
+            batch_bar.set_message(job.id.clone());
+        }
+        job_bar.reset();
+        job_bar.set_length(0);
+        job_bar.set_message(job.id.clone());
+        let progress = |backend: &str, done: u64, total: u64| {
+            job_bar.set_message(format!("{} {backend}", job.id));
+            job_bar.set_length(total);
+            job_bar.set_position(done);
+        };
+        let tag = format!("[{}/{}] job {i} {}", k + 1, picked.len(), job.id);
+        if !tty {
+            eprintln!("{tag}: starting");
+        }
+        let outcome = r.run(i, job, &progress);
+        let mut ended = ended.lock().unwrap_or_else(|p| p.into_inner());
+        match outcome {
+            Ok(Outcome::Skipped) => say(format!("{tag}: outputs complete, skipped")),
+            Ok(Outcome::Ran(rec)) => match &rec.error {
+                None => say(format!("{tag}: ok in {:.1} s", rec.wall_s)),
+                Some(e) => {
+                    say(format!("{tag}: FAILED: {e}"));
+                    ended.failed.push(job.id.clone());
+                }
+            },
+            Ok(Outcome::Interrupted) => {
+                ended.interrupted.push(job.id.clone());
+                return false;
+            }
+            Err(e) => {
+                ended.error.get_or_insert(e);
+                return false;
+            }
+        }
+        batch_bar.inc(1);
+        true
+    });
+    for bar in &job_bars {
+        bar.finish_and_clear();
+    }
+    batch_bar.finish_and_clear();
+    ended.into_inner().unwrap_or_else(|p| p.into_inner())
 }
 
 /// Collects, writes the summaries and the report, and prints the table.

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use clap::{Args, ValueEnum};
 
 use super::pipeline_args::{default_first_frame, PipelineArgs};
+use crate::batch::in_process::{Embedded, RunHooks};
 use crate::dataset;
 use crate::io::outputs::OutputSet;
 use crate::slam::any_backend::{self, BackendChoice};
@@ -73,6 +74,8 @@ pub const DEFAULT_MAX_SURFELS: usize = 20_000_000;
 struct MapCap<'a> {
     max_surfels: usize,
     recording: Option<&'a mut dyn run::FrameObserver>,
+    /// A batch's hooks when the run is embedded in one: their `stop` ends the run.
+    hooks: Option<&'a RunHooks<'a>>,
 }
 
 impl run::FrameObserver for MapCap<'_> {
@@ -88,6 +91,12 @@ impl run::FrameObserver for MapCap<'_> {
         outcome: &run::FrameOutcome,
         map: Option<&crate::slam::map::SurfelMap>,
     ) -> Result<()> {
+        if self.hooks.is_some_and(|h| (h.stop)()) {
+            return Err(Error::Interrupted(format!(
+                "stopped after frame {}; nothing was written",
+                outcome.index
+            )));
+        }
         let surfels = outcome.report.surfels;
         if surfels > self.max_surfels {
             return Err(Error::Capacity(format!(
@@ -123,6 +132,22 @@ fn progress_bar(len: usize) -> indicatif::ProgressBar {
 
 /// Runs `wgslam run`.
 pub fn execute(a: RunArgs) -> Result<()> {
+    execute_in(a, None)
+}
+
+/// Runs `wgslam run`, in a batch's process when `embedded` says so: on its backend, with
+/// no progress bar, every line it would print handed to its hooks, and no peak memory in
+/// `metrics.json` (the process's peak is every concurrent job's).
+pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
+    let (backend, hooks) = match embedded {
+        Some(e) => (Some(e.backend), Some(e.hooks)),
+        None => (None, None),
+    };
+    let hooks = hooks.as_ref();
+    let say = |line: &str| match hooks {
+        Some(h) => (h.say)(line),
+        None => println!("{line}"),
+    };
     let setup = a.pipeline.resolve()?;
     let seq = setup.open_sequence()?;
     let (first, last) = match &a.frames {
@@ -150,7 +175,10 @@ pub fn execute(a: RunArgs) -> Result<()> {
         PosesChoice::Gt => PoseSource::GroundTruth,
     };
     let params = setup.slam_params(poses)?;
-    let bar = progress_bar(range.clone().count());
+    let bar = match hooks {
+        Some(_) => indicatif::ProgressBar::hidden(),
+        None => progress_bar(range.clone().count()),
+    };
     let total = range.clone().count();
     let on_frame = |f: &run::FrameOutcome| {
         bar.set_message(format!("{} surfels", f.report.surfels));
@@ -159,6 +187,9 @@ pub fn execute(a: RunArgs) -> Result<()> {
             use std::io::Write;
             println!("progress {} {total}", bar.position());
             let _ = std::io::stdout().flush();
+        }
+        if let Some(h) = hooks {
+            (h.progress)(bar.position(), total as u64);
         }
         use crate::slam::loops::LoopAction;
         use crate::slam::pipeline::TrackStatus;
@@ -209,7 +240,9 @@ pub fn execute(a: RunArgs) -> Result<()> {
         // in a log (no terminal, the bar hidden) on stderr.
         events.extend(event);
         for line in events {
-            if bar.is_hidden() {
+            if let Some(h) = hooks {
+                (h.say)(&line);
+            } else if bar.is_hidden() {
                 eprintln!("{line}");
             } else {
                 bar.println(line);
@@ -238,8 +271,11 @@ pub fn execute(a: RunArgs) -> Result<()> {
         None => a.rerun.clone(),
     };
     let mut recording = open_recording(rerun_path.as_deref(), a.rerun_map_every, &seq, &range)?;
-    let backend = any_backend::open(a.backend)?;
-    let result = run::run_observed(
+    let backend = match backend {
+        Some(b) => b,
+        None => any_backend::open(a.backend)?,
+    };
+    let mut result = run::run_observed(
         backend,
         &seq,
         range,
@@ -249,9 +285,13 @@ pub fn execute(a: RunArgs) -> Result<()> {
         Some(&mut MapCap {
             max_surfels: a.max_surfels,
             recording: recording.as_mut().map(|r| r as &mut dyn run::FrameObserver),
+            hooks,
         }),
     )?;
     bar.finish_and_clear();
+    if hooks.is_some() {
+        result.metrics.peak_memory_mib = None;
+    }
     run::write_outputs(outputs.dir(), &result)?;
     let pictures = run::write_pictures(outputs.dir(), &result, &seq)?;
     let pictures: Vec<PathBuf> = pictures
@@ -264,9 +304,9 @@ pub fn execute(a: RunArgs) -> Result<()> {
         None => p,
     });
     outputs.commit()?;
-    print_summary(&result.metrics, &a.out);
+    print_summary(&result.metrics, &a.out, &say);
     for p in pictures.iter().chain(&recorded) {
-        println!("wrote {}", p.display());
+        say(&format!("wrote {}", p.display()));
     }
     Ok(())
 }
@@ -332,14 +372,14 @@ fn open_recording(
     }
 }
 
-fn print_summary(m: &run::Metrics, out: &Path) {
+fn print_summary(m: &run::Metrics, out: &Path, say: &dyn Fn(&str)) {
     for line in run::summary_lines(m) {
-        println!("{line}");
+        say(&line);
     }
-    println!(
+    say(&format!(
         "wrote {}/{{trajectory.tum, trajectory_odometry.tum, map.ply, metrics.json, frames.json}}",
         out.display()
-    );
+    ));
 }
 
 /// Whether `a` and `b` name the same folder: by their canonical paths where both exist,

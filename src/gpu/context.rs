@@ -9,6 +9,7 @@
 use std::sync::{Arc, Mutex};
 
 use super::buffers::{GpuStats, StatsSnapshot};
+use super::kernel::Kernel;
 use crate::{Error, Result};
 
 /// Backends wgslam asks for. Never `GL`: on CPU-only machines it falls back to llvmpipe's
@@ -140,6 +141,11 @@ pub const GPU_REDUCTION_WORKGROUPS: u32 = 1024;
 
 /// An open GPU device with its queue, limits and feature set, and byte/submission
 /// accounting shared by every buffer created from it.
+///
+/// [`GpuContext::share`] gives another handle on the same device and queue with its own
+/// accounting and its own waits (`wgslam batch --concurrent`: one context per job, one
+/// device for all; wgpu's error scopes are per thread, so each job's thread scopes its own
+/// work).
 pub struct GpuContext {
     /// Kept alive for the lifetime of the adapter and device.
     _instance: wgpu::Instance,
@@ -156,7 +162,16 @@ pub struct GpuContext {
     lost: Arc<Mutex<Option<String>>>,
     /// Errors raised outside any error scope (wgpu's default handler would panic).
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// This context's latest submission: [`GpuContext::wait_idle`] waits for it, not for
+    /// what other contexts sharing the queue submitted since.
+    last_submission: Mutex<Option<wgpu::SubmissionIndex>>,
+    /// Kernels built on this device, by name ([`GpuContext::kernels_cached`]); one map for
+    /// every context sharing the device.
+    kernels: Arc<Mutex<KernelCache>>,
 }
+
+/// Built kernels by key: a kernel's name, or its name and its passes.
+type KernelCache = std::collections::HashMap<String, Vec<Kernel>>;
 
 impl std::fmt::Debug for GpuContext {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -266,7 +281,47 @@ impl GpuContext {
             stats: Arc::new(GpuStats::default()),
             lost,
             uncaptured,
+            last_submission: Mutex::new(None),
+            kernels: Arc::default(),
         })
+    }
+
+    /// Another context on this one's device and queue (no new adapter or device): its own
+    /// byte and submission counters, and [`GpuContext::wait_idle`] waiting for its own
+    /// submissions only. A lost device, and an error escaping every error scope, show in
+    /// every context of the device.
+    pub fn share(&self) -> GpuContext {
+        GpuContext {
+            _instance: self._instance.clone(),
+            adapter: self.adapter.clone(),
+            device: self.device.clone(),
+            queue: self.queue.clone(),
+            info: self.info.clone(),
+            limits: self.limits.clone(),
+            features: self.features,
+            stats: Arc::new(GpuStats::default()),
+            lost: Arc::clone(&self.lost),
+            uncaptured: Arc::clone(&self.uncaptured),
+            last_submission: Mutex::new(None),
+            kernels: Arc::clone(&self.kernels),
+        }
+    }
+
+    /// The kernels stored under `key` on this device, built by `build` (and stored) the
+    /// first time: pipelines cost 60-130 ms each on lavapipe, and a batch's concurrent jobs
+    /// ([`GpuContext::share`]) need the same ones. Threads asking at once build once.
+    pub(crate) fn kernels_cached(
+        &self,
+        key: &str,
+        build: impl FnOnce() -> Result<Vec<Kernel>>,
+    ) -> Result<Vec<Kernel>> {
+        let mut cache = self.kernels.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(k) = cache.get(key) {
+            return Ok(k.clone());
+        }
+        let built = build()?;
+        cache.insert(key.to_string(), built.clone());
+        Ok(built)
     }
 
     /// The device's limits (the adapter's, requested in full, or WebGPU's defaults).
@@ -358,11 +413,35 @@ impl GpuContext {
     /// Submits one encoder's commands and counts the submission.
     pub fn submit(&self, encoder: wgpu::CommandEncoder) -> wgpu::SubmissionIndex {
         self.stats.count_submission();
-        self.queue.submit(Some(encoder.finish()))
+        let index = self.queue.submit(Some(encoder.finish()));
+        *self
+            .last_submission
+            .lock()
+            .unwrap_or_else(|p| p.into_inner()) = Some(index.clone());
+        index
     }
 
-    /// Blocks until all submitted work is done; device loss or a timeout is [`Error::Gpu`].
+    /// Blocks until the work this context submitted is done (natively, only its own latest
+    /// submission: work other contexts on the shared queue submitted later is not waited
+    /// for); device loss or a timeout is [`Error::Gpu`].
     pub fn wait_idle(&self) -> Result<()> {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let last = self
+                .last_submission
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .clone();
+            if let Some(index) = last {
+                self.device
+                    .poll(wgpu::PollType::Wait {
+                        submission_index: Some(index),
+                        timeout: None,
+                    })
+                    .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+                return self.check_device();
+            }
+        }
         super::wait::wait_for_submitted(&self.device, &self.queue)
             .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
         self.check_device()

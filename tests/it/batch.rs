@@ -311,6 +311,130 @@ fn both_backends_write_the_gpu_vs_cpu_comparison() {
     );
 }
 
+/// Four short jobs over the bundled frames, GPU and CPU, different ranges and settings;
+/// the manifest asks for them all at once.
+fn mixed_jobs() -> String {
+    let seq = common::bundled_icl();
+    format!(
+        "concurrent = 4\n\
+         [defaults]\nframes = \"1..4\"\ndownsample = 4\n\
+         [[job]]\nname = \"both\"\nsequence = \"{seq}\"\n\
+         [[job]]\nname = \"gpu-later\"\nsequence = \"{seq}\"\nframes = \"3..7\"\nbackend = \"gpu\"\n\
+         [[job]]\nname = \"gpu-assignment\"\nsequence = \"{seq}\"\nbackend = \"gpu\"\nprofile = \"assignment\"\n\
+         [[job]]\nname = \"cpu-icp\"\nsequence = \"{seq}\"\nbackend = \"cpu\"\noverrides = {{ icp-dist = 0.08 }}\n",
+        seq = seq.display()
+    )
+}
+
+/// The outputs that must be byte-identical whichever way the jobs ran.
+const IDENTICAL_OUTPUTS: [&str; 2] = ["trajectory.tum", "map.ply"];
+
+fn concurrent_jobs_equal_one_at_a_time() {
+    let dir = common::temp_dir("batch-concurrent");
+    let m = manifest(&dir, &mixed_jobs());
+    // The manifest's `concurrent = 4`: the four jobs at once, in this process.
+    let (at_once, one_by_one) = (dir.join("at-once"), dir.join("one-by-one"));
+    let o = wgslam(&["batch", s(&m), "--out", s(&at_once)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("up to 4 at once in this process"),
+        "{}",
+        text(&o)
+    );
+    // The flag wins over the key: one job at a time, each run a child process.
+    let o = wgslam(
+        &["batch", s(&m), "--out", s(&one_by_one), "--concurrent", "1"],
+        &[],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("at once"), "{}", text(&o));
+    let jobs = [
+        ("both", "cpu"),
+        ("both", "gpu"),
+        ("gpu-later", "gpu"),
+        ("gpu-assignment", "gpu"),
+        ("cpu-icp", "cpu"),
+    ];
+    for (job, backend) in jobs {
+        for f in IDENTICAL_OUTPUTS {
+            let rel = format!("jobs/{job}/{backend}/{f}");
+            let (a, b) = (at_once.join(&rel), one_by_one.join(&rel));
+            let (a, b) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+            assert!(!a.is_empty(), "{rel} is empty");
+            assert!(a == b, "{rel} differs between --concurrent 4 and 1");
+        }
+        // An in-process run's log holds what `wgslam run` prints.
+        let log =
+            std::fs::read_to_string(at_once.join(format!("jobs/{job}/{backend}.log"))).unwrap();
+        assert!(log.contains("wrote "), "{job} {backend}.log: {log}");
+    }
+    let o = wgslam(&["batch", "diff", s(&at_once), s(&one_by_one)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("equal: 4 jobs"), "{}", text(&o));
+    // Resuming with several at once skips what is complete.
+    let o = wgslam(&["batch", s(&m), "--out", s(&at_once)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        text(&o).matches("outputs complete, skipped").count(),
+        4,
+        "{}",
+        text(&o)
+    );
+}
+
+fn sigterm_stops_concurrent_jobs_then_resume_completes() {
+    let dir = common::temp_dir("batch-kill-concurrent");
+    let m = manifest(&dir, &cpu_grid("1..12"));
+    let out = dir.join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_wgslam"))
+        .args(["batch", s(&m), "--concurrent", "2"])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // The third job starts when one of the first two is done: SIGTERM while it runs.
+    let start = Instant::now();
+    while !out.join("jobs/g-assignment/cpu.log").exists() {
+        assert!(
+            start.elapsed() < FIRST_JOB_TIMEOUT,
+            "the batch did not reach its third job"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "the batch ended early");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "interrupted batches exit 130");
+    assert!(
+        !out.join("jobs/g-assignment/job.json").exists(),
+        "the stopped job must not look complete"
+    );
+    assert!(
+        !out.join("jobs/g-assignment/cpu/map.ply").exists(),
+        "a stopped run writes no outputs"
+    );
+    // Resume with several at once: the rest run, and the numbers are an uninterrupted
+    // batch's.
+    let o = wgslam(&["batch", s(&m), "--concurrent", "2"], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("g-assignment: ok in"),
+        "the stopped job runs again: {}",
+        text(&o)
+    );
+    let o = wgslam(&["batch", s(&m), "--out", s(&dir.join("whole"))], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = wgslam(&["batch", "diff", s(&out), s(&dir.join("whole"))], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("equal: 3 jobs"), "{}", text(&o));
+}
+
 /// The full noisy sequence: the batch's numbers are the run's, on the real ground truth.
 const NOISY_ATE_MAX_MM: f64 = 15.0;
 
@@ -352,8 +476,15 @@ pub fn tests() -> Vec<common::harness::Test> {
             "sigterm_half_way_then_resume_equals_an_uninterrupted_run",
             sigterm_half_way_then_resume_equals_an_uninterrupted_run,
         ),
+        plain(
+            "sigterm_stops_concurrent_jobs_then_resume_completes",
+            sigterm_stops_concurrent_jobs_then_resume_completes,
+        ),
         gpu("both_backends_write_the_gpu_vs_cpu_comparison", |_ctx| {
             both_backends_write_the_gpu_vs_cpu_comparison()
+        }),
+        gpu("concurrent_jobs_equal_one_at_a_time", |_ctx| {
+            concurrent_jobs_equal_one_at_a_time()
         }),
         shared(
             "noisy_sequence_job_tracks_against_ground_truth",
