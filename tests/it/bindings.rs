@@ -152,13 +152,19 @@ fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), Stri
 /// Every kernel's CPU twin takes the shader's bindings as its parameters, in `@binding` order
 /// and named as the WGSL variables (less the bindings of [`TWIN_RETURNS`], which it returns),
 /// so the binding descriptions at the WGSL declarations describe the twin's arguments too.
-/// Every mismatch of every kernel is reported at once; a missing twin file or function is a
-/// mismatch, not a skip, and so is an exception that names no binding of its kernel.
+/// A key kernel's portable variant has the twin of its key kernel, whose key maps carry the
+/// variant ([`portable_variant_problems`]). Every mismatch of every kernel is reported at
+/// once; a missing twin file or function is a mismatch, not a skip, and so is an exception
+/// that names no binding of its kernel.
 fn every_twin_takes_its_shaders_bindings_in_order() {
     let cpu = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/cpu");
     let mut failures = Vec::new();
     let mut checked = 0;
     for (name, _) in shaders::KERNELS {
+        if shaders::file_of(name) != *name {
+            failures.extend(portable_variant_problems(name, shaders::file_of(name)));
+            continue;
+        }
         let bindings = match gpu::reflect(name, &shaders::source(name)) {
             Ok((reflected, _)) => reflected,
             Err(problems) => {
@@ -203,8 +209,7 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
                  `pub fn {name}` returns nothing"
             ));
         }
-        // The bindings, then the shader's `override` constants in snake case (the portable
-        // kernels' KEY_PASS is the twin's `key_pass`).
+        // The bindings, then the shader's `override` constants in snake case.
         let module = common::wgsl::parse(name, &shaders::source(name));
         let expected: Vec<(String, String)> = bindings
             .iter()
@@ -248,6 +253,52 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
         shaders::KERNELS.len(),
         TWIN_RETURNS.len()
     );
+}
+
+/// A portable variant `variant` of the key kernel `kernel` binds what the kernel binds, under
+/// the same names and numbers, and adds one `override`, `KEY_PASS`, which its twin (the
+/// kernel's, `src/cpu/<kernel>.rs`) takes inside its key-map arguments
+/// (`cpu::key_writer::KeyPass`) rather than as a parameter of its own.
+fn portable_variant_problems(variant: &str, kernel: &str) -> Vec<String> {
+    let names = |name: &str| {
+        gpu::reflect(name, &shaders::source(name)).map(|(reflected, _)| {
+            reflected
+                .into_iter()
+                .map(|b| (b.binding, b.name))
+                .collect::<Vec<_>>()
+        })
+    };
+    let (ours, theirs) = match (names(variant), names(kernel)) {
+        (Ok(ours), Ok(theirs)) => (ours, theirs),
+        (ours, theirs) => {
+            return [ours.err(), theirs.err()]
+                .into_iter()
+                .flatten()
+                .flatten()
+                .collect()
+        }
+    };
+    let mut problems = Vec::new();
+    if ours != theirs {
+        problems.push(format!(
+            "kernel `{variant}`: bindings {ours:?} differ from `{kernel}`'s {theirs:?}, whose \
+             twin it shares"
+        ));
+    }
+    let module = common::wgsl::parse(variant, &shaders::source(variant));
+    let overrides: Vec<_> = module
+        .overrides
+        .iter()
+        .filter_map(|(_, o)| o.name.clone())
+        .collect();
+    if overrides != [shaders::KEY_PASS] {
+        problems.push(format!(
+            "kernel `{variant}`: overrides {overrides:?}, expected only `{}` (carried by \
+             cpu::key_writer::KeyPass)",
+            shaders::KEY_PASS
+        ));
+    }
+    problems
 }
 
 pub fn tests() -> Vec<common::harness::Test> {

@@ -1,9 +1,10 @@
 //! Parses and validates every `shaders/*.wgsl` with naga, without a GPU.
 //!
 //! Each kernel is checked as the runtime builds it (`common.wgsl` + kernel, through
-//! `wgslam::gpu::shaders::source`), and `common.wgsl` is also checked alone so its errors
-//! show up even before any kernel exists. All failures are reported at once, each with the
-//! file and line it comes from.
+//! `wgslam::gpu::shaders::source`), both variants of each key kernel included (the 64-bit
+//! one and its portable variant, composed from one file), and `common.wgsl` is also checked
+//! alone so its errors show up even before any kernel exists. All failures are reported at
+//! once, each with the file and line it comes from.
 
 use crate::common;
 
@@ -54,17 +55,20 @@ fn every_shader_parses_and_validates() {
                 "shaders/{name}.wgsl: differs from the embedded copy (rebuild)"
             ));
         }
+    }
+    // Every kernel the runtime builds, so both variants of every key kernel.
+    for (name, _) in shaders::KERNELS {
+        let file = shaders::file_of(name);
+        if !on_disk.iter().any(|n| n == file) {
+            failures.push(format!(
+                "gpu::shaders::KERNELS lists `{name}` but shaders/{file}.wgsl is missing"
+            ));
+            continue;
+        }
         if let Some(f) = check(name, &shaders::source(name), |l| {
             shaders::origin_of_line(name, l)
         }) {
             failures.push(f);
-        }
-    }
-    for (name, _) in shaders::KERNELS {
-        if !on_disk.iter().any(|n| n == name) {
-            failures.push(format!(
-                "gpu::shaders::KERNELS lists `{name}` but shaders/{name}.wgsl is missing"
-            ));
         }
     }
 
@@ -75,7 +79,8 @@ fn every_shader_parses_and_validates() {
         failures.join("\n\n")
     );
     eprintln!(
-        "validated common.wgsl and {} kernel(s): {:?}",
+        "validated common.wgsl and {} kernel(s) from {} file(s): {:?}",
+        shaders::KERNELS.len(),
         on_disk.len(),
         on_disk
     );
@@ -83,8 +88,9 @@ fn every_shader_parses_and_validates() {
 
 /// Without 64-bit integers (WebGPU, and adapters without SHADER_INT64): every prefix and
 /// every kernel but the 64-bit key kernels validates with no optional capability, and each
-/// 64-bit key kernel has a portable twin that does. The portable kernels' `override
-/// KEY_PASS` is left unset here (naga validates the module with its overrides).
+/// 64-bit key kernel has a portable variant (the same file without `KEY_64`) that does. The
+/// portable variants' `override KEY_PASS` is left unset here (naga validates the module
+/// with its overrides).
 fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
     let mut failures = Vec::new();
     for (prefix, text) in shaders::PREFIXES {
@@ -117,6 +123,11 @@ fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
             shaders::kernel_text(int64).is_some() && shaders::kernel_text(twin).is_some(),
             "{int64} / {twin}: not both in KERNELS"
         );
+        assert_eq!(
+            shaders::file_of(twin),
+            *int64,
+            "{twin}: not composed from shaders/{int64}.wgsl"
+        );
         // The 64-bit kernel really needs the capability (else it needs no twin).
         assert!(
             wgsl::check(
@@ -136,7 +147,7 @@ fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
         failures.join("\n\n")
     );
     eprintln!(
-        "{portable} kernels validate without 64-bit integers; {} have portable twins",
+        "{portable} kernels validate without 64-bit integers; {} have portable variants",
         shaders::PORTABLE_KERNELS.len()
     );
 }
