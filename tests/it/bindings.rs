@@ -88,15 +88,40 @@ const TWIN_RETURNS: &[(&str, &str, &str)] = &[
     ),
 ];
 
-/// The parameter names of `pub fn <name>(...)` in `source`, or why they cannot be read: the
-/// text from the `(` to its matching `)`, split on top-level commas, each parameter's name
-/// the identifier before its `:` (a leading `mut` dropped). Also whether a `->` follows.
+/// The parameter names of `pub fn <name>(...)` (or `pub fn <name><generics>(...)`) in
+/// `source`, or why they cannot be read: the text from the `(` to its matching `)`, split on
+/// top-level commas, each parameter's name the identifier before its `:` (a leading `mut`
+/// dropped). Also whether a `->` follows.
 fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), String> {
     let head = format!("pub fn {name}(");
-    let start = match source.matches(&head).count() {
-        1 => source.find(&head).unwrap() + head.len(),
-        0 => return Err(format!("no `{head}` found")),
-        n => return Err(format!("`{head}` found {n} times")),
+    let starts: Vec<usize> = source
+        .match_indices(&format!("pub fn {name}"))
+        .map(|(i, m)| i + m.len())
+        .filter_map(|after| {
+            let rest = &source[after..];
+            if rest.starts_with('(') {
+                return Some(after + 1);
+            }
+            // Generic parameters: skip to the `>` that closes the first `<`.
+            let mut depth = 0usize;
+            for (i, c) in rest.char_indices() {
+                match c {
+                    '<' => depth += 1,
+                    '>' if depth == 1 => {
+                        return rest[i + 1..].starts_with('(').then_some(after + i + 2)
+                    }
+                    '>' => depth = depth.checked_sub(1)?,
+                    _ if depth == 0 => return None,
+                    _ => {}
+                }
+            }
+            None
+        })
+        .collect();
+    let start = match starts[..] {
+        [start] => start,
+        [] => return Err(format!("no `{head}` found")),
+        _ => return Err(format!("`{head}` found {} times", starts.len())),
     };
     let text = &source[start..];
     let (mut depth, mut end, mut param, mut params) = (0usize, None, String::new(), Vec::new());
