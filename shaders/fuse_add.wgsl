@@ -9,14 +9,15 @@
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes
 // at or past params.capacity (the host grows the map first so that every pixel fits).
-// Two variants (see keep_nearer and first_key_pass, the only code that differs): KEY_64,
-// one u64 atomicMax per new surfel (needs SHADER_INT64_ATOMIC_MIN_MAX); else
-// fuse_add_portable on fuse_select_portable's (low, high) u32 words, dispatched once per
-// chunk and pass: KEY_PASS 0 over every chunk writes the new surfels and raises the depth
-// words, KEY_PASS 1 over every chunk (with best-candidate association only: it writes
-// nothing else) sets the index words. A new surfel's index is larger than every index
-// already in the map (new surfels are appended), so where its depth word is the pixel's
-// the index word becomes its index, and the pair equals the 64-bit key bit for bit.
+// Two variants (keep_nearer and first_key_pass in shaders/key_writer.wgsl, appended, and
+// index_map's type are all that differ): KEY_64, one u64 atomicMax per new surfel (needs
+// SHADER_INT64_ATOMIC_MIN_MAX); else fuse_add_portable on fuse_select_portable's (low,
+// high) u32 words, dispatched once per chunk and pass: KEY_PASS 0 over every chunk writes
+// the new surfels and raises the depth words, KEY_PASS 1 over every chunk (with
+// best-candidate association only: it writes nothing else) sets the index words. A new
+// surfel's index is larger than every index already in the map (new surfels are
+// appended), so where its depth word is the pixel's the index word becomes its index, and
+// the pair equals the 64-bit key bit for bit.
 
 // Uses t_cam_to_world, surfel_count, frame_id and capacity.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
@@ -95,31 +96,3 @@ fn add_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
         keep_nearer(texel.y * params.width + texel.x, depth_key(q_cam.z), i);
     }
 }
-
-// The pixel `pix` keeps the larger of its key and (depth_word, index); first_key_pass
-// says whether this dispatch writes the new surfels. Mirror `cpu::key_writer::KeyWriter`.
-#ifdef KEY_64
-fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
-    atomicMax(&index_map[pix], (u64(depth_word) << 32u) | u64(index));
-}
-
-fn first_key_pass() -> bool {
-    return true;
-}
-#else
-// Which word this dispatch decides: 0 the depth word (and the new surfels), 1 the index
-// word (if this surfel's depth word is the pixel's after pass 0).
-override KEY_PASS: u32;
-
-fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
-    if KEY_PASS == 0u {
-        atomicMax(&index_map[2u * pix + 1u], depth_word);
-    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
-        atomicMax(&index_map[2u * pix], index);
-    }
-}
-
-fn first_key_pass() -> bool {
-    return KEY_PASS == 0u;
-}
-#endif

@@ -7,10 +7,11 @@
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (a
 // surfel whose centre misses the image is skipped anyway); threads stride over a block.
 // The atomicMaxes keep the surfel nearest each pixel's ray, and the one nearest the camera
-// (ties to the larger index), whatever the thread order. Two variants (see keep_nearer and
-// keep_best, the only code that differs): KEY_64, one u64 atomicMax per key (needs
-// SHADER_INT64_ATOMIC_MIN_MAX); else fuse_select_portable, each key as (low, high) u32
-// words in two passes (KEY_PASS 0 over every chunk, then 1), equal bit for bit.
+// (ties to the larger index), whatever the thread order. Two variants (keep_nearer in
+// shaders/key_writer.wgsl, appended, keep_best below, and the key maps' types are all that
+// differ): KEY_64, one u64 atomicMax per key (needs SHADER_INT64_ATOMIC_MIN_MAX); else
+// fuse_select_portable, each key as (low, high) u32 words in two passes (KEY_PASS 0 over
+// every chunk, then 1), equal bit for bit.
 
 // Tracked pose, intrinsics, surfel_count, gates.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
@@ -99,29 +100,13 @@ fn select_for_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     keep_best(pix, depth_key(off_ray), i);
 }
 
-// The pixel `pix` keeps the larger of its index-map key (keep_nearer) or association key
-// (keep_best) and (high, index). Mirror `cpu::key_writer::KeyWriter::keep_nearer`.
+// The pixel `pix` keeps the larger of its association key and (high, index): keep_nearer
+// (shaders/key_writer.wgsl) on `assoc` instead of `index_map`, in the same variant.
 #ifdef KEY_64
-fn keep_nearer(pix: u32, high: u32, index: u32) {
-    atomicMax(&index_map[pix], (u64(high) << 32u) | u64(index));
-}
-
 fn keep_best(pix: u32, high: u32, index: u32) {
     atomicMax(&assoc[pix], (u64(high) << 32u) | u64(index));
 }
 #else
-// Which word this dispatch decides: 0 the high (depth or off-ray) word, 1 the index word
-// (if this surfel's high word is the pixel's after pass 0).
-override KEY_PASS: u32;
-
-fn keep_nearer(pix: u32, high: u32, index: u32) {
-    if KEY_PASS == 0u {
-        atomicMax(&index_map[2u * pix + 1u], high);
-    } else if atomicLoad(&index_map[2u * pix + 1u]) == high {
-        atomicMax(&index_map[2u * pix], index);
-    }
-}
-
 fn keep_best(pix: u32, high: u32, index: u32) {
     if KEY_PASS == 0u {
         atomicMax(&assoc[2u * pix + 1u], high);

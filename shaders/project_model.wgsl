@@ -7,8 +7,9 @@
 // (nearest surfel, ties to the larger index); 0 means no surfel. Two variants from this
 // file (src/gpu/shaders.rs, docs/portable-gpu.md): KEY_64 defined, one atomicMax on a u64
 // per pixel (needs SHADER_INT64_ATOMIC_MIN_MAX); else project_model_portable, the key as
-// (low, high) u32 words in two passes (KEY_PASS), equal bit for bit. keep_nearer, at the
-// end, is the only code that differs. Workgroups stride over the chunk's blocks; a block
+// (low, high) u32 words in two passes (KEY_PASS), equal bit for bit. keep_nearer
+// (shaders/key_writer.wgsl, appended) and index_map's type are all that differ.
+// Workgroups stride over the chunk's blocks; a block
 // whose box block_visible rejects is skipped whole (conservative: no surfel that would
 // land in the image is skipped); the workgroup's threads stride over a visible block.
 
@@ -60,24 +61,3 @@ fn main(
         }
     }
 }
-
-// The pixel `pix` keeps the larger of its key and (depth_word, index). Mirrors
-// `cpu::key_writer::KeyWriter::keep_nearer`.
-#ifdef KEY_64
-fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
-    atomicMax(&index_map[pix], (u64(depth_word) << 32u) | u64(index));
-}
-#else
-// Which word this dispatch decides: 0 the depth word, 1 the index word. Pass 0 over every
-// chunk raises the depth word; pass 1 raises the index word if this surfel's depth word is
-// the pixel's (every pass-0 dispatch has finished by then).
-override KEY_PASS: u32;
-
-fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
-    if KEY_PASS == 0u {
-        atomicMax(&index_map[2u * pix + 1u], depth_word);
-    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
-        atomicMax(&index_map[2u * pix], index);
-    }
-}
-#endif

@@ -7,7 +7,8 @@
 // centre depth) wins, ties to the larger index, 0 = empty; as in project_model, and in its
 // two variants (KEY_64: one u64 atomicMax, needs SHADER_INT64_ATOMIC_MIN_MAX; else
 // render_splat_portable, (low, high) u32 words in two passes, KEY_PASS 0 then 1; see
-// keep_nearer). Grid-stride loop over surfels, so any workgroup count covers the whole map.
+// keep_nearer in shaders/key_writer.wgsl, appended). Grid-stride loop over surfels, so any
+// workgroup count covers the whole map.
 
 // RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
 
@@ -79,23 +80,3 @@ fn main(
         }
     }
 }
-
-// The pixel `pix` keeps the larger of its key and (depth_word, index). Mirrors
-// `cpu::key_writer::KeyWriter::keep_nearer`.
-#ifdef KEY_64
-fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
-    atomicMax(&index_map[pix], (u64(depth_word) << 32u) | u64(index));
-}
-#else
-// Which word this dispatch decides: 0 the depth word, 1 the index word (if this surfel's
-// depth word is the pixel's after pass 0).
-override KEY_PASS: u32;
-
-fn keep_nearer(pix: u32, depth_word: u32, index: u32) {
-    if KEY_PASS == 0u {
-        atomicMax(&index_map[2u * pix + 1u], depth_word);
-    } else if atomicLoad(&index_map[2u * pix + 1u]) == depth_word {
-        atomicMax(&index_map[2u * pix], index);
-    }
-}
-#endif

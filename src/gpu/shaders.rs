@@ -3,8 +3,9 @@
 //!
 //! WGSL has no includes, so a kernel's source is its prefix followed by
 //! `shaders/<kernel>.wgsl`: `scan_common.wgsl` for the scan kernels ([`SCAN_KERNELS`]),
-//! `common.wgsl` for every other. The key kernels ([`PORTABLE_KERNELS`]) are each built in
-//! two variants from their one file by [`preprocess`] (`#ifdef KEY_64`). [`source`] builds
+//! `common.wgsl` for every other. The key kernels ([`PORTABLE_KERNELS`]) are followed by
+//! `shaders/key_writer.wgsl` and each built in two variants from that one text by
+//! [`preprocess`] (`#ifdef KEY_64`). [`source`] builds
 //! it all; the runtime (pipeline creation) and the naga tests (`tests/it/shaders.rs`,
 //! `tests/it/bindings.rs`) both use it, so what is validated is what runs. This module does
 //! not compile anything; see [`super::kernel`].
@@ -20,11 +21,19 @@ pub const SCAN_COMMON: &str = include_str!("../../shaders/scan_common.wgsl");
 /// The prefix files as `(name, text)` (not kernels: no entry point, no bindings).
 pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN_COMMON)];
 
+/// `shaders/key_writer.wgsl`: how a key kernel's `index_map` keeps the larger key, in both
+/// variants (mirrors `src/cpu/key_writer.rs`). Appended to each key kernel; not a kernel,
+/// and not valid alone (it writes the kernel's `index_map`).
+pub const KEY_WRITER: &str = include_str!("../../shaders/key_writer.wgsl");
+
+/// The name of [`KEY_WRITER`]'s file, `shaders/<KEY_WRITER_FILE>.wgsl`.
+pub const KEY_WRITER_FILE: &str = "key_writer";
+
 /// Kernels prefixed with `scan_common.wgsl` instead of `common.wgsl`.
 pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 
-/// The key kernels, each built in two variants from its one file `shaders/<kernel>.wgsl`:
-/// `(kernel, portable)`. The kernel (the file with [`KEY_64`] defined) keeps the nearest
+/// The key kernels, each built in two variants from its one file `shaders/<kernel>.wgsl`
+/// followed by [`KEY_WRITER`]: `(kernel, portable)`. The kernel (the file with [`KEY_64`] defined) keeps the nearest
 /// surfel per pixel with one 64-bit `atomicMax` and needs `SHADER_INT64` and
 /// `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file without [`KEY_64`])
 /// keeps the same 64-bit key as two u32 words, (low = index, high = depth word), in two
@@ -194,9 +203,9 @@ pub fn prefix_of(kernel_name: &str) -> (&'static str, &'static str) {
     }
 }
 
-/// The full WGSL of a kernel: its prefix ([`prefix_of`]) + `shaders/<file_of(name)>.wgsl`,
-/// [`preprocess`]ed with [`defines_of`]`(name)`. Line numbers are those of the files (see
-/// [`origin_of_line`]).
+/// The full WGSL of a kernel: its prefix ([`prefix_of`]) + `shaders/<file_of(name)>.wgsl`
+/// (+ [`KEY_WRITER`] for a key kernel, either variant), [`preprocess`]ed with
+/// [`defines_of`]`(name)`. Line numbers are those of the files (see [`origin_of_line`]).
 ///
 /// Panics on an unknown kernel name or a malformed directive: kernel names and files are
 /// compile-time constants of this crate, so either is a bug, not a user error.
@@ -204,9 +213,15 @@ pub fn source(kernel_name: &str) -> String {
     let text = kernel_text(kernel_name).unwrap_or_else(|| {
         panic!("unknown WGSL kernel `{kernel_name}` (not listed in gpu::shaders::KERNELS)")
     });
-    let text = preprocess(text, defines_of(kernel_name)).unwrap_or_else(|e| {
-        panic!("shaders/{}.wgsl: {e}", file_of(kernel_name));
-    });
+    let file = file_of(kernel_name);
+    let defines = defines_of(kernel_name);
+    let compose = |file: &str, text: &str| {
+        preprocess(text, defines).unwrap_or_else(|e| panic!("shaders/{file}.wgsl: {e}"))
+    };
+    let mut text = compose(file, text);
+    if needs_int64(file) {
+        text.push_str(&compose(KEY_WRITER_FILE, KEY_WRITER));
+    }
     concat(prefix_of(kernel_name).1, &text)
 }
 
@@ -287,14 +302,22 @@ pub fn common_line_count() -> usize {
 
 /// Maps a 1-based line of a concatenated source back to `(file, line)`:
 /// `("shaders/<prefix>.wgsl", l)` for the prefix, `("shaders/<file_of(kernel)>.wgsl", l)`
-/// after it ([`preprocess`] keeps line numbers).
+/// after it, and `("shaders/key_writer.wgsl", l)` after a key kernel's own text
+/// ([`preprocess`] keeps line numbers).
 pub fn origin_of_line(kernel_name: &str, line: usize) -> (String, usize) {
     let (prefix, text) = prefix_of(kernel_name);
     let n = text.lines().count();
+    let file = file_of(kernel_name);
+    let kernel_lines = kernel_text(kernel_name).map_or(usize::MAX, |t| t.lines().count());
     if line <= n {
         (format!("shaders/{prefix}.wgsl"), line)
+    } else if line - n <= kernel_lines || !needs_int64(file) {
+        (format!("shaders/{file}.wgsl"), line - n)
     } else {
-        (format!("shaders/{}.wgsl", file_of(kernel_name)), line - n)
+        (
+            format!("shaders/{KEY_WRITER_FILE}.wgsl"),
+            line - n - kernel_lines,
+        )
     }
 }
 
@@ -315,6 +338,17 @@ mod tests {
         assert_eq!(
             origin_of_line("render_splat_portable", n + 2).0,
             "shaders/render_splat.wgsl"
+        );
+        let splat = RENDER_SPLAT.lines().count();
+        assert_eq!(
+            origin_of_line("render_splat_portable", n + splat + 4),
+            ("shaders/key_writer.wgsl".to_string(), 4)
+        );
+        let src = source("render_splat_portable");
+        assert_eq!(
+            src.lines().nth(n + splat + 3),
+            KEY_WRITER.lines().nth(3),
+            "line n + splat + 4 of the source is line 4 of key_writer.wgsl"
         );
     }
 
@@ -358,8 +392,16 @@ mod tests {
             assert_eq!(file_of(portable), *kernel);
             assert_eq!(kernel_text(kernel), kernel_text(portable));
             let (wide, narrow) = (source(kernel), source(portable));
-            assert!(wide.contains("atomic<u64>") && !wide.contains("override KEY_PASS"));
-            assert!(!narrow.contains("atomic<u64>") && narrow.contains("override KEY_PASS"));
+            let (u64_map, key_pass) = ("array<atomic<u64>>", "override KEY_PASS");
+            assert!(
+                wide.contains(u64_map) && !wide.contains(key_pass),
+                "{kernel}"
+            );
+            assert!(
+                !narrow.contains(u64_map) && narrow.contains(key_pass),
+                "{portable}"
+            );
+            assert!(wide.contains("fn keep_nearer") && narrow.contains("fn keep_nearer"));
             assert_eq!(wide.lines().count(), narrow.lines().count());
         }
     }

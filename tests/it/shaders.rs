@@ -2,9 +2,9 @@
 //!
 //! Each kernel is checked as the runtime builds it (`common.wgsl` + kernel, through
 //! `wgslam::gpu::shaders::source`), both variants of each key kernel included (the 64-bit
-//! one and its portable variant, composed from one file), and `common.wgsl` is also checked
-//! alone so its errors show up even before any kernel exists. All failures are reported at
-//! once, each with the file and line it comes from.
+//! one and its portable variant, composed from one file and `key_writer.wgsl`), and
+//! `common.wgsl` is also checked alone so its errors show up even before any kernel exists.
+//! All failures are reported at once, each with the file and line it comes from.
 
 use crate::common;
 
@@ -38,8 +38,21 @@ fn every_shader_parses_and_validates() {
             (p.extension()? == "wgsl").then(|| p.file_stem()?.to_str().map(str::to_string))?
         })
         .filter(|name| !shaders::PREFIXES.iter().any(|(p, _)| p == name))
+        .filter(|name| name != shaders::KEY_WRITER_FILE)
         .collect();
     on_disk.sort();
+    // key_writer.wgsl is not valid alone (it writes the key kernel's index_map): it is
+    // checked inside both variants of every key kernel below.
+    let key_writer = format!("{}.wgsl", shaders::KEY_WRITER_FILE);
+    if std::fs::read_to_string(dir.join(&key_writer))
+        .ok()
+        .as_deref()
+        != Some(shaders::KEY_WRITER)
+    {
+        failures.push(format!(
+            "shaders/{key_writer}: missing or differs from the embedded copy (rebuild)"
+        ));
+    }
 
     for name in &on_disk {
         let Some(embedded) = shaders::kernel_text(name) else {
