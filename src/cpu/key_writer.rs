@@ -1,18 +1,20 @@
 //! The key writers of the key kernels' CPU twins (`project_model`, `fuse_select`,
-//! `fuse_add`, `render_splat`): how a pixel keeps the larger of its key and a surfel's.
+//! `fuse_add`, `render_splat`): how a pixel keeps the larger of its key and a surfel's. CPU
+//! twin of `shaders/key_writer.wgsl`, which `src/gpu/shaders.rs` appends to each key kernel
+//! (it is not a kernel of its own).
 //!
 //! A key is `(high, index)`: `high` a depth word ([`depth_key`](super::depth_key), larger
 //! = nearer), `index` a map-wide surfel index, compared as the 64-bit number
-//! [`pack_depth_index`](super::pack_depth_index) makes (ties go to the larger index; 0 = no surfel). Each key twin is
-//! one body generic over [`KeyWriter`], as each key kernel is one WGSL file with two
-//! variants (`src/gpu/shaders.rs`): a `[u64]` map is the 64-bit kernel (one pass), a
-//! [`KeyPass`] the portable one (two passes over `(low, high)` u32 words). Not a kernel of
-//! its own: there is no `shaders/key_writer.wgsl`.
+//! [`pack_depth_index`](super::pack_depth_index) makes (ties go to the larger index; 0 = no
+//! surfel). Each key twin is one body generic over [`KeyWriter`], as each key kernel is
+//! one WGSL source with two variants (`KEY_64` defined or not): a `[u64]` map is the 64-bit
+//! kernel (one pass), a [`KeyPass`] the portable one (two passes over `(low, high)` u32
+//! words).
 
 use super::keep_nearer;
 
-/// A map of keys, one per pixel, that a key twin raises. Mirrors each key kernel's
-/// `keep_nearer` (and `fuse_add`'s `first_key_pass`), whose two variants are the two
+/// A map of keys, one per pixel, that a key twin raises. Mirrors `keep_nearer` and
+/// `first_key_pass` of `shaders/key_writer.wgsl`, whose two variants are the two
 /// implementations here.
 pub trait KeyWriter {
     /// The number of pixels the map holds a key for.

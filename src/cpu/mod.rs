@@ -251,7 +251,7 @@ pub fn depth_key(z_cam: f32) -> u32 {
 /// 64-bit keys): pass 0 raises the high word; pass 1 raises the low word to `index` if
 /// `high` is the pixel's high word. After pass 0 over every surfel and then pass 1 over
 /// every surfel, each pair equals the maximum 64-bit key ([`pack_depth_index`]) bit for
-/// bit. Mirrors the portable variant of `keep_nearer` in the key kernels (`KEY_64` undefined).
+/// bit. Mirrors `keep_nearer` in `shaders/key_writer.wgsl` without `KEY_64`.
 #[inline]
 pub fn keep_nearer(map: &mut [u32], pix: usize, high: u32, index: u32, key_pass: u32) {
     if key_pass == 0 {
