@@ -12,10 +12,11 @@
 //! the larger index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the
 //! choice does not depend on thread order. Both maps are [`KeyWriter`]s: `[u64]` keys (the
 //! 64-bit kernel) or a [`KeyPass`](super::key_writer::KeyPass) each (fuse_select_portable,
-//! every chunk of pass 0 before pass 1), with the same keys in the end. As in ElasticFusion's index map, a pixel only
-//! chooses among the surfels whose centres project into it. `fuse_merge_chosen` then
-//! merges each chosen surfel with its pixel; `fuse_flags` adds only the pixels that chose
-//! nothing and that no neighbour's merged surfel covers (its header says why).
+//! every chunk of pass 0 before pass 1), with the same keys in the end. As in
+//! ElasticFusion's index map, a pixel only chooses among the surfels whose centres project
+//! into it. `fuse_merge_chosen` then merges each chosen surfel with its pixel; `fuse_flags`
+//! adds only the pixels that chose nothing and that no neighbour's merged surfel covers
+//! (its header says why).
 //!
 //! Surfels that pass the gates but are not chosen are neither merged nor refreshed: a
 //! second copy of a surface stops gaining confidence, `fuse_prune` retires it when it lies

@@ -5,10 +5,10 @@
 //! `shaders/<kernel>.wgsl`: `scan_common.wgsl` for the scan kernels ([`SCAN_KERNELS`]),
 //! `common.wgsl` for every other. The key kernels ([`PORTABLE_KERNELS`]) are followed by
 //! `shaders/key_writer.wgsl` and each built in two variants from that one text by
-//! [`preprocess`] (`#ifdef KEY_64`). [`source`] builds
-//! it all; the runtime (pipeline creation) and the naga tests (`tests/it/shaders.rs`,
-//! `tests/it/bindings.rs`) both use it, so what is validated is what runs. This module does
-//! not compile anything; see [`super::kernel`].
+//! [`preprocess`] (`#ifdef KEY_64`). [`source`] builds it all; the runtime (pipeline
+//! creation) and the naga tests (`tests/it/shaders.rs`, `tests/it/bindings.rs`) both use
+//! it, so what is validated is what runs. This module does not compile anything; see
+//! [`super::kernel`].
 
 /// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`
 /// (dense SLAM and renders).
@@ -33,14 +33,14 @@ pub const KEY_WRITER_FILE: &str = "key_writer";
 pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 
 /// The key kernels, each built in two variants from its one file `shaders/<kernel>.wgsl`
-/// followed by [`KEY_WRITER`]: `(kernel, portable)`. The kernel (the file with [`KEY_64`] defined) keeps the nearest
-/// surfel per pixel with one 64-bit `atomicMax` and needs `SHADER_INT64` and
-/// `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file without [`KEY_64`])
-/// keeps the same 64-bit key as two u32 words, (low = index, high = depth word), in two
-/// dispatches over the same bind groups (its `override KEY_PASS`: 0 then 1), and decides
-/// the same winner bit for bit. Every other kernel, portable variants included, validates
-/// without 64-bit integers (`tests/it/shaders.rs`). The CPU twin `src/cpu/<kernel>.rs`
-/// serves both, generic over `cpu::key_writer::KeyWriter`.
+/// followed by [`KEY_WRITER`]: `(kernel, portable)`. The kernel (the file with [`KEY_64`]
+/// defined) keeps the nearest surfel per pixel with one 64-bit `atomicMax` and needs
+/// `SHADER_INT64` and `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file
+/// without [`KEY_64`]) keeps the same 64-bit key as two u32 words, (low = index, high =
+/// depth word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
+/// then 1), and decides the same winner bit for bit. Every other kernel, portable variants
+/// included, validates without 64-bit integers (`tests/it/shaders.rs`). The CPU twin
+/// `src/cpu/<kernel>.rs` serves both, generic over `cpu::key_writer::KeyWriter`.
 pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
     ("project_model", "project_model_portable"),
     ("fuse_select", "fuse_select_portable"),

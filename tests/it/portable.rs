@@ -93,9 +93,10 @@ fn check_equal(what: &str, keys: &[u64], portable_words: &[u32]) {
 }
 
 /// Each key twin with the portable key writer, run as the portable kernel is (pass 0 over
-/// the map, then pass 1), leaves the same 64-bit keys as with 64-bit keys: project_model, fuse_select (both maps), fuse_add
-/// (the index map, and the same new surfels) and render_splat, on a map fused from bundled
-/// frames and on that map doubled (ties at every pixel, broken towards the larger index).
+/// the map, then pass 1), leaves the same 64-bit keys as with 64-bit keys: project_model,
+/// fuse_select (both maps), fuse_add (the index map, and the same new surfels) and
+/// render_splat, on a map fused from bundled frames and on that map doubled (ties at every
+/// pixel, broken towards the larger index).
 fn portable_twins_equal_the_64_bit_twins() {
     let root = common::bundled_icl();
     let gt = load_gt(&root);
