@@ -7,8 +7,17 @@
 // holds. CPU twin: src/cpu/fuse_add.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
-// A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes at or past params.capacity (the host
-// grows the map first so that every pixel fits).
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes
+// at or past params.capacity (the host grows the map first so that every pixel fits).
+// Two variants (keep_nearer and first_key_pass in shaders/key_writer.wgsl, appended, and
+// index_map's type are all that differ): KEY_64, one u64 atomicMax per new surfel (needs
+// SHADER_INT64_ATOMIC_MIN_MAX); else fuse_add_portable on fuse_select_portable's (low,
+// high) u32 words, dispatched once per chunk and pass: KEY_PASS 0 over every chunk writes
+// the new surfels and raises the depth words, KEY_PASS 1 over every chunk (with
+// best-candidate association only: it writes nothing else) sets the index words. A new
+// surfel's index is larger than every index already in the map (new surfels are
+// appended), so where its depth word is the pixel's the index word becomes its index, and
+// the pair equals the 64-bit key bit for bit.
 
 // Uses t_cam_to_world, surfel_count, frame_id and capacity.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
@@ -30,10 +39,14 @@
 @group(0) @binding(7) var<storage, read_write> normal_frame: array<vec4<u32>>;
 // Out: RGB 0..255, a = radius (metres).
 @group(0) @binding(8) var<storage, read_write> color: array<vec4<f32>>;
-// With best-candidate association, the index map fuse_select began; each new surfel
-// competes for its own pixel with pack_depth_index(z_cam, map-wide index), as
-// project_model's key (left alone otherwise).
+// With best-candidate association, the index map fuse_select began (a u64 per pixel, or
+// without KEY_64 (low, high) u32 words); each new surfel competes for its own pixel with
+// the key (depth_key(z_cam), map-wide index), as project_model's (left alone otherwise).
+#ifdef KEY_64
 @group(0) @binding(9) var<storage, read_write> index_map: array<atomic<u64>>;
+#else
+@group(0) @binding(9) var<storage, read_write> index_map: array<atomic<u32>>;
+#endif
 
 const TILE: u32 = 8u;
 
@@ -74,17 +87,12 @@ fn add_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let n = transform_dir(params.t_cam_to_world, xyz(nd));
     let w = pixel_confidence(cam, texel, params.confidence_sigma);
     let r = surfel_radius(params.fx, q_cam, xyz(nd));
-    position_weight[slot] = vec4<f32>(p, w);
-    normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
-    color[slot] = vec4<f32>(textureLoad(color_map, texel, 0).xyz, r);
-    if params.association == ASSOCIATION_BEST_CANDIDATE {
-        atomicMax(&index_map[texel.y * params.width + texel.x], pack_depth_index(q_cam.z, i));
+    if first_key_pass() {
+        position_weight[slot] = vec4<f32>(p, w);
+        normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
+        color[slot] = vec4<f32>(textureLoad(color_map, texel, 0).xyz, r);
     }
-}
-
-// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
-// key is the nearer surfel, ties to the larger index, 0 = none. Needs SHADER_INT64, so it
-// lives in each 64-bit kernel, not in common.wgsl. Mirrors `cpu::pack_depth_index`.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(depth_key(z_cam)) << 32u) | u64(surfel);
+    if params.association == ASSOCIATION_BEST_CANDIDATE {
+        keep_nearer(texel.y * params.width + texel.x, depth_key(q_cam.z), i);
+    }
 }

@@ -1,13 +1,17 @@
 // fuse_select.wgsl: every pixel picks the one surfel it will fuse with among those whose
 // centres project into it (best-candidate association, robust profile), before
-// fuse_merge_chosen and fuse_add. Dispatched once per map chunk. CPU twin:
+// fuse_merge_chosen and fuse_add. Dispatched once per map chunk (and key pass). CPU twin:
 // src/cpu/fuse_select.rs (its header states the gates and the choice).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (a
 // surfel whose centre misses the image is skipped anyway); threads stride over a block.
 // The atomicMaxes keep the surfel nearest each pixel's ray, and the one nearest the camera
-// (ties to the larger index), whatever the thread order. Needs SHADER_INT64_ATOMIC_MIN_MAX.
+// (ties to the larger index), whatever the thread order. Two variants (keep_nearer in
+// shaders/key_writer.wgsl, appended, keep_best below, and the key maps' types are all that
+// differ): KEY_64, one u64 atomicMax per key (needs SHADER_INT64_ATOMIC_MIN_MAX); else
+// fuse_select_portable, each key as (low, high) u32 words in two passes (KEY_PASS 0 over
+// every chunk, then 1), equal bit for bit.
 
 // Tracked pose, intrinsics, surfel_count, gates.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
@@ -26,14 +30,22 @@
 @group(0) @binding(5) var<storage, read> normal_frame: array<vec4<u32>>;
 // RGB 0..255, a = radius (metres).
 @group(0) @binding(6) var<storage, read> color: array<vec4<f32>>;
-// One key per pixel, cleared to 0 by the host; the chosen surfel's
-// pack_depth_index(off_ray_m, map-wide index).
+// One key per pixel (a u64, or without KEY_64 (low, high) u32 words), cleared to 0 by the
+// host (before pass 0); the chosen surfel's key (depth_key(off_ray_m), map-wide index).
+#ifdef KEY_64
 @group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u64>>;
-// One key per pixel, cleared to 0 by the host; project_model's key,
-// pack_depth_index(z_cam, map-wide index), of every surfel whose centre lands in the
-// image, before this frame's merges: the next frame's prediction at this pose (fuse_add
-// adds the new surfels), so predict skips project_model (see Backend::predict).
+#else
+@group(0) @binding(7) var<storage, read_write> assoc: array<atomic<u32>>;
+#endif
+// One key per pixel, as assoc; project_model's key (depth_key(z_cam), map-wide index) of
+// every surfel whose centre lands in the image, before this frame's merges: the next
+// frame's prediction at this pose (fuse_add adds the new surfels), so predict skips
+// project_model (see Backend::predict).
+#ifdef KEY_64
 @group(0) @binding(8) var<storage, read_write> index_map: array<atomic<u64>>;
+#else
+@group(0) @binding(8) var<storage, read_write> index_map: array<atomic<u32>>;
+#endif
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -74,7 +86,7 @@ fn select_for_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     }
     let texel = vec2<u32>(uv);
     let pix = texel.y * params.width + texel.x;
-    atomicMax(&index_map[pix], pack_depth_index(p_cam.z, i));
+    keep_nearer(pix, depth_key(p_cam.z), i);
     let nd = textureLoad(normal_depth, texel, 0);
     if !is_valid(nd) {
         return;
@@ -85,12 +97,21 @@ fn select_for_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     if off_ray < 0.0 {
         return;
     }
-    atomicMax(&assoc[pix], pack_depth_index(off_ray, i));
+    keep_best(pix, depth_key(off_ray), i);
 }
 
-// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
-// key is the nearer surfel, ties to the larger index, 0 = none. Needs SHADER_INT64, so it
-// lives in each 64-bit kernel, not in common.wgsl. Mirrors `cpu::pack_depth_index`.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(depth_key(z_cam)) << 32u) | u64(surfel);
+// The pixel `pix` keeps the larger of its association key and (high, index): keep_nearer
+// (shaders/key_writer.wgsl) on `assoc` instead of `index_map`, in the same variant.
+#ifdef KEY_64
+fn keep_best(pix: u32, high: u32, index: u32) {
+    atomicMax(&assoc[pix], (u64(high) << 32u) | u64(index));
 }
+#else
+fn keep_best(pix: u32, high: u32, index: u32) {
+    if KEY_PASS == 0u {
+        atomicMax(&assoc[2u * pix + 1u], high);
+    } else if atomicLoad(&assoc[2u * pix + 1u]) == high {
+        atomicMax(&assoc[2u * pix], index);
+    }
+}
+#endif

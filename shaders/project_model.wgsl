@@ -1,11 +1,15 @@
 // project_model.wgsl: splats every surfel of one map chunk into an index map with a depth
-// test, one packed 64-bit key per pixel, skipping blocks the camera cannot see. Dispatched
-// once per chunk. CPU twin: src/cpu/project_model.rs.
+// test, one key per pixel, skipping blocks the camera cannot see. Dispatched once per
+// chunk (and key pass). CPU twin: src/cpu/project_model.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
-// Key = (u64(~bitcast<u32>(z_cam)) << 32) | map-wide surfel index; the pixel keeps the
-// maximum (nearest surfel, ties to the larger index); 0 means no surfel. Needs the
-// SHADER_INT64_ATOMIC_MIN_MAX feature. Workgroups stride over the chunk's blocks; a block
+// Key = (u64(depth_key(z_cam)) << 32) | map-wide surfel index; the pixel keeps the maximum
+// (nearest surfel, ties to the larger index); 0 means no surfel. Two variants from this
+// file (src/gpu/shaders.rs, docs/portable-gpu.md): KEY_64 defined, one atomicMax on a u64
+// per pixel (needs SHADER_INT64_ATOMIC_MIN_MAX); else project_model_portable, the key as
+// (low, high) u32 words in two passes (KEY_PASS), equal bit for bit. keep_nearer
+// (shaders/key_writer.wgsl, appended) and index_map's type are all that differ.
+// Workgroups stride over the chunk's blocks; a block
 // whose box block_visible rejects is skipped whole (conservative: no surfel that would
 // land in the image is skipped); the workgroup's threads stride over a visible block.
 
@@ -18,8 +22,13 @@
 @group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
 // The chunk's surfels, xyz world frame (metres) + weight (see src/gpu/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
-// width x height keys, cleared to 0 by the host.
+// width x height keys, cleared to 0 by the host (before pass 0): one u64 each, or
+// without KEY_64 two u32 words each (low = index, high = depth word).
+#ifdef KEY_64
 @group(0) @binding(4) var<storage, read_write> index_map: array<atomic<u64>>;
+#else
+@group(0) @binding(4) var<storage, read_write> index_map: array<atomic<u32>>;
+#endif
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -47,15 +56,8 @@ fn main(
             let p = transform_point(view.t_world_to_cam, xyz(position_weight[i - base]));
             let pix = project_to_pixel(cam, view.width, view.height, p);
             if pix >= 0 {
-                atomicMax(&index_map[pix], pack_depth_index(p.z, i));
+                keep_nearer(u32(pix), depth_key(p.z), i);
             }
         }
     }
-}
-
-// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
-// key is the nearer surfel, ties to the larger index, 0 = none. Needs SHADER_INT64, so it
-// lives in each 64-bit kernel, not in common.wgsl. Mirrors `cpu::pack_depth_index`.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(depth_key(z_cam)) << 32u) | u64(surfel);
 }

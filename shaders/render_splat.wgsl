@@ -1,12 +1,14 @@
-// render_splat.wgsl: splats surfels as small discs into a 64-bit depth|index map, for
-// pictures of the map (not for tracking). CPU twin: src/cpu/render_splat.rs.
+// render_splat.wgsl: splats surfels as small discs into a depth|index map, for pictures
+// of the map (not for tracking). CPU twin: src/cpu/render_splat.rs.
 //
-// Prepended with common.wgsl (transform_point, transform_dir, xyz, pack_depth_index).
+// Prepended with common.wgsl (transform_point, transform_dir, xyz, depth_key).
 // Bindings (@group(0)): each is described by the comment above its declaration.
-// Each covered pixel keeps max((~bitcast<u32>(z_cam)) << 32 | index): the nearest surfel
-// (by centre depth) wins, ties to the larger index, 0 = empty; as in project_model.
-// Needs SHADER_INT64 and SHADER_INT64_ATOMIC_MIN_MAX. Grid-stride loop over surfels, so
-// any workgroup count covers the whole map.
+// Each covered pixel keeps max(depth_key(z_cam) << 32 | index): the nearest surfel (by
+// centre depth) wins, ties to the larger index, 0 = empty; as in project_model, and in its
+// two variants (KEY_64: one u64 atomicMax, needs SHADER_INT64_ATOMIC_MIN_MAX; else
+// render_splat_portable, (low, high) u32 words in two passes, KEY_PASS 0 then 1; see
+// keep_nearer in shaders/key_writer.wgsl, appended). Grid-stride loop over surfels, so any
+// workgroup count covers the whole map.
 
 // RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
 
@@ -19,8 +21,13 @@ const MAX_PROJECTED_PX: f32 = 1.0e7;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 // Surfel normals, world frame; read only when cull_backfaces == 1.
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
-// width x height, row-major, cleared to 0 by the host.
+// width x height keys, row-major, cleared to 0 by the host (before pass 0): one u64 each,
+// or without KEY_64 two u32 words each (low = index, high = depth word).
+#ifdef KEY_64
 @group(0) @binding(3) var<storage, read_write> index_map: array<atomic<u64>>;
+#else
+@group(0) @binding(3) var<storage, read_write> index_map: array<atomic<u32>>;
+#endif
 
 // Pixel radius of a splat at camera depth z. Mirrors `cpu::render_splat::splat_radius_px`.
 fn splat_radius_px(z: f32) -> f32 {
@@ -61,22 +68,15 @@ fn main(
         if u0 > u1 || v0 > v1 {
             continue;
         }
-        let key = pack_depth_index(p.z, i);
+        let depth_word = depth_key(p.z);
         for (var py = u32(v0); py <= u32(v1); py++) {
             let dv = f32(py) - v;
             for (var px = u32(u0); px <= u32(u1); px++) {
                 let du = f32(px) - u;
                 if du * du + dv * dv <= r * r {
-                    atomicMax(&index_map[py * w + px], key);
+                    keep_nearer(py * w + px, depth_word, i);
                 }
             }
         }
     }
-}
-
-// Packs a camera depth (metres, > 0) and a surfel index into an index-map key: the larger
-// key is the nearer surfel, ties to the larger index, 0 = none. Needs SHADER_INT64, so it
-// lives in each 64-bit kernel, not in common.wgsl. Mirrors `cpu::pack_depth_index`.
-fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
-    return (u64(depth_key(z_cam)) << 32u) | u64(surfel);
 }

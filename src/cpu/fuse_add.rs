@@ -5,17 +5,25 @@
 //! weight `pixel_confidence` (1 for the assignment), radius `surfel_radius`. Never writes
 //! at or past `params.capacity` (the host grows the map first so that every pixel fits).
 //! Called once per map chunk: each call writes the new surfels whose slots the chunk holds.
+//!
+//! Both key variants: with a `[u64]` index map one pass does it all; with a
+//! [`KeyPass`](super::key_writer::KeyPass) (fuse_add_portable, every chunk of pass 0 before
+//! pass 1) pass 0 writes the new surfels and raises the depth words, pass 1 sets the index
+//! words. New surfels' indices exceed every index already in the map, so each pair then
+//! equals the 64-bit key.
 
+use super::key_writer::KeyWriter;
 use super::{
-    append_index, back_project, pack_depth_index, pixel_confidence, surfel_radius, transform_dir,
+    append_index, back_project, depth_key, pixel_confidence, surfel_radius, transform_dir,
     transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fuse_add.wgsl` for shapes, units and frames.
+/// declarations in `shaders/fuse_add.wgsl` for shapes, units and frames; `index_map`
+/// carries the key variant (and the portable kernel's `override KEY_PASS`).
 #[allow(clippy::too_many_arguments)]
-pub fn fuse_add(
+pub fn fuse_add<K: KeyWriter + ?Sized>(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
@@ -25,7 +33,7 @@ pub fn fuse_add(
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &mut [[f32; 4]],
-    index_map: &mut [u64],
+    index_map: &mut K,
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     for v in 0..params.height {
@@ -47,13 +55,16 @@ pub fn fuse_add(
             let n = transform_dir(&params.t_cam_to_world, xyz(nd));
             let w = pixel_confidence(cam, [u, v], params.confidence_sigma);
             let r = surfel_radius(params.fx, q_cam, xyz(nd));
-            let surfel = slot as usize;
-            position_weight[surfel] = [p.x, p.y, p.z, w];
-            normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
-            let c = color_map[pix];
-            color[surfel] = [c[0], c[1], c[2], r];
+            if index_map.first_pass() {
+                let surfel = slot as usize;
+                position_weight[surfel] = [p.x, p.y, p.z, w];
+                normal_frame[surfel] =
+                    [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+                let c = color_map[pix];
+                color[surfel] = [c[0], c[1], c[2], r];
+            }
             if params.association == ASSOCIATION_BEST_CANDIDATE {
-                index_map[pix] = index_map[pix].max(pack_depth_index(q_cam.z, i));
+                index_map.keep_nearer(pix, depth_key(q_cam.z), i);
             }
         }
     }

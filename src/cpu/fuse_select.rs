@@ -10,25 +10,30 @@
 //! covers the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels
 //! that pass, the pixel keeps the one nearest its ray (smallest off-ray distance; ties to
 //! the larger index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the
-//! choice does not depend on thread order. As in ElasticFusion's index map, a pixel only
-//! chooses among the surfels whose centres project into it. `fuse_merge_chosen` then
-//! merges each chosen surfel with its pixel; `fuse_flags` adds only the pixels that chose
-//! nothing and that no neighbour's merged surfel covers (its header says why).
+//! choice does not depend on thread order. Both maps are [`KeyWriter`]s: `[u64]` keys (the
+//! 64-bit kernel) or a [`KeyPass`](super::key_writer::KeyPass) each (fuse_select_portable,
+//! every chunk of pass 0 before pass 1), with the same keys in the end. As in
+//! ElasticFusion's index map, a pixel only chooses among the surfels whose centres project
+//! into it. `fuse_merge_chosen` then merges each chosen surfel with its pixel; `fuse_flags`
+//! adds only the pixels that chose nothing and that no neighbour's merged surfel covers
+//! (its header says why).
 //!
 //! Surfels that pass the gates but are not chosen are neither merged nor refreshed: a
 //! second copy of a surface stops gaining confidence, `fuse_prune` retires it when it lies
 //! on the merged one, and the removal of unstable surfels (`compact_flags`) takes it away.
 
+use super::key_writer::KeyWriter;
 use super::{
-    block_visible, candidate_off_ray, chunk_blocks, decode_corner, is_valid, normal_of,
-    pack_depth_index, project_to_texel, transform_dir, transform_point, xyz,
+    block_visible, candidate_off_ray, chunk_blocks, decode_corner, depth_key, is_valid, normal_of,
+    project_to_texel, transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fuse_select.wgsl` for shapes, units and frames.
+/// declarations in `shaders/fuse_select.wgsl` for shapes, units and frames; `assoc` and
+/// `index_map` carry the key variant (and the portable kernel's `override KEY_PASS`).
 #[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
-pub fn fuse_select(
+pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     chunk: &MapChunk,
@@ -36,8 +41,8 @@ pub fn fuse_select(
     position_weight: &[[f32; 4]],
     normal_frame: &[[u32; 4]],
     color: &[[f32; 4]],
-    assoc: &mut [u64],
-    index_map: &mut [u64],
+    assoc: &mut A,
+    index_map: &mut K,
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
@@ -87,12 +92,12 @@ struct Chunk<'a> {
 /// the nearer of its index-map key and this surfel's, and the better of its association key
 /// and this surfel's, if the surfel passes its gates.
 #[allow(clippy::too_many_arguments)] // the shader's function plus the bindings it uses
-fn select_for_surfel(
+fn select_for_surfel<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     map: &Chunk,
-    assoc: &mut [u64],
-    index_map: &mut [u64],
+    assoc: &mut A,
+    index_map: &mut K,
     i: u32,
     slot: u32,
     cam: [f32; 4],
@@ -103,7 +108,7 @@ fn select_for_surfel(
         return;
     };
     let pix = (texel[1] * params.width + texel[0]) as usize;
-    index_map[pix] = index_map[pix].max(pack_depth_index(p_cam.z, i));
+    index_map.keep_nearer(pix, depth_key(p_cam.z), i);
     let nd = normal_depth[pix];
     if !is_valid(nd) {
         return;
@@ -121,5 +126,5 @@ fn select_for_surfel(
     ) else {
         return;
     };
-    assoc[pix] = assoc[pix].max(pack_depth_index(off_ray, i));
+    assoc.keep_nearer(pix, depth_key(off_ray), i);
 }

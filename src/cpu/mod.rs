@@ -25,16 +25,15 @@ pub mod deform_surfels;
 pub mod depth_to_vertex;
 pub mod fern_encode;
 pub mod fuse_add;
-pub mod fuse_add_portable;
 pub mod fuse_flags;
 pub mod fuse_merge;
 pub mod fuse_merge_chosen;
 pub mod fuse_prune;
 pub mod fuse_select;
-pub mod fuse_select_portable;
 pub mod icp_candidates;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
+pub mod key_writer;
 pub mod keypoint_describe;
 pub mod keypoint_detect;
 pub mod nn_brute;
@@ -42,12 +41,10 @@ pub mod nn_grid;
 pub mod predict_model;
 pub mod prefix_sum;
 pub mod project_model;
-pub mod project_model_portable;
 pub mod pyramid_depth;
 pub mod pyramid_model;
 pub mod render_resolve;
 pub mod render_splat;
-pub mod render_splat_portable;
 pub mod vertex_to_normal;
 
 use glam::{Mat4, Vec3, Vec4};
@@ -254,7 +251,7 @@ pub fn depth_key(z_cam: f32) -> u32 {
 /// 64-bit keys): pass 0 raises the high word; pass 1 raises the low word to `index` if
 /// `high` is the pixel's high word. After pass 0 over every surfel and then pass 1 over
 /// every surfel, each pair equals the maximum 64-bit key ([`pack_depth_index`]) bit for
-/// bit. Mirrors `keep_nearer` in the `*_portable.wgsl` kernels.
+/// bit. Mirrors `keep_nearer` in `shaders/key_writer.wgsl` without `KEY_64`.
 #[inline]
 pub fn keep_nearer(map: &mut [u32], pix: usize, high: u32, index: u32, key_pass: u32) {
     if key_pass == 0 {

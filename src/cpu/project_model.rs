@@ -1,29 +1,34 @@
-//! CPU twin of `shaders/project_model.wgsl`: splats every surfel of one map chunk into an
-//! index map with a depth test, one packed 64-bit key per pixel, skipping blocks the
+//! CPU twin of `shaders/project_model.wgsl` (both variants): splats every surfel of one
+//! map chunk into an index map with a depth test, one key per pixel, skipping blocks the
 //! camera cannot see ([`block_visible`]).
 //!
-//! Key = [`pack_depth_index`]`(z_cam, surfel)` with the map-wide surfel index; the pixel
-//! keeps the maximum key, i.e. the nearest surfel, ties broken by the larger index. 0 means
-//! no surfel. The GPU does the same with one `atomicMax` on `u64`, so both backends pick
-//! the same surfel whatever the chunking.
+//! Key = [`pack_depth_index`](super::pack_depth_index)`(z_cam, surfel)` with the map-wide
+//! surfel index; the pixel keeps the maximum key, i.e. the nearest surfel, ties broken by
+//! the larger index. 0 means no surfel. The GPU does the same with one `atomicMax` on `u64`
+//! (a `[u64]` map here) or in two 32-bit passes (project_model_portable: a [`KeyPass`] per
+//! pass, every chunk of pass 0 before pass 1), so both backends pick the same surfel
+//! whatever the chunking.
+//!
+//! [`KeyPass`]: super::key_writer::KeyPass
 
+use super::key_writer::KeyWriter;
 use super::{
-    block_visible, chunk_blocks, decode_corner, pack_depth_index, project_to_pixel,
-    transform_point, xyz,
+    block_visible, chunk_blocks, decode_corner, depth_key, project_to_pixel, transform_point, xyz,
 };
 use crate::layout::{MapChunk, ProjectParams, BLOCK_SURFELS};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/project_model.wgsl` for shapes, units and frames.
-pub fn project_model(
+/// declarations in `shaders/project_model.wgsl` for shapes, units and frames; `index_map`
+/// carries the key variant (and the portable kernel's `override KEY_PASS`).
+pub fn project_model<K: KeyWriter + ?Sized>(
     params: &ProjectParams,
     chunk: &MapChunk,
     block_bounds: &[[u32; 4]],
     position_weight: &[[f32; 4]],
-    index_map: &mut [u64],
+    index_map: &mut K,
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    assert_eq!(index_map.len(), (params.width * params.height) as usize);
+    assert_eq!(index_map.pixels(), (params.width * params.height) as usize);
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
     for b in 0..blocks {
         let block = (chunk.base / BLOCK_SURFELS + b) as usize;
@@ -46,7 +51,7 @@ pub fn project_model(
                 xyz(position_weight[(i - chunk.base) as usize]),
             );
             if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
-                index_map[pix] = index_map[pix].max(pack_depth_index(p.z, i));
+                index_map.keep_nearer(pix, depth_key(p.z), i);
             }
         }
     }

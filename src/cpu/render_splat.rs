@@ -5,9 +5,12 @@
 //! `r = splat_radius_m * max(|fx|, |fy|) / z` clamped to `[min_radius_px, max_radius_px]`.
 //! Every covered pixel keeps the maximum key `(!bits(z_cam) as u64) << 32 | index`: the
 //! nearest surfel (by its centre depth) wins, ties go to the larger index, 0 means empty.
-//! This is the key of `project_model`, so the GPU's 64-bit `atomicMax` picks the same one.
+//! This is the key of `project_model`, so the GPU's 64-bit `atomicMax` picks the same one,
+//! and so do its two 32-bit passes (render_splat_portable: a
+//! [`KeyPass`](super::key_writer::KeyPass) per pass).
 
-use super::{pack_depth_index, transform_dir, transform_point, xyz};
+use super::key_writer::KeyWriter;
+use super::{depth_key, transform_dir, transform_point, xyz};
 use crate::render::layout::RenderParams;
 
 /// Projections farther than this from the image (pixels) are skipped before any
@@ -22,15 +25,16 @@ pub fn splat_radius_px(params: &RenderParams, z: f32) -> f32 {
 }
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/render_splat.wgsl` for shapes, units and frames.
-pub fn render_splat(
+/// declarations in `shaders/render_splat.wgsl` for shapes, units and frames; `index_map`
+/// carries the key variant (and the portable kernel's `override KEY_PASS`).
+pub fn render_splat<K: KeyWriter + ?Sized>(
     params: &RenderParams,
     positions: &[[f32; 4]],
     normals: &[[f32; 4]],
-    index_map: &mut [u64],
+    index_map: &mut K,
 ) {
     assert_eq!(
-        index_map.len(),
+        index_map.pixels(),
         params.width as usize * params.height as usize,
         "index_map has the wrong size"
     );
@@ -60,14 +64,13 @@ pub fn render_splat(
         if u0 > u1 || v0 > v1 {
             continue;
         }
-        let key = pack_depth_index(p.z, i as u32);
+        let depth_word = depth_key(p.z);
         for py in v0 as u32..=v1 as u32 {
             let dv = py as f32 - v;
             for px in u0 as u32..=u1 as u32 {
                 let du = px as f32 - u;
                 if du * du + dv * dv <= r * r {
-                    let pix = (py * w + px) as usize;
-                    index_map[pix] = index_map[pix].max(key);
+                    index_map.keep_nearer((py * w + px) as usize, depth_word, i as u32);
                 }
             }
         }

@@ -345,7 +345,7 @@ impl GpuContext {
     }
 
     /// True when 64-bit integer atomics (`atomicMax` on `u64`) are enabled on the device:
-    /// the key kernels are then the 64-bit ones, else their `*_portable` twins.
+    /// the key kernels are then the 64-bit ones, else their `*_portable` variants.
     pub fn has_int64_atomics(&self) -> bool {
         self.features
             .contains(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)

@@ -66,7 +66,7 @@ impl Kernel {
         Self::build(ctx, name, wgsl, &[], None)
     }
 
-    /// The passes of a portable key kernel (`shaders/<name>.wgsl`, see
+    /// The passes of a portable key kernel variant (`name` as in
     /// [`shaders::PORTABLE_KERNELS`]): one kernel per value of its `override KEY_PASS` (0,
     /// then 1), sharing one bind-group layout, so a bind group made with the first runs
     /// both passes.
@@ -293,7 +293,7 @@ impl Kernel {
 }
 
 /// A kernel that keeps the nearest surfel per pixel in a map of 64-bit keys: the 64-bit
-/// kernel in one pass where the device has 64-bit atomics, else its portable twin in two
+/// kernel in one pass where the device has 64-bit atomics, else its portable variant in two
 /// passes (see [`shaders::PORTABLE_KERNELS`]). Every pass runs over the same bind groups
 /// (made with [`KeyKernel::first`]); each pass covers every chunk before the next begins.
 #[derive(Debug)]
@@ -304,7 +304,7 @@ pub struct KeyKernel {
 
 impl KeyKernel {
     /// The kernel `name` (one of the 64-bit kernels of [`shaders::PORTABLE_KERNELS`]) or,
-    /// on a device without 64-bit atomics, its portable twin.
+    /// on a device without 64-bit atomics, its portable variant.
     pub fn new(ctx: &GpuContext, name: &str) -> Result<KeyKernel> {
         let portable = shaders::PORTABLE_KERNELS
             .iter()

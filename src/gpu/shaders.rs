@@ -3,9 +3,12 @@
 //!
 //! WGSL has no includes, so a kernel's source is its prefix followed by
 //! `shaders/<kernel>.wgsl`: `scan_common.wgsl` for the scan kernels ([`SCAN_KERNELS`]),
-//! `common.wgsl` for every other. [`source`] builds it; the runtime (pipeline creation)
-//! and the naga tests (`tests/it/shaders.rs`, `tests/it/bindings.rs`) both use it, so what is
-//! validated is what runs. This module does not compile anything; see [`super::kernel`].
+//! `common.wgsl` for every other. The key kernels ([`PORTABLE_KERNELS`]) are followed by
+//! `shaders/key_writer.wgsl` and each built in two variants from that one text by
+//! [`preprocess`] (`#ifdef KEY_64`). [`source`] builds it all; the runtime (pipeline
+//! creation) and the naga tests (`tests/it/shaders.rs`, `tests/it/bindings.rs`) both use
+//! it, so what is validated is what runs. This module does not compile anything; see
+//! [`super::kernel`].
 
 /// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`
 /// (dense SLAM and renders).
@@ -18,15 +21,26 @@ pub const SCAN_COMMON: &str = include_str!("../../shaders/scan_common.wgsl");
 /// The prefix files as `(name, text)` (not kernels: no entry point, no bindings).
 pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN_COMMON)];
 
+/// `shaders/key_writer.wgsl`: how a key kernel's `index_map` keeps the larger key, in both
+/// variants (mirrors `src/cpu/key_writer.rs`). Appended to each key kernel; not a kernel,
+/// and not valid alone (it writes the kernel's `index_map`).
+pub const KEY_WRITER: &str = include_str!("../../shaders/key_writer.wgsl");
+
+/// The name of [`KEY_WRITER`]'s file, `shaders/<KEY_WRITER_FILE>.wgsl`.
+pub const KEY_WRITER_FILE: &str = "key_writer";
+
 /// Kernels prefixed with `scan_common.wgsl` instead of `common.wgsl`.
 pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 
-/// The kernels that need 64-bit integers and 64-bit `atomicMax` (`SHADER_INT64` and
-/// `SHADER_INT64_ATOMIC_MIN_MAX`), each with its portable twin kernel: `(kernel, portable)`.
-/// The portable kernel keeps the same 64-bit key as two u32 words, (low = index, high =
+/// The key kernels, each built in two variants from its one file `shaders/<kernel>.wgsl`
+/// followed by [`KEY_WRITER`]: `(kernel, portable)`. The kernel (the file with [`KEY_64`]
+/// defined) keeps the nearest surfel per pixel with one 64-bit `atomicMax` and needs
+/// `SHADER_INT64` and `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file
+/// without [`KEY_64`]) keeps the same 64-bit key as two u32 words, (low = index, high =
 /// depth word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
-/// then 1), and decides the same winner bit for bit. Every other kernel, portable ones
-/// included, validates without 64-bit integers (`tests/it/shaders.rs`).
+/// then 1), and decides the same winner bit for bit. Every other kernel, portable variants
+/// included, validates without 64-bit integers (`tests/it/shaders.rs`). The CPU twin
+/// `src/cpu/<kernel>.rs` serves both, generic over `cpu::key_writer::KeyWriter`.
 pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
     ("project_model", "project_model_portable"),
     ("fuse_select", "fuse_select_portable"),
@@ -38,13 +52,37 @@ pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
 /// word, 1: the index word).
 pub const KEY_PASS: &str = "KEY_PASS";
 
+/// The [`preprocess`] symbol that picks a key kernel's 64-bit variant.
+pub const KEY_64: &str = "KEY_64";
+
 /// True for the kernels that need 64-bit integers (the first of each [`PORTABLE_KERNELS`]).
 pub fn needs_int64(kernel_name: &str) -> bool {
     PORTABLE_KERNELS.iter().any(|(k, _)| *k == kernel_name)
 }
 
-/// Every kernel as `(name, text of shaders/<name>.wgsl)`. Keep in sync with the directory:
-/// `tests/it/shaders.rs` fails when a `.wgsl` file is missing here.
+/// The file a kernel is built from, `shaders/<file_of(name)>.wgsl`: the kernel itself, or
+/// for a portable variant the key kernel it is a variant of.
+pub fn file_of(kernel_name: &str) -> &str {
+    PORTABLE_KERNELS
+        .iter()
+        .find(|(_, portable)| *portable == kernel_name)
+        .map_or(kernel_name, |(kernel, _)| kernel)
+}
+
+/// The [`preprocess`] symbols a kernel is built with: [`KEY_64`] for the 64-bit key
+/// kernels, none for every other (portable variants included).
+pub fn defines_of(kernel_name: &str) -> &'static [&'static str] {
+    if needs_int64(kernel_name) {
+        &[KEY_64]
+    } else {
+        &[]
+    }
+}
+
+/// Every kernel the runtime builds as `(name, text of shaders/<file_of(name)>.wgsl)`: one row
+/// per file, plus one per portable variant of a key kernel (the same text, see
+/// [`PORTABLE_KERNELS`]). Keep in sync with the directory: `tests/it/shaders.rs` fails when
+/// a `.wgsl` file is missing here.
 pub const KERNELS: &[(&str, &str)] = &[
     (
         "depth_to_vertex",
@@ -62,10 +100,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         "vertex_to_normal",
         include_str!("../../shaders/vertex_to_normal.wgsl"),
     ),
-    (
-        "project_model",
-        include_str!("../../shaders/project_model.wgsl"),
-    ),
+    ("project_model", PROJECT_MODEL),
     (
         "predict_model",
         include_str!("../../shaders/predict_model.wgsl"),
@@ -99,10 +134,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         "icp_reduce_final",
         include_str!("../../shaders/icp_reduce_final.wgsl"),
     ),
-    (
-        "fuse_select",
-        include_str!("../../shaders/fuse_select.wgsl"),
-    ),
+    ("fuse_select", FUSE_SELECT),
     ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
     (
         "fuse_merge_chosen",
@@ -110,20 +142,12 @@ pub const KERNELS: &[(&str, &str)] = &[
     ),
     ("fuse_prune", include_str!("../../shaders/fuse_prune.wgsl")),
     ("fuse_flags", include_str!("../../shaders/fuse_flags.wgsl")),
-    ("fuse_add", include_str!("../../shaders/fuse_add.wgsl")),
-    // The portable key kernels (two 32-bit passes each, see PORTABLE_KERNELS).
-    (
-        "project_model_portable",
-        include_str!("../../shaders/project_model_portable.wgsl"),
-    ),
-    (
-        "fuse_select_portable",
-        include_str!("../../shaders/fuse_select_portable.wgsl"),
-    ),
-    (
-        "fuse_add_portable",
-        include_str!("../../shaders/fuse_add_portable.wgsl"),
-    ),
+    ("fuse_add", FUSE_ADD),
+    // The portable variants of the key kernels (two 32-bit passes each, see
+    // PORTABLE_KERNELS), composed from the same files.
+    ("project_model_portable", PROJECT_MODEL),
+    ("fuse_select_portable", FUSE_SELECT),
+    ("fuse_add_portable", FUSE_ADD),
     (
         "compact_flags",
         include_str!("../../shaders/compact_flags.wgsl"),
@@ -146,21 +170,22 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../shaders/cross_covariance.wgsl"),
     ),
     // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
-    (
-        "render_splat",
-        include_str!("../../shaders/render_splat.wgsl"),
-    ),
-    (
-        "render_splat_portable",
-        include_str!("../../shaders/render_splat_portable.wgsl"),
-    ),
+    ("render_splat", RENDER_SPLAT),
+    ("render_splat_portable", RENDER_SPLAT),
     (
         "render_resolve",
         include_str!("../../shaders/render_resolve.wgsl"),
     ),
 ];
 
-/// The kernel file's text alone (without `common.wgsl`), or `None` for an unknown name.
+/// The key kernels' files, each listed twice in [`KERNELS`].
+const PROJECT_MODEL: &str = include_str!("../../shaders/project_model.wgsl");
+const FUSE_SELECT: &str = include_str!("../../shaders/fuse_select.wgsl");
+const FUSE_ADD: &str = include_str!("../../shaders/fuse_add.wgsl");
+const RENDER_SPLAT: &str = include_str!("../../shaders/render_splat.wgsl");
+
+/// The kernel file's text alone (without `common.wgsl`, not preprocessed), or `None` for an
+/// unknown name.
 pub fn kernel_text(kernel_name: &str) -> Option<&'static str> {
     KERNELS
         .iter()
@@ -178,15 +203,80 @@ pub fn prefix_of(kernel_name: &str) -> (&'static str, &'static str) {
     }
 }
 
-/// The full WGSL of a kernel: its prefix ([`prefix_of`]) + `shaders/<kernel_name>.wgsl`.
+/// The full WGSL of a kernel: its prefix ([`prefix_of`]) + `shaders/<file_of(name)>.wgsl`
+/// (+ [`KEY_WRITER`] for a key kernel, either variant), [`preprocess`]ed with
+/// [`defines_of`]`(name)`. Line numbers are those of the files (see [`origin_of_line`]).
 ///
-/// Panics on an unknown kernel name: kernel names are compile-time constants of this crate,
-/// so a miss is a bug, not a user error.
+/// Panics on an unknown kernel name or a malformed directive: kernel names and files are
+/// compile-time constants of this crate, so either is a bug, not a user error.
 pub fn source(kernel_name: &str) -> String {
     let text = kernel_text(kernel_name).unwrap_or_else(|| {
         panic!("unknown WGSL kernel `{kernel_name}` (not listed in gpu::shaders::KERNELS)")
     });
-    concat(prefix_of(kernel_name).1, text)
+    let file = file_of(kernel_name);
+    let defines = defines_of(kernel_name);
+    let compose = |file: &str, text: &str| {
+        preprocess(text, defines).unwrap_or_else(|e| panic!("shaders/{file}.wgsl: {e}"))
+    };
+    let mut text = compose(file, text);
+    if needs_int64(file) {
+        text.push_str(&compose(KEY_WRITER_FILE, KEY_WRITER));
+    }
+    concat(prefix_of(kernel_name).1, &text)
+}
+
+/// Composes a variant of a kernel file: the lines between `#ifdef NAME` (or `#ifndef NAME`)
+/// and its `#else` or `#endif` are kept where `NAME` is (is not) in `defines`, those between
+/// `#else` and `#endif` otherwise; directives nest. Every directive line and every line
+/// left out becomes an empty line, so a line of the result is the same line of the file.
+/// A directive is a line whose first non-blank character is `#` (WGSL has no other use for
+/// one).
+///
+/// `Err` names the first malformed line (1-based): an unknown directive, `#else` or
+/// `#endif` without `#ifdef`, or an `#ifdef` never closed.
+pub fn preprocess(text: &str, defines: &[&str]) -> Result<String, String> {
+    // Per open #ifdef: (whether its current branch is kept, whether it has seen #else).
+    let mut open: Vec<(bool, bool)> = Vec::new();
+    let mut out = String::with_capacity(text.len());
+    for (n, line) in text.lines().enumerate() {
+        let kept = open.iter().all(|&(keep, _)| keep);
+        let Some(directive) = line.trim_start().strip_prefix('#') else {
+            if kept {
+                out.push_str(line);
+            }
+            out.push('\n');
+            continue;
+        };
+        let mut words = directive.split_whitespace();
+        match (words.next(), words.next(), words.next()) {
+            (Some("ifdef"), Some(name), None) => open.push((defines.contains(&name), false)),
+            (Some("ifndef"), Some(name), None) => open.push((!defines.contains(&name), false)),
+            (Some("else"), None, None) => match open.last_mut() {
+                Some((keep, seen_else @ false)) => {
+                    *keep = !*keep;
+                    *seen_else = true;
+                }
+                _ => return Err(format!("line {}: `#else` without `#ifdef`", n + 1)),
+            },
+            (Some("endif"), None, None) => {
+                if open.pop().is_none() {
+                    return Err(format!("line {}: `#endif` without `#ifdef`", n + 1));
+                }
+            }
+            _ => {
+                return Err(format!(
+                    "line {}: unknown directive `{}`",
+                    n + 1,
+                    line.trim()
+                ))
+            }
+        }
+        out.push('\n');
+    }
+    if !open.is_empty() {
+        return Err(format!("{} `#ifdef` without `#endif`", open.len()));
+    }
+    Ok(out)
 }
 
 /// `common.wgsl` followed by `kernel_text`, separated by one newline.
@@ -211,14 +301,23 @@ pub fn common_line_count() -> usize {
 }
 
 /// Maps a 1-based line of a concatenated source back to `(file, line)`:
-/// `("shaders/<prefix>.wgsl", l)` for the prefix, `("shaders/<kernel>.wgsl", l)` after it.
+/// `("shaders/<prefix>.wgsl", l)` for the prefix, `("shaders/<file_of(kernel)>.wgsl", l)`
+/// after it, and `("shaders/key_writer.wgsl", l)` after a key kernel's own text
+/// ([`preprocess`] keeps line numbers).
 pub fn origin_of_line(kernel_name: &str, line: usize) -> (String, usize) {
     let (prefix, text) = prefix_of(kernel_name);
     let n = text.lines().count();
+    let file = file_of(kernel_name);
+    let kernel_lines = kernel_text(kernel_name).map_or(usize::MAX, |t| t.lines().count());
     if line <= n {
         (format!("shaders/{prefix}.wgsl"), line)
+    } else if line - n <= kernel_lines || !needs_int64(file) {
+        (format!("shaders/{file}.wgsl"), line - n)
     } else {
-        (format!("shaders/{kernel_name}.wgsl"), line - n)
+        (
+            format!("shaders/{KEY_WRITER_FILE}.wgsl"),
+            line - n - kernel_lines,
+        )
     }
 }
 
@@ -236,5 +335,74 @@ mod tests {
         );
         let src = concat_with_common("// first\n");
         assert_eq!(src.lines().nth(n), Some("// first"));
+        assert_eq!(
+            origin_of_line("render_splat_portable", n + 2).0,
+            "shaders/render_splat.wgsl"
+        );
+        let splat = RENDER_SPLAT.lines().count();
+        assert_eq!(
+            origin_of_line("render_splat_portable", n + splat + 4),
+            ("shaders/key_writer.wgsl".to_string(), 4)
+        );
+        let src = source("render_splat_portable");
+        assert_eq!(
+            src.lines().nth(n + splat + 3),
+            KEY_WRITER.lines().nth(3),
+            "line n + splat + 4 of the source is line 4 of key_writer.wgsl"
+        );
+    }
+
+    #[test]
+    fn preprocess_keeps_one_branch_and_every_line_number() {
+        let text = "a\n#ifdef K\nk\n  #ifndef J\n  kj\n  #endif\n#else\nnot k\n#endif\nz\n";
+        assert_eq!(
+            preprocess(text, &["K"]).unwrap(),
+            "a\n\nk\n\n  kj\n\n\n\n\nz\n"
+        );
+        assert_eq!(
+            preprocess(text, &["K", "J"]).unwrap(),
+            "a\n\nk\n\n\n\n\n\n\nz\n"
+        );
+        assert_eq!(
+            preprocess(text, &[]).unwrap(),
+            "a\n\n\n\n\n\n\nnot k\n\nz\n"
+        );
+    }
+
+    #[test]
+    fn preprocess_names_the_malformed_line() {
+        let cases = [
+            ("a\n#if K\n", "line 2: unknown directive `#if K`"),
+            ("#else\n", "line 1: `#else` without `#ifdef`"),
+            (
+                "#ifdef K\n#else\n#else\n#endif\n",
+                "line 3: `#else` without `#ifdef`",
+            ),
+            ("\n#endif\n", "line 2: `#endif` without `#ifdef`"),
+            ("#ifdef K\n", "1 `#ifdef` without `#endif`"),
+        ];
+        for (text, error) in cases {
+            assert_eq!(preprocess(text, &[]).unwrap_err(), error, "{text:?}");
+        }
+    }
+
+    #[test]
+    fn each_key_kernel_has_two_variants_from_one_file() {
+        for (kernel, portable) in PORTABLE_KERNELS {
+            assert_eq!(file_of(portable), *kernel);
+            assert_eq!(kernel_text(kernel), kernel_text(portable));
+            let (wide, narrow) = (source(kernel), source(portable));
+            let (u64_map, key_pass) = ("array<atomic<u64>>", "override KEY_PASS");
+            assert!(
+                wide.contains(u64_map) && !wide.contains(key_pass),
+                "{kernel}"
+            );
+            assert!(
+                !narrow.contains(u64_map) && narrow.contains(key_pass),
+                "{portable}"
+            );
+            assert!(wide.contains("fn keep_nearer") && narrow.contains("fn keep_nearer"));
+            assert_eq!(wide.lines().count(), narrow.lines().count());
+        }
     }
 }

@@ -4,7 +4,7 @@
 //! Thin wrapper: two kernels created once, buffers created per picture (a render is a
 //! one-off, not a per-frame step), one read-back of the packed pixels. `render_splat` is
 //! a [`KeyKernel`]: the 64-bit kernel, or on a device without 64-bit atomics its portable
-//! twin `render_splat_portable` in two passes, with the same keys.
+//! variant `render_splat_portable` in two passes, with the same keys.
 
 use image::RgbImage;
 

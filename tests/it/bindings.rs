@@ -88,15 +88,40 @@ const TWIN_RETURNS: &[(&str, &str, &str)] = &[
     ),
 ];
 
-/// The parameter names of `pub fn <name>(...)` in `source`, or why they cannot be read: the
-/// text from the `(` to its matching `)`, split on top-level commas, each parameter's name
-/// the identifier before its `:` (a leading `mut` dropped). Also whether a `->` follows.
+/// The parameter names of `pub fn <name>(...)` (or `pub fn <name><generics>(...)`) in
+/// `source`, or why they cannot be read: the text from the `(` to its matching `)`, split on
+/// top-level commas, each parameter's name the identifier before its `:` (a leading `mut`
+/// dropped). Also whether a `->` follows.
 fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), String> {
     let head = format!("pub fn {name}(");
-    let start = match source.matches(&head).count() {
-        1 => source.find(&head).unwrap() + head.len(),
-        0 => return Err(format!("no `{head}` found")),
-        n => return Err(format!("`{head}` found {n} times")),
+    let starts: Vec<usize> = source
+        .match_indices(&format!("pub fn {name}"))
+        .map(|(i, m)| i + m.len())
+        .filter_map(|after| {
+            let rest = &source[after..];
+            if rest.starts_with('(') {
+                return Some(after + 1);
+            }
+            // Generic parameters: skip to the `>` that closes the first `<`.
+            let mut depth = 0usize;
+            for (i, c) in rest.char_indices() {
+                match c {
+                    '<' => depth += 1,
+                    '>' if depth == 1 => {
+                        return rest[i + 1..].starts_with('(').then_some(after + i + 2)
+                    }
+                    '>' => depth = depth.checked_sub(1)?,
+                    _ if depth == 0 => return None,
+                    _ => {}
+                }
+            }
+            None
+        })
+        .collect();
+    let start = match starts[..] {
+        [start] => start,
+        [] => return Err(format!("no `{head}` found")),
+        _ => return Err(format!("`{head}` found {} times", starts.len())),
     };
     let text = &source[start..];
     let (mut depth, mut end, mut param, mut params) = (0usize, None, String::new(), Vec::new());
@@ -152,13 +177,19 @@ fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), Stri
 /// Every kernel's CPU twin takes the shader's bindings as its parameters, in `@binding` order
 /// and named as the WGSL variables (less the bindings of [`TWIN_RETURNS`], which it returns),
 /// so the binding descriptions at the WGSL declarations describe the twin's arguments too.
-/// Every mismatch of every kernel is reported at once; a missing twin file or function is a
-/// mismatch, not a skip, and so is an exception that names no binding of its kernel.
+/// A key kernel's portable variant has the twin of its key kernel, whose key maps carry the
+/// variant ([`portable_variant_problems`]). Every mismatch of every kernel is reported at
+/// once; a missing twin file or function is a mismatch, not a skip, and so is an exception
+/// that names no binding of its kernel.
 fn every_twin_takes_its_shaders_bindings_in_order() {
     let cpu = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/cpu");
     let mut failures = Vec::new();
     let mut checked = 0;
     for (name, _) in shaders::KERNELS {
+        if shaders::file_of(name) != *name {
+            failures.extend(portable_variant_problems(name, shaders::file_of(name)));
+            continue;
+        }
         let bindings = match gpu::reflect(name, &shaders::source(name)) {
             Ok((reflected, _)) => reflected,
             Err(problems) => {
@@ -203,8 +234,7 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
                  `pub fn {name}` returns nothing"
             ));
         }
-        // The bindings, then the shader's `override` constants in snake case (the portable
-        // kernels' KEY_PASS is the twin's `key_pass`).
+        // The bindings, then the shader's `override` constants in snake case.
         let module = common::wgsl::parse(name, &shaders::source(name));
         let expected: Vec<(String, String)> = bindings
             .iter()
@@ -248,6 +278,52 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
         shaders::KERNELS.len(),
         TWIN_RETURNS.len()
     );
+}
+
+/// A portable variant `variant` of the key kernel `kernel` binds what the kernel binds, under
+/// the same names and numbers, and adds one `override`, `KEY_PASS`, which its twin (the
+/// kernel's, `src/cpu/<kernel>.rs`) takes inside its key-map arguments
+/// (`cpu::key_writer::KeyPass`) rather than as a parameter of its own.
+fn portable_variant_problems(variant: &str, kernel: &str) -> Vec<String> {
+    let names = |name: &str| {
+        gpu::reflect(name, &shaders::source(name)).map(|(reflected, _)| {
+            reflected
+                .into_iter()
+                .map(|b| (b.binding, b.name))
+                .collect::<Vec<_>>()
+        })
+    };
+    let (ours, theirs) = match (names(variant), names(kernel)) {
+        (Ok(ours), Ok(theirs)) => (ours, theirs),
+        (ours, theirs) => {
+            return [ours.err(), theirs.err()]
+                .into_iter()
+                .flatten()
+                .flatten()
+                .collect()
+        }
+    };
+    let mut problems = Vec::new();
+    if ours != theirs {
+        problems.push(format!(
+            "kernel `{variant}`: bindings {ours:?} differ from `{kernel}`'s {theirs:?}, whose \
+             twin it shares"
+        ));
+    }
+    let module = common::wgsl::parse(variant, &shaders::source(variant));
+    let overrides: Vec<_> = module
+        .overrides
+        .iter()
+        .filter_map(|(_, o)| o.name.clone())
+        .collect();
+    if overrides != [shaders::KEY_PASS] {
+        problems.push(format!(
+            "kernel `{variant}`: overrides {overrides:?}, expected only `{}` (carried by \
+             cpu::key_writer::KeyPass)",
+            shaders::KEY_PASS
+        ));
+    }
+    problems
 }
 
 pub fn tests() -> Vec<common::harness::Test> {

@@ -1,11 +1,13 @@
-//! The portable GPU path (no 64-bit integers, see `shaders::PORTABLE_KERNELS`): each
-//! portable twin against its 64-bit twin, bit for bit, on a real map with and without ties;
+//! The portable GPU path (no 64-bit integers, see `shaders::PORTABLE_KERNELS`): each key
+//! twin run with the portable key writer (`cpu::key_writer::KeyPass`, two passes) against
+//! the same twin on 64-bit keys, bit for bit, on a real map with and without ties;
 //! the device options; and whole GPU runs on the portable kernels against the 64-bit
 //! kernels (equal poses and maps) and the ground truth.
 //!
 //! The portable kernels against their twins run in `gpu_parity` (and every other GPU
 //! module) with `WGSLAM_GPU_FEATURES=portable`, as `.ci/run` does: those tests compare the
-//! GPU with the 64-bit twins, which the first tests here prove equal to the portable ones.
+//! GPU with the twins on 64-bit keys, which the first test here proves equal to the twins
+//! on portable keys.
 
 use crate::common;
 
@@ -13,6 +15,7 @@ use common::frames::{gt_at, load_frame, load_gt};
 use common::harness::{gpu, plain, skipped, Test};
 use libtest_mimic::Completion;
 use wgslam::cpu;
+use wgslam::cpu::key_writer::KeyPass;
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
@@ -80,7 +83,7 @@ fn check_equal(what: &str, keys: &[u64], portable_words: &[u32]) {
     assert_eq!(keys.len(), portable.len(), "{what}: sizes");
     if let Some(p) = (0..keys.len()).find(|&p| keys[p] != portable[p]) {
         panic!(
-            "{what}: pixel {p}: 64-bit twin {:#x}, portable twin {:#x}",
+            "{what}: pixel {p}: 64-bit keys {:#x}, portable keys {:#x}",
             keys[p], portable[p]
         );
     }
@@ -89,10 +92,11 @@ fn check_equal(what: &str, keys: &[u64], portable_words: &[u32]) {
     assert!(set > 1000, "{what}: too few keys for a real test");
 }
 
-/// Each portable twin, run as the kernel is (pass 0 over the map, then pass 1), leaves the
-/// same 64-bit keys as its 64-bit twin: project_model, fuse_select (both maps), fuse_add
-/// (the index map, and the same new surfels) and render_splat, on a map fused from bundled
-/// frames and on that map doubled (ties at every pixel, broken towards the larger index).
+/// Each key twin with the portable key writer, run as the portable kernel is (pass 0 over
+/// the map, then pass 1), leaves the same 64-bit keys as with 64-bit keys: project_model,
+/// fuse_select (both maps), fuse_add (the index map, and the same new surfels) and
+/// render_splat, on a map fused from bundled frames and on that map doubled (ties at every
+/// pixel, broken towards the larger index).
 fn portable_twins_equal_the_64_bit_twins() {
     let root = common::bundled_icl();
     let gt = load_gt(&root);
@@ -135,13 +139,12 @@ fn portable_twins_equal_the_64_bit_twins() {
         cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut keys);
         let mut words = vec![0u32; 2 * pixels];
         for key_pass in 0..2 {
-            cpu::project_model_portable::project_model_portable(
+            cpu::project_model::project_model(
                 &proj,
                 &whole,
                 &bounds,
                 &map.position_weight,
-                &mut words,
-                key_pass,
+                &mut KeyPass::new(&mut words, key_pass),
             );
         }
         check_equal(&format!("{name}: project_model"), &keys, &words);
@@ -171,7 +174,7 @@ fn portable_twins_equal_the_64_bit_twins() {
         );
         let (mut assoc_w, mut index_w) = (vec![0u32; 2 * pixels], vec![0u32; 2 * pixels]);
         for key_pass in 0..2 {
-            cpu::fuse_select_portable::fuse_select_portable(
+            cpu::fuse_select::fuse_select(
                 &fp,
                 &maps.normal_depth,
                 &whole,
@@ -179,9 +182,8 @@ fn portable_twins_equal_the_64_bit_twins() {
                 &map.position_weight,
                 &map.normal_frame,
                 &map.color,
-                &mut assoc_w,
-                &mut index_w,
-                key_pass,
+                &mut KeyPass::new(&mut assoc_w, key_pass),
+                &mut KeyPass::new(&mut index_w, key_pass),
             );
         }
         check_equal(&format!("{name}: fuse_select assoc"), &assoc, &assoc_w);
@@ -221,7 +223,7 @@ fn portable_twins_equal_the_64_bit_twins() {
         );
         let mut added_portable = grown.clone();
         for key_pass in 0..2 {
-            cpu::fuse_add_portable::fuse_add_portable(
+            cpu::fuse_add::fuse_add(
                 &fp,
                 &maps.normal_depth,
                 &maps.color,
@@ -231,8 +233,7 @@ fn portable_twins_equal_the_64_bit_twins() {
                 &mut added_portable.position_weight,
                 &mut added_portable.normal_frame,
                 &mut added_portable.color,
-                &mut index_w,
-                key_pass,
+                &mut KeyPass::new(&mut index_w, key_pass),
             );
         }
         check_equal(&format!("{name}: fuse_add index map"), &index_map, &index_w);
@@ -263,12 +264,11 @@ fn portable_twins_equal_the_64_bit_twins() {
         let (splat_keys, _) = render::render_cpu_raw(&rp, &cloud);
         let mut splat_words = vec![0u32; 2 * splat_keys.len()];
         for key_pass in 0..2 {
-            cpu::render_splat_portable::render_splat_portable(
+            cpu::render_splat::render_splat(
                 &rp,
                 cloud.positions,
                 cloud.normals.unwrap_or(&[]),
-                &mut splat_words,
-                key_pass,
+                &mut KeyPass::new(&mut splat_words, key_pass),
             );
         }
         check_equal(&format!("{name}: render_splat"), &splat_keys, &splat_words);

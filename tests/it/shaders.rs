@@ -1,9 +1,10 @@
 //! Parses and validates every `shaders/*.wgsl` with naga, without a GPU.
 //!
 //! Each kernel is checked as the runtime builds it (`common.wgsl` + kernel, through
-//! `wgslam::gpu::shaders::source`), and `common.wgsl` is also checked alone so its errors
-//! show up even before any kernel exists. All failures are reported at once, each with the
-//! file and line it comes from.
+//! `wgslam::gpu::shaders::source`), both variants of each key kernel included (the 64-bit
+//! one and its portable variant, composed from one file and `key_writer.wgsl`), and
+//! `common.wgsl` is also checked alone so its errors show up even before any kernel exists.
+//! All failures are reported at once, each with the file and line it comes from.
 
 use crate::common;
 
@@ -37,8 +38,21 @@ fn every_shader_parses_and_validates() {
             (p.extension()? == "wgsl").then(|| p.file_stem()?.to_str().map(str::to_string))?
         })
         .filter(|name| !shaders::PREFIXES.iter().any(|(p, _)| p == name))
+        .filter(|name| name != shaders::KEY_WRITER_FILE)
         .collect();
     on_disk.sort();
+    // key_writer.wgsl is not valid alone (it writes the key kernel's index_map): it is
+    // checked inside both variants of every key kernel below.
+    let key_writer = format!("{}.wgsl", shaders::KEY_WRITER_FILE);
+    if std::fs::read_to_string(dir.join(&key_writer))
+        .ok()
+        .as_deref()
+        != Some(shaders::KEY_WRITER)
+    {
+        failures.push(format!(
+            "shaders/{key_writer}: missing or differs from the embedded copy (rebuild)"
+        ));
+    }
 
     for name in &on_disk {
         let Some(embedded) = shaders::kernel_text(name) else {
@@ -54,17 +68,20 @@ fn every_shader_parses_and_validates() {
                 "shaders/{name}.wgsl: differs from the embedded copy (rebuild)"
             ));
         }
+    }
+    // Every kernel the runtime builds, so both variants of every key kernel.
+    for (name, _) in shaders::KERNELS {
+        let file = shaders::file_of(name);
+        if !on_disk.iter().any(|n| n == file) {
+            failures.push(format!(
+                "gpu::shaders::KERNELS lists `{name}` but shaders/{file}.wgsl is missing"
+            ));
+            continue;
+        }
         if let Some(f) = check(name, &shaders::source(name), |l| {
             shaders::origin_of_line(name, l)
         }) {
             failures.push(f);
-        }
-    }
-    for (name, _) in shaders::KERNELS {
-        if !on_disk.iter().any(|n| n == name) {
-            failures.push(format!(
-                "gpu::shaders::KERNELS lists `{name}` but shaders/{name}.wgsl is missing"
-            ));
         }
     }
 
@@ -75,7 +92,8 @@ fn every_shader_parses_and_validates() {
         failures.join("\n\n")
     );
     eprintln!(
-        "validated common.wgsl and {} kernel(s): {:?}",
+        "validated common.wgsl and {} kernel(s) from {} file(s): {:?}",
+        shaders::KERNELS.len(),
         on_disk.len(),
         on_disk
     );
@@ -83,8 +101,9 @@ fn every_shader_parses_and_validates() {
 
 /// Without 64-bit integers (WebGPU, and adapters without SHADER_INT64): every prefix and
 /// every kernel but the 64-bit key kernels validates with no optional capability, and each
-/// 64-bit key kernel has a portable twin that does. The portable kernels' `override
-/// KEY_PASS` is left unset here (naga validates the module with its overrides).
+/// 64-bit key kernel has a portable variant (the same file without `KEY_64`) that does. The
+/// portable variants' `override KEY_PASS` is left unset here (naga validates the module
+/// with its overrides).
 fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
     let mut failures = Vec::new();
     for (prefix, text) in shaders::PREFIXES {
@@ -117,6 +136,11 @@ fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
             shaders::kernel_text(int64).is_some() && shaders::kernel_text(twin).is_some(),
             "{int64} / {twin}: not both in KERNELS"
         );
+        assert_eq!(
+            shaders::file_of(twin),
+            *int64,
+            "{twin}: not composed from shaders/{int64}.wgsl"
+        );
         // The 64-bit kernel really needs the capability (else it needs no twin).
         assert!(
             wgsl::check(
@@ -136,7 +160,7 @@ fn every_kernel_but_the_64_bit_ones_needs_no_capability() {
         failures.join("\n\n")
     );
     eprintln!(
-        "{portable} kernels validate without 64-bit integers; {} have portable twins",
+        "{portable} kernels validate without 64-bit integers; {} have portable variants",
         shaders::PORTABLE_KERNELS.len()
     );
 }
