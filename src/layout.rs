@@ -508,7 +508,8 @@ pub fn pack_rgba8(rgb: [u8; 3]) -> u32 {
     rgb[0] as u32 | (rgb[1] as u32) << 8 | (rgb[2] as u32) << 16 | 255 << 24
 }
 
-/// Intrinsics as the four floats every params struct starts its camera block with.
+/// Intrinsics as the four floats every params struct starts its camera block with
+/// ([`Intrinsics::floats`]).
 pub fn camera_floats(k: &Intrinsics) -> [f32; 4] {
-    [k.fx, k.fy, k.cx, k.cy]
+    k.floats()
 }

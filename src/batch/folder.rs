@@ -14,10 +14,17 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::job::{COMPARISON, PARAMS, RECORD};
 use super::manifest::BACKENDS;
 use crate::io::outputs::{is_temp_of, remove_owned};
 use crate::{Error, Result};
+
+/// The record's file name inside a job folder.
+pub const RECORD: &str = "job.json";
+/// The comparison's file name inside a job folder (jobs that ran both backends).
+pub const COMPARISON: &str = "comparison.json";
+/// The job's parameter file inside its folder, which each backend's `wgslam run --params`
+/// reads.
+pub const PARAMS: &str = "params.toml";
 
 /// The marker's file name at the top of a batch folder.
 pub const MARKER: &str = "wgslam-batch.json";

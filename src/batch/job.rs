@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
-use super::folder;
+use super::folder::{self, COMPARISON, PARAMS, RECORD};
 use super::gpu_vs_cpu::{self, GpuVsCpu};
 use super::in_process::{InProcessRun, RunHooks};
 use super::interrupt;
@@ -27,13 +27,6 @@ use super::manifest::JobSpec;
 use crate::tools::run::{read_numbers, RunNumbers};
 use crate::{Error, Result};
 
-/// The record's file name inside a job folder.
-pub const RECORD: &str = "job.json";
-/// The comparison's file name inside a job folder (jobs that ran both backends).
-pub const COMPARISON: &str = "comparison.json";
-/// The job's parameter file inside its folder, which each backend's `wgslam run --params`
-/// reads.
-pub const PARAMS: &str = "params.toml";
 /// The run outputs a backend's folder must hold for the job to count as complete.
 pub const RUN_OUTPUTS: [&str; 4] = ["trajectory.tum", "map.ply", "metrics.json", "frames.json"];
 /// The hidden `wgslam run` flag that makes it print `progress DONE TOTAL` lines on stdout.

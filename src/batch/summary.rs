@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::job::{JobRecord, JobStatus, RECORD};
+use super::folder::RECORD;
+use super::job::{JobRecord, JobStatus};
 use super::manifest::{JobSpec, Manifest};
 use crate::io::atomic::write_atomic;
 use crate::tools::run::RunNumbers;

@@ -92,6 +92,13 @@ impl Intrinsics {
     /// uses), so scan clouds and vertex maps agree to the bit.
     #[inline]
     pub fn unproject(&self, u: u32, v: u32, z: f32) -> [f32; 3] {
-        crate::cpu::back_project(crate::layout::camera_floats(self), [u, v], z).to_array()
+        crate::cpu::back_project(self.floats(), [u, v], z).to_array()
+    }
+
+    /// `[fx, fy, cx, cy]` in pixels: the four floats every kernel's params struct starts
+    /// its camera block with (`crate::layout::camera_floats`).
+    #[inline]
+    pub fn floats(&self) -> [f32; 4] {
+        [self.fx, self.fy, self.cx, self.cy]
     }
 }

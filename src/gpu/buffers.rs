@@ -1,75 +1,22 @@
 //! Typed GPU buffers: [`GpuArray`] (a storage array of `Pod` elements with upload,
-//! read-back through a staging buffer, and grow-by-copy on the GPU), [`ParamBuffer`] (one
-//! `Pod` params struct), and the byte / submission accounting the benchmark reports.
+//! read-back through a staging buffer, and grow-by-copy on the GPU) and [`ParamBuffer`] (one
+//! `Pod` params struct); both account their bytes in [`super::stats`].
 //!
 //! Not a memory allocator: every array is one wgpu buffer sized `capacity` elements, and
 //! its capacity is checked against the device limits before anything is allocated.
 
 use std::marker::PhantomData;
 use std::ops::Range;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use bytemuck::Pod;
 
 use super::context::GpuContext;
+use super::stats::GpuStats;
 use crate::{Error, Result};
 
 /// wgpu copies and `write_buffer` need sizes in multiples of this many bytes.
 const COPY_ALIGN: u64 = wgpu::COPY_BUFFER_ALIGNMENT;
-
-/// Counters shared by a [`GpuContext`] and all its buffers.
-#[derive(Debug, Default)]
-pub struct GpuStats {
-    allocated_bytes: AtomicU64,
-    peak_allocated_bytes: AtomicU64,
-    uploaded_bytes: AtomicU64,
-    readback_bytes: AtomicU64,
-    submissions: AtomicU64,
-}
-
-/// A copy of the counters at one moment (all byte counts are bytes, not elements).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
-pub struct StatsSnapshot {
-    /// Bytes in live [`GpuArray`] / [`ParamBuffer`] buffers (staging buffers excluded).
-    pub allocated_bytes: u64,
-    /// Largest `allocated_bytes` seen so far.
-    pub peak_allocated_bytes: u64,
-    /// Bytes written from the host with `write_buffer`.
-    pub uploaded_bytes: u64,
-    /// Bytes copied back to the host through staging buffers.
-    pub readback_bytes: u64,
-    /// Queue submissions made through [`GpuContext::submit`] and the buffer helpers.
-    pub submissions: u64,
-}
-
-impl GpuStats {
-    pub(crate) fn alloc(&self, bytes: u64) {
-        let now = self.allocated_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
-        self.peak_allocated_bytes.fetch_max(now, Ordering::Relaxed);
-    }
-    pub(crate) fn free(&self, bytes: u64) {
-        self.allocated_bytes.fetch_sub(bytes, Ordering::Relaxed);
-    }
-    pub(crate) fn upload(&self, bytes: u64) {
-        self.uploaded_bytes.fetch_add(bytes, Ordering::Relaxed);
-    }
-    pub(crate) fn readback(&self, bytes: u64) {
-        self.readback_bytes.fetch_add(bytes, Ordering::Relaxed);
-    }
-    pub(crate) fn count_submission(&self) {
-        self.submissions.fetch_add(1, Ordering::Relaxed);
-    }
-    pub(crate) fn snapshot(&self) -> StatsSnapshot {
-        StatsSnapshot {
-            allocated_bytes: self.allocated_bytes.load(Ordering::Relaxed),
-            peak_allocated_bytes: self.peak_allocated_bytes.load(Ordering::Relaxed),
-            uploaded_bytes: self.uploaded_bytes.load(Ordering::Relaxed),
-            readback_bytes: self.readback_bytes.load(Ordering::Relaxed),
-            submissions: self.submissions.load(Ordering::Relaxed),
-        }
-    }
-}
 
 /// Rounds a byte count up to the copy alignment (and to at least one aligned word, since
 /// zero-sized bindings are invalid).

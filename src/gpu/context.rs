@@ -8,8 +8,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use super::buffers::{GpuStats, StatsSnapshot};
-use super::kernel::Kernel;
+use super::stats::{GpuStats, StatsSnapshot};
 use crate::{Error, Result};
 
 /// Backends wgslam asks for. Never `GL`: on CPU-only machines it falls back to llvmpipe's
@@ -165,13 +164,14 @@ pub struct GpuContext {
     /// This context's latest submission: [`GpuContext::wait_idle`] waits for it, not for
     /// what other contexts sharing the queue submitted since.
     last_submission: Mutex<Option<wgpu::SubmissionIndex>>,
-    /// Kernels built on this device, by name ([`GpuContext::kernels_cached`]); one map for
-    /// every context sharing the device.
-    kernels: Arc<Mutex<KernelCache>>,
+    /// Objects built once per device, by key ([`GpuContext::cached`]: the kernels); one map
+    /// for every context sharing the device.
+    cache: Arc<Mutex<DeviceCache>>,
 }
 
-/// Built kernels by key: a kernel's name, or its name and its passes.
-type KernelCache = std::collections::HashMap<String, Vec<Kernel>>;
+/// Objects built once per device by key (a kernel's name, or its name and its passes),
+/// each of the type its key's callers ask for.
+type DeviceCache = std::collections::HashMap<String, Box<dyn std::any::Any + Send>>;
 
 impl std::fmt::Debug for GpuContext {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -282,7 +282,7 @@ impl GpuContext {
             lost,
             uncaptured,
             last_submission: Mutex::new(None),
-            kernels: Arc::default(),
+            cache: Arc::default(),
         })
     }
 
@@ -303,24 +303,29 @@ impl GpuContext {
             lost: Arc::clone(&self.lost),
             uncaptured: Arc::clone(&self.uncaptured),
             last_submission: Mutex::new(None),
-            kernels: Arc::clone(&self.kernels),
+            cache: Arc::clone(&self.cache),
         }
     }
 
-    /// The kernels stored under `key` on this device, built by `build` (and stored) the
+    /// The object stored under `key` on this device, built by `build` (and stored) the
     /// first time: pipelines cost 60-130 ms each on lavapipe, and a batch's concurrent jobs
-    /// ([`GpuContext::share`]) need the same ones. Threads asking at once build once.
-    pub(crate) fn kernels_cached(
+    /// ([`GpuContext::share`]) need the same ones (`Kernel::new` caches through this).
+    /// Threads asking at once build once. Panics when one key is asked for as two types
+    /// (a broken internal contract).
+    pub(crate) fn cached<T: Clone + Send + 'static>(
         &self,
         key: &str,
-        build: impl FnOnce() -> Result<Vec<Kernel>>,
-    ) -> Result<Vec<Kernel>> {
-        let mut cache = self.kernels.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some(k) = cache.get(key) {
-            return Ok(k.clone());
+        build: impl FnOnce() -> Result<T>,
+    ) -> Result<T> {
+        let mut cache = self.cache.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(stored) = cache.get(key) {
+            let typed = stored.downcast_ref::<T>();
+            return Ok(typed
+                .unwrap_or_else(|| panic!("device cache key `{key}` asked for as two types"))
+                .clone());
         }
         let built = build()?;
-        cache.insert(key.to_string(), built.clone());
+        cache.insert(key.to_string(), Box::new(built.clone()));
         Ok(built)
     }
 

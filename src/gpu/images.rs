@@ -16,8 +16,9 @@ use std::sync::Arc;
 
 use bytemuck::Pod;
 
-use super::buffers::{map_read, GpuStats};
+use super::buffers::map_read;
 use super::context::GpuContext;
+use super::stats::GpuStats;
 use crate::{Error, Result};
 
 /// A 2D texture of one format, sampled with `textureLoad` and/or written as a write-only

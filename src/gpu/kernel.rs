@@ -53,11 +53,10 @@ impl Kernel {
     /// [`Error::Gpu`] when the WGSL does not parse or declares a binding the kernels cannot
     /// use; wgpu validation errors likewise.
     pub fn new(ctx: &GpuContext, name: &str) -> Result<Kernel> {
-        // Built once per device ([`GpuContext::kernels_cached`]).
-        let mut k = ctx.kernels_cached(name, || {
-            Ok(vec![Self::from_source(ctx, name, &shaders::source(name))?])
-        })?;
-        Ok(k.remove(0))
+        // Built once per device ([`GpuContext::cached`]).
+        ctx.cached(name, || {
+            Self::from_source(ctx, name, &shaders::source(name))
+        })
     }
 
     /// Builds a kernel from full WGSL text (used by [`Kernel::new`] and by tests with
@@ -71,17 +70,13 @@ impl Kernel {
     /// then 1), sharing one bind-group layout, so a bind group made with the first runs
     /// both passes.
     pub fn key_passes(ctx: &GpuContext, name: &str) -> Result<[Kernel; 2]> {
-        let passes = ctx.kernels_cached(&format!("{name} key passes"), || {
+        ctx.cached(&format!("{name} key passes"), || {
             let wgsl = shaders::source(name);
             let first = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 0.0)], None)?;
             let layout = first.bind_group_layout.clone();
             let second = Self::build(ctx, name, &wgsl, &[(shaders::KEY_PASS, 1.0)], Some(layout))?;
-            Ok(vec![first, second])
-        })?;
-        let [first, second]: [Kernel; 2] = passes
-            .try_into()
-            .unwrap_or_else(|_| panic!("`{name}`: a portable key kernel has two passes"));
-        Ok([first, second])
+            Ok([first, second])
+        })
     }
 
     /// A kernel from full WGSL with its `override` constants set to `constants`, and with

@@ -36,13 +36,15 @@ pub mod map_buffers;
 mod recording;
 mod resources;
 pub mod shaders;
+pub mod stats;
 mod steps;
 pub mod test_support;
 pub mod timing;
 pub mod wait;
 
 pub use backend::GpuBackend;
-pub use buffers::{GpuArray, ParamBuffer, Readback, StatsSnapshot};
+pub use buffers::{GpuArray, ParamBuffer, Readback};
 pub use context::GpuContext;
 pub use kernel::{reflect, Kernel, ReflectedBinding};
+pub use stats::StatsSnapshot;
 pub use timing::{StageTime, StageTimer};
