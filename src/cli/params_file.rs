@@ -106,7 +106,8 @@ fn clap_reason(e: &clap::Error) -> String {
 mod tests {
     use super::*;
     use crate::cli::pipeline_args::PipelineArgs;
-    use crate::slam::params::{Association, BilateralSettings, PoseSource, Profile, SlamParams};
+    use crate::geometry::camera::Intrinsics;
+    use crate::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams};
     use clap::Parser;
 
     /// The overrides `wgslam run ARGS` parses to.
@@ -207,49 +208,145 @@ mod tests {
         }
     }
 
-    /// Every key written by `to_toml` reads back as the same value: the serde names are
+    /// A value for every option, each other than the assignment profile's (the robust
+    /// profile's for `profile`). The tests below fail on an option missing here, so a new
+    /// option comes with its check.
+    const OPTION_VALUES: [(&str, &str); 37] = [
+        ("gt", "a/gt.txt"),
+        ("camera", "fr1"),
+        ("intrinsics", "500,500,319.5,239.5"),
+        ("depth-scale", "1000"),
+        ("max-time-diff", "0.03"),
+        ("profile", "assignment"),
+        ("downsample", "4"),
+        ("icp-dist", "0.08"),
+        ("icp-angle", "25"),
+        ("icp-huber", "0.015"),
+        ("icp-level-iters", "6,3"),
+        ("icp-noise-weight", "true"),
+        ("icp-min-increment", "1e-5"),
+        ("icp-degenerate-ratio", "1e-3"),
+        ("tracking-health", "false"),
+        ("health-min-inliers", "0.25"),
+        ("health-max-residual-ratio", "5"),
+        ("relocalise", "false"),
+        ("loop-closure", "on"),
+        ("pyramid-radius", "2"),
+        ("pyramid-depth-gate-z2", "0.1"),
+        ("fuse-dist", "0.012345679"),
+        ("fuse-angle", "33.3"),
+        ("fuse-association", "best-candidate"),
+        ("confidence-sigma", "0.7"),
+        ("prune-scale", "0.4"),
+        ("stable-weight", "12.5"),
+        ("unstable-max-age", "9"),
+        ("removal-every", "4"),
+        ("min-depth", "0.2"),
+        ("max-depth", "4.5"),
+        ("max-depth-jump", "0.05"),
+        ("bilateral", "true"),
+        ("bilateral-radius", "2"),
+        ("bilateral-sigma-space", "1.5"),
+        ("bilateral-sigma-depth", "0.001"),
+        ("bilateral-sigma-depth-z2", "0.02"),
+    ];
+
+    /// Each option, as a flag, a parameter file's key and a manifest's override, reaches
+    /// what it sets: the [`SlamParams`] value of its key (other than the profile's), the
+    /// profile, or the sequence's options. A forgotten line cannot ignore an option.
+    #[test]
+    fn every_option_reaches_the_parameters() {
+        let names: Vec<String> = OPTION_VALUES.iter().map(|(f, _)| f.to_string()).collect();
+        assert_eq!(
+            ParamOverrides::keys(),
+            names,
+            "OPTION_VALUES lists every option"
+        );
+        let assignment = SlamParams::profile(Profile::Assignment);
+        for (flag, value) in OPTION_VALUES {
+            // The assignment profile under each (`profile` itself over the robust default),
+            // and `--bilateral` under its settings, which take effect only with it.
+            let mut args = vec![format!("--{flag}={value}")];
+            let mut file = format!("{flag} = {value:?}\n");
+            if flag != "profile" {
+                args.push("--profile=assignment".into());
+                file.push_str("profile = \"assignment\"\n");
+            }
+            if flag.starts_with("bilateral-") {
+                args.push("--bilateral".into());
+                file.push_str("bilateral = true\n");
+            }
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let o = flags(&args);
+            assert_eq!(ParamOverrides::from_toml(&file).unwrap(), o, "{file}");
+            if !crate::batch::manifest::RESERVED_OPTIONS.contains(&flag) {
+                let m = crate::batch::manifest::Manifest::parse(
+                    Path::new("/m/batch.toml"),
+                    &format!(
+                        "[[job]]\nsequence = \"s\"\nprofile = \"assignment\"\n\
+                         overrides = {{ {flag} = {value:?}{} }}\n",
+                        if flag.starts_with("bilateral-") {
+                            ", bilateral = true"
+                        } else {
+                            ""
+                        }
+                    ),
+                )
+                .unwrap();
+                let job = ParamOverrides::from_toml(&m.jobs[0].params_toml()).unwrap();
+                // The job's parameter file also holds its `downsample` field.
+                let expected = ParamOverrides {
+                    downsample: Some(2),
+                    ..o.clone()
+                };
+                assert_eq!(job, expected, "{flag} in a manifest");
+            }
+            let entry = o.options().into_iter().find(|e| e.flag == flag).unwrap();
+            let p = params(&o);
+            let s = o.sequence_options().unwrap();
+            match entry.key {
+                Some(key) => {
+                    let got = p.get_key(key);
+                    assert_eq!(got, entry.value, "--{flag} {value} sets `{key}`");
+                    assert_ne!(got, assignment.get_key(key), "--{flag} {value}");
+                }
+                None => {
+                    let reached = match flag {
+                        "gt" => s.gt_path == Some("a/gt.txt".into()),
+                        "camera" => s.intrinsics == Intrinsics::preset("fr1"),
+                        "intrinsics" => s.intrinsics.is_some_and(|k| k.fx == 500.0),
+                        "depth-scale" => s.depth_scale == Some(1000.0),
+                        "max-time-diff" => s.max_time_diff == 0.03,
+                        "profile" => p.profile == Profile::Assignment,
+                        _ => false,
+                    };
+                    assert!(reached, "--{flag} {value} reaches nothing");
+                }
+            }
+        }
+    }
+
+    /// docs/params-file.md lists every option and the `SlamParams` key it sets.
+    #[test]
+    fn the_page_lists_every_option_and_its_key() {
+        let page = include_str!("../../docs/params-file.md");
+        for o in ParamOverrides::default().options() {
+            assert!(page.contains(&format!("`{}`", o.flag)), "{}", o.flag);
+            if let Some(key) = o.key {
+                assert!(page.contains(&format!("`{key}`")), "{key}");
+            }
+        }
+    }
+
+    /// Every option written by `to_toml` reads back as the same value: the serde names are
     /// the clap names.
     #[test]
     fn written_files_read_back() {
-        let all = ParamOverrides {
-            gt: Some("a/gt.txt".into()),
-            camera: Some("fr1".into()),
-            intrinsics: Some("500,500,319.5,239.5".into()),
-            depth_scale: Some(1000.0),
-            max_time_diff: Some(0.03),
-            profile: Some(Profile::Assignment),
-            downsample: Some(4),
-            icp_dist: Some(0.08),
-            icp_angle: Some(25.0),
-            icp_huber: Some(0.015),
-            icp_level_iters: Some(vec![6, 3]),
-            icp_noise_weight: Some(true),
-            icp_min_increment: Some(1e-5),
-            icp_degenerate_ratio: Some(1e-3),
-            tracking_health: Some(false),
-            health_min_inliers: Some(0.25),
-            health_max_residual_ratio: Some(5.0),
-            relocalise: Some(false),
-            loop_closure: Some(true),
-            pyramid_radius: Some(2),
-            pyramid_depth_gate_z2: Some(0.1),
-            fuse_dist: Some(0.012_345_679),
-            fuse_angle: Some(33.3),
-            fuse_association: Some(Association::BestCandidate),
-            confidence_sigma: Some(0.7),
-            prune_scale: Some(0.4),
-            stable_weight: Some(12.5),
-            unstable_max_age: Some(9),
-            removal_every: Some(4),
-            min_depth: Some(0.2),
-            max_depth: Some(4.5),
-            max_depth_jump: Some(0.05),
-            bilateral: true,
-            bilateral_radius: Some(2),
-            bilateral_sigma_space: Some(1.5),
-            bilateral_sigma_depth: Some(0.001),
-            bilateral_sigma_depth_z2: Some(0.02),
-        };
+        let args: Vec<String> = OPTION_VALUES
+            .iter()
+            .map(|(flag, value)| format!("--{flag}={value}"))
+            .collect();
+        let all = flags(&args.iter().map(String::as_str).collect::<Vec<_>>());
         let text = all.to_toml().unwrap();
         assert_eq!(ParamOverrides::from_toml(&text).unwrap(), all, "{text}");
         assert_eq!(ParamOverrides::keys().len(), text.lines().count(), "{text}");
