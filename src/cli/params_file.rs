@@ -13,6 +13,7 @@ use clap::{ArgAction, Args, Command, FromArgMatches};
 
 use super::pipeline_args::ParamOverrides;
 use crate::batch::manifest::option_value;
+use crate::slam::params::{Key, SlamParams, KEY_SECTIONS};
 use crate::{Error, Result};
 
 impl ParamOverrides {
@@ -67,19 +68,40 @@ impl ParamOverrides {
         ParamOverrides::from_arg_matches(&m).map_err(|e| clap_reason(&e))
     }
 
-    /// Parses a parameter file's text: a TOML table of keys with the value forms of
-    /// [`option_value`] (a number, string, boolean, or a list for `icp-level-iters`).
+    /// Parses a parameter file's text: a TOML table of options with the value forms of
+    /// [`option_value`] (a number, string, boolean, or a list for `icp-level-iters`), and
+    /// of sections ([`KEY_SECTIONS`]: `[icp]`, `[fusion.unstable_removal]`) whose values
+    /// are set by [`SlamParams`] key (`dist_m = 0.08` in `[icp]` is `icp.dist_m`), TOML
+    /// typed as the field is.
     pub fn from_toml(text: &str) -> std::result::Result<ParamOverrides, String> {
         let table: toml::Table =
             toml::from_str(text).map_err(|e| format!("not a parameter file (TOML): {e}"))?;
         let mut pairs = Vec::new();
+        let mut section_keys = Vec::new();
         for (key, value) in &table {
+            if let Some(section) = value.as_table() {
+                if !KEY_SECTIONS.contains(&key.as_str()) {
+                    return Err(format!(
+                        "`{key}` is not a section; the sections are: {}",
+                        KEY_SECTIONS.join(", ")
+                    ));
+                }
+                flatten(key, section, &mut section_keys);
+                continue;
+            }
             let v = option_value(value).ok_or_else(|| {
                 format!("`{key}`: want a number, string, boolean or a list of them, not {value}")
             })?;
             pairs.push((key.as_str(), v));
         }
-        ParamOverrides::from_pairs(pairs.iter().map(|(k, v)| (*k, v.as_str())))
+        for (key, value) in &section_keys {
+            SlamParams::check_key(key, value).map_err(|e| e.to_string())?;
+        }
+        let options = ParamOverrides::from_pairs(pairs.iter().map(|(k, v)| (*k, v.as_str())))?;
+        Ok(ParamOverrides {
+            section_keys,
+            ..options
+        })
     }
 
     /// Reads the parameter file `path`; its errors name the file.
@@ -89,9 +111,38 @@ impl ParamOverrides {
     }
 
     /// These overrides as a parameter file that [`ParamOverrides::from_toml`] reads back
-    /// as `self` (the unset ones left out).
+    /// as `self` (the unset ones left out; the sections' keys in sections, a key set twice
+    /// once with its last value).
     pub fn to_toml(&self) -> Result<String> {
-        toml::to_string(self).map_err(|e| Error::encode("the parameter file", e))
+        let encode = |e| Error::encode("the parameter file", e);
+        let mut t = toml::Table::try_from(self).map_err(encode)?;
+        for (key, value) in &self.section_keys {
+            let mut names = key.split('.').peekable();
+            let mut table = &mut t;
+            while let Some(name) = names.next() {
+                if names.peek().is_none() {
+                    table.insert(name.into(), value.clone());
+                } else {
+                    table = table
+                        .entry(name)
+                        .or_insert_with(|| toml::Value::Table(Default::default()))
+                        .as_table_mut()
+                        .expect("a section is a table");
+                }
+            }
+        }
+        toml::to_string(&t).map_err(encode)
+    }
+}
+
+/// The values of a section table, by key (`prefix.name`), nested tables as deeper keys.
+fn flatten(prefix: &str, table: &toml::Table, out: &mut Vec<Key>) {
+    for (name, value) in table {
+        let key = format!("{prefix}.{name}");
+        match value.as_table() {
+            Some(inner) => flatten(&key, inner, out),
+            None => out.push((key, value.clone())),
+        }
     }
 }
 
@@ -194,6 +245,13 @@ mod tests {
             ("bilateral = 1", "bilateral"),
             ("downsample = -2", "downsample"),
             ("pyramid-radius = { a = 1 }", "pyramid-radius"),
+            ("[icpp]\nx = 1", "`icpp` is not a section"),
+            ("[icp]\ndits_m = 0.1", "`icp.dits_m`"),
+            ("[icp]\ndist_m = \"far\"", "`icp.dist_m`"),
+            (
+                "[fusion]\nassociation = \"nearest\"",
+                "`fusion.association`",
+            ),
         ] {
             let err = ParamOverrides::from_toml(file).unwrap_err();
             assert!(err.contains(key), "{file}: {err}");
@@ -251,6 +309,17 @@ mod tests {
         ("bilateral-sigma-depth-z2", "0.02"),
     ];
 
+    /// `--flag=value`, or `--flag` for a switch.
+    fn arg(flag: &str, value: &str) -> String {
+        let switch = ParamOverrides::command()
+            .get_arguments()
+            .any(|a| a.get_long() == Some(flag) && matches!(a.get_action(), ArgAction::SetTrue));
+        match switch {
+            true => format!("--{flag}"),
+            false => format!("--{flag}={value}"),
+        }
+    }
+
     /// Each option, as a flag, a parameter file's key and a manifest's override, reaches
     /// what it sets: the [`SlamParams`] value of its key (other than the profile's), the
     /// profile, or the sequence's options. A forgotten line cannot ignore an option.
@@ -266,7 +335,7 @@ mod tests {
         for (flag, value) in OPTION_VALUES {
             // The assignment profile under each (`profile` itself over the robust default),
             // and `--bilateral` under its settings, which take effect only with it.
-            let mut args = vec![format!("--{flag}={value}")];
+            let mut args = vec![arg(flag, value)];
             let mut file = format!("{flag} = {value:?}\n");
             if flag != "profile" {
                 args.push("--profile=assignment".into());
@@ -326,6 +395,29 @@ mod tests {
         }
     }
 
+    /// Sections set values by key, options (the file's and the command line's) win over
+    /// them, and a written file reads back with its sections.
+    #[test]
+    fn sections_set_values_by_key() {
+        let o = ParamOverrides::from_toml(
+            "icp-dist = 0.09\n[icp]\ndist_m = 0.08\nnormal_deg = 25\n[icp.pyramid]\n\
+             radius_px = 2\n[loop_closure]\nmin_gap_frames = 90\n\
+             [fusion.unstable_removal]\nenabled = false\n",
+        )
+        .unwrap();
+        let p = params(&o);
+        assert_eq!(p.icp.dist_m, 0.09, "the option wins");
+        assert_eq!(p.icp.normal_deg, 25.0);
+        assert_eq!(p.icp.pyramid.radius_px, 2);
+        assert_eq!(p.loop_closure.map(|l| l.min_gap_frames), Some(90));
+        assert_eq!(p.fusion.unstable_removal, None);
+        let text = o.to_toml().unwrap();
+        assert_eq!(ParamOverrides::from_toml(&text).unwrap(), o, "{text}");
+        let merged = flags(&["--icp-angle", "30"]).over(o);
+        assert_eq!(params(&merged).icp.normal_deg, 30.0, "the flag wins");
+        assert_eq!(params(&merged).icp.pyramid.radius_px, 2, "from the file");
+    }
+
     /// docs/params-file.md lists every option and the `SlamParams` key it sets.
     #[test]
     fn the_page_lists_every_option_and_its_key() {
@@ -344,7 +436,7 @@ mod tests {
     fn written_files_read_back() {
         let args: Vec<String> = OPTION_VALUES
             .iter()
-            .map(|(flag, value)| format!("--{flag}={value}"))
+            .map(|(flag, value)| arg(flag, value))
             .collect();
         let all = flags(&args.iter().map(String::as_str).collect::<Vec<_>>());
         let text = all.to_toml().unwrap();

@@ -44,6 +44,12 @@ macro_rules! param_overrides {
         $(#[$struct_meta])*
         pub struct ParamOverrides {
             $( $(#[$meta])* pub $name: $ty, )*
+            /// Values a parameter file sets by [`SlamParams`] key in its sections (`[icp]`
+            /// then `dist_m = 0.08`), in file order; the options win over them. Not an
+            /// option of the command line.
+            #[arg(skip)]
+            #[serde(skip)]
+            pub section_keys: Vec<Key>,
         }
 
         impl ParamOverrides {
@@ -52,6 +58,8 @@ macro_rules! param_overrides {
             pub fn over(self, lower: ParamOverrides) -> ParamOverrides {
                 ParamOverrides {
                     $( $name: Setting::over(self.$name, lower.$name), )*
+                    // In order of precedence: the later key wins.
+                    section_keys: lower.section_keys.into_iter().chain(self.section_keys).collect(),
                 }
             }
 
@@ -261,15 +269,17 @@ param_overrides! {
 }
 
 impl ParamOverrides {
-    /// The [`SlamParams`] keys these options set, in the options' order. The
-    /// `--bilateral-*` settings take effect only with `--bilateral` (without it the
-    /// profile's filter runs, as documented).
+    /// The [`SlamParams`] keys set: the sections' (in order), then the options' (in the
+    /// options' order; so an option wins over a section's key). The `--bilateral-*`
+    /// settings take effect only with `--bilateral` (without it the profile's filter runs,
+    /// as documented).
     pub fn keys_set(&self) -> Vec<Key> {
-        self.options()
+        let options = self
+            .options()
             .into_iter()
             .filter_map(|o| Some((o.key?.to_string(), o.value?)))
-            .filter(|(key, _)| self.bilateral || !key.starts_with("bilateral."))
-            .collect()
+            .filter(|(key, _)| self.bilateral || !key.starts_with("bilateral."));
+        self.section_keys.iter().cloned().chain(options).collect()
     }
 
     /// The pipeline's parameters: the profile's (robust without `profile`) with each set

@@ -126,6 +126,17 @@ impl SlamParams {
         Ok(p)
     }
 
+    /// Checks that `key` is a key and `value` one its field takes, as
+    /// [`SlamParams::with_keys`] does (the ranges are [`SlamParams::validate`]'s).
+    pub fn check_key(key: &str, value: &toml::Value) -> Result<()> {
+        let mut t = SlamParams::default().to_keys();
+        set_key(&mut t, key, value)?;
+        match SlamParams::from_keys(Profile::Robust, PoseSource::Track, t) {
+            Ok(_) => Ok(()),
+            Err(why) => Err(Error::Argument(format!("`{key}` = {value}: {why}"))),
+        }
+    }
+
     /// The value of `key` (`icp.dist_m`), `None` for a key that is not one.
     pub fn get_key(&self, key: &str) -> Option<toml::Value> {
         lookup(&self.to_keys(), key)
