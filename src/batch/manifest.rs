@@ -32,7 +32,6 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::slam::params::Profile;
 use crate::{Error, Result};
 
 /// One expanded job: what `wgslam run` is asked to do, once per backend.
@@ -72,15 +71,8 @@ pub const RESERVED_OPTIONS: [&str; 6] =
 
 /// Backend names a job may ask for.
 pub const BACKENDS: [&str; 2] = ["cpu", "gpu"];
-/// Profile names: those of `wgslam run --profile` ([`Profile`]'s).
-fn profiles() -> Vec<String> {
-    use clap::ValueEnum;
-    Profile::value_variants()
-        .iter()
-        .filter_map(ValueEnum::to_possible_value)
-        .map(|v| v.get_name().to_string())
-        .collect()
-}
+/// Profile names (those of `wgslam run --profile`).
+const PROFILES: [&str; 2] = ["robust", "assignment"];
 
 /// Defaults of values neither the job nor `[defaults]` sets (those of `wgslam run`,
 /// but for the backend: a batch checks the GPU against the CPU unless told otherwise).
@@ -494,11 +486,10 @@ impl JobSpec {
         if let Some(why) = id_problem(&self.id) {
             return Err(why);
         }
-        if !profiles().contains(&self.profile) {
+        if !PROFILES.contains(&self.profile.as_str()) {
             return Err(format!(
-                "profile {:?}: want one of {:?}",
-                self.profile,
-                profiles()
+                "profile {:?}: want one of {PROFILES:?}",
+                self.profile
             ));
         }
         let known = self.backends.iter().all(|b| BACKENDS.contains(&b.as_str()));
@@ -534,11 +525,10 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
             "no `sequence` (set it in the job or in [defaults])".into()
         ));
     };
-    if !profiles().contains(&c.profile) {
+    if !PROFILES.contains(&c.profile.as_str()) {
         return Err(bad(format!(
-            "profile {:?}: want one of {:?}",
-            c.profile,
-            profiles()
+            "profile {:?}: want one of {PROFILES:?}",
+            c.profile
         )));
     }
     let backends: Vec<String> = match c.backend.as_str() {

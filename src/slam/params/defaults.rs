@@ -2,10 +2,11 @@
 //! line, the measurements behind them in `docs/robust-profile.md`, `slam::health` and
 //! `docs/loop-closure.md`.
 
-/// Stable weight of the robust profile's removal rule (see [`UnstableRemoval`]), in the
-/// units of the surfel weight: summed `pixel_confidence`s, at most 1 per observation. It
-/// trims the copies seen a few times and never again without moving the ATE; the longest
-/// window (20 / 20) that removes the most (measurements: `docs/robust-profile.md`).
+/// Stable weight of the robust profile's removal rule (see
+/// [`UnstableRemoval`](super::UnstableRemoval)), in the units of the surfel weight: summed
+/// `pixel_confidence`s, at most 1 per observation. It trims the copies seen a few times and
+/// never again without moving the ATE; the longest window (20 / 20) that removes the most
+/// (measurements: `docs/robust-profile.md`).
 pub const ROBUST_STABLE_WEIGHT: f32 = 20.0;
 /// How often the robust profile's removal rule runs, frames: compaction copies the whole
 /// map, and an unstable surfel can stay a few frames longer at no cost to tracking or map
@@ -20,14 +21,16 @@ pub const ROBUST_PRUNE_RADIUS_SCALE: f32 = 0.5;
 /// Age limit of the robust profile's removal rule, frames; see [`ROBUST_STABLE_WEIGHT`].
 pub const ROBUST_UNSTABLE_MAX_AGE: u32 = 20;
 
-/// Largest [`InputSettings::downsample`]: 16 is 40x30 maps from 640x480 frames.
+/// Largest [`InputSettings::downsample`](super::InputSettings::downsample): 16 is 40x30
+/// maps from 640x480 frames.
 pub const MAX_DOWNSAMPLE: u32 = 16;
 
 /// Ferns per code at most (the database stores a byte per fern per keyframe).
 pub const MAX_FERNS: usize = 4096;
 
-/// Largest [`BilateralSettings::radius_px`] and [`PyramidSettings::radius_px`]: a 33x33
-/// window is already far past any useful one.
+/// Largest [`BilateralSettings::radius_px`](super::BilateralSettings::radius_px) and
+/// [`PyramidSettings::radius_px`](super::PyramidSettings::radius_px): a 33x33 window is
+/// already far past any useful one.
 pub const MAX_BILATERAL_RADIUS: u32 = 16;
 
 /// Huber threshold of the robust profile, metres: about 3 sigma of the depth noise at 2 m

@@ -53,8 +53,8 @@ impl SlamParams {
             let (depth, z2) = (b.sigma_depth_m, b.sigma_depth_per_m2);
             if !(depth >= 0.0 && z2 >= 0.0 && depth + z2 > 0.0 && (depth + z2).is_finite()) {
                 return fail(format!(
-                    "`bilateral.sigma_depth_m` {depth} and `bilateral.sigma_depth_per_m2` {z2} must \
-                     be non-negative numbers, not both zero"
+                    "`bilateral.sigma_depth_m` {depth} and `bilateral.sigma_depth_per_m2` {z2} \
+                     must be non-negative numbers, not both zero"
                 ));
             }
         }
