@@ -95,7 +95,10 @@ impl ParamOverrides {
             pairs.push((key.as_str(), v));
         }
         for (key, value) in &section_keys {
-            SlamParams::check_key(key, value).map_err(|e| e.to_string())?;
+            SlamParams::check_key(key, value).map_err(|e| match e {
+                Error::Argument(why) => why,
+                other => other.to_string(),
+            })?;
         }
         let options = ParamOverrides::from_pairs(pairs.iter().map(|(k, v)| (*k, v.as_str())))?;
         Ok(ParamOverrides {
