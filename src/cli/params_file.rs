@@ -13,6 +13,7 @@ use clap::{ArgAction, Args, Command, FromArgMatches};
 
 use super::pipeline_args::ParamOverrides;
 use crate::batch::manifest::option_value;
+use crate::slam::params::{Key, SlamParams, KEY_SECTIONS};
 use crate::{Error, Result};
 
 impl ParamOverrides {
@@ -67,19 +68,43 @@ impl ParamOverrides {
         ParamOverrides::from_arg_matches(&m).map_err(|e| clap_reason(&e))
     }
 
-    /// Parses a parameter file's text: a TOML table of keys with the value forms of
-    /// [`option_value`] (a number, string, boolean, or a list for `icp-level-iters`).
+    /// Parses a parameter file's text: a TOML table of options with the value forms of
+    /// [`option_value`] (a number, string, boolean, or a list for `icp-level-iters`), and
+    /// of sections ([`KEY_SECTIONS`]: `[icp]`, `[fusion.unstable_removal]`) whose values
+    /// are set by [`SlamParams`] key (`dist_m = 0.08` in `[icp]` is `icp.dist_m`), TOML
+    /// typed as the field is.
     pub fn from_toml(text: &str) -> std::result::Result<ParamOverrides, String> {
         let table: toml::Table =
             toml::from_str(text).map_err(|e| format!("not a parameter file (TOML): {e}"))?;
         let mut pairs = Vec::new();
+        let mut section_keys = Vec::new();
         for (key, value) in &table {
+            if let Some(section) = value.as_table() {
+                if !KEY_SECTIONS.contains(&key.as_str()) {
+                    return Err(format!(
+                        "`{key}` is not a section; the sections are: {}",
+                        KEY_SECTIONS.join(", ")
+                    ));
+                }
+                flatten(key, section, &mut section_keys);
+                continue;
+            }
             let v = option_value(value).ok_or_else(|| {
                 format!("`{key}`: want a number, string, boolean or a list of them, not {value}")
             })?;
             pairs.push((key.as_str(), v));
         }
-        ParamOverrides::from_pairs(pairs.iter().map(|(k, v)| (*k, v.as_str())))
+        for (key, value) in &section_keys {
+            SlamParams::check_key(key, value).map_err(|e| match e {
+                Error::Argument(why) => why,
+                other => other.to_string(),
+            })?;
+        }
+        let options = ParamOverrides::from_pairs(pairs.iter().map(|(k, v)| (*k, v.as_str())))?;
+        Ok(ParamOverrides {
+            section_keys,
+            ..options
+        })
     }
 
     /// Reads the parameter file `path`; its errors name the file.
@@ -89,9 +114,38 @@ impl ParamOverrides {
     }
 
     /// These overrides as a parameter file that [`ParamOverrides::from_toml`] reads back
-    /// as `self` (the unset ones left out).
+    /// as `self` (the unset ones left out; the sections' keys in sections, a key set twice
+    /// once with its last value).
     pub fn to_toml(&self) -> Result<String> {
-        toml::to_string(self).map_err(|e| Error::encode("the parameter file", e))
+        let encode = |e| Error::encode("the parameter file", e);
+        let mut t = toml::Table::try_from(self).map_err(encode)?;
+        for (key, value) in &self.section_keys {
+            let mut names = key.split('.').peekable();
+            let mut table = &mut t;
+            while let Some(name) = names.next() {
+                if names.peek().is_none() {
+                    table.insert(name.into(), value.clone());
+                } else {
+                    table = table
+                        .entry(name)
+                        .or_insert_with(|| toml::Value::Table(Default::default()))
+                        .as_table_mut()
+                        .expect("a section is a table");
+                }
+            }
+        }
+        toml::to_string(&t).map_err(encode)
+    }
+}
+
+/// The values of a section table, by key (`prefix.name`), nested tables as deeper keys.
+fn flatten(prefix: &str, table: &toml::Table, out: &mut Vec<Key>) {
+    for (name, value) in table {
+        let key = format!("{prefix}.{name}");
+        match value.as_table() {
+            Some(inner) => flatten(&key, inner, out),
+            None => out.push((key, value.clone())),
+        }
     }
 }
 
@@ -106,7 +160,8 @@ fn clap_reason(e: &clap::Error) -> String {
 mod tests {
     use super::*;
     use crate::cli::pipeline_args::PipelineArgs;
-    use crate::slam::params::{Association, BilateralSettings, PoseSource, Profile, SlamParams};
+    use crate::geometry::camera::Intrinsics;
+    use crate::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams};
     use clap::Parser;
 
     /// The overrides `wgslam run ARGS` parses to.
@@ -193,6 +248,13 @@ mod tests {
             ("bilateral = 1", "bilateral"),
             ("downsample = -2", "downsample"),
             ("pyramid-radius = { a = 1 }", "pyramid-radius"),
+            ("[icpp]\nx = 1", "`icpp` is not a section"),
+            ("[icp]\ndits_m = 0.1", "`icp.dits_m`"),
+            ("[icp]\ndist_m = \"far\"", "`icp.dist_m`"),
+            (
+                "[fusion]\nassociation = \"nearest\"",
+                "`fusion.association`",
+            ),
         ] {
             let err = ParamOverrides::from_toml(file).unwrap_err();
             assert!(err.contains(key), "{file}: {err}");
@@ -207,49 +269,179 @@ mod tests {
         }
     }
 
-    /// Every key written by `to_toml` reads back as the same value: the serde names are
+    /// A value for every option, each other than the assignment profile's (the robust
+    /// profile's for `profile`). The tests below fail on an option missing here, so a new
+    /// option comes with its check.
+    const OPTION_VALUES: [(&str, &str); 37] = [
+        ("gt", "a/gt.txt"),
+        ("camera", "fr1"),
+        ("intrinsics", "500,500,319.5,239.5"),
+        ("depth-scale", "1000"),
+        ("max-time-diff", "0.03"),
+        ("profile", "assignment"),
+        ("downsample", "4"),
+        ("icp-dist", "0.08"),
+        ("icp-angle", "25"),
+        ("icp-huber", "0.015"),
+        ("icp-level-iters", "6,3"),
+        ("icp-noise-weight", "true"),
+        ("icp-min-increment", "1e-5"),
+        ("icp-degenerate-ratio", "1e-3"),
+        ("tracking-health", "false"),
+        ("health-min-inliers", "0.25"),
+        ("health-max-residual-ratio", "5"),
+        ("relocalise", "false"),
+        ("loop-closure", "on"),
+        ("pyramid-radius", "2"),
+        ("pyramid-depth-gate-z2", "0.1"),
+        ("fuse-dist", "0.012345679"),
+        ("fuse-angle", "33.3"),
+        ("fuse-association", "best-candidate"),
+        ("confidence-sigma", "0.7"),
+        ("prune-scale", "0.4"),
+        ("stable-weight", "12.5"),
+        ("unstable-max-age", "9"),
+        ("removal-every", "4"),
+        ("min-depth", "0.2"),
+        ("max-depth", "4.5"),
+        ("max-depth-jump", "0.05"),
+        ("bilateral", "true"),
+        ("bilateral-radius", "2"),
+        ("bilateral-sigma-space", "1.5"),
+        ("bilateral-sigma-depth", "0.001"),
+        ("bilateral-sigma-depth-z2", "0.02"),
+    ];
+
+    /// `--flag=value`, or `--flag` for a switch.
+    fn arg(flag: &str, value: &str) -> String {
+        let switch = ParamOverrides::command()
+            .get_arguments()
+            .any(|a| a.get_long() == Some(flag) && matches!(a.get_action(), ArgAction::SetTrue));
+        match switch {
+            true => format!("--{flag}"),
+            false => format!("--{flag}={value}"),
+        }
+    }
+
+    /// Each option, as a flag, a parameter file's key and a manifest's override, reaches
+    /// what it sets: the [`SlamParams`] value of its key (other than the profile's), the
+    /// profile, or the sequence's options. A forgotten line cannot ignore an option.
+    #[test]
+    fn every_option_reaches_the_parameters() {
+        let names: Vec<String> = OPTION_VALUES.iter().map(|(f, _)| f.to_string()).collect();
+        assert_eq!(
+            ParamOverrides::keys(),
+            names,
+            "OPTION_VALUES lists every option"
+        );
+        let assignment = SlamParams::profile(Profile::Assignment);
+        for (flag, value) in OPTION_VALUES {
+            // The assignment profile under each (`profile` itself over the robust default),
+            // and `--bilateral` under its settings, which take effect only with it.
+            let mut args = vec![arg(flag, value)];
+            let mut file = format!("{flag} = {value:?}\n");
+            if flag != "profile" {
+                args.push("--profile=assignment".into());
+                file.push_str("profile = \"assignment\"\n");
+            }
+            if flag.starts_with("bilateral-") {
+                args.push("--bilateral".into());
+                file.push_str("bilateral = true\n");
+            }
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let o = flags(&args);
+            assert_eq!(ParamOverrides::from_toml(&file).unwrap(), o, "{file}");
+            if !crate::batch::manifest::RESERVED_OPTIONS.contains(&flag) {
+                let m = crate::batch::manifest::Manifest::parse(
+                    Path::new("/m/batch.toml"),
+                    &format!(
+                        "[[job]]\nsequence = \"s\"\nprofile = \"assignment\"\n\
+                         overrides = {{ {flag} = {value:?}{} }}\n",
+                        if flag.starts_with("bilateral-") {
+                            ", bilateral = true"
+                        } else {
+                            ""
+                        }
+                    ),
+                )
+                .unwrap();
+                let job = ParamOverrides::from_toml(&m.jobs[0].params_toml()).unwrap();
+                // The job's parameter file also holds its `downsample` field.
+                let expected = ParamOverrides {
+                    downsample: Some(2),
+                    ..o.clone()
+                };
+                assert_eq!(job, expected, "{flag} in a manifest");
+            }
+            let entry = o.options().into_iter().find(|e| e.flag == flag).unwrap();
+            let p = params(&o);
+            let s = o.sequence_options().unwrap();
+            match entry.key {
+                Some(key) => {
+                    let got = p.get_key(key);
+                    assert_eq!(got, entry.value, "--{flag} {value} sets `{key}`");
+                    assert_ne!(got, assignment.get_key(key), "--{flag} {value}");
+                }
+                None => {
+                    let reached = match flag {
+                        "gt" => s.gt_path == Some("a/gt.txt".into()),
+                        "camera" => s.intrinsics == Intrinsics::preset("fr1"),
+                        "intrinsics" => s.intrinsics.is_some_and(|k| k.fx == 500.0),
+                        "depth-scale" => s.depth_scale == Some(1000.0),
+                        "max-time-diff" => s.max_time_diff == 0.03,
+                        "profile" => p.profile == Profile::Assignment,
+                        _ => false,
+                    };
+                    assert!(reached, "--{flag} {value} reaches nothing");
+                }
+            }
+        }
+    }
+
+    /// Sections set values by key, options (the file's and the command line's) win over
+    /// them, and a written file reads back with its sections.
+    #[test]
+    fn sections_set_values_by_key() {
+        let o = ParamOverrides::from_toml(
+            "icp-dist = 0.09\n[icp]\ndist_m = 0.08\nnormal_deg = 25\n[icp.pyramid]\n\
+             radius_px = 2\n[loop_closure]\nmin_gap_frames = 90\n\
+             [fusion.unstable_removal]\nenabled = false\n",
+        )
+        .unwrap();
+        let p = params(&o);
+        assert_eq!(p.icp.dist_m, 0.09, "the option wins");
+        assert_eq!(p.icp.normal_deg, 25.0);
+        assert_eq!(p.icp.pyramid.radius_px, 2);
+        assert_eq!(p.loop_closure.map(|l| l.min_gap_frames), Some(90));
+        assert_eq!(p.fusion.unstable_removal, None);
+        let text = o.to_toml().unwrap();
+        assert_eq!(ParamOverrides::from_toml(&text).unwrap(), o, "{text}");
+        let merged = flags(&["--icp-angle", "30"]).over(o);
+        assert_eq!(params(&merged).icp.normal_deg, 30.0, "the flag wins");
+        assert_eq!(params(&merged).icp.pyramid.radius_px, 2, "from the file");
+    }
+
+    /// docs/params-file.md lists every option and the `SlamParams` key it sets.
+    #[test]
+    fn the_page_lists_every_option_and_its_key() {
+        let page = include_str!("../../docs/params-file.md");
+        for o in ParamOverrides::default().options() {
+            assert!(page.contains(&format!("`{}`", o.flag)), "{}", o.flag);
+            if let Some(key) = o.key {
+                assert!(page.contains(&format!("`{key}`")), "{key}");
+            }
+        }
+    }
+
+    /// Every option written by `to_toml` reads back as the same value: the serde names are
     /// the clap names.
     #[test]
     fn written_files_read_back() {
-        let all = ParamOverrides {
-            gt: Some("a/gt.txt".into()),
-            camera: Some("fr1".into()),
-            intrinsics: Some("500,500,319.5,239.5".into()),
-            depth_scale: Some(1000.0),
-            max_time_diff: Some(0.03),
-            profile: Some(Profile::Assignment),
-            downsample: Some(4),
-            icp_dist: Some(0.08),
-            icp_angle: Some(25.0),
-            icp_huber: Some(0.015),
-            icp_level_iters: Some(vec![6, 3]),
-            icp_noise_weight: Some(true),
-            icp_min_increment: Some(1e-5),
-            icp_degenerate_ratio: Some(1e-3),
-            tracking_health: Some(false),
-            health_min_inliers: Some(0.25),
-            health_max_residual_ratio: Some(5.0),
-            relocalise: Some(false),
-            loop_closure: Some(true),
-            pyramid_radius: Some(2),
-            pyramid_depth_gate_z2: Some(0.1),
-            fuse_dist: Some(0.012_345_679),
-            fuse_angle: Some(33.3),
-            fuse_association: Some(Association::BestCandidate),
-            confidence_sigma: Some(0.7),
-            prune_scale: Some(0.4),
-            stable_weight: Some(12.5),
-            unstable_max_age: Some(9),
-            removal_every: Some(4),
-            min_depth: Some(0.2),
-            max_depth: Some(4.5),
-            max_depth_jump: Some(0.05),
-            bilateral: true,
-            bilateral_radius: Some(2),
-            bilateral_sigma_space: Some(1.5),
-            bilateral_sigma_depth: Some(0.001),
-            bilateral_sigma_depth_z2: Some(0.02),
-        };
+        let args: Vec<String> = OPTION_VALUES
+            .iter()
+            .map(|(flag, value)| arg(flag, value))
+            .collect();
+        let all = flags(&args.iter().map(String::as_str).collect::<Vec<_>>());
         let text = all.to_toml().unwrap();
         assert_eq!(ParamOverrides::from_toml(&text).unwrap(), all, "{text}");
         assert_eq!(ParamOverrides::keys().len(), text.lines().count(), "{text}");

@@ -12,9 +12,7 @@ use serde::Serialize;
 
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
-use crate::slam::params::{
-    Association, BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval,
-};
+use crate::slam::params::{Association, Key, PoseSource, Profile, SlamParams};
 use crate::{Error, Result};
 
 /// The sequence, a parameter file and the overrides: flattened into `run`, `icp`,
@@ -33,334 +31,267 @@ pub struct PipelineArgs {
     pub set: ParamOverrides,
 }
 
-/// Every option a parameter file (and a batch manifest's `overrides`) may set: how the
-/// sequence is read, the profile, and each of its values. Unset values are the profile's
-/// (or the sequence's); the defaults are in the help of each.
-#[derive(Debug, Clone, Default, PartialEq, Args, Serialize)]
-#[serde(rename_all = "kebab-case")]
-#[command(next_help_heading = "Parameters (each also a key of a --params file)")]
-pub struct ParamOverrides {
+/// Declares [`ParamOverrides`] from one list of options, each with its help, its clap
+/// attributes, its type and, for a pipeline parameter, the [`SlamParams`] key it sets
+/// (`=> "icp.dist_m"`; the dataset's options and `profile` have none). From the list come
+/// the flags, the keys of parameter files and manifests (the flags' long names), the
+/// merge [`ParamOverrides::over`] and the keys set [`ParamOverrides::keys_set`]: an option
+/// is written once, and cannot be left out of any of them.
+macro_rules! param_overrides {
+    ($(#[$struct_meta:meta])* pub struct ParamOverrides {
+        $( $(#[$meta:meta])* $name:ident: $ty:ty $(=> $key:literal)?, )*
+    }) => {
+        $(#[$struct_meta])*
+        pub struct ParamOverrides {
+            $( $(#[$meta])* pub $name: $ty, )*
+            /// Values a parameter file sets by [`SlamParams`] key in its sections (`[icp]`
+            /// then `dist_m = 0.08`), in file order; the options win over them. Not an
+            /// option of the command line.
+            #[arg(skip)]
+            #[serde(skip)]
+            pub section_keys: Vec<Key>,
+        }
+
+        impl ParamOverrides {
+            /// `self`'s values where set, `lower`'s elsewhere (a switch is on when either is
+            /// on).
+            pub fn over(self, lower: ParamOverrides) -> ParamOverrides {
+                ParamOverrides {
+                    $( $name: Setting::over(self.$name, lower.$name), )*
+                    // In order of precedence: the later key wins.
+                    section_keys: lower.section_keys.into_iter().chain(self.section_keys).collect(),
+                }
+            }
+
+            /// Each option: its long name (the file's key), the [`SlamParams`] key it sets
+            /// (if any) and its value as TOML (`None` when unset).
+            pub fn options(&self) -> Vec<OptionEntry> {
+                vec![$(
+                    OptionEntry {
+                        flag: stringify!($name).replace('_', "-"),
+                        key: None $(.or(Some($key)))?,
+                        value: Setting::toml(&self.$name),
+                    },
+                )*]
+            }
+        }
+    };
+}
+
+/// One option of [`ParamOverrides::options`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct OptionEntry {
+    /// The long name, without the dashes: the key of parameter files and manifests.
+    pub flag: String,
+    /// The [`SlamParams`] key it sets (`icp.dist_m`), `None` for the dataset's options and
+    /// `profile`.
+    pub key: Option<&'static str>,
+    /// Its value, if set.
+    pub value: Option<toml::Value>,
+}
+
+/// An option's field: an `Option` of a value, or a switch.
+trait Setting: Sized {
+    /// `self` where set, `lower` elsewhere.
+    fn over(self, lower: Self) -> Self;
+    /// The value as TOML, when set.
+    fn toml(&self) -> Option<toml::Value>;
+}
+
+impl<T: Serialize> Setting for Option<T> {
+    fn over(self, lower: Self) -> Self {
+        self.or(lower)
+    }
+    fn toml(&self) -> Option<toml::Value> {
+        self.as_ref()
+            .map(|v| toml::Value::try_from(v).expect("an option's value is TOML"))
+    }
+}
+
+impl Setting for bool {
+    fn over(self, lower: Self) -> Self {
+        self || lower
+    }
+    fn toml(&self) -> Option<toml::Value> {
+        self.then_some(toml::Value::Boolean(true))
+    }
+}
+
+param_overrides! {
+    /// Every option a parameter file (and a batch manifest's `overrides`) may set: how the
+    /// sequence is read, the profile, and each of its values. Unset values are the profile's
+    /// (or the sequence's); the defaults are in the help of each.
+    #[derive(Debug, Clone, Default, PartialEq, Args, Serialize)]
+    #[serde(rename_all = "kebab-case")]
+    #[command(next_help_heading = "Parameters (each also a key of a --params file)")]
+    pub struct ParamOverrides {
     /// Ground-truth file (TUM format) instead of the layout's default.
     #[arg(long)]
-    pub gt: Option<PathBuf>,
+    gt: Option<PathBuf>,
     /// Intrinsics preset: icl, fr1, fr2, fr3 (overrides camera.json).
     #[arg(long)]
-    pub camera: Option<String>,
+    camera: Option<String>,
     /// Intrinsics override "fx,fy,cx,cy" in pixels (image size from the frames' preset/json).
     #[arg(long)]
-    pub intrinsics: Option<String>,
+    intrinsics: Option<String>,
     /// Raw depth units per metre (default: camera.json or 5000).
     #[arg(long)]
-    pub depth_scale: Option<f32>,
+    depth_scale: Option<f32>,
     /// Largest timestamp difference for association, seconds (default 0.02).
     #[arg(long)]
-    pub max_time_diff: Option<f64>,
+    max_time_diff: Option<f64>,
     /// Parameter set to start from: the robust tracker and fusion for real (noisy) depth,
     /// the default, or the course assignment's exact algorithm.
     #[arg(long, value_enum)]
-    pub profile: Option<Profile>,
+    profile: Option<Profile>,
     /// Keep every N-th pixel in each direction (default 2).
     #[arg(long)]
-    pub downsample: Option<u32>,
+    downsample: Option<u32> => "input.downsample",
     /// ICP correspondence distance threshold, metres (assignment 0.07, robust 0.10).
     #[arg(long)]
-    pub icp_dist: Option<f32>,
+    icp_dist: Option<f32> => "icp.dist_m",
     /// ICP normal-angle threshold, degrees; 180 turns it off (assignment 180, robust 20).
     #[arg(long)]
-    pub icp_angle: Option<f32>,
+    icp_angle: Option<f32> => "icp.normal_deg",
     /// Huber threshold on ICP residuals, metres; 0 turns it off (assignment 0, robust 0.02).
     #[arg(long)]
-    pub icp_huber: Option<f32>,
+    icp_huber: Option<f32> => "icp.huber_m",
     /// ICP iterations per pyramid level, coarse to fine: "10,5,4" is three levels (each
     /// half the size of the next finer one), at most 10 iterations at the coarsest and 4 at
     /// the full maps; one number is single-level ICP (assignment 10, robust 10,5,4).
     #[arg(long, value_delimiter = ',', value_name = "N,...")]
-    pub icp_level_iters: Option<Vec<usize>>,
+    icp_level_iters: Option<Vec<usize>> => "icp.level_iters",
     /// Weigh each ICP row by the depth-noise model (assignment false, robust true).
     #[arg(long)]
-    pub icp_noise_weight: Option<bool>,
+    icp_noise_weight: Option<bool> => "icp.noise_weight",
     /// ICP stops when the increment's rotation (rad) and translation (m) are both below
     /// this (assignment 1e-6, robust 1e-5).
     #[arg(long)]
-    pub icp_min_increment: Option<f64>,
+    icp_min_increment: Option<f64> => "icp.min_increment",
     /// Degenerate geometry: eigen-directions of the ICP system below this fraction of the
     /// largest eigenvalue get no update (robust 1e-4); 0 refuses such a system instead
     /// (assignment).
     #[arg(long)]
-    pub icp_degenerate_ratio: Option<f64>,
+    icp_degenerate_ratio: Option<f64> => "icp.degenerate_eigen_ratio",
     /// Report frames whose tracking fails the health test as lost instead of fusing them
     /// (both profiles true; false accepts every pose ICP returns).
     #[arg(long)]
-    pub tracking_health: Option<bool>,
+    tracking_health: Option<bool> => "health.enabled",
     /// Health test: lost below this fraction of candidate pixels that are ICP inliers
     /// (0.3).
     #[arg(long)]
-    pub health_min_inliers: Option<f64>,
+    health_min_inliers: Option<f64> => "health.min_inlier_fraction",
     /// Health test: lost when the RMS residual is above this many times its typical value
     /// (4).
     #[arg(long)]
-    pub health_max_residual_ratio: Option<f64>,
+    health_max_residual_ratio: Option<f64> => "health.max_residual_ratio",
     /// After a lost frame, try ICP from the poses of similar keyframes (randomised-fern
     /// database) (both profiles true; false retries only from the last tracked pose).
     #[arg(long)]
-    pub relocalise: Option<bool>,
+    relocalise: Option<bool> => "relocalisation.enabled",
     /// Loop closure: verified loops to old keyframes bend the trajectory and the map
     /// (robust on, assignment off; `off` gives the trajectories of a run without it, bit
     /// for bit). Takes on/off or true/false.
     #[arg(long, value_parser = clap::builder::BoolishValueParser::new())]
-    pub loop_closure: Option<bool>,
+    loop_closure: Option<bool> => "loop_closure.enabled",
     /// Coarser ICP pyramid levels: half-width of the averaging window, pixels of the finer
     /// level (1).
     #[arg(long)]
-    pub pyramid_radius: Option<u32>,
+    pyramid_radius: Option<u32> => "icp.pyramid.radius_px",
     /// Coarser ICP pyramid levels: neighbours whose depth differs from the sampled pixel's
     /// by more than this times its depth squared (1/m) are left out of the average (0.03).
     #[arg(long)]
-    pub pyramid_depth_gate_z2: Option<f32>,
+    pyramid_depth_gate_z2: Option<f32> => "icp.pyramid.max_depth_diff_per_m2",
     /// Fusion distance threshold, metres (assignment 0.03, robust 0.05).
     #[arg(long)]
-    pub fuse_dist: Option<f32>,
+    fuse_dist: Option<f32> => "fusion.dist_m",
     /// Fusion normal-angle threshold, degrees (assignment 5, robust 60).
     #[arg(long)]
-    pub fuse_angle: Option<f32>,
+    fuse_angle: Option<f32> => "fusion.normal_deg",
     /// How fusion pairs pixels with surfels (assignment projective, robust best-candidate).
     #[arg(long, value_enum)]
-    pub fuse_association: Option<Association>,
+    fuse_association: Option<Association> => "fusion.association",
     /// Confidence of a measurement over its distance from the image centre: the Gaussian's
     /// sigma (normalised, 1 at the corners); 0 weighs every measurement 1 (assignment 0,
     /// robust 0.6).
     #[arg(long)]
-    pub confidence_sigma: Option<f32>,
+    confidence_sigma: Option<f32> => "fusion.confidence_sigma",
     /// Best-candidate fusion's duplicate pruning: a surfel that was not refreshed retires
     /// when the surfel its pixel merged into lies within this many times the larger radius
     /// (and faces the same way, and is at least as confident); 0 turns it off (assignment
     /// 0, robust 0.5). It runs on the frames the unstable-surfel removal runs after
     /// (--removal-every), or every frame without the removal.
     #[arg(long)]
-    pub prune_scale: Option<f32>,
+    prune_scale: Option<f32> => "fusion.prune_scale",
     /// Removal of unstable surfels: surfels with fewer observations than this whose last
     /// one is more than --unstable-max-age frames old are removed after each fusion; 0
     /// turns the removal off (assignment off, robust 20).
     #[arg(long)]
-    pub stable_weight: Option<f32>,
+    stable_weight: Option<f32> => "fusion.unstable_removal.stable_weight",
     /// Removal of unstable surfels: frames an unstable surfel may go unobserved (assignment
     /// off, robust 20; with the assignment profile, either flag turns the removal on).
     #[arg(long)]
-    pub unstable_max_age: Option<u32>,
+    unstable_max_age: Option<u32> => "fusion.unstable_removal.max_age_frames",
     /// Removal of unstable surfels: run it after every N-th frame (robust 10).
     #[arg(long)]
-    pub removal_every: Option<u32>,
+    removal_every: Option<u32> => "fusion.unstable_removal.every_frames",
     /// Valid depth range, metres: nearer pixels are invalid (both profiles 0.1).
     #[arg(long)]
-    pub min_depth: Option<f32>,
+    min_depth: Option<f32> => "input.min_depth_m",
     /// Valid depth range, metres: farther pixels are invalid (both profiles 10).
     #[arg(long)]
-    pub max_depth: Option<f32>,
+    max_depth: Option<f32> => "input.max_depth_m",
     /// Normals across a depth jump larger than this, metres, are invalid (both 0.1).
     #[arg(long)]
-    pub max_depth_jump: Option<f32>,
+    max_depth_jump: Option<f32> => "normals.max_depth_jump_m",
     /// Smooth the depth with an edge-preserving bilateral filter before the normals, ICP
     /// and fusion (KinectFusion's; for noisy sensors) with the --bilateral-* settings
     /// below, which take effect only with it; without it the profile decides (assignment
     /// off, robust on with the defaults). In a file: `bilateral = true`.
     #[arg(long)]
     #[serde(skip_serializing_if = "std::ops::Not::not")]
-    pub bilateral: bool,
+    bilateral: bool => "bilateral.enabled",
     /// Bilateral filter window half-width, pixels of the (downsampled) maps (default 1).
     #[arg(long)]
-    pub bilateral_radius: Option<u32>,
+    bilateral_radius: Option<u32> => "bilateral.radius_px",
     /// Bilateral filter spatial sigma, pixels of the (downsampled) maps (default 1).
     #[arg(long)]
-    pub bilateral_sigma_space: Option<f32>,
+    bilateral_sigma_space: Option<f32> => "bilateral.sigma_space_px",
     /// Bilateral filter depth sigma, metres (at depth 0, see --bilateral-sigma-depth-z2;
     /// default 0).
     #[arg(long)]
-    pub bilateral_sigma_depth: Option<f32>,
+    bilateral_sigma_depth: Option<f32> => "bilateral.sigma_depth_m",
     /// Bilateral filter depth sigma's growth with depth squared, 1/m: sigma_depth + this x
     /// z² (default 0.01).
     #[arg(long)]
-    pub bilateral_sigma_depth_z2: Option<f32>,
+    bilateral_sigma_depth_z2: Option<f32> => "bilateral.sigma_depth_per_m2",
+    }
 }
 
 impl ParamOverrides {
-    /// `self`'s values where set, `lower`'s elsewhere (a switch is on when either is on).
-    /// Destructures both, so a new option cannot be forgotten here.
-    pub fn over(self, lower: ParamOverrides) -> ParamOverrides {
-        let ParamOverrides {
-            gt,
-            camera,
-            intrinsics,
-            depth_scale,
-            max_time_diff,
-            profile,
-            downsample,
-            icp_dist,
-            icp_angle,
-            icp_huber,
-            icp_level_iters,
-            icp_noise_weight,
-            icp_min_increment,
-            icp_degenerate_ratio,
-            tracking_health,
-            health_min_inliers,
-            health_max_residual_ratio,
-            relocalise,
-            loop_closure,
-            pyramid_radius,
-            pyramid_depth_gate_z2,
-            fuse_dist,
-            fuse_angle,
-            fuse_association,
-            confidence_sigma,
-            prune_scale,
-            stable_weight,
-            unstable_max_age,
-            removal_every,
-            min_depth,
-            max_depth,
-            max_depth_jump,
-            bilateral,
-            bilateral_radius,
-            bilateral_sigma_space,
-            bilateral_sigma_depth,
-            bilateral_sigma_depth_z2,
-        } = self;
-        ParamOverrides {
-            gt: gt.or(lower.gt),
-            camera: camera.or(lower.camera),
-            intrinsics: intrinsics.or(lower.intrinsics),
-            depth_scale: depth_scale.or(lower.depth_scale),
-            max_time_diff: max_time_diff.or(lower.max_time_diff),
-            profile: profile.or(lower.profile),
-            downsample: downsample.or(lower.downsample),
-            icp_dist: icp_dist.or(lower.icp_dist),
-            icp_angle: icp_angle.or(lower.icp_angle),
-            icp_huber: icp_huber.or(lower.icp_huber),
-            icp_level_iters: icp_level_iters.or(lower.icp_level_iters),
-            icp_noise_weight: icp_noise_weight.or(lower.icp_noise_weight),
-            icp_min_increment: icp_min_increment.or(lower.icp_min_increment),
-            icp_degenerate_ratio: icp_degenerate_ratio.or(lower.icp_degenerate_ratio),
-            tracking_health: tracking_health.or(lower.tracking_health),
-            health_min_inliers: health_min_inliers.or(lower.health_min_inliers),
-            health_max_residual_ratio: health_max_residual_ratio
-                .or(lower.health_max_residual_ratio),
-            relocalise: relocalise.or(lower.relocalise),
-            loop_closure: loop_closure.or(lower.loop_closure),
-            pyramid_radius: pyramid_radius.or(lower.pyramid_radius),
-            pyramid_depth_gate_z2: pyramid_depth_gate_z2.or(lower.pyramid_depth_gate_z2),
-            fuse_dist: fuse_dist.or(lower.fuse_dist),
-            fuse_angle: fuse_angle.or(lower.fuse_angle),
-            fuse_association: fuse_association.or(lower.fuse_association),
-            confidence_sigma: confidence_sigma.or(lower.confidence_sigma),
-            prune_scale: prune_scale.or(lower.prune_scale),
-            stable_weight: stable_weight.or(lower.stable_weight),
-            unstable_max_age: unstable_max_age.or(lower.unstable_max_age),
-            removal_every: removal_every.or(lower.removal_every),
-            min_depth: min_depth.or(lower.min_depth),
-            max_depth: max_depth.or(lower.max_depth),
-            max_depth_jump: max_depth_jump.or(lower.max_depth_jump),
-            bilateral: bilateral || lower.bilateral,
-            bilateral_radius: bilateral_radius.or(lower.bilateral_radius),
-            bilateral_sigma_space: bilateral_sigma_space.or(lower.bilateral_sigma_space),
-            bilateral_sigma_depth: bilateral_sigma_depth.or(lower.bilateral_sigma_depth),
-            bilateral_sigma_depth_z2: bilateral_sigma_depth_z2.or(lower.bilateral_sigma_depth_z2),
-        }
+    /// The [`SlamParams`] keys set: the sections' (in order), then the options' (in the
+    /// options' order; so an option wins over a section's key). The `--bilateral-*`
+    /// settings take effect only with `--bilateral` (without it the profile's filter runs,
+    /// as documented).
+    pub fn keys_set(&self) -> Vec<Key> {
+        let options = self
+            .options()
+            .into_iter()
+            .filter_map(|o| Some((o.key?.to_string(), o.value?)))
+            .filter(|(key, _)| self.bilateral || !key.starts_with("bilateral."));
+        self.section_keys.iter().cloned().chain(options).collect()
     }
 
-    /// The pipeline's parameters: the profile's (robust without `profile`), each set value
-    /// in place of the profile's, with `poses`; validated ([`SlamParams::validate`]).
+    /// The pipeline's parameters: the profile's (robust without `profile`) with each set
+    /// value in place ([`SlamParams::with_keys`]) and `poses`, validated. An error names
+    /// the key and the flag that sets it (`` `fusion.dist_m` (--fuse-dist) 0 must be
+    /// positive ``).
     pub fn slam_params(&self, poses: PoseSource) -> Result<SlamParams> {
-        let mut p = SlamParams::profile(self.profile.unwrap_or(Profile::Robust));
-        p.poses = poses;
-        fn set<T: Clone>(field: &mut T, value: &Option<T>) {
-            if let Some(v) = value {
-                *field = v.clone();
-            }
-        }
-        let (input, icp, fusion) = (&mut p.input, &mut p.icp, &mut p.fusion);
-        set(&mut input.downsample, &self.downsample);
-        set(&mut input.min_depth_m, &self.min_depth);
-        set(&mut input.max_depth_m, &self.max_depth);
-        set(&mut p.normals.max_depth_jump_m, &self.max_depth_jump);
-        set(&mut icp.dist_m, &self.icp_dist);
-        set(&mut icp.normal_deg, &self.icp_angle);
-        set(&mut icp.huber_m, &self.icp_huber);
-        set(&mut icp.level_iters, &self.icp_level_iters);
-        set(&mut icp.noise_weight, &self.icp_noise_weight);
-        set(&mut icp.min_increment, &self.icp_min_increment);
-        set(&mut icp.degenerate_eigen_ratio, &self.icp_degenerate_ratio);
-        if self.tracking_health == Some(false) {
-            p.health = None;
-        }
-        if let Some(h) = &mut p.health {
-            set(&mut h.min_inlier_fraction, &self.health_min_inliers);
-            set(&mut h.max_residual_ratio, &self.health_max_residual_ratio);
-        }
-        if self.relocalise == Some(false) {
-            p.relocalisation = None;
-        }
-        match self.loop_closure {
-            Some(false) => p.loop_closure = None,
-            Some(true) if p.loop_closure.is_none() => {
-                p.loop_closure = Some(crate::slam::params::LoopSettings::default())
-            }
-            _ => {}
-        }
-        // Loop closure reuses the relocalisation keyframes: without them it is off, and
-        // refused when asked for by name.
-        if p.relocalisation.is_none() || p.health.is_none() {
-            if self.loop_closure == Some(true) {
-                return Err(crate::Error::Argument(
-                    "--loop-closure on needs the keyframe database: --tracking-health and \
-                     --relocalise must be on"
-                        .into(),
-                ));
-            }
-            p.loop_closure = None;
-        }
-        set(&mut icp.pyramid.radius_px, &self.pyramid_radius);
-        set(
-            &mut icp.pyramid.max_depth_diff_per_m2,
-            &self.pyramid_depth_gate_z2,
-        );
-        set(&mut fusion.dist_m, &self.fuse_dist);
-        set(&mut fusion.normal_deg, &self.fuse_angle);
-        set(&mut fusion.association, &self.fuse_association);
-        set(&mut fusion.confidence_sigma, &self.confidence_sigma);
-        set(&mut fusion.prune_scale, &self.prune_scale);
-        // --stable-weight 0 turns the removal off; any of the three otherwise overrides the
-        // profile's rule (or the robust one's, when the profile has none).
-        fusion.unstable_removal = match (
-            self.stable_weight,
-            self.unstable_max_age,
-            self.removal_every,
-        ) {
-            (Some(0.0), _, _) => None,
-            (None, None, None) => fusion.unstable_removal,
-            (w, age, every) => {
-                let base = fusion.unstable_removal.unwrap_or_default();
-                Some(UnstableRemoval {
-                    stable_weight: w.unwrap_or(base.stable_weight),
-                    max_age_frames: age.unwrap_or(base.max_age_frames),
-                    every_frames: every.unwrap_or(base.every_frames),
-                })
-            }
-        };
-        // --bilateral turns the filter on with its flags' settings; without it the
-        // profile decides.
-        if self.bilateral {
-            let d = BilateralSettings::default();
-            p.bilateral = Some(BilateralSettings {
-                radius_px: self.bilateral_radius.unwrap_or(d.radius_px),
-                sigma_space_px: self.bilateral_sigma_space.unwrap_or(d.sigma_space_px),
-                sigma_depth_m: self.bilateral_sigma_depth.unwrap_or(d.sigma_depth_m),
-                sigma_depth_per_m2: self
-                    .bilateral_sigma_depth_z2
-                    .unwrap_or(d.sigma_depth_per_m2),
-            });
-        }
-        p.validate()?;
-        Ok(p)
+        let profile = self.profile.unwrap_or(Profile::Robust);
+        SlamParams::with_keys(profile, poses, &self.keys_set()).map_err(|e| match e {
+            Error::Argument(why) => Error::Argument(with_flags(&why)),
+            other => other,
+        })
     }
 
     /// How to open the sequence: the dataset options set here, the layout's otherwise.
@@ -401,6 +332,19 @@ impl ParamOverrides {
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
         })
     }
+}
+
+/// `why` with each backquoted key followed by the flag that sets it: `` `icp.dist_m` ``
+/// becomes `` `icp.dist_m` (--icp-dist) ``.
+fn with_flags(why: &str) -> String {
+    let mut out = why.to_string();
+    for o in ParamOverrides::default().options() {
+        if let Some(key) = o.key {
+            let quoted = format!("`{key}`");
+            out = out.replace(&quoted, &format!("{quoted} (--{})", o.flag));
+        }
+    }
+    out
 }
 
 impl PipelineArgs {

@@ -52,16 +52,6 @@ pub struct Snapshot {
     pub valid: usize,
 }
 
-/// A correction above noise is applied only when a second verification, at one of the
-/// next [`CONFIRM_WITHIN_SEARCHES`] searches, measures the same correction within these
-/// (metres, degrees): a single frame-to-keyframe registration at the snapshots' level is
-/// off by 5-20 mm and 1-4 degrees now and then (7-Scenes, against the reference poses),
-/// and bending the map by such an error tears it (a 1,000-frame revisiting run of
-/// 7-Scenes grew its map by a third and its ATE from 21 to 25 mm without this test).
-pub const CONFIRM_AGREEMENT_M: f64 = 0.010;
-pub const CONFIRM_AGREEMENT_DEG: f64 = 1.0;
-pub const CONFIRM_WITHIN_SEARCHES: u32 = 2;
-
 /// What an accepted loop did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -385,10 +375,10 @@ impl LoopClosure {
             self.next_search = frame + s.cooldown_frames;
             return (None, current);
         }
-        let window = CONFIRM_WITHIN_SEARCHES * s.search_every_frames;
+        let window = s.confirm_within_searches * s.search_every_frames;
         let confirmed = self.pending.is_some_and(|(f, c)| {
             let (m, deg) = pose_change(&c, &correction);
-            frame <= f + window && m <= CONFIRM_AGREEMENT_M && deg <= CONFIRM_AGREEMENT_DEG
+            frame <= f + window && m <= s.confirm_agreement_m && deg <= s.confirm_agreement_deg
         });
         if !confirmed {
             record.action = Some(LoopAction::AwaitingConfirmation);

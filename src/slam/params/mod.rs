@@ -1,12 +1,19 @@
-//! [`SlamParams`]: every tunable of the dense pipeline, the named [`Profile`]s they start
-//! from, and the robust profile's measured constants (the reason in a line each; the
-//! measurements behind them in `docs/robust-profile.md`). Turning these into the kernels'
-//! parameter structs is `step_params.rs`'s job.
+//! [`SlamParams`]: every tunable of the dense pipeline, and the named [`Profile`]s they
+//! start from. The structs here are the parameters' schema: each field is a key
+//! (`icp.dist_m`, [`keys`]) that the command line's flags, parameter files and batch
+//! manifests set, [`validate`] checks the values and the rules between sections, and
+//! [`defaults`] holds the profiles' measured constants (the reason in a line each).
+//! Turning these into the kernels' parameter structs is `step_params.rs`'s job.
 
-use crate::{Error, Result};
+pub mod defaults;
+pub mod keys;
+pub mod validate;
+
+pub use defaults::*;
+pub use keys::{Key, KEY_SECTIONS, OPTIONAL_SECTIONS};
 
 /// Where the poses come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum PoseSource {
     /// Frame-to-model ICP (the first frame at ground truth, or identity without it).
     Track,
@@ -16,7 +23,9 @@ pub enum PoseSource {
 
 /// A named set of [`SlamParams`]: the course assignment's exact algorithm, or the robust
 /// tracker for real sensors. Recorded in `metrics.json` with every parameter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Profile {
     /// The handout's experiment: raw normals, one level, a 0.07 m distance gate, no angle
@@ -35,10 +44,11 @@ pub enum Profile {
 }
 
 /// Every tunable of the dense pipeline, grouped by the stage that reads it (as kiss-icp
-/// groups its configuration by module). `Default` is the robust profile. Each leaf is one
-/// `wgslam run` option (named in its documentation) and one key of a parameter file
-/// (`docs/params-file.md`); [`SlamParams::validate`] checks their ranges.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+/// groups its configuration by module). `Default` is the robust profile. Each leaf is a
+/// key, `section.field` ([`SlamParams::with_keys`]), most of them also a `wgslam run`
+/// option (named in its documentation; `docs/params-file.md` lists both);
+/// [`SlamParams::validate`] checks their ranges.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SlamParams {
     /// The profile these values started from (each may have been overridden since;
     /// `--profile`).
@@ -67,13 +77,13 @@ pub struct SlamParams {
     /// Loop closure: loops to old keyframes verified by ICP, a pose graph, and the map
     /// deformed with it (`slam::loops`); `None` tracks without (`--loop-closure off`).
     /// Needs [`SlamParams::relocalisation`] and [`SlamParams::health`] (the keyframe
-    /// database): without them the pipeline runs without loop closure (the command line
-    /// refuses `--loop-closure on` with either off).
+    /// database; [`SlamParams::validate`] refuses it without them, and
+    /// [`SlamParams::with_keys`] turns it off with them unless it is asked for).
     pub loop_closure: Option<LoopSettings>,
 }
 
 /// Loop closure (`slam::loops`; the defaults' reasons are at [`LOOP_MIN_GAP_FRAMES`]).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LoopSettings {
     /// A keyframe is a loop candidate only this many frames or more before the frame.
     pub min_gap_frames: u32,
@@ -105,11 +115,17 @@ pub struct LoopSettings {
     pub node_stride: u32,
     /// A loop edge's weight against an odometry edge's 1.
     pub loop_weight: f64,
+    /// A correction above the `min_correction_*` is applied only when a second
+    /// verification, at one of the next `confirm_within_searches` searches, measures the
+    /// same correction within these, metres and degrees.
+    pub confirm_agreement_m: f64,
+    pub confirm_agreement_deg: f64,
+    pub confirm_within_searches: u32,
 }
 
 /// The tracking-health test of a frame's final ICP state (see `slam::health` for the
 /// measurements behind the defaults).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HealthSettings {
     /// Lost below this fraction of candidate pixels (past filter 1) that are inliers at the
     /// finest level's last iteration (`--health-min-inliers`).
@@ -134,7 +150,7 @@ pub struct HealthSettings {
 }
 
 /// Relocalisation from the fern keyframe database.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RelocalisationSettings {
     /// Ferns per frame code.
     pub ferns: usize,
@@ -155,7 +171,7 @@ pub struct RelocalisationSettings {
 }
 
 /// How raw frames are read into the (downsampled) vertex maps (`depth_to_vertex`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct InputSettings {
     /// Keep every N-th pixel in each direction, 1 to [`MAX_DOWNSAMPLE`] (`--downsample`;
     /// both profiles 2).
@@ -172,7 +188,7 @@ pub struct InputSettings {
 }
 
 /// The normal map (`vertex_to_normal`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NormalSettings {
     /// Normals across a depth jump larger than this (metres) are invalid
     /// (`--max-depth-jump`).
@@ -181,7 +197,7 @@ pub struct NormalSettings {
 
 /// Frame-to-model ICP: the association gates and row weights of `icp_reduce`, the
 /// coarse-to-fine schedule and the convergence test.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IcpSettings {
     /// Filter 2: maximum point distance, metres (`--icp-dist`).
     pub dist_m: f32,
@@ -213,7 +229,7 @@ pub struct IcpSettings {
 
 /// Surfel fusion: the association and its gates, the measurements' weights, duplicate
 /// pruning and the removal of unstable surfels.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FusionSettings {
     /// Filter 2: maximum point distance, metres (`--fuse-dist`).
     pub dist_m: f32,
@@ -239,7 +255,9 @@ pub struct FusionSettings {
 }
 
 /// How fusion pairs the frame's pixels with the map's surfels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Association {
     /// The assignment's: every surfel merges with the pixel it projects to when the
@@ -269,7 +287,7 @@ impl Association {
 /// observation is more than `max_age_frames` frames before `f` is removed: it was seen once
 /// or twice and never again (depth noise, a flying pixel at an edge). See
 /// [`ROBUST_STABLE_WEIGHT`] for the measured defaults.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct UnstableRemoval {
     /// Surfels with fewer observations than this are unstable.
     pub stable_weight: f32,
@@ -290,24 +308,6 @@ impl Default for UnstableRemoval {
     }
 }
 
-/// Stable weight of the robust profile's removal rule (see [`UnstableRemoval`]), in the
-/// units of the surfel weight: summed `pixel_confidence`s, at most 1 per observation. It
-/// trims the copies seen a few times and never again without moving the ATE; the longest
-/// window (20 / 20) that removes the most (measurements: `docs/robust-profile.md`).
-pub const ROBUST_STABLE_WEIGHT: f32 = 20.0;
-/// How often the robust profile's removal rule runs, frames: compaction copies the whole
-/// map, and an unstable surfel can stay a few frames longer at no cost to tracking or map
-/// size (measurements: `docs/robust-profile.md`).
-pub const ROBUST_REMOVAL_EVERY: u32 = 10;
-/// Pruning radius of the robust profile's duplicate removal (`fuse_prune`), in the larger
-/// surfel radius: with 0.5 the map stops growing over revisits of noisy depth while the ATE
-/// moves by 0.2 mm; wider, it removes surfels tracking needs (measurements:
-/// `docs/robust-profile.md`).
-pub const ROBUST_PRUNE_RADIUS_SCALE: f32 = 0.5;
-
-/// Age limit of the robust profile's removal rule, frames; see [`ROBUST_STABLE_WEIGHT`].
-pub const ROBUST_UNSTABLE_MAX_AGE: u32 = 20;
-
 /// How `pyramid_depth` makes a coarser level of the frame's ICP pyramid (see
 /// `cpu::pyramid_depth`): the mean of the depths in a `(2 radius_px + 1)²` window of the
 /// finer level around the sampled pixel within `max_depth_diff_m + max_depth_diff_per_m2
@@ -317,7 +317,7 @@ pub const ROBUST_UNSTABLE_MAX_AGE: u32 = 20;
 /// (`0.01 z²`, see [`BilateralSettings`]): 3 cm at 1 m, 12 cm at 2 m, the noisy set's
 /// disparity steps pass and depth edges between objects do not. See
 /// [`ROBUST_ICP_LEVEL_ITERS`] for the measurements.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PyramidSettings {
     /// Window half-width, pixels of the finer level.
     pub radius_px: u32,
@@ -340,7 +340,7 @@ impl Default for PyramidSettings {
 /// Parameters of the bilateral depth filter (`cpu::bilateral_filter`), in pixels of the
 /// (downsampled) maps and metres. The defaults (3x3 window, sigma 1 px, range sigma
 /// `0.01 z²`) were measured at the default 320x240: see the twin's header for the table.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BilateralSettings {
     /// Half-width of the window, pixels: (2r+1)² neighbours.
     pub radius_px: u32,
@@ -410,6 +410,9 @@ impl Default for LoopSettings {
             min_correction_deg: LOOP_MIN_CORRECTION_DEG,
             node_stride: LOOP_NODE_STRIDE,
             loop_weight: LOOP_WEIGHT,
+            confirm_agreement_m: LOOP_CONFIRM_AGREEMENT_M,
+            confirm_agreement_deg: LOOP_CONFIRM_AGREEMENT_DEG,
+            confirm_within_searches: LOOP_CONFIRM_WITHIN_SEARCHES,
         }
     }
 }
@@ -486,373 +489,5 @@ impl SlamParams {
                 ..assignment
             },
         }
-    }
-
-    /// Checks every value's range; the error ([`Error::Argument`]) names the option that
-    /// sets it (`--icp-dist`, also the parameter file's key without the dashes). Every
-    /// command validates its parameters before running (the CLI's `ParamOverrides::
-    /// slam_params`), and so do the jobs `tools::run`, `tools::two_frame` and
-    /// `tools::compare`.
-    pub fn validate(&self) -> Result<()> {
-        let fail = |msg: String| Err(Error::Argument(msg));
-        let positive = |v: f64| v.is_finite() && v > 0.0;
-        let off_or_positive = |v: f64| v.is_finite() && v >= 0.0;
-        let i = &self.input;
-        if i.downsample == 0 || i.downsample > MAX_DOWNSAMPLE {
-            return fail(format!(
-                "--downsample {} must be between 1 and {MAX_DOWNSAMPLE}",
-                i.downsample
-            ));
-        }
-        if !positive(i.depth_scale as f64) {
-            return fail(format!("--depth-scale {} must be positive", i.depth_scale));
-        }
-        if !(i.min_depth_m.is_finite()
-            && i.min_depth_m >= 0.0
-            && i.max_depth_m.is_finite()
-            && i.max_depth_m > i.min_depth_m)
-        {
-            return fail(format!(
-                "--min-depth {} and --max-depth {} must be a range 0 <= min < max",
-                i.min_depth_m, i.max_depth_m
-            ));
-        }
-        if let Some(b) = &self.bilateral {
-            if b.radius_px > MAX_BILATERAL_RADIUS {
-                return fail(format!(
-                    "--bilateral-radius {} must be at most {MAX_BILATERAL_RADIUS}",
-                    b.radius_px
-                ));
-            }
-            if !positive(b.sigma_space_px as f64) {
-                return fail(format!(
-                    "--bilateral-sigma-space {} must be a positive number",
-                    b.sigma_space_px
-                ));
-            }
-            let (depth, z2) = (b.sigma_depth_m, b.sigma_depth_per_m2);
-            if !(depth >= 0.0 && z2 >= 0.0 && depth + z2 > 0.0 && (depth + z2).is_finite()) {
-                return fail(format!(
-                    "--bilateral-sigma-depth {depth} and --bilateral-sigma-depth-z2 {z2} must \
-                     be non-negative numbers, not both zero"
-                ));
-            }
-        }
-        let icp = &self.icp;
-        let s = &icp.level_iters;
-        if s.is_empty() || s.len() > MAX_ICP_LEVELS || s.contains(&0) {
-            return fail(format!(
-                "--icp-level-iters {s:?}: want 1 to {MAX_ICP_LEVELS} iteration counts, coarse \
-                 to fine, each at least 1 (e.g. 10,5,4)"
-            ));
-        }
-        if icp.pyramid.radius_px > MAX_BILATERAL_RADIUS {
-            return fail(format!(
-                "--pyramid-radius {} must be at most {MAX_BILATERAL_RADIUS}",
-                icp.pyramid.radius_px
-            ));
-        }
-        let f = &self.fusion;
-        if !positive(icp.min_increment) {
-            return fail(format!(
-                "--icp-min-increment {} must be positive",
-                icp.min_increment
-            ));
-        }
-        for (flag, v) in [
-            ("--max-depth-jump", self.normals.max_depth_jump_m),
-            ("--pyramid-depth-gate-z2", icp.pyramid.max_depth_diff_per_m2),
-            ("--icp-dist", icp.dist_m),
-            ("--icp-angle", icp.normal_deg),
-            ("--fuse-dist", f.dist_m),
-            ("--fuse-angle", f.normal_deg),
-        ] {
-            if !positive(v as f64) {
-                return fail(format!("{flag} {v} must be positive"));
-            }
-        }
-        for (flag, v) in [
-            ("--icp-huber", icp.huber_m),
-            ("--confidence-sigma", f.confidence_sigma),
-            ("--prune-scale", f.prune_scale),
-        ] {
-            if !off_or_positive(v as f64) {
-                return fail(format!("{flag} {v} must be 0 (off) or positive"));
-            }
-        }
-        if !(icp.degenerate_eigen_ratio.is_finite()
-            && (0.0..1.0).contains(&icp.degenerate_eigen_ratio))
-        {
-            return fail(format!(
-                "--icp-degenerate-ratio {} must be 0 (off) or a fraction below 1",
-                icp.degenerate_eigen_ratio
-            ));
-        }
-        if let Some(h) = &self.health {
-            if !(0.0..=1.0).contains(&h.min_inlier_fraction) {
-                return fail(format!(
-                    "--health-min-inliers {} must be a fraction between 0 and 1",
-                    h.min_inlier_fraction
-                ));
-            }
-            for (flag, v) in [
-                ("--health-max-residual-ratio", h.max_residual_ratio),
-                ("health.max_motion_ratio", h.max_motion_ratio),
-                ("health.motion_floor_m", h.motion_floor_m),
-                ("health.motion_floor_deg", h.motion_floor_deg),
-            ] {
-                if !positive(v) {
-                    return fail(format!("{flag} {v} must be positive"));
-                }
-            }
-        }
-        if let Some(r) = &self.relocalisation {
-            if r.ferns == 0 || r.ferns > MAX_FERNS || r.candidates == 0 || r.max_keyframes == 0 {
-                return fail(format!(
-                    "relocalisation: ferns ({}, at most {MAX_FERNS}), candidates ({}) and \
-                     max_keyframes ({}) must be at least 1",
-                    r.ferns, r.candidates, r.max_keyframes
-                ));
-            }
-        }
-        if let Some(l) = &self.loop_closure {
-            if l.search_every_frames == 0 || l.node_stride == 0 || l.verify_iterations == 0 {
-                return fail(
-                    "loop closure: search_every_frames, node_stride and verify_iterations \
-                     must be at least 1"
-                        .into(),
-                );
-            }
-            for (name, v) in [
-                ("loop.min_inlier_fraction", l.min_inlier_fraction),
-                ("loop.max_rms_m", l.max_rms_m),
-                ("loop.max_correction_m", l.max_correction_m),
-                ("loop.max_correction_deg", l.max_correction_deg),
-                ("loop.loop_weight", l.loop_weight),
-            ] {
-                if !positive(v) {
-                    return fail(format!("{name} {v} must be positive"));
-                }
-            }
-        }
-        if let Some(r) = &f.unstable_removal {
-            if !off_or_positive(r.stable_weight as f64) {
-                return fail(format!(
-                    "--stable-weight {} must be 0 (off) or positive",
-                    r.stable_weight
-                ));
-            }
-            if r.every_frames == 0 {
-                return fail("--removal-every must be at least 1".into());
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Largest [`InputSettings::downsample`]: 16 is 40x30 maps from 640x480 frames.
-pub const MAX_DOWNSAMPLE: u32 = 16;
-
-/// Ferns per code at most (the database stores a byte per fern per keyframe).
-pub const MAX_FERNS: usize = 4096;
-
-/// Largest [`BilateralSettings::radius_px`] and [`PyramidSettings::radius_px`]: a 33x33
-/// window is already far past any useful one.
-pub const MAX_BILATERAL_RADIUS: u32 = 16;
-
-/// Huber threshold of the robust profile, metres: about 3 sigma of the depth noise at 2 m
-/// (sigma(2 m) = 6 mm by the model in `cpu::icp_reduce`), so residuals of well-matched
-/// points keep full weight and mismatches beyond are down-weighted, not cut.
-pub const ROBUST_HUBER_M: f32 = 0.02;
-
-/// Fusion gates of the robust profile: the depth gate (along the pixel's ray with
-/// best-candidate association) and the normal-angle gate. Noisy normals rarely agree
-/// within the assignment's 5 degrees; 60 degrees is the widest gate that still separates a
-/// wall from the floor it meets (measurements: `docs/robust-profile.md`).
-pub const ROBUST_FUSE_DIST_M: f32 = 0.05;
-/// See [`ROBUST_FUSE_DIST_M`].
-pub const ROBUST_FUSE_NORMAL_DEG: f32 = 60.0;
-
-/// Confidence sigma of the robust profile: ElasticFusion's 0.6 (a measurement at the
-/// image corner weighs 0.25 of one at the centre); neutral on ICL-NUIM, whose noise model
-/// has no lens falloff (measurements: `docs/robust-profile.md`).
-pub const ROBUST_CONFIDENCE_SIGMA: f32 = 0.6;
-
-/// Convergence threshold of the robust profile (radians and metres): noisy depth moves
-/// every increment by more than the assignment's 1e-6, so ICP would always use all its
-/// iterations; 1e-5 (10 micrometres, 2 millidegrees) is far below the noise.
-pub const ROBUST_MIN_INCREMENT: f64 = 1e-5;
-
-/// ICP iterations per pyramid level of the robust profile, coarse to fine (level 2 at
-/// 80x60, level 1 at 160x120, level 0 at 320x240 with the default downsampling):
-/// KinectFusion's schedule, the cheapest measured that keeps tracking at every 12th frame
-/// of ICL kt2 (measurements: `docs/robust-profile.md`).
-pub const ROBUST_ICP_LEVEL_ITERS: [usize; 3] = [10, 5, 4];
-
-/// Most pyramid levels a schedule may have (`--icp-level-iters`): a fourth level is 40x30
-/// at the default 320x240, a fifth would be 20x15, too few pixels to constrain a pose
-/// ([`crate::slam::solve::MIN_INLIERS`] correspondences at the least).
-pub const MAX_ICP_LEVELS: usize = 4;
-
-/// The robust profile's degenerate-direction guard: well below the smallest eigenvalue
-/// ratio of any frame of the sequences here, far above a plane's (see `slam::health`).
-pub const ROBUST_DEGENERATE_EIGEN_RATIO: f64 = 1e-4;
-
-/// Tracking-health defaults (both profiles); the measurements are in `slam::health`'s
-/// header.
-pub const HEALTH_MIN_INLIER_FRACTION: f64 = 0.3;
-pub const HEALTH_MAX_RESIDUAL_RATIO: f64 = 4.0;
-pub const HEALTH_MAX_MOTION_RATIO: f64 = 8.0;
-pub const HEALTH_MOTION_FLOOR_M: f64 = 0.10;
-pub const HEALTH_MOTION_FLOOR_DEG: f64 = 8.0;
-pub const HEALTH_WARMUP_FRAMES: usize = 5;
-pub const HEALTH_RECOVERY_MAX_RESIDUAL_RATIO: f64 = 1.3;
-pub const HEALTH_RECOVERY_MIN_INLIER_RATIO: f64 = 0.75;
-
-/// Relocalisation defaults: ElasticFusion's 500 ferns and its keyframe threshold (0.3095,
-/// rounded), five candidates per lost frame, candidates at least 30 % alike (its
-/// `blockHDAware > 0.3`), at most 2,000 keyframes (57 MB of codes and features).
-pub const RELOC_FERNS: usize = 500;
-pub const RELOC_KEYFRAME_DISSIMILARITY: f64 = 0.3;
-pub const RELOC_CANDIDATES: usize = 5;
-/// Keyframes at least every 0.15 m or 10 degrees of the path: within the basin of ICP's
-/// 0.10 m / 20 degree gates from any point of the path.
-pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
-pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
-pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
-pub const RELOC_MAX_KEYFRAMES: usize = 2_000;
-
-/// Loop-closure defaults. A loop is a return after at least 60 frames (2 s at 30 Hz:
-/// nearer keyframes are what tracking itself aligns against); searched every 5 frames and
-/// not for 30 frames after a closure (a return is seen over many frames; one closure per
-/// return is enough, and a search costs an ICP of 10 iterations at the snapshots' level).
-pub const LOOP_MIN_GAP_FRAMES: u32 = 60;
-pub const LOOP_SEARCH_EVERY_FRAMES: u32 = 5;
-pub const LOOP_COOLDOWN_FRAMES: u32 = 30;
-/// Global candidates at least 50 % fern-alike (relocalisation tries from 30 %: a loop
-/// changes the map, so it asks for more).
-pub const LOOP_MIN_SIMILARITY: f64 = 0.5;
-/// Local candidates: keyframes within ICP's basin (about 0.25 m / 12 degrees, see
-/// `slam::pipeline::FEATURE_ICP_AGREEMENT_M`) of the frame's pose as estimated.
-pub const LOOP_LOCAL_RADIUS_M: f64 = 0.25;
-pub const LOOP_LOCAL_ANGLE_DEG: f64 = 12.0;
-pub const LOOP_VERIFY_ITERATIONS: usize = 10;
-/// Verification: half the snapshot's pixels inliers (tracking's health test asks 30 % of
-/// the candidates; a loop's view overlaps its keyframe's by construction), an RMS
-/// residual of at most 15 mm (tracking's typical residual on the real sequences here is
-/// 5-10 mm at the coarse levels), and a correction within ICP's basin.
-pub const LOOP_MIN_INLIER_FRACTION: f64 = 0.5;
-pub const LOOP_MAX_RMS_M: f64 = 0.015;
-pub const LOOP_MAX_CORRECTION_M: f64 = 0.25;
-pub const LOOP_MAX_CORRECTION_DEG: f64 = 12.0;
-/// Corrections below 10 mm and 1 degree are within the verification's own noise (a
-/// frame registered against a 160 x 120 snapshot: 5-20 mm and 1-4 degrees against the
-/// 7-Scenes reference poses): such a loop is recorded, but nothing moves.
-pub const LOOP_MIN_CORRECTION_M: f64 = 0.010;
-pub const LOOP_MIN_CORRECTION_DEG: f64 = 1.0;
-/// A pose-graph node every 10 tracked frames (a 1,000-frame run: about 100 nodes plus
-/// keyframes, a solve of milliseconds).
-pub const LOOP_NODE_STRIDE: u32 = 10;
-/// A loop edge weighs as an odometry edge: measured with weight 10 on 7-Scenes 0..299
-/// and noisy ICL-NUIM 0..209 (GPU), the ATE was 19.34 / 7.64 mm, with 1 19.32 / 7.55 mm.
-pub const LOOP_WEIGHT: f64 = 1.0;
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn both_profiles_are_valid() {
-        for profile in [Profile::Assignment, Profile::Robust] {
-            SlamParams::profile(profile).validate().unwrap();
-        }
-    }
-
-    /// Each value out of its range is refused, the error naming the option that sets it.
-    #[test]
-    fn each_out_of_range_value_names_its_option() {
-        fn bilateral(p: &mut SlamParams, f: fn(&mut BilateralSettings)) {
-            let mut b = BilateralSettings::default();
-            f(&mut b);
-            p.bilateral = Some(b);
-        }
-        fn removal(p: &mut SlamParams, f: fn(&mut UnstableRemoval)) {
-            let mut r = UnstableRemoval::default();
-            f(&mut r);
-            p.fusion.unstable_removal = Some(r);
-        }
-        type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 26] = [
-            ("--downsample", |p| p.input.downsample = 0),
-            ("--downsample", |p| p.input.downsample = MAX_DOWNSAMPLE + 1),
-            ("--depth-scale", |p| p.input.depth_scale = 0.0),
-            ("--min-depth", |p| p.input.min_depth_m = -0.1),
-            ("--max-depth", |p| p.input.max_depth_m = 0.05),
-            ("--max-depth", |p| p.input.max_depth_m = f32::INFINITY),
-            ("--max-depth-jump", |p| p.normals.max_depth_jump_m = 0.0),
-            ("--bilateral-radius", |p| {
-                bilateral(p, |b| b.radius_px = MAX_BILATERAL_RADIUS + 1)
-            }),
-            ("--bilateral-sigma-space", |p| {
-                bilateral(p, |b| b.sigma_space_px = 0.0)
-            }),
-            ("--bilateral-sigma-depth", |p| {
-                bilateral(p, |b| b.sigma_depth_m = -0.01)
-            }),
-            ("--bilateral-sigma-depth-z2", |p| {
-                bilateral(p, |b| b.sigma_depth_per_m2 = 0.0)
-            }),
-            ("--icp-dist", |p| p.icp.dist_m = 0.0),
-            ("--icp-angle", |p| p.icp.normal_deg = -20.0),
-            ("--icp-huber", |p| p.icp.huber_m = -0.02),
-            ("--icp-level-iters", |p| p.icp.level_iters = vec![]),
-            ("--icp-level-iters", |p| p.icp.level_iters = vec![10, 0, 4]),
-            ("--icp-level-iters", |p| {
-                p.icp.level_iters = vec![1; MAX_ICP_LEVELS + 1]
-            }),
-            ("--icp-min-increment", |p| p.icp.min_increment = 0.0),
-            ("--pyramid-depth-gate-z2", |p| {
-                p.icp.pyramid.max_depth_diff_per_m2 = f32::NAN
-            }),
-            ("--fuse-dist", |p| p.fusion.dist_m = -0.05),
-            ("--fuse-angle", |p| p.fusion.normal_deg = f32::INFINITY),
-            ("--confidence-sigma", |p| p.fusion.confidence_sigma = -1.0),
-            ("--prune-scale", |p| p.fusion.prune_scale = f32::NAN),
-            ("--stable-weight", |p| {
-                removal(p, |r| r.stable_weight = -1.0)
-            }),
-            ("--removal-every", |p| removal(p, |r| r.every_frames = 0)),
-            ("--fuse-dist", |p| p.fusion.dist_m = 0.0),
-        ];
-        for profile in [Profile::Assignment, Profile::Robust] {
-            for (option, spoil) in cases {
-                let mut p = SlamParams::profile(profile);
-                spoil(&mut p);
-                match p.validate() {
-                    Err(Error::Argument(why)) => {
-                        assert!(why.contains(option), "{option}: {why}")
-                    }
-                    other => panic!("{option} ({profile:?}): {other:?}"),
-                }
-            }
-        }
-    }
-
-    /// The edges of each range are accepted: zero where it means off, the largest sizes.
-    #[test]
-    fn range_edges_are_accepted() {
-        let mut p = SlamParams::profile(Profile::Robust);
-        p.input.downsample = MAX_DOWNSAMPLE;
-        p.input.min_depth_m = 0.0;
-        p.icp.huber_m = 0.0;
-        p.icp.normal_deg = 180.0;
-        p.icp.level_iters = vec![1; MAX_ICP_LEVELS];
-        p.fusion.confidence_sigma = 0.0;
-        p.fusion.prune_scale = 0.0;
-        p.bilateral = Some(BilateralSettings {
-            radius_px: MAX_BILATERAL_RADIUS,
-            ..BilateralSettings::default()
-        });
-        p.validate().unwrap();
     }
 }

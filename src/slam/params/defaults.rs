@@ -1,0 +1,140 @@
+//! The profiles' measured constants and the ranges' limits: the reason for each value in a
+//! line, the measurements behind them in `docs/robust-profile.md`, `slam::health` and
+//! `docs/loop-closure.md`.
+
+/// Stable weight of the robust profile's removal rule (see
+/// [`UnstableRemoval`](super::UnstableRemoval)), in the units of the surfel weight: summed
+/// `pixel_confidence`s, at most 1 per observation. It trims the copies seen a few times and
+/// never again without moving the ATE; the longest window (20 / 20) that removes the most
+/// (measurements: `docs/robust-profile.md`).
+pub const ROBUST_STABLE_WEIGHT: f32 = 20.0;
+/// How often the robust profile's removal rule runs, frames: compaction copies the whole
+/// map, and an unstable surfel can stay a few frames longer at no cost to tracking or map
+/// size (measurements: `docs/robust-profile.md`).
+pub const ROBUST_REMOVAL_EVERY: u32 = 10;
+/// Pruning radius of the robust profile's duplicate removal (`fuse_prune`), in the larger
+/// surfel radius: with 0.5 the map stops growing over revisits of noisy depth while the ATE
+/// moves by 0.2 mm; wider, it removes surfels tracking needs (measurements:
+/// `docs/robust-profile.md`).
+pub const ROBUST_PRUNE_RADIUS_SCALE: f32 = 0.5;
+
+/// Age limit of the robust profile's removal rule, frames; see [`ROBUST_STABLE_WEIGHT`].
+pub const ROBUST_UNSTABLE_MAX_AGE: u32 = 20;
+
+/// Largest [`InputSettings::downsample`](super::InputSettings::downsample): 16 is 40x30
+/// maps from 640x480 frames.
+pub const MAX_DOWNSAMPLE: u32 = 16;
+
+/// Ferns per code at most (the database stores a byte per fern per keyframe).
+pub const MAX_FERNS: usize = 4096;
+
+/// Largest [`BilateralSettings::radius_px`](super::BilateralSettings::radius_px) and
+/// [`PyramidSettings::radius_px`](super::PyramidSettings::radius_px): a 33x33 window is
+/// already far past any useful one.
+pub const MAX_BILATERAL_RADIUS: u32 = 16;
+
+/// Huber threshold of the robust profile, metres: about 3 sigma of the depth noise at 2 m
+/// (sigma(2 m) = 6 mm by the model in `cpu::icp_reduce`), so residuals of well-matched
+/// points keep full weight and mismatches beyond are down-weighted, not cut.
+pub const ROBUST_HUBER_M: f32 = 0.02;
+
+/// Fusion gates of the robust profile: the depth gate (along the pixel's ray with
+/// best-candidate association) and the normal-angle gate. Noisy normals rarely agree
+/// within the assignment's 5 degrees; 60 degrees is the widest gate that still separates a
+/// wall from the floor it meets (measurements: `docs/robust-profile.md`).
+pub const ROBUST_FUSE_DIST_M: f32 = 0.05;
+/// See [`ROBUST_FUSE_DIST_M`].
+pub const ROBUST_FUSE_NORMAL_DEG: f32 = 60.0;
+
+/// Confidence sigma of the robust profile: ElasticFusion's 0.6 (a measurement at the
+/// image corner weighs 0.25 of one at the centre); neutral on ICL-NUIM, whose noise model
+/// has no lens falloff (measurements: `docs/robust-profile.md`).
+pub const ROBUST_CONFIDENCE_SIGMA: f32 = 0.6;
+
+/// Convergence threshold of the robust profile (radians and metres): noisy depth moves
+/// every increment by more than the assignment's 1e-6, so ICP would always use all its
+/// iterations; 1e-5 (10 micrometres, 2 millidegrees) is far below the noise.
+pub const ROBUST_MIN_INCREMENT: f64 = 1e-5;
+
+/// ICP iterations per pyramid level of the robust profile, coarse to fine (level 2 at
+/// 80x60, level 1 at 160x120, level 0 at 320x240 with the default downsampling):
+/// KinectFusion's schedule, the cheapest measured that keeps tracking at every 12th frame
+/// of ICL kt2 (measurements: `docs/robust-profile.md`).
+pub const ROBUST_ICP_LEVEL_ITERS: [usize; 3] = [10, 5, 4];
+
+/// Most pyramid levels a schedule may have (`--icp-level-iters`): a fourth level is 40x30
+/// at the default 320x240, a fifth would be 20x15, too few pixels to constrain a pose
+/// ([`crate::slam::solve::MIN_INLIERS`] correspondences at the least).
+pub const MAX_ICP_LEVELS: usize = 4;
+
+/// The robust profile's degenerate-direction guard: well below the smallest eigenvalue
+/// ratio of any frame of the sequences here, far above a plane's (see `slam::health`).
+pub const ROBUST_DEGENERATE_EIGEN_RATIO: f64 = 1e-4;
+
+/// Tracking-health defaults (both profiles); the measurements are in `slam::health`'s
+/// header.
+pub const HEALTH_MIN_INLIER_FRACTION: f64 = 0.3;
+pub const HEALTH_MAX_RESIDUAL_RATIO: f64 = 4.0;
+pub const HEALTH_MAX_MOTION_RATIO: f64 = 8.0;
+pub const HEALTH_MOTION_FLOOR_M: f64 = 0.10;
+pub const HEALTH_MOTION_FLOOR_DEG: f64 = 8.0;
+pub const HEALTH_WARMUP_FRAMES: usize = 5;
+pub const HEALTH_RECOVERY_MAX_RESIDUAL_RATIO: f64 = 1.3;
+pub const HEALTH_RECOVERY_MIN_INLIER_RATIO: f64 = 0.75;
+
+/// Relocalisation defaults: ElasticFusion's 500 ferns and its keyframe threshold (0.3095,
+/// rounded), five candidates per lost frame, candidates at least 30 % alike (its
+/// `blockHDAware > 0.3`), at most 2,000 keyframes (57 MB of codes and features).
+pub const RELOC_FERNS: usize = 500;
+pub const RELOC_KEYFRAME_DISSIMILARITY: f64 = 0.3;
+pub const RELOC_CANDIDATES: usize = 5;
+/// Keyframes at least every 0.15 m or 10 degrees of the path: within the basin of ICP's
+/// 0.10 m / 20 degree gates from any point of the path.
+pub const RELOC_KEYFRAME_DISTANCE_M: f64 = 0.15;
+pub const RELOC_KEYFRAME_ANGLE_DEG: f64 = 10.0;
+pub const RELOC_MIN_SIMILARITY: f64 = 0.3;
+pub const RELOC_MAX_KEYFRAMES: usize = 2_000;
+
+/// Loop-closure defaults. A loop is a return after at least 60 frames (2 s at 30 Hz:
+/// nearer keyframes are what tracking itself aligns against); searched every 5 frames and
+/// not for 30 frames after a closure (a return is seen over many frames; one closure per
+/// return is enough, and a search costs an ICP of 10 iterations at the snapshots' level).
+pub const LOOP_MIN_GAP_FRAMES: u32 = 60;
+pub const LOOP_SEARCH_EVERY_FRAMES: u32 = 5;
+pub const LOOP_COOLDOWN_FRAMES: u32 = 30;
+/// Global candidates at least 50 % fern-alike (relocalisation tries from 30 %: a loop
+/// changes the map, so it asks for more).
+pub const LOOP_MIN_SIMILARITY: f64 = 0.5;
+/// Local candidates: keyframes within ICP's basin (about 0.25 m / 12 degrees, see
+/// `slam::pipeline::FEATURE_ICP_AGREEMENT_M`) of the frame's pose as estimated.
+pub const LOOP_LOCAL_RADIUS_M: f64 = 0.25;
+pub const LOOP_LOCAL_ANGLE_DEG: f64 = 12.0;
+pub const LOOP_VERIFY_ITERATIONS: usize = 10;
+/// Verification: half the snapshot's pixels inliers (tracking's health test asks 30 % of
+/// the candidates; a loop's view overlaps its keyframe's by construction), an RMS
+/// residual of at most 15 mm (tracking's typical residual on the real sequences here is
+/// 5-10 mm at the coarse levels), and a correction within ICP's basin.
+pub const LOOP_MIN_INLIER_FRACTION: f64 = 0.5;
+pub const LOOP_MAX_RMS_M: f64 = 0.015;
+pub const LOOP_MAX_CORRECTION_M: f64 = 0.25;
+pub const LOOP_MAX_CORRECTION_DEG: f64 = 12.0;
+/// Corrections below 10 mm and 1 degree are within the verification's own noise (a
+/// frame registered against a 160 x 120 snapshot: 5-20 mm and 1-4 degrees against the
+/// 7-Scenes reference poses): such a loop is recorded, but nothing moves.
+pub const LOOP_MIN_CORRECTION_M: f64 = 0.010;
+pub const LOOP_MIN_CORRECTION_DEG: f64 = 1.0;
+/// A pose-graph node every 10 tracked frames (a 1,000-frame run: about 100 nodes plus
+/// keyframes, a solve of milliseconds).
+pub const LOOP_NODE_STRIDE: u32 = 10;
+/// A loop edge weighs as an odometry edge: measured with weight 10 on 7-Scenes 0..299
+/// and noisy ICL-NUIM 0..209 (GPU), the ATE was 19.34 / 7.64 mm, with 1 19.32 / 7.55 mm.
+pub const LOOP_WEIGHT: f64 = 1.0;
+/// A correction above noise is applied only when a second verification, at one of the
+/// next [`LOOP_CONFIRM_WITHIN_SEARCHES`] searches, measures the same correction within
+/// these (metres, degrees): a single frame-to-keyframe registration at the snapshots' level
+/// is off by 5-20 mm and 1-4 degrees now and then (7-Scenes, against the reference poses),
+/// and bending the map by such an error tears it (a 1,000-frame revisiting run of
+/// 7-Scenes grew its map by a third and its ATE from 21 to 25 mm without this test).
+pub const LOOP_CONFIRM_AGREEMENT_M: f64 = 0.010;
+pub const LOOP_CONFIRM_AGREEMENT_DEG: f64 = 1.0;
+pub const LOOP_CONFIRM_WITHIN_SEARCHES: u32 = 2;
