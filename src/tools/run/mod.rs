@@ -8,22 +8,26 @@
 //! reference one), which would charge decoding to one backend's "decode excluded" time.
 //! Outputs go to `--out DIR`, each file written completely or not at all (`io::atomic`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::mpsc;
 use web_time::Instant;
 
 use glam::DMat4;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use crate::dataset::{RawFrame, Sequence};
 use crate::eval;
-use crate::io;
 use crate::layout::pack_rgba8;
 use crate::slam::backend::{Backend, Inspect};
 use crate::slam::map::SurfelMap;
 use crate::slam::params::SlamParams;
 use crate::slam::pipeline::{FrameReport, Slam, TrackStatus};
-use crate::{Error, Result};
+use crate::Result;
+
+mod outputs;
+pub use outputs::{
+    read_numbers, write_json, write_outputs, write_pictures, RunNumbers, OUTPUT_FILES,
+};
 
 /// One processed frame: where it sits in the sequence and what the pipeline did.
 #[derive(Debug, Clone, Serialize)]
@@ -564,133 +568,4 @@ pub fn summary_lines(m: &Metrics) -> Vec<String> {
         lines.push(format!("peak memory {mem:.0} MiB"));
     }
     lines
-}
-
-/// Every file `wgslam run` writes into its `--out` folder: [`write_outputs`]'s and
-/// [`write_pictures`]'s.
-pub const OUTPUT_FILES: [&str; 10] = [
-    "trajectory.tum",
-    "trajectory_odometry.tum",
-    "map.ply",
-    "metrics.json",
-    "frames.json",
-    "trajectory.png",
-    "map_color.png",
-    "map_normals.png",
-    "last_camera_color.png",
-    "last_camera_normals.png",
-];
-
-/// Writes `trajectory.tum`, `trajectory_odometry.tum`, `map.ply`, `metrics.json` and
-/// `frames.json` into `out`
-/// (created if missing), each file completely or not at all.
-pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| crate::Error::write(out, e))?;
-    io::trajectory::write_tum(&out.join("trajectory.tum"), &result.trajectory())?;
-    // As tracked, before any loop closure (the same poses without loop closure).
-    io::trajectory::write_tum(
-        &out.join("trajectory_odometry.tum"),
-        &trajectory(&result.frames),
-    )?;
-    io::ply::write_surfel_map(&out.join("map.ply"), &result.map)?;
-    write_json(&out.join("metrics.json"), &result.metrics)?;
-    write_json(&out.join("frames.json"), &result.frames)?;
-    Ok(())
-}
-
-/// Writes any serialisable value as pretty JSON, atomically.
-pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    io::atomic::write_atomic(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, value).map_err(|e| {
-            if e.is_io() {
-                crate::Error::write(path, e.into())
-            } else {
-                crate::Error::encode(path.display().to_string(), e)
-            }
-        })?;
-        writeln!(w).map_err(|e| crate::Error::write(path, e))
-    })
-}
-
-/// Writes the pictures of a run into `out`: `trajectory.png` (with ground truth) and the
-/// map renders (`map_{color,normals}.png`, `last_camera_{color,normals}.png`). Drawn by the
-/// CPU renderer, which needs no device and takes tens of milliseconds at this size.
-pub fn write_pictures(out: &Path, result: &RunResult, seq: &Sequence) -> Result<Vec<PathBuf>> {
-    let est = result.trajectory();
-    if result.map.is_empty() {
-        eprintln!("note: the map is empty; no renders written");
-        return Ok(vec![]);
-    }
-    let mut written = crate::render::outputs::write_map_renders(
-        &crate::render::RenderBackend::Cpu,
-        out,
-        &result.map,
-        &est,
-        &seq.intrinsics,
-        crate::render::DEFAULT_SIZE,
-    )?;
-    let gt = seq.ground_truth();
-    if !gt.is_empty() && !est.is_empty() {
-        let path = out.join("trajectory.png");
-        crate::render::plot::write_trajectory_plot(&path, &est, &gt)?;
-        written.push(path);
-    }
-    Ok(written)
-}
-
-/// A finished run's headline numbers, read back from its `metrics.json` (by `wgslam batch`
-/// per job and backend, and by the long-sequence benchmark).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunNumbers {
-    pub frames: u64,
-    pub map_points: u64,
-    /// Frames whose tracking was lost (not fused).
-    pub lost_frames: u64,
-    /// Frames placed by relocalisation (0 in outputs from before relocalisation).
-    #[serde(default)]
-    pub relocalised_frames: u64,
-    /// The run's tracking health: `ok`, `recovered` or `LOST` (see
-    /// [`TrackingCounts::flag`]; empty in outputs from before the health test).
-    #[serde(default)]
-    pub health: String,
-    /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
-    /// ground truth), millimetres and degrees.
-    pub ate_rmse_mm: Option<f64>,
-    pub rpe_trans_rmse_mm: Option<f64>,
-    pub rpe_rot_rmse_deg: Option<f64>,
-    /// Pipeline time per frame (median), milliseconds; whole-run wall time, seconds.
-    pub time_per_frame_median_ms: f64,
-    pub wall_s: f64,
-    /// Peak resident memory of the run's process, MiB (None where the OS does not say).
-    pub peak_memory_mib: Option<f64>,
-}
-
-/// A run's numbers from its `metrics.json`.
-pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let m: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not JSON: {e}")))?;
-    let num = |v: &serde_json::Value, what: &str| {
-        v.as_f64()
-            .ok_or_else(|| Error::format(path, format!("no number `{what}`")))
-    };
-    let acc = &m["accuracy"];
-    let opt = |k: &str, scale: f64| acc[k].as_f64().map(|x| x * scale);
-    Ok(RunNumbers {
-        frames: num(&m["frames"], "frames")? as u64,
-        map_points: num(&m["map_points"], "map_points")? as u64,
-        lost_frames: num(&m["tracking"]["lost"], "tracking.lost")? as u64,
-        relocalised_frames: m["tracking"]["relocalised"].as_u64().unwrap_or(0),
-        health: m["tracking"]["health"]
-            .as_str()
-            .unwrap_or_default()
-            .to_string(),
-        ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
-        rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
-        rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
-        time_per_frame_median_ms: num(&m["time_per_frame_median_s"], "time_per_frame_median_s")?
-            * 1e3,
-        wall_s: num(&m["wall_total_s"], "wall_total_s")?,
-        peak_memory_mib: m["peak_memory_mib"].as_f64(),
-    })
 }
