@@ -95,7 +95,7 @@ pub struct RunNumbers {
     #[serde(default)]
     pub relocalised_frames: u64,
     /// The run's tracking health: `ok`, `recovered` or `LOST` (see
-    /// [`TrackingCounts::flag`]; empty in outputs from before the health test).
+    /// [`super::TrackingCounts::flag`]; empty in outputs from before the health test).
     #[serde(default)]
     pub health: String,
     /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
