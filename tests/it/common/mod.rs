@@ -36,6 +36,15 @@ pub fn shared_icl_noisy(data: &Path) -> PathBuf {
     data.join("icl_living_room_kt2_noisy")
 }
 
+/// A run's ATE RMSE after alignment, metres (the run must have ground truth).
+pub fn ate_m(r: &wgslam::tools::run::RunResult) -> f64 {
+    r.metrics
+        .accuracy
+        .as_ref()
+        .expect("ground truth")
+        .ate_rmse_aligned_m
+}
+
 /// A fresh empty directory under the system temp dir, `wgslam-test-PID-NAME`, removed
 /// when the test that made it finishes (see [`Scratch`]).
 pub fn temp_dir(name: &str) -> Scratch {
