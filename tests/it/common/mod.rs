@@ -1,7 +1,7 @@
 //! Shared helpers for the integration tests: running the executable ([`cli`]), the harness that shows a skipped test as
 //! ignored with its reason ([`harness`]), naga checks of WGSL ([`wgsl`]), raw bundled
 //! frames and ground truth ([`frames`]), the bundled LiDAR pair and nearest-neighbour
-//! kernel inputs ([`scans`]), and where the data is. `tests/it/main.rs` declares it (`mod common;`);
+//! kernel inputs ([`scans`]), a run's ATE ([`ate_m`]), and where the data is. `tests/it/main.rs` declares it (`mod common;`);
 //! each test module takes it with `use crate::common;` and uses what it needs.
 
 #![allow(dead_code)]
