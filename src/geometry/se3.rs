@@ -133,6 +133,18 @@ pub fn translation_norm(t: &DMat4) -> f64 {
     t.w_axis.truncate().length()
 }
 
+/// Translation (metres) and rotation (degrees) of the change between two world-to-camera
+/// poses, `t_to * t_from⁻¹`. The angle is `acos` of the trace, as tracking health and loop
+/// closure have always measured it (not [`rotation_angle`]: changing it would move their
+/// thresholds' decisions by rounding).
+pub fn pose_change(t_from: &DMat4, t_to: &DMat4) -> (f64, f64) {
+    let delta = *t_to * inverse_rigid(t_from);
+    let translation = delta.w_axis.truncate().length();
+    let trace = delta.x_axis.x + delta.y_axis.y + delta.z_axis.z;
+    let angle = ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos();
+    (translation, angle.to_degrees())
+}
+
 /// The matrix as four rows (row-major), for JSON reports that people read.
 pub fn to_rows(t: &DMat4) -> [[f64; 4]; 4] {
     let r = |i| t.row(i).to_array();
@@ -145,6 +157,15 @@ mod tests {
 
     /// f64 round trips of exp/log lose only a few ulps per operation.
     const ROUND_TRIP_TOL: f64 = 1e-10;
+
+    #[test]
+    fn pose_change_reads_translation_and_angle() {
+        let a = exp(&[0.1, 0.2, -0.3, 1.0, 2.0, 3.0]);
+        let d = exp(&[0.0, 0.0, 0.2, 0.3, 0.4, 0.0]);
+        let (m, deg) = pose_change(&a, &(d * a));
+        assert!((m - 0.5).abs() < 0.1, "{m}");
+        assert!((deg - 0.2f64.to_degrees()).abs() < 1e-9, "{deg}");
+    }
 
     #[test]
     fn rotation_angle_from_tiny_to_half_turn() {

@@ -49,38 +49,3 @@ impl FusedView {
             )
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::camera::Intrinsics;
-    use crate::geometry::se3;
-    use crate::slam::cpu_backend::CpuBackend;
-    use crate::slam::params::{Profile, SlamParams};
-    use crate::slam::pipeline::Slam;
-
-    /// `predict` reuses a fusion's index map only for the very view it was built at, and
-    /// only after best-candidate association (the only one whose `fuse_select` builds it).
-    #[test]
-    fn fused_view_matches_only_its_own_view() {
-        let robust = Slam::new(
-            CpuBackend::new(),
-            Intrinsics::ICL_NUIM,
-            SlamParams::profile(Profile::Robust),
-        );
-        let t = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3]);
-        let view = FusedView::of_fuse(&robust.fuse_params(&t, 5)).expect("best candidate");
-        assert!(view.is_view_of(&robust.project_params(&t)));
-        let moved = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3001]);
-        assert!(!view.is_view_of(&robust.project_params(&moved)));
-        let mut other_size = robust.project_params(&t);
-        other_size.width /= 2;
-        assert!(!view.is_view_of(&other_size));
-        let assignment = Slam::new(
-            CpuBackend::new(),
-            Intrinsics::ICL_NUIM,
-            SlamParams::profile(Profile::Assignment),
-        );
-        assert_eq!(FusedView::of_fuse(&assignment.fuse_params(&t, 5)), None);
-    }
-}

@@ -63,8 +63,9 @@ use std::collections::VecDeque;
 
 use glam::DMat4;
 
+use crate::geometry::se3::pose_change;
 use crate::slam::params::HealthSettings;
-use crate::slam::pipeline::IcpIteration;
+use crate::slam::solve::IcpIteration;
 
 /// Tracked frames the typical residual and motion are the median of.
 pub const HISTORY: usize = 30;
@@ -102,15 +103,6 @@ pub struct HealthMonitor {
     inlier_fractions: VecDeque<f64>,
     motions_m: VecDeque<f64>,
     motions_deg: VecDeque<f64>,
-}
-
-/// Translation (m) and rotation (degrees) between two world-to-camera poses.
-pub fn pose_change(t_from: &DMat4, t_to: &DMat4) -> (f64, f64) {
-    let delta = *t_to * crate::geometry::se3::inverse_rigid(t_from);
-    let translation = delta.w_axis.truncate().length();
-    let trace = delta.x_axis.x + delta.y_axis.y + delta.z_axis.z;
-    let angle = ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos();
-    (translation, angle.to_degrees())
 }
 
 fn median(values: &VecDeque<f64>) -> f64 {
@@ -319,14 +311,5 @@ mod tests {
             .unwrap();
         assert!(small.motion_ratio.unwrap() > s.max_motion_ratio);
         m.judge(&s, &small).unwrap();
-    }
-
-    #[test]
-    fn pose_change_reads_translation_and_angle() {
-        let a = se3::exp(&[0.1, 0.2, -0.3, 1.0, 2.0, 3.0]);
-        let d = se3::exp(&[0.0, 0.0, 0.2, 0.3, 0.4, 0.0]);
-        let (m, deg) = pose_change(&a, &(d * a));
-        assert!((m - 0.5).abs() < 0.1, "{m}");
-        assert!((deg - 0.2f64.to_degrees()).abs() < 1e-9, "{deg}");
     }
 }

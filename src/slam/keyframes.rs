@@ -21,6 +21,7 @@
 
 use glam::DMat4;
 
+use crate::geometry::se3;
 use crate::layout::{Fern, FernParams, FERN_GRID, FERN_NO_DEPTH};
 use crate::slam::params::RelocalisationSettings;
 use crate::slam::seeded::SplitMix;
@@ -188,7 +189,7 @@ impl KeyframeDatabase {
             let looks_known = 1.0 - best.similarity <= self.settings.keyframe_dissimilarity;
             let s = &self.settings;
             let near_one = self.keyframes.iter().any(|k| {
-                let (m, deg) = crate::slam::health::pose_change(&k.t_world_to_cam, &t_world_to_cam);
+                let (m, deg) = se3::pose_change(&k.t_world_to_cam, &t_world_to_cam);
                 m <= s.keyframe_distance_m && deg <= s.keyframe_angle_deg
             });
             if looks_known && near_one {
@@ -228,7 +229,7 @@ impl KeyframeDatabase {
     pub fn correct(&mut self, correction_of: impl Fn(u32) -> DMat4) {
         for kf in &mut self.keyframes {
             let c = correction_of(kf.frame_id);
-            kf.t_world_to_cam *= crate::geometry::se3::inverse_rigid(&c);
+            kf.t_world_to_cam *= se3::inverse_rigid(&c);
             for p in &mut kf.features.points {
                 *p = c.transform_point3(*p);
             }

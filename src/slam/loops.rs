@@ -20,7 +20,7 @@
 //!   for ElasticFusion's active/inactive split: map seen long ago that comes back into
 //!   view is registered against directly, here through the keyframe that saw it.
 //!
-//! Verification (the pipeline's `close_loop`): the keyframe's snapshot, placed in the world
+//! Verification (`slam::loop_closer`): the keyframe's snapshot, placed in the world
 //! at the keyframe's pose, replaces the prediction at the snapshot's level, and ICP from
 //! the frame's tracked pose registers the frame against it
 //! ([`LoopSettings::verify_iterations`]). [`LoopClosure::judge`] accepts it when ICP did
@@ -34,13 +34,12 @@ use std::collections::HashMap;
 
 use glam::DMat4;
 
-use crate::geometry::se3;
+use crate::geometry::se3::{self, pose_change};
 use crate::layout::DeformNode;
-use crate::slam::health::pose_change;
 use crate::slam::keyframes::KeyframeDatabase;
 use crate::slam::params::LoopSettings;
-use crate::slam::pipeline::IcpIteration;
 use crate::slam::pose_graph::{self, Optimised, PoseGraph};
+use crate::slam::solve::IcpIteration;
 
 /// A keyframe's maps at the loop level: camera-frame vertices (`w = 1` valid) and
 /// `normal_depth` (camera-frame normal, depth in `w`, zero where invalid).

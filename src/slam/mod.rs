@@ -1,6 +1,7 @@
 //! Dense RGB-D SLAM's frame loop and the backends that run it: the fixed step list
-//! ([`pipeline`]), the host-side 6x6 solve ([`solve`]), the surfel map as the host holds it
-//! ([`map`]), the CPU reference backend ([`cpu_backend`]), the run-time choice between it
+//! ([`pipeline`]) and the parts it drives per frame (`tracker`, `recovery`, `loop_closer`;
+//! what it reports: [`report`]), the host-side 6x6 solve ([`solve`]), the surfel map as the
+//! host holds it ([`map`]), the CPU reference backend ([`cpu_backend`]), the run-time choice between it
 //! and the GPU backend (`any_backend`) and a step-watching decorator (`instrumented`).
 //! The GPU backend itself lives in [`crate::gpu::backend`], beside the wgpu code it needs.
 
@@ -12,12 +13,16 @@ pub(crate) mod fused_view;
 pub mod health;
 pub(crate) mod instrumented;
 pub mod keyframes;
+pub(crate) mod loop_closer;
 pub mod loops;
 pub mod map;
 pub mod params;
 pub mod pipeline;
 pub(crate) mod plan;
 pub mod pose_graph;
+pub(crate) mod recovery;
+pub mod report;
 pub(crate) mod seeded;
 pub mod solve;
 pub(crate) mod step_params;
+pub(crate) mod tracker;

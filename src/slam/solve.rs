@@ -157,6 +157,22 @@ impl NormalEquations {
     }
 }
 
+/// One ICP iteration's statistics, as the frame report (`frames.json`), the tracking
+/// health test and loop verification read them.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct IcpIteration {
+    /// Pyramid level the iteration ran at (0 = the full maps).
+    pub level: usize,
+    /// Correspondences that passed both filters.
+    pub inliers: u64,
+    /// Mean squared point-to-plane residual before the update, m².
+    pub mean_sq_residual: f64,
+    /// Smallest over largest eigenvalue of AᵀA; `None` when the system was refused.
+    pub eigen_ratio: Option<f64>,
+    /// Eigen-directions the guarded solve held (degenerate geometry).
+    pub held_directions: usize,
+}
+
 /// Left-multiplicative update `T <- exp(x) T` of a world-to-camera pose.
 pub fn update_pose(t_world_to_cam: &DMat4, x: &se3::Twist) -> DMat4 {
     se3::exp(x) * *t_world_to_cam

@@ -12,7 +12,8 @@ use serde::Serialize;
 use crate::dataset::Sequence;
 use crate::slam::backend::{Backend, Inspect};
 use crate::slam::params::{PoseSource, SlamParams};
-use crate::slam::pipeline::{IcpIteration, Slam, TrackStatus};
+use crate::slam::pipeline::{Slam, TrackStatus};
+use crate::slam::solve::IcpIteration;
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
 

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::common;
+use common::ate_m;
 use common::harness::{gpu, gpu_shared, plain, Test};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
@@ -31,14 +32,6 @@ fn assets(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("assets")
         .join(name)
-}
-
-fn ate_m(r: &RunResult) -> f64 {
-    r.metrics
-        .accuracy
-        .as_ref()
-        .expect("ground truth")
-        .ate_rmse_aligned_m
 }
 
 fn without_loops() -> SlamParams {

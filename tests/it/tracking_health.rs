@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::common;
+use common::ate_m;
 use common::harness::{gpu, gpu_shared, plain, shared, Test};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::se3;
@@ -45,14 +46,6 @@ fn run_all<B: Backend + Inspect>(backend: B, root: &Path) -> RunResult {
     let seq = dataset::open(root, &SequenceOptions::default()).unwrap();
     let last = seq.len() - 1;
     run::run(backend, &seq, 0, last, SlamParams::default(), |_| {}).unwrap()
-}
-
-fn ate_m(r: &RunResult) -> f64 {
-    r.metrics
-        .accuracy
-        .as_ref()
-        .expect("ground truth")
-        .ate_rmse_aligned_m
 }
 
 fn statuses(r: &RunResult) -> Vec<&TrackStatus> {

@@ -1,7 +1,7 @@
 //! Shared helpers for the integration tests: running the executable ([`cli`]), the harness that shows a skipped test as
 //! ignored with its reason ([`harness`]), naga checks of WGSL ([`wgsl`]), raw bundled
 //! frames and ground truth ([`frames`]), the bundled LiDAR pair and nearest-neighbour
-//! kernel inputs ([`scans`]), and where the data is. `tests/it/main.rs` declares it (`mod common;`);
+//! kernel inputs ([`scans`]), a run's ATE ([`ate_m`]), and where the data is. `tests/it/main.rs` declares it (`mod common;`);
 //! each test module takes it with `use crate::common;` and uses what it needs.
 
 #![allow(dead_code)]
@@ -34,6 +34,15 @@ pub fn shared_icl(data: &Path) -> PathBuf {
 /// The full noisy sequence (frames 0..209) inside the shared data directory.
 pub fn shared_icl_noisy(data: &Path) -> PathBuf {
     data.join("icl_living_room_kt2_noisy")
+}
+
+/// A run's ATE RMSE after alignment, metres (the run must have ground truth).
+pub fn ate_m(r: &wgslam::tools::run::RunResult) -> f64 {
+    r.metrics
+        .accuracy
+        .as_ref()
+        .expect("ground truth")
+        .ate_rmse_aligned_m
 }
 
 /// A fresh empty directory under the system temp dir, `wgslam-test-PID-NAME`, removed

@@ -1,0 +1,304 @@
+//! Frame-to-model tracking: ICP coarse to fine from a start pose against the map's
+//! prediction ([`Icp`]: the backend's `predict` and `icp_system` steps and the host solve),
+//! and the tracking-health test of its result ([`Tracker::attempt`]; `slam::health`).
+//!
+//! The [`Tracker`] holds what tracking carries from frame to frame: the last tracked pose,
+//! the frames since it, and the health test's running values. It does not decide what
+//! happens after a failed attempt (relocalisation: `slam::recovery`; the frame loop:
+//! `slam::pipeline`).
+
+use glam::DMat4;
+
+use crate::layout::{gpu_mat4, IcpParams, ProjectParams};
+use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::health::{HealthMonitor, TrackingHealth};
+use crate::slam::params::SlamParams;
+use crate::slam::report::TrackStatus;
+use crate::slam::solve::{increment_size, update_pose, IcpIteration, NormalEquations};
+use crate::Result;
+
+/// The kernels' parameters one frame's ICP reads, made once per frame from the pipeline's
+/// settings and intrinsics (`slam::step_params`): the coarser pyramid levels', and
+/// `project_model`'s and, per pyramid level, `icp_reduce`'s at some pose. Each use sets its
+/// own pose ([`IcpSteps::project_at`], [`IcpSteps::icp_at`]); nothing else in them depends
+/// on it. `project` holds the map's surfel count before this frame's fusion: tracking's.
+pub struct IcpSteps {
+    pub pyramid: Vec<PyramidLevel>,
+    pub project: ProjectParams,
+    /// One entry per pyramid level, level 0 (the full maps) first.
+    pub icp: Vec<IcpParams>,
+}
+
+impl IcpSteps {
+    /// `project_model`/`predict_model`'s parameters at world-to-camera pose `t`.
+    pub fn project_at(&self, t_world_to_cam: &DMat4) -> ProjectParams {
+        ProjectParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            ..self.project
+        }
+    }
+
+    /// `icp_reduce`'s parameters at pyramid `level` and world-to-camera pose `t`.
+    pub fn icp_at(&self, level: usize, t_world_to_cam: &DMat4) -> IcpParams {
+        IcpParams {
+            t_world_to_cam: gpu_mat4(t_world_to_cam),
+            ..self.icp[level]
+        }
+    }
+}
+
+/// ICP over a backend: the backend, the run's settings and this frame's kernel
+/// parameters, lent by the pipeline for one part of the frame.
+pub struct Icp<'a, B: Backend> {
+    pub backend: &'a mut B,
+    pub params: &'a SlamParams,
+    pub steps: &'a IcpSteps,
+}
+
+/// How ICP at one pyramid level ended ([`Icp::level`]).
+pub enum LevelEnd {
+    /// The increment test passed.
+    Converged,
+    /// The level's budget of iterations ran out.
+    MaxIterations,
+    /// A system was refused (why); the last good pose is kept.
+    Refused(String),
+}
+
+/// One ICP run from a start pose ([`Icp::track`]): where it ended, how, and its iterations.
+pub struct Track {
+    pub t_world_to_cam: DMat4,
+    pub status: TrackStatus,
+    pub iterations: Vec<IcpIteration>,
+}
+
+impl<B: Backend> Icp<'_, B> {
+    /// Frame-to-model ICP from `t_start` (world to camera): predict once (every level) at
+    /// it, then iterate coarse to fine, each level starting from the pose the coarser one
+    /// reached.
+    pub fn track(&mut self, t_start: DMat4) -> Result<Track> {
+        self.backend
+            .predict(&self.steps.project_at(&t_start), &self.steps.pyramid)?;
+        let mut t = t_start;
+        let mut iterations = Vec::new();
+        let mut status = TrackStatus::MaxIterations;
+        let params = self.params;
+        let schedule = &params.icp.level_iters;
+        for (i, &max_iters) in schedule.iter().enumerate() {
+            let level = schedule.len() - 1 - i;
+            status = match self.level(level, max_iters, &mut t, &mut iterations)? {
+                LevelEnd::Converged => TrackStatus::Converged,
+                LevelEnd::MaxIterations => TrackStatus::MaxIterations,
+                // The very first system: nothing to start from.
+                LevelEnd::Refused(why) if iterations.len() == 1 => {
+                    return Ok(Track {
+                        t_world_to_cam: t_start,
+                        status: TrackStatus::Lost(why),
+                        iterations,
+                    })
+                }
+                // A later one: keep the last good pose and go on at the next finer level
+                // (at the finest, stop there).
+                LevelEnd::Refused(why) => TrackStatus::Stopped(why),
+            };
+        }
+        // The finest level's outcome.
+        Ok(Track {
+            t_world_to_cam: t,
+            status,
+            iterations,
+        })
+    }
+
+    /// Up to `max_iters` ICP iterations at pyramid `level` against its prediction, from
+    /// `t` (world to camera), which each solved system updates; each iteration is
+    /// appended to `iterations`. Ends at convergence, at the budget, or at a refused
+    /// system (`t` then keeps the last good pose).
+    pub fn level(
+        &mut self,
+        level: usize,
+        max_iters: usize,
+        t: &mut DMat4,
+        iterations: &mut Vec<IcpIteration>,
+    ) -> Result<LevelEnd> {
+        let guard = self.params.icp.degenerate_eigen_ratio;
+        for _ in 0..max_iters {
+            let sys = self
+                .backend
+                .icp_system(level, &self.steps.icp_at(level, t))?;
+            let eq = NormalEquations::decode(&sys);
+            let solved = eq.solve_guarded(guard);
+            let (eigen_ratio, held_directions) = match &solved {
+                Ok(s) => (Some(s.eigen_ratio), s.held_directions),
+                Err(_) => (None, 0),
+            };
+            iterations.push(IcpIteration {
+                level,
+                inliers: eq.inliers,
+                mean_sq_residual: eq.mean_sq_residual(),
+                eigen_ratio,
+                held_directions,
+            });
+            match solved {
+                Ok(s) => {
+                    *t = update_pose(t, &s.x);
+                    let (r, tr) = increment_size(&s.x);
+                    let min = self.params.icp.min_increment;
+                    if r < min && tr < min {
+                        return Ok(LevelEnd::Converged);
+                    }
+                }
+                Err(e) => return Ok(LevelEnd::Refused(e.to_string())),
+            }
+        }
+        Ok(LevelEnd::MaxIterations)
+    }
+
+    /// Source pixels that pass filter 1 at level 0 at `t` (`icp_candidates`), for the
+    /// health test's inlier fraction; `None` without the test.
+    fn candidates_at(&mut self, t: &DMat4) -> Result<Option<u64>> {
+        match self.params.health {
+            Some(_) => Ok(Some(self.backend.icp_candidates(&self.steps.icp_at(0, t))?)),
+            None => Ok(None),
+        }
+    }
+}
+
+/// Where an attempt starts and which health test judges it.
+#[derive(Debug, Clone, Copy)]
+pub struct Start {
+    /// The start pose, world to camera.
+    pub t_world_to_cam: DMat4,
+    /// Frames since the last tracked one, or `None` not to judge the motion (see
+    /// [`HealthMonitor::measure`]).
+    pub motion_gap: Option<u32>,
+    /// Whether the stricter recovery test ([`HealthMonitor::judge_recovery`]) applies.
+    pub recovery: bool,
+}
+
+impl Start {
+    /// From the last tracked pose, `gap` frames on (1: the next frame). After lost frames
+    /// it is a recovery.
+    pub fn from_last(t_world_to_cam: DMat4, gap: u32) -> Self {
+        Start {
+            t_world_to_cam,
+            motion_gap: Some(gap),
+            recovery: gap != 1,
+        }
+    }
+
+    /// From a keyframe's pose: a recovery, whose motion is not judged.
+    pub fn from_keyframe(t_world_to_cam: DMat4) -> Self {
+        Start {
+            t_world_to_cam,
+            motion_gap: None,
+            recovery: true,
+        }
+    }
+
+    /// From the pose that matching features gave: the tracking test applies, not the
+    /// stricter recovery one, whose residual bound assumes the view overlaps the map as
+    /// much as during tracking; the motion is not judged.
+    pub fn from_features(t_world_to_cam: DMat4) -> Self {
+        Start {
+            t_world_to_cam,
+            motion_gap: None,
+            recovery: false,
+        }
+    }
+}
+
+/// One ICP run from a start pose and what the health test made of it.
+pub struct Attempt {
+    pub t_world_to_cam: DMat4,
+    pub status: TrackStatus,
+    pub iterations: Vec<IcpIteration>,
+    pub health: Option<TrackingHealth>,
+    /// `Err(why)` when ICP refused its first system or the health test failed.
+    pub verdict: std::result::Result<(), String>,
+}
+
+/// What tracking carries from frame to frame.
+#[derive(Debug, Clone, Default)]
+pub struct Tracker {
+    /// Last tracked world-to-camera pose, `None` before the first frame.
+    t_world_to_cam: Option<DMat4>,
+    /// Frames processed since the last tracked one (0 right after a tracked frame).
+    frames_since_tracked: u32,
+    monitor: HealthMonitor,
+}
+
+impl Tracker {
+    /// The last tracked pose (the next frame's ICP starts from it), `None` before the
+    /// first frame.
+    pub fn t_world_to_cam(&self) -> Option<DMat4> {
+        self.t_world_to_cam
+    }
+
+    /// Replaces the last tracked pose (after a loop closure bent the trajectory, or to put
+    /// one tracker into another's state).
+    pub fn set_t_world_to_cam(&mut self, t_world_to_cam: Option<DMat4>) {
+        self.t_world_to_cam = t_world_to_cam;
+    }
+
+    /// Frames processed since the last tracked one (0 right after a tracked frame).
+    pub fn frames_since_tracked(&self) -> u32 {
+        self.frames_since_tracked
+    }
+
+    /// ICP from `start` and the health test of its result.
+    pub fn attempt<B: Backend>(&self, icp: &mut Icp<'_, B>, start: Start) -> Result<Attempt> {
+        let Track {
+            t_world_to_cam: t,
+            status,
+            iterations,
+        } = icp.track(start.t_world_to_cam)?;
+        let candidates = match status {
+            TrackStatus::Lost(_) => None,
+            _ => icp.candidates_at(&t)?,
+        };
+        let params = icp.params;
+        let settings = &params.health;
+        let health = match (settings, candidates) {
+            (Some(s), Some(c)) => {
+                let (t_start, gap) = (&start.t_world_to_cam, start.motion_gap);
+                self.monitor.measure(s, &iterations, c, t_start, &t, gap)
+            }
+            _ => None,
+        };
+        let verdict = match (&status, settings, &health) {
+            (TrackStatus::Lost(why), _, _) => Err(why.clone()),
+            (_, Some(s), Some(h)) if start.recovery => self.monitor.judge_recovery(s, h),
+            (_, Some(s), Some(h)) => self.monitor.judge(s, h),
+            _ => Ok(()),
+        };
+        Ok(Attempt {
+            t_world_to_cam: t,
+            status,
+            iterations,
+            health,
+            verdict,
+        })
+    }
+
+    /// A frame fused at `t_world_to_cam`: the next frame tracks from it. `health` (the
+    /// fused pose's) joins the typical values; its motion only when `motion_counts`
+    /// ([`HealthMonitor::record`]).
+    pub fn tracked(
+        &mut self,
+        t_world_to_cam: DMat4,
+        health: Option<&TrackingHealth>,
+        motion_counts: bool,
+    ) {
+        self.t_world_to_cam = Some(t_world_to_cam);
+        self.frames_since_tracked = 0;
+        if let Some(h) = health {
+            self.monitor.record(h, motion_counts);
+        }
+    }
+
+    /// A frame without a tracked pose (lost, or without depth).
+    pub fn missed(&mut self) {
+        self.frames_since_tracked += 1;
+    }
+}
