@@ -105,10 +105,13 @@ pub struct HealthMonitor {
     motions_deg: VecDeque<f64>,
 }
 
-fn median(values: &VecDeque<f64>) -> f64 {
+/// The upper median of a history, or `None` while it is empty: the motion history stays
+/// empty until two consecutive frames track (depth missing on every other frame, say), even
+/// when the residual history is warm.
+fn median(values: &VecDeque<f64>) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().collect();
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    v.get(v.len() / 2).copied()
 }
 
 fn push(history: &mut VecDeque<f64>, value: f64) {
@@ -141,15 +144,16 @@ impl HealthMonitor {
         let rms = last.mean_sq_residual.max(0.0).sqrt();
         let (motion_m, motion_deg) = pose_change(t_start, t_end);
         let warm = self.warm(settings);
-        let residual_ratio = warm.then(|| rms / median(&self.residuals_m).max(f64::MIN_POSITIVE));
-        let motion_ratio = match motion_gap {
-            Some(gap) if warm => {
+        let residual_ratio = median(&self.residuals_m)
+            .filter(|_| warm)
+            .map(|typical| rms / typical.max(f64::MIN_POSITIVE));
+        let typical_motion = median(&self.motions_m).zip(median(&self.motions_deg));
+        let motion_ratio = match (motion_gap, typical_motion) {
+            (Some(gap), Some((typical_m, typical_deg))) if warm => {
                 let gap = gap.max(1) as f64;
-                let typical_m = median(&self.motions_m) * gap;
-                let typical_deg = median(&self.motions_deg) * gap;
                 Some(
-                    (motion_m / typical_m.max(f64::MIN_POSITIVE))
-                        .max(motion_deg / typical_deg.max(f64::MIN_POSITIVE)),
+                    (motion_m / (typical_m * gap).max(f64::MIN_POSITIVE))
+                        .max(motion_deg / (typical_deg * gap).max(f64::MIN_POSITIVE)),
                 )
             }
             _ => None,
@@ -229,7 +233,9 @@ impl HealthMonitor {
                 settings.recovery_max_residual_ratio
             ));
         }
-        let typical = median(&self.inlier_fractions);
+        let Some(typical) = median(&self.inlier_fractions) else {
+            return Ok(());
+        };
         if h.inlier_fraction < settings.recovery_min_inlier_ratio * typical {
             return Err(format!(
                 "recovery: {:.0} % inliers against a typical {:.0} % (need {:.0} % of it)",
@@ -267,6 +273,30 @@ mod tests {
             eigen_ratio: Some(0.01),
             held_directions: 0,
         }
+    }
+
+    /// No two consecutive frames tracked (depth missing on every other frame): the residual
+    /// history is warm while the motion history is empty. Issue 35 found this panicking
+    /// (`index out of bounds: the len is 0`); the motion test is simply not judged yet.
+    #[test]
+    fn warm_residuals_without_any_motion_history_judge_no_motion() {
+        let s = HealthSettings::default();
+        let mut m = HealthMonitor::default();
+        let still = DMat4::IDENTITY;
+        let step = se3::exp(&[0.0, 0.0, 0.0, 0.01, 0.0, 0.0]);
+        for _ in 0..s.warmup_frames.max(1) {
+            let h = m
+                .measure(&s, &[iteration(900, 0.002)], 1000, &still, &step, Some(2))
+                .unwrap();
+            m.record(&h, false);
+        }
+        let h = m
+            .measure(&s, &[iteration(900, 0.002)], 1000, &still, &step, Some(1))
+            .unwrap();
+        assert!(h.residual_ratio.is_some(), "the residual history is warm");
+        assert_eq!(h.motion_ratio, None, "no motion history to judge against");
+        assert!(m.judge(&s, &h).is_ok());
+        assert!(m.judge_recovery(&s, &h).is_ok());
     }
 
     /// Each test fails on its own: few inliers at once, a residual or a motion well above

@@ -106,7 +106,7 @@ pub const LOOP_COOLDOWN_FRAMES: u32 = 30;
 /// changes the map, so it asks for more).
 pub const LOOP_MIN_SIMILARITY: f64 = 0.5;
 /// Local candidates: keyframes within ICP's basin (about 0.25 m / 12 degrees, see
-/// `slam::pipeline::FEATURE_ICP_AGREEMENT_M`) of the frame's pose as estimated.
+/// `slam::recovery::FEATURE_ICP_AGREEMENT_M`) of the frame's pose as estimated.
 pub const LOOP_LOCAL_RADIUS_M: f64 = 0.25;
 pub const LOOP_LOCAL_ANGLE_DEG: f64 = 12.0;
 pub const LOOP_VERIFY_ITERATIONS: usize = 10;
