@@ -366,17 +366,12 @@ impl GpuBackend {
         }
     }
 
-    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped by
-    /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the rest).
-    pub(super) fn grid_stride_workgroups(&self, kernel: &Kernel, n: usize) -> u32 {
-        kernel.workgroups_for(n).min(self.ctx.grid_workgroups_cap())
-    }
-
     /// Per map chunk, the workgroups of a block-walking kernel (`project_model`,
     /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block, capped by
     /// [`GpuContext::block_workgroups_cap`]) and of a grid-stride kernel over the chunk's
     /// live surfels (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size,
-    /// capped like [`GpuBackend::grid_stride_workgroups`].
+    /// capped by [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop
+    /// covers the rest).
     pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<(u32, u32)> {
         let (block_cap, cap) = (
             self.ctx.block_workgroups_cap(),
@@ -406,7 +401,8 @@ impl GpuBackend {
                 let blocks = ch.live(self.count).div_ceil(block);
                 let todo = (first + blocks).saturating_sub(from_block.max(first));
                 if todo > 0 {
-                    let wg = self.grid_stride_workgroups(&self.kernels.block_bounds, todo);
+                    // One workgroup per stale block (block_bounds.wgsl), capped.
+                    let wg = (todo as u32).min(self.ctx.block_workgroups_cap());
                     out.push((c, wg));
                 }
             }

@@ -156,6 +156,9 @@ pub struct GpuContext {
     lost: Arc<Mutex<Option<String>>>,
     /// Errors raised outside any error scope (wgpu's default handler would panic).
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// Steps recorded but not yet submitted ([`GpuContext::defer`]), `(step, commands)` in
+    /// recording order; the next submission carries them first.
+    deferred: Mutex<Vec<(&'static str, wgpu::CommandBuffer)>>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -264,6 +267,7 @@ impl GpuContext {
             limits,
             features,
             stats: Arc::new(GpuStats::default()),
+            deferred: Mutex::new(Vec::new()),
             lost,
             uncaptured,
         })
@@ -355,14 +359,51 @@ impl GpuContext {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
     }
 
-    /// Submits one encoder's commands and counts the submission.
+    /// Submits one encoder's commands, after every deferred step's in recording order, as
+    /// one submission, and counts it.
     pub fn submit(&self, encoder: wgpu::CommandEncoder) -> wgpu::SubmissionIndex {
+        let mut buffers = self.take_deferred();
+        buffers.push(encoder.finish());
         self.stats.count_submission();
-        self.queue.submit(Some(encoder.finish()))
+        self.queue.submit(buffers)
     }
 
-    /// Blocks until all submitted work is done; device loss or a timeout is [`Error::Gpu`].
+    /// Keeps step `step`'s commands for the next submission instead of submitting them now
+    /// (one round trip less when nothing waits for them). Safe only while no buffer that
+    /// they read or write is written through the queue (`write_buffer`, `write_texture`)
+    /// before that submission: such a write would land before them. The GPU backend
+    /// defers only `preprocess` and `predict`, and [`GpuContext::flush`]es before any other
+    /// step.
+    pub fn defer(&self, step: &'static str, encoder: wgpu::CommandEncoder) {
+        let commands = encoder.finish();
+        let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        d.push((step, commands));
+    }
+
+    /// Whether step `step`'s commands are deferred and not yet submitted.
+    pub fn has_deferred(&self, step: &str) -> bool {
+        let d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        d.iter().any(|(s, _)| *s == step)
+    }
+
+    /// Submits the deferred steps, if any, as one submission.
+    pub fn flush(&self) {
+        let buffers = self.take_deferred();
+        if !buffers.is_empty() {
+            self.stats.count_submission();
+            self.queue.submit(buffers);
+        }
+    }
+
+    fn take_deferred(&self) -> Vec<wgpu::CommandBuffer> {
+        let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        d.drain(..).map(|(_, c)| c).collect()
+    }
+
+    /// Blocks until all submitted work is done (submitting deferred steps first); device
+    /// loss or a timeout is [`Error::Gpu`].
     pub fn wait_idle(&self) -> Result<()> {
+        self.flush();
         super::wait::wait_for_submitted(&self.device, &self.queue)
             .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
         self.check_device()

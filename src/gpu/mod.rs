@@ -36,6 +36,7 @@ pub mod map_buffers;
 mod recording;
 mod resources;
 pub mod shaders;
+mod step_grid;
 mod steps;
 pub mod test_support;
 pub mod timing;
