@@ -372,8 +372,8 @@ impl GpuContext {
     /// (one round trip less when nothing waits for them). Safe only while no buffer that
     /// they read or write is written through the queue (`write_buffer`, `write_texture`)
     /// before that submission: such a write would land before them. The GPU backend
-    /// defers only `preprocess` and `predict`, and [`GpuContext::flush`]es before any other
-    /// step.
+    /// defers only `preprocess` and `predict` (and flushes before any other step) and the
+    /// copies of growing arrays (whose writes flush first).
     pub fn defer(&self, step: &'static str, encoder: wgpu::CommandEncoder) {
         let commands = encoder.finish();
         let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());

@@ -74,6 +74,10 @@ impl Backend for GpuBackend {
         check_pyramid(params.width, params.height, pyramid)?;
         // The uploads below would land before a deferred step (see `GpuContext::defer`).
         self.ctx.flush();
+        if let Some(b) = &mut self.ferns {
+            // Codes recorded ahead by the last fuse are the last frame's.
+            b.ahead = None;
+        }
         self.ensure_frame(params, pyramid)?;
         let ctx = &self.ctx;
         let u = &self.uniforms;
@@ -377,6 +381,8 @@ impl Backend for GpuBackend {
                 record_passes(ctx, profiler, &mut enc, &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            let ferns = &mut self.ferns;
+            super::ferns::record_ahead(ctx, &k.fern_encode, ferns, f, profiler, &mut enc)?;
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
