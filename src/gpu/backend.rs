@@ -2,7 +2,8 @@
 //! WGSL kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`, in the order
 //! of each step's plan (`crate::slam::plan`, shared with the CPU backend): one compute
 //! pass per planned kernel (one per map chunk for the kernels that walk the map), one
-//! submission per step.
+//! command buffer per step: submitted at once by the steps whose results the host reads,
+//! deferred to the next submission by `preprocess` and `predict` (see `super::steps`).
 //!
 //! Per-pixel maps (raw inputs, vertex / filtered-vertex / normal / colour maps, the
 //! prediction, the pyramid's coarser levels) are 2D textures (`GpuImage`, in
@@ -23,7 +24,8 @@
 //! surfel map lives on the GPU for the whole run and grows before a fusion could overflow
 //! it (its last chunk x1.5 by a GPU-side copy, then new chunks). Per frame the host reads
 //! back only the ICP system (per iteration, `icp_reduce`'s per-workgroup partials summed on
-//! the GPU by `icp_reduce_final`: 29 floats, 116 bytes) and the 4-byte surfel counter.
+//! the GPU by `icp_reduce_final`'s fixed tree: 29 floats, 116 bytes), the candidate counts,
+//! the 4-byte surfel counter and the fern codes.
 //! The `compact` step's flags, offsets and second map (`Compaction`) are allocated at its
 //! first call and follow the map as it grows; after it the two map sets swap (and so do
 //! their bind groups).
