@@ -1,45 +1,46 @@
-// prefix_sum.wgsl: exclusive prefix sum of the keep flags (where each kept surfel goes)
-// and their total (the surfel count after compaction). Second of the three
-// stream-compaction kernels. CPU twin: src/cpu/prefix_sum.rs.
+// prefix_sum.wgsl: the last of the three scan kernels (prefix_sum_reduce, prefix_sum_blocks,
+// prefix_sum): the exclusive prefix sum of the keep flags (where each kept item goes), each
+// block scanned on its own and offset by the sum of the blocks before it. The scan of a
+// stream compaction (fusion's new surfels, the map's survivors). CPU twin:
+// src/cpu/prefix_sum.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
-// One workgroup of SCAN_THREADS threads, dispatched as [1, 1]: thread t owns the contiguous
-// chunk [t c, (t + 1) c) with c = ceil(n / SCAN_THREADS); it sums its chunk serially, the
+// One workgroup per block of SCAN_BLOCK flags, dispatched as [ceil(n / SCAN_BLOCK), 1]:
+// thread t owns the SCAN_ITEMS flags [b SCAN_BLOCK + t SCAN_ITEMS, ...); it sums them, the
 // workgroup scans the SCAN_THREADS sums in shared memory (Hillis-Steele), and each thread
-// writes its chunk's offsets from its exclusive start. Integer sums, so the result does not
-// depend on the order of anything. One workgroup reads the flags twice: ~1 ms for 350k
-// surfels on lavapipe, where a workgroup runs on one core anyway; a large map on a real GPU
-// would want a multi-workgroup scan (reduce, scan the block sums, then scan-and-add).
+// writes its flags' offsets from block_sums[b] plus its exclusive start. Integer sums, so
+// the result does not depend on the order of anything.
 
 // Uses surfel_count = n, the number of flags to scan.
 @group(0) @binding(0) var<storage, read> params: CompactParams;
-// 0 or 1 per surfel (compact_flags), n entries.
+// 0 or 1 per item (compact_flags, fuse_flags), n entries.
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
+// Per block, the sum of the flags of the blocks before it (prefix_sum_blocks).
+@group(0) @binding(2) var<storage, read> block_sums: array<u32>;
 // Out: n entries, offsets[i] = flags[0] + ... + flags[i - 1].
-@group(0) @binding(2) var<storage, read_write> offsets: array<u32>;
-// Out: counter[0] = flags[0] + ... + flags[n - 1] (the backend's surfel counter, which
-// fuse_add counts with).
-@group(0) @binding(3) var<storage, read_write> counter: array<u32>;
+@group(0) @binding(3) var<storage, read_write> offsets: array<u32>;
 
-const SCAN_THREADS: u32 = 256u;
+// The block shape of the three scan kernels (see prefix_sum_reduce.wgsl).
+const SCAN_THREADS: u32 = 64u;
+const SCAN_ITEMS: u32 = 32u;
+const SCAN_BLOCK: u32 = 2048u;
 
 var<workgroup> sums: array<u32, SCAN_THREADS>;
 
 @compute @workgroup_size(SCAN_THREADS)
-fn main(@builtin(local_invocation_id) lid: vec3<u32>) {
+fn main(
+    @builtin(local_invocation_index) t: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+) {
     let n = params.surfel_count;
-    let t = lid.x;
-    let chunk = (n + SCAN_THREADS - 1u) / SCAN_THREADS;
-    let begin = min(t * chunk, n);
-    let end = min(begin + chunk, n);
+    let begin = min(wid.x * SCAN_BLOCK + t * SCAN_ITEMS, n);
+    let end = min(begin + SCAN_ITEMS, n);
     var sum = 0u;
     for (var i = begin; i < end; i += 1u) {
         sum += flags[i];
     }
     sums[t] = sum;
     workgroupBarrier();
-    // Inclusive scan of the chunk sums: after the pass with stride s, sums[t] holds the
-    // sum of the 2s chunks ending at t.
     for (var stride = 1u; stride < SCAN_THREADS; stride *= 2u) {
         var add = 0u;
         if t >= stride {
@@ -49,12 +50,12 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>) {
         sums[t] += add;
         workgroupBarrier();
     }
-    var running = sums[t] - sum;
+    if begin >= end {
+        return;
+    }
+    var running = block_sums[wid.x] + sums[t] - sum;
     for (var i = begin; i < end; i += 1u) {
         offsets[i] = running;
         running += flags[i];
-    }
-    if t == SCAN_THREADS - 1u {
-        counter[0] = sums[t];
     }
 }

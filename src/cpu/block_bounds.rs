@@ -4,10 +4,15 @@
 //!
 //! A block is [`BLOCK_SURFELS`] consecutive map slots; its box is entries `2b` (min corner)
 //! and `2b + 1` (max corner) of `block_bounds`, each coordinate [`ordered_from_f32`]
-//! encoded so that `fuse_merge` can grow it with integer atomics.
+//! encoded so that `fuse_merge` can grow it with integer atomics. In the shader's shape:
+//! per block, [`WORKGROUP_SIZE`] strided boxes halved pairwise (min and max are exact, so
+//! the box is the serial one).
 
 use super::{chunk_blocks, xyz};
 use crate::layout::{ordered_from_f32, BoundsParams, MapChunk, BLOCK_SURFELS};
+
+/// Threads per block's workgroup (`WORKGROUP_SIZE` in block_bounds.wgsl), a power of two.
+pub const WORKGROUP_SIZE: u32 = 64;
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/block_bounds.wgsl` for shapes, units and frames.
@@ -21,14 +26,28 @@ pub fn block_bounds(
     let first = chunk.base / BLOCK_SURFELS;
     let start = params.block_from.max(first) - first;
     for b in start..blocks {
-        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
-        let mut lo = xyz(position_weight[(b * BLOCK_SURFELS) as usize]);
-        let mut hi = lo;
-        for i in chunk.base + b * BLOCK_SURFELS + 1..end {
-            let p = xyz(position_weight[(i - chunk.base) as usize]);
-            lo = lo.min(p);
-            hi = hi.max(p);
+        let begin = chunk.base + b * BLOCK_SURFELS;
+        let end = (begin + BLOCK_SURFELS).min(span_end);
+        let start_box = xyz(position_weight[(b * BLOCK_SURFELS) as usize]);
+        let mut lo_box = [start_box; WORKGROUP_SIZE as usize];
+        let mut hi_box = lo_box;
+        for t in 0..WORKGROUP_SIZE {
+            let (lo, hi) = (&mut lo_box[t as usize], &mut hi_box[t as usize]);
+            for i in (begin + t..end).step_by(WORKGROUP_SIZE as usize) {
+                let p = xyz(position_weight[(i - chunk.base) as usize]);
+                *lo = lo.min(p);
+                *hi = hi.max(p);
+            }
         }
+        let mut s = WORKGROUP_SIZE as usize / 2;
+        while s > 0 {
+            for t in 0..s {
+                lo_box[t] = lo_box[t].min(lo_box[t + s]);
+                hi_box[t] = hi_box[t].max(hi_box[t + s]);
+            }
+            s /= 2;
+        }
+        let (lo, hi) = (lo_box[0], hi_box[0]);
         let block = (first + b) as usize;
         let enc = |v: glam::Vec3| {
             [

@@ -40,6 +40,8 @@ pub mod nn_brute;
 pub mod nn_grid;
 pub mod predict_model;
 pub mod prefix_sum;
+pub mod prefix_sum_blocks;
+pub mod prefix_sum_reduce;
 pub mod project_model;
 pub mod pyramid_depth;
 pub mod pyramid_model;

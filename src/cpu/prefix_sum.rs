@@ -1,52 +1,100 @@
-//! CPU twin of `shaders/prefix_sum.wgsl`: exclusive prefix sum of the keep flags and their
-//! total, in the shader's shape (`SCAN_THREADS` chunk sums, a Hillis-Steele scan of the
-//! sums, then each chunk's offsets from its exclusive start). Integer sums: the result is
-//! the plain running sum, whatever the order.
+//! CPU twin of `shaders/prefix_sum.wgsl`, the last of the three scan kernels: the
+//! exclusive prefix sum of the keep flags, each block of [`SCAN_BLOCK`] flags scanned in the
+//! shader's shape ([`SCAN_THREADS`] sums of [`SCAN_ITEMS`] flags, a Hillis-Steele scan of
+//! them, then each thread's offsets from its exclusive start) and offset by the sum of the
+//! blocks before it. [`scan`] runs the three kernels' twins in order, as both backends'
+//! `FuseScan` and `CompactScan` do. Integer sums: the result is the plain running sum,
+//! whatever the order.
 
+use super::prefix_sum_blocks::prefix_sum_blocks;
+use super::prefix_sum_reduce::prefix_sum_reduce;
 use crate::layout::CompactParams;
 
-/// Threads of the shader's one workgroup (`SCAN_THREADS` in prefix_sum.wgsl).
-pub const SCAN_THREADS: u32 = 256;
+/// Threads of each block's workgroup (`SCAN_THREADS` in prefix_sum_reduce.wgsl and
+/// prefix_sum.wgsl).
+pub const SCAN_THREADS: u32 = 64;
+/// Flags per thread (`SCAN_ITEMS`).
+pub const SCAN_ITEMS: u32 = 32;
+/// Flags per block and workgroup (`SCAN_BLOCK`), `SCAN_THREADS * SCAN_ITEMS`.
+pub const SCAN_BLOCK: u32 = SCAN_THREADS * SCAN_ITEMS;
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/prefix_sum.wgsl` for shapes, units and frames.
-///
-/// `counter` is the one element of the shader's `counter` array.
-pub fn prefix_sum(params: &CompactParams, flags: &[u32], offsets: &mut [u32], counter: &mut u32) {
-    let n = params.surfel_count;
-    let chunk = n.div_ceil(SCAN_THREADS);
-    let range = |t: u32| {
-        let begin = (t * chunk).min(n);
-        begin..(begin + chunk).min(n)
-    };
-    // Each thread's chunk sum.
-    let own: Vec<u32> = (0..SCAN_THREADS)
-        .map(|t| range(t).map(|i| flags[i as usize]).sum())
-        .collect();
-    // Inclusive scan of the chunk sums, pass by pass as the workgroup does it.
-    let mut sums = own.clone();
+/// Blocks (workgroups of `prefix_sum_reduce` and `prefix_sum`, entries of `block_sums`)
+/// of a scan over `n` flags.
+pub fn scan_blocks(n: usize) -> usize {
+    n.div_ceil(SCAN_BLOCK as usize)
+}
+
+/// The inclusive Hillis-Steele scan of `own`, pass by pass as a workgroup does it: after
+/// the pass with stride s, entry t holds the sum of the 2s entries ending at t.
+pub(super) fn hillis_steele_inclusive(own: &[u32]) -> Vec<u32> {
+    let mut sums = own.to_vec();
     let mut stride = 1;
-    while stride < SCAN_THREADS {
-        let add: Vec<u32> = (0..SCAN_THREADS)
-            .map(|t| {
-                if t >= stride {
-                    sums[(t - stride) as usize]
-                } else {
-                    0
-                }
-            })
+    while stride < sums.len() {
+        let add: Vec<u32> = (0..sums.len())
+            .map(|t| if t >= stride { sums[t - stride] } else { 0 })
             .collect();
         for (s, a) in sums.iter_mut().zip(add) {
             *s += a;
         }
         stride *= 2;
     }
-    for t in 0..SCAN_THREADS {
-        let mut running = sums[t as usize] - own[t as usize];
-        for i in range(t) {
-            offsets[i as usize] = running;
-            running += flags[i as usize];
+    sums
+}
+
+/// Arguments: the shader's bindings in `@binding` order, named as there; see the
+/// declarations in `shaders/prefix_sum.wgsl` for shapes, units and frames.
+pub fn prefix_sum(params: &CompactParams, flags: &[u32], block_sums: &[u32], offsets: &mut [u32]) {
+    let n = params.surfel_count;
+    for wid in 0..n.div_ceil(SCAN_BLOCK) {
+        let range = |t: u32| {
+            let begin = (wid * SCAN_BLOCK + t * SCAN_ITEMS).min(n);
+            begin..(begin + SCAN_ITEMS).min(n)
+        };
+        let own: Vec<u32> = (0..SCAN_THREADS)
+            .map(|t| range(t).map(|i| flags[i as usize]).sum())
+            .collect();
+        let sums = hillis_steele_inclusive(&own);
+        for t in 0..SCAN_THREADS {
+            let mut running = block_sums[wid as usize] + sums[t as usize] - own[t as usize];
+            for i in range(t) {
+                offsets[i as usize] = running;
+                running += flags[i as usize];
+            }
         }
     }
-    *counter = sums[(SCAN_THREADS - 1) as usize];
+}
+
+/// The whole scan of `params.surfel_count` flags, the three kernels' twins in order:
+/// `offsets[i] = flags[0] + ... + flags[i - 1]` and `counter` their total.
+pub fn scan(params: &CompactParams, flags: &[u32], offsets: &mut [u32], counter: &mut u32) {
+    let blocks = scan_blocks(params.surfel_count as usize);
+    let mut block_sums = vec![0u32; blocks];
+    prefix_sum_reduce(params, flags, &mut block_sums);
+    prefix_sum_blocks(params, &mut block_sums, counter);
+    prefix_sum(params, flags, &block_sums, offsets);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::scan_params;
+
+    /// Around the block and chunk edges (none, fewer than a thread's, one block, one more,
+    /// many blocks), the three twins give the running sum and the total.
+    #[test]
+    fn scan_is_the_running_sum() {
+        let b = SCAN_BLOCK as usize;
+        for n in [0, 1, 31, 33, b - 1, b, b + 1, 3 * b + 17, 300 * b + 5] {
+            let flags: Vec<u32> = (0..n).map(|i| ((i * 7 + i / 5) % 3 == 0) as u32).collect();
+            let mut offsets = vec![u32::MAX; n];
+            let mut counter = u32::MAX;
+            scan(&scan_params(n), &flags, &mut offsets, &mut counter);
+            let mut running = 0;
+            for i in 0..n {
+                assert_eq!(offsets[i], running, "n = {n}, flag {i}");
+                running += flags[i];
+            }
+            assert_eq!(counter, running, "n = {n}: total");
+        }
+    }
 }

@@ -2,7 +2,8 @@
 //! WGSL kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`, in the order
 //! of each step's plan (`crate::slam::plan`, shared with the CPU backend): one compute
 //! pass per planned kernel (one per map chunk for the kernels that walk the map), one
-//! submission per step.
+//! command buffer per step: submitted at once by the steps whose results the host reads,
+//! deferred to the next submission by `preprocess` and `predict` (see `super::steps`).
 //!
 //! Per-pixel maps (raw inputs, vertex / filtered-vertex / normal / colour maps, the
 //! prediction, the pyramid's coarser levels) are 2D textures (`GpuImage`, in
@@ -23,7 +24,8 @@
 //! surfel map lives on the GPU for the whole run and grows before a fusion could overflow
 //! it (its last chunk x1.5 by a GPU-side copy, then new chunks). Per frame the host reads
 //! back only the ICP system (per iteration, `icp_reduce`'s per-workgroup partials summed on
-//! the GPU by `icp_reduce_final`: 29 floats, 116 bytes) and the 4-byte surfel counter.
+//! the GPU by `icp_reduce_final`'s fixed tree: 29 floats, 116 bytes), the candidate counts,
+//! the 4-byte surfel counter and the fern codes.
 //! The `compact` step's flags, offsets and second map (`Compaction`) are allocated at its
 //! first call and follow the map as it grows; after it the two map sets swap (and so do
 //! their bind groups).
@@ -366,17 +368,12 @@ impl GpuBackend {
         }
     }
 
-    /// Workgroups for a grid-stride loop over `n` items: one thread each, capped by
-    /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the rest).
-    pub(super) fn grid_stride_workgroups(&self, kernel: &Kernel, n: usize) -> u32 {
-        kernel.workgroups_for(n).min(self.ctx.grid_workgroups_cap())
-    }
-
     /// Per map chunk, the workgroups of a block-walking kernel (`project_model`,
     /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block, capped by
     /// [`GpuContext::block_workgroups_cap`]) and of a grid-stride kernel over the chunk's
     /// live surfels (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size,
-    /// capped like [`GpuBackend::grid_stride_workgroups`].
+    /// capped by [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop
+    /// covers the rest).
     pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<(u32, u32)> {
         let (block_cap, cap) = (
             self.ctx.block_workgroups_cap(),
@@ -406,7 +403,8 @@ impl GpuBackend {
                 let blocks = ch.live(self.count).div_ceil(block);
                 let todo = (first + blocks).saturating_sub(from_block.max(first));
                 if todo > 0 {
-                    let wg = self.grid_stride_workgroups(&self.kernels.block_bounds, todo);
+                    // One workgroup per stale block (block_bounds.wgsl), capped.
+                    let wg = (todo as u32).min(self.ctx.block_workgroups_cap());
                     out.push((c, wg));
                 }
             }

@@ -13,6 +13,7 @@ use super::images::GpuImage;
 use super::kernel::Kernel;
 use super::kernels::Kernels;
 use super::map_buffers::{Chunk, MapBuffers};
+use super::recording::Pass;
 use super::resources::{FrameBuffers, Uniforms};
 
 /// The bind groups of the per-frame steps for one map set.
@@ -33,8 +34,8 @@ pub(super) struct BindGroups {
     pub fuse_merge_chosen: Vec<wgpu::BindGroup>,
     pub fuse_prune: Vec<wgpu::BindGroup>,
     pub fuse_flags: wgpu::BindGroup,
-    /// `prefix_sum` over the new-surfel flags (in append order, `append_slots` entries).
-    pub fuse_scan: wgpu::BindGroup,
+    /// The scan over the new-surfel flags (in append order, `append_slots` entries).
+    pub fuse_scan: ScanGroups,
     pub fuse_add: Vec<wgpu::BindGroup>,
     /// Per coarser pyramid level (1, 2, ...).
     pub levels: Vec<LevelBindGroups>,
@@ -162,10 +163,16 @@ impl BindGroups {
             fuse_merge_chosen: per_chunk(&k.fuse_merge_chosen, u.fuse.binding()),
             fuse_prune: per_chunk(&k.fuse_prune, u.fuse.binding()),
             fuse_flags: over_frame(&k.fuse_flags, u.fuse.binding(), Vec::new()),
-            fuse_scan: over_frame(
-                &k.prefix_sum,
-                u.fuse_scan.binding(),
-                vec![("counter", r.counter.binding())],
+            fuse_scan: ScanGroups::new(
+                ctx,
+                k,
+                [
+                    ("params", u.fuse_scan.binding()),
+                    ("flags", f.add_flags.binding()),
+                    ("block_sums", f.add_block_sums.binding()),
+                    ("offsets", f.add_offsets.binding()),
+                    ("counter", r.counter.binding()),
+                ],
             ),
             fuse_add: per_chunk(k.fuse_add.first(), u.fuse.binding()),
             levels: (0..f.levels.len())
@@ -260,7 +267,7 @@ pub(super) const SCATTER_ATTRIBUTES: usize = 3;
 /// input chunk and output chunk no later than it, and per surfel array) for one map set.
 pub(super) struct CompactionGroups {
     pub flags: Vec<wgpu::BindGroup>,
-    pub scan: wgpu::BindGroup,
+    pub scan: ScanGroups,
     /// Input chunk s, output chunk d <= s (offsets[i] <= i), surfel array a (position_weight,
     /// normal_frame, color) at [`SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
     pub scatter: Vec<wgpu::BindGroup>,
@@ -293,11 +300,13 @@ impl CompactionGroups {
                     )
                 })
                 .collect(),
-            scan: k.prefix_sum.bind_group(
+            scan: ScanGroups::new(
                 ctx,
-                &[
+                k,
+                [
                     ("params", u.compact.binding()),
                     ("flags", c.flags.binding()),
+                    ("block_sums", c.block_sums.binding()),
                     ("offsets", c.offsets.binding()),
                     ("counter", counter.binding()),
                 ],
@@ -331,5 +340,40 @@ impl CompactionGroups {
                 })
                 .collect(),
         }
+    }
+}
+
+/// The bind groups of one scan's three kernels (prefix_sum_reduce, prefix_sum_blocks,
+/// prefix_sum) over one set of flags.
+pub(super) struct ScanGroups {
+    pub reduce: wgpu::BindGroup,
+    pub blocks: wgpu::BindGroup,
+    pub scan: wgpu::BindGroup,
+}
+
+impl ScanGroups {
+    /// The three bind groups over `pool`: the scan's `params`, `flags`, `block_sums`,
+    /// `offsets` and `counter`, each kernel taking what it declares.
+    fn new(
+        ctx: &GpuContext,
+        k: &Kernels,
+        pool: [(&'static str, wgpu::BindingResource); 5],
+    ) -> Self {
+        ScanGroups {
+            reduce: k.prefix_sum_reduce.bind_group_from(ctx, &pool),
+            blocks: k.prefix_sum_blocks.bind_group_from(ctx, &pool),
+            scan: k.prefix_sum.bind_group_from(ctx, &pool),
+        }
+    }
+
+    /// The scan's three dispatches over `n` flags: one workgroup per block, the one
+    /// workgroup over the block sums, one workgroup per block.
+    pub fn passes<'a>(&'a self, k: &'a Kernels, n: usize) -> Vec<Pass<'a>> {
+        let blocks = crate::cpu::prefix_sum::scan_blocks(n) as u32;
+        vec![
+            (&k.prefix_sum_reduce, &self.reduce, [blocks, 1]),
+            (&k.prefix_sum_blocks, &self.blocks, [1, 1]),
+            (&k.prefix_sum, &self.scan, [blocks, 1]),
+        ]
     }
 }

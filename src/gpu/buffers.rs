@@ -15,6 +15,9 @@ use super::context::GpuContext;
 use super::stats::GpuStats;
 use crate::{Error, Result};
 
+/// The deferred step of [`GpuArray::grow`]'s copy.
+const GROW_COPY: &str = "grow copy";
+
 /// wgpu copies and `write_buffer` need sizes in multiples of this many bytes.
 const COPY_ALIGN: u64 = wgpu::COPY_BUFFER_ALIGNMENT;
 
@@ -162,6 +165,10 @@ impl<T: Pod> GpuArray<T> {
         if bytes.is_empty() {
             return Ok(());
         }
+        if ctx.has_deferred(GROW_COPY) {
+            // This write would land before a deferred grow copy into the buffer.
+            ctx.flush();
+        }
         let byte_offset = (offset * std::mem::size_of::<T>()) as u64;
         assert!(
             byte_offset % COPY_ALIGN == 0,
@@ -227,7 +234,9 @@ impl<T: Pod> GpuArray<T> {
     }
 
     /// Grows to at least `new_capacity` elements keeping the first `len` elements: a new
-    /// buffer and a GPU-side copy (one submission). No-op when already large enough.
+    /// buffer and a GPU-side copy, deferred to the next submission (see
+    /// [`GpuContext::defer`]; a write through [`GpuArray::write_at`] submits it first). No-op
+    /// when already large enough.
     pub fn grow(&mut self, ctx: &GpuContext, new_capacity: usize) -> Result<()> {
         if new_capacity <= self.capacity {
             return Ok(());
@@ -236,9 +245,9 @@ impl<T: Pod> GpuArray<T> {
         let keep =
             padded_bytes(self.len as u64 * std::mem::size_of::<T>() as u64).min(self.buffer.size());
         if self.len > 0 {
-            let mut enc = ctx.encoder("grow copy");
+            let mut enc = ctx.encoder(GROW_COPY);
             enc.copy_buffer_to_buffer(&self.buffer, 0, &bigger.buffer, 0, keep);
-            ctx.submit(enc);
+            ctx.defer(GROW_COPY, enc);
         }
         bigger.len = self.len;
         *self = bigger;

@@ -7,6 +7,12 @@ use super::recording::{record_passes, submit_profiled};
 use crate::layout::IcpParams;
 use crate::Result;
 
+/// Most `icp_candidates` workgroups (a grid-stride loop: fewer only means more pixels per
+/// thread): 256 x 64 threads still cover a 640x480 frame in 19 pixels each, and the
+/// counts read back stay at 1 KB (a GPU's 1024 reduction workgroups would read back 4 KB
+/// a frame, half of the 8 KB budget of a frame that is not a keyframe).
+const CANDIDATE_WORKGROUPS_MAX: u32 = 256;
+
 /// `icp_candidates`' per-workgroup counts and their read-back.
 pub(super) struct CandidateBuffers {
     counts: GpuArray<u32>,
@@ -17,7 +23,7 @@ impl GpuBackend {
     /// `icp_candidates` at level 0; see `Backend::icp_candidates`.
     pub(super) fn icp_candidates_on_gpu(&mut self, params: &IcpParams) -> Result<u64> {
         let ctx = &self.ctx;
-        let wg = self.reduction_workgroups;
+        let wg = self.reduction_workgroups.min(CANDIDATE_WORKGROUPS_MAX);
         if self.candidates.is_none() {
             let mut counts = GpuArray::new(ctx, "icp candidate counts", wg as usize)?;
             counts.set_len(wg as usize);

@@ -12,6 +12,8 @@ use crate::Result;
 pub(super) struct Compaction {
     pub flags: GpuArray<u32>,
     pub offsets: GpuArray<u32>,
+    /// The scan's per-block sums over `flags` (see prefix_sum_reduce.wgsl).
+    pub block_sums: GpuArray<u32>,
     pub spare: MapBuffers,
     /// The three passes' bind groups for the live map (`groups`) and for the spare one
     /// (`spare_groups`), made once each and swapped with the maps.
@@ -28,11 +30,13 @@ impl Compaction {
             flags.set_len(cap);
             let mut offsets = GpuArray::new(ctx, "compact offsets", cap)?;
             offsets.set_len(cap);
+            let block_sums = block_sums_for(ctx, cap)?;
             let mut spare = MapBuffers::new(ctx, 1, map.chunk_surfels())?;
             spare.match_layout(ctx, map)?;
             Ok(Compaction {
                 flags,
                 offsets,
+                block_sums,
                 spare,
                 groups: None,
                 spare_groups: None,
@@ -52,6 +56,7 @@ impl Compaction {
         if self.flags.capacity() < cap {
             self.flags = GpuArray::new(ctx, "compact flags", cap)?;
             self.offsets = GpuArray::new(ctx, "compact offsets", cap)?;
+            self.block_sums = block_sums_for(ctx, cap)?;
         }
         self.flags.set_len(cap);
         self.offsets.set_len(cap);
@@ -59,4 +64,12 @@ impl Compaction {
         self.spare_groups = None;
         Ok(true)
     }
+}
+
+/// The scan's block sums for `cap` flags, every entry in use.
+fn block_sums_for(ctx: &GpuContext, cap: usize) -> Result<GpuArray<u32>> {
+    let blocks = crate::cpu::prefix_sum::scan_blocks(cap).max(1);
+    let mut block_sums = GpuArray::new(ctx, "compact block sums", blocks)?;
+    block_sums.set_len(blocks);
+    Ok(block_sums)
 }

@@ -167,6 +167,9 @@ pub struct GpuContext {
     /// Objects built once per device, by key ([`GpuContext::cached`]: the kernels); one map
     /// for every context sharing the device.
     cache: Arc<Mutex<DeviceCache>>,
+    /// Steps recorded but not yet submitted ([`GpuContext::defer`]), `(step, commands)` in
+    /// recording order; the next submission carries them first.
+    deferred: Mutex<Vec<(&'static str, wgpu::CommandBuffer)>>,
 }
 
 /// Objects built once per device by key (a kernel's name, or its name and its passes),
@@ -279,6 +282,7 @@ impl GpuContext {
             limits,
             features,
             stats: Arc::new(GpuStats::default()),
+            deferred: Mutex::new(Vec::new()),
             lost,
             uncaptured,
             last_submission: Mutex::new(None),
@@ -304,6 +308,7 @@ impl GpuContext {
             uncaptured: Arc::clone(&self.uncaptured),
             last_submission: Mutex::new(None),
             cache: Arc::clone(&self.cache),
+            deferred: Mutex::new(Vec::new()),
         }
     }
 
@@ -415,21 +420,64 @@ impl GpuContext {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
     }
 
-    /// Submits one encoder's commands and counts the submission.
+    /// Submits one encoder's commands, after every deferred step's in recording order, as
+    /// one submission, and counts it.
     pub fn submit(&self, encoder: wgpu::CommandEncoder) -> wgpu::SubmissionIndex {
+        let mut buffers = self.take_deferred();
+        buffers.push(encoder.finish());
         self.stats.count_submission();
-        let index = self.queue.submit(Some(encoder.finish()));
+        let index = self.queue.submit(buffers);
+        self.note_submission(&index);
+        index
+    }
+
+    /// Remembers this context's latest submission, which [`GpuContext::wait_idle`] waits for.
+    fn note_submission(&self, index: &wgpu::SubmissionIndex) {
         *self
             .last_submission
             .lock()
             .unwrap_or_else(|p| p.into_inner()) = Some(index.clone());
-        index
     }
 
-    /// Blocks until the work this context submitted is done (natively, only its own latest
-    /// submission: work other contexts on the shared queue submitted later is not waited
-    /// for); device loss or a timeout is [`Error::Gpu`].
+    /// Keeps step `step`'s commands for the next submission instead of submitting them now
+    /// (one round trip less when nothing waits for them). Safe only while no buffer that
+    /// they read or write is written through the queue (`write_buffer`, `write_texture`)
+    /// before that submission: such a write would land before them. The GPU backend
+    /// defers only `preprocess` and `predict` (and flushes before any other step) and the
+    /// copies of growing arrays (whose writes flush first).
+    pub fn defer(&self, step: &'static str, encoder: wgpu::CommandEncoder) {
+        let commands = encoder.finish();
+        let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        d.push((step, commands));
+    }
+
+    /// Whether step `step`'s commands are deferred and not yet submitted.
+    pub fn has_deferred(&self, step: &str) -> bool {
+        let d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        d.iter().any(|(s, _)| *s == step)
+    }
+
+    /// Submits the deferred steps, if any, as one submission.
+    pub fn flush(&self) {
+        let buffers = self.take_deferred();
+        if !buffers.is_empty() {
+            self.stats.count_submission();
+            let index = self.queue.submit(buffers);
+            self.note_submission(&index);
+        }
+    }
+
+    fn take_deferred(&self) -> Vec<wgpu::CommandBuffer> {
+        let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
+        d.drain(..).map(|(_, c)| c).collect()
+    }
+
+    /// Blocks until the work this context submitted is done, deferred steps submitted
+    /// first (natively, only its own latest submission: work other contexts on the shared
+    /// queue submitted later is not waited for); device loss or a timeout is
+    /// [`Error::Gpu`].
     pub fn wait_idle(&self) -> Result<()> {
+        self.flush();
         #[cfg(not(target_arch = "wasm32"))]
         {
             let last = self

@@ -31,6 +31,8 @@ impl Inspect for GpuBackend {
     /// the count; the spare map set is untouched (compaction overwrites it).
     fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
         map.assert_consistent();
+        // The writes below would land before a deferred step (see `GpuContext::defer`).
+        self.ctx.flush();
         let n = map.len();
         self.ensure_capacity(n)?;
         let (ctx, m) = (&self.ctx, &mut self.map);

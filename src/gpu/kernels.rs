@@ -31,6 +31,9 @@ pub(super) struct Kernels {
     pub fuse_flags: Kernel,
     pub fuse_add: KeyKernel,
     pub compact_flags: Kernel,
+    /// The scan's three kernels: block sums, their scan, each block's scan.
+    pub prefix_sum_reduce: Kernel,
+    pub prefix_sum_blocks: Kernel,
     pub prefix_sum: Kernel,
     pub compact_scatter: Kernel,
 }
@@ -61,6 +64,8 @@ impl Kernels {
             fuse_flags: k("fuse_flags")?,
             fuse_add: KeyKernel::new(ctx, "fuse_add")?,
             compact_flags: k("compact_flags")?,
+            prefix_sum_reduce: k("prefix_sum_reduce")?,
+            prefix_sum_blocks: k("prefix_sum_blocks")?,
             prefix_sum: k("prefix_sum")?,
             compact_scatter: k("compact_scatter")?,
         })

@@ -37,6 +37,7 @@ mod recording;
 mod resources;
 pub mod shaders;
 pub mod stats;
+mod step_grid;
 mod steps;
 pub mod test_support;
 pub mod timing;

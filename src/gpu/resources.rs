@@ -80,6 +80,8 @@ pub(super) struct FrameBuffers {
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     pub add_flags: GpuArray<u32>,
     pub add_offsets: GpuArray<u32>,
+    /// The scan's per-block sums over `add_flags` (see prefix_sum_reduce.wgsl).
+    pub add_block_sums: GpuArray<u32>,
     /// The ICP pyramid's coarser levels 1, 2, ... (none with a one-level schedule).
     pub levels: Vec<LevelBuffers>,
 }
@@ -131,6 +133,9 @@ impl FrameBuffers {
         add_flags.set_len(n_append);
         let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n_append)?;
         add_offsets.set_len(n_append);
+        let n_blocks = crate::cpu::prefix_sum::scan_blocks(n_append);
+        let mut add_block_sums = GpuArray::new(ctx, "new-surfel block sums", n_blocks)?;
+        add_block_sums.set_len(n_blocks);
         let levels = pyramid
             .iter()
             .map(|l| {
@@ -169,6 +174,7 @@ impl FrameBuffers {
             merged,
             add_flags,
             add_offsets,
+            add_block_sums,
             levels,
         })
     }

@@ -152,6 +152,15 @@ pub const KERNELS: &[(&str, &str)] = &[
         "compact_flags",
         include_str!("../../shaders/compact_flags.wgsl"),
     ),
+    // The compaction scan: prefix_sum_reduce, prefix_sum_blocks, then prefix_sum.
+    (
+        "prefix_sum_reduce",
+        include_str!("../../shaders/prefix_sum_reduce.wgsl"),
+    ),
+    (
+        "prefix_sum_blocks",
+        include_str!("../../shaders/prefix_sum_blocks.wgsl"),
+    ),
     ("prefix_sum", include_str!("../../shaders/prefix_sum.wgsl")),
     // Loop closure's map deformation (src/gpu/loops.rs), built at the first closure.
     (

@@ -1,21 +1,21 @@
 //! The GPU backend's steps ([`Backend`] for [`GpuBackend`]): each step writes its
 //! parameters, then records one compute pass per kernel of its plan
 //! ([`crate::slam::plan`]; once per map chunk for the kernels that walk the map) in one
-//! submission, and reads back at most the ICP system or the surfel counter.
-
-use std::collections::BTreeMap;
+//! command buffer, and reads back at most the ICP system or the surfel counter.
+//! `preprocess` and `predict` read nothing back: their commands are deferred and go with
+//! the first ICP iteration's submission (see `GpuContext::defer`), so a tracked frame
+//! costs one submit-and-wait per ICP iteration, then `icp_candidates`, `fuse` and
+//! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
-use super::bind_groups::{BindGroups, CompactionGroups, SCATTER_ATTRIBUTES};
+use super::bind_groups::{CompactionGroups, SCATTER_ATTRIBUTES};
 use super::context::GpuContext;
-use super::kernel::{Kernel, KeyKernel};
-use super::kernels::Kernels;
 use super::recording::{record_passes, submit_profiled, Pass};
+use super::step_grid::{check_pyramid, image_grids, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ASSOCIATION_BEST_CANDIDATE,
-    ICP_SYSTEM_LEN,
+    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
@@ -36,88 +36,6 @@ macro_rules! encoding_parts {
             &mut $backend.profiler,
         )
     }};
-}
-
-/// The workgroups of one step's passes, worked out before its bind groups are lent out.
-#[derive(Default)]
-struct StepGrid {
-    /// The stale block boxes' `block_bounds` passes, `(chunk, workgroups)`.
-    bounds: Vec<(usize, u32)>,
-    /// Per map chunk, block-walking and grid-stride workgroups (see `chunk_workgroups`).
-    chunks: Vec<(u32, u32)>,
-    /// Per-pixel kernels at the frame's size, by kernel name.
-    image: BTreeMap<&'static str, [u32; 2]>,
-    /// Per coarser pyramid level, the grids of the level's kernels, by kernel name.
-    levels: Vec<BTreeMap<&'static str, [u32; 2]>>,
-}
-
-impl StepGrid {
-    fn image(&self, kernel: &str) -> [u32; 2] {
-        self.image[kernel]
-    }
-    fn level(&self, level: usize, kernel: &str) -> [u32; 2] {
-        self.levels[level - 1][kernel]
-    }
-    /// One pass of `kernel` per map chunk with the chunk's block-walking workgroups.
-    fn per_block<'a>(&self, kernel: &'a Kernel, groups: &'a [wgpu::BindGroup]) -> Vec<Pass<'a>> {
-        groups
-            .iter()
-            .zip(&self.chunks)
-            .map(|(g, &(blocks, _))| (kernel, g, [blocks, 1]))
-            .collect()
-    }
-    /// [`StepGrid::per_block`] for each pass of a key kernel in turn: every chunk of a
-    /// pass before the next pass (the portable kernels' second pass reads the first's
-    /// result over the whole map).
-    fn per_block_keys<'a>(
-        &self,
-        kernel: &'a KeyKernel,
-        groups: &'a [wgpu::BindGroup],
-    ) -> Vec<Pass<'a>> {
-        kernel
-            .passes
-            .iter()
-            .flat_map(|pass| self.per_block(pass, groups))
-            .collect()
-    }
-    /// The `block_bounds` passes over the stale boxes.
-    fn bounds<'a>(&self, k: &'a Kernels, bg: &'a BindGroups) -> Vec<Pass<'a>> {
-        self.bounds
-            .iter()
-            .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
-            .collect()
-    }
-}
-
-/// [`Error::Argument`] unless each pyramid level halves the one before (rounded up), the
-/// first level 0's `width` x `height`: the kernels read finer pixel `(2u, 2v)` for coarse
-/// pixel `(u, v)` without a bounds check of their own.
-fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -> Result<()> {
-    let mut fine = (width, height);
-    for (l, p) in pyramid.iter().enumerate() {
-        let d = &p.down;
-        let coarse = (fine.0.div_ceil(2), fine.1.div_ceil(2));
-        if (d.fine_width, d.fine_height) != fine
-            || (d.width, d.height) != coarse
-            || (p.normal.width, p.normal.height) != coarse
-        {
-            return Err(Error::Argument(format!(
-                "pyramid level {}: a {}x{} level (normals {}x{}) made from {}x{} does not halve \
-                 the {}x{} level before it",
-                l + 1,
-                d.width,
-                d.height,
-                p.normal.width,
-                p.normal.height,
-                d.fine_width,
-                d.fine_height,
-                fine.0,
-                fine.1
-            )));
-        }
-        fine = coarse;
-    }
-    Ok(())
 }
 
 impl Backend for GpuBackend {
@@ -154,6 +72,12 @@ impl Backend for GpuBackend {
             )));
         }
         check_pyramid(params.width, params.height, pyramid)?;
+        // The uploads below would land before a deferred step (see `GpuContext::defer`).
+        self.ctx.flush();
+        if let Some(b) = &mut self.ferns {
+            // Codes recorded ahead by the last fuse are the last frame's.
+            b.ahead = None;
+        }
         self.ensure_frame(params, pyramid)?;
         let ctx = &self.ctx;
         let u = &self.uniforms;
@@ -235,11 +159,15 @@ impl Backend for GpuBackend {
                 };
                 record_passes(ctx, profiler, &mut enc, &[pass])?;
             }
-            submit_profiled(ctx, profiler, enc)
+            defer_profiled(ctx, profiler, "preprocess", enc)
         })
     }
 
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
+        if self.ctx.has_deferred("predict") {
+            // Its uniforms are about to be written again (see `GpuContext::defer`).
+            self.ctx.flush();
+        }
         let mut params = *params;
         params.surfel_count = self.count as u32;
         let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
@@ -308,7 +236,7 @@ impl Backend for GpuBackend {
                 };
                 record_passes(ctx, profiler, &mut enc, &passes)?;
             }
-            submit_profiled(ctx, profiler, enc)
+            defer_profiled(ctx, profiler, "predict", enc)
         })
     }
 
@@ -336,7 +264,7 @@ impl Backend for GpuBackend {
                 &mut enc,
                 &[
                     (&k.icp_reduce, group, [wg, 1]),
-                    (&k.icp_reduce_final, final_group, [1, 1]),
+                    (&k.icp_reduce_final, final_group, [ICP_SYSTEM_LEN as u32, 1]),
                 ],
             )?;
             self.system_readback
@@ -352,14 +280,17 @@ impl Backend for GpuBackend {
     }
 
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
+        self.ctx.flush();
         self.encode_ferns_on_gpu(params, ferns)
     }
 
     fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        self.ctx.flush();
         self.icp_candidates_on_gpu(params)
     }
 
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
+        self.ctx.flush();
         self.detect_keypoints_on_gpu(params)
     }
 
@@ -369,10 +300,12 @@ impl Backend for GpuBackend {
         keypoints: &[Keypoint],
         pattern: &[[i32; 4]],
     ) -> Result<Described> {
+        self.ctx.flush();
         self.describe_keypoints_on_gpu(params, keypoints, pattern)
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+        self.ctx.flush();
         let n = self.frame().pixels();
         self.fused_view = None;
         self.ensure_capacity(self.count + n)?;
@@ -431,7 +364,7 @@ impl Backend for GpuBackend {
                     Call::FuseFlags => {
                         vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
                     }
-                    Call::FuseScan => vec![(&k.prefix_sum, &bg.fuse_scan, [1, 1])],
+                    Call::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
                     // Each pass over every chunk (one pass, or the portable kernel's two;
                     // its second only sets index words, which projective association
                     // leaves alone, so it runs with best-candidate association only).
@@ -448,6 +381,8 @@ impl Backend for GpuBackend {
                 record_passes(ctx, profiler, &mut enc, &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
+            let ferns = &mut self.ferns;
+            super::ferns::record_ahead(ctx, &k.fern_encode, ferns, f, profiler, &mut enc)?;
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
@@ -467,6 +402,7 @@ impl Backend for GpuBackend {
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
+        self.ctx.flush();
         let n = self.count;
         if n == 0 {
             return Ok(0);
@@ -502,7 +438,7 @@ impl Backend for GpuBackend {
                         .zip(&flags_wg)
                         .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
                         .collect(),
-                    Call::CompactScan => vec![(&k.prefix_sum, &g.scan, [1, 1])],
+                    Call::CompactScan => g.scan.passes(k, n),
                     Call::CompactScatter => scatter_wg
                         .iter()
                         .enumerate()
@@ -542,10 +478,12 @@ impl Backend for GpuBackend {
     }
 
     fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        self.ctx.flush();
         self.deform_on_gpu(nodes)
     }
 
     fn frame_level(&mut self, level: usize) -> Result<Prediction> {
+        self.ctx.flush();
         self.frame_level_on_gpu(level)
     }
 
@@ -555,6 +493,7 @@ impl Backend for GpuBackend {
         vertex: &[[f32; 4]],
         normal: &[[f32; 4]],
     ) -> Result<()> {
+        self.ctx.flush();
         self.set_prediction_on_gpu(level, vertex, normal)
     }
 
@@ -567,40 +506,20 @@ impl Backend for GpuBackend {
     }
 }
 
-/// The image grids of per-pixel `kernels` over a `width x height` map, by kernel name.
-fn image_grids(
+/// Submits `enc` when profiling (the timestamps are read per submission), else defers it to
+/// the next submission (see `GpuContext::defer`): a step whose results the host does not
+/// wait for costs no round trip of its own.
+fn defer_profiled(
     ctx: &GpuContext,
-    kernels: &[&Kernel],
-    width: u32,
-    height: u32,
-) -> BTreeMap<&'static str, [u32; 2]> {
-    kernels
-        .iter()
-        .map(|k| {
-            (
-                kernel_name(k),
-                k.grid_workgroups_for_image(ctx, width, height),
-            )
-        })
-        .collect()
-}
-
-/// How many of `fuse_add`'s passes a fuse step runs: all with best-candidate association;
-/// without it only the first (the portable kernel's second pass only sets the index words
-/// of the index map, which projective association does not build).
-fn key_passes_of_fuse_add(params: &FuseParams, fuse_add: &KeyKernel) -> usize {
-    if params.association == ASSOCIATION_BEST_CANDIDATE {
-        fuse_add.passes.len()
-    } else {
-        1
+    profiler: &mut Option<super::recording::Profiler>,
+    step: &'static str,
+    enc: wgpu::CommandEncoder,
+) -> Result<()> {
+    match profiler {
+        Some(_) => submit_profiled(ctx, profiler, enc),
+        None => {
+            ctx.defer(step, enc);
+            Ok(())
+        }
     }
-}
-
-/// A kernel's name as the `'static` key of a [`StepGrid`] map.
-fn kernel_name(kernel: &Kernel) -> &'static str {
-    crate::gpu::shaders::KERNELS
-        .iter()
-        .map(|(name, _)| *name)
-        .find(|name| *name == kernel.name)
-        .expect("every kernel is in shaders::KERNELS")
 }

@@ -414,7 +414,7 @@ impl Backend for CpuBackend {
                 }
                 Call::FuseScan => {
                     self.add_offsets.resize(n_slots, 0);
-                    cpu::prefix_sum::prefix_sum(
+                    cpu::prefix_sum::scan(
                         &scan_params(n_slots),
                         &self.add_flags,
                         &mut self.add_offsets,
@@ -469,12 +469,7 @@ impl Backend for CpuBackend {
                 }
                 Call::CompactScan => {
                     self.offsets.resize(n, 0);
-                    cpu::prefix_sum::prefix_sum(
-                        &params,
-                        &self.flags,
-                        &mut self.offsets,
-                        &mut counter,
-                    );
+                    cpu::prefix_sum::scan(&params, &self.flags, &mut self.offsets, &mut counter);
                 }
                 // The second map, as large as the first (as on the GPU), cut to the survivors.
                 Call::CompactScatter => {

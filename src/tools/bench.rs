@@ -49,6 +49,10 @@ pub struct BenchResult {
     /// Mean time to load and decode one frame's images (not part of the frame times).
     #[serde(default)]
     pub decode_ms_per_frame: f64,
+    /// Round trips and read-back per frame, from the plain pass (`readback_bytes_per_frame`
+    /// and `submissions_per_frame` are their means over every frame).
+    #[serde(default)]
+    pub round_trips: Option<RoundTrips>,
 }
 
 /// Mean decode time of a run's frames, milliseconds.
@@ -58,7 +62,10 @@ fn decode_ms(frames: &[run::FrameOutcome]) -> f64 {
 }
 
 /// Runs one backend once over the frames without per-stage timing: whole-frame times,
-/// peak memory and accuracy only (`stages` empty, counters zero).
+/// peak memory, accuracy, and the round trips and read-back of each frame (`stages`
+/// empty). The counters are read between frames of this pass, which adds no
+/// synchronisation (the per-stage pass waits after every step, which would add
+/// submissions of its own).
 pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     mut make: F,
     seq: &Sequence,
@@ -66,32 +73,120 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     last: usize,
     params: &SlamParams,
 ) -> Result<BenchResult> {
+    params.validate()?;
     let backend = make()?;
     let name = backend.name().to_string();
-    let plain = run::run_with(backend, seq, first, last, params.clone(), BEFORE, |_| {})?;
-    Ok(frames_result(name, &plain))
-}
-
-/// The whole-frame figures of a plain run; per-stage times and counters left empty (the
-/// counters come from the per-stage pass).
-fn frames_result(backend: String, plain: &run::RunResult) -> BenchResult {
-    let m = &plain.metrics;
-    BenchResult {
-        backend,
-        frames: m.frames,
-        width: m.width,
-        height: m.height,
-        frame_median_s: m.time_per_frame_median_s,
-        frame_mean_s: m.time_per_frame_mean_s,
-        fps: 1.0 / m.time_per_frame_mean_s.max(f64::MIN_POSITIVE),
+    let mut slam = crate::slam::pipeline::Slam::for_sequence(backend, seq, params.clone());
+    let mut frames = Vec::new();
+    let mut counts = Vec::new();
+    for i in first..=last {
+        let t0 = web_time::Instant::now();
+        let frame = seq.load(i)?;
+        let rgba = run::packed_rgba(&frame);
+        let decode_seconds = t0.elapsed().as_secs_f64();
+        let rec = &seq.frames[i];
+        let before = slam.backend.counters();
+        let t0 = web_time::Instant::now();
+        let report = slam.process(i as u32, &frame.depth, &rgba, rec.gt_cam_to_world.as_ref())?;
+        let seconds = t0.elapsed().as_secs_f64();
+        let after = slam.backend.counters();
+        counts.push(FrameCounts {
+            submissions: after.submissions - before.submissions,
+            readback_bytes: after.readback_bytes - before.readback_bytes,
+            icp_iterations: report.iterations.len(),
+            plain: !report.keyframe && report.relocalisation.is_empty() && report.loops.is_empty(),
+        });
+        frames.push(run::FrameOutcome {
+            index: i,
+            timestamp: rec.timestamp,
+            seconds,
+            decode_seconds,
+            report,
+        });
+    }
+    let est = match slam.loop_closure() {
+        Some(lc) => {
+            let stamp: std::collections::HashMap<usize, f64> =
+                frames.iter().map(|f| (f.index, f.timestamp)).collect();
+            lc.poses()
+                .iter()
+                .map(|p| (stamp[&(p.frame as usize)], p.estimate))
+                .collect()
+        }
+        None => run::trajectory(&frames),
+    };
+    let accuracy = run::accuracy(&est, &seq.ground_truth())?;
+    let camera = seq.intrinsics.downsampled(params.input.downsample.max(1));
+    let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
+    let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
+    let mut result = BenchResult {
+        backend: name,
+        frames: frames.len(),
+        width: camera.width,
+        height: camera.height,
+        frame_median_s: crate::stats::median(&times),
+        frame_mean_s: mean,
+        fps: 1.0 / mean.max(f64::MIN_POSITIVE),
         stages: Vec::new(),
         readback_bytes_per_frame: 0.0,
         submissions_per_frame: 0.0,
         peak_memory_mib: run::peak_memory_mib(),
-        map_points: m.map_points,
-        ate_rmse_aligned_m: m.accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
+        map_points: slam.backend.surfel_count(),
+        ate_rmse_aligned_m: accuracy.map(|a| a.ate_rmse_aligned_m),
         kernels: Vec::new(),
-        decode_ms_per_frame: decode_ms(&plain.frames),
+        decode_ms_per_frame: decode_ms(&frames),
+        round_trips: None,
+    };
+    result.set_counts(&counts);
+    Ok(result)
+}
+
+/// One frame's submissions and read-back in [`bench_frames`].
+struct FrameCounts {
+    submissions: u64,
+    readback_bytes: u64,
+    icp_iterations: usize,
+    /// Not a keyframe, no relocalisation, no loop-closure check: the frames whose
+    /// read-back the budget bounds.
+    plain: bool,
+}
+
+/// Submissions and read-back per frame, as counted between the frames of the plain pass.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RoundTrips {
+    /// Frames that are not keyframes and neither relocalised nor checked a loop.
+    pub plain_frames: usize,
+    /// ICP iterations (submit-and-wait round trips of `icp_system`) per frame, mean.
+    pub icp_iterations_per_frame: f64,
+    /// Submissions beyond one per ICP iteration on a plain frame: mean and most.
+    pub plain_submissions_beyond_icp_mean: f64,
+    pub plain_submissions_beyond_icp_max: u64,
+    /// Bytes read back on a plain frame: mean and most.
+    pub plain_readback_bytes_mean: f64,
+    pub plain_readback_bytes_max: u64,
+}
+
+impl BenchResult {
+    /// Fills the per-frame counters from each frame's counts.
+    fn set_counts(&mut self, counts: &[FrameCounts]) {
+        let n = counts.len().max(1) as f64;
+        self.submissions_per_frame = counts.iter().map(|c| c.submissions).sum::<u64>() as f64 / n;
+        self.readback_bytes_per_frame =
+            counts.iter().map(|c| c.readback_bytes).sum::<u64>() as f64 / n;
+        let plain: Vec<&FrameCounts> = counts.iter().filter(|c| c.plain).collect();
+        let m = plain.len().max(1) as f64;
+        let beyond = |c: &FrameCounts| c.submissions.saturating_sub(c.icp_iterations as u64);
+        self.round_trips = Some(RoundTrips {
+            plain_frames: plain.len(),
+            icp_iterations_per_frame: counts.iter().map(|c| c.icp_iterations).sum::<usize>() as f64
+                / n,
+            plain_submissions_beyond_icp_mean: plain.iter().map(|c| beyond(c)).sum::<u64>() as f64
+                / m,
+            plain_submissions_beyond_icp_max: plain.iter().map(|c| beyond(c)).max().unwrap_or(0),
+            plain_readback_bytes_mean: plain.iter().map(|c| c.readback_bytes).sum::<u64>() as f64
+                / m,
+            plain_readback_bytes_max: plain.iter().map(|c| c.readback_bytes).max().unwrap_or(0),
+        });
     }
 }
 
@@ -112,7 +207,6 @@ pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     );
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
-    let counters = slam.backend.counters();
     result.stages = slam
         .backend
         .stages
@@ -125,8 +219,6 @@ pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
             )
         })
         .collect();
-    result.readback_bytes_per_frame = counters.readback_bytes as f64 / n;
-    result.submissions_per_frame = counters.submissions as f64 / n;
     // Peak memory over both passes, read after the second.
     result.peak_memory_mib = run::peak_memory_mib();
     Ok(result)
@@ -349,6 +441,19 @@ pub fn print_table(results: &[BenchResult]) {
              images took {:.1} ms/frame (before each frame, not timed in it)",
             r.readback_bytes_per_frame, r.submissions_per_frame, r.decode_ms_per_frame
         );
+        if let Some(t) = &r.round_trips {
+            println!(
+                "      {:.1} ICP iterations/frame; on {} frames without keyframe, \
+                 relocalisation or loop check: submissions beyond one per ICP iteration \
+                 {:.2} mean, {} most; readback {:.0} bytes mean, {} most",
+                t.icp_iterations_per_frame,
+                t.plain_frames,
+                t.plain_submissions_beyond_icp_mean,
+                t.plain_submissions_beyond_icp_max,
+                t.plain_readback_bytes_mean,
+                t.plain_readback_bytes_max
+            );
+        }
     }
     if let (Some(c), Some(g)) = (
         results.iter().find(|r| r.backend == "cpu"),

@@ -1,5 +1,6 @@
-//! The map's compaction (unstable-surfel removal): compact_flags, prefix_sum and
-//! compact_scatter against their twins, at many sizes, in small map chunks and across
+//! The map's compaction (unstable-surfel removal): compact_flags, the scan
+//! (prefix_sum_reduce, prefix_sum_blocks, prefix_sum) and compact_scatter against their
+//! twins, at many sizes, in small map chunks and across
 //! map growth.
 
 use super::RUN_SURFEL_FRACTION_TOL;
@@ -35,7 +36,7 @@ fn check_compaction(gpu: &mut GpuBackend, map: &SurfelMap, params: &CompactParam
     );
     let mut offsets = vec![0u32; n];
     let mut kept = 0u32;
-    cpu::prefix_sum::prefix_sum(&params, &flags, &mut offsets, &mut kept);
+    cpu::prefix_sum::scan(&params, &flags, &mut offsets, &mut kept);
     // The plain running sum, so a bug shared by the twin and the shader shows too.
     let mut running = 0u32;
     for i in 0..n {
@@ -126,10 +127,24 @@ fn compaction_matches_twins(mut gpu: GpuBackend) {
     assert_eq!(check_compaction(&mut gpu, &map, &rule(2.0, 0)), stable);
 }
 
-/// prefix_sum's chunking at sizes around its 256 threads (fewer surfels than threads, not a
-/// multiple, one chunk each) on hand-made maps with a fixed pattern of stable surfels.
+/// The scan's blocking at sizes around a thread's 32 flags and a block's 2048 (fewer
+/// surfels than one thread's, not a multiple, one block, one more, many blocks: more than
+/// prefix_sum_blocks' 256 threads have chunks of several) on hand-made maps with a fixed
+/// pattern of stable surfels.
 fn compaction_sizes_match_twins(mut gpu: GpuBackend) {
-    for n in [1usize, 7, 255, 256, 257, 1000, 4097, 70_001] {
+    let block = cpu::prefix_sum::SCAN_BLOCK as usize;
+    for n in [
+        1usize,
+        7,
+        33,
+        255,
+        block - 1,
+        block,
+        block + 1,
+        4097,
+        70_001,
+        300 * block + 3,
+    ] {
         let mut map = SurfelMap::default();
         for i in 0..n {
             // Every third surfel stable, every fifth recent: a pattern that is not periodic

@@ -151,13 +151,13 @@ fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
 }
 
 /// icp_reduce_final against its twin, bit for bit, over partials shaped as on lavapipe (16
-/// workgroups) and on a GPU (1024): entries of mixed sign and magnitude (as AᵀA, Aᵀb,
+/// workgroups), on a GPU (1024) and around the tree's 64 threads: entries of mixed sign and magnitude (as AᵀA, Aᵀb,
 /// counts and residuals are), so the order of the f32 adds shows in the result.
 fn icp_reduce_final_matches_twin(ctx: GpuContext) {
     use wgslam::gpu::{GpuArray, Kernel, Readback};
     use wgslam::layout::ICP_SYSTEM_LEN;
     let kernel = Kernel::new(&ctx, "icp_reduce_final").unwrap();
-    for groups in [1usize, 16, 1024] {
+    for groups in [1usize, 16, 63, 64, 65, 1024, 4099] {
         let n = groups * ICP_SYSTEM_LEN;
         let partials: Vec<f32> = (0..n)
             .map(|i| {
@@ -177,7 +177,10 @@ fn icp_reduce_final_matches_twin(ctx: GpuContext) {
         let mut enc = ctx.encoder("icp_reduce_final");
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
-            kernel.dispatch(&ctx, &mut pass, &bg, 1).unwrap();
+            // One workgroup per entry of the system.
+            kernel
+                .dispatch_grid(&ctx, &mut pass, &bg, [ICP_SYSTEM_LEN as u32, 1])
+                .unwrap();
         }
         readback.copy_from(&mut enc, &system, ICP_SYSTEM_LEN);
         ctx.submit(enc);

@@ -209,7 +209,8 @@ fn culling_is_conservative() {
 }
 
 /// After a robust run (merges moving surfels, compaction, appends) every surfel lies in
-/// its block's box on both backends, the GPU's map in small chunks.
+/// its block's box on both backends, the GPU's map in small chunks; after an upload, every
+/// GPU box is its twin's.
 fn block_boxes_hold_their_surfels(ctx: GpuContext) {
     let gt = load_gt(&root());
     let params = SlamParams::profile(Profile::Robust);
@@ -241,6 +242,23 @@ fn block_boxes_hold_their_surfels(ctx: GpuContext) {
         gb.len() / 2,
         g.backend.map_chunks()
     );
+    // Every box recomputed (an upload makes them all stale; merges since their last
+    // computation only grew them): block_bounds against its twin, exactly (min and max do
+    // not depend on the order of the workgroup's tree).
+    g.backend.upload_map(&gm).unwrap();
+    g.backend.predict(&proj, &pyramid).unwrap();
+    let gb = g.backend.download_block_bounds().unwrap();
+    let twin = cpu::block_bounds::whole_map_bounds(&gm.position_weight);
+    assert!(gb.len() >= twin.len(), "{} GPU box entries", gb.len());
+    if let Some(e) = (0..twin.len()).find(|&e| gb[e] != twin[e]) {
+        panic!(
+            "block_bounds: block {} {} gpu {:?} twin {:?}",
+            e / 2,
+            ["min", "max"][e % 2],
+            gb[e],
+            twin[e]
+        );
+    }
 }
 
 pub(super) fn tests() -> Vec<Test> {
