@@ -131,7 +131,7 @@ if "$BIN" batch --help 2>/dev/null | grep -q -- '--concurrent'; then
     printf 'frames = ['
     for j in 0 1 2 3 4 5 6 7; do
       [ "$j" = 0 ] || printf ', '
-      printf '"%d..%d"' $((j * 30)) $((j * 30 + BATCH_SPAN))
+      printf '"%d..%d"' $((j * 25)) $((j * 25 + BATCH_SPAN))
     done
     echo ']'
   } >"$manifest"
