@@ -15,6 +15,7 @@
 #   OUT               write $OUT/gpu-check.json (default ./gpu-check.json)
 #   WGSLAM_CHECK_QUICK=1   tiny frame ranges (a smoke test of this script, e.g. on lavapipe)
 #   WGSLAM_CHECK_ROUNDS    whole-frame rounds per bench (default 2)
+#   WGSLAM_CHECK_STEPS     which groups to run, any of "bench compare batch" (default all)
 #
 # Every step runs whatever the steps before it did (a failing command is recorded, not
 # fatal); the script exits 1 when any step failed, 0 otherwise. Sized for about 6 minutes
@@ -32,8 +33,10 @@ NOISY=$DATA/icl_living_room_kt2_noisy
 if [ "${WGSLAM_CHECK_QUICK:-0}" = 1 ]; then
   BENCH_FRAMES=0..3 LOCK_FRAMES=0..2 FREE_FRAMES=1..3 BATCH_SPAN=1
 else
-  BENCH_FRAMES=0..199 LOCK_FRAMES=0..40 FREE_FRAMES=1..40 BATCH_SPAN=24
+  BENCH_FRAMES=0..199 LOCK_FRAMES=0..40 FREE_FRAMES=1..40 BATCH_SPAN=99
 fi
+GROUPS_RUN=" ${WGSLAM_CHECK_STEPS:-bench compare batch} "
+wants() { [[ "$GROUPS_RUN" == *" $1 "* ]]; }
 
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/gpu-check.XXXXXX")
 STEPS=()
@@ -93,6 +96,7 @@ step version "" -- "$BIN" --version
 
 # Benches: candidate and baseline in A-B-B-A order per resolution (a machine whose speed
 # drifts favours neither), the candidate's first one with per-kernel GPU times.
+if wants bench; then
 for ds in 1 2; do
   if [ -n "$BASE" ]; then
     bench new-a "$BIN" "$ds"
@@ -106,18 +110,23 @@ done
 step bench-new-kernels "$WORK/bench-kernels.json" -- \
   "$BIN" bench "$SCENES" --frames "$BENCH_FRAMES" --downsample 1 --backends gpu --kernels \
   --json "$WORK/bench-kernels.json"
+fi
 
 # The comparisons of the closing note.
+if wants compare; then
 step compare-lockstep-7scenes "$WORK/compare-lockstep.json" -- \
   "$BIN" compare "$SCENES" --frames "$LOCK_FRAMES" --downsample 1 \
   --json "$WORK/compare-lockstep.json"
 step compare-free-noisy-assignment "$WORK/compare-free.json" -- \
   "$BIN" compare "$NOISY" --frames "$FREE_FRAMES" --free --profile assignment \
   --json "$WORK/compare-free.json"
+fi
 
 # Many sequences on one GPU: the same 8 GPU jobs one at a time and 8 at once, where the
 # binary can run jobs concurrently; outputs must be identical.
-if "$BIN" batch --help 2>/dev/null | grep -q -- '--concurrent'; then
+if ! wants batch; then
+  skip batch-concurrent "not in WGSLAM_CHECK_STEPS"
+elif "$BIN" batch --help 2>/dev/null | grep -q -- '--concurrent'; then
   manifest=$WORK/concurrent.toml
   {
     echo "output = \"unused\""
@@ -131,7 +140,7 @@ if "$BIN" batch --help 2>/dev/null | grep -q -- '--concurrent'; then
     printf 'frames = ['
     for j in 0 1 2 3 4 5 6 7; do
       [ "$j" = 0 ] || printf ', '
-      printf '"%d..%d"' $((j * 25)) $((j * 25 + BATCH_SPAN))
+      printf '"%d..%d"' $((j * 12)) $((j * 12 + BATCH_SPAN))
     done
     echo ']'
   } >"$manifest"
