@@ -3,7 +3,7 @@
 //! a Hillis-Steele scan of them, then each chunk's offsets from its exclusive start). The
 //! second of the three scan kernels (see [`super::prefix_sum`]).
 
-use super::prefix_sum::{hillis_steele_inclusive, SCAN_BLOCK};
+use super::prefix_sum_reduce::{hillis_steele_inclusive, SCAN_BLOCK};
 use crate::layout::CompactParams;
 
 /// Threads of the shader's one workgroup (`BLOCKS_THREADS` in prefix_sum_blocks.wgsl).

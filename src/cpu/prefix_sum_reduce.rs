@@ -1,8 +1,38 @@
 //! CPU twin of `shaders/prefix_sum_reduce.wgsl`: the sum of each block of
 //! [`SCAN_BLOCK`] flags, the first of the three scan kernels (see [`super::prefix_sum`]).
 
-use super::prefix_sum::{SCAN_BLOCK, SCAN_ITEMS, SCAN_THREADS};
 use crate::layout::CompactParams;
+
+/// Threads of each block's workgroup (`SCAN_THREADS` in prefix_sum_reduce.wgsl and
+/// prefix_sum.wgsl).
+pub const SCAN_THREADS: u32 = 64;
+/// Flags per thread (`SCAN_ITEMS`).
+pub const SCAN_ITEMS: u32 = 32;
+/// Flags per block and workgroup (`SCAN_BLOCK`), `SCAN_THREADS * SCAN_ITEMS`.
+pub const SCAN_BLOCK: u32 = SCAN_THREADS * SCAN_ITEMS;
+
+/// Blocks (workgroups of `prefix_sum_reduce` and `prefix_sum`, entries of `block_sums`)
+/// of a scan over `n` flags.
+pub fn scan_blocks(n: usize) -> usize {
+    n.div_ceil(SCAN_BLOCK as usize)
+}
+
+/// The inclusive Hillis-Steele scan of `own`, pass by pass as a workgroup does it: after
+/// the pass with stride s, entry t holds the sum of the 2s entries ending at t.
+pub(super) fn hillis_steele_inclusive(own: &[u32]) -> Vec<u32> {
+    let mut sums = own.to_vec();
+    let mut stride = 1;
+    while stride < sums.len() {
+        let add: Vec<u32> = (0..sums.len())
+            .map(|t| if t >= stride { sums[t - stride] } else { 0 })
+            .collect();
+        for (s, a) in sums.iter_mut().zip(add) {
+            *s += a;
+        }
+        stride *= 2;
+    }
+    sums
+}
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/prefix_sum_reduce.wgsl` for shapes, units and frames.

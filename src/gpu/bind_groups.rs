@@ -7,7 +7,6 @@
 //! that walk the map get one bind group per map chunk.
 
 use super::buffers::GpuArray;
-use super::compaction::Compaction;
 use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
@@ -263,86 +262,6 @@ fn icp_reduce(
 /// The surfel arrays `compact_scatter` copies, one dispatch each.
 pub(super) const SCATTER_ATTRIBUTES: usize = 3;
 
-/// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
-/// input chunk and output chunk no later than it, and per surfel array) for one map set.
-pub(super) struct CompactionGroups {
-    pub flags: Vec<wgpu::BindGroup>,
-    pub scan: ScanGroups,
-    /// Input chunk s, output chunk d <= s (offsets[i] <= i), surfel array a (position_weight,
-    /// normal_frame, color) at [`SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
-    pub scatter: Vec<wgpu::BindGroup>,
-}
-
-impl CompactionGroups {
-    /// The compaction's bind groups from `map` into `c.spare`.
-    pub fn new(
-        ctx: &GpuContext,
-        k: &Kernels,
-        u: &Uniforms,
-        counter: &GpuArray<u32>,
-        map: &MapBuffers,
-        c: &Compaction,
-    ) -> CompactionGroups {
-        CompactionGroups {
-            flags: map
-                .chunks
-                .iter()
-                .map(|ch| {
-                    k.compact_flags.bind_group(
-                        ctx,
-                        &[
-                            ("params", u.compact.binding()),
-                            ("chunk", ch.info_buffer.binding()),
-                            ("position_weight", ch.position_weight.binding()),
-                            ("normal_frame", ch.normal_frame.binding()),
-                            ("flags", c.flags.binding()),
-                        ],
-                    )
-                })
-                .collect(),
-            scan: ScanGroups::new(
-                ctx,
-                k,
-                [
-                    ("params", u.compact.binding()),
-                    ("flags", c.flags.binding()),
-                    ("block_sums", c.block_sums.binding()),
-                    ("offsets", c.offsets.binding()),
-                    ("counter", counter.binding()),
-                ],
-            ),
-            scatter: map
-                .chunks
-                .iter()
-                .enumerate()
-                .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
-                .flat_map(|(from, to)| {
-                    // One bind group per surfel array, in the order of SCATTER_ATTRIBUTES.
-                    [
-                        (from.position_weight.binding(), to.position_weight.binding()),
-                        (from.normal_frame.binding(), to.normal_frame.binding()),
-                        (from.color.binding(), to.color.binding()),
-                    ]
-                    .map(|(surfel_array, out_surfel_array)| {
-                        k.compact_scatter.bind_group(
-                            ctx,
-                            &[
-                                ("params", u.compact.binding()),
-                                ("flags", c.flags.binding()),
-                                ("offsets", c.offsets.binding()),
-                                ("chunk", from.info_buffer.binding()),
-                                ("surfel_array", surfel_array),
-                                ("out_chunk", to.info_buffer.binding()),
-                                ("out_surfel_array", out_surfel_array),
-                            ],
-                        )
-                    })
-                })
-                .collect(),
-        }
-    }
-}
-
 /// The bind groups of one scan's three kernels (prefix_sum_reduce, prefix_sum_blocks,
 /// prefix_sum) over one set of flags.
 pub(super) struct ScanGroups {
@@ -354,7 +273,7 @@ pub(super) struct ScanGroups {
 impl ScanGroups {
     /// The three bind groups over `pool`: the scan's `params`, `flags`, `block_sums`,
     /// `offsets` and `counter`, each kernel taking what it declares.
-    fn new(
+    pub(super) fn new(
         ctx: &GpuContext,
         k: &Kernels,
         pool: [(&'static str, wgpu::BindingResource); 5],

@@ -1,12 +1,15 @@
 //! What the GPU's `compact` step needs besides the map, allocated at its first call (the
 //! assignment profile never pays for it) and re-allocated when the map grows: one keep
 //! flag and one offset per surfel slot, and a second map of the same chunk sizes that
-//! `compact_scatter` writes and that then swaps with the map.
+//! `compact_scatter` writes and that then swaps with the map; and the bind groups of the
+//! three passes over them ([`CompactionGroups`]).
 
-use super::bind_groups::CompactionGroups;
+use super::bind_groups::ScanGroups;
 use super::buffers::GpuArray;
 use super::context::GpuContext;
+use super::kernels::Kernels;
 use super::map_buffers::MapBuffers;
+use super::resources::Uniforms;
 use crate::Result;
 
 pub(super) struct Compaction {
@@ -72,4 +75,84 @@ fn block_sums_for(ctx: &GpuContext, cap: usize) -> Result<GpuArray<u32>> {
     let mut block_sums = GpuArray::new(ctx, "compact block sums", blocks)?;
     block_sums.set_len(blocks);
     Ok(block_sums)
+}
+
+/// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
+/// input chunk and output chunk no later than it, and per surfel array) for one map set.
+pub(super) struct CompactionGroups {
+    pub flags: Vec<wgpu::BindGroup>,
+    pub scan: ScanGroups,
+    /// Input chunk s, output chunk d <= s (offsets[i] <= i), surfel array a (position_weight,
+    /// normal_frame, color) at [`super::bind_groups::SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
+    pub scatter: Vec<wgpu::BindGroup>,
+}
+
+impl CompactionGroups {
+    /// The compaction's bind groups from `map` into `c.spare`.
+    pub fn new(
+        ctx: &GpuContext,
+        k: &Kernels,
+        u: &Uniforms,
+        counter: &GpuArray<u32>,
+        map: &MapBuffers,
+        c: &Compaction,
+    ) -> CompactionGroups {
+        CompactionGroups {
+            flags: map
+                .chunks
+                .iter()
+                .map(|ch| {
+                    k.compact_flags.bind_group(
+                        ctx,
+                        &[
+                            ("params", u.compact.binding()),
+                            ("chunk", ch.info_buffer.binding()),
+                            ("position_weight", ch.position_weight.binding()),
+                            ("normal_frame", ch.normal_frame.binding()),
+                            ("flags", c.flags.binding()),
+                        ],
+                    )
+                })
+                .collect(),
+            scan: ScanGroups::new(
+                ctx,
+                k,
+                [
+                    ("params", u.compact.binding()),
+                    ("flags", c.flags.binding()),
+                    ("block_sums", c.block_sums.binding()),
+                    ("offsets", c.offsets.binding()),
+                    ("counter", counter.binding()),
+                ],
+            ),
+            scatter: map
+                .chunks
+                .iter()
+                .enumerate()
+                .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
+                .flat_map(|(from, to)| {
+                    // One bind group per surfel array, in the order of SCATTER_ATTRIBUTES.
+                    [
+                        (from.position_weight.binding(), to.position_weight.binding()),
+                        (from.normal_frame.binding(), to.normal_frame.binding()),
+                        (from.color.binding(), to.color.binding()),
+                    ]
+                    .map(|(surfel_array, out_surfel_array)| {
+                        k.compact_scatter.bind_group(
+                            ctx,
+                            &[
+                                ("params", u.compact.binding()),
+                                ("flags", c.flags.binding()),
+                                ("offsets", c.offsets.binding()),
+                                ("chunk", from.info_buffer.binding()),
+                                ("surfel_array", surfel_array),
+                                ("out_chunk", to.info_buffer.binding()),
+                                ("out_surfel_array", out_surfel_array),
+                            ],
+                        )
+                    })
+                })
+                .collect(),
+        }
+    }
 }

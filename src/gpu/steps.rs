@@ -8,7 +8,8 @@
 //! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
-use super::bind_groups::{CompactionGroups, SCATTER_ATTRIBUTES};
+use super::bind_groups::SCATTER_ATTRIBUTES;
+use super::compaction::CompactionGroups;
 use super::context::GpuContext;
 use super::recording::{record_passes, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, image_grids, key_passes_of_fuse_add, StepGrid};
