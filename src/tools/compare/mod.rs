@@ -15,9 +15,14 @@
 
 mod fusion;
 mod map_match;
+mod perturbed;
 
 pub use fusion::FusionKernelDiff;
-pub use map_match::{diff_surfel_maps, unmatched_fraction, Matches, SurfelMapDiff};
+pub use map_match::{
+    diff_surfel_maps, diff_surfel_maps_within, unexplained_fraction, unmatched_fraction, MapBounds,
+    Matches, SurfelMapDiff,
+};
+pub use perturbed::{PerturbedCpu, Plant, DEFAULT_SEED};
 
 use glam::DMat4;
 use serde::Serialize;
@@ -63,6 +68,13 @@ pub mod tolerance {
     /// (the maps are the same surface). 2e-5 per frame leaves 1.9x headroom at 100 frames.
     pub const MAP_UNMATCHED_MAX_FRACTION_PER_FRAME: f64 = 2e-5;
 
+    /// Surfels of either map that no surfel of the other explains: none within fusion's
+    /// distance gate (plus [`MAP_MATCH_RADIUS_M`]) with a normal within fusion's angle gate.
+    /// PROVISIONAL.
+    pub const MAP_UNEXPLAINED_MAX_FRACTION: f64 = 1e-3;
+    /// Total map weight, free mode. PROVISIONAL.
+    pub const MAP_WEIGHT_SUM_REL_DIFF_MAX: f64 = 1e-2;
+
     /// The unmatched-fraction limit for a comparison over `frames` frames.
     pub fn map_unmatched_max_fraction(frames: usize) -> f64 {
         MAP_UNMATCHED_MAX_FRACTION.max(MAP_UNMATCHED_MAX_FRACTION_PER_FRAME * frames as f64)
@@ -106,6 +118,8 @@ pub mod tolerance {
         /// (noisy assignment, frame 3: 87 of 139k; its noisy normals sit at the 5 degree
         /// gate), 1.8e-4 noisy robust, 8e-5 noise-free. 3.2x headroom.
         pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 2e-3;
+        /// Total map weight after the frame. PROVISIONAL.
+        pub const MAP_WEIGHT_SUM_REL_DIFF_MAX: f64 = 1e-3;
     }
 }
 
@@ -142,12 +156,33 @@ struct Limits {
     surfel_count_rel_diff: f64,
     map_match_radius_m: f32,
     map_unmatched_fraction: f64,
+    /// Fusion's gates, which bound how far a surfel moves when one decision goes the other
+    /// way (see [`tolerance::MAP_UNEXPLAINED_MAX_FRACTION`]).
+    map_explain_radius_m: f32,
+    map_explain_normal_deg: f32,
+    map_unexplained_fraction: f64,
+    map_weight_sum_rel_diff: f64,
 }
 
 impl Limits {
-    fn of(mode: Mode, frames: usize) -> Limits {
+    /// The map comparison's bounds.
+    fn map_bounds(&self) -> MapBounds {
+        MapBounds {
+            match_radius_m: self.map_match_radius_m,
+            explain_radius_m: self.map_explain_radius_m,
+            explain_normal_deg: self.map_explain_normal_deg,
+        }
+    }
+
+    fn of(mode: Mode, frames: usize, params: &SlamParams) -> Limits {
         use tolerance::*;
-        match mode {
+        let fusion = &params.fusion;
+        let explain = |l: Limits| Limits {
+            map_explain_radius_m: fusion.dist_m + MAP_MATCH_RADIUS_M,
+            map_explain_normal_deg: fusion.normal_deg.min(180.0),
+            ..l
+        };
+        explain(match mode {
             Mode::Lockstep { .. } => Limits {
                 system_rel_diff: lockstep::SYSTEM_REL_DIFF_MAX,
                 pose_mm: lockstep::POSE_MAX_MM,
@@ -155,6 +190,10 @@ impl Limits {
                 surfel_count_rel_diff: lockstep::SURFEL_COUNT_REL_DIFF_MAX,
                 map_match_radius_m: MAP_MATCH_RADIUS_M,
                 map_unmatched_fraction: lockstep::MAP_UNMATCHED_MAX_FRACTION,
+                map_explain_radius_m: 0.0,
+                map_explain_normal_deg: 0.0,
+                map_unexplained_fraction: MAP_UNEXPLAINED_MAX_FRACTION,
+                map_weight_sum_rel_diff: lockstep::MAP_WEIGHT_SUM_REL_DIFF_MAX,
             },
             Mode::Free => Limits {
                 system_rel_diff: SYSTEM_REL_DIFF_MAX,
@@ -163,8 +202,12 @@ impl Limits {
                 surfel_count_rel_diff: SURFEL_COUNT_REL_DIFF_MAX,
                 map_match_radius_m: MAP_MATCH_RADIUS_M,
                 map_unmatched_fraction: map_unmatched_max_fraction(frames),
+                map_explain_radius_m: 0.0,
+                map_explain_normal_deg: 0.0,
+                map_unexplained_fraction: MAP_UNEXPLAINED_MAX_FRACTION,
+                map_weight_sum_rel_diff: MAP_WEIGHT_SUM_REL_DIFF_MAX,
             },
-        }
+        })
     }
 }
 
@@ -220,6 +263,10 @@ pub struct Worst {
     /// comparisons.
     pub map_unmatched_fraction: f64,
     pub map_max_match_m: f64,
+    /// Unexplained fraction (larger side) and relative total-weight difference over the
+    /// map comparisons.
+    pub map_unexplained_fraction: f64,
+    pub map_weight_sum_rel_diff: f64,
 }
 
 impl Worst {
@@ -244,6 +291,8 @@ impl Worst {
     fn add_map(&mut self, m: &SurfelMapDiff) {
         self.map_unmatched_fraction = self.map_unmatched_fraction.max(m.unmatched_fraction());
         self.map_max_match_m = self.map_max_match_m.max(m.max_match_m);
+        self.map_unexplained_fraction = self.map_unexplained_fraction.max(m.unexplained_fraction());
+        self.map_weight_sum_rel_diff = self.map_weight_sum_rel_diff.max(m.weight_sum_rel_diff());
     }
 }
 
@@ -347,9 +396,9 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     let names = (a.name().to_string(), b.name().to_string());
     let compacts = params.fusion.unstable_removal.is_some();
     let best_candidate = params.fusion.association == Association::BestCandidate;
+    let limits = Limits::of(mode, (first..=last).count(), &params);
     let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
     let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
-    let limits = Limits::of(mode, (first..=last).count());
     let mut frames = Vec::new();
     let mut violations = Vec::new();
     let mut worst = Worst::default();
@@ -407,7 +456,7 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
                 *a_map = sa.backend.download_map()?;
                 if (k + 1) % map_every.max(1) == 0 || i == last {
                     let b_map = sb.backend.download_map()?;
-                    Some(diff_surfel_maps(a_map, &b_map, limits.map_match_radius_m))
+                    Some(diff_surfel_maps_within(a_map, &b_map, &limits.map_bounds()))
                 } else {
                     None
                 }
@@ -434,15 +483,12 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
         Some(m) => m,
         None => {
             let (ma, mb) = (sa.backend.download_map()?, sb.backend.download_map()?);
-            let m = diff_surfel_maps(&ma, &mb, limits.map_match_radius_m);
-            if m.unmatched_fraction() > limits.map_unmatched_fraction {
-                violations.push(format!(
-                    "final map: {} (limit {:.4}% for {} frames)",
-                    describe_unmatched(&m),
-                    limits.map_unmatched_fraction * 100.0,
-                    frames.len()
-                ));
-            }
+            let m = diff_surfel_maps_within(&ma, &mb, &limits.map_bounds());
+            check_map(&m, &limits, &mut |ok, what| {
+                if !ok {
+                    violations.push(format!("final map: {what} ({} frames)", frames.len()));
+                }
+            });
             worst.add_map(&m);
             m
         }
@@ -539,14 +585,44 @@ fn check_frame(
         );
     }
     if let Some(m) = &d.map {
-        check(
-            m.unmatched_fraction() <= limits.map_unmatched_fraction,
-            "map after the frame",
-            format!(
-                "{} (limit {:.4}%)",
-                describe_unmatched(m),
-                limits.map_unmatched_fraction * 100.0
-            ),
-        );
+        check_map(m, limits, &mut |ok, what| {
+            check(ok, "map after the frame", what)
+        });
     }
+}
+
+/// Calls `check(ok, what)` for each bound of a map comparison: every surfel explained by one
+/// of the other map's (within fusion's gates), the total weights, and the fraction without
+/// a partner within the match radius (the knife-edge decisions).
+fn check_map(m: &SurfelMapDiff, limits: &Limits, check: &mut dyn FnMut(bool, String)) {
+    check(
+        m.unexplained_fraction() <= limits.map_unexplained_fraction,
+        format!(
+            "{:.4}% / {:.4}% of surfels with no surfel of the other map within {} mm and {} deg \
+             (limit {:.4}%)",
+            m.unexplained_a_fraction * 100.0,
+            m.unexplained_b_fraction * 100.0,
+            m.explain_radius_m * 1e3,
+            m.explain_normal_deg,
+            limits.map_unexplained_fraction * 100.0
+        ),
+    );
+    check(
+        m.weight_sum_rel_diff() <= limits.map_weight_sum_rel_diff,
+        format!(
+            "total weights {:.1} vs {:.1}: relative difference {:.2e} (limit {:.1e})",
+            m.weight_sums.0,
+            m.weight_sums.1,
+            m.weight_sum_rel_diff(),
+            limits.map_weight_sum_rel_diff
+        ),
+    );
+    check(
+        m.unmatched_fraction() <= limits.map_unmatched_fraction,
+        format!(
+            "{} (limit {:.4}%)",
+            describe_unmatched(m),
+            limits.map_unmatched_fraction * 100.0
+        ),
+    );
 }
