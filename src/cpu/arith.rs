@@ -54,6 +54,7 @@ pub const PARTIALS: usize = 64;
 thread_local! {
     static MODE: Cell<Arith> = const { Cell::new(Arith::Exact) };
     static SKIP_MERGES: Cell<bool> = const { Cell::new(false) };
+    static WIDE_RADIUS_GATE: Cell<bool> = const { Cell::new(false) };
     static PARTIAL_SUMS: Cell<Option<Box<[[f32; 64]; PARTIALS]>>> = const { Cell::new(None) };
 }
 
@@ -74,6 +75,29 @@ pub fn with_skipped_merges<R>(f: impl FnOnce() -> R) -> R {
     let r = f();
     SKIP_MERGES.with(|m| m.set(old));
     r
+}
+
+/// Test-only hook: runs `f` with a planted bug, fusion's off-ray gate (`candidate_off_ray`'s
+/// `radius_m`) [`WIDE_GATE_SCALE`] times as wide. Never set outside `tools::compare`'s
+/// planted-bug tests.
+#[doc(hidden)]
+pub fn with_wide_radius_gate<R>(f: impl FnOnce() -> R) -> R {
+    let old = WIDE_RADIUS_GATE.with(|m| m.replace(true));
+    let r = f();
+    WIDE_RADIUS_GATE.with(|m| m.set(old));
+    r
+}
+
+/// The planted gate's factor: 1 % wide.
+pub const WIDE_GATE_SCALE: f32 = 1.01;
+
+/// `radius_m` as the off-ray gate uses it: as given, or 1 % wide under the planted bug.
+#[inline]
+pub fn radius_gate(radius_m: f32) -> f32 {
+    match WIDE_RADIUS_GATE.with(|m| m.get()) {
+        true => radius_m * WIDE_GATE_SCALE,
+        false => radius_m,
+    }
 }
 
 /// One merge in this many is skipped under [`with_skipped_merges`].

@@ -65,14 +65,32 @@ pub mod tolerance {
     /// accumulate over a run. Measured on ICL kt2 (320x240, both backends tracking):
     /// unmatched 0.017 % after 20 frames, 0.062 % after 50, 0.10 % after 100, 0.13 %
     /// after 150, 0.14 % after 200, while within 1 cm only 0.001 % are unmatched after 200
-    /// (the maps are the same surface). 2e-5 per frame leaves 1.9x headroom at 100 frames.
-    pub const MAP_UNMATCHED_MAX_FRACTION_PER_FRAME: f64 = 2e-5;
+    /// (the maps are the same surface). That was lavapipe, whose rounding is the CPU's;
+    /// WGSL allows more (see `crate::cpu::arith`), and a knife-edge decision taken the
+    /// other way leaves a surfel unmatched within 1 mm however right both backends are:
+    /// the NVIDIA H200 ended noisy ICL-NUIM 1..40 (assignment profile) 2.05 % unmatched,
+    /// 5.1e-4 per frame, the perturbed twins 0.14 % over the bundled 23 noisy frames. So
+    /// this bound only catches gross disagreement (2x the H200's rate); the map's real
+    /// checks are [`MAP_UNEXPLAINED_MAX_FRACTION`] and [`MAP_WEIGHT_SUM_REL_DIFF_MAX`].
+    pub const MAP_UNMATCHED_MAX_FRACTION_PER_FRAME: f64 = 1e-3;
 
     /// Surfels of either map that no surfel of the other explains: none within fusion's
     /// distance gate (plus [`MAP_MATCH_RADIUS_M`]) with a normal within fusion's angle gate.
-    /// PROVISIONAL.
+    /// A knife-edge decision moves a surfel by less than this: a pixel `q` merged into a
+    /// surfel `p` on one side only moves it by `wq / (w + wq) |q - p|`, under half the
+    /// distance gate (`w >= wq`), and turns its normal by less than the angle gate; a
+    /// pixel added as a new surfel on one side lies within the gate of the surfel it merged
+    /// into on the other. So every surfel of one map has a surfel of the other within the
+    /// gates, whatever the rounding; a surfel that has none is a bug (measured 0 with the
+    /// perturbed twins, lockstep and free). The allowance is for surfels at the map's
+    /// border that a pose difference moves in or out of view.
     pub const MAP_UNEXPLAINED_MAX_FRACTION: f64 = 1e-3;
-    /// Total map weight, free mode. PROVISIONAL.
+    /// Total map weight, free mode: every valid pixel adds its confidence (at most 1) to
+    /// the map once, merged or added, so choosing another surfel leaves the sum unchanged;
+    /// only a pixel that one side counts as covered (neither merged nor added) and the
+    /// other does not, or a surfel compaction keeps on one side only, changes it. Measured
+    /// 9.9e-6 with the perturbed twins over 23 noisy frames; 1 % keeps the bound far above
+    /// knife-edge flips and below a skipped merge in 16 (1.0e-2 .. 1.5e-2 per frame).
     pub const MAP_WEIGHT_SUM_REL_DIFF_MAX: f64 = 1e-2;
 
     /// The unmatched-fraction limit for a comparison over `frames` frames.
@@ -116,10 +134,17 @@ pub mod tolerance {
         /// same 64 none within 1 mm), so the unmatched ones are the fusion-gate decisions
         /// that differ. Worst 6.3e-4
         /// (noisy assignment, frame 3: 87 of 139k; its noisy normals sit at the 5 degree
-        /// gate), 1.8e-4 noisy robust, 8e-5 noise-free. 3.2x headroom.
-        pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 2e-3;
-        /// Total map weight after the frame. PROVISIONAL.
-        pub const MAP_WEIGHT_SUM_REL_DIFF_MAX: f64 = 1e-3;
+        /// gate), 1.8e-4 noisy robust, 8e-5 noise-free on lavapipe; 1.1e-4 with the perturbed
+        /// twins; 6.9e-3 on the NVIDIA H200 (7-Scenes frame 2, 640x480: its pose 0.009 mm
+        /// off moves every fusion gate's input by that much, which is the knife edge's
+        /// width, far wider than an ulp). 2 % is 2.9x the H200; the unexplained surfels
+        /// and the total weight are the tight checks.
+        pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 2e-2;
+        /// Total map weight after the frame (see [`super::MAP_WEIGHT_SUM_REL_DIFF_MAX`]):
+        /// measured 2.1e-6 with the perturbed twins; a skipped merge in 16 gives 1.0e-2 to
+        /// 1.5e-2. 5e-3 is a knife-edge flip between covered and added on 0.5 % of a map's
+        /// worth of pixels.
+        pub const MAP_WEIGHT_SUM_REL_DIFF_MAX: f64 = 5e-3;
     }
 }
 

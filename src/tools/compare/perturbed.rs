@@ -23,7 +23,8 @@ pub const DEFAULT_SEED: u64 = 0x33;
 /// A bug planted in a [`PerturbedCpu`] (test-only: a comparison must fail with each).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Plant {
-    /// Fusion's distance gate (`FuseParams::dist_threshold_m`) 1 % wider than asked.
+    /// Fusion's off-ray gate (a surfel's radius in `candidate_off_ray`, best-candidate
+    /// association) 1 % wider than it is ([`arith::with_wide_radius_gate`]).
     FusionGateOnePercent,
     /// The sign of one entry of the ICP system's right-hand side flipped: row
     /// [`SIGN_FLIPPED_ROW`] of `Aᵀb` (translation along camera x).
@@ -64,6 +65,7 @@ impl PerturbedCpu {
         let inner = &mut self.inner;
         arith::with(self.arith, || match self.plant {
             Some(Plant::SkippedMerge) => arith::with_skipped_merges(|| f(inner)),
+            Some(Plant::FusionGateOnePercent) => arith::with_wide_radius_gate(|| f(inner)),
             _ => f(inner),
         })
     }
@@ -116,11 +118,7 @@ impl Backend for PerturbedCpu {
         self.run(|b| b.describe_keypoints(params, keypoints, pattern))
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        let mut params = *params;
-        if self.plant == Some(Plant::FusionGateOnePercent) {
-            params.dist_threshold_m *= 1.01;
-        }
-        self.run(|b| b.fuse(&params))
+        self.run(|b| b.fuse(params))
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.run(|b| b.compact(params))
