@@ -223,7 +223,10 @@ pub fn candidate_off_ray(
     let d = p_cam - q;
     let along = arith::dot(d, ray);
     let off_ray = arith::length(d - ray * along);
-    if along.abs() >= dist_m || off_ray >= arith::radius_gate(radius_m) || arith::dot(n_cam, xyz(nd)) <= cos_normal {
+    if along.abs() >= dist_m
+        || off_ray >= arith::radius_gate(radius_m)
+        || arith::dot(n_cam, xyz(nd)) <= cos_normal
+    {
         return None;
     }
     Some(off_ray)
