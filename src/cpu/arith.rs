@@ -54,7 +54,7 @@ pub const PARTIALS: usize = 64;
 thread_local! {
     static MODE: Cell<Arith> = const { Cell::new(Arith::Exact) };
     static SKIP_MERGES: Cell<bool> = const { Cell::new(false) };
-    static WIDE_RADIUS_GATE: Cell<bool> = const { Cell::new(false) };
+    static WIDE_DEPTH_GATE: Cell<bool> = const { Cell::new(false) };
     static PARTIAL_SUMS: Cell<Option<Box<[[f32; 64]; PARTIALS]>>> = const { Cell::new(None) };
 }
 
@@ -77,26 +77,26 @@ pub fn with_skipped_merges<R>(f: impl FnOnce() -> R) -> R {
     r
 }
 
-/// Test-only hook: runs `f` with a planted bug, fusion's off-ray gate (`candidate_off_ray`'s
-/// `radius_m`) [`WIDE_GATE_SCALE`] times as wide. Never set outside `tools::compare`'s
-/// planted-bug tests.
+/// Test-only hook: runs `f` with a planted bug, fusion's depth gate (`candidate_off_ray`'s
+/// `dist_m`, the distance along the pixel's ray) [`WIDE_GATE_SCALE`] times as wide. Never
+/// set outside `tools::compare`'s planted-bug tests.
 #[doc(hidden)]
-pub fn with_wide_radius_gate<R>(f: impl FnOnce() -> R) -> R {
-    let old = WIDE_RADIUS_GATE.with(|m| m.replace(true));
+pub fn with_wide_depth_gate<R>(f: impl FnOnce() -> R) -> R {
+    let old = WIDE_DEPTH_GATE.with(|m| m.replace(true));
     let r = f();
-    WIDE_RADIUS_GATE.with(|m| m.set(old));
+    WIDE_DEPTH_GATE.with(|m| m.set(old));
     r
 }
 
 /// The planted gate's factor: 1 % wide.
 pub const WIDE_GATE_SCALE: f32 = 1.01;
 
-/// `radius_m` as the off-ray gate uses it: as given, or 1 % wide under the planted bug.
+/// `dist_m` as the depth gate uses it: as given, or 1 % wide under the planted bug.
 #[inline]
-pub fn radius_gate(radius_m: f32) -> f32 {
-    match WIDE_RADIUS_GATE.with(|m| m.get()) {
-        true => radius_m * WIDE_GATE_SCALE,
-        false => radius_m,
+pub fn depth_gate(dist_m: f32) -> f32 {
+    match WIDE_DEPTH_GATE.with(|m| m.get()) {
+        true => dist_m * WIDE_GATE_SCALE,
+        false => dist_m,
     }
 }
 

@@ -223,8 +223,8 @@ pub fn candidate_off_ray(
     let d = p_cam - q;
     let along = arith::dot(d, ray);
     let off_ray = arith::length(d - ray * along);
-    if along.abs() >= dist_m
-        || off_ray >= arith::radius_gate(radius_m)
+    if along.abs() >= arith::depth_gate(dist_m)
+        || off_ray >= radius_m
         || arith::dot(n_cam, xyz(nd)) <= cos_normal
     {
         return None;

@@ -2,9 +2,9 @@
 //! their arithmetic perturbed within the spec's accuracy table (`wgslam::cpu::arith`, as
 //! `tools::compare::PerturbedCpu`) pass against the exact twins, lockstep and free, and
 //! planted bugs (one sign flipped in a row of the ICP system, merges skipped) still fail
-//! it, naming the stage. Not yet: `Plant::FusionGateOnePercent` (fusion's off-ray gate 1 %
-//! wide) passes on the bundled frames 1..6, so it has no trial here (see
-//! docs/backend-comparison.md).
+//! it, naming the stage: one sign flipped in a row of the ICP system, merges skipped, and
+//! fusion's off-ray gate 1 % wide (caught by judging each pixel whose fusion decision
+//! differs against its knife edge, `tools::compare::decisions`).
 
 use std::path::Path;
 
@@ -36,6 +36,17 @@ fn perturbed_passes(seq: &Sequence, first: usize, last: usize, mode: Mode) {
     assert!(c.worst.system_rel_diff > 0.0, "{:?}", c.worst);
     assert!(c.worst.pose_diff_mm > 0.0, "{:?}", c.worst);
     assert!(c.worst.vertex_max_abs_m > 0.0, "{:?}", c.worst);
+    if let Mode::Lockstep { .. } = mode {
+        // Decisions did differ, and every one of them sat on a knife edge.
+        let differing: usize = c
+            .frames
+            .iter()
+            .filter_map(|f| f.decisions.as_ref())
+            .map(|d| d.differing_pixels)
+            .sum();
+        eprintln!("fusion decisions differing: {differing} pixels, none clear");
+        assert_eq!(c.worst.fusion_clear_flips, 0, "{:?}", c.worst);
+    }
 }
 
 fn perturbed_passes_on_bundled_frames() {
@@ -59,6 +70,9 @@ fn planted_bug_fails(plant: Plant, stages: &[&str]) {
     let b = PerturbedCpu::with(Arith::Perturbed { seed: DEFAULT_SEED }, Some(plant));
     let c = against(b, &seq, 1, PLANTED_LAST_FRAME, Mode::LOCKSTEP);
     eprintln!("{plant:?}: {:#?}", c.violations);
+    for f in &c.frames {
+        eprintln!("frame {}: fusion decisions {:?}", f.index, f.decisions);
+    }
     assert!(
         c.violations
             .iter()
@@ -87,6 +101,9 @@ pub fn tests() -> Vec<common::harness::Test> {
         }),
         plain("planted_skipped_merge_fails", || {
             planted_bug_fails(Plant::SkippedMerge, &["map after the frame"])
+        }),
+        plain("planted_gate_off_by_one_percent_fails", || {
+            planted_bug_fails(Plant::FusionGateOnePercent, &["fusion decisions"])
         }),
     ]
 }
