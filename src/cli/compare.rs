@@ -111,7 +111,9 @@ pub fn execute(a: CompareArgs) -> Result<()> {
     println!(
         "worst ({} mode, {} frames): vertex {:.2e} m, normal {:.5} deg, validity {:.5}%, \
          system {:.2e}, pose {:.5} mm / {:.6} deg, surfel counts {:.2e} fused / {:.2e} after \
-         the frame, map unmatched {:.4}% (max match {:.2e} m)",
+         the frame, map unmatched {:.4}% (max match {:.2e} m), unexplained {:.4}%, total \
+         weight {:.2e}, fusion decisions clear of their knife edge {} (largest margin {:.2e} \
+         of the gate)",
         c.mode.name(),
         c.frames.len(),
         w.vertex_max_abs_m,
@@ -123,14 +125,18 @@ pub fn execute(a: CompareArgs) -> Result<()> {
         w.fused_surfels_rel_diff,
         w.surfels_rel_diff,
         w.map_unmatched_fraction * 100.0,
-        w.map_max_match_m
+        w.map_max_match_m,
+        w.map_unexplained_fraction * 100.0,
+        w.map_weight_sum_rel_diff,
+        w.fusion_clear_flips,
+        w.fusion_clear_flip_relative_margin
     );
     if let Some(path) = &a.json {
         run::write_json(path, &c)?;
     }
     if c.violations.is_empty() {
         println!(
-            "backends agree within the documented {} tolerances (src/tools/compare/mod.rs)",
+            "backends agree within the documented {} tolerances (src/tools/compare/tolerance.rs)",
             c.mode.name()
         );
         Ok(())

@@ -107,8 +107,7 @@ pub const SKIPPED_MERGE_EVERY: u64 = 16;
 /// position-weight bits are `key`.
 #[inline]
 pub fn merge_skipped(key: [f32; 4]) -> bool {
-    SKIP_MERGES.with(|m| m.get())
-        && hash(0x5eed, &key.map(f32::to_bits)).is_multiple_of(SKIPPED_MERGE_EVERY)
+    SKIP_MERGES.with(|m| m.get()) && hash(0x5eed, &key.map(f32::to_bits)) % SKIPPED_MERGE_EVERY == 0
 }
 
 /// The seed of the perturbed mode, or `None` when exact.

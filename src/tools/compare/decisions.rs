@@ -3,7 +3,7 @@
 //! own inputs (its pose as the `FuseParams` matrices it fused at, its `normal_depth` map,
 //! the shared map), and is *explained* when every quantity it turned on sits within the
 //! rounding WGSL allows of its gate (a knife edge), a *clear flip* (a bug) when one clears
-//! its gate by more. Not a map comparison: [`super::map_match`] does that.
+//! its gate by more. Not a map comparison: [`super::diff_surfel_maps_within`] does that.
 //!
 //! The quantities, as the kernels compute them in f32: the projection `u = fx x / z + cx +
 //! 0.5` (which pixel a surfel lands in), and at that pixel the gates of `fuse_select`'s

@@ -31,7 +31,7 @@ pub enum Plant {
     /// bundled frames 1..6 (measured, exact arithmetic): a bug no output shows.
     FusionGateOnePercent,
     /// The sign of one entry of the ICP system's right-hand side flipped: row
-    /// [`SIGN_FLIPPED_ROW`] of `Aᵀb` (translation along camera x).
+    /// `SIGN_FLIPPED_ROW` (3) of `Aᵀb` (translation along camera x).
     SystemRowSign,
     /// One merge in [`arith::SKIPPED_MERGE_EVERY`] skipped (`merged_surfel` returns the
     /// surfel as it was; see [`arith::with_skipped_merges`]).
