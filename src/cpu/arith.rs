@@ -58,8 +58,28 @@ thread_local! {
     static PARTIAL_SUMS: Cell<Option<Box<[[f32; 64]; PARTIALS]>>> = const { Cell::new(None) };
 }
 
+thread_local! {
+    /// Set on a thread, never cleared, once it enters a perturbed mode or a planted bug: until
+    /// then every helper takes its exact path after one read of this flag instead of reading
+    /// the thread's mode, and the perturbed paths live out of line (`*_slow`, cold) so the
+    /// exact ones inline into the twins' loops. Measured on the bundled frames (release, CPU
+    /// backend, median ms/frame): the thread's mode read inline in every helper made the CPU
+    /// backend 40 % slower than before `arith`; a global atomic flag, 16 % (LLVM keeps an
+    /// atomic load inside a twin's loop); this plain thread-local, 5 %.
+    static ENGAGED_HERE: Cell<bool> = const { Cell::new(false) };
+}
+
+/// False while this thread has not left the exact mode (see `ENGAGED_HERE`).
+#[inline(always)]
+fn engaged() -> bool {
+    ENGAGED_HERE.with(|e| e.get())
+}
+
 /// Runs `f` with the twins' arithmetic in `mode` on this thread, then restores the mode.
 pub fn with<R>(mode: Arith, f: impl FnOnce() -> R) -> R {
+    if mode != Arith::Exact {
+        ENGAGED_HERE.with(|e| e.set(true));
+    }
     let old = MODE.with(|m| m.replace(mode));
     let r = f();
     MODE.with(|m| m.set(old));
@@ -71,6 +91,7 @@ pub fn with<R>(mode: Arith, f: impl FnOnce() -> R) -> R {
 /// a hash of the surfel). Never set outside `tools::compare`'s planted-bug tests.
 #[doc(hidden)]
 pub fn with_skipped_merges<R>(f: impl FnOnce() -> R) -> R {
+    ENGAGED_HERE.with(|e| e.set(true));
     let old = SKIP_MERGES.with(|m| m.replace(true));
     let r = f();
     SKIP_MERGES.with(|m| m.set(old));
@@ -82,6 +103,7 @@ pub fn with_skipped_merges<R>(f: impl FnOnce() -> R) -> R {
 /// set outside `tools::compare`'s planted-bug tests.
 #[doc(hidden)]
 pub fn with_wide_depth_gate<R>(f: impl FnOnce() -> R) -> R {
+    ENGAGED_HERE.with(|e| e.set(true));
     let old = WIDE_DEPTH_GATE.with(|m| m.replace(true));
     let r = f();
     WIDE_DEPTH_GATE.with(|m| m.set(old));
@@ -92,9 +114,9 @@ pub fn with_wide_depth_gate<R>(f: impl FnOnce() -> R) -> R {
 pub const WIDE_GATE_SCALE: f32 = 1.01;
 
 /// `dist_m` as the depth gate uses it: as given, or 1 % wide under the planted bug.
-#[inline]
+#[inline(always)]
 pub fn depth_gate(dist_m: f32) -> f32 {
-    match WIDE_DEPTH_GATE.with(|m| m.get()) {
+    match engaged() && WIDE_DEPTH_GATE.with(|m| m.get()) {
         true => dist_m * WIDE_GATE_SCALE,
         false => dist_m,
     }
@@ -105,14 +127,24 @@ pub const SKIPPED_MERGE_EVERY: u64 = 16;
 
 /// True when the planted skipped-merge bug drops the merge into the surfel whose
 /// position-weight bits are `key`.
-#[inline]
+#[inline(always)]
 pub fn merge_skipped(key: [f32; 4]) -> bool {
+    engaged() && merge_skipped_slow(key)
+}
+
+/// [`merge_skipped`] once a planted bug may be set.
+#[cold]
+#[inline(never)]
+fn merge_skipped_slow(key: [f32; 4]) -> bool {
     SKIP_MERGES.with(|m| m.get()) && hash(0x5eed, &key.map(f32::to_bits)) % SKIPPED_MERGE_EVERY == 0
 }
 
 /// The seed of the perturbed mode, or `None` when exact.
 #[inline]
 fn seed() -> Option<u64> {
+    if !engaged() {
+        return None;
+    }
     match MODE.with(|m| m.get()) {
         Arith::Exact => None,
         Arith::Perturbed { seed } => Some(seed),
@@ -146,8 +178,18 @@ fn nudge(x: f32, max: u32, h: u64) -> f32 {
 }
 
 /// `a / b` (WGSL `x / y`).
-#[inline]
+#[inline(always)]
 pub fn div(a: f32, b: f32) -> f32 {
+    match engaged() {
+        false => a / b,
+        true => div_slow(a, b),
+    }
+}
+
+/// [`div`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn div_slow(a: f32, b: f32) -> f32 {
     match seed() {
         None => a / b,
         Some(s) => nudge(a / b, DIV_ULPS, hash(s ^ 1, &[a.to_bits(), b.to_bits()])),
@@ -155,8 +197,18 @@ pub fn div(a: f32, b: f32) -> f32 {
 }
 
 /// `v / s` componentwise (WGSL `vec3 / f32`).
-#[inline]
+#[inline(always)]
 pub fn div3(v: Vec3, s: f32) -> Vec3 {
+    match engaged() {
+        false => v / s,
+        true => div3_slow(v, s),
+    }
+}
+
+/// [`div3`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn div3_slow(v: Vec3, s: f32) -> Vec3 {
     match seed() {
         None => v / s,
         Some(_) => Vec3::new(div(v.x, s), div(v.y, s), div(v.z, s)),
@@ -164,8 +216,18 @@ pub fn div3(v: Vec3, s: f32) -> Vec3 {
 }
 
 /// `sqrt(x)`.
-#[inline]
+#[inline(always)]
 pub fn sqrt(x: f32) -> f32 {
+    match engaged() {
+        false => x.sqrt(),
+        true => sqrt_slow(x),
+    }
+}
+
+/// [`sqrt`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn sqrt_slow(x: f32) -> f32 {
     match seed() {
         None => x.sqrt(),
         Some(s) => nudge(x.sqrt(), SQRT_ULPS, hash(s ^ 2, &[x.to_bits()])),
@@ -173,8 +235,18 @@ pub fn sqrt(x: f32) -> f32 {
 }
 
 /// `inverseSqrt(x)`, computed exactly as `1.0 / x.sqrt()` (the twins' spelling).
-#[inline]
+#[inline(always)]
 pub fn inverse_sqrt(x: f32) -> f32 {
+    match engaged() {
+        false => 1.0 / x.sqrt(),
+        true => inverse_sqrt_slow(x),
+    }
+}
+
+/// [`inverse_sqrt`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn inverse_sqrt_slow(x: f32) -> f32 {
     match seed() {
         None => 1.0 / x.sqrt(),
         Some(s) => nudge(
@@ -186,8 +258,18 @@ pub fn inverse_sqrt(x: f32) -> f32 {
 }
 
 /// `a * b + c`, fused (one rounding) or not, as WGSL allows either.
-#[inline]
+#[inline(always)]
 pub fn fma_or_mul_add(a: f32, b: f32, c: f32) -> f32 {
+    match engaged() {
+        false => a * b + c,
+        true => fma_or_mul_add_slow(a, b, c),
+    }
+}
+
+/// [`fma_or_mul_add`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn fma_or_mul_add_slow(a: f32, b: f32, c: f32) -> f32 {
     match seed() {
         Some(s) if hash(s ^ 4, &[a.to_bits(), b.to_bits(), c.to_bits()]) & 1 == 1 => {
             a.mul_add(b, c)
@@ -197,8 +279,18 @@ pub fn fma_or_mul_add(a: f32, b: f32, c: f32) -> f32 {
 }
 
 /// `dot(a, b)` (glam's `x*x' + y*y' + z*z'`; perturbed: each add may be fused).
-#[inline]
+#[inline(always)]
 pub fn dot(a: Vec3, b: Vec3) -> f32 {
+    match engaged() {
+        false => a.dot(b),
+        true => dot_slow(a, b),
+    }
+}
+
+/// [`dot`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn dot_slow(a: Vec3, b: Vec3) -> f32 {
     match seed() {
         None => a.dot(b),
         Some(_) => fma_or_mul_add(a.z, b.z, fma_or_mul_add(a.y, b.y, a.x * b.x)),
@@ -206,8 +298,18 @@ pub fn dot(a: Vec3, b: Vec3) -> f32 {
 }
 
 /// `length(v)` = `sqrt(dot(v, v))`.
-#[inline]
+#[inline(always)]
 pub fn length(v: Vec3) -> f32 {
+    match engaged() {
+        false => v.length(),
+        true => length_slow(v),
+    }
+}
+
+/// [`length`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn length_slow(v: Vec3) -> f32 {
     match seed() {
         None => v.length(),
         Some(_) => sqrt(dot(v, v)),
@@ -216,8 +318,18 @@ pub fn length(v: Vec3) -> f32 {
 
 /// `normalize(v)` = `v / length(v)`, or zero when the length is zero (the twins'
 /// `normalize_or_zero`).
-#[inline]
+#[inline(always)]
 pub fn normalize_or_zero(v: Vec3) -> Vec3 {
+    match engaged() {
+        false => v.normalize_or_zero(),
+        true => normalize_or_zero_slow(v),
+    }
+}
+
+/// [`normalize_or_zero`] once a mode other than exact was entered (out of line: see `ENGAGED_HERE`).
+#[cold]
+#[inline(never)]
+fn normalize_or_zero_slow(v: Vec3) -> Vec3 {
     match seed() {
         None => v.normalize_or_zero(),
         Some(_) => {
@@ -245,8 +357,15 @@ pub fn mat4_mul(cols: &[[f32; 4]; 4], v: Vec3, w: f32) -> Vec3 {
 }
 
 /// True in the perturbed mode (for helpers whose exact path must stay as it was written).
-#[inline]
+#[inline(always)]
 pub fn perturbed() -> bool {
+    engaged() && perturbed_slow()
+}
+
+/// [`perturbed`] once a mode other than exact was entered.
+#[cold]
+#[inline(never)]
+fn perturbed_slow() -> bool {
     seed().is_some()
 }
 
@@ -254,8 +373,22 @@ pub fn perturbed() -> bool {
 /// order); perturbed, the row's terms rounded to f32 and added to one of [`PARTIALS`] f32
 /// partial sums (chosen by a seeded hash of `pixel`), `sum` kept equal to the f64 sum of
 /// the partials. A reduction starts when `sum` is all zero (the twin's fresh system).
-#[inline]
+#[inline(always)]
 pub fn accumulate<const N: usize>(sum: &mut [f64; N], pixel: u32, add: impl FnOnce(&mut [f64; N])) {
+    match engaged() {
+        false => add(sum),
+        true => accumulate_slow(sum, pixel, add),
+    }
+}
+
+/// [`accumulate`] once a mode other than exact was entered.
+#[cold]
+#[inline(never)]
+fn accumulate_slow<const N: usize>(
+    sum: &mut [f64; N],
+    pixel: u32,
+    add: impl FnOnce(&mut [f64; N]),
+) {
     let Some(s) = seed() else {
         add(sum);
         return;
