@@ -72,6 +72,13 @@ pub struct DecisionCheck {
     pub first: Option<String>,
 }
 
+impl DecisionCheck {
+    /// True when at most `max_clear_flips` decisions were clear flips.
+    pub fn within(&self, max_clear_flips: usize) -> bool {
+        self.clear_flips <= max_clear_flips
+    }
+}
+
 /// A surfel's standing at a pixel under one backend's inputs: clearly passes every gate,
 /// clearly fails one (with what, its margin in metres or cosine, and the gate), or sits
 /// within rounding of one.
@@ -395,4 +402,77 @@ fn gates(
         );
     }
     c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::pack_depth_index;
+
+    /// A 4x4 camera at the world origin (fx = fy = 100 px), best-candidate gates 5 cm and
+    /// 20 degrees, and a map of one surfel `along_m` beyond pixel (2, 2)'s measurement (at
+    /// 1 m depth) along its ray, facing the camera.
+    fn scene(along_m: f64) -> (FuseParams, Vec<[f32; 4]>, SurfelMap) {
+        let mut p: FuseParams = bytemuck::Zeroable::zeroed();
+        let identity = [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        (p.t_world_to_cam, p.t_cam_to_world) = (identity, identity);
+        (p.fx, p.fy, p.cx, p.cy, p.width, p.height) = (100.0, 100.0, 1.5, 1.5, 4, 4);
+        p.dist_threshold_m = 0.05;
+        p.cos_normal_threshold = 20f32.to_radians().cos();
+        let mut nd = vec![[0.0f32; 4]; 16];
+        nd[2 * 4 + 2] = [0.0, 0.0, -1.0, 1.0];
+        let q = DVec3::new(0.005, 0.005, 1.0);
+        let s = q + q.normalize() * along_m;
+        let map = SurfelMap {
+            position_weight: vec![[s.x as f32, s.y as f32, s.z as f32, 1.0]],
+            normal_frame: vec![[0.0f32.to_bits(), 0.0f32.to_bits(), (-1.0f32).to_bits(), 0]],
+            color: vec![[0.0, 0.0, 0.0, 0.01]],
+        };
+        (p, nd, map)
+    }
+
+    /// Clear flips for A choosing nothing at pixel (2, 2) and B choosing the surfel.
+    fn flips(along_m: f64) -> DecisionCheck {
+        let (p, nd, map) = scene(along_m);
+        let mut assoc_b = vec![0u64; 16];
+        assoc_b[2 * 4 + 2] = pack_depth_index(0.0, 0);
+        let assoc_a = vec![0u64; 16];
+        let a = FusionSide {
+            params: &p,
+            normal_depth: &nd,
+            assoc: &assoc_a,
+        };
+        let b = FusionSide {
+            params: &p,
+            normal_depth: &nd,
+            assoc: &assoc_b,
+        };
+        check(&map, &a, &b, true)
+    }
+
+    #[test]
+    fn a_choice_clear_of_its_gate_is_a_flip_and_a_knife_edge_is_not() {
+        // 1 cm beyond the 5 cm depth gate: B's choice is a bug.
+        let c = flips(0.06);
+        assert_eq!((c.differing_pixels, c.clear_flips), (1, 1), "{c:?}");
+        assert!(
+            c.first.as_deref().unwrap().contains("B: chose surfel 0"),
+            "{c:?}"
+        );
+        // Within rounding of the gate (0.1 um; the bound is ~8 um at 1 m): either is right.
+        let c = flips(0.05 + 1e-7);
+        assert_eq!((c.differing_pixels, c.clear_flips), (1, 0), "{c:?}");
+        // Clearly inside the gates: A, which chose nothing, is the one in the wrong.
+        let c = flips(0.03);
+        assert_eq!(c.clear_flips, 1, "{c:?}");
+        assert!(
+            c.first.as_deref().unwrap().contains("A: chose none"),
+            "{c:?}"
+        );
+    }
 }

@@ -543,11 +543,7 @@ fn check_frame(
     }
     if let Some(c) = &d.decisions {
         check(
-            // `<=` a limit of 0 today: the bound stays a named constant.
-            #[allow(clippy::absurd_extreme_comparisons)]
-            {
-                c.clear_flips <= FUSION_CLEAR_FLIPS_MAX
-            },
+            c.within(FUSION_CLEAR_FLIPS_MAX),
             "fusion decisions",
             format!(
                 "{} of {} pixels decided the other way clear of the knife edge (largest \
