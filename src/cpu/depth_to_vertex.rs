@@ -49,7 +49,7 @@ fn convert_at(
 ) {
     let texel = (v * params.width + u) as usize;
     let raw = (v * params.stride * params.raw_width + u * params.stride) as usize;
-    let z = raw_depth[raw] as f32 / params.depth_scale;
+    let z = super::arith::div(raw_depth[raw] as f32, params.depth_scale);
     let c = raw_rgba[raw];
     color_map[texel] = [
         (c & 255) as f32,

@@ -129,7 +129,7 @@ fn merge_surfel(
     let q_world = transform_point(&params.t_cam_to_world, q_cam);
     let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
     let n_old = normal_of(map.normal_frame[surfel]);
-    if (q_world - p_world).length() >= params.dist_threshold_m
+    if super::arith::length(q_world - p_world) >= params.dist_threshold_m
         || n_old.dot(nq_world) <= params.cos_normal_threshold
     {
         return None;

@@ -79,7 +79,7 @@ pub fn icp_row(
     let q = back_project(cam, target_texel, nd[3]);
     let n = xyz(nd);
     let d = p - q;
-    if d.length() >= params.dist_threshold_m {
+    if super::arith::length(d) >= params.dist_threshold_m {
         return None;
     }
     // The angle gate reads the source normal only when it is on.
@@ -95,7 +95,7 @@ pub fn icp_row(
     if params.noise_weighting != 0 {
         w *= noise_weight(q.z);
     }
-    let s = w.sqrt();
+    let s = super::arith::sqrt(w);
     let pxn = p.cross(n) * s;
     let ns = n * s;
     Some(([pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z], b * s))
@@ -134,7 +134,7 @@ pub fn icp_reduce(
     for v in 0..params.height {
         for u in 0..params.width {
             if let Some((a, b)) = icp_row(params, [u, v], pred_vertex, pred_normal, normal_depth) {
-                accumulate(&mut sys, &a, b);
+                super::arith::accumulate(&mut sys, v * params.width + u, |s| accumulate(s, &a, b));
             }
         }
     }

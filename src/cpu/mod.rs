@@ -16,6 +16,7 @@
 //! and arrays, as the shader does per dispatch (the CPU backend passes its whole map as one
 //! chunk).
 
+pub mod arith;
 pub mod bilateral_filter;
 pub mod block_bounds;
 pub mod compact_flags;
@@ -120,12 +121,18 @@ pub const INVALID: [f32; 4] = [0.0; 4];
 /// `T p` for a point (w = 1). Mirrors `transform_point` in common.wgsl.
 #[inline]
 pub fn transform_point(t: &GpuMat4, p: Vec3) -> Vec3 {
+    if arith::perturbed() {
+        return arith::mat4_mul(t, p, 1.0);
+    }
     (Mat4::from_cols_array_2d(t) * p.extend(1.0)).truncate()
 }
 
 /// `R n` for a direction (w = 0). Mirrors `transform_dir` in common.wgsl.
 #[inline]
 pub fn transform_dir(t: &GpuMat4, n: Vec3) -> Vec3 {
+    if arith::perturbed() {
+        return arith::mat4_mul(t, n, 0.0);
+    }
     (Mat4::from_cols_array_2d(t) * n.extend(0.0)).truncate()
 }
 
@@ -147,8 +154,8 @@ pub fn project_to_texel(cam: [f32; 4], width: u32, height: u32, p: Vec3) -> Opti
     if p.z <= 0.0 {
         return None;
     }
-    let u = (cam[0] * p.x / p.z + cam[2] + 0.5).floor();
-    let v = (cam[1] * p.y / p.z + cam[3] + 0.5).floor();
+    let u = (arith::div(cam[0] * p.x, p.z) + cam[2] + 0.5).floor();
+    let v = (arith::div(cam[1] * p.y, p.z) + cam[3] + 0.5).floor();
     if u < 0.0 || v < 0.0 || u >= width as f32 || v >= height as f32 {
         return None;
     }
@@ -162,8 +169,8 @@ pub fn project_to_texel(cam: [f32; 4], width: u32, height: u32, p: Vec3) -> Opti
 /// match. Mirrors `back_project` in common.wgsl.
 #[inline]
 pub fn back_project(cam: [f32; 4], texel: [u32; 2], z: f32) -> Vec3 {
-    let x = (texel[0] as f32 - cam[2]) * z / cam[0];
-    let y = (texel[1] as f32 - cam[3]) * z / cam[1];
+    let x = arith::div((texel[0] as f32 - cam[2]) * z, cam[0]);
+    let y = arith::div((texel[1] as f32 - cam[3]) * z, cam[1]);
     Vec3::new(x, y, z)
 }
 
@@ -211,11 +218,14 @@ pub fn candidate_off_ray(
     cos_normal: f32,
 ) -> Option<f32> {
     let q = back_project(cam, texel, nd[3]);
-    let ray = q / q.length();
+    let ray = arith::div3(q, arith::length(q));
     let d = p_cam - q;
-    let along = d.dot(ray);
-    let off_ray = (d - ray * along).length();
-    if along.abs() >= dist_m || off_ray >= radius_m || n_cam.dot(xyz(nd)) <= cos_normal {
+    let along = arith::dot(d, ray);
+    let off_ray = arith::length(d - ray * along);
+    if along.abs() >= arith::depth_gate(dist_m)
+        || off_ray >= radius_m
+        || arith::dot(n_cam, xyz(nd)) <= cos_normal
+    {
         return None;
     }
     Some(off_ray)
@@ -275,7 +285,7 @@ pub fn pack_depth_index(z_cam: f32, surfel: u32) -> u64 {
 /// `v / |v|`, or zero when `|v|` is zero. Mirrors `normalize_or_zero` in common.wgsl.
 #[inline]
 pub fn normalize_or_zero(v: Vec3) -> Vec3 {
-    v.normalize_or_zero()
+    arith::normalize_or_zero(v)
 }
 
 /// A surfel after merging one measurement into it. Mirrors `MergedSurfel` in common.wgsl.
@@ -307,8 +317,15 @@ pub fn merged_surfel(
     wq: f32,
     r_q: f32,
 ) -> MergedSurfel {
+    if arith::merge_skipped(pw) {
+        return MergedSurfel {
+            position_weight: pw,
+            normal: n_old,
+            color: c,
+        };
+    }
     let w = pw[3];
-    let inv = 1.0 / (w + wq);
+    let inv = arith::div(1.0, w + wq);
     let p = (xyz(pw) * w + q_world * wq) * inv;
     let n = normalize_or_zero((n_old * w + nq_world * wq) * inv);
     let r = (c[3] * w + r_q * wq) * inv;
@@ -324,8 +341,8 @@ pub fn merged_surfel(
 /// `n_cam`; `focal_px` = fx). Mirrors `surfel_radius` in common.wgsl, which says why.
 #[inline]
 pub fn surfel_radius(focal_px: f32, q_cam: Vec3, n_cam: Vec3) -> f32 {
-    let footprint = std::f32::consts::SQRT_2 * q_cam.z / focal_px;
-    let cos_view = n_cam.dot(q_cam).abs() / q_cam.length();
+    let footprint = arith::div(std::f32::consts::SQRT_2 * q_cam.z, focal_px);
+    let cos_view = arith::div(arith::dot(n_cam, q_cam).abs(), arith::length(q_cam));
     footprint / cos_view.max(0.5)
 }
 

@@ -40,11 +40,11 @@ pub fn normal_at(params: &NormalParams, vertex_map: &[[f32; 4]], u: u32, v: u32)
         return INVALID;
     }
     let n = (xyz(r) - xyz(l)).cross(xyz(b) - xyz(t));
-    let len = n.length();
+    let len = super::arith::length(n);
     if len <= 1e-12 {
         return INVALID;
     }
-    let mut nn = n / len;
+    let mut nn = super::arith::div3(n, len);
     if nn.dot(xyz(c)) > 0.0 {
         nn = -nn;
     }

@@ -11,6 +11,7 @@ mod batch;
 mod bindings;
 mod cli;
 mod compare;
+mod compare_perturbed;
 mod datasets;
 mod end_to_end;
 mod eval;
@@ -48,6 +49,7 @@ fn main() -> ExitCode {
         bindings,
         cli,
         compare,
+        compare_perturbed,
         datasets,
         end_to_end,
         eval,

@@ -13,11 +13,18 @@
 //! differences accumulate, and its tolerances ([`tolerance`]'s end-to-end ones) hold on
 //! noise-free frames only.
 
+pub mod decisions;
 mod fusion;
 mod map_match;
+mod perturbed;
 
+pub use decisions::{DecisionCheck, FusionSide};
 pub use fusion::FusionKernelDiff;
-pub use map_match::{diff_surfel_maps, unmatched_fraction, Matches, SurfelMapDiff};
+pub use map_match::{
+    diff_surfel_maps, diff_surfel_maps_within, unexplained_fraction, unmatched_fraction, MapBounds,
+    Matches, SurfelMapDiff,
+};
+pub use perturbed::{PerturbedCpu, Plant, DEFAULT_SEED};
 
 use glam::DMat4;
 use serde::Serialize;
@@ -32,82 +39,7 @@ use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
 
-/// Documented tolerances; `wgslam compare` exits non-zero beyond any of them. The frame-map
-/// bounds hold in both modes (the inputs are the same raw frame); the rest are for the
-/// free (end-to-end) mode, and [`tolerance::lockstep`] has the per-frame ones.
-pub mod tolerance {
-    /// Vertex maps: the same f32 expression, but GPUs may fuse multiply-adds: a few ulps of
-    /// a value of ~5 m is ~1e-6 m.
-    pub const VERTEX_MAX_ABS_M: f64 = 1e-5;
-    /// Normals: central differences of vertices that differ by ulps, then a normalisation.
-    pub const NORMAL_MAX_DEG: f64 = 0.05;
-    /// Pixels whose validity differs (a neighbour's depth jump exactly at the threshold).
-    pub const VALIDITY_MISMATCH_MAX_FRACTION: f64 = 1e-3;
-    /// Relative difference of AᵀA and Aᵀb (see `system_rel_diffs`): f32 partial sums over ~1e5 rows.
-    pub const SYSTEM_REL_DIFF_MAX: f64 = 1e-3;
-    /// Pose difference per frame (end to end, accumulated over the run).
-    pub const POSE_MAX_MM: f64 = 0.1;
-    pub const POSE_MAX_DEG: f64 = 0.01;
-    /// Surfel counts: pixels at a filter boundary may be merged on one side, added on the other.
-    pub const SURFEL_COUNT_REL_DIFF_MAX: f64 = 1e-3;
-    /// Map points of one backend farther than this from every point of the other.
-    pub const MAP_MATCH_RADIUS_M: f32 = 1e-3;
-    /// Fraction of map points allowed to have no match within the radius, for short runs.
-    pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 1e-3;
-    /// ...and per frame compared, for long ones: a surfel whose projection lands exactly
-    /// on a pixel boundary may be moved to the neighbouring pixel by a fused multiply-add
-    /// on one backend only, and then averages in a different frame point; such surfels
-    /// accumulate over a run. Measured on ICL kt2 (320x240, both backends tracking):
-    /// unmatched 0.017 % after 20 frames, 0.062 % after 50, 0.10 % after 100, 0.13 %
-    /// after 150, 0.14 % after 200, while within 1 cm only 0.001 % are unmatched after 200
-    /// (the maps are the same surface). 2e-5 per frame leaves 1.9x headroom at 100 frames.
-    pub const MAP_UNMATCHED_MAX_FRACTION_PER_FRAME: f64 = 2e-5;
-
-    /// The unmatched-fraction limit for a comparison over `frames` frames.
-    pub fn map_unmatched_max_fraction(frames: usize) -> f64 {
-        MAP_UNMATCHED_MAX_FRACTION.max(MAP_UNMATCHED_MAX_FRACTION_PER_FRAME * frames as f64)
-    }
-
-    /// Per-frame tolerances of the lockstep mode: both backends start each frame from the
-    /// same map and pose, so a bound is what one frame's kernels may differ by; nothing
-    /// accumulates. Measured with `wgslam compare DATA --frames 1..200` (320x240, every
-    /// frame's map compared) on the noisy and the noise-free ICL kt2 with `--profile
-    /// robust` and `--profile assignment`; each comment gives the worst frame of the four
-    /// runs. The frame-map bounds and the match radius are the ones above.
-    pub mod lockstep {
-        /// The first ICP system at the finest pyramid level, from the same prediction (same
-        /// map, same starting pose) and the same frame: f32 partial sums per workgroup on
-        /// the GPU against f64 on the CPU, at poses the coarser levels moved by slightly
-        /// different amounts (the robust profile's pyramid). Worst with one level 1.5e-4
-        /// (noisy, robust: Huber and noise weights), 7.8e-5 noise-free and 7.1e-5 noisy
-        /// with the assignment profile; with the robust profile's three levels 3.9e-4
-        /// (noisy) and 4.4e-4 (noise-free). 2.3x headroom.
-        pub const SYSTEM_REL_DIFF_MAX: f64 = 1e-3;
-        /// The pose after ICP, from the same starting pose: the systems' rounding
-        /// differences pass through every iteration, and a frame may stop one iteration
-        /// earlier on one side (an increment just below the convergence threshold, 1e-5
-        /// with the robust profile). Worst 0.031 mm / 0.00078 deg (noisy, assignment: ICP
-        /// without weights runs all 10 iterations on noisy depth); 0.015 mm / 0.00023 deg
-        /// noisy robust; 0.0014 mm / 0.00003 deg noise-free. 3.3x / 3.8x headroom over the
-        /// worst.
-        pub const POSE_MAX_MM: f64 = 0.1;
-        pub const POSE_MAX_DEG: f64 = 0.003;
-        /// Surfel counts after fusion and after compaction: pixels at a fusion gate may
-        /// merge on one side and be added on the other (and the pose differs by the amount
-        /// above). Worst 3.8e-5 (noisy robust, 5 surfels of 132k); at most 14 surfels in
-        /// any run; 1.3e-5 noise-free. 5x headroom.
-        pub const SURFEL_COUNT_REL_DIFF_MAX: f64 = 2e-4;
-        /// The map after the frame: fraction of surfels (the larger side) with no surfel
-        /// of the other map within [`super::MAP_MATCH_RADIUS_M`]. From the same map, the
-        /// pose difference moves surfels by less than 3e-5 m (noisy frame 91, 0.013 mm
-        /// apart: 8786 surfels have no partner within 0.01 mm, 64 none within 0.03 mm, the
-        /// same 64 none within 1 mm), so the unmatched ones are the fusion-gate decisions
-        /// that differ. Worst 6.3e-4
-        /// (noisy assignment, frame 3: 87 of 139k; its noisy normals sit at the 5 degree
-        /// gate), 1.8e-4 noisy robust, 8e-5 noise-free. 3.2x headroom.
-        pub const MAP_UNMATCHED_MAX_FRACTION: f64 = 2e-3;
-    }
-}
+pub mod tolerance;
 
 /// How the two backends are driven (see the module header).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -142,12 +74,33 @@ struct Limits {
     surfel_count_rel_diff: f64,
     map_match_radius_m: f32,
     map_unmatched_fraction: f64,
+    /// Fusion's gates, which bound how far a surfel moves when one decision goes the other
+    /// way (see [`tolerance::MAP_UNEXPLAINED_MAX_FRACTION`]).
+    map_explain_radius_m: f32,
+    map_explain_normal_deg: f32,
+    map_unexplained_fraction: f64,
+    map_weight_sum_rel_diff: f64,
 }
 
 impl Limits {
-    fn of(mode: Mode, frames: usize) -> Limits {
+    /// The map comparison's bounds.
+    fn map_bounds(&self) -> MapBounds {
+        MapBounds {
+            match_radius_m: self.map_match_radius_m,
+            explain_radius_m: self.map_explain_radius_m,
+            explain_normal_deg: self.map_explain_normal_deg,
+        }
+    }
+
+    fn of(mode: Mode, frames: usize, params: &SlamParams) -> Limits {
         use tolerance::*;
-        match mode {
+        let fusion = &params.fusion;
+        let explain = |l: Limits| Limits {
+            map_explain_radius_m: fusion.dist_m + MAP_MATCH_RADIUS_M,
+            map_explain_normal_deg: fusion.normal_deg.min(180.0),
+            ..l
+        };
+        explain(match mode {
             Mode::Lockstep { .. } => Limits {
                 system_rel_diff: lockstep::SYSTEM_REL_DIFF_MAX,
                 pose_mm: lockstep::POSE_MAX_MM,
@@ -155,6 +108,10 @@ impl Limits {
                 surfel_count_rel_diff: lockstep::SURFEL_COUNT_REL_DIFF_MAX,
                 map_match_radius_m: MAP_MATCH_RADIUS_M,
                 map_unmatched_fraction: lockstep::MAP_UNMATCHED_MAX_FRACTION,
+                map_explain_radius_m: 0.0,
+                map_explain_normal_deg: 0.0,
+                map_unexplained_fraction: MAP_UNEXPLAINED_MAX_FRACTION,
+                map_weight_sum_rel_diff: lockstep::MAP_WEIGHT_SUM_REL_DIFF_MAX,
             },
             Mode::Free => Limits {
                 system_rel_diff: SYSTEM_REL_DIFF_MAX,
@@ -163,8 +120,12 @@ impl Limits {
                 surfel_count_rel_diff: SURFEL_COUNT_REL_DIFF_MAX,
                 map_match_radius_m: MAP_MATCH_RADIUS_M,
                 map_unmatched_fraction: map_unmatched_max_fraction(frames),
+                map_explain_radius_m: 0.0,
+                map_explain_normal_deg: 0.0,
+                map_unexplained_fraction: MAP_UNEXPLAINED_MAX_FRACTION,
+                map_weight_sum_rel_diff: MAP_WEIGHT_SUM_REL_DIFF_MAX,
             },
-        }
+        })
     }
 }
 
@@ -202,6 +163,9 @@ pub struct FrameDiff {
     pub map: Option<SurfelMapDiff>,
     /// Fusion kernel by kernel (lockstep mode, frames both backends fused).
     pub fusion: Option<FusionKernelDiff>,
+    /// The pixels whose fusion decision differs, judged against their knife edges
+    /// (lockstep mode, frames both backends fused; see [`decisions`]).
+    pub decisions: Option<DecisionCheck>,
 }
 
 /// The largest difference of each kind over the frames compared (and the maps).
@@ -220,6 +184,14 @@ pub struct Worst {
     /// comparisons.
     pub map_unmatched_fraction: f64,
     pub map_max_match_m: f64,
+    /// Unexplained fraction (larger side) and relative total-weight difference over the
+    /// map comparisons.
+    pub map_unexplained_fraction: f64,
+    pub map_weight_sum_rel_diff: f64,
+    /// Most fusion decisions taken the other way clear of their knife edge in a frame, and
+    /// the largest such margin relative to its gate (lockstep; see [`decisions`]).
+    pub fusion_clear_flips: usize,
+    pub fusion_clear_flip_relative_margin: f64,
 }
 
 impl Worst {
@@ -239,11 +211,19 @@ impl Worst {
         if let Some(m) = &d.map {
             self.add_map(m);
         }
+        if let Some(c) = &d.decisions {
+            self.fusion_clear_flips = self.fusion_clear_flips.max(c.clear_flips);
+            self.fusion_clear_flip_relative_margin = self
+                .fusion_clear_flip_relative_margin
+                .max(c.worst_relative_margin);
+        }
     }
 
     fn add_map(&mut self, m: &SurfelMapDiff) {
         self.map_unmatched_fraction = self.map_unmatched_fraction.max(m.unmatched_fraction());
         self.map_max_match_m = self.map_max_match_m.max(m.max_match_m);
+        self.map_unexplained_fraction = self.map_unexplained_fraction.max(m.unexplained_fraction());
+        self.map_weight_sum_rel_diff = self.map_weight_sum_rel_diff.max(m.weight_sum_rel_diff());
     }
 }
 
@@ -347,9 +327,9 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     let names = (a.name().to_string(), b.name().to_string());
     let compacts = params.fusion.unstable_removal.is_some();
     let best_candidate = params.fusion.association == Association::BestCandidate;
+    let limits = Limits::of(mode, (first..=last).count(), &params);
     let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
     let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
-    let limits = Limits::of(mode, (first..=last).count());
     let mut frames = Vec::new();
     let mut violations = Vec::new();
     let mut worst = Worst::default();
@@ -359,6 +339,8 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
         Mode::Free => None,
     };
     for (k, i) in (first..=last).enumerate() {
+        // Lockstep: the map both backends fuse into this frame, for judging their decisions.
+        let before = a_map.clone();
         if let Some(map) = &a_map {
             // A too starts from its map as uploaded: a backend predicts from the index map
             // its last fusion built (see `FusedView`), B from a fresh projection of the
@@ -374,7 +356,8 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
         sb.backend.clear_frame();
         let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
         let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
-        let maps = diff_frame_maps(&sa.backend.download_frame()?, &sb.backend.download_frame()?);
+        let (frame_a, frame_b) = (sa.backend.download_frame()?, sb.backend.download_frame()?);
+        let maps = diff_frame_maps(&frame_a, &frame_b);
         // The first system at the finest level: the most rows, so a row whose gate one
         // backend decides the other way by an ulp moves it least (at the coarsest level,
         // 80x60, one such row of a large residual moved it by 2.3e-3 on noisy frame 40).
@@ -394,20 +377,42 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
         };
         let (mm, deg) = pose_diff(&ra.t_cam_to_world, &rb.t_cam_to_world);
         let fused_surfels = sa.backend.fused_surfels.zip(sb.backend.fused_surfels);
-        let fusion = match (mode, fused_surfels) {
-            (Mode::Lockstep { .. }, Some(_)) => Some(FusionKernelDiff::of(
-                &sa.backend.download_fusion()?,
-                &sb.backend.download_fusion()?,
-                best_candidate,
-            )),
-            _ => None,
+        let (fusion, decisions) = match (&before, fused_surfels) {
+            (Some(before), Some(_)) => {
+                let (fa, fb) = (sa.backend.download_fusion()?, sb.backend.download_fusion()?);
+                let (ta, tb) = (sa.t_world_to_cam(), sb.t_world_to_cam());
+                let pa = ta.map(|t| sa.fuse_params(&t, i as u32));
+                let pb = tb.map(|t| sb.fuse_params(&t, i as u32));
+                let decisions = match (pa, pb) {
+                    (Some(pa), Some(pb)) => Some(decisions::check(
+                        before,
+                        &FusionSide {
+                            params: &pa,
+                            normal_depth: &frame_a.normal_depth,
+                            assoc: &fa.assoc,
+                        },
+                        &FusionSide {
+                            params: &pb,
+                            normal_depth: &frame_b.normal_depth,
+                            assoc: &fb.assoc,
+                        },
+                        best_candidate,
+                    )),
+                    _ => None,
+                };
+                (
+                    Some(FusionKernelDiff::of(&fa, &fb, best_candidate)),
+                    decisions,
+                )
+            }
+            _ => (None, None),
         };
         let map = match (&mut a_map, mode) {
             (Some(a_map), Mode::Lockstep { map_every }) => {
                 *a_map = sa.backend.download_map()?;
                 if (k + 1) % map_every.max(1) == 0 || i == last {
                     let b_map = sb.backend.download_map()?;
-                    Some(diff_surfel_maps(a_map, &b_map, limits.map_match_radius_m))
+                    Some(diff_surfel_maps_within(a_map, &b_map, &limits.map_bounds()))
                 } else {
                     None
                 }
@@ -425,6 +430,7 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
             surfels: (ra.surfels, rb.surfels),
             map,
             fusion,
+            decisions,
         };
         check_frame(&d, &limits, compacts, best_candidate, &mut violations);
         worst.add_frame(&d);
@@ -434,15 +440,12 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
         Some(m) => m,
         None => {
             let (ma, mb) = (sa.backend.download_map()?, sb.backend.download_map()?);
-            let m = diff_surfel_maps(&ma, &mb, limits.map_match_radius_m);
-            if m.unmatched_fraction() > limits.map_unmatched_fraction {
-                violations.push(format!(
-                    "final map: {} (limit {:.4}% for {} frames)",
-                    describe_unmatched(&m),
-                    limits.map_unmatched_fraction * 100.0,
-                    frames.len()
-                ));
-            }
+            let m = diff_surfel_maps_within(&ma, &mb, &limits.map_bounds());
+            check_map(&m, &limits, &mut |ok, what| {
+                if !ok {
+                    violations.push(format!("final map: {what} ({} frames)", frames.len()));
+                }
+            });
             worst.add_map(&m);
             m
         }
@@ -538,15 +541,59 @@ fn check_frame(
             format!("surfel counts {ca} vs {cb}"),
         );
     }
-    if let Some(m) = &d.map {
+    if let Some(c) = &d.decisions {
         check(
-            m.unmatched_fraction() <= limits.map_unmatched_fraction,
-            "map after the frame",
+            c.within(FUSION_CLEAR_FLIPS_MAX),
+            "fusion decisions",
             format!(
-                "{} (limit {:.4}%)",
-                describe_unmatched(m),
-                limits.map_unmatched_fraction * 100.0
+                "{} of {} pixels decided the other way clear of the knife edge (largest \
+                 margin {:.2e} of the gate); first: {}",
+                c.clear_flips,
+                c.differing_pixels,
+                c.worst_relative_margin,
+                c.first.as_deref().unwrap_or("-")
             ),
         );
     }
+    if let Some(m) = &d.map {
+        check_map(m, limits, &mut |ok, what| {
+            check(ok, "map after the frame", what)
+        });
+    }
+}
+
+/// Calls `check(ok, what)` for each bound of a map comparison: every surfel explained by one
+/// of the other map's (within fusion's gates), the total weights, and the fraction without
+/// a partner within the match radius (the knife-edge decisions).
+fn check_map(m: &SurfelMapDiff, limits: &Limits, check: &mut dyn FnMut(bool, String)) {
+    check(
+        m.unexplained_fraction() <= limits.map_unexplained_fraction,
+        format!(
+            "{:.4}% / {:.4}% of surfels with no surfel of the other map within {} mm and {} deg \
+             (limit {:.4}%)",
+            m.unexplained_a_fraction * 100.0,
+            m.unexplained_b_fraction * 100.0,
+            m.explain_radius_m * 1e3,
+            m.explain_normal_deg,
+            limits.map_unexplained_fraction * 100.0
+        ),
+    );
+    check(
+        m.weight_sum_rel_diff() <= limits.map_weight_sum_rel_diff,
+        format!(
+            "total weights {:.1} vs {:.1}: relative difference {:.2e} (limit {:.1e})",
+            m.weight_sums.0,
+            m.weight_sums.1,
+            m.weight_sum_rel_diff(),
+            limits.map_weight_sum_rel_diff
+        ),
+    );
+    check(
+        m.unmatched_fraction() <= limits.map_unmatched_fraction,
+        format!(
+            "{} (limit {:.4}%)",
+            describe_unmatched(m),
+            limits.map_unmatched_fraction * 100.0
+        ),
+    );
 }
