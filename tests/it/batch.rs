@@ -219,24 +219,24 @@ fn shards_and_scheduler_indices_split_the_jobs() {
 /// How long the interrupted batch may take to reach its second job.
 const FIRST_JOB_TIMEOUT: Duration = Duration::from_secs(120);
 
-fn sigterm_half_way_then_resume_equals_an_uninterrupted_run() {
-    let dir = common::temp_dir("batch-kill");
-    let m = manifest(&dir, &cpu_grid("1..12"));
-    let out = dir.join("out");
+/// Runs `wgslam batch ARGS`, waits until `started` (a job's log) exists, sends SIGTERM and
+/// checks the batch exits 130, as an interrupted batch must. `which`: the job `started`
+/// belongs to, for the timeout's message.
+fn sigterm_batch_once_started(args: &[&str], started: &Path, which: &str) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_wgslam"))
-        .args(["batch", s(&m)])
+        .arg("batch")
+        .args(args)
         .env_remove("SLURM_ARRAY_TASK_ID")
         .env_remove("JOB_COMPLETION_INDEX")
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    // Wait until the first job is complete and the second has started, then SIGTERM.
     let start = Instant::now();
-    while !out.join("jobs/g-robust/cpu.log").exists() {
+    while !started.exists() {
         assert!(
             start.elapsed() < FIRST_JOB_TIMEOUT,
-            "the batch did not reach its second job"
+            "the batch did not reach its {which} job"
         );
         assert!(child.try_wait().unwrap().is_none(), "the batch ended early");
         std::thread::sleep(Duration::from_millis(20));
@@ -248,6 +248,14 @@ fn sigterm_half_way_then_resume_equals_an_uninterrupted_run() {
     assert!(kill.success());
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130), "interrupted batches exit 130");
+}
+
+fn sigterm_half_way_then_resume_equals_an_uninterrupted_run() {
+    let dir = common::temp_dir("batch-kill");
+    let m = manifest(&dir, &cpu_grid("1..12"));
+    let out = dir.join("out");
+    // Wait until the first job is complete and the second has started, then SIGTERM.
+    sigterm_batch_once_started(&[s(&m)], &out.join("jobs/g-robust/cpu.log"), "second");
     assert!(
         out.join("jobs/named/job.json").is_file(),
         "the finished job keeps its record"
@@ -386,31 +394,12 @@ fn sigterm_stops_concurrent_jobs_then_resume_completes() {
     let dir = common::temp_dir("batch-kill-concurrent");
     let m = manifest(&dir, &cpu_grid("1..12"));
     let out = dir.join("out");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_wgslam"))
-        .args(["batch", s(&m), "--concurrent", "2"])
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
     // The third job starts when one of the first two is done: SIGTERM while it runs.
-    let start = Instant::now();
-    while !out.join("jobs/g-assignment/cpu.log").exists() {
-        assert!(
-            start.elapsed() < FIRST_JOB_TIMEOUT,
-            "the batch did not reach its third job"
-        );
-        assert!(child.try_wait().unwrap().is_none(), "the batch ended early");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let kill = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130), "interrupted batches exit 130");
+    sigterm_batch_once_started(
+        &[s(&m), "--concurrent", "2"],
+        &out.join("jobs/g-assignment/cpu.log"),
+        "third",
+    );
     assert!(
         !out.join("jobs/g-assignment/job.json").exists(),
         "the stopped job must not look complete"
