@@ -10,10 +10,8 @@
 //! CPU twins over a whole sequence: on noisy depth two trackers that each keep their own
 //! state drift apart chaotically (an ulp today moves a merge decision tomorrow), whatever
 //! the kernels. **Free**: each backend tracks on its own state, as two separate runs would;
-//! differences accumulate, and its pose bound grows with the run as a random walk of
-//! per-frame lockstep differences ([`tolerance::pose_max_mm`]); its map bounds are judged
-//! by what matters (every surfel explained by one of the other map's, the total weight)
-//! rather than by surfel identity.
+//! differences accumulate: its pose bound grows as a random walk of per-frame lockstep
+//! differences ([`tolerance::pose_max_mm`]); maps are judged by what matters.
 
 pub mod decisions;
 mod fusion;
