@@ -63,12 +63,12 @@ fn perturbed_passes_on_7scenes(data: &Path) {
     perturbed_passes(&seq, 0, 20, Mode::Free);
 }
 
-/// Lockstep over the first frames with `plant` in the perturbed twins: some violation names
+/// `mode` over the first frames with `plant` in the perturbed twins: some violation names
 /// one of `stages`.
-fn planted_bug_fails(plant: Plant, stages: &[&str]) {
+fn planted_bug_fails(plant: Plant, mode: Mode, stages: &[&str]) {
     let seq = bundled_noisy();
     let b = PerturbedCpu::with(Arith::Perturbed { seed: DEFAULT_SEED }, Some(plant));
-    let c = against(b, &seq, 1, PLANTED_LAST_FRAME, Mode::LOCKSTEP);
+    let c = against(b, &seq, 1, PLANTED_LAST_FRAME, mode);
     eprintln!("{plant:?}: {:#?}", c.violations);
     for f in &c.frames {
         eprintln!("frame {}: fusion decisions {:?}", f.index, f.decisions);
@@ -96,14 +96,28 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain("planted_wrong_sign_in_a_system_row_fails", || {
             planted_bug_fails(
                 Plant::SystemRowSign,
+                Mode::LOCKSTEP,
                 &["first ICP system", "pose after ICP"],
             )
         }),
+        // The free mode's pose bound grows with the run (a random walk of per-frame
+        // differences, `tolerance::pose_max_mm`): a wrong row must still fail it.
+        plain("planted_wrong_sign_fails_the_free_mode_too", || {
+            planted_bug_fails(Plant::SystemRowSign, Mode::Free, &["pose after ICP"])
+        }),
         plain("planted_skipped_merge_fails", || {
-            planted_bug_fails(Plant::SkippedMerge, &["map after the frame"])
+            planted_bug_fails(
+                Plant::SkippedMerge,
+                Mode::LOCKSTEP,
+                &["map after the frame"],
+            )
         }),
         plain("planted_gate_off_by_one_percent_fails", || {
-            planted_bug_fails(Plant::FusionGateOnePercent, &["fusion decisions"])
+            planted_bug_fails(
+                Plant::FusionGateOnePercent,
+                Mode::LOCKSTEP,
+                &["fusion decisions"],
+            )
         }),
     ]
 }
