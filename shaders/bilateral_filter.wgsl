@@ -19,7 +19,7 @@
 @group(0) @binding(2) var filtered_vertex: texture_storage_2d<rgba32float, write>;
 
 // The filtered vertex of pixel (u, v), or INVALID where the pixel's vertex is invalid.
-// `params` is main's copy of the binding (see vertex_to_normal's main).
+// `params` is main's copy of the binding (see pixel_grid.wgsl).
 fn filtered_at(params: BilateralParams, u: u32, v: u32) -> vec4<f32> {
     let c = textureLoad(vertex_map, vec2<u32>(u, v), 0);
     if !is_valid(c) {
@@ -52,19 +52,12 @@ fn filtered_at(params: BilateralParams, u: u32, v: u32) -> vec4<f32> {
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_wz / sum_w));
 }
 
-const TILE: u32 = 8u;
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
 
-// A 2-D grid-stride loop in 8x8 tiles over a copy of the params, like vertex_to_normal.
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    let p = params;
-    for (var v = gid.y; v < p.height; v += stride.y) {
-        for (var u = gid.x; u < p.width; u += stride.x) {
-            textureStore(filtered_vertex, vec2<u32>(u, v), filtered_at(p, u, v));
-        }
-    }
+// One pixel of the 2-D grid-stride loop in tiles (the entry point: pixel_grid.wgsl).
+fn per_pixel(p: BilateralParams, texel: vec2<u32>) {
+    textureStore(filtered_vertex, texel, filtered_at(p, texel.x, texel.y));
 }
+
+#entry pixel_grid

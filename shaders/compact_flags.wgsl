@@ -37,7 +37,7 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let stride = nwg.x * WORKGROUP_SIZE;
-    // The params copied once per thread (see vertex_to_normal's main).
+    // The params copied once per thread (see pixel_grid.wgsl).
     let p = params;
     let end = chunk_blocks(chunk, p.surfel_count).y;
     // The chunk's first index copied once per thread, as the params.

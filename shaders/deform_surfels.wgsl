@@ -58,7 +58,7 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let stride = nwg.x * WORKGROUP_SIZE;
-    // The params copied once per thread (see vertex_to_normal's main).
+    // The params copied once per thread (see pixel_grid.wgsl).
     let p = params;
     if p.node_count == 0u {
         return;

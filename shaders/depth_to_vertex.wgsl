@@ -38,18 +38,9 @@ fn convert_at(params: PreprocessParams, u: u32, v: u32) {
 const TILE_X: u32 = 4u;
 const TILE_Y: u32 = 16u;
 
-// A 2-D grid-stride loop in 4x16 tiles, like vertex_to_normal, over a copy of the params
-// read once per thread (see vertex_to_normal).
-@compute @workgroup_size(TILE_X, TILE_Y)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = vec2<u32>(TILE_X, TILE_Y) * groups.xy;
-    let p = params;
-    for (var v = gid.y; v < p.height; v += stride.y) {
-        for (var u = gid.x; u < p.width; u += stride.x) {
-            convert_at(p, u, v);
-        }
-    }
+// One pixel of the 2-D grid-stride loop in tiles (the entry point: pixel_grid.wgsl).
+fn per_pixel(p: PreprocessParams, texel: vec2<u32>) {
+    convert_at(p, texel.x, texel.y);
 }
+
+#entry pixel_grid

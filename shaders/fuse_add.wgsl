@@ -48,28 +48,15 @@
 @group(0) @binding(9) var<storage, read_write> index_map: array<atomic<u32>>;
 #endif
 
-const TILE: u32 = 8u;
-
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    // The params and the chunk copied once per thread (see vertex_to_normal's main).
-    let p = params;
-    let ch = chunk;
-    let size = vec2<u32>(p.width, p.height);
-    for (var v = gid.y; v < size.y; v += stride.y) {
-        for (var u = gid.x; u < size.x; u += stride.x) {
-            add_pixel(p, ch, vec2<u32>(u, v));
-        }
-    }
-}
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
+#define MAP_CHUNK
+#entry pixel_grid
 
 // Pixel `texel`'s new surfel, if the pixel is flagged and its slot is in this chunk.
-// `params` and `chunk` are main's copies of the bindings.
-fn add_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
+// `params` and `chunk` are main's copies of the bindings (the entry point:
+// pixel_grid.wgsl).
+fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let a = append_index(texel);
     if flags[a] == 0u {
         return;

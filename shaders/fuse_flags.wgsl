@@ -23,32 +23,23 @@
 // height) entries; the holes, no pixel's, are never written and stay 0).
 @group(0) @binding(4) var<storage, read_write> flags: array<u32>;
 
-const TILE: u32 = 8u;
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
 
-// A 2-D grid-stride loop in 8x8 tiles, like vertex_to_normal, over a copy of the params
-// (see its main: lavapipe would load the pose from the buffer again for every neighbour).
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    let p = params;
-    let size = vec2<u32>(p.width, p.height);
-    for (var v = gid.y; v < size.y; v += stride.y) {
-        for (var u = gid.x; u < size.x; u += stride.x) {
-            let texel = vec2<u32>(u, v);
-            let key = assoc[v * size.x + u];
-            let nd = textureLoad(normal_depth, texel, 0);
-            // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
-            var new_surfel = key.x == 0u && key.y == 0u && is_valid(nd);
-            if new_surfel && p.association == ASSOCIATION_BEST_CANDIDATE {
-                new_surfel = !neighbour_covers(p, texel, nd);
-            }
-            flags[append_index(texel)] = select(0u, 1u, new_surfel);
-        }
+// Whether pixel `texel` becomes a new surfel, at its append slot (the entry point:
+// pixel_grid.wgsl).
+fn per_pixel(p: FuseParams, texel: vec2<u32>) {
+    let key = assoc[texel.y * p.width + texel.x];
+    let nd = textureLoad(normal_depth, texel, 0);
+    // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
+    var new_surfel = key.x == 0u && key.y == 0u && is_valid(nd);
+    if new_surfel && p.association == ASSOCIATION_BEST_CANDIDATE {
+        new_surfel = !neighbour_covers(p, texel, nd);
     }
+    flags[append_index(texel)] = select(0u, 1u, new_surfel);
 }
+
+#entry pixel_grid
 
 // Whether a surfel that one of the 8 neighbours of `texel` (measurement nd, valid) merged
 // into passes this pixel's gates (fuse_select's filter 2). `params` is main's copy of the

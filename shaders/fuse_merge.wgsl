@@ -47,7 +47,7 @@ fn main(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    // The params copied once per thread (see vertex_to_normal's main).
+    // The params copied once per thread (see pixel_grid.wgsl).
     let p = params;
     let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
     let span = chunk_blocks(chunk, p.surfel_count);

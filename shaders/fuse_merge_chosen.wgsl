@@ -36,28 +36,15 @@
 // whatever the chunk.
 @group(0) @binding(9) var<storage, read_write> merged: array<vec4<f32>>;
 
-const TILE: u32 = 8u;
-
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    // The params and the chunk copied once per thread (see vertex_to_normal's main).
-    let p = params;
-    let ch = chunk;
-    let size = vec2<u32>(p.width, p.height);
-    for (var v = gid.y; v < size.y; v += stride.y) {
-        for (var u = gid.x; u < size.x; u += stride.x) {
-            merge_chosen(p, ch, vec2<u32>(u, v));
-        }
-    }
-}
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
+#define MAP_CHUNK
+#entry pixel_grid
 
 // Merges pixel `texel`'s measurement into the surfel it chose, if that surfel is in this
-// chunk. `params` and `chunk` are main's copies of the bindings.
-fn merge_chosen(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
+// chunk. `params` and `chunk` are main's copies of the bindings (the entry point:
+// pixel_grid.wgsl).
+fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let pix = texel.y * params.width + texel.x;
     let key = assoc[pix];
     if key.x == 0u && key.y == 0u {

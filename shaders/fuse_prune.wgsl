@@ -31,40 +31,16 @@
 // (w = 0: none), unit normal (world frame) and radius (metres) at 2 pix + 1.
 @group(0) @binding(6) var<storage, read> merged: array<vec4<f32>>;
 
-const WORKGROUP_SIZE: u32 = 64u;
 // Cosine of the largest angle between the normals of a pruned surfel and the chosen one:
 // 45 degrees (mirrors `cpu::fuse_prune::PRUNE_COS_NORMAL`).
 const PRUNE_COS_NORMAL: f32 = 0.70710678;
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    // The params copied once per thread (see vertex_to_normal's main).
-    let p = params;
-    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
-    let span = chunk_blocks(chunk, p.surfel_count);
-    // The chunk's first index copied once per thread, as the params.
-    let base = chunk.base;
-    for (var b = wid.x; b < span.x; b += nwg.x) {
-        let block = base / BLOCK_SURFELS + b;
-        let lo = decode_corner(block_bounds[2u * block]);
-        let hi = decode_corner(block_bounds[2u * block + 1u]);
-        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
-            continue;
-        }
-        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
-        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            prune_surfel(p, i - base, cam);
-        }
-    }
-}
+#entry visible_surfels
 
 // Retires the surfel at `slot` in the chunk's arrays if it duplicates the surfel its
-// pixel merged into. `params` is main's copy of the binding.
-fn prune_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) {
+// pixel merged into. `params` is main's copy of the binding; `i`, the map-wide index, is
+// not needed.
+fn per_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     let nf = normal_frame[slot];
     if nf.w == params.frame_id {
         return;

@@ -47,38 +47,12 @@
 @group(0) @binding(8) var<storage, read_write> index_map: array<atomic<u32>>;
 #endif
 
-const WORKGROUP_SIZE: u32 = 64u;
-
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    // The params copied once per thread (see vertex_to_normal's main).
-    let p = params;
-    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
-    let span = chunk_blocks(chunk, p.surfel_count);
-    // The chunk's first index copied once per thread, as the params.
-    let base = chunk.base;
-    for (var b = wid.x; b < span.x; b += nwg.x) {
-        let block = base / BLOCK_SURFELS + b;
-        let lo = decode_corner(block_bounds[2u * block]);
-        let hi = decode_corner(block_bounds[2u * block + 1u]);
-        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
-            continue;
-        }
-        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
-        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            select_for_surfel(p, i, i - base, cam);
-        }
-    }
-}
+#entry visible_surfels
 
 // The pixel surfel i (map-wide index; `slot` in the chunk's arrays) projects to keeps the
 // nearer of its index-map key and this surfel's, and the better of its association key and
 // this surfel's, if the surfel passes its gates. `params` is main's copy of the binding.
-fn select_for_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
+fn per_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     let p_cam = transform_point(params.t_world_to_cam, xyz(position_weight[slot]));
     let uv = project_to_texel(cam, params.width, params.height, p_cam);
     if uv.x < 0 {

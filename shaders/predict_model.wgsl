@@ -23,28 +23,15 @@
 // Out: width x height, world frame, w = 1 / 0.
 @group(0) @binding(6) var pred_normal: texture_storage_2d<rgba32float, write>;
 
-const TILE: u32 = 8u;
-
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    // The params and the chunk copied once per thread (see vertex_to_normal's main).
-    let p = params;
-    let ch = chunk;
-    let size = vec2<u32>(p.width, p.height);
-    for (var v = gid.y; v < size.y; v += stride.y) {
-        for (var u = gid.x; u < size.x; u += stride.x) {
-            predict_pixel(p, ch, vec2<u32>(u, v));
-        }
-    }
-}
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
+#define MAP_CHUNK
+#entry pixel_grid
 
 // The predicted vertex and normal of pixel `texel`, if this chunk's pass writes it.
-// `params` and `chunk` are main's copies of the bindings.
-fn predict_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
+// `params` and `chunk` are main's copies of the bindings (the entry point:
+// pixel_grid.wgsl).
+fn per_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
     let key = index_map[texel.y * params.width + texel.x];
     var vertex = INVALID;
     var normal = INVALID;

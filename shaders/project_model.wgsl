@@ -30,34 +30,14 @@
 @group(0) @binding(4) var<storage, read_write> index_map: array<atomic<u32>>;
 #endif
 
-const WORKGROUP_SIZE: u32 = 64u;
+#entry visible_surfels
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    // The params copied once per thread (see vertex_to_normal's main).
-    let view = params;
-    let cam = vec4<f32>(view.fx, view.fy, view.cx, view.cy);
-    let span = chunk_blocks(chunk, view.surfel_count);
-    // The chunk's first index copied once per thread, as the params.
-    let base = chunk.base;
-    for (var b = wid.x; b < span.x; b += nwg.x) {
-        let block = base / BLOCK_SURFELS + b;
-        let lo = decode_corner(block_bounds[2u * block]);
-        let hi = decode_corner(block_bounds[2u * block + 1u]);
-        if !block_visible(view.t_world_to_cam, cam, view.width, view.height, lo, hi) {
-            continue;
-        }
-        let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);
-        for (var i = base + b * BLOCK_SURFELS + lid.x; i < end; i += WORKGROUP_SIZE) {
-            let p = transform_point(view.t_world_to_cam, xyz(position_weight[i - base]));
-            let pix = project_to_pixel(cam, view.width, view.height, p);
-            if pix >= 0 {
-                keep_nearer(u32(pix), depth_key(p.z), i);
-            }
-        }
+// Surfel i keeps the nearer of its pixel's key and its own, if its centre lands in the
+// image. `view` is main's copy of the params; `slot` is i in the chunk's arrays.
+fn per_surfel(view: ProjectParams, i: u32, slot: u32, cam: vec4<f32>) {
+    let p = transform_point(view.t_world_to_cam, xyz(position_weight[slot]));
+    let pix = project_to_pixel(cam, view.width, view.height, p);
+    if pix >= 0 {
+        keep_nearer(u32(pix), depth_key(p.z), i);
     }
 }

@@ -18,7 +18,7 @@
 @group(0) @binding(2) var coarse_vertex: texture_storage_2d<rgba32float, write>;
 
 // The coarse vertex of pixel (u, v), or INVALID (the rules of the header). `params` is
-// main's copy of the binding (see vertex_to_normal's main).
+// main's copy of the binding (see pixel_grid.wgsl).
 fn coarse_at(params: PyramidParams, u: u32, v: u32) -> vec4<f32> {
     let fu = 2u * u;
     let fv = 2u * v;
@@ -47,20 +47,12 @@ fn coarse_at(params: PyramidParams, u: u32, v: u32) -> vec4<f32> {
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_z / count));
 }
 
-const TILE: u32 = 8u;
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
 
-// A 2-D grid-stride loop over the coarse pixels in 8x8 tiles over a copy of the params,
-// like vertex_to_normal.
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    let p = params;
-    for (var v = gid.y; v < p.height; v += stride.y) {
-        for (var u = gid.x; u < p.width; u += stride.x) {
-            textureStore(coarse_vertex, vec2<u32>(u, v), coarse_at(p, u, v));
-        }
-    }
+// One pixel of the 2-D grid-stride loop in tiles (the entry point: pixel_grid.wgsl).
+fn per_pixel(p: PyramidParams, texel: vec2<u32>) {
+    textureStore(coarse_vertex, texel, coarse_at(p, texel.x, texel.y));
 }
+
+#entry pixel_grid

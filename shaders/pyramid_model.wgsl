@@ -24,21 +24,11 @@
 const TILE_X: u32 = 4u;
 const TILE_Y: u32 = 16u;
 
-// A 2-D grid-stride loop over the coarse pixels in 4x16 tiles, like vertex_to_normal (the
-// size read once per thread).
-@compute @workgroup_size(TILE_X, TILE_Y)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = vec2<u32>(TILE_X, TILE_Y) * groups.xy;
-    let size = vec2<u32>(params.width, params.height);
-    for (var v = gid.y; v < size.y; v += stride.y) {
-        for (var u = gid.x; u < size.x; u += stride.x) {
-            let texel = vec2<u32>(u, v);
-            let fine = 2u * texel;
-            textureStore(coarse_vertex, texel, textureLoad(fine_vertex, fine, 0));
-            textureStore(coarse_normal, texel, textureLoad(fine_normal, fine, 0));
-        }
-    }
+// Coarse pixel `texel` takes its fine pixel 2 texel (the entry point: pixel_grid.wgsl).
+fn per_pixel(p: PyramidParams, texel: vec2<u32>) {
+    let fine = 2u * texel;
+    textureStore(coarse_vertex, texel, textureLoad(fine_vertex, fine, 0));
+    textureStore(coarse_normal, texel, textureLoad(fine_normal, fine, 0));
 }
+
+#entry pixel_grid

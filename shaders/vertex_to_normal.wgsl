@@ -7,7 +7,7 @@
 // fuse_merge, fuse_add, and their twins) rebuild the vertex with back_project
 // (common.wgsl), the function depth_to_vertex made it with: one texel fetch instead of two
 // per association.
-// A 2-D grid-stride loop over the pixels in 8x8 tiles (see main). Invalid on the border, next to an invalid vertex, across a depth
+// A 2-D grid-stride loop over the pixels in 8x8 tiles (pixel_grid.wgsl). Invalid on the border, next to an invalid vertex, across a depth
 // jump larger than max_depth_jump_m, or where the cross product vanishes.
 
 // The size and max_depth_jump_m.
@@ -49,26 +49,12 @@ fn normal_at(params: NormalParams, u: u32, v: u32) -> vec4<f32> {
     return vec4<f32>(nn, c.z);
 }
 
-const TILE: u32 = 8u;
+const TILE_X: u32 = 8u;
+const TILE_Y: u32 = 8u;
 
-// 8x8 tiles: on lavapipe these beat a grid-stride loop over pixel indices (no index
-// division, whole rows of neighbours per SIMD batch). The tiles stride over the image in
-// both directions, so the host chooses the workgroup count
-// (Kernel::grid_workgroups_for_image): one thread per pixel on a GPU; on lavapipe, which
-// pays per workgroup, one workgroup per band of 8 rows that walks the band left to right.
-// The params are copied once per thread and passed down: read inside the loop, lavapipe
-// loads them from the storage buffer again for every pixel (depth_to_vertex measured 15%
-// slower that way).
-@compute @workgroup_size(TILE, TILE)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let stride = TILE * groups.xy;
-    let p = params;
-    for (var v = gid.y; v < p.height; v += stride.y) {
-        for (var u = gid.x; u < p.width; u += stride.x) {
-            textureStore(normal_depth, vec2<u32>(u, v), normal_at(p, u, v));
-        }
-    }
+// One pixel of the 2-D grid-stride loop in tiles (the entry point: pixel_grid.wgsl).
+fn per_pixel(p: NormalParams, texel: vec2<u32>) {
+    textureStore(normal_depth, texel, normal_at(p, texel.x, texel.y));
 }
+
+#entry pixel_grid

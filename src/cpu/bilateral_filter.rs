@@ -56,7 +56,7 @@
 //! `sigma_depth = 0.01 z²`. The filter alone does not make noisy tracking good (fusion keeps
 //! the noise in the map).
 
-use super::{back_project, is_valid, valid_entry, INVALID};
+use super::{back_project, is_valid, pixel_grid, valid_entry, INVALID};
 use crate::layout::BilateralParams;
 
 /// The filtered vertex of pixel `(u, v)`, or [`INVALID`] where its vertex is invalid (the
@@ -110,13 +110,10 @@ pub fn bilateral_filter(
         w * h,
         "filtered_vertex has the wrong size"
     );
-    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
-    // row by row.
-    for v in 0..params.height {
-        for u in 0..params.width {
-            filtered_vertex[v as usize * w + u as usize] = filtered_at(params, vertex_map, u, v);
-        }
-    }
+    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    pixel_grid(params.width, params.height, |[u, v]| {
+        filtered_vertex[v as usize * w + u as usize] = filtered_at(params, vertex_map, u, v);
+    });
 }
 
 #[cfg(test)]

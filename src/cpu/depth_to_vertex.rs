@@ -6,7 +6,7 @@
 //! raw pixel with the raw intrinsics. Invalid depth (0 or outside the depth range) gives the
 //! invalid entry `[0; 4]`.
 
-use super::{back_project, valid_entry, INVALID};
+use super::{back_project, pixel_grid, valid_entry, INVALID};
 use crate::layout::PreprocessParams;
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
@@ -28,13 +28,10 @@ pub fn depth_to_vertex(
         raw_depth.len(),
         (params.raw_width * params.raw_height) as usize
     );
-    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
-    // row by row.
-    for v in 0..params.height {
-        for u in 0..params.width {
-            convert_at(params, raw_depth, raw_rgba, vertex_map, color_map, u, v);
-        }
-    }
+    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    pixel_grid(params.width, params.height, |[u, v]| {
+        convert_at(params, raw_depth, raw_rgba, vertex_map, color_map, u, v);
+    });
 }
 
 /// Converts output pixel `(u, v)`. Mirrors `convert_at` in depth_to_vertex.wgsl.

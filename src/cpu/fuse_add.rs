@@ -14,8 +14,8 @@
 
 use super::key_writer::KeyWriter;
 use super::{
-    append_index, back_project, depth_key, pixel_confidence, surfel_radius, transform_dir,
-    transform_point, xyz,
+    append_index, back_project, depth_key, pixel_confidence, pixel_grid, surfel_radius,
+    transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
 
@@ -36,36 +36,33 @@ pub fn fuse_add<K: KeyWriter + ?Sized>(
     index_map: &mut K,
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    for v in 0..params.height {
-        for u in 0..params.width {
-            let pix = (v * params.width + u) as usize;
-            let a = append_index([u, v]);
-            if flags[a] == 0 {
-                continue;
-            }
-            let nd = normal_depth[pix];
-            let i = params.surfel_count + offsets[a];
-            // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
-            let slot = i.wrapping_sub(chunk.base);
-            if i >= params.capacity || slot >= chunk.slots {
-                continue;
-            }
-            let q_cam = back_project(cam, [u, v], nd[3]);
-            let p = transform_point(&params.t_cam_to_world, q_cam);
-            let n = transform_dir(&params.t_cam_to_world, xyz(nd));
-            let w = pixel_confidence(cam, [u, v], params.confidence_sigma);
-            let r = surfel_radius(params.fx, q_cam, xyz(nd));
-            if index_map.first_pass() {
-                let surfel = slot as usize;
-                position_weight[surfel] = [p.x, p.y, p.z, w];
-                normal_frame[surfel] =
-                    [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
-                let c = color_map[pix];
-                color[surfel] = [c[0], c[1], c[2], r];
-            }
-            if params.association == ASSOCIATION_BEST_CANDIDATE {
-                index_map.keep_nearer(pix, depth_key(q_cam.z), i);
-            }
+    pixel_grid(params.width, params.height, |[u, v]| {
+        let pix = (v * params.width + u) as usize;
+        let a = append_index([u, v]);
+        if flags[a] == 0 {
+            return;
         }
-    }
+        let nd = normal_depth[pix];
+        let i = params.surfel_count + offsets[a];
+        // i - chunk.base wraps to a huge value below the chunk: one test for both ends.
+        let slot = i.wrapping_sub(chunk.base);
+        if i >= params.capacity || slot >= chunk.slots {
+            return;
+        }
+        let q_cam = back_project(cam, [u, v], nd[3]);
+        let p = transform_point(&params.t_cam_to_world, q_cam);
+        let n = transform_dir(&params.t_cam_to_world, xyz(nd));
+        let w = pixel_confidence(cam, [u, v], params.confidence_sigma);
+        let r = surfel_radius(params.fx, q_cam, xyz(nd));
+        if index_map.first_pass() {
+            let surfel = slot as usize;
+            position_weight[surfel] = [p.x, p.y, p.z, w];
+            normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+            let c = color_map[pix];
+            color[surfel] = [c[0], c[1], c[2], r];
+        }
+        if params.association == ASSOCIATION_BEST_CANDIDATE {
+            index_map.keep_nearer(pix, depth_key(q_cam.z), i);
+        }
+    });
 }

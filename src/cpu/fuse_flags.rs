@@ -12,7 +12,9 @@
 //! grow the map. It replaces a 3x3 window per surfel in `fuse_select`, at the cost of
 //! the image instead of the map.
 
-use super::{append_index, candidate_off_ray, is_valid, transform_dir, transform_point, xyz};
+use super::{
+    append_index, candidate_off_ray, is_valid, pixel_grid, transform_dir, transform_point, xyz,
+};
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
@@ -24,21 +26,18 @@ pub fn fuse_flags(
     merged: &[[f32; 4]],
     flags: &mut [u32],
 ) {
-    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
-    // row by row.
-    for v in 0..params.height {
-        for u in 0..params.width {
-            let texel = [u, v];
-            let pix = (v * params.width + u) as usize;
-            let nd = normal_depth[pix];
-            // Valid normal (w = depth > 0) implies a valid vertex.
-            let mut new_surfel = assoc[pix] == 0 && is_valid(nd);
-            if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
-                new_surfel = !neighbour_covers(params, merged, texel, nd);
-            }
-            flags[append_index(texel)] = new_surfel as u32;
+    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    pixel_grid(params.width, params.height, |[u, v]| {
+        let texel = [u, v];
+        let pix = (v * params.width + u) as usize;
+        let nd = normal_depth[pix];
+        // Valid normal (w = depth > 0) implies a valid vertex.
+        let mut new_surfel = assoc[pix] == 0 && is_valid(nd);
+        if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
+            new_surfel = !neighbour_covers(params, merged, texel, nd);
         }
-    }
+        flags[append_index(texel)] = new_surfel as u32;
+    });
 }
 
 /// Whether a surfel that one of the 8 neighbours of `texel` (measurement `nd`, valid)

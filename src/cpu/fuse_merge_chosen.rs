@@ -7,8 +7,8 @@
 //! block's box grows the box.
 
 use super::{
-    back_project, merged_surfel, normal_of, pixel_confidence, surfel_radius, transform_dir,
-    transform_point, xyz,
+    back_project, merged_surfel, normal_of, pixel_confidence, pixel_grid, surfel_radius,
+    transform_dir, transform_point, xyz,
 };
 use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
@@ -28,48 +28,46 @@ pub fn fuse_merge_chosen(
     merged: &mut [[f32; 4]],
 ) {
     // The shader's grid-stride loop as one thread whose stride is 1 x 1.
-    for v in 0..params.height {
-        for u in 0..params.width {
-            let pix = (v * params.width + u) as usize;
-            let key = assoc[pix];
-            if key == 0 {
-                continue;
-            }
-            // The index minus chunk.base wraps to a huge value below the chunk.
-            let slot = (key as u32).wrapping_sub(chunk.base);
-            if slot >= chunk.slots {
-                continue;
-            }
-            let s = slot as usize;
-            let texel = [u, v];
-            let cam = [params.fx, params.fy, params.cx, params.cy];
-            let pw = position_weight[s];
-            // fuse_select chose only on a valid pixel (a valid normal implies a valid
-            // vertex).
-            let nd = normal_depth[pix];
-            let q_cam = back_project(cam, texel, nd[3]);
-            let q_world = transform_point(&params.t_cam_to_world, q_cam);
-            let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
-            let n_old = normal_of(normal_frame[s]);
-            let wq = pixel_confidence(cam, texel, params.confidence_sigma);
-            let cq = xyz(color_map[pix]);
-            let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
-            let m = merged_surfel(pw, n_old, color[s], q_world, nq_world, cq, wq, r_q);
-            position_weight[s] = m.position_weight;
-            let n = m.normal;
-            normal_frame[s] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
-            color[s] = m.color;
-            merged[2 * pix] = m.position_weight;
-            merged[2 * pix + 1] = [n.x, n.y, n.z, m.color[3]];
-            // Grow the block's box if the surfel moved out of it.
-            let block = (key as u32 / BLOCK_SURFELS) as usize;
-            for k in 0..3 {
-                let e = ordered_from_f32(m.position_weight[k]);
-                let lo = &mut block_bounds[8 * block + k];
-                *lo = (*lo).min(e);
-                let hi = &mut block_bounds[8 * block + 4 + k];
-                *hi = (*hi).max(e);
-            }
+    pixel_grid(params.width, params.height, |[u, v]| {
+        let pix = (v * params.width + u) as usize;
+        let key = assoc[pix];
+        if key == 0 {
+            return;
         }
-    }
+        // The index minus chunk.base wraps to a huge value below the chunk.
+        let slot = (key as u32).wrapping_sub(chunk.base);
+        if slot >= chunk.slots {
+            return;
+        }
+        let s = slot as usize;
+        let texel = [u, v];
+        let cam = [params.fx, params.fy, params.cx, params.cy];
+        let pw = position_weight[s];
+        // fuse_select chose only on a valid pixel (a valid normal implies a valid
+        // vertex).
+        let nd = normal_depth[pix];
+        let q_cam = back_project(cam, texel, nd[3]);
+        let q_world = transform_point(&params.t_cam_to_world, q_cam);
+        let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
+        let n_old = normal_of(normal_frame[s]);
+        let wq = pixel_confidence(cam, texel, params.confidence_sigma);
+        let cq = xyz(color_map[pix]);
+        let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+        let m = merged_surfel(pw, n_old, color[s], q_world, nq_world, cq, wq, r_q);
+        position_weight[s] = m.position_weight;
+        let n = m.normal;
+        normal_frame[s] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+        color[s] = m.color;
+        merged[2 * pix] = m.position_weight;
+        merged[2 * pix + 1] = [n.x, n.y, n.z, m.color[3]];
+        // Grow the block's box if the surfel moved out of it.
+        let block = (key as u32 / BLOCK_SURFELS) as usize;
+        for k in 0..3 {
+            let e = ordered_from_f32(m.position_weight[k]);
+            let lo = &mut block_bounds[8 * block + k];
+            *lo = (*lo).min(e);
+            let hi = &mut block_bounds[8 * block + 4 + k];
+            *hi = (*hi).max(e);
+        }
+    });
 }

@@ -10,10 +10,8 @@
 //! map on every revisit (see `ROBUST_PRUNE_RADIUS_SCALE`). Called once per map chunk; the
 //! merged surfel may be in any chunk, as its copy is per pixel.
 
-use super::{
-    block_visible, chunk_blocks, decode_corner, normal_of, project_to_texel, transform_point, xyz,
-};
-use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
+use super::{normal_of, project_to_texel, transform_point, visible_surfels, xyz};
+use crate::layout::{FuseParams, MapChunk};
 
 /// Cosine of the largest angle between the normals of a pruned surfel and the chosen one:
 /// 45 degrees (Keller et al. 2013's merge of similar surfels). Mirrors `PRUNE_COS_NORMAL`
@@ -33,34 +31,27 @@ pub fn fuse_prune(
     merged: &[[f32; 4]],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
-    for b in 0..blocks {
-        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
-        let lo = decode_corner(block_bounds[2 * block]);
-        let hi = decode_corner(block_bounds[2 * block + 1]);
-        if !block_visible(
-            &params.t_world_to_cam,
-            cam,
-            params.width,
-            params.height,
-            lo,
-            hi,
-        ) {
-            continue;
-        }
-        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
-        for i in chunk.base + b * BLOCK_SURFELS..end {
+    let size = [params.width, params.height];
+    let t = &params.t_world_to_cam;
+    visible_surfels(
+        t,
+        cam,
+        size,
+        params.surfel_count,
+        chunk,
+        block_bounds,
+        |_, slot| {
             prune_surfel(
                 params,
                 position_weight,
                 normal_frame,
                 color,
                 merged,
-                (i - chunk.base) as usize,
+                slot as usize,
                 cam,
             );
-        }
-    }
+        },
+    );
 }
 
 /// Retires the surfel at `slot` in the chunk's arrays if it duplicates the surfel its

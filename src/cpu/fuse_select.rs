@@ -24,10 +24,10 @@
 
 use super::key_writer::KeyWriter;
 use super::{
-    block_visible, candidate_off_ray, chunk_blocks, decode_corner, depth_key, is_valid, normal_of,
-    project_to_texel, transform_dir, transform_point, xyz,
+    candidate_off_ray, depth_key, is_valid, normal_of, project_to_texel, transform_dir,
+    transform_point, visible_surfels, xyz,
 };
-use crate::layout::{FuseParams, MapChunk, BLOCK_SURFELS};
+use crate::layout::{FuseParams, MapChunk};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/fuse_select.wgsl` for shapes, units and frames; `assoc` and
@@ -45,40 +45,24 @@ pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     index_map: &mut K,
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
     let map = Chunk {
         position_weight,
         normal_frame,
         color,
     };
-    for b in 0..blocks {
-        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
-        let lo = decode_corner(block_bounds[2 * block]);
-        let hi = decode_corner(block_bounds[2 * block + 1]);
-        if !block_visible(
-            &params.t_world_to_cam,
-            cam,
-            params.width,
-            params.height,
-            lo,
-            hi,
-        ) {
-            continue;
-        }
-        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
-        for i in chunk.base + b * BLOCK_SURFELS..end {
-            select_for_surfel(
-                params,
-                normal_depth,
-                &map,
-                assoc,
-                index_map,
-                i,
-                i - chunk.base,
-                cam,
-            );
-        }
-    }
+    let size = [params.width, params.height];
+    let t = &params.t_world_to_cam;
+    visible_surfels(
+        t,
+        cam,
+        size,
+        params.surfel_count,
+        chunk,
+        block_bounds,
+        |i, slot| {
+            select_for_surfel(params, normal_depth, &map, assoc, index_map, i, slot, cam);
+        },
+    );
 }
 
 /// The chunk's three arrays (the shader's bindings 4..6).

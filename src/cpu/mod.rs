@@ -24,6 +24,7 @@ pub mod compact_scatter;
 pub mod cross_covariance;
 pub mod deform_surfels;
 pub mod depth_to_vertex;
+pub mod entries;
 pub mod fern_encode;
 pub mod fuse_add;
 pub mod fuse_flags;
@@ -50,6 +51,7 @@ pub mod render_resolve;
 pub mod render_splat;
 pub mod vertex_to_normal;
 
+pub use entries::{pixel_grid, visible_surfels};
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::layout::{

@@ -1,6 +1,6 @@
 //! CPU twin of `shaders/project_model.wgsl` (both variants): splats every surfel of one
 //! map chunk into an index map with a depth test, one key per pixel, skipping blocks the
-//! camera cannot see ([`block_visible`]).
+//! camera cannot see ([`visible_surfels`]).
 //!
 //! Key = [`pack_depth_index`](super::pack_depth_index)`(z_cam, surfel)` with the map-wide
 //! surfel index; the pixel keeps the maximum key, i.e. the nearest surfel, ties broken by
@@ -12,10 +12,8 @@
 //! [`KeyPass`]: super::key_writer::KeyPass
 
 use super::key_writer::KeyWriter;
-use super::{
-    block_visible, chunk_blocks, decode_corner, depth_key, project_to_pixel, transform_point, xyz,
-};
-use crate::layout::{MapChunk, ProjectParams, BLOCK_SURFELS};
+use super::{depth_key, project_to_pixel, transform_point, visible_surfels, xyz};
+use crate::layout::{MapChunk, ProjectParams};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/project_model.wgsl` for shapes, units and frames; `index_map`
@@ -29,30 +27,20 @@ pub fn project_model<K: KeyWriter + ?Sized>(
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     assert_eq!(index_map.pixels(), (params.width * params.height) as usize);
-    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
-    for b in 0..blocks {
-        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
-        let lo = decode_corner(block_bounds[2 * block]);
-        let hi = decode_corner(block_bounds[2 * block + 1]);
-        if !block_visible(
-            &params.t_world_to_cam,
-            cam,
-            params.width,
-            params.height,
-            lo,
-            hi,
-        ) {
-            continue;
-        }
-        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
-        for i in chunk.base + b * BLOCK_SURFELS..end {
-            let p = transform_point(
-                &params.t_world_to_cam,
-                xyz(position_weight[(i - chunk.base) as usize]),
-            );
+    let size = [params.width, params.height];
+    let t = &params.t_world_to_cam;
+    visible_surfels(
+        t,
+        cam,
+        size,
+        params.surfel_count,
+        chunk,
+        block_bounds,
+        |i, slot| {
+            let p = transform_point(t, xyz(position_weight[slot as usize]));
             if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
                 index_map.keep_nearer(pix, depth_key(p.z), i);
             }
-        }
-    }
+        },
+    );
 }

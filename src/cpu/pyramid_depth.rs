@@ -19,7 +19,7 @@
 //! The window is symmetric about the sampled pixel, so on a plane facing the camera the
 //! mean stays at the sampled pixel's depth and the sampling convention holds.
 
-use super::{back_project, is_valid, valid_entry, INVALID};
+use super::{back_project, is_valid, pixel_grid, valid_entry, INVALID};
 use crate::layout::PyramidParams;
 
 /// The coarse vertex of pixel `(u, v)`, or [`INVALID`] (the rules of the module header).
@@ -79,13 +79,10 @@ pub fn pyramid_depth(
         params.fine_width,
         params.fine_height
     );
-    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
-    // row by row.
-    for v in 0..params.height {
-        for u in 0..params.width {
-            coarse_vertex[v as usize * w + u as usize] = coarse_at(params, fine_vertex, u, v);
-        }
-    }
+    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    pixel_grid(params.width, params.height, |[u, v]| {
+        coarse_vertex[v as usize * w + u as usize] = coarse_at(params, fine_vertex, u, v);
+    });
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 //! moves each source point into the frame and projects it with the coarse intrinsics), so
 //! any subset of the model's points is a valid coarse source.
 
+use super::pixel_grid;
 use crate::layout::PyramidParams;
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
@@ -28,13 +29,11 @@ pub fn pyramid_model(
     assert!(fine_vertex.len() == fine_normal.len() && fine_vertex.len() % fine_w == 0);
     assert!(coarse_vertex.len() == w * h && coarse_normal.len() == w * h);
     assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_vertex.len() / fine_w);
-    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
-    // row by row.
-    for v in 0..h {
-        for u in 0..w {
-            let fine = 2 * v * fine_w + 2 * u;
-            coarse_vertex[v * w + u] = fine_vertex[fine];
-            coarse_normal[v * w + u] = fine_normal[fine];
-        }
-    }
+    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    pixel_grid(params.width, params.height, |[u, v]| {
+        let (u, v) = (u as usize, v as usize);
+        let fine = 2 * v * fine_w + 2 * u;
+        coarse_vertex[v * w + u] = fine_vertex[fine];
+        coarse_normal[v * w + u] = fine_normal[fine];
+    });
 }

@@ -12,7 +12,7 @@
 //! rebuild the vertex with [`super::back_project`], the function `depth_to_vertex` made it
 //! with, bit for bit.
 
-use super::{is_valid, xyz, INVALID};
+use super::{is_valid, pixel_grid, xyz, INVALID};
 use crate::layout::NormalParams;
 
 /// The normal of pixel `(u, v)` with the pixel's depth in w, or [`INVALID`] (the rules of
@@ -61,11 +61,8 @@ pub fn vertex_to_normal(
     let (w, h) = (params.width as usize, params.height as usize);
     assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
     assert_eq!(normal_depth.len(), w * h, "normal_depth has the wrong size");
-    // The shader's grid-stride loop as one thread whose stride is 1 x 1: every pixel once,
-    // row by row.
-    for v in 0..params.height {
-        for u in 0..params.width {
-            normal_depth[v as usize * w + u as usize] = normal_at(params, vertex_map, u, v);
-        }
-    }
+    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    pixel_grid(params.width, params.height, |[u, v]| {
+        normal_depth[v as usize * w + u as usize] = normal_at(params, vertex_map, u, v);
+    });
 }

@@ -39,6 +39,7 @@ fn every_shader_parses_and_validates() {
         })
         .filter(|name| !shaders::PREFIXES.iter().any(|(p, _)| p == name))
         .filter(|name| name != shaders::KEY_WRITER_FILE)
+        .filter(|name| !shaders::ENTRIES.iter().any(|(e, _)| e == name))
         .collect();
     on_disk.sort();
     // key_writer.wgsl is not valid alone (it writes the key kernel's index_map): it is
@@ -54,6 +55,19 @@ fn every_shader_parses_and_validates() {
         ));
     }
 
+    // The entry files are not valid alone either (each calls its kernel's function): they
+    // are checked inside every kernel that names them.
+    for (entry, text) in shaders::ENTRIES {
+        if std::fs::read_to_string(dir.join(format!("{entry}.wgsl")))
+            .ok()
+            .as_deref()
+            != Some(text)
+        {
+            failures.push(format!(
+                "shaders/{entry}.wgsl: missing or differs from the embedded copy (rebuild)"
+            ));
+        }
+    }
     for name in &on_disk {
         let Some(embedded) = shaders::kernel_text(name) else {
             failures.push(format!(

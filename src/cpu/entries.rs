@@ -1,0 +1,48 @@
+//! The CPU mirrors of the shared entry points (`shaders/pixel_grid.wgsl`,
+//! `shaders/visible_surfels.wgsl`; see `gpu::shaders::ENTRIES`): the loop a kernel of one
+//! shape runs around its per-item function. Each is one thread whose stride is one item,
+//! so every item is visited once, in the order a twin's results are defined by (row by row;
+//! block by block, then surfel by surfel).
+
+use super::{block_visible, chunk_blocks, decode_corner};
+use crate::layout::{GpuMat4, MapChunk, BLOCK_SURFELS};
+
+/// Mirrors `pixel_grid.wgsl`'s `main`: `per_pixel(texel)` for every texel `(u, v)` of a
+/// `width` x `height` image, row by row.
+#[inline]
+pub fn pixel_grid(width: u32, height: u32, mut per_pixel: impl FnMut([u32; 2])) {
+    for v in 0..height {
+        for u in 0..width {
+            per_pixel([u, v]);
+        }
+    }
+}
+
+/// Mirrors `visible_surfels.wgsl`'s `main`: `per_surfel(i, slot)` for every surfel `i`
+/// (map-wide index; `slot` = `i - chunk.base`, in the chunk's arrays) of the chunk's first
+/// `surfel_count` whose block's world-frame box may be in view of a `size` (width, height)
+/// camera with intrinsics `cam` = `(fx, fy, cx, cy)` at `t_world_to_cam`.
+#[inline]
+pub fn visible_surfels(
+    t_world_to_cam: &GpuMat4,
+    cam: [f32; 4],
+    size: [u32; 2],
+    surfel_count: u32,
+    chunk: &MapChunk,
+    block_bounds: &[[u32; 4]],
+    mut per_surfel: impl FnMut(u32, u32),
+) {
+    let (blocks, span_end) = chunk_blocks(chunk, surfel_count);
+    for b in 0..blocks {
+        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
+        let lo = decode_corner(block_bounds[2 * block]);
+        let hi = decode_corner(block_bounds[2 * block + 1]);
+        if !block_visible(t_world_to_cam, cam, size[0], size[1], lo, hi) {
+            continue;
+        }
+        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
+        for i in chunk.base + b * BLOCK_SURFELS..end {
+            per_surfel(i, i - chunk.base);
+        }
+    }
+}
