@@ -5,7 +5,7 @@
 //! block by block, then surfel by surfel).
 
 use super::{block_visible, chunk_blocks, decode_corner};
-use crate::layout::{GpuMat4, MapChunk, BLOCK_SURFELS};
+use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS};
 
 /// Mirrors `pixel_grid.wgsl`'s `main`: `per_pixel(texel)` for every texel `(u, v)` of a
 /// `width` x `height` image, row by row.
@@ -18,20 +18,39 @@ pub fn pixel_grid(width: u32, height: u32, mut per_pixel: impl FnMut([u32; 2])) 
     }
 }
 
+/// What [`visible_surfels`] reads of a kernel's params (the fields `visible_surfels.wgsl`
+/// names): the camera a map chunk is culled against.
+pub trait SurfelView {
+    /// `(t_world_to_cam, (fx, fy, cx, cy), (width, height), surfel_count)`.
+    fn view(&self) -> (&GpuMat4, [f32; 4], [u32; 2], u32);
+}
+
+/// The two params structs that carry a culling view (`ProjectParams`, `FuseParams`), whose
+/// fields of the same names are those [`SurfelView`] reads.
+macro_rules! surfel_view {
+    ($($params:ty),*) => {$(
+        impl SurfelView for $params {
+            fn view(&self) -> (&GpuMat4, [f32; 4], [u32; 2], u32) {
+                let cam = [self.fx, self.fy, self.cx, self.cy];
+                (&self.t_world_to_cam, cam, [self.width, self.height], self.surfel_count)
+            }
+        }
+    )*};
+}
+surfel_view!(ProjectParams, FuseParams);
+
 /// Mirrors `visible_surfels.wgsl`'s `main`: `per_surfel(i, slot)` for every surfel `i`
 /// (map-wide index; `slot` = `i - chunk.base`, in the chunk's arrays) of the chunk's first
-/// `surfel_count` whose block's world-frame box may be in view of a `size` (width, height)
-/// camera with intrinsics `cam` = `(fx, fy, cx, cy)` at `t_world_to_cam`.
+/// `surfel_count` whose block's world-frame box may be in view of `params`' camera
+/// ([`SurfelView`]).
 #[inline]
 pub fn visible_surfels(
-    t_world_to_cam: &GpuMat4,
-    cam: [f32; 4],
-    size: [u32; 2],
-    surfel_count: u32,
+    params: &impl SurfelView,
     chunk: &MapChunk,
     block_bounds: &[[u32; 4]],
     mut per_surfel: impl FnMut(u32, u32),
 ) {
+    let (t_world_to_cam, cam, size, surfel_count) = params.view();
     let (blocks, span_end) = chunk_blocks(chunk, surfel_count);
     for b in 0..blocks {
         let block = (chunk.base / BLOCK_SURFELS + b) as usize;

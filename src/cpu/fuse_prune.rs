@@ -31,27 +31,17 @@ pub fn fuse_prune(
     merged: &[[f32; 4]],
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
-    let size = [params.width, params.height];
-    let t = &params.t_world_to_cam;
-    visible_surfels(
-        t,
-        cam,
-        size,
-        params.surfel_count,
-        chunk,
-        block_bounds,
-        |_, slot| {
-            prune_surfel(
-                params,
-                position_weight,
-                normal_frame,
-                color,
-                merged,
-                slot as usize,
-                cam,
-            );
-        },
-    );
+    visible_surfels(params, chunk, block_bounds, |_, slot| {
+        prune_surfel(
+            params,
+            position_weight,
+            normal_frame,
+            color,
+            merged,
+            slot as usize,
+            cam,
+        );
+    });
 }
 
 /// Retires the surfel at `slot` in the chunk's arrays if it duplicates the surfel its

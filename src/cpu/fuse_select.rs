@@ -50,19 +50,9 @@ pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
         normal_frame,
         color,
     };
-    let size = [params.width, params.height];
-    let t = &params.t_world_to_cam;
-    visible_surfels(
-        t,
-        cam,
-        size,
-        params.surfel_count,
-        chunk,
-        block_bounds,
-        |i, slot| {
-            select_for_surfel(params, normal_depth, &map, assoc, index_map, i, slot, cam);
-        },
-    );
+    visible_surfels(params, chunk, block_bounds, |i, slot| {
+        select_for_surfel(params, normal_depth, &map, assoc, index_map, i, slot, cam);
+    });
 }
 
 /// The chunk's three arrays (the shader's bindings 4..6).

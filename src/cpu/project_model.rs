@@ -27,20 +27,10 @@ pub fn project_model<K: KeyWriter + ?Sized>(
 ) {
     let cam = [params.fx, params.fy, params.cx, params.cy];
     assert_eq!(index_map.pixels(), (params.width * params.height) as usize);
-    let size = [params.width, params.height];
-    let t = &params.t_world_to_cam;
-    visible_surfels(
-        t,
-        cam,
-        size,
-        params.surfel_count,
-        chunk,
-        block_bounds,
-        |i, slot| {
-            let p = transform_point(t, xyz(position_weight[slot as usize]));
-            if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
-                index_map.keep_nearer(pix, depth_key(p.z), i);
-            }
-        },
-    );
+    visible_surfels(params, chunk, block_bounds, |i, slot| {
+        let p = transform_point(&params.t_world_to_cam, xyz(position_weight[slot as usize]));
+        if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
+            index_map.keep_nearer(pix, depth_key(p.z), i);
+        }
+    });
 }
