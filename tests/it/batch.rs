@@ -35,6 +35,19 @@ fn summary(out: &Path) -> serde_json::Value {
 }
 
 /// Three short CPU jobs over the bundled frames (a grid of two profiles and a named job).
+/// Runs `wgslam ARGS`, asserts that it succeeded, and returns what it printed.
+fn succeeds(args: &[&str]) -> String {
+    let o = wgslam(args, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    text(&o)
+}
+
+/// Asserts that `output` says `jobs` jobs were skipped as already complete.
+fn assert_skipped(output: &str, jobs: usize) {
+    let skipped = output.matches("outputs complete, skipped").count();
+    assert_eq!(skipped, jobs, "{output}");
+}
+
 fn cpu_grid(frames: &str) -> String {
     let seq = common::bundled_icl();
     format!(
@@ -99,14 +112,7 @@ fn runs_resumes_and_reports() {
     // A re-run skips every complete job and leaves its record alone.
     let record = out.join("jobs/g-robust/job.json");
     let before = std::fs::read_to_string(&record).unwrap();
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert_eq!(
-        text(&o).matches("outputs complete, skipped").count(),
-        3,
-        "{}",
-        text(&o)
-    );
+    assert_skipped(&succeeds(&["batch", s(&m)]), 3);
     assert_eq!(std::fs::read_to_string(&record).unwrap(), before);
     // A changed job runs again; the others are still skipped.
     std::fs::write(
@@ -114,14 +120,7 @@ fn runs_resumes_and_reports() {
         std::fs::read_to_string(&m).unwrap().replace("0.08", "0.09"),
     )
     .unwrap();
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert_eq!(
-        text(&o).matches("outputs complete, skipped").count(),
-        2,
-        "{}",
-        text(&o)
-    );
+    assert_skipped(&succeeds(&["batch", s(&m)]), 2);
 }
 
 fn a_failing_job_is_recorded_and_the_batch_goes_on() {
@@ -266,14 +265,7 @@ fn sigterm_half_way_then_resume_equals_an_uninterrupted_run() {
     );
     assert!(!out.join("jobs/g-assignment").exists());
     // Resume: the finished job is skipped, the rest run.
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert_eq!(
-        text(&o).matches("outputs complete, skipped").count(),
-        1,
-        "{}",
-        text(&o)
-    );
+    assert_skipped(&succeeds(&["batch", s(&m)]), 1);
     // The same numbers as an uninterrupted batch.
     let o = wgslam(&["batch", s(&m), "--out", s(&dir.join("whole"))], &[]);
     assert!(o.status.success(), "{}", text(&o));
@@ -380,14 +372,7 @@ fn concurrent_jobs_equal_one_at_a_time() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("equal: 4 jobs"), "{}", text(&o));
     // Resuming with several at once skips what is complete.
-    let o = wgslam(&["batch", s(&m), "--out", s(&at_once)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert_eq!(
-        text(&o).matches("outputs complete, skipped").count(),
-        4,
-        "{}",
-        text(&o)
-    );
+    assert_skipped(&succeeds(&["batch", s(&m), "--out", s(&at_once)]), 4);
 }
 
 fn sigterm_stops_concurrent_jobs_then_resume_completes() {

@@ -5,6 +5,13 @@ use crate::common;
 use common::cli::{text, wgslam};
 use common::harness::{gpu, plain};
 
+/// `wgslam bench --backends cpu --frames FRAMES ARGS...` on the bundled frames.
+fn bench_cpu(frames: &str, args: &[&str]) -> std::process::Output {
+    let mut all = vec!["bench", "--backends", "cpu", "--frames", frames];
+    all.extend_from_slice(args);
+    wgslam(&all)
+}
+
 /// `wgslam run` on the CPU over bundled `frames` into `out`, with `extra` flags.
 fn run_bundled(out: &std::path::Path, frames: &str, extra: &[&str]) -> std::process::Output {
     let mut args = vec!["run", "--backend", "cpu", "--frames", frames];
@@ -68,17 +75,7 @@ fn run_writes_all_outputs_on_bundled_data() {
 fn bench_rounds_write_every_round() {
     let out = common::temp_dir("cli-bench");
     let json = out.join("bench.json");
-    let o = wgslam(&[
-        "bench",
-        "--backends",
-        "cpu",
-        "--frames",
-        "1..3",
-        "--rounds",
-        "2",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let o = bench_cpu("1..3", &["--rounds", "2", "--json", json.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("round 2 (cpu)"), "{}", text(&o));
     let report: serde_json::Value =
@@ -100,15 +97,7 @@ fn bench_rounds_write_every_round() {
     let o = wgslam(&["bench", "--backends", "cpu", "--rounds", "0"]);
     assert!(!o.status.success(), "--rounds 0 accepted");
     // Dataset options reach the per-backend child that opens the sequence.
-    let o = wgslam(&[
-        "bench",
-        "--backends",
-        "cpu",
-        "--frames",
-        "1..2",
-        "--intrinsics",
-        "1,2",
-    ]);
+    let o = bench_cpu("1..2", &["--intrinsics", "1,2"]);
     assert!(
         !o.status.success(),
         "bad --intrinsics ignored: {}",
@@ -116,15 +105,7 @@ fn bench_rounds_write_every_round() {
     );
     assert!(text(&o).contains("intrinsics"), "{}", text(&o));
     // So does the ICP schedule.
-    let o = wgslam(&[
-        "bench",
-        "--backends",
-        "cpu",
-        "--frames",
-        "1..2",
-        "--icp-level-iters",
-        "5,0",
-    ]);
+    let o = bench_cpu("1..2", &["--icp-level-iters", "5,0"]);
     assert!(!o.status.success(), "bad schedule ignored: {}", text(&o));
     assert!(text(&o).contains("--icp-level-iters"), "{}", text(&o));
 }
@@ -277,19 +258,17 @@ const REVISIT_ATE_MAX_MM: f64 = 1.0;
 fn bench_revisit_reports_each_pass() {
     let out = common::temp_dir("cli-revisit");
     let json = out.join("revisit.json");
-    let o = wgslam(&[
-        "bench",
-        "--backends",
-        "cpu",
-        "--frames",
+    let o = bench_cpu(
         "1..4",
-        "--downsample",
-        "4",
-        "--revisit",
-        "10",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+        &[
+            "--downsample",
+            "4",
+            "--revisit",
+            "10",
+            "--json",
+            json.to_str().unwrap(),
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -355,17 +334,15 @@ fn params_file_sets_values_and_flags_win() {
     assert_eq!(m["width"], 160);
     // bench's children read the same parameters (160x120 from the file's downsample).
     let json = dir.join("bench.json");
-    let o = wgslam(&[
-        "bench",
-        "--backends",
-        "cpu",
-        "--frames",
+    let o = bench_cpu(
         "1..2",
-        "--params",
-        file.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+        &[
+            "--params",
+            file.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let b: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();

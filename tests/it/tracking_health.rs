@@ -250,25 +250,30 @@ fn icl_jump_recovers<B: Backend + Inspect>(
         first.relocalisation
     );
     assert!(r.frames[..60].iter().all(|f| f.report.status.is_tracked()));
-    let after = &r.frames[60..];
+    let ate_max_m = if noisy {
+        ATE_NOISY_MAX_M
+    } else {
+        ATE_CLEAN_MAX_M
+    };
+    assert_recovered(&name, &r, 60, ate_max_m);
+}
+
+/// Frames `jump..` of run `r`: at least [`RECOVERED_MIN_FRACTION`] tracked, and the run's
+/// ATE below `ate_max_m`.
+fn assert_recovered(name: &str, r: &RunResult, jump: usize, ate_max_m: f64) {
+    let after = &r.frames[jump..];
     let tracked = after
         .iter()
         .filter(|f| f.report.status.is_tracked())
         .count();
-    let ate = ate_m(&r);
+    let ate = ate_m(r);
     eprintln!(
         "{name}: {tracked} of {} frames after the jump tracked, ATE {:.3} mm",
         after.len(),
         ate * 1e3
     );
     assert!(tracked as f64 >= RECOVERED_MIN_FRACTION * after.len() as f64);
-    assert!(
-        ate < if noisy {
-            ATE_NOISY_MAX_M
-        } else {
-            ATE_CLEAN_MAX_M
-        }
-    );
+    assert!(ate < ate_max_m, "ATE {ate} m");
 }
 
 /// 7-Scenes frames 0..149 then 250..299 (a jump of 100 frames): at least 90 % of the
@@ -281,19 +286,7 @@ fn seven_scenes_jump_recovers<B: Backend + Inspect>(backend: B, data: &Path) {
         &dir,
     );
     let r = run_all(backend, &dir);
-    let after = &r.frames[150..];
-    let tracked = after
-        .iter()
-        .filter(|f| f.report.status.is_tracked())
-        .count();
-    let ate = ate_m(&r);
-    eprintln!(
-        "7-Scenes jump: {tracked} of {} after the jump tracked; ATE {:.1} mm",
-        after.len(),
-        ate * 1e3
-    );
-    assert!(tracked as f64 >= RECOVERED_MIN_FRACTION * after.len() as f64);
-    assert!(ate < ATE_7SCENES_MAX_M, "ATE {ate} m");
+    assert_recovered("7-Scenes jump", &r, 150, ATE_7SCENES_MAX_M);
 }
 
 /// 7-Scenes frames 0..99 then 30..80 (the camera comes back 70 frames earlier): tracking
