@@ -11,7 +11,7 @@ use super::backend::GpuBackend;
 use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
-use super::recording::{record_passes, submit_profiled, Pass};
+use super::recording::{record_call, record_passes, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, image_grids, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
@@ -20,7 +20,7 @@ use crate::layout::{
 };
 use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
-use crate::slam::plan::{self, Buffer, Call};
+use crate::slam::plan::{self, Buffer, Compact, Fuse, Predict, Preprocess};
 use crate::{Error, Result};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
@@ -122,17 +122,17 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
                 let pass: Pass = match call {
-                    Call::DepthToVertex => (
+                    Preprocess::DepthToVertex => (
                         &k.depth_to_vertex,
                         &bg.depth_to_vertex,
                         grid.image("depth_to_vertex"),
                     ),
-                    Call::BilateralFilter => (
+                    Preprocess::BilateralFilter => (
                         &k.bilateral_filter,
                         &bg.bilateral_filter,
                         grid.image("bilateral_filter"),
                     ),
-                    Call::VertexToNormal { level: 0, filtered } => (
+                    Preprocess::VertexToNormal { level: 0, filtered } => (
                         &k.vertex_to_normal,
                         match filtered {
                             true => &bg.vertex_to_normal_filtered,
@@ -140,12 +140,12 @@ impl Backend for GpuBackend {
                         },
                         grid.image("vertex_to_normal"),
                     ),
-                    Call::VertexToNormal { level, .. } => (
+                    Preprocess::VertexToNormal { level, .. } => (
                         &k.vertex_to_normal,
                         &bg.levels[level - 1].vertex_to_normal,
                         grid.level(level, "vertex_to_normal"),
                     ),
-                    Call::PyramidDepth { level, filtered } => {
+                    Preprocess::PyramidDepth { level, filtered } => {
                         let g = &bg.levels[level - 1];
                         (
                             &k.pyramid_depth,
@@ -156,9 +156,8 @@ impl Backend for GpuBackend {
                             grid.level(level, "pyramid_depth"),
                         )
                     }
-                    other => unreachable!("{other:?} is not a preprocessing kernel"),
                 };
-                record_passes(ctx, profiler, &mut enc, &[pass])?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &[pass])?;
             }
             defer_profiled(ctx, profiler, "preprocess", enc)
         })
@@ -200,10 +199,10 @@ impl Backend for GpuBackend {
             ..StepGrid::default()
         };
         // Only a fresh projection walks the map (see `plan::predict`).
-        if plan.contains(&Call::ProjectModel) {
+        if plan.contains(&Predict::ProjectModel) {
             grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
         }
-        if plan.contains(&Call::BlockBounds) {
+        if plan.contains(&Predict::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler) = encoding_parts!(self);
@@ -217,25 +216,24 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("predict");
             for call in plan {
                 let passes = match call {
-                    Call::BlockBounds => grid.bounds(k, bg),
-                    Call::Clear(Buffer::IndexMap) => {
+                    Predict::BlockBounds => grid.bounds(k, bg),
+                    Predict::ClearIndexMap => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::ProjectModel => grid.per_block_keys(&k.project_model, &bg.project_model),
-                    Call::PredictModel => bg
+                    Predict::ProjectModel => grid.per_block_keys(&k.project_model, &bg.project_model),
+                    Predict::PredictModel => bg
                         .predict_model
                         .iter()
                         .map(|g| (&k.predict_model, g, grid.image("predict_model")))
                         .collect(),
-                    Call::PyramidModel { level } => vec![(
+                    Predict::PyramidModel { level } => vec![(
                         &k.pyramid_model,
                         &bg.levels[level - 1].pyramid_model,
                         grid.level(level, "pyramid_model"),
                     )],
-                    other => unreachable!("{other:?} is not a prediction kernel"),
                 };
-                record_passes(ctx, profiler, &mut enc, &passes)?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             defer_profiled(ctx, profiler, "predict", enc)
         })
@@ -325,7 +323,7 @@ impl Backend for GpuBackend {
             chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
             ..StepGrid::default()
         };
-        if plan.contains(&Call::BlockBounds) {
+        if plan.contains(&Fuse::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler) = encoding_parts!(self);
@@ -340,36 +338,36 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("fuse");
             for call in plan {
                 let passes = match call {
-                    Call::Clear(Buffer::Assoc) => {
+                    Fuse::Clear(Buffer::Assoc) => {
                         f.assoc.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::Clear(Buffer::Merged) => {
+                    Fuse::Clear(Buffer::Merged) => {
                         f.merged.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::Clear(Buffer::IndexMap) => {
+                    Fuse::Clear(Buffer::IndexMap) => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::BlockBounds => grid.bounds(k, bg),
+                    Fuse::BlockBounds => grid.bounds(k, bg),
                     // Surfels pick pixels, then each picked surfel merges from its pixel.
-                    Call::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
-                    Call::FuseMergeChosen => bg
+                    Fuse::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
+                    Fuse::FuseMergeChosen => bg
                         .fuse_merge_chosen
                         .iter()
                         .map(|g| (&k.fuse_merge_chosen, g, grid.image("fuse_merge_chosen")))
                         .collect(),
-                    Call::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
-                    Call::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
-                    Call::FuseFlags => {
+                    Fuse::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
+                    Fuse::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
+                    Fuse::FuseFlags => {
                         vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
                     }
-                    Call::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
+                    Fuse::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
                     // Each pass over every chunk (one pass, or the portable kernel's two;
                     // its second only sets index words, which projective association
                     // leaves alone, so it runs with best-candidate association only).
-                    Call::FuseAdd => k.fuse_add.passes
+                    Fuse::FuseAdd => k.fuse_add.passes
                         [..key_passes_of_fuse_add(&params, &k.fuse_add)]
                         .iter()
                         .flat_map(|pass| {
@@ -377,9 +375,8 @@ impl Backend for GpuBackend {
                             bg.fuse_add.iter().map(move |g| (pass, g, wg))
                         })
                         .collect(),
-                    other => unreachable!("{other:?} is not a fusion kernel"),
                 };
-                record_passes(ctx, profiler, &mut enc, &passes)?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             let ferns = &mut self.ferns;
@@ -433,14 +430,14 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("compact");
             for call in plan::compact() {
                 let passes: Vec<Pass> = match call {
-                    Call::CompactFlags => g
+                    Compact::CompactFlags => g
                         .flags
                         .iter()
                         .zip(&flags_wg)
                         .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
                         .collect(),
-                    Call::CompactScan => g.scan.passes(k, n),
-                    Call::CompactScatter => scatter_wg
+                    Compact::CompactScan => g.scan.passes(k, n),
+                    Compact::CompactScatter => scatter_wg
                         .iter()
                         .enumerate()
                         .flat_map(|(s, &(_, wg))| {
@@ -454,9 +451,8 @@ impl Backend for GpuBackend {
                             })
                         })
                         .collect(),
-                    other => unreachable!("{other:?} is not a compaction kernel"),
                 };
-                record_passes(ctx, profiler, &mut enc, &passes)?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             submit_profiled(ctx, profiler, enc)?;
