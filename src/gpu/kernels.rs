@@ -107,7 +107,7 @@ registry! {
         fuse_add,
     }
     elsewhere: {
-        // Loop closure's map deformation (src/gpu/deform.rs), built at the first closure.
+        // Loop closure's map deformation (src/gpu/loops.rs), built at the first closure.
         deform_surfels,
         // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
         nn_brute,

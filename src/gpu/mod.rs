@@ -36,6 +36,7 @@ pub mod map_buffers;
 mod recording;
 mod resources;
 pub mod shaders;
+mod single_steps;
 pub mod stats;
 mod step_grid;
 mod steps;

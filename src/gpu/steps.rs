@@ -20,7 +20,7 @@ use crate::layout::{
 };
 use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
-use crate::slam::plan::{self, Buffer, Compact, Fuse, Predict, Preprocess};
+use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 use crate::{Error, Result};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
@@ -122,17 +122,17 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
                 let pass: Pass = match call {
-                    Preprocess::DepthToVertex => (
+                    PreprocessCall::DepthToVertex => (
                         &k.depth_to_vertex,
                         &bg.depth_to_vertex,
                         grid.image("depth_to_vertex"),
                     ),
-                    Preprocess::BilateralFilter => (
+                    PreprocessCall::BilateralFilter => (
                         &k.bilateral_filter,
                         &bg.bilateral_filter,
                         grid.image("bilateral_filter"),
                     ),
-                    Preprocess::VertexToNormal { level: 0, filtered } => (
+                    PreprocessCall::VertexToNormal { level: 0, filtered } => (
                         &k.vertex_to_normal,
                         match filtered {
                             true => &bg.vertex_to_normal_filtered,
@@ -140,12 +140,12 @@ impl Backend for GpuBackend {
                         },
                         grid.image("vertex_to_normal"),
                     ),
-                    Preprocess::VertexToNormal { level, .. } => (
+                    PreprocessCall::VertexToNormal { level, .. } => (
                         &k.vertex_to_normal,
                         &bg.levels[level - 1].vertex_to_normal,
                         grid.level(level, "vertex_to_normal"),
                     ),
-                    Preprocess::PyramidDepth { level, filtered } => {
+                    PreprocessCall::PyramidDepth { level, filtered } => {
                         let g = &bg.levels[level - 1];
                         (
                             &k.pyramid_depth,
@@ -199,10 +199,10 @@ impl Backend for GpuBackend {
             ..StepGrid::default()
         };
         // Only a fresh projection walks the map (see `plan::predict`).
-        if plan.contains(&Predict::ProjectModel) {
+        if plan.contains(&PredictCall::ProjectModel) {
             grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
         }
-        if plan.contains(&Predict::BlockBounds) {
+        if plan.contains(&PredictCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler) = encoding_parts!(self);
@@ -216,18 +216,20 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("predict");
             for call in plan {
                 let passes = match call {
-                    Predict::BlockBounds => grid.bounds(k, bg),
-                    Predict::ClearIndexMap => {
+                    PredictCall::BlockBounds => grid.bounds(k, bg),
+                    PredictCall::ClearIndexMap => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Predict::ProjectModel => grid.per_block_keys(&k.project_model, &bg.project_model),
-                    Predict::PredictModel => bg
+                    PredictCall::ProjectModel => {
+                        grid.per_block_keys(&k.project_model, &bg.project_model)
+                    }
+                    PredictCall::PredictModel => bg
                         .predict_model
                         .iter()
                         .map(|g| (&k.predict_model, g, grid.image("predict_model")))
                         .collect(),
-                    Predict::PyramidModel { level } => vec![(
+                    PredictCall::PyramidModel { level } => vec![(
                         &k.pyramid_model,
                         &bg.levels[level - 1].pyramid_model,
                         grid.level(level, "pyramid_model"),
@@ -323,7 +325,7 @@ impl Backend for GpuBackend {
             chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
             ..StepGrid::default()
         };
-        if plan.contains(&Fuse::BlockBounds) {
+        if plan.contains(&FuseCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler) = encoding_parts!(self);
@@ -338,36 +340,36 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("fuse");
             for call in plan {
                 let passes = match call {
-                    Fuse::Clear(Buffer::Assoc) => {
+                    FuseCall::Clear(Buffer::Assoc) => {
                         f.assoc.clear(&mut enc);
                         Vec::new()
                     }
-                    Fuse::Clear(Buffer::Merged) => {
+                    FuseCall::Clear(Buffer::Merged) => {
                         f.merged.clear(&mut enc);
                         Vec::new()
                     }
-                    Fuse::Clear(Buffer::IndexMap) => {
+                    FuseCall::Clear(Buffer::IndexMap) => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Fuse::BlockBounds => grid.bounds(k, bg),
+                    FuseCall::BlockBounds => grid.bounds(k, bg),
                     // Surfels pick pixels, then each picked surfel merges from its pixel.
-                    Fuse::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
-                    Fuse::FuseMergeChosen => bg
+                    FuseCall::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
+                    FuseCall::FuseMergeChosen => bg
                         .fuse_merge_chosen
                         .iter()
                         .map(|g| (&k.fuse_merge_chosen, g, grid.image("fuse_merge_chosen")))
                         .collect(),
-                    Fuse::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
-                    Fuse::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
-                    Fuse::FuseFlags => {
+                    FuseCall::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
+                    FuseCall::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
+                    FuseCall::FuseFlags => {
                         vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
                     }
-                    Fuse::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
+                    FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
                     // Each pass over every chunk (one pass, or the portable kernel's two;
                     // its second only sets index words, which projective association
                     // leaves alone, so it runs with best-candidate association only).
-                    Fuse::FuseAdd => k.fuse_add.passes
+                    FuseCall::FuseAdd => k.fuse_add.passes
                         [..key_passes_of_fuse_add(&params, &k.fuse_add)]
                         .iter()
                         .flat_map(|pass| {
@@ -430,14 +432,14 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("compact");
             for call in plan::compact() {
                 let passes: Vec<Pass> = match call {
-                    Compact::CompactFlags => g
+                    CompactCall::Flags => g
                         .flags
                         .iter()
                         .zip(&flags_wg)
                         .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
                         .collect(),
-                    Compact::CompactScan => g.scan.passes(k, n),
-                    Compact::CompactScatter => scatter_wg
+                    CompactCall::Scan => g.scan.passes(k, n),
+                    CompactCall::Scatter => scatter_wg
                         .iter()
                         .enumerate()
                         .flat_map(|(s, &(_, wg))| {

@@ -52,7 +52,7 @@ macro_rules! step_calls {
 
 step_calls! {
     /// One call of the `preprocess` plan.
-    Preprocess {
+    PreprocessCall {
         /// `depth_to_vertex`: raw depth and colour -> `vertex`, `color`.
         DepthToVertex => "depth_to_vertex",
         /// `bilateral_filter`: `vertex` -> `filtered_vertex`.
@@ -69,7 +69,7 @@ step_calls! {
 
 step_calls! {
     /// One call of the `predict` plan.
-    Predict {
+    PredictCall {
         /// `block_bounds` over the blocks whose boxes are stale (fusion appended to them, or
         /// the map was compacted or uploaded); nothing when none are. Every culling step
         /// starts with it.
@@ -88,10 +88,10 @@ step_calls! {
 
 step_calls! {
     /// One call of the `fuse` plan.
-    Fuse {
+    FuseCall {
         /// Zero a buffer.
         Clear(Buffer) => "clear",
-        /// `block_bounds`, as in [`Predict::BlockBounds`].
+        /// `block_bounds`, as in [`PredictCall::BlockBounds`].
         BlockBounds => "block_bounds",
         /// `fuse_select`: each pixel chooses a surfel (best-candidate association).
         FuseSelect => "fuse_select",
@@ -112,13 +112,13 @@ step_calls! {
 
 step_calls! {
     /// One call of the `compact` plan.
-    Compact {
+    CompactCall {
         /// `compact_flags`: keep or remove each surfel.
-        CompactFlags => "compact_flags",
+        Flags => "compact_flags",
         /// `prefix_sum` over the keep flags: each survivor's slot, and how many.
-        CompactScan => "prefix_sum",
+        Scan => "prefix_sum",
         /// `compact_scatter`: copy each survivor into the second map.
-        CompactScatter => "compact_scatter",
+        Scatter => "compact_scatter",
     }
 }
 
@@ -168,15 +168,15 @@ pub const fn deform() -> Single {
 /// `preprocess`: `depth_to_vertex`, with the filter `bilateral_filter`, then
 /// `vertex_to_normal` (from the filtered vertex map with the filter); then for each of the
 /// `coarser_levels` pyramid levels 1, 2, ... `pyramid_depth` and `vertex_to_normal`.
-pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<Preprocess> {
-    let mut plan = vec![Preprocess::DepthToVertex];
+pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<PreprocessCall> {
+    let mut plan = vec![PreprocessCall::DepthToVertex];
     if filtered {
-        plan.push(Preprocess::BilateralFilter);
+        plan.push(PreprocessCall::BilateralFilter);
     }
-    plan.push(Preprocess::VertexToNormal { level: 0, filtered });
+    plan.push(PreprocessCall::VertexToNormal { level: 0, filtered });
     for level in 1..=coarser_levels {
-        plan.push(Preprocess::PyramidDepth { level, filtered });
-        plan.push(Preprocess::VertexToNormal {
+        plan.push(PreprocessCall::PyramidDepth { level, filtered });
+        plan.push(PreprocessCall::VertexToNormal {
             level,
             filtered: false,
         });
@@ -187,17 +187,17 @@ pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<Preprocess> {
 /// `predict`: unless the last fusion left the index map of this very view (`project`
 /// false, see [`crate::slam::fused_view::FusedView`]), fresh block boxes, a cleared index
 /// map and `project_model`; then `predict_model` and `pyramid_model` per coarser level.
-pub fn predict(project: bool, coarser_levels: usize) -> Vec<Predict> {
+pub fn predict(project: bool, coarser_levels: usize) -> Vec<PredictCall> {
     let mut plan = Vec::new();
     if project {
         plan.extend([
-            Predict::BlockBounds,
-            Predict::ClearIndexMap,
-            Predict::ProjectModel,
+            PredictCall::BlockBounds,
+            PredictCall::ClearIndexMap,
+            PredictCall::ProjectModel,
         ]);
     }
-    plan.push(Predict::PredictModel);
-    plan.extend((1..=coarser_levels).map(|level| Predict::PyramidModel { level }));
+    plan.push(PredictCall::PredictModel);
+    plan.extend((1..=coarser_levels).map(|level| PredictCall::PyramidModel { level }));
     plan
 }
 
@@ -205,31 +205,31 @@ pub fn predict(project: bool, coarser_levels: usize) -> Vec<Predict> {
 /// association, the merged surfels and the index map it builds), fresh block boxes; then
 /// best candidate `fuse_select`, `fuse_merge_chosen` and with a prune scale `fuse_prune`,
 /// or projective `fuse_merge`; then `fuse_flags`, their prefix sum and `fuse_add`.
-pub fn fuse(params: &FuseParams) -> Vec<Fuse> {
+pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     let best_candidate = params.association == ASSOCIATION_BEST_CANDIDATE;
-    let mut plan = vec![Fuse::Clear(Buffer::Assoc)];
+    let mut plan = vec![FuseCall::Clear(Buffer::Assoc)];
     if best_candidate {
-        plan.extend([Fuse::Clear(Buffer::Merged), Fuse::Clear(Buffer::IndexMap)]);
+        plan.extend([FuseCall::Clear(Buffer::Merged), FuseCall::Clear(Buffer::IndexMap)]);
     }
-    plan.push(Fuse::BlockBounds);
+    plan.push(FuseCall::BlockBounds);
     if best_candidate {
-        plan.extend([Fuse::FuseSelect, Fuse::FuseMergeChosen]);
+        plan.extend([FuseCall::FuseSelect, FuseCall::FuseMergeChosen]);
         if params.prune_radius_scale > 0.0 {
-            plan.push(Fuse::FusePrune);
+            plan.push(FuseCall::FusePrune);
         }
     } else {
-        plan.push(Fuse::FuseMerge);
+        plan.push(FuseCall::FuseMerge);
     }
-    plan.extend([Fuse::FuseFlags, Fuse::FuseScan, Fuse::FuseAdd]);
+    plan.extend([FuseCall::FuseFlags, FuseCall::FuseScan, FuseCall::FuseAdd]);
     plan
 }
 
 /// `compact`: keep flags, their prefix sum, and the copy of the survivors.
-pub fn compact() -> Vec<Compact> {
+pub fn compact() -> Vec<CompactCall> {
     vec![
-        Compact::CompactFlags,
-        Compact::CompactScan,
-        Compact::CompactScatter,
+        CompactCall::Flags,
+        CompactCall::Scan,
+        CompactCall::Scatter,
     ]
 }
 
