@@ -17,11 +17,16 @@
 
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
+use super::resources::Uniforms;
 use crate::Result;
 
-/// One row per kernel, in four groups by how the kernel is built:
+/// One row per kernel, in five groups by how the kernel is built:
 ///
-/// - `kernels`: a [`Kernel`] field of [`Kernels`] (built with the backend);
+/// - `generic`: `name: Shape(uniform)`, a [`Kernel`] field of [`Kernels`] whose bind groups
+///   and passes the row decides ([`Shape`]; `uniform` is the `super::resources::Uniforms`
+///   field bound as its `params`): nothing else in `src/gpu/` names it;
+/// - `kernels`: a [`Kernel`] field of [`Kernels`] with bind groups in `super::bind_groups`
+///   and passes in `super::steps` or `super::single_steps` of its own;
 /// - `key_kernels`: a [`KeyKernel`] field (the 64-bit kernel, or its portable variant
 ///   `<name>_portable` on a device without 64-bit atomics; both are in [`KERNELS`]);
 /// - `elsewhere`: built by the code that runs it (`deform_surfels` at the first loop
@@ -29,6 +34,7 @@ use crate::Result;
 /// - `key_elsewhere`: a key kernel built by the code that runs it (the renderer's splat).
 macro_rules! registry {
     (
+        generic: { $($generic:ident: $shape:ident($uniform:ident),)* }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
         elsewhere: { $($other:ident,)* }
@@ -39,6 +45,7 @@ macro_rules! registry {
         /// see [`super::shaders::PORTABLE_KERNELS`]). `tests/it/shaders.rs` fails when a
         /// `.wgsl` file is missing here.
         pub const KERNELS: &[(&str, &str)] = &[
+            $((stringify!($generic), include_str!(concat!("../../shaders/", stringify!($generic), ".wgsl"))),)*
             $((stringify!($kernel), include_str!(concat!("../../shaders/", stringify!($kernel), ".wgsl"))),)*
             $((stringify!($key), include_str!(concat!("../../shaders/", stringify!($key), ".wgsl"))),)*
             $((concat!(stringify!($key), "_portable"), include_str!(concat!("../../shaders/", stringify!($key), ".wgsl"))),)*
@@ -51,6 +58,7 @@ macro_rules! registry {
         /// one is missing.
         #[allow(unused_imports)]
         mod twins {
+            $(use crate::cpu::$generic::$generic as _;)*
             $(use crate::cpu::$kernel::$kernel as _;)*
             $(use crate::cpu::$key::$key as _;)*
             $(use crate::cpu::$other::$other as _;)*
@@ -59,6 +67,7 @@ macro_rules! registry {
 
         /// Every kernel of the dense pipeline, one field per kernel named after it.
         pub(super) struct Kernels {
+            $(pub $generic: Kernel,)*
             $(pub $kernel: Kernel,)*
             $(pub $key: KeyKernel,)*
         }
@@ -67,22 +76,77 @@ macro_rules! registry {
             /// Builds every kernel (pipeline creation costs 60-130 ms each on lavapipe).
             pub fn new(ctx: &GpuContext) -> Result<Kernels> {
                 Ok(Kernels {
+                    $($generic: Kernel::new(ctx, stringify!($generic))?,)*
                     $($kernel: Kernel::new(ctx, stringify!($kernel))?,)*
                     $($key: KeyKernel::new(ctx, stringify!($key))?,)*
                 })
+            }
+
+            /// The `generic` rows: each kernel's name, pipeline, [`Shape`] and parameters.
+            pub fn generic<'a>(&'a self, u: &'a Uniforms) -> Vec<GenericRow<'a>> {
+                vec![$(GenericRow {
+                    name: stringify!($generic),
+                    kernel: &self.$generic,
+                    shape: Shape::$shape,
+                    params: u.$uniform.binding(),
+                },)*]
+            }
+
+            /// The `generic` rows' kernels.
+            pub fn generic_kernels(&self) -> Vec<&Kernel> {
+                vec![$(&self.$generic,)*]
+            }
+
+            /// The `generic` row's kernel `name` and its [`Shape`], or `None` for a kernel
+            /// with bind groups and passes of its own.
+            pub fn generic_kernel(&self, name: &str) -> Option<(&Kernel, Shape)> {
+                match name {
+                    $(stringify!($generic) => Some((&self.$generic, Shape::$shape)),)*
+                    _ => None,
+                }
             }
         }
     };
 }
 
+/// How a `generic` row's kernel is bound and dispatched: its bind groups take what the
+/// kernel's WGSL declares from the frame's pool of named resources (and each map chunk's),
+/// with the row's uniform as `params` (see `super::bind_groups`); its passes follow the
+/// plan (see `super::step_grid::StepGrid::generic`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Shape {
+    /// One bind group over the frame's pool; one pass over the frame's pixels.
+    OverFrame,
+    /// One bind group per map chunk; per chunk a pass over the frame's pixels.
+    PerChunk,
+    /// One bind group per map chunk; per chunk a pass of one workgroup per culling block
+    /// holding live surfels.
+    PerBlock,
+}
+
+/// One `generic` row of the registry, as [`Kernels::generic`] lends it.
+pub(super) struct GenericRow<'a> {
+    pub name: &'static str,
+    pub kernel: &'a Kernel,
+    pub shape: Shape,
+    /// The row's uniform buffer, bound as the kernel's `params`.
+    pub params: wgpu::BindingResource<'a>,
+}
+
 registry! {
+    generic: {
+        predict_model: PerChunk(project),
+        fuse_merge_chosen: PerChunk(fuse),
+        fuse_prune: PerBlock(fuse),
+        fuse_merge: PerBlock(fuse),
+        fuse_flags: OverFrame(fuse),
+    }
     kernels: {
         depth_to_vertex,
         bilateral_filter,
         vertex_to_normal,
         pyramid_depth,
         block_bounds,
-        predict_model,
         pyramid_model,
         icp_reduce,
         icp_reduce_final,
@@ -90,10 +154,6 @@ registry! {
         fern_encode,
         keypoint_detect,
         keypoint_describe,
-        fuse_merge,
-        fuse_merge_chosen,
-        fuse_prune,
-        fuse_flags,
         compact_flags,
         // The scan's three kernels: block sums, their scan, each block's scan.
         prefix_sum_reduce,

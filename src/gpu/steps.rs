@@ -12,7 +12,7 @@ use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
 use super::recording::{record_call, record_passes, submit_profiled, Pass};
-use super::step_grid::{check_pyramid, image_grids, key_passes_of_fuse_add, StepGrid};
+use super::step_grid::{check_pyramid, frame_grids, image_grids, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
@@ -190,18 +190,15 @@ impl Backend for GpuBackend {
         let plan = plan::predict(project, pyramid.len());
         let (k, ctx) = (&self.kernels, &self.ctx);
         let mut grid = StepGrid {
-            image: image_grids(ctx, &[&k.predict_model], f.width, f.height),
+            image: frame_grids(ctx, k, &[], f.width, f.height),
             levels: f
                 .levels
                 .iter()
                 .map(|l| image_grids(ctx, &[&k.pyramid_model], l.width, l.height))
                 .collect(),
+            chunks: self.chunk_workgroups(k.project_model.first()),
             ..StepGrid::default()
         };
-        // Only a fresh projection walks the map (see `plan::predict`).
-        if plan.contains(&PredictCall::ProjectModel) {
-            grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
-        }
         if plan.contains(&PredictCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
@@ -224,16 +221,13 @@ impl Backend for GpuBackend {
                     PredictCall::ProjectModel => {
                         grid.per_block_keys(&k.project_model, &bg.project_model)
                     }
-                    PredictCall::PredictModel => bg
-                        .predict_model
-                        .iter()
-                        .map(|g| (&k.predict_model, g, grid.image("predict_model")))
-                        .collect(),
                     PredictCall::PyramidModel { level } => vec![(
                         &k.pyramid_model,
                         &bg.levels[level - 1].pyramid_model,
                         grid.level(level, "pyramid_model"),
                     )],
+                    // `predict_model`: bound and dispatched by its registry row.
+                    generic => grid.generic(k, bg, generic.kernel()),
                 };
                 record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
@@ -316,12 +310,7 @@ impl Backend for GpuBackend {
         let plan = plan::fuse(&params);
         let (f, k, ctx) = (self.frame(), &self.kernels, &self.ctx);
         let mut grid = StepGrid {
-            image: image_grids(
-                ctx,
-                &[k.fuse_add.first(), &k.fuse_flags, &k.fuse_merge_chosen],
-                f.width,
-                f.height,
-            ),
+            image: frame_grids(ctx, k, &[k.fuse_add.first()], f.width, f.height),
             chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
             ..StepGrid::default()
         };
@@ -355,16 +344,6 @@ impl Backend for GpuBackend {
                     FuseCall::BlockBounds => grid.bounds(k, bg),
                     // Surfels pick pixels, then each picked surfel merges from its pixel.
                     FuseCall::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
-                    FuseCall::FuseMergeChosen => bg
-                        .fuse_merge_chosen
-                        .iter()
-                        .map(|g| (&k.fuse_merge_chosen, g, grid.image("fuse_merge_chosen")))
-                        .collect(),
-                    FuseCall::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
-                    FuseCall::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
-                    FuseCall::FuseFlags => {
-                        vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
-                    }
                     FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
                     // Each pass over every chunk (one pass, or the portable kernel's two;
                     // its second only sets index words, which projective association
@@ -377,6 +356,9 @@ impl Backend for GpuBackend {
                             bg.fuse_add.iter().map(move |g| (pass, g, wg))
                         })
                         .collect(),
+                    // `fuse_merge_chosen`, `fuse_prune`, `fuse_merge`, `fuse_flags`: bound
+                    // and dispatched by their registry rows.
+                    generic => grid.generic(k, bg, generic.kernel()),
                 };
                 record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }

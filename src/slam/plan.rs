@@ -209,7 +209,10 @@ pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     let best_candidate = params.association == ASSOCIATION_BEST_CANDIDATE;
     let mut plan = vec![FuseCall::Clear(Buffer::Assoc)];
     if best_candidate {
-        plan.extend([FuseCall::Clear(Buffer::Merged), FuseCall::Clear(Buffer::IndexMap)]);
+        plan.extend([
+            FuseCall::Clear(Buffer::Merged),
+            FuseCall::Clear(Buffer::IndexMap),
+        ]);
     }
     plan.push(FuseCall::BlockBounds);
     if best_candidate {
@@ -226,11 +229,7 @@ pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
 
 /// `compact`: keep flags, their prefix sum, and the copy of the survivors.
 pub fn compact() -> Vec<CompactCall> {
-    vec![
-        CompactCall::Flags,
-        CompactCall::Scan,
-        CompactCall::Scatter,
-    ]
+    vec![CompactCall::Flags, CompactCall::Scan, CompactCall::Scatter]
 }
 
 #[cfg(test)]
