@@ -24,8 +24,8 @@ use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, Prepro
 use crate::{Error, Result};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
-/// submit its passes: `(ctx, kernels, bind groups, profiler)`. A macro rather than a method
-/// so the borrows stay per field: the step still reads its uniforms, frame buffers and
+/// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
+/// macro rather than a method so the borrows stay per field: the step still reads its
 /// read-backs while the profiler is borrowed mutably.
 macro_rules! encoding_parts {
     ($backend:ident) => {{
@@ -35,6 +35,11 @@ macro_rules! encoding_parts {
             &$backend.kernels,
             $backend.bind_groups.as_ref().expect("just built"),
             &mut $backend.profiler,
+            $backend
+                .frame
+                .as_ref()
+                .expect("preprocess() runs before any other step"),
+            &$backend.uniforms,
         )
     }};
 }
@@ -117,7 +122,7 @@ impl Backend for GpuBackend {
             ..StepGrid::default()
         };
         let plan = plan::preprocess(bilateral.is_some(), pyramid.len());
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
@@ -202,12 +207,7 @@ impl Backend for GpuBackend {
         if plan.contains(&PredictCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
-        let f = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before predict()");
-        let u = &self.uniforms;
+        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         ctx.scoped("predict", || {
             u.project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
@@ -243,13 +243,12 @@ impl Backend for GpuBackend {
             )));
         }
         let wg = self.reduction_workgroups;
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
         let group = match level {
             0 => &bg.icp_reduce,
             l => &bg.levels[l - 1].icp_reduce,
         };
         let final_group = &self.icp_final_group;
-        let u = &self.uniforms;
         let system = ctx.scoped("icp_reduce", || {
             u.icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
@@ -317,12 +316,7 @@ impl Backend for GpuBackend {
         if plan.contains(&FuseCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
-        let f = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before fuse()");
-        let u = &self.uniforms;
+        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         let added = ctx.scoped("fuse", || {
             u.fuse.write(ctx, &params);
             u.fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
