@@ -1,19 +1,23 @@
 //! The kernel registry: one row per kernel, pairing its shader `shaders/<name>.wgsl` with
 //! its CPU twin `crate::cpu::<name>::<name>` (the model is vello's
 //! `add_shader!(name, ..., CpuShaderType::Present(cpu::name))`). From the rows, the
-//! [`registry!`] macro below makes
+//! `registry!` macro below makes
 //!
 //! - [`KERNELS`], every kernel's `(name, text of its file)` for the runtime and the naga
 //!   tests (a key kernel's portable variant is a second entry over the same text, see
 //!   [`super::shaders::PORTABLE_KERNELS`]);
 //! - [`Kernels`], the dense pipeline's pipelines, one field per kernel named after it,
 //!   built once per backend by [`Kernels::new`];
+//! - for the `generic` rows, how the kernel is bound and dispatched ([`Shape`], and the
+//!   uniform bound as its `params`): `super::bind_groups` and `super::steps` then need
+//!   nothing of their own for it;
 //! - a compile-time check that each row's twin exists (an underscore import of
 //!   `crate::cpu::<name>::<name>`): a row without a twin does not build.
 //!
 //! What the registry does not hold: a kernel's bindings (reflected from the WGSL, see
-//! [`Kernel::new`]; bound by name in `super::bind_groups`), and the order kernels run in
-//! (`crate::slam::plan`).
+//! [`Kernel::new`], and bound by the WGSL variables' names), the bind groups and passes of
+//! the kernels that fit no [`Shape`] (`super::bind_groups`, `super::steps`), and the order
+//! kernels run in (`crate::slam::plan`).
 
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
