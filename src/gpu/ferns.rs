@@ -56,16 +56,13 @@ impl FernBuffers {
         kernel: &Kernel,
         frame: &FrameBuffers,
     ) -> wgpu::BindGroup {
-        kernel.bind_group(
-            ctx,
-            &[
-                ("params", self.params.binding()),
-                ("ferns", self.ferns.binding()),
-                ("normal_depth", frame.normal_depth.binding()),
-                ("color", frame.color.binding()),
-                ("codes", self.codes.binding()),
-            ],
-        )
+        let mut pool = vec![
+            ("params", self.params.binding()),
+            ("ferns", self.ferns.binding()),
+            ("codes", self.codes.binding()),
+        ];
+        pool.extend(frame.level0_pool());
+        kernel.bind_group_from(ctx, &pool)
     }
 }
 

@@ -191,6 +191,19 @@ impl FrameBuffers {
                 .all(|(l, p)| (l.width, l.height) == (p.down.width, p.down.height))
     }
 
+    /// The level-0 maps the one-kernel steps (`super::single_steps`) read, by the names
+    /// their WGSL declares them with (`color`: the frame's colour map; those kernels bind no
+    /// map chunk, whose `color` it would otherwise be), for
+    /// [`super::kernel::Kernel::bind_group_from`].
+    pub fn level0_pool(&self) -> Vec<(&'static str, wgpu::BindingResource<'_>)> {
+        vec![
+            ("color", self.color.binding()),
+            ("vertex", self.vertex.binding()),
+            ("normal_depth", self.normal_depth.binding()),
+            ("pred_vertex", self.pred_vertex.binding()),
+        ]
+    }
+
     pub fn pixels(&self) -> usize {
         (self.width * self.height) as usize
     }

@@ -102,15 +102,9 @@ impl GpuBackend {
         let (u, kernel) = (&self.uniforms, &self.kernels.icp_candidates);
         ctx.scoped(call.kernel(), || {
             u.icp.write(ctx, params);
-            let group = kernel.bind_group(
-                ctx,
-                &[
-                    ("params", u.icp.binding()),
-                    ("pred_vertex", frame.pred_vertex.binding()),
-                    ("normal_depth", frame.normal_depth.binding()),
-                    ("counts", b.counts.binding()),
-                ],
-            );
+            let mut pool = vec![("params", u.icp.binding()), ("counts", b.counts.binding())];
+            pool.extend(frame.level0_pool());
+            let group = kernel.bind_group_from(ctx, &pool);
             let copy = |enc: &mut _| b.readback.copy_from(enc, &b.counts, wg as usize);
             let passes = [(kernel, &group, [wg, 1])];
             submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
@@ -135,16 +129,7 @@ impl GpuBackend {
         let grid = kernel.grid_workgroups_for_image(ctx, params.width, params.height);
         ctx.scoped(call.kernel(), || {
             b.params.write(ctx, params);
-            let group = kernel.bind_group(
-                ctx,
-                &[
-                    ("params", b.params.binding()),
-                    ("color", frame.color.binding()),
-                    ("normal_depth", frame.normal_depth.binding()),
-                    ("keypoints", b.keypoints.binding()),
-                    ("counter", b.counter.binding()),
-                ],
-            );
+            let group = b.bind_group(ctx, kernel, frame);
             let clear = |enc: &mut _| b.counter.clear(enc);
             let copy = |enc: &mut _| {
                 b.counter_back.copy_from(enc, &b.counter, 1);
@@ -183,18 +168,7 @@ impl GpuBackend {
             b.params.write(ctx, params);
             b.keypoints.upload(ctx, &found[..n])?;
             b.pattern.upload(ctx, &pattern[..tests])?;
-            let group = kernel.bind_group(
-                ctx,
-                &[
-                    ("params", b.params.binding()),
-                    ("color", frame.color.binding()),
-                    ("vertex", frame.vertex.binding()),
-                    ("keypoints", b.keypoints.binding()),
-                    ("pattern", b.pattern.binding()),
-                    ("descriptors", b.descriptors.binding()),
-                    ("points", b.points.binding()),
-                ],
-            );
+            let group = b.bind_group(ctx, kernel, frame);
             // One thread per keypoint, at most the adapter's reduction workgroups.
             let workgroups = (n as u32)
                 .div_ceil(64)
