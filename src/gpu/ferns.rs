@@ -49,20 +49,13 @@ impl FernBuffers {
         })
     }
 
-    /// `fern_encode`'s bind group over these buffers and the frame's level-0 maps.
-    pub fn bind_group(
-        &self,
-        ctx: &GpuContext,
-        kernel: &Kernel,
-        frame: &FrameBuffers,
-    ) -> wgpu::BindGroup {
-        let mut pool = vec![
+    /// `fern_encode`'s resources besides the frame's maps.
+    pub fn pool(&self) -> Vec<(&'static str, wgpu::BindingResource<'_>)> {
+        vec![
             ("params", self.params.binding()),
             ("ferns", self.ferns.binding()),
             ("codes", self.codes.binding()),
-        ];
-        pool.extend(frame.level0_pool());
-        kernel.bind_group_from(ctx, &pool)
+        ]
     }
 }
 
@@ -92,7 +85,7 @@ pub(super) fn record_ahead(
         return Ok(());
     };
     let n = params.fern_count as usize;
-    let group = b.bind_group(ctx, kernel, frame);
+    let group = frame.bind_level0(ctx, kernel, b.pool());
     let call = plan::encode_ferns().kernel();
     record_call(
         ctx,

@@ -5,8 +5,6 @@
 
 use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
-use super::kernel::Kernel;
-use super::resources::FrameBuffers;
 use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
 use crate::Result;
 
@@ -66,24 +64,17 @@ impl KeypointBuffers {
 }
 
 impl KeypointBuffers {
-    /// Both keypoint kernels' bind group (`kernel` takes what its WGSL declares) over these
-    /// buffers and the frame's level-0 maps.
-    pub fn bind_group(
-        &self,
-        ctx: &GpuContext,
-        kernel: &Kernel,
-        frame: &FrameBuffers,
-    ) -> wgpu::BindGroup {
-        let mut pool = vec![
+    /// Both keypoint kernels' resources besides the frame's maps (each kernel takes what
+    /// its WGSL declares).
+    pub fn pool(&self) -> Vec<(&'static str, wgpu::BindingResource<'_>)> {
+        vec![
             ("params", self.params.binding()),
             ("keypoints", self.keypoints.binding()),
             ("counter", self.counter.binding()),
             ("pattern", self.pattern.binding()),
             ("descriptors", self.descriptors.binding()),
             ("points", self.points.binding()),
-        ];
-        pool.extend(frame.level0_pool());
-        kernel.bind_group_from(ctx, &pool)
+        ]
     }
 }
 

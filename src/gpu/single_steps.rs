@@ -15,6 +15,7 @@ use super::images::GpuImage;
 use super::keypoints;
 use super::loops::DeformBuffers;
 use super::recording::{record_call, submit_profiled, Pass, Profiler};
+use super::resources::FrameBuffers;
 use crate::layout::{
     DeformNode, DeformParams, Fern, FernParams, IcpParams, Keypoint, KeypointParams,
     DESCRIPTOR_WORDS,
@@ -38,6 +39,13 @@ fn submit_single(
     record_call(ctx, profiler, &mut enc, call.kernel(), passes)?;
     after(&mut enc);
     submit_profiled(ctx, profiler, enc)
+}
+
+/// The frame's buffers (a step's borrow of that one field, beside its own buffers').
+fn level0(frame: &Option<FrameBuffers>) -> &FrameBuffers {
+    frame
+        .as_ref()
+        .expect("preprocess() runs before any other step")
 }
 
 impl GpuBackend {
@@ -67,10 +75,7 @@ impl GpuBackend {
             return ctx.scoped(call.kernel(), || b.readback.read(ctx));
         }
         b.last = Some(*params);
-        let frame = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before any other step");
+        let frame = level0(&self.frame);
         let kernel = &self.kernels.fern_encode;
         ctx.scoped(call.kernel(), || {
             b.params.write(ctx, params);
@@ -78,7 +83,7 @@ impl GpuBackend {
                 b.ferns.upload(ctx, &fern_table[..n])?;
                 b.uploaded = fern_table[..n].to_vec();
             }
-            let group = b.bind_group(ctx, kernel, frame);
+            let group = frame.bind_level0(ctx, kernel, b.pool());
             let passes = [(kernel, &group, [ferns::workgroups(ctx, n), 1])];
             let copy = |enc: &mut _| b.readback.copy_from(enc, &b.codes, n);
             submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
@@ -95,16 +100,12 @@ impl GpuBackend {
             self.candidates = Some(CandidateBuffers::new(ctx, wg)?);
         }
         let b = self.candidates.as_mut().expect("just made");
-        let frame = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before any other step");
+        let frame = level0(&self.frame);
         let (u, kernel) = (&self.uniforms, &self.kernels.icp_candidates);
         ctx.scoped(call.kernel(), || {
             u.icp.write(ctx, params);
-            let mut pool = vec![("params", u.icp.binding()), ("counts", b.counts.binding())];
-            pool.extend(frame.level0_pool());
-            let group = kernel.bind_group_from(ctx, &pool);
+            let own = vec![("params", u.icp.binding()), ("counts", b.counts.binding())];
+            let group = frame.bind_level0(ctx, kernel, own);
             let copy = |enc: &mut _| b.readback.copy_from(enc, &b.counts, wg as usize);
             let passes = [(kernel, &group, [wg, 1])];
             submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
@@ -121,15 +122,12 @@ impl GpuBackend {
         let ctx = &self.ctx;
         let capacity = params.capacity as usize;
         let b = keypoints::ensure(&mut self.keypoints, ctx, params, capacity, 1)?;
-        let frame = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before any other step");
+        let frame = level0(&self.frame);
         let kernel = &self.kernels.keypoint_detect;
         let grid = kernel.grid_workgroups_for_image(ctx, params.width, params.height);
         ctx.scoped(call.kernel(), || {
             b.params.write(ctx, params);
-            let group = b.bind_group(ctx, kernel, frame);
+            let group = frame.bind_level0(ctx, kernel, b.pool());
             let clear = |enc: &mut _| b.counter.clear(enc);
             let copy = |enc: &mut _| {
                 b.counter_back.copy_from(enc, &b.counter, 1);
@@ -159,16 +157,13 @@ impl GpuBackend {
         let call = plan::describe_keypoints();
         let ctx = &self.ctx;
         let b = keypoints::ensure(&mut self.keypoints, ctx, params, n, tests)?;
-        let frame = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before any other step");
+        let frame = level0(&self.frame);
         let kernel = &self.kernels.keypoint_describe;
         ctx.scoped(call.kernel(), || {
             b.params.write(ctx, params);
             b.keypoints.upload(ctx, &found[..n])?;
             b.pattern.upload(ctx, &pattern[..tests])?;
-            let group = b.bind_group(ctx, kernel, frame);
+            let group = frame.bind_level0(ctx, kernel, b.pool());
             // One thread per keypoint, at most the adapter's reduction workgroups.
             let workgroups = (n as u32)
                 .div_ceil(64)
