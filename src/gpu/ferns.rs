@@ -19,9 +19,13 @@ use crate::Result;
 
 /// `fern_encode`'s parameters, ferns, codes and the codes' read-back.
 pub(super) struct FernBuffers {
+    /// The kernel's `params` (uniform).
     pub params: ParamBuffer<FernParams>,
+    /// The fern table, at least `fern_count` ferns.
     pub ferns: GpuArray<Fern>,
+    /// One code per fern, written by the kernel.
     pub codes: GpuArray<u32>,
+    /// The codes' read-back.
     pub readback: Readback<u32>,
     /// The ferns last uploaded (a run's are fixed: uploaded once, not every frame).
     pub uploaded: Vec<Fern>,
