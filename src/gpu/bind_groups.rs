@@ -6,11 +6,13 @@
 //! preprocessing kernel reads, a pyramid level's maps) is bound explicitly. The kernels
 //! that walk the map get one bind group per map chunk.
 
+use std::collections::BTreeMap;
+
 use super::buffers::GpuArray;
 use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
-use super::kernels::Kernels;
+use super::kernels::{Kernels, Shape};
 use super::map_buffers::{Chunk, MapBuffers};
 use super::recording::Pass;
 use super::resources::{FrameBuffers, Uniforms};
@@ -26,13 +28,11 @@ pub(super) struct BindGroups {
     /// The map kernels' bind groups, one per map chunk.
     pub block_bounds: Vec<wgpu::BindGroup>,
     pub project_model: Vec<wgpu::BindGroup>,
-    pub predict_model: Vec<wgpu::BindGroup>,
     pub icp_reduce: wgpu::BindGroup,
     pub fuse_select: Vec<wgpu::BindGroup>,
-    pub fuse_merge: Vec<wgpu::BindGroup>,
-    pub fuse_merge_chosen: Vec<wgpu::BindGroup>,
-    pub fuse_prune: Vec<wgpu::BindGroup>,
-    pub fuse_flags: wgpu::BindGroup,
+    /// The registry's `generic` kernels' bind groups by kernel name: one per map chunk,
+    /// or one over the frame (see `super::kernels::Shape`).
+    pub generic: BTreeMap<&'static str, Vec<wgpu::BindGroup>>,
     /// The scan over the new-surfel flags (in append order, `append_slots` entries).
     pub fuse_scan: ScanGroups,
     pub fuse_add: Vec<wgpu::BindGroup>,
@@ -155,13 +155,19 @@ impl BindGroups {
             vertex_to_normal: vertex_to_normal(&f.vertex),
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
             project_model: per_chunk(k.project_model.first(), u.project.binding()),
-            predict_model: per_chunk(&k.predict_model, u.project.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
             fuse_select: per_chunk(k.fuse_select.first(), u.fuse.binding()),
-            fuse_merge: per_chunk(&k.fuse_merge, u.fuse.binding()),
-            fuse_merge_chosen: per_chunk(&k.fuse_merge_chosen, u.fuse.binding()),
-            fuse_prune: per_chunk(&k.fuse_prune, u.fuse.binding()),
-            fuse_flags: over_frame(&k.fuse_flags, u.fuse.binding(), Vec::new()),
+            generic: k
+                .generic(u)
+                .into_iter()
+                .map(|row| {
+                    let groups = match row.shape {
+                        Shape::OverFrame => vec![over_frame(row.kernel, row.params, Vec::new())],
+                        Shape::PerChunk | Shape::PerBlock => per_chunk(row.kernel, row.params),
+                    };
+                    (row.name, groups)
+                })
+                .collect(),
             fuse_scan: ScanGroups::new(
                 ctx,
                 k,

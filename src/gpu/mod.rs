@@ -13,9 +13,13 @@
 //! - [`map_buffers`]: the surfel map as chunks of storage buffers (structure of arrays).
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU, each recorded from its plan
-//!   (`crate::slam::plan`); beside it, private: `kernels` (the pipelines), `resources`
-//!   (parameter and frame buffers), `bind_groups`, `compaction`, `recording` (passes and
-//!   per-kernel timing), `steps` (the steps' passes), `inspect` (downloads and uploads).
+//!   (`crate::slam::plan`); beside it, private: `kernels` (the kernel registry: one row
+//!   per kernel pairing its shader and CPU twin; the pipelines), `resources` (parameter
+//!   and frame buffers), `bind_groups`, `compaction`, `recording` (passes and per-kernel
+//!   timing), `steps` (the steps' passes), `single_steps` (the steps of one kernel each)
+//!   with their buffers in `ferns`, `keypoints`, `candidates` and `loops`, `inspect`
+//!   (downloads and uploads). The helper modules never import `backend`: the one-way
+//!   imports are `steps`/`single_steps` -> `backend` -> helpers.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
 //! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
 
@@ -36,6 +40,7 @@ pub mod map_buffers;
 mod recording;
 mod resources;
 pub mod shaders;
+mod single_steps;
 pub mod stats;
 mod step_grid;
 mod steps;

@@ -64,3 +64,22 @@ pub(super) fn submit_profiled(
     }
     Ok(())
 }
+
+/// Records the passes of one call of a step's plan (`crate::slam::plan`), `kernel` being
+/// the call's `kernel()`: each pass runs that kernel, a variant of it or one of its
+/// sub-kernels (a key kernel's portable passes, the scan's `prefix_sum_*`), all named
+/// `<kernel>...`; the check ties what the GPU records to what the plan says.
+pub(super) fn record_call(
+    ctx: &GpuContext,
+    profiler: &mut Option<Profiler>,
+    enc: &mut wgpu::CommandEncoder,
+    kernel: &str,
+    passes: &[Pass],
+) -> Result<()> {
+    debug_assert!(
+        passes.iter().all(|(k, ..)| k.name.starts_with(kernel)),
+        "the plan's `{kernel}` recorded {:?}",
+        passes.iter().map(|(k, ..)| &k.name).collect::<Vec<_>>()
+    );
+    record_passes(ctx, profiler, enc, passes)
+}

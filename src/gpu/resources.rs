@@ -8,6 +8,7 @@
 use super::buffers::{GpuArray, ParamBuffer};
 use super::context::GpuContext;
 use super::images::GpuImage;
+use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, NormalParams,
@@ -189,6 +190,26 @@ impl FrameBuffers {
                 .iter()
                 .zip(pyramid)
                 .all(|(l, p)| (l.width, l.height) == (p.down.width, p.down.height))
+    }
+
+    /// `kernel`'s bind group over `own` resources (a one-kernel step's buffers, its
+    /// `params` first) and the frame's level-0 maps that the one-kernel steps
+    /// (`super::single_steps`) read, each binding taking the resource of its WGSL name (see
+    /// [`super::kernel::Kernel::bind_group_from`]; `color` is the frame's colour map: those
+    /// kernels bind no map chunk, whose `color` it would otherwise be).
+    pub fn bind_level0<'a>(
+        &'a self,
+        ctx: &GpuContext,
+        kernel: &Kernel,
+        mut own: Vec<(&'static str, wgpu::BindingResource<'a>)>,
+    ) -> wgpu::BindGroup {
+        own.extend([
+            ("color", self.color.binding()),
+            ("vertex", self.vertex.binding()),
+            ("normal_depth", self.normal_depth.binding()),
+            ("pred_vertex", self.pred_vertex.binding()),
+        ]);
+        kernel.bind_group_from(ctx, &own)
     }
 
     pub fn pixels(&self) -> usize {

@@ -94,119 +94,9 @@ pub fn defines_of(kernel_name: &str) -> &'static [&'static str] {
     }
 }
 
-/// Every kernel the runtime builds as `(name, text of shaders/<file_of(name)>.wgsl)`: one row
-/// per file, plus one per portable variant of a key kernel (the same text, see
-/// [`PORTABLE_KERNELS`]). Keep in sync with the directory: `tests/it/shaders.rs` fails when
-/// a `.wgsl` file is missing here.
-pub const KERNELS: &[(&str, &str)] = &[
-    (
-        "depth_to_vertex",
-        include_str!("../../shaders/depth_to_vertex.wgsl"),
-    ),
-    (
-        "block_bounds",
-        include_str!("../../shaders/block_bounds.wgsl"),
-    ),
-    (
-        "bilateral_filter",
-        include_str!("../../shaders/bilateral_filter.wgsl"),
-    ),
-    (
-        "vertex_to_normal",
-        include_str!("../../shaders/vertex_to_normal.wgsl"),
-    ),
-    ("project_model", PROJECT_MODEL),
-    (
-        "predict_model",
-        include_str!("../../shaders/predict_model.wgsl"),
-    ),
-    (
-        "pyramid_depth",
-        include_str!("../../shaders/pyramid_depth.wgsl"),
-    ),
-    (
-        "pyramid_model",
-        include_str!("../../shaders/pyramid_model.wgsl"),
-    ),
-    (
-        "fern_encode",
-        include_str!("../../shaders/fern_encode.wgsl"),
-    ),
-    (
-        "keypoint_detect",
-        include_str!("../../shaders/keypoint_detect.wgsl"),
-    ),
-    (
-        "keypoint_describe",
-        include_str!("../../shaders/keypoint_describe.wgsl"),
-    ),
-    (
-        "icp_candidates",
-        include_str!("../../shaders/icp_candidates.wgsl"),
-    ),
-    ("icp_reduce", include_str!("../../shaders/icp_reduce.wgsl")),
-    (
-        "icp_reduce_final",
-        include_str!("../../shaders/icp_reduce_final.wgsl"),
-    ),
-    ("fuse_select", FUSE_SELECT),
-    ("fuse_merge", include_str!("../../shaders/fuse_merge.wgsl")),
-    (
-        "fuse_merge_chosen",
-        include_str!("../../shaders/fuse_merge_chosen.wgsl"),
-    ),
-    ("fuse_prune", include_str!("../../shaders/fuse_prune.wgsl")),
-    ("fuse_flags", include_str!("../../shaders/fuse_flags.wgsl")),
-    ("fuse_add", FUSE_ADD),
-    // The portable variants of the key kernels (two 32-bit passes each, see
-    // PORTABLE_KERNELS), composed from the same files.
-    ("project_model_portable", PROJECT_MODEL),
-    ("fuse_select_portable", FUSE_SELECT),
-    ("fuse_add_portable", FUSE_ADD),
-    (
-        "compact_flags",
-        include_str!("../../shaders/compact_flags.wgsl"),
-    ),
-    // The compaction scan: prefix_sum_reduce, prefix_sum_blocks, then prefix_sum.
-    (
-        "prefix_sum_reduce",
-        include_str!("../../shaders/prefix_sum_reduce.wgsl"),
-    ),
-    (
-        "prefix_sum_blocks",
-        include_str!("../../shaders/prefix_sum_blocks.wgsl"),
-    ),
-    ("prefix_sum", include_str!("../../shaders/prefix_sum.wgsl")),
-    // Loop closure's map deformation (src/gpu/loops.rs), built at the first closure.
-    (
-        "deform_surfels",
-        include_str!("../../shaders/deform_surfels.wgsl"),
-    ),
-    (
-        "compact_scatter",
-        include_str!("../../shaders/compact_scatter.wgsl"),
-    ),
-    // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
-    ("nn_brute", include_str!("../../shaders/nn_brute.wgsl")),
-    ("nn_grid", include_str!("../../shaders/nn_grid.wgsl")),
-    (
-        "cross_covariance",
-        include_str!("../../shaders/cross_covariance.wgsl"),
-    ),
-    // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
-    ("render_splat", RENDER_SPLAT),
-    ("render_splat_portable", RENDER_SPLAT),
-    (
-        "render_resolve",
-        include_str!("../../shaders/render_resolve.wgsl"),
-    ),
-];
-
-/// The key kernels' files, each listed twice in [`KERNELS`].
-const PROJECT_MODEL: &str = include_str!("../../shaders/project_model.wgsl");
-const FUSE_SELECT: &str = include_str!("../../shaders/fuse_select.wgsl");
-const FUSE_ADD: &str = include_str!("../../shaders/fuse_add.wgsl");
-const RENDER_SPLAT: &str = include_str!("../../shaders/render_splat.wgsl");
+/// Every kernel the runtime builds as `(name, text)`: made from the kernel registry's
+/// rows (`src/gpu/kernels.rs`), one per kernel pairing its file and its CPU twin.
+pub use super::kernels::KERNELS;
 
 /// The kernel file's text alone (without `common.wgsl`, not preprocessed), or `None` for an
 /// unknown name.
@@ -429,7 +319,7 @@ mod tests {
             origin_of_line("render_splat_portable", n + 2).0,
             "shaders/render_splat.wgsl"
         );
-        let splat = RENDER_SPLAT.lines().count();
+        let splat = kernel_text("render_splat").unwrap().lines().count();
         assert_eq!(
             origin_of_line("render_splat_portable", n + splat + 4),
             ("shaders/key_writer.wgsl".to_string(), 4)

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use super::bind_groups::BindGroups;
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
-use super::kernels::Kernels;
+use super::kernels::{Kernels, Shape};
 use super::recording::Pass;
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use crate::slam::backend::PyramidLevel;
@@ -59,6 +59,23 @@ impl StepGrid {
             .flat_map(|pass| self.per_block(pass, groups))
             .collect()
     }
+    /// The passes of a `generic` kernel of the registry (see `super::kernels::Shape`):
+    /// per bind group a pass over the frame's pixels, or per map chunk one workgroup per
+    /// block. Panics on a kernel with neither a `generic` row nor an arm of its own in its
+    /// step (an internal contract: every planned kernel has one or the other).
+    pub fn generic<'a>(&self, k: &'a Kernels, bg: &'a BindGroups, kernel: &str) -> Vec<Pass<'a>> {
+        let (pipeline, shape) = k.generic_kernel(kernel).unwrap_or_else(|| {
+            panic!("`{kernel}` has neither a `generic` row in gpu::kernels nor an arm in its step")
+        });
+        let groups = &bg.generic[kernel];
+        match shape {
+            Shape::PerBlock => self.per_block(pipeline, groups),
+            Shape::OverFrame | Shape::PerChunk => groups
+                .iter()
+                .map(|g| (pipeline, g, self.image(kernel)))
+                .collect(),
+        }
+    }
     /// The `block_bounds` passes over the stale boxes.
     pub fn bounds<'a>(&self, k: &'a Kernels, bg: &'a BindGroups) -> Vec<Pass<'a>> {
         self.bounds
@@ -97,6 +114,20 @@ pub(super) fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -
         fine = coarse;
     }
     Ok(())
+}
+
+/// The image grids of per-pixel `kernels` and of the registry's `generic` kernels over the
+/// frame's `width x height` maps, by kernel name.
+pub(super) fn frame_grids(
+    ctx: &GpuContext,
+    k: &Kernels,
+    kernels: &[&Kernel],
+    width: u32,
+    height: u32,
+) -> BTreeMap<&'static str, [u32; 2]> {
+    let generic = k.generic_kernels();
+    let all: Vec<&Kernel> = kernels.iter().copied().chain(generic).collect();
+    image_grids(ctx, &all, width, height)
 }
 
 /// The image grids of per-pixel `kernels` over a `width x height` map, by kernel name.

@@ -11,8 +11,8 @@ use super::backend::GpuBackend;
 use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
-use super::recording::{record_passes, submit_profiled, Pass};
-use super::step_grid::{check_pyramid, image_grids, key_passes_of_fuse_add, StepGrid};
+use super::recording::{record_call, record_passes, submit_profiled, Pass};
+use super::step_grid::{check_pyramid, frame_grids, image_grids, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
@@ -20,12 +20,12 @@ use crate::layout::{
 };
 use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
-use crate::slam::plan::{self, Buffer, Call};
+use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 use crate::{Error, Result};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
-/// submit its passes: `(ctx, kernels, bind groups, profiler)`. A macro rather than a method
-/// so the borrows stay per field: the step still reads its uniforms, frame buffers and
+/// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
+/// macro rather than a method so the borrows stay per field: the step still reads its
 /// read-backs while the profiler is borrowed mutably.
 macro_rules! encoding_parts {
     ($backend:ident) => {{
@@ -35,6 +35,11 @@ macro_rules! encoding_parts {
             &$backend.kernels,
             $backend.bind_groups.as_ref().expect("just built"),
             &mut $backend.profiler,
+            $backend
+                .frame
+                .as_ref()
+                .expect("preprocess() runs before any other step"),
+            &$backend.uniforms,
         )
     }};
 }
@@ -117,22 +122,22 @@ impl Backend for GpuBackend {
             ..StepGrid::default()
         };
         let plan = plan::preprocess(bilateral.is_some(), pyramid.len());
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
                 let pass: Pass = match call {
-                    Call::DepthToVertex => (
+                    PreprocessCall::DepthToVertex => (
                         &k.depth_to_vertex,
                         &bg.depth_to_vertex,
                         grid.image("depth_to_vertex"),
                     ),
-                    Call::BilateralFilter => (
+                    PreprocessCall::BilateralFilter => (
                         &k.bilateral_filter,
                         &bg.bilateral_filter,
                         grid.image("bilateral_filter"),
                     ),
-                    Call::VertexToNormal { level: 0, filtered } => (
+                    PreprocessCall::VertexToNormal { level: 0, filtered } => (
                         &k.vertex_to_normal,
                         match filtered {
                             true => &bg.vertex_to_normal_filtered,
@@ -140,12 +145,12 @@ impl Backend for GpuBackend {
                         },
                         grid.image("vertex_to_normal"),
                     ),
-                    Call::VertexToNormal { level, .. } => (
+                    PreprocessCall::VertexToNormal { level, .. } => (
                         &k.vertex_to_normal,
                         &bg.levels[level - 1].vertex_to_normal,
                         grid.level(level, "vertex_to_normal"),
                     ),
-                    Call::PyramidDepth { level, filtered } => {
+                    PreprocessCall::PyramidDepth { level, filtered } => {
                         let g = &bg.levels[level - 1];
                         (
                             &k.pyramid_depth,
@@ -156,9 +161,8 @@ impl Backend for GpuBackend {
                             grid.level(level, "pyramid_depth"),
                         )
                     }
-                    other => unreachable!("{other:?} is not a preprocessing kernel"),
                 };
-                record_passes(ctx, profiler, &mut enc, &[pass])?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &[pass])?;
             }
             defer_profiled(ctx, profiler, "preprocess", enc)
         })
@@ -191,51 +195,41 @@ impl Backend for GpuBackend {
         let plan = plan::predict(project, pyramid.len());
         let (k, ctx) = (&self.kernels, &self.ctx);
         let mut grid = StepGrid {
-            image: image_grids(ctx, &[&k.predict_model], f.width, f.height),
+            image: frame_grids(ctx, k, &[], f.width, f.height),
             levels: f
                 .levels
                 .iter()
                 .map(|l| image_grids(ctx, &[&k.pyramid_model], l.width, l.height))
                 .collect(),
+            chunks: self.chunk_workgroups(k.project_model.first()),
             ..StepGrid::default()
         };
-        // Only a fresh projection walks the map (see `plan::predict`).
-        if plan.contains(&Call::ProjectModel) {
-            grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
-        }
-        if plan.contains(&Call::BlockBounds) {
+        if plan.contains(&PredictCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
-        let f = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before predict()");
-        let u = &self.uniforms;
+        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         ctx.scoped("predict", || {
             u.project.write(ctx, &params);
             let mut enc = ctx.encoder("predict");
             for call in plan {
                 let passes = match call {
-                    Call::BlockBounds => grid.bounds(k, bg),
-                    Call::Clear(Buffer::IndexMap) => {
+                    PredictCall::BlockBounds => grid.bounds(k, bg),
+                    PredictCall::ClearIndexMap => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::ProjectModel => grid.per_block_keys(&k.project_model, &bg.project_model),
-                    Call::PredictModel => bg
-                        .predict_model
-                        .iter()
-                        .map(|g| (&k.predict_model, g, grid.image("predict_model")))
-                        .collect(),
-                    Call::PyramidModel { level } => vec![(
+                    PredictCall::ProjectModel => {
+                        grid.per_block_keys(&k.project_model, &bg.project_model)
+                    }
+                    PredictCall::PyramidModel { level } => vec![(
                         &k.pyramid_model,
                         &bg.levels[level - 1].pyramid_model,
                         grid.level(level, "pyramid_model"),
                     )],
-                    other => unreachable!("{other:?} is not a prediction kernel"),
+                    // `predict_model`: bound and dispatched by its registry row.
+                    generic => grid.generic(k, bg, generic.kernel()),
                 };
-                record_passes(ctx, profiler, &mut enc, &passes)?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             defer_profiled(ctx, profiler, "predict", enc)
         })
@@ -249,13 +243,12 @@ impl Backend for GpuBackend {
             )));
         }
         let wg = self.reduction_workgroups;
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
         let group = match level {
             0 => &bg.icp_reduce,
             l => &bg.levels[l - 1].icp_reduce,
         };
         let final_group = &self.icp_final_group;
-        let u = &self.uniforms;
         let system = ctx.scoped("icp_reduce", || {
             u.icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
@@ -316,60 +309,40 @@ impl Backend for GpuBackend {
         let plan = plan::fuse(&params);
         let (f, k, ctx) = (self.frame(), &self.kernels, &self.ctx);
         let mut grid = StepGrid {
-            image: image_grids(
-                ctx,
-                &[k.fuse_add.first(), &k.fuse_flags, &k.fuse_merge_chosen],
-                f.width,
-                f.height,
-            ),
+            image: frame_grids(ctx, k, &[k.fuse_add.first()], f.width, f.height),
             chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
             ..StepGrid::default()
         };
-        if plan.contains(&Call::BlockBounds) {
+        if plan.contains(&FuseCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
-        let (ctx, k, bg, profiler) = encoding_parts!(self);
-        let f = self
-            .frame
-            .as_ref()
-            .expect("preprocess() runs before fuse()");
-        let u = &self.uniforms;
+        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         let added = ctx.scoped("fuse", || {
             u.fuse.write(ctx, &params);
             u.fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
             for call in plan {
                 let passes = match call {
-                    Call::Clear(Buffer::Assoc) => {
+                    FuseCall::Clear(Buffer::Assoc) => {
                         f.assoc.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::Clear(Buffer::Merged) => {
+                    FuseCall::Clear(Buffer::Merged) => {
                         f.merged.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::Clear(Buffer::IndexMap) => {
+                    FuseCall::Clear(Buffer::IndexMap) => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    Call::BlockBounds => grid.bounds(k, bg),
+                    FuseCall::BlockBounds => grid.bounds(k, bg),
                     // Surfels pick pixels, then each picked surfel merges from its pixel.
-                    Call::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
-                    Call::FuseMergeChosen => bg
-                        .fuse_merge_chosen
-                        .iter()
-                        .map(|g| (&k.fuse_merge_chosen, g, grid.image("fuse_merge_chosen")))
-                        .collect(),
-                    Call::FusePrune => grid.per_block(&k.fuse_prune, &bg.fuse_prune),
-                    Call::FuseMerge => grid.per_block(&k.fuse_merge, &bg.fuse_merge),
-                    Call::FuseFlags => {
-                        vec![(&k.fuse_flags, &bg.fuse_flags, grid.image("fuse_flags"))]
-                    }
-                    Call::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
+                    FuseCall::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
+                    FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
                     // Each pass over every chunk (one pass, or the portable kernel's two;
                     // its second only sets index words, which projective association
                     // leaves alone, so it runs with best-candidate association only).
-                    Call::FuseAdd => k.fuse_add.passes
+                    FuseCall::FuseAdd => k.fuse_add.passes
                         [..key_passes_of_fuse_add(&params, &k.fuse_add)]
                         .iter()
                         .flat_map(|pass| {
@@ -377,9 +350,11 @@ impl Backend for GpuBackend {
                             bg.fuse_add.iter().map(move |g| (pass, g, wg))
                         })
                         .collect(),
-                    other => unreachable!("{other:?} is not a fusion kernel"),
+                    // `fuse_merge_chosen`, `fuse_prune`, `fuse_merge`, `fuse_flags`: bound
+                    // and dispatched by their registry rows.
+                    generic => grid.generic(k, bg, generic.kernel()),
                 };
-                record_passes(ctx, profiler, &mut enc, &passes)?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             let ferns = &mut self.ferns;
@@ -433,14 +408,14 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("compact");
             for call in plan::compact() {
                 let passes: Vec<Pass> = match call {
-                    Call::CompactFlags => g
+                    CompactCall::Flags => g
                         .flags
                         .iter()
                         .zip(&flags_wg)
                         .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
                         .collect(),
-                    Call::CompactScan => g.scan.passes(k, n),
-                    Call::CompactScatter => scatter_wg
+                    CompactCall::Scan => g.scan.passes(k, n),
+                    CompactCall::Scatter => scatter_wg
                         .iter()
                         .enumerate()
                         .flat_map(|(s, &(_, wg))| {
@@ -454,9 +429,8 @@ impl Backend for GpuBackend {
                             })
                         })
                         .collect(),
-                    other => unreachable!("{other:?} is not a compaction kernel"),
                 };
-                record_passes(ctx, profiler, &mut enc, &passes)?;
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             submit_profiled(ctx, profiler, enc)?;

@@ -3,7 +3,7 @@
 //! calling the twins in `src/cpu/` in its order, the GPU by recording one compute pass per
 //! invocation (once per map chunk for the kernels that walk the map), so the order of a
 //! step's kernels cannot differ between them. `wgslam compare` and the parity tests name
-//! kernels by [`Call::kernel`].
+//! kernels by each call's `kernel()`.
 //!
 //! Not here: which buffers a kernel reads and writes (each backend binds its own; the
 //! GPU's bind groups are made by the WGSL variables' names) and ICP's per-iteration
@@ -25,93 +25,158 @@ pub enum Buffer {
     Merged,
 }
 
-/// One step of a plan: a kernel (named after `shaders/<kernel>.wgsl` and
-/// `src/cpu/<kernel>.rs`) with which of its inputs it reads where a kernel runs on more
-/// than one set of maps, or a clear.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Call {
-    /// Zero a buffer.
-    Clear(Buffer),
-    /// `block_bounds` over the blocks whose boxes are stale (fusion appended to them, or
-    /// the map was compacted or uploaded); nothing when none are. Every culling step
-    /// starts with it.
-    BlockBounds,
-    /// `depth_to_vertex`: raw depth and colour -> `vertex`, `color`.
-    DepthToVertex,
-    /// `bilateral_filter`: `vertex` -> `filtered_vertex`.
-    BilateralFilter,
-    /// `vertex_to_normal` at pyramid level `level`: at level 0 from `filtered_vertex` when
-    /// `filtered`, else from `vertex`; at a coarser level from that level's vertex map.
-    VertexToNormal { level: usize, filtered: bool },
-    /// `pyramid_depth` making level `level >= 1` from level `level - 1`'s vertex map (at
-    /// level 1 the filtered one when `filtered`).
-    PyramidDepth { level: usize, filtered: bool },
-    /// `project_model`: the map -> `index_map` at the predicted view.
-    ProjectModel,
-    /// `predict_model`: `index_map` and the map -> level 0's `pred_vertex`, `pred_normal`.
-    PredictModel,
-    /// `pyramid_model` making level `level >= 1`'s predicted maps from level `level - 1`'s.
-    PyramidModel { level: usize },
-    /// `fuse_select`: each pixel chooses a surfel (best-candidate association).
-    FuseSelect,
-    /// `fuse_merge_chosen`: each chosen surfel merges its pixel's measurement.
-    FuseMergeChosen,
-    /// `fuse_prune`: surfels this frame did not refresh retire next to a merged twin.
-    FusePrune,
-    /// `fuse_merge`: every surfel merges with the pixel it projects to (projective).
-    FuseMerge,
-    /// `fuse_flags`: which pixels become new surfels, in append order.
-    FuseFlags,
-    /// `prefix_sum` over `fuse_flags`' flags: each new surfel's slot, and how many.
-    FuseScan,
-    /// `fuse_add`: append the new surfels.
-    FuseAdd,
-    /// `compact_flags`: keep or remove each surfel.
-    CompactFlags,
-    /// `prefix_sum` over the keep flags: each survivor's slot, and how many.
-    CompactScan,
-    /// `compact_scatter`: copy each survivor into the second map.
-    CompactScatter,
+/// Declares a step's call enum and its kernel names: one variant per kernel
+/// invocation (or clear) the step may plan, so each backend's `match` over a step's plan is
+/// exhaustive without a catch-all.
+macro_rules! step_calls {
+    ($(#[$doc:meta])* $name:ident {
+        $($(#[$vdoc:meta])* $variant:ident $({ $($field:ident: $ty:ty),* })? $(($inner:ty))? => $kernel:expr,)*
+    }) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum $name {
+            $($(#[$vdoc])* $variant $({ $($field: $ty),* })? $(($inner))?,)*
+        }
+
+        impl $name {
+            /// The kernel's name (`shaders/<kernel>.wgsl`, `src/cpu/<kernel>.rs`), or
+            /// `clear` for a clear.
+            pub fn kernel(self) -> &'static str {
+                match self {
+                    $($name::$variant { .. } => $kernel,)*
+                }
+            }
+        }
+    };
 }
 
-impl Call {
-    /// The kernel's name (`shaders/<kernel>.wgsl`), or `clear` for a clear.
-    pub fn kernel(self) -> &'static str {
-        match self {
-            Call::Clear(_) => "clear",
-            Call::BlockBounds => "block_bounds",
-            Call::DepthToVertex => "depth_to_vertex",
-            Call::BilateralFilter => "bilateral_filter",
-            Call::VertexToNormal { .. } => "vertex_to_normal",
-            Call::PyramidDepth { .. } => "pyramid_depth",
-            Call::ProjectModel => "project_model",
-            Call::PredictModel => "predict_model",
-            Call::PyramidModel { .. } => "pyramid_model",
-            Call::FuseSelect => "fuse_select",
-            Call::FuseMergeChosen => "fuse_merge_chosen",
-            Call::FusePrune => "fuse_prune",
-            Call::FuseMerge => "fuse_merge",
-            Call::FuseFlags => "fuse_flags",
-            Call::FuseScan | Call::CompactScan => "prefix_sum",
-            Call::FuseAdd => "fuse_add",
-            Call::CompactFlags => "compact_flags",
-            Call::CompactScatter => "compact_scatter",
-        }
+step_calls! {
+    /// One call of the `preprocess` plan.
+    PreprocessCall {
+        /// `depth_to_vertex`: raw depth and colour -> `vertex`, `color`.
+        DepthToVertex => "depth_to_vertex",
+        /// `bilateral_filter`: `vertex` -> `filtered_vertex`.
+        BilateralFilter => "bilateral_filter",
+        /// `vertex_to_normal` at pyramid level `level`: at level 0 from `filtered_vertex`
+        /// when `filtered`, else from `vertex`; at a coarser level from that level's vertex
+        /// map.
+        VertexToNormal { level: usize, filtered: bool } => "vertex_to_normal",
+        /// `pyramid_depth` making level `level >= 1` from level `level - 1`'s vertex map (at
+        /// level 1 the filtered one when `filtered`).
+        PyramidDepth { level: usize, filtered: bool } => "pyramid_depth",
     }
+}
+
+step_calls! {
+    /// One call of the `predict` plan.
+    PredictCall {
+        /// `block_bounds` over the blocks whose boxes are stale (fusion appended to them, or
+        /// the map was compacted or uploaded); nothing when none are. Every culling step
+        /// starts with it.
+        BlockBounds => "block_bounds",
+        /// Zero the index map ([`Buffer::IndexMap`]).
+        ClearIndexMap => "clear",
+        /// `project_model`: the map -> `index_map` at the predicted view.
+        ProjectModel => "project_model",
+        /// `predict_model`: `index_map` and the map -> level 0's `pred_vertex`, `pred_normal`.
+        PredictModel => "predict_model",
+        /// `pyramid_model` making level `level >= 1`'s predicted maps from level
+        /// `level - 1`'s.
+        PyramidModel { level: usize } => "pyramid_model",
+    }
+}
+
+step_calls! {
+    /// One call of the `fuse` plan.
+    FuseCall {
+        /// Zero a buffer.
+        Clear(Buffer) => "clear",
+        /// `block_bounds`, as in [`PredictCall::BlockBounds`].
+        BlockBounds => "block_bounds",
+        /// `fuse_select`: each pixel chooses a surfel (best-candidate association).
+        FuseSelect => "fuse_select",
+        /// `fuse_merge_chosen`: each chosen surfel merges its pixel's measurement.
+        FuseMergeChosen => "fuse_merge_chosen",
+        /// `fuse_prune`: surfels this frame did not refresh retire next to a merged twin.
+        FusePrune => "fuse_prune",
+        /// `fuse_merge`: every surfel merges with the pixel it projects to (projective).
+        FuseMerge => "fuse_merge",
+        /// `fuse_flags`: which pixels become new surfels, in append order.
+        FuseFlags => "fuse_flags",
+        /// `prefix_sum` over `fuse_flags`' flags: each new surfel's slot, and how many.
+        FuseScan => "prefix_sum",
+        /// `fuse_add`: append the new surfels.
+        FuseAdd => "fuse_add",
+    }
+}
+
+step_calls! {
+    /// One call of the `compact` plan.
+    CompactCall {
+        /// `compact_flags`: keep or remove each surfel.
+        Flags => "compact_flags",
+        /// `prefix_sum` over the keep flags: each survivor's slot, and how many.
+        Scan => "prefix_sum",
+        /// `compact_scatter`: copy each survivor into the second map.
+        Scatter => "compact_scatter",
+    }
+}
+
+step_calls! {
+    /// The steps of one kernel each (relocalisation, tracking health, loop closure): the
+    /// plan of such a step is its one call, [`encode_ferns`], [`icp_candidates`],
+    /// [`detect_keypoints`], [`describe_keypoints`] or [`deform`].
+    Single {
+        /// `fern_encode`: one code per fern from the frame's level-0 maps.
+        FernEncode => "fern_encode",
+        /// `icp_candidates`: per workgroup, the pixels with an ICP candidate at level 0.
+        IcpCandidates => "icp_candidates",
+        /// `keypoint_detect`: corners of the frame's colour map with a valid depth.
+        KeypointDetect => "keypoint_detect",
+        /// `keypoint_describe`: a binary descriptor and a camera-frame point per keypoint.
+        KeypointDescribe => "keypoint_describe",
+        /// `deform_surfels`: every live surfel moved by the loop closure's deformation.
+        DeformSurfels => "deform_surfels",
+    }
+}
+
+/// `encode_ferns`: `fern_encode`.
+pub const fn encode_ferns() -> Single {
+    Single::FernEncode
+}
+
+/// `icp_candidates`: `icp_candidates`.
+pub const fn icp_candidates() -> Single {
+    Single::IcpCandidates
+}
+
+/// `detect_keypoints`: `keypoint_detect`.
+pub const fn detect_keypoints() -> Single {
+    Single::KeypointDetect
+}
+
+/// `describe_keypoints`: `keypoint_describe`.
+pub const fn describe_keypoints() -> Single {
+    Single::KeypointDescribe
+}
+
+/// `deform`: `deform_surfels`.
+pub const fn deform() -> Single {
+    Single::DeformSurfels
 }
 
 /// `preprocess`: `depth_to_vertex`, with the filter `bilateral_filter`, then
 /// `vertex_to_normal` (from the filtered vertex map with the filter); then for each of the
 /// `coarser_levels` pyramid levels 1, 2, ... `pyramid_depth` and `vertex_to_normal`.
-pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<Call> {
-    let mut plan = vec![Call::DepthToVertex];
+pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<PreprocessCall> {
+    let mut plan = vec![PreprocessCall::DepthToVertex];
     if filtered {
-        plan.push(Call::BilateralFilter);
+        plan.push(PreprocessCall::BilateralFilter);
     }
-    plan.push(Call::VertexToNormal { level: 0, filtered });
+    plan.push(PreprocessCall::VertexToNormal { level: 0, filtered });
     for level in 1..=coarser_levels {
-        plan.push(Call::PyramidDepth { level, filtered });
-        plan.push(Call::VertexToNormal {
+        plan.push(PreprocessCall::PyramidDepth { level, filtered });
+        plan.push(PreprocessCall::VertexToNormal {
             level,
             filtered: false,
         });
@@ -122,17 +187,17 @@ pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<Call> {
 /// `predict`: unless the last fusion left the index map of this very view (`project`
 /// false, see [`crate::slam::fused_view::FusedView`]), fresh block boxes, a cleared index
 /// map and `project_model`; then `predict_model` and `pyramid_model` per coarser level.
-pub fn predict(project: bool, coarser_levels: usize) -> Vec<Call> {
+pub fn predict(project: bool, coarser_levels: usize) -> Vec<PredictCall> {
     let mut plan = Vec::new();
     if project {
         plan.extend([
-            Call::BlockBounds,
-            Call::Clear(Buffer::IndexMap),
-            Call::ProjectModel,
+            PredictCall::BlockBounds,
+            PredictCall::ClearIndexMap,
+            PredictCall::ProjectModel,
         ]);
     }
-    plan.push(Call::PredictModel);
-    plan.extend((1..=coarser_levels).map(|level| Call::PyramidModel { level }));
+    plan.push(PredictCall::PredictModel);
+    plan.extend((1..=coarser_levels).map(|level| PredictCall::PyramidModel { level }));
     plan
 }
 
@@ -140,28 +205,31 @@ pub fn predict(project: bool, coarser_levels: usize) -> Vec<Call> {
 /// association, the merged surfels and the index map it builds), fresh block boxes; then
 /// best candidate `fuse_select`, `fuse_merge_chosen` and with a prune scale `fuse_prune`,
 /// or projective `fuse_merge`; then `fuse_flags`, their prefix sum and `fuse_add`.
-pub fn fuse(params: &FuseParams) -> Vec<Call> {
+pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     let best_candidate = params.association == ASSOCIATION_BEST_CANDIDATE;
-    let mut plan = vec![Call::Clear(Buffer::Assoc)];
+    let mut plan = vec![FuseCall::Clear(Buffer::Assoc)];
     if best_candidate {
-        plan.extend([Call::Clear(Buffer::Merged), Call::Clear(Buffer::IndexMap)]);
+        plan.extend([
+            FuseCall::Clear(Buffer::Merged),
+            FuseCall::Clear(Buffer::IndexMap),
+        ]);
     }
-    plan.push(Call::BlockBounds);
+    plan.push(FuseCall::BlockBounds);
     if best_candidate {
-        plan.extend([Call::FuseSelect, Call::FuseMergeChosen]);
+        plan.extend([FuseCall::FuseSelect, FuseCall::FuseMergeChosen]);
         if params.prune_radius_scale > 0.0 {
-            plan.push(Call::FusePrune);
+            plan.push(FuseCall::FusePrune);
         }
     } else {
-        plan.push(Call::FuseMerge);
+        plan.push(FuseCall::FuseMerge);
     }
-    plan.extend([Call::FuseFlags, Call::FuseScan, Call::FuseAdd]);
+    plan.extend([FuseCall::FuseFlags, FuseCall::FuseScan, FuseCall::FuseAdd]);
     plan
 }
 
 /// `compact`: keep flags, their prefix sum, and the copy of the survivors.
-pub fn compact() -> Vec<Call> {
-    vec![Call::CompactFlags, Call::CompactScan, Call::CompactScatter]
+pub fn compact() -> Vec<CompactCall> {
+    vec![CompactCall::Flags, CompactCall::Scan, CompactCall::Scatter]
 }
 
 #[cfg(test)]
@@ -173,9 +241,13 @@ mod tests {
     /// table give.
     #[test]
     fn plans_list_each_steps_kernels_in_order() {
-        let names = |plan: Vec<Call>| plan.into_iter().map(Call::kernel).collect::<Vec<_>>();
+        macro_rules! names {
+            ($plan:expr) => {
+                $plan.into_iter().map(|c| c.kernel()).collect::<Vec<_>>()
+            };
+        }
         assert_eq!(
-            names(preprocess(true, 1)),
+            names!(preprocess(true, 1)),
             [
                 "depth_to_vertex",
                 "bilateral_filter",
@@ -185,15 +257,18 @@ mod tests {
             ]
         );
         assert_eq!(
-            names(predict(true, 0)),
+            names!(predict(true, 0)),
             ["block_bounds", "clear", "project_model", "predict_model"]
         );
-        assert_eq!(names(predict(false, 1)), ["predict_model", "pyramid_model"]);
+        assert_eq!(
+            names!(predict(false, 1)),
+            ["predict_model", "pyramid_model"]
+        );
         let mut p: FuseParams = bytemuck::Zeroable::zeroed();
         p.association = ASSOCIATION_BEST_CANDIDATE;
         p.prune_radius_scale = 0.5;
         assert_eq!(
-            names(fuse(&p)),
+            names!(fuse(&p)),
             [
                 "clear",
                 "clear",
@@ -209,7 +284,7 @@ mod tests {
         );
         p.association = ASSOCIATION_PROJECTIVE;
         assert_eq!(
-            names(fuse(&p)),
+            names!(fuse(&p)),
             [
                 "clear",
                 "block_bounds",
@@ -220,7 +295,7 @@ mod tests {
             ]
         );
         assert_eq!(
-            names(compact()),
+            names!(compact()),
             ["compact_flags", "prefix_sum", "compact_scatter"]
         );
     }

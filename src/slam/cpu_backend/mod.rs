@@ -18,7 +18,7 @@ use crate::layout::{
 use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
-use crate::slam::plan::{self, Buffer, Call};
+use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -129,28 +129,28 @@ impl Backend for CpuBackend {
         }
         for call in plan::preprocess(bilateral.is_some(), pyramid.len()) {
             match call {
-                Call::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
+                PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
                     params,
                     raw_depth,
                     raw_rgba,
                     &mut f.vertex,
                     &mut f.color,
                 ),
-                Call::BilateralFilter => {
+                PreprocessCall::BilateralFilter => {
                     let b = bilateral.expect("the plan filters only with filter params");
                     f.filtered_vertex.resize(n, cpu::INVALID);
                     cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
                 }
                 // The normals (and through normal_depth, ICP and fusion) see the filtered
                 // map when the filter is on; `vertex` stays unfiltered either way.
-                Call::VertexToNormal { level: 0, filtered } => {
+                PreprocessCall::VertexToNormal { level: 0, filtered } => {
                     let from = match filtered {
                         true => &f.filtered_vertex,
                         false => &f.vertex,
                     };
                     cpu::vertex_to_normal::vertex_to_normal(normal, from, &mut f.normal_depth);
                 }
-                Call::VertexToNormal { level, .. } => {
+                PreprocessCall::VertexToNormal { level, .. } => {
                     let l = &mut f.pyramid[level - 1];
                     cpu::vertex_to_normal::vertex_to_normal(
                         &pyramid[level - 1].normal,
@@ -160,7 +160,7 @@ impl Backend for CpuBackend {
                 }
                 // Each coarser level from the finer one's vertex map (level 0's: the one
                 // the normals were made from).
-                Call::PyramidDepth { level, filtered } => {
+                PreprocessCall::PyramidDepth { level, filtered } => {
                     let p = &pyramid[level - 1];
                     let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
                     let fine_vertex = match finer.last() {
@@ -174,7 +174,6 @@ impl Backend for CpuBackend {
                     l.normal_depth.resize(n, cpu::INVALID);
                     cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
                 }
-                other => unreachable!("{other:?} is not a preprocessing kernel"),
             }
         }
         Ok(())
@@ -195,19 +194,19 @@ impl Backend for CpuBackend {
             .resize_with(1 + pyramid.len(), Default::default);
         for call in plan::predict(project, pyramid.len()) {
             match call {
-                Call::BlockBounds => self.refresh_bounds(),
-                Call::Clear(Buffer::IndexMap) => {
+                PredictCall::BlockBounds => self.refresh_bounds(),
+                PredictCall::ClearIndexMap => {
                     self.index_map.clear();
                     self.index_map.resize(n, 0);
                 }
-                Call::ProjectModel => cpu::project_model::project_model(
+                PredictCall::ProjectModel => cpu::project_model::project_model(
                     &params,
                     &chunk,
                     &self.block_bounds,
                     &self.map.position_weight,
                     &mut self.index_map,
                 ),
-                Call::PredictModel => {
+                PredictCall::PredictModel => {
                     let (pred_vertex, pred_normal) = &mut self.prediction[0];
                     pred_vertex.resize(n, cpu::INVALID);
                     pred_normal.resize(n, cpu::INVALID);
@@ -221,7 +220,7 @@ impl Backend for CpuBackend {
                         pred_normal,
                     );
                 }
-                Call::PyramidModel { level } => {
+                PredictCall::PyramidModel { level } => {
                     let p = &pyramid[level - 1];
                     let (finer, coarser) = self.prediction.split_at_mut(level);
                     let (fine_vertex, fine_normal) = &finer[level - 1];
@@ -237,7 +236,6 @@ impl Backend for CpuBackend {
                         coarse_normal,
                     );
                 }
-                other => unreachable!("{other:?} is not a prediction kernel"),
             }
         }
         Ok(())
@@ -344,20 +342,20 @@ impl Backend for CpuBackend {
         for call in plan::fuse(&params) {
             let m = &mut self.map;
             match call {
-                Call::Clear(Buffer::Assoc) => {
+                FuseCall::Clear(Buffer::Assoc) => {
                     self.assoc.clear();
                     self.assoc.resize(n_pix, 0);
                 }
-                Call::Clear(Buffer::Merged) => {
+                FuseCall::Clear(Buffer::Merged) => {
                     self.merged.clear();
                     self.merged.resize(2 * n_pix, [0.0; 4]);
                 }
-                Call::Clear(Buffer::IndexMap) => {
+                FuseCall::Clear(Buffer::IndexMap) => {
                     self.index_map.clear();
                     self.index_map.resize(n_pix, 0);
                 }
-                Call::BlockBounds => self.refresh_bounds(),
-                Call::FuseSelect => cpu::fuse_select::fuse_select(
+                FuseCall::BlockBounds => self.refresh_bounds(),
+                FuseCall::FuseSelect => cpu::fuse_select::fuse_select(
                     &params,
                     &self.frame.normal_depth,
                     &chunk,
@@ -368,7 +366,7 @@ impl Backend for CpuBackend {
                     &mut self.assoc,
                     &mut self.index_map,
                 ),
-                Call::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
+                FuseCall::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
                     &params,
                     &self.frame.normal_depth,
                     &self.frame.color,
@@ -380,7 +378,7 @@ impl Backend for CpuBackend {
                     &self.assoc,
                     &mut self.merged,
                 ),
-                Call::FusePrune => cpu::fuse_prune::fuse_prune(
+                FuseCall::FusePrune => cpu::fuse_prune::fuse_prune(
                     &params,
                     &chunk,
                     &self.block_bounds,
@@ -389,7 +387,7 @@ impl Backend for CpuBackend {
                     &m.color,
                     &self.merged,
                 ),
-                Call::FuseMerge => cpu::fuse_merge::fuse_merge(
+                FuseCall::FuseMerge => cpu::fuse_merge::fuse_merge(
                     &params,
                     &self.frame.normal_depth,
                     &self.frame.color,
@@ -400,7 +398,7 @@ impl Backend for CpuBackend {
                     &mut m.color,
                     &mut self.assoc,
                 ),
-                Call::FuseFlags => {
+                FuseCall::FuseFlags => {
                     self.add_flags.resize(n_slots, 0);
                     cpu::fuse_flags::fuse_flags(
                         &params,
@@ -410,7 +408,7 @@ impl Backend for CpuBackend {
                         &mut self.add_flags,
                     );
                 }
-                Call::FuseScan => {
+                FuseCall::FuseScan => {
                     self.add_offsets.resize(n_slots, 0);
                     cpu::prefix_sum::scan(
                         &scan_params(n_slots),
@@ -419,7 +417,7 @@ impl Backend for CpuBackend {
                         &mut added,
                     );
                 }
-                Call::FuseAdd => {
+                FuseCall::FuseAdd => {
                     // Room for every pixel, as the GPU backend guarantees before its dispatch.
                     m.resize(params.capacity as usize);
                     cpu::fuse_add::fuse_add(
@@ -435,7 +433,6 @@ impl Backend for CpuBackend {
                         &mut self.index_map,
                     );
                 }
-                other => unreachable!("{other:?} is not a fusion kernel"),
             }
         }
         let new_len = count + added as usize;
@@ -455,7 +452,7 @@ impl Backend for CpuBackend {
         let mut counter = 0u32;
         for call in plan::compact() {
             match call {
-                Call::CompactFlags => {
+                CompactCall::Flags => {
                     self.flags.resize(n, 0);
                     cpu::compact_flags::compact_flags(
                         &params,
@@ -465,12 +462,12 @@ impl Backend for CpuBackend {
                         &mut self.flags,
                     );
                 }
-                Call::CompactScan => {
+                CompactCall::Scan => {
                     self.offsets.resize(n, 0);
                     cpu::prefix_sum::scan(&params, &self.flags, &mut self.offsets, &mut counter);
                 }
                 // The second map, as large as the first (as on the GPU), cut to the survivors.
-                Call::CompactScatter => {
+                CompactCall::Scatter => {
                     let out = &mut self.spare;
                     out.resize(n);
                     // One call per attribute, as the kernel is dispatched.
@@ -507,7 +504,6 @@ impl Backend for CpuBackend {
                     );
                     out.resize(counter as usize);
                 }
-                other => unreachable!("{other:?} is not a compaction kernel"),
             }
         }
         std::mem::swap(&mut self.map, &mut self.spare);

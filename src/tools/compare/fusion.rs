@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use crate::slam::backend::FusionBuffers;
-use crate::slam::plan::Call;
+use crate::slam::plan::FuseCall;
 
 /// Fusion's per-pixel outputs compared kernel by kernel, in the order of the step's plan
 /// (`crate::slam::plan::fuse`): the buffers no later kernel of the step overwrites
@@ -62,8 +62,8 @@ impl FusionKernelDiff {
     /// The first kernel, in plan order, whose output differs, and how.
     pub fn first_difference(&self, best_candidate: bool) -> Option<String> {
         let assoc_kernel = match best_candidate {
-            true => Call::FuseSelect,
-            false => Call::FuseMerge,
+            true => FuseCall::FuseSelect,
+            false => FuseCall::FuseMerge,
         }
         .kernel();
         if self.assoc_pixels > 0 {
@@ -71,19 +71,19 @@ impl FusionKernelDiff {
         } else if self.merged_max_abs > 0.0 {
             Some(format!(
                 "{} (merged surfels up to {:.3e} apart)",
-                Call::FuseMergeChosen.kernel(),
+                FuseCall::FuseMergeChosen.kernel(),
                 self.merged_max_abs
             ))
         } else if self.flag_slots > 0 {
             Some(format!(
                 "{} ({} slots)",
-                Call::FuseFlags.kernel(),
+                FuseCall::FuseFlags.kernel(),
                 self.flag_slots
             ))
         } else if self.offset_slots > 0 {
             Some(format!(
                 "{} ({} slots)",
-                Call::FuseScan.kernel(),
+                FuseCall::FuseScan.kernel(),
                 self.offset_slots
             ))
         } else {

@@ -1,0 +1,291 @@
+//! The GPU backend's steps of one kernel each (`crate::slam::plan::Single`): relocalisation's
+//! `fern_encode`, `keypoint_detect` and `keypoint_describe`, tracking health's
+//! `icp_candidates` and loop closure's `deform_surfels`; and the two copies a loop's
+//! verification needs (one pyramid level of the frame's maps down, a keyframe's snapshot up
+//! into a level's prediction). Each step writes its parameters, records its plan's one
+//! call in a command buffer of its own ([`record_call`], as the other steps do) and reads
+//! its results back. Their buffers live beside: `super::{ferns, keypoints, candidates,
+//! loops}`, made at a step's first call.
+
+use super::backend::GpuBackend;
+use super::candidates::{CandidateBuffers, CANDIDATE_WORKGROUPS_MAX};
+use super::context::GpuContext;
+use super::ferns::{self, FernBuffers};
+use super::images::GpuImage;
+use super::keypoints;
+use super::loops::DeformBuffers;
+use super::recording::{record_call, submit_profiled, Pass, Profiler};
+use super::resources::FrameBuffers;
+use crate::layout::{
+    DeformNode, DeformParams, Fern, FernParams, IcpParams, Keypoint, KeypointParams,
+    DESCRIPTOR_WORDS,
+};
+use crate::slam::backend::{Described, Prediction};
+use crate::slam::plan::{self, Single};
+use crate::Result;
+
+/// Records `call`'s `passes` in a command buffer of their own, after `before` and before
+/// `after` (a clear, the copies to read-backs), and submits it.
+fn submit_single(
+    ctx: &GpuContext,
+    profiler: &mut Option<Profiler>,
+    call: Single,
+    passes: &[Pass],
+    before: impl FnOnce(&mut wgpu::CommandEncoder),
+    after: impl FnOnce(&mut wgpu::CommandEncoder),
+) -> Result<()> {
+    let mut enc = ctx.encoder(call.kernel());
+    before(&mut enc);
+    record_call(ctx, profiler, &mut enc, call.kernel(), passes)?;
+    after(&mut enc);
+    submit_profiled(ctx, profiler, enc)
+}
+
+/// The frame's buffers (a step's borrow of that one field, beside its own buffers').
+fn level0(frame: &Option<FrameBuffers>) -> &FrameBuffers {
+    frame
+        .as_ref()
+        .expect("preprocess() runs before any other step")
+}
+
+impl GpuBackend {
+    /// `fern_encode` over the frame's level-0 maps; see `Backend::encode_ferns`.
+    pub(super) fn encode_ferns_on_gpu(
+        &mut self,
+        params: &FernParams,
+        fern_table: &[Fern],
+    ) -> Result<Vec<u32>> {
+        let n = params.fern_count as usize;
+        assert!(
+            fern_table.len() >= n,
+            "{} ferns for fern_count {n}",
+            fern_table.len()
+        );
+        if n == 0 {
+            return Ok(vec![]);
+        }
+        let call = plan::encode_ferns();
+        let ctx = &self.ctx;
+        if self.ferns.as_ref().is_none_or(|b| b.ferns.capacity() < n) {
+            self.ferns = Some(FernBuffers::new(ctx, params, n)?);
+        }
+        let b = self.ferns.as_mut().expect("just made");
+        if b.ahead.take() == Some(*params) && b.uploaded[..] == fern_table[..n] {
+            // Recorded by this frame's fuse and already done: only the read remains.
+            return ctx.scoped(call.kernel(), || b.readback.read(ctx));
+        }
+        b.last = Some(*params);
+        let frame = level0(&self.frame);
+        let kernel = &self.kernels.fern_encode;
+        ctx.scoped(call.kernel(), || {
+            b.params.write(ctx, params);
+            if b.uploaded[..] != fern_table[..n] {
+                b.ferns.upload(ctx, &fern_table[..n])?;
+                b.uploaded = fern_table[..n].to_vec();
+            }
+            let group = frame.bind_level0(ctx, kernel, b.pool());
+            let passes = [(kernel, &group, [ferns::workgroups(ctx, n), 1])];
+            let copy = |enc: &mut _| b.readback.copy_from(enc, &b.codes, n);
+            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            b.readback.read(ctx)
+        })
+    }
+
+    /// `icp_candidates` at level 0; see `Backend::icp_candidates`.
+    pub(super) fn icp_candidates_on_gpu(&mut self, params: &IcpParams) -> Result<u64> {
+        let call = plan::icp_candidates();
+        let ctx = &self.ctx;
+        let wg = self.reduction_workgroups.min(CANDIDATE_WORKGROUPS_MAX);
+        if self.candidates.is_none() {
+            self.candidates = Some(CandidateBuffers::new(ctx, wg)?);
+        }
+        let b = self.candidates.as_mut().expect("just made");
+        let frame = level0(&self.frame);
+        let (u, kernel) = (&self.uniforms, &self.kernels.icp_candidates);
+        ctx.scoped(call.kernel(), || {
+            u.icp.write(ctx, params);
+            let own = vec![("params", u.icp.binding()), ("counts", b.counts.binding())];
+            let group = frame.bind_level0(ctx, kernel, own);
+            let copy = |enc: &mut _| b.readback.copy_from(enc, &b.counts, wg as usize);
+            let passes = [(kernel, &group, [wg, 1])];
+            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            Ok(b.readback.read(ctx)?.iter().map(|&c| c as u64).sum())
+        })
+    }
+
+    /// `keypoint_detect`; see `Backend::detect_keypoints`.
+    pub(super) fn detect_keypoints_on_gpu(
+        &mut self,
+        params: &KeypointParams,
+    ) -> Result<(Vec<Keypoint>, u32)> {
+        let call = plan::detect_keypoints();
+        let ctx = &self.ctx;
+        let capacity = params.capacity as usize;
+        let b = keypoints::ensure(&mut self.keypoints, ctx, params, capacity, 1)?;
+        let frame = level0(&self.frame);
+        let kernel = &self.kernels.keypoint_detect;
+        let grid = kernel.grid_workgroups_for_image(ctx, params.width, params.height);
+        ctx.scoped(call.kernel(), || {
+            b.params.write(ctx, params);
+            let group = frame.bind_level0(ctx, kernel, b.pool());
+            let clear = |enc: &mut _| b.counter.clear(enc);
+            let copy = |enc: &mut _| {
+                b.counter_back.copy_from(enc, &b.counter, 1);
+                b.keypoints_back.copy_from(enc, &b.keypoints, capacity);
+            };
+            let passes = [(kernel, &group, grid)];
+            submit_single(ctx, &mut self.profiler, call, &passes, clear, copy)?;
+            let found = b.counter_back.read(ctx)?[0];
+            let mut kps = b.keypoints_back.read(ctx)?;
+            kps.truncate(found.min(params.capacity) as usize);
+            Ok((kps, found))
+        })
+    }
+
+    /// `keypoint_describe`; see `Backend::describe_keypoints`.
+    pub(super) fn describe_keypoints_on_gpu(
+        &mut self,
+        params: &KeypointParams,
+        found: &[Keypoint],
+        pattern: &[[i32; 4]],
+    ) -> Result<Described> {
+        let (n, tests) = (params.count as usize, params.tests as usize);
+        assert!(found.len() >= n && pattern.len() >= tests);
+        if n == 0 {
+            return Ok((vec![], vec![]));
+        }
+        let call = plan::describe_keypoints();
+        let ctx = &self.ctx;
+        let b = keypoints::ensure(&mut self.keypoints, ctx, params, n, tests)?;
+        let frame = level0(&self.frame);
+        let kernel = &self.kernels.keypoint_describe;
+        ctx.scoped(call.kernel(), || {
+            b.params.write(ctx, params);
+            b.keypoints.upload(ctx, &found[..n])?;
+            b.pattern.upload(ctx, &pattern[..tests])?;
+            let group = frame.bind_level0(ctx, kernel, b.pool());
+            // One thread per keypoint, at most the adapter's reduction workgroups.
+            let workgroups = (n as u32)
+                .div_ceil(64)
+                .min(ctx.reduction_workgroups().max(1));
+            let copy = |enc: &mut _| {
+                b.descriptors_back
+                    .copy_from(enc, &b.descriptors, n * DESCRIPTOR_WORDS);
+                b.points_back.copy_from(enc, &b.points, n);
+            };
+            let passes = [(kernel, &group, [workgroups, 1])];
+            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            let words = b.descriptors_back.read(ctx)?;
+            let points = b.points_back.read(ctx)?;
+            let descriptors = words
+                .chunks_exact(DESCRIPTOR_WORDS)
+                .map(|c| c.try_into().expect("chunks of DESCRIPTOR_WORDS"))
+                .collect();
+            Ok((descriptors, points))
+        })
+    }
+
+    /// `deform_surfels` over the live surfels of every chunk; see `Backend::deform`.
+    pub(super) fn deform_on_gpu(&mut self, nodes: &[DeformNode]) -> Result<()> {
+        if nodes.is_empty() || self.count == 0 {
+            return Ok(());
+        }
+        let params = DeformParams {
+            surfel_count: self.count as u32,
+            node_count: nodes.len() as u32,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        let call = plan::deform();
+        let ctx = &self.ctx;
+        if self
+            .deform
+            .as_ref()
+            .is_none_or(|b| b.nodes.capacity() < nodes.len())
+        {
+            self.deform = Some(DeformBuffers::new(ctx, &params, nodes.len())?);
+        }
+        let b = self.deform.as_mut().expect("just made");
+        let count = self.count;
+        let cap = self.ctx.grid_workgroups_cap();
+        let map = &self.map;
+        ctx.scoped(call.kernel(), || {
+            b.params.write(ctx, &params);
+            b.nodes.upload(ctx, nodes)?;
+            // One bind group per chunk: made per closure (closures are rare).
+            let groups: Vec<(wgpu::BindGroup, u32)> = map
+                .chunks
+                .iter()
+                .filter(|ch| ch.live(count) > 0)
+                .map(|ch| {
+                    let group = b.kernel.bind_group(
+                        ctx,
+                        &[
+                            ("params", b.params.binding()),
+                            ("chunk", ch.info_buffer.binding()),
+                            ("nodes", b.nodes.binding()),
+                            ("position_weight", ch.position_weight.binding()),
+                            ("normal_frame", ch.normal_frame.binding()),
+                        ],
+                    );
+                    (group, b.kernel.workgroups_for(ch.live(count)).min(cap))
+                })
+                .collect();
+            let passes: Vec<_> = groups
+                .iter()
+                .map(|(g, wg)| (&b.kernel, g, [*wg, 1]))
+                .collect();
+            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, |_| {})
+        })?;
+        // Every surfel may have left its block's box, and the fused view is of the old map.
+        self.bounds_dirty_from = 0;
+        self.fused_view = None;
+        Ok(())
+    }
+
+    /// Pyramid `level`'s frame `vertex` and `normal_depth` and predicted vertex and normal
+    /// maps (level 0: the full maps).
+    fn level_images(&self, level: usize) -> [&GpuImage; 4] {
+        let f = self.frame();
+        match level {
+            0 => [&f.vertex, &f.normal_depth, &f.pred_vertex, &f.pred_normal],
+            l => {
+                let lv = f.levels.get(l - 1).unwrap_or_else(|| {
+                    panic!("level {l}: the pyramid has {} levels", 1 + f.levels.len())
+                });
+                [
+                    &lv.vertex,
+                    &lv.normal_depth,
+                    &lv.pred_vertex,
+                    &lv.pred_normal,
+                ]
+            }
+        }
+    }
+
+    /// The frame's `vertex` and `normal_depth` maps at pyramid `level`; see
+    /// `Backend::frame_level`.
+    pub(super) fn frame_level_on_gpu(&mut self, level: usize) -> Result<Prediction> {
+        let [vertex, normal_depth, _, _] = self.level_images(level);
+        let ctx = &self.ctx;
+        ctx.scoped("download frame level", || {
+            Ok((vertex.read_back(ctx)?, normal_depth.read_back(ctx)?))
+        })
+    }
+
+    /// Writes a prediction into pyramid `level`'s predicted maps; see
+    /// `Backend::set_prediction`.
+    pub(super) fn set_prediction_on_gpu(
+        &mut self,
+        level: usize,
+        vertex: &[[f32; 4]],
+        normal: &[[f32; 4]],
+    ) -> Result<()> {
+        let [_, _, pv, pn] = self.level_images(level);
+        let ctx = &self.ctx;
+        ctx.scoped("upload prediction", || {
+            pv.upload(ctx, vertex)?;
+            pn.upload(ctx, normal)
+        })
+    }
+}
