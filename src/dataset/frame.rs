@@ -49,8 +49,8 @@ pub(crate) fn check_image_file(path: &Path, what: &str) -> Result<()> {
 
 fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     check_image_file(path, &format!("{role} image"))?;
-    let reader = ImageReader::open(path).map_err(|e| Error::io(path, e))?;
-    let reader = reader
+    let bytes = crate::io::input::read_kind(path, crate::io::input::InputKind::Image)?;
+    let reader = ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
     reader.decode().map_err(|e| Error::Image {
@@ -119,7 +119,13 @@ fn depth_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<u16>)> {
 
 /// Width and height of an image from its header, without decoding it.
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
-    image::image_dimensions(path).map_err(|e| Error::Image {
+    check_image_file(path, "image")?;
+    let (file, _) = crate::io::input::open_kind(path, crate::io::input::InputKind::Image)?;
+    ImageReader::new(std::io::BufReader::new(file))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?
+        .into_dimensions()
+        .map_err(|e| Error::Image {
         path: path.to_path_buf(),
         what: format!("cannot read the image's size: {e}"),
     })

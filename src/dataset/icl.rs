@@ -20,7 +20,7 @@ pub struct Association {
 /// Reads `associations.txt` (`depth_stamp depth_path rgb_stamp rgb_path`; `#` comments and
 /// blank lines skipped). Errors name `file:line` and quote the line.
 pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
     parse_associations(path, &text)
 }
 

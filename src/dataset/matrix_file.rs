@@ -28,7 +28,7 @@ pub fn parse_numbers(path: &Path, text: &str) -> Result<Vec<f64>> {
 
 /// Reads every number of the file at `path`.
 pub fn read_numbers(path: &Path) -> Result<Vec<f64>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Matrix)?;
     parse_numbers(path, &text)
 }
 

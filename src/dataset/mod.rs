@@ -204,7 +204,7 @@ fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
     if !path.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Settings)?;
     parse_camera_json(path, &text).map(Some)
 }
 

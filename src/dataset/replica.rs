@@ -48,7 +48,7 @@ struct CamParams {
 
 /// Reads `cam_params.json`: intrinsics and the depth scale, if it gives one.
 fn read_cam_params(path: &Path) -> Result<(Intrinsics, Option<f32>)> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Settings)?;
     let c: CamParamsFile = serde_json::from_str(&text).map_err(|e| {
         Error::format(
             path,
@@ -77,7 +77,7 @@ fn read_cam_params(path: &Path) -> Result<(Intrinsics, Option<f32>)> {
 /// Reads `traj.txt`: one pose per data line, 16 numbers each; an error naming
 /// `traj.txt:line` for another count.
 fn read_traj(path: &Path) -> Result<Vec<Option<glam::DMat4>>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let v = parse_numbers(path, line)?;

@@ -175,7 +175,7 @@ struct Combination {
 impl Manifest {
     /// Reads and expands `path`; every error names the manifest and, where it can, the job.
     pub fn read(path: &Path) -> Result<Manifest> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Manifest)?;
         Manifest::parse(path, &text)
     }
 
