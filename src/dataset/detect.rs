@@ -5,19 +5,20 @@
 use std::path::Path;
 
 use super::numbered;
+use crate::io::input::present;
 use super::{replica, scannet, seven_scenes, Layout};
 use crate::{Error, Result};
 
 /// One layout's telltale files in `root`: `(what, present)` for each.
 fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
-    let file = |name: &str| (name.to_string(), root.join(name).is_file());
+    let file = |name: &str| (name.to_string(), crate::io::input::present(&root.join(name)));
     match layout {
         Layout::Eth3d => vec![
             file("calibration.txt"),
             (
                 "associated.txt (or rgb.txt and depth.txt)".into(),
-                root.join("associated.txt").is_file()
-                    || (root.join("rgb.txt").is_file() && root.join("depth.txt").is_file()),
+                present(&root.join("associated.txt"))
+                    || (present(&root.join("rgb.txt")) && present(&root.join("depth.txt"))),
             ),
         ],
         Layout::Bonn => vec![

@@ -99,7 +99,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     let mut notes = Vec::new();
 
     let traj_path = root.join("traj.txt");
-    let traj = if traj_path.is_file() {
+    let traj = if crate::io::input::present(&traj_path) {
         let t = read_traj(&traj_path)?;
         if t.len() != pairs.len() {
             return Err(Error::format(
@@ -139,7 +139,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     .into_iter()
     .flatten()
     .collect();
-    let (intrinsics, depth_scale) = match candidates.iter().find(|p| p.is_file()) {
+    let (intrinsics, depth_scale) = match candidates.iter().find(|p| crate::io::input::present(p)) {
         Some(p) => {
             let (k, scale) = read_cam_params(p)?;
             (Some(k), scale)

@@ -21,33 +21,49 @@ pub const DEFAULT_MAX_JOBS: u64 = 10_000;
 /// costs ~100 bytes a frame.
 pub const DEFAULT_MAX_REVISIT_FRAMES: u64 = 1_000_000;
 
-/// A limit: `var`'s value when set (a whole number), else `default`.
-fn limit(var: &str, default: u64) -> Result<u64> {
-    match std::env::var(var) {
-        Err(_) => Ok(default),
-        Ok(v) => v
-            .trim()
-            .parse()
-            .map_err(|_| Error::Argument(format!("{var}={v:?} is not a whole number (a limit)"))),
+/// Hard ceiling of [`max_revisit_frames`], whatever `WGSLAM_MAX_REVISIT_FRAMES` says: 10^7
+/// frames (~4 days at 30 Hz) of ~100-byte frame records is 1 GB before the first frame;
+/// 10^13 frames once asked for 1.9 PB and aborted.
+pub const HARD_MAX_REVISIT_FRAMES: u64 = 10_000_000;
+
+/// A limit: `var`'s value when set (a whole number up to `ceiling`), else `default`.
+fn limit(var: &str, default: u64, ceiling: u64) -> Result<u64> {
+    let v = match std::env::var(var) {
+        Err(_) => return Ok(default),
+        Ok(v) => v,
+    };
+    let n: u64 = v
+        .trim()
+        .parse()
+        .map_err(|_| Error::Argument(format!("{var}={v:?} is not a whole number (a limit)")))?;
+    if n > ceiling {
+        return Err(Error::Argument(format!(
+            "{var}={n} is beyond the most this tool can hold, {ceiling}; choose a smaller limit"
+        )));
     }
+    Ok(n)
 }
 
 /// The largest input file read, bytes: `WGSLAM_MAX_INPUT_BYTES`, default
 /// [`DEFAULT_MAX_INPUT_BYTES`].
 pub fn max_input_bytes() -> Result<u64> {
-    limit("WGSLAM_MAX_INPUT_BYTES", DEFAULT_MAX_INPUT_BYTES)
+    limit("WGSLAM_MAX_INPUT_BYTES", DEFAULT_MAX_INPUT_BYTES, u64::MAX)
 }
 
 /// The most jobs a batch manifest may expand to: `WGSLAM_MAX_JOBS`, default
 /// [`DEFAULT_MAX_JOBS`].
 pub fn max_jobs() -> Result<u64> {
-    limit("WGSLAM_MAX_JOBS", DEFAULT_MAX_JOBS)
+    limit("WGSLAM_MAX_JOBS", DEFAULT_MAX_JOBS, u64::MAX)
 }
 
-/// The longest `run --revisit` sequence, frames: `WGSLAM_MAX_REVISIT_FRAMES`, default
-/// [`DEFAULT_MAX_REVISIT_FRAMES`].
+/// The longest `run --revisit` sequence, frames: `WGSLAM_MAX_REVISIT_FRAMES` (at most
+/// [`HARD_MAX_REVISIT_FRAMES`]), default [`DEFAULT_MAX_REVISIT_FRAMES`].
 pub fn max_revisit_frames() -> Result<u64> {
-    limit("WGSLAM_MAX_REVISIT_FRAMES", DEFAULT_MAX_REVISIT_FRAMES)
+    limit(
+        "WGSLAM_MAX_REVISIT_FRAMES",
+        DEFAULT_MAX_REVISIT_FRAMES,
+        HARD_MAX_REVISIT_FRAMES,
+    )
 }
 
 /// What an input file is, for its size cap: each kind is bounded by what such a file can
@@ -130,6 +146,14 @@ fn refuse_kind(path: &Path, kind: &str) -> Error {
         path,
         format!("is {kind}; wgslam reads only regular files"),
     )
+}
+
+/// Whether anything is at `path` (a file, a folder, a FIFO, a link even if broken or
+/// looping). An optional input (intrinsics, a trajectory, ground truth) that is present
+/// in this sense is read, so a folder or a FIFO in its place is an error naming it
+/// instead of being taken as missing and replaced by a default.
+pub fn present(path: &Path) -> bool {
+    path.symlink_metadata().is_ok()
 }
 
 /// Checks that `path` is a regular file (following links) of at most
