@@ -96,7 +96,7 @@ fn health_line(s: &Summary) -> String {
     if counts.is_empty() {
         return "-".into();
     }
-    ["ok", "recovered", "LOST"]
+    ["ok", "degenerate", "recovered", "LOST"]
         .iter()
         .filter_map(|k| counts.get(k).map(|n| format!("{n} {k}")))
         .collect::<Vec<_>>()

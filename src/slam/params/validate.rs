@@ -230,7 +230,11 @@ mod tests {
             p.fusion.unstable_removal = Some(r);
         }
         type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 26] = [
+        let cases: [(&str, Spoil); 28] = [
+            ("`icp.level_iters`", |p| {
+                p.icp.level_iters = vec![MAX_ICP_ITERS_PER_LEVEL + 1]
+            }),
+            ("`icp.min_increment`", |p| p.icp.min_increment = 1e-300),
             ("`input.downsample`", |p| p.input.downsample = 0),
             ("`input.downsample`", |p| {
                 p.input.downsample = MAX_DOWNSAMPLE + 1
