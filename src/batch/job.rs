@@ -379,10 +379,21 @@ fn copy_output(
     }
 }
 
-/// The last lines of a log, for an error message.
+/// The last lines of a log, for an error message; for a run that panicked, the panic's
+/// place and message instead (a backtrace after it would push them out of the tail).
 fn log_tail(log: &Path) -> String {
-    let text = crate::io::input::read_kind_string(log, crate::io::input::InputKind::Cloud).unwrap_or_default();
+    let text = crate::io::input::read_kind_string(log, crate::io::input::InputKind::Cloud)
+        .unwrap_or_default();
     let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    if let Some(at) = lines.iter().rposition(|l| l.contains("panicked at")) {
+        return lines[at..]
+            .iter()
+            .take_while(|l| !l.starts_with("stack backtrace:"))
+            .take(LOG_TAIL_LINES)
+            .copied()
+            .collect::<Vec<_>>()
+            .join("\n");
+    }
     let from = lines.len().saturating_sub(LOG_TAIL_LINES);
     lines[from..].join("\n")
 }

@@ -119,6 +119,15 @@ pub fn detect(root: &Path) -> Result<Layout> {
         ),
         None => "no file of any of them is here".to_string(),
     };
+    let icl_like = root.join("depth").is_dir() && root.join("rgb").is_dir();
+    let verdict = if icl_like && !present(&root.join("associations.txt")) {
+        format!(
+            "{verdict}; with depth/ and rgb/ folders this looks like ICL-NUIM, which needs \
+             associations.txt (`<i> depth/<i>.png <i> rgb/<i>.png`, a line per frame)"
+        )
+    } else {
+        verdict
+    };
     Err(Error::format(
         root,
         format!(

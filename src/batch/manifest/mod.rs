@@ -508,6 +508,9 @@ impl JobSpec {
         if self.downsample == 0 {
             return Err("downsample must be at least 1".into());
         }
+        if let Some(f) = &self.frames {
+            crate::dataset::parse_range(f).map_err(|e| format!("frames: {e}"))?;
+        }
         if let Some((k, _)) = self
             .overrides
             .iter()
@@ -543,6 +546,9 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
     };
     if c.downsample == 0 {
         return Err(bad("downsample must be at least 1".into()));
+    }
+    if let Some(f) = &c.frames {
+        crate::dataset::parse_range(f).map_err(|e| bad(format!("frames: {e}")))?;
     }
     let mut overrides = Vec::new();
     for (k, v) in &c.overrides {
