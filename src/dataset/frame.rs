@@ -50,12 +50,34 @@ pub(crate) fn check_image_file(path: &Path, what: &str) -> Result<()> {
 fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     check_image_file(path, &format!("{role} image"))?;
     let bytes = crate::io::input::read_kind(path, crate::io::input::InputKind::Image)?;
+    check_jpeg_end(&bytes, path, role)?;
     let reader = ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
     reader.decode().map_err(|e| Error::Image {
         path: path.to_path_buf(),
         what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
+    })
+}
+
+/// How far from a JPEG's end its end-of-image marker may sit, bytes: some writers pad
+/// after it; a file cut short has none in its tail (entropy-coded data never holds
+/// `FF D9`, the encoder stuffs every `FF` with `00`).
+const JPEG_END_WINDOW_BYTES: usize = 1024;
+
+/// A JPEG (`FF D8` first) must end with its end-of-image marker (`FF D9`): the decoder
+/// fills a truncated one with grey without an error (a file cut to a third decoded).
+fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return Ok(());
+    }
+    let tail = &bytes[bytes.len().saturating_sub(JPEG_END_WINDOW_BYTES)..];
+    if tail.windows(2).any(|w| w == [0xFF, 0xD9]) {
+        return Ok(());
+    }
+    Err(Error::Image {
+        path: path.to_path_buf(),
+        what: format!("{role} image is a JPEG cut short (no end-of-image marker)"),
     })
 }
 
@@ -78,6 +100,7 @@ fn decode_from(
             ),
         )
     })?;
+    check_jpeg_end(bytes, path, role)?;
     image::load_from_memory(bytes).map_err(|e| Error::Image {
         path: path.to_path_buf(),
         what: format!("cannot decode {role} image (unreadable or truncated): {e}"),

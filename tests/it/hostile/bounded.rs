@@ -215,6 +215,29 @@ fn dataset_files_that_are_not_files_are_refused_by_name() {
     );
 }
 
+/// A 7-Scenes colour JPEG cut to a third decoded (grey below the cut) without a word:
+/// refused, naming the file.
+fn truncated_jpeg_is_refused() {
+    let dir = common::temp_dir("hostile2-jpeg");
+    let root = seven_scenes(&dir, 2);
+    for i in 0..2 {
+        let png = root.join(format!("frame-{i:06}.color.png"));
+        let jpg = root.join(format!("frame-{i:06}.color.jpg"));
+        image::open(&png).unwrap().to_rgb8().save(&jpg).unwrap();
+        std::fs::remove_file(png).unwrap();
+    }
+    let out = dir.join("out");
+    let whole = run_seq(&root, "0..1", &out, &[]);
+    assert!(whole.status.success(), "{}", text(&whole));
+    let jpg = root.join("frame-000001.color.jpg");
+    let bytes = std::fs::read(&jpg).unwrap();
+    std::fs::write(&jpg, &bytes[..bytes.len() / 3]).unwrap();
+    let out = dir.join("out-cut");
+    let o = run_seq(&root, "0..1", &out, &[]);
+    refused_with("JPEG cut to a third", &o, &["frame-000001.color.jpg", "cut short"]);
+    assert!(!out.exists(), "outputs written");
+}
+
 /// Every file the crate reads goes through `src/io/input.rs`: no other source file under
 /// `src/` may call the standard library's or `image`'s own readers, except the ones listed
 /// here with the reason they are not input files.
@@ -278,6 +301,7 @@ pub fn tests() -> Vec<common::harness::Test> {
             "dataset_files_that_are_not_files_are_refused_by_name",
             dataset_files_that_are_not_files_are_refused_by_name,
         ),
+        plain("truncated_jpeg_is_refused", truncated_jpeg_is_refused),
         plain(
             "every_reader_goes_through_the_bounded_input_module",
             every_reader_goes_through_the_bounded_input_module,
