@@ -343,6 +343,15 @@ pub fn run_observed<B: Backend + Inspect>(
     observer: Option<&mut dyn FrameObserver>,
 ) -> Result<RunResult> {
     params.validate()?;
+    if seq.root.to_str().is_none() {
+        // metrics.json records the dataset's path as JSON text, which must be UTF-8; found
+        // only after the last frame, this cost a whole run.
+        return Err(crate::Error::format(
+            &seq.root,
+            "the dataset's path is not UTF-8, which metrics.json cannot record; rename the \
+             folder or link to it from a UTF-8 path",
+        ));
+    }
     let (first, last) = (*frames.start(), *frames.end());
     let mut slam = Slam::for_sequence(backend, seq, params);
     let (frames, wall) = run_frames_observed(&mut slam, seq, frames, decode, on_frame, observer)?;

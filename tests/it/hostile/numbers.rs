@@ -72,6 +72,20 @@ fn repeated_stamps_fail_before_the_first_frame() {
     }
 }
 
+/// A folder with a non-UTF-8 name ran every frame, then failed "cannot encode
+/// .tmp-.../metrics.json": now refused before the first frame.
+fn non_utf8_dataset_folder_is_refused_first() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = common::temp_dir("hostile2-utf8");
+    let icl = icl_copy(&dir, 2);
+    let odd = dir.join(std::ffi::OsStr::from_bytes(b"seq-\xff"));
+    std::fs::rename(&icl, &odd).unwrap();
+    let out = dir.join("out");
+    let o = run_seq(&odd, "0..1", &out, &[]);
+    refused_with("non-UTF-8 folder", &o, &["not UTF-8", "rename"]);
+    assert!(!out.exists(), "outputs written");
+}
+
 /// A TUM folder from the bundled frames 0..`n` with depth stamps `stamps` (rgb the same),
 /// `camera.json` for intrinsics, and `bom` before `rgb.txt`'s first line.
 fn tum_copy(dir: &Path, stamps: &[f64], bom: bool) -> PathBuf {
@@ -192,6 +206,10 @@ pub fn tests() -> Vec<common::harness::Test> {
             stamp_order_and_ground_truth_coverage_are_noted,
         ),
         plain("caps_are_checked_at_parse_time", caps_are_checked_at_parse_time),
+        plain(
+            "non_utf8_dataset_folder_is_refused_first",
+            non_utf8_dataset_folder_is_refused_first,
+        ),
         plain("cpu_runs_that_never_track_are_lost", || {
             runs_that_never_track_are_lost("cpu")
         }),
