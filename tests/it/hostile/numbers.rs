@@ -81,7 +81,15 @@ fn non_utf8_dataset_folder_is_refused_first() {
     let odd = dir.join(std::ffi::OsStr::from_bytes(b"seq-\xff"));
     std::fs::rename(&icl, &odd).unwrap();
     let out = dir.join("out");
-    let o = run_seq(&odd, "0..1", &out, &[]);
+    let o = Command::new("timeout")
+        .arg(super::bounded::REFUSE_WITHIN_S.to_string())
+        .arg(env!("CARGO_BIN_EXE_wgslam"))
+        .arg("run")
+        .arg(&odd)
+        .args(["--frames", "0..1", "--downsample", "4", "--backend", "cpu", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
     refused_with("non-UTF-8 folder", &o, &["not UTF-8", "rename"]);
     assert!(!out.exists(), "outputs written");
 }
