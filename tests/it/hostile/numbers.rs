@@ -160,11 +160,16 @@ fn caps_are_checked_at_parse_time() {
     assert!(!out.exists(), "revisit: outputs written");
 }
 
-/// Writes an all-zero 16-bit depth PNG of 640x480 at `path`.
-fn zero_depth(path: &Path) {
-    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(640, 480)
+/// Writes a 16-bit depth PNG of 640x480 at `path`, every pixel `value` (0: no depth).
+fn flat_depth(path: &Path, value: u16) {
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_pixel(640, 480, image::Luma([value]))
         .save(path)
         .unwrap();
+}
+
+/// Writes an all-zero 16-bit depth PNG of 640x480 at `path`.
+fn zero_depth(path: &Path) {
+    flat_depth(path, 0);
 }
 
 /// Depth all 0 ended "tracking health: ok" with 0 poses and an empty map; depth zeroed on
@@ -193,6 +198,16 @@ fn runs_that_never_track_are_lost(backend: &str) {
     let o = run_on(backend, &icl, "0..3", &out, &[]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(!text(&o).contains("panicked"), "{}", text(&o));
+    // A flat wall 2 m ahead in every frame (ICL depth scale 5000 per metre): ICP holds the
+    // in-plane directions on every tracked frame; the run said "health ok".
+    let icl = icl_copy(&dir.join("wall"), 4);
+    for i in 0..4 {
+        flat_depth(&icl.join(format!("depth/{i}.png")), 10_000);
+    }
+    let out = dir.join("out-wall");
+    let o = run_on(backend, &icl, "0..3", &out, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("tracking health: degenerate"), "{}", text(&o));
 }
 
 pub fn tests() -> Vec<common::harness::Test> {
