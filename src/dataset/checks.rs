@@ -25,16 +25,21 @@ pub const MAX_PRINCIPAL_PX: f32 = 1e6;
 /// Checks that `k`'s numbers are physical; `source` says where they came from (a file, or
 /// `--intrinsics`) so the error can name it.
 pub fn intrinsics_in_bounds(k: &Intrinsics, source: &str) -> Result<()> {
+    pinhole_in_bounds([k.fx, k.fy, k.cx, k.cy], source)
+}
+
+/// [`intrinsics_in_bounds`] of `[fx, fy, cx, cy]` in pixels, as an intrinsics file gives
+/// them (before the image size is known).
+pub fn pinhole_in_bounds([fx, fy, cx, cy]: [f32; 4], source: &str) -> Result<()> {
     let focal_ok = |f: f32| f.is_finite() && (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&f.abs());
     let centre_ok = |c: f32| c.is_finite() && c.abs() <= MAX_PRINCIPAL_PX;
-    if focal_ok(k.fx) && focal_ok(k.fy) && centre_ok(k.cx) && centre_ok(k.cy) {
+    if focal_ok(fx) && focal_ok(fy) && centre_ok(cx) && centre_ok(cy) {
         return Ok(());
     }
     Err(Error::Argument(format!(
-        "intrinsics from {source} (fx {} fy {} cx {} cy {}, pixels) are not a camera's: focal \
-         lengths must be within {MIN_FOCAL_PX}..{MAX_FOCAL_PX:e} px in magnitude and the \
-         principal point within {MAX_PRINCIPAL_PX:e} px; check the file's numbers",
-        k.fx, k.fy, k.cx, k.cy
+        "intrinsics from {source} (fx {fx} fy {fy} cx {cx} cy {cy}, pixels) are not a \
+         camera's: focal lengths must be within {MIN_FOCAL_PX}..{MAX_FOCAL_PX:e} px in \
+         magnitude and the principal point within {MAX_PRINCIPAL_PX:e} px; check the numbers"
     )))
 }
 

@@ -60,5 +60,7 @@ pub fn read_calibration(path: &Path) -> Result<[f32; 4]> {
             ),
         ));
     }
-    Ok([v[0] as f32, v[1] as f32, v[2] as f32, v[3] as f32])
+    let k = [v[0] as f32, v[1] as f32, v[2] as f32, v[3] as f32];
+    super::checks::pinhole_in_bounds(k, &path.display().to_string())?;
+    Ok(k)
 }

@@ -148,7 +148,9 @@ pub fn read_k(path: &Path) -> Result<[f32; 4]> {
             ),
         ));
     }
-    Ok([fx as f32, fy as f32, cx as f32, cy as f32])
+    let k = [fx as f32, fy as f32, cx as f32, cy as f32];
+    super::checks::pinhole_in_bounds(k, &path.display().to_string())?;
+    Ok(k)
 }
 
 #[cfg(test)]

@@ -63,6 +63,7 @@ fn read_cam_params(path: &Path) -> Result<(Intrinsics, Option<f32>)> {
             "w/h must be positive and fx, fy finite and non-zero",
         ));
     }
+    super::checks::pinhole_in_bounds([c.fx, c.fy, c.cx, c.cy], &path.display().to_string())?;
     let k = Intrinsics {
         width: c.w,
         height: c.h,

@@ -42,7 +42,7 @@ pub(super) fn fifo(path: &Path) {
 }
 
 /// A 7-Scenes folder of `n` frames (bundled ICL frames 1..=n renamed
-/// `frame-00000i.{color,depth}.png`) with pose files of identity rotation moving 1 cm
+/// `frame-00000i.{color,depth}.png`, depth rescaled to millimetres) with pose files of identity rotation moving 1 cm
 /// along x a frame.
 pub(super) fn seven_scenes(dir: &Path, n: usize) -> PathBuf {
     let root = dir.join("7scenes");
@@ -52,7 +52,10 @@ pub(super) fn seven_scenes(dir: &Path, n: usize) -> PathBuf {
         let stem = root.join(format!("frame-{i:06}"));
         let src = |kind: &str| icl.join(kind).join(format!("{}.png", i + 1));
         std::fs::copy(src("rgb"), stem.with_extension("color.png")).unwrap();
-        std::fs::copy(src("depth"), stem.with_extension("depth.png")).unwrap();
+        // ICL-NUIM's 5000 units a metre as 7-Scenes' 1000.
+        let mut depth = image::open(src("depth")).unwrap().into_luma16();
+        depth.pixels_mut().for_each(|p| p.0[0] /= 5);
+        depth.save(stem.with_extension("depth.png")).unwrap();
         let x = 0.01 * i as f64;
         std::fs::write(
             stem.with_extension("pose.txt"),

@@ -77,7 +77,7 @@ fn repeated_stamps_fail_before_the_first_frame() {
 fn non_utf8_dataset_folder_is_refused_first() {
     use std::os::unix::ffi::OsStrExt;
     let dir = common::temp_dir("hostile2-utf8");
-    let icl = icl_copy(&dir, 2);
+    let icl = icl_copy(&dir, 3);
     let odd = dir.join(std::ffi::OsStr::from_bytes(b"seq-\xff"));
     std::fs::rename(&icl, &odd).unwrap();
     let out = dir.join("out");
@@ -86,7 +86,7 @@ fn non_utf8_dataset_folder_is_refused_first() {
         .arg(env!("CARGO_BIN_EXE_wgslam"))
         .arg("run")
         .arg(&odd)
-        .args(["--frames", "0..1", "--downsample", "4", "--backend", "cpu", "--out"])
+        .args(["--frames", "1..2", "--downsample", "4", "--backend", "cpu", "--out"])
         .arg(&out)
         .output()
         .unwrap();
