@@ -68,13 +68,15 @@ pub struct Summary {
 /// or a string passed on to the report.
 pub fn collect(out: &Path) -> Result<Summary> {
     let plan_path = out.join(PLAN);
-    let text = match crate::io::input::read_kind_string(&plan_path, crate::io::input::InputKind::Manifest) {
-        Err(Error::Io { path, source }) => {
-            let why = format!("{source} (not a batch folder: no {PLAN})");
-            return Err(Error::io(&path, std::io::Error::new(source.kind(), why)));
-        }
-        other => other?,
-    };
+    let text =
+        match crate::io::input::read_kind_string(&plan_path, crate::io::input::InputKind::Manifest)
+        {
+            Err(Error::Io { path, source }) => {
+                let why = format!("{source} (not a batch folder: no {PLAN})");
+                return Err(Error::io(&path, std::io::Error::new(source.kind(), why)));
+            }
+            other => other?,
+        };
     let plan: Plan = serde_json::from_str(&text)
         .map_err(|e| Error::format(&plan_path, format!("unreadable: {e}")))?;
     let mut seen = std::collections::BTreeSet::new();
@@ -97,7 +99,10 @@ pub fn collect(out: &Path) -> Result<Summary> {
     let mut rows = Vec::new();
     for (index, spec) in plan.jobs.into_iter().enumerate() {
         let path = out.join("jobs").join(&spec.id).join(RECORD);
-        let record = match crate::io::input::read_kind_string(&path, crate::io::input::InputKind::Settings) {
+        let record = match crate::io::input::read_kind_string(
+            &path,
+            crate::io::input::InputKind::Settings,
+        ) {
             Ok(t) => {
                 let r: JobRecord = serde_json::from_str(&t)
                     .map_err(|e| Error::format(&path, format!("unreadable job record: {e}")))?;

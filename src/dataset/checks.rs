@@ -141,7 +141,10 @@ mod tests {
     #[test]
     fn intrinsics_beyond_physical_bounds_are_refused() {
         let k = Intrinsics::ICL_NUIM;
-        assert!(intrinsics_in_bounds(&k, "x").is_ok(), "negative fy is a real camera's");
+        assert!(
+            intrinsics_in_bounds(&k, "x").is_ok(),
+            "negative fy is a real camera's"
+        );
         for bad in [1e39f64 as f32, f32::NAN, 0.5, 2e6] {
             let e = intrinsics_in_bounds(&Intrinsics { fx: bad, ..k }, "cam.txt");
             assert!(e.unwrap_err().to_string().contains("cam.txt"), "fx {bad}");
@@ -155,7 +158,9 @@ mod tests {
         assert!(stamps_distinct(Path::new("s"), &ok).is_ok());
         let big = 2f64.powi(53);
         let bad = [frame(big, false), frame(big + 1.0, false)];
-        let e = stamps_distinct(Path::new("s"), &bad).unwrap_err().to_string();
+        let e = stamps_distinct(Path::new("s"), &bad)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("1 frame(s) share a stamp"), "{e}");
     }
 
@@ -163,13 +168,19 @@ mod tests {
     fn backwards_stamps_and_partial_ground_truth_are_noted() {
         assert_eq!(order_note(Path::new("d.txt"), &[1.0, 2.0, 3.0]), None);
         let n = order_note(Path::new("d.txt"), &[1.0, 3.0, 2.0, 4.0, 0.5]).unwrap();
-        assert!(n.contains("d.txt") && n.contains("backwards 2 time(s)"), "{n}");
+        assert!(
+            n.contains("d.txt") && n.contains("backwards 2 time(s)"),
+            "{n}"
+        );
         let gt = Path::new("gt.txt");
         let all = [frame(1.0, true), frame(2.0, true)];
         assert_eq!(coverage_note(gt, &[1.0, 2.0], &all, 0.02), None);
         let none = [frame(1.0, false), frame(2.0, false)];
         let n = coverage_note(gt, &[101.0, 102.0], &none, 0.02).unwrap();
-        assert!(n.contains("covers none of the 2") && n.contains("101..102"), "{n}");
+        assert!(
+            n.contains("covers none of the 2") && n.contains("101..102"),
+            "{n}"
+        );
         let half = [frame(1.0, true), frame(2.0, false)];
         assert_eq!(coverage_note(gt, &[1.0], &half, 0.02), None);
         let third = [frame(1.0, true), frame(2.0, false), frame(3.0, false)];

@@ -5,13 +5,18 @@
 use std::path::Path;
 
 use super::numbered;
-use crate::io::input::present;
 use super::{replica, scannet, seven_scenes, Layout};
+use crate::io::input::present;
 use crate::{Error, Result};
 
 /// One layout's telltale files in `root`: `(what, present)` for each.
 fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
-    let file = |name: &str| (name.to_string(), crate::io::input::present(&root.join(name)));
+    let file = |name: &str| {
+        (
+            name.to_string(),
+            crate::io::input::present(&root.join(name)),
+        )
+    };
     match layout {
         Layout::Eth3d => vec![
             file("calibration.txt"),

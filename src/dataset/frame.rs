@@ -149,9 +149,9 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
         .map_err(|e| Error::io(path, e))?
         .into_dimensions()
         .map_err(|e| Error::Image {
-        path: path.to_path_buf(),
-        what: format!("cannot read the image's size: {e}"),
-    })
+            path: path.to_path_buf(),
+            what: format!("cannot read the image's size: {e}"),
+        })
 }
 
 /// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);

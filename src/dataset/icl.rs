@@ -66,7 +66,9 @@ pub fn find_ground_truth(root: &Path) -> Result<Option<PathBuf>> {
     for entry in std::fs::read_dir(root).map_err(|e| Error::io(root, e))? {
         let entry = entry.map_err(|e| Error::io(root, e))?;
         let name = entry.file_name();
-        if name.to_string_lossy().ends_with(".gt.freiburg") && crate::io::input::present(&entry.path()) {
+        if name.to_string_lossy().ends_with(".gt.freiburg")
+            && crate::io::input::present(&entry.path())
+        {
             found.push(entry.path());
         }
     }

@@ -187,7 +187,10 @@ mod tests {
             pose_from_row_major(p, &v).unwrap_err().to_string()
         };
         let zero = err("0 0 0 1  0 0 0 2  0 0 0 3  0 0 0 1");
-        assert!(zero.contains("p.txt") && zero.contains("not a rotation"), "{zero}");
+        assert!(
+            zero.contains("p.txt") && zero.contains("not a rotation"),
+            "{zero}"
+        );
         let scaled = err("1000 0 0 0  0 1000 0 0  0 0 1000 0  0 0 0 1");
         assert!(scaled.contains("scaled"), "{scaled}");
         let reflection = err("-1 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1");

@@ -145,6 +145,9 @@ mod tests {
         assert_eq!(bare.number("+1.jpg"), None);
         assert_eq!(bare.number("9007199254740992.jpg"), Some(MAX_FRAME_NUMBER));
         assert_eq!(bare.number("9007199254740993.jpg"), None);
-        assert_eq!(bare.digits("99999999999999999999999.jpg"), Some("99999999999999999999999"));
+        assert_eq!(
+            bare.digits("99999999999999999999999.jpg"),
+            Some("99999999999999999999999")
+        );
     }
 }

@@ -142,10 +142,7 @@ fn not_regular(m: &std::fs::Metadata) -> Option<&'static str> {
 }
 
 fn refuse_kind(path: &Path, kind: &str) -> Error {
-    Error::format(
-        path,
-        format!("is {kind}; wgslam reads only regular files"),
-    )
+    Error::format(path, format!("is {kind}; wgslam reads only regular files"))
 }
 
 /// Whether anything is at `path` (a file, a folder, a FIFO, a link even if broken or
@@ -218,7 +215,8 @@ pub fn read_kind(path: &Path, kind: InputKind) -> Result<Vec<u8>> {
     let (mut file, len) = open_kind(path, kind)?;
     let max = kind.max_bytes()?;
     let mut bytes = Vec::with_capacity(len.min(max) as usize);
-    file.read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    file.read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
     if bytes.len() as u64 > max {
         return Err(too_big(path, bytes.len() as u64, max, kind));
     }

@@ -148,44 +148,37 @@ mod tests {
 
     #[test]
     fn runs_that_never_tracked_or_were_mostly_degenerate_are_not_ok() {
-        let healthy = TrackingCounts {
-            given: 1,
-            converged: 9,
-            degenerate: 2,
-            ..TrackingCounts::default()
-        };
-        assert_eq!(healthy.flag(), "ok");
-        let all_empty = TrackingCounts {
-            empty_depth: 3,
-            untracked_at_end: 3,
-            ..TrackingCounts::default()
-        };
-        assert_eq!(all_empty.flag(), "LOST");
-        assert!(all_empty.verdict().contains("never established"));
-        let only_first = TrackingCounts {
-            given: 1,
-            empty_depth: 5,
-            untracked_at_end: 5,
-            ..TrackingCounts::default()
-        };
-        assert_eq!(only_first.flag(), "LOST");
-        let flat_wall = TrackingCounts {
+        // (case, given, converged, degenerate, empty depth (all at the end), flag)
+        let cases = [
+            ("healthy", 1, 9, 2, 0, "ok"),
+            ("all depth empty", 0, 0, 0, 3, "LOST"),
+            ("only the first frame", 1, 0, 0, 5, "LOST"),
+            ("flat wall", 1, 59, 59, 0, "degenerate"),
+            ("ground-truth poses", 10, 0, 0, 0, "ok"),
+            ("one frame", 1, 0, 0, 0, "ok"),
+        ];
+        for (case, given, converged, degenerate, empty, flag) in cases {
+            let t = TrackingCounts {
+                given,
+                converged,
+                degenerate,
+                empty_depth: empty,
+                untracked_at_end: empty,
+                ..TrackingCounts::default()
+            };
+            assert_eq!(t.flag(), flag, "{case}");
+            let verdict = t.verdict();
+            assert!(verdict.starts_with(flag), "{case}: {verdict}");
+            if flag == "LOST" {
+                assert!(verdict.contains("never established"), "{case}: {verdict}");
+            }
+        }
+        let wall = TrackingCounts {
             given: 1,
             converged: 59,
             degenerate: 59,
             ..TrackingCounts::default()
         };
-        assert_eq!(flat_wall.flag(), "degenerate");
-        assert!(flat_wall.verdict().contains("59 of 59"), "{}", flat_wall.verdict());
-        let ground_truth_poses = TrackingCounts {
-            given: 10,
-            ..TrackingCounts::default()
-        };
-        assert_eq!(ground_truth_poses.flag(), "ok");
-        let one_frame = TrackingCounts {
-            given: 1,
-            ..TrackingCounts::default()
-        };
-        assert_eq!(one_frame.flag(), "ok");
+        assert!(wall.verdict().contains("59 of 59"), "{}", wall.verdict());
     }
 }

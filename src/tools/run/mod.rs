@@ -279,13 +279,11 @@ pub fn trajectory(frames: &[FrameOutcome]) -> Vec<(f64, DMat4)> {
         .collect()
 }
 
-
 /// ATE/RPE of an estimated trajectory against ground truth, `None` with fewer than two
 /// estimated poses that have ground truth (one pose aligns onto any ground truth, and a run
 /// over frames 0..1 of ICL-NUIM, whose frame 0 has none, failed after its last frame).
 pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accuracy>> {
-    if gt.is_empty() || est.len() < 2 || eval::associate(est, gt, eval::DEFAULT_MAX_DT).len() < 2
-    {
+    if gt.is_empty() || est.len() < 2 || eval::associate(est, gt, eval::DEFAULT_MAX_DT).len() < 2 {
         return Ok(None);
     }
     let aligned = eval::ate(est, gt, true)?;

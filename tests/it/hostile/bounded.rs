@@ -26,7 +26,11 @@ pub(super) fn bounded(args: &[&str], env: &[(&str, &str)]) -> std::process::Outp
 /// every one of `want`; `case` names the case in failures.
 pub(super) fn refused_with(case: &str, o: &std::process::Output, want: &[&str]) {
     let t = text(o);
-    assert_ne!(o.status.code(), Some(124), "{case}: hung ({REFUSE_WITHIN_S} s)");
+    assert_ne!(
+        o.status.code(),
+        Some(124),
+        "{case}: hung ({REFUSE_WITHIN_S} s)"
+    );
     assert_eq!(o.status.code(), Some(1), "{case}: {t}");
     assert!(!t.contains("panicked"), "{case}: {t}");
     for w in want {
@@ -89,7 +93,12 @@ pub(super) fn icl_copy(dir: &Path, n: usize) -> PathBuf {
 }
 
 /// `wgslam run root` over frames `frames` at 160x120 on the CPU into `out`, bounded.
-pub(super) fn run_seq(root: &Path, frames: &str, out: &Path, more: &[&str]) -> std::process::Output {
+pub(super) fn run_seq(
+    root: &Path,
+    frames: &str,
+    out: &Path,
+    more: &[&str],
+) -> std::process::Output {
     run_on("cpu", root, frames, out, more)
 }
 
@@ -146,12 +155,19 @@ fn batch_and_params_inputs_that_are_not_files_are_refused() {
     std::fs::create_dir_all(&batch).unwrap();
     fifo(&batch.join("batch.json"));
     let o = bounded(&["batch", "collect", s(&batch)], &[]);
-    refused_with("collect FIFO batch.json", &o, &["batch.json", "not a regular file"]);
+    refused_with(
+        "collect FIFO batch.json",
+        &o,
+        &["batch.json", "not a regular file"],
+    );
     std::fs::remove_file(batch.join("batch.json")).unwrap();
     std::os::unix::fs::symlink(zero, batch.join("batch.json")).unwrap();
     let o = bounded(&["batch", "collect", s(&batch)], &[]);
     refused_with("collect /dev/zero batch.json", &o, &["batch.json"]);
-    assert!(!batch.join("summary.csv").exists(), "collect wrote a summary");
+    assert!(
+        !batch.join("summary.csv").exists(),
+        "collect wrote a summary"
+    );
 }
 
 /// Dataset files that are a FIFO, `/dev/zero`, a folder or a 5 GB sparse file: a 7-Scenes
@@ -168,14 +184,20 @@ fn dataset_files_that_are_not_files_are_refused_by_name() {
         assert!(!out.exists(), "{case}: outputs written");
     };
     fifo(&pose);
-    check("FIFO pose", &["frame-000001.pose.txt", "not a regular file"]);
+    check(
+        "FIFO pose",
+        &["frame-000001.pose.txt", "not a regular file"],
+    );
     std::fs::remove_file(&pose).unwrap();
     std::os::unix::fs::symlink("/dev/zero", &pose).unwrap();
     check("/dev/zero pose", &["frame-000001.pose.txt"]);
     std::fs::remove_file(&pose).unwrap();
     let sparse = std::fs::File::create(&pose).unwrap();
     sparse.set_len(5 << 30).unwrap();
-    check("5 GB sparse pose", &["frame-000001.pose.txt", "more than the limit"]);
+    check(
+        "5 GB sparse pose",
+        &["frame-000001.pose.txt", "more than the limit"],
+    );
     std::fs::remove_file(&pose).unwrap();
     std::fs::write(&pose, "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
     // Intrinsics that are a folder were "missing" and the 7-Scenes defaults were used.
@@ -237,7 +259,11 @@ fn truncated_jpeg_is_refused() {
     std::fs::write(&jpg, &bytes[..bytes.len() / 3]).unwrap();
     let out = dir.join("out-cut");
     let o = run_seq(&root, "0..1", &out, &[]);
-    refused_with("JPEG cut to a third", &o, &["frame-000001.color.jpg", "cut short"]);
+    refused_with(
+        "JPEG cut to a third",
+        &o,
+        &["frame-000001.color.jpg", "cut short"],
+    );
     assert!(!out.exists(), "outputs written");
 }
 

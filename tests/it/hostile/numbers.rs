@@ -15,10 +15,26 @@ fn poses_that_are_not_rigid_motions_are_refused() {
     let out = dir.join("out");
     let pose = root.join("frame-000001.pose.txt");
     for (case, body, want) in [
-        ("zero rotation", "0 0 0 0\n0 0 0 0\n0 0 0 0\n0 0 0 1\n", "not a rotation"),
-        ("1000 I", "1000 0 0 0\n0 1000 0 0\n0 0 1000 0\n0 0 0 1\n", "scaled"),
-        ("reflection", "-1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", "a reflection"),
-        ("1e12 m", "1 0 0 1e12\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", "beyond"),
+        (
+            "zero rotation",
+            "0 0 0 0\n0 0 0 0\n0 0 0 0\n0 0 0 1\n",
+            "not a rotation",
+        ),
+        (
+            "1000 I",
+            "1000 0 0 0\n0 1000 0 0\n0 0 1000 0\n0 0 0 1\n",
+            "scaled",
+        ),
+        (
+            "reflection",
+            "-1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+            "a reflection",
+        ),
+        (
+            "1e12 m",
+            "1 0 0 1e12\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+            "beyond",
+        ),
     ] {
         std::fs::write(&pose, body).unwrap();
         let o = run_seq(&root, "0..1", &out, &[]);
@@ -86,7 +102,15 @@ fn non_utf8_dataset_folder_is_refused_first() {
         .arg(env!("CARGO_BIN_EXE_wgslam"))
         .arg("run")
         .arg(&odd)
-        .args(["--frames", "1..2", "--downsample", "4", "--backend", "cpu", "--out"])
+        .args([
+            "--frames",
+            "1..2",
+            "--downsample",
+            "4",
+            "--backend",
+            "cpu",
+            "--out",
+        ])
         .arg(&out)
         .output()
         .unwrap();
@@ -128,7 +152,10 @@ fn stamp_order_and_ground_truth_coverage_are_noted() {
     let o = run_seq(&root, "0..2", &out, &[]);
     let t = text(&o);
     assert!(o.status.success(), "{t}");
-    assert!(t.contains("depth.txt: stamps go backwards 1 time(s)"), "{t}");
+    assert!(
+        t.contains("depth.txt: stamps go backwards 1 time(s)"),
+        "{t}"
+    );
     assert!(t.contains("order of time"), "{t}");
     assert!(t.contains("covers none of the 3 frames"), "{t}");
 }
@@ -145,8 +172,16 @@ fn caps_are_checked_at_parse_time() {
         args
     };
     for (case, more, want) in [
-        ("iterations", ["--icp-level-iters", "4000000000"], "icp.level_iters"),
-        ("increment", ["--icp-min-increment", "1e-300"], "icp.min_increment"),
+        (
+            "iterations",
+            ["--icp-level-iters", "4000000000"],
+            "icp.level_iters",
+        ),
+        (
+            "increment",
+            ["--icp-min-increment", "1e-300"],
+            "icp.min_increment",
+        ),
     ] {
         let args = with(&more);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -207,7 +242,11 @@ fn runs_that_never_track_are_lost(backend: &str) {
     let out = dir.join("out-wall");
     let o = run_on(backend, &icl, "0..3", &out, &[]);
     assert!(o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("tracking health: degenerate"), "{}", text(&o));
+    assert!(
+        text(&o).contains("tracking health: degenerate"),
+        "{}",
+        text(&o)
+    );
 }
 
 pub fn tests() -> Vec<common::harness::Test> {
@@ -228,7 +267,10 @@ pub fn tests() -> Vec<common::harness::Test> {
             "stamp_order_and_ground_truth_coverage_are_noted",
             stamp_order_and_ground_truth_coverage_are_noted,
         ),
-        plain("caps_are_checked_at_parse_time", caps_are_checked_at_parse_time),
+        plain(
+            "caps_are_checked_at_parse_time",
+            caps_are_checked_at_parse_time,
+        ),
         plain(
             "non_utf8_dataset_folder_is_refused_first",
             non_utf8_dataset_folder_is_refused_first,
