@@ -267,6 +267,24 @@ fn truncated_jpeg_is_refused() {
     assert!(!out.exists(), "outputs written");
 }
 
+/// `odometry` skipped a scan that is a FIFO and took `1.xyz` and `01.xyz` as one stamp:
+/// both refused, naming the files.
+fn odometry_scans_that_are_fifos_or_share_a_stamp_are_refused() {
+    let dir = common::temp_dir("hostile2-odometry");
+    let cloud = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
+    for name in ["1.xyz", "2.xyz"] {
+        std::fs::write(dir.join(name), cloud).unwrap();
+    }
+    fifo(&dir.join("3.xyz"));
+    let o = bounded(&["odometry", s(&dir), "--out", s(&dir.join("out"))], &[]);
+    refused_with("FIFO scan", &o, &["3.xyz", "not a regular file"]);
+    std::fs::remove_file(dir.join("3.xyz")).unwrap();
+    std::fs::write(dir.join("01.xyz"), cloud).unwrap();
+    let o = bounded(&["odometry", s(&dir), "--out", s(&dir.join("out"))], &[]);
+    refused_with("1.xyz and 01.xyz", &o, &["1.xyz", "same stamp 1"]);
+    assert!(!dir.join("out").exists(), "outputs written");
+}
+
 /// Every file the crate reads goes through `src/io/input.rs`: no other source file under
 /// `src/` may call the standard library's or `image`'s own readers, except the ones listed
 /// here with the reason they are not input files.
@@ -331,6 +349,10 @@ pub fn tests() -> Vec<common::harness::Test> {
             dataset_files_that_are_not_files_are_refused_by_name,
         ),
         plain("truncated_jpeg_is_refused", truncated_jpeg_is_refused),
+        plain(
+            "odometry_scans_that_are_fifos_or_share_a_stamp_are_refused",
+            odometry_scans_that_are_fifos_or_share_a_stamp_are_refused,
+        ),
         plain(
             "every_reader_goes_through_the_bounded_input_module",
             every_reader_goes_through_the_bounded_input_module,
