@@ -160,6 +160,46 @@ fn stamp_order_and_ground_truth_coverage_are_noted() {
     assert!(t.contains("covers none of the 3 frames"), "{t}");
 }
 
+/// Unclear messages of the issue: `frames = "5..2"` passed `batch list` and failed at run
+/// time; `eval` against a TUM folder said "pass --intrinsics", which it neither takes nor
+/// needs; an ICL-NUIM folder without `associations.txt` was called "closest: ScanNet"; a
+/// BOM in `rgb.txt` was quoted as "\u{feff}".
+fn messages_say_what_to_do() {
+    let dir = common::temp_dir("hostile2-messages");
+    let manifest = dir.join("m.toml");
+    std::fs::write(
+        &manifest,
+        format!(
+            "output = \"out\"\n[[job]]\nname = \"a\"\nsequence = \"{}\"\nframes = \"5..2\"\n",
+            common::bundled_icl().display()
+        ),
+    )
+    .unwrap();
+    let o = bounded(&["batch", "list", s(&manifest)], &[]);
+    refused_with("frames 5..2", &o, &["m.toml", "5..2", "A <= B"]);
+    // eval against a TUM folder with no intrinsics at all, and a BOM in its lists.
+    let tum = tum_copy(&dir, &[1.0, 2.0, 3.0], true);
+    std::fs::remove_file(tum.join("camera.json")).unwrap();
+    let gt: String = (1..=3)
+        .map(|i| format!("{i} {} 0 0 0 0 0 1\n", 0.1 * i as f64))
+        .collect();
+    std::fs::write(tum.join("groundtruth.txt"), &gt).unwrap();
+    let est = dir.join("est.tum");
+    std::fs::write(&est, &gt).unwrap();
+    let o = bounded(&["eval", s(&est), s(&tum)], &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("--intrinsics"), "{}", text(&o));
+    // ICL-NUIM without associations.txt.
+    let icl = icl_copy(&dir.join("icl"), 2);
+    std::fs::remove_file(icl.join("associations.txt")).unwrap();
+    let o = run_seq(&icl, "0..1", &dir.join("out"), &[]);
+    refused_with(
+        "no associations.txt",
+        &o,
+        &["looks like ICL-NUIM", "associations.txt"],
+    );
+}
+
 /// ICP with `icp-level-iters = [4000000000]` or `icp-min-increment = 1e-300` never ended;
 /// `--revisit` under a raised `WGSLAM_MAX_REVISIT_FRAMES` allocated 1.9 PB and aborted:
 /// all refused at parse time.
@@ -271,6 +311,7 @@ pub fn tests() -> Vec<common::harness::Test> {
             "caps_are_checked_at_parse_time",
             caps_are_checked_at_parse_time,
         ),
+        plain("messages_say_what_to_do", messages_say_what_to_do),
         plain(
             "non_utf8_dataset_folder_is_refused_first",
             non_utf8_dataset_folder_is_refused_first,
