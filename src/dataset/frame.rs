@@ -47,13 +47,22 @@ pub(crate) fn check_image_file(path: &Path, what: &str) -> Result<()> {
     ))
 }
 
+/// Largest accepted image width or height, pixels: 4x the widest depth or colour camera
+/// these layouts come from (4K colour); a header claiming more is corrupt or hostile, and
+/// decoding it would allocate gigabytes per frame.
+pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
+
 fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     check_image_file(path, &format!("{role} image"))?;
     let bytes = crate::io::input::read_kind(path, crate::io::input::InputKind::Image)?;
     check_jpeg_end(&bytes, path, role)?;
-    let reader = ImageReader::new(std::io::Cursor::new(bytes))
+    let mut reader = ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE_PX);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE_PX);
+    reader.limits(limits);
     reader.decode().map_err(|e| Error::Image {
         path: path.to_path_buf(),
         what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
@@ -144,14 +153,21 @@ fn depth_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<u16>)> {
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     check_image_file(path, "image")?;
     let (file, _) = crate::io::input::open_kind(path, crate::io::input::InputKind::Image)?;
-    ImageReader::new(std::io::BufReader::new(file))
+    let (w, h) = ImageReader::new(std::io::BufReader::new(file))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?
         .into_dimensions()
         .map_err(|e| Error::Image {
             path: path.to_path_buf(),
             what: format!("cannot read the image's size: {e}"),
-        })
+        })?;
+    if w.max(h) > MAX_IMAGE_SIDE_PX {
+        return Err(Error::Image {
+            path: path.to_path_buf(),
+            what: format!("is {w}x{h} pixels, more than {MAX_IMAGE_SIDE_PX} on a side"),
+        });
+    }
+    Ok((w, h))
 }
 
 /// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);

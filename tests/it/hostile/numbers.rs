@@ -202,7 +202,7 @@ fn messages_say_what_to_do() {
 
 /// ICP with `icp-level-iters = [4000000000]` or `icp-min-increment = 1e-300` never ended;
 /// `--revisit` under a raised `WGSLAM_MAX_REVISIT_FRAMES` allocated 1.9 PB and aborted:
-/// all refused at parse time.
+/// all refused at parse time; so is an image wider than the image-size cap.
 fn caps_are_checked_at_parse_time() {
     let dir = common::temp_dir("hostile2-caps");
     let out = dir.join("out");
@@ -233,6 +233,15 @@ fn caps_are_checked_at_parse_time() {
     let o = bounded(&args, &[("WGSLAM_MAX_REVISIT_FRAMES", "100000000000000")]);
     refused_with("revisit", &o, &["WGSLAM_MAX_REVISIT_FRAMES", "beyond"]);
     assert!(!out.exists(), "revisit: outputs written");
+    // An image wider than the cap (16385 x 1 pixels, a few bytes of PNG).
+    let root = seven_scenes(&dir, 2);
+    let wide = root.join("frame-000000.depth.png");
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(16_385, 1)
+        .save(&wide)
+        .unwrap();
+    let o = run_seq(&root, "0..1", &out, &[]);
+    refused_with("16385 px wide", &o, &["frame-000000.depth.png", "16385x1"]);
+    assert!(!out.exists(), "wide image: outputs written");
 }
 
 /// Writes a 16-bit depth PNG of 640x480 at `path`, every pixel `value` (0: no depth).
