@@ -10,12 +10,18 @@ use super::*;
 /// milliseconds; a FIFO that blocked would hang until `timeout` kills it (exit 124).
 pub(super) const REFUSE_WITHIN_S: u32 = 60;
 
-/// `wgslam args` under coreutils `timeout`, so a hang fails the test instead of blocking it.
-pub(super) fn bounded(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
+/// `wgslam` under coreutils `timeout`, so a hang fails the test instead of blocking it.
+fn timed() -> Command {
     let mut c = Command::new("timeout");
     c.args(["-k", "5", &REFUSE_WITHIN_S.to_string()])
-        .arg(env!("CARGO_BIN_EXE_wgslam"))
-        .args(args);
+        .arg(env!("CARGO_BIN_EXE_wgslam"));
+    c
+}
+
+/// `wgslam args` with `env` under [`timed`].
+pub(super) fn bounded(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
+    let mut c = timed();
+    c.args(args);
     for (k, v) in env {
         c.env(k, v);
     }
@@ -102,7 +108,7 @@ pub(super) fn run_seq(
     run_on("cpu", root, frames, out, more)
 }
 
-/// [`run_seq`] on `backend`.
+/// [`run_seq`] on `backend` (paths passed as they are, UTF-8 or not).
 pub(super) fn run_on(
     backend: &str,
     root: &Path,
@@ -110,20 +116,22 @@ pub(super) fn run_on(
     out: &Path,
     more: &[&str],
 ) -> std::process::Output {
-    let mut args = vec![
-        "run",
-        s(root),
-        "--frames",
-        frames,
-        "--downsample",
-        "4",
-        "--backend",
-        backend,
-        "--out",
-        s(out),
-    ];
-    args.extend_from_slice(more);
-    bounded(&args, &[])
+    timed()
+        .arg("run")
+        .arg(root)
+        .args([
+            "--frames",
+            frames,
+            "--downsample",
+            "4",
+            "--backend",
+            backend,
+        ])
+        .arg("--out")
+        .arg(out)
+        .args(more)
+        .output()
+        .expect("run wgslam under timeout")
 }
 
 /// Manifests, `--params` files and `batch.json` that are FIFOs or `/dev/zero`: refused at
