@@ -120,7 +120,7 @@ impl Runner {
     pub fn completed(&self, spec: &JobSpec) -> std::result::Result<JobRecord, String> {
         let dir = self.job_dir(&spec.id);
         let path = dir.join(RECORD);
-        let text = crate::io::input::read_kind_string(&path, crate::io::input::InputKind::Settings)
+        let text = crate::io::input::read_kind_string(&path, crate::io::input::InputKind::List)
             .map_err(|_| "not run yet".to_string())?;
         let rec: JobRecord = serde_json::from_str(&text)
             .map_err(|e| format!("{} unreadable ({e})", path.display()))?;

@@ -99,17 +99,15 @@ pub fn collect(out: &Path) -> Result<Summary> {
     let mut rows = Vec::new();
     for (index, spec) in plan.jobs.into_iter().enumerate() {
         let path = out.join("jobs").join(&spec.id).join(RECORD);
-        let record = match crate::io::input::read_kind_string(
-            &path,
-            crate::io::input::InputKind::Settings,
-        ) {
-            Ok(t) => {
-                let r: JobRecord = serde_json::from_str(&t)
-                    .map_err(|e| Error::format(&path, format!("unreadable job record: {e}")))?;
-                (r.spec == spec).then_some(r)
-            }
-            Err(_) => None,
-        };
+        let record =
+            match crate::io::input::read_kind_string(&path, crate::io::input::InputKind::List) {
+                Ok(t) => {
+                    let r: JobRecord = serde_json::from_str(&t)
+                        .map_err(|e| Error::format(&path, format!("unreadable job record: {e}")))?;
+                    (r.spec == spec).then_some(r)
+                }
+                Err(_) => None,
+            };
         let status = match record.as_ref().map(|r| r.status) {
             Some(JobStatus::Ok) => "ok",
             Some(JobStatus::Failed) => "failed",

@@ -73,15 +73,15 @@ pub fn max_revisit_frames() -> Result<u64> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputKind {
     /// One 4x4 pose or a K matrix (`frame-N.pose.txt`, ScanNet `pose/N.txt`,
-    /// `camera-intrinsics.txt`): a few hundred bytes.
+    /// `camera-intrinsics.txt`, ETH3D's `calibration.txt`): a few hundred bytes.
     Matrix,
-    /// A small settings file: `camera.json`, `cam_params.json`, `calibration.txt`, a
-    /// `--params` TOML, a job's `job.json` or `metrics.json`.
+    /// A small settings file: `camera.json`, `cam_params.json`, a `--params` TOML.
     Settings,
     /// A batch manifest or `batch.json`: a few megabytes at most.
     Manifest,
     /// A list of frames or a trajectory (`rgb.txt`, `associations.txt`, `traj.txt`,
-    /// `groundtruth.txt`, a TUM estimate): ~100 bytes a frame.
+    /// `groundtruth.txt`, a TUM estimate), or a record a run wrote (`metrics.json`,
+    /// `frames.json`, a job's `job.json`): ~100 bytes a frame.
     List,
     /// One colour or depth image.
     Image,
@@ -94,8 +94,9 @@ pub enum InputKind {
 pub const MAX_MATRIX_BYTES: u64 = 64 << 10;
 /// Cap of an [`InputKind::Settings`] file, bytes: settings are tens of lines.
 pub const MAX_SETTINGS_BYTES: u64 = 4 << 20;
-/// Cap of an [`InputKind::Manifest`] file, bytes: [`DEFAULT_MAX_JOBS`] jobs of ~1 KiB each.
-pub const MAX_MANIFEST_BYTES: u64 = 16 << 20;
+/// Cap of an [`InputKind::Manifest`] file, bytes: [`DEFAULT_MAX_JOBS`] jobs of ~1 KiB each
+/// is 10 MB (a `batch.json` lists every job), with room for a raised job limit.
+pub const MAX_MANIFEST_BYTES: u64 = 64 << 20;
 /// Cap of an [`InputKind::List`] file, bytes: [`DEFAULT_MAX_REVISIT_FRAMES`] frames of
 /// ~100 bytes a line, with room for long paths.
 pub const MAX_LIST_BYTES: u64 = 512 << 20;

@@ -124,7 +124,7 @@ pub fn summarise(
     let pass_of = |k: usize| (k.saturating_sub(1) / pass_frames).min(passes - 1);
     let metrics_path = dir.join("metrics.json");
     let metrics_text =
-        crate::io::input::read_kind_string(&metrics_path, crate::io::input::InputKind::Settings)?;
+        crate::io::input::read_kind_string(&metrics_path, crate::io::input::InputKind::List)?;
     let metrics: serde_json::Value = serde_json::from_str(&metrics_text)
         .map_err(|e| Error::format(&metrics_path, format!("not JSON: {e}")))?;
     let mut loops_per_pass = Vec::new();
