@@ -131,7 +131,7 @@ fn read_marker(out: &Path) -> Result<Option<Marker>> {
         }
         Ok(_) => {}
     }
-    let text = fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = crate::io::input::read_kind_string(&path, crate::io::input::InputKind::Manifest)?;
     serde_json::from_str(&text)
         .map(Some)
         .map_err(|e| Error::format(&path, format!("not a batch marker: {e}")))

@@ -120,7 +120,8 @@ impl Runner {
     pub fn completed(&self, spec: &JobSpec) -> std::result::Result<JobRecord, String> {
         let dir = self.job_dir(&spec.id);
         let path = dir.join(RECORD);
-        let text = std::fs::read_to_string(&path).map_err(|_| "not run yet".to_string())?;
+        let text = crate::io::input::read_kind_string(&path, crate::io::input::InputKind::List)
+            .map_err(|_| "not run yet".to_string())?;
         let rec: JobRecord = serde_json::from_str(&text)
             .map_err(|e| format!("{} unreadable ({e})", path.display()))?;
         if rec.spec != *spec {
@@ -378,10 +379,21 @@ fn copy_output(
     }
 }
 
-/// The last lines of a log, for an error message.
+/// The last lines of a log, for an error message; for a run that panicked, the panic's
+/// place and message instead (a backtrace after it would push them out of the tail).
 fn log_tail(log: &Path) -> String {
-    let text = std::fs::read_to_string(log).unwrap_or_default();
+    let text = crate::io::input::read_kind_string(log, crate::io::input::InputKind::Cloud)
+        .unwrap_or_default();
     let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    if let Some(at) = lines.iter().rposition(|l| l.contains("panicked at")) {
+        return lines[at..]
+            .iter()
+            .take_while(|l| !l.starts_with("stack backtrace:"))
+            .take(LOG_TAIL_LINES)
+            .copied()
+            .collect::<Vec<_>>()
+            .join("\n");
+    }
     let from = lines.len().saturating_sub(LOG_TAIL_LINES);
     lines[from..].join("\n")
 }

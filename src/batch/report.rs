@@ -96,7 +96,7 @@ fn health_line(s: &Summary) -> String {
     if counts.is_empty() {
         return "-".into();
     }
-    ["ok", "recovered", "LOST"]
+    ["ok", "degenerate", "recovered", "LOST"]
         .iter()
         .filter_map(|k| counts.get(k).map(|n| format!("{n} {k}")))
         .collect::<Vec<_>>()
@@ -224,7 +224,8 @@ const THUMBNAIL_HEIGHT_PX: u32 = 390;
 /// The PNG at `path`, scaled down to [`THUMBNAIL_HEIGHT_PX`] if taller; `None` if it is
 /// missing or unreadable (the report then leaves it out).
 fn thumbnail_png(path: &Path) -> Option<Vec<u8>> {
-    let img = image::open(path).ok()?;
+    let bytes = crate::io::input::read_kind(path, crate::io::input::InputKind::Image).ok()?;
+    let img = image::load_from_memory(&bytes).ok()?;
     let img = if img.height() > THUMBNAIL_HEIGHT_PX {
         let w = (img.width() as u64 * THUMBNAIL_HEIGHT_PX as u64 / img.height() as u64) as u32;
         img.resize(

@@ -68,12 +68,15 @@ pub struct Summary {
 /// or a string passed on to the report.
 pub fn collect(out: &Path) -> Result<Summary> {
     let plan_path = out.join(PLAN);
-    let text = std::fs::read_to_string(&plan_path).map_err(|e| {
-        Error::io(
-            &plan_path,
-            std::io::Error::new(e.kind(), format!("{e} (not a batch folder: no {PLAN})")),
-        )
-    })?;
+    let text =
+        match crate::io::input::read_kind_string(&plan_path, crate::io::input::InputKind::Manifest)
+        {
+            Err(Error::Io { path, source }) => {
+                let why = format!("{source} (not a batch folder: no {PLAN})");
+                return Err(Error::io(&path, std::io::Error::new(source.kind(), why)));
+            }
+            other => other?,
+        };
     let plan: Plan = serde_json::from_str(&text)
         .map_err(|e| Error::format(&plan_path, format!("unreadable: {e}")))?;
     let mut seen = std::collections::BTreeSet::new();
@@ -96,14 +99,15 @@ pub fn collect(out: &Path) -> Result<Summary> {
     let mut rows = Vec::new();
     for (index, spec) in plan.jobs.into_iter().enumerate() {
         let path = out.join("jobs").join(&spec.id).join(RECORD);
-        let record = match std::fs::read_to_string(&path) {
-            Ok(t) => {
-                let r: JobRecord = serde_json::from_str(&t)
-                    .map_err(|e| Error::format(&path, format!("unreadable job record: {e}")))?;
-                (r.spec == spec).then_some(r)
-            }
-            Err(_) => None,
-        };
+        let record =
+            match crate::io::input::read_kind_string(&path, crate::io::input::InputKind::List) {
+                Ok(t) => {
+                    let r: JobRecord = serde_json::from_str(&t)
+                        .map_err(|e| Error::format(&path, format!("unreadable job record: {e}")))?;
+                    (r.spec == spec).then_some(r)
+                }
+                Err(_) => None,
+            };
         let status = match record.as_ref().map(|r| r.status) {
             Some(JobStatus::Ok) => "ok",
             Some(JobStatus::Failed) => "failed",
@@ -212,7 +216,7 @@ pub fn load(path: &Path) -> Result<Summary> {
     if path.is_dir() {
         return collect(path);
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Manifest)?;
     serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not a summary.json: {e}")))
 }
 

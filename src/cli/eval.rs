@@ -27,8 +27,14 @@ pub struct EvalArgs {
 pub fn execute(a: EvalArgs) -> Result<()> {
     let est = io::trajectory::read_tum(&a.estimate)?;
     let gt = if a.ground_truth.is_dir() {
-        let seq =
-            crate::dataset::open(&a.ground_truth, &crate::dataset::SequenceOptions::default())?;
+        // Only the ground truth is used: a layout with no recorded intrinsics (plain TUM)
+        // gets a placeholder instead of an error asking for `--intrinsics`, which `eval`
+        // neither takes nor needs.
+        let opts = crate::dataset::SequenceOptions {
+            intrinsics: Some(crate::geometry::camera::Intrinsics::ICL_NUIM),
+            ..crate::dataset::SequenceOptions::default()
+        };
+        let seq = crate::dataset::open(&a.ground_truth, &opts)?;
         if !seq.has_ground_truth() {
             return Err(crate::Error::format(
                 &a.ground_truth,

@@ -109,7 +109,7 @@ impl ParamOverrides {
 
     /// Reads the parameter file `path`; its errors name the file.
     pub fn read(path: &Path) -> Result<ParamOverrides> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Settings)?;
         ParamOverrides::from_toml(&text).map_err(|why| Error::format(path, why))
     }
 

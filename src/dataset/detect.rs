@@ -6,18 +6,24 @@ use std::path::Path;
 
 use super::numbered;
 use super::{replica, scannet, seven_scenes, Layout};
+use crate::io::input::present;
 use crate::{Error, Result};
 
 /// One layout's telltale files in `root`: `(what, present)` for each.
 fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
-    let file = |name: &str| (name.to_string(), root.join(name).is_file());
+    let file = |name: &str| {
+        (
+            name.to_string(),
+            crate::io::input::present(&root.join(name)),
+        )
+    };
     match layout {
         Layout::Eth3d => vec![
             file("calibration.txt"),
             (
                 "associated.txt (or rgb.txt and depth.txt)".into(),
-                root.join("associated.txt").is_file()
-                    || (root.join("rgb.txt").is_file() && root.join("depth.txt").is_file()),
+                present(&root.join("associated.txt"))
+                    || (present(&root.join("rgb.txt")) && present(&root.join("depth.txt"))),
             ),
         ],
         Layout::Bonn => vec![
@@ -117,6 +123,15 @@ pub fn detect(root: &Path) -> Result<Layout> {
             missing.join(" and ")
         ),
         None => "no file of any of them is here".to_string(),
+    };
+    let icl_like = root.join("depth").is_dir() && root.join("rgb").is_dir();
+    let verdict = if icl_like && !present(&root.join("associations.txt")) {
+        format!(
+            "{verdict}; with depth/ and rgb/ folders this looks like ICL-NUIM, which needs \
+             associations.txt (`<i> depth/<i>.png <i> rgb/<i>.png`, a line per frame)"
+        )
+    } else {
+        verdict
     };
     Err(Error::format(
         root,

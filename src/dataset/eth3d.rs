@@ -23,7 +23,7 @@ pub struct Association {
 
 /// Reads `associated.txt`; errors name `file:line` and quote the line.
 pub fn read_associated(path: &Path) -> Result<Vec<Association>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let f: Vec<&str> = line.split_whitespace().collect();
@@ -60,5 +60,7 @@ pub fn read_calibration(path: &Path) -> Result<[f32; 4]> {
             ),
         ));
     }
-    Ok([v[0] as f32, v[1] as f32, v[2] as f32, v[3] as f32])
+    let k = [v[0] as f32, v[1] as f32, v[2] as f32, v[3] as f32];
+    super::checks::pinhole_in_bounds(k, &path.display().to_string())?;
+    Ok(k)
 }

@@ -47,15 +47,46 @@ pub(crate) fn check_image_file(path: &Path, what: &str) -> Result<()> {
     ))
 }
 
+/// Largest accepted image width or height, pixels: 4x the widest depth or colour camera
+/// these layouts come from (4K colour); a header claiming more is corrupt or hostile, and
+/// decoding it would allocate gigabytes per frame.
+pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
+
 fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     check_image_file(path, &format!("{role} image"))?;
-    let reader = ImageReader::open(path).map_err(|e| Error::io(path, e))?;
-    let reader = reader
+    let bytes = crate::io::input::read_kind(path, crate::io::input::InputKind::Image)?;
+    check_jpeg_end(&bytes, path, role)?;
+    let mut reader = ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE_PX);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE_PX);
+    reader.limits(limits);
     reader.decode().map_err(|e| Error::Image {
         path: path.to_path_buf(),
         what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
+    })
+}
+
+/// How far from a JPEG's end its end-of-image marker may sit, bytes: some writers pad
+/// after it; a file cut short has none in its tail (entropy-coded data never holds
+/// `FF D9`, the encoder stuffs every `FF` with `00`).
+const JPEG_END_WINDOW_BYTES: usize = 1024;
+
+/// A JPEG (`FF D8` first) must end with its end-of-image marker (`FF D9`): the decoder
+/// fills a truncated one with grey without an error (a file cut to a third decoded).
+fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return Ok(());
+    }
+    let tail = &bytes[bytes.len().saturating_sub(JPEG_END_WINDOW_BYTES)..];
+    if tail.windows(2).any(|w| w == [0xFF, 0xD9]) {
+        return Ok(());
+    }
+    Err(Error::Image {
+        path: path.to_path_buf(),
+        what: format!("{role} image is a JPEG cut short (no end-of-image marker)"),
     })
 }
 
@@ -78,6 +109,7 @@ fn decode_from(
             ),
         )
     })?;
+    check_jpeg_end(bytes, path, role)?;
     image::load_from_memory(bytes).map_err(|e| Error::Image {
         path: path.to_path_buf(),
         what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
@@ -119,10 +151,23 @@ fn depth_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<u16>)> {
 
 /// Width and height of an image from its header, without decoding it.
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
-    image::image_dimensions(path).map_err(|e| Error::Image {
-        path: path.to_path_buf(),
-        what: format!("cannot read the image's size: {e}"),
-    })
+    check_image_file(path, "image")?;
+    let (file, _) = crate::io::input::open_kind(path, crate::io::input::InputKind::Image)?;
+    let (w, h) = ImageReader::new(std::io::BufReader::new(file))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?
+        .into_dimensions()
+        .map_err(|e| Error::Image {
+            path: path.to_path_buf(),
+            what: format!("cannot read the image's size: {e}"),
+        })?;
+    if w.max(h) > MAX_IMAGE_SIDE_PX {
+        return Err(Error::Image {
+            path: path.to_path_buf(),
+            what: format!("is {w}x{h} pixels, more than {MAX_IMAGE_SIDE_PX} on a side"),
+        });
+    }
+    Ok((w, h))
 }
 
 /// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);

@@ -20,7 +20,7 @@ pub struct Association {
 /// Reads `associations.txt` (`depth_stamp depth_path rgb_stamp rgb_path`; `#` comments and
 /// blank lines skipped). Errors name `file:line` and quote the line.
 pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
     parse_associations(path, &text)
 }
 
@@ -66,7 +66,9 @@ pub fn find_ground_truth(root: &Path) -> Result<Option<PathBuf>> {
     for entry in std::fs::read_dir(root).map_err(|e| Error::io(root, e))? {
         let entry = entry.map_err(|e| Error::io(root, e))?;
         let name = entry.file_name();
-        if name.to_string_lossy().ends_with(".gt.freiburg") && entry.path().is_file() {
+        if name.to_string_lossy().ends_with(".gt.freiburg")
+            && crate::io::input::present(&entry.path())
+        {
             found.push(entry.path());
         }
     }

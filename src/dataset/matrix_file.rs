@@ -15,6 +15,11 @@ use crate::{Error, Result};
 /// significant digits, so anything larger is a transposed or corrupt matrix.
 pub const BOTTOM_ROW_TOL: f64 = 1e-4;
 
+/// Largest accepted deviation of a pose's rotation from a rotation: `max |RᵀR - I|` and
+/// `|det R - 1|`. Files print at least 6 significant digits, which moves `RᵀR` by ~1e-6; a
+/// scaled matrix (`1000·I`), an all-zero block or a reflection is far beyond 1e-3.
+pub const ROTATION_TOL: f64 = 1e-3;
+
 /// Every number in `text` (whitespace- or comma-separated); `what` names the file in errors.
 pub fn parse_numbers(path: &Path, text: &str) -> Result<Vec<f64>> {
     text.split(|c: char| c.is_whitespace() || c == ',')
@@ -28,7 +33,7 @@ pub fn parse_numbers(path: &Path, text: &str) -> Result<Vec<f64>> {
 
 /// Reads every number of the file at `path`.
 pub fn read_numbers(path: &Path) -> Result<Vec<f64>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Matrix)?;
     parse_numbers(path, &text)
 }
 
@@ -58,11 +63,56 @@ pub fn pose_from_row_major(path: &Path, v: &[f64]) -> Result<Option<DMat4>> {
             ),
         ));
     }
+    check_rigid(path, v)?;
     // glam is column-major: column j is (v[j], v[4 + j], v[8 + j], v[12 + j]).
     Ok(Some(DMat4::from_cols_array(&[
         v[0], v[4], v[8], v[12], v[1], v[5], v[9], v[13], v[2], v[6], v[10], v[14], v[3], v[7],
         v[11], v[15],
     ])))
+}
+
+/// Checks that the row-major 4x4 `v` is a rigid motion: its 3x3 block orthonormal within
+/// [`ROTATION_TOL`] with determinant +1, its translation within
+/// [`crate::io::trajectory::MAX_COORDINATE_M`]. Errors name `path` and say what is wrong.
+fn check_rigid(path: &Path, v: &[f64]) -> Result<()> {
+    let r = |i: usize, j: usize| v[i * 4 + j];
+    let mut worst = 0.0f64;
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| r(k, i) * r(k, j)).sum();
+            let want = if i == j { 1.0 } else { 0.0 };
+            worst = worst.max((dot - want).abs());
+        }
+    }
+    let det = r(0, 0) * (r(1, 1) * r(2, 2) - r(1, 2) * r(2, 1))
+        - r(0, 1) * (r(1, 0) * r(2, 2) - r(1, 2) * r(2, 0))
+        + r(0, 2) * (r(1, 0) * r(2, 1) - r(1, 1) * r(2, 0));
+    if worst > ROTATION_TOL || (det - 1.0).abs() > ROTATION_TOL {
+        let what = if det < 0.0 {
+            "a reflection"
+        } else {
+            "scaled, sheared or degenerate"
+        };
+        return Err(Error::format(
+            path,
+            format!(
+                "the pose's 3x3 rotation block is not a rotation ({what}: |RᵀR - I| up to \
+                 {worst:.3e}, det {det:.6}; allowed {ROTATION_TOL:e}); a camera pose must be a \
+                 rigid motion"
+            ),
+        ));
+    }
+    let max_m = crate::io::trajectory::MAX_COORDINATE_M;
+    if [v[3], v[7], v[11]].iter().any(|t| t.abs() > max_m) {
+        return Err(Error::format(
+            path,
+            format!(
+                "the pose's translation ({} {} {}) is beyond {max_m:e} m: not a camera position",
+                v[3], v[7], v[11]
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Reads a 4x4 camera-to-world pose file ([`pose_from_row_major`]).
@@ -98,7 +148,9 @@ pub fn read_k(path: &Path) -> Result<[f32; 4]> {
             ),
         ));
     }
-    Ok([fx as f32, fy as f32, cx as f32, cy as f32])
+    let k = [fx as f32, fy as f32, cx as f32, cy as f32];
+    super::checks::pinhole_in_bounds(k, &path.display().to_string())?;
+    Ok(k)
 }
 
 #[cfg(test)]
@@ -125,5 +177,28 @@ mod tests {
         assert!(err.contains("p.txt") && err.contains("found 12"), "{err}");
         let transposed = parse_numbers(p, "1 0 0 0 0 1 0 0 0 0 1 0 4 5 6 1").unwrap();
         assert!(pose_from_row_major(p, &transposed).is_err());
+    }
+
+    #[test]
+    fn poses_that_are_not_rigid_motions_are_refused() {
+        let p = Path::new("p.txt");
+        let err = |text: &str| {
+            let v = parse_numbers(p, text).unwrap();
+            pose_from_row_major(p, &v).unwrap_err().to_string()
+        };
+        let zero = err("0 0 0 1  0 0 0 2  0 0 0 3  0 0 0 1");
+        assert!(
+            zero.contains("p.txt") && zero.contains("not a rotation"),
+            "{zero}"
+        );
+        let scaled = err("1000 0 0 0  0 1000 0 0  0 0 1000 0  0 0 0 1");
+        assert!(scaled.contains("scaled"), "{scaled}");
+        let reflection = err("-1 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1");
+        assert!(reflection.contains("a reflection"), "{reflection}");
+        let far = err("1 0 0 1e12  0 1 0 0  0 0 1 0  0 0 0 1");
+        assert!(far.contains("beyond"), "{far}");
+        // Six printed digits of a real rotation pass.
+        let v = parse_numbers(p, "0.866025 -0.5 0 1  0.5 0.866025 0 2  0 0 1 3  0 0 0 1").unwrap();
+        assert!(pose_from_row_major(p, &v).unwrap().is_some());
     }
 }

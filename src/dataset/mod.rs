@@ -13,6 +13,7 @@
 //! exactly as the dataset gives them.
 
 pub(crate) mod bonn;
+pub(crate) mod checks;
 pub(crate) mod detect;
 pub(crate) mod eth3d;
 pub(crate) mod frame;
@@ -201,10 +202,10 @@ struct CameraJson {
 }
 
 fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
-    if !path.exists() {
+    if !crate::io::input::present(path) {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Settings)?;
     parse_camera_json(path, &text).map(Some)
 }
 
@@ -231,6 +232,7 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
 /// The TUM-like layouts (TUM, ICL-NUIM, ETH3D, Bonn): frames from the association lists,
 /// ground truth from one trajectory file.
 fn stamped_listing(root: &Path, layout: Layout, max_time_diff: f64) -> Result<Listing> {
+    let mut order_notes = Vec::new();
     // (stamp, rgb, depth) in order of depth stamp.
     let (pairs, gt_file): (Vec<(f64, PathBuf, PathBuf)>, Option<PathBuf>) = match layout {
         Layout::IclNuim => {
@@ -241,25 +243,26 @@ fn stamped_listing(root: &Path, layout: Layout, max_time_diff: f64) -> Result<Li
                 .collect();
             (pairs, icl::find_ground_truth(root)?)
         }
-        Layout::Eth3d if root.join("associated.txt").is_file() => {
+        Layout::Eth3d if crate::io::input::present(&root.join("associated.txt")) => {
             let pairs = eth3d::read_associated(&root.join("associated.txt"))?
                 .into_iter()
                 .map(|a| (a.stamp, root.join(a.rgb_path), root.join(a.depth_path)))
                 .collect();
             let gt = root.join("groundtruth.txt");
-            (pairs, gt.is_file().then_some(gt))
+            (pairs, crate::io::input::present(&gt).then_some(gt))
         }
         _ => {
             let rgb = tum::read_list(&root.join("rgb.txt"))?;
             let depth = tum::read_list(&root.join("depth.txt"))?;
             let rs: Vec<f64> = rgb.iter().map(|e| e.stamp).collect();
             let ds: Vec<f64> = depth.iter().map(|e| e.stamp).collect();
+            order_notes.extend(checks::order_note(&root.join("depth.txt"), &ds));
             let pairs = tum::associate(&ds, &rs, max_time_diff)
                 .into_iter()
                 .map(|(id, ir)| (ds[id], root.join(&rgb[ir].path), root.join(&depth[id].path)))
                 .collect();
             let gt = root.join("groundtruth.txt");
-            (pairs, gt.is_file().then_some(gt))
+            (pairs, crate::io::input::present(&gt).then_some(gt))
         }
     };
     if pairs.is_empty() {
@@ -319,7 +322,7 @@ fn stamped_listing(root: &Path, layout: Layout, max_time_diff: f64) -> Result<Li
         image_size,
         depth_scale: None,
         conventions: FrameConventions::default(),
-        notes: Vec::new(),
+        notes: order_notes,
     })
 }
 
@@ -363,6 +366,12 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         (None, None, Some(k)) => k,
         (None, None, None) => return Err(Error::Argument(listing.no_intrinsics)),
     };
+    let source = match (opts.intrinsics, &camera) {
+        (Some(_), _) => "--intrinsics".to_string(),
+        (None, Some(_)) => root.join("camera.json").display().to_string(),
+        (None, None) => format!("the {layout:?} dataset's intrinsics in {}", root.display()),
+    };
+    checks::intrinsics_in_bounds(&intrinsics, &source)?;
     let depth_scale = opts
         .depth_scale
         .or(camera.as_ref().and_then(|c| c.depth_scale))
@@ -381,6 +390,8 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     }
 
     let mut frames = listing.frames;
+    checks::stamps_distinct(root, &frames)?;
+    let mut notes = listing.notes;
     if let Some(path) = opts.gt_path.as_ref().or(listing.gt_file.as_ref()) {
         let mut gt = read_tum(path)?;
         gt.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -389,6 +400,12 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             f.gt_cam_to_world =
                 tum::nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
         }
+        notes.extend(checks::coverage_note(
+            path,
+            &gt_stamps,
+            &frames,
+            opts.max_time_diff,
+        ));
     }
 
     Ok(Sequence {
@@ -398,7 +415,7 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         depth_scale,
         frames,
         conventions: listing.conventions,
-        notes: listing.notes,
+        notes,
         files: None,
     })
 }

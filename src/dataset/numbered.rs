@@ -14,14 +14,24 @@ pub struct Pattern {
     pub suffix: &'static str,
 }
 
+/// Largest accepted frame number: 2^53, the last integer an f64 stamp holds exactly (frames
+/// 2^53 and 2^53 + 1 got one stamp; a number beyond u64 was dropped without a word).
+pub const MAX_FRAME_NUMBER: u64 = 1 << 53;
+
 impl Pattern {
-    /// The frame number in `name` when it fits the pattern.
-    pub fn number(&self, name: &str) -> Option<u64> {
+    /// The digits of `name` when it fits the pattern (whatever their value).
+    fn digits<'a>(&self, name: &'a str) -> Option<&'a str> {
         let digits = name.strip_prefix(self.prefix)?.strip_suffix(self.suffix)?;
-        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-            return None;
-        }
-        digits.parse().ok()
+        (!digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())).then_some(digits)
+    }
+
+    /// The frame number in `name` when it fits the pattern and is at most
+    /// [`MAX_FRAME_NUMBER`].
+    pub fn number(&self, name: &str) -> Option<u64> {
+        self.digits(name)?
+            .parse()
+            .ok()
+            .filter(|&n| n <= MAX_FRAME_NUMBER)
     }
 
     /// The pattern as a user reads it, e.g. `frame-N.depth.png`.
@@ -41,7 +51,17 @@ pub fn list(dir: &Path, pattern: Pattern) -> Result<BTreeMap<u64, PathBuf>> {
     for entry in entries {
         let entry = entry.map_err(|e| Error::io(dir, e))?;
         let name = entry.file_name();
-        let Some(n) = pattern.number(&name.to_string_lossy()) else {
+        let name = name.to_string_lossy();
+        let Some(n) = pattern.number(&name) else {
+            if pattern.digits(&name).is_some() {
+                return Err(Error::format(
+                    entry.path(),
+                    format!(
+                        "frame number beyond {MAX_FRAME_NUMBER} (2^53, the largest an f64 stamp \
+                         holds exactly); renumber the frames"
+                    ),
+                ));
+            }
             continue;
         };
         if let Some(previous) = out.insert(n, entry.path()) {
@@ -123,5 +143,11 @@ mod tests {
         };
         assert_eq!(bare.number("10.jpg"), Some(10));
         assert_eq!(bare.number("+1.jpg"), None);
+        assert_eq!(bare.number("9007199254740992.jpg"), Some(MAX_FRAME_NUMBER));
+        assert_eq!(bare.number("9007199254740993.jpg"), None);
+        assert_eq!(
+            bare.digits("99999999999999999999999.jpg"),
+            Some("99999999999999999999999")
+        );
     }
 }

@@ -162,7 +162,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     // Beside the frames, or in the scene folder above a seq-NN folder.
     let k_path = [dir.join(INTRINSICS_FILE), root.join(INTRINSICS_FILE)]
         .into_iter()
-        .find(|p| p.is_file());
+        .find(|p| crate::io::input::present(p));
     let k = match &k_path {
         Some(p) => read_k(p)?,
         None => {

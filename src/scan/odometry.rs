@@ -127,15 +127,37 @@ pub fn discover(dir: &Path) -> Result<ScanSequence> {
             gt_scan_to_world: gt,
         });
     }
+    // Anything with a cloud's name but a folder is a scan: a FIFO or a device is then
+    // refused by the reader, naming it, instead of being skipped without a word.
     let scans: Vec<PathBuf> = list_dir(dir)?
         .into_iter()
-        .filter(|p| p.is_file() && is_cloud_file(p))
+        .filter(|p| !p.is_dir() && is_cloud_file(p))
         .collect();
     check_count(dir, scans.len())?;
+    check_stamps(&scans)?;
     Ok(ScanSequence {
         scans,
         gt_scan_to_world: None,
     })
+}
+
+/// Two scans whose names give one stamp (`1.xyz` and `01.xyz`) are an error naming both:
+/// the trajectory would hold the stamp twice.
+fn check_stamps(scans: &[PathBuf]) -> Result<()> {
+    let mut seen = std::collections::HashMap::new();
+    for s in scans {
+        let Some(n) = stem_number(s) else { continue };
+        if let Some(first) = seen.insert(n.to_bits(), s) {
+            return Err(Error::format(
+                s,
+                format!(
+                    "gives the same stamp {n} as {}; keep one of them",
+                    first.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn check_count(dir: &Path, n: usize) -> Result<()> {

@@ -67,6 +67,16 @@ use crate::geometry::se3::pose_change;
 use crate::slam::params::HealthSettings;
 use crate::slam::solve::IcpIteration;
 
+/// `x` with `decimals` decimals, or in scientific notation from 1e6 up: a ratio over a
+/// near-zero typical value once printed 300 digits.
+fn short(x: f64, decimals: usize) -> String {
+    if x.abs() < 1e6 {
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
 /// Tracked frames the typical residual and motion are the median of.
 pub const HISTORY: usize = 30;
 
@@ -189,8 +199,9 @@ impl HealthMonitor {
         if let Some(r) = h.residual_ratio {
             if r > settings.max_residual_ratio {
                 return Err(format!(
-                    "RMS residual {:.1} mm is {r:.1}x the typical (limit {:.1}x)",
-                    1e3 * h.rms_residual_m,
+                    "RMS residual {} mm is {}x the typical (limit {:.1}x)",
+                    short(1e3 * h.rms_residual_m, 1),
+                    short(r, 1),
                     settings.max_residual_ratio
                 ));
             }
@@ -200,9 +211,10 @@ impl HealthMonitor {
                 h.motion_m > settings.motion_floor_m || h.motion_deg > settings.motion_floor_deg;
             if r > settings.max_motion_ratio && above_floor {
                 return Err(format!(
-                    "moved {:.0} mm / {:.1} deg, {r:.0}x the typical motion (limit {:.0}x)",
-                    1e3 * h.motion_m,
+                    "moved {} mm / {:.1} deg, {}x the typical motion (limit {:.0}x)",
+                    short(1e3 * h.motion_m, 0),
                     h.motion_deg,
+                    short(r, 0),
                     settings.max_motion_ratio
                 ));
             }
@@ -229,7 +241,8 @@ impl HealthMonitor {
         let r = h.residual_ratio.unwrap_or(0.0);
         if r > settings.recovery_max_residual_ratio {
             return Err(format!(
-                "recovery: RMS residual {r:.2}x the typical (limit {:.2}x)",
+                "recovery: RMS residual {}x the typical (limit {:.2}x)",
+                short(r, 2),
                 settings.recovery_max_residual_ratio
             ));
         }
@@ -263,6 +276,12 @@ impl HealthMonitor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_ratios_print_short() {
+        assert_eq!(short(2.345, 1), "2.3");
+        assert_eq!(short(1e300, 1), "1.00e300");
+    }
     use crate::geometry::se3;
 
     fn iteration(inliers: u64, rms_m: f64) -> IcpIteration {

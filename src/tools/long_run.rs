@@ -88,7 +88,7 @@ pub fn summarise(
     gt: &[(f64, glam::DMat4)],
 ) -> Result<LongRun> {
     let path = dir.join("frames.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = crate::io::input::read_kind_string(&path, crate::io::input::InputKind::List)?;
     let frames: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("not JSON: {e}")))?;
     let numbers = read_numbers(&dir.join("metrics.json"))?;
@@ -124,7 +124,7 @@ pub fn summarise(
     let pass_of = |k: usize| (k.saturating_sub(1) / pass_frames).min(passes - 1);
     let metrics_path = dir.join("metrics.json");
     let metrics_text =
-        std::fs::read_to_string(&metrics_path).map_err(|e| Error::io(&metrics_path, e))?;
+        crate::io::input::read_kind_string(&metrics_path, crate::io::input::InputKind::List)?;
     let metrics: serde_json::Value = serde_json::from_str(&metrics_text)
         .map_err(|e| Error::format(&metrics_path, format!("not JSON: {e}")))?;
     let mut loops_per_pass = Vec::new();

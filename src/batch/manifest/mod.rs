@@ -175,7 +175,7 @@ struct Combination {
 impl Manifest {
     /// Reads and expands `path`; every error names the manifest and, where it can, the job.
     pub fn read(path: &Path) -> Result<Manifest> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Manifest)?;
         Manifest::parse(path, &text)
     }
 
@@ -508,6 +508,9 @@ impl JobSpec {
         if self.downsample == 0 {
             return Err("downsample must be at least 1".into());
         }
+        if let Some(f) = &self.frames {
+            crate::dataset::parse_range(f).map_err(|e| format!("frames: {e}"))?;
+        }
         if let Some((k, _)) = self
             .overrides
             .iter()
@@ -543,6 +546,9 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
     };
     if c.downsample == 0 {
         return Err(bad("downsample must be at least 1".into()));
+    }
+    if let Some(f) = &c.frames {
+        crate::dataset::parse_range(f).map_err(|e| bad(format!("frames: {e}")))?;
     }
     let mut overrides = Vec::new();
     for (k, v) in &c.overrides {

@@ -67,6 +67,16 @@ pub const ROBUST_ICP_LEVEL_ITERS: [usize; 3] = [10, 5, 4];
 /// ([`crate::slam::solve::MIN_INLIERS`] correspondences at the least).
 pub const MAX_ICP_LEVELS: usize = 4;
 
+/// Most ICP iterations at one pyramid level (`--icp-level-iters`): the defaults use 4 to
+/// 10 and converge in fewer; 1000 at 640x480 is already minutes a frame on a CPU, and
+/// 4e9 never ends.
+pub const MAX_ICP_ITERS_PER_LEVEL: usize = 1000;
+
+/// Smallest accepted `icp.min_increment` (pose-update norm, metres and radians mixed):
+/// an f64 pose update cannot resolve a change below ~1e-15 of a metre-scale pose, so a
+/// smaller threshold only means "never stop early".
+pub const MIN_ICP_MIN_INCREMENT: f64 = 1e-15;
+
 /// The robust profile's degenerate-direction guard: well below the smallest eigenvalue
 /// ratio of any frame of the sequences here, far above a plane's (see `slam::health`).
 pub const ROBUST_DEGENERATE_EIGEN_RATIO: f64 = 1e-4;

@@ -60,10 +60,13 @@ impl SlamParams {
         }
         let icp = &self.icp;
         let s = &icp.level_iters;
-        if s.is_empty() || s.len() > MAX_ICP_LEVELS || s.contains(&0) {
+        if s.is_empty()
+            || s.len() > MAX_ICP_LEVELS
+            || s.iter().any(|&n| n == 0 || n > MAX_ICP_ITERS_PER_LEVEL)
+        {
             return fail(format!(
                 "`icp.level_iters` {s:?}: want 1 to {MAX_ICP_LEVELS} iteration counts, coarse \
-                 to fine, each at least 1 (e.g. 10,5,4)"
+                 to fine, each 1 to {MAX_ICP_ITERS_PER_LEVEL} (e.g. 10,5,4)"
             ));
         }
         if icp.pyramid.radius_px > MAX_BILATERAL_RADIUS {
@@ -73,9 +76,10 @@ impl SlamParams {
             ));
         }
         let f = &self.fusion;
-        if !positive(icp.min_increment) {
+        if !(positive(icp.min_increment) && icp.min_increment >= MIN_ICP_MIN_INCREMENT) {
             return fail(format!(
-                "`icp.min_increment` {} must be positive",
+                "`icp.min_increment` {} must be at least {MIN_ICP_MIN_INCREMENT:e} (smaller \
+                 changes of a pose are below f64 resolution)",
                 icp.min_increment
             ));
         }
@@ -226,7 +230,11 @@ mod tests {
             p.fusion.unstable_removal = Some(r);
         }
         type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 26] = [
+        let cases: [(&str, Spoil); 28] = [
+            ("`icp.level_iters`", |p| {
+                p.icp.level_iters = vec![MAX_ICP_ITERS_PER_LEVEL + 1]
+            }),
+            ("`icp.min_increment`", |p| p.icp.min_increment = 1e-300),
             ("`input.downsample`", |p| p.input.downsample = 0),
             ("`input.downsample`", |p| {
                 p.input.downsample = MAX_DOWNSAMPLE + 1

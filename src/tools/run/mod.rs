@@ -21,10 +21,12 @@ use crate::layout::pack_rgba8;
 use crate::slam::backend::{Backend, Inspect};
 use crate::slam::map::SurfelMap;
 use crate::slam::params::SlamParams;
-use crate::slam::pipeline::{FrameReport, Slam, TrackStatus};
+use crate::slam::pipeline::{FrameReport, Slam};
 use crate::Result;
 
+mod counts;
 mod outputs;
+pub use counts::{tracking_counts, TrackingCounts};
 pub use outputs::{
     read_numbers, write_json, write_outputs, write_pictures, RunNumbers, OUTPUT_FILES,
 };
@@ -93,62 +95,6 @@ pub struct LoopMetrics {
     pub odometry_accuracy: Option<Accuracy>,
     /// Every verified candidate, accepted or rejected, in order.
     pub loops: Vec<crate::slam::loops::LoopRecord>,
-}
-
-/// Counts of how frames were tracked.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct TrackingCounts {
-    pub given: usize,
-    pub converged: usize,
-    pub max_iterations: usize,
-    pub stopped: usize,
-    /// Frames placed by relocalisation after tracking from the last pose failed.
-    pub relocalised: usize,
-    /// Frames whose tracking was lost (not fused, no tracked pose).
-    pub lost: usize,
-    pub empty_depth: usize,
-    /// Frames whose finest-level solve held at least one degenerate direction.
-    pub degenerate: usize,
-    /// Keyframes in the relocalisation database at the end.
-    pub keyframes: usize,
-    /// The longest run of consecutive frames without a tracked pose (lost or empty).
-    pub longest_untracked_run: usize,
-    /// The first lost frame's sequence position, if any.
-    pub first_lost_frame: Option<usize>,
-    /// Frames at the end of the run without a tracked pose (the run ended lost).
-    pub untracked_at_end: usize,
-    /// [`TrackingCounts::flag`]: `ok`, `recovered` or `LOST`.
-    pub health: String,
-}
-
-impl TrackingCounts {
-    /// The run's health in a word: `ok` (no lost frame), `recovered` (lost frames, but the
-    /// run ended tracking), `LOST` (the run ended without a tracked pose).
-    pub fn flag(&self) -> &'static str {
-        match (self.lost, self.untracked_at_end) {
-            (0, _) => "ok",
-            (_, 0) => "recovered",
-            _ => "LOST",
-        }
-    }
-
-    /// One line for the run summary.
-    pub fn verdict(&self) -> String {
-        match self.flag() {
-            "ok" => "ok (no frame lost)".into(),
-            flag => format!(
-                "{flag}: {} frame(s) lost from frame {} on (longest run {}), {} relocalised{}",
-                self.lost,
-                self.first_lost_frame.unwrap_or_default(),
-                self.longest_untracked_run,
-                self.relocalised,
-                match self.untracked_at_end {
-                    0 => String::new(),
-                    n => format!("; the last {n} frame(s) have no pose"),
-                }
-            ),
-        }
-    }
 }
 
 /// ATE and RPE against ground truth (TUM benchmark definitions).
@@ -324,7 +270,7 @@ fn run_frames_observed<B: Backend + Inspect>(
 }
 
 /// The estimated trajectory `(stamp, t_cam_to_world)`: the tracked frames only (a lost
-/// frame or one without depth has no pose; see [`TrackStatus::is_tracked`]).
+/// frame or one without depth has no pose; see [`crate::slam::pipeline::TrackStatus::is_tracked`]).
 pub fn trajectory(frames: &[FrameOutcome]) -> Vec<(f64, DMat4)> {
     frames
         .iter()
@@ -333,50 +279,11 @@ pub fn trajectory(frames: &[FrameOutcome]) -> Vec<(f64, DMat4)> {
         .collect()
 }
 
-/// How the run's frames were tracked (`keyframes`: the database's size at the end).
-pub fn tracking_counts(frames: &[FrameOutcome], keyframes: usize) -> TrackingCounts {
-    let mut counts = TrackingCounts {
-        keyframes,
-        ..TrackingCounts::default()
-    };
-    let mut run = 0;
-    for f in frames {
-        match f.report.status {
-            TrackStatus::Given => counts.given += 1,
-            TrackStatus::Converged => counts.converged += 1,
-            TrackStatus::MaxIterations => counts.max_iterations += 1,
-            TrackStatus::Stopped(_) => counts.stopped += 1,
-            TrackStatus::Relocalised { .. } => counts.relocalised += 1,
-            TrackStatus::Lost(_) => {
-                counts.lost += 1;
-                counts.first_lost_frame.get_or_insert(f.index);
-            }
-            TrackStatus::EmptyDepth => counts.empty_depth += 1,
-        }
-        if f.report.health.is_some_and(|h| h.held_directions > 0) {
-            counts.degenerate += 1;
-        }
-        run = if f.report.status.is_tracked() {
-            0
-        } else {
-            run + 1
-        };
-        counts.longest_untracked_run = counts.longest_untracked_run.max(run);
-    }
-    // Empty frames at the very start are not a failure (the run starts at the first
-    // usable one); at the end they are.
-    counts.untracked_at_end = if frames.iter().any(|f| f.report.status.is_tracked()) {
-        run
-    } else {
-        frames.len()
-    };
-    counts.health = counts.flag().to_string();
-    counts
-}
-
-/// ATE/RPE of an estimated trajectory against ground truth, `None` without common stamps.
+/// ATE/RPE of an estimated trajectory against ground truth, `None` with fewer than two
+/// estimated poses that have ground truth (one pose aligns onto any ground truth, and a run
+/// over frames 0..1 of ICL-NUIM, whose frame 0 has none, failed after its last frame).
 pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accuracy>> {
-    if gt.is_empty() || est.len() < 2 {
+    if gt.is_empty() || est.len() < 2 || eval::associate(est, gt, eval::DEFAULT_MAX_DT).len() < 2 {
         return Ok(None);
     }
     let aligned = eval::ate(est, gt, true)?;
@@ -437,6 +344,15 @@ pub fn run_observed<B: Backend + Inspect>(
     observer: Option<&mut dyn FrameObserver>,
 ) -> Result<RunResult> {
     params.validate()?;
+    if seq.root.to_str().is_none() {
+        // metrics.json records the dataset's path as JSON text, which must be UTF-8; found
+        // only after the last frame, this cost a whole run.
+        return Err(crate::Error::format(
+            &seq.root,
+            "the dataset's path is not UTF-8, which metrics.json cannot record; rename the \
+             folder or link to it from a UTF-8 path",
+        ));
+    }
     let (first, last) = (*frames.start(), *frames.end());
     let mut slam = Slam::for_sequence(backend, seq, params);
     let (frames, wall) = run_frames_observed(&mut slam, seq, frames, decode, on_frame, observer)?;

@@ -112,7 +112,7 @@ pub struct RunNumbers {
 
 /// A run's numbers from its `metrics.json`.
 pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
     let m: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not JSON: {e}")))?;
     let num = |v: &serde_json::Value, what: &str| {

@@ -1,12 +1,16 @@
 //! Hostile inputs and faults (issue 27), as the cases were found: batch output folders that
 //! are not the batch's, a crafted `batch.json` against the report, runs that must leave
 //! their outputs complete or absent as a set, readers fed declared sizes they cannot hold,
-//! silently wrong results and unclear messages. Each test names the case it reproduces.
+//! silently wrong results and unclear messages; and round 2 (issue 35): every reader
+//! bounded, numbers validated where they enter, an honest verdict when nothing tracks.
+//! Each test names the case it reproduces.
 
 use crate::common;
 
 mod batch_folders;
+mod bounded;
 mod messages;
+mod numbers;
 mod outputs;
 mod readers;
 mod report;
@@ -70,6 +74,8 @@ pub fn tests() -> Vec<common::harness::Test> {
         readers::tests(),
         wrong_results::tests(),
         messages::tests(),
+        bounded::tests(),
+        numbers::tests(),
     ] {
         v.extend(more);
     }

@@ -1,0 +1,190 @@
+//! Checks of an opened sequence that need only its inputs, done before the first frame is
+//! decoded rather than after the last one is tracked: intrinsics within physical bounds,
+//! frame stamps distinct (and a note when a list was out of time order), and how much of
+//! the sequence a ground-truth file covers.
+//!
+//! It reads no file; [`super::open`] calls it with what it has read.
+
+use std::path::Path;
+
+use super::FrameRecord;
+use crate::geometry::camera::Intrinsics;
+use crate::{Error, Result};
+
+/// Largest accepted focal length, pixels: a 1e6 px focal length is a 0.05 degree field of
+/// view on a 1000 px image, far narrower than any depth camera; 1e39 (f32 overflow) or 1e300
+/// is a corrupt file.
+pub const MAX_FOCAL_PX: f32 = 1e6;
+/// Smallest accepted focal length, pixels: below 1 px the whole image spans more than 180
+/// degrees, which a pinhole cannot.
+pub const MIN_FOCAL_PX: f32 = 1.0;
+/// Largest accepted `|cx|`, `|cy|`, pixels: the principal point sits on or near the image;
+/// 1e6 px is far off any real sensor.
+pub const MAX_PRINCIPAL_PX: f32 = 1e6;
+
+/// Checks that `k`'s numbers are physical; `source` says where they came from (a file, or
+/// `--intrinsics`) so the error can name it.
+pub fn intrinsics_in_bounds(k: &Intrinsics, source: &str) -> Result<()> {
+    pinhole_in_bounds([k.fx, k.fy, k.cx, k.cy], source)
+}
+
+/// [`intrinsics_in_bounds`] of `[fx, fy, cx, cy]` in pixels, as an intrinsics file gives
+/// them (before the image size is known).
+pub fn pinhole_in_bounds([fx, fy, cx, cy]: [f32; 4], source: &str) -> Result<()> {
+    let focal_ok = |f: f32| f.is_finite() && (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&f.abs());
+    let centre_ok = |c: f32| c.is_finite() && c.abs() <= MAX_PRINCIPAL_PX;
+    if focal_ok(fx) && focal_ok(fy) && centre_ok(cx) && centre_ok(cy) {
+        return Ok(());
+    }
+    Err(Error::Argument(format!(
+        "intrinsics from {source} (fx {fx} fy {fy} cx {cx} cy {cy}, pixels) are not a \
+         camera's: focal lengths must be within {MIN_FOCAL_PX}..{MAX_FOCAL_PX:e} px in \
+         magnitude and the principal point within {MAX_PRINCIPAL_PX:e} px; check the numbers"
+    )))
+}
+
+/// Checks that the frames' stamps are distinct: a trajectory with a repeated stamp cannot
+/// be evaluated, and the run would find out only after its last frame. `root` names the
+/// sequence in the error.
+pub fn stamps_distinct(root: &Path, frames: &[FrameRecord]) -> Result<()> {
+    let mut stamps: Vec<f64> = frames.iter().map(|f| f.timestamp).collect();
+    stamps.sort_by(f64::total_cmp);
+    let repeats: Vec<f64> = stamps
+        .windows(2)
+        .filter(|w| w[0] == w[1])
+        .map(|w| w[0])
+        .collect();
+    match repeats.first() {
+        None => Ok(()),
+        Some(first) => Err(Error::format(
+            root,
+            format!(
+                "{} frame(s) share a stamp with another frame (the first at stamp {first}; \
+                 stamps beyond 2^53 or near 1e17 s also collapse into one in f64): a trajectory \
+                 of these frames cannot be written or evaluated; give each frame its own stamp \
+                 in the frame list",
+                repeats.len()
+            ),
+        )),
+    }
+}
+
+/// A note when `stamps`, in the order of `list`'s lines, go backwards: the frames are then
+/// used in order of time, not file order. `None` when they are in order.
+pub fn order_note(list: &Path, stamps: &[f64]) -> Option<String> {
+    let backwards = stamps.windows(2).filter(|w| w[1] < w[0]).count();
+    (backwards > 0).then(|| {
+        format!(
+            "{}: stamps go backwards {backwards} time(s) in file order; frames are used in \
+             order of time (sorted by stamp), not file order. If the stamps are per-frame \
+             intervals rather than times, fix the list",
+            list.display()
+        )
+    })
+}
+
+/// A note saying how many of `frames` the ground truth at `gt_path` covers, when it
+/// covers fewer than half: `None` otherwise (ICL-NUIM's frame 0 has no pose, and a
+/// recording's first and last frames often fall outside the motion capture). With no pose at all the note
+/// says why there will be no ATE and what to check (an offset clock, the wrong file).
+pub fn coverage_note(
+    gt_path: &Path,
+    gt_stamps: &[f64],
+    frames: &[FrameRecord],
+    max_dt: f64,
+) -> Option<String> {
+    let covered = frames
+        .iter()
+        .filter(|f| f.gt_cam_to_world.is_some())
+        .count();
+    if covered * 2 >= frames.len() {
+        return None;
+    }
+    let range = |v: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
+            (lo.min(s), hi.max(s))
+        });
+        format!("{lo}..{hi}")
+    };
+    let gt_range = range(&mut gt_stamps.iter().copied());
+    let frame_range = range(&mut frames.iter().map(|f| f.timestamp));
+    if covered == 0 {
+        return Some(format!(
+            "ground truth {} covers none of the {} frames (its stamps {gt_range}, the frames' \
+             {frame_range}, within {max_dt} s): no ATE or RPE will be computed; is it the \
+             right file, or are its stamps offset?",
+            gt_path.display(),
+            frames.len()
+        ));
+    }
+    Some(format!(
+        "ground truth {} covers {covered} of the {} frames (its stamps {gt_range}, the \
+         frames' {frame_range}); errors are over those frames only",
+        gt_path.display(),
+        frames.len()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(t: f64, gt: bool) -> FrameRecord {
+        FrameRecord {
+            timestamp: t,
+            rgb_path: "r.png".into(),
+            depth_path: "d.png".into(),
+            gt_cam_to_world: gt.then_some(glam::DMat4::IDENTITY),
+        }
+    }
+
+    #[test]
+    fn intrinsics_beyond_physical_bounds_are_refused() {
+        let k = Intrinsics::ICL_NUIM;
+        assert!(
+            intrinsics_in_bounds(&k, "x").is_ok(),
+            "negative fy is a real camera's"
+        );
+        for bad in [1e39f64 as f32, f32::NAN, 0.5, 2e6] {
+            let e = intrinsics_in_bounds(&Intrinsics { fx: bad, ..k }, "cam.txt");
+            assert!(e.unwrap_err().to_string().contains("cam.txt"), "fx {bad}");
+        }
+        assert!(intrinsics_in_bounds(&Intrinsics { cy: -3e6, ..k }, "x").is_err());
+    }
+
+    #[test]
+    fn repeated_stamps_fail_before_any_frame() {
+        let ok = [frame(1.0, false), frame(2.0, false)];
+        assert!(stamps_distinct(Path::new("s"), &ok).is_ok());
+        let big = 2f64.powi(53);
+        let bad = [frame(big, false), frame(big + 1.0, false)];
+        let e = stamps_distinct(Path::new("s"), &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("1 frame(s) share a stamp"), "{e}");
+    }
+
+    #[test]
+    fn backwards_stamps_and_partial_ground_truth_are_noted() {
+        assert_eq!(order_note(Path::new("d.txt"), &[1.0, 2.0, 3.0]), None);
+        let n = order_note(Path::new("d.txt"), &[1.0, 3.0, 2.0, 4.0, 0.5]).unwrap();
+        assert!(
+            n.contains("d.txt") && n.contains("backwards 2 time(s)"),
+            "{n}"
+        );
+        let gt = Path::new("gt.txt");
+        let all = [frame(1.0, true), frame(2.0, true)];
+        assert_eq!(coverage_note(gt, &[1.0, 2.0], &all, 0.02), None);
+        let none = [frame(1.0, false), frame(2.0, false)];
+        let n = coverage_note(gt, &[101.0, 102.0], &none, 0.02).unwrap();
+        assert!(
+            n.contains("covers none of the 2") && n.contains("101..102"),
+            "{n}"
+        );
+        let half = [frame(1.0, true), frame(2.0, false)];
+        assert_eq!(coverage_note(gt, &[1.0], &half, 0.02), None);
+        let third = [frame(1.0, true), frame(2.0, false), frame(3.0, false)];
+        let n = coverage_note(gt, &[1.0], &third, 0.02).unwrap();
+        assert!(n.contains("covers 1 of the 3"), "{n}");
+    }
+}
