@@ -99,11 +99,17 @@ pub(crate) fn pose_from_array(a: &PyReadonlyArray2<f64>) -> PyResult<DMat4> {
     Ok(DMat4::from_cols_array(&rows).transpose())
 }
 
+/// A trajectory as arrays: stamps `(N,)` float64 and poses `(N, 4, 4)` float64.
+pub(crate) type TrajectoryArrays<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>);
+
+/// A frame's images as arrays: depth `(H, W)` uint16 raw units, RGB `(H, W, 3)` uint8.
+pub(crate) type FrameArrays<'py> = (Bound<'py, PyArray2<u16>>, Bound<'py, PyArray3<u8>>);
+
 /// A trajectory as `(stamps (N,) float64, poses (N, 4, 4) float64 camera-to-world)`.
 pub(crate) fn trajectory_arrays<'py>(
     py: Python<'py>,
     traj: &[(f64, DMat4)],
-) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>) {
+) -> TrajectoryArrays<'py> {
     let stamps: Array1<f64> = traj.iter().map(|(t, _)| *t).collect();
     let poses: Vec<f64> = traj
         .iter()
@@ -190,18 +196,12 @@ struct Run {
 impl Run {
     /// `trajectory.tum`'s poses: `(stamps (N,), poses (N, 4, 4))`, camera to world, after
     /// loop closure when it ran.
-    fn trajectory<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>) {
+    fn trajectory<'py>(&self, py: Python<'py>) -> TrajectoryArrays<'py> {
         trajectory_arrays(py, &self.result.trajectory())
     }
 
     /// `trajectory_odometry.tum`'s poses: as tracked, before any loop closure.
-    fn odometry<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>) {
+    fn odometry<'py>(&self, py: Python<'py>) -> TrajectoryArrays<'py> {
         trajectory_arrays(py, &run_job::trajectory(&self.result.frames))
     }
 

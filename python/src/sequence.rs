@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use numpy::ndarray::{Array2, Array3};
-use numpy::{IntoPyArray, PyArray2, PyArray3};
+use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyIndexError;
 use pyo3::prelude::*;
 
@@ -13,7 +13,7 @@ use wgslam::cli::embed;
 use wgslam::dataset::Sequence;
 use wgslam::slam::params::PoseSource;
 
-use crate::{params_toml, pose_array, py_err};
+use crate::{params_toml, pose_array, py_err, FrameArrays};
 
 /// An opened sequence: its camera, depth scale, stamps, ground truth and images.
 #[pyclass(module = "wgslam._native", name = "Sequence", frozen)]
@@ -78,11 +78,7 @@ impl SequenceFrames {
     /// Frame `i`'s images as decoded for a run: `(depth (H, W) uint16 raw units, rgb (H, W,
     /// 3) uint8)`, row-major, colour resampled onto the depth image where the layout's
     /// colour camera differs.
-    fn frame<'py>(
-        &self,
-        py: Python<'py>,
-        i: usize,
-    ) -> PyResult<(Bound<'py, PyArray2<u16>>, Bound<'py, PyArray3<u8>>)> {
+    fn frame<'py>(&self, py: Python<'py>, i: usize) -> PyResult<FrameArrays<'py>> {
         self.record(i)?;
         let raw = py.detach(|| self.sequence.load(i)).map_err(py_err)?;
         let (h, w) = (raw.height as usize, raw.width as usize);

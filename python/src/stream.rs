@@ -8,9 +8,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use glam::DMat4;
-use numpy::{
-    PyArray1, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
-};
+use numpy::{PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -24,7 +22,7 @@ use wgslam::AnyBackend;
 
 use crate::{
     backend_choice, map_dict, params_toml, pose_array, pose_from_array, pose_source, py_err,
-    trajectory_arrays,
+    trajectory_arrays, TrajectoryArrays,
 };
 
 /// The tracker and what it has been given so far.
@@ -237,10 +235,7 @@ impl Stream {
 
     /// The trajectory so far: `(stamps (N,), poses (N, 4, 4))`, camera to world, the tracked
     /// frames only, after loop closure when it runs.
-    fn trajectory<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>)> {
+    fn trajectory<'py>(&self, py: Python<'py>) -> PyResult<TrajectoryArrays<'py>> {
         Ok(trajectory_arrays(py, &self.state()?.trajectory()))
     }
 }
