@@ -197,26 +197,29 @@ impl Stream {
             None => vec![pack_rgba8([0, 0, 0]); w * h],
         };
         let pose = pose.as_ref().map(pose_from_array).transpose()?;
-        let mut state = self.state()?;
-        let id = frame_id.unwrap_or(state.next_frame);
-        let stamp = timestamp.unwrap_or(f64::from(id));
-        let state = &mut *state;
-        let report = py
-            .detach(|| {
-                let raw = match depth {
-                    Depth::Raw(d) => d,
-                    Depth::Metres(m) => {
-                        embed::raw_depth_from_metres(&m, state.slam.params.input.depth_scale)
-                    }
-                };
-                state.slam.process(id, &raw, &rgba, pose.as_ref())
-            })
-            .map_err(py_err)?;
-        state.next_frame = id.wrapping_add(1);
-        if report.status.is_tracked() {
-            state.stamps.insert(id, stamp);
-            state.tracked.push((stamp, report.t_cam_to_world));
-        }
+        // The lock is taken with the interpreter's released: another thread's call waits for
+        // it without holding the interpreter this call needs to return.
+        let report = py.detach(|| -> PyResult<_> {
+            let mut state = self.state()?;
+            let id = frame_id.unwrap_or(state.next_frame);
+            let raw = match depth {
+                Depth::Raw(d) => d,
+                Depth::Metres(m) => {
+                    embed::raw_depth_from_metres(&m, state.slam.params.input.depth_scale)
+                }
+            };
+            let report = state
+                .slam
+                .process(id, &raw, &rgba, pose.as_ref())
+                .map_err(py_err)?;
+            state.next_frame = id.wrapping_add(1);
+            if report.status.is_tracked() {
+                let stamp = timestamp.unwrap_or(f64::from(id));
+                state.stamps.insert(id, stamp);
+                state.tracked.push((stamp, report.t_cam_to_world));
+            }
+            Ok(report)
+        })?;
         let (status, detail) = status_words(&report.status);
         let json =
             serde_json::to_string(&report).map_err(|e| crate::Error::new_err(e.to_string()))?;
@@ -225,17 +228,14 @@ impl Stream {
 
     /// The map now, as a dict of arrays (see `wgslam.RunResult.map`).
     fn map<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let mut state = self.state()?;
-        let state = &mut *state;
-        let map = py
-            .detach(|| state.slam.backend.download_map())
-            .map_err(py_err)?;
+        let map = py.detach(|| self.state()?.slam.backend.download_map().map_err(py_err))?;
         map_dict(py, &map)
     }
 
     /// The trajectory so far: `(stamps (N,), poses (N, 4, 4))`, camera to world, the tracked
     /// frames only, after loop closure when it runs.
     fn trajectory<'py>(&self, py: Python<'py>) -> PyResult<TrajectoryArrays<'py>> {
-        Ok(trajectory_arrays(py, &self.state()?.trajectory()))
+        let trajectory = py.detach(|| self.state().map(|s| s.trajectory()))?;
+        Ok(trajectory_arrays(py, &trajectory))
     }
 }
