@@ -106,22 +106,17 @@ impl Stream {
         poses: &str,
         params_json: &str,
     ) -> PyResult<Self> {
-        let (width, height, fx, fy, cx, cy) = intrinsics;
+        // (width, height, fx, fy, cx, cy), as `Sequence.intrinsics()` gives them.
         let k = Intrinsics {
-            width,
-            height,
-            fx,
-            fy,
-            cx,
-            cy,
+            width: intrinsics.0,
+            height: intrinsics.1,
+            fx: intrinsics.2,
+            fy: intrinsics.3,
+            cx: intrinsics.4,
+            cy: intrinsics.5,
         };
-        let ok = |x: f32| x.is_finite();
-        if width == 0
-            || height == 0
-            || fx == 0.0
-            || fy == 0.0
-            || ![fx, fy, cx, cy].map(ok).iter().all(|&b| b)
-        {
+        let finite = [k.fx, k.fy, k.cx, k.cy].iter().all(|x| x.is_finite());
+        if k.width == 0 || k.height == 0 || k.fx == 0.0 || k.fy == 0.0 || !finite {
             return Err(PyValueError::new_err(format!(
                 "intrinsics {intrinsics:?}: want a non-empty image and finite fx, fy, cx, cy with \
                  fx, fy non-zero"
@@ -145,7 +140,7 @@ impl Stream {
                 stamps: HashMap::new(),
                 tracked: vec![],
             }),
-            size: (width as usize, height as usize),
+            size: (k.width as usize, k.height as usize),
         })
     }
 
