@@ -1,9 +1,9 @@
 //! `wgslam._native`: the pyo3 extension module under the Python package `wgslam`
 //! (python/wgslam, which checks arrays and gives the documented API; docs/python.md).
 //!
-//! What is here: whole runs ([`run`], the library's `run_observed` on a sequence resolved
-//! as `wgslam run` resolves it), a sequence's frames as arrays ([`sequence`]), the streaming
-//! tracker ([`stream`]), and the command line's entry point ([`main`]). Frames are processed
+//! What is here: whole runs (`run`, the library's `run_observed` on a sequence resolved
+//! as `wgslam run` resolves it), a sequence's frames as arrays (module `sequence`), the streaming
+//! tracker (module `stream`), and the command line's entry point (`main`). Frames are processed
 //! with the interpreter's lock released (`Python::detach`), so Python threads run meanwhile.
 //! Errors are `wgslam.Error` with the command line's message (what it prints after
 //! `error: `). Not here: shape and dtype checks with their messages (the Python package's,
