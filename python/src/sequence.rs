@@ -11,7 +11,6 @@ use pyo3::prelude::*;
 
 use wgslam::cli::embed;
 use wgslam::dataset::Sequence;
-use wgslam::slam::params::PoseSource;
 
 use crate::{params_toml, pose_array, py_err, FrameArrays};
 
@@ -99,11 +98,11 @@ pub fn open_sequence(
     params_json: &str,
 ) -> PyResult<SequenceFrames> {
     let text = params_toml(params_json)?;
-    let setup = py
-        .detach(|| embed::resolve_run(dataset.as_deref(), None, &text, PoseSource::Track))
+    let sequence = py
+        .detach(|| embed::open_sequence(dataset.as_deref(), &text))
         .map_err(py_err)?;
     Ok(SequenceFrames {
-        default_first: *setup.frames.start(),
-        sequence: setup.sequence,
+        default_first: sequence.default_first_frame(),
+        sequence,
     })
 }

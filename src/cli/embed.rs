@@ -116,6 +116,22 @@ pub struct RunSetup {
     pub params: SlamParams,
 }
 
+/// The sequence and overrides of `wgslam run DATASET --params FILE`.
+fn setup(dataset: Option<&Path>, params_toml: &str) -> Result<Setup> {
+    Ok(Setup {
+        dataset: dataset.map(PathBuf::from),
+        set: overrides(params_toml)?,
+    })
+}
+
+/// Opens `dataset` (`None`: the bundled frames) as `wgslam run DATASET --params FILE`
+/// opens it, with the dataset keys of the parameter text `params_toml` (`camera`,
+/// `intrinsics`, `depth-scale`, `gt`, `max-time-diff`); what opening decided on the user's
+/// behalf is printed on stderr as `note: ...`, as by the command line.
+pub fn open_sequence(dataset: Option<&Path>, params_toml: &str) -> Result<Sequence> {
+    setup(dataset, params_toml)?.open_sequence()
+}
+
 /// Resolves `wgslam run DATASET --frames FRAMES --params FILE --poses POSES` without
 /// running it: `dataset` the sequence's folder (`None`: the bundled frames), `frames` an
 /// inclusive range `"A..B"` by position (`None`: from the first frame with ground truth to
@@ -126,10 +142,7 @@ pub fn resolve_run(
     params_toml: &str,
     poses: PoseSource,
 ) -> Result<RunSetup> {
-    let setup = Setup {
-        dataset: dataset.map(PathBuf::from),
-        set: overrides(params_toml)?,
-    };
+    let setup = setup(dataset, params_toml)?;
     let sequence = setup.open_sequence()?;
     let (first, last) = match frames {
         Some(r) => dataset::parse_range(r)?,
