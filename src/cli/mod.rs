@@ -9,10 +9,12 @@
 //! | [`render`] | `render`: a map PLY to a PNG |
 //! | [`scan`] | point-cloud registration, odometry and its benchmark |
 //! | `batch` | `batch`: manifests of many runs |
+//! | [`embed`] | the entry point `main` from argument strings, and what the Python package resolves as `run` does |
 
 pub(crate) mod batch;
 pub(crate) mod bench;
 pub(crate) mod compare;
+pub mod embed;
 pub(crate) mod eval;
 pub(crate) mod icp;
 pub(crate) mod params_file;

@@ -209,10 +209,12 @@ pub trait Inspect {
 }
 
 /// A backend that can also be inspected: what the command line runs (`Box<dyn
-/// SlamBackend>`, see [`crate::slam::any_backend::AnyBackend`]).
-pub trait SlamBackend: Backend + Inspect {}
+/// SlamBackend>`, see [`crate::slam::any_backend::AnyBackend`]). `Send`, so that a boxed
+/// backend can run on a thread other than the one that opened it (the Python package
+/// processes frames with the interpreter's lock released).
+pub trait SlamBackend: Backend + Inspect + Send {}
 
-impl<T: Backend + Inspect + ?Sized> SlamBackend for T {}
+impl<T: Backend + Inspect + Send + ?Sized> SlamBackend for T {}
 
 /// A boxed backend is a backend (the CLI picks CPU or GPU at run time): every step goes to
 /// the box's content. The one hand-written forwarding of the trait besides
