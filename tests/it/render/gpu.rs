@@ -33,6 +33,7 @@ fn render_params_layout_matches_both_shaders() {
         far_m,
         weight_max,
         background,
+        fill_gap_px,
     });
     let mut failures = Vec::new();
     for kernel in ["render_splat", "render_splat_portable", "render_resolve"] {
