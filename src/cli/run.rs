@@ -59,11 +59,18 @@ pub struct RunArgs {
     /// after the last.
     #[arg(long, value_name = "N", default_value_t = 10)]
     pub rerun_map_every: usize,
+    /// Also write mesh.ply: a triangle mesh of the map with vertex colours (a TSDF of the
+    /// surfels at 1 cm voxels, surface nets; `wgslam mesh` makes one from a map.ply).
+    #[arg(long)]
+    pub mesh: bool,
     // The sequence, a parameter file and the parameters (last, so their help heading
     // follows this command's own options).
     #[command(flatten)]
     pub pipeline: PipelineArgs,
 }
+
+/// The mesh `run --mesh` writes beside map.ply.
+pub const MESH_FILE: &str = "mesh.ply";
 
 /// A progress bar on stderr, hidden when stderr is not a terminal.
 /// Default of `run --max-surfels`.
@@ -265,6 +272,9 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         .map(|n| n.to_string_lossy().into_owned());
     let mut names: Vec<&str> = run::OUTPUT_FILES.to_vec();
     names.extend(rerun_in_out.as_deref());
+    if a.mesh {
+        names.push(MESH_FILE);
+    }
     let outputs = OutputSet::begin(&a.out, &names)?;
     let rerun_path = match &rerun_in_out {
         Some(name) => Some(outputs.dir().join(name)),
@@ -294,6 +304,18 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
     }
     run::write_outputs(outputs.dir(), &result)?;
     let pictures = run::write_pictures(outputs.dir(), &result, &seq)?;
+    let mut pictures = pictures;
+    if a.mesh {
+        let path = outputs.dir().join(MESH_FILE);
+        let mesh = crate::mesh::mesh_from_map(&result.map, &Default::default())?;
+        crate::mesh::write::write_mesh(&path, &mesh)?;
+        say(&format!(
+            "mesh: {} vertices, {} triangles",
+            mesh.positions.len(),
+            mesh.triangles.len()
+        ));
+        pictures.push(path);
+    }
     let pictures: Vec<PathBuf> = pictures
         .iter()
         .filter_map(|p| p.file_name().map(|n| a.out.join(n)))

@@ -1,0 +1,157 @@
+//! How well a mesh fits the points it was made from: the distance of each mesh vertex to
+//! the nearest map point (does the mesh invent surface?) and of each map point to the mesh
+//! (does the mesh cover the map?), as mean, median and 95th percentile in millimetres.
+//!
+//! Point-to-mesh distances are exact distances to the triangles around the point's
+//! nearest mesh vertex (a KD-tree over the vertices): exact where the nearest triangle
+//! touches the nearest vertex, which holds on meshes whose triangles are about as large as
+//! their vertex spacing (surface nets). A map point near a hole's rim measures its
+//! distance to the rim.
+
+use glam::Vec3;
+use serde::Serialize;
+
+use super::Mesh;
+use crate::scan::nn::{KdTreeTarget, NearestNeighbours};
+use crate::{Error, Result};
+
+/// Summary of one set of distances, millimetres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DistanceStats {
+    pub mean_mm: f64,
+    pub median_mm: f64,
+    pub p95_mm: f64,
+}
+
+impl DistanceStats {
+    /// The summary of `metres` (not empty).
+    pub fn of_metres(mut metres: Vec<f64>) -> DistanceStats {
+        assert!(!metres.is_empty(), "no distances to summarise");
+        metres.sort_by(f64::total_cmp);
+        let at = |q: f64| metres[((metres.len() - 1) as f64 * q).round() as usize] * 1e3;
+        DistanceStats {
+            mean_mm: metres.iter().sum::<f64>() / metres.len() as f64 * 1e3,
+            median_mm: at(0.5),
+            p95_mm: at(0.95),
+        }
+    }
+}
+
+/// A mesh measured against a point set.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeshAccuracy {
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Mesh vertex to nearest point.
+    pub vertex_to_points: DistanceStats,
+    /// Point to nearest mesh triangle (see the module header).
+    pub points_to_mesh: DistanceStats,
+    /// Fraction of the points within `covered_within_mm` of the mesh.
+    pub covered_fraction: f64,
+    pub covered_within_mm: f64,
+}
+
+/// The closest point to `p` on triangle `(a, b, c)` (by the triangle's Voronoi regions).
+pub fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < f32::MIN_POSITIVE {
+        // A degenerate triangle: its nearest corner.
+        return [a, b, c]
+            .into_iter()
+            .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
+            .expect("three corners");
+    }
+    a + ab * (vb / denom) + ac * (vc / denom)
+}
+
+/// Measures `mesh` against `points` (metres, the mesh's frame); `covered_within_mm` is the
+/// distance up to which a point counts as covered.
+pub fn measure(mesh: &Mesh, points: &[[f32; 3]], covered_within_mm: f64) -> Result<MeshAccuracy> {
+    if mesh.is_empty() || points.is_empty() {
+        return Err(Error::Argument(
+            "cannot measure an empty mesh or against no points".into(),
+        ));
+    }
+    let to_points = KdTreeTarget::new(points)?;
+    let mut nn = vec![(0u32, 0f32); mesh.positions.len()];
+    to_points.nearest(&mesh.positions, &mut nn)?;
+    let vertex_to_points =
+        DistanceStats::of_metres(nn.iter().map(|x| (x.1 as f64).sqrt()).collect());
+
+    // Triangles around each vertex (CSR).
+    let mut start = vec![0usize; mesh.positions.len() + 1];
+    for t in &mesh.triangles {
+        for &i in t {
+            start[i as usize + 1] += 1;
+        }
+    }
+    for i in 0..mesh.positions.len() {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut around = vec![0u32; start[mesh.positions.len()]];
+    for (ti, t) in mesh.triangles.iter().enumerate() {
+        for &i in t {
+            around[fill[i as usize]] = ti as u32;
+            fill[i as usize] += 1;
+        }
+    }
+    let to_vertices = KdTreeTarget::new(&mesh.positions)?;
+    let mut nv = vec![(0u32, 0f32); points.len()];
+    to_vertices.nearest(points, &mut nv)?;
+    let v = |i: u32| Vec3::from(mesh.positions[i as usize]);
+    let dists: Vec<f64> = points
+        .iter()
+        .zip(&nv)
+        .map(|(p, &(vi, d_sq))| {
+            let p = Vec3::from(*p);
+            let best = around[start[vi as usize]..start[vi as usize + 1]]
+                .iter()
+                .map(|&ti| {
+                    let t = mesh.triangles[ti as usize];
+                    closest_on_triangle(p, v(t[0]), v(t[1]), v(t[2])).distance_squared(p)
+                })
+                .fold(d_sq, f32::min);
+            (best as f64).sqrt()
+        })
+        .collect();
+    let covered = dists
+        .iter()
+        .filter(|&&d| d * 1e3 <= covered_within_mm)
+        .count();
+    Ok(MeshAccuracy {
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+        vertex_to_points,
+        points_to_mesh: DistanceStats::of_metres(dists),
+        covered_fraction: covered as f64 / points.len() as f64,
+        covered_within_mm,
+    })
+}
