@@ -84,7 +84,12 @@ pub fn run_mesh(args: &MeshArgs) -> Result<MeshReport> {
         )));
     }
     write_mesh(&args.out, &mesh)?;
-    let accuracy = Some(measure(&mesh, &ply.positions, COVERED_WITHIN_MM)?);
+    let accuracy = Some(measure(
+        &mesh,
+        &ply.positions,
+        Some(normals),
+        COVERED_WITHIN_MM,
+    )?);
     Ok(MeshReport {
         points: ply.positions.len(),
         format: MeshFormat::of_path(&args.out),
@@ -110,6 +115,9 @@ pub fn execute(args: MeshArgs) -> Result<()> {
             )
         };
         println!("vertex to map point: {}", s(a.vertex_to_points));
+        if let Some(p) = a.vertex_to_plane {
+            println!("vertex to its plane: {}", s(p));
+        }
         println!(
             "map point to mesh:   {}; {:.1} % within {} mm",
             s(a.points_to_mesh),

@@ -2,6 +2,11 @@
 //! the nearest map point (does the mesh invent surface?) and of each map point to the mesh
 //! (does the mesh cover the map?), as mean, median and 95th percentile in millimetres.
 //!
+//! With the points' normals (surfels), each vertex's distance to the nearest surfel's
+//! plane is given too: on a map whose points are a centimetre apart, the distance to the
+//! nearest point mostly measures that spacing, the distance to its plane how far the mesh
+//! is off the surface.
+//!
 //! Point-to-mesh distances are exact distances to the triangles around the point's
 //! nearest mesh vertex (a KD-tree over the vertices): exact where the nearest triangle
 //! touches the nearest vertex, which holds on meshes whose triangles are about as large as
@@ -44,6 +49,8 @@ pub struct MeshAccuracy {
     pub triangles: usize,
     /// Mesh vertex to nearest point.
     pub vertex_to_points: DistanceStats,
+    /// Mesh vertex to the plane of the nearest point (given normals).
+    pub vertex_to_plane: Option<DistanceStats>,
     /// Point to nearest mesh triangle (see the module header).
     pub points_to_mesh: DistanceStats,
     /// Fraction of the points within `covered_within_mm` of the mesh.
@@ -91,19 +98,36 @@ pub fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     a + ab * (vb / denom) + ac * (vc / denom)
 }
 
-/// Measures `mesh` against `points` (metres, the mesh's frame); `covered_within_mm` is the
-/// distance up to which a point counts as covered.
-pub fn measure(mesh: &Mesh, points: &[[f32; 3]], covered_within_mm: f64) -> Result<MeshAccuracy> {
+/// Measures `mesh` against `points` (metres, the mesh's frame) and, when given, their unit
+/// `normals` (one per point); `covered_within_mm` is the distance up to which a point
+/// counts as covered.
+pub fn measure(
+    mesh: &Mesh,
+    points: &[[f32; 3]],
+    normals: Option<&[[f32; 3]]>,
+    covered_within_mm: f64,
+) -> Result<MeshAccuracy> {
     if mesh.is_empty() || points.is_empty() {
         return Err(Error::Argument(
             "cannot measure an empty mesh or against no points".into(),
         ));
+    }
+    if normals.is_some_and(|n| n.len() != points.len()) {
+        return Err(Error::Argument("one normal per point needed".into()));
     }
     let to_points = KdTreeTarget::new(points)?;
     let mut nn = vec![(0u32, 0f32); mesh.positions.len()];
     to_points.nearest(&mesh.positions, &mut nn)?;
     let vertex_to_points =
         DistanceStats::of_metres(nn.iter().map(|x| (x.1 as f64).sqrt()).collect());
+    let vertex_to_plane = normals.map(|normals| {
+        let d = mesh.positions.iter().zip(&nn).map(|(v, &(i, _))| {
+            let i = i as usize;
+            let off = Vec3::from(*v) - Vec3::from(points[i]);
+            off.dot(Vec3::from(normals[i])).abs() as f64
+        });
+        DistanceStats::of_metres(d.collect())
+    });
 
     // Triangles around each vertex (CSR).
     let mut start = vec![0usize; mesh.positions.len() + 1];
@@ -150,6 +174,7 @@ pub fn measure(mesh: &Mesh, points: &[[f32; 3]], covered_within_mm: f64) -> Resu
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
         vertex_to_points,
+        vertex_to_plane,
         points_to_mesh: DistanceStats::of_metres(dists),
         covered_fraction: covered as f64 / points.len() as f64,
         covered_within_mm,

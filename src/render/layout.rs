@@ -56,6 +56,8 @@ pub struct RenderParams {
     /// this many pixels away on opposite sides (up/down or left/right) whose depths agree
     /// (the gaps between rows of surfels seen at a grazing angle); 0 fills nothing.
     pub fill_gap_px: u32,
-    /// Padding to 16 bytes (WGSL's uniform/storage struct alignment).
-    pub _pad: [u32; 3],
+    /// Padding to a multiple of 16 bytes (mirrors `_pad0.._pad2` in WGSL).
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }

@@ -233,7 +233,9 @@ pub fn render_params(
         weight_max: if weight_max > 0.0 { weight_max } else { 1.0 },
         background: crate::layout::pack_rgba8(bg),
         fill_gap_px: settings.fill_gap_px,
-        _pad: [0; 3],
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
     })
 }
 

@@ -34,6 +34,9 @@ fn render_params_layout_matches_both_shaders() {
         weight_max,
         background,
         fill_gap_px,
+        _pad0,
+        _pad1,
+        _pad2,
     });
     let mut failures = Vec::new();
     for kernel in ["render_splat", "render_splat_portable", "render_resolve"] {
