@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use web_time::Instant;
 
 use crate::io::ply::read_ply;
-use crate::mesh::accuracy::{measure, MeshAccuracy};
+use crate::mesh::accuracy::{measure, DistanceStats, MeshAccuracy};
 use crate::mesh::write::{write_mesh, MeshFormat};
 use crate::mesh::{mesh_from_surfels, MeshParams, Surfels, DEFAULT_VOXEL_M};
 use crate::{Error, Result};
@@ -100,6 +100,30 @@ pub fn run_mesh(args: &MeshArgs) -> Result<MeshReport> {
     })
 }
 
+/// The printed summary of a mesh's accuracy (also `run --mesh`'s).
+pub fn accuracy_lines(a: &MeshAccuracy) -> Vec<String> {
+    let s = |d: DistanceStats| {
+        format!(
+            "mean {:.2} / median {:.2} / p95 {:.2} mm",
+            d.mean_mm, d.median_mm, d.p95_mm
+        )
+    };
+    let mut lines = vec![format!(
+        "mesh vertex to map point: {}",
+        s(a.vertex_to_points)
+    )];
+    if let Some(p) = a.vertex_to_plane {
+        lines.push(format!("mesh vertex to its plane: {}", s(p)));
+    }
+    lines.push(format!(
+        "map point to mesh: {}; {:.1} % within {} mm",
+        s(a.points_to_mesh),
+        a.covered_fraction * 100.0,
+        a.covered_within_mm
+    ));
+    lines
+}
+
 /// `wgslam mesh`: runs and prints.
 pub fn execute(args: MeshArgs) -> Result<()> {
     let r = run_mesh(&args)?;
@@ -108,22 +132,9 @@ pub fn execute(args: MeshArgs) -> Result<()> {
         r.points, args.voxel, r.mesh_s, r.vertices, r.triangles, r.format
     );
     if let Some(a) = r.accuracy {
-        let s = |d: crate::mesh::accuracy::DistanceStats| {
-            format!(
-                "mean {:.2} / median {:.2} / p95 {:.2} mm",
-                d.mean_mm, d.median_mm, d.p95_mm
-            )
-        };
-        println!("vertex to map point: {}", s(a.vertex_to_points));
-        if let Some(p) = a.vertex_to_plane {
-            println!("vertex to its plane: {}", s(p));
+        for line in accuracy_lines(&a) {
+            println!("{line}");
         }
-        println!(
-            "map point to mesh:   {}; {:.1} % within {} mm",
-            s(a.points_to_mesh),
-            a.covered_fraction * 100.0,
-            a.covered_within_mm
-        );
     }
     println!("wrote {}", args.out.display());
     Ok(())

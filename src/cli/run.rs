@@ -9,6 +9,7 @@ use crate::batch::in_process::{Embedded, RunHooks};
 use crate::dataset;
 use crate::io::outputs::OutputSet;
 use crate::slam::any_backend::{self, BackendChoice};
+use crate::slam::map::SurfelMap;
 use crate::slam::params::PoseSource;
 use crate::tools::run;
 use crate::{Error, Result};
@@ -71,6 +72,33 @@ pub struct RunArgs {
 
 /// The mesh `run --mesh` writes beside map.ply.
 pub const MESH_FILE: &str = "mesh.ply";
+
+/// Meshes `map` into `path` (`run --mesh`) and says its size, time and accuracy.
+fn write_run_mesh(path: &Path, map: &SurfelMap, say: &dyn Fn(&str)) -> Result<()> {
+    let start = web_time::Instant::now();
+    let mesh = crate::mesh::mesh_from_map(map, &Default::default())?;
+    say(&format!(
+        "mesh: {} vertices, {} triangles in {:.2} s",
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        start.elapsed().as_secs_f64()
+    ));
+    if mesh.is_empty() {
+        say("note: the map makes no surface; mesh.ply has no triangle");
+    } else {
+        let s = crate::mesh::MapSurfels::new(map);
+        let a = crate::mesh::accuracy::measure(
+            &mesh,
+            &s.positions,
+            Some(&s.normals),
+            super::mesh::COVERED_WITHIN_MM,
+        )?;
+        for line in super::mesh::accuracy_lines(&a) {
+            say(&line);
+        }
+    }
+    crate::mesh::write::write_mesh(path, &mesh)
+}
 
 /// A progress bar on stderr, hidden when stderr is not a terminal.
 /// Default of `run --max-surfels`.
@@ -307,13 +335,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
     let mut pictures = pictures;
     if a.mesh {
         let path = outputs.dir().join(MESH_FILE);
-        let mesh = crate::mesh::mesh_from_map(&result.map, &Default::default())?;
-        crate::mesh::write::write_mesh(&path, &mesh)?;
-        say(&format!(
-            "mesh: {} vertices, {} triangles",
-            mesh.positions.len(),
-            mesh.triangles.len()
-        ));
+        write_run_mesh(&path, &result.map, &say)?;
         pictures.push(path);
     }
     let pictures: Vec<PathBuf> = pictures
