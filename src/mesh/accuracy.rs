@@ -58,44 +58,37 @@ pub struct MeshAccuracy {
     pub covered_within_mm: f64,
 }
 
-/// The closest point to `p` on triangle `(a, b, c)` (by the triangle's Voronoi regions).
-pub fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
+/// The closest point to `p` on the segment from `a` to `b`.
+fn closest_on_segment(p: Vec3, a: Vec3, b: Vec3) -> Vec3 {
+    let ab = b - a;
+    let len_sq = ab.length_squared();
+    if len_sq <= f32::MIN_POSITIVE {
         return a;
     }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
+    a + ab * ((p - a).dot(ab) / len_sq).clamp(0.0, 1.0)
+}
+
+/// The closest point to `p` on triangle `(a, b, c)`: `p`'s projection onto the triangle's
+/// plane when it falls inside, else the closest point of the nearest edge (for a convex
+/// polygon the nearest point then lies on its boundary).
+pub fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let edges = [(a, b), (b, c), (c, a)];
+    let n = (b - a).cross(c - a);
+    let n_sq = n.length_squared();
+    if n_sq > f32::MIN_POSITIVE {
+        let q = p - n * ((p - a).dot(n) / n_sq);
+        if edges
+            .iter()
+            .all(|&(u, v)| n.dot((v - u).cross(q - u)) >= 0.0)
+        {
+            return q;
+        }
     }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = va + vb + vc;
-    if denom.abs() < f32::MIN_POSITIVE {
-        // A degenerate triangle: its nearest corner.
-        return [a, b, c]
-            .into_iter()
-            .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
-            .expect("three corners");
-    }
-    a + ab * (vb / denom) + ac * (vc / denom)
+    edges
+        .iter()
+        .map(|&(u, v)| closest_on_segment(p, u, v))
+        .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
+        .expect("three edges")
 }
 
 /// Measures `mesh` against `points` (metres, the mesh's frame) and, when given, their unit
@@ -179,4 +172,36 @@ pub fn measure(
         covered_fraction: covered as f64 / points.len() as f64,
         covered_within_mm,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Float slack of the closest-point checks, metres (values of order 1).
+    const EPS: f32 = 1e-6;
+
+    #[test]
+    fn closest_point_inside_on_edges_and_at_corners() {
+        let (a, b, c) = (Vec3::ZERO, Vec3::X, Vec3::Y);
+        let near = |p: Vec3, want: Vec3| {
+            let got = closest_on_triangle(p, a, b, c);
+            assert!(got.distance(want) < EPS, "{p}: got {got}, want {want}");
+        };
+        near(Vec3::new(0.2, 0.3, 0.7), Vec3::new(0.2, 0.3, 0.0)); // above the inside
+        near(Vec3::new(0.5, -1.0, 0.3), Vec3::new(0.5, 0.0, 0.0)); // beyond edge ab
+        near(Vec3::new(1.0, 1.0, -0.2), Vec3::new(0.5, 0.5, 0.0)); // beyond edge bc
+        near(Vec3::new(-1.0, -1.0, 0.0), a); // beyond corner a
+        near(Vec3::new(2.0, -0.5, 0.0), b); // beyond corner b
+                                            // A degenerate triangle (all on a line) measures to the segment.
+        let got = closest_on_triangle(Vec3::new(0.5, 1.0, 0.0), a, b, b);
+        assert!(got.distance(Vec3::new(0.5, 0.0, 0.0)) < EPS, "{got}");
+    }
+
+    #[test]
+    fn distance_stats_percentiles() {
+        let s = DistanceStats::of_metres((1..=100).map(|i| i as f64 * 1e-3).collect());
+        assert_eq!((s.median_mm.round(), s.p95_mm.round()), (51.0, 95.0));
+        assert!((s.mean_mm - 50.5).abs() < 1e-9);
+    }
 }
