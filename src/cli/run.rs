@@ -300,9 +300,9 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         .map(|n| n.to_string_lossy().into_owned());
     let mut names: Vec<&str> = run::OUTPUT_FILES.to_vec();
     names.extend(rerun_in_out.as_deref());
-    if a.mesh {
-        names.push(MESH_FILE);
-    }
+    // Always one of the set, so that a run without --mesh may replace one with it (the
+    // commit then removes the old mesh with the old set).
+    names.push(MESH_FILE);
     let outputs = OutputSet::begin(&a.out, &names)?;
     let rerun_path = match &rerun_in_out {
         Some(name) => Some(outputs.dir().join(name)),

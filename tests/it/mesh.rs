@@ -257,6 +257,41 @@ fn mesh_command_writes_a_mesh_and_refuses_a_map_without_normals() {
     assert!(!dir.join("bare_mesh.ply").exists());
 }
 
+fn run_mesh_flag_writes_mesh_ply_with_the_set() {
+    use common::cli::{text, wgslam};
+    let dir = common::temp_dir("run_mesh_flag");
+    let out = dir.join("out");
+    let out_s = out.to_str().unwrap();
+    let run = |mesh: bool| {
+        let mut args = vec![
+            "run",
+            "--backend",
+            "cpu",
+            "--frames",
+            "0..3",
+            "--out",
+            out_s,
+        ];
+        if mesh {
+            args.push("--mesh");
+        }
+        let o = wgslam(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        text(&o)
+    };
+    let said = run(true);
+    assert!(
+        said.contains("mesh:") && said.contains("within 5 mm"),
+        "{said}"
+    );
+    let mesh = read_back(&out.join("mesh.ply"));
+    assert!(!mesh.is_empty());
+    // The same folder again without --mesh: accepted (the mesh is one of the set) and the
+    // old mesh goes with the old set.
+    run(false);
+    assert!(out.join("map.ply").is_file() && !out.join("mesh.ply").exists());
+}
+
 pub fn tests() -> Vec<Test> {
     vec![
         plain(
@@ -266,6 +301,10 @@ pub fn tests() -> Vec<Test> {
         plain(
             "bundled_map_mesh_reads_back_and_fits_the_map",
             bundled_map_mesh_reads_back_and_fits_the_map,
+        ),
+        plain(
+            "run_mesh_flag_writes_mesh_ply_with_the_set",
+            run_mesh_flag_writes_mesh_ply_with_the_set,
         ),
         plain(
             "mesh_command_writes_a_mesh_and_refuses_a_map_without_normals",
