@@ -166,6 +166,10 @@ pub struct RenderSettings {
 /// (unseen surface) are wider and stay open.
 pub const DEFAULT_FILL_GAP_PX: u32 = 6;
 
+/// Largest [`RenderSettings::fill_gap_px`]: each empty pixel looks this far in four
+/// directions, so the resolve pass's work grows with it; wider gaps are holes of the map.
+pub const MAX_FILL_GAP_PX: u32 = 64;
+
 impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
@@ -191,6 +195,12 @@ pub fn render_params(
     cloud.check()?;
     let k = &camera.intrinsics;
     check_size(k.width, k.height)?;
+    if settings.fill_gap_px > MAX_FILL_GAP_PX {
+        return Err(Error::Argument(format!(
+            "gap filling of {} pixels is more than {MAX_FILL_GAP_PX}",
+            settings.fill_gap_px
+        )));
+    }
     let (view, _) = cloud.usable_view(view);
     let t_world_to_cam = se3::inverse_rigid(&camera.t_cam_to_world);
     // Without a far plane the depth range is fitted to the cloud, so that the depth view's

@@ -85,6 +85,12 @@ fn gap_fill_closes_the_stripes() {
         let drawn = rgba.iter().filter(|&&p| p != params.background).count();
         counts.push((stripe_pixels(&rgba, w as usize, params.background), drawn));
     }
+    // Past the documented maximum, refused.
+    let too_wide = RenderSettings {
+        fill_gap_px: render::MAX_FILL_GAP_PX + 1,
+        ..RenderSettings::default()
+    };
+    assert!(render::render_params(&cloud, &camera, View::Color, &too_wide).is_err());
     let [(before, drawn_before), (after, drawn_after)] = counts[..] else {
         unreachable!("two renders")
     };
