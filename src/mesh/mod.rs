@@ -26,15 +26,13 @@ pub mod write;
 use crate::slam::map::SurfelMap;
 use crate::{Error, Result};
 
-/// A triangle mesh, world frame, metres.
+/// A triangle mesh in the world frame: `positions` (metres) and `colors` (RGB 0..255) have
+/// one entry per vertex; `triangles` index them, counter-clockwise seen from the side the
+/// surfel normals point to (the side the camera saw).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Mesh {
-    /// Vertex positions, metres.
     pub positions: Vec<[f32; 3]>,
-    /// Vertex colours, RGB 0..255 (one per vertex).
     pub colors: Vec<[u8; 3]>,
-    /// Triangles as vertex indices, counter-clockwise seen from the side the surfel normals
-    /// point to (the side the camera saw).
     pub triangles: Vec<[u32; 3]>,
 }
 
