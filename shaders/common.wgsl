@@ -503,4 +503,8 @@ struct RenderParams {
     far_m: f32,
     weight_max: f32,
     background: u32,
+    fill_gap_px: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }

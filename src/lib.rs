@@ -37,6 +37,7 @@
 //! | [`geometry`] | SE(3), intrinsics, the rigid-alignment rotation |
 //! | [`dataset`], [`io`] | sequences in; trajectories, PLY and atomic writes |
 //! | `eval`, `stats` | ATE / RPE with the TUM benchmark's definitions; medians |
+//! | [`mesh`] | triangle meshes of a map: TSDF of the surfels, surface nets, PLY / OBJ |
 //! | [`render`] | headless pictures of maps and overlays, trajectory plots |
 //! | [`tools`] | the jobs: run, two-frame ICP, CPU-vs-GPU compare, bench |
 //! | `batch` | many runs from a TOML manifest: resumable, shardable over Slurm / Kubernetes arrays, one report |
@@ -68,6 +69,8 @@ pub mod gpu;
 pub mod io;
 #[doc(hidden)]
 pub mod layout;
+#[doc(hidden)]
+pub mod mesh;
 #[doc(hidden)]
 pub mod render;
 #[doc(hidden)]

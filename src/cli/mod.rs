@@ -7,6 +7,7 @@
 //! | `run`, `icp`, `compare`, `bench` | the dense pipeline's commands |
 //! | `eval` | ATE / RPE of two trajectories |
 //! | [`render`] | `render`: a map PLY to a PNG |
+//! | [`mesh`] | `mesh`: a map PLY to a triangle mesh (PLY or OBJ) |
 //! | [`scan`] | point-cloud registration, odometry and its benchmark |
 //! | `batch` | `batch`: manifests of many runs |
 //! | [`embed`] | the entry point `main` from argument strings, and what the Python package resolves as `run` does |
@@ -17,6 +18,7 @@ pub(crate) mod compare;
 pub mod embed;
 pub(crate) mod eval;
 pub(crate) mod icp;
+pub mod mesh;
 pub(crate) mod params_file;
 pub(crate) mod pipeline_args;
 pub mod render;
@@ -75,6 +77,9 @@ pub enum Command {
     BenchScan(scan::BenchScanArgs),
     /// Render a map PLY headlessly to a PNG (colour, normals, weight or depth view).
     Render(render::RenderArgs),
+    /// Mesh a map PLY: a TSDF of its surfels and surface nets, written as PLY with vertex
+    /// colours (or OBJ), with its distance to the map's points.
+    Mesh(mesh::MeshArgs),
     /// Run a TOML manifest of jobs (sequences x settings x backends), resumable and
     /// shardable (`--shard I/N`, Slurm / Kubernetes array indices); `batch collect DIR`
     /// writes summary.csv, summary.json and report.html; `batch diff A B` compares two.
@@ -116,6 +121,7 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Register(a) => scan::run_register(&a).map(|_| ()),
         Command::Odometry(a) => scan::run_odometry(&a).map(|_| ()),
         Command::Render(a) => render::execute(a),
+        Command::Mesh(a) => mesh::execute(a),
         Command::BenchScan(a) => scan::run_bench_scan(&a).map(|_| ()),
         Command::Batch(a) => batch::execute(a),
     }

@@ -46,6 +46,11 @@ pub struct RenderArgs {
     /// World radius of one splat, metres.
     #[arg(long, default_value_t = 0.01)]
     pub splat_radius: f32,
+    /// Fill empty pixels between drawn ones at most this many pixels apart (above and
+    /// below, or left and right) at the same depth: the gaps between rows of surfels seen
+    /// at a grazing angle; 0 draws the splats only.
+    #[arg(long, default_value_t = crate::render::DEFAULT_FILL_GAP_PX)]
+    pub fill_gaps: u32,
     /// Draw surfels that face away from the camera too (by default they are hidden, so a
     /// viewpoint outside a room sees in through its walls).
     #[arg(long)]
@@ -211,6 +216,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderReport> {
     let settings = RenderSettings {
         splat_radius_m: args.splat_radius,
         cull_backfaces: !args.no_cull,
+        fill_gap_px: args.fill_gaps,
         ..RenderSettings::default()
     };
     let gpu = open_gpu(args.backend, &mut warnings)?;

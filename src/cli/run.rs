@@ -9,6 +9,7 @@ use crate::batch::in_process::{Embedded, RunHooks};
 use crate::dataset;
 use crate::io::outputs::OutputSet;
 use crate::slam::any_backend::{self, BackendChoice};
+use crate::slam::map::SurfelMap;
 use crate::slam::params::PoseSource;
 use crate::tools::run;
 use crate::{Error, Result};
@@ -59,10 +60,44 @@ pub struct RunArgs {
     /// after the last.
     #[arg(long, value_name = "N", default_value_t = 10)]
     pub rerun_map_every: usize,
+    /// Also write mesh.ply: a triangle mesh of the map with vertex colours (a TSDF of the
+    /// surfels at 1 cm voxels, surface nets; `wgslam mesh` makes one from a map.ply).
+    #[arg(long)]
+    pub mesh: bool,
     // The sequence, a parameter file and the parameters (last, so their help heading
     // follows this command's own options).
     #[command(flatten)]
     pub pipeline: PipelineArgs,
+}
+
+/// The mesh `run --mesh` writes beside map.ply.
+pub const MESH_FILE: &str = "mesh.ply";
+
+/// Meshes `map` into `path` (`run --mesh`) and says its size, time and accuracy.
+fn write_run_mesh(path: &Path, map: &SurfelMap, say: &dyn Fn(&str)) -> Result<()> {
+    let start = web_time::Instant::now();
+    let mesh = crate::mesh::mesh_from_map(map, &Default::default())?;
+    say(&format!(
+        "mesh: {} vertices, {} triangles in {:.2} s",
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        start.elapsed().as_secs_f64()
+    ));
+    if mesh.is_empty() {
+        say("note: the map makes no surface; mesh.ply has no triangle");
+    } else {
+        let s = crate::mesh::MapSurfels::new(map);
+        let a = crate::mesh::accuracy::measure(
+            &mesh,
+            &s.positions,
+            Some(&s.normals),
+            super::mesh::COVERED_WITHIN_MM,
+        )?;
+        for line in super::mesh::accuracy_lines(&a) {
+            say(&line);
+        }
+    }
+    crate::mesh::write::write_mesh(path, &mesh)
 }
 
 /// A progress bar on stderr, hidden when stderr is not a terminal.
@@ -265,6 +300,9 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         .map(|n| n.to_string_lossy().into_owned());
     let mut names: Vec<&str> = run::OUTPUT_FILES.to_vec();
     names.extend(rerun_in_out.as_deref());
+    // Always one of the set, so that a run without --mesh may replace one with it (the
+    // commit then removes the old mesh with the old set).
+    names.push(MESH_FILE);
     let outputs = OutputSet::begin(&a.out, &names)?;
     let rerun_path = match &rerun_in_out {
         Some(name) => Some(outputs.dir().join(name)),
@@ -294,6 +332,12 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
     }
     run::write_outputs(outputs.dir(), &result)?;
     let pictures = run::write_pictures(outputs.dir(), &result, &seq)?;
+    let mut pictures = pictures;
+    if a.mesh {
+        let path = outputs.dir().join(MESH_FILE);
+        write_run_mesh(&path, &result.map, &say)?;
+        pictures.push(path);
+    }
     let pictures: Vec<PathBuf> = pictures
         .iter()
         .filter_map(|p| p.file_name().map(|n| a.out.join(n)))

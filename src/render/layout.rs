@@ -52,4 +52,12 @@ pub struct RenderParams {
     pub weight_max: f32,
     /// Background colour, `r | g << 8 | b << 16 | 255 << 24`.
     pub background: u32,
+    /// `render_resolve` fills an empty pixel from the nearer of two covered pixels at most
+    /// this many pixels away on opposite sides (up/down or left/right) whose depths agree
+    /// (the gaps between rows of surfels seen at a grazing angle); 0 fills nothing.
+    pub fill_gap_px: u32,
+    /// Padding to a multiple of 16 bytes (mirrors `_pad0.._pad2` in WGSL).
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }

@@ -146,6 +146,8 @@ pub fn write_icp_overlays(
         cull_backfaces: false,
         // Sparse clouds (LiDAR) seen from afar: at least a 3-pixel cross per point.
         min_radius_px: 1.0,
+        // Two clouds whose alignment is judged point by point: no filling between them.
+        fill_gap_px: 0,
         ..RenderSettings::default()
     };
     let paths = [

@@ -21,6 +21,7 @@ mod hostile;
 mod inputs;
 mod layout;
 mod loop_closure;
+mod mesh;
 mod portable;
 mod render;
 // `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
@@ -59,6 +60,7 @@ fn main() -> ExitCode {
         inputs,
         layout,
         loop_closure,
+        mesh,
         portable,
         render,
         scan_gpu,

@@ -22,6 +22,7 @@ fn render_args(map: &Path, out: &Path) -> wgslam::cli::render::RenderArgs {
         up: "y".into(),
         splat_radius: 0.01,
         no_cull: false,
+        fill_gaps: wgslam::render::DEFAULT_FILL_GAP_PX,
         backend: wgslam::slam::any_backend::BackendChoice::Cpu,
         out: out.to_path_buf(),
     }

@@ -5,6 +5,7 @@
 //! holds the bundled map and the helpers they share.
 
 mod command;
+mod gaps;
 mod gpu;
 mod renderer;
 
@@ -117,8 +118,13 @@ fn coverage(img: &image::RgbImage, bg: [u8; 3]) -> f64 {
 }
 
 pub fn tests() -> Vec<common::harness::Test> {
-    [renderer::tests(), command::tests(), gpu::tests()]
-        .into_iter()
-        .flatten()
-        .collect()
+    [
+        renderer::tests(),
+        command::tests(),
+        gpu::tests(),
+        gaps::tests(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
 }
