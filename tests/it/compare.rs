@@ -7,20 +7,13 @@ use crate::common;
 
 use common::cli::wgslam;
 use common::harness::{gpu, plain};
+use wgslam::cpu::arith::Arith;
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::GpuBackend;
-use wgslam::layout::{
-    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
-};
-use wgslam::slam::backend::{
-    Backend, Described, FrameMaps, FusionBuffers, Inspect, Prediction, PyramidLevel,
-};
+use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::map::SurfelMap;
 use wgslam::slam::params::{Profile, SlamParams};
-use wgslam::tools::compare::{compare, Comparison, Mode};
-use wgslam::Result;
+use wgslam::tools::compare::{compare, Comparison, Mode, PerturbedCpu, Plant};
 
 fn bundled_noisy() -> Sequence {
     dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap()
@@ -110,100 +103,6 @@ fn lockstep_of_a_backend_against_itself_is_exact() {
     }
 }
 
-/// A backend whose `upload_map` moves surfels: `shift_m` along world x for every
-/// `every`-th surfel. Everything else goes to the inner backend as it is.
-struct PerturbedMap<B> {
-    inner: B,
-    shift_m: f32,
-    every: usize,
-}
-
-impl<B: Backend> Backend for PerturbedMap<B> {
-    fn name(&self) -> &'static str {
-        "perturbed"
-    }
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()> {
-        self.inner
-            .preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba)
-    }
-    fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
-        self.inner.predict(params, pyramid)
-    }
-    fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
-        self.inner.icp_system(level, params)
-    }
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
-        self.inner.icp_candidates(params)
-    }
-    fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
-        self.inner.encode_ferns(params, ferns)
-    }
-    fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
-        self.inner.detect_keypoints(params)
-    }
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described> {
-        self.inner.describe_keypoints(params, keypoints, pattern)
-    }
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        self.inner.fuse(params)
-    }
-    fn compact(&mut self, params: &CompactParams) -> Result<usize> {
-        self.inner.compact(params)
-    }
-    fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
-        self.inner.deform(nodes)
-    }
-    fn frame_level(&mut self, level: usize) -> Result<Prediction> {
-        self.inner.frame_level(level)
-    }
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()> {
-        self.inner.set_prediction(level, vertex, normal)
-    }
-    fn surfel_count(&self) -> usize {
-        self.inner.surfel_count()
-    }
-}
-
-impl<B: Inspect> Inspect for PerturbedMap<B> {
-    fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
-        let mut map = map.clone();
-        for p in map.position_weight.iter_mut().step_by(self.every) {
-            p[0] += self.shift_m;
-        }
-        self.inner.upload_map(&map)
-    }
-    fn download_map(&mut self) -> Result<SurfelMap> {
-        self.inner.download_map()
-    }
-    fn download_frame(&mut self) -> Result<FrameMaps> {
-        self.inner.download_frame()
-    }
-    fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
-        self.inner.download_prediction(level)
-    }
-    fn download_fusion(&mut self) -> Result<FusionBuffers> {
-        self.inner.download_fusion()
-    }
-}
-
 /// How many violations name `stage` (one per frame at most).
 fn frames_naming(c: &Comparison, stage: &str) -> usize {
     let needle = format!(": {stage}: ");
@@ -224,12 +123,10 @@ fn frames_naming(c: &Comparison, stage: &str) -> usize {
 /// alone, stay clean.
 fn lockstep_names_the_stage_of_a_perturbed_map() {
     let seq = bundled_noisy();
-    let shifted = |shift_m, every| PerturbedMap {
-        inner: CpuBackend::new(),
-        shift_m,
-        every,
+    let shifted = |shift_um, every| {
+        PerturbedCpu::with(Arith::Exact, Some(Plant::ShiftedUpload { shift_um, every }))
     };
-    let whole = lockstep(CpuBackend::new(), shifted(1e-3, 1), &seq, 3);
+    let whole = lockstep(CpuBackend::new(), shifted(1000, 1), &seq, 3);
     eprintln!("whole map 1 mm off: {:#?}", whole.violations);
     // Frame 1 starts from the empty map (nothing to perturb); frames 2 and 3 track on it.
     assert_eq!(frames_naming(&whole, "pose after ICP"), 2);
@@ -251,7 +148,7 @@ fn lockstep_names_the_stage_of_a_perturbed_map() {
         );
     }
 
-    let some = lockstep(CpuBackend::new(), shifted(5e-3, 50), &seq, 3);
+    let some = lockstep(CpuBackend::new(), shifted(5000, 50), &seq, 3);
     eprintln!("2 % of the map 5 mm off: {:#?}", some.violations);
     assert_eq!(frames_naming(&some, "map after the frame"), 2);
     assert_eq!(frames_naming(&some, "preprocess"), 0);

@@ -36,6 +36,10 @@ pub enum Plant {
     /// One merge in [`arith::SKIPPED_MERGE_EVERY`] skipped (`merged_surfel` returns the
     /// surfel as it was; see [`arith::with_skipped_merges`]).
     SkippedMerge,
+    /// Every `every`-th surfel of an uploaded map moved `shift_um` micrometres along world
+    /// x: a map the backend received wrong (the frame maps, made from the raw frame alone,
+    /// stay right).
+    ShiftedUpload { shift_um: u32, every: usize },
 }
 
 /// The row of `Aᵀb` whose sign [`Plant::SystemRowSign`] flips.
@@ -151,7 +155,14 @@ impl Inspect for PerturbedCpu {
         self.inner.download_map()
     }
     fn upload_map(&mut self, map: &SurfelMap) -> Result<()> {
-        self.run(|b| b.upload_map(map))
+        let Some(Plant::ShiftedUpload { shift_um, every }) = self.plant else {
+            return self.run(|b| b.upload_map(map));
+        };
+        let mut map = map.clone();
+        for p in map.position_weight.iter_mut().step_by(every) {
+            p[0] += shift_um as f32 * 1e-6;
+        }
+        self.run(|b| b.upload_map(&map))
     }
     fn download_frame(&mut self) -> Result<FrameMaps> {
         self.inner.download_frame()
