@@ -272,12 +272,13 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 37] = [
+    const OPTION_VALUES: [(&str, &str); 38] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
         ("depth-scale", "1000"),
         ("max-time-diff", "0.03"),
+        ("stamp-order", "file"),
         ("profile", "assignment"),
         ("downsample", "4"),
         ("icp-dist", "0.08"),
@@ -389,6 +390,7 @@ mod tests {
                         "intrinsics" => s.intrinsics.is_some_and(|k| k.fx == 500.0),
                         "depth-scale" => s.depth_scale == Some(1000.0),
                         "max-time-diff" => s.max_time_diff == 0.03,
+                        "stamp-order" => s.stamp_order == crate::dataset::StampOrder::File,
                         "profile" => p.profile == Profile::Assignment,
                         _ => false,
                     };

@@ -140,6 +140,10 @@ param_overrides! {
     /// Largest timestamp difference for association, seconds (default 0.02).
     #[arg(long)]
     max_time_diff: Option<f64>,
+    /// Frame order of a TUM-style list whose stamps go backwards: time (by stamp, the
+    /// default) or file (by line of depth.txt).
+    #[arg(long, value_enum)]
+    stamp_order: Option<dataset::StampOrder>,
     /// Parameter set to start from: the robust tracker and fusion for real (noisy) depth,
     /// the default, or the course assignment's exact algorithm.
     #[arg(long, value_enum)]
@@ -330,6 +334,7 @@ impl ParamOverrides {
             intrinsics,
             depth_scale: self.depth_scale,
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
+            stamp_order: self.stamp_order.unwrap_or_default(),
         })
     }
 }

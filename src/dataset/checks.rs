@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use super::FrameRecord;
+use super::{FrameRecord, StampOrder};
 use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
@@ -69,15 +69,24 @@ pub fn stamps_distinct(root: &Path, frames: &[FrameRecord]) -> Result<()> {
     }
 }
 
-/// A note when `stamps`, in the order of `list`'s lines, go backwards: the frames are then
-/// used in order of time, not file order. `None` when they are in order.
-pub fn order_note(list: &Path, stamps: &[f64]) -> Option<String> {
+/// A note when `stamps`, in the order of `list`'s lines, go backwards, saying which order
+/// the frames are used in (`order`) and how to choose the other. `None` when they are in
+/// order.
+pub fn order_note(list: &Path, stamps: &[f64], order: StampOrder) -> Option<String> {
     let backwards = stamps.windows(2).filter(|w| w[1] < w[0]).count();
     (backwards > 0).then(|| {
+        let used = match order {
+            StampOrder::Time => {
+                "frames are used in order of time (sorted by stamp); if the stamps are not \
+                 times (per-frame intervals, a reset clock), pass --stamp-order file"
+            }
+            StampOrder::File => {
+                "frames are used in file order (--stamp-order file); their stamps, and so \
+                 the trajectory's, go backwards"
+            }
+        };
         format!(
-            "{}: stamps go backwards {backwards} time(s) in file order; frames are used in \
-             order of time (sorted by stamp), not file order. If the stamps are per-frame \
-             intervals rather than times, fix the list",
+            "{}: stamps go backwards {backwards} time(s) in file order; {used}",
             list.display()
         )
     })
@@ -166,8 +175,12 @@ mod tests {
 
     #[test]
     fn backwards_stamps_and_partial_ground_truth_are_noted() {
-        assert_eq!(order_note(Path::new("d.txt"), &[1.0, 2.0, 3.0]), None);
-        let n = order_note(Path::new("d.txt"), &[1.0, 3.0, 2.0, 4.0, 0.5]).unwrap();
+        let time = StampOrder::Time;
+        assert_eq!(order_note(Path::new("d.txt"), &[1.0, 2.0, 3.0], time), None);
+        let n = order_note(Path::new("d.txt"), &[1.0, 3.0, 2.0, 4.0, 0.5], time).unwrap();
+        assert!(n.contains("--stamp-order file"), "{n}");
+        let f = order_note(Path::new("d.txt"), &[1.0, 0.5], StampOrder::File).unwrap();
+        assert!(f.contains("used in file order"), "{f}");
         assert!(
             n.contains("d.txt") && n.contains("backwards 2 time(s)"),
             "{n}"

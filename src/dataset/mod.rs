@@ -60,6 +60,31 @@ pub struct SequenceOptions {
     /// Largest |dt| in seconds (frame-number units where stamps are frame numbers) when
     /// associating streams and ground truth.
     pub max_time_diff: f64,
+    /// The frames' order where a TUM-style list's stamps go backwards.
+    pub stamp_order: StampOrder,
+}
+
+/// The order of a TUM-style sequence's frames (`rgb.txt`, `depth.txt`): what a list whose
+/// stamps go backwards means is the user's to say (a note names the list either way).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum StampOrder {
+    /// By stamp (the TUM benchmark's convention: lists are in time order).
+    #[default]
+    Time,
+    /// By line of `depth.txt` (a recorder that wrote frames in order, but whose stamps are
+    /// not times: per-frame intervals, a clock that was reset).
+    File,
 }
 
 impl Default for SequenceOptions {
@@ -69,6 +94,7 @@ impl Default for SequenceOptions {
             intrinsics: None,
             depth_scale: None,
             max_time_diff: DEFAULT_MAX_TIME_DIFF,
+            stamp_order: StampOrder::Time,
         }
     }
 }
@@ -231,7 +257,12 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
 
 /// The TUM-like layouts (TUM, ICL-NUIM, ETH3D, Bonn): frames from the association lists,
 /// ground truth from one trajectory file.
-fn stamped_listing(root: &Path, layout: Layout, max_time_diff: f64) -> Result<Listing> {
+fn stamped_listing(
+    root: &Path,
+    layout: Layout,
+    max_time_diff: f64,
+    order: StampOrder,
+) -> Result<Listing> {
     let mut order_notes = Vec::new();
     // (stamp, rgb, depth) in order of depth stamp.
     let (pairs, gt_file): (Vec<(f64, PathBuf, PathBuf)>, Option<PathBuf>) = match layout {
@@ -256,8 +287,12 @@ fn stamped_listing(root: &Path, layout: Layout, max_time_diff: f64) -> Result<Li
             let depth = tum::read_list(&root.join("depth.txt"))?;
             let rs: Vec<f64> = rgb.iter().map(|e| e.stamp).collect();
             let ds: Vec<f64> = depth.iter().map(|e| e.stamp).collect();
-            order_notes.extend(checks::order_note(&root.join("depth.txt"), &ds));
-            let pairs = tum::associate(&ds, &rs, max_time_diff)
+            order_notes.extend(checks::order_note(&root.join("depth.txt"), &ds, order));
+            let mut assoc = tum::associate(&ds, &rs, max_time_diff);
+            if order == StampOrder::File {
+                assoc.sort_by_key(|&(id, _)| id);
+            }
+            let pairs = assoc
                 .into_iter()
                 .map(|(id, ir)| (ds[id], root.join(&rgb[ir].path), root.join(&depth[id].path)))
                 .collect();
@@ -343,7 +378,7 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     let camera = read_camera_json(&root.join("camera.json"))?;
     let listing = match layout {
         Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn => {
-            stamped_listing(root, layout, opts.max_time_diff)?
+            stamped_listing(root, layout, opts.max_time_diff, opts.stamp_order)?
         }
         Layout::SevenScenes => seven_scenes::list(root)?,
         Layout::ScanNet => scannet::list(root)?,

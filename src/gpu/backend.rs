@@ -296,7 +296,17 @@ impl GpuBackend {
         }
         // A new index map holds no fusion's keys.
         self.fused_view = None;
-        self.frame = Some(FrameBuffers::new(&self.ctx, p, pyramid)?);
+        let frame = FrameBuffers::new(&self.ctx, p, pyramid).map_err(|e| match e {
+            // Name the image, not an internal array: fusion's per-pixel arrays are in a
+            // tiled (Morton) order that pads a long, thin image far beyond its pixels.
+            Error::Capacity(why) => Error::Capacity(format!(
+                "a {}x{} map does not fit this GPU's frame buffers ({why}); use a smaller \
+                 map (--downsample 2 or more, or a less elongated image) or --backend cpu",
+                p.width, p.height
+            )),
+            other => other,
+        })?;
+        self.frame = Some(frame);
         self.bind_groups = None;
         self.spare_bind_groups = None;
         Ok(())

@@ -21,7 +21,7 @@ use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
 use wgslam::gpu::context::{DeviceOptions, GpuFeatures, GpuLimits};
 use wgslam::gpu::{GpuBackend, GpuContext};
-use wgslam::layout::{MapChunk, ProjectParams};
+use wgslam::layout::{MapChunk, NormalParams, PreprocessParams, ProjectParams};
 use wgslam::render::{self, MapCloud, RenderCamera, RenderSettings, View};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
@@ -322,6 +322,44 @@ fn webgpu_limits_device_has_the_defaults_and_no_features(ctx: GpuContext) {
     assert!(!ctx.has_int64_atomics());
     wgslam::render::gpu::GpuRenderer::new(&ctx).expect("the renderer builds");
     GpuBackend::new(ctx).expect("the backend builds");
+    // A long, thin image (10000 x 2) pads fusion's tiled per-pixel arrays past WebGPU's
+    // 128 MiB storage buffers: the error names the image and what to do, not the array.
+    let ctx = GpuContext::with_options(DeviceOptions {
+        features: GpuFeatures::Auto,
+        limits: GpuLimits::Webgpu,
+    })
+    .expect("a device with WebGPU's default limits");
+    let mut gpu = GpuBackend::new(ctx).expect("the backend builds");
+    let (w, h) = (10_000, 2);
+    let params = PreprocessParams {
+        fx: 500.0,
+        fy: 500.0,
+        cx: 5000.0,
+        cy: 1.0,
+        width: w,
+        height: h,
+        raw_width: w,
+        raw_height: h,
+        stride: 1,
+        depth_scale: 5000.0,
+        min_depth_m: 0.1,
+        max_depth_m: 10.0,
+    };
+    let normal = NormalParams {
+        width: w,
+        height: h,
+        max_depth_jump_m: 0.1,
+        _pad: 0,
+    };
+    let n = (w * h) as usize;
+    let err = gpu
+        .preprocess(&params, None, &normal, &[], &vec![0; n], &vec![0; n])
+        .expect_err("the frame buffers cannot fit");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("10000x2") && msg.contains("--downsample") && msg.contains("--backend cpu"),
+        "{msg}"
+    );
 }
 
 /// One GPU run over the bundled frames with `options`: per-frame poses, the map size and

@@ -142,6 +142,23 @@ fn stamp_order_and_ground_truth_coverage_are_noted() {
     );
     assert!(t.contains("order of time"), "{t}");
     assert!(t.contains("covers none of the 3 frames"), "{t}");
+    // The trajectory's stamps, in tenths of a second.
+    let stamps = |out: &Path| -> Vec<i64> {
+        let tum = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
+        tum.lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| l.split_whitespace().next().unwrap().parse::<f64>().unwrap())
+            .map(|t| (t * 10.0).round() as i64)
+            .collect()
+    };
+    assert_eq!(stamps(&out), [1000, 1001, 1002]);
+    // --stamp-order file keeps depth.txt's order, and the note says so.
+    let file_order = dir.join("out-file-order");
+    let o = run_seq(&root, "0..2", &file_order, &["--stamp-order", "file"]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("used in file order"), "{t}");
+    assert_eq!(stamps(&file_order), [1000, 1002, 1001]);
 }
 
 /// Unclear messages of the issue: `frames = "5..2"` passed `batch list` and failed at run
