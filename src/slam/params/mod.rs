@@ -218,6 +218,19 @@ pub struct IcpSettings {
     /// Stop iterating when the increment's rotation (rad) and translation (m) are both
     /// below (`--icp-min-increment`).
     pub min_increment: f64,
+    /// Also stop a level when the increment is within the pose's own noise: its squared
+    /// length in the metric of the pose covariance `σ² (AᵀA)⁻¹`
+    /// (`solve::NormalEquations::step_chi2`, χ² with 6 degrees of freedom) is below this;
+    /// 0 turns the test off (the assignment's). On real depth the increments stop
+    /// shrinking at 10-50 micrometres, far below the noise but above `min_increment`: see
+    /// [`ROBUST_STOP_CHI2`].
+    #[serde(default)]
+    pub stop_chi2: f64,
+    /// Stop a level when an increment undoes most of the previous one (projective
+    /// association flipping between two correspondence sets), leaving the pose halfway;
+    /// off in the assignment's.
+    #[serde(default)]
+    pub stop_on_reversal: bool,
     /// How the frame's coarser pyramid levels are made (used with more than one level).
     pub pyramid: PyramidSettings,
     /// Degenerate geometry: eigen-directions of AᵀA with an eigenvalue below this fraction
@@ -447,6 +460,8 @@ impl SlamParams {
                 noise_weight: false,
                 level_iters: vec![10],
                 min_increment: 1e-6,
+                stop_chi2: 0.0,
+                stop_on_reversal: false,
                 pyramid: PyramidSettings::default(),
                 degenerate_eigen_ratio: 0.0,
             },
@@ -474,6 +489,8 @@ impl SlamParams {
                     noise_weight: true,
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
                     min_increment: ROBUST_MIN_INCREMENT,
+                    stop_chi2: ROBUST_STOP_CHI2,
+                    stop_on_reversal: true,
                     degenerate_eigen_ratio: ROBUST_DEGENERATE_EIGEN_RATIO,
                     ..assignment.icp
                 },

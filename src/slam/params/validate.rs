@@ -79,6 +79,12 @@ impl SlamParams {
                 icp.min_increment
             ));
         }
+        if !(icp.stop_chi2.is_finite() && icp.stop_chi2 >= 0.0) {
+            return fail(format!(
+                "`icp.stop_chi2` {} must be a non-negative number (0: off)",
+                icp.stop_chi2
+            ));
+        }
         for (flag, v) in [
             ("`normals.max_depth_jump_m`", self.normals.max_depth_jump_m),
             (
