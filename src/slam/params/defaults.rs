@@ -149,3 +149,14 @@ pub const LOOP_WEIGHT: f64 = 1.0;
 pub const LOOP_CONFIRM_AGREEMENT_M: f64 = 0.010;
 pub const LOOP_CONFIRM_AGREEMENT_DEG: f64 = 1.0;
 pub const LOOP_CONFIRM_WITHIN_SEARCHES: u32 = 2;
+/// A bend must take at least half of the disagreement it was measured from off its loop
+/// edge: with odometry and loop edges weighted alike, a cycle of `k` odometry edges leaves
+/// about `1 / (k + 1)` of it (a tenth or less for the 60-frame minimum gap at a node per 10
+/// frames); leaving half or more means other loop edges hold the trajectory where it is,
+/// i.e. the graph contradicts the new loop.
+pub const LOOP_MAX_LEFT_FRACTION: f64 = 0.5;
+/// Another loop edge's disagreement may grow by at most 1 mm (graph metric) when a new
+/// loop bends the graph: a tenth of the smallest correction that bends anything
+/// ([`LOOP_MIN_CORRECTION_M`]), so a bend may redistribute rounding but never undo what an
+/// earlier loop (bent or agreeing) measured.
+pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;

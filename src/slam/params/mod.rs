@@ -121,6 +121,23 @@ pub struct LoopSettings {
     pub confirm_agreement_m: f64,
     pub confirm_agreement_deg: f64,
     pub confirm_within_searches: u32,
+    /// A confirmed loop bends the map only when the optimised graph leaves at most this
+    /// fraction of its own disagreement on its edge; more means the rest of the graph
+    /// contradicts it, and it is rejected ([`LOOP_MAX_LEFT_FRACTION`]).
+    #[serde(default = "default_max_left_fraction")]
+    pub max_left_fraction: f64,
+    /// ... and when no other loop edge's disagreement grows by more than this, in the
+    /// graph's metric (metres, a radian weighing as a metre; [`LOOP_OTHER_EDGE_SLACK_M`]).
+    #[serde(default = "default_other_edge_slack_m")]
+    pub other_edge_slack_m: f64,
+}
+
+fn default_max_left_fraction() -> f64 {
+    LOOP_MAX_LEFT_FRACTION
+}
+
+fn default_other_edge_slack_m() -> f64 {
+    LOOP_OTHER_EDGE_SLACK_M
 }
 
 /// The tracking-health test of a frame's final ICP state (see `slam::health` for the
@@ -426,6 +443,8 @@ impl Default for LoopSettings {
             confirm_agreement_m: LOOP_CONFIRM_AGREEMENT_M,
             confirm_agreement_deg: LOOP_CONFIRM_AGREEMENT_DEG,
             confirm_within_searches: LOOP_CONFIRM_WITHIN_SEARCHES,
+            max_left_fraction: LOOP_MAX_LEFT_FRACTION,
+            other_edge_slack_m: LOOP_OTHER_EDGE_SLACK_M,
         }
     }
 }

@@ -181,6 +181,8 @@ impl SlamParams {
                 ("`loop_closure.max_correction_m`", l.max_correction_m),
                 ("`loop_closure.max_correction_deg`", l.max_correction_deg),
                 ("`loop_closure.loop_weight`", l.loop_weight),
+                ("`loop_closure.max_left_fraction`", l.max_left_fraction),
+                ("`loop_closure.other_edge_slack_m`", l.other_edge_slack_m),
                 ("`loop_closure.confirm_agreement_m`", l.confirm_agreement_m),
                 (
                     "`loop_closure.confirm_agreement_deg`",
