@@ -239,6 +239,16 @@ mod tests {
     use super::*;
     use crate::cpu::icp_reduce::accumulate;
 
+    /// Seeded xorshift32 noise, uniform in [-0.5, 0.5).
+    fn noise_from(mut seed: u32) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32 - 0.5
+        }
+    }
+
     /// A well-posed system built from known rows is solved to the exact increment.
     #[test]
     fn solves_consistent_system() {
@@ -292,14 +302,7 @@ mod tests {
     #[test]
     fn guard_holds_the_free_directions_of_a_plane() {
         let mut sys = [0.0; ICP_SYSTEM_LEN];
-        let mut seed = 7u32;
-        let mut noise = || {
-            // xorshift32, mapped to [-0.5, 0.5)
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32 - 0.5
-        };
+        let mut noise = noise_from(7);
         for i in 0..2000 {
             let p = glam::Vec3::new(
                 (i % 40) as f32 * 0.05 - 1.0,
@@ -341,13 +344,7 @@ mod tests {
     /// step far above; noise-free residuals with an offset are never "within noise".
     #[test]
     fn step_chi2_separates_noise_from_a_real_offset() {
-        let mut seed = 11u32;
-        let mut noise = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32 - 0.5
-        };
+        let mut noise = noise_from(11);
         let rows: Vec<[f32; 6]> = (0..5000)
             .map(|i| {
                 let f = i as f32;
