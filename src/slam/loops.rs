@@ -26,9 +26,8 @@
 //! ([`LoopSettings::verify_iterations`]). [`LoopClosure::judge`] accepts it when ICP did
 //! not refuse a system, enough of the snapshot's pixels are inliers, the residual is small
 //! and the correction is within ICP's basin. A rejected candidate is recorded with the
-//! reason. An accepted loop within noise joins the graph as a loop edge (nothing moves,
-//! but later bends must respect it). One above noise, once confirmed, is optimised on a
-//! trial copy of the graph and bends only when the bend passes
+//! reason. An accepted loop within noise moves nothing. One above noise, once confirmed,
+//! is optimised on a trial copy of the graph and bends only when the bend passes
 //! [`BendCheck`](crate::slam::loops_check::BendCheck): its own disagreement mostly gone,
 //! no other loop edge's raised (else it is recorded as rejected and nothing moves); then
 //! every tracked pose, every keyframe and every surfel (`deform_surfels`) moves with the
@@ -361,8 +360,8 @@ impl LoopClosure {
     }
 
     /// After an accepted loop of `frame` to the keyframe of `keyframe_frame`, which put
-    /// the frame at `t_loop` (camera to world). Within noise, the loop joins the graph as
-    /// an edge (later bends must respect it) and nothing moves. Above noise and confirmed,
+    /// the frame at `t_loop` (camera to world). Within noise nothing moves. Above noise and
+    /// confirmed,
     /// the graph with the loop's edge is optimised on trial and kept only when the bend
     /// passes [`BendCheck`] (else the loop is recorded as rejected); then every tracked
     /// pose and the keyframe database move. Returns the deformation's node table for
@@ -385,9 +384,6 @@ impl LoopClosure {
             record.action = Some(LoopAction::Agrees);
             self.pending = None;
             self.next_search = frame + s.cooldown_frames;
-            let g = &mut self.graph;
-            add_loop_edge(g, frame, keyframe_frame, &current, t_loop, s.loop_weight);
-            self.tracked_since_node = 0;
             return (None, current);
         }
         let window = s.confirm_within_searches * s.search_every_frames;

@@ -2,8 +2,8 @@
 //! ([`BendCheck`], used by `slam::loops`' `LoopClosure::close`): on a trial optimisation
 //! of the pose graph with the loop's edge, the bend must take most of the disagreement it
 //! was measured from off its edge and must not raise any other loop edge's (bent or
-//! agreeing loops: both are graph edges), so loop closure never trades one place's
-//! agreement for another's. Not the verification of a loop (`LoopClosure::judge`).
+//! loops that bent the map before), so loop closure never trades one place's agreement
+//! for another's. Not the verification of a loop (`LoopClosure::judge`).
 
 use glam::DMat4;
 
@@ -141,13 +141,21 @@ mod tests {
         DMat4::from_translation(DVec3::new(0.01 * frame as f64, 0.0, 0.0))
     }
 
+    /// Records the frames after the last one up to `frame`, tracking on from the last
+    /// pose as now estimated (its offset along y kept, as after a bend).
+    fn record_to(lc: &mut LoopClosure, frame: u32) {
+        let last = lc.poses().last().unwrap();
+        let (next, y) = (last.frame + 1, last.estimate.w_axis.y);
+        for f in next..=frame {
+            let shift = DMat4::from_translation(DVec3::new(0.0, y, 0.0));
+            lc.record(f, shift * pose(f), None);
+        }
+    }
+
     /// Records frames up to `frame` and a verified loop of it to keyframe 0 that puts
     /// it `offset_m` along y from its tracked pose; returns what `close` did.
     fn loop_at(lc: &mut LoopClosure, frame: u32, offset_m: f64) -> Option<LoopAction> {
-        let recorded = lc.poses().last().map_or(0, |p| p.frame + 1);
-        for f in recorded..=frame {
-            lc.record(f, pose(f), None);
-        }
+        record_to(lc, frame);
         let candidate = Candidate {
             keyframe_frame: 0,
             kind: LoopKind::Global,
@@ -189,20 +197,22 @@ mod tests {
         assert_eq!(check.other_loop_growth, 0.0);
     }
 
-    /// Frame 100 agreed with keyframe 0 (its loop is a graph edge); loops at 105 and
-    /// 110 then claim that frame 110 is 30 mm off: bending for them would tear the
-    /// agreement of frame 100 (10 frames of healthy tracking cannot drift 30 mm), so
-    /// the loop is rejected and nothing moves.
+    /// A loop at 105/110 bent frame 110 30 mm along y; loops at 125/130 then claim 30 mm
+    /// back, against what the first one measured 20 frames earlier (healthy tracking
+    /// cannot drift 60 mm in 20 frames): bending for them would tear the first loop's
+    /// edge, so the loop is rejected and nothing moves.
     #[test]
     fn a_loop_the_graph_contradicts_is_rejected() {
         let mut lc = straight_run(100);
-        assert_eq!(loop_at(&mut lc, 100, 0.0), Some(LoopAction::Agrees));
+        loop_at(&mut lc, 105, 0.03);
+        assert_eq!(loop_at(&mut lc, 110, 0.03), Some(LoopAction::Bent));
+        record_to(&mut lc, 120);
         let before: Vec<DMat4> = lc.poses().iter().map(|p| p.estimate).collect();
         assert_eq!(
-            loop_at(&mut lc, 105, 0.03),
+            loop_at(&mut lc, 125, -0.03),
             Some(LoopAction::AwaitingConfirmation)
         );
-        assert_eq!(loop_at(&mut lc, 110, 0.03), None);
+        assert_eq!(loop_at(&mut lc, 130, -0.03), None);
         let record = lc.loops().last().unwrap();
         let check = record.check.unwrap();
         assert!(

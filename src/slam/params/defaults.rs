@@ -158,5 +158,5 @@ pub const LOOP_MAX_LEFT_FRACTION: f64 = 0.5;
 /// Another loop edge's disagreement may grow by at most 1 mm (graph metric) when a new
 /// loop bends the graph: a tenth of the smallest correction that bends anything
 /// ([`LOOP_MIN_CORRECTION_M`]), so a bend may redistribute rounding but never undo what an
-/// earlier loop (bent or agreeing) measured.
+/// earlier loop that bent the map measured.
 pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;
