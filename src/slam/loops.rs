@@ -26,9 +26,12 @@
 //! ([`LoopSettings::verify_iterations`]). [`LoopClosure::judge`] accepts it when ICP did
 //! not refuse a system, enough of the snapshot's pixels are inliers, the residual is small
 //! and the correction is within ICP's basin. A rejected candidate is recorded with the
-//! reason. An accepted loop adds a loop edge and, when its correction is above noise,
-//! optimises the graph; then every tracked pose, every keyframe and every surfel
-//! (`deform_surfels`) moves with the corrections of the nodes nearest it in time.
+//! reason. An accepted loop within noise moves nothing. One above noise, once confirmed,
+//! is optimised on a trial copy of the graph and bends only when the bend passes
+//! [`BendCheck`](crate::slam::loops_check::BendCheck): its own disagreement mostly gone,
+//! no other loop edge's raised (else it is recorded as rejected and nothing moves); then
+//! every tracked pose, every keyframe and every surfel (`deform_surfels`) moves with the
+//! corrections of the nodes nearest it in time.
 
 use std::collections::HashMap;
 
@@ -37,6 +40,8 @@ use glam::DMat4;
 use crate::geometry::se3::{self, pose_change};
 use crate::layout::DeformNode;
 use crate::slam::keyframes::KeyframeDatabase;
+pub use crate::slam::loops_check::BendCheck;
+use crate::slam::loops_check::{add_loop_edge, disagreements};
 use crate::slam::params::LoopSettings;
 use crate::slam::pose_graph::{self, Optimised, PoseGraph};
 use crate::slam::solve::IcpIteration;
@@ -105,9 +110,12 @@ pub struct LoopRecord {
     /// What an accepted loop did (`None` when rejected).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub action: Option<LoopAction>,
-    /// The pose-graph optimisation the loop started (accepted loops above noise).
+    /// The pose-graph optimisation the loop started (loops that bent the map).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub optimised: Option<Optimised>,
+    /// The check of a confirmed loop's bend on a trial optimisation (bent or rejected).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub check: Option<BendCheck>,
 }
 
 /// One tracked frame's pose as now estimated, after every closure so far
@@ -346,15 +354,19 @@ impl LoopClosure {
             rejected: verdict.clone().err(),
             action: None,
             optimised: None,
+            check: None,
         });
         verdict
     }
 
     /// After an accepted loop of `frame` to the keyframe of `keyframe_frame`, which put
-    /// the frame at `t_loop` (camera to world): adds the loop edge and, when the correction
-    /// is above noise, optimises the graph and moves every tracked pose and the keyframe
-    /// database. Returns the deformation's node table for `deform_surfels` (`None` when
-    /// nothing moves) and the frame's new pose. Pauses the search for the cool-down.
+    /// the frame at `t_loop` (camera to world). Within noise nothing moves. Above noise and
+    /// confirmed,
+    /// the graph with the loop's edge is optimised on trial and kept only when the bend
+    /// passes [`BendCheck`] (else the loop is recorded as rejected); then every tracked
+    /// pose and the keyframe database move. Returns the deformation's node table for
+    /// `deform_surfels` (`None` when nothing moves) and the frame's new pose. Pauses the
+    /// search for the cool-down after a loop that agreed or bent.
     pub fn close(
         &mut self,
         frame: u32,
@@ -384,20 +396,29 @@ impl LoopClosure {
             self.pending = Some((frame, correction));
             return (None, current);
         }
-        record.action = Some(LoopAction::Bent);
         self.pending = None;
-        self.next_search = frame + s.cooldown_frames;
-        let to = self.graph.add_node(frame, current, 1.0);
-        let from = self
-            .graph
-            .node_of(keyframe_frame)
-            .expect("every keyframe is a pose-graph node");
-        let t_keyframe = self.graph.nodes()[from].t_cam_to_world;
-        let z = se3::inverse_rigid(&t_keyframe) * *t_loop;
-        self.graph.add_loop(from, to, z, s.loop_weight);
-        self.tracked_since_node = 0;
-        let (corrections, optimised) = self.graph.optimise();
+        let mut trial = self.graph.clone();
+        let edge = add_loop_edge(
+            &mut trial,
+            frame,
+            keyframe_frame,
+            &current,
+            t_loop,
+            s.loop_weight,
+        );
+        let before = disagreements(&trial);
+        let (corrections, optimised) = trial.optimise();
+        let check = BendCheck::of(&trial, edge, &before, &disagreements(&trial));
+        record.check = Some(check);
+        if let Err(why) = check.verdict(&s) {
+            record.rejected = Some(why);
+            return (None, current);
+        }
+        record.action = Some(LoopAction::Bent);
         record.optimised = Some(optimised);
+        self.next_search = frame + s.cooldown_frames;
+        self.graph = trial;
+        self.tracked_since_node = 0;
         let frames: Vec<u32> = self.graph.nodes().iter().map(|n| n.frame).collect();
         for p in &mut self.poses {
             p.estimate = pose_graph::interpolate(&frames, &corrections, p.frame) * p.estimate;

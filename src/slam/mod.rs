@@ -15,6 +15,7 @@ pub(crate) mod instrumented;
 pub mod keyframes;
 pub(crate) mod loop_closer;
 pub mod loops;
+pub mod loops_check;
 pub mod map;
 pub mod params;
 pub mod pipeline;

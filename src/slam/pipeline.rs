@@ -50,6 +50,7 @@
 use glam::DMat4;
 
 use crate::geometry::camera::Intrinsics;
+use crate::geometry::rigid::nearest_rotation;
 use crate::geometry::se3;
 use crate::slam::backend::{Backend, PyramidLevel};
 use crate::slam::health::TrackingHealth;
@@ -242,9 +243,13 @@ impl<B: Backend> Slam<B> {
             (PoseSource::GroundTruth, _, None) => Err(crate::Error::Argument(format!(
                 "--poses gt needs ground truth, and frame {frame_id} has none"
             ))),
-            (PoseSource::Track, None, gt) => {
-                Ok(Some(gt.map(se3::inverse_rigid).unwrap_or(DMat4::IDENTITY)))
-            }
+            // The start pose's rotation is made orthonormal: 7-Scenes' reference poses are
+            // scaled by up to 1e-4, every tracked pose would inherit it, and the angle
+            // between two equal poses would read 1 degree (loop closure's corrections).
+            (PoseSource::Track, None, gt) => Ok(Some(gt.map_or(DMat4::IDENTITY, |g| {
+                let (r, p) = se3::to_rt(g);
+                se3::inverse_rigid(&se3::from_rt(nearest_rotation(r), p))
+            }))),
             (PoseSource::Track, Some(_), _) => Ok(None),
         }
     }

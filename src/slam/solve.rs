@@ -96,6 +96,26 @@ impl NormalEquations {
         }
     }
 
+    /// The squared length of the increment `x` in the metric of the pose's own
+    /// uncertainty: `xᵀ (AᵀA) x / σ²`, with `σ²` the mean (weighted) squared residual, so
+    /// the pose's covariance is `σ² (AᵀA)⁻¹`. It is also the drop of the summed squared
+    /// residuals the step predicts, in units of one pixel's `σ²`. A step that only follows
+    /// the noise of the correspondences is of the order of the 6 degrees of freedom
+    /// (χ² with 6 degrees); a step towards a better pose is far above. Infinite for a
+    /// non-zero step on a system without residual (noise-free data: never "within noise").
+    pub fn step_chi2(&self, x: &se3::Twist) -> f64 {
+        let x = Vector6::from_column_slice(x);
+        let drop = x.dot(&(self.ata * x)).max(0.0);
+        let sigma_sq = self.mean_sq_residual();
+        if drop == 0.0 {
+            0.0
+        } else if sigma_sq > 0.0 {
+            drop / sigma_sq
+        } else {
+            f64::INFINITY
+        }
+    }
+
     /// Solves `AᵀA x = -Aᵀb` for `x = (alpha, beta, gamma, tx, ty, tz)`.
     pub fn solve(&self) -> Result<se3::Twist, SolveError> {
         self.solve_guarded(0.0).map(|s| s.x)
@@ -171,6 +191,35 @@ pub struct IcpIteration {
     pub eigen_ratio: Option<f64>,
     /// Eigen-directions the guarded solve held (degenerate geometry).
     pub held_directions: usize,
+    /// The solved increment's rotation (rad) and translation (m) norms
+    /// ([`increment_size`]); `None` when the system was refused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub increment: Option<(f64, f64)>,
+    /// The increment's length in the pose's own noise ([`NormalEquations::step_chi2`]);
+    /// `None` when the system was refused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub step_chi2: Option<f64>,
+    /// On the last iteration of a pyramid level: why the level stopped there.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop: Option<LevelStop>,
+}
+
+/// Why ICP stopped iterating at a pyramid level (`frames.json`: the level's last
+/// iteration's `stop`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LevelStop {
+    /// The increment was below `icp.min_increment` in rotation and translation.
+    MinIncrement,
+    /// The increment was within the pose's own noise (`icp.stop_chi2`).
+    WithinNoise,
+    /// The increment undid most of the previous one: the correspondences flip between two
+    /// sets (`icp.stop_on_reversal`); the pose is left between the two.
+    Reversal,
+    /// The level's budget of iterations ran out.
+    Budget,
+    /// The system was refused; the last good pose is kept.
+    Refused,
 }
 
 /// Left-multiplicative update `T <- exp(x) T` of a world-to-camera pose.
@@ -189,6 +238,16 @@ pub fn increment_size(x: &se3::Twist) -> (f64, f64) {
 mod tests {
     use super::*;
     use crate::cpu::icp_reduce::accumulate;
+
+    /// Seeded xorshift32 noise, uniform in [-0.5, 0.5).
+    fn noise_from(mut seed: u32) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32 - 0.5
+        }
+    }
 
     /// A well-posed system built from known rows is solved to the exact increment.
     #[test]
@@ -243,14 +302,7 @@ mod tests {
     #[test]
     fn guard_holds_the_free_directions_of_a_plane() {
         let mut sys = [0.0; ICP_SYSTEM_LEN];
-        let mut seed = 7u32;
-        let mut noise = || {
-            // xorshift32, mapped to [-0.5, 0.5)
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32 - 0.5
-        };
+        let mut noise = noise_from(7);
         for i in 0..2000 {
             let p = glam::Vec3::new(
                 (i % 40) as f32 * 0.05 - 1.0,
@@ -284,6 +336,49 @@ mod tests {
         assert!(
             free[3].abs().max(free[4].abs()) > INVENTED_STEP_M,
             "unguarded {free:?}"
+        );
+    }
+
+    /// The noise stop statistic: a system whose residuals are pure noise (no pose error)
+    /// gives a step of χ² about 6 (6 degrees of freedom), one with a real 1 mm offset a
+    /// step far above; noise-free residuals with an offset are never "within noise".
+    #[test]
+    fn step_chi2_separates_noise_from_a_real_offset() {
+        let mut noise = noise_from(11);
+        let rows: Vec<[f32; 6]> = (0..5000)
+            .map(|i| {
+                let f = i as f32;
+                let n = glam::Vec3::new((f * 0.37).sin(), (f * 0.71).cos(), 2.0).normalize();
+                let p = glam::Vec3::new((f * 0.13).cos(), (f * 0.29).sin(), 2.0);
+                let pxn = p.cross(n);
+                [pxn.x, pxn.y, pxn.z, n.x, n.y, n.z]
+            })
+            .collect();
+        // Uniform noise of +-1 mm, and the same plus a 1 mm offset along every normal's z.
+        let offsets = [0.0f32, 1e-3];
+        let chi2: Vec<f64> = offsets
+            .iter()
+            .map(|&offset| {
+                let mut sys = [0.0; ICP_SYSTEM_LEN];
+                for a in &rows {
+                    accumulate(&mut sys, a, 2e-3 * noise() + offset * a[5]);
+                }
+                let eq = NormalEquations::decode(&sys);
+                eq.step_chi2(&eq.solve().unwrap())
+            })
+            .collect();
+        // χ²(6) exceeds 30 with probability below 1e-4.
+        const NOISE_CHI2_MAX: f64 = 30.0;
+        assert!(chi2[0] < NOISE_CHI2_MAX, "pure noise: {}", chi2[0]);
+        // A 1 mm offset seen by 5000 rows of 0.6 mm noise: thousands.
+        assert!(chi2[1] > 100.0 * NOISE_CHI2_MAX, "offset: {}", chi2[1]);
+        let mut exact = [0.0; ICP_SYSTEM_LEN];
+        accumulate(&mut exact, &[0.0, 0.0, 0.0, 0.0, 0.0, 1.0], 0.0);
+        let eq = NormalEquations::decode(&exact);
+        assert_eq!(eq.step_chi2(&[0.0; 6]), 0.0);
+        assert_eq!(
+            eq.step_chi2(&[0.0, 0.0, 0.0, 0.0, 0.0, 1e-6]),
+            f64::INFINITY
         );
     }
 }

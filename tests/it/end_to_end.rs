@@ -15,6 +15,7 @@ use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval};
 use wgslam::slam::pipeline::TrackStatus;
+use wgslam::slam::solve::LevelStop;
 use wgslam::tools::run;
 
 /// The bar for frames 1..200 at downsample 2: ATE RMSE after rigid alignment.
@@ -374,6 +375,25 @@ fn robust_icp_runs_coarse_to_fine<B: Backend + Inspect>(backend: B) {
             let n = levels.iter().filter(|&&l| l == level).count();
             assert!((1..=budget).contains(&n), "frame {}: {levels:?}", f.index);
         }
+        // Every level's last iteration, and only it, says why the level stopped.
+        let its = &f.report.iterations;
+        for (k, it) in its.iter().enumerate() {
+            let last_of_level = its.get(k + 1).is_none_or(|next| next.level != it.level);
+            assert_eq!(
+                it.stop.is_some(),
+                last_of_level,
+                "frame {}: {its:?}",
+                f.index
+            );
+        }
+        let finest_stop = its.last().and_then(|it| it.stop);
+        assert_eq!(
+            finest_stop == Some(LevelStop::Budget),
+            f.report.status == TrackStatus::MaxIterations,
+            "frame {}: {finest_stop:?} {:?}",
+            f.index,
+            f.report.status
+        );
         let at_0 = levels.iter().filter(|&&l| l == 0).count();
         match f.report.status {
             TrackStatus::Converged => {}

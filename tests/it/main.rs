@@ -7,6 +7,7 @@
 
 mod common;
 
+mod accuracy;
 mod batch;
 mod bindings;
 mod cli;
@@ -46,6 +47,7 @@ macro_rules! tests_of {
 fn main() -> ExitCode {
     #[allow(unused_mut)]
     let mut modules = tests_of![
+        accuracy,
         batch,
         bindings,
         cli,

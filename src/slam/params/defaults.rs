@@ -56,6 +56,17 @@ pub const ROBUST_CONFIDENCE_SIGMA: f32 = 0.6;
 /// iterations; 1e-5 (10 micrometres, 2 millidegrees) is far below the noise.
 pub const ROBUST_MIN_INCREMENT: f64 = 1e-5;
 
+/// The robust profile's noise stop test (`icp.stop_chi2`): a level stops when the
+/// increment's squared length in the pose's own covariance is below this, the mean of a
+/// χ² with 6 degrees of freedom (a step the size noise alone gives). Measured (release,
+/// CPU, frames at the iteration limit / ATE, the test off -> 2 -> 6 -> 20): 7-Scenes
+/// 0..299 170/300 -> 1 -> 0 -> 0 frames, 20.20 -> 20.19 -> 20.20 -> 20.17 mm; SUN3D frag2
+/// 26/50 -> 0 -> 0, 7.99 mm throughout; clean ICL-NUIM 1..200 0/200, 0.217 -> 0.216 mm;
+/// noisy ICL-NUIM 1..200 at 640x480 129/200 -> 5 (at 6), 7.60 mm. Iterations per frame
+/// halve (14 -> 6.6 on 7-Scenes); the ATE does not move: the last 10-50 micrometre steps
+/// the test cuts only followed the noise.
+pub const ROBUST_STOP_CHI2: f64 = 6.0;
+
 /// ICP iterations per pyramid level of the robust profile, coarse to fine (level 2 at
 /// 80x60, level 1 at 160x120, level 0 at 320x240 with the default downsampling):
 /// KinectFusion's schedule, the cheapest measured that keeps tracking at every 12th frame
@@ -148,3 +159,14 @@ pub const LOOP_WEIGHT: f64 = 1.0;
 pub const LOOP_CONFIRM_AGREEMENT_M: f64 = 0.010;
 pub const LOOP_CONFIRM_AGREEMENT_DEG: f64 = 1.0;
 pub const LOOP_CONFIRM_WITHIN_SEARCHES: u32 = 2;
+/// A bend must take at least half of the disagreement it was measured from off its loop
+/// edge: with odometry and loop edges weighted alike, a cycle of `k` odometry edges leaves
+/// about `1 / (k + 1)` of it (a tenth or less for the 60-frame minimum gap at a node per 10
+/// frames); leaving half or more means other loop edges hold the trajectory where it is,
+/// i.e. the graph contradicts the new loop.
+pub const LOOP_MAX_LEFT_FRACTION: f64 = 0.5;
+/// Another loop edge's disagreement may grow by at most 1 mm (graph metric) when a new
+/// loop bends the graph: a tenth of the smallest correction that bends anything
+/// ([`LOOP_MIN_CORRECTION_M`]), so a bend may redistribute rounding but never undo what an
+/// earlier loop that bent the map measured.
+pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;

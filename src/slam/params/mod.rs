@@ -121,6 +121,23 @@ pub struct LoopSettings {
     pub confirm_agreement_m: f64,
     pub confirm_agreement_deg: f64,
     pub confirm_within_searches: u32,
+    /// A confirmed loop bends the map only when the optimised graph leaves at most this
+    /// fraction of its own disagreement on its edge; more means the rest of the graph
+    /// contradicts it, and it is rejected ([`LOOP_MAX_LEFT_FRACTION`]).
+    #[serde(default = "default_max_left_fraction")]
+    pub max_left_fraction: f64,
+    /// ... and when no other loop edge's disagreement grows by more than this, in the
+    /// graph's metric (metres, a radian weighing as a metre; [`LOOP_OTHER_EDGE_SLACK_M`]).
+    #[serde(default = "default_other_edge_slack_m")]
+    pub other_edge_slack_m: f64,
+}
+
+fn default_max_left_fraction() -> f64 {
+    LOOP_MAX_LEFT_FRACTION
+}
+
+fn default_other_edge_slack_m() -> f64 {
+    LOOP_OTHER_EDGE_SLACK_M
 }
 
 /// The tracking-health test of a frame's final ICP state (see `slam::health` for the
@@ -218,6 +235,19 @@ pub struct IcpSettings {
     /// Stop iterating when the increment's rotation (rad) and translation (m) are both
     /// below (`--icp-min-increment`).
     pub min_increment: f64,
+    /// Also stop a level when the increment is within the pose's own noise: its squared
+    /// length in the metric of the pose covariance `σ² (AᵀA)⁻¹`
+    /// (`solve::NormalEquations::step_chi2`, χ² with 6 degrees of freedom) is below this;
+    /// 0 turns the test off (the assignment's). On real depth the increments stop
+    /// shrinking at 10-50 micrometres, far below the noise but above `min_increment`: see
+    /// [`ROBUST_STOP_CHI2`].
+    #[serde(default)]
+    pub stop_chi2: f64,
+    /// Stop a level when an increment undoes most of the previous one (projective
+    /// association flipping between two correspondence sets), leaving the pose halfway;
+    /// off in the assignment's.
+    #[serde(default)]
+    pub stop_on_reversal: bool,
     /// How the frame's coarser pyramid levels are made (used with more than one level).
     pub pyramid: PyramidSettings,
     /// Degenerate geometry: eigen-directions of AᵀA with an eigenvalue below this fraction
@@ -413,6 +443,8 @@ impl Default for LoopSettings {
             confirm_agreement_m: LOOP_CONFIRM_AGREEMENT_M,
             confirm_agreement_deg: LOOP_CONFIRM_AGREEMENT_DEG,
             confirm_within_searches: LOOP_CONFIRM_WITHIN_SEARCHES,
+            max_left_fraction: LOOP_MAX_LEFT_FRACTION,
+            other_edge_slack_m: LOOP_OTHER_EDGE_SLACK_M,
         }
     }
 }
@@ -447,6 +479,8 @@ impl SlamParams {
                 noise_weight: false,
                 level_iters: vec![10],
                 min_increment: 1e-6,
+                stop_chi2: 0.0,
+                stop_on_reversal: false,
                 pyramid: PyramidSettings::default(),
                 degenerate_eigen_ratio: 0.0,
             },
@@ -474,6 +508,8 @@ impl SlamParams {
                     noise_weight: true,
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
                     min_increment: ROBUST_MIN_INCREMENT,
+                    stop_chi2: ROBUST_STOP_CHI2,
+                    stop_on_reversal: true,
                     degenerate_eigen_ratio: ROBUST_DEGENERATE_EIGEN_RATIO,
                     ..assignment.icp
                 },

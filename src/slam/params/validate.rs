@@ -83,6 +83,12 @@ impl SlamParams {
                 icp.min_increment
             ));
         }
+        if !(icp.stop_chi2.is_finite() && icp.stop_chi2 >= 0.0) {
+            return fail(format!(
+                "`icp.stop_chi2` {} must be a non-negative number (0: off)",
+                icp.stop_chi2
+            ));
+        }
         for (flag, v) in [
             ("`normals.max_depth_jump_m`", self.normals.max_depth_jump_m),
             (
@@ -179,6 +185,8 @@ impl SlamParams {
                 ("`loop_closure.max_correction_m`", l.max_correction_m),
                 ("`loop_closure.max_correction_deg`", l.max_correction_deg),
                 ("`loop_closure.loop_weight`", l.loop_weight),
+                ("`loop_closure.max_left_fraction`", l.max_left_fraction),
+                ("`loop_closure.other_edge_slack_m`", l.other_edge_slack_m),
                 ("`loop_closure.confirm_agreement_m`", l.confirm_agreement_m),
                 (
                     "`loop_closure.confirm_agreement_deg`",
