@@ -209,12 +209,25 @@ pub trait Inspect {
 }
 
 /// A backend that can also be inspected: what the command line runs (`Box<dyn
-/// SlamBackend>`, see [`crate::slam::any_backend::AnyBackend`]). `Send`, so that a boxed
-/// backend can run on a thread other than the one that opened it (the Python package
-/// processes frames with the interpreter's lock released).
-pub trait SlamBackend: Backend + Inspect + Send {}
+/// SlamBackend>`, see [`crate::slam::any_backend::AnyBackend`]). `Send` on native targets
+/// ([`MaybeSend`]), so that a boxed backend can run on a thread other than the one that
+/// opened it (the Python package processes frames with the interpreter's lock released).
+pub trait SlamBackend: Backend + Inspect + MaybeSend {}
 
-impl<T: Backend + Inspect + Send + ?Sized> SlamBackend for T {}
+impl<T: Backend + Inspect + MaybeSend + ?Sized> SlamBackend for T {}
+
+/// `Send` on native targets, so a boxed backend can move to another thread; nothing on
+/// wasm32, where the browser's WebGPU objects belong to the page's one thread (wgpu's
+/// WebGPU types are not `Send`).
+#[cfg(not(target_arch = "wasm32"))]
+pub trait MaybeSend: Send {}
+#[cfg(not(target_arch = "wasm32"))]
+impl<T: Send + ?Sized> MaybeSend for T {}
+/// `Send` on native targets; nothing on wasm32 (see the native definition).
+#[cfg(target_arch = "wasm32")]
+pub trait MaybeSend {}
+#[cfg(target_arch = "wasm32")]
+impl<T: ?Sized> MaybeSend for T {}
 
 /// A boxed backend is a backend (the CLI picks CPU or GPU at run time): every step goes to
 /// the box's content. The one hand-written forwarding of the trait besides
