@@ -43,8 +43,8 @@ pub const LIMITS_ENV: &str = "WGSLAM_GPU_LIMITS";
 /// Which optional features the device is created with (see [`FEATURES_ENV`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum GpuFeatures {
-    /// Every [`WANTED_FEATURES`] flag the adapter offers: the 64-bit key kernels where the
-    /// adapter has 64-bit atomics, the portable ones where it does not.
+    /// Every optional feature wgslam can use that the adapter offers: the 64-bit key
+    /// kernels where the adapter has 64-bit atomics, the portable ones where it does not.
     #[default]
     Auto,
     /// No 64-bit integers whatever the adapter offers: the portable key kernels.

@@ -393,3 +393,34 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod help_tests {
+    use clap::ValueEnum;
+
+    use super::*;
+
+    /// The profiles' `--profile` help states values in words (the command line cannot show
+    /// intra-doc links); they must stay the profile's own.
+    #[test]
+    fn the_robust_profiles_help_states_its_values() {
+        let help = Profile::Robust
+            .to_possible_value()
+            .and_then(|v| v.get_help().map(|h| h.to_string()))
+            .expect("the robust profile has a help text");
+        assert!(!help.contains("[`"), "intra-doc link in the help: {help}");
+        let p = SlamParams::profile(Profile::Robust);
+        let iters: Vec<String> = p.icp.level_iters.iter().map(|n| n.to_string()).collect();
+        let stated = [
+            format!("({}, {} and {} iterations)", iters[0], iters[1], iters[2]),
+            format!(
+                "{:.2} m / {} degree association",
+                p.icp.dist_m, p.icp.normal_deg
+            ),
+            format!("({} m / {} degrees)", p.fusion.dist_m, p.fusion.normal_deg),
+        ];
+        for s in stated {
+            assert!(help.contains(&s), "help lacks `{s}`: {help}");
+        }
+    }
+}

@@ -32,14 +32,14 @@ pub enum Profile {
     /// gate, unweighted rows, 0.03 m / 5 degree fusion gates, count weights.
     Assignment,
     /// Tracking and fusion for noisy depth (Keller et al. 2013, ElasticFusion): the
-    /// bilateral depth filter ([`BilateralSettings`]); coarse-to-fine ICP over three levels
-    /// ([`ROBUST_ICP_LEVEL_ITERS`]) with 0.10 m / 20 degree association gates,
-    /// Huber-weighted rows scaled by the depth-noise model and a convergence test that
-    /// noisy data can meet; fusion with best-candidate association
-    /// ([`Association::BestCandidate`]), confidence-weighted averages
-    /// ([`ROBUST_CONFIDENCE_SIGMA`]), surfel radii, wider gates ([`ROBUST_FUSE_DIST_M`]), the
-    /// retirement of duplicate surfels ([`ROBUST_PRUNE_RADIUS_SCALE`]) and the removal of
-    /// unstable surfels ([`ROBUST_STABLE_WEIGHT`]).
+    /// bilateral depth filter; coarse-to-fine ICP over three levels (10, 5 and 4
+    /// iterations) with 0.10 m / 20 degree association gates, Huber-weighted rows scaled by
+    /// the depth-noise model and a convergence test that noisy data can meet; fusion with
+    /// best-candidate association, confidence-weighted averages, surfel radii, wider gates
+    /// (0.05 m / 60 degrees), the retirement of duplicate surfels and the removal of
+    /// unstable surfels.
+    // This text is the command line's help, so it names values, not constants; the test
+    // `keys::help_tests` checks them against the profile's.
     Robust,
 }
 
