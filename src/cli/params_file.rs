@@ -12,7 +12,7 @@ use std::path::Path;
 use clap::{ArgAction, Args, Command, FromArgMatches};
 
 use super::pipeline_args::ParamOverrides;
-use crate::batch::manifest::option_value;
+use crate::batch::manifest::{insert_dotted, option_value};
 use crate::slam::params::{Key, SlamParams, KEY_SECTIONS};
 use crate::{Error, Result};
 
@@ -120,19 +120,7 @@ impl ParamOverrides {
         let encode = |e| Error::encode("the parameter file", e);
         let mut t = toml::Table::try_from(self).map_err(encode)?;
         for (key, value) in &self.section_keys {
-            let mut names = key.split('.').peekable();
-            let mut table = &mut t;
-            while let Some(name) = names.next() {
-                if names.peek().is_none() {
-                    table.insert(name.into(), value.clone());
-                } else {
-                    table = table
-                        .entry(name)
-                        .or_insert_with(|| toml::Value::Table(Default::default()))
-                        .as_table_mut()
-                        .expect("a section is a table");
-                }
-            }
+            insert_dotted(&mut t, key, value.clone());
         }
         toml::to_string(&t).map_err(encode)
     }
@@ -448,6 +436,38 @@ mod tests {
         assert_eq!(ParamOverrides::from_toml(&text).unwrap(), all, "{text}");
         assert_eq!(ParamOverrides::keys().len(), text.lines().count(), "{text}");
         assert_eq!(ParamOverrides::default().to_toml().unwrap().trim(), "");
+    }
+
+    /// A manifest's override by section key, in either form, reaches the parameters
+    /// through the job's parameter file; a grid over one varies it.
+    #[test]
+    fn manifest_overrides_by_section_key_reach_the_parameters() {
+        let m = crate::batch::manifest::Manifest::parse(
+            Path::new("/m/batch.toml"),
+            "[[grid]]\nname = \"g\"\nsequence = \"s\"\n\
+             overrides = { icp = { stop_chi2 = [3, 7.5], pyramid = { radius_px = 2 } }, \
+             \"loop_closure.enabled\" = false, icp-dist = 0.08 }\n",
+        )
+        .unwrap();
+        let ids: Vec<&str> = m.jobs.iter().map(|j| j.id.as_str()).collect();
+        assert_eq!(ids, ["g-icp.stop_chi2=3", "g-icp.stop_chi2=7.5"]);
+        for (job, chi2) in m.jobs.iter().zip([3.0, 7.5]) {
+            let text = job.params_toml();
+            let p = params(&ParamOverrides::from_toml(&text).unwrap());
+            assert_eq!(p.icp.stop_chi2, chi2, "{text}");
+            assert_eq!(p.icp.pyramid.radius_px, 2, "{text}");
+            assert_eq!(p.icp.dist_m, 0.08, "{text}");
+            assert!(p.loop_closure.is_none(), "{text}");
+        }
+        let err = |overrides: &str| {
+            let text = format!("[[job]]\nsequence = \"s\"\noverrides = {{ {overrides} }}\n");
+            crate::batch::manifest::Manifest::parse(Path::new("/m/b.toml"), &text)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(err("icq = { dist_m = 1 }").contains("not a section"));
+        assert!(err("icp = { dist_m = 1 }, \"icp.dist_m\" = 2").contains("set twice"));
+        assert!(err("\"input.downsample\" = 4").contains("job field"));
     }
 
     /// A batch job's parameter file is read with the same keys and values.

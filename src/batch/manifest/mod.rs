@@ -10,6 +10,7 @@
 //! backend = "both"                # cpu | gpu | both (both adds the GPU-vs-CPU comparison)
 //! [defaults.overrides]            # parameters: the keys of a `--params` file (docs/params-file.md)
 //! icp-dist = 0.1
+//! icp = { stop_chi2 = 6 }         # a key by section (or "icp.stop_chi2" = 6; `sections`)
 //!
 //! [[job]]                         # one job
 //! name = "bundled"                # its id (default: made from its values)
@@ -34,6 +35,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
+
+mod sections;
+pub use sections::insert_dotted;
 
 /// One expanded job: what `wgslam run` is asked to do, once per backend.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -181,8 +185,9 @@ impl Manifest {
 
     /// Parses manifest `text` as if read from `path` (relative paths join its folder).
     pub fn parse(path: &Path, text: &str) -> Result<Manifest> {
-        let file: FileToml = toml::from_str(text)
+        let mut file: FileToml = toml::from_str(text)
             .map_err(|e| Error::format(path, format!("not a batch manifest: {e}")))?;
+        sections::flatten_file(path, &mut file)?;
         let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
         let max_jobs = crate::io::input::max_jobs()?;
         let total = file.grid.iter().fold(file.job.len() as u64, |total, g| {
@@ -449,7 +454,7 @@ impl JobSpec {
             toml::Value::Integer(self.downsample.into()),
         );
         for (k, v) in &self.overrides {
-            t.insert(k.clone(), toml_value(v));
+            insert_dotted(&mut t, k, toml_value(v));
         }
         format!(
             "# wgslam parameters of batch job {:?} (written by `wgslam batch`)\n{}",
