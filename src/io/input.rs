@@ -174,7 +174,8 @@ pub fn check_kind(path: &Path, kind: InputKind) -> Result<u64> {
     Ok(m.len())
 }
 
-fn too_big(path: &Path, len: u64, max: u64, kind: InputKind) -> Error {
+/// The error for a file of `len` bytes over `kind`'s cap `max`.
+pub(crate) fn too_big(path: &Path, len: u64, max: u64, kind: InputKind) -> Error {
     Error::format(
         path,
         format!(
