@@ -1,78 +1,227 @@
-//! The browser build's entry points (wasm32 only, `deploy/web`): the page hands over the
-//! bundled sequence's files, runs dense SLAM over them on the GPU through WebGPU, and reads
-//! back what `wgslam run` prints (the same [`summary_lines`] over the same [`Metrics`]),
-//! both trajectories and a render of the map by the GPU renderer of [`crate::render`].
+//! The browser build's entry points (wasm32 only, `deploy/web`): the page lists a dataset
+//! folder's files (picked, dropped or the bundled frames), runs dense SLAM over them on the
+//! GPU through WebGPU while showing each input frame and the growing map, and then offers
+//! what `wgslam run` prints (the same [`summary_lines`] over the same [`Metrics`]) and
+//! writes (the same bytes, [`output_bytes`]), a mesh, and the map from any viewpoint.
 //!
-//! Not a second pipeline: the run is [`run_observed`] on a [`GpuBackend`], as on the command
-//! line. What differs is only how waits happen (see [`crate::gpu::wait`]): every GPU wait
-//! suspends the WebAssembly stack through JSPI, so [`wgslam_web_run`], the one entry point
-//! that waits, is a plain WebAssembly export (no wasm-bindgen wrapper) that the page calls
-//! through `WebAssembly.promising`. The other entry points return at once.
+//! Not a second pipeline: the folder is opened by [`dataset::open_with`] (layout detection
+//! and every reader, over the page's files: [`files`]), the run is [`run_observed`] on a
+//! [`GpuBackend`], as on the command line. What differs is how waits happen (see
+//! [`crate::gpu::wait`]): every GPU wait and every file read suspends the WebAssembly stack
+//! through JSPI, so the entry points that wait, [`wgslam_web_run`] and
+//! [`wgslam_web_render`], are plain WebAssembly exports (no wasm-bindgen wrapper) that the
+//! page calls through `WebAssembly.promising`, one at a time. The others return at once.
 //!
-//! Calling order: [`add_file`] for every file of the dataset folder, optionally
-//! [`set_progress`], then `wgslam_web_run` (awaited), then [`result_json`] and
-//! [`render_rgba`], or [`last_error`] when the run returned non-zero.
+//! Calling order: [`clear_files`], [`add_file`] for every file of the folder, [`set_reader`],
+//! [`configure`]; optionally [`set_progress`] and [`set_frame_view`]; `wgslam_web_run`
+//! (awaited); then [`result_json`], [`download`], and [`set_orbit`] with
+//! `wgslam_web_render` (awaited) and [`render_rgba`] as the user turns the view, or
+//! [`last_error`] when a call returned non-zero.
+
+mod files;
+mod view;
 
 use std::cell::RefCell;
-use std::path::Path;
+use std::path::PathBuf;
+use std::sync::Arc;
 
 use glam::DMat4;
 use serde::Serialize;
 use wasm_bindgen::prelude::*;
 
-use crate::dataset::{open_in_memory, InMemoryFiles, DEFAULT_MAX_TIME_DIFF};
+use crate::dataset::{self, SequenceOptions};
+use crate::geometry::camera::Intrinsics;
 use crate::gpu::context::{DeviceOptions, GpuContext};
 use crate::gpu::GpuBackend;
-use crate::render::gpu::GpuRenderer;
-use crate::render::outputs::overview_camera;
-use crate::render::{MapCloud, RenderBackend, RenderSettings, View, DEFAULT_SIZE};
+use crate::render::orbit::Orbit;
+use crate::slam::map::SurfelMap;
 use crate::slam::params::{Profile, SlamParams};
-use crate::tools::run::{run_observed, summary_lines, Decode, FrameOutcome, Metrics};
+use crate::tools::run::{output_bytes, run_observed, summary_lines, Decode, FrameOutcome, Metrics};
 use crate::Result;
+use files::PageFiles;
+use view::{render_map, status_words, LiveView, Shown, VIEW_SIZE};
 
 /// What the page gave and what the last run left.
-#[derive(Default)]
 struct State {
-    files: InMemoryFiles,
+    files: PageFiles,
+    root: PathBuf,
+    profile: Profile,
     progress: Option<js_sys::Function>,
+    frame_view: Option<js_sys::Function>,
+    orbit: Orbit,
     result: Option<String>,
+    /// The last map picture, RGBA8 of [`VIEW_SIZE`].
     render: Option<Vec<u8>>,
+    /// The last input frame's colour and depth pictures (its map picture is `render`).
+    frame: Option<Shown>,
+    /// The finished run's output files, the map and what its view needs.
+    outputs: Vec<(&'static str, Vec<u8>)>,
+    map: Option<SurfelMap>,
+    trajectory: Vec<(f64, DMat4)>,
+    intrinsics: Option<Intrinsics>,
     error: Option<String>,
 }
 
 thread_local! {
-    static STATE: RefCell<State> = RefCell::new(State::default());
+    static STATE: RefCell<State> = RefCell::new(State {
+        files: PageFiles::default(),
+        root: PathBuf::new(),
+        profile: Profile::Robust,
+        progress: None,
+        frame_view: None,
+        orbit: Orbit::default(),
+        result: None,
+        render: None,
+        frame: None,
+        outputs: Vec::new(),
+        map: None,
+        trajectory: Vec::new(),
+        intrinsics: None,
+        error: None,
+    });
 }
 
-/// Adds one file of the dataset folder: `path` as the command line would name it
-/// (`assets/icl_living_room_kt2/rgb/0.png`), `bytes` its contents.
+/// Forgets the listed files (before listing another folder's).
 #[wasm_bindgen]
-pub fn add_file(path: &str, bytes: Vec<u8>) {
-    STATE.with_borrow_mut(|s| s.files.insert(path, bytes));
+pub fn clear_files() {
+    STATE.with_borrow_mut(|s| s.files = PageFiles::default());
 }
 
-/// Sets the function called after each frame with `(frames done, frames in all, surfels,
-/// the frame's pipeline milliseconds, the frame's status)`.
+/// Lists one file of the dataset folder: `path` as the folder's name joined with the path
+/// inside it (`my_scan/rgb/0.png`), `bytes` its size. Its contents are read only when the
+/// run needs them, through the reader of [`set_reader`].
+#[wasm_bindgen]
+pub fn add_file(path: &str, bytes: f64) {
+    STATE.with_borrow_mut(|s| s.files.list.insert(path, bytes as u64));
+}
+
+/// Sets the function that reads a listed file: `read(path) -> Promise<Uint8Array>`.
+#[wasm_bindgen]
+pub fn set_reader(read: js_sys::Function) {
+    files::set_reader(read);
+}
+
+/// Sets the folder to open (`root`, as the listed paths start) and the parameter profile
+/// (`robust` or `assignment`, as `wgslam run --profile`); an error message for an unknown
+/// profile, else `undefined`.
+#[wasm_bindgen]
+pub fn configure(root: &str, profile: &str) -> Option<String> {
+    let parsed: std::result::Result<Profile, _> = serde_json::from_value(profile.into());
+    match parsed {
+        Ok(p) => {
+            STATE.with_borrow_mut(|s| {
+                s.root = PathBuf::from(root);
+                s.profile = p;
+            });
+            None
+        }
+        Err(_) => Some(format!("unknown profile {profile:?}: robust or assignment")),
+    }
+}
+
+/// Sets the function called after each frame with `(frames done, frames in all, map
+/// points, the frame's pipeline milliseconds, what happened to the frame in words)`.
 #[wasm_bindgen]
 pub fn set_progress(callback: js_sys::Function) {
     STATE.with_borrow_mut(|s| s.progress = Some(callback));
 }
 
-/// The last run's results as JSON (the private `WebResult`: the summary lines, `Metrics`,
-/// both trajectories, per-frame times), or `undefined` before one finished.
+/// Sets the function called after each frame with `(has a new map picture)`: the frame's
+/// pictures ([`frame_rgba`], [`depth_rgba`], [`frame_width`], [`frame_height`]) and, when
+/// the argument is true, the map's ([`render_rgba`]) are new.
+#[wasm_bindgen]
+pub fn set_frame_view(callback: js_sys::Function) {
+    STATE.with_borrow_mut(|s| s.frame_view = Some(callback));
+}
+
+/// Sets the view of the map: turn and tilt (radians), zoom (distance multiple) and pan
+/// (distance units), see [`Orbit`]. Used by the next picture (during a run, the next map
+/// download's; after it, [`wgslam_web_render`]'s).
+#[wasm_bindgen]
+pub fn set_orbit(yaw_rad: f64, pitch_rad: f64, zoom: f64, pan_x: f64, pan_y: f64) {
+    STATE.with_borrow_mut(|s| {
+        s.orbit = Orbit {
+            yaw_rad,
+            pitch_rad,
+            zoom,
+            pan: [pan_x, pan_y],
+        }
+    });
+}
+
+/// The last run's results as JSON (the private `WebResult`), or `undefined`.
 #[wasm_bindgen]
 pub fn result_json() -> Option<String> {
     STATE.with_borrow(|s| s.result.clone())
 }
 
-/// The last run's map render as RGBA8, `render_width x render_height` of [`result_json`],
-/// row-major; `undefined` without one.
+/// The last map picture as RGBA8, [`view_width`] x [`view_height`], row-major.
 #[wasm_bindgen]
 pub fn render_rgba() -> Option<Vec<u8>> {
     STATE.with_borrow(|s| s.render.clone())
 }
 
-/// Why the last run failed, or `undefined`.
+/// The map picture's width, pixels (fixed).
+#[wasm_bindgen]
+pub fn view_width() -> u32 {
+    VIEW_SIZE.0
+}
+
+/// The map picture's height, pixels (fixed).
+#[wasm_bindgen]
+pub fn view_height() -> u32 {
+    VIEW_SIZE.1
+}
+
+/// The last input frame's colour as RGBA8, [`frame_width`] x [`frame_height`].
+#[wasm_bindgen]
+pub fn frame_rgba() -> Option<Vec<u8>> {
+    STATE.with_borrow(|s| s.frame.as_ref().map(|f| f.color.clone()))
+}
+
+/// The last input frame's depth as grey RGBA8 (near light, no reading dark red).
+#[wasm_bindgen]
+pub fn depth_rgba() -> Option<Vec<u8>> {
+    STATE.with_borrow(|s| s.frame.as_ref().map(|f| f.depth.clone()))
+}
+
+/// The last input frame's width, pixels (0 before one).
+#[wasm_bindgen]
+pub fn frame_width() -> u32 {
+    STATE.with_borrow(|s| s.frame.as_ref().map_or(0, |f| f.size.0))
+}
+
+/// The last input frame's height, pixels (0 before one).
+#[wasm_bindgen]
+pub fn frame_height() -> u32 {
+    STATE.with_borrow(|s| s.frame.as_ref().map_or(0, |f| f.size.1))
+}
+
+/// One file of the finished run: `trajectory.tum`, `trajectory_odometry.tum`, `map.ply`,
+/// `metrics.json`, `frames.json` (the bytes `wgslam run` writes), or `mesh.ply` (the map's
+/// mesh with `wgslam mesh`'s defaults, made now); `undefined` for another name, before a
+/// run, or when the mesh fails ([`last_error`]).
+#[wasm_bindgen]
+pub fn download(name: &str) -> Option<Vec<u8>> {
+    if name == "mesh.ply" {
+        let map = STATE.with_borrow(|s| s.map.clone())?;
+        return match crate::mesh::mesh_from_map(&map, &crate::mesh::MeshParams::default()) {
+            Ok(mesh) => Some(crate::mesh::write::ply_bytes(&mesh)),
+            Err(e) => {
+                STATE.with_borrow_mut(|s| s.error = Some(e.to_string()));
+                None
+            }
+        };
+    }
+    STATE.with_borrow(|s| {
+        s.outputs
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, b)| b.clone())
+    })
+}
+
+/// Why the last call failed, or `undefined`.
 #[wasm_bindgen]
 pub fn last_error() -> Option<String> {
     STATE.with_borrow(|s| s.error.clone())
@@ -83,7 +232,11 @@ pub fn last_error() -> Option<String> {
 struct WebResult<'a> {
     /// The lines `wgslam run` prints, from the same code.
     summary: Vec<String>,
+    /// What opening decided on the user's behalf, as `wgslam run` prints it.
+    notes: &'a [String],
     metrics: &'a Metrics,
+    /// The dataset's layout as users know it.
+    layout: &'static str,
     /// Whether the 64-bit or the portable key kernels ran. (The adapter's name is the
     /// page's to read: wgpu leaves it empty on WebGPU.)
     key_kernels: &'static str,
@@ -95,46 +248,54 @@ struct WebResult<'a> {
     estimate_aligned: Vec<[f64; 4]>,
     /// Ground-truth camera positions `[stamp, x, y, z]` of the run's frames.
     ground_truth: Vec<[f64; 4]>,
-    /// Pipeline milliseconds per frame, in order.
-    frame_ms: Vec<f64>,
-    render_width: u32,
-    render_height: u32,
-    /// Which renderer drew the picture (`gpu`).
-    render_backend: &'static str,
+    /// The names [`download`] offers.
+    downloads: Vec<&'static str>,
 }
 
 /// Runs dense SLAM over frames `first..=last` (a negative `first`: the command line's
-/// default, the first frame with ground truth; a negative `last`: the last frame) of the files given by [`add_file`] under
-/// `assets/icl_living_room_kt2` with the default parameters of `wgslam run` (the robust
-/// profile, tracked poses) on the WebGPU adapter. Returns 0 on success, 1 on an error
-/// ([`last_error`]). Must be called through `WebAssembly.promising` (it suspends while the
-/// GPU works).
+/// default, the first frame with ground truth; a negative `last`: the last frame) of the
+/// folder [`configure`] named, with its profile's parameters and tracked poses, on the
+/// WebGPU adapter. Returns 0 on success, 1 on an error ([`last_error`]). Must be called
+/// through `WebAssembly.promising` (it suspends while the GPU works and files are read).
 #[no_mangle]
 pub extern "C" fn wgslam_web_run(first: i32, last: i32) -> u32 {
-    // A panic aborts the module (a trap, which rejects the page's promise) and prints
-    // nothing on wasm32: leave its message where the page looks, `globalThis.wgslamPanic`.
-    std::panic::set_hook(Box::new(|info| {
-        let _ = js_sys::Reflect::set(
-            &js_sys::global(),
-            &"wgslamPanic".into(),
-            &info.to_string().into(),
-        );
-    }));
+    set_panic_hook();
     // Earlier results go, so a failed run never shows a previous run's numbers.
     STATE.with_borrow_mut(|s| {
         s.result = None;
         s.render = None;
+        s.frame = None;
+        s.outputs.clear();
+        s.map = None;
+        s.trajectory.clear();
         s.error = None;
     });
     let frame = |i: i32| usize::try_from(i).ok();
-    match run(frame(first), frame(last)) {
-        Ok((json, rgba)) => {
-            STATE.with_borrow_mut(|s| {
-                s.result = Some(json);
-                s.render = Some(rgba);
-            });
-            0
-        }
+    finish(run(frame(first), frame(last)))
+}
+
+/// Draws the finished run's map from the orbit of [`set_orbit`] into [`render_rgba`].
+/// Returns 0 on success, 1 on an error or without a finished run ([`last_error`]). Must be
+/// called through `WebAssembly.promising`, never while [`wgslam_web_run`] runs.
+#[no_mangle]
+pub extern "C" fn wgslam_web_render() -> u32 {
+    set_panic_hook();
+    let (map, trajectory, intrinsics, orbit) =
+        STATE.with_borrow(|s| (s.map.clone(), s.trajectory.clone(), s.intrinsics, s.orbit));
+    let (Some(map), Some(intrinsics)) = (map, intrinsics) else {
+        return finish(Err(crate::Error::Argument(
+            "no finished run to draw".into(),
+        )));
+    };
+    // No borrow of the state is held while the GPU works (the page may set the orbit then).
+    let picture = render_map(&map, &trajectory, &intrinsics, &orbit);
+    finish(picture.map(|p| STATE.with_borrow_mut(|s| s.render = Some(p))))
+}
+
+/// 0 for `Ok`; 1 with the error left for [`last_error`].
+fn finish(result: Result<()>) -> u32 {
+    match result {
+        Ok(()) => 0,
         Err(e) => {
             STATE.with_borrow_mut(|s| s.error = Some(e.to_string()));
             1
@@ -142,14 +303,27 @@ pub extern "C" fn wgslam_web_run(first: i32, last: i32) -> u32 {
     }
 }
 
-/// The root the page's files are under: the bundled sequence's path in the repository, so
-/// `metrics.dataset` reads as the command line's.
-const ROOT: &str = "assets/icl_living_room_kt2";
+/// A panic aborts the module (a trap, which rejects the page's promise) and prints nothing
+/// on wasm32: its message goes where the page looks, `globalThis.wgslamPanic`.
+fn set_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let _ = js_sys::Reflect::set(
+            &js_sys::global(),
+            &"wgslamPanic".into(),
+            &info.to_string().into(),
+        );
+    }));
+}
 
-fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
-    // The files stay in the state (a later run needs them again); the sequence gets a copy.
-    let files = STATE.with_borrow(|s| s.files.clone());
-    let seq = open_in_memory(Path::new(ROOT), files, DEFAULT_MAX_TIME_DIFF)?;
+fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
+    let (files, root, profile) =
+        STATE.with_borrow(|s| (s.files.clone(), s.root.clone(), s.profile));
+    if files.list.is_empty() {
+        return Err(crate::Error::Argument(
+            "no files: pick or drop a dataset folder first".into(),
+        ));
+    }
+    let seq = dataset::open_with(Arc::new(files), &root, &SequenceOptions::default())?;
     let first = first.unwrap_or_else(|| seq.default_first_frame());
     let last = last.unwrap_or(seq.len() - 1);
     let range = seq.select(first, last)?;
@@ -163,7 +337,7 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
         "portable 32-bit"
     };
     let backend = GpuBackend::new(ctx)?;
-    let progress = STATE.with_borrow(|s| s.progress.clone());
+    let (progress, frame_view) = STATE.with_borrow(|s| (s.progress.clone(), s.frame_view.clone()));
     let mut done = 0u32;
     let on_frame = |f: &FrameOutcome| {
         done += 1;
@@ -173,13 +347,37 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
                 &(total as u32).into(),
                 &(f.report.surfels as u32).into(),
                 &(f.seconds * 1e3).into(),
-                &format!("{:?}", f.report.status).into(),
+                &status_words(&f.report.status).into(),
             );
-            // A throwing progress callback is the page's bug; it does not stop the run.
+            // A throwing callback is the page's bug; it does not stop the run.
             let _ = cb.apply(&JsValue::NULL, &args);
         }
     };
-    let params = SlamParams::profile(Profile::Robust);
+    let orbit = || STATE.with_borrow(|s| s.orbit);
+    let show = |mut shown: Shown| {
+        let picture = shown.map.take();
+        let new_map = picture.is_some();
+        STATE.with_borrow_mut(|s| {
+            s.frame = Some(shown);
+            if picture.is_some() {
+                s.render = picture;
+            }
+        });
+        if let Some(cb) = &frame_view {
+            let _ = cb.call1(&JsValue::NULL, &new_map.into());
+        }
+    };
+    let mut live = LiveView {
+        first,
+        last,
+        intrinsics: seq.intrinsics,
+        depth_scale: seq.depth_scale,
+        trajectory: Vec::new(),
+        map: None,
+        orbit: &orbit,
+        show: &show,
+    };
+    let params = SlamParams::profile(profile);
     let result = run_observed(
         backend,
         &seq,
@@ -187,7 +385,7 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
         params,
         Decode::BeforeEachFrame,
         on_frame,
-        None,
+        Some(&mut live),
     )?;
 
     // As `trajectory.tum`: after loop closure when a loop bent it.
@@ -204,65 +402,51 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<(String, Vec<u8>)> {
             Some(position(&(f.timestamp, g)))
         })
         .collect();
-
-    let gt_poses = seq.ground_truth();
-    let pairs = crate::eval::associate(&est, &gt_poses, crate::eval::DEFAULT_MAX_DT);
-    let estimate_aligned = if pairs.is_empty() {
-        Vec::new()
-    } else {
-        let e: Vec<_> = pairs
-            .iter()
-            .map(|&(i, _)| est[i].1.w_axis.truncate())
-            .collect();
-        let g: Vec<_> = pairs
-            .iter()
-            .map(|&(_, j)| gt_poses[j].1.w_axis.truncate())
-            .collect();
-        let t_est_to_gt = crate::eval::align_rigid(&e, &g)?;
-        est.iter()
-            .map(|(stamp, t)| position(&(*stamp, t_est_to_gt * *t)))
-            .collect()
-    };
-
-    // The map from the default viewpoint of `map_color.png`, by the GPU renderer on a
-    // device of its own (the run's went with its backend).
-    let (w, h) = DEFAULT_SIZE;
-    let rgba = if result.map.is_empty() {
-        vec![255; (w * h * 4) as usize]
-    } else {
-        let ctx = GpuContext::with_options(DeviceOptions::default())?;
-        let kernels = GpuRenderer::new(&ctx)?;
-        let renderer = RenderBackend::Gpu {
-            ctx: &ctx,
-            kernels: &kernels,
-        };
-        let camera = overview_camera(&result.map, &est, &seq.intrinsics, DEFAULT_SIZE)?;
-        let map_cloud = MapCloud::new(&result.map);
-        let image = renderer.render(
-            &map_cloud.cloud(),
-            &camera,
-            View::Color,
-            &RenderSettings::default(),
-        )?;
-        image
-            .pixels()
-            .flat_map(|p| [p.0[0], p.0[1], p.0[2], 255])
-            .collect()
-    };
-
+    let estimate_aligned = aligned(&est, &seq.ground_truth())?
+        .iter()
+        .map(position)
+        .collect();
+    let outputs = output_bytes(&result)?;
+    let mut downloads: Vec<&'static str> = outputs.iter().map(|(n, _)| *n).collect();
+    downloads.push("mesh.ply");
     let out = WebResult {
         summary: summary_lines(&result.metrics),
+        notes: &seq.notes,
         metrics: &result.metrics,
+        layout: seq.layout.name(),
         key_kernels,
         estimate: est.iter().map(position).collect(),
         estimate_aligned,
         ground_truth: gt,
-        frame_ms: result.frames.iter().map(|f| f.seconds * 1e3).collect(),
-        render_width: w,
-        render_height: h,
-        render_backend: "gpu",
+        downloads,
     };
     let json = serde_json::to_string(&out)
         .map_err(|e| crate::Error::encode("the page's result".to_string(), e))?;
-    Ok((json, rgba))
+    STATE.with_borrow_mut(|s| {
+        s.result = Some(json);
+        s.outputs = outputs;
+        s.map = Some(result.map);
+        s.trajectory = est;
+        s.intrinsics = Some(seq.intrinsics);
+    });
+    Ok(())
+}
+
+/// `est` moved by the rigid alignment of the aligned ATE into the ground truth's frame
+/// (`eval::align_rigid` over the pairs `eval::ate` uses); empty without pairs.
+fn aligned(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Vec<(f64, DMat4)>> {
+    let pairs = crate::eval::associate(est, gt, crate::eval::DEFAULT_MAX_DT);
+    if pairs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let e: Vec<_> = pairs
+        .iter()
+        .map(|&(i, _)| est[i].1.w_axis.truncate())
+        .collect();
+    let g: Vec<_> = pairs
+        .iter()
+        .map(|&(_, j)| gt[j].1.w_axis.truncate())
+        .collect();
+    let t_est_to_gt = crate::eval::align_rigid(&e, &g)?;
+    Ok(est.iter().map(|(s, t)| (*s, t_est_to_gt * *t)).collect())
 }
