@@ -13,7 +13,8 @@
 # The folder: ../shared/data/7scenes_redkitchen (7-Scenes frame files, research licence:
 # read from ../shared, never copied into the repository) when present, else the bundled
 # ICL-NUIM frames rewritten in the TUM RGB-D layout (rgb.txt, depth.txt, groundtruth.txt,
-# camera.json) under $WGSLAM_WEB_OUT. The first line of output says which.
+# camera.json) under $WGSLAM_WEB_OUT (also with WGSLAM_WEB_DATA=bundled, e.g. to check that
+# path where ../shared exists). The first line of output says which.
 #
 # Needs: /usr/bin/chromium (Debian's `chromium`), node and npm, a Vulkan driver (lavapipe)
 # for the native run. WGSLAM_BIN: the native binary (default: cargo run --release).
@@ -32,14 +33,16 @@ out="${WGSLAM_WEB_OUT:-/tmp/wgslam-web}"
 mkdir -p "$out"
 
 folder=../shared/data/7scenes_redkitchen
-if [[ -d "$folder" ]]; then
+if [[ -d "$folder" && "${WGSLAM_WEB_DATA:-}" != bundled ]]; then
   folder="$(cd "$folder" && pwd)"
   step "data: $folder (7-Scenes frame files from ../shared), frames $frames"
 else
   icl=assets/icl_living_room_kt2
   folder="$out/icl_as_tum"
-  step "data: ../shared/data is absent; the bundled ICL-NUIM frames rewritten in the TUM" \
-    "layout in $folder, frames $frames"
+  why="../shared/data/7scenes_redkitchen is absent"
+  [[ "${WGSLAM_WEB_DATA:-}" == bundled ]] && why="WGSLAM_WEB_DATA=bundled"
+  step "data ($why): the bundled ICL-NUIM frames rewritten in the TUM layout in" \
+    "$folder, frames $frames"
   rm -rf "$folder"
   mkdir -p "$folder"
   cp -r "$icl/rgb" "$icl/depth" "$icl/camera.json" "$folder/"
