@@ -289,6 +289,7 @@ function onFrame(newMap) {
 
 // The orbit: yaw and pitch (radians), zoom (distance multiple), pan (distance units).
 const view = { yaw: 0, pitch: 0, zoom: 1, pan: [0, 0] };
+window.wgslam.view = view;
 let drawing = false;
 let again = false;
 
@@ -326,7 +327,11 @@ function setupOrbit(canvas) {
   };
   canvas.addEventListener("contextmenu", (e) => e.preventDefault());
   canvas.addEventListener("pointerdown", (e) => {
-    canvas.setPointerCapture(e.pointerId);
+    // Capture keeps a drag that leaves the canvas; a pointer the browser does not know
+    // (a script's) cannot be captured, which changes nothing else.
+    try {
+      canvas.setPointerCapture(e.pointerId);
+    } catch {}
     pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
     last = pointers.size === 2 ? spread() : { x: e.clientX, y: e.clientY };
   });

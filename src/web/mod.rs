@@ -5,7 +5,7 @@
 //! writes (the same bytes, [`output_bytes`]), a mesh, and the map from any viewpoint.
 //!
 //! Not a second pipeline: the folder is opened by [`dataset::open_with`] (layout detection
-//! and every reader, over the page's files: [`files`]), the run is [`run_observed`] on a
+//! and every reader, over the page's files: `files.rs`), the run is [`run_observed`] on a
 //! [`GpuBackend`], as on the command line. What differs is how waits happen (see
 //! [`crate::gpu::wait`]): every GPU wait and every file read suspends the WebAssembly stack
 //! through JSPI, so the entry points that wait, [`wgslam_web_run`] and

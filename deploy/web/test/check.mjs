@@ -12,7 +12,7 @@
 //                [--chromium PATH] [--timeout-s S]
 
 import { spawn } from "node:child_process";
-import { mkdirSync, readFileSync } from "node:fs";
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import net from "node:net";
 import path from "node:path";
 import { chromium } from "playwright-core";
@@ -273,6 +273,52 @@ async function main() {
     console.log(`orbit: a drag changed ${(fraction * 100).toFixed(1)} % of the map's pixels (at least ${MIN_CHANGED_PIXELS * 100} %)`);
     if (!(fraction >= MIN_CHANGED_PIXELS)) failures.push(`the drag changed only ${(fraction * 100).toFixed(1)} % of the map`);
     await page.screenshot({ path: path.join(opt.shots, "page-turned.png"), fullPage: true });
+
+    // Two fingers on a touch screen: spreading them zooms in (pointer events as a touch
+    // screen sends them; headless Chromium has no multi-touch input of its own).
+    const beforePinch = await mapPixels(page);
+    const pinchRenders = await page.evaluate(() => window.wgslam.renders);
+    await page.evaluate(({ x, y }) => {
+      const c = document.getElementById("map");
+      const send = (type, id, dx) =>
+        c.dispatchEvent(
+          new PointerEvent(type, { pointerId: id, pointerType: "touch", isPrimary: id === 1, clientX: x + dx, clientY: y, buttons: type === "pointerup" ? 0 : 1, bubbles: true }),
+        );
+      send("pointerdown", 1, -20);
+      send("pointerdown", 2, 20);
+      for (const d of [30, 45, 60]) {
+        send("pointermove", 1, -d);
+        send("pointermove", 2, d);
+      }
+      send("pointerup", 1, -60);
+      send("pointerup", 2, 60);
+    }, { x: x0, y: y0 });
+    await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, pinchRenders, {
+      timeout: 60_000,
+      polling: 100,
+    });
+    const afterPinch = await mapPixels(page);
+    let pinched = 0;
+    for (let i = 0; i < beforePinch.length; i += 4) {
+      if (beforePinch[i] !== afterPinch[i] || beforePinch[i + 1] !== afterPinch[i + 1] || beforePinch[i + 2] !== afterPinch[i + 2]) pinched += 1;
+    }
+    const pinchFraction = pinched / (beforePinch.length / 4);
+    const zoom = await page.evaluate(() => window.wgslam.view.zoom);
+    console.log(`pinch: zoom ${zoom.toFixed(3)} (below 1 is closer), ${(pinchFraction * 100).toFixed(1)} % of the map's pixels changed`);
+    if (!(zoom < 1)) failures.push(`spreading two fingers did not zoom in (zoom ${zoom})`);
+    if (!(pinchFraction >= MIN_CHANGED_PIXELS)) failures.push(`the pinch changed only ${(pinchFraction * 100).toFixed(1)} % of the map`);
+
+    // A folder in no layout: the command line's words, from the same code.
+    const junk = path.join(opt.shots, "not-a-dataset");
+    mkdirSync(junk, { recursive: true });
+    writeFileSync(path.join(junk, "notes.txt"), "no frames here\n");
+    await page.setInputFiles("#folder", junk);
+    await page.click("#run");
+    const bad = await settled(page, 60, ["error"]);
+    console.log(`a folder in no layout: ${bad.status.slice(0, 160)}…`);
+    if (!bad.status.includes("not a dataset in any layout wgslam reads")) {
+      failures.push(`a folder in no layout: not the command line's error: ${bad.status}`);
+    }
 
     // Pages that cannot run: not a secure context (the local server under another name),
     // opened from disk, a browser with WebGPU off (Debian's Chromium without
