@@ -8,63 +8,28 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::source::{DatasetFiles, Entry, FileList};
+use super::source::{Listed, ReadFile};
 use super::{open_with, Sequence, SequenceOptions};
-use crate::io::input::InputKind;
 use crate::{Error, Result};
 
 /// A dataset folder's files held in memory, by path (the sequence's root joined with the
 /// path inside the folder, as [`super::FrameRecord`]'s paths are).
+pub type InMemoryFiles = Listed<HeldBytes>;
+
+/// The bytes of an [`InMemoryFiles`], by path.
 #[derive(Default, Clone, PartialEq)]
-pub struct InMemoryFiles {
-    list: FileList,
-    files: BTreeMap<PathBuf, Vec<u8>>,
-}
+pub struct HeldBytes(BTreeMap<PathBuf, Vec<u8>>);
 
-impl std::fmt::Debug for InMemoryFiles {
+impl std::fmt::Debug for HeldBytes {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let bytes: usize = self.files.values().map(Vec::len).sum();
-        write!(
-            f,
-            "InMemoryFiles({} files, {bytes} bytes)",
-            self.files.len()
-        )
+        let bytes: usize = self.0.values().map(Vec::len).sum();
+        write!(f, "HeldBytes({} files, {bytes} bytes)", self.0.len())
     }
 }
 
-impl InMemoryFiles {
-    /// Adds (or replaces) file `path` with its contents.
-    pub fn insert(&mut self, path: impl Into<PathBuf>, bytes: Vec<u8>) {
-        let path = path.into();
-        self.list.insert(path.clone(), bytes.len() as u64);
-        self.files.insert(path, bytes);
-    }
-
-    /// The contents of file `path`, if held.
-    pub fn get(&self, path: &Path) -> Option<&[u8]> {
-        self.files.get(path).map(Vec::as_slice)
-    }
-
-    /// Number of files held.
-    pub fn len(&self) -> usize {
-        self.files.len()
-    }
-
-    /// True when no file is held.
-    pub fn is_empty(&self) -> bool {
-        self.files.is_empty()
-    }
-}
-
-impl DatasetFiles for InMemoryFiles {
-    fn entry(&self, path: &Path) -> std::io::Result<Entry> {
-        self.list.entry(path)
-    }
-    fn list(&self, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
-        self.list.list(dir)
-    }
-    fn read(&self, path: &Path, kind: InputKind) -> Result<Vec<u8>> {
-        let bytes = self.get(path).ok_or_else(|| {
+impl ReadFile for HeldBytes {
+    fn read_file(&self, path: &Path) -> Result<Vec<u8>> {
+        let bytes = self.0.get(path).ok_or_else(|| {
             Error::io(
                 path,
                 std::io::Error::new(
@@ -73,8 +38,31 @@ impl DatasetFiles for InMemoryFiles {
                 ),
             )
         })?;
-        FileList::check_size(path, bytes.len() as u64, kind)?;
-        Ok(bytes.to_vec())
+        Ok(bytes.clone())
+    }
+}
+
+impl InMemoryFiles {
+    /// Adds (or replaces) file `path` with its contents.
+    pub fn insert(&mut self, path: impl Into<PathBuf>, bytes: Vec<u8>) {
+        let path = path.into();
+        self.list.insert(path.clone(), bytes.len() as u64);
+        self.reader.0.insert(path, bytes);
+    }
+
+    /// The contents of file `path`, if held.
+    pub fn get(&self, path: &Path) -> Option<&[u8]> {
+        self.reader.0.get(path).map(Vec::as_slice)
+    }
+
+    /// Number of files held.
+    pub fn len(&self) -> usize {
+        self.list.len()
+    }
+
+    /// True when no file is held.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
     }
 }
 

@@ -39,7 +39,7 @@ use crate::io::trajectory::parse_tum;
 use crate::{Error, Result};
 
 pub use frame::RawFrame;
-pub use in_memory::{open_in_memory, InMemoryFiles};
+pub use in_memory::{open_in_memory, HeldBytes, InMemoryFiles};
 pub use source::DatasetFiles;
 
 /// Raw depth units per metre when neither the options, `camera.json` nor the layout say

@@ -152,6 +152,40 @@ impl FileList {
     }
 }
 
+/// Reads one listed file's whole bytes for a [`Listed`] source (which checks sizes).
+pub trait ReadFile: Debug + Send + Sync {
+    /// The bytes of `path`, one of the list's files.
+    fn read_file(&self, path: &Path) -> Result<Vec<u8>>;
+}
+
+/// Files known by their paths and sizes ([`FileList`]) whose bytes come from `reader`:
+/// held in memory ([`super::InMemoryFiles`]) or asked of a web page when needed
+/// (`src/web`). Sizes are checked against the kind's cap before a read (the listed size)
+/// and after it (the bytes that came), as [`Disk`] checks a file's.
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct Listed<R> {
+    pub list: FileList,
+    pub reader: R,
+}
+
+impl<R: ReadFile> DatasetFiles for Listed<R> {
+    fn entry(&self, path: &Path) -> std::io::Result<Entry> {
+        self.list.entry(path)
+    }
+    fn list(&self, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+        self.list.list(dir)
+    }
+    fn read(&self, path: &Path, kind: InputKind) -> Result<Vec<u8>> {
+        let Entry::File(len) = self.list.entry(path).map_err(|e| Error::io(path, e))? else {
+            return Err(Error::format(path, "is a folder, not a file"));
+        };
+        FileList::check_size(path, len, kind)?;
+        let bytes = self.reader.read_file(path)?;
+        FileList::check_size(path, bytes.len() as u64, kind)?;
+        Ok(bytes)
+    }
+}
+
 fn not_found() -> std::io::Error {
     std::io::Error::new(
         std::io::ErrorKind::NotFound,
@@ -207,12 +241,7 @@ pub fn read(path: &Path, kind: InputKind) -> Result<Vec<u8>> {
 /// [`read`] as UTF-8 text; a leading byte-order mark is dropped (as
 /// [`crate::io::input::read_kind_string`]).
 pub fn read_string(path: &Path, kind: InputKind) -> Result<String> {
-    let mut text = String::from_utf8(read(path, kind)?)
-        .map_err(|e| Error::format(path, format!("not UTF-8 text: {e}")))?;
-    if text.starts_with('\u{feff}') {
-        text.drain(..'\u{feff}'.len_utf8());
-    }
-    Ok(text)
+    crate::io::input::text_of(path, read(path, kind)?)
 }
 
 #[cfg(test)]

@@ -7,14 +7,12 @@
 //! sequence is never in memory as a whole: one frame's two images at a time.
 
 use std::cell::RefCell;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::rc::Rc;
 
 use wasm_bindgen::prelude::*;
 
-use crate::dataset::source::{Entry, FileList};
-use crate::dataset::DatasetFiles;
-use crate::io::input::InputKind;
+use crate::dataset::source::{Listed, ReadFile};
 use crate::{Error, Result};
 
 thread_local! {
@@ -28,27 +26,15 @@ pub fn set_reader(reader: js_sys::Function) {
 }
 
 /// The page's files by path and size; reads go to the page's reader.
-#[derive(Debug, Default, Clone)]
-pub struct PageFiles {
-    pub list: FileList,
-}
+pub type PageFiles = Listed<PageReader>;
 
-impl DatasetFiles for PageFiles {
-    fn entry(&self, path: &Path) -> std::io::Result<Entry> {
-        self.list.entry(path)
-    }
-    fn list(&self, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
-        self.list.list(dir)
-    }
-    fn read(&self, path: &Path, kind: InputKind) -> Result<Vec<u8>> {
-        let Entry::File(len) = self.list.entry(path).map_err(|e| Error::io(path, e))? else {
-            return Err(Error::format(path, "is a folder, not a file"));
-        };
-        // The size the page gave: checked before anything is read, as a file's on disk is.
-        FileList::check_size(path, len, kind)?;
-        let bytes = read_from_page(path)?;
-        FileList::check_size(path, bytes.len() as u64, kind)?;
-        Ok(bytes)
+/// Reads a listed file through the page's reader function ([`set_reader`]).
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub struct PageReader;
+
+impl ReadFile for PageReader {
+    fn read_file(&self, path: &Path) -> Result<Vec<u8>> {
+        read_from_page(path)
     }
 }
 

@@ -435,18 +435,10 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
 /// `est` moved by the rigid alignment of the aligned ATE into the ground truth's frame
 /// (`eval::align_rigid` over the pairs `eval::ate` uses); empty without pairs.
 fn aligned(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Vec<(f64, DMat4)>> {
-    let pairs = crate::eval::associate(est, gt, crate::eval::DEFAULT_MAX_DT);
-    if pairs.is_empty() {
+    let (e, g) = crate::eval::associated_positions(est, gt, crate::eval::DEFAULT_MAX_DT);
+    if e.is_empty() {
         return Ok(Vec::new());
     }
-    let e: Vec<_> = pairs
-        .iter()
-        .map(|&(i, _)| est[i].1.w_axis.truncate())
-        .collect();
-    let g: Vec<_> = pairs
-        .iter()
-        .map(|&(_, j)| gt[j].1.w_axis.truncate())
-        .collect();
     let t_est_to_gt = crate::eval::align_rigid(&e, &g)?;
     Ok(est.iter().map(|(s, t)| (*s, t_est_to_gt * *t)).collect())
 }

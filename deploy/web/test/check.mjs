@@ -119,6 +119,15 @@ async function mapPixels(page) {
   });
 }
 
+// The fraction of pixels whose colour differs between two RGBA pictures of one size.
+function changedFraction(before, after) {
+  let changed = 0;
+  for (let i = 0; i < before.length; i += 4) {
+    if (before[i] !== after[i] || before[i + 1] !== after[i + 1] || before[i + 2] !== after[i + 2]) changed += 1;
+  }
+  return changed / (before.length / 4);
+}
+
 // What a page says when WebGPU or its conditions are missing.
 async function errorText(browser, url, init) {
   const page = await browser.newPage();
@@ -264,12 +273,7 @@ async function main() {
       timeout: 60_000,
       polling: 100,
     });
-    const after = await mapPixels(page);
-    let changed = 0;
-    for (let i = 0; i < before.length; i += 4) {
-      if (before[i] !== after[i] || before[i + 1] !== after[i + 1] || before[i + 2] !== after[i + 2]) changed += 1;
-    }
-    const fraction = changed / (before.length / 4);
+    const fraction = changedFraction(before, await mapPixels(page));
     console.log(`orbit: a drag changed ${(fraction * 100).toFixed(1)} % of the map's pixels (at least ${MIN_CHANGED_PIXELS * 100} %)`);
     if (!(fraction >= MIN_CHANGED_PIXELS)) failures.push(`the drag changed only ${(fraction * 100).toFixed(1)} % of the map`);
     await page.screenshot({ path: path.join(opt.shots, "page-turned.png"), fullPage: true });
@@ -297,12 +301,7 @@ async function main() {
       timeout: 60_000,
       polling: 100,
     });
-    const afterPinch = await mapPixels(page);
-    let pinched = 0;
-    for (let i = 0; i < beforePinch.length; i += 4) {
-      if (beforePinch[i] !== afterPinch[i] || beforePinch[i + 1] !== afterPinch[i + 1] || beforePinch[i + 2] !== afterPinch[i + 2]) pinched += 1;
-    }
-    const pinchFraction = pinched / (beforePinch.length / 4);
+    const pinchFraction = changedFraction(beforePinch, await mapPixels(page));
     const zoom = await page.evaluate(() => window.wgslam.view.zoom);
     console.log(`pinch: zoom ${zoom.toFixed(3)} (below 1 is closer), ${(pinchFraction * 100).toFixed(1)} % of the map's pixels changed`);
     if (!(zoom < 1)) failures.push(`spreading two fingers did not zoom in (zoom ${zoom})`);
