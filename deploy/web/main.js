@@ -197,6 +197,7 @@ async function run() {
   $("controls").disabled = true;
   $("summary").textContent = "";
   $("downloads").textContent = "";
+  drawTrajectory($("trajectory"), [], []);
   setState("running", { error: undefined, result: undefined });
   say("starting the GPU…");
   globalThis.wgslamSuspensions = 0;
@@ -285,6 +286,14 @@ function onFrame(newMap) {
   putRgba($("depth"), w, h, mod.depth_rgba());
   $("frame-caption").textContent = `The current input frame (${w}x${h}): colour`;
   if (newMap) showMap();
+  // The path so far, as tracked (the run's world frame; the ground truth comes at the end).
+  const flat = mod.live_path();
+  const path = [];
+  for (let i = 0; i + 3 < flat.length; i += 4) path.push([flat[i], flat[i + 1], flat[i + 2], flat[i + 3]]);
+  if (path.length > 1) {
+    drawTrajectory($("trajectory"), path, []);
+    $("trajectory-caption").textContent = "Camera path so far, from above (as tracked; the ground truth is drawn at the end).";
+  }
 }
 
 // The orbit: yaw and pitch (radians), zoom (distance multiple), pan (distance units).

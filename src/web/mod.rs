@@ -127,8 +127,9 @@ pub fn set_progress(callback: js_sys::Function) {
 }
 
 /// Sets the function called after each frame with `(has a new map picture)`: the frame's
-/// pictures ([`frame_rgba`], [`depth_rgba`], [`frame_width`], [`frame_height`]) and, when
-/// the argument is true, the map's ([`render_rgba`]) are new.
+/// pictures ([`frame_rgba`], [`depth_rgba`], [`frame_width`], [`frame_height`]) and the
+/// camera path ([`live_path`]) and, when the argument is true, the map's ([`render_rgba`])
+/// are new.
 #[wasm_bindgen]
 pub fn set_frame_view(callback: js_sys::Function) {
     STATE.with_borrow_mut(|s| s.frame_view = Some(callback));
@@ -183,6 +184,13 @@ pub fn frame_rgba() -> Option<Vec<u8>> {
 #[wasm_bindgen]
 pub fn depth_rgba() -> Option<Vec<u8>> {
     STATE.with_borrow(|s| s.frame.as_ref().map(|f| f.depth.clone()))
+}
+
+/// The tracked camera positions of the run so far, `stamp, x, y, z` after one another (the
+/// run's world frame, metres); empty before the first frame.
+#[wasm_bindgen]
+pub fn live_path() -> Vec<f64> {
+    STATE.with_borrow(|s| s.frame.as_ref().map(|f| f.path.clone()).unwrap_or_default())
 }
 
 /// The last input frame's width, pixels (0 before one).

@@ -137,6 +137,9 @@ pub struct Shown {
     pub size: (u32, u32),
     /// A new map picture, when one was drawn after this frame.
     pub map: Option<Vec<u8>>,
+    /// The tracked camera positions so far, `stamp, x, y, z` each (the run's world frame,
+    /// metres).
+    pub path: Vec<f64>,
 }
 
 /// The run's observer for the live view: keeps the tracked poses and the last downloaded
@@ -181,6 +184,11 @@ impl FrameObserver for LiveView<'_> {
             depth: depth_rgba(raw, self.depth_scale),
             size: (raw.width, raw.height),
             map: picture,
+            path: self
+                .trajectory
+                .iter()
+                .flat_map(|(stamp, t)| [*stamp, t.w_axis.x, t.w_axis.y, t.w_axis.z])
+                .collect(),
         });
         Ok(())
     }

@@ -181,6 +181,13 @@ async function main() {
     const t0 = Date.now();
     await page.click("#run");
     await page.waitForFunction(() => document.body.dataset.state === "running");
+    // The live view mid-run (after the first map picture; the run may also have ended).
+    await page.waitForFunction(
+      () => window.wgslam.renders >= 1 || document.body.dataset.state !== "running",
+      null,
+      { timeout: opt.timeoutS * 1000, polling: 100 },
+    );
+    await page.screenshot({ path: path.join(opt.shots, "page-running.png"), fullPage: true });
     try {
       s = await settled(page, opt.timeoutS, ["done", "error"]);
     } catch (e) {
@@ -348,7 +355,7 @@ async function main() {
         failures.push(`${what}: the command line's advice in the page: ${s2.status}`);
       }
     }
-    console.log(`screenshots: ${opt.shots}/page.png, page-turned.png, page-no-adapter.png`);
+    console.log(`screenshots: ${opt.shots}/page-running.png, page.png, page-turned.png, page-no-adapter.png`);
     if (failures.length) {
       for (const f of failures) console.error(`FAIL: ${f}`);
       process.exitCode = 1;
