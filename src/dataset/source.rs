@@ -248,6 +248,49 @@ pub fn read_string(path: &Path, kind: InputKind) -> Result<String> {
 mod tests {
     use super::*;
 
+    /// A reader that must not be asked.
+    #[derive(Debug)]
+    struct NeverRead;
+
+    impl ReadFile for NeverRead {
+        fn read_file(&self, path: &Path) -> Result<Vec<u8>> {
+            panic!("{} was read", path.display())
+        }
+    }
+
+    /// A reader that returns more bytes than the list said.
+    #[derive(Debug)]
+    struct Grows;
+
+    impl ReadFile for Grows {
+        fn read_file(&self, _: &Path) -> Result<Vec<u8>> {
+            Ok(vec![0; (crate::io::input::MAX_MATRIX_BYTES + 1) as usize])
+        }
+    }
+
+    #[test]
+    fn listed_sizes_are_checked_before_and_after_the_read() {
+        let p = Path::new("s/frame-000000.pose.txt");
+        let mut list = FileList::default();
+        list.insert(p, crate::io::input::MAX_MATRIX_BYTES + 1);
+        let files = Listed {
+            list: list.clone(),
+            reader: NeverRead,
+        };
+        let e = files.read(p, InputKind::Matrix).unwrap_err().to_string();
+        assert!(e.contains("more than the limit"), "{e}");
+        let e = files.read(Path::new("s"), InputKind::Matrix).unwrap_err();
+        assert!(e.to_string().contains("is a folder"), "{e}");
+        let mut small = FileList::default();
+        small.insert(p, 10);
+        let files = Listed {
+            list: small,
+            reader: Grows,
+        };
+        let e = files.read(p, InputKind::Matrix).unwrap_err().to_string();
+        assert!(e.contains("more than the limit"), "{e}");
+    }
+
     #[test]
     fn a_file_list_implies_its_folders() {
         let mut l = FileList::default();

@@ -74,6 +74,10 @@ pub fn tests() -> Vec<common::harness::Test> {
             "every_layout_opens_from_memory_as_from_disk",
             every_layout_opens_from_memory_as_from_disk,
         ),
+        plain(
+            "a_run_from_memory_gives_the_bytes_run_writes",
+            a_run_from_memory_gives_the_bytes_run_writes,
+        ),
         shared("seven_scenes_real_kinect_tracks", |data| {
             real_sensor_tracks(
                 CpuBackend::new(),
@@ -610,6 +614,49 @@ fn every_layout_opens_from_memory_as_from_disk() {
         ),
         "the same words for a folder of no layout"
     );
+}
+
+/// The browser's downloads (`run::output_bytes`) are the files `wgslam run` writes
+/// (`run::write_outputs`), byte for byte, and a run over the bundled frames held in memory
+/// gives the same trajectories and map as from disk (the CPU backend is deterministic).
+fn a_run_from_memory_gives_the_bytes_run_writes() {
+    let icl = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+    let opts = SequenceOptions::default();
+    let disk = dataset::open(&icl, &opts).unwrap();
+    let mut files = dataset::InMemoryFiles::default();
+    folder_in_memory(&icl, Path::new(IN_MEMORY_TOP), &mut files);
+    let memory =
+        dataset::open_with(std::sync::Arc::new(files), Path::new(IN_MEMORY_TOP), &opts).unwrap();
+    let run_of = |seq: &Sequence| {
+        run::run(
+            CpuBackend::new(),
+            seq,
+            1,
+            4,
+            SlamParams::profile(Profile::Robust),
+            |_| {},
+        )
+        .unwrap()
+    };
+    let (from_disk, from_memory) = (run_of(&disk), run_of(&memory));
+    let out = common::temp_dir("ds-memory-outputs");
+    run::write_outputs(&out, &from_disk).unwrap();
+    let bytes = run::output_bytes(&from_disk).unwrap();
+    assert_eq!(bytes.len(), 5);
+    for (name, b) in &bytes {
+        assert!(
+            fs::read(out.join(name)).unwrap() == *b,
+            "{name} differs from the file"
+        );
+    }
+    let memory_bytes = run::output_bytes(&from_memory).unwrap();
+    for name in ["trajectory.tum", "trajectory_odometry.tum", "map.ply"] {
+        let of = |set: &[(&str, Vec<u8>)]| set.iter().find(|(n, _)| *n == name).unwrap().1.clone();
+        assert!(
+            of(&bytes) == of(&memory_bytes),
+            "{name}: memory and disk differ"
+        );
+    }
 }
 
 // ---------------------------------------------------------------------------------------

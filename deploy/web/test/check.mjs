@@ -338,6 +338,10 @@ async function main() {
     const noAdapter = await errorText(plain, `${origin}/index.html`);
     const removeGpu = () => Object.defineProperty(Navigator.prototype, "gpu", { get: () => undefined });
     const noWebGpu = await errorText(plain, `${origin}/index.html`, removeGpu);
+    // And a browser without JSPI (the page waits for the GPU through it).
+    const noJspi = await errorText(browser, `${origin}/index.html`, () => {
+      delete WebAssembly.promising;
+    });
     const shot = await plain.newPage();
     await shot.goto(`${origin}/index.html`);
     await settled(shot, 60, ["error", "ready"]);
@@ -347,6 +351,7 @@ async function main() {
       ["opened from disk", fromDisk, ["file://", "http.server"]],
       ["no adapter", noAdapter, ["no GPU adapter", "--enable-unsafe-webgpu"]],
       ["no WebGPU", noWebGpu, ["offers no WebGPU", "Chromium 137"]],
+      ["no JSPI", noJspi, ["JavaScript Promise Integration", "Chromium 137"]],
     ]) {
       console.log(`${what}: ${s2.status}`);
       if (s2.state !== "error") failures.push(`${what}: the page did not report an error (${s2.state})`);
