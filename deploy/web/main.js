@@ -156,6 +156,8 @@ async function main() {
   drop.addEventListener("drop", async (e) => {
     e.preventDefault();
     drop.classList.remove("over");
+    // A disabled fieldset still takes drops: not while a run reads the chosen folder.
+    if (busy) return;
     try {
       choose(folder(await filesOfDrop(e.dataTransfer)));
     } catch (err) {

@@ -5,7 +5,8 @@
 //! Layouts ([`Layout`]): TUM RGB-D, ICL-NUIM, ETH3D SLAM, Bonn (`tum.rs`, `icl.rs`,
 //! `eth3d.rs`, `bonn.rs`), the 7-Scenes / 3DMatch / tsdf-fusion frame files
 //! (`seven_scenes.rs`), ScanNet's SensReader export (`scannet.rs`) and Replica as NICE-SLAM
-//! ships it (`replica.rs`); `detect.rs` picks one.
+//! ships it (`replica.rs`); `detect.rs` picks one. Every file is read through [`source`]:
+//! the disk ([`open`]), or files held in memory or given to a web page ([`open_with`]).
 //!
 //! Not a preprocessor: frames come back at the depth image's full resolution with raw `u16`
 //! depth; scaling to metres (divide by [`Sequence::depth_scale`]), filtering and
