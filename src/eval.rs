@@ -88,6 +88,19 @@ pub fn ate(est: &[(f64, DMat4)], gt: &[(f64, DMat4)], aligned: bool) -> Result<A
     ate_with(est, gt, aligned, DEFAULT_MAX_DT)
 }
 
+/// The positions (metres) of the pose pairs [`associate`] finds within `max_dt`: the
+/// estimate's and the ground truth's, in pair order (what [`ate_with`] aligns).
+pub fn associated_positions(
+    est: &[(f64, DMat4)],
+    gt: &[(f64, DMat4)],
+    max_dt: f64,
+) -> (Vec<DVec3>, Vec<DVec3>) {
+    associate(est, gt, max_dt)
+        .iter()
+        .map(|&(i, j)| (est[i].1.w_axis.truncate(), gt[j].1.w_axis.truncate()))
+        .unzip()
+}
+
 /// Absolute trajectory error: associates poses by stamp (within `max_dt`), optionally
 /// aligns the estimated positions to the ground truth with [`align_rigid`], and returns
 /// statistics of the per-pair position distances (metres). Errors when nothing associates.
@@ -97,18 +110,10 @@ pub fn ate_with(
     aligned: bool,
     max_dt: f64,
 ) -> Result<AteStats> {
-    let pairs = associate(est, gt, max_dt);
-    if pairs.is_empty() {
+    let (e, g) = associated_positions(est, gt, max_dt);
+    if e.is_empty() {
         return Err(no_pairs(est, gt, max_dt));
     }
-    let e: Vec<DVec3> = pairs
-        .iter()
-        .map(|&(i, _)| est[i].1.w_axis.truncate())
-        .collect();
-    let g: Vec<DVec3> = pairs
-        .iter()
-        .map(|&(_, j)| gt[j].1.w_axis.truncate())
-        .collect();
     let t = if aligned {
         align_rigid(&e, &g)?
     } else {

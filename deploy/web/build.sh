@@ -5,22 +5,32 @@
 #   - the library for wasm32-unknown-unknown (release), as a cdylib;
 #   - its JavaScript bindings by wasm-bindgen-cli, the version Cargo.lock pins for the
 #     wasm-bindgen crate (installed here with `cargo install` when missing or different);
-#   - the page (index.html, main.js, jspi.js) and copies of the bundled frames
-#     (assets/icl_living_room_kt2) with data/files.json listing them.
+#   - the page (index.html and its scripts) and copies of the bundled frames
+#     (assets/icl_living_room_kt2) with data/files.json listing them and their sizes.
+# Each step says what it does before it starts (the first build takes minutes).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+step() { echo "build.sh: $*"; }
 
-rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+if ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknown; then
+  step "adding the wasm32-unknown-unknown target to the Rust toolchain (once)"
+  rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+fi
 # The bindings tool must match the crate exactly, or it refuses the module.
 want=$(awk '$0 == "name = \"wasm-bindgen\"" { getline; gsub(/"/, "", $3); print $3; exit }' Cargo.lock)
 have=$(wasm-bindgen --version 2>/dev/null | awk '{ print $2 }' || true)
 if [[ "$have" != "$want" ]]; then
-  echo "installing wasm-bindgen-cli $want (found: ${have:-none})"
+  step "installing wasm-bindgen-cli $want once into ~/.cargo/bin (found: ${have:-none});" \
+    "it compiles from source, about 3-4 minutes on 2 cores, and is reused afterwards"
   # Not --locked: the tool's own lock file pins a webpki-roots release that crates.io
   # mirrors do not all carry; the version of the tool itself is pinned all the same.
   cargo install wasm-bindgen-cli --version "$want"
+else
+  step "wasm-bindgen-cli $want is installed ($(command -v wasm-bindgen)); reusing it"
 fi
 
+step "compiling the library for wasm32 (release; the first time compiles every dependency," \
+  "a few minutes)"
 # No debug info: wasm-bindgen would drop it anyway, and it triples the link's input.
 CARGO_PROFILE_RELEASE_DEBUG=false \
   cargo rustc --lib --release --target wasm32-unknown-unknown --crate-type cdylib
@@ -28,16 +38,19 @@ CARGO_PROFILE_RELEASE_DEBUG=false \
 dist=deploy/web/dist
 rm -rf "$dist"
 mkdir -p "$dist/pkg" "$dist/data"
+step "writing the JavaScript bindings (wasm-bindgen) and the page into $dist"
 wasm-bindgen --target web --no-typescript --out-dir "$dist/pkg" \
   target/wasm32-unknown-unknown/release/wgslam.wasm
-cp deploy/web/index.html deploy/web/main.js deploy/web/jspi.js "$dist/"
+cp deploy/web/index.html deploy/web/main.js deploy/web/jspi.js deploy/web/plot.js \
+  deploy/web/picker.js "$dist/"
 
 data=assets/icl_living_room_kt2
 cp -r "$data"/. "$dist/data/"
 frames=$(grep -cEv '^[[:space:]]*(#|$)' "$data/associations.txt")
 {
   printf '{ "frames": %d, "files": [\n' "$frames"
-  (cd "$data" && find . -type f | sed 's|^\./||' | sort | sed 's/.*/  "&"/' | paste -sd, -)
+  (cd "$data" && find . -type f -printf '%P %s\n' | sort |
+    awk '{ printf "  { \"path\": \"%s\", \"size\": %d }\n", $1, $2 }' | paste -sd, -)
   printf ']}\n'
 } >"$dist/data/files.json"
 echo "built $dist ($(du -sh "$dist" | cut -f1)): $frames frames; wasm $(du -h "$dist/pkg/wgslam_bg.wasm" | cut -f1)"

@@ -1,169 +1,397 @@
-// The page's driver: loads the WebAssembly build (pkg/, written by build.sh), hands it the
-// bundled frames (data/, copies of assets/icl_living_room_kt2 listed in data/files.json),
-// runs dense SLAM through `WebAssembly.promising` (the run suspends on every GPU wait, see
-// src/gpu/wait.rs), shows progress, then the command line's summary lines, the trajectory
-// against ground truth and the map render. Everything is fetched from this page's own
-// origin.
+// The page's driver. First it checks what the browser offers (a secure context, WebGPU, an
+// adapter, JSPI), before fetching the module or any data, and says what to do when
+// something is missing. Then the user picks the data (the bundled frames, a folder from the
+// picker, or a dropped folder), a frame range and a profile, and runs: the module opens the
+// folder with the command line's dataset code (src/web: the file list goes over up front,
+// each file's bytes are read from the browser only when a frame needs them), runs dense
+// SLAM through `WebAssembly.promising` (every GPU wait and file read suspends the module,
+// see src/gpu/wait.rs), and calls back after each frame with the input frame's pictures and,
+// every few frames, the map drawn from the user's view. Afterwards: the command line's
+// summary, the trajectory plot, the outputs to download and the map to turn.
 //
-// Query parameters: `frames=A..B` (inclusive; default as `wgslam run`: from the first
-// frame with ground truth to the last).
-// For scripts (deploy/web/test): `document.body.dataset.state` becomes `done` or `error`,
-// and `window.wgslam` holds `{ state, error, result, wallSeconds }`.
+// Query parameters: `frames=A..B` and `profile=robust|assignment` prefill the controls;
+// `run=bundled` starts a run on the bundled frames at once.
+// For scripts (deploy/web/test): `document.body.dataset.state` is `ready` (waiting for the
+// user), `running`, `done` or `error`; `window.wgslam` holds `{ state, error, result,
+// wallSeconds, adapterName, suspensions, renders }`.
 
-import init, {
-  add_file,
-  set_progress,
-  result_json,
-  render_rgba,
-  last_error,
-} from "./pkg/wgslam.js";
+import { drawTrajectory } from "./plot.js";
+import { filesOfInput, filesOfDrop } from "./picker.js";
 
-const ROOT = "assets/icl_living_room_kt2";
+const BUNDLED_ROOT = "assets/icl_living_room_kt2";
 const $ = (id) => document.getElementById(id);
-window.wgslam = { state: "loading" };
+window.wgslam = { state: "loading", renders: 0 };
 
-function finish(state, fields) {
+function setState(state, fields = {}) {
   Object.assign(window.wgslam, { state }, fields);
   document.body.dataset.state = state;
 }
 
+function say(text) {
+  $("status").className = "";
+  $("status").textContent = text;
+}
+
 function fail(message) {
+  $("status").className = "error";
   $("status").textContent = `error: ${message}`;
-  $("status").style.color = "#b00";
-  finish("error", { error: message });
+  setState("error", { error: message });
+}
+
+// What the browser lacks, in the words of what to do; null when everything is there.
+async function preflight() {
+  if (!window.isSecureContext) {
+    return (
+      `this page is not a secure context (it came over plain HTTP from ${location.host}), and ` +
+      "browsers offer WebGPU only to secure contexts. Open it over https://, or from " +
+      "http://localhost on the machine that serves it (from another machine, forward the " +
+      "port: ssh -L 8000:localhost:8000 that-machine, then http://localhost:8000/)."
+    );
+  }
+  if (!navigator.gpu) {
+    return (
+      "this browser offers no WebGPU (navigator.gpu is missing). Use Chrome or Chromium 137 " +
+      "or later; on Linux, start Chromium with --enable-unsafe-webgpu (WebGPU is off there " +
+      "by default); in Firefox, set dom.webgpu.enabled; in Safari, turn on WebGPU under " +
+      "Develop > Feature Flags."
+    );
+  }
+  if (typeof WebAssembly.promising !== "function" || typeof WebAssembly.Suspending !== "function") {
+    return (
+      "this browser lacks JavaScript Promise Integration (WebAssembly.promising), which the " +
+      "page uses to wait for the GPU: use Chrome or Chromium 137 or later."
+    );
+  }
+  const adapter = await navigator.gpu.requestAdapter();
+  if (!adapter) {
+    return (
+      "WebGPU is there but offers no GPU adapter (no usable GPU or driver, or WebGPU is " +
+      "blocked for this GPU). Chromium's chrome://gpu says why; on Linux, start it with " +
+      "--enable-unsafe-webgpu (with --enable-features=Vulkan for a Vulkan driver); a machine " +
+      "without a GPU can use SwiftShader, Chromium's software adapter, with the same flag."
+    );
+  }
+  const info = adapter.info;
+  window.wgslam.adapterName = info
+    ? [info.vendor, info.architecture, info.description].filter(Boolean).join(" ")
+    : "";
+  return null;
+}
+
+let wasm;
+let mod;
+// The data to run on: { root, files: [{ path, size }], read(path) -> Promise<Uint8Array>,
+// describe }.
+let data = null;
+let busy = false;
+
+async function bundled() {
+  const list = await (await fetch("data/files.json")).json();
+  return {
+    root: BUNDLED_ROOT,
+    files: list.files.map((f) => ({ path: `${BUNDLED_ROOT}/${f.path}`, size: f.size })),
+    read: async (path) => {
+      const response = await fetch(`data/${path.slice(BUNDLED_ROOT.length + 1)}`);
+      if (!response.ok) throw new Error(`HTTP ${response.status}`);
+      return new Uint8Array(await response.arrayBuffer());
+    },
+    describe: `the bundled ICL-NUIM frames (${list.frames} frames)`,
+  };
+}
+
+// A picked or dropped folder: File objects by path; each is read when the run asks.
+function folder(picked) {
+  const byPath = new Map(picked.map((f) => [f.path, f.file]));
+  const bytes = picked.reduce((s, f) => s + f.file.size, 0);
+  const root = picked[0].path.split("/")[0];
+  return {
+    root,
+    files: picked.map((f) => ({ path: f.path, size: f.file.size })),
+    read: async (path) => {
+      const file = byPath.get(path);
+      if (!file) throw new Error("not among the picked files");
+      return new Uint8Array(await file.arrayBuffer());
+    },
+    describe:
+      `folder ${root}: ${picked.length} files, ${(bytes / 1e6).toFixed(1)} MB, read from your ` +
+      "disk frame by frame as the run needs them (nothing is uploaded)",
+  };
+}
+
+function choose(d) {
+  data = d;
+  $("chosen").textContent = `Data: ${d.describe}.`;
+  setState("ready");
+  say("ready: press Run");
 }
 
 async function main() {
-  if (!navigator.gpu) {
-    return fail("this browser has no WebGPU (navigator.gpu is missing)");
-  }
-  if (typeof WebAssembly.promising !== "function" || typeof WebAssembly.Suspending !== "function") {
-    return fail("this browser has no JavaScript Promise Integration (WebAssembly.promising)");
-  }
-  const adapter = await navigator.gpu.requestAdapter();
-  const info = adapter?.info;
-  const adapterName = info ? [info.vendor, info.architecture, info.description].filter(Boolean).join(" ") : "";
-  const wasm = await init({ module_or_path: new URL("./pkg/wgslam_bg.wasm", import.meta.url) });
+  if (location.protocol === "file:") return; // index.html said why.
+  say("checking the browser's WebGPU…");
+  const missing = await preflight();
+  if (missing) return fail(missing);
+  say("loading the WebAssembly module…");
+  mod = await import("./pkg/wgslam.js");
+  wasm = await mod.default({ module_or_path: new URL("./pkg/wgslam_bg.wasm", import.meta.url) });
+  mod.set_progress(onProgress);
+  mod.set_frame_view(onFrame);
 
-  $("status").textContent = "loading frames…";
-  const list = await (await fetch("data/files.json")).json();
-  await Promise.all(
-    list.files.map(async (rel) => {
-      const response = await fetch(`data/${rel}`);
-      if (!response.ok) throw new Error(`data/${rel}: HTTP ${response.status}`);
-      add_file(`${ROOT}/${rel}`, new Uint8Array(await response.arrayBuffer()));
-    }),
-  );
-
-  // Without `frames`, the command line's default: from the first frame with ground truth
-  // (-1 asks the module for it) to the last.
-  const frames = new URLSearchParams(location.search).get("frames");
-  const match = frames === null ? ["", "-1", String(list.frames - 1)] : /^(\d+)\.\.(\d+)$/.exec(frames);
-  if (!match) return fail(`frames=${frames}: want A..B`);
-  const [first, last] = [Number(match[1]), Number(match[2])];
-
-  const progress = $("progress");
-  set_progress((done, total, surfels, ms, status) => {
-    progress.max = total;
-    progress.value = done;
-    $("status").textContent =
-      `frame ${done} of ${total}: ${ms.toFixed(0)} ms, ${surfels} surfels, ${status}`;
+  const query = new URLSearchParams(location.search);
+  $("frames").value = query.get("frames") ?? "";
+  if (query.get("profile")) $("profile").value = query.get("profile");
+  $("bundled").onclick = async () => choose(await bundled());
+  $("folder").onchange = () => {
+    try {
+      choose(folder(filesOfInput($("folder").files)));
+    } catch (e) {
+      fail(e.message);
+    }
+  };
+  const drop = $("drop");
+  drop.addEventListener("dragover", (e) => {
+    e.preventDefault();
+    drop.classList.add("over");
   });
-  $("status").textContent = "starting the GPU…";
+  drop.addEventListener("dragleave", () => drop.classList.remove("over"));
+  drop.addEventListener("drop", async (e) => {
+    e.preventDefault();
+    drop.classList.remove("over");
+    // A disabled fieldset still takes drops: not while a run reads the chosen folder.
+    if (busy) return;
+    try {
+      choose(folder(await filesOfDrop(e.dataTransfer)));
+    } catch (err) {
+      fail(err.message);
+    }
+  });
+  $("run").onclick = run;
+  setupOrbit($("map"));
+  $("controls").disabled = false;
+  choose(await bundled());
+  if (query.get("run") === "bundled") await run();
+}
 
-  const run = WebAssembly.promising(wasm.wgslam_web_run);
+// `A..B` -> [A, B]; empty -> [-1, -1] (the command line's default range); else null.
+function frameRange(text) {
+  if (!text.trim()) return [-1, -1];
+  const m = /^\s*(\d+)\s*\.\.\s*(\d+)\s*$/.exec(text);
+  if (!m || Number(m[1]) > Number(m[2])) return null;
+  return [Number(m[1]), Number(m[2])];
+}
+
+async function run() {
+  if (busy || !data) return;
+  const range = frameRange($("frames").value);
+  if (!range) return fail(`frames ${JSON.stringify($("frames").value)}: want A..B (inclusive, A <= B), e.g. 0..9, or empty for all`);
+  mod.clear_files();
+  for (const f of data.files) mod.add_file(f.path, f.size);
+  // Counted, so the page (and its test) can show how little of a folder a run reads.
+  Object.assign(window.wgslam, { filesRead: 0, bytesRead: 0 });
+  mod.set_reader(async (path) => {
+    const bytes = await data.read(path);
+    window.wgslam.filesRead += 1;
+    window.wgslam.bytesRead += bytes.length;
+    return bytes;
+  });
+  const bad = mod.configure(data.root, $("profile").value);
+  if (bad) return fail(bad);
+  busy = true;
+  $("controls").disabled = true;
+  $("summary").textContent = "";
+  $("downloads").textContent = "";
+  drawTrajectory($("trajectory"), [], []);
+  setState("running", { error: undefined, result: undefined });
+  say("starting the GPU…");
+  globalThis.wgslamSuspensions = 0;
   const t0 = performance.now();
-  const rc = await run(first, last);
+  let rc;
+  try {
+    rc = await WebAssembly.promising(wasm.wgslam_web_run)(range[0], range[1]);
+  } finally {
+    busy = false;
+    $("controls").disabled = false;
+  }
   const wallSeconds = (performance.now() - t0) / 1e3;
-  if (rc !== 0) return fail(last_error() ?? `run returned ${rc}`);
-
-  const result = JSON.parse(result_json());
+  if (rc !== 0) return fail(mod.last_error() ?? `run returned ${rc}`);
+  const result = JSON.parse(mod.result_json());
   $("summary").textContent = [
-    `WebGPU adapter: ${adapterName || "(unnamed)"}; ${result.key_kernels} key kernels`,
+    `data: ${data.describe}; layout ${result.layout}`,
+    ...result.notes.map((n) => `note: ${n}`),
+    `WebGPU adapter: ${window.wgslam.adapterName || "(unnamed)"}; ${result.key_kernels} key kernels`,
     ...result.summary,
-    `wall time ${wallSeconds.toFixed(1)} s in this tab; ${globalThis.wgslamSuspensions} GPU waits ` +
-      `(JSPI suspensions), ${(globalThis.wgslamSuspensions / result.metrics.frames).toFixed(0)} per frame`,
+    `read ${window.wgslam.filesRead} files, ${(window.wgslam.bytesRead / 1e6).toFixed(1)} MB of the ` +
+      `${(data.files.reduce((s, f) => s + f.size, 0) / 1e6).toFixed(1)} MB listed`,
+    `wall time ${wallSeconds.toFixed(1)} s in this tab; ${globalThis.wgslamSuspensions} waits ` +
+      `for the GPU or a file (JSPI suspensions), ` +
+      `${(globalThis.wgslamSuspensions / result.metrics.frames).toFixed(0)} per frame`,
   ].join("\n");
+  plot(result);
+  offerDownloads(result.downloads);
+  say("done: turn the map with the mouse, or download the outputs below");
+  setState("done", { result, wallSeconds, suspensions: globalThis.wgslamSuspensions });
+}
+
+function plot(result) {
   const aligned = result.estimate_aligned.length > 0;
   drawTrajectory($("trajectory"), aligned ? result.estimate_aligned : result.estimate, result.ground_truth);
   $("trajectory-caption").textContent = aligned
-    ? "Camera path from above: ground truth (blue) and the estimate (orange) after the rigid alignment of the aligned ATE."
-    : "Camera path from above: the estimate (orange); the sequence has no ground truth.";
-  drawMap($("map"), result.render_width, result.render_height, render_rgba());
-  $("status").textContent = "done";
-  finish("done", { result, wallSeconds, adapterName, suspensions: globalThis.wgslamSuspensions });
+    ? "Camera path from above: ground truth (blue) and the estimate (red) after the rigid alignment of the aligned ATE."
+    : "Camera path from above: the estimate (red), in the first camera's frame; the sequence has no ground truth.";
 }
 
-// Top view: the two world axes along which the ground truth extends most (x and z for
-// ICL-NUIM, whose vertical axis is y), equal scale, a scale bar.
-function drawTrajectory(canvas, est, gt) {
-  const g = canvas.getContext("2d");
-  g.fillStyle = "#fff";
-  g.fillRect(0, 0, canvas.width, canvas.height);
-  const ref = gt.length ? gt : est;
-  const extent = [1, 2, 3].map((k) => {
-    const v = ref.map((p) => p[k]);
-    return Math.max(...v) - Math.min(...v);
-  });
-  const axes = [1, 2, 3].sort((a, b) => extent[b - 1] - extent[a - 1]).slice(0, 2).sort();
-  const all = [...est, ...gt];
-  const lo = axes.map((k) => Math.min(...all.map((p) => p[k])));
-  const hi = axes.map((k) => Math.max(...all.map((p) => p[k])));
-  const margin = 40;
-  const scale = Math.min(
-    (canvas.width - 2 * margin) / Math.max(hi[0] - lo[0], 1e-6),
-    (canvas.height - 2 * margin) / Math.max(hi[1] - lo[1], 1e-6),
-  );
-  // Centred in the canvas.
-  const pad = [
-    (canvas.width - (hi[0] - lo[0]) * scale) / 2,
-    (canvas.height - (hi[1] - lo[1]) * scale) / 2,
-  ];
-  const at = (p) => [
-    pad[0] + (p[axes[0]] - lo[0]) * scale,
-    canvas.height - pad[1] - (p[axes[1]] - lo[1]) * scale,
-  ];
-  // The ground truth wide and pale under the estimate: at sub-millimetre errors the two
-  // lines coincide.
-  const path = (points, color, width) => {
-    g.strokeStyle = color;
-    g.lineWidth = width;
-    g.beginPath();
-    points.forEach((p, i) => (i ? g.lineTo(...at(p)) : g.moveTo(...at(p))));
-    g.stroke();
-    g.fillStyle = color;
-    for (const p of points) {
-      const [x, y] = at(p);
-      g.fillRect(x - width, y - width, 2 * width, 2 * width);
-    }
-  };
-  path(gt, "#8fb0e8", 7);
-  path(est, "#dc3c1e", 1.5);
-  const names = ["x", "y", "z"];
-  g.fillStyle = "#222";
-  g.font = "14px sans-serif";
-  g.fillText(`${names[axes[0] - 1]} →, ${names[axes[1] - 1]} ↑ (world, metres)`, 10, 20);
-  g.fillStyle = "#5a86d6";
-  g.fillText("ground truth", canvas.width - 210, 20);
-  g.fillStyle = "#dc3c1e";
-  g.fillText("estimate", canvas.width - 100, 20);
-  const bar = [1, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001].find((m) => m * scale <= canvas.width / 3) ?? 0.001;
-  const label = bar >= 1 ? `${bar} m` : bar >= 0.01 ? `${bar * 100} cm` : `${bar * 1000} mm`;
-  g.strokeStyle = "#222";
-  g.beginPath();
-  g.moveTo(10, canvas.height - 12);
-  g.lineTo(10 + bar * scale, canvas.height - 12);
-  g.stroke();
-  g.fillStyle = "#222";
-  g.fillText(label, 14 + bar * scale, canvas.height - 8);
+function offerDownloads(names) {
+  const box = $("downloads");
+  box.append("Download: ");
+  for (const name of names) {
+    const a = document.createElement("a");
+    a.textContent = name;
+    a.download = name;
+    a.href = "#";
+    a.dataset.name = name;
+    // Made on first click (the mesh takes a moment), then a plain blob link.
+    a.addEventListener("click", (e) => {
+      if (a.href.startsWith("blob:")) return;
+      e.preventDefault();
+      const bytes = mod.download(name);
+      if (!bytes) return fail(mod.last_error() ?? `${name}: nothing to download`);
+      a.href = URL.createObjectURL(new Blob([bytes]));
+      a.click();
+    });
+    box.append(a);
+  }
 }
 
-function drawMap(canvas, width, height, rgba) {
-  canvas.width = width;
-  canvas.height = height;
+function onProgress(done, total, points, ms, status) {
+  $("progress").max = total;
+  $("progress").value = done;
+  say(`frame ${done} of ${total}: ${ms.toFixed(0)} ms, ${points} points, ${status}`);
+}
+
+function putRgba(canvas, width, height, rgba) {
+  if (canvas.width !== width || canvas.height !== height) {
+    canvas.width = width;
+    canvas.height = height;
+  }
   const image = new ImageData(new Uint8ClampedArray(rgba.buffer, rgba.byteOffset, rgba.length), width, height);
   canvas.getContext("2d").putImageData(image, 0, 0);
 }
 
-// A Rust panic traps the module; src/web.rs leaves its message in `wgslamPanic`.
+function showMap() {
+  const rgba = mod.render_rgba();
+  if (rgba) putRgba($("map"), mod.view_width(), mod.view_height(), rgba);
+  window.wgslam.renders += 1;
+}
+
+function onFrame(newMap) {
+  const [w, h] = [mod.frame_width(), mod.frame_height()];
+  putRgba($("color"), w, h, mod.frame_rgba());
+  putRgba($("depth"), w, h, mod.depth_rgba());
+  $("frame-caption").textContent = `The current input frame (${w}x${h}): colour`;
+  if (newMap) showMap();
+  // The path so far, as tracked (the run's world frame; the ground truth comes at the end).
+  const flat = mod.live_path();
+  const path = [];
+  for (let i = 0; i + 3 < flat.length; i += 4) path.push([flat[i], flat[i + 1], flat[i + 2], flat[i + 3]]);
+  if (path.length > 1) {
+    drawTrajectory($("trajectory"), path, []);
+    $("trajectory-caption").textContent = "Camera path so far, from above (as tracked; the ground truth is drawn at the end).";
+  }
+}
+
+// The orbit: yaw and pitch (radians), zoom (distance multiple), pan (distance units).
+const view = { yaw: 0, pitch: 0, zoom: 1, pan: [0, 0] };
+window.wgslam.view = view;
+let drawing = false;
+let again = false;
+
+// Sends the view to the module; after a run, draws it (one picture in flight at a time,
+// the latest view drawn next). During a run the next map picture uses it.
+async function redraw() {
+  mod.set_orbit(view.yaw, view.pitch, view.zoom, view.pan[0], view.pan[1]);
+  if (window.wgslam.state !== "done") return;
+  if (drawing) {
+    again = true;
+    return;
+  }
+  drawing = true;
+  window.wgslam.drawing = true;
+  try {
+    do {
+      again = false;
+      mod.set_orbit(view.yaw, view.pitch, view.zoom, view.pan[0], view.pan[1]);
+      const rc = await WebAssembly.promising(wasm.wgslam_web_render)();
+      if (rc !== 0) return fail(mod.last_error() ?? "the map could not be drawn");
+      showMap();
+    } while (again);
+  } finally {
+    drawing = false;
+    window.wgslam.drawing = false;
+  }
+}
+
+function setupOrbit(canvas) {
+  const pointers = new Map();
+  let last = null;
+  const spread = () => {
+    const [a, b] = [...pointers.values()];
+    return { d: Math.hypot(a.x - b.x, a.y - b.y), x: (a.x + b.x) / 2, y: (a.y + b.y) / 2 };
+  };
+  canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+  canvas.addEventListener("pointerdown", (e) => {
+    // Capture keeps a drag that leaves the canvas; a pointer the browser does not know
+    // (a script's) cannot be captured, which changes nothing else.
+    try {
+      canvas.setPointerCapture(e.pointerId);
+    } catch {}
+    pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    last = pointers.size === 2 ? spread() : { x: e.clientX, y: e.clientY };
+  });
+  const up = (e) => {
+    pointers.delete(e.pointerId);
+    last = pointers.size === 1 ? { ...pointers.values().next().value } : null;
+  };
+  canvas.addEventListener("pointerup", up);
+  canvas.addEventListener("pointercancel", up);
+  canvas.addEventListener("pointermove", (e) => {
+    if (!pointers.has(e.pointerId) || !last) return;
+    pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    const scale = 1 / canvas.clientHeight;
+    if (pointers.size === 2) {
+      const now = spread();
+      view.zoom *= last.d / Math.max(now.d, 1);
+      view.pan[0] -= (now.x - last.x) * scale;
+      view.pan[1] += (now.y - last.y) * scale;
+      last = now;
+    } else {
+      const [dx, dy] = [e.clientX - last.x, e.clientY - last.y];
+      if (e.shiftKey || e.buttons === 2) {
+        view.pan[0] -= dx * scale;
+        view.pan[1] += dy * scale;
+      } else {
+        view.yaw -= dx * Math.PI * scale;
+        view.pitch = Math.max(-1.5, Math.min(1.5, view.pitch - dy * Math.PI * scale));
+      }
+      last = { x: e.clientX, y: e.clientY };
+    }
+    redraw();
+  });
+  canvas.addEventListener(
+    "wheel",
+    (e) => {
+      e.preventDefault();
+      view.zoom = Math.max(0.05, Math.min(20, view.zoom * Math.exp(e.deltaY * 0.001)));
+      redraw();
+    },
+    { passive: false },
+  );
+  $("reset-view").onclick = () => {
+    Object.assign(view, { yaw: 0, pitch: 0, zoom: 1, pan: [0, 0] });
+    redraw();
+  };
+}
+
+// A Rust panic traps the module; src/web leaves its message in `wgslamPanic`.
 main().catch((e) => fail(globalThis.wgslamPanic ? `panic: ${globalThis.wgslamPanic}` : (e?.stack ?? String(e))));
+window.addEventListener("unhandledrejection", (e) =>
+  fail(globalThis.wgslamPanic ? `panic: ${globalThis.wgslamPanic}` : String(e.reason?.stack ?? e.reason)),
+);

@@ -1,41 +1,75 @@
 #!/usr/bin/env bash
-# The browser build against the command line on the same frames: builds the page
-# (build.sh; skipped with --no-build), runs `wgslam run` natively on the GPU with the
-# portable kernels and WebGPU's default limits (what a browser tab gets), then
-# test/check.mjs loads the page in headless Debian Chromium (WebGPU through SwiftShader),
-# waits for its run and compares its ATE with the native one; it saves a screenshot.
+# The browser page as a user drives it, against the command line on the same data: builds
+# the page (build.sh; skipped with --no-build), runs `wgslam run` natively on the GPU with
+# the portable kernels and WebGPU's default limits (what a browser tab gets) over a
+# sequence folder that is not in the bundled ICL-NUIM layout, then test/check.mjs loads the
+# page in headless Debian Chromium (WebGPU through SwiftShader), picks that folder through
+# the page's folder picker, runs the same frames, downloads the outputs and compares them
+# with the native ones, turns the map view, and checks the page's error texts (no WebGPU,
+# no adapter, not a secure context, opened from disk). It saves screenshots.
 #
-#   deploy/web/test.sh [--no-build] [FRAMES]       FRAMES: A..B, default every bundled frame
+#   deploy/web/test.sh [--no-build] [FRAMES]       FRAMES: A..B (default 0..9)
+#
+# The folder: ../shared/data/7scenes_redkitchen (7-Scenes frame files, research licence:
+# read from ../shared, never copied into the repository) when present, else the bundled
+# ICL-NUIM frames rewritten in the TUM RGB-D layout (rgb.txt, depth.txt, groundtruth.txt,
+# camera.json) under $WGSLAM_WEB_OUT (also with WGSLAM_WEB_DATA=bundled, e.g. to check that
+# path where ../shared exists). The first line of output says which.
 #
 # Needs: /usr/bin/chromium (Debian's `chromium`), node and npm, a Vulkan driver (lavapipe)
 # for the native run. WGSLAM_BIN: the native binary (default: cargo run --release).
-# WGSLAM_WEB_OUT: where the native outputs and the screenshot go (default /tmp/wgslam-web).
+# WGSLAM_WEB_OUT: where the native outputs and the screenshots go (default /tmp/wgslam-web).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+step() { echo "test.sh: $*"; }
 
 build=1
 if [[ "${1:-}" == "--no-build" ]]; then
   build=0
   shift
 fi
-frames="${1:-}"
+frames="${1:-0..9}"
 out="${WGSLAM_WEB_OUT:-/tmp/wgslam-web}"
 mkdir -p "$out"
 
+folder=../shared/data/7scenes_redkitchen
+if [[ -d "$folder" && "${WGSLAM_WEB_DATA:-}" != bundled ]]; then
+  folder="$(cd "$folder" && pwd)"
+  step "data: $folder (7-Scenes frame files from ../shared), frames $frames"
+else
+  icl=assets/icl_living_room_kt2
+  folder="$out/icl_as_tum"
+  why="../shared/data/7scenes_redkitchen is absent"
+  [[ "${WGSLAM_WEB_DATA:-}" == bundled ]] && why="WGSLAM_WEB_DATA=bundled"
+  step "data ($why): the bundled ICL-NUIM frames rewritten in the TUM layout in" \
+    "$folder, frames $frames"
+  rm -rf "$folder"
+  mkdir -p "$folder"
+  cp -r "$icl/rgb" "$icl/depth" "$icl/camera.json" "$folder/"
+  # ICL-NUIM's stamps are frame indices: the same numbers serve as TUM stamps.
+  awk '!/^[[:space:]]*(#|$)/ { print $3, $4 }' "$icl/associations.txt" >"$folder/rgb.txt"
+  awk '!/^[[:space:]]*(#|$)/ { print $1, $2 }' "$icl/associations.txt" >"$folder/depth.txt"
+  cp "$icl"/*.gt.freiburg "$folder/groundtruth.txt"
+fi
+
 if ((build)); then
+  step "building the page (deploy/web/build.sh)"
   deploy/web/build.sh
 fi
+step "installing the test's Node packages (playwright-core, pinned; reused when present)"
 (cd deploy/web/test && npm ci --no-audit --no-fund --silent)
 
 native=("${WGSLAM_BIN:-}")
 if [[ -z "${WGSLAM_BIN:-}" ]]; then
-  native=(cargo run --release --quiet --)
+  step "building the native binary (cargo build --release; minutes the first time)"
+  cargo build --release --quiet
+  native=(target/release/wgslam)
 fi
-frame_args=()
-[[ -n "$frames" ]] && frame_args=(--frames "$frames")
 rm -rf "$out/native"
+step "the native run: ${native[*]} run --backend gpu --frames $frames (portable kernels, WebGPU limits)"
 WGSLAM_GPU_FEATURES=portable WGSLAM_GPU_LIMITS=webgpu \
-  "${native[@]}" run --backend gpu "${frame_args[@]}" --out "$out/native" | tee "$out/native.log"
+  "${native[@]}" run --backend gpu --frames "$frames" --out "$out/native" "$folder" | tee "$out/native.log"
 
-node deploy/web/test/check.mjs --dist deploy/web/dist --native-metrics "$out/native/metrics.json" \
-  --screenshot "$out/page.png" ${frames:+--frames "$frames"}
+step "the page in headless Chromium (SwiftShader WebGPU): pick, run, download, turn, errors"
+node deploy/web/test/check.mjs --dist deploy/web/dist --folder "$folder" --frames "$frames" \
+  --native "$out/native" --shots "$out"

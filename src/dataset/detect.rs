@@ -5,18 +5,13 @@
 use std::path::Path;
 
 use super::numbered;
+use super::source::present;
 use super::{replica, scannet, seven_scenes, Layout};
-use crate::io::input::present;
 use crate::{Error, Result};
 
 /// One layout's telltale files in `root`: `(what, present)` for each.
 fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
-    let file = |name: &str| {
-        (
-            name.to_string(),
-            crate::io::input::present(&root.join(name)),
-        )
-    };
+    let file = |name: &str| (name.to_string(), super::source::present(&root.join(name)));
     match layout {
         Layout::Eth3d => vec![
             file("calibration.txt"),
@@ -80,8 +75,8 @@ fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
 /// all there. A folder that fits none is an error listing the layouts tried and, for the
 /// one with the most telltales present, what is missing.
 pub fn detect(root: &Path) -> Result<Layout> {
-    if !root.is_dir() {
-        let kind = if root.exists() {
+    if !super::source::is_dir(root) {
+        let kind = if super::source::present(root) {
             std::io::ErrorKind::NotADirectory
         } else {
             std::io::ErrorKind::NotFound
@@ -124,7 +119,8 @@ pub fn detect(root: &Path) -> Result<Layout> {
         ),
         None => "no file of any of them is here".to_string(),
     };
-    let icl_like = root.join("depth").is_dir() && root.join("rgb").is_dir();
+    let icl_like =
+        super::source::is_dir(&root.join("depth")) && super::source::is_dir(&root.join("rgb"));
     let verdict = if icl_like && !present(&root.join("associations.txt")) {
         format!(
             "{verdict}; with depth/ and rgb/ folders this looks like ICL-NUIM, which needs \

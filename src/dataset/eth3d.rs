@@ -23,7 +23,7 @@ pub struct Association {
 
 /// Reads `associated.txt`; errors name `file:line` and quote the line.
 pub fn read_associated(path: &Path) -> Result<Vec<Association>> {
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
+    let text = super::source::read_string(path, crate::io::input::InputKind::List)?;
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let f: Vec<&str> = line.split_whitespace().collect();

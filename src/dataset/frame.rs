@@ -9,6 +9,7 @@ use std::path::Path;
 
 use image::{DynamicImage, ImageReader};
 
+use super::source::Entry;
 use super::FrameConventions;
 use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
@@ -34,10 +35,10 @@ impl RawFrame {
 /// Checks that image `path` is a regular file: a missing one "does not exist", a folder
 /// or a device says what it is instead.
 pub(crate) fn check_image_file(path: &Path, what: &str) -> Result<()> {
-    let why = match std::fs::metadata(path) {
-        Ok(m) if m.is_file() => return Ok(()),
-        Ok(m) if m.is_dir() => format!("{what} is a folder, not an image file"),
-        Ok(_) => format!("{what} is not a regular file (a device, a FIFO or a socket)"),
+    let why = match super::source::current().entry(path) {
+        Ok(Entry::File(_)) => return Ok(()),
+        Ok(Entry::Folder) => format!("{what} is a folder, not an image file"),
+        Ok(Entry::Other) => format!("{what} is not a regular file (a device, a FIFO or a socket)"),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => format!("{what} does not exist"),
         Err(e) => return Err(Error::io(path, e)),
     };
@@ -54,7 +55,7 @@ pub const MAX_IMAGE_SIDE_PX: u32 = 16_384;
 
 fn decode(path: &Path, role: &str) -> Result<DynamicImage> {
     check_image_file(path, &format!("{role} image"))?;
-    let bytes = crate::io::input::read_kind(path, crate::io::input::InputKind::Image)?;
+    let bytes = super::source::read(path, crate::io::input::InputKind::Image)?;
     check_jpeg_end(&bytes, path, role)?;
     let mut reader = ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
@@ -87,32 +88,6 @@ fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
     Err(Error::Image {
         path: path.to_path_buf(),
         what: format!("{role} image is a JPEG cut short (no end-of-image marker)"),
-    })
-}
-
-/// Decodes image `path` from `files` when given (an in-memory sequence, see
-/// [`super::InMemoryFiles`]), else from disk.
-fn decode_from(
-    files: Option<&super::InMemoryFiles>,
-    path: &Path,
-    role: &str,
-) -> Result<DynamicImage> {
-    let Some(files) = files else {
-        return decode(path, role);
-    };
-    let bytes = files.get(path).ok_or_else(|| {
-        Error::io(
-            path,
-            std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!("{role} image is not among the sequence's in-memory files"),
-            ),
-        )
-    })?;
-    check_jpeg_end(bytes, path, role)?;
-    image::load_from_memory(bytes).map_err(|e| Error::Image {
-        path: path.to_path_buf(),
-        what: format!("cannot decode {role} image (unreadable or truncated): {e}"),
     })
 }
 
@@ -152,8 +127,9 @@ fn depth_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<u16>)> {
 /// Width and height of an image from its header, without decoding it.
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     check_image_file(path, "image")?;
-    let (file, _) = crate::io::input::open_kind(path, crate::io::input::InputKind::Image)?;
-    let (w, h) = ImageReader::new(std::io::BufReader::new(file))
+    // The whole file: a page's files come whole, and one image per sequence is read so.
+    let bytes = super::source::read(path, crate::io::input::InputKind::Image)?;
+    let (w, h) = ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?
         .into_dimensions()
@@ -231,24 +207,22 @@ pub fn resample_color(rgb: &[[u8; 3]], color_k: &Intrinsics, depth_k: &Intrinsic
 /// Decodes both images of a frame and checks their sizes against each other and against
 /// the depth intrinsics `depth_k`; applies the layout's `conventions` (its "no reading"
 /// depth value becomes 0; colour from a camera with its own intrinsics is resampled onto
-/// the depth image). The images are read from `files` when given (an in-memory sequence),
-/// else from disk.
+/// the depth image). The images are read from the current source ([`super::source`]).
 pub(crate) fn load_frame(
-    files: Option<&super::InMemoryFiles>,
     rgb_path: &Path,
     depth_path: &Path,
     depth_k: &Intrinsics,
     conventions: &FrameConventions,
 ) -> Result<RawFrame> {
     let expected = (depth_k.width, depth_k.height);
-    let (dw, dh, mut depth) = depth_of(decode_from(files, depth_path, "depth")?, depth_path)?;
+    let (dw, dh, mut depth) = depth_of(decode(depth_path, "depth")?, depth_path)?;
     if let Some(invalid) = conventions.invalid_depth_raw {
         depth
             .iter_mut()
             .filter(|d| **d == invalid)
             .for_each(|d| *d = 0);
     }
-    let (cw, ch, mut rgb) = rgb_of(decode_from(files, rgb_path, "colour")?, rgb_path)?;
+    let (cw, ch, mut rgb) = rgb_of(decode(rgb_path, "colour")?, rgb_path)?;
     if (dw, dh) != expected {
         return Err(Error::Image {
             path: depth_path.to_path_buf(),

@@ -20,7 +20,7 @@ pub struct Association {
 /// Reads `associations.txt` (`depth_stamp depth_path rgb_stamp rgb_path`; `#` comments and
 /// blank lines skipped). Errors name `file:line` and quote the line.
 pub fn read_associations(path: &Path) -> Result<Vec<Association>> {
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
+    let text = super::source::read_string(path, crate::io::input::InputKind::List)?;
     parse_associations(path, &text)
 }
 
@@ -63,13 +63,10 @@ pub fn parse_associations(path: &Path, text: &str) -> Result<Vec<Association>> {
 /// Several candidates are an error (pass the one to use explicitly).
 pub fn find_ground_truth(root: &Path) -> Result<Option<PathBuf>> {
     let mut found = Vec::new();
-    for entry in std::fs::read_dir(root).map_err(|e| Error::io(root, e))? {
-        let entry = entry.map_err(|e| Error::io(root, e))?;
-        let name = entry.file_name();
-        if name.to_string_lossy().ends_with(".gt.freiburg")
-            && crate::io::input::present(&entry.path())
-        {
-            found.push(entry.path());
+    for path in super::source::list(root).map_err(|e| Error::io(root, e))? {
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        if name.ends_with(".gt.freiburg") && super::source::present(&path) {
+            found.push(path);
         }
     }
     found.sort();

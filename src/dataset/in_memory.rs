@@ -1,60 +1,35 @@
-//! A sequence whose files are in memory instead of on disk: the browser build (`src/web`)
-//! has no file system, so the page hands over its copies of a dataset folder's files and
-//! [`open_in_memory`] reads them with the same parsers and decoders as [`super::open`].
+//! A sequence whose files are in memory instead of on disk: [`open_in_memory`] reads a
+//! dataset folder's files held as bytes through the same layout detection, listers, parsers
+//! and decoders as [`super::open`] (every layout; see [`super::source`]).
 //!
-//! Only the layout the page ships is read: ICL-NUIM (`associations.txt` and one
-//! `*.gt.freiburg`) with a `camera.json`. No layout detection; no writing.
+//! Not a cache: every file is held whole until the sequence goes.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::{icl, parse_camera_json, tum, FrameConventions, FrameRecord, Layout, Sequence};
-use crate::geometry::camera::Intrinsics;
-use crate::io::trajectory::parse_tum;
+use super::source::{Listed, ReadFile};
+use super::{open_with, Sequence, SequenceOptions};
 use crate::{Error, Result};
 
 /// A dataset folder's files held in memory, by path (the sequence's root joined with the
-/// path inside the folder, as [`FrameRecord`]'s paths are).
+/// path inside the folder, as [`super::FrameRecord`]'s paths are).
+pub type InMemoryFiles = Listed<HeldBytes>;
+
+/// The bytes of an [`InMemoryFiles`], by path.
 #[derive(Default, Clone, PartialEq)]
-pub struct InMemoryFiles {
-    files: BTreeMap<PathBuf, Vec<u8>>,
-}
+pub struct HeldBytes(BTreeMap<PathBuf, Vec<u8>>);
 
-impl std::fmt::Debug for InMemoryFiles {
+impl std::fmt::Debug for HeldBytes {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let bytes: usize = self.files.values().map(Vec::len).sum();
-        write!(
-            f,
-            "InMemoryFiles({} files, {bytes} bytes)",
-            self.files.len()
-        )
+        let bytes: usize = self.0.values().map(Vec::len).sum();
+        write!(f, "HeldBytes({} files, {bytes} bytes)", self.0.len())
     }
 }
 
-impl InMemoryFiles {
-    /// Adds (or replaces) file `path` with its contents.
-    pub fn insert(&mut self, path: impl Into<PathBuf>, bytes: Vec<u8>) {
-        self.files.insert(path.into(), bytes);
-    }
-
-    /// The contents of file `path`, if held.
-    pub fn get(&self, path: &Path) -> Option<&[u8]> {
-        self.files.get(path).map(Vec::as_slice)
-    }
-
-    /// Number of files held.
-    pub fn len(&self) -> usize {
-        self.files.len()
-    }
-
-    /// True when no file is held.
-    pub fn is_empty(&self) -> bool {
-        self.files.is_empty()
-    }
-
-    fn text(&self, path: &Path) -> Result<&str> {
-        let bytes = self.get(path).ok_or_else(|| {
+impl ReadFile for HeldBytes {
+    fn read_file(&self, path: &Path) -> Result<Vec<u8>> {
+        let bytes = self.0.get(path).ok_or_else(|| {
             Error::io(
                 path,
                 std::io::Error::new(
@@ -63,78 +38,43 @@ impl InMemoryFiles {
                 ),
             )
         })?;
-        std::str::from_utf8(bytes).map_err(|e| Error::format(path, format!("not UTF-8: {e}")))
+        Ok(bytes.clone())
     }
 }
 
-/// Opens the ICL-NUIM sequence whose files under `root` are in `files`: frames from
-/// `root/associations.txt`, intrinsics and depth scale from `root/camera.json`, ground
-/// truth from the one `*.gt.freiburg` file directly in `root`, associated to frames by
-/// stamp within `max_time_diff` as [`super::open`] does. Every listed image must be held;
-/// images are decoded by [`Sequence::load`].
+impl InMemoryFiles {
+    /// Adds (or replaces) file `path` with its contents.
+    pub fn insert(&mut self, path: impl Into<PathBuf>, bytes: Vec<u8>) {
+        let path = path.into();
+        self.list.insert(path.clone(), bytes.len() as u64);
+        self.reader.0.insert(path, bytes);
+    }
+
+    /// The contents of file `path`, if held.
+    pub fn get(&self, path: &Path) -> Option<&[u8]> {
+        self.reader.0.get(path).map(Vec::as_slice)
+    }
+
+    /// Number of files held.
+    pub fn len(&self) -> usize {
+        self.list.len()
+    }
+
+    /// True when no file is held.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+}
+
+/// Opens the sequence whose files under `root` are in `files`, as [`super::open`] opens a
+/// folder (any layout it reads), associating by stamp within `max_time_diff`. Images are
+/// decoded by [`Sequence::load`].
 pub fn open_in_memory(root: &Path, files: InMemoryFiles, max_time_diff: f64) -> Result<Sequence> {
-    let assoc_path = root.join("associations.txt");
-    let assoc = icl::parse_associations(&assoc_path, files.text(&assoc_path)?)?;
-    if assoc.is_empty() {
-        return Err(Error::format(root, "empty sequence: no colour/depth pairs"));
-    }
-    let camera_path = root.join("camera.json");
-    let cam = parse_camera_json(&camera_path, files.text(&camera_path)?)?;
-    let intrinsics = Intrinsics {
-        width: cam.width,
-        height: cam.height,
-        fx: cam.fx,
-        fy: cam.fy,
-        cx: cam.cx,
-        cy: cam.cy,
+    let opts = SequenceOptions {
+        max_time_diff,
+        ..SequenceOptions::default()
     };
-    let depth_scale = cam.depth_scale.unwrap_or(super::DEFAULT_DEPTH_SCALE);
-    let mut frames = Vec::with_capacity(assoc.len());
-    for a in assoc {
-        let (rgb_path, depth_path) = (root.join(a.rgb_path), root.join(a.depth_path));
-        for p in [&rgb_path, &depth_path] {
-            if files.get(p).is_none() {
-                return Err(Error::format(
-                    p,
-                    "image listed by associations.txt is not among the in-memory files",
-                ));
-            }
-        }
-        frames.push(FrameRecord {
-            timestamp: a.stamp,
-            rgb_path,
-            depth_path,
-            gt_cam_to_world: None,
-        });
-    }
-    let gt_files: Vec<&PathBuf> = files
-        .files
-        .keys()
-        .filter(|p| p.parent() == Some(root))
-        .filter(|p| p.to_string_lossy().ends_with(".gt.freiburg"))
-        .collect();
-    if gt_files.len() > 1 {
-        return Err(Error::format(root, "several ground-truth files"));
-    }
-    if let Some(path) = gt_files.first() {
-        let mut gt = parse_tum(path, files.text(path)?)?;
-        gt.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
-        for f in &mut frames {
-            f.gt_cam_to_world =
-                tum::nearest_within(&gt_stamps, f.timestamp, max_time_diff).map(|k| gt[k].1);
-        }
-    }
-    Ok(Sequence {
-        root: root.to_path_buf(),
-        layout: Layout::IclNuim,
-        intrinsics,
-        depth_scale,
-        frames,
-        conventions: FrameConventions::default(),
-        notes: Vec::new(),
-        files: Some(Arc::new(files)),
-    })
+    open_with(Arc::new(files), root, &opts)
 }
 
 #[cfg(test)]

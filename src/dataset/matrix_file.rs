@@ -33,7 +33,7 @@ pub fn parse_numbers(path: &Path, text: &str) -> Result<Vec<f64>> {
 
 /// Reads every number of the file at `path`.
 pub fn read_numbers(path: &Path) -> Result<Vec<f64>> {
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Matrix)?;
+    let text = super::source::read_string(path, crate::io::input::InputKind::Matrix)?;
     parse_numbers(path, &text)
 }
 

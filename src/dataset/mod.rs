@@ -5,7 +5,8 @@
 //! Layouts ([`Layout`]): TUM RGB-D, ICL-NUIM, ETH3D SLAM, Bonn (`tum.rs`, `icl.rs`,
 //! `eth3d.rs`, `bonn.rs`), the 7-Scenes / 3DMatch / tsdf-fusion frame files
 //! (`seven_scenes.rs`), ScanNet's SensReader export (`scannet.rs`) and Replica as NICE-SLAM
-//! ships it (`replica.rs`); `detect.rs` picks one.
+//! ships it (`replica.rs`); `detect.rs` picks one. Every file is read through [`source`]:
+//! the disk ([`open`]), or files held in memory or given to a web page ([`open_with`]).
 //!
 //! Not a preprocessor: frames come back at the depth image's full resolution with raw `u16`
 //! depth; scaling to metres (divide by [`Sequence::depth_scale`]), filtering and
@@ -24,6 +25,7 @@ pub(crate) mod numbered;
 pub(crate) mod replica;
 pub(crate) mod scannet;
 pub(crate) mod seven_scenes;
+pub mod source;
 mod stamped;
 pub(crate) mod tum;
 
@@ -34,11 +36,12 @@ use glam::DMat4;
 use serde::Deserialize;
 
 use crate::geometry::camera::Intrinsics;
-use crate::io::trajectory::read_tum;
+use crate::io::trajectory::parse_tum;
 use crate::{Error, Result};
 
 pub use frame::RawFrame;
-pub use in_memory::{open_in_memory, InMemoryFiles};
+pub use in_memory::{open_in_memory, HeldBytes, InMemoryFiles};
+pub use source::DatasetFiles;
 
 /// Raw depth units per metre when neither the options, `camera.json` nor the layout say
 /// otherwise (TUM RGB-D, ICL-NUIM, ETH3D and Bonn all use 5000).
@@ -191,9 +194,20 @@ pub struct Sequence {
     /// What opening decided on the user's behalf (defaults used, frames without ground
     /// truth), one line each, for the command line to print.
     pub notes: Vec<String>,
-    /// The images when they are in memory rather than on disk ([`open_in_memory`], the
-    /// browser build); `None` for a sequence opened from a folder.
-    pub files: Option<std::sync::Arc<InMemoryFiles>>,
+    /// Where the images are read from when not from disk ([`open_with`]: in memory, the
+    /// browser's files); `None` for a sequence opened from a folder.
+    pub files: Option<SharedFiles>,
+}
+
+/// A sequence's file source, shared by its clones; two are equal when they are the same
+/// source.
+#[derive(Debug, Clone)]
+pub struct SharedFiles(pub std::sync::Arc<dyn DatasetFiles>);
+
+impl PartialEq for SharedFiles {
+    fn eq(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
+    }
 }
 
 /// What a layout's own files say about a sequence, before the options apply.
@@ -229,10 +243,10 @@ struct CameraJson {
 }
 
 fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
-    if !crate::io::input::present(path) {
+    if !source::present(path) {
         return Ok(None);
     }
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Settings)?;
+    let text = source::read_string(path, crate::io::input::InputKind::Settings)?;
     parse_camera_json(path, &text).map(Some)
 }
 
@@ -263,6 +277,25 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
 /// `camera.json` > the layout's > 5000). Every listed image file must exist; images are
 /// only decoded by [`Sequence::load`].
 pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
+    open_here(root, opts)
+}
+
+/// [`open`] over the files of `files` instead of the disk (every layout, the same checks and
+/// errors); the sequence keeps `files` to decode its frames from.
+pub fn open_with(
+    files: std::sync::Arc<dyn DatasetFiles>,
+    root: &Path,
+    opts: &SequenceOptions,
+) -> Result<Sequence> {
+    let seq = source::with_source(&files, || open_here(root, opts))?;
+    Ok(Sequence {
+        files: Some(SharedFiles(files)),
+        ..seq
+    })
+}
+
+/// [`open`] over the current source ([`source::current`]).
+fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
         return Err(Error::Argument(format!(
             "max time difference must be finite and >= 0, got {}",
@@ -323,7 +356,8 @@ pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     checks::stamps_distinct(root, &frames)?;
     let mut notes = listing.notes;
     if let Some(path) = opts.gt_path.as_ref().or(listing.gt_file.as_ref()) {
-        let mut gt = read_tum(path)?;
+        let text = source::read_string(path, crate::io::input::InputKind::List)?;
+        let mut gt = parse_tum(path, &text)?;
         gt.sort_by(|a, b| a.0.total_cmp(&b.0));
         let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
         for f in &mut frames {
@@ -385,13 +419,18 @@ impl Sequence {
                 self.frames.len().saturating_sub(1)
             ))
         })?;
-        frame::load_frame(
-            self.files.as_deref(),
-            &f.rgb_path,
-            &f.depth_path,
-            &self.intrinsics,
-            &self.conventions,
-        )
+        let load = || {
+            frame::load_frame(
+                &f.rgb_path,
+                &f.depth_path,
+                &self.intrinsics,
+                &self.conventions,
+            )
+        };
+        match &self.files {
+            Some(files) => source::with_source(&files.0, load),
+            None => load(),
+        }
     }
 
     /// A long sequence that revisits frames `first..=last`: forwards, backwards, forwards

@@ -45,17 +45,15 @@ impl Pattern {
 /// nothing.
 pub fn list(dir: &Path, pattern: Pattern) -> Result<BTreeMap<u64, PathBuf>> {
     let mut out = BTreeMap::new();
-    let Ok(entries) = std::fs::read_dir(dir) else {
+    let Ok(entries) = super::source::list(dir) else {
         return Ok(out);
     };
-    for entry in entries {
-        let entry = entry.map_err(|e| Error::io(dir, e))?;
-        let name = entry.file_name();
-        let name = name.to_string_lossy();
+    for path in entries {
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
         let Some(n) = pattern.number(&name) else {
             if pattern.digits(&name).is_some() {
                 return Err(Error::format(
-                    entry.path(),
+                    path.clone(),
                     format!(
                         "frame number beyond {MAX_FRAME_NUMBER} (2^53, the largest an f64 stamp \
                          holds exactly); renumber the frames"
@@ -64,13 +62,13 @@ pub fn list(dir: &Path, pattern: Pattern) -> Result<BTreeMap<u64, PathBuf>> {
             }
             continue;
         };
-        if let Some(previous) = out.insert(n, entry.path()) {
+        if let Some(previous) = out.insert(n, path.clone()) {
             return Err(Error::format(
                 dir,
                 format!(
                     "two files with frame number {n}: {} and {}",
                     previous.display(),
-                    entry.path().display()
+                    path.clone().display()
                 ),
             ));
         }
@@ -80,10 +78,11 @@ pub fn list(dir: &Path, pattern: Pattern) -> Result<BTreeMap<u64, PathBuf>> {
 
 /// True when `dir` holds at least one file that fits `pattern` (for layout detection).
 pub fn any(dir: &Path, pattern: Pattern) -> bool {
-    std::fs::read_dir(dir).is_ok_and(|entries| {
-        entries
-            .flatten()
-            .any(|e| pattern.number(&e.file_name().to_string_lossy()).is_some())
+    super::source::list(dir).is_ok_and(|entries| {
+        entries.iter().any(|p| {
+            let name = p.file_name().unwrap_or_default().to_string_lossy();
+            pattern.number(&name).is_some()
+        })
     })
 }
 

@@ -48,7 +48,7 @@ struct CamParams {
 
 /// Reads `cam_params.json`: intrinsics and the depth scale, if it gives one.
 fn read_cam_params(path: &Path) -> Result<(Intrinsics, Option<f32>)> {
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::Settings)?;
+    let text = super::source::read_string(path, crate::io::input::InputKind::Settings)?;
     let c: CamParamsFile = serde_json::from_str(&text).map_err(|e| {
         Error::format(
             path,
@@ -78,7 +78,7 @@ fn read_cam_params(path: &Path) -> Result<(Intrinsics, Option<f32>)> {
 /// Reads `traj.txt`: one pose per data line, 16 numbers each; an error naming
 /// `traj.txt:line` for another count.
 fn read_traj(path: &Path) -> Result<Vec<Option<glam::DMat4>>> {
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
+    let text = super::source::read_string(path, crate::io::input::InputKind::List)?;
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let v = parse_numbers(path, line)?;
@@ -100,7 +100,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     let mut notes = Vec::new();
 
     let traj_path = root.join("traj.txt");
-    let traj = if crate::io::input::present(&traj_path) {
+    let traj = if super::source::present(&traj_path) {
         let t = read_traj(&traj_path)?;
         if t.len() != pairs.len() {
             return Err(Error::format(
@@ -140,7 +140,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     .into_iter()
     .flatten()
     .collect();
-    let (intrinsics, depth_scale) = match candidates.iter().find(|p| crate::io::input::present(p)) {
+    let (intrinsics, depth_scale) = match candidates.iter().find(|p| super::source::present(p)) {
         Some(p) => {
             let (k, scale) = read_cam_params(p)?;
             (Some(k), scale)

@@ -104,13 +104,13 @@ pub fn list(root: &Path) -> Result<Listing> {
     let color_size = super::frame::image_size(&first.rgb_path)?;
 
     let depth_k_path = root.join("intrinsic/intrinsic_depth.txt");
-    let depth_k = if crate::io::input::present(&depth_k_path) {
+    let depth_k = if super::source::present(&depth_k_path) {
         Some(intrinsics(read_k(&depth_k_path)?, depth_size))
     } else {
         None
     };
     let color_k_path = root.join("intrinsic/intrinsic_color.txt");
-    let color_intrinsics = if crate::io::input::present(&color_k_path) {
+    let color_intrinsics = if super::source::present(&color_k_path) {
         Some(intrinsics(read_k(&color_k_path)?, color_size))
     } else if color_size != depth_size {
         return Err(Error::io(

@@ -48,14 +48,18 @@ pub const INVALID_DEPTH_RAW: u16 = 65535;
 /// principal point at the image centre), for a release without `camera-intrinsics.txt`.
 pub const SEVEN_SCENES_K: [f32; 4] = [585.0, 585.0, 320.0, 240.0];
 
+/// Whether `path`'s name starts with `seq-` (a 7-Scenes sequence folder's).
+fn is_seq_folder(path: &Path) -> bool {
+    path.file_name()
+        .is_some_and(|n| n.to_string_lossy().starts_with("seq-"))
+}
+
 /// The `seq-NN` folders of `root` that hold depth frames, sorted.
 fn sequence_folders(root: &Path) -> Vec<PathBuf> {
-    let mut found: Vec<PathBuf> = std::fs::read_dir(root)
+    let mut found: Vec<PathBuf> = super::source::list(root)
         .into_iter()
         .flatten()
-        .flatten()
-        .filter(|e| e.file_name().to_string_lossy().starts_with("seq-"))
-        .map(|e| e.path())
+        .filter(|p| is_seq_folder(p))
         .filter(|p| numbered::any(p, DEPTH))
         .collect();
     found.sort();
@@ -71,11 +75,10 @@ pub fn has_depth_frames(root: &Path) -> bool {
 pub fn has_color_frames(root: &Path) -> bool {
     let here = |d: &Path| numbered::any(d, COLOR_JPG) || numbered::any(d, COLOR_PNG);
     here(root)
-        || std::fs::read_dir(root)
+        || super::source::list(root)
             .into_iter()
             .flatten()
-            .flatten()
-            .any(|e| e.file_name().to_string_lossy().starts_with("seq-") && here(&e.path()))
+            .any(|p| is_seq_folder(&p) && here(&p))
 }
 
 /// The folder whose frames to read: `root` itself, or its only `seq-NN` folder.
@@ -162,7 +165,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     // Beside the frames, or in the scene folder above a seq-NN folder.
     let k_path = [dir.join(INTRINSICS_FILE), root.join(INTRINSICS_FILE)]
         .into_iter()
-        .find(|p| crate::io::input::present(p));
+        .find(|p| super::source::present(p));
     let k = match &k_path {
         Some(p) => read_k(p)?,
         None => {

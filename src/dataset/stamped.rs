@@ -28,13 +28,13 @@ pub(super) fn listing(
                 .collect();
             (pairs, icl::find_ground_truth(root)?)
         }
-        Layout::Eth3d if crate::io::input::present(&root.join("associated.txt")) => {
+        Layout::Eth3d if super::source::present(&root.join("associated.txt")) => {
             let pairs = eth3d::read_associated(&root.join("associated.txt"))?
                 .into_iter()
                 .map(|a| (a.stamp, root.join(a.rgb_path), root.join(a.depth_path)))
                 .collect();
             let gt = root.join("groundtruth.txt");
-            (pairs, crate::io::input::present(&gt).then_some(gt))
+            (pairs, super::source::present(&gt).then_some(gt))
         }
         _ => {
             let rgb = tum::read_list(&root.join("rgb.txt"))?;
@@ -51,7 +51,7 @@ pub(super) fn listing(
                 .map(|(id, ir)| (ds[id], root.join(&rgb[ir].path), root.join(&depth[id].path)))
                 .collect();
             let gt = root.join("groundtruth.txt");
-            (pairs, crate::io::input::present(&gt).then_some(gt))
+            (pairs, super::source::present(&gt).then_some(gt))
         }
     };
     if pairs.is_empty() {

@@ -17,7 +17,7 @@ pub struct ListEntry {
 
 /// Reads a TUM file list (`#` comments and blank lines skipped). Errors name `file:line`.
 pub fn read_list(path: &Path) -> Result<Vec<ListEntry>> {
-    let text = crate::io::input::read_kind_string(path, crate::io::input::InputKind::List)?;
+    let text = super::source::read_string(path, crate::io::input::InputKind::List)?;
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let mut it = line.split_whitespace();

@@ -174,7 +174,8 @@ pub fn check_kind(path: &Path, kind: InputKind) -> Result<u64> {
     Ok(m.len())
 }
 
-fn too_big(path: &Path, len: u64, max: u64, kind: InputKind) -> Error {
+/// The error for a file of `len` bytes over `kind`'s cap `max`.
+pub(crate) fn too_big(path: &Path, len: u64, max: u64, kind: InputKind) -> Error {
     Error::format(
         path,
         format!(
@@ -226,7 +227,13 @@ pub fn read_kind(path: &Path, kind: InputKind) -> Result<Vec<u8>> {
 
 /// [`read_kind`] as UTF-8 text; a leading byte-order mark is dropped.
 pub fn read_kind_string(path: &Path, kind: InputKind) -> Result<String> {
-    let mut text = String::from_utf8(read_kind(path, kind)?)
+    text_of(path, read_kind(path, kind)?)
+}
+
+/// A file's bytes as UTF-8 text without a leading byte-order mark; `path` names it in
+/// errors.
+pub fn text_of(path: &Path, bytes: Vec<u8>) -> Result<String> {
+    let mut text = String::from_utf8(bytes)
         .map_err(|e| Error::format(path, format!("not UTF-8 text: {e}")))?;
     if text.starts_with('\u{feff}') {
         text.drain(..'\u{feff}'.len_utf8());

@@ -20,35 +20,39 @@ property uchar red\nproperty uchar green\nproperty uchar blue\nproperty float we
 /// `float x y z` (world frame, metres), `float nx ny nz` (unit normal), `uchar red green
 /// blue` (rounded and clamped from the map's 0..255 floats) and `float weight`.
 pub fn write_surfel_map(path: &Path, map: &SurfelMap) -> Result<()> {
+    write_atomic(path, |w: &mut dyn Write| write_surfel_map_to(w, path, map))
+}
+
+/// The bytes of [`write_surfel_map`] into any writer (the browser build's downloads fill a
+/// `Vec<u8>`); `path` names the file in errors.
+pub fn write_surfel_map_to(w: &mut dyn Write, path: &Path, map: &SurfelMap) -> Result<()> {
     map.assert_consistent();
-    write_atomic(path, |w: &mut dyn Write| {
-        let io = |e| Error::write(path, e);
-        write!(
-            w,
-            "ply\nformat binary_little_endian 1.0\ncomment wgslam surfel map (world frame, metres)\n\
-             element vertex {}\n{SURFEL_PROPERTIES}end_header\n",
-            map.len()
-        )
-        .map_err(io)?;
-        // 31 bytes per vertex; one buffer per chunk keeps the writes large.
-        let mut buf = Vec::with_capacity(31 * 4096);
-        for i in 0..map.len() {
-            let (p, n, c) = (map.position(i), map.normal(i), map.color(i));
-            for v in [p[0], p[1], p[2], n[0], n[1], n[2]] {
-                buf.extend_from_slice(&v.to_le_bytes());
-            }
-            for v in [c[0], c[1], c[2]] {
-                buf.push(v.round().clamp(0.0, 255.0) as u8);
-            }
-            buf.extend_from_slice(&map.weight(i).to_le_bytes());
-            if buf.len() >= 31 * 4096 {
-                w.write_all(&buf).map_err(io)?;
-                buf.clear();
-            }
+    let io = |e| Error::write(path, e);
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment wgslam surfel map (world frame, metres)\n\
+         element vertex {}\n{SURFEL_PROPERTIES}end_header\n",
+        map.len()
+    )
+    .map_err(io)?;
+    // 31 bytes per vertex; one buffer per chunk keeps the writes large.
+    let mut buf = Vec::with_capacity(31 * 4096);
+    for i in 0..map.len() {
+        let (p, n, c) = (map.position(i), map.normal(i), map.color(i));
+        for v in [p[0], p[1], p[2], n[0], n[1], n[2]] {
+            buf.extend_from_slice(&v.to_le_bytes());
         }
-        w.write_all(&buf).map_err(io)?;
-        Ok(())
-    })
+        for v in [c[0], c[1], c[2]] {
+            buf.push(v.round().clamp(0.0, 255.0) as u8);
+        }
+        buf.extend_from_slice(&map.weight(i).to_le_bytes());
+        if buf.len() >= 31 * 4096 {
+            w.write_all(&buf).map_err(io)?;
+            buf.clear();
+        }
+    }
+    w.write_all(&buf).map_err(io)?;
+    Ok(())
 }
 
 /// A point cloud read from a PLY file: one entry per vertex in every present array.

@@ -97,43 +97,57 @@ fn format_stamp(s: f64) -> String {
     }
 }
 
+/// The header's frames of a camera trajectory ([`write_tum`]).
+pub const TUM_CAMERA_FRAMES: &str = "camera to world";
+
 /// Writes `(stamp, t_cam_to_world)` poses as a TUM trajectory (atomically), one line each:
 /// stamp (see above), translation in metres and quaternion `qx qy qz qw` (`qw >= 0`), with
 /// 9 decimals. Errors on a non-finite pose (nothing is written then).
 pub fn write_tum(path: &Path, poses: &[(f64, DMat4)]) -> Result<()> {
-    write_tum_of(path, "camera to world", poses)
+    write_tum_of(path, TUM_CAMERA_FRAMES, poses)
 }
 
 /// [`write_tum`] for poses of another sensor: `frames` names them in the header line
 /// (e.g. `scan to world`).
 pub fn write_tum_of(path: &Path, frames: &str, poses: &[(f64, DMat4)]) -> Result<()> {
     write_atomic(path, |w: &mut dyn Write| {
-        let io = |e| Error::write(path, e);
-        writeln!(w, "# timestamp tx ty tz qx qy qz qw ({frames}, metres)").map_err(io)?;
-        for (k, (stamp, pose)) in poses.iter().enumerate() {
-            if !stamp.is_finite() || !pose.is_finite() {
-                return Err(Error::format(
-                    path,
-                    format!("pose {k} (stamp {stamp}) is not finite; refusing to write it"),
-                ));
-            }
-            let (t, q) = se3::to_tum(pose);
-            writeln!(
-                w,
-                "{} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
-                format_stamp(*stamp),
-                t[0],
-                t[1],
-                t[2],
-                q[0],
-                q[1],
-                q[2],
-                q[3]
-            )
-            .map_err(io)?;
-        }
-        Ok(())
+        write_tum_to(w, path, frames, poses)
     })
+}
+
+/// The bytes of [`write_tum_of`] into any writer (the browser build's downloads fill a
+/// `Vec<u8>`); `path` names the file in errors.
+pub fn write_tum_to(
+    w: &mut dyn Write,
+    path: &Path,
+    frames: &str,
+    poses: &[(f64, DMat4)],
+) -> Result<()> {
+    let io = |e| Error::write(path, e);
+    writeln!(w, "# timestamp tx ty tz qx qy qz qw ({frames}, metres)").map_err(io)?;
+    for (k, (stamp, pose)) in poses.iter().enumerate() {
+        if !stamp.is_finite() || !pose.is_finite() {
+            return Err(Error::format(
+                path,
+                format!("pose {k} (stamp {stamp}) is not finite; refusing to write it"),
+            ));
+        }
+        let (t, q) = se3::to_tum(pose);
+        writeln!(
+            w,
+            "{} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
+            format_stamp(*stamp),
+            t[0],
+            t[1],
+            t[2],
+            q[0],
+            q[1],
+            q[2],
+            q[3]
+        )
+        .map_err(io)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

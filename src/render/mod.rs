@@ -9,7 +9,8 @@
 //!
 //! Submodules: `view` (what a pixel shows, image sizes), `framing` (virtual cameras
 //! that frame a cloud), `overlay` (ICP before/after pictures), `outputs` (the pictures
-//! a run writes), [`gpu`] and [`layout`] (the GPU pass and its parameter struct).
+//! a run writes), [`orbit`] (an interactive viewer's camera), [`gpu`] and [`layout`] (the
+//! GPU pass and its parameter struct).
 //!
 //! Virtual cameras use the pinhole model of [`Intrinsics`] with `fy > 0` (x right, y down,
 //! z ahead); a dataset camera with negative `fy` can be passed as is to render what it saw.
@@ -17,6 +18,7 @@
 pub(crate) mod framing;
 pub mod gpu;
 pub mod layout;
+pub mod orbit;
 pub mod outputs;
 pub(crate) mod overlay;
 pub mod plot;

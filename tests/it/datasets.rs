@@ -70,6 +70,14 @@ pub fn tests() -> Vec<common::harness::Test> {
             unknown_folder_lists_the_layouts,
         ),
         plain("bad_inputs_name_the_file", bad_inputs_name_the_file),
+        plain(
+            "every_layout_opens_from_memory_as_from_disk",
+            every_layout_opens_from_memory_as_from_disk,
+        ),
+        plain(
+            "a_run_from_memory_gives_the_bytes_run_writes",
+            a_run_from_memory_gives_the_bytes_run_writes,
+        ),
         shared("seven_scenes_real_kinect_tracks", |data| {
             real_sensor_tracks(
                 CpuBackend::new(),
@@ -506,6 +514,149 @@ fn bonn_fixture_tracks_like_the_tum_form() {
     };
     let seq = dataset::open(&d, &opts).unwrap();
     assert_same_ate("Bonn", &seq, LAYOUT_ATE_TOL_M);
+}
+
+/// Every file under `dir`, held in memory under `at` joined with its path inside `dir`.
+fn folder_in_memory(dir: &Path, at: &Path, files: &mut dataset::InMemoryFiles) {
+    for entry in fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = at.join(path.file_name().unwrap());
+        if path.is_dir() {
+            folder_in_memory(&path, &name, files);
+        } else {
+            files.insert(name, fs::read(&path).unwrap());
+        }
+    }
+}
+
+/// Where the in-memory copies live: a relative path that is not on disk, so a reader that
+/// went to the disk instead of the source would fail.
+const IN_MEMORY_TOP: &str = "in-memory-only";
+
+/// The browser page's way in (`dataset::open_with` over files it holds, `src/web`): each
+/// layout's fixture opens from memory to the same frames, intrinsics, depth scale and notes
+/// as from disk, decodes to the same pixels, and a folder of no layout fails with the same
+/// words (paths aside).
+fn every_layout_opens_from_memory_as_from_disk() {
+    let s = source();
+    let top = common::temp_dir("ds-memory");
+    let mut roots = Vec::new();
+    for (name, eth3d) in [("tum", false), ("eth3d", true), ("rgbd_bonn_x", false)] {
+        write_tum_like(&top.join(name), &s, eth3d);
+        roots.push(top.join(name));
+    }
+    // Plain TUM records no intrinsics: a camera.json gives them (read through the source too).
+    let k = Intrinsics::ICL_NUIM;
+    let camera = format!(
+        r#"{{"width": {}, "height": {}, "fx": {}, "fy": {}, "cx": {}, "cy": {}}}"#,
+        k.width, k.height, k.fx, k.fy, k.cx, k.cy
+    );
+    fs::write(top.join("tum/camera.json"), camera).unwrap();
+    write_seven_scenes(&top.join("7scenes/seq-01"), &s, false);
+    roots.push(top.join("7scenes"));
+    write_scannet(&top.join("scannet"), &s);
+    roots.push(top.join("scannet"));
+    roots.push(write_replica(&top.join("replica"), &s));
+    let icl = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+    roots.push(icl.clone());
+    fs::create_dir_all(top.join("empty/rgb")).unwrap();
+    fs::write(top.join("empty/rgb/0.png"), b"").unwrap();
+    let opts = SequenceOptions::default();
+    // Every fixture's files (and those around them: Replica's cam_params.json sits above
+    // the sequence folder) in one set.
+    let mut files = dataset::InMemoryFiles::default();
+    let here = Path::new(IN_MEMORY_TOP);
+    folder_in_memory(&top, &here.join("top"), &mut files);
+    folder_in_memory(&icl, &here.join("icl"), &mut files);
+    let files = std::sync::Arc::new(files);
+    let in_memory = |p: &Path| match p.strip_prefix(&*top) {
+        Ok(rest) => here.join("top").join(rest),
+        Err(_) => here.join("icl").join(p.strip_prefix(&icl).unwrap()),
+    };
+    for root in &roots {
+        let disk = dataset::open(root, &opts).unwrap();
+        let memory = dataset::open_with(files.clone(), &in_memory(root), &opts).unwrap();
+        let moved: Vec<dataset::FrameRecord> = disk
+            .frames
+            .iter()
+            .map(|f| dataset::FrameRecord {
+                rgb_path: in_memory(&f.rgb_path),
+                depth_path: in_memory(&f.depth_path),
+                ..f.clone()
+            })
+            .collect();
+        let what = format!("{} ({})", root.display(), disk.layout.name());
+        assert_eq!(memory.layout, disk.layout, "{what}");
+        assert_eq!(memory.frames, moved, "{what}");
+        assert_eq!(memory.intrinsics, disk.intrinsics, "{what}");
+        assert_eq!(memory.depth_scale, disk.depth_scale, "{what}");
+        assert_eq!(memory.conventions, disk.conventions, "{what}");
+        let notes: Vec<String> = disk
+            .notes
+            .iter()
+            .map(|n| n.replace(&*root.to_string_lossy(), &in_memory(root).to_string_lossy()))
+            .collect();
+        assert_eq!(memory.notes, notes, "{what}");
+        let last = disk.len() - 1;
+        assert_eq!(
+            memory.load(last).unwrap(),
+            disk.load(last).unwrap(),
+            "{what}"
+        );
+    }
+    let empty = top.join("empty");
+    let memory = dataset::open_with(files, &in_memory(&empty), &opts);
+    assert_eq!(
+        memory.unwrap_err().to_string(),
+        err_of(&empty).replace(
+            &*empty.to_string_lossy(),
+            &in_memory(&empty).to_string_lossy()
+        ),
+        "the same words for a folder of no layout"
+    );
+}
+
+/// The browser's downloads (`run::output_bytes`) are the files `wgslam run` writes
+/// (`run::write_outputs`), byte for byte, and a run over the bundled frames held in memory
+/// gives the same trajectories and map as from disk (the CPU backend is deterministic).
+fn a_run_from_memory_gives_the_bytes_run_writes() {
+    let icl = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+    let opts = SequenceOptions::default();
+    let disk = dataset::open(&icl, &opts).unwrap();
+    let mut files = dataset::InMemoryFiles::default();
+    folder_in_memory(&icl, Path::new(IN_MEMORY_TOP), &mut files);
+    let memory =
+        dataset::open_with(std::sync::Arc::new(files), Path::new(IN_MEMORY_TOP), &opts).unwrap();
+    let run_of = |seq: &Sequence| {
+        run::run(
+            CpuBackend::new(),
+            seq,
+            1,
+            4,
+            SlamParams::profile(Profile::Robust),
+            |_| {},
+        )
+        .unwrap()
+    };
+    let (from_disk, from_memory) = (run_of(&disk), run_of(&memory));
+    let out = common::temp_dir("ds-memory-outputs");
+    run::write_outputs(&out, &from_disk).unwrap();
+    let bytes = run::output_bytes(&from_disk).unwrap();
+    assert_eq!(bytes.len(), 5);
+    for (name, b) in &bytes {
+        assert!(
+            fs::read(out.join(name)).unwrap() == *b,
+            "{name} differs from the file"
+        );
+    }
+    let memory_bytes = run::output_bytes(&from_memory).unwrap();
+    for name in ["trajectory.tum", "trajectory_odometry.tum", "map.ply"] {
+        let of = |set: &[(&str, Vec<u8>)]| set.iter().find(|(n, _)| *n == name).unwrap().1.clone();
+        assert!(
+            of(&bytes) == of(&memory_bytes),
+            "{name}: memory and disk differ"
+        );
+    }
 }
 
 // ---------------------------------------------------------------------------------------

@@ -1,16 +1,20 @@
-// The browser build in a real browser: serves deploy/web/dist from a local static server
-// (python3 -m http.server), loads the page in headless Chromium with WebGPU, waits for the
-// run, and checks what the page reports against the native run's metrics.json on the same
-// frames: the same frame count, no lost frame on either side, and ATE within
-// ATE_TOLERANCE_MM. Saves a screenshot of the finished page. Every request the page makes
-// must go to the local server (the page fetches nothing from other hosts).
+// The browser build in a real browser, used as a user would: serves deploy/web/dist from a
+// local static server (python3 -m http.server), loads the page in headless Chromium with
+// WebGPU, picks a sequence folder through the page's folder picker, sets the frame range,
+// presses Run, waits, downloads the outputs by clicking their links and compares them with
+// the native run's on the same folder and frames (ATE within ATE_TOLERANCE_MM, map points
+// within MAP_POINTS_TOLERANCE, the mesh has triangles), turns the map by dragging the mouse
+// and checks the picture changed, and checks the error texts of a page without WebGPU, of
+// a page that is not a secure context and of a page opened from disk. Every request must go
+// to the local server. Saves screenshots into --shots.
 //
-// node check.mjs --dist DIR --native-metrics FILE --screenshot FILE.png
-//                [--frames A..B] [--chromium PATH] [--timeout-s S]
+// node check.mjs --dist DIR --folder DIR --frames A..B --native DIR --shots DIR
+//                [--chromium PATH] [--timeout-s S]
 
 import { spawn } from "node:child_process";
-import { readFileSync } from "node:fs";
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import net from "node:net";
+import path from "node:path";
 import { chromium } from "playwright-core";
 
 // Browser (SwiftShader) against native (lavapipe), both the portable GPU kernels, each
@@ -20,6 +24,13 @@ import { chromium } from "playwright-core";
 // differs by at most the RMSE of their difference, so poses within 0.1 mm of each other
 // give ATEs within 0.1 mm (up to the rigid alignment's own small change).
 const ATE_TOLERANCE_MM = 0.1;
+// Map sizes: a fusion decision on a knife edge (which surfel a pixel merges into) flips on
+// ~0.5 % of pixels between two GPUs' legal arithmetic (STYLE.md, the H200 lessons); 1 %
+// allows that and catches a lost or doubled frame (~5-10 % of a short run's map).
+const MAP_POINTS_TOLERANCE = 0.01;
+// Turning the view by a sixth of a turn moves most of the picture: at least this fraction
+// of the map canvas's pixels must change (a view that ignores the drag changes none).
+const MIN_CHANGED_PIXELS = 0.1;
 
 function args() {
   const a = process.argv.slice(2);
@@ -31,11 +42,12 @@ function args() {
   };
   return {
     dist: get("dist"),
-    nativeMetrics: get("native-metrics"),
-    screenshot: get("screenshot"),
-    frames: get("frames", ""),
+    folder: get("folder"),
+    frames: get("frames"),
+    native: get("native"),
+    shots: get("shots"),
     chromium: get("chromium", "/usr/bin/chromium"),
-    timeoutS: Number(get("timeout-s", "900")),
+    timeoutS: Number(get("timeout-s", "600")),
   };
 }
 
@@ -66,33 +78,88 @@ async function waitForPort(port, ms) {
   throw new Error(`the static server did not listen on port ${port}`);
 }
 
+const BASE_FLAGS = [
+  "--no-sandbox",
+  "--disable-background-networking",
+  "--disable-component-update",
+  "--disable-sync",
+  "--no-first-run",
+  "--disable-quic",
+  // Every host but the local server is unresolvable; wgslam.test is the local server under
+  // another name (a page that is not a secure context).
+  "--host-resolver-rules=MAP wgslam.test 127.0.0.1, MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",
+];
+
+// The vertex count of a PLY file's header.
+function plyCount(bytes, element) {
+  const head = bytes.subarray(0, 2048).toString("latin1");
+  const m = new RegExp(`element ${element} (\\d+)`).exec(head);
+  return m ? Number(m[1]) : NaN;
+}
+
+async function settled(page, timeoutS, states) {
+  await page.waitForFunction((s) => s.includes(document.body.dataset.state), states, {
+    timeout: timeoutS * 1000,
+    polling: 250,
+  });
+  // The state from the page's body: a page whose module never loaded (file://) has no
+  // window.wgslam.
+  return page.evaluate(() => ({
+    ...window.wgslam,
+    state: document.body.dataset.state,
+    status: document.getElementById("status").textContent,
+  }));
+}
+
+// The map canvas's pixels.
+async function mapPixels(page) {
+  return page.evaluate(() => {
+    const c = document.getElementById("map");
+    return Array.from(c.getContext("2d").getImageData(0, 0, c.width, c.height).data);
+  });
+}
+
+// The fraction of pixels whose colour differs between two RGBA pictures of one size.
+function changedFraction(before, after) {
+  let changed = 0;
+  for (let i = 0; i < before.length; i += 4) {
+    if (before[i] !== after[i] || before[i + 1] !== after[i + 1] || before[i + 2] !== after[i + 2]) changed += 1;
+  }
+  return changed / (before.length / 4);
+}
+
+// What a page says when WebGPU or its conditions are missing.
+async function errorText(browser, url, init) {
+  const page = await browser.newPage();
+  if (init) await page.addInitScript(init);
+  await page.goto(url);
+  const s = await settled(page, 60, ["error", "ready"]);
+  await page.close();
+  return s;
+}
+
 async function main() {
   const opt = args();
-  const native = JSON.parse(readFileSync(opt.nativeMetrics, "utf8"));
+  mkdirSync(opt.shots, { recursive: true });
+  const native = JSON.parse(readFileSync(path.join(opt.native, "metrics.json"), "utf8"));
+  const nativePoints = plyCount(readFileSync(path.join(opt.native, "map.ply")), "vertex");
   const port = await freePort();
   const server = spawn("python3", ["-m", "http.server", String(port), "--bind", "127.0.0.1", "--directory", opt.dist], {
     stdio: ["ignore", "ignore", "ignore"],
   });
-  let browser;
+  const failures = [];
+  const browsers = [];
   try {
     await waitForPort(port, 10_000);
-    browser = await chromium.launch({
+    const origin = `http://127.0.0.1:${port}`;
+    const browser = await chromium.launch({
       executablePath: opt.chromium,
       headless: true,
-      args: [
-        "--enable-unsafe-webgpu",
-        "--no-sandbox",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        "--disable-quic",
-        // Every host but the local server is unresolvable.
-        "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",
-      ],
+      args: ["--enable-unsafe-webgpu", ...BASE_FLAGS],
     });
-    const page = await browser.newPage({ viewport: { width: 1400, height: 1100 } });
-    const origin = `http://127.0.0.1:${port}`;
+    browsers.push(browser);
+    const context = await browser.newContext({ viewport: { width: 1400, height: 1200 }, acceptDownloads: true });
+    const page = await context.newPage();
     const foreign = [];
     const console_ = [];
     page.on("request", (r) => {
@@ -102,30 +169,73 @@ async function main() {
     });
     page.on("console", (m) => console_.push(`${m.type()}: ${m.text()}`));
     page.on("pageerror", (e) => console_.push(`pageerror: ${e.message}`));
-    const query = opt.frames ? `?frames=${opt.frames}` : "";
+    await page.goto(`${origin}/index.html`);
+    let s = await settled(page, 120, ["ready", "error"]);
+    if (s.state !== "ready") throw new Error(`the page did not get ready: ${s.status}`);
+
+    // As a user: the folder picker, the frame range, Run.
+    await page.setInputFiles("#folder", opt.folder);
+    await page.fill("#frames", opt.frames);
+    const chosen = await page.textContent("#chosen");
+    console.log(`page: ${chosen}`);
     const t0 = Date.now();
-    await page.goto(`${origin}/index.html${query}`);
+    await page.click("#run");
+    await page.waitForFunction(() => document.body.dataset.state === "running");
+    // The live view mid-run (after the first map picture; the run may also have ended).
+    await page.waitForFunction(
+      () => window.wgslam.renders >= 1 || document.body.dataset.state !== "running",
+      null,
+      { timeout: opt.timeoutS * 1000, polling: 100 },
+    );
+    await page.screenshot({ path: path.join(opt.shots, "page-running.png"), fullPage: true });
     try {
-      await page.waitForFunction(() => ["done", "error"].includes(document.body.dataset.state), null, {
-        timeout: opt.timeoutS * 1000,
-        polling: 500,
-      });
+      s = await settled(page, opt.timeoutS, ["done", "error"]);
     } catch (e) {
       console.error(console_.join("\n"));
       throw new Error(`the page did not finish within ${opt.timeoutS} s: ${await page.textContent("#status")}`);
     }
     const pageSeconds = (Date.now() - t0) / 1000;
-    await page.screenshot({ path: opt.screenshot, fullPage: true });
-    const state = await page.evaluate(() => window.wgslam);
-    if (state.state !== "done") {
+    await page.screenshot({ path: path.join(opt.shots, "page.png"), fullPage: true });
+    if (s.state !== "done") {
       console.error(console_.join("\n"));
-      throw new Error(`the page reports an error: ${state.error}`);
+      throw new Error(`the page reports an error: ${s.error}`);
     }
-    const m = state.result.metrics;
-    console.log("page summary:\n  " + state.result.summary.join("\n  "));
-    console.log(`page: WebGPU adapter ${state.adapterName}, ${state.result.key_kernels} key kernels; ${pageSeconds.toFixed(1)} s from load to done; ${state.suspensions} JSPI suspensions`);
+    const m = s.result.metrics;
+    console.log("page summary:\n  " + (await page.textContent("#summary")).split("\n").join("\n  "));
+    console.log(
+      `page: WebGPU adapter ${s.adapterName}, ${s.result.key_kernels} key kernels; ` +
+        `${pageSeconds.toFixed(1)} s from Run to done; read ${s.filesRead} files (${(s.bytesRead / 1e6).toFixed(1)} MB); ` +
+        `${s.renders} map pictures during the run`,
+    );
+    if (s.renders < 1) failures.push("no map picture during the run");
 
-    const failures = [];
+    // The downloads, by clicking their links.
+    const got = {};
+    for (const name of ["trajectory.tum", "map.ply", "metrics.json", "frames.json", "mesh.ply"]) {
+      const [download] = await Promise.all([
+        page.waitForEvent("download", { timeout: 120_000 }),
+        page.click(`#downloads a[data-name="${name}"]`),
+      ]);
+      const file = path.join(opt.shots, `download-${name}`);
+      await download.saveAs(file);
+      got[name] = readFileSync(file);
+    }
+    const downloaded = JSON.parse(got["metrics.json"].toString("utf8"));
+    if (JSON.stringify(downloaded) !== JSON.stringify(m)) failures.push("metrics.json differs from the page's metrics");
+    const tumLines = got["trajectory.tum"].toString("utf8").split("\n").filter((l) => l && !l.startsWith("#"));
+    if (tumLines.length !== m.frames - m.tracking.lost) {
+      failures.push(`trajectory.tum has ${tumLines.length} poses for ${m.frames} frames (${m.tracking.lost} lost)`);
+    }
+    const pagePoints = plyCount(got["map.ply"], "vertex");
+    const meshFaces = plyCount(got["mesh.ply"], "face");
+    const frames = JSON.parse(got["frames.json"].toString("utf8"));
+    console.log(
+      `downloads: trajectory.tum ${tumLines.length} poses, map.ply ${pagePoints} points, ` +
+        `frames.json ${frames.length} frames, mesh.ply ${plyCount(got["mesh.ply"], "vertex")} vertices ${meshFaces} triangles`,
+    );
+    if (frames.length !== m.frames) failures.push(`frames.json has ${frames.length} frames, metrics ${m.frames}`);
+    if (!(meshFaces > 0)) failures.push("mesh.ply has no triangles");
+
     if (foreign.length) failures.push(`the page fetched from other hosts: ${foreign.join(", ")}`);
     if (m.frames !== native.frames || m.first_frame !== native.first_frame || m.last_frame !== native.last_frame) {
       failures.push(`frames ${m.first_frame}..${m.last_frame} (${m.frames}) in the page, ${native.first_frame}..${native.last_frame} (${native.frames}) natively`);
@@ -144,12 +254,113 @@ async function main() {
       );
       if (!(diff <= ATE_TOLERANCE_MM)) failures.push(`ATE differs by ${diff.toFixed(4)} mm > ${ATE_TOLERANCE_MM} mm`);
     }
+    const rel = Math.abs(pagePoints - nativePoints) / nativePoints;
+    console.log(
+      `map points: page map.ply ${pagePoints}, native map.ply ${nativePoints}, relative difference ` +
+        `${(rel * 100).toFixed(3)} % (tolerance ${MAP_POINTS_TOLERANCE * 100} %)`,
+    );
+    if (!(rel <= MAP_POINTS_TOLERANCE)) failures.push(`map sizes differ by ${(rel * 100).toFixed(2)} %`);
     console.log(
       `time per frame (median): page ${(m.time_per_frame_median_s * 1e3).toFixed(1)} ms ` +
-        `(${m.backend} on ${state.adapterName}), native ${(native.time_per_frame_median_s * 1e3).toFixed(1)} ms (${native.backend})`,
+        `(${m.backend} on ${s.adapterName}), native ${(native.time_per_frame_median_s * 1e3).toFixed(1)} ms (${native.backend})`,
     );
-    console.log(`map points: page ${m.map_points}, native ${native.map_points}`);
-    console.log(`screenshot: ${opt.screenshot}`);
+
+    // Turn the map: drag across a sixth of the canvas's height (a sixth of a turn).
+    const before = await mapPixels(page);
+    const renders = s.renders;
+    const box = await page.locator("#map").boundingBox();
+    const [x0, y0] = [box.x + box.width / 2, box.y + box.height / 2];
+    await page.mouse.move(x0, y0);
+    await page.mouse.down();
+    await page.mouse.move(x0 + box.height / 6, y0 + box.height / 24, { steps: 4 });
+    await page.mouse.up();
+    // Every picture of the drag drawn (the page draws the latest view after the one in
+    // flight).
+    await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, renders, {
+      timeout: 60_000,
+      polling: 100,
+    });
+    const fraction = changedFraction(before, await mapPixels(page));
+    console.log(`orbit: a drag changed ${(fraction * 100).toFixed(1)} % of the map's pixels (at least ${MIN_CHANGED_PIXELS * 100} %)`);
+    if (!(fraction >= MIN_CHANGED_PIXELS)) failures.push(`the drag changed only ${(fraction * 100).toFixed(1)} % of the map`);
+    await page.screenshot({ path: path.join(opt.shots, "page-turned.png"), fullPage: true });
+
+    // Two fingers on a touch screen: spreading them zooms in (pointer events as a touch
+    // screen sends them; headless Chromium has no multi-touch input of its own).
+    const beforePinch = await mapPixels(page);
+    const pinchRenders = await page.evaluate(() => window.wgslam.renders);
+    await page.evaluate(({ x, y }) => {
+      const c = document.getElementById("map");
+      const send = (type, id, dx) =>
+        c.dispatchEvent(
+          new PointerEvent(type, { pointerId: id, pointerType: "touch", isPrimary: id === 1, clientX: x + dx, clientY: y, buttons: type === "pointerup" ? 0 : 1, bubbles: true }),
+        );
+      send("pointerdown", 1, -20);
+      send("pointerdown", 2, 20);
+      for (const d of [30, 45, 60]) {
+        send("pointermove", 1, -d);
+        send("pointermove", 2, d);
+      }
+      send("pointerup", 1, -60);
+      send("pointerup", 2, 60);
+    }, { x: x0, y: y0 });
+    await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, pinchRenders, {
+      timeout: 60_000,
+      polling: 100,
+    });
+    const pinchFraction = changedFraction(beforePinch, await mapPixels(page));
+    const zoom = await page.evaluate(() => window.wgslam.view.zoom);
+    console.log(`pinch: zoom ${zoom.toFixed(3)} (below 1 is closer), ${(pinchFraction * 100).toFixed(1)} % of the map's pixels changed`);
+    if (!(zoom < 1)) failures.push(`spreading two fingers did not zoom in (zoom ${zoom})`);
+    if (!(pinchFraction >= MIN_CHANGED_PIXELS)) failures.push(`the pinch changed only ${(pinchFraction * 100).toFixed(1)} % of the map`);
+
+    // A folder in no layout: the command line's words, from the same code.
+    const junk = path.join(opt.shots, "not-a-dataset");
+    mkdirSync(junk, { recursive: true });
+    writeFileSync(path.join(junk, "notes.txt"), "no frames here\n");
+    await page.setInputFiles("#folder", junk);
+    await page.click("#run");
+    const bad = await settled(page, 60, ["error"]);
+    console.log(`a folder in no layout: ${bad.status.slice(0, 160)}…`);
+    if (!bad.status.includes("not a dataset in any layout wgslam reads")) {
+      failures.push(`a folder in no layout: not the command line's error: ${bad.status}`);
+    }
+
+    // Pages that cannot run: not a secure context (the local server under another name),
+    // opened from disk, a browser with WebGPU off (Debian's Chromium without
+    // --enable-unsafe-webgpu: navigator.gpu is there, requestAdapter gives null; measured
+    // the same with --disable-webgpu), and a browser without WebGPU at all (navigator.gpu
+    // removed before the page runs: no Chromium flag takes it away).
+    const insecure = await errorText(browser, `http://wgslam.test:${port}/index.html`);
+    const fromDisk = await errorText(browser, `file://${path.resolve(opt.dist, "index.html")}`);
+    const plain = await chromium.launch({ executablePath: opt.chromium, headless: true, args: BASE_FLAGS });
+    browsers.push(plain);
+    const noAdapter = await errorText(plain, `${origin}/index.html`);
+    const removeGpu = () => Object.defineProperty(Navigator.prototype, "gpu", { get: () => undefined });
+    const noWebGpu = await errorText(plain, `${origin}/index.html`, removeGpu);
+    // And a browser without JSPI (the page waits for the GPU through it).
+    const noJspi = await errorText(browser, `${origin}/index.html`, () => {
+      delete WebAssembly.promising;
+    });
+    const shot = await plain.newPage();
+    await shot.goto(`${origin}/index.html`);
+    await settled(shot, 60, ["error", "ready"]);
+    await shot.screenshot({ path: path.join(opt.shots, "page-no-adapter.png") });
+    for (const [what, s2, want] of [
+      ["not a secure context", insecure, ["not a secure context", "http://localhost"]],
+      ["opened from disk", fromDisk, ["file://", "http.server"]],
+      ["no adapter", noAdapter, ["no GPU adapter", "--enable-unsafe-webgpu"]],
+      ["no WebGPU", noWebGpu, ["offers no WebGPU", "Chromium 137"]],
+      ["no JSPI", noJspi, ["JavaScript Promise Integration", "Chromium 137"]],
+    ]) {
+      console.log(`${what}: ${s2.status}`);
+      if (s2.state !== "error") failures.push(`${what}: the page did not report an error (${s2.state})`);
+      for (const w of want) if (!s2.status.includes(w)) failures.push(`${what}: no "${w}" in ${JSON.stringify(s2.status)}`);
+      if (s2.status.includes("install a Vulkan driver") || s2.status.includes("--backend cpu")) {
+        failures.push(`${what}: the command line's advice in the page: ${s2.status}`);
+      }
+    }
+    console.log(`screenshots: ${opt.shots}/page-running.png, page.png, page-turned.png, page-no-adapter.png`);
     if (failures.length) {
       for (const f of failures) console.error(`FAIL: ${f}`);
       process.exitCode = 1;
@@ -157,7 +368,7 @@ async function main() {
       console.log("browser check passed");
     }
   } finally {
-    if (browser) await browser.close();
+    for (const b of browsers) await b.close();
     server.kill();
   }
 }

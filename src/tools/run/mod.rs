@@ -28,7 +28,8 @@ mod counts;
 mod outputs;
 pub use counts::{tracking_counts, TrackingCounts};
 pub use outputs::{
-    read_numbers, write_json, write_outputs, write_pictures, RunNumbers, OUTPUT_FILES,
+    output_bytes, read_numbers, write_json, write_json_to, write_outputs, write_pictures,
+    RunNumbers, OUTPUT_FILES,
 };
 
 /// One processed frame: where it sits in the sequence and what the pipeline did.

@@ -45,16 +45,49 @@ pub fn write_outputs(out: &Path, result: &RunResult) -> Result<()> {
 
 /// Writes any serialisable value as pretty JSON, atomically.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    io::atomic::write_atomic(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, value).map_err(|e| {
-            if e.is_io() {
-                crate::Error::write(path, e.into())
-            } else {
-                crate::Error::encode(path.display().to_string(), e)
-            }
-        })?;
-        writeln!(w).map_err(|e| crate::Error::write(path, e))
-    })
+    io::atomic::write_atomic(path, |w| write_json_to(w, path, value))
+}
+
+/// The bytes of [`write_json`] into any writer; `path` names the file in errors.
+pub fn write_json_to<T: Serialize>(
+    w: &mut dyn std::io::Write,
+    path: &Path,
+    value: &T,
+) -> Result<()> {
+    serde_json::to_writer_pretty(&mut *w, value).map_err(|e| {
+        if e.is_io() {
+            crate::Error::write(path, e.into())
+        } else {
+            crate::Error::encode(path.display().to_string(), e)
+        }
+    })?;
+    writeln!(w).map_err(|e| crate::Error::write(path, e))
+}
+
+/// The files [`write_outputs`] writes, as `(name, bytes)` in the same order and with the
+/// same bytes (the same writers into memory): the browser build's downloads.
+pub fn output_bytes(result: &RunResult) -> Result<Vec<(&'static str, Vec<u8>)>> {
+    let mut out = Vec::new();
+    let mut put = |name: &'static str, fill: &dyn Fn(&mut Vec<u8>, &Path) -> Result<()>| {
+        let mut bytes = Vec::new();
+        fill(&mut bytes, Path::new(name))?;
+        out.push((name, bytes));
+        Ok::<(), crate::Error>(())
+    };
+    let (est, odometry) = (result.trajectory(), trajectory(&result.frames));
+    let frames = io::trajectory::TUM_CAMERA_FRAMES;
+    put("trajectory.tum", &|w, p| {
+        io::trajectory::write_tum_to(w, p, frames, &est)
+    })?;
+    put("trajectory_odometry.tum", &|w, p| {
+        io::trajectory::write_tum_to(w, p, frames, &odometry)
+    })?;
+    put("map.ply", &|w, p| {
+        io::ply::write_surfel_map_to(w, p, &result.map)
+    })?;
+    put("metrics.json", &|w, p| write_json_to(w, p, &result.metrics))?;
+    put("frames.json", &|w, p| write_json_to(w, p, &result.frames))?;
+    Ok(out)
 }
 
 /// Writes the pictures of a run into `out`: `trajectory.png` (with ground truth) and the
