@@ -1,11 +1,11 @@
 //! The CPU mirrors of the shared entry points (`shaders/pixel_grid.wgsl`,
-//! `shaders/visible_surfels.wgsl`; see `gpu::shaders::ENTRIES`): the loop a kernel of one
+//! `shaders/visible_surfels.wgsl`, `shaders/system_grid.wgsl`; see `gpu::shaders::ENTRIES`): the loop a kernel of one
 //! shape runs around its per-item function. Each is one thread whose stride is one item,
 //! so every item is visited once, in the order a twin's results are defined by (row by row;
 //! block by block, then surfel by surfel).
 
 use super::{block_visible, chunk_blocks, decode_corner};
-use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS};
+use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
 
 /// Mirrors `pixel_grid.wgsl`'s `main`: `per_pixel(texel)` for every texel `(u, v)` of a
 /// `width` x `height` image, row by row.
@@ -64,4 +64,25 @@ pub fn visible_surfels(
             per_surfel(i, i - chunk.base);
         }
     }
+}
+
+/// Mirrors `system_grid.wgsl`'s `main`: the 29-float normal-equation system summed over
+/// the rows `system_row(texel)` gives for every texel of a `width` x `height` image, row by
+/// row (`None`: the pixel adds nothing), in f64 (the GPU sums f32 partials per thread and
+/// workgroup, the host in f64; see `arith::accumulate`).
+#[inline]
+pub fn system_grid(
+    width: u32,
+    height: u32,
+    mut system_row: impl FnMut([u32; 2]) -> Option<([f32; 6], f32)>,
+) -> [f64; ICP_SYSTEM_LEN] {
+    let mut sys = [0.0f64; ICP_SYSTEM_LEN];
+    pixel_grid(width, height, |[u, v]| {
+        if let Some((a, b)) = system_row([u, v]) {
+            super::arith::accumulate(&mut sys, v * width + u, |s| {
+                super::icp_reduce::accumulate(s, &a, b)
+            });
+        }
+    });
+    sys
 }

@@ -42,7 +42,7 @@ pub fn noise_weight(z: f32) -> f32 {
 }
 
 /// Huber weight of a residual `b` (metres): 1 within `delta`, `delta / |b|` beyond; 1 when
-/// `delta` is 0 (off). Mirrors `huber_weight` in icp_reduce.wgsl.
+/// `delta` is 0 (off). Mirrors `huber_weight` in common.wgsl.
 #[inline]
 pub fn huber_weight(b: f32, delta: f32) -> f32 {
     if delta <= 0.0 || b.abs() <= delta {
@@ -130,15 +130,9 @@ pub fn icp_reduce(
     pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> [f64; ICP_SYSTEM_LEN] {
-    let mut sys = [0.0f64; ICP_SYSTEM_LEN];
-    for v in 0..params.height {
-        for u in 0..params.width {
-            if let Some((a, b)) = icp_row(params, [u, v], pred_vertex, pred_normal, normal_depth) {
-                super::arith::accumulate(&mut sys, v * params.width + u, |s| accumulate(s, &a, b));
-            }
-        }
-    }
-    sys
+    super::system_grid(params.width, params.height, |texel| {
+        icp_row(params, texel, pred_vertex, pred_normal, normal_depth)
+    })
 }
 
 #[cfg(test)]
