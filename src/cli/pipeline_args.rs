@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
-use crate::slam::params::{Association, Key, PoseSource, Profile, SlamParams};
+use crate::slam::params::{Association, Key, PoseSource, Profile, SlamParams, Tracking};
 use crate::{Error, Result};
 
 /// The sequence, a parameter file and the overrides: flattened into `run`, `icp`,
@@ -177,6 +177,14 @@ param_overrides! {
     /// (assignment).
     #[arg(long)]
     icp_degenerate_ratio: Option<f64> => "icp.degenerate_eigen_ratio",
+    /// What tracking aligns: the depth (geometric, point-to-plane ICP) or depth and colour
+    /// (rgbd: a photometric term at the full maps). Default geometric.
+    #[arg(long, value_enum)]
+    tracking: Option<Tracking> => "icp.tracking",
+    /// With --tracking rgbd: the photometric term's weight relative to the geometric one,
+    /// each normalised by its mean squared residual (default 0.1).
+    #[arg(long)]
+    photometric_weight: Option<f64> => "icp.photometric_weight",
     /// Report frames whose tracking fails the health test as lost instead of fusing them
     /// (both profiles true; false accepts every pose ICP returns).
     #[arg(long)]

@@ -294,6 +294,7 @@ mod tests {
             increment: None,
             step_chi2: None,
             stop: None,
+            photometric: None,
         }
     }
 

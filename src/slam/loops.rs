@@ -525,6 +525,7 @@ mod tests {
             increment: None,
             step_chi2: None,
             stop: None,
+            photometric: None,
         };
         let tracked = lc.poses().last().unwrap().estimate;
         let t_loop = DMat4::from_translation(DVec3::new(0.0, offset_m, 0.0)) * tracked;

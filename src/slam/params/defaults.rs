@@ -170,3 +170,9 @@ pub const LOOP_MAX_LEFT_FRACTION: f64 = 0.5;
 /// ([`LOOP_MIN_CORRECTION_M`]), so a bend may redistribute rounding but never undo what an
 /// earlier loop that bent the map measured.
 pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;
+
+/// `icp.photometric_weight`: the photometric term's weight relative to the geometric one,
+/// both normalised by their mean squared residuals (see
+/// [`super::IcpSettings::photometric_weight`]). Provisional: to be set from the
+/// measurements in `docs/rgbd-tracking.md`.
+pub const PHOTOMETRIC_WEIGHT: f64 = 0.1;
