@@ -145,7 +145,7 @@ struct IcpParams {
     photo_depth_gate_m: f32,
     photo_huber: f32,
     photo_gradient_min: f32,
-    _pad0: u32,
+    photo_stride_px: u32,
     _pad1: u32,
     _pad2: u32,
 }

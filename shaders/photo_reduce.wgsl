@@ -27,21 +27,14 @@ fn intensity_at(u: u32, v: u32) -> f32 {
     return intensity_of(textureLoad(color_map, vec2<u32>(u, v), 0).xyz);
 }
 
-// Intensity and its central-difference gradient (I, Ix, Iy) at texel (u, v), which has a
-// neighbour on each side. Mirrors `sample_at` in the twin.
-fn sample_at(u: u32, v: u32) -> vec3<f32> {
-    let i = intensity_at(u, v);
-    let gx = 0.5 * (intensity_at(u + 1u, v) - intensity_at(u - 1u, v));
-    let gy = 0.5 * (intensity_at(u, v + 1u) - intensity_at(u, v - 1u));
-    return vec3<f32>(i, gx, gy);
-}
-
-// Bilinear mix of four corner samples (componentwise) with fractions t. Mirrors
-// `bilinear` in the twin.
-fn bilinear(s00: vec3<f32>, s10: vec3<f32>, s01: vec3<f32>, s11: vec3<f32>, t: vec2<f32>) -> vec3<f32> {
-    let top = s00 + t.x * (s10 - s00);
-    let bottom = s01 + t.x * (s11 - s01);
-    return top + t.y * (bottom - top);
+// The bilinear interpolant of the four texel intensities i = (i00, i10, i01, i11) at
+// fractions t, and its exact gradient there: (I, Ix, Iy). Mirrors `bilinear` in the twin.
+fn bilinear(i: vec4<f32>, t: vec2<f32>) -> vec3<f32> {
+    let top = i.x + t.x * (i.y - i.x);
+    let bottom = i.z + t.x * (i.w - i.z);
+    let left = i.x + t.y * (i.z - i.x);
+    let right = i.y + t.y * (i.w - i.y);
+    return vec3<f32>(top + t.y * (bottom - top), right - left, bottom - top);
 }
 
 // The row of source pixel `src_texel`, or valid = false when a gate rejects it, scaled by
@@ -50,6 +43,10 @@ fn photo_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
     let w = params.width;
+    let stride = params.photo_stride_px;
+    if src_texel.x % stride != 0u || src_texel.y % stride != 0u {
+        return row;
+    }
     let src_world = textureLoad(pred_vertex, src_texel, 0);
     let i_model = pred_intensity[src_texel.y * w + src_texel.x];
     if !is_valid(src_world) || i_model < 0.0 {
@@ -61,26 +58,26 @@ fn photo_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     }
     let x = params.fx * p.x / p.z + params.cx;
     let y = params.fy * p.y / p.z + params.cy;
-    // The four texels around (x, y) and their neighbours inside the image.
-    if !(x >= 1.0 && y >= 1.0 && x < f32(w - 2u) && y < f32(params.height - 2u)) {
+    // The four texels around (x, y) inside the image.
+    if !(x >= 0.0 && y >= 0.0 && x < f32(w - 1u) && y < f32(params.height - 1u)) {
         return row;
     }
-    let x0 = floor(vec2<f32>(x, y));
-    let t = vec2<f32>(x, y) - x0;
-    let u0 = u32(x0.x);
-    let v0 = u32(x0.y);
+    // x, y >= 0: truncation is the floor.
+    let u0 = u32(x);
+    let v0 = u32(y);
+    let t = vec2<f32>(x - f32(u0), y - f32(v0));
     let near = vec2<u32>(u0 + select(0u, 1u, t.x >= 0.5), v0 + select(0u, 1u, t.y >= 0.5));
     let nd = textureLoad(normal_depth, near, 0);
     if !is_valid(nd) || abs(nd.w - p.z) >= params.photo_depth_gate_m {
         return row;
     }
-    let s = bilinear(
-        sample_at(u0, v0),
-        sample_at(u0 + 1u, v0),
-        sample_at(u0, v0 + 1u),
-        sample_at(u0 + 1u, v0 + 1u),
-        t,
+    let corners = vec4<f32>(
+        intensity_at(u0, v0),
+        intensity_at(u0 + 1u, v0),
+        intensity_at(u0, v0 + 1u),
+        intensity_at(u0 + 1u, v0 + 1u),
     );
+    let s = bilinear(corners, t);
     let g_min = params.photo_gradient_min;
     if s.y * s.y + s.z * s.z < g_min * g_min {
         return row;

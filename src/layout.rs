@@ -193,7 +193,9 @@ pub struct IcpParams {
     /// `photo_reduce`: pixels whose frame intensity gradient is below this (intensity units
     /// per pixel) add nothing (flat texture constrains no motion).
     pub photo_gradient_min: f32,
-    pub _pad0: u32,
+    /// `photo_reduce` uses the model pixels `(u, v)` with `u` and `v` multiples of this
+    /// (1: every pixel), a cheaper term with the same sub-pixel sampling of the frame.
+    pub photo_stride_px: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }

@@ -182,7 +182,7 @@ param_overrides! {
     #[arg(long, value_enum)]
     tracking: Option<Tracking> => "icp.tracking",
     /// With --tracking rgbd: the photometric term's weight relative to the geometric one,
-    /// each normalised by its mean squared residual (default 0.1).
+    /// each normalised by its mean squared residual (default 0.3).
     #[arg(long)]
     photometric_weight: Option<f64> => "icp.photometric_weight",
     /// Report frames whose tracking fails the health test as lost instead of fusing them

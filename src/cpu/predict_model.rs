@@ -10,6 +10,7 @@ use crate::layout::{MapChunk, ProjectParams};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/predict_model.wgsl` for shapes, units and frames.
+#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn predict_model(
     params: &ProjectParams,
     index_map: &[u64],

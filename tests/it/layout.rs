@@ -115,7 +115,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             photo_depth_gate_m,
             photo_huber,
             photo_gradient_min,
-            _pad0,
+            photo_stride_px,
             _pad1,
             _pad2
         }),

@@ -175,4 +175,4 @@ pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;
 /// both normalised by their mean squared residuals (see
 /// [`super::IcpSettings::photometric_weight`]). Provisional: to be set from the
 /// measurements in `docs/rgbd-tracking.md`.
-pub const PHOTOMETRIC_WEIGHT: f64 = 0.1;
+pub const PHOTOMETRIC_WEIGHT: f64 = 0.3;
