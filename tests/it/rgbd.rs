@@ -15,13 +15,13 @@ use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{SlamParams, Tracking};
 use wgslam::tools::run::{self, RunResult};
 
-/// The bundled noisy frames 1..23, robust profile: measured (release, both backends)
-/// 2.45 mm geometric and RGBD_BUNDLED_MEASURED_M with RGB-D tracking; the bar is the
-/// geometric measurement less a third of the gain, so a photometric term that does not
-/// help fails.
-const ATE_BUNDLED_NOISY_RGBD_MAX_M: f64 = 2.2e-3;
-/// Noisy ICL-NUIM 1..200 at 640x480: measured 7.60 mm geometric and
-/// RGBD_NOISY_MEASURED_M with RGB-D tracking (CPU); the issue asks for 7.0 mm.
+/// The bundled noisy frames 1..23, robust profile: measured (release and test builds, both
+/// backends) 2.45 mm geometric and 2.12 mm with RGB-D tracking; the bar is halfway, so a
+/// photometric term that does not help fails.
+const ATE_BUNDLED_NOISY_RGBD_MAX_M: f64 = 2.3e-3;
+/// Noisy ICL-NUIM 1..200 at 640x480: measured 7.60 mm geometric and 3.45 mm with RGB-D
+/// tracking (CPU); the issue asks for 7.0 mm. 4 mm leaves a sixth for other builds'
+/// rounding and fails a term that gives back half the gain.
 const ATE_NOISY_640_RGBD_MAX_M: f64 = 4.0e-3;
 
 /// The robust profile with RGB-D tracking.
