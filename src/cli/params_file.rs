@@ -272,7 +272,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 38] = [
+    const OPTION_VALUES: [(&str, &str); 40] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -288,6 +288,8 @@ mod tests {
         ("icp-noise-weight", "true"),
         ("icp-min-increment", "1e-5"),
         ("icp-degenerate-ratio", "1e-3"),
+        ("tracking", "rgbd"),
+        ("photometric-weight", "0.5"),
         ("tracking-health", "false"),
         ("health-min-inliers", "0.25"),
         ("health-max-residual-ratio", "5"),
