@@ -35,9 +35,9 @@ fn noise_weight(z: f32) -> f32 {
 
 // The row of source pixel `src_texel`, or valid = false when a filter rejects it; weighted rows
 // are scaled by sqrt(weight), so AᵀA and Aᵀb carry the weight once.
-// Mirrors `icp_row` in src/cpu/icp_reduce.rs. `params` is main's copy of the binding (see
-// main).
-fn icp_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
+// Mirrors `icp_row` in src/cpu/icp_reduce.rs; system_grid.wgsl's main calls it for each
+// pixel with its copy of the params.
+fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
     let src_world = textureLoad(pred_vertex, src_texel, 0);
@@ -75,18 +75,7 @@ fn icp_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     if params.noise_weighting != 0u {
         w = w * noise_weight(q.z);
     }
-    let s = sqrt(w);
-    let pxn = cross(p, n) * s;
-    let ns = n * s;
-    row.a = array<f32, 6>(pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z);
-    row.b = b * s;
-    row.valid = true;
-    return row;
-}
-
-// The entry point's per-pixel row (system_grid.wgsl).
-fn system_row(p: IcpParams, texel: vec2<u32>) -> IcpRow {
-    return icp_row(p, texel);
+    return scaled_row(p, n, b, sqrt(w));
 }
 
 #entry system_grid

@@ -38,8 +38,9 @@ fn bilinear(i: vec4<f32>, t: vec2<f32>) -> vec3<f32> {
 }
 
 // The row of source pixel `src_texel`, or valid = false when a gate rejects it, scaled by
-// sqrt(weight). Mirrors `photo_row` in the twin.
-fn photo_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
+// sqrt(weight). Mirrors `photo_row` in the twin; system_grid.wgsl's main calls it for each
+// pixel with its copy of the params.
+fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
     let w = params.width;
@@ -87,17 +88,7 @@ fn photo_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     let fgx = params.fx * s.y;
     let fgy = params.fy * s.z;
     let g = vec3<f32>(fgx / p.z, fgy / p.z, -((fgx * p.x + fgy * p.y) / p.z) / p.z);
-    let pxg = cross(p, g) * sw;
-    let gs = g * sw;
-    row.a = array<f32, 6>(pxg.x, pxg.y, pxg.z, gs.x, gs.y, gs.z);
-    row.b = r * sw;
-    row.valid = true;
-    return row;
-}
-
-// The entry point's per-pixel row (system_grid.wgsl).
-fn system_row(p: IcpParams, texel: vec2<u32>) -> IcpRow {
-    return photo_row(p, texel);
+    return scaled_row(p, g, r, sw);
 }
 
 #entry system_grid

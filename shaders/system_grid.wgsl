@@ -23,6 +23,16 @@ struct IcpRow {
     valid: bool,
 }
 
+// The valid row of a point p (camera frame) whose residual b moves along direction d
+// (the frame normal, or the intensity gradient through the projection) under the twist
+// (alpha, beta, gamma, tx, ty, tz): a = [(p x d), d] and b, both scaled by s = sqrt(weight).
+// Mirrors `scaled_row` in src/cpu/entries.rs.
+fn scaled_row(p: vec3<f32>, d: vec3<f32>, b: f32, s: f32) -> IcpRow {
+    let pxd = cross(p, d) * s;
+    let ds = d * s;
+    return IcpRow(array<f32, 6>(pxd.x, pxd.y, pxd.z, ds.x, ds.y, ds.z), b * s, true);
+}
+
 // Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs: the
 // twin's two loops written out in the same k order (row r, column c >= r), because
 // constant indices let lavapipe keep `sys` in registers instead of per-lane stack memory.
@@ -60,10 +70,10 @@ fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, 
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(global_invocation_id) gid: vec3<u32>,
 ) {
     var sys: array<f32, ICP_SYSTEM_LEN>;
     // The params copied once per thread: read inside the loop, lavapipe loads them from the

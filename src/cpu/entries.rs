@@ -86,3 +86,14 @@ pub fn system_grid(
     });
     sys
 }
+
+/// The row of a point `p` (camera frame) whose residual `b` moves along direction `d` (the
+/// frame normal, or the intensity gradient through the projection) under the twist
+/// `(alpha, beta, gamma, tx, ty, tz)`: `a = [(p x d), d]` and `b`, both scaled by
+/// `s = sqrt(weight)`. Mirrors `scaled_row` in system_grid.wgsl.
+#[inline]
+pub fn scaled_row(p: glam::Vec3, d: glam::Vec3, b: f32, s: f32) -> ([f32; 6], f32) {
+    let pxd = p.cross(d) * s;
+    let ds = d * s;
+    ([pxd.x, pxd.y, pxd.z, ds.x, ds.y, ds.z], b * s)
+}

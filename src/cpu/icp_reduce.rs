@@ -95,10 +95,7 @@ pub fn icp_row(
     if params.noise_weighting != 0 {
         w *= noise_weight(q.z);
     }
-    let s = super::arith::sqrt(w);
-    let pxn = p.cross(n) * s;
-    let ns = n * s;
-    Some(([pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z], b * s))
+    Some(super::entries::scaled_row(p, n, b, super::arith::sqrt(w)))
 }
 
 /// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,

@@ -129,9 +129,7 @@ pub fn photo_row(
         arith::div(fgy, p.z),
         -arith::div(arith::div(fgx * p.x + fgy * p.y, p.z), p.z),
     );
-    let pxg = p.cross(g) * s;
-    let gs = g * s;
-    Some(([pxg.x, pxg.y, pxg.z, gs.x, gs.y, gs.z], r * s))
+    Some(super::entries::scaled_row(p, g, r, s))
 }
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the

@@ -126,8 +126,6 @@ impl FrameBuffers {
         let raw_rgba = raw("raw rgba", wgpu::TextureFormat::Rgba8Uint)?;
         let mut index_map = GpuArray::new(ctx, "index map", n)?;
         index_map.set_len(n);
-        let mut pred_intensity = GpuArray::new(ctx, "predicted intensity", n)?;
-        pred_intensity.set_len(n);
         let mut assoc = GpuArray::new(ctx, "assoc", n)?;
         assoc.set_len(n);
         let mut merged = GpuArray::new(ctx, "merged surfel per pixel", 2 * n)?;
@@ -160,6 +158,8 @@ impl FrameBuffers {
                 })
             })
             .collect::<Result<Vec<_>>>()?;
+        let mut pred_intensity = GpuArray::new(ctx, "predicted intensity", n)?;
+        pred_intensity.set_len(n);
         Ok(FrameBuffers {
             raw_width: p.raw_width,
             raw_height: p.raw_height,

@@ -199,7 +199,7 @@ impl NormalEquations {
 
 /// One ICP iteration's statistics, as the frame report (`frames.json`), the tracking
 /// health test and loop verification read them.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
 pub struct IcpIteration {
     /// Pyramid level the iteration ran at (0 = the full maps).
     pub level: usize,
@@ -207,6 +207,11 @@ pub struct IcpIteration {
     pub inliers: u64,
     /// Mean squared point-to-plane residual before the update, m².
     pub mean_sq_residual: f64,
+    /// RGB-D tracking's photometric term at this iteration, before the update (level 0
+    /// with `tracking = "rgbd"`, else `None`); `inliers` and `mean_sq_residual` are the
+    /// geometric term's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub photometric: Option<PhotometricTerm>,
     /// Smallest over largest eigenvalue of AᵀA; `None` when the system was refused.
     pub eigen_ratio: Option<f64>,
     /// Eigen-directions the guarded solve held (degenerate geometry).
@@ -222,11 +227,6 @@ pub struct IcpIteration {
     /// On the last iteration of a pyramid level: why the level stopped there.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stop: Option<LevelStop>,
-    /// RGB-D tracking's photometric term at this iteration (level 0 with
-    /// `tracking = "rgbd"`), before the update; `None` otherwise. `inliers` and
-    /// `mean_sq_residual` above stay the geometric term's.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub photometric: Option<PhotometricTerm>,
 }
 
 /// The photometric term of one RGB-D iteration ([`IcpIteration::photometric`]).

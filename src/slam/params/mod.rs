@@ -12,6 +12,9 @@ pub mod validate;
 pub use defaults::*;
 pub use keys::{Key, KEY_SECTIONS, OPTIONAL_SECTIONS};
 
+use clap::ValueEnum;
+use serde::{Deserialize, Serialize};
+
 /// Where the poses come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum PoseSource {
@@ -274,20 +277,11 @@ fn photometric_weight_default() -> f64 {
 }
 
 /// What frame-to-model tracking aligns ([`IcpSettings::tracking`]).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Tracking {
-    /// Point-to-plane ICP on the depth alone.
+    /// Point-to-plane ICP on the depth alone (the default: see [`PHOTOMETRIC_WEIGHT`]'s
+    /// measurements).
     #[default]
     Geometric,
     /// Point-to-plane ICP plus, at the full maps (level 0), the photometric term: the
