@@ -33,7 +33,7 @@ fn scaled_row(p: vec3<f32>, d: vec3<f32>, b: f32, s: f32) -> IcpRow {
     return IcpRow(array<f32, 6>(pxd.x, pxd.y, pxd.z, ds.x, ds.y, ds.z), b * s, true);
 }
 
-// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/icp_reduce.rs: the
+// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/entries.rs: the
 // twin's two loops written out in the same k order (row r, column c >= r), because
 // constant indices let lavapipe keep `sys` in registers instead of per-lane stack memory.
 fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, b: f32) {

@@ -5,7 +5,8 @@
 //! block by block, then surfel by surfel).
 
 use super::{block_visible, chunk_blocks, decode_corner};
-use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
+use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS};
+use crate::layout::{ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN};
 
 /// Mirrors `pixel_grid.wgsl`'s `main`: `per_pixel(texel)` for every texel `(u, v)` of a
 /// `width` x `height` image, row by row.
@@ -79,9 +80,7 @@ pub fn system_grid(
     let mut sys = [0.0f64; ICP_SYSTEM_LEN];
     pixel_grid(width, height, |[u, v]| {
         if let Some((a, b)) = system_row([u, v]) {
-            super::arith::accumulate(&mut sys, v * width + u, |s| {
-                super::icp_reduce::accumulate(s, &a, b)
-            });
+            super::arith::accumulate(&mut sys, v * width + u, |s| accumulate(s, &a, b));
         }
     });
     sys
@@ -96,4 +95,22 @@ pub fn scaled_row(p: glam::Vec3, d: glam::Vec3, b: f32, s: f32) -> ([f32; 6], f3
     let pxd = p.cross(d) * s;
     let ds = d * s;
     ([pxd.x, pxd.y, pxd.z, ds.x, ds.y, ds.z], b * s)
+}
+
+/// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
+/// the count and the squared residual. Mirrors `accumulate` in system_grid.wgsl.
+#[inline]
+pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
+    let mut k = 0;
+    for r in 0..6 {
+        for c in r..6 {
+            sys[k] += a[r] as f64 * a[c] as f64;
+            k += 1;
+        }
+    }
+    for r in 0..6 {
+        sys[ICP_ATB_OFFSET + r] += a[r] as f64 * b as f64;
+    }
+    sys[ICP_COUNT_INDEX] += 1.0;
+    sys[ICP_RESIDUAL_INDEX] += b as f64 * b as f64;
 }

@@ -21,9 +21,7 @@
 //! is the unweighted one bit for bit.
 
 use super::{back_project, is_valid, project_to_texel, transform_dir, transform_point, xyz};
-use crate::layout::{
-    IcpParams, ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN,
-};
+use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
 
 /// Axial depth noise of a Kinect-like sensor, after Nguyen, Izadi and Lovell (2012):
 /// `sigma(z) = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD (z - NOISE_Z_0_M)^2`, metres.
@@ -98,23 +96,7 @@ pub fn icp_row(
     Some(super::entries::scaled_row(p, n, b, super::arith::sqrt(w)))
 }
 
-/// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
-/// the count and the squared residual. Mirrors `accumulate` in icp_reduce.wgsl.
-#[inline]
-pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
-    let mut k = 0;
-    for r in 0..6 {
-        for c in r..6 {
-            sys[k] += a[r] as f64 * a[c] as f64;
-            k += 1;
-        }
-    }
-    for r in 0..6 {
-        sys[ICP_ATB_OFFSET + r] += a[r] as f64 * b as f64;
-    }
-    sys[ICP_COUNT_INDEX] += 1.0;
-    sys[ICP_RESIDUAL_INDEX] += b as f64 * b as f64;
-}
+pub use super::entries::accumulate;
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/icp_reduce.wgsl` for shapes, units and frames.
