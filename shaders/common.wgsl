@@ -129,7 +129,7 @@ struct ProjectParams {
     _pad: u32,
 }
 
-// Mirrors `layout::IcpParams` (icp_reduce).
+// Mirrors `layout::IcpParams` (icp_reduce, photo_reduce).
 struct IcpParams {
     t_world_to_cam: mat4x4<f32>,
     fx: f32,
@@ -142,8 +142,12 @@ struct IcpParams {
     cos_normal_threshold: f32,
     huber_delta_m: f32,
     noise_weighting: u32,
-    _pad0: u32,
+    photo_depth_gate_m: f32,
+    photo_huber: f32,
+    photo_gradient_min: f32,
+    photo_stride_px: u32,
     _pad1: u32,
+    _pad2: u32,
 }
 
 // Mirrors `layout::FuseParams` (fuse_merge, fuse_add).
@@ -333,6 +337,10 @@ fn block_visible(t: mat4x4<f32>, cam: vec4<f32>, width: u32, height: u32, lo: ve
 // The invalid map entry (mirrors `cpu::INVALID`).
 const INVALID: vec4<f32> = vec4<f32>(0.0, 0.0, 0.0, 0.0);
 
+// predict_model's pred_intensity where the pixel has no surfel (mirrors
+// `cpu::photo_reduce::INTENSITY_NONE`; intensities are 0..1).
+const INTENSITY_NONE: f32 = -1.0;
+
 // `T p` for a point (w = 1). Mirrors `cpu::transform_point`.
 fn transform_point(t: mat4x4<f32>, p: vec3<f32>) -> vec3<f32> {
     return (t * vec4<f32>(p, 1.0)).xyz;
@@ -408,6 +416,21 @@ fn candidate_off_ray(
 // xyz of a vec4 map entry. Mirrors `cpu::xyz`.
 fn xyz(v: vec4<f32>) -> vec3<f32> {
     return v.xyz;
+}
+
+// Huber weight of a residual b (metres in icp_reduce, intensity in photo_reduce): 1 within delta, delta / |b| beyond; 1 when
+// delta is 0 (off). Mirrors `huber_weight` in src/cpu/icp_reduce.rs.
+fn huber_weight(b: f32, delta: f32) -> f32 {
+    if delta <= 0.0 || abs(b) <= delta {
+        return 1.0;
+    }
+    return delta / abs(b);
+}
+
+// Intensity (0..1) of an RGB colour (0..255): ITU-R BT.601 luma over 255, the
+// photometric term's unit. Mirrors `cpu::intensity_of`.
+fn intensity_of(rgb: vec3<f32>) -> f32 {
+    return (0.299 * rgb.x + 0.587 * rgb.y + 0.114 * rgb.z) / 255.0;
 }
 
 // A map entry is valid when its w is positive. Mirrors `cpu::is_valid`.

@@ -1,5 +1,5 @@
 // predict_model.wgsl: turns the index map into the predicted (model) vertex and normal
-// maps in the WORLD frame, the ICP source. Dispatched once per map chunk: each pass writes
+// maps in the WORLD frame, the ICP source, and the predicted intensity. Dispatched once per map chunk: each pass writes
 // the pixels whose surfel the chunk holds, and the first chunk's pass also the pixels with
 // no surfel, so every pixel is written exactly once. CPU twin: src/cpu/predict_model.rs.
 //
@@ -18,10 +18,15 @@
 // Bits of the surfel normal (world frame) + last_frame (the packing:
 // src/gpu/map_buffers.rs).
 @group(0) @binding(4) var<storage, read> normal_frame: array<vec4<u32>>;
+// The chunk's surfel colours, RGB 0..255 + radius.
+@group(0) @binding(5) var<storage, read> color: array<vec4<f32>>;
 // Out: width x height, world frame, w = 1 / 0.
-@group(0) @binding(5) var pred_vertex: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(6) var pred_vertex: texture_storage_2d<rgba32float, write>;
 // Out: width x height, world frame, w = 1 / 0.
-@group(0) @binding(6) var pred_normal: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(7) var pred_normal: texture_storage_2d<rgba32float, write>;
+// Out: width x height, the surfel's intensity (0..1, intensity_of its colour) for the
+// photometric term (photo_reduce), INTENSITY_NONE where no surfel.
+@group(0) @binding(8) var<storage, read_write> pred_intensity: array<f32>;
 
 const TILE_X: u32 = 8u;
 const TILE_Y: u32 = 8u;
@@ -35,6 +40,7 @@ fn per_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
     let key = index_map[texel.y * params.width + texel.x];
     var vertex = INVALID;
     var normal = INVALID;
+    var intensity = INTENSITY_NONE;
     if key.x != 0u || key.y != 0u {
         // key.x - chunk.base wraps to a huge value below the chunk: one test for both ends.
         let slot = key.x - chunk.base;
@@ -45,9 +51,11 @@ fn per_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
         let n = bitcast<vec3<f32>>(normal_frame[slot].xyz);
         vertex = vec4<f32>(p, 1.0);
         normal = vec4<f32>(n, 1.0);
+        intensity = intensity_of(color[slot].xyz);
     } else if chunk.base != 0u {
         return;
     }
     textureStore(pred_vertex, texel, vertex);
     textureStore(pred_normal, texel, normal);
+    pred_intensity[texel.y * params.width + texel.x] = intensity;
 }

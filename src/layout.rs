@@ -183,8 +183,21 @@ pub struct IcpParams {
     /// 1: weight each row by the depth noise model ([`crate::cpu::icp_reduce::noise_weight`]);
     /// 0: unweighted.
     pub noise_weighting: u32,
-    pub _pad0: u32,
+    /// `photo_reduce` (the photometric term): a model point is used only where the frame's
+    /// depth at the pixel it projects to is within this of the point's depth, metres (an
+    /// occluded or disoccluded point is skipped).
+    pub photo_depth_gate_m: f32,
+    /// `photo_reduce`: Huber threshold on the intensity residual, intensity units (0..1);
+    /// 0 turns the weight off.
+    pub photo_huber: f32,
+    /// `photo_reduce`: pixels whose frame intensity gradient is below this (intensity units
+    /// per pixel) add nothing (flat texture constrains no motion).
+    pub photo_gradient_min: f32,
+    /// `photo_reduce` uses the model pixels `(u, v)` with `u` and `v` multiples of this
+    /// (1: every pixel), a cheaper term with the same sub-pixel sampling of the frame.
+    pub photo_stride_px: u32,
     pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// Parameters of `fuse_merge` and `fuse_add` (mirrors `FuseParams`).

@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
-use crate::slam::params::{Association, Key, PoseSource, Profile, SlamParams};
+use crate::slam::params::{Association, Key, PoseSource, Profile, SlamParams, Tracking};
 use crate::{Error, Result};
 
 /// The sequence, a parameter file and the overrides: flattened into `run`, `icp`,
@@ -160,6 +160,15 @@ param_overrides! {
     /// Huber threshold on ICP residuals, metres; 0 turns it off (assignment 0, robust 0.02).
     #[arg(long)]
     icp_huber: Option<f32> => "icp.huber_m",
+    /// What tracking aligns: the depth (geometric, the default) or depth and colour (rgbd:
+    /// a photometric term at the full maps; see docs/rgbd-tracking.md).
+    #[arg(long, value_enum, value_name = "MODE")]
+    tracking: Option<Tracking> => "icp.tracking",
+    /// With --tracking rgbd: the photometric term's weight relative to the geometric one,
+    /// each normalised by its mean squared residual of the iteration, so that it has no
+    /// unit (default 0.3).
+    #[arg(long)]
+    photometric_weight: Option<f64> => "icp.photometric_weight",
     /// ICP iterations per pyramid level, coarse to fine: "10,5,4" is three levels (each
     /// half the size of the next finer one), at most 10 iterations at the coarsest and 4 at
     /// the full maps; one number is single-level ICP (assignment 10, robust 10,5,4).

@@ -1,11 +1,12 @@
 //! The CPU mirrors of the shared entry points (`shaders/pixel_grid.wgsl`,
-//! `shaders/visible_surfels.wgsl`; see `gpu::shaders::ENTRIES`): the loop a kernel of one
+//! `shaders/visible_surfels.wgsl`, `shaders/system_grid.wgsl`; see `gpu::shaders::ENTRIES`): the loop a kernel of one
 //! shape runs around its per-item function. Each is one thread whose stride is one item,
 //! so every item is visited once, in the order a twin's results are defined by (row by row;
 //! block by block, then surfel by surfel).
 
 use super::{block_visible, chunk_blocks, decode_corner};
 use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS};
+use crate::layout::{ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN};
 
 /// Mirrors `pixel_grid.wgsl`'s `main`: `per_pixel(texel)` for every texel `(u, v)` of a
 /// `width` x `height` image, row by row.
@@ -64,4 +65,52 @@ pub fn visible_surfels(
             per_surfel(i, i - chunk.base);
         }
     }
+}
+
+/// Mirrors `system_grid.wgsl`'s `main`: the 29-float normal-equation system summed over
+/// the rows `system_row(texel)` gives for every texel of a `width` x `height` image, row by
+/// row (`None`: the pixel adds nothing), in f64 (the GPU sums f32 partials per thread and
+/// workgroup, the host in f64; see `arith::accumulate`).
+#[inline]
+pub fn system_grid(
+    width: u32,
+    height: u32,
+    mut system_row: impl FnMut([u32; 2]) -> Option<([f32; 6], f32)>,
+) -> [f64; ICP_SYSTEM_LEN] {
+    let mut sys = [0.0f64; ICP_SYSTEM_LEN];
+    pixel_grid(width, height, |[u, v]| {
+        if let Some((a, b)) = system_row([u, v]) {
+            super::arith::accumulate(&mut sys, v * width + u, |s| accumulate(s, &a, b));
+        }
+    });
+    sys
+}
+
+/// The row of a point `p` (camera frame) whose residual `b` moves along direction `d` (the
+/// frame normal, or the intensity gradient through the projection) under the twist
+/// `(alpha, beta, gamma, tx, ty, tz)`: `a = [(p x d), d]` and `b`, both scaled by
+/// `s = sqrt(weight)`. Mirrors `scaled_row` in system_grid.wgsl.
+#[inline]
+pub fn scaled_row(p: glam::Vec3, d: glam::Vec3, b: f32, s: f32) -> ([f32; 6], f32) {
+    let pxd = p.cross(d) * s;
+    let ds = d * s;
+    ([pxd.x, pxd.y, pxd.z, ds.x, ds.y, ds.z], b * s)
+}
+
+/// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
+/// the count and the squared residual. Mirrors `accumulate` in system_grid.wgsl.
+#[inline]
+pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
+    let mut k = 0;
+    for r in 0..6 {
+        for c in r..6 {
+            sys[k] += a[r] as f64 * a[c] as f64;
+            k += 1;
+        }
+    }
+    for r in 0..6 {
+        sys[ICP_ATB_OFFSET + r] += a[r] as f64 * b as f64;
+    }
+    sys[ICP_COUNT_INDEX] += 1.0;
+    sys[ICP_RESIDUAL_INDEX] += b as f64 * b as f64;
 }

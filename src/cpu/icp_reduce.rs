@@ -21,9 +21,7 @@
 //! is the unweighted one bit for bit.
 
 use super::{back_project, is_valid, project_to_texel, transform_dir, transform_point, xyz};
-use crate::layout::{
-    IcpParams, ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN,
-};
+use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
 
 /// Axial depth noise of a Kinect-like sensor, after Nguyen, Izadi and Lovell (2012):
 /// `sigma(z) = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD (z - NOISE_Z_0_M)^2`, metres.
@@ -42,7 +40,7 @@ pub fn noise_weight(z: f32) -> f32 {
 }
 
 /// Huber weight of a residual `b` (metres): 1 within `delta`, `delta / |b|` beyond; 1 when
-/// `delta` is 0 (off). Mirrors `huber_weight` in icp_reduce.wgsl.
+/// `delta` is 0 (off). Mirrors `huber_weight` in common.wgsl.
 #[inline]
 pub fn huber_weight(b: f32, delta: f32) -> f32 {
     if delta <= 0.0 || b.abs() <= delta {
@@ -95,29 +93,10 @@ pub fn icp_row(
     if params.noise_weighting != 0 {
         w *= noise_weight(q.z);
     }
-    let s = super::arith::sqrt(w);
-    let pxn = p.cross(n) * s;
-    let ns = n * s;
-    Some(([pxn.x, pxn.y, pxn.z, ns.x, ns.y, ns.z], b * s))
+    Some(super::entries::scaled_row(p, n, b, super::arith::sqrt(w)))
 }
 
-/// Adds one row to a 29-entry system: 21 of AᵀA (upper triangle, row-major), 6 of Aᵀb,
-/// the count and the squared residual. Mirrors `accumulate` in icp_reduce.wgsl.
-#[inline]
-pub fn accumulate(sys: &mut [f64; ICP_SYSTEM_LEN], a: &[f32; 6], b: f32) {
-    let mut k = 0;
-    for r in 0..6 {
-        for c in r..6 {
-            sys[k] += a[r] as f64 * a[c] as f64;
-            k += 1;
-        }
-    }
-    for r in 0..6 {
-        sys[ICP_ATB_OFFSET + r] += a[r] as f64 * b as f64;
-    }
-    sys[ICP_COUNT_INDEX] += 1.0;
-    sys[ICP_RESIDUAL_INDEX] += b as f64 * b as f64;
-}
+pub use super::entries::accumulate;
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/icp_reduce.wgsl` for shapes, units and frames.
@@ -130,15 +109,9 @@ pub fn icp_reduce(
     pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> [f64; ICP_SYSTEM_LEN] {
-    let mut sys = [0.0f64; ICP_SYSTEM_LEN];
-    for v in 0..params.height {
-        for u in 0..params.width {
-            if let Some((a, b)) = icp_row(params, [u, v], pred_vertex, pred_normal, normal_depth) {
-                super::arith::accumulate(&mut sys, v * params.width + u, |s| accumulate(s, &a, b));
-            }
-        }
-    }
-    sys
+    super::system_grid(params.width, params.height, |texel| {
+        icp_row(params, texel, pred_vertex, pred_normal, normal_depth)
+    })
 }
 
 #[cfg(test)]

@@ -40,6 +40,7 @@ pub mod keypoint_describe;
 pub mod keypoint_detect;
 pub mod nn_brute;
 pub mod nn_grid;
+pub mod photo_reduce;
 pub mod predict_model;
 pub mod prefix_sum;
 pub mod prefix_sum_blocks;
@@ -51,7 +52,7 @@ pub mod render_resolve;
 pub mod render_splat;
 pub mod vertex_to_normal;
 
-pub use entries::{pixel_grid, visible_surfels};
+pub use entries::{pixel_grid, system_grid, visible_surfels};
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::layout::{
@@ -237,6 +238,14 @@ pub fn candidate_off_ray(
 #[inline]
 pub fn xyz(v: [f32; 4]) -> Vec3 {
     Vec3::new(v[0], v[1], v[2])
+}
+
+/// Intensity (0..1) of an RGB colour (0..255): ITU-R BT.601 luma over 255, the
+/// photometric term's unit (`photo_reduce`, `predict_model`). Mirrors `intensity_of` in
+/// common.wgsl.
+#[inline]
+pub fn intensity_of(rgb: [f32; 4]) -> f32 {
+    (0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2]) / 255.0
 }
 
 /// A map entry is valid when its `w` is positive (vertex maps use w = 1 / 0,

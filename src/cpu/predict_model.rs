@@ -1,28 +1,35 @@
 //! CPU twin of `shaders/predict_model.wgsl`: turns the index map into the predicted
-//! (model) vertex and normal maps, in the WORLD frame, used as the ICP source. Called once
+//! (model) vertex and normal maps, in the WORLD frame, used as the ICP source, and the
+//! predicted intensity (0..1) of the photometric term (`photo_reduce`). Called once
 //! per map chunk: each call writes the pixels whose surfel the chunk holds, and the first
 //! chunk's call also the pixels with no surfel.
 
-use super::INVALID;
+use super::photo_reduce::INTENSITY_NONE;
+use super::{intensity_of, INVALID};
 use crate::layout::{MapChunk, ProjectParams};
 
 /// Arguments: the shader's bindings in `@binding` order, named as there; see the
 /// declarations in `shaders/predict_model.wgsl` for shapes, units and frames.
+#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
 pub fn predict_model(
     params: &ProjectParams,
     index_map: &[u64],
     chunk: &MapChunk,
     position_weight: &[[f32; 4]],
     normal_frame: &[[u32; 4]],
+    color: &[[f32; 4]],
     pred_vertex: &mut [[f32; 4]],
     pred_normal: &mut [[f32; 4]],
+    pred_intensity: &mut [f32],
 ) {
     let n = (params.width * params.height) as usize;
     assert!(index_map.len() == n && pred_vertex.len() == n && pred_normal.len() == n);
+    assert_eq!(pred_intensity.len(), n);
     for pix in 0..n {
         let key = index_map[pix];
         let mut vertex = INVALID;
         let mut normal = INVALID;
+        let mut intensity = INTENSITY_NONE;
         if key != 0 {
             let slot = ((key & 0xffff_ffff) as u32).wrapping_sub(chunk.base);
             if slot >= chunk.slots {
@@ -33,10 +40,12 @@ pub fn predict_model(
             let n = nf.map(f32::from_bits);
             vertex = [p[0], p[1], p[2], 1.0];
             normal = [n[0], n[1], n[2], 1.0];
+            intensity = intensity_of(color[slot as usize]);
         } else if chunk.base != 0 {
             continue;
         }
         pred_vertex[pix] = vertex;
         pred_normal[pix] = normal;
+        pred_intensity[pix] = intensity;
     }
 }

@@ -77,6 +77,10 @@ pub struct GpuBackend {
     pub(super) system_readback: Readback<f32>,
     /// `icp_reduce_final` over `partials` into `system` (neither is ever re-created).
     pub(super) icp_final_group: wgpu::BindGroup,
+    /// RGB-D tracking's photometric system: `photo_reduce`'s per-workgroup partials, their
+    /// sum (`icp_reduce_final` over them, `photo_final_group`), and the read-back of both
+    /// systems at once (geometric first).
+    pub(super) photo: PhotoSystem,
     pub(super) counter: GpuArray<u32>,
     pub(super) counter_readback: Readback<u32>,
     pub(super) frame: Option<FrameBuffers>,
@@ -204,6 +208,7 @@ impl GpuBackend {
                 ("system", system.binding()),
             ],
         );
+        let photo = PhotoSystem::new(&ctx, &kernels, system_floats)?;
         let uniforms = Uniforms::new(&ctx);
         Ok(GpuBackend {
             ctx,
@@ -214,6 +219,7 @@ impl GpuBackend {
             system,
             system_readback,
             icp_final_group,
+            photo,
             counter,
             counter_readback,
             frame: None,
@@ -372,6 +378,7 @@ impl GpuBackend {
                 map: &self.map,
                 block_bounds: &self.block_bounds,
                 partials: &self.partials,
+                photo_partials: &self.photo.partials,
                 counter: &self.counter,
             };
             self.bind_groups = Some(BindGroups::new(&self.ctx, &self.kernels, &resources));
@@ -437,4 +444,38 @@ impl GpuBackend {
 /// Entries of `block_bounds` for `map`'s slots: a min and a max corner per block.
 fn bounds_entries(map: &MapBuffers) -> usize {
     2 * map.capacity().div_ceil(BLOCK_SURFELS as usize)
+}
+
+/// RGB-D tracking's photometric system on the GPU (see [`GpuBackend::photo`]), made with
+/// the backend and never re-created.
+pub(super) struct PhotoSystem {
+    pub partials: GpuArray<f32>,
+    pub system: GpuArray<f32>,
+    pub final_group: wgpu::BindGroup,
+    /// Both systems, `2 * ICP_SYSTEM_LEN` floats, geometric first.
+    pub readback: Readback<f32>,
+}
+
+impl PhotoSystem {
+    /// Partials of `system_floats` (as `icp_reduce`'s), the summed system and the read-back.
+    fn new(ctx: &GpuContext, kernels: &Kernels, system_floats: usize) -> Result<Self> {
+        let mut partials = GpuArray::new(ctx, "photometric partials", system_floats)?;
+        partials.set_len(system_floats);
+        let mut system = GpuArray::new(ctx, "photometric system", ICP_SYSTEM_LEN)?;
+        system.set_len(ICP_SYSTEM_LEN);
+        let final_group = kernels.icp_reduce_final.bind_group(
+            ctx,
+            &[
+                ("partials", partials.binding()),
+                ("system", system.binding()),
+            ],
+        );
+        let readback = Readback::new(ctx, "rgbd systems read-back", 2 * ICP_SYSTEM_LEN);
+        Ok(PhotoSystem {
+            partials,
+            system,
+            final_group,
+            readback,
+        })
+    }
 }

@@ -29,6 +29,8 @@ pub(super) struct BindGroups {
     pub block_bounds: Vec<wgpu::BindGroup>,
     pub project_model: Vec<wgpu::BindGroup>,
     pub icp_reduce: wgpu::BindGroup,
+    /// `photo_reduce` over level 0 (RGB-D tracking).
+    pub photo_reduce: wgpu::BindGroup,
     pub fuse_select: Vec<wgpu::BindGroup>,
     /// The registry's `generic` kernels' bind groups by kernel name: one per map chunk,
     /// or one over the frame (see `super::kernels::Shape`).
@@ -61,6 +63,8 @@ pub(super) struct Resources<'a> {
     pub block_bounds: &'a GpuArray<[u32; 4]>,
     /// `icp_reduce`'s per-workgroup partial systems.
     pub partials: &'a GpuArray<f32>,
+    /// `photo_reduce`'s.
+    pub photo_partials: &'a GpuArray<f32>,
     /// `prefix_sum`'s total.
     pub counter: &'a GpuArray<u32>,
 }
@@ -77,6 +81,7 @@ fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
         ("index_map", f.index_map.binding()),
         ("pred_vertex", f.pred_vertex.binding()),
         ("pred_normal", f.pred_normal.binding()),
+        ("pred_intensity", f.pred_intensity.binding()),
         ("assoc", f.assoc.binding()),
         ("merged", f.merged.binding()),
         // Fusion's new-surfel flags and their prefix sum (compaction binds its own).
@@ -156,6 +161,18 @@ impl BindGroups {
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
             project_model: per_chunk(k.project_model.first(), u.project.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
+            photo_reduce: k.photo_reduce.bind_group_from(
+                ctx,
+                &[
+                    vec![
+                        ("params", u.icp.binding()),
+                        ("pred_vertex", f.pred_vertex.binding()),
+                        ("partials", r.photo_partials.binding()),
+                    ],
+                    frame.clone(),
+                ]
+                .concat(),
+            ),
             fuse_select: per_chunk(k.fuse_select.first(), u.fuse.binding()),
             generic: k
                 .generic(u)

@@ -368,6 +368,33 @@ impl<T: Pod> Readback<T> {
         self.pending = n;
     }
 
+    /// Records copies of the first `n` elements of each of `srcs`, one after the other,
+    /// into the staging buffer (one read-back for several small results). Panics when they
+    /// exceed a capacity (an internal contract).
+    pub fn copy_from_each(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        srcs: &[&GpuArray<T>],
+        n: usize,
+    ) {
+        let size = std::mem::size_of::<T>();
+        assert!(
+            n * srcs.len() <= self.capacity && srcs.iter().all(|s| n <= s.capacity()),
+            "read-back of {n} elements from each of {} buffers exceeds a capacity",
+            srcs.len()
+        );
+        assert_eq!(
+            (n * size) as u64 % COPY_ALIGN,
+            0,
+            "copies at aligned offsets"
+        );
+        for (i, src) in srcs.iter().enumerate() {
+            let at = (i * n * size) as u64;
+            encoder.copy_buffer_to_buffer(&src.buffer, 0, &self.staging, at, (n * size) as u64);
+        }
+        self.pending = n * srcs.len();
+    }
+
     /// Waits for the submitted copy and returns its elements (counted as read-back bytes).
     pub fn read(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
         let n = std::mem::take(&mut self.pending);

@@ -121,6 +121,15 @@ impl GpuBackend {
         let (ctx, f) = (&self.ctx, self.frame());
         ctx.scoped("download index map", || f.index_map.read_back(ctx))
     }
+
+    /// `predict_model`'s predicted intensity of the last `predict` (0..1 per pixel, see
+    /// `cpu::photo_reduce`), for parity tests.
+    pub fn download_pred_intensity(&mut self) -> Result<Vec<f32>> {
+        let (ctx, f) = (&self.ctx, self.frame());
+        ctx.scoped("download predicted intensity", || {
+            f.pred_intensity.read_back(ctx)
+        })
+    }
 }
 
 impl GpuBackend {

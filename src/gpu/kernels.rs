@@ -154,6 +154,8 @@ registry! {
         pyramid_model,
         icp_reduce,
         icp_reduce_final,
+        // RGB-D tracking's photometric term (its sum: icp_reduce_final).
+        photo_reduce,
         icp_candidates,
         fern_encode,
         keypoint_detect,

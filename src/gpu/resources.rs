@@ -71,6 +71,8 @@ pub(super) struct FrameBuffers {
     pub index_map: GpuArray<u64>,
     pub pred_vertex: GpuImage,
     pub pred_normal: GpuImage,
+    /// `predict_model`'s predicted intensity per pixel (0..1; see `cpu::photo_reduce`).
+    pub pred_intensity: GpuArray<f32>,
     /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
     pub assoc: GpuArray<u64>,
     /// Per pixel, the surfel it merged into (two entries; see fuse_merge_chosen.wgsl),
@@ -156,6 +158,8 @@ impl FrameBuffers {
                 })
             })
             .collect::<Result<Vec<_>>>()?;
+        let mut pred_intensity = GpuArray::new(ctx, "predicted intensity", n)?;
+        pred_intensity.set_len(n);
         Ok(FrameBuffers {
             raw_width: p.raw_width,
             raw_height: p.raw_height,
@@ -171,6 +175,7 @@ impl FrameBuffers {
             index_map,
             pred_vertex: full("predicted vertex map")?,
             pred_normal: full("predicted normal map")?,
+            pred_intensity,
             assoc,
             merged,
             add_flags,

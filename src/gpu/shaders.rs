@@ -42,6 +42,10 @@ pub const ENTRIES: &[(&str, &str)] = &[
         "visible_surfels",
         include_str!("../../shaders/visible_surfels.wgsl"),
     ),
+    (
+        "system_grid",
+        include_str!("../../shaders/system_grid.wgsl"),
+    ),
 ];
 
 /// Kernels prefixed with `scan_common.wgsl` instead of `common.wgsl`.

@@ -273,6 +273,39 @@ impl Backend for GpuBackend {
         Ok(sys)
     }
 
+    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+        let wg = self.reduction_workgroups;
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let (final_group, photo) = (&self.icp_final_group, &mut self.photo);
+        let both = ctx.scoped("icp_reduce", || {
+            u.icp.write(ctx, params);
+            let mut enc = ctx.encoder("icp_reduce");
+            let len = ICP_SYSTEM_LEN as u32;
+            record_passes(
+                ctx,
+                profiler,
+                &mut enc,
+                &[
+                    (&k.icp_reduce, &bg.icp_reduce, [wg, 1]),
+                    (&k.icp_reduce_final, final_group, [len, 1]),
+                    (&k.photo_reduce, &bg.photo_reduce, [wg, 1]),
+                    (&k.icp_reduce_final, &photo.final_group, [len, 1]),
+                ],
+            )?;
+            let srcs = [&self.system, &photo.system];
+            photo
+                .readback
+                .copy_from_each(&mut enc, &srcs, ICP_SYSTEM_LEN);
+            submit_profiled(ctx, profiler, enc)?;
+            photo.readback.read(ctx)
+        })?;
+        let mut systems = [[0.0f64; ICP_SYSTEM_LEN]; 2];
+        for (s, &x) in systems.iter_mut().flatten().zip(&both) {
+            *s = x as f64;
+        }
+        Ok(systems)
+    }
+
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.ctx.flush();
         self.encode_ferns_on_gpu(params, ferns)

@@ -290,10 +290,7 @@ mod tests {
             inliers,
             mean_sq_residual: rms_m * rms_m,
             eigen_ratio: Some(0.01),
-            held_directions: 0,
-            increment: None,
-            step_chi2: None,
-            stop: None,
+            ..IcpIteration::default()
         }
     }
 

@@ -69,7 +69,8 @@ pub fn close_loops<B: Backend>(
         icp.backend.set_prediction(level, &vertex, &normal)?;
         let mut t = frame.t_world_to_cam;
         let mut iterations = Vec::new();
-        let refused = match icp.level(level, iters, &mut t, &mut iterations)? {
+        // Geometric only: the snapshot prediction has no intensity.
+        let refused = match icp.level(level, (iters, false), &mut t, &mut iterations)? {
             LevelEnd::Refused(why) => Some(why),
             _ => None,
         };

@@ -521,10 +521,7 @@ mod tests {
             inliers: 10,
             mean_sq_residual: 1e-6,
             eigen_ratio: Some(0.01),
-            held_directions: 0,
-            increment: None,
-            step_chi2: None,
-            stop: None,
+            ..IcpIteration::default()
         };
         let tracked = lc.poses().last().unwrap().estimate;
         let t_loop = DMat4::from_translation(DVec3::new(0.0, offset_m, 0.0)) * tracked;

@@ -87,6 +87,26 @@ impl NormalEquations {
         }
     }
 
+    /// The RGB-D system: these (geometric) equations plus `photo`, the photometric ones,
+    /// weighted by `lambda = weight σ_g² / σ_p²` (each term's mean squared residual), so
+    /// that each term counts in units of its own noise and `weight` has no unit (see
+    /// `params::IcpSettings::photometric_weight`); the result is in the geometric units
+    /// (m²), its inliers both terms' and its residual the weighted sum. These equations
+    /// unchanged when the weight is 0 or either term has no residual or too few rows.
+    pub fn with_photometric(&self, photo: &NormalEquations, weight: f64) -> NormalEquations {
+        let (sg, sp) = (self.mean_sq_residual(), photo.mean_sq_residual());
+        if weight <= 0.0 || photo.inliers < MIN_INLIERS || sg <= 0.0 || sp <= 0.0 {
+            return *self;
+        }
+        let lambda = weight * sg / sp;
+        NormalEquations {
+            ata: self.ata + photo.ata * lambda,
+            atb: self.atb + photo.atb * lambda,
+            inliers: self.inliers + photo.inliers,
+            residual_sq_sum: self.residual_sq_sum + lambda * photo.residual_sq_sum,
+        }
+    }
+
     /// Mean squared point-to-plane residual (m²), 0 without inliers.
     pub fn mean_sq_residual(&self) -> f64 {
         if self.inliers == 0 {
@@ -179,7 +199,7 @@ impl NormalEquations {
 
 /// One ICP iteration's statistics, as the frame report (`frames.json`), the tracking
 /// health test and loop verification read them.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
 pub struct IcpIteration {
     /// Pyramid level the iteration ran at (0 = the full maps).
     pub level: usize,
@@ -187,6 +207,11 @@ pub struct IcpIteration {
     pub inliers: u64,
     /// Mean squared point-to-plane residual before the update, m².
     pub mean_sq_residual: f64,
+    /// RGB-D tracking's photometric term at this iteration, before the update (level 0
+    /// with `tracking = "rgbd"`, else `None`); `inliers` and `mean_sq_residual` are the
+    /// geometric term's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub photometric: Option<PhotometricTerm>,
     /// Smallest over largest eigenvalue of AᵀA; `None` when the system was refused.
     pub eigen_ratio: Option<f64>,
     /// Eigen-directions the guarded solve held (degenerate geometry).
@@ -202,6 +227,25 @@ pub struct IcpIteration {
     /// On the last iteration of a pyramid level: why the level stopped there.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stop: Option<LevelStop>,
+}
+
+/// The photometric term of one RGB-D iteration ([`IcpIteration::photometric`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PhotometricTerm {
+    /// Model pixels that passed every gate of `photo_reduce`.
+    pub inliers: u64,
+    /// Their RMS (Huber-weighted) intensity residual, intensity units (0..1).
+    pub rms: f64,
+}
+
+impl PhotometricTerm {
+    /// The record of decoded photometric equations.
+    pub fn of(photo: &NormalEquations) -> Self {
+        PhotometricTerm {
+            inliers: photo.inliers,
+            rms: photo.mean_sq_residual().sqrt(),
+        }
+    }
 }
 
 /// Why ICP stopped iterating at a pyramid level (`frames.json`: the level's last

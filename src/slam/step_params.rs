@@ -2,6 +2,7 @@
 //! [`SlamParams`](crate::slam::params::SlamParams), intrinsics and pose: the one place
 //! where the pipeline's settings become what the shaders read.
 
+use crate::cpu::photo_reduce::{PHOTO_GRADIENT_MIN, PHOTO_HUBER, PHOTO_STRIDE_PX};
 use glam::DMat4;
 
 use crate::geometry::camera::Intrinsics;
@@ -141,8 +142,12 @@ impl<B: Backend> Slam<B> {
             },
             huber_delta_m: self.params.icp.huber_m,
             noise_weighting: self.params.icp.noise_weight as u32,
-            _pad0: 0,
+            photo_depth_gate_m: self.params.icp.dist_m,
+            photo_huber: PHOTO_HUBER,
+            photo_gradient_min: PHOTO_GRADIENT_MIN,
+            photo_stride_px: PHOTO_STRIDE_PX,
             _pad1: 0,
+            _pad2: 0,
         }
     }
 

@@ -77,6 +77,11 @@ const TWIN_RETURNS: &[(&str, &str, &str)] = &[
         "the twin returns the summed system (f64) instead of one f32 partial per workgroup",
     ),
     (
+        "photo_reduce",
+        "partials",
+        "the twin returns the summed system (f64) instead of one f32 partial per workgroup",
+    ),
+    (
         "icp_reduce_final",
         "system",
         "the twin returns the summed system instead of writing it",

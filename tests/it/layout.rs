@@ -112,8 +112,12 @@ fn rust_layouts() -> Vec<RustLayout> {
             cos_normal_threshold,
             huber_delta_m,
             noise_weighting,
-            _pad0,
-            _pad1
+            photo_depth_gate_m,
+            photo_huber,
+            photo_gradient_min,
+            photo_stride_px,
+            _pad1,
+            _pad2
         }),
         rust_layout!(FuseParams {
             t_world_to_cam,

@@ -25,6 +25,7 @@ mod loop_closure;
 mod mesh;
 mod portable;
 mod render;
+mod rgbd;
 // `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
 #[cfg(feature = "rerun")]
 mod rerun;
@@ -65,6 +66,7 @@ fn main() -> ExitCode {
         mesh,
         portable,
         render,
+        rgbd,
         scan_gpu,
         scan_icp,
         scan_kernels,

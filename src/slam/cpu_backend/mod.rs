@@ -33,6 +33,8 @@ pub struct CpuBackend {
     fused_view: Option<FusedView>,
     /// The predicted vertex and normal maps per pyramid level, level 0 first.
     prediction: Vec<Prediction>,
+    /// `predict_model`'s predicted intensity (level 0; see `cpu::photo_reduce`).
+    pred_intensity: Vec<f32>,
     assoc: Vec<u64>,
     /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
     /// on every frame of best-candidate association (`fuse_flags`, `fuse_prune`).
@@ -210,14 +212,18 @@ impl Backend for CpuBackend {
                     let (pred_vertex, pred_normal) = &mut self.prediction[0];
                     pred_vertex.resize(n, cpu::INVALID);
                     pred_normal.resize(n, cpu::INVALID);
+                    self.pred_intensity
+                        .resize(n, cpu::photo_reduce::INTENSITY_NONE);
                     cpu::predict_model::predict_model(
                         &params,
                         &self.index_map,
                         &chunk,
                         &self.map.position_weight,
                         &self.map.normal_frame,
+                        &self.map.color,
                         pred_vertex,
                         pred_normal,
+                        &mut self.pred_intensity,
                     );
                 }
                 PredictCall::PyramidModel { level } => {
@@ -261,6 +267,11 @@ impl Backend for CpuBackend {
             pred_normal,
             normal_depth,
         ))
+    }
+
+    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+        let geometric = self.icp_system(0, params)?;
+        Ok([geometric, self.photo_system(params)])
     }
 
     fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
@@ -579,6 +590,7 @@ impl Backend for CpuBackend {
 }
 
 mod inspect;
+mod photo;
 
 #[cfg(test)]
 mod tests;

@@ -302,6 +302,10 @@ mod tests {
                 }),
                 toml::Value::Integer(i) => toml::Value::Integer(i + 1),
                 toml::Value::Boolean(b) => toml::Value::Boolean(!b),
+                // The other variant of each enum key.
+                toml::Value::String(_) if key == "icp.tracking" => {
+                    toml::Value::String("rgbd".into())
+                }
                 toml::Value::String(_) => toml::Value::String("projective".into()),
                 toml::Value::Array(_) => toml::Value::Array(vec![toml::Value::Integer(7)]),
                 other => panic!("{key}: {other}"),

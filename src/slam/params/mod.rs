@@ -12,6 +12,9 @@ pub mod validate;
 pub use defaults::*;
 pub use keys::{Key, KEY_SECTIONS, OPTIONAL_SECTIONS};
 
+use clap::ValueEnum;
+use serde::{Deserialize, Serialize};
+
 /// Where the poses come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum PoseSource {
@@ -255,6 +258,36 @@ pub struct IcpSettings {
     /// system below `solve::MIN_RECIPROCAL_CONDITION` instead (the assignment's)
     /// (`--icp-degenerate-ratio`).
     pub degenerate_eigen_ratio: f64,
+    /// What frame-to-model tracking aligns: the depth only (point-to-plane ICP), or depth
+    /// and colour (with the photometric term at the full maps; `--tracking`).
+    #[serde(default)]
+    pub tracking: Tracking,
+    /// With `tracking = "rgbd"`: the photometric term's weight relative to the geometric
+    /// one, each normalised by its own mean squared residual of the iteration (so the
+    /// weight has no unit and depends on no sensor's noise): 1 trusts a photometric row as
+    /// much as a point-to-plane one (`--photometric-weight`; see [`PHOTOMETRIC_WEIGHT`]).
+    #[serde(default = "photometric_weight_default")]
+    pub photometric_weight: f64,
+}
+
+/// The default of [`IcpSettings::photometric_weight`] (serde's default for files written
+/// before the key existed).
+fn photometric_weight_default() -> f64 {
+    PHOTOMETRIC_WEIGHT
+}
+
+/// What frame-to-model tracking aligns ([`IcpSettings::tracking`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Tracking {
+    /// Point-to-plane ICP on the depth alone (the default: see [`PHOTOMETRIC_WEIGHT`]'s
+    /// measurements).
+    #[default]
+    Geometric,
+    /// Point-to-plane ICP plus, at the full maps (level 0), the photometric term: the
+    /// frame's intensity against the map's predicted intensity (`cpu::photo_reduce`),
+    /// added to the geometric system with [`IcpSettings::photometric_weight`].
+    Rgbd,
 }
 
 /// Surfel fusion: the association and its gates, the measurements' weights, duplicate
@@ -483,6 +516,8 @@ impl SlamParams {
                 stop_on_reversal: false,
                 pyramid: PyramidSettings::default(),
                 degenerate_eigen_ratio: 0.0,
+                tracking: Tracking::Geometric,
+                photometric_weight: PHOTOMETRIC_WEIGHT,
             },
             fusion: FusionSettings {
                 dist_m: 0.03,

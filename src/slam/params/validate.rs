@@ -83,6 +83,12 @@ impl SlamParams {
                 icp.min_increment
             ));
         }
+        if !(icp.photometric_weight.is_finite() && icp.photometric_weight >= 0.0) {
+            return fail(format!(
+                "`icp.photometric_weight` {} must be a non-negative number",
+                icp.photometric_weight
+            ));
+        }
         if !(icp.stop_chi2.is_finite() && icp.stop_chi2 >= 0.0) {
             return fail(format!(
                 "`icp.stop_chi2` {} must be a non-negative number (0: off)",

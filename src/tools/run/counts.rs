@@ -30,6 +30,24 @@ pub struct TrackingCounts {
     pub untracked_at_end: usize,
     /// [`TrackingCounts::flag`]: `ok`, `degenerate`, `recovered` or `LOST`.
     pub health: String,
+    /// ICP iterations (one system solved each, all levels) per frame, mean over the frames.
+    pub icp_iterations_per_frame: f64,
+    /// RGB-D tracking's photometric term at each frame's last iteration that had one;
+    /// `None` when no frame had one (geometric tracking).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub photometric: Option<PhotometricSummary>,
+}
+
+/// The photometric term over a run ([`TrackingCounts::photometric`]).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PhotometricSummary {
+    /// Frames with a photometric term.
+    pub frames: usize,
+    /// Its inliers (model pixels used) per frame, mean.
+    pub inliers_mean: f64,
+    /// Its RMS intensity residual (0..1) over the frames' last iterations, the RMS of the
+    /// frames' RMS values.
+    pub rms: f64,
 }
 
 impl TrackingCounts {
@@ -139,6 +157,20 @@ pub fn tracking_counts(frames: &[FrameOutcome], keyframes: usize) -> TrackingCou
         frames.len()
     };
     counts.health = counts.flag().to_string();
+    let iterations: usize = frames.iter().map(|f| f.report.iterations.len()).sum();
+    counts.icp_iterations_per_frame = iterations as f64 / frames.len().max(1) as f64;
+    let last_terms: Vec<_> = frames
+        .iter()
+        .filter_map(|f| f.report.iterations.iter().rev().find_map(|i| i.photometric))
+        .collect();
+    if !last_terms.is_empty() {
+        let n = last_terms.len() as f64;
+        counts.photometric = Some(PhotometricSummary {
+            frames: last_terms.len(),
+            inliers_mean: last_terms.iter().map(|p| p.inliers as f64).sum::<f64>() / n,
+            rms: (last_terms.iter().map(|p| p.rms * p.rms).sum::<f64>() / n).sqrt(),
+        });
+    }
     counts
 }
 

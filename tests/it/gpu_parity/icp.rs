@@ -1,15 +1,18 @@
 //! Tracking's normal equations: icp_reduce and icp_reduce_final against their twins, at
-//! level 0 and on the coarser pyramid levels; icp_candidates (the health test's
+//! level 0 and on the coarser pyramid levels; photo_reduce's photometric system beside
+//! icp_reduce's (`rgbd_system`); icp_candidates (the health test's
 //! denominator) against its twin.
 
 use super::{cpu_map_from_gt, gpu_backend, robust_pyramids_on_both, root};
 use super::{INCREMENT_TOL, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
+use glam::DMat4;
 use wgslam::cpu;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::layout::ICP_SYSTEM_LEN;
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{Profile, SlamParams};
@@ -18,9 +21,10 @@ use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::system_rel_diffs;
 use wgslam::Error;
 
-/// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
-/// at a pose perturbed from the ground truth.
-fn icp_system_matches_twin(mut gpu: GpuBackend) {
+/// Both backends with a map fused from ground truth over frames 0..3, frame 4
+/// preprocessed and the map predicted from frame 3's pose: the ICP of frame 4; with frame
+/// 4's true world-to-camera pose.
+fn frame_4_on_both(gpu: &mut GpuBackend) -> (Slam<CpuBackend>, DMat4) {
     let params = SlamParams::profile(Profile::Assignment);
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
@@ -31,13 +35,60 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
         .unwrap();
     gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
         .unwrap();
-    // Predict from frame 3's pose, track frame 4 from a perturbed estimate.
     let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
     let proj = s.project_params(&t_prev);
     s.backend.predict(&proj, &[]).unwrap();
     gpu.predict(&proj, &[]).unwrap();
-    let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
-    let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
+    (s, se3::inverse_rigid(gt_at(&gt, 4).unwrap()))
+}
+
+/// A small pose error off frame 4's true pose to track from.
+fn nudge() -> DMat4 {
+    se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003])
+}
+
+/// The CPU's and the GPU's 29-float systems of one case agree: inliers, the decoded AᵀA and
+/// Aᵀb (the measure `wgslam compare` uses) and the solved increments.
+fn check_systems(label: &str, sys_c: &[f64; ICP_SYSTEM_LEN], sys_g: &[f64; ICP_SYSTEM_LEN]) {
+    let (c, g) = (
+        NormalEquations::decode(sys_c),
+        NormalEquations::decode(sys_g),
+    );
+    let (ata, atb) = system_rel_diffs(sys_c, sys_g);
+    let inl = c.inliers.abs_diff(g.inliers) as f64 / c.inliers as f64;
+    eprintln!(
+        "{label}: inliers cpu {} gpu {}; rel diff AᵀA {ata:e} Aᵀb {atb:e}; \
+         residual² cpu {:e} gpu {:e}",
+        c.inliers, g.inliers, c.residual_sq_sum, g.residual_sq_sum
+    );
+    assert!(
+        c.inliers > 10_000,
+        "{label}: too few inliers for a real test"
+    );
+    assert!(
+        inl <= INLIER_FRACTION_TOL,
+        "{label}: inliers {} vs {}",
+        c.inliers,
+        g.inliers
+    );
+    assert!(
+        ata <= SYSTEM_REL_TOL,
+        "{label}: AᵀA relative difference {ata:e}"
+    );
+    assert!(
+        atb <= SYSTEM_REL_TOL,
+        "{label}: Aᵀb relative difference {atb:e}"
+    );
+    let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
+    let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
+    eprintln!("{label}: increment cpu {xc:?}\n      gpu {xg:?}; difference {dx:e}");
+    assert!(dx <= INCREMENT_TOL, "{label}: increments differ by {dx:e}");
+}
+
+/// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
+/// at a pose perturbed from the ground truth.
+fn icp_system_matches_twin(mut gpu: GpuBackend) {
+    let (mut s, t_true) = frame_4_on_both(&mut gpu);
     // The robust profile's gates and weights too (angle gate, Huber, depth noise), with
     // the parameters its pipeline builds.
     let robust = Slam::new(
@@ -47,10 +98,10 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     );
     let cases = [
         ("true pose", s.icp_params(0, &t_true)),
-        ("perturbed pose", s.icp_params(0, &(nudge * t_true))),
+        ("perturbed pose", s.icp_params(0, &(nudge() * t_true))),
         (
             "robust, perturbed pose",
-            robust.icp_params(0, &(nudge * t_true)),
+            robust.icp_params(0, &(nudge() * t_true)),
         ),
     ];
     assert!(cases[2].1.cos_normal_threshold > 0.0 && cases[2].1.noise_weighting == 1);
@@ -59,40 +110,23 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
             s.backend.icp_system(0, &ip).unwrap(),
             gpu.icp_system(0, &ip).unwrap(),
         );
-        let (c, g) = (
-            NormalEquations::decode(&sys_c),
-            NormalEquations::decode(&sys_g),
-        );
-        // The measure `wgslam compare` uses (Aᵀb against its Cauchy-Schwarz bound).
-        let (ata, atb) = system_rel_diffs(&sys_c, &sys_g);
-        let inl = c.inliers.abs_diff(g.inliers) as f64 / c.inliers as f64;
-        eprintln!(
-            "{label}: inliers cpu {} gpu {}; rel diff AᵀA {ata:e} Aᵀb {atb:e}; \
-             residual² cpu {:e} gpu {:e}",
-            c.inliers, g.inliers, c.residual_sq_sum, g.residual_sq_sum
-        );
-        assert!(
-            c.inliers > 10_000,
-            "{label}: too few inliers for a real test"
-        );
-        assert!(
-            inl <= INLIER_FRACTION_TOL,
-            "{label}: inliers {} vs {}",
-            c.inliers,
-            g.inliers
-        );
-        assert!(
-            ata <= SYSTEM_REL_TOL,
-            "{label}: AᵀA relative difference {ata:e}"
-        );
-        assert!(
-            atb <= SYSTEM_REL_TOL,
-            "{label}: Aᵀb relative difference {atb:e}"
-        );
-        let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
-        let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
-        eprintln!("{label}: increment cpu {xc:?}\n      gpu {xg:?}; difference {dx:e}");
-        assert!(dx <= INCREMENT_TOL, "{label}: increments differ by {dx:e}");
+        check_systems(label, &sys_c, &sys_g);
+    }
+}
+
+/// photo_reduce (and predict_model's predicted intensity under it) against its twin,
+/// through `rgbd_system`: both systems of one submission agree, the geometric one equal to
+/// `icp_system`'s, at the true and a perturbed pose.
+fn rgbd_systems_match_twin(mut gpu: GpuBackend) {
+    let (mut s, t_true) = frame_4_on_both(&mut gpu);
+    for (label, t) in [("true pose", t_true), ("perturbed pose", nudge() * t_true)] {
+        let ip = s.icp_params(0, &t);
+        let [geo_c, photo_c] = s.backend.rgbd_system(&ip).unwrap();
+        let [geo_g, photo_g] = gpu.rgbd_system(&ip).unwrap();
+        assert_eq!(geo_c, s.backend.icp_system(0, &ip).unwrap(), "{label}");
+        assert_eq!(geo_g, gpu.icp_system(0, &ip).unwrap(), "{label}");
+        check_systems(&format!("{label}, geometric"), &geo_c, &geo_g);
+        check_systems(&format!("{label}, photometric"), &photo_c, &photo_g);
     }
 }
 
@@ -241,6 +275,9 @@ pub(super) fn tests() -> Vec<Test> {
         }),
         gpu("icp_system_matches_twin", |ctx| {
             icp_system_matches_twin(gpu_backend(ctx))
+        }),
+        gpu("rgbd_systems_match_twin", |ctx| {
+            rgbd_systems_match_twin(gpu_backend(ctx))
         }),
         gpu(
             "icp_reduce_final_matches_twin",

@@ -2,7 +2,7 @@
 //! (also in small map chunks) and pyramid_model's coarser levels.
 
 use super::{check_index_maps, check_vec4_map, cpu_map_from_gt, robust_pyramids_on_both};
-use super::{gpu_backend, root, small_chunk_backend};
+use super::{gpu_backend, root, small_chunk_backend, MASK_MISMATCH_FRACTION};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
 use wgslam::cpu;
@@ -33,14 +33,17 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
     cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut index_cpu);
     let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
+    let mut pi_cpu = vec![0.0; n];
     cpu::predict_model::predict_model(
         &proj,
         &index_cpu,
         &whole,
         &map.position_weight,
         &map.normal_frame,
+        &map.color,
         &mut pv_cpu,
         &mut pn_cpu,
+        &mut pi_cpu,
     );
     gpu.predict(&proj, &[]).unwrap();
     let index_gpu = gpu.download_index_map().unwrap();
@@ -49,7 +52,30 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     // The same surfel gives bit-identical copies of its position and normal.
     check_vec4_map("predicted vertex", &pv_cpu, &pv_gpu, 0.0);
     check_vec4_map("predicted normal", &pn_cpu, &pn_gpu, 0.0);
+    // The predicted intensity of each pixel both predicted from the same surfel (the same
+    // vertex bits) is the same luma; pixels without one are INTENSITY_NONE on both.
+    let pi_gpu = gpu.download_pred_intensity().unwrap();
+    let same: Vec<usize> = (0..n).filter(|&i| pv_cpu[i] == pv_gpu[i]).collect();
+    assert!(same.len() as f64 >= (1.0 - MASK_MISMATCH_FRACTION) * n as f64);
+    let mut surfels = 0;
+    for i in same {
+        let (c, g) = (pi_cpu[i], pi_gpu[i]);
+        surfels += usize::from(c >= 0.0);
+        assert!(
+            (c - g).abs() <= INTENSITY_TOL && (c >= 0.0) == (pv_cpu[i][3] > 0.0),
+            "pixel {i}: predicted intensity cpu {c} gpu {g}"
+        );
+    }
+    assert!(
+        surfels > n / 2,
+        "a real prediction: {surfels} of {n} pixels"
+    );
 }
+
+/// The predicted intensity is the luma of a surfel colour (0..255 per channel) over 255:
+/// three products and two sums near 1, where the GPU may fuse or reorder them (a few ulps
+/// of 6e-8 each); 1e-6 is ample and far below one grey level (4e-3).
+const INTENSITY_TOL: f32 = 1e-6;
 
 /// pyramid_model against its twin, through `predict` with the robust profile's three
 /// levels: each coarser level copies the finer level's pixel (2u, 2v), bit for bit, on
