@@ -198,7 +198,8 @@ mod tests {
         let off = ParamOverrides::from_toml("bilateral = false").unwrap();
         assert_eq!(off, ParamOverrides::default());
         // The robust default written out changes nothing.
-        let same = ParamOverrides::from_toml("fuse-dist = 0.05").unwrap();
+        let robust = crate::slam::params::defaults::ROBUST_FUSE_DIST_M;
+        let same = ParamOverrides::from_toml(&format!("fuse-dist = {robust}")).unwrap();
         assert_eq!(params(&same), SlamParams::default());
     }
 
