@@ -215,7 +215,7 @@ param_overrides! {
     /// by more than this times its depth squared (1/m) are left out of the average (0.03).
     #[arg(long)]
     pyramid_depth_gate_z2: Option<f32> => "icp.pyramid.max_depth_diff_per_m2",
-    /// Fusion distance threshold, metres (both profiles 0.03).
+    /// Fusion distance threshold, metres (assignment 0.03, robust 0.05).
     #[arg(long)]
     fuse_dist: Option<f32> => "fusion.dist_m",
     /// Fusion normal-angle threshold, degrees (assignment 5, robust 60).

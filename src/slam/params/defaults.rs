@@ -41,10 +41,8 @@ pub const ROBUST_HUBER_M: f32 = 0.02;
 /// Fusion gates of the robust profile: the depth gate (along the pixel's ray with
 /// best-candidate association) and the normal-angle gate. Noisy normals rarely agree
 /// within the assignment's 5 degrees; 60 degrees is the widest gate that still separates a
-/// wall from the floor it meets. The depth gate was 0.05 m until the trackers' noise stop
-/// (issue 34); since, 0.03 m tracks better on four of the five sequences measured, for a
-/// map 11-24 % larger (measurements: `docs/robust-profile.md`).
-pub const ROBUST_FUSE_DIST_M: f32 = 0.03;
+/// wall from the floor it meets (measurements: `docs/robust-profile.md`).
+pub const ROBUST_FUSE_DIST_M: f32 = 0.05;
 /// See [`ROBUST_FUSE_DIST_M`].
 pub const ROBUST_FUSE_NORMAL_DEG: f32 = 60.0;
 

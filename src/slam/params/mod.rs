@@ -39,7 +39,7 @@ pub enum Profile {
     /// iterations) with 0.10 m / 20 degree association gates, Huber-weighted rows scaled by
     /// the depth-noise model and a convergence test that noisy data can meet; fusion with
     /// best-candidate association, confidence-weighted averages, surfel radii, wider gates
-    /// (0.03 m / 60 degrees), the retirement of duplicate surfels and the removal of
+    /// (0.05 m / 60 degrees), the retirement of duplicate surfels and the removal of
     /// unstable surfels.
     // This text is the command line's help, so it names values, not constants; the test
     // `keys::help_tests` checks them against the profile's.
