@@ -1,6 +1,7 @@
 // pixel_grid.wgsl: the entry point of every per-pixel kernel, appended to a kernel whose
-// file says `#entry pixel_grid` (src/gpu/shaders.rs). CPU twin: pixel_grid in
-// src/cpu/entries.rs (re-exported as cpu::pixel_grid). Not valid alone: the kernel declares
+// file says `#entry pixel_grid` (src/gpu/shaders.rs).
+// CPU twin: src/cpu/entries.rs (fn pixel_grid, re-exported as cpu::pixel_grid).
+// Not valid alone: the kernel declares
 //   const TILE_X, TILE_Y: u32        its workgroup's tile of pixels;
 //   params                           a binding whose struct has the image's width, height;
 //   fn per_pixel(p, texel)           the work of one pixel, on main's copy of the params;

@@ -1,7 +1,8 @@
 // system_grid.wgsl: the entry point of every kernel that reduces one 29-float
 // normal-equation system over the pixels (icp_reduce, photo_reduce), appended to a kernel
-// whose file says `#entry system_grid` (src/gpu/shaders.rs). CPU twin: system_grid in
-// src/cpu/entries.rs (re-exported as cpu::system_grid). Not valid alone: the kernel declares
+// whose file says `#entry system_grid` (src/gpu/shaders.rs).
+// CPU twin: src/cpu/entries.rs (fn system_grid, re-exported as cpu::system_grid).
+// Not valid alone: the kernel declares
 //   params                           a binding whose struct has the image's width, height;
 //   partials                         the output binding, ICP_SYSTEM_LEN floats per workgroup;
 //   fn system_row(p, texel) -> IcpRow  the row of one pixel, on main's copy of the params.
