@@ -36,21 +36,18 @@ pub(super) fn flatten_file(path: &Path, file: &mut FileToml) -> Result<()> {
 fn flatten_sections(
     overrides: &mut BTreeMap<String, OneOrMany<toml::Value>>,
 ) -> std::result::Result<(), String> {
-    let tables: Vec<String> = overrides
-        .iter()
-        .filter(|(_, v)| matches!(v, OneOrMany::One(toml::Value::Table(_))))
-        .map(|(k, _)| k.clone())
-        .collect();
-    for name in tables {
+    let mut flat = BTreeMap::new();
+    for (name, value) in std::mem::take(overrides) {
+        let OneOrMany::One(toml::Value::Table(table)) = value else {
+            insert_once(&mut flat, name, value)?;
+            continue;
+        };
         if !KEY_SECTIONS.contains(&name.as_str()) {
             return Err(format!(
                 "override `{name}` is a table but not a section; the sections are: {}",
                 KEY_SECTIONS.join(", ")
             ));
         }
-        let Some(OneOrMany::One(toml::Value::Table(table))) = overrides.remove(&name) else {
-            unreachable!("`{name}` was listed as a table just above");
-        };
         let mut keys = Vec::new();
         leaves(&name, table, &mut keys);
         for (key, value) in keys {
@@ -58,11 +55,10 @@ fn flatten_sections(
                 toml::Value::Array(items) => OneOrMany::Many(items),
                 scalar => OneOrMany::One(scalar),
             };
-            if overrides.insert(key.clone(), axis).is_some() {
-                return Err(format!("override `{key}` is set twice"));
-            }
+            insert_once(&mut flat, key, axis)?;
         }
     }
+    *overrides = flat;
     if let Some(key) = overrides
         .keys()
         .find(|k| RESERVED_KEYS.contains(&k.as_str()))
@@ -72,6 +68,22 @@ fn flatten_sections(
         ));
     }
     Ok(())
+}
+
+/// Adds override `key`, which must not be there yet (written both as a table's key and as
+/// a dotted key).
+fn insert_once(
+    overrides: &mut BTreeMap<String, OneOrMany<toml::Value>>,
+    key: String,
+    axis: OneOrMany<toml::Value>,
+) -> std::result::Result<(), String> {
+    match overrides.contains_key(&key) {
+        true => Err(format!("override `{key}` is set twice")),
+        false => {
+            overrides.insert(key, axis);
+            Ok(())
+        }
+    }
 }
 
 /// Section keys a job field sets (`downsample`), which an override may not set again.
