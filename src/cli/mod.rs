@@ -126,3 +126,36 @@ pub fn execute(cli: Cli) -> Result<()> {
         Command::Batch(a) => batch::execute(a),
     }
 }
+
+#[cfg(test)]
+mod help_tests {
+    use clap::CommandFactory;
+
+    use super::Cli;
+
+    /// Every command's and subcommand's `--help` (long form, possible values included) is
+    /// plain text: rustdoc's intra-doc links (`` [`Name`] ``) mean nothing on a terminal,
+    /// so doc comments that clap shows must state things in words.
+    #[test]
+    fn no_help_text_shows_a_rustdoc_link() {
+        fn walk(cmd: &mut clap::Command, path: &str, found: &mut Vec<String>) {
+            let help = cmd.render_long_help().to_string();
+            for line in help.lines().filter(|l| l.contains("[`")) {
+                found.push(format!("{path}: {}", line.trim()));
+            }
+            for sub in cmd.get_subcommands_mut() {
+                let name = format!("{path} {}", sub.get_name());
+                walk(sub, &name, found);
+            }
+        }
+        let mut cmd = Cli::command();
+        cmd.build();
+        let mut found = Vec::new();
+        walk(&mut cmd, "wgslam", &mut found);
+        assert!(
+            found.is_empty(),
+            "rustdoc links in --help:\n{}",
+            found.join("\n")
+        );
+    }
+}

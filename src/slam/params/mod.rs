@@ -280,13 +280,17 @@ fn photometric_weight_default() -> f64 {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Tracking {
-    /// Point-to-plane ICP on the depth alone (the default: see [`PHOTOMETRIC_WEIGHT`]'s
-    /// measurements).
+    /// Point-to-plane ICP on the depth alone (the default; docs/rgbd-tracking.md has the
+    /// measurements that keep it so).
     #[default]
     Geometric,
-    /// Point-to-plane ICP plus, at the full maps (level 0), the photometric term: the
-    /// frame's intensity against the map's predicted intensity (`cpu::photo_reduce`),
-    /// added to the geometric system with [`IcpSettings::photometric_weight`].
+    /// Point-to-plane ICP plus a photometric term: the frame's intensity against the
+    /// intensity the map predicts, added to the geometric system with the weight
+    /// --photometric-weight (docs/rgbd-tracking.md).
+    //
+    // Clap shows these doc comments as `--help` text: no intra-doc links
+    // (`cli::help_tests`). The code is `cpu::photo_reduce` and
+    // `IcpSettings::photometric_weight`.
     Rgbd,
 }
 
