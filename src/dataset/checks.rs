@@ -1,7 +1,7 @@
 //! Checks of an opened sequence that need only its inputs, done before the first frame is
 //! decoded rather than after the last one is tracked: intrinsics within physical bounds,
 //! frame stamps distinct (and a note when a list was out of time order), and how much of
-//! the sequence a ground-truth file covers.
+//! the sequence a ground-truth file covers, and where the ground truth jumps.
 //!
 //! It reads no file; [`super::open`] calls it with what it has read.
 
@@ -134,6 +134,97 @@ pub fn coverage_note(
     ))
 }
 
+/// A ground-truth step counts as a jump when its speed is more than this many times the
+/// sequence's median speed: a hand-held or robot camera accelerates smoothly, so five times
+/// the median within one frame interval is a reference glitch or frames missing from the
+/// recording (7-Scenes redkitchen's reference moves 36 mm between frames 121 and 122, seven
+/// times its median step, where two-frame ICP at full resolution measures 5-7 mm).
+pub const JUMP_SPEED_FACTOR: f64 = 5.0;
+/// ... and its camera centre moves at least this far (metres): below a Kinect's noise at
+/// 1-2 m a step says nothing about the reference.
+pub const JUMP_MIN_STEP_M: f64 = 0.02;
+/// ... or it turns at least this much (degrees).
+pub const JUMP_MIN_TURN_DEG: f64 = 1.0;
+/// Fewest consecutive ground-truth pairs for a median speed worth comparing with.
+const JUMP_MIN_PAIRS: usize = 10;
+
+/// The angle (radians) between two poses' rotations, each first made the nearest rotation:
+/// 7-Scenes' reference rotations are scaled by about 1e-4, which the trace alone reads as
+/// a degree between equal poses.
+fn turn(a: &glam::DMat4, b: &glam::DMat4) -> f64 {
+    use crate::geometry::{rigid::nearest_rotation, se3};
+    let rotation = |t: &glam::DMat4| nearest_rotation(se3::to_rt(t).0);
+    let relative = rotation(b) * rotation(a).transpose();
+    se3::rotation_angle(&se3::from_rt(relative, glam::DVec3::ZERO))
+}
+
+/// A note naming the ground truth's jumps: consecutive frames between which the reference
+/// pose moves (camera centre) or turns faster than [`JUMP_SPEED_FACTOR`] times its median
+/// speed, by at least [`JUMP_MIN_STEP_M`] or [`JUMP_MIN_TURN_DEG`]. Speeds are per stamp
+/// unit, so a gap in the stamps (dropped frames of a timed recording) is no jump. `None`
+/// when there is none or too little ground truth to judge. ATE and RPE are computed
+/// against the reference as it is: the note says where it, not tracking, may be wrong.
+pub fn jump_note(frames: &[FrameRecord]) -> Option<String> {
+    struct Step {
+        at: usize,
+        step_m: f64,
+        turn_deg: f64,
+        dt: f64,
+    }
+    let steps: Vec<Step> = frames
+        .windows(2)
+        .enumerate()
+        .filter_map(|(i, w)| {
+            let (a, b) = (w[0].gt_cam_to_world?, w[1].gt_cam_to_world?);
+            let dt = w[1].timestamp - w[0].timestamp;
+            let step_m = (b.w_axis - a.w_axis).truncate().length();
+            let turn_deg = turn(&a, &b).to_degrees();
+            (dt > 0.0).then_some(Step {
+                at: i + 1,
+                step_m,
+                turn_deg,
+                dt,
+            })
+        })
+        .collect();
+    if steps.len() < JUMP_MIN_PAIRS {
+        return None;
+    }
+    let median = |f: &dyn Fn(&Step) -> f64| {
+        let mut v: Vec<f64> = steps.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let speed = median(&|s| s.step_m / s.dt);
+    let turn_speed = median(&|s| s.turn_deg / s.dt);
+    let jumps: Vec<&Step> = steps
+        .iter()
+        .filter(|s| {
+            (s.step_m >= JUMP_MIN_STEP_M && s.step_m / s.dt > JUMP_SPEED_FACTOR * speed)
+                || (s.turn_deg >= JUMP_MIN_TURN_DEG
+                    && s.turn_deg / s.dt > JUMP_SPEED_FACTOR * turn_speed)
+        })
+        .collect();
+    let worst = jumps.iter().max_by(|a, b| {
+        (a.step_m / a.dt / speed.max(f64::MIN_POSITIVE))
+            .total_cmp(&(b.step_m / b.dt / speed.max(f64::MIN_POSITIVE)))
+    })?;
+    let (i, j) = (worst.at - 1, worst.at);
+    Some(format!(
+        "ground truth jumps {} time(s) faster than {JUMP_SPEED_FACTOR} times its median \
+         speed; the largest: {:.1} mm / {:.2} deg between frames {i} and {j} (stamps {} and \
+         {}), where its median step is {:.1} mm / {:.2} deg. A reference glitch or frames \
+         missing from the recording: ATE and RPE include it",
+        jumps.len(),
+        1e3 * worst.step_m,
+        worst.turn_deg,
+        frames[i].timestamp,
+        frames[j].timestamp,
+        1e3 * speed * worst.dt,
+        turn_speed * worst.dt,
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,5 +290,34 @@ mod tests {
         let third = [frame(1.0, true), frame(2.0, false), frame(3.0, false)];
         let n = coverage_note(gt, &[1.0], &third, 0.02).unwrap();
         assert!(n.contains("covers 1 of the 3"), "{n}");
+    }
+
+    #[test]
+    fn a_ground_truth_jump_is_noted_and_a_stamp_gap_is_not() {
+        // A camera moving 5 mm per frame along x, with one 36 mm step at frame 12 (as
+        // 7-Scenes' reference at frame 122).
+        let at = |t: f64, x: f64| FrameRecord {
+            gt_cam_to_world: Some(glam::DMat4::from_translation(glam::DVec3::new(x, 0.0, 0.0))),
+            ..frame(t, true)
+        };
+        let mut x = 0.0;
+        let mut frames = Vec::new();
+        for i in 0..30 {
+            x += if i == 12 { 0.036 } else { 0.005 };
+            frames.push(at(i as f64, x));
+        }
+        let n = jump_note(&frames).expect("a 36 mm step among 5 mm ones is a jump");
+        assert!(
+            n.contains("1 time(s)") && n.contains("36.0 mm") && n.contains("frames 11 and 12"),
+            "{n}"
+        );
+        // The same 36 mm over a stamp gap of 8 frames (dropped frames) is the median speed.
+        let mut gap = frames.clone();
+        for (k, f) in gap.iter_mut().enumerate().skip(12) {
+            f.timestamp = k as f64 + 7.0;
+        }
+        assert_eq!(jump_note(&gap), None);
+        // Too few pairs to judge.
+        assert_eq!(jump_note(&frames[..5]), None);
     }
 }

@@ -371,6 +371,7 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             opts.max_time_diff,
         ));
     }
+    notes.extend(checks::jump_note(&frames));
 
     Ok(Sequence {
         root: root.to_path_buf(),
