@@ -6,7 +6,7 @@
 //! between the estimate and the ground truth (seconds, or frame indices for ICL-NUIM).
 //! This module computes numbers; it does not read files or print reports.
 
-use glam::{DMat3, DMat4, DVec3};
+use glam::{DMat4, DVec3};
 use nalgebra::Matrix3;
 use serde::Serialize;
 
@@ -204,7 +204,7 @@ pub fn rpe_with(
         let rel_est = se3::inverse_rigid(pi) * *pj;
         let e = se3::inverse_rigid(&rel_gt) * rel_est;
         sum_t2 += se3::translation_norm(&e).powi(2);
-        sum_r2 += rotation_angle(&e).powi(2);
+        sum_r2 += se3::rotation_angle(&e).powi(2);
         pairs += 1;
     }
     if pairs == 0 {
@@ -216,21 +216,6 @@ pub fn rpe_with(
         rot_rmse_deg: (sum_r2 / n).sqrt().to_degrees(),
         pairs,
     })
-}
-
-/// Rotation angle (radians, in [0, pi]) of a transform's rotation part, as
-/// `atan2(|axis part|, cos part)`: unlike `acos((trace - 1) / 2)` it keeps full precision
-/// near zero, where RPE angles live (acos loses ~1e-8 rad, i.e. 1e-6 degrees).
-fn rotation_angle(t: &DMat4) -> f64 {
-    let r = DMat3::from_mat4(*t);
-    let cos = 0.5 * (r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0);
-    // Off-diagonal antisymmetric part: 2 sin(angle) * axis.
-    let w = DVec3::new(
-        r.y_axis.z - r.z_axis.y,
-        r.z_axis.x - r.x_axis.z,
-        r.x_axis.y - r.y_axis.x,
-    );
-    (0.5 * w.length()).atan2(cos)
 }
 
 fn no_pairs(est: &[(f64, DMat4)], gt: &[(f64, DMat4)], max_dt: f64) -> Error {
@@ -245,21 +230,4 @@ fn no_pairs(est: &[(f64, DMat4)], gt: &[(f64, DMat4)], max_dt: f64) -> Error {
         range(est),
         range(gt)
     ))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rotation_angle_matches_acos_away_from_zero() {
-        // acos is well conditioned away from 0 and pi: both agree to ~1e-12 there.
-        for a in [0.3, 1.0, 2.5, 3.1] {
-            let t = se3::exp(&[a * 0.6, 0.0, a * 0.8, 1.0, 2.0, 3.0]);
-            assert!((rotation_angle(&t) - a).abs() < 1e-12, "{a}");
-            assert!((rotation_angle(&t) - se3::rotation_angle(&t)).abs() < 1e-9);
-        }
-        let tiny = se3::exp(&[1e-9, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        assert!((rotation_angle(&tiny) - 1e-9).abs() < 1e-20);
-    }
 }
