@@ -454,6 +454,9 @@ pub(super) struct PhotoSystem {
     pub final_group: wgpu::BindGroup,
     /// Both systems, `2 * ICP_SYSTEM_LEN` floats, geometric first.
     pub readback: Readback<f32>,
+    /// Whether the frame's intensity pyramid (`intensity_pyramid`) is of the last
+    /// `preprocess`'s frame: made by the frame's first `rgbd_system`.
+    pub intensity_made: bool,
 }
 
 impl PhotoSystem {
@@ -476,6 +479,7 @@ impl PhotoSystem {
             system,
             final_group,
             readback,
+            intensity_made: false,
         })
     }
 }

@@ -85,6 +85,8 @@ impl Backend for GpuBackend {
             b.ahead = None;
         }
         self.ensure_frame(params, pyramid)?;
+        // A new frame: its intensity pyramid is made by the first `rgbd_system`.
+        self.photo.intensity_made = false;
         let ctx = &self.ctx;
         let u = &self.uniforms;
         ctx.scoped("preprocess", || {
@@ -273,25 +275,52 @@ impl Backend for GpuBackend {
         Ok(sys)
     }
 
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+    fn rgbd_system(
+        &mut self,
+        level: usize,
+        params: &IcpParams,
+    ) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+        let levels = 1 + self.frame().levels.len();
+        if level >= levels {
+            return Err(Error::Argument(format!(
+                "RGB-D ICP at pyramid level {level}, but preprocess() made {levels} level(s)"
+            )));
+        }
         let wg = self.reduction_workgroups;
-        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        // The frame's intensity pyramid, at the first call after `preprocess`: every level,
+        // finest first, in this iteration's submission.
+        let make_intensity = !std::mem::replace(&mut self.photo.intensity_made, true);
+        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         let (final_group, photo) = (&self.icp_final_group, &mut self.photo);
+        let mut passes: Vec<Pass> = Vec::new();
+        if make_intensity {
+            let groups = std::iter::once(&bg.intensity_pyramid)
+                .chain(bg.levels.iter().map(|l| &l.intensity_pyramid));
+            let params = std::iter::once(&f.intensity).chain(f.levels.iter().map(|l| &l.intensity));
+            for (group, p) in groups.zip(params) {
+                let grid = k.intensity_pyramid.grid_workgroups_for_image(
+                    ctx,
+                    p.params.width,
+                    p.params.height,
+                );
+                passes.push((&k.intensity_pyramid, group, grid));
+            }
+        }
+        let (icp_group, photo_group) = match level {
+            0 => (&bg.icp_reduce, &bg.photo_reduce),
+            l => (&bg.levels[l - 1].icp_reduce, &bg.levels[l - 1].photo_reduce),
+        };
+        let len = ICP_SYSTEM_LEN as u32;
+        passes.extend([
+            (&k.icp_reduce, icp_group, [wg, 1]),
+            (&k.icp_reduce_final, final_group, [len, 1]),
+            (&k.photo_reduce, photo_group, [wg, 1]),
+            (&k.icp_reduce_final, &photo.final_group, [len, 1]),
+        ]);
         let both = ctx.scoped("icp_reduce", || {
             u.icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
-            let len = ICP_SYSTEM_LEN as u32;
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.icp_reduce, &bg.icp_reduce, [wg, 1]),
-                    (&k.icp_reduce_final, final_group, [len, 1]),
-                    (&k.photo_reduce, &bg.photo_reduce, [wg, 1]),
-                    (&k.icp_reduce_final, &photo.final_group, [len, 1]),
-                ],
-            )?;
+            record_passes(ctx, profiler, &mut enc, &passes)?;
             let srcs = [&self.system, &photo.system];
             photo
                 .readback

@@ -102,9 +102,13 @@ impl<B: Backend> Backend for Instrumented<B> {
         self.frame_systems.push((level, system));
         Ok(system)
     }
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
-        let systems = self.step("icp_iteration", |b| b.rgbd_system(params))?;
-        self.frame_systems.push((0, systems[0]));
+    fn rgbd_system(
+        &mut self,
+        level: usize,
+        params: &IcpParams,
+    ) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+        let systems = self.step("icp_iteration", |b| b.rgbd_system(level, params))?;
+        self.frame_systems.push((level, systems[0]));
         Ok(systems)
     }
     fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {

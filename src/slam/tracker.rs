@@ -127,9 +127,8 @@ impl<B: Backend> Icp<'_, B> {
 
     /// Up to `max_iters` ICP iterations at pyramid `level` against its prediction, from
     /// `t` (world to camera), which each solved system updates; each iteration is
-    /// appended to `iterations`. With `photometric` (level 0 only: the predicted intensity
-    /// is level 0's, of the last `predict`) each iteration adds the photometric term
-    /// (`Backend::rgbd_system`). Ends at convergence, at the budget, or at a refused
+    /// appended to `iterations`. With `photometric` each iteration adds the photometric
+    /// term (`Backend::rgbd_system`). Ends at convergence, at the budget, or at a refused
     /// system (`t` then keeps the last good pose).
     pub fn level(
         &mut self,
@@ -140,13 +139,12 @@ impl<B: Backend> Icp<'_, B> {
     ) -> Result<LevelEnd> {
         let icp = &self.params.icp;
         let mut previous: Option<Twist> = None;
-        let rgbd = photometric && level == 0;
         for _ in 0..max_iters {
             let ip = self.steps.icp_at(level, t);
-            let (eq, photo) = match rgbd {
+            let (eq, photo) = match photometric {
                 false => (self.backend.icp_system(level, &ip)?, None),
                 true => {
-                    let [geometric, photometric] = self.backend.rgbd_system(&ip)?;
+                    let [geometric, photometric] = self.backend.rgbd_system(level, &ip)?;
                     (geometric, Some(NormalEquations::decode(&photometric)))
                 }
             };

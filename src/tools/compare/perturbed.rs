@@ -108,8 +108,12 @@ impl Backend for PerturbedCpu {
         }
         Ok(system)
     }
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
-        let mut systems = self.run(|b| b.rgbd_system(params))?;
+    fn rgbd_system(
+        &mut self,
+        level: usize,
+        params: &IcpParams,
+    ) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+        let mut systems = self.run(|b| b.rgbd_system(level, params))?;
         if self.plant == Some(Plant::SystemRowSign) {
             systems[0][ICP_ATB_OFFSET + SIGN_FLIPPED_ROW] *= -1.0;
         }
