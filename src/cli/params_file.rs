@@ -261,7 +261,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 40] = [
+    const OPTION_VALUES: [(&str, &str); 41] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -275,6 +275,7 @@ mod tests {
         ("icp-huber", "0.015"),
         ("tracking", "rgbd"),
         ("photometric-weight", "0.5"),
+        ("photometric-levels", "0,1"),
         ("icp-level-iters", "6,3"),
         ("icp-noise-weight", "true"),
         ("icp-min-increment", "1e-5"),

@@ -132,7 +132,8 @@ impl GpuBackend {
     }
 
     /// The frame's intensity patches at every level, level 0 first (`intensity_pyramid`'s
-    /// outputs, made by the frame's first `rgbd_system`), for parity tests.
+    /// outputs, made by the frame's `rgbd_system` calls: a level never asked for holds an
+    /// earlier frame's, or zeros), for parity tests.
     pub fn download_intensity_patches(&mut self) -> Result<Vec<Vec<[f32; 4]>>> {
         self.ctx.flush();
         let (ctx, f) = (&self.ctx, self.frame());

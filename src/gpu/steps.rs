@@ -86,7 +86,7 @@ impl Backend for GpuBackend {
         }
         self.ensure_frame(params, pyramid)?;
         // A new frame: its intensity pyramid is made by the first `rgbd_system`.
-        self.photo.intensity_made = false;
+        self.photo.intensity_made = 0;
         let ctx = &self.ctx;
         let u = &self.uniforms;
         ctx.scoped("preprocess", || {
@@ -287,24 +287,25 @@ impl Backend for GpuBackend {
             )));
         }
         let wg = self.reduction_workgroups;
-        // The frame's intensity pyramid, at the first call after `preprocess`: every level,
-        // finest first, in this iteration's submission.
-        let make_intensity = !std::mem::replace(&mut self.photo.intensity_made, true);
+        // The frame's intensity pyramid up to this level, finest first, where not made since
+        // `preprocess`: in this iteration's submission.
+        let made = self.photo.intensity_made;
+        self.photo.intensity_made = made.max(level + 1);
         let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         let (final_group, photo) = (&self.icp_final_group, &mut self.photo);
         let mut passes: Vec<Pass> = Vec::new();
-        if make_intensity {
-            let groups = std::iter::once(&bg.intensity_pyramid)
-                .chain(bg.levels.iter().map(|l| &l.intensity_pyramid));
-            let params = std::iter::once(&f.intensity).chain(f.levels.iter().map(|l| &l.intensity));
-            for (group, p) in groups.zip(params) {
-                let grid = k.intensity_pyramid.grid_workgroups_for_image(
-                    ctx,
-                    p.params.width,
-                    p.params.height,
-                );
-                passes.push((&k.intensity_pyramid, group, grid));
-            }
+        for l in made..=level {
+            let (group, p) = match l {
+                0 => (&bg.intensity_pyramid, &f.intensity),
+                l => (
+                    &bg.levels[l - 1].intensity_pyramid,
+                    &f.levels[l - 1].intensity,
+                ),
+            };
+            let grid =
+                k.intensity_pyramid
+                    .grid_workgroups_for_image(ctx, p.params.width, p.params.height);
+            passes.push((&k.intensity_pyramid, group, grid));
         }
         let (icp_group, photo_group) = match level {
             0 => (&bg.icp_reduce, &bg.photo_reduce),

@@ -139,9 +139,10 @@ pub trait Backend {
     /// intrinsics), in one submission and one read-back: `icp_reduce`'s geometric system
     /// (as [`Backend::icp_system`]) and `photo_reduce`'s photometric one (intensity
     /// residuals against the last `predict`'s predicted intensity; see
-    /// `cpu::photo_reduce`). The first call after a `preprocess` also makes the frame's
-    /// intensity pyramid (`intensity_pyramid`, every level, in the same submission):
-    /// geometric tracking never pays for it.
+    /// `cpu::photo_reduce`). The first call at a level after a `preprocess` also makes the
+    /// frame's intensity pyramid down to that level where not made yet
+    /// (`intensity_pyramid`, finest first, in the same submission): geometric tracking
+    /// never pays for it, nor RGB-D tracking for levels it does not use.
     fn rgbd_system(
         &mut self,
         level: usize,

@@ -98,8 +98,9 @@ impl<B: Backend> Icp<'_, B> {
         let schedule = &params.icp.level_iters;
         for (i, &max_iters) in schedule.iter().enumerate() {
             let level = schedule.len() - 1 - i;
-            // RGB-D tracking adds the photometric term at the full maps.
-            let photometric = level == 0 && params.icp.tracking == Tracking::Rgbd;
+            // RGB-D tracking adds the photometric term at the finest levels.
+            let photometric = params.icp.tracking == Tracking::Rgbd
+                && params.icp.photometric_levels.contains(&level);
             let budget = (max_iters, photometric);
             status = match self.level(level, budget, &mut t, &mut iterations)? {
                 LevelEnd::Converged => TrackStatus::Converged,

@@ -9,14 +9,15 @@ use crate::layout::{IcpParams, IntensityParams, PreprocessParams, ICP_SYSTEM_LEN
 use crate::slam::backend::PyramidLevel;
 
 /// The frame's intensity pyramid (`intensity_pyramid`): per level its parameters and
-/// intensity patches, made only when RGB-D tracking asks for them.
+/// intensity patches, each level made only when RGB-D tracking first asks for it or a
+/// coarser one.
 #[derive(Debug, Default)]
 pub(super) struct IntensityPyramid {
     params: Vec<IntensityParams>,
-    /// Per level, the intensity patches; valid only when `made`.
+    /// Per level, the intensity patches; the first `made` are of the last preprocessed
+    /// frame.
     patches: Vec<Vec<[f32; 4]>>,
-    /// Whether `patches` are of the last preprocessed frame.
-    made: bool,
+    made: usize,
 }
 
 impl IntensityPyramid {
@@ -27,16 +28,15 @@ impl IntensityPyramid {
             .map(|l| [l.down.width, l.down.height])
             .collect();
         self.params = IntensityParams::levels(params.width, params.height, &coarser);
-        self.made = false;
+        self.patches.resize_with(self.params.len(), Vec::new);
+        self.made = 0;
     }
 
-    /// Makes every level from `color` (the frame's colour map), level 0 first, unless made.
-    fn make(&mut self, color: &[[f32; 4]]) {
-        if self.made {
-            return;
-        }
-        self.patches.resize_with(self.params.len(), Vec::new);
-        for (l, p) in self.params.iter().enumerate() {
+    /// Makes the levels up to `level` not yet made from `color` (the frame's colour map),
+    /// finest first (each from the one before).
+    fn make(&mut self, color: &[[f32; 4]], level: usize) {
+        for l in self.made..=level {
+            let p = &self.params[l];
             let (finer, this) = self.patches.split_at_mut(l);
             let fine = match finer.last() {
                 Some(f) => f.as_slice(),
@@ -46,7 +46,7 @@ impl IntensityPyramid {
             out.resize((p.width * p.height) as usize, [0.0; 4]);
             cpu::intensity_pyramid::intensity_pyramid(p, fine, out);
         }
-        self.made = true;
+        self.made = self.made.max(level + 1);
     }
 }
 
@@ -59,7 +59,7 @@ impl CpuBackend {
         level: usize,
         params: &IcpParams,
     ) -> [f64; ICP_SYSTEM_LEN] {
-        self.intensity.make(&self.frame.color);
+        self.intensity.make(&self.frame.color, level);
         let (pred_vertex, _) = &self.prediction[0];
         let normal_depth = match level {
             0 => &self.frame.normal_depth,
@@ -76,7 +76,8 @@ impl CpuBackend {
 
     /// The frame's intensity patches at every level (made if not yet), for parity tests.
     pub fn intensity_patches(&mut self) -> &[Vec<[f32; 4]>] {
-        self.intensity.make(&self.frame.color);
+        let levels = self.intensity.params.len();
+        self.intensity.make(&self.frame.color, levels - 1);
         &self.intensity.patches
     }
 }

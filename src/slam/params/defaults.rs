@@ -179,3 +179,7 @@ pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;
 /// 7.60 -> 3.45 -> 1.81 mm: 0.3 is the best of the two real sensors
 /// (`docs/rgbd-tracking.md`).
 pub const PHOTOMETRIC_WEIGHT: f64 = 0.3;
+
+/// `icp.photometric_levels`: the pyramid levels with the photometric term; see
+/// `docs/rgbd-tracking.md` for the measurements.
+pub const PHOTOMETRIC_LEVELS: &[usize] = &[0];

@@ -259,7 +259,7 @@ pub struct IcpSettings {
     /// (`--icp-degenerate-ratio`).
     pub degenerate_eigen_ratio: f64,
     /// What frame-to-model tracking aligns: the depth only (point-to-plane ICP), or depth
-    /// and colour (with the photometric term at the full maps; `--tracking`).
+    /// and colour (with the photometric term; `--tracking`).
     #[serde(default)]
     pub tracking: Tracking,
     /// With `tracking = "rgbd"`: the photometric term's weight relative to the geometric
@@ -268,6 +268,17 @@ pub struct IcpSettings {
     /// much as a point-to-plane one (`--photometric-weight`; see [`PHOTOMETRIC_WEIGHT`]).
     #[serde(default = "photometric_weight_default")]
     pub photometric_weight: f64,
+    /// With `tracking = "rgbd"`: the pyramid levels that carry the photometric term (0: the
+    /// full maps, 1 the next coarser, ...; each below the number of `level_iters`)
+    /// (`--photometric-levels`; see [`PHOTOMETRIC_LEVELS`]).
+    #[serde(default = "photometric_levels_default")]
+    pub photometric_levels: Vec<usize>,
+}
+
+/// The default of [`IcpSettings::photometric_levels`] (serde's default for files written
+/// before the key existed).
+fn photometric_levels_default() -> Vec<usize> {
+    PHOTOMETRIC_LEVELS.to_vec()
 }
 
 /// The default of [`IcpSettings::photometric_weight`] (serde's default for files written
@@ -284,9 +295,10 @@ pub enum Tracking {
     /// measurements).
     #[default]
     Geometric,
-    /// Point-to-plane ICP plus, at the full maps (level 0), the photometric term: the
-    /// frame's intensity against the map's predicted intensity (`cpu::photo_reduce`),
-    /// added to the geometric system with [`IcpSettings::photometric_weight`].
+    /// Point-to-plane ICP plus, at the [`IcpSettings::photometric_levels`] finest pyramid
+    /// levels, the photometric term: the frame's intensity against the map's predicted
+    /// intensity (`cpu::photo_reduce`), added to the geometric system with
+    /// [`IcpSettings::photometric_weight`].
     Rgbd,
 }
 
@@ -518,6 +530,7 @@ impl SlamParams {
                 degenerate_eigen_ratio: 0.0,
                 tracking: Tracking::Geometric,
                 photometric_weight: PHOTOMETRIC_WEIGHT,
+                photometric_levels: PHOTOMETRIC_LEVELS.to_vec(),
             },
             fusion: FusionSettings {
                 dist_m: 0.03,

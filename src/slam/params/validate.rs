@@ -89,6 +89,15 @@ impl SlamParams {
                 icp.photometric_weight
             ));
         }
+        let levels = icp.level_iters.len();
+        let photo = &icp.photometric_levels;
+        if photo.is_empty() || photo.iter().any(|&l| l >= levels) {
+            return fail(format!(
+                "`icp.photometric_levels` {photo:?}: want one or more pyramid levels below \
+                 {levels} (0: the full maps; `icp.level_iters` has {levels}); for no \
+                 photometric term use `icp.tracking = \"geometric\"`"
+            ));
+        }
         if !(icp.stop_chi2.is_finite() && icp.stop_chi2 >= 0.0) {
             return fail(format!(
                 "`icp.stop_chi2` {} must be a non-negative number (0: off)",
