@@ -18,7 +18,7 @@ use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
+use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel, RgbdSystems};
 use crate::slam::fused_view::FusedView;
 use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 use crate::{Error, Result};
@@ -275,11 +275,7 @@ impl Backend for GpuBackend {
         Ok(sys)
     }
 
-    fn rgbd_system(
-        &mut self,
-        level: usize,
-        params: &IcpParams,
-    ) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
         let levels = 1 + self.frame().levels.len();
         if level >= levels {
             return Err(Error::Argument(format!(

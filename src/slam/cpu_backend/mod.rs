@@ -15,6 +15,7 @@ use crate::layout::{
     FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
     ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
+use crate::slam::backend::RgbdSystems;
 use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
@@ -35,8 +36,7 @@ pub struct CpuBackend {
     prediction: Vec<Prediction>,
     /// `predict_model`'s predicted intensity (level 0; see `cpu::photo_reduce`).
     pred_intensity: Vec<f32>,
-    /// The frame's intensity pyramid, made at the first `rgbd_system` of a frame (see
-    /// `photo.rs`).
+    /// The frame's intensity pyramid, made by `rgbd_system` (see `photo.rs`).
     intensity: photo::IntensityPyramid,
     assoc: Vec<u64>,
     /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
@@ -273,11 +273,7 @@ impl Backend for CpuBackend {
         ))
     }
 
-    fn rgbd_system(
-        &mut self,
-        level: usize,
-        params: &IcpParams,
-    ) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
         let geometric = self.icp_system(level, params)?;
         Ok([geometric, self.photo_system(level, params)])
     }
