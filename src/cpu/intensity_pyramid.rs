@@ -63,17 +63,17 @@ pub fn intensity_pyramid(
     fine: &[[f32; 4]],
     intensity_patch: &mut [[f32; 4]],
 ) {
-    let (w, h) = (params.width as usize, params.height as usize);
-    assert_eq!(
-        fine.len(),
-        (params.fine_width * params.fine_height) as usize,
-        "fine has the wrong size"
-    );
-    assert_eq!(
-        intensity_patch.len(),
-        w * h,
-        "intensity_patch has the wrong size"
-    );
+    let w = params.width as usize;
+    let sizes = [
+        (params.fine_width, params.fine_height),
+        (params.width, params.height),
+    ];
+    for ((sw, sh), (name, len)) in sizes.into_iter().zip([
+        ("fine", fine.len()),
+        ("intensity_patch", intensity_patch.len()),
+    ]) {
+        assert_eq!(len, (sw * sh) as usize, "{name} is not {sw}x{sh}");
+    }
     // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
     pixel_grid(params.width, params.height, |[u, v]| {
         let (u, v) = (u as i32, v as i32);

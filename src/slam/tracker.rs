@@ -140,6 +140,11 @@ impl<B: Backend> Icp<'_, B> {
     ) -> Result<LevelEnd> {
         let icp = &self.params.icp;
         let mut previous: Option<Twist> = None;
+        // The noise stop's bar: the photometric iterations' own where set.
+        let stop_chi2 = match icp.photometric_stop_chi2 {
+            bar if photometric && bar > 0.0 => bar,
+            _ => icp.stop_chi2,
+        };
         for _ in 0..max_iters {
             let ip = self.steps.icp_at(level, t);
             let (eq, photo) = match photometric {
@@ -193,7 +198,7 @@ impl<B: Backend> Icp<'_, B> {
             previous = Some(s.x);
             it.stop = if r < icp.min_increment && tr < icp.min_increment {
                 Some(LevelStop::MinIncrement)
-            } else if chi2 < icp.stop_chi2 {
+            } else if chi2 < stop_chi2 {
                 Some(LevelStop::WithinNoise)
             } else if reversal {
                 Some(LevelStop::Reversal)

@@ -246,6 +246,11 @@ pub struct IcpSettings {
     /// [`ROBUST_STOP_CHI2`].
     #[serde(default)]
     pub stop_chi2: f64,
+    /// The same test's bar at the iterations with the photometric term (RGB-D tracking),
+    /// the step still measured in the geometric term's covariance; 0: `stop_chi2`'s (the
+    /// assignment's). See [`ROBUST_PHOTOMETRIC_STOP_CHI2`].
+    #[serde(default)]
+    pub photometric_stop_chi2: f64,
     /// Stop a level when an increment undoes most of the previous one (projective
     /// association flipping between two correspondence sets), leaving the pose halfway;
     /// off in the assignment's.
@@ -525,6 +530,7 @@ impl SlamParams {
                 level_iters: vec![10],
                 min_increment: 1e-6,
                 stop_chi2: 0.0,
+                photometric_stop_chi2: 0.0,
                 stop_on_reversal: false,
                 pyramid: PyramidSettings::default(),
                 degenerate_eigen_ratio: 0.0,
@@ -557,6 +563,7 @@ impl SlamParams {
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
                     min_increment: ROBUST_MIN_INCREMENT,
                     stop_chi2: ROBUST_STOP_CHI2,
+                    photometric_stop_chi2: ROBUST_PHOTOMETRIC_STOP_CHI2,
                     stop_on_reversal: true,
                     degenerate_eigen_ratio: ROBUST_DEGENERATE_EIGEN_RATIO,
                     ..assignment.icp

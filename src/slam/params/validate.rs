@@ -104,6 +104,13 @@ impl SlamParams {
                 icp.stop_chi2
             ));
         }
+        let bar = icp.photometric_stop_chi2;
+        if !(bar.is_finite() && bar >= 0.0) {
+            return fail(format!(
+                "`icp.photometric_stop_chi2` {bar} must be a non-negative number (0: as \
+                 `icp.stop_chi2`)"
+            ));
+        }
         for (flag, v) in [
             ("`normals.max_depth_jump_m`", self.normals.max_depth_jump_m),
             (
