@@ -260,7 +260,7 @@ mod tests {
             p.fusion.unstable_removal = Some(r);
         }
         type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 28] = [
+        let cases: [(&str, Spoil); 32] = [
             ("`icp.level_iters`", |p| {
                 p.icp.level_iters = vec![MAX_ICP_ITERS_PER_LEVEL + 1]
             }),
@@ -317,6 +317,19 @@ mod tests {
                 removal(p, |r| r.every_frames = 0)
             }),
             ("`fusion.dist_m`", |p| p.fusion.dist_m = 0.0),
+            ("`icp.photometric_levels`", |p| {
+                p.icp.photometric_levels = vec![]
+            }),
+            // A level the schedule does not have (the assignment's one, the robust three).
+            ("`icp.photometric_levels`", |p| {
+                p.icp.photometric_levels = vec![0, p.icp.level_iters.len()]
+            }),
+            ("`icp.photometric_stop_chi2`", |p| {
+                p.icp.photometric_stop_chi2 = -1.0
+            }),
+            ("`icp.photometric_stop_chi2`", |p| {
+                p.icp.photometric_stop_chi2 = f64::NAN
+            }),
         ];
         for profile in [Profile::Assignment, Profile::Robust] {
             for (option, spoil) in cases {
