@@ -73,8 +73,8 @@ pub const ROBUST_STOP_CHI2: f64 = 6.0;
 /// SUN3D 40 %: 3.4-3.7 level-0 iterations per frame against geometric tracking's 2.0),
 /// each iteration two reductions. Measured (release, CPU, ATE and user time against
 /// geometric tracking, bar 6 -> 20 -> 60): 7-Scenes 0..299 21.67 -> 21.55 -> 21.20 mm,
-/// 1.47x -> 1.37x -> 1.24-1.33x; SUN3D frag2 7.31 -> 7.35 -> 7.31 mm, 1.52x -> 1.44x ->
-/// 1.19-1.30x; noisy ICL-NUIM 1..200 at 640x480 3.45 -> 3.46 -> 3.53 mm, 1.30x -> 1.24x
+/// 1.47x -> 1.37x -> 1.23-1.33x; SUN3D frag2 7.31 -> 7.35 -> 7.31 mm, 1.52x -> 1.44x ->
+/// 1.19-1.38x; noisy ICL-NUIM 1..200 at 640x480 3.45 -> 3.46 -> 3.53 mm, 1.30x -> 1.24x
 /// -> 1.17-1.21x (`docs/rgbd-tracking.md`).
 pub const ROBUST_PHOTOMETRIC_STOP_CHI2: f64 = 60.0;
 
