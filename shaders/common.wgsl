@@ -52,6 +52,20 @@ struct PyramidParams {
     _pad: u32,
 }
 
+// Mirrors `layout::IntensityParams` (intensity_pyramid): level 0 reads the colour map, a
+// coarser level the finer level's intensity patches; coarse pixel (u, v) is centred on
+// finer pixel (2u, 2v).
+struct IntensityParams {
+    width: u32,
+    height: u32,
+    fine_width: u32,
+    fine_height: u32,
+    level: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
 // Mirrors `layout::FernParams` (fern_encode): the level-0 size and one fern cell's size.
 struct FernParams {
     width: u32,
@@ -145,8 +159,8 @@ struct IcpParams {
     photo_depth_gate_m: f32,
     photo_huber: f32,
     photo_gradient_min: f32,
-    photo_stride_px: u32,
-    _pad1: u32,
+    photo_source_step: u32,
+    photo_source_width: u32,
     _pad2: u32,
 }
 

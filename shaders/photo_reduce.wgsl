@@ -9,23 +9,21 @@
 
 // Current t_world_to_cam, intrinsics and the photo_* gates.
 @group(0) @binding(0) var<storage, read> params: IcpParams;
-// The source: width x height, WORLD frame, w = 1 / 0.
+// The source: level 0's prediction (whatever the level), WORLD frame, w = 1 / 0; the
+// level's pixel (u, v) reads its pixel (step u, step v), step = params.photo_source_step.
 @group(0) @binding(1) var pred_vertex: texture_2d<f32>;
-// The source's intensity (0..1; INTENSITY_NONE where no surfel), width x height
-// (predict_model).
+// The source's intensity (0..1; INTENSITY_NONE where no surfel), level 0's size
+// (predict_model), rows of params.photo_source_width.
 @group(0) @binding(2) var<storage, read> pred_intensity: array<f32>;
-// The frame's normals with the depth (metres) in w, zero where invalid: the depth gate.
+// The level's frame normals with the depth (metres) in w, zero where invalid: the depth
+// gate.
 @group(0) @binding(3) var normal_depth: texture_2d<f32>;
-// The frame's colour, RGB 0..255 (depth_to_vertex).
-@group(0) @binding(4) var color_map: texture_2d<f32>;
+// The level's frame intensity patches (0..1; intensity_pyramid): texel (u, v) holds the
+// intensities of (u, v), (u + 1, v), (u, v + 1), (u + 1, v + 1).
+@group(0) @binding(4) var intensity_patch: texture_2d<f32>;
 // Out: ICP_SYSTEM_LEN floats per workgroup (21 of JᵀJ upper triangle row-major, 6 of
 // Jᵀr, count, sum of squared weighted residuals); the host sums them in f64.
 @group(0) @binding(5) var<storage, read_write> partials: array<f32>;
-
-// The frame intensity at texel (u, v). Mirrors `intensity_at` in the twin.
-fn intensity_at(u: u32, v: u32) -> f32 {
-    return intensity_of(textureLoad(color_map, vec2<u32>(u, v), 0).xyz);
-}
 
 // The bilinear interpolant of the four texel intensities i = (i00, i10, i01, i11) at
 // fractions t, and its exact gradient there: (I, Ix, Iy). Mirrors `bilinear` in the twin.
@@ -44,12 +42,9 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
     let w = params.width;
-    let stride = params.photo_stride_px;
-    if src_texel.x % stride != 0u || src_texel.y % stride != 0u {
-        return row;
-    }
-    let src_world = textureLoad(pred_vertex, src_texel, 0);
-    let i_model = pred_intensity[src_texel.y * w + src_texel.x];
+    let src = params.photo_source_step * src_texel;
+    let src_world = textureLoad(pred_vertex, src, 0);
+    let i_model = pred_intensity[src.y * params.photo_source_width + src.x];
     if !is_valid(src_world) || i_model < 0.0 {
         return row;
     }
@@ -72,12 +67,7 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     if !is_valid(nd) || abs(nd.w - p.z) >= params.photo_depth_gate_m {
         return row;
     }
-    let corners = vec4<f32>(
-        intensity_at(u0, v0),
-        intensity_at(u0 + 1u, v0),
-        intensity_at(u0, v0 + 1u),
-        intensity_at(u0 + 1u, v0 + 1u),
-    );
+    let corners = textureLoad(intensity_patch, vec2<u32>(u0, v0), 0);
     let s = bilinear(corners, t);
     let g_min = params.photo_gradient_min;
     if s.y * s.y + s.z * s.z < g_min * g_min {

@@ -118,6 +118,53 @@ impl PyramidParams {
     }
 }
 
+/// Parameters of `intensity_pyramid` at one pyramid level (mirrors `IntensityParams` in
+/// common.wgsl): level 0 reads the frame's colour map (RGB 0..255), a coarser level the
+/// finer level's intensity patches (`x`: intensity 0..1); coarse pixel `(u, v)` is centred
+/// on finer pixel `(2u, 2v)`, the convention of `PyramidParams`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct IntensityParams {
+    /// This level's size in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Size of the map read (at level 0 the colour map, of the same size), pixels.
+    pub fine_width: u32,
+    pub fine_height: u32,
+    /// The pyramid level: 0 converts colour to intensity, above 0 downsamples.
+    pub level: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+impl IntensityParams {
+    /// The parameters of every level of a pyramid whose level 0 is `width` x `height` and
+    /// whose coarser levels are `coarser` (sizes in pixels), level 0 first.
+    pub fn levels(width: u32, height: u32, coarser: &[[u32; 2]]) -> Vec<IntensityParams> {
+        let mut out = vec![IntensityParams {
+            width,
+            height,
+            fine_width: width,
+            fine_height: height,
+            level: 0,
+            ..Zeroable::zeroed()
+        }];
+        for (l, &[w, h]) in coarser.iter().enumerate() {
+            let fine = out[l];
+            out.push(IntensityParams {
+                width: w,
+                height: h,
+                fine_width: fine.width,
+                fine_height: fine.height,
+                level: l as u32 + 1,
+                ..Zeroable::zeroed()
+            });
+        }
+        out
+    }
+}
+
 /// Parameters of `bilateral_filter` (mirrors `BilateralParams` in common.wgsl).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -193,10 +240,13 @@ pub struct IcpParams {
     /// `photo_reduce`: pixels whose frame intensity gradient is below this (intensity units
     /// per pixel) add nothing (flat texture constrains no motion).
     pub photo_gradient_min: f32,
-    /// `photo_reduce` uses the model pixels `(u, v)` with `u` and `v` multiples of this
-    /// (1: every pixel), a cheaper term with the same sub-pixel sampling of the frame.
-    pub photo_stride_px: u32,
-    pub _pad1: u32,
+    /// `photo_reduce` at a pyramid level walks that level's pixels `(u, v)`; its source is
+    /// the level-0 prediction's pixel `(step u, step v)` (`2^level`: the very points
+    /// `pyramid_model` subsamples for the level), whose predicted intensity is read there.
+    pub photo_source_step: u32,
+    /// `photo_reduce`: the level-0 prediction's width in pixels (the row length of
+    /// `pred_intensity`).
+    pub photo_source_width: u32,
     pub _pad2: u32,
 }
 

@@ -261,7 +261,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 40] = [
+    const OPTION_VALUES: [(&str, &str); 41] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -275,6 +275,7 @@ mod tests {
         ("icp-huber", "0.015"),
         ("tracking", "rgbd"),
         ("photometric-weight", "0.5"),
+        ("photometric-levels", "0,1"),
         ("icp-level-iters", "6,3"),
         ("icp-noise-weight", "true"),
         ("icp-min-increment", "1e-5"),
@@ -329,16 +330,23 @@ mod tests {
         let assignment = SlamParams::profile(Profile::Assignment);
         for (flag, value) in OPTION_VALUES {
             // The assignment profile under each (`profile` itself over the robust default),
-            // and `--bilateral` under its settings, which take effect only with it.
+            // `--bilateral` under its settings, which take effect only with it, and a
+            // two-level schedule under `--photometric-levels` (a level must exist).
             let mut args = vec![arg(flag, value)];
             let mut file = format!("{flag} = {value:?}\n");
             if flag != "profile" {
                 args.push("--profile=assignment".into());
                 file.push_str("profile = \"assignment\"\n");
             }
-            if flag.starts_with("bilateral-") {
-                args.push("--bilateral".into());
-                file.push_str("bilateral = true\n");
+            let companion = match flag {
+                f if f.starts_with("bilateral-") => "bilateral = true",
+                "photometric-levels" => "icp-level-iters = \"6,3\"",
+                _ => "",
+            };
+            if !companion.is_empty() {
+                let (k, v) = companion.split_once(" = ").expect("key = value");
+                args.push(arg(k, v.trim_matches('"')));
+                file.push_str(&format!("{companion}\n"));
             }
             let args: Vec<&str> = args.iter().map(String::as_str).collect();
             let o = flags(&args);
@@ -349,10 +357,9 @@ mod tests {
                     &format!(
                         "[[job]]\nsequence = \"s\"\nprofile = \"assignment\"\n\
                          overrides = {{ {flag} = {value:?}{} }}\n",
-                        if flag.starts_with("bilateral-") {
-                            ", bilateral = true"
-                        } else {
-                            ""
+                        match companion {
+                            "" => String::new(),
+                            c => format!(", {c}"),
                         }
                     ),
                 )

@@ -169,6 +169,10 @@ param_overrides! {
     /// unit (default 0.3).
     #[arg(long)]
     photometric_weight: Option<f64> => "icp.photometric_weight",
+    /// With --tracking rgbd: the pyramid levels that carry the photometric term, "0" the
+    /// full maps (the default), "0,1,2" every level of a three-level schedule.
+    #[arg(long, value_delimiter = ',', value_name = "L,...")]
+    photometric_levels: Option<Vec<usize>> => "icp.photometric_levels",
     /// ICP iterations per pyramid level, coarse to fine: "10,5,4" is three levels (each
     /// half the size of the next finer one), at most 10 iterations at the coarsest and 4 at
     /// the full maps; one number is single-level ICP (assignment 10, robust 10,5,4).

@@ -35,6 +35,7 @@ pub mod fuse_select;
 pub mod icp_candidates;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
+pub mod intensity_pyramid;
 pub mod key_writer;
 pub mod keypoint_describe;
 pub mod keypoint_detect;

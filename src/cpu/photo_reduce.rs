@@ -4,18 +4,20 @@
 //! as `icp_reduce`'s, which the host adds to the geometric one with a weight
 //! (`crate::slam::tracker`).
 //!
-//! Source: the predicted model map (world frame) and its predicted intensity
-//! (`predict_model`'s `pred_intensity`, 0..1, [`INTENSITY_NONE`] where no surfel), at the
-//! model pixels whose coordinates are multiples of `photo_stride_px`, moved
+//! Runs at one pyramid level: its frame maps (depth, intensity pyramid level) and
+//! intrinsics. Source: the level-0 predicted model map (world frame) and its predicted
+//! intensity (`predict_model`'s `pred_intensity`, 0..1, [`INTENSITY_NONE`] where no
+//! surfel), at pixel `(step u, step v)` for each pixel `(u, v)` of the level
+//! (`photo_source_step = 2^level`: the points `pyramid_model` gives the level), moved
 //! into the new camera with the current estimate: `p' = T p`. It projects to the
 //! sub-pixel position `x = π(p')` (pixel centres at integers). Gates: the four texels
 //! around `x` are inside the image; the frame's depth at the texel nearest `x` is valid
 //! and within `photo_depth_gate_m` of `p'.z` (occluded points are skipped); the frame
 //! intensity gradient at `x` is at least `photo_gradient_min` per pixel. The frame
 //! intensity `I` is the bilinear interpolant of those four texels at `x`, and `∇I` its
-//! exact gradient there (four texel reads per pixel and iteration; central differences
-//! over the 4x4 neighbourhood cost three times as many and measured worse on noisy
-//! ICL-NUIM and SUN3D, `docs/rgbd-tracking.md`). Residual `r = I(x) - I_model` (intensity units,
+//! exact gradient there, both from the one intensity patch (`intensity_pyramid`) at the
+//! texel left of and above `x` (central differences over the 4x4 neighbourhood measured
+//! worse on noisy ICL-NUIM and SUN3D, `docs/rgbd-tracking.md`). Residual `r = I(x) - I_model` (intensity units,
 //! 0..1); linearising `T <- exp(ξ) T` as the geometric term does
 //! (`ξ = (alpha, beta, gamma, tx, ty, tz)`): `r(ξ) ≈ r + J ξ` with
 //! `J = [(p' x g)ᵀ, gᵀ]`, `g = (dπ/dp')ᵀ ∇I = (fx Ix / z, fy Iy / z,
@@ -24,7 +26,7 @@
 
 use super::arith;
 use super::icp_reduce::huber_weight;
-use super::{intensity_of, is_valid, transform_point, xyz};
+use super::{is_valid, transform_point, xyz};
 use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
 
 /// `pred_intensity` where the pixel has no surfel (intensities are 0..1).
@@ -41,16 +43,6 @@ pub const PHOTO_HUBER: f32 = 0.1;
 /// central difference of one step) so that flat texture, whose gradient is noise, adds
 /// nothing.
 pub const PHOTO_GRADIENT_MIN: f32 = 0.005;
-
-/// `photo_stride_px`: every model pixel. One in 2x2 cost 0.8x of the photometric time on
-/// the CPU and doubled noisy ICL-NUIM 1..200's ATE at weight 1 (1.81 -> 3.71 mm).
-pub const PHOTO_STRIDE_PX: u32 = 1;
-
-/// The frame intensity at texel `(u, v)`. Mirrors `intensity_at` in photo_reduce.wgsl.
-#[inline]
-fn intensity_at(width: u32, color_map: &[[f32; 4]], u: u32, v: u32) -> f32 {
-    intensity_of(color_map[(v * width + u) as usize])
-}
 
 /// The bilinear interpolant of the four texel intensities `i = [i00, i10, i01, i11]`
 /// around a point at fractions `(tx, ty)`, and its exact gradient there (intensity per
@@ -77,14 +69,11 @@ pub fn photo_row(
     pred_vertex: &[[f32; 4]],
     pred_intensity: &[f32],
     normal_depth: &[[f32; 4]],
-    color_map: &[[f32; 4]],
+    intensity_patch: &[[f32; 4]],
 ) -> Option<([f32; 6], f32)> {
     let w = params.width;
-    let stride = params.photo_stride_px;
-    if src_texel[0] % stride != 0 || src_texel[1] % stride != 0 {
-        return None;
-    }
-    let src = (src_texel[1] * w + src_texel[0]) as usize;
+    let step = params.photo_source_step;
+    let src = (step * src_texel[1] * params.photo_source_width + step * src_texel[0]) as usize;
     let src_world = pred_vertex[src];
     let i_model = pred_intensity[src];
     if !is_valid(src_world) || i_model < 0.0 {
@@ -108,13 +97,7 @@ pub fn photo_row(
     if !is_valid(nd) || (nd[3] - p.z).abs() >= params.photo_depth_gate_m {
         return None;
     }
-    let at = |u, v| intensity_at(w, color_map, u, v);
-    let corners = [
-        at(u0, v0),
-        at(u0 + 1, v0),
-        at(u0, v0 + 1),
-        at(u0 + 1, v0 + 1),
-    ];
+    let corners = intensity_patch[(v0 * w + u0) as usize];
     let [i_frame, gx, gy] = bilinear(corners, tx, ty);
     let g_min = params.photo_gradient_min;
     if gx * gx + gy * gy < g_min * g_min {
@@ -141,7 +124,7 @@ pub fn photo_reduce(
     pred_vertex: &[[f32; 4]],
     pred_intensity: &[f32],
     normal_depth: &[[f32; 4]],
-    color_map: &[[f32; 4]],
+    intensity_patch: &[[f32; 4]],
 ) -> [f64; ICP_SYSTEM_LEN] {
     super::system_grid(params.width, params.height, |texel| {
         photo_row(
@@ -150,7 +133,7 @@ pub fn photo_reduce(
             pred_vertex,
             pred_intensity,
             normal_depth,
-            color_map,
+            intensity_patch,
         )
     })
 }
@@ -175,8 +158,8 @@ mod tests {
         0.3 + 0.02 * u as f32 - 0.01 * v as f32
     }
 
-    /// A 32x24 frame with the [`ramp`] intensity (grey, so luma is exact) and depth `z_m`
-    /// everywhere, and its camera.
+    /// A 32x24 frame with the [`ramp`] intensity (grey, so luma is exact; as intensity
+    /// patches) and depth `z_m` everywhere, and its camera.
     fn frame(z_m: f32) -> (IcpParams, Vec<[f32; 4]>, Vec<[f32; 4]>) {
         let (w, h) = (32u32, 24u32);
         let params = IcpParams {
@@ -190,7 +173,8 @@ mod tests {
             photo_depth_gate_m: 0.3,
             photo_huber: 0.0,
             photo_gradient_min: PHOTO_GRADIENT_MIN,
-            photo_stride_px: 1,
+            photo_source_step: 1,
+            photo_source_width: w,
             ..Zeroable::zeroed()
         };
         let mut color = Vec::new();
@@ -201,7 +185,15 @@ mod tests {
             }
         }
         let nd = vec![[0.0, 0.0, -1.0, z_m]; (w * h) as usize];
-        (params, color, nd)
+        (params, patches(w, h, &color), nd)
+    }
+
+    /// The level-0 intensity patches of a `w` x `h` colour map (`intensity_pyramid`).
+    fn patches(w: u32, h: u32, color: &[[f32; 4]]) -> Vec<[f32; 4]> {
+        let mut out = vec![[0.0; 4]; color.len()];
+        let p = crate::layout::IntensityParams::levels(w, h, &[])[0];
+        crate::cpu::intensity_pyramid::intensity_pyramid(&p, color, &mut out);
+        out
     }
 
     /// The row of one model point `p` (world frame) with intensity `i_model`, put at texel
@@ -270,7 +262,7 @@ mod tests {
         assert!(row_of(&params, edge, 0.4, &nd, &color).is_none(), "border");
         let far = glam::DVec3::new(0.0, 0.0, 2.5);
         assert!(row_of(&params, far, 0.4, &nd, &color).is_none(), "occluded");
-        let flat = vec![[100.0, 100.0, 100.0, 255.0]; color.len()];
+        let flat = patches(32, 24, &vec![[100.0, 100.0, 100.0, 255.0]; color.len()]);
         assert!(row_of(&params, centre, 0.4, &nd, &flat).is_none(), "flat");
         let huber = IcpParams {
             photo_huber: 0.01,

@@ -454,6 +454,10 @@ pub(super) struct PhotoSystem {
     pub final_group: wgpu::BindGroup,
     /// Both systems, `2 * ICP_SYSTEM_LEN` floats, geometric first.
     pub readback: Readback<f32>,
+    /// How many levels of the frame's intensity pyramid (`intensity_pyramid`), finest
+    /// first, are of the last `preprocess`'s frame: each made by the frame's first
+    /// `rgbd_system` at it or a coarser level.
+    pub intensity_made: usize,
 }
 
 impl PhotoSystem {
@@ -476,6 +480,7 @@ impl PhotoSystem {
             system,
             final_group,
             readback,
+            intensity_made: 0,
         })
     }
 }

@@ -15,7 +15,7 @@ use super::kernel::Kernel;
 use super::kernels::{Kernels, Shape};
 use super::map_buffers::{Chunk, MapBuffers};
 use super::recording::Pass;
-use super::resources::{FrameBuffers, Uniforms};
+use super::resources::{FrameBuffers, IntensityLevel, Uniforms};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
@@ -31,6 +31,8 @@ pub(super) struct BindGroups {
     pub icp_reduce: wgpu::BindGroup,
     /// `photo_reduce` over level 0 (RGB-D tracking).
     pub photo_reduce: wgpu::BindGroup,
+    /// `intensity_pyramid` making level 0 from the colour map (RGB-D tracking).
+    pub intensity_pyramid: wgpu::BindGroup,
     pub fuse_select: Vec<wgpu::BindGroup>,
     /// The registry's `generic` kernels' bind groups by kernel name: one per map chunk,
     /// or one over the frame (see `super::kernels::Shape`).
@@ -52,6 +54,10 @@ pub(super) struct LevelBindGroups {
     pub vertex_to_normal: wgpu::BindGroup,
     pub pyramid_model: wgpu::BindGroup,
     pub icp_reduce: wgpu::BindGroup,
+    /// `intensity_pyramid` from the finer level's intensity patches.
+    pub intensity_pyramid: wgpu::BindGroup,
+    /// `photo_reduce` over the level's frame maps (the source is level 0's prediction).
+    pub photo_reduce: wgpu::BindGroup,
 }
 
 /// What the bind groups refer to besides the kernels: the buffers a backend owns.
@@ -167,12 +173,14 @@ impl BindGroups {
                     vec![
                         ("params", u.icp.binding()),
                         ("pred_vertex", f.pred_vertex.binding()),
+                        ("intensity_patch", f.intensity.patch.binding()),
                         ("partials", r.photo_partials.binding()),
                     ],
                     frame.clone(),
                 ]
                 .concat(),
             ),
+            intensity_pyramid: intensity_pyramid(ctx, k, &f.color, &f.intensity),
             fuse_select: per_chunk(k.fuse_select.first(), u.fuse.binding()),
             generic: k
                 .generic(u)
@@ -210,11 +218,11 @@ impl LevelBindGroups {
         let f = r.frame;
         let level = &f.levels[l];
         // The finer level's maps: level 0's, or the previous level's.
-        let (fine_vertex, fine_pred_vertex, fine_pred_normal) = match l {
-            0 => (&f.vertex, &f.pred_vertex, &f.pred_normal),
+        let (fine_vertex, fine_pred_vertex, fine_pred_normal, fine_intensity) = match l {
+            0 => (&f.vertex, &f.pred_vertex, &f.pred_normal, &f.intensity),
             _ => {
                 let p = &f.levels[l - 1];
-                (&p.vertex, &p.pred_vertex, &p.pred_normal)
+                (&p.vertex, &p.pred_vertex, &p.pred_normal, &p.intensity)
             }
         };
         let pyramid_depth = |fine: &GpuImage| {
@@ -259,8 +267,38 @@ impl LevelBindGroups {
                 r,
                 [&level.pred_vertex, &level.pred_normal, &level.normal_depth],
             ),
+            intensity_pyramid: intensity_pyramid(ctx, k, &fine_intensity.patch, &level.intensity),
+            photo_reduce: k.photo_reduce.bind_group(
+                ctx,
+                &[
+                    ("params", r.uniforms.icp.binding()),
+                    ("pred_vertex", f.pred_vertex.binding()),
+                    ("pred_intensity", f.pred_intensity.binding()),
+                    ("normal_depth", level.normal_depth.binding()),
+                    ("intensity_patch", level.intensity.patch.binding()),
+                    ("partials", r.photo_partials.binding()),
+                ],
+            ),
         }
     }
+}
+
+/// `intensity_pyramid` making `level` from `fine` (the colour map at level 0, else the
+/// finer level's intensity patches).
+fn intensity_pyramid(
+    ctx: &GpuContext,
+    k: &Kernels,
+    fine: &GpuImage,
+    level: &IntensityLevel,
+) -> wgpu::BindGroup {
+    k.intensity_pyramid.bind_group(
+        ctx,
+        &[
+            ("params", level.u_params.binding()),
+            ("fine", fine.binding()),
+            ("intensity_patch", level.patch.binding()),
+        ],
+    )
 }
 
 /// `icp_reduce` over one pyramid level's predicted maps and frame normals.

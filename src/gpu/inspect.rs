@@ -130,6 +130,20 @@ impl GpuBackend {
             f.pred_intensity.read_back(ctx)
         })
     }
+
+    /// The frame's intensity patches at every level, level 0 first (`intensity_pyramid`'s
+    /// outputs, made by the frame's `rgbd_system` calls: a level never asked for holds an
+    /// earlier frame's, or zeros), for parity tests.
+    pub fn download_intensity_patches(&mut self) -> Result<Vec<Vec<[f32; 4]>>> {
+        self.ctx.flush();
+        let (ctx, f) = (&self.ctx, self.frame());
+        ctx.scoped("download intensity patches", || {
+            std::iter::once(&f.intensity)
+                .chain(f.levels.iter().map(|l| &l.intensity))
+                .map(|l| read_map(ctx, &l.patch))
+                .collect()
+        })
+    }
 }
 
 impl GpuBackend {

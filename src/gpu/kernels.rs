@@ -154,8 +154,10 @@ registry! {
         pyramid_model,
         icp_reduce,
         icp_reduce_final,
-        // RGB-D tracking's photometric term (its sum: icp_reduce_final).
+        // RGB-D tracking's photometric term (its sum: icp_reduce_final) and the frame's
+        // intensity pyramid it reads.
         photo_reduce,
+        intensity_pyramid,
         icp_candidates,
         fern_encode,
         keypoint_detect,

@@ -11,8 +11,8 @@ use super::images::GpuImage;
 use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, NormalParams,
-    PreprocessParams, ProjectParams, PyramidParams,
+    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, IntensityParams,
+    NormalParams, PreprocessParams, ProjectParams, PyramidParams,
 };
 use crate::slam::backend::PyramidLevel;
 use crate::Result;
@@ -73,6 +73,9 @@ pub(super) struct FrameBuffers {
     pub pred_normal: GpuImage,
     /// `predict_model`'s predicted intensity per pixel (0..1; see `cpu::photo_reduce`).
     pub pred_intensity: GpuArray<f32>,
+    /// Level 0 of the intensity pyramid (`intensity_pyramid`, RGB-D tracking only) and
+    /// its parameters (fixed by the frame's size).
+    pub intensity: IntensityLevel,
     /// One u64 key per pixel: fuse_select's choice, or fuse_merge's flag.
     pub assoc: GpuArray<u64>,
     /// Per pixel, the surfel it merged into (two entries; see fuse_merge_chosen.wgsl),
@@ -103,6 +106,33 @@ pub(super) struct LevelBuffers {
     pub pred_normal: GpuImage,
     pub u_pyramid: ParamBuffer<PyramidParams>,
     pub u_normal: ParamBuffer<NormalParams>,
+    /// The level of the intensity pyramid.
+    pub intensity: IntensityLevel,
+}
+
+/// One level of the frame's intensity pyramid: `intensity_pyramid`'s output and its
+/// parameters (written once: they depend on the sizes only).
+pub(super) struct IntensityLevel {
+    pub patch: GpuImage,
+    pub params: IntensityParams,
+    pub u_params: ParamBuffer<IntensityParams>,
+}
+
+impl IntensityLevel {
+    fn new(ctx: &GpuContext, params: IntensityParams) -> Result<Self> {
+        Ok(IntensityLevel {
+            patch: GpuImage::new(
+                ctx,
+                "intensity patches",
+                params.width,
+                params.height,
+                wgpu::TextureFormat::Rgba32Float,
+                true,
+            )?,
+            params,
+            u_params: ParamBuffer::new(ctx, "IntensityParams", &params),
+        })
+    }
 }
 
 impl FrameBuffers {
@@ -139,9 +169,16 @@ impl FrameBuffers {
         let n_blocks = crate::cpu::prefix_sum::scan_blocks(n_append);
         let mut add_block_sums = GpuArray::new(ctx, "new-surfel block sums", n_blocks)?;
         add_block_sums.set_len(n_blocks);
+        let coarser: Vec<[u32; 2]> = pyramid
+            .iter()
+            .map(|l| [l.down.width, l.down.height])
+            .collect();
+        let mut intensity = IntensityParams::levels(p.width, p.height, &coarser).into_iter();
+        let intensity0 = IntensityLevel::new(ctx, intensity.next().expect("level 0"))?;
         let levels = pyramid
             .iter()
-            .map(|l| {
+            .zip(intensity)
+            .map(|(l, intensity)| {
                 let (w, h) = (l.down.width, l.down.height);
                 let map = |label: &str| {
                     GpuImage::new(ctx, label, w, h, wgpu::TextureFormat::Rgba32Float, true)
@@ -155,6 +192,7 @@ impl FrameBuffers {
                     pred_normal: map("pyramid predicted normal map")?,
                     u_pyramid: ParamBuffer::new(ctx, "PyramidParams", &l.down),
                     u_normal: ParamBuffer::new(ctx, "NormalParams (pyramid)", &l.normal),
+                    intensity: IntensityLevel::new(ctx, intensity)?,
                 })
             })
             .collect::<Result<Vec<_>>>()?;
@@ -176,6 +214,7 @@ impl FrameBuffers {
             pred_vertex: full("predicted vertex map")?,
             pred_normal: full("predicted normal map")?,
             pred_intensity,
+            intensity: intensity0,
             assoc,
             merged,
             add_flags,

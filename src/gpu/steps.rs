@@ -18,7 +18,7 @@ use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel};
+use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel, RgbdSystems};
 use crate::slam::fused_view::FusedView;
 use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 use crate::{Error, Result};
@@ -85,6 +85,8 @@ impl Backend for GpuBackend {
             b.ahead = None;
         }
         self.ensure_frame(params, pyramid)?;
+        // A new frame: its intensity pyramid is made by the first `rgbd_system`.
+        self.photo.intensity_made = 0;
         let ctx = &self.ctx;
         let u = &self.uniforms;
         ctx.scoped("preprocess", || {
@@ -273,25 +275,49 @@ impl Backend for GpuBackend {
         Ok(sys)
     }
 
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
+        let levels = 1 + self.frame().levels.len();
+        if level >= levels {
+            return Err(Error::Argument(format!(
+                "RGB-D ICP at pyramid level {level}, but preprocess() made {levels} level(s)"
+            )));
+        }
         let wg = self.reduction_workgroups;
-        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        // The frame's intensity pyramid up to this level, finest first, where not made since
+        // `preprocess`: in this iteration's submission.
+        let made = self.photo.intensity_made;
+        self.photo.intensity_made = made.max(level + 1);
+        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         let (final_group, photo) = (&self.icp_final_group, &mut self.photo);
+        let mut passes: Vec<Pass> = Vec::new();
+        for l in made..=level {
+            let (group, p) = match l {
+                0 => (&bg.intensity_pyramid, &f.intensity),
+                l => (
+                    &bg.levels[l - 1].intensity_pyramid,
+                    &f.levels[l - 1].intensity,
+                ),
+            };
+            let grid =
+                k.intensity_pyramid
+                    .grid_workgroups_for_image(ctx, p.params.width, p.params.height);
+            passes.push((&k.intensity_pyramid, group, grid));
+        }
+        let (icp_group, photo_group) = match level {
+            0 => (&bg.icp_reduce, &bg.photo_reduce),
+            l => (&bg.levels[l - 1].icp_reduce, &bg.levels[l - 1].photo_reduce),
+        };
+        let len = ICP_SYSTEM_LEN as u32;
+        passes.extend([
+            (&k.icp_reduce, icp_group, [wg, 1]),
+            (&k.icp_reduce_final, final_group, [len, 1]),
+            (&k.photo_reduce, photo_group, [wg, 1]),
+            (&k.icp_reduce_final, &photo.final_group, [len, 1]),
+        ]);
         let both = ctx.scoped("icp_reduce", || {
             u.icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
-            let len = ICP_SYSTEM_LEN as u32;
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.icp_reduce, &bg.icp_reduce, [wg, 1]),
-                    (&k.icp_reduce_final, final_group, [len, 1]),
-                    (&k.photo_reduce, &bg.photo_reduce, [wg, 1]),
-                    (&k.icp_reduce_final, &photo.final_group, [len, 1]),
-                ],
-            )?;
+            record_passes(ctx, profiler, &mut enc, &passes)?;
             let srcs = [&self.system, &photo.system];
             photo
                 .readback

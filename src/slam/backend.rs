@@ -43,6 +43,9 @@ pub struct FrameLevel {
     pub normal_depth: Vec<[f32; 4]>,
 }
 
+/// [`Backend::rgbd_system`]'s two 29-entry systems: the geometric, then the photometric.
+pub type RgbdSystems = [[f64; ICP_SYSTEM_LEN]; 2];
+
 /// The parameters that make one coarser level `l >= 1` of the frame's and the model's
 /// pyramids from level `l - 1`: `pyramid_depth`'s and `pyramid_model`'s, and
 /// `vertex_to_normal`'s at the level's size.
@@ -135,11 +138,15 @@ pub trait Backend {
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
     /// carry that level's size and intrinsics): the summed 29-entry system.
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]>;
-    /// RGB-D tracking's systems at level 0 (`params` at level 0's size and intrinsics), in
-    /// one submission and one read-back: `icp_reduce`'s geometric system (as
-    /// [`Backend::icp_system`]) and `photo_reduce`'s photometric one (intensity residuals
-    /// against the last `predict`'s predicted intensity; see `cpu::photo_reduce`).
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]>;
+    /// RGB-D tracking's systems at pyramid level `level` (`params` at that level's size and
+    /// intrinsics), in one submission and one read-back: `icp_reduce`'s geometric system
+    /// (as [`Backend::icp_system`]) and `photo_reduce`'s photometric one (intensity
+    /// residuals against the last `predict`'s predicted intensity; see
+    /// `cpu::photo_reduce`). The first call at a level after a `preprocess` also makes the
+    /// frame's intensity pyramid down to that level where not made yet
+    /// (`intensity_pyramid`, finest first, in the same submission): geometric tracking
+    /// never pays for it, nor RGB-D tracking for levels it does not use.
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems>;
     /// `icp_candidates` at level 0 (`params` at level 0's size and intrinsics): source
     /// pixels of the last `predict` that pass ICP's filter 1 at `params.t_world_to_cam`.
     fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64>;
@@ -258,8 +265,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         (**self).icp_system(level, params)
     }
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
-        (**self).rgbd_system(params)
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
+        (**self).rgbd_system(level, params)
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         (**self).encode_ferns(params, ferns)

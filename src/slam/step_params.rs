@@ -2,7 +2,7 @@
 //! [`SlamParams`](crate::slam::params::SlamParams), intrinsics and pose: the one place
 //! where the pipeline's settings become what the shaders read.
 
-use crate::cpu::photo_reduce::{PHOTO_GRADIENT_MIN, PHOTO_HUBER, PHOTO_STRIDE_PX};
+use crate::cpu::photo_reduce::{PHOTO_GRADIENT_MIN, PHOTO_HUBER};
 use glam::DMat4;
 
 use crate::geometry::camera::Intrinsics;
@@ -145,8 +145,8 @@ impl<B: Backend> Slam<B> {
             photo_depth_gate_m: self.params.icp.dist_m,
             photo_huber: PHOTO_HUBER,
             photo_gradient_min: PHOTO_GRADIENT_MIN,
-            photo_stride_px: PHOTO_STRIDE_PX,
-            _pad1: 0,
+            photo_source_step: 1 << level,
+            photo_source_width: self.intrinsics.width,
             _pad2: 0,
         }
     }

@@ -98,8 +98,9 @@ impl<B: Backend> Icp<'_, B> {
         let schedule = &params.icp.level_iters;
         for (i, &max_iters) in schedule.iter().enumerate() {
             let level = schedule.len() - 1 - i;
-            // RGB-D tracking adds the photometric term at the full maps.
-            let photometric = level == 0 && params.icp.tracking == Tracking::Rgbd;
+            // RGB-D tracking adds the photometric term at the finest levels.
+            let photometric = params.icp.tracking == Tracking::Rgbd
+                && params.icp.photometric_levels.contains(&level);
             let budget = (max_iters, photometric);
             status = match self.level(level, budget, &mut t, &mut iterations)? {
                 LevelEnd::Converged => TrackStatus::Converged,
@@ -127,9 +128,8 @@ impl<B: Backend> Icp<'_, B> {
 
     /// Up to `max_iters` ICP iterations at pyramid `level` against its prediction, from
     /// `t` (world to camera), which each solved system updates; each iteration is
-    /// appended to `iterations`. With `photometric` (level 0 only: the predicted intensity
-    /// is level 0's, of the last `predict`) each iteration adds the photometric term
-    /// (`Backend::rgbd_system`). Ends at convergence, at the budget, or at a refused
+    /// appended to `iterations`. With `photometric` each iteration adds the photometric
+    /// term (`Backend::rgbd_system`). Ends at convergence, at the budget, or at a refused
     /// system (`t` then keeps the last good pose).
     pub fn level(
         &mut self,
@@ -140,13 +140,17 @@ impl<B: Backend> Icp<'_, B> {
     ) -> Result<LevelEnd> {
         let icp = &self.params.icp;
         let mut previous: Option<Twist> = None;
-        let rgbd = photometric && level == 0;
+        // The noise stop's bar: the photometric iterations' own where set.
+        let stop_chi2 = match icp.photometric_stop_chi2 {
+            bar if photometric && bar > 0.0 => bar,
+            _ => icp.stop_chi2,
+        };
         for _ in 0..max_iters {
             let ip = self.steps.icp_at(level, t);
-            let (eq, photo) = match rgbd {
+            let (eq, photo) = match photometric {
                 false => (self.backend.icp_system(level, &ip)?, None),
                 true => {
-                    let [geometric, photometric] = self.backend.rgbd_system(&ip)?;
+                    let [geometric, photometric] = self.backend.rgbd_system(level, &ip)?;
                     (geometric, Some(NormalEquations::decode(&photometric)))
                 }
             };
@@ -194,7 +198,7 @@ impl<B: Backend> Icp<'_, B> {
             previous = Some(s.x);
             it.stop = if r < icp.min_increment && tr < icp.min_increment {
                 Some(LevelStop::MinIncrement)
-            } else if chi2 < icp.stop_chi2 {
+            } else if chi2 < stop_chi2 {
                 Some(LevelStop::WithinNoise)
             } else if reversal {
                 Some(LevelStop::Reversal)

@@ -115,7 +115,17 @@ fn rust_layouts() -> Vec<RustLayout> {
             photo_depth_gate_m,
             photo_huber,
             photo_gradient_min,
-            photo_stride_px,
+            photo_source_step,
+            photo_source_width,
+            _pad2
+        }),
+        rust_layout!(IntensityParams {
+            width,
+            height,
+            fine_width,
+            fine_height,
+            level,
+            _pad0,
             _pad1,
             _pad2
         }),

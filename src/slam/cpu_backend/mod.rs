@@ -15,6 +15,7 @@ use crate::layout::{
     FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
     ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
+use crate::slam::backend::RgbdSystems;
 use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
@@ -35,6 +36,8 @@ pub struct CpuBackend {
     prediction: Vec<Prediction>,
     /// `predict_model`'s predicted intensity (level 0; see `cpu::photo_reduce`).
     pred_intensity: Vec<f32>,
+    /// The frame's intensity pyramid, made by `rgbd_system` (see `photo.rs`).
+    intensity: photo::IntensityPyramid,
     assoc: Vec<u64>,
     /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
     /// on every frame of best-candidate association (`fuse_flags`, `fuse_prune`).
@@ -120,6 +123,7 @@ impl Backend for CpuBackend {
         raw_rgba: &[u32],
     ) -> Result<()> {
         let n = (params.width * params.height) as usize;
+        self.intensity.new_frame(params, pyramid);
         let f = &mut self.frame;
         f.vertex.resize(n, cpu::INVALID);
         f.color.resize(n, cpu::INVALID);
@@ -269,9 +273,9 @@ impl Backend for CpuBackend {
         ))
     }
 
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
-        let geometric = self.icp_system(0, params)?;
-        Ok([geometric, self.photo_system(params)])
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
+        let geometric = self.icp_system(level, params)?;
+        Ok([geometric, self.photo_system(level, params)])
     }
 
     fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {

@@ -67,6 +67,17 @@ pub const ROBUST_MIN_INCREMENT: f64 = 1e-5;
 /// the test cuts only followed the noise.
 pub const ROBUST_STOP_CHI2: f64 = 6.0;
 
+/// `icp.photometric_stop_chi2` in the robust profile: the noise stop's bar at the
+/// iterations with the photometric term. At [`ROBUST_STOP_CHI2`] the full maps of RGB-D
+/// frames ran to their budget on a third of the real sensors' frames (7-Scenes 28 %,
+/// SUN3D 40 %: 3.4-3.7 level-0 iterations per frame against geometric tracking's 2.0),
+/// each iteration two reductions. Measured (release, CPU, ATE and user time against
+/// geometric tracking, bar 6 -> 20 -> 60): 7-Scenes 0..299 21.67 -> 21.55 -> 21.20 mm,
+/// 1.47x -> 1.37x -> 1.23-1.33x; SUN3D frag2 7.31 -> 7.35 -> 7.31 mm, 1.52x -> 1.44x ->
+/// 1.19-1.38x; noisy ICL-NUIM 1..200 at 640x480 3.45 -> 3.46 -> 3.53 mm, 1.30x -> 1.24x
+/// -> 1.17-1.21x (`docs/rgbd-tracking.md`).
+pub const ROBUST_PHOTOMETRIC_STOP_CHI2: f64 = 60.0;
+
 /// ICP iterations per pyramid level of the robust profile, coarse to fine (level 2 at
 /// 80x60, level 1 at 160x120, level 0 at 320x240 with the default downsampling):
 /// KinectFusion's schedule, the cheapest measured that keeps tracking at every 12th frame
@@ -179,3 +190,11 @@ pub const LOOP_OTHER_EDGE_SLACK_M: f64 = 0.001;
 /// 7.60 -> 3.45 -> 1.81 mm: 0.3 is the best of the two real sensors
 /// (`docs/rgbd-tracking.md`).
 pub const PHOTOMETRIC_WEIGHT: f64 = 0.3;
+
+/// `icp.photometric_levels`: the pyramid levels with the photometric term, the full maps
+/// only. Measured (release, CPU, robust profile, ATE at `[0]` -> `[0, 1]` -> `[0, 1, 2]`):
+/// SUN3D frag2 7.31 -> 7.53 -> 7.55 mm; 7-Scenes 0..299 21.67 -> 21.69 -> 21.66 mm; noisy
+/// ICL-NUIM 1..200 at 640x480 3.45 -> 3.43 -> 3.43 mm, for about the same time; the
+/// coarse levels alone (`[1, 2]`) track as the geometric term does (7.99, 20.79, 7.54 mm):
+/// the term's gain is all at the full maps (`docs/rgbd-tracking.md`).
+pub const PHOTOMETRIC_LEVELS: &[usize] = &[0];

@@ -246,6 +246,11 @@ pub struct IcpSettings {
     /// [`ROBUST_STOP_CHI2`].
     #[serde(default)]
     pub stop_chi2: f64,
+    /// The same test's bar at the iterations with the photometric term (RGB-D tracking),
+    /// the step still measured in the geometric term's covariance; 0: `stop_chi2`'s (the
+    /// assignment's). See [`ROBUST_PHOTOMETRIC_STOP_CHI2`].
+    #[serde(default)]
+    pub photometric_stop_chi2: f64,
     /// Stop a level when an increment undoes most of the previous one (projective
     /// association flipping between two correspondence sets), leaving the pose halfway;
     /// off in the assignment's.
@@ -259,7 +264,7 @@ pub struct IcpSettings {
     /// (`--icp-degenerate-ratio`).
     pub degenerate_eigen_ratio: f64,
     /// What frame-to-model tracking aligns: the depth only (point-to-plane ICP), or depth
-    /// and colour (with the photometric term at the full maps; `--tracking`).
+    /// and colour (with the photometric term; `--tracking`).
     #[serde(default)]
     pub tracking: Tracking,
     /// With `tracking = "rgbd"`: the photometric term's weight relative to the geometric
@@ -268,6 +273,17 @@ pub struct IcpSettings {
     /// much as a point-to-plane one (`--photometric-weight`; see [`PHOTOMETRIC_WEIGHT`]).
     #[serde(default = "photometric_weight_default")]
     pub photometric_weight: f64,
+    /// With `tracking = "rgbd"`: the pyramid levels that carry the photometric term (0: the
+    /// full maps, 1 the next coarser, ...; each below the number of `level_iters`)
+    /// (`--photometric-levels`; see [`PHOTOMETRIC_LEVELS`]).
+    #[serde(default = "photometric_levels_default")]
+    pub photometric_levels: Vec<usize>,
+}
+
+/// The default of [`IcpSettings::photometric_levels`] (serde's default for files written
+/// before the key existed).
+fn photometric_levels_default() -> Vec<usize> {
+    PHOTOMETRIC_LEVELS.to_vec()
 }
 
 /// The default of [`IcpSettings::photometric_weight`] (serde's default for files written
@@ -285,12 +301,13 @@ pub enum Tracking {
     #[default]
     Geometric,
     /// Point-to-plane ICP plus a photometric term: the frame's intensity against the
-    /// intensity the map predicts, added to the geometric system with the weight
+    /// intensity the map predicts, at the pyramid levels --photometric-levels names (the
+    /// full maps by default), added to the geometric system with the weight
     /// --photometric-weight (docs/rgbd-tracking.md).
     //
     // Clap shows these doc comments as `--help` text: no intra-doc links
-    // (`cli::help_tests`). The code is `cpu::photo_reduce` and
-    // `IcpSettings::photometric_weight`.
+    // (`cli::help_tests`). The code is `cpu::photo_reduce`,
+    // `IcpSettings::photometric_levels` and `IcpSettings::photometric_weight`.
     Rgbd,
 }
 
@@ -517,11 +534,13 @@ impl SlamParams {
                 level_iters: vec![10],
                 min_increment: 1e-6,
                 stop_chi2: 0.0,
+                photometric_stop_chi2: 0.0,
                 stop_on_reversal: false,
                 pyramid: PyramidSettings::default(),
                 degenerate_eigen_ratio: 0.0,
                 tracking: Tracking::Geometric,
                 photometric_weight: PHOTOMETRIC_WEIGHT,
+                photometric_levels: PHOTOMETRIC_LEVELS.to_vec(),
             },
             fusion: FusionSettings {
                 dist_m: 0.03,
@@ -548,6 +567,7 @@ impl SlamParams {
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),
                     min_increment: ROBUST_MIN_INCREMENT,
                     stop_chi2: ROBUST_STOP_CHI2,
+                    photometric_stop_chi2: ROBUST_PHOTOMETRIC_STOP_CHI2,
                     stop_on_reversal: true,
                     degenerate_eigen_ratio: ROBUST_DEGENERATE_EIGEN_RATIO,
                     ..assignment.icp

@@ -89,10 +89,26 @@ impl SlamParams {
                 icp.photometric_weight
             ));
         }
+        let levels = icp.level_iters.len();
+        let photo = &icp.photometric_levels;
+        if photo.is_empty() || photo.iter().any(|&l| l >= levels) {
+            return fail(format!(
+                "`icp.photometric_levels` {photo:?}: want one or more pyramid levels below \
+                 {levels} (0: the full maps; `icp.level_iters` has {levels}); for no \
+                 photometric term use `icp.tracking = \"geometric\"`"
+            ));
+        }
         if !(icp.stop_chi2.is_finite() && icp.stop_chi2 >= 0.0) {
             return fail(format!(
                 "`icp.stop_chi2` {} must be a non-negative number (0: off)",
                 icp.stop_chi2
+            ));
+        }
+        let bar = icp.photometric_stop_chi2;
+        if !(bar.is_finite() && bar >= 0.0) {
+            return fail(format!(
+                "`icp.photometric_stop_chi2` {bar} must be a non-negative number (0: as \
+                 `icp.stop_chi2`)"
             ));
         }
         for (flag, v) in [
@@ -244,7 +260,7 @@ mod tests {
             p.fusion.unstable_removal = Some(r);
         }
         type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 28] = [
+        let cases: [(&str, Spoil); 32] = [
             ("`icp.level_iters`", |p| {
                 p.icp.level_iters = vec![MAX_ICP_ITERS_PER_LEVEL + 1]
             }),
@@ -301,6 +317,19 @@ mod tests {
                 removal(p, |r| r.every_frames = 0)
             }),
             ("`fusion.dist_m`", |p| p.fusion.dist_m = 0.0),
+            ("`icp.photometric_levels`", |p| {
+                p.icp.photometric_levels = vec![]
+            }),
+            // A level the schedule does not have (the assignment's one, the robust three).
+            ("`icp.photometric_levels`", |p| {
+                p.icp.photometric_levels = vec![0, p.icp.level_iters.len()]
+            }),
+            ("`icp.photometric_stop_chi2`", |p| {
+                p.icp.photometric_stop_chi2 = -1.0
+            }),
+            ("`icp.photometric_stop_chi2`", |p| {
+                p.icp.photometric_stop_chi2 = f64::NAN
+            }),
         ];
         for profile in [Profile::Assignment, Profile::Robust] {
             for (option, spoil) in cases {

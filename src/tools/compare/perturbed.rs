@@ -11,7 +11,7 @@ use crate::layout::{
 };
 use crate::slam::backend::{
     Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
-    PyramidLevel,
+    PyramidLevel, RgbdSystems,
 };
 use crate::slam::cpu_backend::CpuBackend;
 use crate::slam::map::SurfelMap;
@@ -108,8 +108,8 @@ impl Backend for PerturbedCpu {
         }
         Ok(system)
     }
-    fn rgbd_system(&mut self, params: &IcpParams) -> Result<[[f64; ICP_SYSTEM_LEN]; 2]> {
-        let mut systems = self.run(|b| b.rgbd_system(params))?;
+    fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
+        let mut systems = self.run(|b| b.rgbd_system(level, params))?;
         if self.plant == Some(Plant::SystemRowSign) {
             systems[0][ICP_ATB_OFFSET + SIGN_FLIPPED_ROW] *= -1.0;
         }

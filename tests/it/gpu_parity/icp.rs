@@ -50,6 +50,17 @@ fn nudge() -> DMat4 {
 /// The CPU's and the GPU's 29-float systems of one case agree: inliers, the decoded AᵀA and
 /// Aᵀb (the measure `wgslam compare` uses) and the solved increments.
 fn check_systems(label: &str, sys_c: &[f64; ICP_SYSTEM_LEN], sys_g: &[f64; ICP_SYSTEM_LEN]) {
+    check_systems_of(label, sys_c, sys_g, 10_000);
+}
+
+/// [`check_systems`] with at least `min_inliers` on the CPU (a coarse level has fewer
+/// pixels).
+fn check_systems_of(
+    label: &str,
+    sys_c: &[f64; ICP_SYSTEM_LEN],
+    sys_g: &[f64; ICP_SYSTEM_LEN],
+    min_inliers: u64,
+) {
     let (c, g) = (
         NormalEquations::decode(sys_c),
         NormalEquations::decode(sys_g),
@@ -62,7 +73,7 @@ fn check_systems(label: &str, sys_c: &[f64; ICP_SYSTEM_LEN], sys_g: &[f64; ICP_S
         c.inliers, g.inliers, c.residual_sq_sum, g.residual_sq_sum
     );
     assert!(
-        c.inliers > 10_000,
+        c.inliers > min_inliers,
         "{label}: too few inliers for a real test"
     );
     assert!(
@@ -121,12 +132,89 @@ fn rgbd_systems_match_twin(mut gpu: GpuBackend) {
     let (mut s, t_true) = frame_4_on_both(&mut gpu);
     for (label, t) in [("true pose", t_true), ("perturbed pose", nudge() * t_true)] {
         let ip = s.icp_params(0, &t);
-        let [geo_c, photo_c] = s.backend.rgbd_system(&ip).unwrap();
-        let [geo_g, photo_g] = gpu.rgbd_system(&ip).unwrap();
+        let [geo_c, photo_c] = s.backend.rgbd_system(0, &ip).unwrap();
+        let [geo_g, photo_g] = gpu.rgbd_system(0, &ip).unwrap();
         assert_eq!(geo_c, s.backend.icp_system(0, &ip).unwrap(), "{label}");
         assert_eq!(geo_g, gpu.icp_system(0, &ip).unwrap(), "{label}");
         check_systems(&format!("{label}, geometric"), &geo_c, &geo_g);
         check_systems(&format!("{label}, photometric"), &photo_c, &photo_g);
+    }
+}
+
+/// Intensity patches differ by at most this (intensity units, 0..1): the luma and the
+/// binomial mean are a few multiply-adds of values below 1, so f32 rounding (and fused
+/// multiply-add on a GPU) moves them by a few 1e-8; 1e-6 leaves a margin of 10.
+const INTENSITY_TOL: f32 = 1e-6;
+
+/// intensity_pyramid against its twin on every level of a real frame (robust profile, three
+/// levels), then photo_reduce at every level through `rgbd_system`: the photometric and
+/// geometric systems agree as icp_reduce's do at level 0.
+fn intensity_pyramid_and_coarse_rgbd_match_twin(mut gpu: GpuBackend) {
+    let (mut s, gt) = robust_pyramids_on_both(&mut gpu, 4, 3);
+    let nudge = se3::exp(&[0.002, -0.001, 0.003, 0.004, 0.002, -0.003]);
+    let t = nudge * se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    for level in (0..3).rev() {
+        let ip = s.icp_params(level, &t);
+        let [geo_c, photo_c] = s.backend.rgbd_system(level, &ip).unwrap();
+        let [geo_g, photo_g] = gpu.rgbd_system(level, &ip).unwrap();
+        assert_eq!(geo_c, s.backend.icp_system(level, &ip).unwrap(), "{level}");
+        // A real test at every level: a tenth of the level's pixels.
+        let min = s.level_intrinsics(level).pixels() as u64 / 10;
+        check_systems_of(&format!("level {level}, geometric"), &geo_c, &geo_g, min);
+        // The photometric system alone is ill-conditioned at the coarse levels (a few
+        // thousand rows of image gradient): its entries must agree, and the increment of
+        // the system the tracker solves, the two combined.
+        let (ata, atb) = system_rel_diffs(&photo_c, &photo_g);
+        let (pc, pg) = (
+            NormalEquations::decode(&photo_c),
+            NormalEquations::decode(&photo_g),
+        );
+        eprintln!(
+            "level {level}, photometric: inliers cpu {} gpu {}; rel diff AᵀA {ata:e} Aᵀb {atb:e}",
+            pc.inliers, pg.inliers
+        );
+        assert!(pc.inliers > min, "level {level}: too few photometric rows");
+        let allowed = (pc.inliers as f64 * INLIER_FRACTION_TOL).ceil() as u64;
+        assert!(pc.inliers.abs_diff(pg.inliers) <= allowed, "level {level}");
+        assert!(
+            ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
+            "level {level}"
+        );
+        let w = s.params.icp.photometric_weight;
+        let combined = |geo: &[f64; ICP_SYSTEM_LEN], photo: &NormalEquations| {
+            let x = NormalEquations::decode(geo)
+                .with_photometric(photo, w)
+                .solve();
+            x.expect("a well-posed combined system")
+        };
+        let (xc, xg) = (combined(&geo_c, &pc), combined(&geo_g, &pg));
+        let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
+        assert!(
+            dx <= INCREMENT_TOL,
+            "level {level}: combined increments differ by {dx:e}"
+        );
+    }
+    let cpu_patches = s.backend.intensity_patches().to_vec();
+    let gpu_patches = gpu.download_intensity_patches().unwrap();
+    assert_eq!(cpu_patches.len(), 3);
+    assert_eq!(gpu_patches.len(), 3);
+    for (level, (c, g)) in cpu_patches.iter().zip(&gpu_patches).enumerate() {
+        assert_eq!(c.len(), s.level_intrinsics(level).pixels(), "level {level}");
+        assert_eq!(c.len(), g.len(), "level {level}");
+        let mut textured = 0;
+        for (i, (pc, pg)) in c.iter().zip(g).enumerate() {
+            for k in 0..4 {
+                assert!(
+                    (pc[k] - pg[k]).abs() <= INTENSITY_TOL,
+                    "level {level} pixel {i} corner {k}: cpu {pc:?} gpu {pg:?}"
+                );
+            }
+            textured += (pc[1] != pc[0]) as usize;
+        }
+        assert!(
+            textured > c.len() / 2,
+            "level {level}: a flat image tests little"
+        );
     }
 }
 
@@ -285,6 +373,9 @@ pub(super) fn tests() -> Vec<Test> {
         ),
         gpu("coarse_icp_systems_match_twin", |ctx| {
             coarse_icp_systems_match_twin(gpu_backend(ctx))
+        }),
+        gpu("intensity_pyramid_and_coarse_rgbd_match_twin", |ctx| {
+            intensity_pyramid_and_coarse_rgbd_match_twin(gpu_backend(ctx))
         }),
     ]
 }
