@@ -182,8 +182,16 @@ struct FuseParams {
     association: u32,
     confidence_sigma: f32,
     prune_radius_scale: f32,
-    _pad1: u32,
+    dist_confident_m: f32,
     _pad2: u32,
+}
+
+// Best-candidate fusion's depth gate (metres) for a surfel of weight `weight`: from
+// dist_threshold_m for a surfel seen once towards dist_confident_m as its weight grows.
+// Mirrors `fuse_depth_gate` in src/cpu/mod.rs.
+fn fuse_depth_gate(params: FuseParams, weight: f32) -> f32 {
+    return params.dist_confident_m
+        + (params.dist_threshold_m - params.dist_confident_m) / max(weight, 1.0);
 }
 
 // FuseParams::association (mirror `layout::ASSOCIATION_PROJECTIVE`, `..._BEST_CANDIDATE`).

@@ -62,7 +62,7 @@ fn neighbour_covers(params: FuseParams, texel: vec2<u32>, nd: vec4<f32>) -> bool
             let nr = merged[2u * pix + 1u];
             let p_cam = transform_point(params.t_world_to_cam, xyz(pw));
             let n_cam = transform_dir(params.t_world_to_cam, xyz(nr));
-            if candidate_off_ray(cam, texel, nd, p_cam, n_cam, nr.w, params.dist_threshold_m,
+            if candidate_off_ray(cam, texel, nd, p_cam, n_cam, nr.w, fuse_depth_gate(params, pw.w),
                 params.cos_normal_threshold) >= 0.0 {
                 return true;
             }

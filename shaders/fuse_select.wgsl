@@ -67,7 +67,7 @@ fn per_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     }
     let n_cam = transform_dir(params.t_world_to_cam, bitcast<vec3<f32>>(normal_frame[slot].xyz));
     let off_ray = candidate_off_ray(cam, texel, nd, p_cam, n_cam, color[slot].w,
-        params.dist_threshold_m, params.cos_normal_threshold);
+        fuse_depth_gate(params, position_weight[slot].w), params.cos_normal_threshold);
     if off_ray < 0.0 {
         return;
     }

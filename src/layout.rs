@@ -288,7 +288,10 @@ pub struct FuseParams {
     /// that was not refreshed retires when the surfel its pixel merged into lies within
     /// this many times the larger of their radii; 0 turns pruning off.
     pub prune_radius_scale: f32,
-    pub _pad1: u32,
+    /// Best-candidate fusion's depth gate for a confident surfel, metres (at most
+    /// `dist_threshold_m`; equal to it for one gate for every surfel): see
+    /// `cpu::fuse_depth_gate`.
+    pub dist_confident_m: f32,
     pub _pad2: u32,
 }
 

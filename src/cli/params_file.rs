@@ -261,7 +261,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 41] = [
+    const OPTION_VALUES: [(&str, &str); 42] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -288,6 +288,7 @@ mod tests {
         ("pyramid-radius", "2"),
         ("pyramid-depth-gate-z2", "0.1"),
         ("fuse-dist", "0.012345679"),
+        ("fuse-dist-confident", "0.0234"),
         ("fuse-angle", "33.3"),
         ("fuse-association", "best-candidate"),
         ("confidence-sigma", "0.7"),

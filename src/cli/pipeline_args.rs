@@ -222,6 +222,11 @@ param_overrides! {
     /// Fusion distance threshold, metres (assignment 0.03, robust 0.05).
     #[arg(long)]
     fuse_dist: Option<f32> => "fusion.dist_m",
+    /// Best-candidate fusion's depth gate for a surfel fused many times, metres: the gate
+    /// narrows from --fuse-dist towards it as the surfel's weight grows; 0 keeps
+    /// --fuse-dist for every surfel (both profiles 0; docs/robust-profile.md measures 0.04).
+    #[arg(long)]
+    fuse_dist_confident: Option<f32> => "fusion.dist_confident_m",
     /// Fusion normal-angle threshold, degrees (assignment 5, robust 60).
     #[arg(long)]
     fuse_angle: Option<f32> => "fusion.normal_deg",

@@ -13,7 +13,8 @@
 //! the image instead of the map.
 
 use super::{
-    append_index, candidate_off_ray, is_valid, pixel_grid, transform_dir, transform_point, xyz,
+    append_index, candidate_off_ray, fuse_depth_gate, is_valid, pixel_grid, transform_dir,
+    transform_point, xyz,
 };
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
@@ -76,7 +77,7 @@ fn neighbour_covers(
                 p_cam,
                 n_cam,
                 nr[3],
-                params.dist_threshold_m,
+                fuse_depth_gate(params, pw[3]),
                 params.cos_normal_threshold,
             )
             .is_some()

@@ -5,8 +5,9 @@
 //! For every surfel (world frame): move it and its normal into the tracked camera and
 //! project it (filter 1: inside the image, `z > 0`). If its pixel has a valid measurement
 //! `q` (camera frame, rebuilt with `back_project`), filter 2 ([`candidate_off_ray`]) has
-//! three gates: the distance along the pixel's ray `|(p - q) . ray| < dist_threshold_m`
-//! (depth), the distance off the ray `|(p - q) - ((p - q) . ray) ray| < radius` (the disc
+//! three gates: the distance along the pixel's ray `|(p - q) . ray|` below the surfel's
+//! depth gate ([`fuse_depth_gate`]: `dist_threshold_m` for a surfel seen once, narrowing
+//! towards `dist_confident_m` as its weight grows), the distance off the ray `|(p - q) - ((p - q) . ray) ray| < radius` (the disc
 //! covers the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels
 //! that pass, the pixel keeps the one nearest its ray (smallest off-ray distance; ties to
 //! the larger index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the
@@ -24,8 +25,8 @@
 
 use super::key_writer::KeyWriter;
 use super::{
-    candidate_off_ray, depth_key, is_valid, normal_of, project_to_texel, transform_dir,
-    transform_point, visible_surfels, xyz,
+    candidate_off_ray, depth_key, fuse_depth_gate, is_valid, normal_of, project_to_texel,
+    transform_dir, transform_point, visible_surfels, xyz,
 };
 use crate::layout::{FuseParams, MapChunk};
 
@@ -95,7 +96,7 @@ fn select_for_surfel<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
         p_cam,
         n_cam,
         map.color[slot][3],
-        params.dist_threshold_m,
+        fuse_depth_gate(params, map.position_weight[slot][3]),
         params.cos_normal_threshold,
     ) else {
         return;

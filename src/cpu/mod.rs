@@ -57,7 +57,7 @@ pub use entries::{pixel_grid, system_grid, visible_surfels};
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::layout::{
-    f32_from_ordered, morton_2d, GpuMat4, MapChunk, APPEND_TILE_PX, BLOCK_SURFELS,
+    f32_from_ordered, morton_2d, FuseParams, GpuMat4, MapChunk, APPEND_TILE_PX, BLOCK_SURFELS,
 };
 
 /// Margin, pixels, by which [`block_visible`]'s frustum is wider than the image (see
@@ -200,6 +200,20 @@ pub fn normal_of(nf: [u32; 4]) -> Vec3 {
         f32::from_bits(nf[1]),
         f32::from_bits(nf[2]),
     )
+}
+
+/// Best-candidate fusion's depth gate (metres) for a surfel of weight `weight`: from
+/// `dist_threshold_m` for a surfel seen once (weight 1 or less) towards `dist_confident_m`
+/// as its weight grows, `dist_confident_m + (dist_threshold_m - dist_confident_m) /
+/// max(weight, 1)`; exactly `dist_threshold_m` when the two are equal. Mirrors
+/// `fuse_depth_gate` in common.wgsl.
+#[inline]
+pub fn fuse_depth_gate(params: &FuseParams, weight: f32) -> f32 {
+    params.dist_confident_m
+        + arith::div(
+            params.dist_threshold_m - params.dist_confident_m,
+            weight.max(1.0),
+        )
 }
 
 /// Filter 2 of best-candidate association (`fuse_select`, `fuse_flags`): how far surfel

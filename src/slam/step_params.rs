@@ -12,7 +12,7 @@ use crate::layout::{
     PreprocessParams, ProjectParams, PyramidParams,
 };
 use crate::slam::backend::{Backend, PyramidLevel};
-use crate::slam::params::UnstableRemoval;
+use crate::slam::params::{FusionSettings, UnstableRemoval};
 use crate::slam::pipeline::Slam;
 
 /// `IcpParams::cos_normal_threshold` that turns the angle gate off (below -1).
@@ -171,7 +171,7 @@ impl<B: Backend> Slam<B> {
             association: self.params.fusion.association.code(),
             confidence_sigma: self.params.fusion.confidence_sigma,
             prune_radius_scale: self.prune_scale(frame_id),
-            _pad1: 0,
+            dist_confident_m: confident_gate_m(&self.params.fusion),
             _pad2: 0,
         }
     }
@@ -207,5 +207,63 @@ impl<B: Backend> Slam<B> {
             stable_weight: r.stable_weight,
             max_age_frames: r.max_age_frames,
         })
+    }
+}
+
+/// The confident surfels' depth gate as `FuseParams` carries it: `dist_confident_m`, or
+/// `dist_m` where it is 0 (one gate for every surfel) or larger (a gate narrows with weight,
+/// it never widens: `--fuse-dist 0.03` alone narrows every surfel's gate).
+fn confident_gate_m(f: &FusionSettings) -> f32 {
+    match f.dist_confident_m {
+        d if d > 0.0 => d.min(f.dist_m),
+        _ => f.dist_m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::fuse_depth_gate;
+    use crate::slam::params::{Profile, SlamParams};
+
+    /// A surfel seen once keeps the wide gate, one fused many times nears the narrow one;
+    /// with one gate (the assignment, or a narrow gate at or above `dist_m`) every surfel
+    /// has exactly `dist_m`.
+    #[test]
+    fn a_surfels_depth_gate_narrows_with_its_weight() {
+        let robust = SlamParams::profile(Profile::Robust).fusion;
+        assert_eq!(
+            confident_gate_m(&robust),
+            robust.dist_m,
+            "off in the profile"
+        );
+        let narrowing = FusionSettings {
+            dist_confident_m: 0.04,
+            ..robust
+        };
+        let mut p: FuseParams = bytemuck::Zeroable::zeroed();
+        p.dist_threshold_m = narrowing.dist_m;
+        p.dist_confident_m = confident_gate_m(&narrowing);
+        assert_eq!(p.dist_confident_m, 0.04);
+        assert_eq!(
+            fuse_depth_gate(&p, 0.3),
+            0.05,
+            "below weight 1: the wide gate"
+        );
+        assert_eq!(fuse_depth_gate(&p, 1.0), 0.05);
+        assert!((fuse_depth_gate(&p, 2.0) - 0.045).abs() < 1e-7);
+        assert!((fuse_depth_gate(&p, 1e4) - 0.04).abs() < 1e-6);
+        let assignment = SlamParams::profile(Profile::Assignment).fusion;
+        let too_wide = FusionSettings {
+            dist_confident_m: 0.07,
+            ..robust
+        };
+        for f in [assignment, robust, too_wide] {
+            p.dist_threshold_m = f.dist_m;
+            p.dist_confident_m = confident_gate_m(&f);
+            for w in [0.0, 1.0, 3.0, 1e6] {
+                assert_eq!(fuse_depth_gate(&p, w), f.dist_m, "weight {w}");
+            }
+        }
     }
 }

@@ -146,7 +146,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             association,
             confidence_sigma,
             prune_radius_scale,
-            _pad1,
+            dist_confident_m,
             _pad2
         }),
         rust_layout!(CompactParams {

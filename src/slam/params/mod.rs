@@ -315,8 +315,16 @@ pub enum Tracking {
 /// pruning and the removal of unstable surfels.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FusionSettings {
-    /// Filter 2: maximum point distance, metres (`--fuse-dist`).
+    /// Filter 2: maximum point distance, metres (`--fuse-dist`). With best-candidate
+    /// association it is the depth gate of a surfel seen once (weight 1 or less).
     pub dist_m: f32,
+    /// Best-candidate association's depth gate for a surfel fused many times, metres
+    /// (`--fuse-dist-confident`; `cpu::fuse_depth_gate` narrows a surfel's gate from
+    /// `dist_m` towards it as its weight grows). 0, or above `dist_m`: `dist_m` for every
+    /// surfel (both profiles; files written before the key). Measurements:
+    /// `docs/robust-profile.md`.
+    #[serde(default)]
+    pub dist_confident_m: f32,
     /// Filter 2: maximum normal angle, degrees (`--fuse-angle`).
     pub normal_deg: f32,
     /// How fusion pairs pixels with surfels (`--fuse-association`).
@@ -544,6 +552,7 @@ impl SlamParams {
             },
             fusion: FusionSettings {
                 dist_m: 0.03,
+                dist_confident_m: 0.0,
                 normal_deg: 5.0,
                 association: Association::Projective,
                 confidence_sigma: 0.0,
@@ -574,6 +583,9 @@ impl SlamParams {
                 },
                 fusion: FusionSettings {
                     dist_m: ROBUST_FUSE_DIST_M,
+                    // Off: narrower gates for confident surfels help single passes and
+                    // let a revisiting run's ATE creep up (docs/robust-profile.md).
+                    dist_confident_m: 0.0,
                     normal_deg: ROBUST_FUSE_NORMAL_DEG,
                     association: Association::BestCandidate,
                     confidence_sigma: ROBUST_CONFIDENCE_SIGMA,

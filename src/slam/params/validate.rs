@@ -130,6 +130,7 @@ impl SlamParams {
             ("`icp.huber_m`", icp.huber_m),
             ("`fusion.confidence_sigma`", f.confidence_sigma),
             ("`fusion.prune_scale`", f.prune_scale),
+            ("`fusion.dist_confident_m`", f.dist_confident_m),
         ] {
             if !off_or_positive(v as f64) {
                 return fail(format!("{flag} {v} must be 0 (off) or positive"));

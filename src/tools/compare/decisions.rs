@@ -7,8 +7,8 @@
 //!
 //! The quantities, as the kernels compute them in f32: the projection `u = fx x / z + cx +
 //! 0.5` (which pixel a surfel lands in), and at that pixel the gates of `fuse_select`'s
-//! `candidate_off_ray` (best candidate: distance along and off the pixel's ray, normal
-//! cosine, then the smallest off-ray distance wins) or `fuse_merge`'s (projective:
+//! `candidate_off_ray` (best candidate: distance along the pixel's ray against the
+//! surfel's own depth gate, `cpu::fuse_depth_gate`, distance off it, normal cosine, then the smallest off-ray distance wins) or `fuse_merge`'s (projective:
 //! world-frame distance and normal cosine). The bounds on their f32 error, from the WGSL
 //! accuracy table (0.5 ULP for `+ - *`, fused or not; 2.5 ULP for `/`; `sqrt`, `length`,
 //! `normalize` inherited, see `crate::cpu::arith`), are the `*_ULPS` constants; an ULP of
@@ -44,6 +44,10 @@ pub const COSINE_ULPS: f64 = 16.0;
 /// 1`: `fx x` (0.5), `/ z` (2.5), `+ cx` and `+ 0.5` (0.5 each): 4; 8 with headroom. The
 /// camera point's error ([`POSITION_ULPS`]) comes on top, through `du/dp`.
 pub const PIXEL_ULPS: f64 = 8.0;
+/// Error of best-candidate fusion's depth gate for a surfel (`cpu::fuse_depth_gate`), in
+/// ULPs of `dist_threshold_m`: a difference (0.5), a division (2.5) and a sum (0.5) of
+/// terms at most the gate: 3.5; 8 with headroom.
+pub const GATE_ULPS: f64 = 8.0;
 /// Clear flips allowed per frame: none. Rounding within the table cannot move a quantity
 /// across its gate from farther than the bounds above, on any conformant adapter.
 pub const CLEAR_FLIPS_MAX: usize = 0;
@@ -375,7 +379,17 @@ fn gates(
         let off = (d - ray * along).length();
         let err = 2.0 * e_pos + LENGTH_ULPS * eps * d.length();
         let radius = map.color[s][3] as f64;
-        gate("distance along the ray", dist - along.abs(), err, dist);
+        // The surfel's own depth gate, narrowing with its weight (`cpu::fuse_depth_gate`).
+        let confident = p.dist_confident_m as f64;
+        let weight = (map.position_weight[s][3] as f64).max(1.0);
+        let dist = confident + (dist - confident) / weight;
+        let gate_err = GATE_ULPS * eps * p.dist_threshold_m as f64;
+        gate(
+            "distance along the ray",
+            dist - along.abs(),
+            err + gate_err,
+            dist,
+        );
         gate("distance off the ray", radius - off, err, radius);
         let n_cam = apply(&p.t_world_to_cam, n_world, 0.0);
         gate(

@@ -19,6 +19,10 @@ use wgslam::slam::params::{Profile, SlamParams};
 /// of them.
 const INTERLEAVE_STRIDE: usize = 64;
 
+/// A confident surfel's depth gate for the best-candidate checks, metres: below the robust
+/// profile's 0.05, as `docs/robust-profile.md` measures it.
+const NARROWING_GATE_M: f32 = 0.04;
+
 /// `m` reordered: every `stride`-th surfel from 0, then every `stride`-th from 1, and so
 /// on, so surfels made from neighbouring pixels (neighbours in append order) end up far
 /// apart in the map.
@@ -75,6 +79,10 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
     }
     fp.prune_radius_scale = params.fusion.prune_scale;
     if fp.association == ASSOCIATION_BEST_CANDIDATE {
+        // Both profiles keep one depth gate; the kernels are checked with a gate that
+        // narrows with weight (`--fuse-dist-confident`), so that path is the twin's too.
+        assert_eq!(fp.dist_confident_m, fp.dist_threshold_m);
+        fp.dist_confident_m = NARROWING_GATE_M;
         check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
     }
     let n_cpu = s.backend.fuse(&fp).unwrap();
