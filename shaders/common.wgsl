@@ -126,7 +126,7 @@ struct BilateralParams {
     sigma_space_px: f32,
     sigma_depth_m: f32,
     sigma_depth_per_m2: f32,
-    _pad1: u32,
+    filter_points: u32,
     _pad2: u32,
 }
 

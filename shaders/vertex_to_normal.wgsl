@@ -1,5 +1,6 @@
 // vertex_to_normal.wgsl: normal map from the vertex map by central differences, oriented
-// towards the camera. CPU twin: src/cpu/vertex_to_normal.rs (its header states the rules).
+// towards the camera, with each pixel's depth from the point map. CPU twin:
+// src/cpu/vertex_to_normal.rs (its header states the rules).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A valid normal implies a valid vertex, and every later kernel that reads this frame needs
@@ -14,9 +15,13 @@
 @group(0) @binding(0) var<storage, read> params: NormalParams;
 // width x height, camera frame (metres), w = 1 / 0.
 @group(0) @binding(1) var vertex_map: texture_2d<f32>;
-// Out: width x height; xyz = the unit normal (camera frame), w = the vertex's depth z
-// (metres, > 0) where the normal is valid; all zero where it is not.
+// Out: width x height; xyz = the unit normal (camera frame), w = the point map's depth z
+// (metres, > 0) where the normal and the point are valid; all zero where not.
 @group(0) @binding(2) var normal_depth: texture_storage_2d<rgba32float, write>;
+// width x height, camera frame (metres), w = 1 / 0: the points whose depth the texel
+// carries, which ICP and fusion rebuild; vertex_map itself, or at level 0 with the
+// bilateral filter the unfiltered map (the robust profile's raw points, see the twin).
+@group(0) @binding(3) var point_map: texture_2d<f32>;
 
 // The normal of pixel (u, v) with the pixel's depth in w, or INVALID (the rules of the
 // module header). `params` is main's copy of the binding (see main).
@@ -46,7 +51,11 @@ fn normal_at(params: NormalParams, u: u32, v: u32) -> vec4<f32> {
     if dot(nn, xyz(c)) > 0.0 {
         nn = -nn;
     }
-    return vec4<f32>(nn, c.z);
+    let point = textureLoad(point_map, vec2<u32>(u, v), 0);
+    if !is_valid(point) {
+        return INVALID;
+    }
+    return vec4<f32>(nn, point.z);
 }
 
 const TILE_X: u32 = 8u;

@@ -186,7 +186,9 @@ pub struct BilateralParams {
     pub sigma_depth_m: f32,
     /// The range sigma's growth with the square of the depth, 1/m.
     pub sigma_depth_per_m2: f32,
-    pub _pad1: u32,
+    /// 1: level 0's points (`vertex_to_normal`'s `point_map`) are the filtered map; 0:
+    /// the unfiltered one. Read by the plan (`plan::preprocess`), not by the kernel.
+    pub filter_points: u32,
     pub _pad2: u32,
 }
 

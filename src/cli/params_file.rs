@@ -261,7 +261,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 42] = [
+    const OPTION_VALUES: [(&str, &str); 43] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -304,6 +304,7 @@ mod tests {
         ("bilateral-sigma-space", "1.5"),
         ("bilateral-sigma-depth", "0.001"),
         ("bilateral-sigma-depth-z2", "0.02"),
+        ("bilateral-filter-points", "true"),
     ];
 
     /// `--flag=value`, or `--flag` for a switch.

@@ -266,10 +266,10 @@ param_overrides! {
     /// Normals across a depth jump larger than this, metres, are invalid (both 0.1).
     #[arg(long)]
     max_depth_jump: Option<f32> => "normals.max_depth_jump_m",
-    /// Smooth the depth with an edge-preserving bilateral filter before the normals, ICP
-    /// and fusion (KinectFusion's; for noisy sensors) with the --bilateral-* settings
-    /// below, which take effect only with it; without it the profile decides (assignment
-    /// off, robust on with the defaults). In a file: `bilateral = true`.
+    /// Smooth the depth with an edge-preserving bilateral filter for the normals and the
+    /// coarser ICP levels (KinectFusion's; for noisy sensors) with the --bilateral-*
+    /// settings below, which take effect only with it; without it the profile decides
+    /// (assignment off, robust on with the defaults). In a file: `bilateral = true`.
     #[arg(long)]
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     bilateral: bool => "bilateral.enabled",
@@ -287,6 +287,11 @@ param_overrides! {
     /// z² (default 0.01).
     #[arg(long)]
     bilateral_sigma_depth_z2: Option<f32> => "bilateral.sigma_depth_per_m2",
+    /// Whether the filtered depth also makes the full-resolution points that ICP and
+    /// fusion use (default false: they keep the raw depth, and the filter makes the
+    /// normals and the coarser ICP levels; docs/robust-profile.md).
+    #[arg(long)]
+    bilateral_filter_points: Option<bool> => "bilateral.filter_points",
     }
 }
 

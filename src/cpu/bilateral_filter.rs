@@ -12,19 +12,13 @@
 //! [`super::back_project`] (the function `depth_to_vertex` made the input with); invalid
 //! pixels (w = 0) stay invalid and never contribute.
 //!
-//! What it is not: it does not fill holes, and it filters the maps ICP and the normals use,
-//! not the raw depth (the caller keeps `depth_to_vertex`'s unfiltered map).
-//!
-//! Fusion takes the filtered depth too: the fusion kernels rebuild each pixel's point
-//! from `normal_depth`, whose depth is the filtered one. Measured against fusing the raw
-//! depth (with the filtered normals; a CPU-only experiment that put the unfiltered depth
-//! into `normal_depth.w` for the fuse step), robust profile, frames 1..200 at 320x240:
-//! noisy 6.51 mm / map 0.0077 filtered, 5.45 mm / 0.0085 raw; noise-free 0.21 mm / 0.0073
-//! filtered, 0.258 mm / 0.0073 raw. Raw depth tracks the noisy frames better (the map's
-//! averages remove the noise without the filter's bias at slants and edges, as
-//! KinectFusion fuses raw depth) and the clean ones slightly worse; switching needs the
-//! unfiltered vertex map bound in the four fusion kernels and their twins, which is the
-//! next step (see docs/profiles-and-parameters.md).
+//! What it is not: it does not fill holes, and it does not replace the raw depth: the
+//! caller keeps `depth_to_vertex`'s unfiltered map, and by default (the robust profile's
+//! `bilateral.filter_points` off) level 0's points, which ICP and fusion rebuild from
+//! `normal_depth`, keep the raw depth while the normals and the coarser pyramid levels
+//! come from this filter's output (see `cpu::vertex_to_normal` for why and the
+//! measurements). The table below was measured with the filtered points (before
+//! 2026-11-26, when fusion and ICP took the filtered depth).
 //!
 //! The range sigma grows with depth, `sigma_depth_m + sigma_depth_per_m2 * z²` at the
 //! pixel's own depth `z`, because a structured-light sensor's depth noise does (disparity
@@ -137,6 +131,7 @@ mod tests {
                 sigma_space_px: 2.25,
                 sigma_depth_m: 0.03,
                 sigma_depth_per_m2: 0.0,
+                filter_points: false,
             },
         ]
     }
@@ -153,7 +148,7 @@ mod tests {
             sigma_space_px: s.sigma_space_px,
             sigma_depth_m: s.sigma_depth_m,
             sigma_depth_per_m2: s.sigma_depth_per_m2,
-            _pad1: 0,
+            filter_points: s.filter_points as u32,
             _pad2: 0,
         }
     }

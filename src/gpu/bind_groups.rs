@@ -23,8 +23,11 @@ pub(super) struct BindGroups {
     pub bilateral_filter: wgpu::BindGroup,
     /// `vertex_to_normal` reading the unfiltered vertex map (filter off) ...
     pub vertex_to_normal: wgpu::BindGroup,
-    /// ... and reading the filtered one (filter on).
+    /// ... the filtered one for normals and points (filter on, `filter_points`) ...
     pub vertex_to_normal_filtered: wgpu::BindGroup,
+    /// ... or the filtered one for the normals and the unfiltered one for the points
+    /// (filter on, raw points).
+    pub vertex_to_normal_raw_points: wgpu::BindGroup,
     /// The map kernels' bind groups, one per map chunk.
     pub block_bounds: Vec<wgpu::BindGroup>,
     pub project_model: Vec<wgpu::BindGroup>,
@@ -133,13 +136,14 @@ impl BindGroups {
                 })
                 .collect::<Vec<_>>()
         };
-        let vertex_to_normal = |vertex_map: &GpuImage| {
+        let vertex_to_normal = |vertex_map: &GpuImage, point_map: &GpuImage| {
             k.vertex_to_normal.bind_group(
                 ctx,
                 &[
                     ("params", u.normal.binding()),
                     ("vertex_map", vertex_map.binding()),
                     ("normal_depth", f.normal_depth.binding()),
+                    ("point_map", point_map.binding()),
                 ],
             )
         };
@@ -163,8 +167,9 @@ impl BindGroups {
                     ("filtered_vertex", f.filtered_vertex.binding()),
                 ],
             ),
-            vertex_to_normal: vertex_to_normal(&f.vertex),
-            vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex),
+            vertex_to_normal: vertex_to_normal(&f.vertex, &f.vertex),
+            vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex, &f.filtered_vertex),
+            vertex_to_normal_raw_points: vertex_to_normal(&f.filtered_vertex, &f.vertex),
             project_model: per_chunk(k.project_model.first(), u.project.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
             photo_reduce: k.photo_reduce.bind_group_from(
@@ -249,6 +254,7 @@ impl LevelBindGroups {
                     ("params", level.u_normal.binding()),
                     ("vertex_map", level.vertex.binding()),
                     ("normal_depth", level.normal_depth.binding()),
+                    ("point_map", level.vertex.binding()),
                 ],
             ),
             pyramid_model: k.pyramid_model.bind_group(

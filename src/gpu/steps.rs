@@ -123,7 +123,8 @@ impl Backend for GpuBackend {
                 .collect(),
             ..StepGrid::default()
         };
-        let plan = plan::preprocess(bilateral.is_some(), pyramid.len());
+        let filter_points = bilateral.is_some_and(|b| b.filter_points != 0);
+        let plan = plan::preprocess(bilateral.is_some(), filter_points, pyramid.len());
         let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
@@ -139,11 +140,16 @@ impl Backend for GpuBackend {
                         &bg.bilateral_filter,
                         grid.image("bilateral_filter"),
                     ),
-                    PreprocessCall::VertexToNormal { level: 0, filtered } => (
+                    PreprocessCall::VertexToNormal {
+                        level: 0,
+                        filtered,
+                        filtered_points,
+                    } => (
                         &k.vertex_to_normal,
-                        match filtered {
-                            true => &bg.vertex_to_normal_filtered,
-                            false => &bg.vertex_to_normal,
+                        match (filtered, filtered_points) {
+                            (true, true) => &bg.vertex_to_normal_filtered,
+                            (true, false) => &bg.vertex_to_normal_raw_points,
+                            (false, _) => &bg.vertex_to_normal,
                         },
                         grid.image("vertex_to_normal"),
                     ),

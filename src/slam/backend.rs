@@ -24,8 +24,9 @@ pub struct FrameMaps {
     /// `bilateral_filter`'s output (same representation), which `normal_depth` was made
     /// from; empty when the last `preprocess` ran without the filter.
     pub filtered_vertex: Vec<[f32; 4]>,
-    /// Camera-frame unit normals with the vertex's depth (metres, > 0) in `w`; all zero
-    /// where invalid (see `cpu::vertex_to_normal`).
+    /// Camera-frame unit normals with the point's depth (metres, > 0) in `w`: the
+    /// unfiltered vertex's, or the filtered one's with `BilateralParams::filter_points`;
+    /// all zero where invalid (see `cpu::vertex_to_normal`).
     pub normal_depth: Vec<[f32; 4]>,
     /// RGB 0..255.
     pub color: Vec<[f32; 4]>,
@@ -116,7 +117,8 @@ pub trait Backend {
     fn name(&self) -> &'static str;
     /// `depth_to_vertex`, then `bilateral_filter` when `bilateral` is given, then
     /// `vertex_to_normal` on the filtered vertex map (or on the unfiltered one without the
-    /// filter) on a raw frame (`raw_depth`: u16 depth units; `raw_rgba`: packed RGBA8, both
+    /// filter; the points' depth from the unfiltered map unless `filter_points`) on a raw
+    /// frame (`raw_depth`: u16 depth units; `raw_rgba`: packed RGBA8, both
     /// raw_width x raw_height). The unfiltered vertex map is kept either way. Then, for
     /// each entry of `pyramid` (levels 1, 2, ...), `pyramid_depth` from the finer level's
     /// vertex map (at level 0 the one the normals were made from) and `vertex_to_normal`.

@@ -57,10 +57,11 @@ step_calls! {
         DepthToVertex => "depth_to_vertex",
         /// `bilateral_filter`: `vertex` -> `filtered_vertex`.
         BilateralFilter => "bilateral_filter",
-        /// `vertex_to_normal` at pyramid level `level`: at level 0 from `filtered_vertex`
-        /// when `filtered`, else from `vertex`; at a coarser level from that level's vertex
-        /// map.
-        VertexToNormal { level: usize, filtered: bool } => "vertex_to_normal",
+        /// `vertex_to_normal` at pyramid level `level`: at level 0 the normals from
+        /// `filtered_vertex` when `filtered`, else from `vertex`, and the points
+        /// (`point_map`) from `filtered_vertex` when `filtered_points`, else from `vertex`;
+        /// at a coarser level both from that level's vertex map.
+        VertexToNormal { level: usize, filtered: bool, filtered_points: bool } => "vertex_to_normal",
         /// `pyramid_depth` making level `level >= 1` from level `level - 1`'s vertex map (at
         /// level 1 the filtered one when `filtered`).
         PyramidDepth { level: usize, filtered: bool } => "pyramid_depth",
@@ -166,19 +167,29 @@ pub const fn deform() -> Single {
 }
 
 /// `preprocess`: `depth_to_vertex`, with the filter `bilateral_filter`, then
-/// `vertex_to_normal` (from the filtered vertex map with the filter); then for each of the
-/// `coarser_levels` pyramid levels 1, 2, ... `pyramid_depth` and `vertex_to_normal`.
-pub fn preprocess(filtered: bool, coarser_levels: usize) -> Vec<PreprocessCall> {
+/// `vertex_to_normal` (normals from the filtered vertex map with the filter, points from it
+/// too only with `filter_points`); then for each of the `coarser_levels` pyramid levels 1,
+/// 2, ... `pyramid_depth` and `vertex_to_normal`.
+pub fn preprocess(
+    filtered: bool,
+    filter_points: bool,
+    coarser_levels: usize,
+) -> Vec<PreprocessCall> {
     let mut plan = vec![PreprocessCall::DepthToVertex];
     if filtered {
         plan.push(PreprocessCall::BilateralFilter);
     }
-    plan.push(PreprocessCall::VertexToNormal { level: 0, filtered });
+    plan.push(PreprocessCall::VertexToNormal {
+        level: 0,
+        filtered,
+        filtered_points: filtered && filter_points,
+    });
     for level in 1..=coarser_levels {
         plan.push(PreprocessCall::PyramidDepth { level, filtered });
         plan.push(PreprocessCall::VertexToNormal {
             level,
             filtered: false,
+            filtered_points: false,
         });
     }
     plan
@@ -247,7 +258,7 @@ mod tests {
             };
         }
         assert_eq!(
-            names!(preprocess(true, 1)),
+            names!(preprocess(true, false, 1)),
             [
                 "depth_to_vertex",
                 "bilateral_filter",

@@ -54,7 +54,7 @@ impl<B: Backend> Slam<B> {
             sigma_space_px: b.sigma_space_px,
             sigma_depth_m: b.sigma_depth_m,
             sigma_depth_per_m2: b.sigma_depth_per_m2,
-            _pad1: 0,
+            filter_points: b.filter_points as u32,
             _pad2: 0,
         })
     }

@@ -36,7 +36,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             sigma_space_px,
             sigma_depth_m,
             sigma_depth_per_m2,
-            _pad1,
+            filter_points,
             _pad2
         }),
         rust_layout!(NormalParams {

@@ -16,10 +16,10 @@ use crate::layout::{
     ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::RgbdSystems;
-use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
+use crate::slam::backend::{Backend, Described, FrameMaps, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
-use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
+use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -122,66 +122,16 @@ impl Backend for CpuBackend {
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
-        let n = (params.width * params.height) as usize;
         self.intensity.new_frame(params, pyramid);
-        let f = &mut self.frame;
-        f.vertex.resize(n, cpu::INVALID);
-        f.color.resize(n, cpu::INVALID);
-        f.normal_depth.resize(n, cpu::INVALID);
-        f.pyramid.resize_with(pyramid.len(), FrameLevel::default);
-        // `filtered_vertex` is empty without the filter (see `FrameMaps`).
-        if bilateral.is_none() {
-            f.filtered_vertex.clear();
-        }
-        for call in plan::preprocess(bilateral.is_some(), pyramid.len()) {
-            match call {
-                PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
-                    params,
-                    raw_depth,
-                    raw_rgba,
-                    &mut f.vertex,
-                    &mut f.color,
-                ),
-                PreprocessCall::BilateralFilter => {
-                    let b = bilateral.expect("the plan filters only with filter params");
-                    f.filtered_vertex.resize(n, cpu::INVALID);
-                    cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
-                }
-                // The normals (and through normal_depth, ICP and fusion) see the filtered
-                // map when the filter is on; `vertex` stays unfiltered either way.
-                PreprocessCall::VertexToNormal { level: 0, filtered } => {
-                    let from = match filtered {
-                        true => &f.filtered_vertex,
-                        false => &f.vertex,
-                    };
-                    cpu::vertex_to_normal::vertex_to_normal(normal, from, &mut f.normal_depth);
-                }
-                PreprocessCall::VertexToNormal { level, .. } => {
-                    let l = &mut f.pyramid[level - 1];
-                    cpu::vertex_to_normal::vertex_to_normal(
-                        &pyramid[level - 1].normal,
-                        &l.vertex,
-                        &mut l.normal_depth,
-                    );
-                }
-                // Each coarser level from the finer one's vertex map (level 0's: the one
-                // the normals were made from).
-                PreprocessCall::PyramidDepth { level, filtered } => {
-                    let p = &pyramid[level - 1];
-                    let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
-                    let fine_vertex = match finer.last() {
-                        Some(l) => &l.vertex,
-                        None if filtered => &f.filtered_vertex,
-                        None => &f.vertex,
-                    };
-                    let l = &mut coarser[0];
-                    let n = (p.down.width * p.down.height) as usize;
-                    l.vertex.resize(n, cpu::INVALID);
-                    l.normal_depth.resize(n, cpu::INVALID);
-                    cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
-                }
-            }
-        }
+        preprocess::preprocess(
+            &mut self.frame,
+            params,
+            bilateral,
+            normal,
+            pyramid,
+            raw_depth,
+            raw_rgba,
+        );
         Ok(())
     }
 
@@ -595,6 +545,7 @@ impl Backend for CpuBackend {
 
 mod inspect;
 mod photo;
+mod preprocess;
 
 #[cfg(test)]
 mod tests;

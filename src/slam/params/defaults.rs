@@ -1,6 +1,9 @@
 //! The profiles' measured constants and the ranges' limits: the reason for each value in a
 //! line, the measurements behind them in `docs/robust-profile.md`, `slam::health` and
-//! `docs/loop-closure.md`.
+//! `docs/loop-closure.md`; and the `Default`s of the sections made of them alone (health,
+//! relocalisation, loop closure).
+
+use super::{HealthSettings, LoopSettings, RelocalisationSettings};
 
 /// Stable weight of the robust profile's removal rule (see
 /// [`UnstableRemoval`](super::UnstableRemoval)), in the units of the surfel weight: summed
@@ -198,3 +201,59 @@ pub const PHOTOMETRIC_WEIGHT: f64 = 0.3;
 /// coarse levels alone (`[1, 2]`) track as the geometric term does (7.99, 20.79, 7.54 mm):
 /// the term's gain is all at the full maps (`docs/rgbd-tracking.md`).
 pub const PHOTOMETRIC_LEVELS: &[usize] = &[0];
+
+impl Default for HealthSettings {
+    fn default() -> Self {
+        HealthSettings {
+            min_inlier_fraction: HEALTH_MIN_INLIER_FRACTION,
+            max_residual_ratio: HEALTH_MAX_RESIDUAL_RATIO,
+            max_motion_ratio: HEALTH_MAX_MOTION_RATIO,
+            motion_floor_m: HEALTH_MOTION_FLOOR_M,
+            motion_floor_deg: HEALTH_MOTION_FLOOR_DEG,
+            warmup_frames: HEALTH_WARMUP_FRAMES,
+            recovery_max_residual_ratio: HEALTH_RECOVERY_MAX_RESIDUAL_RATIO,
+            recovery_min_inlier_ratio: HEALTH_RECOVERY_MIN_INLIER_RATIO,
+        }
+    }
+}
+
+impl Default for RelocalisationSettings {
+    fn default() -> Self {
+        RelocalisationSettings {
+            ferns: RELOC_FERNS,
+            keyframe_dissimilarity: RELOC_KEYFRAME_DISSIMILARITY,
+            candidates: RELOC_CANDIDATES,
+            min_similarity: RELOC_MIN_SIMILARITY,
+            keyframe_distance_m: RELOC_KEYFRAME_DISTANCE_M,
+            keyframe_angle_deg: RELOC_KEYFRAME_ANGLE_DEG,
+            max_keyframes: RELOC_MAX_KEYFRAMES,
+        }
+    }
+}
+
+impl Default for LoopSettings {
+    fn default() -> Self {
+        LoopSettings {
+            min_gap_frames: LOOP_MIN_GAP_FRAMES,
+            search_every_frames: LOOP_SEARCH_EVERY_FRAMES,
+            cooldown_frames: LOOP_COOLDOWN_FRAMES,
+            min_similarity: LOOP_MIN_SIMILARITY,
+            local_radius_m: LOOP_LOCAL_RADIUS_M,
+            local_angle_deg: LOOP_LOCAL_ANGLE_DEG,
+            verify_iterations: LOOP_VERIFY_ITERATIONS,
+            min_inlier_fraction: LOOP_MIN_INLIER_FRACTION,
+            max_rms_m: LOOP_MAX_RMS_M,
+            max_correction_m: LOOP_MAX_CORRECTION_M,
+            max_correction_deg: LOOP_MAX_CORRECTION_DEG,
+            min_correction_m: LOOP_MIN_CORRECTION_M,
+            min_correction_deg: LOOP_MIN_CORRECTION_DEG,
+            node_stride: LOOP_NODE_STRIDE,
+            loop_weight: LOOP_WEIGHT,
+            confirm_agreement_m: LOOP_CONFIRM_AGREEMENT_M,
+            confirm_agreement_deg: LOOP_CONFIRM_AGREEMENT_DEG,
+            confirm_within_searches: LOOP_CONFIRM_WITHIN_SEARCHES,
+            max_left_fraction: LOOP_MAX_LEFT_FRACTION,
+            other_edge_slack_m: LOOP_OTHER_EDGE_SLACK_M,
+        }
+    }
+}

@@ -2,7 +2,8 @@
 //! start from. The structs here are the parameters' schema: each field is a key
 //! (`icp.dist_m`, [`keys`]) that the command line's flags, parameter files and batch
 //! manifests set, [`validate`] checks the values and the rules between sections, and
-//! [`defaults`] holds the profiles' measured constants (the reason in a line each).
+//! [`defaults`] holds the profiles' measured constants (the reason in a line each) and the
+//! keyframe database's and loop closure's settings made of them.
 //! Turning these into the kernels' parameter structs is `step_params.rs`'s job.
 
 pub mod defaults;
@@ -442,6 +443,10 @@ pub struct BilateralSettings {
     pub sigma_depth_m: f32,
     /// ... plus this times the pixel's depth squared (1/m).
     pub sigma_depth_per_m2: f32,
+    /// The filtered depth also makes level 0's points, the ones ICP and fusion rebuild;
+    /// off (the default), they keep the raw depth and the filter makes the normals and the
+    /// coarser pyramid levels (see `cpu::vertex_to_normal`).
+    pub filter_points: bool,
 }
 
 impl Default for BilateralSettings {
@@ -451,62 +456,7 @@ impl Default for BilateralSettings {
             sigma_space_px: 1.0,
             sigma_depth_m: 0.0,
             sigma_depth_per_m2: 0.01,
-        }
-    }
-}
-
-impl Default for HealthSettings {
-    fn default() -> Self {
-        HealthSettings {
-            min_inlier_fraction: HEALTH_MIN_INLIER_FRACTION,
-            max_residual_ratio: HEALTH_MAX_RESIDUAL_RATIO,
-            max_motion_ratio: HEALTH_MAX_MOTION_RATIO,
-            motion_floor_m: HEALTH_MOTION_FLOOR_M,
-            motion_floor_deg: HEALTH_MOTION_FLOOR_DEG,
-            warmup_frames: HEALTH_WARMUP_FRAMES,
-            recovery_max_residual_ratio: HEALTH_RECOVERY_MAX_RESIDUAL_RATIO,
-            recovery_min_inlier_ratio: HEALTH_RECOVERY_MIN_INLIER_RATIO,
-        }
-    }
-}
-
-impl Default for RelocalisationSettings {
-    fn default() -> Self {
-        RelocalisationSettings {
-            ferns: RELOC_FERNS,
-            keyframe_dissimilarity: RELOC_KEYFRAME_DISSIMILARITY,
-            candidates: RELOC_CANDIDATES,
-            min_similarity: RELOC_MIN_SIMILARITY,
-            keyframe_distance_m: RELOC_KEYFRAME_DISTANCE_M,
-            keyframe_angle_deg: RELOC_KEYFRAME_ANGLE_DEG,
-            max_keyframes: RELOC_MAX_KEYFRAMES,
-        }
-    }
-}
-
-impl Default for LoopSettings {
-    fn default() -> Self {
-        LoopSettings {
-            min_gap_frames: LOOP_MIN_GAP_FRAMES,
-            search_every_frames: LOOP_SEARCH_EVERY_FRAMES,
-            cooldown_frames: LOOP_COOLDOWN_FRAMES,
-            min_similarity: LOOP_MIN_SIMILARITY,
-            local_radius_m: LOOP_LOCAL_RADIUS_M,
-            local_angle_deg: LOOP_LOCAL_ANGLE_DEG,
-            verify_iterations: LOOP_VERIFY_ITERATIONS,
-            min_inlier_fraction: LOOP_MIN_INLIER_FRACTION,
-            max_rms_m: LOOP_MAX_RMS_M,
-            max_correction_m: LOOP_MAX_CORRECTION_M,
-            max_correction_deg: LOOP_MAX_CORRECTION_DEG,
-            min_correction_m: LOOP_MIN_CORRECTION_M,
-            min_correction_deg: LOOP_MIN_CORRECTION_DEG,
-            node_stride: LOOP_NODE_STRIDE,
-            loop_weight: LOOP_WEIGHT,
-            confirm_agreement_m: LOOP_CONFIRM_AGREEMENT_M,
-            confirm_agreement_deg: LOOP_CONFIRM_AGREEMENT_DEG,
-            confirm_within_searches: LOOP_CONFIRM_WITHIN_SEARCHES,
-            max_left_fraction: LOOP_MAX_LEFT_FRACTION,
-            other_edge_slack_m: LOOP_OTHER_EDGE_SLACK_M,
+            filter_points: false,
         }
     }
 }

@@ -4,7 +4,7 @@
 //! denominator) against its twin.
 
 use super::{cpu_map_from_gt, gpu_backend, robust_pyramids_on_both, root};
-use super::{INCREMENT_TOL, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
+use super::{increment_tol, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
 use glam::DMat4;
@@ -50,16 +50,17 @@ fn nudge() -> DMat4 {
 /// The CPU's and the GPU's 29-float systems of one case agree: inliers, the decoded AᵀA and
 /// Aᵀb (the measure `wgslam compare` uses) and the solved increments.
 fn check_systems(label: &str, sys_c: &[f64; ICP_SYSTEM_LEN], sys_g: &[f64; ICP_SYSTEM_LEN]) {
-    check_systems_of(label, sys_c, sys_g, 10_000);
+    check_systems_of(label, sys_c, sys_g, 10_000, 0);
 }
 
 /// [`check_systems`] with at least `min_inliers` on the CPU (a coarse level has fewer
-/// pixels).
+/// pixels), at pyramid level `level` (its increment tolerance, [`increment_tol`]).
 fn check_systems_of(
     label: &str,
     sys_c: &[f64; ICP_SYSTEM_LEN],
     sys_g: &[f64; ICP_SYSTEM_LEN],
     min_inliers: u64,
+    level: usize,
 ) {
     let (c, g) = (
         NormalEquations::decode(sys_c),
@@ -93,7 +94,10 @@ fn check_systems_of(
     let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
     let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
     eprintln!("{label}: increment cpu {xc:?}\n      gpu {xg:?}; difference {dx:e}");
-    assert!(dx <= INCREMENT_TOL, "{label}: increments differ by {dx:e}");
+    assert!(
+        dx <= increment_tol(level),
+        "{label}: increments differ by {dx:e}"
+    );
 }
 
 /// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
@@ -160,7 +164,13 @@ fn intensity_pyramid_and_coarse_rgbd_match_twin(mut gpu: GpuBackend) {
         assert_eq!(geo_c, s.backend.icp_system(level, &ip).unwrap(), "{level}");
         // A real test at every level: a tenth of the level's pixels.
         let min = s.level_intrinsics(level).pixels() as u64 / 10;
-        check_systems_of(&format!("level {level}, geometric"), &geo_c, &geo_g, min);
+        check_systems_of(
+            &format!("level {level}, geometric"),
+            &geo_c,
+            &geo_g,
+            min,
+            level,
+        );
         // The photometric system alone is ill-conditioned at the coarse levels (a few
         // thousand rows of image gradient): its entries must agree, and the increment of
         // the system the tracker solves, the two combined.
@@ -190,7 +200,7 @@ fn intensity_pyramid_and_coarse_rgbd_match_twin(mut gpu: GpuBackend) {
         let (xc, xg) = (combined(&geo_c, &pc), combined(&geo_g, &pg));
         let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
         assert!(
-            dx <= INCREMENT_TOL,
+            dx <= increment_tol(level),
             "level {level}: combined increments differ by {dx:e}"
         );
     }
@@ -261,7 +271,7 @@ fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
         let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
         let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
         assert!(
-            dx <= INCREMENT_TOL,
+            dx <= increment_tol(level),
             "level {level}: increments differ by {dx:e}"
         );
     }

@@ -62,7 +62,7 @@ fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
         max_depth_jump_m: 0.1,
         _pad: 0,
     };
-    vertex_to_normal(&np, &vmap, &mut nmap);
+    vertex_to_normal(&np, &vmap, &mut nmap, &vmap);
     (k, vmap, nmap, cmap)
 }
 
