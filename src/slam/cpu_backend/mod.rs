@@ -9,17 +9,16 @@
 //! culling step), so its cost per frame also follows what the camera sees.
 
 use crate::cpu;
-use crate::layout::{append_slots, scan_params};
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams,
     FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
     ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::RgbdSystems;
-use crate::slam::backend::{Backend, Described, FrameMaps, Prediction, PyramidLevel};
+use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
 use crate::slam::map::SurfelMap;
-use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall};
+use crate::slam::plan::{self, CompactCall, PredictCall, PreprocessCall};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -123,15 +122,77 @@ impl Backend for CpuBackend {
         raw_rgba: &[u32],
     ) -> Result<()> {
         self.intensity.new_frame(params, pyramid);
-        preprocess::preprocess(
-            &mut self.frame,
-            params,
-            bilateral,
-            normal,
-            pyramid,
-            raw_depth,
-            raw_rgba,
-        );
+        let f = &mut self.frame;
+        let n = (params.width * params.height) as usize;
+        f.vertex.resize(n, cpu::INVALID);
+        f.color.resize(n, cpu::INVALID);
+        f.normal_depth.resize(n, cpu::INVALID);
+        f.pyramid.resize_with(pyramid.len(), FrameLevel::default);
+        // `filtered_vertex` is empty without the filter (see `FrameMaps`).
+        if bilateral.is_none() {
+            f.filtered_vertex.clear();
+        }
+        let filter_points = bilateral.is_some_and(|b| b.filter_points != 0);
+        for call in plan::preprocess(bilateral.is_some(), filter_points, pyramid.len()) {
+            match call {
+                PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
+                    params,
+                    raw_depth,
+                    raw_rgba,
+                    &mut f.vertex,
+                    &mut f.color,
+                ),
+                PreprocessCall::BilateralFilter => {
+                    let b = bilateral.expect("the plan filters only with filter params");
+                    f.filtered_vertex.resize(n, cpu::INVALID);
+                    cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
+                }
+                // The normals see the filtered map when the filter is on, and so do the
+                // points (through normal_depth, ICP and fusion) with `filtered_points`;
+                // `vertex` stays unfiltered either way.
+                PreprocessCall::VertexToNormal {
+                    level: 0,
+                    filtered,
+                    filtered_points,
+                } => {
+                    let map = |filtered| match filtered {
+                        true => &f.filtered_vertex,
+                        false => &f.vertex,
+                    };
+                    cpu::vertex_to_normal::vertex_to_normal(
+                        normal,
+                        map(filtered),
+                        &mut f.normal_depth,
+                        map(filtered_points),
+                    );
+                }
+                PreprocessCall::VertexToNormal { level, .. } => {
+                    let l = &mut f.pyramid[level - 1];
+                    cpu::vertex_to_normal::vertex_to_normal(
+                        &pyramid[level - 1].normal,
+                        &l.vertex,
+                        &mut l.normal_depth,
+                        &l.vertex,
+                    );
+                }
+                // Each coarser level from the finer one's vertex map (level 0's: the one
+                // the normals were made from).
+                PreprocessCall::PyramidDepth { level, filtered } => {
+                    let p = &pyramid[level - 1];
+                    let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
+                    let fine_vertex = match finer.last() {
+                        Some(l) => &l.vertex,
+                        None if filtered => &f.filtered_vertex,
+                        None => &f.vertex,
+                    };
+                    let l = &mut coarser[0];
+                    let n = (p.down.width * p.down.height) as usize;
+                    l.vertex.resize(n, cpu::INVALID);
+                    l.normal_depth.resize(n, cpu::INVALID);
+                    cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
+                }
+            }
+        }
         Ok(())
     }
 
@@ -294,118 +355,7 @@ impl Backend for CpuBackend {
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        let n_pix = (params.width * params.height) as usize;
-        let count = self.map.len();
-        let mut params = *params;
-        params.surfel_count = count as u32;
-        params.capacity = (count + n_pix) as u32;
-        self.fused_view = None;
-        let chunk = MapChunk::whole(count);
-        // Flags and offsets in append order (holes for tiles outside the image stay 0).
-        let n_slots = append_slots(params.width, params.height);
-        let mut added = 0u32;
-        for call in plan::fuse(&params) {
-            let m = &mut self.map;
-            match call {
-                FuseCall::Clear(Buffer::Assoc) => {
-                    self.assoc.clear();
-                    self.assoc.resize(n_pix, 0);
-                }
-                FuseCall::Clear(Buffer::Merged) => {
-                    self.merged.clear();
-                    self.merged.resize(2 * n_pix, [0.0; 4]);
-                }
-                FuseCall::Clear(Buffer::IndexMap) => {
-                    self.index_map.clear();
-                    self.index_map.resize(n_pix, 0);
-                }
-                FuseCall::BlockBounds => self.refresh_bounds(),
-                FuseCall::FuseSelect => cpu::fuse_select::fuse_select(
-                    &params,
-                    &self.frame.normal_depth,
-                    &chunk,
-                    &self.block_bounds,
-                    &m.position_weight,
-                    &m.normal_frame,
-                    &m.color,
-                    &mut self.assoc,
-                    &mut self.index_map,
-                ),
-                FuseCall::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
-                    &params,
-                    &self.frame.normal_depth,
-                    &self.frame.color,
-                    &chunk,
-                    bytemuck::cast_slice_mut(&mut self.block_bounds),
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &mut m.color,
-                    &self.assoc,
-                    &mut self.merged,
-                ),
-                FuseCall::FusePrune => cpu::fuse_prune::fuse_prune(
-                    &params,
-                    &chunk,
-                    &self.block_bounds,
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &m.color,
-                    &self.merged,
-                ),
-                FuseCall::FuseMerge => cpu::fuse_merge::fuse_merge(
-                    &params,
-                    &self.frame.normal_depth,
-                    &self.frame.color,
-                    &chunk,
-                    bytemuck::cast_slice_mut(&mut self.block_bounds),
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &mut m.color,
-                    &mut self.assoc,
-                ),
-                FuseCall::FuseFlags => {
-                    self.add_flags.resize(n_slots, 0);
-                    cpu::fuse_flags::fuse_flags(
-                        &params,
-                        &self.frame.normal_depth,
-                        &self.assoc,
-                        &self.merged,
-                        &mut self.add_flags,
-                    );
-                }
-                FuseCall::FuseScan => {
-                    self.add_offsets.resize(n_slots, 0);
-                    cpu::prefix_sum::scan(
-                        &scan_params(n_slots),
-                        &self.add_flags,
-                        &mut self.add_offsets,
-                        &mut added,
-                    );
-                }
-                FuseCall::FuseAdd => {
-                    // Room for every pixel, as the GPU backend guarantees before its dispatch.
-                    m.resize(params.capacity as usize);
-                    cpu::fuse_add::fuse_add(
-                        &params,
-                        &self.frame.normal_depth,
-                        &self.frame.color,
-                        &self.add_flags,
-                        &self.add_offsets,
-                        &MapChunk::whole(params.capacity as usize),
-                        &mut m.position_weight,
-                        &mut m.normal_frame,
-                        &mut m.color,
-                        &mut self.index_map,
-                    );
-                }
-            }
-        }
-        let new_len = count + added as usize;
-        self.map.resize(new_len);
-        // The blocks from the one that held the old last surfel on have new surfels.
-        self.bounds_dirty_from = self.bounds_dirty_from.min(count);
-        self.fused_view = FusedView::of_fuse(&params);
-        Ok(new_len)
+        Ok(self.fuse_step(params))
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
@@ -543,9 +493,9 @@ impl Backend for CpuBackend {
     }
 }
 
+mod fuse;
 mod inspect;
 mod photo;
-mod preprocess;
 
 #[cfg(test)]
 mod tests;
