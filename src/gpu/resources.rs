@@ -169,11 +169,7 @@ impl FrameBuffers {
         let n_blocks = crate::cpu::prefix_sum::scan_blocks(n_append);
         let mut add_block_sums = GpuArray::new(ctx, "new-surfel block sums", n_blocks)?;
         add_block_sums.set_len(n_blocks);
-        let coarser: Vec<[u32; 2]> = pyramid
-            .iter()
-            .map(|l| [l.down.width, l.down.height])
-            .collect();
-        let mut intensity = IntensityParams::levels(p.width, p.height, &coarser).into_iter();
+        let mut intensity = PyramidLevel::intensity_params(p.width, p.height, pyramid).into_iter();
         let intensity0 = IntensityLevel::new(ctx, intensity.next().expect("level 0"))?;
         let levels = pyramid
             .iter()

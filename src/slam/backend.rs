@@ -6,9 +6,9 @@
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
 use crate::layout::{
-    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, PyramidParams, DESCRIPTOR_WORDS,
-    ICP_SYSTEM_LEN,
+    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams,
+    IntensityParams, Keypoint, KeypointParams, NormalParams, PreprocessParams, ProjectParams,
+    PyramidParams, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::slam::map::SurfelMap;
 use crate::Result;
@@ -54,6 +54,18 @@ pub type RgbdSystems = [[f64; ICP_SYSTEM_LEN]; 2];
 pub struct PyramidLevel {
     pub down: PyramidParams,
     pub normal: NormalParams,
+}
+
+impl PyramidLevel {
+    /// `intensity_pyramid`'s parameters at every level of a frame of `width` x `height`
+    /// pixels whose coarser levels are `pyramid`'s, level 0 first.
+    pub fn intensity_params(width: u32, height: u32, pyramid: &[Self]) -> Vec<IntensityParams> {
+        let coarser: Vec<[u32; 2]> = pyramid
+            .iter()
+            .map(|l| [l.down.width, l.down.height])
+            .collect();
+        IntensityParams::levels(width, height, &coarser)
+    }
 }
 
 impl FrameMaps {

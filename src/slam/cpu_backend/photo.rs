@@ -23,11 +23,7 @@ pub(super) struct IntensityPyramid {
 impl IntensityPyramid {
     /// A new frame of `params`' size with `pyramid`'s coarser levels: the patches are stale.
     pub fn new_frame(&mut self, params: &PreprocessParams, pyramid: &[PyramidLevel]) {
-        let coarser: Vec<[u32; 2]> = pyramid
-            .iter()
-            .map(|l| [l.down.width, l.down.height])
-            .collect();
-        self.params = IntensityParams::levels(params.width, params.height, &coarser);
+        self.params = PyramidLevel::intensity_params(params.width, params.height, pyramid);
         self.patches.resize_with(self.params.len(), Vec::new);
         self.made = 0;
     }
