@@ -16,12 +16,13 @@ use wgslam::slam::params::{SlamParams, Tracking};
 use wgslam::tools::run::{self, RunResult};
 
 /// The bundled noisy frames 1..23, robust profile: measured (release and test builds, both
-/// backends) 2.45 mm geometric and 2.12 mm with RGB-D tracking; the bar is halfway, so a
-/// photometric term that does not help fails.
-const ATE_BUNDLED_NOISY_RGBD_MAX_M: f64 = 2.3e-3;
-/// Noisy ICL-NUIM 1..200 at 640x480: measured 7.60 mm geometric and 3.45 mm with RGB-D
-/// tracking (CPU); the issue asks for 7.0 mm. 4 mm leaves a sixth for other builds'
-/// rounding and fails a term that gives back half the gain.
+/// backends) 2.80 mm geometric and 2.25 mm with RGB-D tracking (the robust profile's raw
+/// points; 2.45 and 2.12 mm with the filtered points before 2026-11-26); the bar is
+/// halfway, so a photometric term that does not help fails.
+const ATE_BUNDLED_NOISY_RGBD_MAX_M: f64 = 2.5e-3;
+/// Noisy ICL-NUIM 1..200 at 640x480: measured 6.10 mm geometric and 1.66 mm with RGB-D
+/// tracking (CPU, raw points; 7.60 and 3.45 mm with the filtered points); the issue asks
+/// for 7.0 mm. 4 mm fails a term that gives back half the gain.
 const ATE_NOISY_640_RGBD_MAX_M: f64 = 4.0e-3;
 
 /// The robust profile with RGB-D tracking.
