@@ -1,8 +1,7 @@
 // system_grid.wgsl: the entry point of every kernel that reduces one 29-float
 // normal-equation system over the pixels (icp_reduce, photo_reduce), appended to a kernel
 // whose file says `#entry system_grid` (src/gpu/shaders.rs).
-// CPU twin: src/cpu/entries.rs
-// (the twin is fn system_grid there, re-exported as cpu::system_grid; no src/cpu/system_grid.rs).
+// CPU twin: src/cpu/entries.rs, fn system_grid (re-exported as cpu::system_grid).
 // Not valid alone: the kernel declares
 //   params                           a binding whose struct has the image's width, height;
 //   partials                         the output binding, ICP_SYSTEM_LEN floats per workgroup;

@@ -1,8 +1,7 @@
 // visible_surfels.wgsl: the entry point of every kernel that walks the map chunk's surfels
 // in view, appended to a kernel whose file says `#entry visible_surfels`
 // (src/gpu/shaders.rs).
-// CPU twin: src/cpu/entries.rs
-// (the twin is fn visible_surfels there, re-exported as cpu::visible_surfels; no src/cpu/visible_surfels.rs).
+// CPU twin: src/cpu/entries.rs, fn visible_surfels (re-exported as cpu::visible_surfels).
 // Not valid alone: the kernel declares
 //   params                             a binding whose struct has t_world_to_cam, the
 //                                      intrinsics fx, fy, cx, cy, width, height and
