@@ -123,8 +123,7 @@ impl Backend for GpuBackend {
                 .collect(),
             ..StepGrid::default()
         };
-        let filter_points = bilateral.is_some_and(|b| b.filter_points != 0);
-        let plan = plan::preprocess(bilateral.is_some(), filter_points, pyramid.len());
+        let plan = plan::preprocess(bilateral, pyramid.len());
         let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");

@@ -11,7 +11,7 @@
 //! partials; the CPU twin of `icp_reduce` sums in one pass), which is one fixed kernel
 //! pair rather than a plan.
 
-use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
+use crate::layout::{BilateralParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
 /// A per-frame buffer that a step zeroes before its kernels accumulate into it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -166,15 +166,16 @@ pub const fn deform() -> Single {
     Single::DeformSurfels
 }
 
-/// `preprocess`: `depth_to_vertex`, with the filter `bilateral_filter`, then
+/// `preprocess`: `depth_to_vertex`, with the filter (`bilateral`) `bilateral_filter`, then
 /// `vertex_to_normal` (normals from the filtered vertex map with the filter, points from it
-/// too only with `filter_points`); then for each of the `coarser_levels` pyramid levels 1,
+/// too only with its `filter_points`); then for each of the `coarser_levels` pyramid levels 1,
 /// 2, ... `pyramid_depth` and `vertex_to_normal`.
 pub fn preprocess(
-    filtered: bool,
-    filter_points: bool,
+    bilateral: Option<&BilateralParams>,
     coarser_levels: usize,
 ) -> Vec<PreprocessCall> {
+    let filtered = bilateral.is_some();
+    let filter_points = bilateral.is_some_and(|b| b.filter_points != 0);
     let mut plan = vec![PreprocessCall::DepthToVertex];
     if filtered {
         plan.push(PreprocessCall::BilateralFilter);
@@ -258,7 +259,7 @@ mod tests {
             };
         }
         assert_eq!(
-            names!(preprocess(true, false, 1)),
+            names!(preprocess(Some(&bytemuck::Zeroable::zeroed()), 1)),
             [
                 "depth_to_vertex",
                 "bilateral_filter",

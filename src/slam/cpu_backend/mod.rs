@@ -132,8 +132,7 @@ impl Backend for CpuBackend {
         if bilateral.is_none() {
             f.filtered_vertex.clear();
         }
-        let filter_points = bilateral.is_some_and(|b| b.filter_points != 0);
-        for call in plan::preprocess(bilateral.is_some(), filter_points, pyramid.len()) {
+        for call in plan::preprocess(bilateral, pyramid.len()) {
             match call {
                 PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
                     params,
