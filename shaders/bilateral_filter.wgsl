@@ -1,5 +1,5 @@
 // bilateral_filter.wgsl: KinectFusion's edge-preserving bilateral filter on the depth of the
-// camera-frame vertex map. CPU twin: src/cpu/bilateral_filter.rs (its header states the
+// camera-frame vertex map. CPU twin: crates/core/src/cpu/bilateral_filter.rs (its header states the
 // rules, the defaults and why sigma_depth grows with depth squared).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.

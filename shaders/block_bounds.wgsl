@@ -1,7 +1,7 @@
 // block_bounds.wgsl: recomputes the world-frame box of each block of one map chunk from
 // block params.block_from on (the blocks fusion appended to, or all of them after a
 // compaction or an upload), the boxes project_model, fuse_select and fuse_merge cull with.
-// Dispatched once per chunk. CPU twin: src/cpu/block_bounds.rs.
+// Dispatched once per chunk. CPU twin: crates/core/src/cpu/block_bounds.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // One workgroup per block (grid-stride over the chunk's stale blocks by workgroup): thread

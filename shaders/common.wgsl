@@ -3,9 +3,9 @@
 //
 // Prepended to each `shaders/<kernel>.wgsl` by `src/gpu/shaders.rs` (WGSL has no
 // includes), so this file declares no bindings and no entry point. Each struct mirrors the
-// `#[repr(C)]` struct of the same name in `src/layout.rs` (checked by `tests/it/layout.rs`;
-// RenderParams: `src/render/layout.rs`, checked by `tests/it/render/gpu.rs`); each helper mirrors
-// the function of the same name in `src/cpu/mod.rs`, its one Rust twin.
+// `#[repr(C)]` struct of the same name in `crates/core/src/layout/mod.rs` (checked by `tests/it/layout.rs`;
+// RenderParams: `crates/core/src/layout/render.rs`, checked by `tests/it/render/gpu.rs`); each helper mirrors
+// the function of the same name in `crates/core/src/cpu/mod.rs`, its one Rust twin.
 // Conventions: metres; pixel centres at integer (u, v); maps are row-major `v * width + u`;
 // a `vec4` map entry is valid when `w > 0` (vertices and normals use w = 1, normal_depth
 // the depth; invalid = 0).
@@ -188,7 +188,7 @@ struct FuseParams {
 
 // Best-candidate fusion's depth gate (metres) for a surfel of weight `weight`: from
 // dist_threshold_m for a surfel seen once towards dist_confident_m as its weight grows.
-// Mirrors `fuse_depth_gate` in src/cpu/mod.rs.
+// Mirrors `fuse_depth_gate` in crates/core/src/cpu/mod.rs.
 fn fuse_depth_gate(params: FuseParams, weight: f32) -> f32 {
     return params.dist_confident_m
         + (params.dist_threshold_m - params.dist_confident_m) / max(weight, 1.0);
@@ -441,7 +441,7 @@ fn xyz(v: vec4<f32>) -> vec3<f32> {
 }
 
 // Huber weight of a residual b (metres in icp_reduce, intensity in photo_reduce): 1 within delta, delta / |b| beyond; 1 when
-// delta is 0 (off). Mirrors `huber_weight` in src/cpu/icp_reduce.rs.
+// delta is 0 (off). Mirrors `huber_weight` in crates/core/src/cpu/icp_reduce.rs.
 fn huber_weight(b: f32, delta: f32) -> f32 {
     if delta <= 0.0 || abs(b) <= delta {
         return 1.0;

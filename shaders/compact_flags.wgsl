@@ -2,7 +2,7 @@
 // (Keller et al. 2013): a surfel seen fewer than `stable_weight` times whose last
 // observation is more than `max_age_frames` frames old is dropped. First of the three
 // stream-compaction kernels (then prefix_sum, compact_scatter). CPU twin:
-// src/cpu/compact_flags.rs. Dispatched once per map chunk.
+// crates/core/src/cpu/compact_flags.rs. Dispatched once per map chunk.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over surfels; each thread writes only its own flag.

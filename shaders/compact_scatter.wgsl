@@ -5,7 +5,7 @@
 // (output chunks no later than the input's, as offsets[i] <= i) and per surfel array
 // (position_weight, normal_frame, color: one at a time keeps the kernel within WebGPU's 8
 // storage buffers per stage): each pass copies the input chunk's kept surfels whose new
-// slot the output chunk holds. CPU twin: src/cpu/compact_scatter.rs.
+// slot the output chunk holds. CPU twin: crates/core/src/cpu/compact_scatter.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over the input chunk's surfels; each kept surfel has its own output slot.

@@ -2,7 +2,7 @@
 // for point-to-point ICP (Arun / Umeyama). Each thread accumulates its grid-stride share of
 // the pairs in registers, then the 64 threads of a workgroup tree-reduce in shared memory
 // and thread 0 writes one ScanCovPartial. The host sums partials in f64 and solves the SVD.
-// CPU twin: src/cpu/cross_covariance.rs (same loops and reduction order).
+// CPU twin: crates/core/src/cpu/cross_covariance.rs (same loops and reduction order).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Assumes: params.n_threads = workgroups * 64. Points are shifted by params.anchor (the
@@ -24,7 +24,7 @@
 
 var<workgroup> scratch: array<ScanCovPartial, 64>;
 
-// Mirrors `scan_cov_add` in src/cpu/cross_covariance.rs.
+// Mirrors `scan_cov_add` in crates/core/src/cpu/cross_covariance.rs.
 fn scan_cov_add(a: ScanCovPartial, b: ScanCovPartial) -> ScanCovPartial {
     return ScanCovPartial(
         a.count_sq + b.count_sq,
@@ -36,7 +36,7 @@ fn scan_cov_add(a: ScanCovPartial, b: ScanCovPartial) -> ScanCovPartial {
     );
 }
 
-// Mirrors `scan_cov_pair` in src/cpu/cross_covariance.rs.
+// Mirrors `scan_cov_pair` in crates/core/src/cpu/cross_covariance.rs.
 fn scan_cov_pair(acc: ptr<function, ScanCovPartial>, p: vec3<f32>, q: vec3<f32>) {
     let d = p - q;
     (*acc).count_sq += vec4<f32>(

@@ -4,7 +4,7 @@
 // surfel before the first node or after the last takes that node's correction alone.
 // Position: the two corrected positions blended; normal: the two rotated normals blended,
 // renormalised (as ElasticFusion's deformation graph blends its nodes' transforms). CPU
-// twin: src/cpu/deform_surfels.rs. Dispatched once per map chunk.
+// twin: crates/core/src/cpu/deform_surfels.rs. Dispatched once per map chunk.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Grid-stride loop over surfels; each thread writes only its own surfel.

@@ -1,5 +1,5 @@
 // depth_to_vertex.wgsl: raw 16-bit depth and RGBA8 to a camera-frame vertex map (metres)
-// and a colour map, keeping every `stride`-th raw pixel. CPU twin: src/cpu/depth_to_vertex.rs.
+// and a colour map, keeping every `stride`-th raw pixel. CPU twin: crates/core/src/cpu/depth_to_vertex.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the output pixels in 4x16 tiles (see main and vertex_to_normal.wgsl).

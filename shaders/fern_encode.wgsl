@@ -1,6 +1,6 @@
 // fern_encode.wgsl: the frame's randomised-fern code, one 4-bit code per fern, for the
 // relocalisation keyframe database (ElasticFusion's ferns; Glocker et al. 2015).
-// CPU twin: src/cpu/fern_encode.rs (its header says why cells and why sums).
+// CPU twin: crates/core/src/cpu/fern_encode.rs (its header says why cells and why sums).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // One thread per fern in a grid-stride loop; each reads only its own cell (a few dozen
@@ -22,7 +22,7 @@ const WORKGROUP_SIZE: u32 = 64u;
 // The code of `fern`: bit 3 red, bit 2 green, bit 1 blue, bit 0 depth, each set when the
 // cell's mean over its valid-depth pixels is above the threshold. The means are compared
 // as sums (sum > threshold * count) so no division rounds differently from the twin.
-// Mirrors `fern_code` in src/cpu/fern_encode.rs.
+// Mirrors `fern_code` in crates/core/src/cpu/fern_encode.rs.
 fn fern_code(p: FernParams, fern: Fern) -> u32 {
     let u0 = fern.cell_u * p.cell_width;
     let v0 = fern.cell_v * p.cell_height;

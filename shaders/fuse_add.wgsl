@@ -4,7 +4,7 @@
 // as on the CPU, and two runs write the same map): world frame, weight pixel_confidence,
 // radius surfel_radius. Last of three kernels (fuse_flags, prefix_sum, fuse_add).
 // Dispatched once per map chunk: each pass writes the new surfels whose slots the chunk
-// holds. CPU twin: src/cpu/fuse_add.rs.
+// holds. CPU twin: crates/core/src/cpu/fuse_add.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl). Never writes

@@ -2,7 +2,7 @@
 // measurement that no surfel merged with (projective association) or covers (best
 // candidate), at the pixel's append_index. First of fuse_add's three kernels (then
 // prefix_sum over the flags, which gives each new surfel its slot in append order, see
-// `layout::APPEND_TILE_PX`, then fuse_add). CPU twin: src/cpu/fuse_flags.rs (its header
+// `layout::APPEND_TILE_PX`, then fuse_add). CPU twin: crates/core/src/cpu/fuse_flags.rs (its header
 // says why best-candidate association asks the neighbours).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.

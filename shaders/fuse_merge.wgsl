@@ -3,7 +3,7 @@
 // the gates takes merged_surfel's averages (last_frame = frame_id), and the pixel is
 // flagged. Best-candidate association merges from the pixels instead (fuse_merge_chosen).
 // Dispatched once per map chunk; a merge that moves a surfel out of its block's box grows
-// the box. CPU twin: src/cpu/fuse_merge.rs (its header states both filter passes).
+// the box. CPU twin: crates/core/src/cpu/fuse_merge.rs (its header states both filter passes).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (their

@@ -4,7 +4,7 @@
 // keys only the pixel its centre projects to, so each surfel has at most one writer. The
 // same merges as walking the surfels and asking their pixel whether it chose them, at the
 // cost of the image instead of the map. A merge that moves a surfel out of its block's box
-// grows the box. Dispatched once per map chunk. CPU twin: src/cpu/fuse_merge_chosen.rs.
+// grows the box. Dispatched once per map chunk. CPU twin: crates/core/src/cpu/fuse_merge_chosen.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).

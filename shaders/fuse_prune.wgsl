@@ -7,7 +7,7 @@
 // the surface the merged surfel now stands for (Keller et al. 2013 merge such surfels).
 // Without it, noisy depth leaves copies that different pixels keep refreshing, and the
 // camera sees a denser map on every revisit. Dispatched once per map chunk; the merged
-// surfel may be in any chunk, as its copy is per pixel. CPU twin: src/cpu/fuse_prune.rs.
+// surfel may be in any chunk, as its copy is per pixel. CPU twin: crates/core/src/cpu/fuse_prune.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects; threads

@@ -1,7 +1,7 @@
 // fuse_select.wgsl: every pixel picks the one surfel it will fuse with among those whose
 // centres project into it (best-candidate association, robust profile), before
 // fuse_merge_chosen and fuse_add. Dispatched once per map chunk (and key pass). CPU twin:
-// src/cpu/fuse_select.rs (its header states the gates and the choice).
+// crates/core/src/cpu/fuse_select.rs (its header states the gates and the choice).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Workgroups stride over the chunk's blocks, skipping those block_visible rejects (a

@@ -2,7 +2,7 @@
 // inside the image onto a valid target), the denominator of the tracking-health inlier
 // fraction. Run once per frame at the final pose, so icp_reduce's per-iteration system
 // stays 29 floats (counting there cost 30 % of every iteration on lavapipe).
-// CPU twin: src/cpu/icp_candidates.rs.
+// CPU twin: crates/core/src/cpu/icp_candidates.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // icp_reduce's grid-stride loop; each thread counts its pixels, one workgroup atomic sums
@@ -22,7 +22,7 @@ const WORKGROUP_SIZE: u32 = 64u;
 var<workgroup> total: atomic<u32>;
 
 // Whether source pixel `src_texel` passes filter 1. Mirrors `is_candidate` in
-// src/cpu/icp_candidates.rs and the first half of `icp_row` in icp_reduce.wgsl.
+// crates/core/src/cpu/icp_candidates.rs and the first half of `icp_row` in icp_reduce.wgsl.
 fn is_candidate(p: IcpParams, src_texel: vec2<u32>) -> bool {
     let src_world = textureLoad(pred_vertex, src_texel, 0);
     if !is_valid(src_world) {

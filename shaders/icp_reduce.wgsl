@@ -1,6 +1,6 @@
 // icp_reduce.wgsl: projective data association, both filters, the weighted point-to-plane
 // row and the reduction to one 29-float normal-equation partial per workgroup.
-// CPU twin: src/cpu/icp_reduce.rs (its header states the maths, the filters and weights).
+// CPU twin: crates/core/src/cpu/icp_reduce.rs (its header states the maths, the filters and weights).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // The loop over the pixels and the reduction: system_grid.wgsl (`#entry system_grid`).
@@ -25,7 +25,7 @@ const NOISE_SIGMA_QUAD: f32 = 0.0019;
 const NOISE_Z_0_M: f32 = 0.4;
 
 // Row weight of the depth noise at z: (sigma(0.4 m) / sigma(z))^2, 1 at 0.4 m and less
-// beyond. Mirrors `noise_weight` in src/cpu/icp_reduce.rs.
+// beyond. Mirrors `noise_weight` in crates/core/src/cpu/icp_reduce.rs.
 fn noise_weight(z: f32) -> f32 {
     let dz = z - NOISE_Z_0_M;
     let sigma = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD * dz * dz;
@@ -35,7 +35,7 @@ fn noise_weight(z: f32) -> f32 {
 
 // The row of source pixel `src_texel`, or valid = false when a filter rejects it; weighted rows
 // are scaled by sqrt(weight), so AᵀA and Aᵀb carry the weight once.
-// Mirrors `icp_row` in src/cpu/icp_reduce.rs; system_grid.wgsl's main calls it for each
+// Mirrors `icp_row` in crates/core/src/cpu/icp_reduce.rs; system_grid.wgsl's main calls it for each
 // pixel with its copy of the params.
 fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;

@@ -2,7 +2,7 @@
 // per-workgroup partial systems into one, so each ICP iteration reads back ICP_SYSTEM_LEN
 // floats (116 bytes) instead of one partial per workgroup (1.8 KB on lavapipe's 16
 // workgroups, 116 KB on a GPU's 1024).
-// CPU twin: src/cpu/icp_reduce_final.rs.
+// CPU twin: crates/core/src/cpu/icp_reduce_final.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Dispatched as [ICP_SYSTEM_LEN, 1]: workgroup k sums entry k over the G partials as a

@@ -4,7 +4,7 @@
 // intensity is the colour map's luma; a coarser level's is the [1 2 1] x [1 2 1] / 16 mean
 // of the finer level's around finer pixel (2u, 2v). Run once per frame, with RGB-D
 // tracking only.
-// CPU twin: src/cpu/intensity_pyramid.rs (its header states the rules).
+// CPU twin: crates/core/src/cpu/intensity_pyramid.rs (its header states the rules).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the level's pixels in 8x8 tiles (pixel_grid.wgsl).

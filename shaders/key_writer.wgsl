@@ -2,7 +2,7 @@
 // both variants. Not a kernel: src/gpu/shaders.rs appends it to each key kernel
 // (project_model, fuse_select, fuse_add, render_splat) after the kernel's own text, with
 // KEY_64 defined or not, so every key kernel writes its `index_map` with this one code.
-// Mirrors src/cpu/key_writer.rs (`KeyWriter`: `[u64]` for KEY_64, `KeyPass` without).
+// Mirrors crates/core/src/cpu/key_writer.rs (`KeyWriter`: `[u64]` for KEY_64, `KeyPass` without).
 //
 // A key is (high, index): high a depth word (depth_key, larger = nearer), index a map-wide
 // surfel index, compared as the u64 (high << 32) | index; ties go to the larger index and

@@ -1,6 +1,6 @@
 // keypoint_describe.wgsl: a binary descriptor (BRIEF-like, 256 tests) and the camera-frame
 // point of each keypoint, for feature-based relocalisation.
-// CPU twin: src/cpu/keypoint_describe.rs (its header says why box means).
+// CPU twin: crates/core/src/cpu/keypoint_describe.rs (its header says why box means).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // One thread per keypoint in a grid-stride loop.
@@ -24,7 +24,7 @@
 const WORKGROUP_SIZE: u32 = 64u;
 
 // Sum of r + g + b over the 3x3 box around (u, v) + d, clamped to the image (whole
-// numbers: exact in f32). Mirrors `box_grey` in src/cpu/keypoint_describe.rs.
+// numbers: exact in f32). Mirrors `box_grey` in crates/core/src/cpu/keypoint_describe.rs.
 fn box_grey(p: KeypointParams, u: u32, v: u32, d: vec2<i32>) -> f32 {
     let last = vec2<i32>(i32(p.width) - 1, i32(p.height) - 1);
     let c = vec2<i32>(i32(u), i32(v)) + d;

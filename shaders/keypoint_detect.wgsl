@@ -1,7 +1,7 @@
 // keypoint_detect.wgsl: Harris corners of the level-0 colour for feature-based
 // relocalisation: every pixel with valid depth whose response is above the threshold and
 // above its 8 neighbours' is appended to the candidate list.
-// CPU twin: src/cpu/keypoint_detect.rs (its header says why Harris and why sums).
+// CPU twin: crates/core/src/cpu/keypoint_detect.rs (its header says why Harris and why sums).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles; the response of a neighbour is
@@ -25,7 +25,7 @@ const BORDER: u32 = 3u;
 const HARRIS_K: f32 = 0.04;
 
 // Grey level of texel (u, v): r + g + b (0..765; a sum, not a mean, so it is exact).
-// Mirrors `grey` in src/cpu/keypoint_detect.rs.
+// Mirrors `grey` in crates/core/src/cpu/keypoint_detect.rs.
 fn grey(u: u32, v: u32) -> f32 {
     let c = textureLoad(color, vec2<u32>(u, v), 0);
     return c.x + c.y + c.z;

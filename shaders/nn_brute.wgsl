@@ -1,5 +1,5 @@
 // nn_brute.wgsl: nearest target point of each query by brute force, reported only within
-// the rejection radius. CPU twin: src/cpu/nn_brute.rs (same loops, same tie rule: equal
+// the rejection radius. CPU twin: crates/core/src/cpu/nn_brute.rs (same loops, same tie rule: equal
 // squared distances go to the lower target index).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.

@@ -1,6 +1,6 @@
 // nn_grid.wgsl: radius-limited nearest neighbour through a hashed uniform voxel grid.
 // Each query searches the 3x3x3 cells around its own; with a cell edge >= the radius this
-// equals brute force within the radius. CPU twin: src/cpu/nn_grid.rs (same loops, same
+// equals brute force within the radius. CPU twin: crates/core/src/cpu/nn_grid.rs (same loops, same
 // hash, same tie rule), which also builds the grid (`HashGrid::build`).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
@@ -20,12 +20,12 @@
 // One per query, index into the ORIGINAL target cloud.
 @group(0) @binding(4) var<storage, read_write> results: array<ScanNnResult>;
 
-// Mirrors `scan_cell_of` in src/cpu/nn_grid.rs.
+// Mirrors `scan_cell_of` in crates/core/src/cpu/nn_grid.rs.
 fn scan_cell_of(p: vec4<f32>, cell_size: f32) -> vec3<i32> {
     return vec3<i32>(floor(p.xyz / cell_size));
 }
 
-// Mirrors `scan_bucket` in src/cpu/nn_grid.rs (u32 multiplication wraps in WGSL).
+// Mirrors `scan_bucket` in crates/core/src/cpu/nn_grid.rs (u32 multiplication wraps in WGSL).
 fn scan_bucket(c: vec3<i32>, table_mask: u32) -> u32 {
     let h = (bitcast<u32>(c.x) * 73856093u) ^ (bitcast<u32>(c.y) * 19349663u)
         ^ (bitcast<u32>(c.z) * 83492791u);

@@ -2,7 +2,7 @@
 // intensity residual of the new frame against the map's predicted intensity at the
 // current estimate, its Jacobian row through the frame's image gradient, and the reduction
 // to one 29-float normal-equation partial per workgroup (the layout of icp_reduce's).
-// CPU twin: src/cpu/photo_reduce.rs (its header states the maths and the gates).
+// CPU twin: crates/core/src/cpu/photo_reduce.rs (its header states the maths and the gates).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // The loop over the pixels and the reduction: system_grid.wgsl (`#entry system_grid`).

@@ -1,6 +1,6 @@
 // pixel_grid.wgsl: the entry point of every per-pixel kernel, appended to a kernel whose
 // file says `#entry pixel_grid` (src/gpu/shaders.rs).
-// CPU twin: src/cpu/entries.rs, fn pixel_grid (re-exported as cpu::pixel_grid).
+// CPU twin: crates/core/src/cpu/entries.rs, fn pixel_grid (re-exported as cpu::pixel_grid).
 // Not valid alone: the kernel declares
 //   const TILE_X, TILE_Y: u32        its workgroup's tile of pixels;
 //   params                           a binding whose struct has the image's width, height;

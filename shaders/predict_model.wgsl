@@ -1,7 +1,7 @@
 // predict_model.wgsl: turns the index map into the predicted (model) vertex and normal
 // maps in the WORLD frame, the ICP source, and the predicted intensity. Dispatched once per map chunk: each pass writes
 // the pixels whose surfel the chunk holds, and the first chunk's pass also the pixels with
-// no surfel, so every pixel is written exactly once. CPU twin: src/cpu/predict_model.rs.
+// no surfel, so every pixel is written exactly once. CPU twin: crates/core/src/cpu/predict_model.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).

@@ -2,7 +2,7 @@
 // prefix_sum): the exclusive prefix sum of the keep flags (where each kept item goes), each
 // block scanned on its own and offset by the sum of the blocks before it. The scan of a
 // stream compaction (fusion's new surfels, the map's survivors). CPU twin:
-// src/cpu/prefix_sum.rs.
+// crates/core/src/cpu/prefix_sum.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // One workgroup per block of SCAN_BLOCK flags, dispatched as [ceil(n / SCAN_BLOCK), 1]:

@@ -1,6 +1,6 @@
 // prefix_sum_blocks.wgsl: the second of the three scan kernels: the exclusive prefix sum
 // of prefix_sum_reduce's block sums, in place, and their total (the count after
-// compaction). CPU twin: src/cpu/prefix_sum_blocks.rs.
+// compaction). CPU twin: crates/core/src/cpu/prefix_sum_blocks.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // One workgroup of BLOCKS_THREADS threads, dispatched as [1, 1], over the ceil(n /

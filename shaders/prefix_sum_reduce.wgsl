@@ -1,6 +1,6 @@
 // prefix_sum_reduce.wgsl: the first of a stream compaction's three scan kernels
 // (prefix_sum_reduce, prefix_sum_blocks, prefix_sum): the sum of each block of SCAN_BLOCK
-// flags. CPU twin: src/cpu/prefix_sum_reduce.rs.
+// flags. CPU twin: crates/core/src/cpu/prefix_sum_reduce.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // One workgroup per block, dispatched as [ceil(n / SCAN_BLOCK), 1] (or more: blocks past
@@ -16,7 +16,7 @@
 // Out: per block, the sum of its flags (at least ceil(n / SCAN_BLOCK) entries).
 @group(0) @binding(2) var<storage, read_write> block_sums: array<u32>;
 
-// The block shape, shared by the three scan kernels and the twins (src/cpu/prefix_sum.rs).
+// The block shape, shared by the three scan kernels and the twins (crates/core/src/cpu/prefix_sum.rs).
 const SCAN_THREADS: u32 = 64u;
 const SCAN_ITEMS: u32 = 32u;
 const SCAN_BLOCK: u32 = 2048u;

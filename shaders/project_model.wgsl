@@ -1,6 +1,6 @@
 // project_model.wgsl: splats every surfel of one map chunk into an index map with a depth
 // test, one key per pixel, skipping blocks the camera cannot see. Dispatched once per
-// chunk (and key pass). CPU twin: src/cpu/project_model.rs.
+// chunk (and key pass). CPU twin: crates/core/src/cpu/project_model.rs.
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Key = (u64(depth_key(z_cam)) << 32) | map-wide surfel index; the pixel keeps the maximum

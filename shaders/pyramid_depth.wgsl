@@ -1,6 +1,6 @@
 // pyramid_depth.wgsl: the next coarser level of the frame's ICP pyramid, an edge-aware
 // average of the finer level's depth (KinectFusion's pyramid step). CPU twin:
-// src/cpu/pyramid_depth.rs (its header states the rules and the sampling convention).
+// crates/core/src/cpu/pyramid_depth.rs (its header states the rules and the sampling convention).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Coarse pixel (u, v) samples finer pixel (2u, 2v): invalid where that pixel is invalid,

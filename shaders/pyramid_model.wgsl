@@ -1,5 +1,5 @@
 // pyramid_model.wgsl: the next coarser level of the predicted (model) maps, the ICP source,
-// by subsampling. CPU twin: src/cpu/pyramid_model.rs (its header says why subsampling).
+// by subsampling. CPU twin: crates/core/src/cpu/pyramid_model.rs (its header says why subsampling).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Coarse pixel (u, v) is a copy of finer pixel (2u, 2v) (the frame pyramid's sampling);

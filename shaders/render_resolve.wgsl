@@ -1,13 +1,13 @@
 // render_resolve.wgsl: shades each pixel of a render_splat index map from its winning
 // surfel (colour, normal, weight or depth), background where empty.
-// CPU twin: src/cpu/render_resolve.rs.
+// CPU twin: crates/core/src/cpu/render_resolve.rs.
 //
 // Prepended with common.wgsl. Bindings (@group(0)): each is described by the
 // comment above its declaration.
 // One pixel per invocation (grid-stride, so any workgroup count works).
 // Gap filling (params.fill_gap_px > 0): an empty pixel with covered pixels at most
 // fill_gap_px away on both sides (above and below, or left and right) whose depths agree
-// within GAP_DEPTH_TOLERANCE shows the nearer of the two (see src/cpu/render_resolve.rs).
+// within GAP_DEPTH_TOLERANCE shows the nearer of the two (see crates/core/src/cpu/render_resolve.rs).
 
 // RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
 
@@ -25,7 +25,7 @@ const RAMP_HIGH: vec3<f32> = vec3<f32>(0.993, 0.906, 0.144);
 // Mirrors `cpu::render_resolve::GAP_DEPTH_TOLERANCE`.
 const GAP_DEPTH_TOLERANCE: f32 = 0.05;
 
-// The view (RenderParams mirrors src/render/layout.rs).
+// The view (RenderParams mirrors crates/core/src/layout/render.rs).
 @group(0) @binding(0) var<storage, read> params: RenderParams;
 // width x height: the u64 keys of render_splat read as (low, high) words,
 // little-endian: x = surfel index, y = ~bits(z_cam).

@@ -1,5 +1,5 @@
 // render_splat.wgsl: splats surfels as small discs into a depth|index map, for pictures
-// of the map (not for tracking). CPU twin: src/cpu/render_splat.rs.
+// of the map (not for tracking). CPU twin: crates/core/src/cpu/render_splat.rs.
 //
 // Prepended with common.wgsl (transform_point, transform_dir, xyz, depth_key).
 // Bindings (@group(0)): each is described by the comment above its declaration.
@@ -15,7 +15,7 @@
 // Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
 const MAX_PROJECTED_PX: f32 = 1.0e7;
 
-// The view and splat sizes (RenderParams mirrors src/render/layout.rs).
+// The view and splat sizes (RenderParams mirrors crates/core/src/layout/render.rs).
 @group(0) @binding(0) var<storage, read> params: RenderParams;
 // Surfel centres, world frame, metres; surfel_count entries read.
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;

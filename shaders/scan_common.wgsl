@@ -4,9 +4,9 @@
 // Prepended to each of those kernels by `src/gpu/shaders.rs` instead of common.wgsl (WGSL
 // has no includes; these kernels need neither the dense-SLAM structs nor 64-bit integers),
 // so this file declares no bindings and no entry point. Each struct mirrors the
-// `#[repr(C)]` struct of the same name in `src/scan/layout.rs` (checked by
+// `#[repr(C)]` struct of the same name in `crates/core/src/layout/scan.rs` (checked by
 // `tests/it/scan_kernels.rs`); each helper mirrors the function of the same name in
-// `src/cpu/mod.rs`.
+// `crates/core/src/cpu/mod.rs`.
 
 // Mirrors `scan::layout::ScanNnParams`.
 struct ScanNnParams {

@@ -1,7 +1,7 @@
 // system_grid.wgsl: the entry point of every kernel that reduces one 29-float
 // normal-equation system over the pixels (icp_reduce, photo_reduce), appended to a kernel
 // whose file says `#entry system_grid` (src/gpu/shaders.rs).
-// CPU twin: src/cpu/entries.rs, fn system_grid (re-exported as cpu::system_grid).
+// CPU twin: crates/core/src/cpu/entries.rs, fn system_grid (re-exported as cpu::system_grid).
 // Not valid alone: the kernel declares
 //   params                           a binding whose struct has the image's width, height;
 //   partials                         the output binding, ICP_SYSTEM_LEN floats per workgroup;
@@ -27,14 +27,14 @@ struct IcpRow {
 // The valid row of a point p (camera frame) whose residual b moves along direction d
 // (the frame normal, or the intensity gradient through the projection) under the twist
 // (alpha, beta, gamma, tx, ty, tz): a = [(p x d), d] and b, both scaled by s = sqrt(weight).
-// Mirrors `scaled_row` in src/cpu/entries.rs.
+// Mirrors `scaled_row` in crates/core/src/cpu/entries.rs.
 fn scaled_row(p: vec3<f32>, d: vec3<f32>, b: f32, s: f32) -> IcpRow {
     let pxd = cross(p, d) * s;
     let ds = d * s;
     return IcpRow(array<f32, 6>(pxd.x, pxd.y, pxd.z, ds.x, ds.y, ds.z), b * s, true);
 }
 
-// Adds one row to a 29-entry system. Mirrors `accumulate` in src/cpu/entries.rs: the
+// Adds one row to a 29-entry system. Mirrors `accumulate` in crates/core/src/cpu/entries.rs: the
 // twin's two loops written out in the same k order (row r, column c >= r), because
 // constant indices let lavapipe keep `sys` in registers instead of per-lane stack memory.
 fn accumulate(sys: ptr<function, array<f32, ICP_SYSTEM_LEN>>, a: array<f32, 6>, b: f32) {

@@ -1,6 +1,6 @@
 // vertex_to_normal.wgsl: normal map from the vertex map by central differences, oriented
 // towards the camera, with each pixel's depth from the point map. CPU twin:
-// src/cpu/vertex_to_normal.rs (its header states the rules).
+// crates/core/src/cpu/vertex_to_normal.rs (its header states the rules).
 //
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A valid normal implies a valid vertex, and every later kernel that reads this frame needs

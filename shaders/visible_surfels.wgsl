@@ -1,7 +1,7 @@
 // visible_surfels.wgsl: the entry point of every kernel that walks the map chunk's surfels
 // in view, appended to a kernel whose file says `#entry visible_surfels`
 // (src/gpu/shaders.rs).
-// CPU twin: src/cpu/entries.rs, fn visible_surfels (re-exported as cpu::visible_surfels).
+// CPU twin: crates/core/src/cpu/entries.rs, fn visible_surfels (re-exported as cpu::visible_surfels).
 // Not valid alone: the kernel declares
 //   params                             a binding whose struct has t_world_to_cam, the
 //                                      intrinsics fx, fy, cx, cy, width, height and

@@ -55,20 +55,14 @@ pub(crate) mod batch;
 #[doc(hidden)]
 pub mod cli;
 #[doc(hidden)]
-pub mod cpu;
-#[doc(hidden)]
 pub mod dataset;
 pub mod error;
 #[doc(hidden)]
 pub mod eval;
 #[doc(hidden)]
-pub mod geometry;
-#[doc(hidden)]
 pub mod gpu;
 #[doc(hidden)]
 pub mod io;
-#[doc(hidden)]
-pub mod layout;
 #[doc(hidden)]
 pub mod mesh;
 #[doc(hidden)]
@@ -78,6 +72,11 @@ pub mod scan;
 #[doc(hidden)]
 pub mod slam;
 pub(crate) mod stats;
+// The bottom floor, its own crate (crates/core): the maths, the layout contract and the
+// CPU twins. It cannot import anything above it; here its modules keep their paths
+// (`crate::cpu`, `wgslam::layout`).
+#[doc(hidden)]
+pub use wgslam_core::{cpu, geometry, layout};
 #[doc(hidden)]
 pub mod tools;
 // The browser build's entry points (deploy/web).
@@ -87,7 +86,7 @@ pub mod web;
 pub use error::{Error, Result};
 
 pub use dataset::{open as open_sequence, Sequence, SequenceOptions};
+pub use layout::map::SurfelMap;
 pub use slam::any_backend::{open as open_backend, AnyBackend, BackendChoice};
-pub use slam::map::SurfelMap;
 pub use slam::params::{Profile, SlamParams};
 pub use tools::run::{run, write_outputs, FrameOutcome, Metrics, RunResult};

@@ -22,7 +22,7 @@ use pyo3::types::PyDict;
 use wgslam::cli::embed;
 use wgslam::dataset::{RawFrame, Sequence};
 use wgslam::io::outputs::OutputSet;
-use wgslam::slam::map::SurfelMap;
+use wgslam::layout::map::SurfelMap;
 use wgslam::slam::params::PoseSource;
 use wgslam::tools::run::{self as run_job, Decode, FrameObserver, FrameOutcome, RunResult};
 use wgslam::BackendChoice;

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
 use crate::tools::compare::{self, tolerance::MAP_MATCH_RADIUS_M};
 use crate::{io, Error, Result};
 

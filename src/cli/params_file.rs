@@ -388,7 +388,6 @@ mod tests {
                         "gt" => s.gt_path == Some("a/gt.txt".into()),
                         "camera" => s.intrinsics == Intrinsics::preset("fr1"),
                         "intrinsics" => s.intrinsics.is_some_and(|k| k.fx == 500.0),
-                        "depth-scale" => s.depth_scale == Some(1000.0),
                         "max-time-diff" => s.max_time_diff == 0.03,
                         "stamp-order" => s.stamp_order == crate::dataset::StampOrder::File,
                         "profile" => p.profile == Profile::Assignment,
@@ -398,6 +397,34 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The raw depth scale has one home, the key `input.depth_scale`: a file's
+    /// `[input] depth_scale` reaches the sequence's options as the top-level `depth-scale`
+    /// and the flag do (it was once accepted and silently replaced by the dataset's), in
+    /// the order flag, then top-level file key, then section; unset, the dataset decides.
+    #[test]
+    fn depth_scale_has_one_home_and_one_order() {
+        let scale = |o: &ParamOverrides| o.sequence_options().unwrap().depth_scale;
+        let section = ParamOverrides::from_toml("[input]\ndepth_scale = 1000\n").unwrap();
+        assert_eq!(scale(&section), Some(1000.0), "[input] depth_scale");
+        assert_eq!(params(&section).input.depth_scale, 1000.0);
+        let both =
+            ParamOverrides::from_toml("depth-scale = 2000\n[input]\ndepth_scale = 1000\n").unwrap();
+        assert_eq!(
+            scale(&both),
+            Some(2000.0),
+            "the top-level key over the section"
+        );
+        let flag = flags(&["--depth-scale=4000"]).over(both);
+        assert_eq!(scale(&flag), Some(4000.0), "the flag over the file");
+        assert_eq!(scale(&ParamOverrides::default()), None, "the dataset's own");
+        let zero = ParamOverrides::from_toml("[input]\ndepth_scale = 0\n");
+        let refused = zero.map(|o| o.sequence_options().map(|_| ()));
+        assert!(
+            !matches!(refused, Ok(Ok(()))),
+            "a zero depth scale is refused, by the file's check or the options'"
+        );
     }
 
     /// Sections set values by key, options (the file's and the command line's) win over

@@ -134,9 +134,11 @@ param_overrides! {
     /// Intrinsics override "fx,fy,cx,cy" in pixels (image size from the frames' preset/json).
     #[arg(long)]
     intrinsics: Option<String>,
-    /// Raw depth units per metre (default: camera.json or 5000).
+    /// Raw depth units per metre (default: camera.json's, else the layout's: 5000 for TUM
+    /// and ICL-NUIM, 1000 for 7-Scenes, ...). The file key `[input] depth_scale` is the same
+    /// value; the flag wins over a file, a file over the dataset's own.
     #[arg(long)]
-    depth_scale: Option<f32>,
+    depth_scale: Option<f32> => "input.depth_scale",
     /// Largest timestamp difference for association, seconds (default 0.02).
     #[arg(long)]
     max_time_diff: Option<f64>,
@@ -355,10 +357,35 @@ impl ParamOverrides {
         Ok(SequenceOptions {
             gt_path: self.gt.clone(),
             intrinsics,
-            depth_scale: self.depth_scale,
+            depth_scale: self.depth_scale()?,
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
             stamp_order: self.stamp_order.unwrap_or_default(),
         })
+    }
+
+    /// The raw depth units per metre the user set, if any: the last `input.depth_scale` of
+    /// [`ParamOverrides::keys_set`] (the flag `--depth-scale` or a file's top-level
+    /// `depth-scale`, over a file's `[input] depth_scale`). `None` leaves the dataset's own
+    /// (`camera.json`, else the layout's convention): the one order of precedence, applied
+    /// once when the sequence is opened ([`dataset::open`]), whose value the pipeline's
+    /// `input.depth_scale` then records (`Slam::for_sequence`).
+    fn depth_scale(&self) -> Result<Option<f32>> {
+        let Some((_, value)) = self
+            .keys_set()
+            .into_iter()
+            .rev()
+            .find(|(key, _)| key == "input.depth_scale")
+        else {
+            return Ok(None);
+        };
+        let scale = value.as_float().or(value.as_integer().map(|i| i as f64));
+        match scale {
+            Some(s) if s.is_finite() && s > 0.0 && s <= f32::MAX as f64 => Ok(Some(s as f32)),
+            _ => Err(Error::Argument(with_flags(&format!(
+                "`input.depth_scale` {value} must be a positive number of raw depth units per \
+                 metre"
+            )))),
+        }
     }
 }
 

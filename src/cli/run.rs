@@ -8,8 +8,8 @@ use super::pipeline_args::{default_first_frame, PipelineArgs};
 use crate::batch::in_process::{Embedded, RunHooks};
 use crate::dataset;
 use crate::io::outputs::OutputSet;
+use crate::layout::map::SurfelMap;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::map::SurfelMap;
 use crate::slam::params::PoseSource;
 use crate::tools::run;
 use crate::{Error, Result};
@@ -124,7 +124,7 @@ impl run::FrameObserver for MapCap<'_> {
         &mut self,
         raw: &dataset::RawFrame,
         outcome: &run::FrameOutcome,
-        map: Option<&crate::slam::map::SurfelMap>,
+        map: Option<&crate::layout::map::SurfelMap>,
     ) -> Result<()> {
         if self.hooks.is_some_and(|h| (h.stop)()) {
             return Err(Error::Interrupted(format!(
@@ -366,7 +366,7 @@ enum Recording {}
 
 #[cfg(not(feature = "rerun"))]
 impl Recording {
-    fn finish(self, _map: &crate::slam::map::SurfelMap) -> Result<PathBuf> {
+    fn finish(self, _map: &crate::layout::map::SurfelMap) -> Result<PathBuf> {
         match self {}
     }
 }
@@ -380,7 +380,7 @@ impl run::FrameObserver for Recording {
         &mut self,
         _raw: &dataset::RawFrame,
         _outcome: &run::FrameOutcome,
-        _map: Option<&crate::slam::map::SurfelMap>,
+        _map: Option<&crate::layout::map::SurfelMap>,
     ) -> Result<()> {
         match *self {}
     }

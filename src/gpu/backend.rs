@@ -1,5 +1,5 @@
 //! The GPU backend: runs the dense-SLAM steps of [`crate::slam::backend::Backend`] as the
-//! WGSL kernels in `shaders/`, each the twin of a CPU function in `src/cpu/`, in the order
+//! WGSL kernels in `shaders/`, each the twin of a CPU function in `crates/core/src/cpu/`, in the order
 //! of each step's plan (`crate::slam::plan`, shared with the CPU backend): one compute
 //! pass per planned kernel (one per map chunk for the kernels that walk the map), one
 //! command buffer per step: submitted at once by the steps whose results the host reads,

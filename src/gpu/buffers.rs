@@ -29,7 +29,7 @@ fn padded_bytes(bytes: u64) -> u64 {
 
 /// A storage buffer holding up to `capacity` elements of `T`, of which the first `len` are
 /// meaningful. Usage: STORAGE | COPY_SRC | COPY_DST. Element layout is `T`'s `#[repr(C)]`
-/// layout, which must match the WGSL element type (see `src/layout.rs`).
+/// layout, which must match the WGSL element type (see `crates/core/src/layout/mod.rs`).
 pub struct GpuArray<T: Pod> {
     buffer: wgpu::Buffer,
     len: usize,
@@ -278,7 +278,7 @@ pub(crate) fn map_read<R>(
     Ok(out)
 }
 
-/// A read-only storage buffer holding one `T` (a params struct from `src/layout.rs`),
+/// A read-only storage buffer holding one `T` (a params struct from `crates/core/src/layout/mod.rs`),
 /// bound as `var<storage, read> params`; not a uniform buffer, see
 /// [`super::kernel::ReflectedBinding`] (why params are storage buffers).
 pub struct ParamBuffer<T: Pod> {

@@ -5,11 +5,11 @@
 use super::backend::GpuBackend;
 use super::context::GpuContext;
 use super::images::GpuImage;
+use crate::layout::map::SurfelMap;
 use crate::layout::BLOCK_SURFELS;
 use crate::slam::backend::{
     BackendCounters, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction,
 };
-use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// A per-pixel `[f32; 4]` map read back row-major.

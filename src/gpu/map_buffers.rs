@@ -22,8 +22,8 @@
 
 use super::buffers::{GpuArray, ParamBuffer};
 use super::context::GpuContext;
+use crate::layout::map::SurfelMap;
 use crate::layout::{MapChunk, BLOCK_SURFELS};
-use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// Surfels per full chunk unless the device's binding limit is smaller: 2^21 slots, 32 MiB

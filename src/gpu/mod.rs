@@ -1,7 +1,7 @@
 //! The GPU backend: wgpu context, embedded WGSL kernels, typed buffers, timing, and
 //! [`GpuBackend`], which runs `slam::backend::Backend`'s steps as those kernels.
 //!
-//! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in `src/cpu/<kernel>.rs`; this
+//! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in `crates/core/src/cpu/<kernel>.rs`; this
 //! module only knows how to run them on a device. Nothing here reads files.
 //!
 //! - [`context`]: adapter (Vulkan / Metal / DX12, never GL), device, limits, error scopes.

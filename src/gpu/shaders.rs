@@ -12,19 +12,19 @@
 //! it, so what is validated is what runs. This module does not compile anything; see
 //! [`super::kernel`].
 
-/// `shaders/common.wgsl`: the structs of `src/layout.rs` and the helpers of `src/cpu/mod.rs`
+/// `shaders/common.wgsl`: the structs of `crates/core/src/layout/mod.rs` and the helpers of `crates/core/src/cpu/mod.rs`
 /// (dense SLAM and renders).
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 
-/// `shaders/scan_common.wgsl`: the structs of `src/scan/layout.rs` and the scan helpers of
-/// `src/cpu/mod.rs`.
+/// `shaders/scan_common.wgsl`: the structs of `crates/core/src/layout/scan.rs` and the scan helpers of
+/// `crates/core/src/cpu/mod.rs`.
 pub const SCAN_COMMON: &str = include_str!("../../shaders/scan_common.wgsl");
 
 /// The prefix files as `(name, text)` (not kernels: no entry point, no bindings).
 pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN_COMMON)];
 
 /// `shaders/key_writer.wgsl`: how a key kernel's `index_map` keeps the larger key, in both
-/// variants (mirrors `src/cpu/key_writer.rs`). Appended to each key kernel; not a kernel,
+/// variants (mirrors `crates/core/src/cpu/key_writer.rs`). Appended to each key kernel; not a kernel,
 /// and not valid alone (it writes the kernel's `index_map`).
 pub const KEY_WRITER: &str = include_str!("../../shaders/key_writer.wgsl");
 
@@ -59,7 +59,7 @@ pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
 /// depth word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
 /// then 1), and decides the same winner bit for bit. Every other kernel, portable variants
 /// included, validates without 64-bit integers (`tests/it/shaders.rs`). The CPU twin
-/// `src/cpu/<kernel>.rs` serves both, generic over `cpu::key_writer::KeyWriter`.
+/// `crates/core/src/cpu/<kernel>.rs` serves both, generic over `cpu::key_writer::KeyWriter`.
 pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
     ("project_model", "project_model_portable"),
     ("fuse_select", "fuse_select_portable"),

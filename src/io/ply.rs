@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 
 use crate::io::atomic::write_atomic;
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
 use crate::{Error, Result};
 
 /// Header of the files [`write_surfel_map`] writes, after the `element vertex N` line.

@@ -23,7 +23,7 @@ pub mod surface_nets;
 pub mod tsdf;
 pub mod write;
 
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
 use crate::{Error, Result};
 
 /// A triangle mesh in the world frame: `positions` (metres) and `colors` (RGB 0..255) have

@@ -1,5 +1,5 @@
 //! The GPU pass of the renderer: `render_splat` then `render_resolve` in one submission,
-//! the same kernels as the CPU twins in `src/cpu/render_*.rs`.
+//! the same kernels as the CPU twins in `crates/core/src/cpu/render_*.rs`.
 //!
 //! Thin wrapper: two kernels created once, buffers created per picture (a render is a
 //! one-off, not a per-frame step), one read-back of the packed pixels. `render_splat` is
@@ -8,10 +8,10 @@
 
 use image::RgbImage;
 
-use super::layout::RenderParams;
 use super::{render_params, rgba_to_image, Cloud, RenderCamera, RenderSettings, View};
 use crate::gpu::kernel::KeyKernel;
 use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
+use crate::layout::render::RenderParams;
 use crate::Result;
 
 /// The two render kernels, created once per context.

@@ -3,21 +3,20 @@
 //!
 //! Surfels are drawn as small discs (a fixed world radius projected, clamped to a few
 //! pixels) into a 64-bit depth|index map (`render_splat`), then each pixel is shaded from
-//! its winning surfel (`render_resolve`). The CPU twins in `src/cpu/render_*.rs` run here;
+//! its winning surfel (`render_resolve`). The CPU twins in `crates/core/src/cpu/render_*.rs` run here;
 //! the GPU pass lives in [`gpu`]. This module knows cameras, views and images, not files
 //! other than the PNG it is asked to write; trajectory plots are in `crate::render::plot`.
 //!
 //! Submodules: `view` (what a pixel shows, image sizes), `framing` (virtual cameras
 //! that frame a cloud), `overlay` (ICP before/after pictures), `outputs` (the pictures
-//! a run writes), [`orbit`] (an interactive viewer's camera), [`gpu`] and [`layout`] (the
-//! GPU pass and its parameter struct).
+//! a run writes), [`orbit`] (an interactive viewer's camera), [`gpu`] (the GPU pass; its parameter
+//! struct is `crate::layout::render`).
 //!
 //! Virtual cameras use the pinhole model of [`Intrinsics`] with `fy > 0` (x right, y down,
 //! z ahead); a dataset camera with negative `fy` can be passed as is to render what it saw.
 
 pub(crate) mod framing;
 pub mod gpu;
-pub mod layout;
 pub mod orbit;
 pub mod outputs;
 pub(crate) mod overlay;
@@ -42,9 +41,9 @@ use crate::cpu::render_splat::render_splat;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
 use crate::layout::gpu_mat4;
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
+use crate::layout::render::RenderParams;
 use crate::{Error, Result};
-use layout::RenderParams;
 
 /// A point cloud to draw: positions and whichever attributes it has. All arrays have one
 /// entry per point; positions and normals are world frame (`w` ignored), colours RGB 0..255.

@@ -13,7 +13,7 @@ use super::{
     RenderBackend, RenderCamera, RenderSettings, View, DEFAULT_SIZE,
 };
 use crate::geometry::camera::Intrinsics;
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
 use crate::{Error, Result};
 
 /// Up and heading for the default view of a map without a trajectory: up is `up`, the

@@ -1,7 +1,7 @@
 //! What a render shows and how big it may be: the [`View`] (colour, normals, weight,
 //! depth) and image sizes (parsing `WxH`, the limits every renderer checks).
 
-use super::layout::{VIEW_COLOR, VIEW_DEPTH, VIEW_NORMALS, VIEW_WEIGHT};
+use crate::layout::render::{VIEW_COLOR, VIEW_DEPTH, VIEW_NORMALS, VIEW_WEIGHT};
 use crate::{Error, Result};
 
 /// Largest accepted image side, pixels.

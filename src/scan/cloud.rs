@@ -1,7 +1,7 @@
 //! Point clouds for scan registration: xyz points (metres, f32) plus reading statistics,
 //! and back-projection of a depth image into a cloud.
 //!
-//! This is not a surfel map: no normals, colours or weights (see `crate::slam::map` for those).
+//! This is not a surfel map: no normals, colours or weights (see `crate::layout::map` for those).
 
 use crate::geometry::camera::Intrinsics;
 
@@ -70,7 +70,7 @@ pub fn crop_z(points: &[[f32; 3]], min_z: f32, max_z: f32) -> Vec<[f32; 3]> {
 /// `depth` is row-major, `intrinsics.width * intrinsics.height` raw values; a value `d`
 /// means `d / depth_scale` metres (5000 for TUM / ICL-NUIM) and 0 means invalid. Only every
 /// `stride`-th pixel in each direction is used (`stride >= 1`; 0 is treated as 1). Pixel
-/// `(u, v)` goes through [`Intrinsics::unproject`] as given, so a negative `fy` (ICL-NUIM)
+/// `(u, v)` goes through [`crate::cpu::back_project`] as given, so a negative `fy` (ICL-NUIM)
 /// keeps the dataset's own camera frame.
 ///
 /// A `depth` slice shorter than the image is a broken contract and panics.
@@ -97,7 +97,10 @@ pub fn cloud_from_depth(
                 continue;
             }
             let z = d as f32 / depth_scale;
-            points.push(intrinsics.unproject(u as u32, v as u32, z));
+            // The one back-projection of the crate, `depth_to_vertex`'s, so scan clouds
+            // and vertex maps agree to the bit.
+            let p = crate::cpu::back_project(intrinsics.floats(), [u as u32, v as u32], z);
+            points.push(p.to_array());
         }
     }
     points

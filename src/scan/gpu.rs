@@ -13,14 +13,14 @@ use std::sync::Mutex;
 
 use glam::DVec3;
 
-use super::align::CrossCovariance;
-use super::layout::{
-    ScanCovParams, ScanCovPartial, ScanNnParams, ScanNnResult, SCAN_BRUTE_CHUNK, SCAN_NN_NONE,
-};
 use super::nn::NearestNeighbours;
 use crate::cpu::cross_covariance::decode;
 use crate::cpu::nn_grid::HashGrid;
+use crate::geometry::align::CrossCovariance;
 use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
+use crate::layout::scan::{
+    ScanCovParams, ScanCovPartial, ScanNnParams, ScanNnResult, SCAN_BRUTE_CHUNK, SCAN_NN_NONE,
+};
 use crate::{Error, Result};
 
 /// Which nearest-neighbour kernel to run.
@@ -151,7 +151,7 @@ impl<'a> GpuTarget<'a> {
     /// beyond which the grid stride takes over).
     fn nn_workgroups(&self, n_queries: usize) -> u32 {
         let max = self.ctx.limits().max_compute_workgroups_per_dimension;
-        (n_queries.div_ceil(super::layout::SCAN_WORKGROUP_SIZE as usize) as u32).clamp(1, max)
+        (n_queries.div_ceil(crate::layout::scan::SCAN_WORKGROUP_SIZE as usize) as u32).clamp(1, max)
     }
 
     fn nn_params(&self, n_queries: usize) -> ScanNnParams {
@@ -163,7 +163,7 @@ impl<'a> GpuTarget<'a> {
             n_queries: n_queries as u32,
             n_targets,
             radius_sq: self.radius * self.radius,
-            n_threads: self.nn_workgroups(n_queries) * super::layout::SCAN_WORKGROUP_SIZE,
+            n_threads: self.nn_workgroups(n_queries) * crate::layout::scan::SCAN_WORKGROUP_SIZE,
             cell_size,
             table_mask,
             target_begin: 0,
@@ -287,7 +287,7 @@ impl<'a> GpuTarget<'a> {
         let cov = ScanCovParams {
             anchor,
             n_pairs: queries.len() as u32,
-            n_threads: self.workgroups * super::layout::SCAN_WORKGROUP_SIZE,
+            n_threads: self.workgroups * crate::layout::scan::SCAN_WORKGROUP_SIZE,
             radius_sq,
             _pad0: 0,
         };

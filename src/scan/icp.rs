@@ -8,8 +8,8 @@
 
 use glam::{DMat4, DVec3};
 
-use super::align::CrossCovariance;
 use super::nn::{KdTreeTarget, NearestNeighbours};
+use crate::geometry::align::CrossCovariance;
 use crate::geometry::rigid::nearest_rotation;
 use crate::geometry::se3;
 use crate::{Error, Result};

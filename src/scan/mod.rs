@@ -4,7 +4,6 @@
 //! maps SOURCE coordinates into TARGET coordinates (metres). Trajectories are
 //! `t_scan_to_world`. This is not the dense RGB-D tracker (point-to-plane, projective).
 
-pub(crate) mod align;
 pub(crate) mod bench;
 // The GPU nearest-neighbour search shares wgpu objects with rayon's threads (`Send +
 // Sync`), which the browser's WebGPU objects are not; scans are a native tool's job.
@@ -14,7 +13,6 @@ pub(crate) mod cloud;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod gpu;
 pub(crate) mod icp;
-pub mod layout;
 pub(crate) mod nn;
 pub mod odometry;
 pub mod read;
@@ -22,7 +20,7 @@ pub mod write;
 
 /// The one depth-PNG decoder (16-bit single channel), shared with the RGB-D loader.
 pub use crate::dataset::frame::load_depth as load_depth_png;
-pub use align::{best_rigid_transform, CrossCovariance};
+pub use crate::geometry::align::{best_rigid_transform, CrossCovariance};
 pub use cloud::{cloud_from_depth, crop_z, CloudStats, PointCloud};
 pub use icp::{register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats, Samples};
 pub use nn::{KdTreeTarget, NearestNeighbours};

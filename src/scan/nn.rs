@@ -5,7 +5,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use super::align::CrossCovariance;
+use crate::geometry::align::CrossCovariance;
 use crate::{Error, Result};
 
 /// Nearest-neighbour search in a fixed target cloud.

@@ -14,7 +14,7 @@ use crate::{Error, Result};
 pub enum BackendChoice {
     /// The GPU when an adapter exists, otherwise the CPU reference (saying so).
     Auto,
-    /// The CPU reference (the twins in src/cpu).
+    /// The CPU reference (the twins in crates/core/src/cpu).
     Cpu,
     /// WGSL compute kernels on wgpu (Vulkan, Metal or DX12).
     Gpu,

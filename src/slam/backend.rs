@@ -5,12 +5,12 @@
 //! GPU ([`crate::gpu::backend`]); [`SlamBackend`] is the two together, for `Box<dyn _>`.
 //! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
 
+use crate::layout::map::SurfelMap;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams,
     IntensityParams, Keypoint, KeypointParams, NormalParams, PreprocessParams, ProjectParams,
     PyramidParams, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
-use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// The per-frame maps a backend holds after `preprocess` (downloaded for comparison), in

@@ -1,6 +1,6 @@
 //! Feature-based relocalisation: corners with binary descriptors and their 3-D points,
 //! matched between a lost frame and a keyframe, and a rigid pose from the matches by
-//! RANSAC over minimal 3-point samples (Arun/Umeyama, `scan::align`).
+//! RANSAC over minimal 3-point samples (Arun/Umeyama, `geometry::align`).
 //!
 //! ICP from a keyframe's pose recovers only within ICP's reach (about 0.25 m and 12
 //! degrees on ICL-NUIM). A frame after a longer jump still shows much of what a keyframe
@@ -169,7 +169,7 @@ pub fn estimate_pose(query: &Features, keyframe: &Features) -> Option<(DMat4, us
     let fit = |idx: &[usize]| {
         let a: Vec<[f64; 3]> = idx.iter().map(|&k| src[k].to_array()).collect();
         let b: Vec<[f64; 3]> = idx.iter().map(|&k| dst[k].to_array()).collect();
-        crate::scan::align::best_rigid_transform(&a, &b)
+        crate::geometry::align::best_rigid_transform(&a, &b)
     };
     let mut rng = SplitMix(0x5a4c_ac01_2016_0001);
     let mut best: Vec<usize> = Vec::new();

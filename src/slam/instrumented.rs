@@ -11,6 +11,7 @@
 use std::collections::BTreeMap;
 use web_time::Instant;
 
+use crate::layout::map::SurfelMap;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
@@ -19,7 +20,6 @@ use crate::slam::backend::{
     Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
     PyramidLevel, RgbdSystems,
 };
-use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// Wraps a backend. `stages` maps a step name to (calls, total seconds) when timing;

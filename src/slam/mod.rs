@@ -1,12 +1,14 @@
 //! Dense RGB-D SLAM's frame loop and the backends that run it: the fixed step list
 //! ([`pipeline`]) and the parts it drives per frame (`tracker`, `recovery`, `loop_closer`;
 //! what it reports: [`report`]), the host-side 6x6 solve ([`solve`]), the surfel map as the
-//! host holds it ([`map`]), the CPU reference backend ([`cpu_backend`]), the run-time choice between it
+//! host holds it (`crate::layout::map`), the CPU reference backend ([`cpu_backend`]), the run-time choice between it
 //! and the GPU backend (`any_backend`) and a step-watching decorator (`instrumented`).
 //! The GPU backend itself lives in [`crate::gpu::backend`], beside the wgpu code it needs.
 
 pub mod any_backend;
 pub mod backend;
+#[cfg(test)]
+mod bilateral_quality;
 pub mod cpu_backend;
 pub mod features;
 pub(crate) mod fused_view;
@@ -16,7 +18,6 @@ pub mod keyframes;
 pub(crate) mod loop_closer;
 pub mod loops;
 pub mod loops_check;
-pub mod map;
 pub mod params;
 pub mod pipeline;
 pub(crate) mod plan;

@@ -1,6 +1,6 @@
 //! Each pipeline step's kernel plan, written once: the ordered list of kernel invocations
 //! (and buffer clears) that a step runs. Both backends execute the same plan, the CPU by
-//! calling the twins in `src/cpu/` in its order, the GPU by recording one compute pass per
+//! calling the twins in `crates/core/src/cpu/` in its order, the GPU by recording one compute pass per
 //! invocation (once per map chunk for the kernels that walk the map), so the order of a
 //! step's kernels cannot differ between them. `wgslam compare` and the parity tests name
 //! kernels by each call's `kernel()`.
@@ -39,7 +39,7 @@ macro_rules! step_calls {
         }
 
         impl $name {
-            /// The kernel's name (`shaders/<kernel>.wgsl`, `src/cpu/<kernel>.rs`), or
+            /// The kernel's name (`shaders/<kernel>.wgsl`, `crates/core/src/cpu/<kernel>.rs`), or
             /// `clear` for a clear.
             pub fn kernel(self) -> &'static str {
                 match self {

@@ -1,4 +1,4 @@
-//! The kernels' parameter structs (`src/layout.rs`) for one frame, made from the tracker's
+//! The kernels' parameter structs (`crates/core/src/layout/mod.rs`) for one frame, made from the tracker's
 //! [`SlamParams`](crate::slam::params::SlamParams), intrinsics and pose: the one place
 //! where the pipeline's settings become what the shaders read.
 

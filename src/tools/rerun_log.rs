@@ -27,7 +27,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::dataset::{RawFrame, Sequence};
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
 use crate::slam::pipeline::TrackStatus;
 use crate::tools::run::{FrameObserver, FrameOutcome};
 use crate::{Error, Result};

@@ -69,7 +69,7 @@ fn a_broken_declaration_is_reported_by_name() {
 
 /// Bindings a CPU twin returns instead of taking as an argument: `(kernel, binding, why)`.
 /// Every other binding of every kernel is a parameter of `pub fn <kernel>` in
-/// `src/cpu/<kernel>.rs`, in `@binding` order and under the WGSL variable's name.
+/// `crates/core/src/cpu/<kernel>.rs`, in `@binding` order and under the WGSL variable's name.
 const TWIN_RETURNS: &[(&str, &str, &str)] = &[
     (
         "icp_reduce",
@@ -187,7 +187,7 @@ fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), Stri
 /// once; a missing twin file or function is a mismatch, not a skip, and so is an exception
 /// that names no binding of its kernel.
 fn every_twin_takes_its_shaders_bindings_in_order() {
-    let cpu = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/cpu");
+    let cpu = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/core/src/cpu");
     let mut failures = Vec::new();
     let mut checked = 0;
     for (name, _) in shaders::KERNELS {
@@ -287,7 +287,7 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
 
 /// A portable variant `variant` of the key kernel `kernel` binds what the kernel binds, under
 /// the same names and numbers, and adds one `override`, `KEY_PASS`, which its twin (the
-/// kernel's, `src/cpu/<kernel>.rs`) takes inside its key-map arguments
+/// kernel's, `crates/core/src/cpu/<kernel>.rs`) takes inside its key-map arguments
 /// (`cpu::key_writer::KeyPass`) rather than as a parameter of its own.
 fn portable_variant_problems(variant: &str, kernel: &str) -> Vec<String> {
     let names = |name: &str| {

@@ -410,8 +410,8 @@ fn bundled_icl_ground_truth_reads() {
     }
 }
 
-fn surfel_map() -> wgslam::slam::map::SurfelMap {
-    let mut m = wgslam::slam::map::SurfelMap::default();
+fn surfel_map() -> wgslam::layout::map::SurfelMap {
+    let mut m = wgslam::layout::map::SurfelMap::default();
     m.push(
         [0.5, -1.25, 3.0],
         [0.0, 0.0, -1.0],

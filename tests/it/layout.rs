@@ -1,4 +1,4 @@
-//! Compares each `#[repr(C)]` struct of `src/layout.rs` with naga's layout of the WGSL
+//! Compares each `#[repr(C)]` struct of `crates/core/src/layout/mod.rs` with naga's layout of the WGSL
 //! struct of the same name in `shaders/common.wgsl`: size, member names, order and offsets
 //! (through `tests/it/common/wgsl.rs`), and the constants shared by both sides. No GPU needed.
 

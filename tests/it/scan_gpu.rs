@@ -1,4 +1,4 @@
-//! Scan kernels on the GPU against their CPU twins (`src/cpu/nn_brute.rs`, `nn_grid.rs`,
+//! Scan kernels on the GPU against their CPU twins (`crates/core/src/cpu/nn_brute.rs`, `nn_grid.rs`,
 //! `cross_covariance.rs`), and GPU-backed ICP against the CPU ICP and relative.txt. Every
 //! trial shows as ignored without a GPU adapter (tests/it/common/harness.rs).
 
@@ -13,8 +13,8 @@ use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuContext;
+use wgslam::layout::scan::*;
 use wgslam::scan::gpu::{GpuTarget, NnMethod, ScanKernels};
-use wgslam::scan::layout::*;
 use wgslam::scan::write::transform_points;
 use wgslam::scan::{register, register_with, IcpParams, Samples};
 

@@ -1,5 +1,5 @@
 //! Scan kernels without a GPU: the WGSL of `nn_brute`, `nn_grid` and `cross_covariance`
-//! parses and validates with naga, its structs match `scan::layout`, and the CPU twins
+//! parses and validates with naga, its structs match `layout::scan`, and the CPU twins
 //! agree with the KD-tree and with the f64 reduction of the ICP on real scans.
 
 use crate::common;
@@ -12,7 +12,7 @@ use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
 use wgslam::geometry::se3;
-use wgslam::scan::layout::*;
+use wgslam::layout::scan::*;
 use wgslam::scan::write::transform_points;
 use wgslam::scan::{CrossCovariance, KdTreeTarget, NearestNeighbours};
 

@@ -9,6 +9,7 @@
 //! culling step), so its cost per frame also follows what the camera sees.
 
 use crate::cpu;
+use crate::layout::map::SurfelMap;
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams,
     FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
@@ -17,7 +18,6 @@ use crate::layout::{
 use crate::slam::backend::RgbdSystems;
 use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::slam::fused_view::FusedView;
-use crate::slam::map::SurfelMap;
 use crate::slam::plan::{self, CompactCall, PredictCall, PreprocessCall};
 use crate::Result;
 

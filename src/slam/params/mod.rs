@@ -197,8 +197,10 @@ pub struct InputSettings {
     /// Keep every N-th pixel in each direction, 1 to [`MAX_DOWNSAMPLE`] (`--downsample`;
     /// both profiles 2).
     pub downsample: u32,
-    /// Raw depth units per metre. The sequence's own replaces it ([`Slam::for_sequence`]);
-    /// set it with the dataset option `--depth-scale`.
+    /// Raw depth units per metre, the value the run used. Set by key (`--depth-scale`, a
+    /// file's `depth-scale` or `[input] depth_scale`, a manifest's override), it is the
+    /// sequence's ([`crate::dataset::SequenceOptions::depth_scale`]: the user's value over
+    /// `camera.json`'s over the layout's), which [`Slam::for_sequence`] writes here once.
     ///
     /// [`Slam::for_sequence`]: crate::slam::pipeline::Slam::for_sequence
     pub depth_scale: f32,

@@ -19,8 +19,8 @@ use std::collections::HashMap;
 use glam::DVec3;
 use serde::Serialize;
 
+use crate::layout::map::SurfelMap;
 use crate::layout::{FuseParams, GpuMat4};
-use crate::slam::map::SurfelMap;
 
 /// Error of a camera- or world-frame position the kernels compute, in ULPs of the largest
 /// magnitude `R` involved (|surfel|, |translations|, |frame point|): `T p` is three

@@ -9,7 +9,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::slam::map::SurfelMap;
+use crate::layout::map::SurfelMap;
 
 /// Order-independent comparison of two surfel maps.
 #[derive(Debug, Clone, Serialize)]

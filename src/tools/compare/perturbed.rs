@@ -5,6 +5,7 @@
 //! tests that prove the comparison still catches real ones.
 
 use crate::cpu::arith::{self, Arith};
+use crate::layout::map::SurfelMap;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_ATB_OFFSET, ICP_SYSTEM_LEN,
@@ -14,7 +15,6 @@ use crate::slam::backend::{
     PyramidLevel, RgbdSystems,
 };
 use crate::slam::cpu_backend::CpuBackend;
-use crate::slam::map::SurfelMap;
 use crate::Result;
 
 /// Seed of `wgslam compare --perturbed-cpu`'s perturbation.

@@ -17,9 +17,9 @@ use serde::Serialize;
 
 use crate::dataset::{RawFrame, Sequence};
 use crate::eval;
+use crate::layout::map::SurfelMap;
 use crate::layout::pack_rgba8;
 use crate::slam::backend::{Backend, Inspect};
-use crate::slam::map::SurfelMap;
 use crate::slam::params::SlamParams;
 use crate::slam::pipeline::{FrameReport, Slam};
 use crate::Result;
@@ -123,6 +123,10 @@ pub struct Metrics {
     pub frames: usize,
     pub width: u32,
     pub height: u32,
+    /// The raw frames' intrinsics the run used (pixels of the raw frames, before
+    /// `input.downsample`): the command line's over the parameter file's over the dataset's
+    /// (docs/params-file.md, "Precedence").
+    pub intrinsics: crate::geometry::camera::Intrinsics,
     pub params: SlamParams,
     pub time_per_frame_median_s: f64,
     pub time_per_frame_mean_s: f64,
@@ -399,6 +403,7 @@ pub fn run_observed<B: Backend + Inspect>(
         frames: frames.len(),
         width: k.width,
         height: k.height,
+        intrinsics: seq.intrinsics,
         params: slam.params.clone(),
         time_per_frame_median_s: crate::stats::median(&times),
         time_per_frame_mean_s: total / frames.len().max(1) as f64,

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DMat4;
 use wgslam::cpu::nn_grid::HashGrid;
-use wgslam::scan::layout::{ScanNnParams, ScanNnResult};
+use wgslam::layout::scan::{ScanNnParams, ScanNnResult};
 use wgslam::scan::{read_matrix4, read_pcd};
 
 /// The fast_gicp pair: `251370668.pcd`, `251371071.pcd` and `relative.txt`.

@@ -9,10 +9,10 @@ use crate::common::frames::{gt_at, load_frame, load_gt};
 use crate::common::harness::{gpu, Test};
 use wgslam::cpu;
 use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::layout::map::SurfelMap;
 use wgslam::layout::{CompactParams, MapChunk};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::map::SurfelMap;
 use wgslam::slam::params::{PoseSource, Profile, SlamParams, UnstableRemoval};
 
 /// Runs the `compact` step on both backends from the same `map` with `params`; checks

@@ -9,9 +9,9 @@ use crate::common::harness::{gpu, Test};
 use wgslam::cpu;
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
+use wgslam::layout::map::SurfelMap;
 use wgslam::layout::{FuseParams, MapChunk, ProjectParams, ASSOCIATION_BEST_CANDIDATE};
 use wgslam::slam::backend::{Backend, FrameMaps, Inspect};
-use wgslam::slam::map::SurfelMap;
 use wgslam::slam::params::{Profile, SlamParams};
 
 /// Stride of [`interleaved`]: 64 surfels apart in the original order are neighbours in the

@@ -8,10 +8,10 @@ use crate::common::harness::{gpu, plain, Test};
 use wgslam::cpu;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
+use wgslam::layout::map::SurfelMap;
 use wgslam::layout::{MapChunk, BLOCK_SURFELS};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::map::SurfelMap;
 use wgslam::slam::params::{PoseSource, Profile, SlamParams};
 use wgslam::Error;
 

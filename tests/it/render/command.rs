@@ -7,8 +7,8 @@ use std::path::Path;
 use common::harness::{plain, Test};
 use glam::{DMat4, DVec3};
 use wgslam::geometry::camera::Intrinsics;
+use wgslam::layout::map::SurfelMap;
 use wgslam::render::{self, View};
-use wgslam::slam::map::SurfelMap;
 
 use super::{bundled_map, coverage, frame_maps, gt_poses, keep};
 

@@ -114,7 +114,7 @@ fn gap_fill_closes_the_stripes() {
 }
 
 fn gap_fill_keeps_depth_jumps_and_borders_open() {
-    use wgslam::render::layout::RenderParams;
+    use wgslam::layout::render::RenderParams;
     // Unit check on a hand-made index map (no projection): a 1-pixel row gap between two
     // surfaces at the same depth is filled with the nearer key; between 1 m and 2 m it is
     // not; a pixel with a surface on one side only stays empty.

@@ -14,7 +14,7 @@ use super::{bundled_map, gt_poses};
 /// `RenderParams` is declared in both render kernels (not in common.wgsl): both match Rust.
 fn render_params_layout_matches_both_shaders() {
     use wgslam::gpu::shaders;
-    use wgslam::render::layout::RenderParams;
+    use wgslam::layout::render::RenderParams;
     let rust = rust_layout!(RenderParams {
         t_world_to_cam,
         fx,

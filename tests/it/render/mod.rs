@@ -18,9 +18,9 @@ use glam::{DMat4, DVec3};
 use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
 use wgslam::geometry::camera::Intrinsics;
+use wgslam::layout::map::SurfelMap;
 use wgslam::layout::{NormalParams, PreprocessParams};
 use wgslam::render;
-use wgslam::slam::map::SurfelMap;
 
 /// Ground-truth poses (`t_cam_to_world`) of the bundled frames that have one, in frame
 /// order (frame 0 has none, so `[0]` is frame 1).

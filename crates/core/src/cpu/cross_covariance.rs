@@ -6,9 +6,9 @@
 use bytemuck::Zeroable;
 use glam::{DMat4, DVec3};
 
+use crate::geometry::align::CrossCovariance;
 use crate::geometry::se3;
-use crate::scan::align::CrossCovariance;
-use crate::scan::layout::{
+use crate::layout::scan::{
     ScanCovParams, ScanCovPartial, ScanNnResult, SCAN_NN_NONE, SCAN_WORKGROUP_SIZE,
 };
 

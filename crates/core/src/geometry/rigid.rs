@@ -1,12 +1,12 @@
 //! The rotation step of rigid alignment (Arun 1987 / Horn / Umeyama 1991 without scale):
-//! the one SVD with the reflection fix that both trajectory alignment ([`crate::eval`])
-//! and point-to-point ICP ([`crate::scan`]) use.
+//! the one SVD with the reflection fix that both trajectory alignment and point-to-point
+//! ICP use (`eval` and `scan` in the `wgslam` package above).
 //!
 //! Convention: for pairs `(p_i, q_i)` with centroids `cp`, `cq`, the cross-covariance is
 //! `H = sum (p_i - cp)(q_i - cq)^T`; the rotation maximising `trace(R H)` (equivalently
 //! minimising `sum |R (p_i - cp) - (q_i - cq)|^2`) maps the p's onto the q's, and the
 //! translation is `cq - R cp`. This module does not accumulate `H`; callers do (centred
-//! sums in `eval`, running sums in `scan::align::CrossCovariance`).
+//! sums in `eval`, running sums in `geometry::align::CrossCovariance`).
 
 use glam::DMat3;
 use nalgebra::{Matrix3, Vector3};

@@ -1,8 +1,8 @@
 //! CPU twins of the WGSL kernels: pure functions over typed slices, no wgpu.
 //!
-//! `src/cpu/<kernel>.rs` mirrors `shaders/<kernel>.wgsl` one to one: same arguments in the
+//! `crates/core/src/cpu/<kernel>.rs` mirrors `shaders/<kernel>.wgsl` one to one: same arguments in the
 //! shader's `@binding(i)` order and in the same packed representation (the frame's
-//! `normal_depth` texels, the surfel map's three packed arrays of [`crate::slam::map::SurfelMap`]),
+//! `normal_depth` texels, the surfel map's three packed arrays of [`crate::layout::map::SurfelMap`]),
 //! same loop structure, same helper names. This module holds the one Rust twin of every
 //! helper in `shaders/common.wgsl`, each under the same name; kernel-local helpers live in
 //! the kernel's file on both sides. The per-pixel maths is the same on both sides; only the

@@ -11,7 +11,7 @@
 
 use super::key_writer::KeyWriter;
 use super::{depth_key, transform_dir, transform_point, xyz};
-use crate::render::layout::RenderParams;
+use crate::layout::render::RenderParams;
 
 /// Projections farther than this from the image (pixels) are skipped before any
 /// float-to-int conversion; it also rejects NaN and infinite positions.

@@ -13,7 +13,7 @@
 
 use glam::Vec3;
 
-use crate::render::layout::{RenderParams, VIEW_COLOR, VIEW_DEPTH, VIEW_NORMALS, VIEW_WEIGHT};
+use crate::layout::render::{RenderParams, VIEW_COLOR, VIEW_DEPTH, VIEW_NORMALS, VIEW_WEIGHT};
 
 /// Dark blue, teal and yellow stops of the weight and depth ramps (RGB in 0..1, close to
 /// the ends and middle of viridis). Mirrors `RAMP_*` in render_resolve.wgsl.

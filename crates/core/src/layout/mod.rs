@@ -10,11 +10,18 @@
 //! (`vec4<f32>`, rgba32float textures on the GPU); the surfel map is the three packed arrays
 //! of `map::SurfelMap`; raw depth is `u16` (an r16uint texture); raw colour is RGBA8 packed
 //! into one `u32` (`r | g << 8 | b << 16 | 255 << 24`, an rgba8uint texture).
+//!
+//! Submodules: [`map`] (the surfel map on the host, in the map arrays' packing), [`render`]
+//! (the render kernels' struct) and [`scan`] (the scan kernels').
 
 use bytemuck::{Pod, Zeroable};
 use glam::DMat4;
 
 use crate::geometry::camera::Intrinsics;
+
+pub mod map;
+pub mod render;
+pub mod scan;
 
 /// A 4x4 f32 matrix, column-major (`mat4x4<f32>` in WGSL).
 pub type GpuMat4 = [[f32; 4]; 4];

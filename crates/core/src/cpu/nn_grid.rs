@@ -7,7 +7,7 @@
 //! within the radius (same tie rule). Hash collisions only add candidates.
 
 use super::{scan_closer, scan_dist_sq};
-use crate::scan::layout::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
+use crate::layout::scan::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
 
 /// Cell coordinates of a point. Mirrors `scan_cell_of` in nn_grid.wgsl.
 #[inline]

@@ -62,7 +62,7 @@ impl KeyWriter for Vec<u64> {
 /// The portable kernel's map, `(low = index, high)` u32 words per pixel (the little-endian
 /// layout of the 64-bit keys), in pass `key_pass` (the kernel's `override KEY_PASS`) of two:
 /// pass 0 over every chunk, then pass 1 over every chunk, leave each pair equal to the
-/// 64-bit maximum bit for bit ([`keep_nearer`](super::keep_nearer)).
+/// 64-bit maximum bit for bit ([`keep_nearer`](super::keep_nearer())).
 #[derive(Debug)]
 pub struct KeyPass<'a> {
     /// `2 * pixels` words, cleared to 0 before pass 0.

@@ -5,7 +5,7 @@
 //! brute-force and grid kernels agree exactly on the CPU.
 
 use super::{scan_closer, scan_dist_sq};
-use crate::scan::layout::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
+use crate::layout::scan::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
 
 /// For every query (`params.n_queries` of `queries`, metres), the nearest of targets
 /// `params.target_begin..params.target_end`, continuing from `results` when

@@ -87,14 +87,6 @@ impl Intrinsics {
         self.width as usize * self.height as usize
     }
 
-    /// Camera-frame point (metres) of pixel `(u, v)` at depth `z` (metres): the one
-    /// back-projection of the crate, [`crate::cpu::back_project`] (which `depth_to_vertex`
-    /// uses), so scan clouds and vertex maps agree to the bit.
-    #[inline]
-    pub fn unproject(&self, u: u32, v: u32, z: f32) -> [f32; 3] {
-        crate::cpu::back_project(self.floats(), [u, v], z).to_array()
-    }
-
     /// `[fx, fy, cx, cy]` in pixels: the four floats every kernel's params struct starts
     /// its camera block with (`crate::layout::camera_floats`).
     #[inline]

@@ -1,0 +1,15 @@
+//! wgslam's bottom floor: what every other part stands on, and nothing above it.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`geometry`] | SE(3), pinhole intrinsics, rigid alignment of point pairs (f64, host) |
+//! | [`layout`] | the `#[repr(C)]` structs shared with the WGSL kernels (`shaders/common.wgsl`, `shaders/scan_common.wgsl`), and the host surfel map in the GPU's packing |
+//! | [`cpu`] | the CPU twins of the WGSL kernels: pure functions over typed slices, the shader's shape line by line |
+//!
+//! Not here: wgpu, files, datasets, the frame loop. Those are in the `wgslam` package above
+//! this crate (which re-exports these modules under the same names), and a path from here
+//! to them does not compile: the workspace is the wall between the floors.
+
+pub mod cpu;
+pub mod geometry;
+pub mod layout;
