@@ -55,14 +55,7 @@ pub(crate) mod batch;
 #[doc(hidden)]
 pub mod cli;
 #[doc(hidden)]
-pub mod dataset;
-pub mod error;
-#[doc(hidden)]
-pub mod eval;
-#[doc(hidden)]
 pub mod gpu;
-#[doc(hidden)]
-pub mod io;
 #[doc(hidden)]
 pub mod mesh;
 #[doc(hidden)]
@@ -71,12 +64,15 @@ pub mod render;
 pub mod scan;
 #[doc(hidden)]
 pub mod slam;
-pub(crate) mod stats;
-// The bottom floor, its own crate (crates/core): the maths, the layout contract and the
-// CPU twins. It cannot import anything above it; here its modules keep their paths
-// (`crate::cpu`, `wgslam::layout`).
+// The floors below, crates of their own that cannot import anything above them: here
+// their modules keep their paths (`crate::cpu`, `wgslam::dataset`). crates/core: the maths,
+// the layout contract, the CPU twins, the error kinds; crates/data: datasets and files.
+pub use wgslam_core::error;
+pub(crate) use wgslam_core::stats;
 #[doc(hidden)]
 pub use wgslam_core::{cpu, geometry, layout};
+#[doc(hidden)]
+pub use wgslam_data::{dataset, eval, io};
 #[doc(hidden)]
 pub mod tools;
 // The browser build's entry points (deploy/web).

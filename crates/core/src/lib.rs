@@ -5,11 +5,17 @@
 //! | [`geometry`] | SE(3), pinhole intrinsics, rigid alignment of point pairs (f64, host) |
 //! | [`layout`] | the `#[repr(C)]` structs shared with the WGSL kernels (`shaders/common.wgsl`, `shaders/scan_common.wgsl`), and the host surfel map in the GPU's packing |
 //! | [`cpu`] | the CPU twins of the WGSL kernels: pure functions over typed slices, the shader's shape line by line |
+//! | [`error`] | [`Error`]: one documented variant per kind of thing a user can cause or meet, for every floor |
+//! | [`stats`] | the one median |
 //!
 //! Not here: wgpu, files, datasets, the frame loop. Those are in the `wgslam` package above
 //! this crate (which re-exports these modules under the same names), and a path from here
 //! to them does not compile: the workspace is the wall between the floors.
 
 pub mod cpu;
+pub mod error;
 pub mod geometry;
 pub mod layout;
+pub mod stats;
+
+pub use error::{Error, Result};

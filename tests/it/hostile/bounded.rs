@@ -293,8 +293,8 @@ fn odometry_scans_that_are_fifos_or_share_a_stamp_are_refused() {
     assert!(!dir.join("out").exists(), "outputs written");
 }
 
-/// Every file the crate reads goes through `src/io/input.rs`: no other source file under
-/// `src/` may call the standard library's or `image`'s own readers, except the ones listed
+/// Every file the workspace reads goes through `crates/data/src/io/input.rs`: no other
+/// source file under `src/` or `crates/` may call the standard library's or `image`'s own readers, except the ones listed
 /// here with the reason they are not input files.
 fn every_reader_goes_through_the_bounded_input_module() {
     const READERS: [&str; 6] = [
@@ -312,17 +312,17 @@ fn every_reader_goes_through_the_bounded_input_module() {
         // /proc/self/status: the kernel's report of this process's memory.
         ("src/tools/run/mod.rs", "read_to_string("),
     ];
-    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut files = vec![src.clone()];
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let mut files = vec![root.join("src"), root.join("crates")];
     let mut found = Vec::new();
     while let Some(p) = files.pop() {
         if p.is_dir() {
             files.extend(std::fs::read_dir(&p).unwrap().map(|e| e.unwrap().path()));
             continue;
         }
-        let rel = p.strip_prefix(src.parent().unwrap()).unwrap().to_path_buf();
+        let rel = p.strip_prefix(&root).unwrap().to_path_buf();
         let rel = rel.to_string_lossy().to_string();
-        if rel == "src/io/input.rs" || !rel.ends_with(".rs") {
+        if rel == "crates/data/src/io/input.rs" || !rel.ends_with(".rs") {
             continue;
         }
         let code = std::fs::read_to_string(&p).unwrap();

@@ -3,7 +3,7 @@
 //! This module only reads and writes files; it holds no algorithm code. Every output file
 //! goes through [`atomic::write_atomic`], so a failed run never leaves a half-written file.
 
-pub(crate) mod atomic;
+pub mod atomic;
 pub mod input;
 pub mod outputs;
 pub mod ply;

@@ -51,7 +51,7 @@ where
 }
 
 /// `<dir>/.<name>.tmp-<pid>-<n>` next to `path`.
-pub(crate) fn temp_path(path: &Path) -> Result<PathBuf> {
+pub fn temp_path(path: &Path) -> Result<PathBuf> {
     let name = path.file_name().ok_or_else(|| {
         Error::Argument(format!("output path {} has no file name", path.display()))
     })?;

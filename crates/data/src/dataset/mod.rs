@@ -17,7 +17,7 @@ pub(crate) mod bonn;
 pub(crate) mod checks;
 pub(crate) mod detect;
 pub(crate) mod eth3d;
-pub(crate) mod frame;
+pub mod frame;
 pub(crate) mod icl;
 pub(crate) mod in_memory;
 pub(crate) mod matrix_file;
@@ -128,7 +128,7 @@ pub enum Layout {
 }
 
 impl Layout {
-    /// The order [`detect::detect`] tries the layouts in: the TUM-like layouts with an
+    /// The order `detect::detect` tries the layouts in: the TUM-like layouts with an
     /// extra telltale (ETH3D's `calibration.txt`, Bonn's folder name) before plain TUM.
     pub const DETECTION_ORDER: [Layout; 7] = [
         Layout::Eth3d,
