@@ -14,15 +14,11 @@ use super::{bundled_map, gt_poses};
 /// `RenderParams` is declared in both render kernels (not in common.wgsl): both match Rust.
 fn render_params_layout_matches_both_shaders() {
     use wgslam::gpu::shaders;
+    use wgslam::layout::Camera;
     use wgslam::render::layout::RenderParams;
     let rust = rust_layout!(RenderParams {
         t_world_to_cam,
-        fx,
-        fy,
-        cx,
-        cy,
-        width,
-        height,
+        camera: Camera,
         surfel_count,
         view,
         splat_radius_m,
@@ -35,8 +31,6 @@ fn render_params_layout_matches_both_shaders() {
         background,
         fill_gap_px,
         _pad0,
-        _pad1,
-        _pad2,
     });
     let mut failures = Vec::new();
     for kernel in ["render_splat", "render_splat_portable", "render_resolve"] {
