@@ -28,8 +28,8 @@ fn filtered_at(params: BilateralParams, u: u32, v: u32) -> vec4<f32> {
     let r = params.radius_px;
     let u_lo = select(u - r, 0u, u < r);
     let v_lo = select(v - r, 0u, v < r);
-    let u_hi = min(u + r, params.width - 1u);
-    let v_hi = min(v + r, params.height - 1u);
+    let u_hi = min(u + r, params.camera.width - 1u);
+    let v_hi = min(v + r, params.camera.height - 1u);
     let k_space = 1.0 / (2.0 * params.sigma_space_px * params.sigma_space_px);
     let sigma_depth = params.sigma_depth_m + params.sigma_depth_per_m2 * c.z * c.z;
     let k_depth = 1.0 / (2.0 * sigma_depth * sigma_depth);
@@ -48,7 +48,7 @@ fn filtered_at(params: BilateralParams, u: u32, v: u32) -> vec4<f32> {
             }
         }
     }
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_wz / sum_w));
 }
 
@@ -60,4 +60,5 @@ fn per_pixel(p: BilateralParams, texel: vec2<u32>) {
     textureStore(filtered_vertex, texel, filtered_at(p, texel.x, texel.y));
 }
 
+#define CAMERA_PARAMS
 #entry pixel_grid

@@ -11,20 +11,31 @@
 // the depth; invalid = 0).
 // Matrices are column-major `mat4x4<f32>` (the layout of `GpuMat4`).
 
-// Mirrors `layout::PreprocessParams` (depth_to_vertex).
-struct PreprocessParams {
+// Mirrors `layout::Camera`: a pinhole camera's intrinsics (pixels; fy may be negative) and
+// image size, nested as `camera` in every params struct whose kernel projects or
+// back-projects (`params.camera.fx`); the kernels' `cam` vec4 is (fx, fy, cx, cy).
+struct Camera {
     fx: f32,
     fy: f32,
     cx: f32,
     cy: f32,
     width: u32,
     height: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Mirrors `layout::PreprocessParams` (depth_to_vertex).
+struct PreprocessParams {
+    camera: Camera,
     raw_width: u32,
     raw_height: u32,
     stride: u32,
     depth_scale: f32,
     min_depth_m: f32,
     max_depth_m: f32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 // Mirrors `layout::NormalParams` (vertex_to_normal).
@@ -36,20 +47,17 @@ struct NormalParams {
 }
 
 // Mirrors `layout::PyramidParams` (pyramid_depth, pyramid_model): coarse pixel (u, v)
-// samples finer pixel (2u, 2v); fx..cy and width/height are the coarse level's.
+// samples finer pixel (2u, 2v); the camera is the coarse level's.
 struct PyramidParams {
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
+    camera: Camera,
     fine_width: u32,
     fine_height: u32,
     radius_px: u32,
     max_depth_diff_m: f32,
     max_depth_diff_per_m2: f32,
-    _pad: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Mirrors `layout::IntensityParams` (intensity_pyramid): level 0 reads the colour map, a
@@ -116,42 +124,31 @@ const DESCRIPTOR_WORDS: u32 = 8u;
 
 // Mirrors `layout::BilateralParams` (bilateral_filter).
 struct BilateralParams {
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
+    camera: Camera,
     radius_px: u32,
     sigma_space_px: f32,
     sigma_depth_m: f32,
     sigma_depth_per_m2: f32,
     filter_points: u32,
+    _pad0: u32,
+    _pad1: u32,
     _pad2: u32,
 }
 
 // Mirrors `layout::ProjectParams` (project_model, predict_model).
 struct ProjectParams {
     t_world_to_cam: mat4x4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
+    camera: Camera,
     surfel_count: u32,
-    _pad: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Mirrors `layout::IcpParams` (icp_reduce, photo_reduce).
 struct IcpParams {
     t_world_to_cam: mat4x4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
+    camera: Camera,
     dist_threshold_m: f32,
     cos_normal_threshold: f32,
     huber_delta_m: f32,
@@ -161,6 +158,8 @@ struct IcpParams {
     photo_gradient_min: f32,
     photo_source_step: u32,
     photo_source_width: u32,
+    _pad0: u32,
+    _pad1: u32,
     _pad2: u32,
 }
 
@@ -168,12 +167,7 @@ struct IcpParams {
 struct FuseParams {
     t_world_to_cam: mat4x4<f32>,
     t_cam_to_world: mat4x4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
+    camera: Camera,
     surfel_count: u32,
     frame_id: u32,
     dist_threshold_m: f32,
@@ -183,6 +177,8 @@ struct FuseParams {
     confidence_sigma: f32,
     prune_radius_scale: f32,
     dist_confident_m: f32,
+    _pad0: u32,
+    _pad1: u32,
     _pad2: u32,
 }
 
@@ -529,15 +525,10 @@ fn pixel_confidence(cam: vec4<f32>, texel: vec2<u32>, sigma: f32) -> f32 {
 }
 
 // Used by render_splat and render_resolve.
-// Mirrors `render::layout::RenderParams`.
+// Mirrors `layout::render::RenderParams`.
 struct RenderParams {
     t_world_to_cam: mat4x4<f32>,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
+    camera: Camera,
     surfel_count: u32,
     view: u32,
     splat_radius_m: f32,
@@ -550,6 +541,4 @@ struct RenderParams {
     background: u32,
     fill_gap_px: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }

@@ -25,7 +25,7 @@ fn convert_at(params: PreprocessParams, u: u32, v: u32) {
     textureStore(color_map, texel, vec4<f32>(vec3<f32>(c.xyz), 255.0));
     var vertex = INVALID;
     if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
-        let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+        let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
         vertex = valid_entry(back_project(cam, texel, z));
     }
     textureStore(vertex_map, texel, vertex);
@@ -43,4 +43,5 @@ fn per_pixel(p: PreprocessParams, texel: vec2<u32>) {
     convert_at(p, texel.x, texel.y);
 }
 
+#define CAMERA_PARAMS
 #entry pixel_grid

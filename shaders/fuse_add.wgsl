@@ -51,6 +51,7 @@
 const TILE_X: u32 = 8u;
 const TILE_Y: u32 = 8u;
 #define MAP_CHUNK
+#define CAMERA_PARAMS
 #entry pixel_grid
 
 // Pixel `texel`'s new surfel, if the pixel is flagged and its slot is in this chunk.
@@ -68,18 +69,18 @@ fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     if i >= params.capacity || slot >= chunk.slots {
         return;
     }
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
     let q_cam = back_project(cam, texel, nd.w);
     let p = transform_point(params.t_cam_to_world, q_cam);
     let n = transform_dir(params.t_cam_to_world, xyz(nd));
     let w = pixel_confidence(cam, texel, params.confidence_sigma);
-    let r = surfel_radius(params.fx, q_cam, xyz(nd));
+    let r = surfel_radius(params.camera.fx, q_cam, xyz(nd));
     if first_key_pass() {
         position_weight[slot] = vec4<f32>(p, w);
         normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(n), params.frame_id);
         color[slot] = vec4<f32>(textureLoad(color_map, texel, 0).xyz, r);
     }
     if params.association == ASSOCIATION_BEST_CANDIDATE {
-        keep_nearer(texel.y * params.width + texel.x, depth_key(q_cam.z), i);
+        keep_nearer(texel.y * params.camera.width + texel.x, depth_key(q_cam.z), i);
     }
 }

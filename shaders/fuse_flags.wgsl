@@ -29,7 +29,7 @@ const TILE_Y: u32 = 8u;
 // Whether pixel `texel` becomes a new surfel, at its append slot (the entry point:
 // pixel_grid.wgsl).
 fn per_pixel(p: FuseParams, texel: vec2<u32>) {
-    let key = assoc[texel.y * p.width + texel.x];
+    let key = assoc[texel.y * p.camera.width + texel.x];
     let nd = textureLoad(normal_depth, texel, 0);
     // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
     var new_surfel = key.x == 0u && key.y == 0u && is_valid(nd);
@@ -39,22 +39,23 @@ fn per_pixel(p: FuseParams, texel: vec2<u32>) {
     flags[append_index(texel)] = select(0u, 1u, new_surfel);
 }
 
+#define CAMERA_PARAMS
 #entry pixel_grid
 
 // Whether a surfel that one of the 8 neighbours of `texel` (measurement nd, valid) merged
 // into passes this pixel's gates (fuse_select's filter 2). `params` is main's copy of the
 // binding.
 fn neighbour_covers(params: FuseParams, texel: vec2<u32>, nd: vec4<f32>) -> bool {
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
     for (var dv = -1; dv <= 1; dv++) {
         for (var du = -1; du <= 1; du++) {
             let u = i32(texel.x) + du;
             let v = i32(texel.y) + dv;
-            if (du == 0 && dv == 0) || u < 0 || v < 0 || u >= i32(params.width)
-                || v >= i32(params.height) {
+            if (du == 0 && dv == 0) || u < 0 || v < 0 || u >= i32(params.camera.width)
+                || v >= i32(params.camera.height) {
                 continue;
             }
-            let pix = u32(v) * params.width + u32(u);
+            let pix = u32(v) * params.camera.width + u32(u);
             let pw = merged[2u * pix];
             if !is_valid(pw) {
                 continue;

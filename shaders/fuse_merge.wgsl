@@ -49,7 +49,7 @@ fn main(
 ) {
     // The params copied once per thread (see pixel_grid.wgsl).
     let p = params;
-    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let cam = vec4<f32>(p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy);
     let span = chunk_blocks(chunk, p.surfel_count);
     // The chunk's first index copied once per thread, as the params.
     let base = chunk.base;
@@ -57,7 +57,7 @@ fn main(
         let block = base / BLOCK_SURFELS + b;
         let lo = vec3<f32>(box_word(block, 0u), box_word(block, 1u), box_word(block, 2u));
         let hi = vec3<f32>(box_word(block, 4u), box_word(block, 5u), box_word(block, 6u));
-        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
+        if !block_visible(p.t_world_to_cam, cam, p.camera.width, p.camera.height, lo, hi) {
             continue;
         }
         // The box grown by this thread's merged surfels.
@@ -88,12 +88,12 @@ fn merge_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     let pw = position_weight[slot];
     let p_world = xyz(pw);
     let p_cam = transform_point(params.t_world_to_cam, p_world);
-    let uv = project_to_texel(cam, params.width, params.height, p_cam);
+    let uv = project_to_texel(cam, params.camera.width, params.camera.height, p_cam);
     if uv.x < 0 {
         return INVALID;
     }
     let texel = vec2<u32>(uv);
-    let pix = texel.y * params.width + texel.x;
+    let pix = texel.y * params.camera.width + texel.x;
     // Valid normal (w = depth > 0) implies a valid vertex: the twin's two tests.
     let nd = textureLoad(normal_depth, texel, 0);
     if !is_valid(nd) {
@@ -109,7 +109,7 @@ fn merge_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     }
     let wq = pixel_confidence(cam, texel, params.confidence_sigma);
     let cq = textureLoad(color_map, texel, 0).xyz;
-    let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+    let r_q = surfel_radius(params.camera.fx, q_cam, xyz(nd));
     let m = merged_surfel(pw, n_old, color[slot], q_world, nq_world, cq, wq, r_q);
     position_weight[slot] = m.position_weight;
     normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(m.normal), params.frame_id);

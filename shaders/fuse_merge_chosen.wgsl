@@ -39,13 +39,14 @@
 const TILE_X: u32 = 8u;
 const TILE_Y: u32 = 8u;
 #define MAP_CHUNK
+#define CAMERA_PARAMS
 #entry pixel_grid
 
 // Merges pixel `texel`'s measurement into the surfel it chose, if that surfel is in this
 // chunk. `params` and `chunk` are main's copies of the bindings (the entry point:
 // pixel_grid.wgsl).
 fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
-    let pix = texel.y * params.width + texel.x;
+    let pix = texel.y * params.camera.width + texel.x;
     let key = assoc[pix];
     if key.x == 0u && key.y == 0u {
         return;
@@ -55,7 +56,7 @@ fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     if slot >= chunk.slots {
         return;
     }
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
     let pw = position_weight[slot];
     // fuse_select chose only on a valid pixel (a valid normal implies a valid vertex).
     let nd = textureLoad(normal_depth, texel, 0);
@@ -65,7 +66,7 @@ fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let n_old = bitcast<vec3<f32>>(normal_frame[slot].xyz);
     let wq = pixel_confidence(cam, texel, params.confidence_sigma);
     let cq = textureLoad(color_map, texel, 0).xyz;
-    let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+    let r_q = surfel_radius(params.camera.fx, q_cam, xyz(nd));
     let m = merged_surfel(pw, n_old, color[slot], q_world, nq_world, cq, wq, r_q);
     position_weight[slot] = m.position_weight;
     normal_frame[slot] = vec4<u32>(bitcast<vec3<u32>>(m.normal), params.frame_id);

@@ -46,12 +46,12 @@ fn per_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
         return;
     }
     let pw = position_weight[slot];
-    let centre = project_to_texel(cam, params.width, params.height,
+    let centre = project_to_texel(cam, params.camera.width, params.camera.height,
         transform_point(params.t_world_to_cam, xyz(pw)));
     if centre.x < 0 {
         return;
     }
-    let pix = u32(centre.y) * params.width + u32(centre.x);
+    let pix = u32(centre.y) * params.camera.width + u32(centre.x);
     let pw_t = merged[2u * pix];
     if pw_t.w <= 0.0 {
         return;

@@ -54,12 +54,12 @@
 // this surfel's, if the surfel passes its gates. `params` is main's copy of the binding.
 fn per_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
     let p_cam = transform_point(params.t_world_to_cam, xyz(position_weight[slot]));
-    let uv = project_to_texel(cam, params.width, params.height, p_cam);
+    let uv = project_to_texel(cam, params.camera.width, params.camera.height, p_cam);
     if uv.x < 0 {
         return;
     }
     let texel = vec2<u32>(uv);
-    let pix = texel.y * params.width + texel.x;
+    let pix = texel.y * params.camera.width + texel.x;
     keep_nearer(pix, depth_key(p_cam.z), i);
     let nd = textureLoad(normal_depth, texel, 0);
     if !is_valid(nd) {

@@ -28,9 +28,9 @@ fn is_candidate(p: IcpParams, src_texel: vec2<u32>) -> bool {
     if !is_valid(src_world) {
         return false;
     }
-    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let cam = vec4<f32>(p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy);
     let q = transform_point(p.t_world_to_cam, xyz(src_world));
-    let uv = project_to_texel(cam, p.width, p.height, q);
+    let uv = project_to_texel(cam, p.camera.width, p.camera.height, q);
     if uv.x < 0 {
         return false;
     }
@@ -45,11 +45,11 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let p = params;
-    let n_pix = p.width * p.height;
+    let n_pix = p.camera.width * p.camera.height;
     let stride = nwg.x * WORKGROUP_SIZE;
     var n = 0u;
     for (var pix = gid.x; pix < n_pix; pix += stride) {
-        if is_candidate(p, vec2<u32>(pix % p.width, pix / p.width)) {
+        if is_candidate(p, vec2<u32>(pix % p.camera.width, pix / p.camera.width)) {
             n += 1u;
         }
     }

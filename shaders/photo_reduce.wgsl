@@ -41,7 +41,7 @@ fn bilinear(i: vec4<f32>, t: vec2<f32>) -> vec3<f32> {
 fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     var row: IcpRow;
     row.valid = false;
-    let w = params.width;
+    let w = params.camera.width;
     let src = params.photo_source_step * src_texel;
     let src_world = textureLoad(pred_vertex, src, 0);
     let i_model = pred_intensity[src.y * params.photo_source_width + src.x];
@@ -52,10 +52,10 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     if p.z <= 0.0 {
         return row;
     }
-    let x = params.fx * p.x / p.z + params.cx;
-    let y = params.fy * p.y / p.z + params.cy;
+    let x = params.camera.fx * p.x / p.z + params.camera.cx;
+    let y = params.camera.fy * p.y / p.z + params.camera.cy;
     // The four texels around (x, y) inside the image.
-    if !(x >= 0.0 && y >= 0.0 && x < f32(w - 1u) && y < f32(params.height - 1u)) {
+    if !(x >= 0.0 && y >= 0.0 && x < f32(w - 1u) && y < f32(params.camera.height - 1u)) {
         return row;
     }
     // x, y >= 0: truncation is the floor.
@@ -75,8 +75,8 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     }
     let r = s.x - i_model;
     let sw = sqrt(huber_weight(r, params.photo_huber));
-    let fgx = params.fx * s.y;
-    let fgy = params.fy * s.z;
+    let fgx = params.camera.fx * s.y;
+    let fgy = params.camera.fy * s.z;
     let g = vec3<f32>(fgx / p.z, fgy / p.z, -((fgx * p.x + fgy * p.y) / p.z) / p.z);
     return scaled_row(p, g, r, sw);
 }

@@ -3,7 +3,9 @@
 // CPU twin: crates/core/src/cpu/entries.rs, fn pixel_grid (re-exported as cpu::pixel_grid).
 // Not valid alone: the kernel declares
 //   const TILE_X, TILE_Y: u32        its workgroup's tile of pixels;
-//   params                           a binding whose struct has the image's width, height;
+//   params                           a binding whose struct has the image's width, height
+//                                    (with `#define CAMERA_PARAMS`: its `camera: Camera`
+//                                    has them);
 //   fn per_pixel(p, texel)           the work of one pixel, on main's copy of the params;
 //                                    with `#define MAP_CHUNK` it is per_pixel(p, chunk,
 //                                    texel), on main's copy of the `chunk` binding too.
@@ -27,7 +29,11 @@ fn main(
 #ifdef MAP_CHUNK
     let ch = chunk;
 #endif
+#ifdef CAMERA_PARAMS
+    let size = vec2<u32>(p.camera.width, p.camera.height);
+#else
     let size = vec2<u32>(p.width, p.height);
+#endif
     for (var v = gid.y; v < size.y; v += stride.y) {
         for (var u = gid.x; u < size.x; u += stride.x) {
 #ifdef MAP_CHUNK

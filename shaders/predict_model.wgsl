@@ -6,7 +6,7 @@
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // A 2-D grid-stride loop over the pixels in 8x8 tiles (see fuse_flags.wgsl).
 
-// Only width and height are used.
+// Only camera.width and camera.height are used.
 @group(0) @binding(0) var<storage, read> params: ProjectParams;
 // The u64 keys of project_model, low word (map-wide surfel index) first; (0, 0) means no
 // surfel.
@@ -31,13 +31,14 @@
 const TILE_X: u32 = 8u;
 const TILE_Y: u32 = 8u;
 #define MAP_CHUNK
+#define CAMERA_PARAMS
 #entry pixel_grid
 
 // The predicted vertex and normal of pixel `texel`, if this chunk's pass writes it.
 // `params` and `chunk` are main's copies of the bindings (the entry point:
 // pixel_grid.wgsl).
 fn per_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
-    let key = index_map[texel.y * params.width + texel.x];
+    let key = index_map[texel.y * params.camera.width + texel.x];
     var vertex = INVALID;
     var normal = INVALID;
     var intensity = INTENSITY_NONE;
@@ -57,5 +58,5 @@ fn per_pixel(params: ProjectParams, chunk: MapChunk, texel: vec2<u32>) {
     }
     textureStore(pred_vertex, texel, vertex);
     textureStore(pred_normal, texel, normal);
-    pred_intensity[texel.y * params.width + texel.x] = intensity;
+    pred_intensity[texel.y * params.camera.width + texel.x] = intensity;
 }

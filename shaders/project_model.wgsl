@@ -36,7 +36,7 @@
 // image. `view` is main's copy of the params; `slot` is i in the chunk's arrays.
 fn per_surfel(view: ProjectParams, i: u32, slot: u32, cam: vec4<f32>) {
     let p = transform_point(view.t_world_to_cam, xyz(position_weight[slot]));
-    let pix = project_to_pixel(cam, view.width, view.height, p);
+    let pix = project_to_pixel(cam, view.camera.width, view.camera.height, p);
     if pix >= 0 {
         keep_nearer(u32(pix), depth_key(p.z), i);
     }

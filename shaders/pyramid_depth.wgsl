@@ -43,7 +43,7 @@ fn coarse_at(params: PyramidParams, u: u32, v: u32) -> vec4<f32> {
             }
         }
     }
-    let cam = vec4<f32>(params.fx, params.fy, params.cx, params.cy);
+    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_z / count));
 }
 
@@ -55,4 +55,5 @@ fn per_pixel(p: PyramidParams, texel: vec2<u32>) {
     textureStore(coarse_vertex, texel, coarse_at(p, texel.x, texel.y));
 }
 
+#define CAMERA_PARAMS
 #entry pixel_grid

@@ -6,7 +6,7 @@
 // the finer level is at least 2 width - 1 by 2 height - 1, so the texel exists.
 // A 2-D grid-stride loop over the coarse pixels in 4x16 tiles (see main and vertex_to_normal.wgsl).
 
-// Only width and height, the coarse size, are used.
+// Only camera.width and camera.height, the coarse size, are used.
 @group(0) @binding(0) var<storage, read> params: PyramidParams;
 // The finer level's pred_vertex, WORLD frame, w = 1 / 0.
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
@@ -31,4 +31,5 @@ fn per_pixel(p: PyramidParams, texel: vec2<u32>) {
     textureStore(coarse_normal, texel, textureLoad(fine_normal, fine, 0));
 }
 
+#define CAMERA_PARAMS
 #entry pixel_grid

@@ -9,9 +9,9 @@
 // fill_gap_px away on both sides (above and below, or left and right) whose depths agree
 // within GAP_DEPTH_TOLERANCE shows the nearer of the two (see crates/core/src/cpu/render_resolve.rs).
 
-// RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
+// RenderParams (mirrors `layout::render::RenderParams`) lives in common.wgsl.
 
-// Mirror `render::layout::VIEW_*`.
+// Mirror `layout::render::VIEW_*`.
 const VIEW_COLOR: u32 = 0u;
 const VIEW_NORMALS: u32 = 1u;
 const VIEW_WEIGHT: u32 = 2u;
@@ -62,10 +62,10 @@ fn nearest_covered(x: i32, y: i32, dx: i32, dy: i32) -> vec2<u32> {
     for (var s = 1; s <= i32(params.fill_gap_px); s++) {
         let qx = x + dx * s;
         let qy = y + dy * s;
-        if qx < 0 || qy < 0 || qx >= i32(params.width) || qy >= i32(params.height) {
+        if qx < 0 || qy < 0 || qx >= i32(params.camera.width) || qy >= i32(params.camera.height) {
             break;
         }
-        let key = index_map[u32(qy) * params.width + u32(qx)];
+        let key = index_map[u32(qy) * params.camera.width + u32(qx)];
         if !is_empty(key) {
             return key;
         }
@@ -90,8 +90,8 @@ fn bridge(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
 // The key an empty pixel shows after gap filling (empty: stays background).
 // Mirrors `cpu::render_resolve::fill_gap`.
 fn fill_gap(pix: u32) -> vec2<u32> {
-    let x = i32(pix % params.width);
-    let y = i32(pix / params.width);
+    let x = i32(pix % params.camera.width);
+    let y = i32(pix / params.camera.width);
     let vertical = bridge(nearest_covered(x, y, 0, -1), nearest_covered(x, y, 0, 1));
     let horizontal = bridge(nearest_covered(x, y, -1, 0), nearest_covered(x, y, 1, 0));
     return key_max(vertical, horizontal);
@@ -139,7 +139,7 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let stride = groups.x * 64u;
-    let n = params.width * params.height;
+    let n = params.camera.width * params.camera.height;
     for (var pix = gid.x; pix < n; pix += stride) {
         var key = index_map[pix];
         if is_empty(key) {

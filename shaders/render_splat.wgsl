@@ -10,7 +10,7 @@
 // keep_nearer in shaders/key_writer.wgsl, appended). Grid-stride loop over surfels, so any
 // workgroup count covers the whole map.
 
-// RenderParams (mirrors `render::layout::RenderParams`) lives in common.wgsl.
+// RenderParams (mirrors `layout::render::RenderParams`) lives in common.wgsl.
 
 // Mirrors `cpu::render_splat::MAX_PROJECTED_PX`.
 const MAX_PROJECTED_PX: f32 = 1.0e7;
@@ -31,7 +31,7 @@ const MAX_PROJECTED_PX: f32 = 1.0e7;
 
 // Pixel radius of a splat at camera depth z. Mirrors `cpu::render_splat::splat_radius_px`.
 fn splat_radius_px(z: f32) -> f32 {
-    let f = max(abs(params.fx), abs(params.fy));
+    let f = max(abs(params.camera.fx), abs(params.camera.fy));
     return clamp(params.splat_radius_m * f / z, params.min_radius_px, params.max_radius_px);
 }
 
@@ -41,8 +41,8 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let stride = groups.x * 64u;
-    let w = params.width;
-    let h = params.height;
+    let w = params.camera.width;
+    let h = params.camera.height;
     for (var i = gid.x; i < params.surfel_count; i += stride) {
         let p = transform_point(params.t_world_to_cam, xyz(positions[i]));
         // Negated so that a NaN depth is skipped too.
@@ -55,8 +55,8 @@ fn main(
                 continue;
             }
         }
-        let u = params.fx * p.x / p.z + params.cx;
-        let v = params.fy * p.y / p.z + params.cy;
+        let u = params.camera.fx * p.x / p.z + params.camera.cx;
+        let v = params.camera.fy * p.y / p.z + params.camera.cy;
         if !(abs(u) < MAX_PROJECTED_PX && abs(v) < MAX_PROJECTED_PX) {
             continue;
         }

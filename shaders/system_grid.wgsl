@@ -3,7 +3,8 @@
 // whose file says `#entry system_grid` (src/gpu/shaders.rs).
 // CPU twin: crates/core/src/cpu/entries.rs, fn system_grid (re-exported as cpu::system_grid).
 // Not valid alone: the kernel declares
-//   params                           a binding whose struct has the image's width, height;
+//   params                           a binding whose `camera: Camera` has the image's
+//                                    width, height;
 //   partials                         the output binding, ICP_SYSTEM_LEN floats per workgroup;
 //   fn system_row(p, texel) -> IcpRow  the row of one pixel, on main's copy of the params.
 //
@@ -80,10 +81,10 @@ fn main(
     // The params copied once per thread: read inside the loop, lavapipe loads them from the
     // storage buffer again for every pixel.
     let p = params;
-    let n_pix = p.width * p.height;
+    let n_pix = p.camera.width * p.camera.height;
     let stride = nwg.x * WORKGROUP_SIZE;
     // (u, v) of `pix`, stepped along with it: one division per thread, not per pixel.
-    let w = p.width;
+    let w = p.camera.width;
     var u = gid.x % w;
     var v = gid.x / w;
     let du = stride % w;

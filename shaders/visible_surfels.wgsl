@@ -3,8 +3,8 @@
 // (src/gpu/shaders.rs).
 // CPU twin: crates/core/src/cpu/entries.rs, fn visible_surfels (re-exported as cpu::visible_surfels).
 // Not valid alone: the kernel declares
-//   params                             a binding whose struct has t_world_to_cam, the
-//                                      intrinsics fx, fy, cx, cy, width, height and
+//   params                             a binding whose struct has t_world_to_cam,
+//                                      camera: Camera (intrinsics and image size) and
 //                                      surfel_count;
 //   chunk: MapChunk, block_bounds       the chunk and its blocks' world-frame boxes
 //                                      (array<vec4<u32>>, min at 2b, max at 2b + 1);
@@ -25,7 +25,7 @@ fn main(
 ) {
     // The params copied once per thread (see pixel_grid.wgsl).
     let p = params;
-    let cam = vec4<f32>(p.fx, p.fy, p.cx, p.cy);
+    let cam = vec4<f32>(p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy);
     let span = chunk_blocks(chunk, p.surfel_count);
     // The chunk's first index copied once per thread, as the params.
     let base = chunk.base;
@@ -33,7 +33,7 @@ fn main(
         let block = base / BLOCK_SURFELS + b;
         let lo = decode_corner(block_bounds[2u * block]);
         let hi = decode_corner(block_bounds[2u * block + 1u]);
-        if !block_visible(p.t_world_to_cam, cam, p.width, p.height, lo, hi) {
+        if !block_visible(p.t_world_to_cam, cam, p.camera.width, p.camera.height, lo, hi) {
             continue;
         }
         let end = min(base + (b + 1u) * BLOCK_SURFELS, span.y);

@@ -308,7 +308,7 @@ impl GpuBackend {
             Error::Capacity(why) => Error::Capacity(format!(
                 "a {}x{} map does not fit this GPU's frame buffers ({why}); use a smaller \
                  map (--downsample 2 or more, or a less elongated image) or --backend cpu",
-                p.width, p.height
+                p.camera.width, p.camera.height
             )),
             other => other,
         })?;

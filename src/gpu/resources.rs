@@ -138,13 +138,13 @@ impl IntensityLevel {
 impl FrameBuffers {
     /// The buffers for frames of `p`'s raw and map sizes with `pyramid`'s coarser levels.
     pub fn new(ctx: &GpuContext, p: &PreprocessParams, pyramid: &[PyramidLevel]) -> Result<Self> {
-        let n = (p.width * p.height) as usize;
+        let n = (p.camera.width * p.camera.height) as usize;
         let full = |label: &str| -> Result<GpuImage> {
             GpuImage::new(
                 ctx,
                 label,
-                p.width,
-                p.height,
+                p.camera.width,
+                p.camera.height,
                 wgpu::TextureFormat::Rgba32Float,
                 true,
             )
@@ -161,7 +161,7 @@ impl FrameBuffers {
         let mut merged = GpuArray::new(ctx, "merged surfel per pixel", 2 * n)?;
         merged.set_len(2 * n);
         // In append order, with holes for tiles outside the image that stay 0.
-        let n_append = append_slots(p.width, p.height);
+        let n_append = append_slots(p.camera.width, p.camera.height);
         let mut add_flags = GpuArray::new(ctx, "new-surfel flags", n_append)?;
         add_flags.set_len(n_append);
         let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n_append)?;
@@ -169,13 +169,14 @@ impl FrameBuffers {
         let n_blocks = crate::cpu::prefix_sum::scan_blocks(n_append);
         let mut add_block_sums = GpuArray::new(ctx, "new-surfel block sums", n_blocks)?;
         add_block_sums.set_len(n_blocks);
-        let mut intensity = PyramidLevel::intensity_params(p.width, p.height, pyramid).into_iter();
+        let mut intensity =
+            PyramidLevel::intensity_params(p.camera.width, p.camera.height, pyramid).into_iter();
         let intensity0 = IntensityLevel::new(ctx, intensity.next().expect("level 0"))?;
         let levels = pyramid
             .iter()
             .zip(intensity)
             .map(|(l, intensity)| {
-                let (w, h) = (l.down.width, l.down.height);
+                let (w, h) = (l.down.camera.width, l.down.camera.height);
                 let map = |label: &str| {
                     GpuImage::new(ctx, label, w, h, wgpu::TextureFormat::Rgba32Float, true)
                 };
@@ -197,8 +198,8 @@ impl FrameBuffers {
         Ok(FrameBuffers {
             raw_width: p.raw_width,
             raw_height: p.raw_height,
-            width: p.width,
-            height: p.height,
+            width: p.camera.width,
+            height: p.camera.height,
             raw_depth,
             raw_rgba,
             vertex: full("vertex map")?,
@@ -223,13 +224,13 @@ impl FrameBuffers {
     /// Whether these buffers fit frames of `p`'s sizes with `pyramid`'s levels.
     pub fn fits(&self, p: &PreprocessParams, pyramid: &[PyramidLevel]) -> bool {
         (self.raw_width, self.raw_height, self.width, self.height)
-            == (p.raw_width, p.raw_height, p.width, p.height)
+            == (p.raw_width, p.raw_height, p.camera.width, p.camera.height)
             && self.levels.len() == pyramid.len()
             && self
                 .levels
                 .iter()
                 .zip(pyramid)
-                .all(|(l, p)| (l.width, l.height) == (p.down.width, p.down.height))
+                .all(|(l, p)| (l.width, l.height) == (p.down.camera.width, p.down.camera.height))
     }
 
     /// `kernel`'s bind group over `own` resources (a one-kernel step's buffers, its

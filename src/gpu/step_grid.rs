@@ -94,15 +94,15 @@ pub(super) fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -
         let d = &p.down;
         let coarse = (fine.0.div_ceil(2), fine.1.div_ceil(2));
         if (d.fine_width, d.fine_height) != fine
-            || (d.width, d.height) != coarse
+            || (d.camera.width, d.camera.height) != coarse
             || (p.normal.width, p.normal.height) != coarse
         {
             return Err(Error::Argument(format!(
                 "pyramid level {}: a {}x{} level (normals {}x{}) made from {}x{} does not halve \
                  the {}x{} level before it",
                 l + 1,
-                d.width,
-                d.height,
+                d.camera.width,
+                d.camera.height,
                 p.normal.width,
                 p.normal.height,
                 d.fine_width,

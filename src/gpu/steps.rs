@@ -69,15 +69,19 @@ impl Backend for GpuBackend {
             )));
         }
         if params.stride == 0
-            || params.width * params.stride > params.raw_width
-            || params.height * params.stride > params.raw_height
+            || params.camera.width * params.stride > params.raw_width
+            || params.camera.height * params.stride > params.raw_height
         {
             return Err(Error::Argument(format!(
                 "a {}x{} map with stride {} does not fit a {}x{} frame",
-                params.width, params.height, params.stride, params.raw_width, params.raw_height
+                params.camera.width,
+                params.camera.height,
+                params.stride,
+                params.raw_width,
+                params.raw_height
             )));
         }
-        check_pyramid(params.width, params.height, pyramid)?;
+        check_pyramid(params.camera.width, params.camera.height, pyramid)?;
         // The uploads below would land before a deferred step (see `GpuContext::defer`).
         self.ctx.flush();
         if let Some(b) = &mut self.ferns {
@@ -105,7 +109,7 @@ impl Backend for GpuBackend {
             }
             Ok(())
         })?;
-        let (w, h) = (params.width, params.height);
+        let (w, h) = (params.camera.width, params.camera.height);
         let (k, ctx) = (&self.kernels, &self.ctx);
         let grid = StepGrid {
             image: image_grids(
@@ -118,7 +122,7 @@ impl Backend for GpuBackend {
                 .iter()
                 .map(|p| {
                     let kernels = [&k.pyramid_depth, &k.vertex_to_normal];
-                    image_grids(ctx, &kernels, p.down.width, p.down.height)
+                    image_grids(ctx, &kernels, p.down.camera.width, p.down.camera.height)
                 })
                 .collect(),
             ..StepGrid::default()
@@ -192,7 +196,7 @@ impl Backend for GpuBackend {
         let made: Vec<(u32, u32)> = f.levels.iter().map(|l| (l.width, l.height)).collect();
         let asked: Vec<(u32, u32)> = pyramid
             .iter()
-            .map(|l| (l.down.width, l.down.height))
+            .map(|l| (l.down.camera.width, l.down.camera.height))
             .collect();
         if made != asked {
             return Err(Error::Argument(format!(

@@ -45,7 +45,7 @@ impl GpuRenderer {
             params.surfel_count as usize <= cloud.positions.len(),
             "surfel_count past the positions"
         );
-        let n = params.width as usize * params.height as usize;
+        let n = params.camera.width as usize * params.camera.height as usize;
         const DUMMY4: [[f32; 4]; 1] = [[0.0; 4]];
         let positions = GpuArray::from_slice(ctx, "render positions", cloud.positions)?;
         let normals =
@@ -116,6 +116,10 @@ impl GpuRenderer {
     ) -> Result<RgbImage> {
         let params = render_params(cloud, camera, view, settings)?;
         let (_, rgba) = self.render_raw(ctx, &params, cloud)?;
-        Ok(rgba_to_image(params.width, params.height, &rgba))
+        Ok(rgba_to_image(
+            params.camera.width,
+            params.camera.height,
+            &rgba,
+        ))
     }
 }

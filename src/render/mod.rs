@@ -40,9 +40,9 @@ use crate::cpu::render_resolve::render_resolve;
 use crate::cpu::render_splat::render_splat;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
-use crate::layout::gpu_mat4;
 use crate::layout::map::SurfelMap;
 use crate::layout::render::RenderParams;
+use crate::layout::{gpu_mat4, Camera};
 use crate::{Error, Result};
 
 /// A point cloud to draw: positions and whichever attributes it has. All arrays have one
@@ -227,12 +227,7 @@ pub fn render_params(
     let bg = settings.background;
     Ok(RenderParams {
         t_world_to_cam: gpu_mat4(&t_world_to_cam),
-        fx: k.fx,
-        fy: k.fy,
-        cx: k.cx,
-        cy: k.cy,
-        width: k.width,
-        height: k.height,
+        camera: Camera::new(k),
         surfel_count: cloud.positions.len() as u32,
         view: view.code(),
         splat_radius_m: settings.splat_radius_m,
@@ -245,8 +240,6 @@ pub fn render_params(
         background: crate::layout::pack_rgba8(bg),
         fill_gap_px: settings.fill_gap_px,
         _pad0: 0,
-        _pad1: 0,
-        _pad2: 0,
     })
 }
 
@@ -284,7 +277,7 @@ pub fn rgba_to_image(width: u32, height: u32, rgba: &[u32]) -> RgbImage {
 
 /// The CPU twins' index map and packed pixels for `params` (unused attributes may be empty).
 pub fn render_cpu_raw(params: &RenderParams, cloud: &Cloud) -> (Vec<u64>, Vec<u32>) {
-    let n = params.width as usize * params.height as usize;
+    let n = params.camera.width as usize * params.camera.height as usize;
     let mut index_map = vec![0u64; n];
     render_splat(
         params,
@@ -314,7 +307,11 @@ pub fn render_cpu(
 ) -> Result<RgbImage> {
     let params = render_params(cloud, camera, view, settings)?;
     let (_, rgba) = render_cpu_raw(&params, cloud);
-    Ok(rgba_to_image(params.width, params.height, &rgba))
+    Ok(rgba_to_image(
+        params.camera.width,
+        params.camera.height,
+        &rgba,
+    ))
 }
 
 /// Which implementation draws: the CPU twins, or the GPU pass on a borrowed context

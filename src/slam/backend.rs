@@ -62,7 +62,7 @@ impl PyramidLevel {
     pub fn intensity_params(width: u32, height: u32, pyramid: &[Self]) -> Vec<IntensityParams> {
         let coarser: Vec<[u32; 2]> = pyramid
             .iter()
-            .map(|l| [l.down.width, l.down.height])
+            .map(|l| [l.down.camera.width, l.down.camera.height])
             .collect();
         IntensityParams::levels(width, height, &coarser)
     }

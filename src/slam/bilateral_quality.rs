@@ -5,8 +5,11 @@
 
 use crate::cpu::bilateral_filter::bilateral_filter;
 use crate::cpu::{back_project, is_valid, valid_entry, INVALID};
+use crate::geometry::camera::Intrinsics;
 use crate::layout::BilateralParams;
+use crate::layout::Camera;
 use crate::slam::params::BilateralSettings;
+use bytemuck::Zeroable;
 
 const W: u32 = 64;
 const H: u32 = 48;
@@ -30,18 +33,20 @@ fn settings() -> [BilateralSettings; 2] {
 
 fn params(s: &BilateralSettings) -> BilateralParams {
     BilateralParams {
-        fx: 60.0,
-        fy: -60.0,
-        cx: 31.5,
-        cy: 23.5,
-        width: W,
-        height: H,
+        camera: Camera::new(&Intrinsics {
+            width: W,
+            height: H,
+            fx: 60.0,
+            fy: -60.0,
+            cx: 31.5,
+            cy: 23.5,
+        }),
         radius_px: s.radius_px,
         sigma_space_px: s.sigma_space_px,
         sigma_depth_m: s.sigma_depth_m,
         sigma_depth_per_m2: s.sigma_depth_per_m2,
         filter_points: s.filter_points as u32,
-        _pad2: 0,
+        ..Zeroable::zeroed()
     }
 }
 
@@ -65,7 +70,7 @@ impl Normal {
 /// A vertex map of the true depth `depth(u, v)` plus noise, and the true depths.
 fn noisy_map(depth: impl Fn(u32, u32) -> f32) -> (Vec<[f32; 4]>, Vec<f32>) {
     let p = params(&BilateralSettings::default());
-    let cam = [p.fx, p.fy, p.cx, p.cy];
+    let cam = [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy];
     let mut rng = Normal(42);
     let mut map = Vec::new();
     let mut truth = Vec::new();
@@ -125,7 +130,11 @@ fn smooths_a_noisy_plane_with(p: &BilateralParams, map: &[[f32; 4]], truth: &[f3
         assert_eq!(is_valid(out[i]), is_valid(map[i]), "pixel {i} validity");
         if is_valid(out[i]) {
             let (u, v) = (i as u32 % W, i as u32 / W);
-            let expected = back_project([p.fx, p.fy, p.cx, p.cy], [u, v], out[i][2]);
+            let expected = back_project(
+                [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy],
+                [u, v],
+                out[i][2],
+            );
             assert_eq!(out[i], valid_entry(expected), "pixel {i} is off its ray");
         } else {
             assert_eq!(out[i], INVALID, "pixel {i}");

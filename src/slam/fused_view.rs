@@ -26,9 +26,9 @@ impl FusedView {
     pub fn of_fuse(p: &FuseParams) -> Option<Self> {
         (p.association == ASSOCIATION_BEST_CANDIDATE).then_some(Self {
             t_world_to_cam: p.t_world_to_cam,
-            intrinsics: [p.fx, p.fy, p.cx, p.cy],
-            width: p.width,
-            height: p.height,
+            intrinsics: [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy],
+            width: p.camera.width,
+            height: p.camera.height,
         })
     }
 
@@ -43,9 +43,9 @@ impl FusedView {
         (t_world_to_cam, intrinsics, width, height)
             == (
                 p.t_world_to_cam,
-                [p.fx, p.fy, p.cx, p.cy],
-                p.width,
-                p.height,
+                [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy],
+                p.camera.width,
+                p.camera.height,
             )
     }
 }

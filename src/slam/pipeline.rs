@@ -391,7 +391,7 @@ mod tests {
         let moved = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3001]);
         assert!(!view.is_view_of(&robust.project_params(&moved)));
         let mut other_size = robust.project_params(&t);
-        other_size.width /= 2;
+        other_size.camera.width /= 2;
         assert!(!view.is_view_of(&other_size));
         let assignment = Slam::new(
             CpuBackend::new(),

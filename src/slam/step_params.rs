@@ -8,7 +8,7 @@ use glam::DMat4;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
 use crate::layout::{
-    camera_floats, gpu_mat4, BilateralParams, CompactParams, FuseParams, IcpParams, NormalParams,
+    gpu_mat4, BilateralParams, Camera, CompactParams, FuseParams, IcpParams, NormalParams,
     PreprocessParams, ProjectParams, PyramidParams,
 };
 use crate::slam::backend::{Backend, PyramidLevel};
@@ -21,20 +21,16 @@ const ANGLE_GATE_OFF: f32 = -2.0;
 impl<B: Backend> Slam<B> {
     /// Parameters of `depth_to_vertex`.
     pub fn preprocess_params(&self) -> PreprocessParams {
-        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
         PreprocessParams {
-            fx,
-            fy,
-            cx,
-            cy,
-            width: self.intrinsics.width,
-            height: self.intrinsics.height,
+            camera: Camera::new(&self.intrinsics),
             raw_width: self.raw_intrinsics.width,
             raw_height: self.raw_intrinsics.height,
             stride: self.params.input.downsample.max(1),
             depth_scale: self.params.input.depth_scale,
             min_depth_m: self.params.input.min_depth_m,
             max_depth_m: self.params.input.max_depth_m,
+            _pad0: 0,
+            _pad1: 0,
         }
     }
 
@@ -42,19 +38,15 @@ impl<B: Backend> Slam<B> {
     /// [`SlamParams::bilateral`](crate::slam::params::SlamParams::bilateral) is off.
     pub fn bilateral_params(&self) -> Option<BilateralParams> {
         let b = self.params.bilateral?;
-        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
         Some(BilateralParams {
-            fx,
-            fy,
-            cx,
-            cy,
-            width: self.intrinsics.width,
-            height: self.intrinsics.height,
+            camera: Camera::new(&self.intrinsics),
             radius_px: b.radius_px,
             sigma_space_px: b.sigma_space_px,
             sigma_depth_m: b.sigma_depth_m,
             sigma_depth_per_m2: b.sigma_depth_per_m2,
             filter_points: b.filter_points as u32,
+            _pad0: 0,
+            _pad1: 0,
             _pad2: 0,
         })
     }
@@ -108,32 +100,22 @@ impl<B: Backend> Slam<B> {
 
     /// Parameters of `project_model`/`predict_model` at a world-to-camera pose.
     pub fn project_params(&self, t_world_to_cam: &DMat4) -> ProjectParams {
-        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
         ProjectParams {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
-            fx,
-            fy,
-            cx,
-            cy,
-            width: self.intrinsics.width,
-            height: self.intrinsics.height,
+            camera: Camera::new(&self.intrinsics),
             surfel_count: self.backend.surfel_count() as u32,
-            _pad: 0,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 
     /// Parameters of `icp_reduce` at the current estimate on pyramid level `level`.
     pub fn icp_params(&self, level: usize, t_world_to_cam: &DMat4) -> IcpParams {
         let k = self.level_intrinsics(level);
-        let [fx, fy, cx, cy] = camera_floats(&k);
         IcpParams {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
-            fx,
-            fy,
-            cx,
-            cy,
-            width: k.width,
-            height: k.height,
+            camera: Camera::new(&k),
             dist_threshold_m: self.params.icp.dist_m,
             cos_normal_threshold: if self.params.icp.normal_deg >= 180.0 {
                 ANGLE_GATE_OFF
@@ -147,22 +129,18 @@ impl<B: Backend> Slam<B> {
             photo_gradient_min: PHOTO_GRADIENT_MIN,
             photo_source_step: 1 << level,
             photo_source_width: self.intrinsics.width,
+            _pad0: 0,
+            _pad1: 0,
             _pad2: 0,
         }
     }
 
     /// Parameters of `fuse_merge`/`fuse_add` (count and capacity filled by the backend).
     pub fn fuse_params(&self, t_world_to_cam: &DMat4, frame_id: u32) -> FuseParams {
-        let [fx, fy, cx, cy] = camera_floats(&self.intrinsics);
         FuseParams {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             t_cam_to_world: gpu_mat4(&se3::inverse_rigid(t_world_to_cam)),
-            fx,
-            fy,
-            cx,
-            cy,
-            width: self.intrinsics.width,
-            height: self.intrinsics.height,
+            camera: Camera::new(&self.intrinsics),
             surfel_count: self.backend.surfel_count() as u32,
             frame_id,
             dist_threshold_m: self.params.fusion.dist_m,
@@ -172,6 +150,8 @@ impl<B: Backend> Slam<B> {
             confidence_sigma: self.params.fusion.confidence_sigma,
             prune_radius_scale: self.prune_scale(frame_id),
             dist_confident_m: confident_gate_m(&self.params.fusion),
+            _pad0: 0,
+            _pad1: 0,
             _pad2: 0,
         }
     }

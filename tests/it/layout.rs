@@ -1,6 +1,8 @@
 //! Compares each `#[repr(C)]` struct of `crates/core/src/layout/mod.rs` with naga's layout of the WGSL
-//! struct of the same name in `shaders/common.wgsl`: size, member names, order and offsets
-//! (through `tests/it/common/wgsl.rs`), and the constants shared by both sides. No GPU needed.
+//! struct of the same name in `shaders/common.wgsl`: size, member names, order and offsets,
+//! and the struct of each nested member (`camera: Camera`, whose own fields the `Camera`
+//! entry checks) (through `tests/it/common/wgsl.rs`), and the constants shared by both
+//! sides. No GPU needed.
 
 use crate::common;
 
@@ -11,32 +13,36 @@ use wgslam::layout::*;
 
 fn rust_layouts() -> Vec<RustLayout> {
     vec![
-        rust_layout!(PreprocessParams {
+        rust_layout!(Camera {
             fx,
             fy,
             cx,
             cy,
             width,
             height,
+            _pad0,
+            _pad1
+        }),
+        rust_layout!(PreprocessParams {
+            camera: Camera,
             raw_width,
             raw_height,
             stride,
             depth_scale,
             min_depth_m,
-            max_depth_m
+            max_depth_m,
+            _pad0,
+            _pad1
         }),
         rust_layout!(BilateralParams {
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
+            camera: Camera,
             radius_px,
             sigma_space_px,
             sigma_depth_m,
             sigma_depth_per_m2,
             filter_points,
+            _pad0,
+            _pad1,
             _pad2
         }),
         rust_layout!(NormalParams {
@@ -76,38 +82,27 @@ fn rust_layouts() -> Vec<RustLayout> {
             threshold
         }),
         rust_layout!(PyramidParams {
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
+            camera: Camera,
             fine_width,
             fine_height,
             radius_px,
             max_depth_diff_m,
             max_depth_diff_per_m2,
-            _pad
+            _pad0,
+            _pad1,
+            _pad2
         }),
         rust_layout!(ProjectParams {
             t_world_to_cam,
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
+            camera: Camera,
             surfel_count,
-            _pad
+            _pad0,
+            _pad1,
+            _pad2
         }),
         rust_layout!(IcpParams {
             t_world_to_cam,
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
+            camera: Camera,
             dist_threshold_m,
             cos_normal_threshold,
             huber_delta_m,
@@ -117,6 +112,8 @@ fn rust_layouts() -> Vec<RustLayout> {
             photo_gradient_min,
             photo_source_step,
             photo_source_width,
+            _pad0,
+            _pad1,
             _pad2
         }),
         rust_layout!(IntensityParams {
@@ -132,12 +129,7 @@ fn rust_layouts() -> Vec<RustLayout> {
         rust_layout!(FuseParams {
             t_world_to_cam,
             t_cam_to_world,
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
+            camera: Camera,
             surfel_count,
             frame_id,
             dist_threshold_m,
@@ -147,6 +139,8 @@ fn rust_layouts() -> Vec<RustLayout> {
             confidence_sigma,
             prune_radius_scale,
             dist_confident_m,
+            _pad0,
+            _pad1,
             _pad2
         }),
         rust_layout!(CompactParams {

@@ -22,7 +22,7 @@ use wgslam::geometry::se3;
 use wgslam::gpu::context::{DeviceOptions, GpuFeatures, GpuLimits};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
-use wgslam::layout::{MapChunk, NormalParams, PreprocessParams, ProjectParams};
+use wgslam::layout::{Camera, MapChunk, NormalParams, PreprocessParams, ProjectParams};
 use wgslam::render::{self, MapCloud, RenderCamera, RenderSettings, View};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
@@ -134,7 +134,7 @@ fn portable_twins_equal_the_64_bit_twins() {
             surfel_count: n_surfels as u32,
             ..s.project_params(&t_world_to_cam)
         };
-        let pixels = (proj.width * proj.height) as usize;
+        let pixels = (proj.camera.width * proj.camera.height) as usize;
         let mut keys = vec![0u64; pixels];
         cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut keys);
         let mut words = vec![0u32; 2 * pixels];
@@ -194,8 +194,8 @@ fn portable_twins_equal_the_64_bit_twins() {
         );
 
         // fuse_add: every pixel flagged, in append order, onto fuse_select's index map.
-        let appended = (0..proj.height)
-            .flat_map(|v| (0..proj.width).map(move |u| cpu::append_index([u, v])))
+        let appended = (0..proj.camera.height)
+            .flat_map(|v| (0..proj.camera.width).map(move |u| cpu::append_index([u, v])))
             .max()
             .unwrap()
             + 1;
@@ -332,18 +332,22 @@ fn webgpu_limits_device_has_the_defaults_and_no_features(ctx: GpuContext) {
     let mut gpu = GpuBackend::new(ctx).expect("the backend builds");
     let (w, h) = (10_000, 2);
     let params = PreprocessParams {
-        fx: 500.0,
-        fy: 500.0,
-        cx: 5000.0,
-        cy: 1.0,
-        width: w,
-        height: h,
+        camera: Camera::new(&Intrinsics {
+            width: w,
+            height: h,
+            fx: 500.0,
+            fy: 500.0,
+            cx: 5000.0,
+            cy: 1.0,
+        }),
         raw_width: w,
         raw_height: h,
         stride: 1,
         depth_scale: 5000.0,
         min_depth_m: 0.1,
         max_depth_m: 10.0,
+        _pad0: 0,
+        _pad1: 0,
     };
     let normal = NormalParams {
         width: w,

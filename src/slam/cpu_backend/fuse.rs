@@ -12,7 +12,7 @@ impl CpuBackend {
     /// `Backend::fuse` on the CPU: the plan's kernels over the frame's maps and the map;
     /// the map's new length.
     pub(super) fn fuse_step(&mut self, params: &FuseParams) -> usize {
-        let n_pix = (params.width * params.height) as usize;
+        let n_pix = (params.camera.width * params.camera.height) as usize;
         let count = self.map.len();
         let mut params = *params;
         params.surfel_count = count as u32;
@@ -20,7 +20,7 @@ impl CpuBackend {
         self.fused_view = None;
         let chunk = MapChunk::whole(count);
         // Flags and offsets in append order (holes for tiles outside the image stay 0).
-        let n_slots = append_slots(params.width, params.height);
+        let n_slots = append_slots(params.camera.width, params.camera.height);
         let mut added = 0u32;
         for call in plan::fuse(&params) {
             let m = &mut self.map;

@@ -123,7 +123,7 @@ impl Backend for CpuBackend {
     ) -> Result<()> {
         self.intensity.new_frame(params, pyramid);
         let f = &mut self.frame;
-        let n = (params.width * params.height) as usize;
+        let n = (params.camera.width * params.camera.height) as usize;
         f.vertex.resize(n, cpu::INVALID);
         f.color.resize(n, cpu::INVALID);
         f.normal_depth.resize(n, cpu::INVALID);
@@ -185,7 +185,7 @@ impl Backend for CpuBackend {
                         None => &f.vertex,
                     };
                     let l = &mut coarser[0];
-                    let n = (p.down.width * p.down.height) as usize;
+                    let n = (p.down.camera.width * p.down.camera.height) as usize;
                     l.vertex.resize(n, cpu::INVALID);
                     l.normal_depth.resize(n, cpu::INVALID);
                     cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
@@ -198,7 +198,7 @@ impl Backend for CpuBackend {
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         let mut params = *params;
         params.surfel_count = self.map.len() as u32;
-        let n = (params.width * params.height) as usize;
+        let n = (params.camera.width * params.camera.height) as usize;
         let chunk = MapChunk::whole(self.map.len());
         let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
         if project {
@@ -245,7 +245,7 @@ impl Backend for CpuBackend {
                     let (finer, coarser) = self.prediction.split_at_mut(level);
                     let (fine_vertex, fine_normal) = &finer[level - 1];
                     let (coarse_vertex, coarse_normal) = &mut coarser[0];
-                    let n = (p.down.width * p.down.height) as usize;
+                    let n = (p.down.camera.width * p.down.camera.height) as usize;
                     coarse_vertex.resize(n, cpu::INVALID);
                     coarse_normal.resize(n, cpu::INVALID);
                     cpu::pyramid_model::pyramid_model(

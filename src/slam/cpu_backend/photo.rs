@@ -23,7 +23,8 @@ pub(super) struct IntensityPyramid {
 impl IntensityPyramid {
     /// A new frame of `params`' size with `pyramid`'s coarser levels: the patches are stale.
     pub fn new_frame(&mut self, params: &PreprocessParams, pyramid: &[PyramidLevel]) {
-        self.params = PyramidLevel::intensity_params(params.width, params.height, pyramid);
+        self.params =
+            PyramidLevel::intensity_params(params.camera.width, params.camera.height, pyramid);
         self.patches.resize_with(self.params.len(), Vec::new);
         self.made = 0;
     }

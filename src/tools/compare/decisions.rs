@@ -143,7 +143,7 @@ pub fn check(
                 out.clear_flips += 1;
                 out.worst_relative_margin = out.worst_relative_margin.max(rel);
                 if out.first.is_none() {
-                    let w = side.params.width as usize;
+                    let w = side.params.camera.width as usize;
                     out.first = Some(format!("pixel ({}, {}), {name}: {why}", pix % w, pix / w));
                 }
             }
@@ -292,16 +292,16 @@ fn candidates(
                 + PIXEL_ULPS * eps * (uf.abs() + c.abs() + 1.0);
             ((uf - err).floor(), (uf + err).floor())
         };
-        let (u0, u1) = axis(p.fx, p.cx, p_cam.x);
-        let (v0, v1) = axis(p.fy, p.cy, p_cam.y);
-        let (w, h) = (p.width as f64, p.height as f64);
+        let (u0, u1) = axis(p.camera.fx, p.camera.cx, p_cam.x);
+        let (v0, v1) = axis(p.camera.fy, p.camera.cy, p_cam.y);
+        let (w, h) = (p.camera.width as f64, p.camera.height as f64);
         if u1 < 0.0 || v1 < 0.0 || u0 >= w || v0 >= h {
             continue;
         }
         let edge = u0 != u1 || v0 != v1;
         for v in v0.max(0.0) as u32..=v1.min(h - 1.0) as u32 {
             for u in u0.max(0.0) as u32..=u1.min(w - 1.0) as u32 {
-                let pix = (v * p.width + u) as usize;
+                let pix = (v * p.camera.width + u) as usize;
                 if !wanted.contains_key(&pix) {
                     continue;
                 }
@@ -329,7 +329,7 @@ fn gates(
 ) -> Candidate {
     let p = side.params;
     let eps = f32::EPSILON as f64;
-    let nd = side.normal_depth[(texel[1] * p.width + texel[0]) as usize];
+    let nd = side.normal_depth[(texel[1] * p.camera.width + texel[0]) as usize];
     let mut c = Candidate {
         surfel: s as u32,
         standing: Standing::In,
@@ -348,8 +348,8 @@ fn gates(
     }
     let z = nd[3] as f64;
     let q = DVec3::new(
-        (texel[0] as f64 - p.cx as f64) * z / p.fx as f64,
-        (texel[1] as f64 - p.cy as f64) * z / p.fy as f64,
+        (texel[0] as f64 - p.camera.cx as f64) * z / p.camera.fx as f64,
+        (texel[1] as f64 - p.camera.cy as f64) * z / p.camera.fy as f64,
         z,
     );
     let e_pos = e_pos.max(POSITION_ULPS * eps * q.length());
@@ -435,7 +435,14 @@ mod tests {
             [0.0, 0.0, 0.0, 1.0],
         ];
         (p.t_world_to_cam, p.t_cam_to_world) = (identity, identity);
-        (p.fx, p.fy, p.cx, p.cy, p.width, p.height) = (100.0, 100.0, 1.5, 1.5, 4, 4);
+        (
+            p.camera.fx,
+            p.camera.fy,
+            p.camera.cx,
+            p.camera.cy,
+            p.camera.width,
+            p.camera.height,
+        ) = (100.0, 100.0, 1.5, 1.5, 4, 4);
         p.dist_threshold_m = 0.05;
         p.cos_normal_threshold = 20f32.to_radians().cos();
         let mut nd = vec![[0.0f32; 4]; 16];

@@ -55,23 +55,38 @@ pub fn parse(label: &str, source: &str) -> naga::Module {
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string_with_path(source, label)))
 }
 
-/// A Rust struct's layout: name, `size_of`, and `(member, offset_of)` in declaration order.
+/// A Rust struct's layout: name, `size_of`, `(member, offset_of)` in declaration order, and
+/// `(member, struct name)` for each member that is itself a shared struct (nested, as
+/// `camera: Camera`).
 pub struct RustLayout {
     pub name: &'static str,
     pub size: usize,
     pub members: Vec<(&'static str, usize)>,
+    pub struct_members: Vec<(&'static str, &'static str)>,
 }
 
-/// `rust_layout!(Type { field, field, ... })`: the [`RustLayout`] of `Type`, listing every
-/// field in declaration order (the WGSL struct must have the same members in that order).
-/// (Unused in the test files that include `common` for other helpers.)
+/// `rust_layout!(Type { field, field: Nested, ... })`: the [`RustLayout`] of `Type`, listing
+/// every field in declaration order (the WGSL struct must have the same members in that
+/// order), a field of a nested shared struct with its type (checked here by the compiler,
+/// against the WGSL member's struct by [`layout_mismatches`]; the nested struct's own
+/// layout has its own entry). (Unused in the test files that include `common` for other
+/// helpers.)
 #[allow(unused_macros)]
 macro_rules! rust_layout {
-    ($ty:ident { $($field:ident),* $(,)? }) => {
+    ($ty:ident { $($field:ident $(: $nested:ident)?),* $(,)? }) => {
         $crate::common::wgsl::RustLayout {
             name: stringify!($ty),
             size: ::std::mem::size_of::<$ty>(),
             members: vec![$((stringify!($field), ::std::mem::offset_of!($ty, $field))),*],
+            struct_members: {
+                #[allow(unused_mut)]
+                let mut nested: Vec<(&'static str, &'static str)> = Vec::new();
+                $($(
+                    let _: fn(&$ty) -> &$nested = |s| &s.$field;
+                    nested.push((stringify!($field), stringify!($nested)));
+                )?)*
+                nested
+            },
         }
     };
 }
@@ -80,8 +95,10 @@ pub(crate) use rust_layout;
 
 /// Compares `rust` with the WGSL struct of the same name in `module` (`label` names the
 /// source in messages) and returns one message per mismatch: a missing struct, a size
-/// (naga's struct span or its layouter) or member count that differs, or a member whose
-/// name or offset differs.
+/// (naga's struct span or its layouter) or member count that differs, a member whose
+/// name or offset differs, or a member of struct type whose struct differs from the one
+/// `rust` names for it (or that `rust` does not name). With the nested struct's own entry
+/// this checks the offset of every field of a nested struct too.
 pub fn layout_mismatches(label: &str, module: &naga::Module, rust: &RustLayout) -> Vec<String> {
     let name = rust.name;
     let mut layouter = naga::proc::Layouter::default();
@@ -121,6 +138,24 @@ pub fn layout_mismatches(label: &str, module: &naga::Module, rust: &RustLayout) 
         if rn != wn || ro != wo {
             failures.push(format!(
                 "{label}: {name}: Rust member `{rn}` at offset {ro}, WGSL member `{wn}` at offset {wo}"
+            ));
+        }
+    }
+    for m in members {
+        let member = m.name.clone().unwrap_or_default();
+        let wgsl_struct = match &module.types[m.ty] {
+            naga::Type {
+                name: Some(n),
+                inner: naga::TypeInner::Struct { .. },
+            } => Some(n.as_str()),
+            _ => None,
+        };
+        let rust_struct = (rust.struct_members.iter())
+            .find(|(f, _)| *f == member)
+            .map(|(_, s)| *s);
+        if wgsl_struct != rust_struct {
+            failures.push(format!(
+                "{label}: {name}: member `{member}` is struct {wgsl_struct:?} in WGSL, {rust_struct:?} in Rust"
             ));
         }
     }

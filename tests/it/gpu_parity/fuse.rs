@@ -139,12 +139,12 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         if let Some(chunk) = chunk_surfels {
             // Retired surfels whose pixel chose a surfel in another GPU chunk: the merged
             // surfel they were compared with came from that chunk, via `merged`.
-            let cam = [fp.fx, fp.fy, fp.cx, fp.cy];
+            let cam = [fp.camera.fx, fp.camera.fy, fp.camera.cx, fp.camera.cy];
             let across = (0..before.len())
                 .filter(|&i| g.weight(i) == 0.0 && g.last_frame(i) == 0 && before.weight(i) > 0.0)
                 .filter(|&i| {
                     let p = cpu::transform_point(&fp.t_world_to_cam, g.position(i).into());
-                    cpu::project_to_pixel(cam, fp.width, fp.height, p)
+                    cpu::project_to_pixel(cam, fp.camera.width, fp.camera.height, p)
                         .is_some_and(|pix| (keys[pix] as u32) as usize / chunk != i / chunk)
                 })
                 .count();
@@ -268,14 +268,11 @@ fn check_fuse_select(
     // (the same transform and projection functions).
     let proj = ProjectParams {
         t_world_to_cam: params.t_world_to_cam,
-        fx: params.fx,
-        fy: params.fy,
-        cx: params.cx,
-        cy: params.cy,
-        width: params.width,
-        height: params.height,
+        camera: params.camera,
         surfel_count: params.surfel_count,
-        _pad: 0,
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
     };
     let mut projected = vec![0u64; n];
     cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut projected);

@@ -238,7 +238,7 @@ fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
     for level in 1..3 {
         let ip = s.icp_params(level, &t);
         let pixels = s.level_intrinsics(level).pixels();
-        assert_eq!(ip.width as usize * ip.height as usize, pixels);
+        assert_eq!(ip.camera.width as usize * ip.camera.height as usize, pixels);
         let (sys_c, sys_g) = (
             s.backend.icp_system(level, &ip).unwrap(),
             gpu.icp_system(level, &ip).unwrap(),
@@ -357,7 +357,7 @@ fn icp_candidates_matches_twin(mut gpu: GpuBackend) {
             gpu.icp_candidates(&ip).unwrap(),
         );
         eprintln!("{label}: candidates cpu {c} gpu {g}");
-        let pixels = (ip.width * ip.height) as u64;
+        let pixels = (ip.camera.width * ip.camera.height) as u64;
         assert!(c > pixels / 2, "{label}: only {c} candidates");
         assert!(
             c.abs_diff(g) as f64 <= MASK_MISMATCH_FRACTION * pixels as f64,

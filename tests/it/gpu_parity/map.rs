@@ -168,21 +168,33 @@ fn culling_is_conservative() {
             surfel_count: map.len() as u32,
             ..s.project_params(&(*turn * t_seen))
         };
-        let n = (proj.width * proj.height) as usize;
+        let n = (proj.camera.width * proj.camera.height) as usize;
         let splat = |b: &[[u32; 4]]| {
             let mut index = vec![0u64; n];
             cpu::project_model::project_model(&proj, &whole, b, &map.position_weight, &mut index);
             index
         };
         let (culled_index, full_index) = (splat(&bounds), splat(&world));
-        let cam = [proj.fx, proj.fy, proj.cx, proj.cy];
+        let cam = [
+            proj.camera.fx,
+            proj.camera.fy,
+            proj.camera.cx,
+            proj.camera.cy,
+        ];
         let culled = (0..blocks)
             .filter(|&b| {
                 let (lo, hi) = (
                     cpu::decode_corner(bounds[2 * b]),
                     cpu::decode_corner(bounds[2 * b + 1]),
                 );
-                !cpu::block_visible(&proj.t_world_to_cam, cam, proj.width, proj.height, lo, hi)
+                !cpu::block_visible(
+                    &proj.t_world_to_cam,
+                    cam,
+                    proj.camera.width,
+                    proj.camera.height,
+                    lo,
+                    hi,
+                )
             })
             .count();
         let covered = full_index.iter().filter(|&&k| k != 0).count();

@@ -27,7 +27,7 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     let proj = s.project_params(&t_world_to_cam);
     assert_eq!(proj.surfel_count as usize, map.len());
 
-    let n = (proj.width * proj.height) as usize;
+    let n = (proj.camera.width * proj.camera.height) as usize;
     let mut index_cpu = vec![0u64; n];
     let whole = MapChunk::whole(map.len());
     let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);

@@ -222,7 +222,7 @@ fn fern_encode_matches_twin(mut gpu: GpuBackend) {
         gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
             .unwrap();
         let db = KeyframeDatabase::new(params.relocalisation.as_ref().unwrap());
-        let fp = db.params(pp.width, pp.height);
+        let fp = db.params(pp.camera.width, pp.camera.height);
         let g = gpu.encode_ferns(&fp, db.ferns()).unwrap();
         let maps = gpu.download_frame().unwrap();
         let mut c = vec![0; db.ferns().len()];
@@ -258,8 +258,8 @@ fn keypoint_kernels_match_twins(mut gpu: GpuBackend) {
     let maps = gpu.download_frame().unwrap();
     let pattern = features::pattern();
     let mut kp = KeypointParams {
-        width: pp.width,
-        height: pp.height,
+        width: pp.camera.width,
+        height: pp.camera.height,
         threshold: features::HARRIS_THRESHOLD,
         capacity: features::KEYPOINT_CAPACITY,
         count: 0,

@@ -120,8 +120,11 @@ fn gap_fill_keeps_depth_jumps_and_borders_open() {
     // not; a pixel with a surface on one side only stays empty.
     let key = |z: f32, index: u32| ((!z.to_bits()) as u64) << 32 | index as u64;
     let params = RenderParams {
-        width: 3,
-        height: 3,
+        camera: wgslam::layout::Camera {
+            width: 3,
+            height: 3,
+            ..bytemuck::Zeroable::zeroed()
+        },
         fill_gap_px: 2,
         ..bytemuck::Zeroable::zeroed()
     };

@@ -15,14 +15,10 @@ use super::{bundled_map, gt_poses};
 fn render_params_layout_matches_both_shaders() {
     use wgslam::gpu::shaders;
     use wgslam::layout::render::RenderParams;
+    use wgslam::layout::Camera;
     let rust = rust_layout!(RenderParams {
         t_world_to_cam,
-        fx,
-        fy,
-        cx,
-        cy,
-        width,
-        height,
+        camera: Camera,
         surfel_count,
         view,
         splat_radius_m,
@@ -35,8 +31,6 @@ fn render_params_layout_matches_both_shaders() {
         background,
         fill_gap_px,
         _pad0,
-        _pad1,
-        _pad2,
     });
     let mut failures = Vec::new();
     for kernel in ["render_splat", "render_splat_portable", "render_resolve"] {

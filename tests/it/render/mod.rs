@@ -19,7 +19,7 @@ use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::layout::map::SurfelMap;
-use wgslam::layout::{NormalParams, PreprocessParams};
+use wgslam::layout::{Camera, NormalParams, PreprocessParams};
 use wgslam::render;
 
 /// Ground-truth poses (`t_cam_to_world`) of the bundled frames that have one, in frame
@@ -40,18 +40,15 @@ fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
     let k = Intrinsics::ICL_NUIM.downsampled(stride);
     let Frame { depth, rgba } = load_frame(root, i);
     let pp = PreprocessParams {
-        fx: k.fx,
-        fy: k.fy,
-        cx: k.cx,
-        cy: k.cy,
-        width: k.width,
-        height: k.height,
+        camera: Camera::new(&k),
         raw_width: 640,
         raw_height: 480,
         stride,
         depth_scale: 5000.0,
         min_depth_m: 0.1,
         max_depth_m: 10.0,
+        _pad0: 0,
+        _pad1: 0,
     };
     let n = k.pixels();
     let (mut vmap, mut cmap, mut nmap) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n], vec![[0.0; 4]; n]);

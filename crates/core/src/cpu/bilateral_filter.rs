@@ -56,7 +56,7 @@ use crate::layout::BilateralParams;
 /// The filtered vertex of pixel `(u, v)`, or [`INVALID`] where its vertex is invalid (the
 /// rules of the module header). Mirrors `filtered_at` in bilateral_filter.wgsl.
 pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v: u32) -> [f32; 4] {
-    let w = params.width as usize;
+    let w = params.camera.width as usize;
     let load = |u: u32, v: u32| vertex_map[v as usize * w + u as usize];
     let c = load(u, v);
     if !is_valid(c) {
@@ -66,8 +66,8 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
     // The shader's `select(u - r, 0u, u < r)`.
     let u_lo = u.saturating_sub(r);
     let v_lo = v.saturating_sub(r);
-    let u_hi = (u + r).min(params.width - 1);
-    let v_hi = (v + r).min(params.height - 1);
+    let u_hi = (u + r).min(params.camera.width - 1);
+    let v_hi = (v + r).min(params.camera.height - 1);
     let k_space = 1.0 / (2.0 * params.sigma_space_px * params.sigma_space_px);
     let sigma_depth = params.sigma_depth_m + params.sigma_depth_per_m2 * c[2] * c[2];
     let k_depth = 1.0 / (2.0 * sigma_depth * sigma_depth);
@@ -86,7 +86,12 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
             }
         }
     }
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     valid_entry(back_project(cam, [u, v], sum_wz / sum_w))
 }
 
@@ -97,7 +102,7 @@ pub fn bilateral_filter(
     vertex_map: &[[f32; 4]],
     filtered_vertex: &mut [[f32; 4]],
 ) {
-    let (w, h) = (params.width as usize, params.height as usize);
+    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
     assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
     assert_eq!(
         filtered_vertex.len(),
@@ -105,7 +110,7 @@ pub fn bilateral_filter(
         "filtered_vertex has the wrong size"
     );
     // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
-    pixel_grid(params.width, params.height, |[u, v]| {
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         filtered_vertex[v as usize * w + u as usize] = filtered_at(params, vertex_map, u, v);
     });
 }

@@ -1,7 +1,7 @@
 //! CPU twin of `shaders/depth_to_vertex.wgsl`: raw 16-bit depth and RGB8 to a camera-frame
 //! vertex map (metres) and a colour map, downsampled by keeping every `stride`-th pixel.
 //!
-//! Output pixel `(u, v)` reads raw pixel `(stride u, stride v)`; `params.fx..cy` are the
+//! Output pixel `(u, v)` reads raw pixel `(stride u, stride v)`; `params.camera` holds the
 //! downsampled intrinsics, so back-projecting `(u, v)` with them equals back-projecting the
 //! raw pixel with the raw intrinsics. Invalid depth (0 or outside the depth range) gives the
 //! invalid entry `[0; 4]`.
@@ -21,7 +21,7 @@ pub fn depth_to_vertex(
     vertex_map: &mut [[f32; 4]],
     color_map: &mut [[f32; 4]],
 ) {
-    let (w, h) = (params.width as usize, params.height as usize);
+    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
     assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
     assert_eq!(color_map.len(), w * h, "color_map has the wrong size");
     assert_eq!(
@@ -29,7 +29,7 @@ pub fn depth_to_vertex(
         (params.raw_width * params.raw_height) as usize
     );
     // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
-    pixel_grid(params.width, params.height, |[u, v]| {
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         convert_at(params, raw_depth, raw_rgba, vertex_map, color_map, u, v);
     });
 }
@@ -44,7 +44,7 @@ fn convert_at(
     u: u32,
     v: u32,
 ) {
-    let texel = (v * params.width + u) as usize;
+    let texel = (v * params.camera.width + u) as usize;
     let raw = (v * params.stride * params.raw_width + u * params.stride) as usize;
     let z = super::arith::div(raw_depth[raw] as f32, params.depth_scale);
     let c = raw_rgba[raw];
@@ -56,7 +56,12 @@ fn convert_at(
     ];
     let mut vertex = INVALID;
     if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
-        let cam = [params.fx, params.fy, params.cx, params.cy];
+        let cam = [
+            params.camera.fx,
+            params.camera.fy,
+            params.camera.cx,
+            params.camera.cy,
+        ];
         vertex = valid_entry(back_project(cam, [u, v], z));
     }
     vertex_map[texel] = vertex;

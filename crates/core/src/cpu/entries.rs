@@ -27,13 +27,14 @@ pub trait SurfelView {
 }
 
 /// The two params structs that carry a culling view (`ProjectParams`, `FuseParams`), whose
-/// fields of the same names are those [`SurfelView`] reads.
+/// fields of the same names (`t_world_to_cam`, `camera`, `surfel_count`) are those
+/// [`SurfelView`] reads.
 macro_rules! surfel_view {
     ($($params:ty),*) => {$(
         impl SurfelView for $params {
             fn view(&self) -> (&GpuMat4, [f32; 4], [u32; 2], u32) {
-                let cam = [self.fx, self.fy, self.cx, self.cy];
-                (&self.t_world_to_cam, cam, [self.width, self.height], self.surfel_count)
+                let cam = [self.camera.fx, self.camera.fy, self.camera.cx, self.camera.cy];
+                (&self.t_world_to_cam, cam, [self.camera.width, self.camera.height], self.surfel_count)
             }
         }
     )*};

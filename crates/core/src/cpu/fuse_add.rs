@@ -35,9 +35,14 @@ pub fn fuse_add<K: KeyWriter + ?Sized>(
     color: &mut [[f32; 4]],
     index_map: &mut K,
 ) {
-    let cam = [params.fx, params.fy, params.cx, params.cy];
-    pixel_grid(params.width, params.height, |[u, v]| {
-        let pix = (v * params.width + u) as usize;
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+        let pix = (v * params.camera.width + u) as usize;
         let a = append_index([u, v]);
         if flags[a] == 0 {
             return;
@@ -53,7 +58,7 @@ pub fn fuse_add<K: KeyWriter + ?Sized>(
         let p = transform_point(&params.t_cam_to_world, q_cam);
         let n = transform_dir(&params.t_cam_to_world, xyz(nd));
         let w = pixel_confidence(cam, [u, v], params.confidence_sigma);
-        let r = surfel_radius(params.fx, q_cam, xyz(nd));
+        let r = surfel_radius(params.camera.fx, q_cam, xyz(nd));
         if index_map.first_pass() {
             let surfel = slot as usize;
             position_weight[surfel] = [p.x, p.y, p.z, w];

@@ -28,9 +28,9 @@ pub fn fuse_flags(
     flags: &mut [u32],
 ) {
     // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
-    pixel_grid(params.width, params.height, |[u, v]| {
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         let texel = [u, v];
-        let pix = (v * params.width + u) as usize;
+        let pix = (v * params.camera.width + u) as usize;
         let nd = normal_depth[pix];
         // Valid normal (w = depth > 0) implies a valid vertex.
         let mut new_surfel = assoc[pix] == 0 && is_valid(nd);
@@ -49,7 +49,12 @@ fn neighbour_covers(
     texel: [u32; 2],
     nd: [f32; 4],
 ) -> bool {
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     for dv in -1..=1 {
         for du in -1..=1 {
             let u = texel[0] as i32 + du;
@@ -57,12 +62,12 @@ fn neighbour_covers(
             if (du == 0 && dv == 0)
                 || u < 0
                 || v < 0
-                || u >= params.width as i32
-                || v >= params.height as i32
+                || u >= params.camera.width as i32
+                || v >= params.camera.height as i32
             {
                 continue;
             }
-            let pix = (v as u32 * params.width + u as u32) as usize;
+            let pix = (v as u32 * params.camera.width + u as u32) as usize;
             let pw = merged[2 * pix];
             if !is_valid(pw) {
                 continue;

@@ -42,7 +42,12 @@ pub fn fuse_merge(
     color: &mut [[f32; 4]],
     assoc: &mut [u64],
 ) {
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
     let mut map = ChunkMut {
         position_weight,
@@ -57,8 +62,8 @@ pub fn fuse_merge(
         if !block_visible(
             &params.t_world_to_cam,
             cam,
-            params.width,
-            params.height,
+            params.camera.width,
+            params.camera.height,
             lo,
             hi,
         ) {
@@ -118,8 +123,8 @@ fn merge_surfel(
     let pw = map.position_weight[surfel];
     let p_world = xyz(pw);
     let p_cam = transform_point(&params.t_world_to_cam, p_world);
-    let texel = project_to_texel(cam, params.width, params.height, p_cam)?;
-    let pix = (texel[1] * params.width + texel[0]) as usize;
+    let texel = project_to_texel(cam, params.camera.width, params.camera.height, p_cam)?;
+    let pix = (texel[1] * params.camera.width + texel[0]) as usize;
     // Valid normal (w = depth > 0) implies a valid vertex.
     let nd = normal_depth[pix];
     if !is_valid(nd) {
@@ -136,7 +141,7 @@ fn merge_surfel(
     }
     let wq = pixel_confidence(cam, texel, params.confidence_sigma);
     let cq = xyz(color_map[pix]);
-    let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+    let r_q = surfel_radius(params.camera.fx, q_cam, xyz(nd));
     let m = merged_surfel(pw, n_old, map.color[surfel], q_world, nq_world, cq, wq, r_q);
     map.position_weight[surfel] = m.position_weight;
     let n = m.normal;

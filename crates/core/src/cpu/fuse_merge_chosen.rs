@@ -28,8 +28,8 @@ pub fn fuse_merge_chosen(
     merged: &mut [[f32; 4]],
 ) {
     // The shader's grid-stride loop as one thread whose stride is 1 x 1.
-    pixel_grid(params.width, params.height, |[u, v]| {
-        let pix = (v * params.width + u) as usize;
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+        let pix = (v * params.camera.width + u) as usize;
         let key = assoc[pix];
         if key == 0 {
             return;
@@ -41,7 +41,12 @@ pub fn fuse_merge_chosen(
         }
         let s = slot as usize;
         let texel = [u, v];
-        let cam = [params.fx, params.fy, params.cx, params.cy];
+        let cam = [
+            params.camera.fx,
+            params.camera.fy,
+            params.camera.cx,
+            params.camera.cy,
+        ];
         let pw = position_weight[s];
         // fuse_select chose only on a valid pixel (a valid normal implies a valid
         // vertex).
@@ -52,7 +57,7 @@ pub fn fuse_merge_chosen(
         let n_old = normal_of(normal_frame[s]);
         let wq = pixel_confidence(cam, texel, params.confidence_sigma);
         let cq = xyz(color_map[pix]);
-        let r_q = surfel_radius(params.fx, q_cam, xyz(nd));
+        let r_q = surfel_radius(params.camera.fx, q_cam, xyz(nd));
         let m = merged_surfel(pw, n_old, color[s], q_world, nq_world, cq, wq, r_q);
         position_weight[s] = m.position_weight;
         let n = m.normal;

@@ -30,7 +30,12 @@ pub fn fuse_prune(
     color: &[[f32; 4]],
     merged: &[[f32; 4]],
 ) {
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     visible_surfels(params, chunk, block_bounds, |_, slot| {
         prune_surfel(
             params,
@@ -62,13 +67,13 @@ fn prune_surfel(
     let pw = position_weight[slot];
     let Some(centre) = project_to_texel(
         cam,
-        params.width,
-        params.height,
+        params.camera.width,
+        params.camera.height,
         transform_point(&params.t_world_to_cam, xyz(pw)),
     ) else {
         return;
     };
-    let pix = (centre[1] * params.width + centre[0]) as usize;
+    let pix = (centre[1] * params.camera.width + centre[0]) as usize;
     let pw_t = merged[2 * pix];
     if pw_t[3] <= 0.0 {
         return;

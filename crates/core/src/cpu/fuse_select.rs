@@ -45,7 +45,12 @@ pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     assoc: &mut A,
     index_map: &mut K,
 ) {
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     let map = Chunk {
         position_weight,
         normal_frame,
@@ -79,10 +84,11 @@ fn select_for_surfel<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
 ) {
     let slot = slot as usize;
     let p_cam = transform_point(&params.t_world_to_cam, xyz(map.position_weight[slot]));
-    let Some(texel) = project_to_texel(cam, params.width, params.height, p_cam) else {
+    let Some(texel) = project_to_texel(cam, params.camera.width, params.camera.height, p_cam)
+    else {
         return;
     };
-    let pix = (texel[1] * params.width + texel[0]) as usize;
+    let pix = (texel[1] * params.camera.width + texel[0]) as usize;
     index_map.keep_nearer(pix, depth_key(p_cam.z), i);
     let nd = normal_depth[pix];
     if !is_valid(nd) {

@@ -14,14 +14,14 @@ pub fn is_candidate(
     pred_vertex: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> bool {
-    let src_world = pred_vertex[(src_texel[1] * p.width + src_texel[0]) as usize];
+    let src_world = pred_vertex[(src_texel[1] * p.camera.width + src_texel[0]) as usize];
     if !is_valid(src_world) {
         return false;
     }
-    let cam = [p.fx, p.fy, p.cx, p.cy];
+    let cam = [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy];
     let q = transform_point(&p.t_world_to_cam, xyz(src_world));
-    match project_to_texel(cam, p.width, p.height, q) {
-        Some(t) => is_valid(normal_depth[(t[1] * p.width + t[0]) as usize]),
+    match project_to_texel(cam, p.camera.width, p.camera.height, q) {
+        Some(t) => is_valid(normal_depth[(t[1] * p.camera.width + t[0]) as usize]),
         None => false,
     }
 }
@@ -37,8 +37,8 @@ pub fn icp_candidates(
     normal_depth: &[[f32; 4]],
 ) -> u64 {
     let mut n = 0;
-    for v in 0..params.height {
-        for u in 0..params.width {
+    for v in 0..params.camera.height {
+        for u in 0..params.camera.width {
             if is_candidate(params, [u, v], pred_vertex, normal_depth) {
                 n += 1;
             }

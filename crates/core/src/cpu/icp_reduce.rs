@@ -60,17 +60,22 @@ pub fn icp_row(
     pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> Option<([f32; 6], f32)> {
-    let src = src_texel[1] as usize * params.width as usize + src_texel[0] as usize;
+    let src = src_texel[1] as usize * params.camera.width as usize + src_texel[0] as usize;
     let src_world = pred_vertex[src];
     if !is_valid(src_world) {
         return None;
     }
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     let p = transform_point(&params.t_world_to_cam, xyz(src_world));
-    let target_texel = project_to_texel(cam, params.width, params.height, p)?;
+    let target_texel = project_to_texel(cam, params.camera.width, params.camera.height, p)?;
     // Valid normal (w = depth > 0) implies a valid vertex.
-    let nd =
-        normal_depth[target_texel[1] as usize * params.width as usize + target_texel[0] as usize];
+    let nd = normal_depth
+        [target_texel[1] as usize * params.camera.width as usize + target_texel[0] as usize];
     if !is_valid(nd) {
         return None;
     }
@@ -109,7 +114,7 @@ pub fn icp_reduce(
     pred_normal: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
 ) -> [f64; ICP_SYSTEM_LEN] {
-    super::system_grid(params.width, params.height, |texel| {
+    super::system_grid(params.camera.width, params.camera.height, |texel| {
         icp_row(params, texel, pred_vertex, pred_normal, normal_depth)
     })
 }
@@ -117,8 +122,9 @@ pub fn icp_reduce(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::camera::Intrinsics;
     use crate::geometry::se3;
-    use crate::layout::gpu_mat4;
+    use crate::layout::{gpu_mat4, Camera};
     use bytemuck::Zeroable;
 
     /// Central differences in f64 of an f32 residual: error ~ h^2 plus f32 rounding / h.
@@ -142,7 +148,7 @@ mod tests {
         n_p: [f32; 4],
         nd: &[[f32; 4]],
     ) -> Option<([f32; 6], f32)> {
-        let n = (params.width * params.height) as usize;
+        let n = (params.camera.width * params.camera.height) as usize;
         let mut pv = vec![[0.0; 4]; n];
         let mut pn = vec![[0.0; 4]; n];
         pv[0] = p;
@@ -159,12 +165,14 @@ mod tests {
         let z_q = 2.0f32;
         let params = IcpParams {
             t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
-            fx: 10.0,
-            fy: -10.0,
-            cx: 2.0,
-            cy: 2.0,
-            width: 5,
-            height: 5,
+            camera: Camera::new(&Intrinsics {
+                width: 5,
+                height: 5,
+                fx: 10.0,
+                fy: -10.0,
+                cx: 2.0,
+                cy: 2.0,
+            }),
             dist_threshold_m: 0.5,
             ..Zeroable::zeroed()
         };
@@ -172,7 +180,12 @@ mod tests {
         // A target map where every pixel holds n at depth z_q; q is the vertex of the pixel
         // p lands on.
         let nd = vec![[n.x as f32, n.y as f32, n.z as f32, z_q]; 25];
-        let cam = [params.fx, params.fy, params.cx, params.cy];
+        let cam = [
+            params.camera.fx,
+            params.camera.fy,
+            params.camera.cx,
+            params.camera.cy,
+        ];
         let p32 = glam::Vec3::new(p.x as f32, p.y as f32, p.z as f32);
         let texel = project_to_texel(cam, 5, 5, p32).expect("p projects into the image");
         let q = back_project(cam, texel, z_q).as_dvec3();
@@ -207,12 +220,14 @@ mod tests {
     fn params_3x3(dist_m: f32) -> IcpParams {
         plain(IcpParams {
             t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
-            fx: 100.0,
-            fy: 100.0,
-            cx: 1.0,
-            cy: 1.0,
-            width: 3,
-            height: 3,
+            camera: Camera::new(&Intrinsics {
+                width: 3,
+                height: 3,
+                fx: 100.0,
+                fy: 100.0,
+                cx: 1.0,
+                cy: 1.0,
+            }),
             dist_threshold_m: dist_m,
             ..Zeroable::zeroed()
         })

@@ -71,7 +71,7 @@ pub fn photo_row(
     normal_depth: &[[f32; 4]],
     intensity_patch: &[[f32; 4]],
 ) -> Option<([f32; 6], f32)> {
-    let w = params.width;
+    let w = params.camera.width;
     let step = params.photo_source_step;
     let src = (step * src_texel[1] * params.photo_source_width + step * src_texel[0]) as usize;
     let src_world = pred_vertex[src];
@@ -83,10 +83,10 @@ pub fn photo_row(
     if p.z <= 0.0 {
         return None;
     }
-    let x = arith::div(params.fx * p.x, p.z) + params.cx;
-    let y = arith::div(params.fy * p.y, p.z) + params.cy;
+    let x = arith::div(params.camera.fx * p.x, p.z) + params.camera.cx;
+    let y = arith::div(params.camera.fy * p.y, p.z) + params.camera.cy;
     // The four texels around (x, y) inside the image.
-    if !(x >= 0.0 && y >= 0.0 && x < (w - 1) as f32 && y < (params.height - 1) as f32) {
+    if !(x >= 0.0 && y >= 0.0 && x < (w - 1) as f32 && y < (params.camera.height - 1) as f32) {
         return None;
     }
     // x, y >= 0: truncation is the floor.
@@ -105,8 +105,8 @@ pub fn photo_row(
     }
     let r = i_frame - i_model;
     let s = arith::sqrt(huber_weight(r, params.photo_huber));
-    let fgx = params.fx * gx;
-    let fgy = params.fy * gy;
+    let fgx = params.camera.fx * gx;
+    let fgy = params.camera.fy * gy;
     let g = glam::Vec3::new(
         arith::div(fgx, p.z),
         arith::div(fgy, p.z),
@@ -126,7 +126,7 @@ pub fn photo_reduce(
     normal_depth: &[[f32; 4]],
     intensity_patch: &[[f32; 4]],
 ) -> [f64; ICP_SYSTEM_LEN] {
-    super::system_grid(params.width, params.height, |texel| {
+    super::system_grid(params.camera.width, params.camera.height, |texel| {
         photo_row(
             params,
             texel,
@@ -141,8 +141,9 @@ pub fn photo_reduce(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::camera::Intrinsics;
     use crate::geometry::se3;
-    use crate::layout::gpu_mat4;
+    use crate::layout::{gpu_mat4, Camera};
     use bytemuck::Zeroable;
 
     /// Central differences (step `H`) of an f32 residual whose intensity (about 0.5) is
@@ -164,12 +165,14 @@ mod tests {
         let (w, h) = (32u32, 24u32);
         let params = IcpParams {
             t_world_to_cam: gpu_mat4(&glam::DMat4::IDENTITY),
-            fx: 40.0,
-            fy: 42.0,
-            cx: 15.5,
-            cy: 11.5,
-            width: w,
-            height: h,
+            camera: Camera::new(&Intrinsics {
+                width: w,
+                height: h,
+                fx: 40.0,
+                fy: 42.0,
+                cx: 15.5,
+                cy: 11.5,
+            }),
             photo_depth_gate_m: 0.3,
             photo_huber: 0.0,
             photo_gradient_min: PHOTO_GRADIENT_MIN,

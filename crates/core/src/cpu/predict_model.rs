@@ -22,7 +22,7 @@ pub fn predict_model(
     pred_normal: &mut [[f32; 4]],
     pred_intensity: &mut [f32],
 ) {
-    let n = (params.width * params.height) as usize;
+    let n = (params.camera.width * params.camera.height) as usize;
     assert!(index_map.len() == n && pred_vertex.len() == n && pred_normal.len() == n);
     assert_eq!(pred_intensity.len(), n);
     for pix in 0..n {

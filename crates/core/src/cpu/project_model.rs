@@ -25,11 +25,19 @@ pub fn project_model<K: KeyWriter + ?Sized>(
     position_weight: &[[f32; 4]],
     index_map: &mut K,
 ) {
-    let cam = [params.fx, params.fy, params.cx, params.cy];
-    assert_eq!(index_map.pixels(), (params.width * params.height) as usize);
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
+    assert_eq!(
+        index_map.pixels(),
+        (params.camera.width * params.camera.height) as usize
+    );
     visible_surfels(params, chunk, block_bounds, |i, slot| {
         let p = transform_point(&params.t_world_to_cam, xyz(position_weight[slot as usize]));
-        if let Some(pix) = project_to_pixel(cam, params.width, params.height, p) {
+        if let Some(pix) = project_to_pixel(cam, params.camera.width, params.camera.height, p) {
             index_map.keep_nearer(pix, depth_key(p.z), i);
         }
     });

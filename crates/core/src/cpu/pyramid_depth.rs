@@ -51,7 +51,12 @@ pub fn coarse_at(params: &PyramidParams, fine_vertex: &[[f32; 4]], u: u32, v: u3
             }
         }
     }
-    let cam = [params.fx, params.fy, params.cx, params.cy];
+    let cam = [
+        params.camera.fx,
+        params.camera.fy,
+        params.camera.cx,
+        params.camera.cy,
+    ];
     valid_entry(back_project(cam, [u, v], sum_z / count))
 }
 
@@ -62,7 +67,7 @@ pub fn pyramid_depth(
     fine_vertex: &[[f32; 4]],
     coarse_vertex: &mut [[f32; 4]],
 ) {
-    let (w, h) = (params.width as usize, params.height as usize);
+    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
     assert_eq!(
         fine_vertex.len(),
         (params.fine_width * params.fine_height) as usize,
@@ -74,13 +79,14 @@ pub fn pyramid_depth(
         "coarse_vertex has the wrong size"
     );
     assert!(
-        2 * params.width - 1 <= params.fine_width && 2 * params.height - 1 <= params.fine_height,
+        2 * params.camera.width - 1 <= params.fine_width
+            && 2 * params.camera.height - 1 <= params.fine_height,
         "a {w}x{h} level does not sample a {}x{} one",
         params.fine_width,
         params.fine_height
     );
     // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
-    pixel_grid(params.width, params.height, |[u, v]| {
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         coarse_vertex[v as usize * w + u as usize] = coarse_at(params, fine_vertex, u, v);
     });
 }
@@ -89,7 +95,6 @@ pub fn pyramid_depth(
 mod tests {
     use super::*;
     use crate::geometry::camera::Intrinsics;
-    use crate::layout::camera_floats;
 
     fn params(fine: Intrinsics, radius_px: u32, gate_m: f32) -> PyramidParams {
         PyramidParams::halving(&fine, radius_px, gate_m, 0.0)
@@ -108,7 +113,7 @@ mod tests {
             cx: 4.0,
             cy: 3.0,
         };
-        let cam = camera_floats(&fine);
+        let cam = fine.floats();
         let z = 2.0;
         let fine_map: Vec<[f32; 4]> = (0..fine.pixels())
             .map(|i| {
@@ -117,7 +122,7 @@ mod tests {
             })
             .collect();
         let p = params(fine, 1, 0.05);
-        assert_eq!((p.width, p.height), (5, 4));
+        assert_eq!((p.camera.width, p.camera.height), (5, 4));
         let mut out = vec![INVALID; 20];
         pyramid_depth(&p, &fine_map, &mut out);
         for v in 0..4u32 {
@@ -144,7 +149,7 @@ mod tests {
             cx: 2.0,
             cy: 2.0,
         };
-        let cam = camera_floats(&fine);
+        let cam = fine.floats();
         // Column 0-1: 1.0 m and 1.02 m alternating rows; column 2-3: 3 m (an edge).
         let mut fine_map = vec![INVALID; 16];
         for v in 0..4u32 {

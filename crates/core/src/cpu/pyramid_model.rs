@@ -24,13 +24,13 @@ pub fn pyramid_model(
     coarse_vertex: &mut [[f32; 4]],
     coarse_normal: &mut [[f32; 4]],
 ) {
-    let (w, h) = (params.width as usize, params.height as usize);
+    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
     let fine_w = params.fine_width as usize;
     assert!(fine_vertex.len() == fine_normal.len() && fine_vertex.len() % fine_w == 0);
     assert!(coarse_vertex.len() == w * h && coarse_normal.len() == w * h);
     assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_vertex.len() / fine_w);
     // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
-    pixel_grid(params.width, params.height, |[u, v]| {
+    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         let (u, v) = (u as usize, v as usize);
         let fine = 2 * v * fine_w + 2 * u;
         coarse_vertex[v * w + u] = fine_vertex[fine];

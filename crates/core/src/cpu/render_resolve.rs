@@ -59,10 +59,11 @@ pub fn nearest_covered(
 ) -> u64 {
     for s in 1..=params.fill_gap_px as i32 {
         let (qx, qy) = (x + dx * s, y + dy * s);
-        if qx < 0 || qy < 0 || qx >= params.width as i32 || qy >= params.height as i32 {
+        if qx < 0 || qy < 0 || qx >= params.camera.width as i32 || qy >= params.camera.height as i32
+        {
             break;
         }
-        let key = index_map[qy as usize * params.width as usize + qx as usize];
+        let key = index_map[qy as usize * params.camera.width as usize + qx as usize];
         if key != 0 {
             return key;
         }
@@ -88,8 +89,8 @@ pub fn bridge(a: u64, b: u64) -> u64 {
 /// `fill_gap`.
 #[inline]
 pub fn fill_gap(params: &RenderParams, index_map: &[u64], pix: usize) -> u64 {
-    let x = (pix % params.width as usize) as i32;
-    let y = (pix / params.width as usize) as i32;
+    let x = (pix % params.camera.width as usize) as i32;
+    let y = (pix / params.camera.width as usize) as i32;
     let near = |dx, dy| nearest_covered(params, index_map, x, y, dx, dy);
     let vertical = bridge(near(0, -1), near(0, 1));
     let horizontal = bridge(near(-1, 0), near(1, 0));
@@ -138,7 +139,7 @@ pub fn render_resolve(
     weights: &[f32],
     out_rgba: &mut [u32],
 ) {
-    let n = params.width as usize * params.height as usize;
+    let n = params.camera.width as usize * params.camera.height as usize;
     assert_eq!(index_map.len(), n, "index_map has the wrong size");
     assert_eq!(out_rgba.len(), n, "out_rgba has the wrong size");
     for pix in 0..n {

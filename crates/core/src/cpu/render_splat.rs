@@ -20,7 +20,7 @@ pub const MAX_PROJECTED_PX: f32 = 1.0e7;
 /// Pixel radius of a splat at camera depth `z` (metres, > 0). Mirrors `splat_radius_px`.
 #[inline]
 pub fn splat_radius_px(params: &RenderParams, z: f32) -> f32 {
-    let f = params.fx.abs().max(params.fy.abs());
+    let f = params.camera.fx.abs().max(params.camera.fy.abs());
     (params.splat_radius_m * f / z).clamp(params.min_radius_px, params.max_radius_px)
 }
 
@@ -35,10 +35,10 @@ pub fn render_splat<K: KeyWriter + ?Sized>(
 ) {
     assert_eq!(
         index_map.pixels(),
-        params.width as usize * params.height as usize,
+        params.camera.width as usize * params.camera.height as usize,
         "index_map has the wrong size"
     );
-    let (w, h) = (params.width, params.height);
+    let (w, h) = (params.camera.width, params.camera.height);
     for i in 0..params.surfel_count as usize {
         let p = transform_point(&params.t_world_to_cam, xyz(positions[i]));
         // Written as a negated comparison so that a NaN depth is skipped too.
@@ -51,8 +51,8 @@ pub fn render_splat<K: KeyWriter + ?Sized>(
                 continue;
             }
         }
-        let u = params.fx * p.x / p.z + params.cx;
-        let v = params.fy * p.y / p.z + params.cy;
+        let u = params.camera.fx * p.x / p.z + params.camera.cx;
+        let v = params.camera.fy * p.y / p.z + params.camera.cy;
         if !(u.abs() < MAX_PROJECTED_PX && v.abs() < MAX_PROJECTED_PX) {
             continue;
         }

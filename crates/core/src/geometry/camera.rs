@@ -87,8 +87,8 @@ impl Intrinsics {
         self.width as usize * self.height as usize
     }
 
-    /// `[fx, fy, cx, cy]` in pixels: the four floats every kernel's params struct starts
-    /// its camera block with (`crate::layout::camera_floats`).
+    /// `[fx, fy, cx, cy]` in pixels: the first four floats of the kernels' camera block
+    /// (`crate::layout::Camera::new`).
     #[inline]
     pub fn floats(&self) -> [f32; 4] {
         [self.fx, self.fy, self.cx, self.cy]

@@ -2,8 +2,10 @@
 //!
 //! Each struct is `#[repr(C)]` + `bytemuck::Pod` and mirrors the WGSL struct of the same
 //! name in `shaders/common.wgsl` (which points back here). No `vec3`/`mat3`: only scalars,
-//! 4-vectors and 4x4 matrices, padded explicitly to 16 bytes. `tests/it/layout.rs` checks
-//! sizes and offsets against naga's layout of the WGSL side.
+//! 4-vectors, 4x4 matrices and the nested [`Camera`] (the intrinsics and image size, the
+//! one definition of the camera block), padded explicitly to 16 bytes. `tests/it/layout.rs`
+//! checks sizes and offsets against naga's layout of the WGSL side, the nested struct's
+//! members included.
 //!
 //! Per-pixel and per-surfel arrays are plain arrays of texels, not structs: vertex maps,
 //! the `normal_depth` map (normal xyz, depth in w) and colour maps are `[f32; 4]`
@@ -32,18 +34,48 @@ pub fn gpu_mat4(t: &DMat4) -> GpuMat4 {
     c.map(|col| col.map(|x| x as f32))
 }
 
-/// Parameters of `depth_to_vertex` (mirrors `PreprocessParams` in common.wgsl).
+/// A pinhole camera as the kernels read it (mirrors `Camera` in common.wgsl): the
+/// intrinsics and image size of [`Intrinsics`], nested as `camera` in every params struct
+/// whose kernel projects or back-projects. Made from `Intrinsics` only by [`Camera::new`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
-pub struct PreprocessParams {
-    /// Intrinsics of the output (downsampled) maps, pixels.
+pub struct Camera {
+    /// Focal lengths and principal point, pixels (`fy` may be negative).
     pub fx: f32,
     pub fy: f32,
     pub cx: f32,
     pub cy: f32,
-    /// Output map size in pixels.
+    /// Image size in pixels.
     pub width: u32,
     pub height: u32,
+    /// Padding to a multiple of 16 bytes.
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+impl Camera {
+    /// The camera of intrinsics `k`.
+    pub fn new(k: &Intrinsics) -> Camera {
+        let [fx, fy, cx, cy] = k.floats();
+        Camera {
+            fx,
+            fy,
+            cx,
+            cy,
+            width: k.width,
+            height: k.height,
+            _pad0: 0,
+            _pad1: 0,
+        }
+    }
+}
+
+/// Parameters of `depth_to_vertex` (mirrors `PreprocessParams` in common.wgsl).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct PreprocessParams {
+    /// Intrinsics and size of the output (downsampled) maps, pixels.
+    pub camera: Camera,
     /// Raw frame size in pixels.
     pub raw_width: u32,
     pub raw_height: u32,
@@ -54,6 +86,8 @@ pub struct PreprocessParams {
     /// Depths outside `[min_depth_m, max_depth_m]` are invalid.
     pub min_depth_m: f32,
     pub max_depth_m: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
 }
 
 /// Parameters of `vertex_to_normal` (mirrors `NormalParams` in common.wgsl).
@@ -71,18 +105,12 @@ pub struct NormalParams {
 /// common.wgsl): one coarse level of the ICP pyramid, made from the next finer level.
 /// Coarse pixel `(u, v)` samples finer pixel `(2u, 2v)`, so the coarse intrinsics are the
 /// finer ones halved (`Intrinsics::downsampled(2)`) and the coarse size is the finer size
-/// halved, rounded up. `pyramid_model` reads only `width` and `height`.
+/// halved, rounded up. `pyramid_model` reads only the camera's `width` and `height`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct PyramidParams {
-    /// Intrinsics of the coarse level, pixels: its vertices are re-built with them.
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    /// Coarse level size in pixels.
-    pub width: u32,
-    pub height: u32,
+    /// Intrinsics and size of the coarse level, pixels: its vertices are re-built with them.
+    pub camera: Camera,
     /// Size of the finer level read, pixels.
     pub fine_width: u32,
     pub fine_height: u32,
@@ -94,7 +122,9 @@ pub struct PyramidParams {
     pub max_depth_diff_m: f32,
     /// The gate's growth with the square of the depth, 1/m.
     pub max_depth_diff_per_m2: f32,
-    pub _pad: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 impl PyramidParams {
@@ -106,21 +136,16 @@ impl PyramidParams {
         max_depth_diff_m: f32,
         max_depth_diff_per_m2: f32,
     ) -> PyramidParams {
-        let coarse = fine.downsampled(2);
-        let [fx, fy, cx, cy] = camera_floats(&coarse);
         PyramidParams {
-            fx,
-            fy,
-            cx,
-            cy,
-            width: coarse.width,
-            height: coarse.height,
+            camera: Camera::new(&fine.downsampled(2)),
             fine_width: fine.width,
             fine_height: fine.height,
             radius_px,
             max_depth_diff_m,
             max_depth_diff_per_m2,
-            _pad: 0,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 }
@@ -176,14 +201,9 @@ impl IntensityParams {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub struct BilateralParams {
-    /// Intrinsics of the (downsampled) maps, pixels: the filtered vertex is re-built with them.
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    /// Map size in pixels.
-    pub width: u32,
-    pub height: u32,
+    /// Intrinsics and size of the (downsampled) maps, pixels: the filtered vertex is
+    /// re-built with them.
+    pub camera: Camera,
     /// Half-width of the window: (2 radius_px + 1)² neighbours, clipped at the border.
     pub radius_px: u32,
     /// Spatial Gaussian's standard deviation, pixels of the map.
@@ -196,6 +216,8 @@ pub struct BilateralParams {
     /// 1: level 0's points (`vertex_to_normal`'s `point_map`) are the filtered map; 0:
     /// the unfiltered one. Read by the plan (`plan::preprocess`), not by the kernel.
     pub filter_points: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
     pub _pad2: u32,
 }
 
@@ -205,15 +227,13 @@ pub struct BilateralParams {
 pub struct ProjectParams {
     /// World to camera of the view the map is rendered from.
     pub t_world_to_cam: GpuMat4,
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    pub width: u32,
-    pub height: u32,
+    /// Intrinsics and size of the rendered view, pixels.
+    pub camera: Camera,
     /// Number of valid surfels (entries past it are ignored).
     pub surfel_count: u32,
-    pub _pad: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// Parameters of `icp_reduce` (mirrors `IcpParams`).
@@ -222,12 +242,8 @@ pub struct ProjectParams {
 pub struct IcpParams {
     /// Current estimate of world to camera for the new frame.
     pub t_world_to_cam: GpuMat4,
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    pub width: u32,
-    pub height: u32,
+    /// Intrinsics and size of the pyramid level's maps, pixels.
+    pub camera: Camera,
     /// Filter 2: correspondences farther apart than this (metres) are rejected.
     pub dist_threshold_m: f32,
     /// Filter 2, angle: rejected unless the cosine between the model normal (moved into
@@ -256,6 +272,8 @@ pub struct IcpParams {
     /// `photo_reduce`: the level-0 prediction's width in pixels (the row length of
     /// `pred_intensity`).
     pub photo_source_width: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
     pub _pad2: u32,
 }
 
@@ -267,12 +285,8 @@ pub struct FuseParams {
     pub t_world_to_cam: GpuMat4,
     /// Its inverse, camera to world.
     pub t_cam_to_world: GpuMat4,
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    pub width: u32,
-    pub height: u32,
+    /// Intrinsics and size of the frame's maps, pixels.
+    pub camera: Camera,
     /// Surfels in the map before this frame.
     pub surfel_count: u32,
     /// Sequence position of the frame, stored in `last_frame`.
@@ -301,6 +315,8 @@ pub struct FuseParams {
     /// `dist_threshold_m`; equal to it for one gate for every surfel): see
     /// `cpu::fuse_depth_gate`.
     pub dist_confident_m: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
     pub _pad2: u32,
 }
 
@@ -581,10 +597,4 @@ pub fn f32_from_ordered(u: u32) -> f32 {
 /// Packs RGB8 into the `u32` layout the GPU reads (`r | g << 8 | b << 16 | 255 << 24`).
 pub fn pack_rgba8(rgb: [u8; 3]) -> u32 {
     rgb[0] as u32 | (rgb[1] as u32) << 8 | (rgb[2] as u32) << 16 | 255 << 24
-}
-
-/// Intrinsics as the four floats every params struct starts its camera block with
-/// ([`Intrinsics::floats`]).
-pub fn camera_floats(k: &Intrinsics) -> [f32; 4] {
-    k.floats()
 }

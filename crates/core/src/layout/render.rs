@@ -1,14 +1,15 @@
 //! The layout contract of the render kernels: `RenderParams`, shared by `render_splat` and
 //! `render_resolve`.
 //!
-//! `#[repr(C)]` + `bytemuck::Pod`, only scalars and a 4x4 matrix, padded to 16 bytes; it
-//! mirrors `struct RenderParams` in `shaders/common.wgsl`, which both render kernels are
-//! prefixed with (it points back here). `tests/it/render/gpu.rs` checks its size
-//! and offsets against naga's layout of the WGSL side.
+//! `#[repr(C)]` + `bytemuck::Pod`, only scalars, a 4x4 matrix and the nested
+//! `layout::Camera`, padded to 16 bytes; it mirrors `struct RenderParams` in
+//! `shaders/common.wgsl`, which both render kernels are prefixed with (it points back
+//! here). `tests/it/render/gpu.rs` checks its size and offsets against naga's layout of the
+//! WGSL side.
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::layout::GpuMat4;
+use crate::layout::{Camera, GpuMat4};
 
 /// `RenderParams::view`: shade with the surfel colour (RGB 0..255).
 pub const VIEW_COLOR: u32 = 0;
@@ -25,19 +26,13 @@ pub const VIEW_DEPTH: u32 = 3;
 pub struct RenderParams {
     /// World to camera of the rendered view (camera: x right, y down when `fy > 0`, z ahead).
     pub t_world_to_cam: GpuMat4,
-    /// Intrinsics of the output image, pixels (`fy` may be negative).
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    /// Output image size in pixels.
-    pub width: u32,
-    pub height: u32,
+    /// Intrinsics and size of the output image, pixels (`fy` may be negative).
+    pub camera: Camera,
     /// Number of surfels drawn (entries past it are ignored).
     pub surfel_count: u32,
     /// One of `VIEW_COLOR`, `VIEW_NORMALS`, `VIEW_WEIGHT`, `VIEW_DEPTH`.
     pub view: u32,
-    /// World radius of a splat in metres; its pixel radius is `splat_radius_m * max(|fx|, |fy|) / z`.
+    /// World radius of a splat in metres; its pixel radius is `splat_radius_m * max(|fx|, |fy|) / z` (the camera's).
     pub splat_radius_m: f32,
     /// Pixel radius is clamped to `[min_radius_px, max_radius_px]`.
     pub min_radius_px: f32,
@@ -56,8 +51,6 @@ pub struct RenderParams {
     /// this many pixels away on opposite sides (up/down or left/right) whose depths agree
     /// (the gaps between rows of surfels seen at a grazing angle); 0 fills nothing.
     pub fill_gap_px: u32,
-    /// Padding to a multiple of 16 bytes (mirrors `_pad0.._pad2` in WGSL).
+    /// Padding to a multiple of 16 bytes (mirrors `_pad0` in WGSL).
     pub _pad0: u32,
-    pub _pad1: u32,
-    pub _pad2: u32,
 }
