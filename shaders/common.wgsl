@@ -149,9 +149,9 @@ struct ProjectParams {
 struct IcpParams {
     t_world_to_cam: mat4x4<f32>,
     camera: Camera,
-    dist_threshold_m: f32,
+    dist_m: f32,
     cos_normal_threshold: f32,
-    huber_delta_m: f32,
+    huber_m: f32,
     noise_weighting: u32,
     photo_depth_gate_m: f32,
     photo_huber: f32,
@@ -170,12 +170,12 @@ struct FuseParams {
     camera: Camera,
     surfel_count: u32,
     frame_id: u32,
-    dist_threshold_m: f32,
+    dist_m: f32,
     cos_normal_threshold: f32,
     capacity: u32,
     association: u32,
     confidence_sigma: f32,
-    prune_radius_scale: f32,
+    prune_scale: f32,
     dist_confident_m: f32,
     _pad0: u32,
     _pad1: u32,
@@ -183,11 +183,11 @@ struct FuseParams {
 }
 
 // Best-candidate fusion's depth gate (metres) for a surfel of weight `weight`: from
-// dist_threshold_m for a surfel seen once towards dist_confident_m as its weight grows.
+// dist_m for a surfel seen once towards dist_confident_m as its weight grows.
 // Mirrors `fuse_depth_gate` in crates/core/src/cpu/mod.rs.
 fn fuse_depth_gate(params: FuseParams, weight: f32) -> f32 {
     return params.dist_confident_m
-        + (params.dist_threshold_m - params.dist_confident_m) / max(weight, 1.0);
+        + (params.dist_m - params.dist_confident_m) / max(weight, 1.0);
 }
 
 // FuseParams::association (mirror `layout::ASSOCIATION_PROJECTIVE`, `..._BEST_CANDIDATE`).

@@ -103,7 +103,7 @@ fn merge_surfel(params: FuseParams, slot: u32, cam: vec4<f32>) -> vec4<f32> {
     let q_world = transform_point(params.t_cam_to_world, q_cam);
     let nq_world = transform_dir(params.t_cam_to_world, xyz(nd));
     let n_old = bitcast<vec3<f32>>(normal_frame[slot].xyz);
-    if length(q_world - p_world) >= params.dist_threshold_m
+    if length(q_world - p_world) >= params.dist_m
         || dot(n_old, nq_world) <= params.cos_normal_threshold {
         return INVALID;
     }

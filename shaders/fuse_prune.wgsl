@@ -2,7 +2,7 @@
 // fuse_merge_chosen. A surfel this frame did not refresh retires (weight 0, last frame 0,
 // which the unstable-surfel removal drops at its first run after frame max_age_frames)
 // when the pixel it projects to merged its measurement into a surfel (fuse_merge_chosen's
-// `merged` entry) that lies within prune_radius_scale times the larger of their radii,
+// `merged` entry) that lies within prune_scale times the larger of their radii,
 // faces the same way (PRUNE_COS_NORMAL) and is at least as confident: a layered copy of
 // the surface the merged surfel now stands for (Keller et al. 2013 merge such surfels).
 // Without it, noisy depth leaves copies that different pixels keep refreshing, and the
@@ -14,7 +14,7 @@
 // stride over a block. A thread writes only its own surfel, and only one this frame did not
 // refresh; the merged surfels it compares with are per-pixel copies.
 
-// Tracked pose, intrinsics, surfel_count, frame_id, prune_radius_scale.
+// Tracked pose, intrinsics, surfel_count, frame_id, prune_scale.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
 // The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
@@ -57,7 +57,7 @@ fn per_surfel(params: FuseParams, i: u32, slot: u32, cam: vec4<f32>) {
         return;
     }
     let nr_t = merged[2u * pix + 1u];
-    let reach = params.prune_radius_scale * max(color[slot].w, nr_t.w);
+    let reach = params.prune_scale * max(color[slot].w, nr_t.w);
     if distance(xyz(pw), xyz(pw_t)) < reach
         && dot(bitcast<vec3<f32>>(nf.xyz), xyz(nr_t)) > PRUNE_COS_NORMAL
         && pw.w <= pw_t.w {

@@ -59,7 +59,7 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     let q = back_project(cam, target_texel, nd.w);
     let n = xyz(nd);
     let d = p - q;
-    if length(d) >= params.dist_threshold_m {
+    if length(d) >= params.dist_m {
         return row;
     }
     // The angle gate reads the source normal only when it is on.
@@ -71,7 +71,7 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
         }
     }
     let b = dot(n, d);
-    var w = huber_weight(b, params.huber_delta_m);
+    var w = huber_weight(b, params.huber_m);
     if params.noise_weighting != 0u {
         w = w * noise_weight(q.z);
     }

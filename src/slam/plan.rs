@@ -229,7 +229,7 @@ pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     plan.push(FuseCall::BlockBounds);
     if best_candidate {
         plan.extend([FuseCall::FuseSelect, FuseCall::FuseMergeChosen]);
-        if params.prune_radius_scale > 0.0 {
+        if params.prune_scale > 0.0 {
             plan.push(FuseCall::FusePrune);
         }
     } else {
@@ -278,7 +278,7 @@ mod tests {
         );
         let mut p: FuseParams = bytemuck::Zeroable::zeroed();
         p.association = ASSOCIATION_BEST_CANDIDATE;
-        p.prune_radius_scale = 0.5;
+        p.prune_scale = 0.5;
         assert_eq!(
             names!(fuse(&p)),
             [

@@ -116,13 +116,13 @@ impl<B: Backend> Slam<B> {
         IcpParams {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             camera: Camera::new(&k),
-            dist_threshold_m: self.params.icp.dist_m,
+            dist_m: self.params.icp.dist_m,
             cos_normal_threshold: if self.params.icp.normal_deg >= 180.0 {
                 ANGLE_GATE_OFF
             } else {
                 self.params.icp.normal_deg.to_radians().cos()
             },
-            huber_delta_m: self.params.icp.huber_m,
+            huber_m: self.params.icp.huber_m,
             noise_weighting: self.params.icp.noise_weight as u32,
             photo_depth_gate_m: self.params.icp.dist_m,
             photo_huber: PHOTO_HUBER,
@@ -143,12 +143,12 @@ impl<B: Backend> Slam<B> {
             camera: Camera::new(&self.intrinsics),
             surfel_count: self.backend.surfel_count() as u32,
             frame_id,
-            dist_threshold_m: self.params.fusion.dist_m,
+            dist_m: self.params.fusion.dist_m,
             cos_normal_threshold: self.params.fusion.normal_deg.to_radians().cos(),
             capacity: 0,
             association: self.params.fusion.association.code(),
             confidence_sigma: self.params.fusion.confidence_sigma,
-            prune_radius_scale: self.prune_scale(frame_id),
+            prune_scale: self.prune_scale(frame_id),
             dist_confident_m: confident_gate_m(&self.params.fusion),
             _pad0: 0,
             _pad1: 0,
@@ -222,7 +222,7 @@ mod tests {
             ..robust
         };
         let mut p: FuseParams = bytemuck::Zeroable::zeroed();
-        p.dist_threshold_m = narrowing.dist_m;
+        p.dist_m = narrowing.dist_m;
         p.dist_confident_m = confident_gate_m(&narrowing);
         assert_eq!(p.dist_confident_m, 0.04);
         assert_eq!(
@@ -239,7 +239,7 @@ mod tests {
             ..robust
         };
         for f in [assignment, robust, too_wide] {
-            p.dist_threshold_m = f.dist_m;
+            p.dist_m = f.dist_m;
             p.dist_confident_m = confident_gate_m(&f);
             for w in [0.0, 1.0, 3.0, 1e6] {
                 assert_eq!(fuse_depth_gate(&p, w), f.dist_m, "weight {w}");

@@ -45,7 +45,7 @@ pub const COSINE_ULPS: f64 = 16.0;
 /// camera point's error ([`POSITION_ULPS`]) comes on top, through `du/dp`.
 pub const PIXEL_ULPS: f64 = 8.0;
 /// Error of best-candidate fusion's depth gate for a surfel (`cpu::fuse_depth_gate`), in
-/// ULPs of `dist_threshold_m`: a difference (0.5), a division (2.5) and a sum (0.5) of
+/// ULPs of `dist_m`: a difference (0.5), a division (2.5) and a sum (0.5) of
 /// terms at most the gate: 3.5; 8 with headroom.
 pub const GATE_ULPS: f64 = 8.0;
 /// Clear flips allowed per frame: none. Rounding within the table cannot move a quantity
@@ -370,7 +370,7 @@ fn gates(
         }
     };
     let cos_bound = COSINE_ULPS * eps;
-    let dist = p.dist_threshold_m as f64;
+    let dist = p.dist_m as f64;
     let cos_gate = p.cos_normal_threshold as f64;
     if best_candidate {
         let ray = q / q.length();
@@ -383,7 +383,7 @@ fn gates(
         let confident = p.dist_confident_m as f64;
         let weight = (map.position_weight[s][3] as f64).max(1.0);
         let dist = confident + (dist - confident) / weight;
-        let gate_err = GATE_ULPS * eps * p.dist_threshold_m as f64;
+        let gate_err = GATE_ULPS * eps * p.dist_m as f64;
         gate(
             "distance along the ray",
             dist - along.abs(),
@@ -443,7 +443,7 @@ mod tests {
             p.camera.width,
             p.camera.height,
         ) = (100.0, 100.0, 1.5, 1.5, 4, 4);
-        p.dist_threshold_m = 0.05;
+        p.dist_m = 0.05;
         p.cos_normal_threshold = 20f32.to_radians().cos();
         let mut nd = vec![[0.0f32; 4]; 16];
         nd[2 * 4 + 2] = [0.0, 0.0, -1.0, 1.0];

@@ -70,18 +70,17 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
     // kernels are checked with the profile's scale whatever the frame.
     let removal_frame = params.fusion.unstable_removal.map_or(1, |r| r.every_frames);
     assert_eq!(
-        s.fuse_params(&t_world_to_cam, removal_frame)
-            .prune_radius_scale,
+        s.fuse_params(&t_world_to_cam, removal_frame).prune_scale,
         params.fusion.prune_scale
     );
     if params.fusion.unstable_removal.is_some() {
-        assert_eq!(fp.prune_radius_scale, 0.0, "frame 3 is not a removal frame");
+        assert_eq!(fp.prune_scale, 0.0, "frame 3 is not a removal frame");
     }
-    fp.prune_radius_scale = params.fusion.prune_scale;
+    fp.prune_scale = params.fusion.prune_scale;
     if fp.association == ASSOCIATION_BEST_CANDIDATE {
         // Both profiles keep one depth gate; the kernels are checked with a gate that
         // narrows with weight (`--fuse-dist-confident`), so that path is the twin's too.
-        assert_eq!(fp.dist_confident_m, fp.dist_threshold_m);
+        assert_eq!(fp.dist_confident_m, fp.dist_m);
         fp.dist_confident_m = NARROWING_GATE_M;
         check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
     }
@@ -128,7 +127,7 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
     };
     let (retired_cpu, retired_gpu) = (retired(&c), retired(&g));
     eprintln!("fuse_prune: retired cpu {retired_cpu}, gpu {retired_gpu}");
-    if fp.prune_radius_scale > 0.0 {
+    if fp.prune_scale > 0.0 {
         assert!(retired_cpu > 100, "too few retired surfels for a real test");
         // The merged surfel a duplicate is compared with may be in another GPU chunk.
         let allowed = (retired_cpu as f64 * MASK_MISMATCH_FRACTION).ceil() as usize;

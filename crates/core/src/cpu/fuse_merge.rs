@@ -5,7 +5,7 @@
 //! pass 1: it lands inside the image with `z > 0` on a pixel with a valid `normal_depth`
 //! texel (a valid normal implies a valid vertex). Filter pass 2: the frame's point at that
 //! pixel (rebuilt with `back_project`), moved to the world, is closer than
-//! `dist_threshold_m`, and the angle between the normals is below the threshold
+//! `dist_m`, and the angle between the normals is below the threshold
 //! (`cos > cos_normal_threshold`); the pixel is then marked in `assoc` so `fuse_add` does
 //! not add it again. Several surfels may merge with one pixel (as in the assignment).
 //! Best-candidate association merges from the pixels instead (`fuse_merge_chosen`).
@@ -134,7 +134,7 @@ fn merge_surfel(
     let q_world = transform_point(&params.t_cam_to_world, q_cam);
     let nq_world = transform_dir(&params.t_cam_to_world, xyz(nd));
     let n_old = normal_of(map.normal_frame[surfel]);
-    if super::arith::length(q_world - p_world) >= params.dist_threshold_m
+    if super::arith::length(q_world - p_world) >= params.dist_m
         || n_old.dot(nq_world) <= params.cos_normal_threshold
     {
         return None;

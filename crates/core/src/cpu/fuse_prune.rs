@@ -3,7 +3,7 @@
 //! retires (weight 0, last frame 0, which the unstable-surfel removal drops at its first
 //! run after frame `max_age_frames`) when the pixel it projects to merged its measurement
 //! into a surfel (`fuse_merge_chosen`'s `merged` entry) that lies within
-//! `prune_radius_scale` times the larger of their radii, faces the same way
+//! `prune_scale` times the larger of their radii, faces the same way
 //! ([`PRUNE_COS_NORMAL`]) and is at least as confident: a layered copy of the surface the
 //! merged surfel now stands for (Keller et al. 2013 merge such surfels). Without it, noisy
 //! depth leaves copies that different pixels keep refreshing, and the camera sees a denser
@@ -79,7 +79,7 @@ fn prune_surfel(
         return;
     }
     let nr_t = merged[2 * pix + 1];
-    let reach = params.prune_radius_scale * color[slot][3].max(nr_t[3]);
+    let reach = params.prune_scale * color[slot][3].max(nr_t[3]);
     if xyz(pw).distance(xyz(pw_t)) < reach
         && normal_of(nf).dot(xyz(nr_t)) > PRUNE_COS_NORMAL
         && pw[3] <= pw_t[3]

@@ -6,7 +6,7 @@
 //! project it (filter 1: inside the image, `z > 0`). If its pixel has a valid measurement
 //! `q` (camera frame, rebuilt with `back_project`), filter 2 ([`candidate_off_ray`]) has
 //! three gates: the distance along the pixel's ray `|(p - q) . ray|` below the surfel's
-//! depth gate ([`fuse_depth_gate`]: `dist_threshold_m` for a surfel seen once, narrowing
+//! depth gate ([`fuse_depth_gate`]: `dist_m` for a surfel seen once, narrowing
 //! towards `dist_confident_m` as its weight grows), the distance off the ray `|(p - q) - ((p - q) . ray) ray| < radius` (the disc
 //! covers the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels
 //! that pass, the pixel keeps the one nearest its ray (smallest off-ray distance; ties to

@@ -5,7 +5,7 @@
 //! new camera with the current estimate `T_world_to_cam`: `p' = T p`. Filter 1: `p'`
 //! projects inside the image with `z > 0`, onto a pixel whose `normal_depth` texel is valid
 //! (a valid normal implies a valid target vertex, depth > 0). Filter 2:
-//! `|p' - q| < dist_threshold_m` and, when the angle gate is on
+//! `|p' - q| < dist_m` and, when the angle gate is on
 //! (`cos_normal_threshold >= -1`), the model normal moved into the camera, `R n_p`, and
 //! the frame normal `n_q` have a cosine above `cos_normal_threshold`. Target `q`, `n_q`:
 //! the new frame's vertex (rebuilt from the texel's depth with `back_project`) and normal,
@@ -82,7 +82,7 @@ pub fn icp_row(
     let q = back_project(cam, target_texel, nd[3]);
     let n = xyz(nd);
     let d = p - q;
-    if super::arith::length(d) >= params.dist_threshold_m {
+    if super::arith::length(d) >= params.dist_m {
         return None;
     }
     // The angle gate reads the source normal only when it is on.
@@ -94,7 +94,7 @@ pub fn icp_row(
         }
     }
     let b = n.dot(d);
-    let mut w = huber_weight(b, params.huber_delta_m);
+    let mut w = huber_weight(b, params.huber_m);
     if params.noise_weighting != 0 {
         w *= noise_weight(q.z);
     }
@@ -134,7 +134,7 @@ mod tests {
     fn plain(params: IcpParams) -> IcpParams {
         IcpParams {
             cos_normal_threshold: -2.0,
-            huber_delta_m: 0.0,
+            huber_m: 0.0,
             noise_weighting: 0,
             ..params
         }
@@ -173,7 +173,7 @@ mod tests {
                 cx: 2.0,
                 cy: 2.0,
             }),
-            dist_threshold_m: 0.5,
+            dist_m: 0.5,
             ..Zeroable::zeroed()
         };
         let params = plain(params);
@@ -228,7 +228,7 @@ mod tests {
                 cx: 1.0,
                 cy: 1.0,
             }),
-            dist_threshold_m: dist_m,
+            dist_m: dist_m,
             ..Zeroable::zeroed()
         })
     }
@@ -275,7 +275,7 @@ mod tests {
         );
         // Huber: |b| = 0.05 > delta = 0.01 gives w = 0.2; the row scales by sqrt(0.2).
         let huber = IcpParams {
-            huber_delta_m: 0.01,
+            huber_m: 0.01,
             ..params
         };
         let (a2, b2) = row_of(&huber, p, toward, &nd).unwrap();

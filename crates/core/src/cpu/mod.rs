@@ -203,17 +203,13 @@ pub fn normal_of(nf: [u32; 4]) -> Vec3 {
 }
 
 /// Best-candidate fusion's depth gate (metres) for a surfel of weight `weight`: from
-/// `dist_threshold_m` for a surfel seen once (weight 1 or less) towards `dist_confident_m`
-/// as its weight grows, `dist_confident_m + (dist_threshold_m - dist_confident_m) /
-/// max(weight, 1)`; exactly `dist_threshold_m` when the two are equal. Mirrors
+/// `dist_m` for a surfel seen once (weight 1 or less) towards `dist_confident_m`
+/// as its weight grows, `dist_confident_m + (dist_m - dist_confident_m) /
+/// max(weight, 1)`; exactly `dist_m` when the two are equal. Mirrors
 /// `fuse_depth_gate` in common.wgsl.
 #[inline]
 pub fn fuse_depth_gate(params: &FuseParams, weight: f32) -> f32 {
-    params.dist_confident_m
-        + arith::div(
-            params.dist_threshold_m - params.dist_confident_m,
-            weight.max(1.0),
-        )
+    params.dist_confident_m + arith::div(params.dist_m - params.dist_confident_m, weight.max(1.0))
 }
 
 /// Filter 2 of best-candidate association (`fuse_select`, `fuse_flags`): how far surfel

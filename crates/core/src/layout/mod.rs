@@ -245,13 +245,13 @@ pub struct IcpParams {
     /// Intrinsics and size of the pyramid level's maps, pixels.
     pub camera: Camera,
     /// Filter 2: correspondences farther apart than this (metres) are rejected.
-    pub dist_threshold_m: f32,
+    pub dist_m: f32,
     /// Filter 2, angle: rejected unless the cosine between the model normal (moved into
     /// the camera) and the frame normal exceeds this; below -1 the gate is off.
     pub cos_normal_threshold: f32,
     /// Huber threshold on the point-to-plane residual, metres: rows with `|b|` above it
-    /// get weight `huber_delta_m / |b|`; 0 turns the robust weight off.
-    pub huber_delta_m: f32,
+    /// get weight `huber_m / |b|`; 0 turns the robust weight off.
+    pub huber_m: f32,
     /// 1: weight each row by the depth noise model ([`crate::cpu::icp_reduce::noise_weight`]);
     /// 0: unweighted.
     pub noise_weighting: u32,
@@ -292,7 +292,7 @@ pub struct FuseParams {
     /// Sequence position of the frame, stored in `last_frame`.
     pub frame_id: u32,
     /// Filter 2 of fusion: position distance in metres.
-    pub dist_threshold_m: f32,
+    pub dist_m: f32,
     /// Filter 2 of fusion: cosine of the maximum normal angle.
     pub cos_normal_threshold: f32,
     /// Allocated surfel slots; `fuse_add` never writes at or past it.
@@ -310,9 +310,9 @@ pub struct FuseParams {
     /// Best-candidate association's pruning of duplicate surfels (`fuse_prune`): a surfel
     /// that was not refreshed retires when the surfel its pixel merged into lies within
     /// this many times the larger of their radii; 0 turns pruning off.
-    pub prune_radius_scale: f32,
+    pub prune_scale: f32,
     /// Best-candidate fusion's depth gate for a confident surfel, metres (at most
-    /// `dist_threshold_m`; equal to it for one gate for every surfel): see
+    /// `dist_m`; equal to it for one gate for every surfel): see
     /// `cpu::fuse_depth_gate`.
     pub dist_confident_m: f32,
     pub _pad0: u32,
