@@ -48,7 +48,7 @@ fn filtered_at(params: BilateralParams, u: u32, v: u32) -> vec4<f32> {
             }
         }
     }
-    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
+    let cam = camera_intrinsics(params.camera);
     return valid_entry(back_project(cam, vec2<u32>(u, v), sum_wz / sum_w));
 }
 

@@ -25,6 +25,12 @@ struct Camera {
     _pad1: u32,
 }
 
+// The camera's (fx, fy, cx, cy), pixels: the `cam` vec4 the helpers below take. Mirrors
+// `cpu::camera_intrinsics`.
+fn camera_intrinsics(c: Camera) -> vec4<f32> {
+    return vec4<f32>(c.fx, c.fy, c.cx, c.cy);
+}
+
 // Mirrors `layout::PreprocessParams` (depth_to_vertex).
 struct PreprocessParams {
     camera: Camera,

@@ -25,7 +25,7 @@ fn convert_at(params: PreprocessParams, u: u32, v: u32) {
     textureStore(color_map, texel, vec4<f32>(vec3<f32>(c.xyz), 255.0));
     var vertex = INVALID;
     if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
-        let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
+        let cam = camera_intrinsics(params.camera);
         vertex = valid_entry(back_project(cam, texel, z));
     }
     textureStore(vertex_map, texel, vertex);

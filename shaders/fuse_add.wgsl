@@ -69,7 +69,7 @@ fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     if i >= params.capacity || slot >= chunk.slots {
         return;
     }
-    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
+    let cam = camera_intrinsics(params.camera);
     let q_cam = back_project(cam, texel, nd.w);
     let p = transform_point(params.t_cam_to_world, q_cam);
     let n = transform_dir(params.t_cam_to_world, xyz(nd));

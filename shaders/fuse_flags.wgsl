@@ -46,7 +46,7 @@ fn per_pixel(p: FuseParams, texel: vec2<u32>) {
 // into passes this pixel's gates (fuse_select's filter 2). `params` is main's copy of the
 // binding.
 fn neighbour_covers(params: FuseParams, texel: vec2<u32>, nd: vec4<f32>) -> bool {
-    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
+    let cam = camera_intrinsics(params.camera);
     for (var dv = -1; dv <= 1; dv++) {
         for (var du = -1; du <= 1; du++) {
             let u = i32(texel.x) + du;

@@ -56,7 +56,7 @@ fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     if slot >= chunk.slots {
         return;
     }
-    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
+    let cam = camera_intrinsics(params.camera);
     let pw = position_weight[slot];
     // fuse_select chose only on a valid pixel (a valid normal implies a valid vertex).
     let nd = textureLoad(normal_depth, texel, 0);

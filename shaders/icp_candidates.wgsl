@@ -28,7 +28,7 @@ fn is_candidate(p: IcpParams, src_texel: vec2<u32>) -> bool {
     if !is_valid(src_world) {
         return false;
     }
-    let cam = vec4<f32>(p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy);
+    let cam = camera_intrinsics(p.camera);
     let q = transform_point(p.t_world_to_cam, xyz(src_world));
     let uv = project_to_texel(cam, p.camera.width, p.camera.height, q);
     if uv.x < 0 {

@@ -44,7 +44,7 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     if !is_valid(src_world) {
         return row;
     }
-    let cam = vec4<f32>(params.camera.fx, params.camera.fy, params.camera.cx, params.camera.cy);
+    let cam = camera_intrinsics(params.camera);
     let p = transform_point(params.t_world_to_cam, xyz(src_world));
     let uv = project_to_texel(cam, params.camera.width, params.camera.height, p);
     if uv.x < 0 {

@@ -25,7 +25,7 @@ fn main(
 ) {
     // The params copied once per thread (see pixel_grid.wgsl).
     let p = params;
-    let cam = vec4<f32>(p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy);
+    let cam = camera_intrinsics(p.camera);
     let span = chunk_blocks(chunk, p.surfel_count);
     // The chunk's first index copied once per thread, as the params.
     let base = chunk.base;

@@ -70,7 +70,7 @@ impl Normal {
 /// A vertex map of the true depth `depth(u, v)` plus noise, and the true depths.
 fn noisy_map(depth: impl Fn(u32, u32) -> f32) -> (Vec<[f32; 4]>, Vec<f32>) {
     let p = params(&BilateralSettings::default());
-    let cam = [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy];
+    let cam = crate::cpu::camera_intrinsics(&p.camera);
     let mut rng = Normal(42);
     let mut map = Vec::new();
     let mut truth = Vec::new();
@@ -130,11 +130,8 @@ fn smooths_a_noisy_plane_with(p: &BilateralParams, map: &[[f32; 4]], truth: &[f3
         assert_eq!(is_valid(out[i]), is_valid(map[i]), "pixel {i} validity");
         if is_valid(out[i]) {
             let (u, v) = (i as u32 % W, i as u32 / W);
-            let expected = back_project(
-                [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy],
-                [u, v],
-                out[i][2],
-            );
+            let expected =
+                back_project(crate::cpu::camera_intrinsics(&p.camera), [u, v], out[i][2]);
             assert_eq!(out[i], valid_entry(expected), "pixel {i} is off its ray");
         } else {
             assert_eq!(out[i], INVALID, "pixel {i}");

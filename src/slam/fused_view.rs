@@ -26,7 +26,7 @@ impl FusedView {
     pub fn of_fuse(p: &FuseParams) -> Option<Self> {
         (p.association == ASSOCIATION_BEST_CANDIDATE).then_some(Self {
             t_world_to_cam: p.t_world_to_cam,
-            intrinsics: [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy],
+            intrinsics: crate::cpu::camera_intrinsics(&p.camera),
             width: p.camera.width,
             height: p.camera.height,
         })
@@ -43,7 +43,7 @@ impl FusedView {
         (t_world_to_cam, intrinsics, width, height)
             == (
                 p.t_world_to_cam,
-                [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy],
+                crate::cpu::camera_intrinsics(&p.camera),
                 p.camera.width,
                 p.camera.height,
             )

@@ -138,7 +138,7 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         if let Some(chunk) = chunk_surfels {
             // Retired surfels whose pixel chose a surfel in another GPU chunk: the merged
             // surfel they were compared with came from that chunk, via `merged`.
-            let cam = [fp.camera.fx, fp.camera.fy, fp.camera.cx, fp.camera.cy];
+            let cam = wgslam::cpu::camera_intrinsics(&fp.camera);
             let across = (0..before.len())
                 .filter(|&i| g.weight(i) == 0.0 && g.last_frame(i) == 0 && before.weight(i) > 0.0)
                 .filter(|&i| {

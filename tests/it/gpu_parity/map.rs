@@ -175,12 +175,7 @@ fn culling_is_conservative() {
             index
         };
         let (culled_index, full_index) = (splat(&bounds), splat(&world));
-        let cam = [
-            proj.camera.fx,
-            proj.camera.fy,
-            proj.camera.cx,
-            proj.camera.cy,
-        ];
+        let cam = wgslam::cpu::camera_intrinsics(&proj.camera);
         let culled = (0..blocks)
             .filter(|&b| {
                 let (lo, hi) = (

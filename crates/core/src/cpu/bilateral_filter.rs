@@ -86,12 +86,7 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
             }
         }
     }
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     valid_entry(back_project(cam, [u, v], sum_wz / sum_w))
 }
 

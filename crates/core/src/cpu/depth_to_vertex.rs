@@ -56,12 +56,7 @@ fn convert_at(
     ];
     let mut vertex = INVALID;
     if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
-        let cam = [
-            params.camera.fx,
-            params.camera.fy,
-            params.camera.cx,
-            params.camera.cy,
-        ];
+        let cam = super::camera_intrinsics(&params.camera);
         vertex = valid_entry(back_project(cam, [u, v], z));
     }
     vertex_map[texel] = vertex;

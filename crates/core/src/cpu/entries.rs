@@ -33,7 +33,7 @@ macro_rules! surfel_view {
     ($($params:ty),*) => {$(
         impl SurfelView for $params {
             fn view(&self) -> (&GpuMat4, [f32; 4], [u32; 2], u32) {
-                let cam = [self.camera.fx, self.camera.fy, self.camera.cx, self.camera.cy];
+                let cam = super::camera_intrinsics(&self.camera);
                 (&self.t_world_to_cam, cam, [self.camera.width, self.camera.height], self.surfel_count)
             }
         }

@@ -35,12 +35,7 @@ pub fn fuse_add<K: KeyWriter + ?Sized>(
     color: &mut [[f32; 4]],
     index_map: &mut K,
 ) {
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         let pix = (v * params.camera.width + u) as usize;
         let a = append_index([u, v]);

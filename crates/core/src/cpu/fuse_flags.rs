@@ -49,12 +49,7 @@ fn neighbour_covers(
     texel: [u32; 2],
     nd: [f32; 4],
 ) -> bool {
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     for dv in -1..=1 {
         for du in -1..=1 {
             let u = texel[0] as i32 + du;

@@ -42,12 +42,7 @@ pub fn fuse_merge(
     color: &mut [[f32; 4]],
     assoc: &mut [u64],
 ) {
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
     let mut map = ChunkMut {
         position_weight,

@@ -41,12 +41,7 @@ pub fn fuse_merge_chosen(
         }
         let s = slot as usize;
         let texel = [u, v];
-        let cam = [
-            params.camera.fx,
-            params.camera.fy,
-            params.camera.cx,
-            params.camera.cy,
-        ];
+        let cam = super::camera_intrinsics(&params.camera);
         let pw = position_weight[s];
         // fuse_select chose only on a valid pixel (a valid normal implies a valid
         // vertex).

@@ -30,12 +30,7 @@ pub fn fuse_prune(
     color: &[[f32; 4]],
     merged: &[[f32; 4]],
 ) {
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     visible_surfels(params, chunk, block_bounds, |_, slot| {
         prune_surfel(
             params,

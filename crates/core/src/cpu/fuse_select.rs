@@ -45,12 +45,7 @@ pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     assoc: &mut A,
     index_map: &mut K,
 ) {
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     let map = Chunk {
         position_weight,
         normal_frame,

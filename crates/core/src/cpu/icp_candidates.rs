@@ -18,7 +18,7 @@ pub fn is_candidate(
     if !is_valid(src_world) {
         return false;
     }
-    let cam = [p.camera.fx, p.camera.fy, p.camera.cx, p.camera.cy];
+    let cam = super::camera_intrinsics(&p.camera);
     let q = transform_point(&p.t_world_to_cam, xyz(src_world));
     match project_to_texel(cam, p.camera.width, p.camera.height, q) {
         Some(t) => is_valid(normal_depth[(t[1] * p.camera.width + t[0]) as usize]),

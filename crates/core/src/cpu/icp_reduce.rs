@@ -65,12 +65,7 @@ pub fn icp_row(
     if !is_valid(src_world) {
         return None;
     }
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     let p = transform_point(&params.t_world_to_cam, xyz(src_world));
     let target_texel = project_to_texel(cam, params.camera.width, params.camera.height, p)?;
     // Valid normal (w = depth > 0) implies a valid vertex.
@@ -180,12 +175,7 @@ mod tests {
         // A target map where every pixel holds n at depth z_q; q is the vertex of the pixel
         // p lands on.
         let nd = vec![[n.x as f32, n.y as f32, n.z as f32, z_q]; 25];
-        let cam = [
-            params.camera.fx,
-            params.camera.fy,
-            params.camera.cx,
-            params.camera.cy,
-        ];
+        let cam = crate::cpu::camera_intrinsics(&params.camera);
         let p32 = glam::Vec3::new(p.x as f32, p.y as f32, p.z as f32);
         let texel = project_to_texel(cam, 5, 5, p32).expect("p projects into the image");
         let q = back_project(cam, texel, z_q).as_dvec3();

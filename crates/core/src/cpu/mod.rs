@@ -57,7 +57,8 @@ pub use entries::{pixel_grid, system_grid, visible_surfels};
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::layout::{
-    f32_from_ordered, morton_2d, FuseParams, GpuMat4, MapChunk, APPEND_TILE_PX, BLOCK_SURFELS,
+    f32_from_ordered, morton_2d, Camera, FuseParams, GpuMat4, MapChunk, APPEND_TILE_PX,
+    BLOCK_SURFELS,
 };
 
 /// Margin, pixels, by which [`block_visible`]'s frustum is wider than the image (see
@@ -164,6 +165,13 @@ pub fn project_to_texel(cam: [f32; 4], width: u32, height: u32, p: Vec3) -> Opti
         return None;
     }
     Some([u as u32, v as u32])
+}
+
+/// The camera's `(fx, fy, cx, cy)`, pixels: the `cam` the helpers here take. Mirrors
+/// `camera_intrinsics` in common.wgsl.
+#[inline]
+pub fn camera_intrinsics(c: &Camera) -> [f32; 4] {
+    [c.fx, c.fy, c.cx, c.cy]
 }
 
 /// The camera-frame point (metres) of pixel `texel = (u, v)` at depth `z` (metres),

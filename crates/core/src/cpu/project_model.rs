@@ -25,12 +25,7 @@ pub fn project_model<K: KeyWriter + ?Sized>(
     position_weight: &[[f32; 4]],
     index_map: &mut K,
 ) {
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     assert_eq!(
         index_map.pixels(),
         (params.camera.width * params.camera.height) as usize

@@ -51,12 +51,7 @@ pub fn coarse_at(params: &PyramidParams, fine_vertex: &[[f32; 4]], u: u32, v: u3
             }
         }
     }
-    let cam = [
-        params.camera.fx,
-        params.camera.fy,
-        params.camera.cx,
-        params.camera.cy,
-    ];
+    let cam = super::camera_intrinsics(&params.camera);
     valid_entry(back_project(cam, [u, v], sum_z / count))
 }
 
