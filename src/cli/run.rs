@@ -196,29 +196,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         None => progress_bar(range.clone().count()),
     };
     let total = range.clone().count();
-    let on_frame = |f: &run::FrameOutcome| {
-        bar.set_message(format!("{} surfels", f.report.surfels));
-        bar.inc(1);
-        if a.progress_lines {
-            use std::io::Write;
-            println!("progress {} {total}", bar.position());
-            let _ = std::io::stdout().flush();
-        }
-        if let Some(h) = hooks {
-            (h.progress)(bar.position(), total as u64);
-        }
-        // Every frame without a tracked pose is reported, on a terminal above the bar and
-        // in a log (no terminal, the bar hidden) on stderr.
-        for line in frame_events(f) {
-            if let Some(h) = hooks {
-                (h.say)(&line);
-            } else if bar.is_hidden() {
-                eprintln!("{line}");
-            } else {
-                bar.println(line);
-            }
-        }
-    };
+    let on_frame = |f: &run::FrameOutcome| report_frame(f, &bar, hooks, a.progress_lines, total);
     // The outputs are staged beside --out and moved into it as a set after the run; a bad
     // --out (a file, a folder of other files) fails here, before any frame.
     if a.rerun.is_some() && a.rerun_map_every == 0 {
@@ -266,6 +244,38 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         say(&format!("wrote {}", p.display()));
     }
     Ok(())
+}
+
+/// Shows that frame `f` of `total` is done: on the bar, as a `progress DONE TOTAL` line
+/// with `progress_lines`, to a batch's hooks; then logs its events (see [`frame_events`]).
+fn report_frame(
+    f: &run::FrameOutcome,
+    bar: &indicatif::ProgressBar,
+    hooks: Option<&RunHooks<'_>>,
+    progress_lines: bool,
+    total: usize,
+) {
+    bar.set_message(format!("{} surfels", f.report.surfels));
+    bar.inc(1);
+    if progress_lines {
+        use std::io::Write;
+        println!("progress {} {total}", bar.position());
+        let _ = std::io::stdout().flush();
+    }
+    if let Some(h) = hooks {
+        (h.progress)(bar.position(), total as u64);
+    }
+    // Every frame without a tracked pose is reported, on a terminal above the bar and
+    // in a log (no terminal, the bar hidden) on stderr.
+    for line in frame_events(f) {
+        if let Some(h) = hooks {
+            (h.say)(&line);
+        } else if bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            bar.println(line);
+        }
+    }
 }
 
 /// The sequence and the frame range the run covers: `--frames` (by default every frame
