@@ -57,22 +57,35 @@ pub fn execute(a: CompareArgs) -> Result<()> {
         false => any_backend::open(BackendChoice::Gpu)?,
     };
     let cpu = any_backend::open(BackendChoice::Cpu)?;
-    println!(
-        "mode: {}",
-        match mode {
-            compare::Mode::Lockstep { map_every } => format!(
-                "lockstep (the GPU starts every frame from the CPU's map and pose; maps \
-                 compared every {map_every} frame(s) and after the last)"
-            ),
-            compare::Mode::Free => "free (each backend tracks on its own state)".into(),
-        }
-    );
+    println!("mode: {}", describe_mode(mode));
     let c = compare::compare(cpu, other, &seq, first, last, params, mode)?;
+    print_frames(&c.frames);
+    print_final_map(&c.map);
+    print_worst(&c);
+    if let Some(path) = &a.json {
+        run::write_json(path, &c)?;
+    }
+    verdict(&c)
+}
+
+/// How `mode` drives the two backends, in words.
+fn describe_mode(mode: compare::Mode) -> String {
+    match mode {
+        compare::Mode::Lockstep { map_every } => format!(
+            "lockstep (the GPU starts every frame from the CPU's map and pose; maps \
+             compared every {map_every} frame(s) and after the last)"
+        ),
+        compare::Mode::Free => "free (each backend tracks on its own state)".into(),
+    }
+}
+
+/// The table of per-frame differences, a line per frame.
+fn print_frames(frames: &[compare::FrameDiff]) {
     println!(
         "frame  vertex(m)  normal(deg)  valid-mismatch  system-rel   pose(mm)  pose(deg)  \
          fused cpu/gpu    surfels cpu/gpu  map-unmatched  fusion assoc/flags/offsets"
     );
-    for f in &c.frames {
+    for f in frames {
         let opt = |x: Option<String>| x.unwrap_or_else(|| "-".into());
         println!(
             "{:5}  {:9.2e}  {:11.5}  {:13.5}%  {:>10}  {:9.5}  {:9.6}  {:>15}  {:>15}  {:>13}  {:>26}",
@@ -96,17 +109,25 @@ pub fn execute(a: CompareArgs) -> Result<()> {
             ))),
         );
     }
+}
+
+/// The line on the maps after the last frame.
+fn print_final_map(map: &compare::SurfelMapDiff) {
     println!(
         "map after the last frame: {} vs {} surfels; unmatched within {} mm: {:.4}% cpu, \
          {:.4}% gpu; match distance mean {:.2e} m, max {:.2e} m",
-        c.map.surfels.0,
-        c.map.surfels.1,
-        c.map.match_radius_m * 1e3,
-        c.map.unmatched_a_fraction * 100.0,
-        c.map.unmatched_b_fraction * 100.0,
-        c.map.mean_match_m,
-        c.map.max_match_m
+        map.surfels.0,
+        map.surfels.1,
+        map.match_radius_m * 1e3,
+        map.unmatched_a_fraction * 100.0,
+        map.unmatched_b_fraction * 100.0,
+        map.mean_match_m,
+        map.max_match_m
     );
+}
+
+/// The line on the largest difference of each kind.
+fn print_worst(c: &compare::Comparison) {
     let w = &c.worst;
     println!(
         "worst ({} mode, {} frames): vertex {:.2e} m, normal {:.5} deg, validity {:.5}%, \
@@ -131,9 +152,10 @@ pub fn execute(a: CompareArgs) -> Result<()> {
         w.fusion_clear_flips,
         w.fusion_clear_flip_relative_margin
     );
-    if let Some(path) = &a.json {
-        run::write_json(path, &c)?;
-    }
+}
+
+/// Agreement, or each tolerance exceeded and an error counting them.
+fn verdict(c: &compare::Comparison) -> Result<()> {
     if c.violations.is_empty() {
         println!(
             "backends agree within the documented {} tolerances (src/tools/compare/tolerance.rs)",

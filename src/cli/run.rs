@@ -1,5 +1,6 @@
 //! `wgslam run`: dense SLAM over a sequence, its outputs written and summarised.
 
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
@@ -100,7 +101,6 @@ fn write_run_mesh(path: &Path, map: &SurfelMap, say: &dyn Fn(&str)) -> Result<()
     crate::mesh::write::write_mesh(path, &mesh)
 }
 
-/// A progress bar on stderr, hidden when stderr is not a terminal.
 /// Default of `run --max-surfels`.
 pub const DEFAULT_MAX_SURFELS: usize = 20_000_000;
 
@@ -153,6 +153,7 @@ impl run::FrameObserver for MapCap<'_> {
 /// Memory per surfel, measured: 75 M surfels took 6.9 GB.
 const SURFEL_BYTES_IN_MEMORY: f64 = 92.0;
 
+/// A progress bar on stderr, hidden when stderr is not a terminal.
 fn progress_bar(len: usize) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(len as u64);
     bar.set_style(
@@ -184,27 +185,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         None => println!("{line}"),
     };
     let setup = a.pipeline.resolve()?;
-    let seq = setup.open_sequence()?;
-    let (first, last) = match &a.frames {
-        Some(r) => dataset::parse_range(r)?,
-        None => (default_first_frame(&seq), seq.len() - 1),
-    };
-    let mut range = seq.select(first, last)?;
-    let seq = match a.revisit {
-        Some(total) => {
-            let max = crate::io::input::max_revisit_frames()?;
-            if total as u64 > max {
-                return Err(Error::Argument(format!(
-                    "--revisit {total}: more than {max} frames (WGSLAM_MAX_REVISIT_FRAMES \
-                     raises the limit)"
-                )));
-            }
-            let long = seq.revisiting(first, last, total)?;
-            range = 0..=total - 1;
-            long
-        }
-        None => seq,
-    };
+    let (seq, range) = frames_to_run(&a, setup.open_sequence()?)?;
     let poses = match a.poses {
         PosesChoice::Track => PoseSource::Track,
         PosesChoice::Gt => PoseSource::GroundTruth,
@@ -215,75 +196,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         None => progress_bar(range.clone().count()),
     };
     let total = range.clone().count();
-    let on_frame = |f: &run::FrameOutcome| {
-        bar.set_message(format!("{} surfels", f.report.surfels));
-        bar.inc(1);
-        if a.progress_lines {
-            use std::io::Write;
-            println!("progress {} {total}", bar.position());
-            let _ = std::io::stdout().flush();
-        }
-        if let Some(h) = hooks {
-            (h.progress)(bar.position(), total as u64);
-        }
-        use crate::slam::loops::LoopAction;
-        use crate::slam::pipeline::TrackStatus;
-        let mut events: Vec<String> = f
-            .report
-            .loops
-            .iter()
-            .map(|l| match &l.rejected {
-                None => format!(
-                    "frame {}: loop to the keyframe of frame {} ({:?}) accepted, correction \
-                     {:.1} mm / {:.2} deg{}",
-                    l.frame,
-                    l.keyframe_frame,
-                    l.kind,
-                    1e3 * l.correction_m,
-                    l.correction_deg,
-                    match l.action {
-                        Some(LoopAction::Bent) => "; confirmed: trajectory and map bent",
-                        Some(LoopAction::AwaitingConfirmation) => {
-                            "; above noise: awaiting a second verification"
-                        }
-                        _ => " (within noise: nothing moved)",
-                    }
-                ),
-                Some(why) => format!(
-                    "frame {}: loop candidate, keyframe of frame {} ({:?}), rejected: {why}",
-                    l.frame, l.keyframe_frame, l.kind
-                ),
-            })
-            .collect();
-        let event = match &f.report.status {
-            TrackStatus::Lost(why) => Some(format!(
-                "frame {}: tracking lost ({why}); not fused{}",
-                f.index,
-                match f.report.relocalisation.len() {
-                    0 => String::new(),
-                    n => format!(", {n} relocalisation attempt(s) failed"),
-                }
-            )),
-            TrackStatus::Relocalised { keyframe_frame } => Some(format!(
-                "frame {}: relocalised from the keyframe of frame {keyframe_frame}",
-                f.index
-            )),
-            TrackStatus::EmptyDepth => Some(format!("frame {}: no valid depth; skipped", f.index)),
-            _ => None,
-        };
-        // Every frame without a tracked pose is reported, on a terminal above the bar and
-        // in a log (no terminal, the bar hidden) on stderr.
-        events.extend(event);
-        for line in events {
-            if let Some(h) = hooks {
-                (h.say)(&line);
-            } else if bar.is_hidden() {
-                eprintln!("{line}");
-            } else {
-                bar.println(line);
-            }
-        }
-    };
+    let on_frame = |f: &run::FrameOutcome| report_frame(f, &bar, hooks, a.progress_lines, total);
     // The outputs are staged beside --out and moved into it as a set after the run; a bad
     // --out (a file, a folder of other files) fails here, before any frame.
     if a.rerun.is_some() && a.rerun_map_every == 0 {
@@ -291,19 +204,8 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
             "--rerun-map-every must be at least 1".into(),
         ));
     }
-    // A recording asked for inside --out is one of the set: staged and moved in with it.
-    let rerun_in_out = a
-        .rerun
-        .as_deref()
-        .filter(|p| p.parent().is_some_and(|dir| same_folder(dir, &a.out)))
-        .and_then(|p| p.file_name())
-        .map(|n| n.to_string_lossy().into_owned());
-    let mut names: Vec<&str> = run::OUTPUT_FILES.to_vec();
-    names.extend(rerun_in_out.as_deref());
-    // Always one of the set, so that a run without --mesh may replace one with it (the
-    // commit then removes the old mesh with the old set).
-    names.push(MESH_FILE);
-    let outputs = OutputSet::begin(&a.out, &names)?;
+    let rerun_in_out = rerun_in_out(&a);
+    let outputs = stage_outputs(&a.out, rerun_in_out.as_deref())?;
     let rerun_path = match &rerun_in_out {
         Some(name) => Some(outputs.dir().join(name)),
         None => a.rerun.clone(),
@@ -330,18 +232,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
     if hooks.is_some() {
         result.metrics.peak_memory_mib = None;
     }
-    run::write_outputs(outputs.dir(), &result)?;
-    let pictures = run::write_pictures(outputs.dir(), &result, &seq)?;
-    let mut pictures = pictures;
-    if a.mesh {
-        let path = outputs.dir().join(MESH_FILE);
-        write_run_mesh(&path, &result.map, &say)?;
-        pictures.push(path);
-    }
-    let pictures: Vec<PathBuf> = pictures
-        .iter()
-        .filter_map(|p| p.file_name().map(|n| a.out.join(n)))
-        .collect();
+    let pictures = write_staged(&a, outputs.dir(), &result, &seq, &say)?;
     let recorded = recording.map(|r| r.finish(&result.map)).transpose()?;
     let recorded = recorded.map(|p| match &rerun_in_out {
         Some(name) => a.out.join(name),
@@ -353,6 +244,160 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         say(&format!("wrote {}", p.display()));
     }
     Ok(())
+}
+
+/// Shows that frame `f` of `total` is done: on the bar, as a `progress DONE TOTAL` line
+/// with `progress_lines`, to a batch's hooks; then logs its events (see [`frame_events`]).
+fn report_frame(
+    f: &run::FrameOutcome,
+    bar: &indicatif::ProgressBar,
+    hooks: Option<&RunHooks<'_>>,
+    progress_lines: bool,
+    total: usize,
+) {
+    bar.set_message(format!("{} surfels", f.report.surfels));
+    bar.inc(1);
+    if progress_lines {
+        use std::io::Write;
+        println!("progress {} {total}", bar.position());
+        let _ = std::io::stdout().flush();
+    }
+    if let Some(h) = hooks {
+        (h.progress)(bar.position(), total as u64);
+    }
+    // Every frame without a tracked pose is reported, on a terminal above the bar and
+    // in a log (no terminal, the bar hidden) on stderr.
+    for line in frame_events(f) {
+        if let Some(h) = hooks {
+            (h.say)(&line);
+        } else if bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            bar.println(line);
+        }
+    }
+}
+
+/// The sequence and the frame range the run covers: `--frames` (by default every frame
+/// from the first with ground truth), played forwards and backwards for `--revisit` frames
+/// when that is given (then a new sequence whose range starts at 0).
+fn frames_to_run(
+    a: &RunArgs,
+    seq: dataset::Sequence,
+) -> Result<(dataset::Sequence, RangeInclusive<usize>)> {
+    let (first, last) = match &a.frames {
+        Some(r) => dataset::parse_range(r)?,
+        None => (default_first_frame(&seq), seq.len() - 1),
+    };
+    let range = seq.select(first, last)?;
+    match a.revisit {
+        Some(total) => {
+            let max = crate::io::input::max_revisit_frames()?;
+            if total as u64 > max {
+                return Err(Error::Argument(format!(
+                    "--revisit {total}: more than {max} frames (WGSLAM_MAX_REVISIT_FRAMES \
+                     raises the limit)"
+                )));
+            }
+            let long = seq.revisiting(first, last, total)?;
+            Ok((long, 0..=total - 1))
+        }
+        None => Ok((seq, range)),
+    }
+}
+
+/// The lines a frame gives the log: each loop closure tried (accepted, and what it moved,
+/// or rejected and why), and a lost, relocalised or skipped frame.
+fn frame_events(f: &run::FrameOutcome) -> Vec<String> {
+    use crate::slam::loops::LoopAction;
+    use crate::slam::pipeline::TrackStatus;
+    let mut events: Vec<String> = f
+        .report
+        .loops
+        .iter()
+        .map(|l| match &l.rejected {
+            None => format!(
+                "frame {}: loop to the keyframe of frame {} ({:?}) accepted, correction \
+                 {:.1} mm / {:.2} deg{}",
+                l.frame,
+                l.keyframe_frame,
+                l.kind,
+                1e3 * l.correction_m,
+                l.correction_deg,
+                match l.action {
+                    Some(LoopAction::Bent) => "; confirmed: trajectory and map bent",
+                    Some(LoopAction::AwaitingConfirmation) => {
+                        "; above noise: awaiting a second verification"
+                    }
+                    _ => " (within noise: nothing moved)",
+                }
+            ),
+            Some(why) => format!(
+                "frame {}: loop candidate, keyframe of frame {} ({:?}), rejected: {why}",
+                l.frame, l.keyframe_frame, l.kind
+            ),
+        })
+        .collect();
+    let event = match &f.report.status {
+        TrackStatus::Lost(why) => Some(format!(
+            "frame {}: tracking lost ({why}); not fused{}",
+            f.index,
+            match f.report.relocalisation.len() {
+                0 => String::new(),
+                n => format!(", {n} relocalisation attempt(s) failed"),
+            }
+        )),
+        TrackStatus::Relocalised { keyframe_frame } => Some(format!(
+            "frame {}: relocalised from the keyframe of frame {keyframe_frame}",
+            f.index
+        )),
+        TrackStatus::EmptyDepth => Some(format!("frame {}: no valid depth; skipped", f.index)),
+        _ => None,
+    };
+    events.extend(event);
+    events
+}
+
+/// The file name of a `--rerun` recording asked for inside `--out`: one of the output set,
+/// staged and moved in with it.
+fn rerun_in_out(a: &RunArgs) -> Option<String> {
+    a.rerun
+        .as_deref()
+        .filter(|p| p.parent().is_some_and(|dir| same_folder(dir, &a.out)))
+        .and_then(|p| p.file_name())
+        .map(|n| n.to_string_lossy().into_owned())
+}
+
+/// Begins the output set in `out`: the run's files, the recording named `rerun_in_out`,
+/// and always mesh.ply, so that a run without --mesh may replace one with it (the commit
+/// then removes the old mesh with the old set).
+fn stage_outputs(out: &Path, rerun_in_out: Option<&str>) -> Result<OutputSet> {
+    let mut names: Vec<&str> = run::OUTPUT_FILES.to_vec();
+    names.extend(rerun_in_out);
+    names.push(MESH_FILE);
+    OutputSet::begin(out, &names)
+}
+
+/// Writes the run's files, its pictures and (with `--mesh`) mesh.ply into the staging
+/// folder `dir`; returns the pictures' and mesh's paths as they will be in `--out`.
+fn write_staged(
+    a: &RunArgs,
+    dir: &Path,
+    result: &run::RunResult,
+    seq: &dataset::Sequence,
+    say: &dyn Fn(&str),
+) -> Result<Vec<PathBuf>> {
+    run::write_outputs(dir, result)?;
+    let mut pictures = run::write_pictures(dir, result, seq)?;
+    if a.mesh {
+        let path = dir.join(MESH_FILE);
+        write_run_mesh(&path, &result.map, say)?;
+        pictures.push(path);
+    }
+    Ok(pictures
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| a.out.join(n)))
+        .collect())
 }
 
 /// `run --rerun FILE`'s recording.

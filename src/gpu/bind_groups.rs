@@ -172,19 +172,7 @@ impl BindGroups {
             vertex_to_normal_raw_points: vertex_to_normal(&f.filtered_vertex, &f.vertex),
             project_model: per_chunk(k.project_model.first(), u.project.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
-            photo_reduce: k.photo_reduce.bind_group_from(
-                ctx,
-                &[
-                    vec![
-                        ("params", u.icp.binding()),
-                        ("pred_vertex", f.pred_vertex.binding()),
-                        ("intensity_patch", f.intensity.patch.binding()),
-                        ("partials", r.photo_partials.binding()),
-                    ],
-                    frame.clone(),
-                ]
-                .concat(),
-            ),
+            photo_reduce: photo_reduce(ctx, k, r, &frame),
             intensity_pyramid: intensity_pyramid(ctx, k, &f.color, &f.intensity),
             fuse_select: per_chunk(k.fuse_select.first(), u.fuse.binding()),
             generic: k
@@ -287,6 +275,30 @@ impl LevelBindGroups {
             ),
         }
     }
+}
+
+/// `photo_reduce` at level 0: the prediction's vertices and the frame's intensity patches,
+/// over the frame's pool `frame`.
+fn photo_reduce<'a>(
+    ctx: &GpuContext,
+    k: &Kernels,
+    r: &Resources<'a>,
+    frame: &Pool<'a>,
+) -> wgpu::BindGroup {
+    let (u, f) = (r.uniforms, r.frame);
+    k.photo_reduce.bind_group_from(
+        ctx,
+        &[
+            vec![
+                ("params", u.icp.binding()),
+                ("pred_vertex", f.pred_vertex.binding()),
+                ("intensity_patch", f.intensity.patch.binding()),
+                ("partials", r.photo_partials.binding()),
+            ],
+            frame.clone(),
+        ]
+        .concat(),
+    )
 }
 
 /// `intensity_pyramid` making `level` from `fine` (the colour map at level 0, else the

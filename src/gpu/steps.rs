@@ -8,9 +8,10 @@
 //! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
-use super::bind_groups::SCATTER_ATTRIBUTES;
+use super::bind_groups::{BindGroups, SCATTER_ATTRIBUTES};
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
+use super::kernels::Kernels;
 use super::recording::{record_call, record_passes, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, frame_grids, image_grids, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
@@ -58,29 +59,7 @@ impl Backend for GpuBackend {
         raw_depth: &[u16],
         raw_rgba: &[u32],
     ) -> Result<()> {
-        let raw_n = (params.raw_width * params.raw_height) as usize;
-        if raw_depth.len() != raw_n || raw_rgba.len() != raw_n {
-            return Err(Error::Argument(format!(
-                "frame of {}x{} pixels needs {raw_n} depth and colour values, got {} and {}",
-                params.raw_width,
-                params.raw_height,
-                raw_depth.len(),
-                raw_rgba.len()
-            )));
-        }
-        if params.stride == 0
-            || params.camera.width * params.stride > params.raw_width
-            || params.camera.height * params.stride > params.raw_height
-        {
-            return Err(Error::Argument(format!(
-                "a {}x{} map with stride {} does not fit a {}x{} frame",
-                params.camera.width,
-                params.camera.height,
-                params.stride,
-                params.raw_width,
-                params.raw_height
-            )));
-        }
+        check_frame_size(params, raw_depth, raw_rgba)?;
         check_pyramid(params.camera.width, params.camera.height, pyramid)?;
         // The uploads below would land before a deferred step (see `GpuContext::defer`).
         self.ctx.flush();
@@ -132,47 +111,7 @@ impl Backend for GpuBackend {
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
-                let pass: Pass = match call {
-                    PreprocessCall::DepthToVertex => (
-                        &k.depth_to_vertex,
-                        &bg.depth_to_vertex,
-                        grid.image("depth_to_vertex"),
-                    ),
-                    PreprocessCall::BilateralFilter => (
-                        &k.bilateral_filter,
-                        &bg.bilateral_filter,
-                        grid.image("bilateral_filter"),
-                    ),
-                    PreprocessCall::VertexToNormal {
-                        level: 0,
-                        filtered,
-                        filtered_points,
-                    } => (
-                        &k.vertex_to_normal,
-                        match (filtered, filtered_points) {
-                            (true, true) => &bg.vertex_to_normal_filtered,
-                            (true, false) => &bg.vertex_to_normal_raw_points,
-                            (false, _) => &bg.vertex_to_normal,
-                        },
-                        grid.image("vertex_to_normal"),
-                    ),
-                    PreprocessCall::VertexToNormal { level, .. } => (
-                        &k.vertex_to_normal,
-                        &bg.levels[level - 1].vertex_to_normal,
-                        grid.level(level, "vertex_to_normal"),
-                    ),
-                    PreprocessCall::PyramidDepth { level, filtered } => {
-                        let g = &bg.levels[level - 1];
-                        (
-                            &k.pyramid_depth,
-                            match filtered {
-                                true => &g.pyramid_depth_filtered,
-                                false => &g.pyramid_depth,
-                            },
-                            grid.level(level, "pyramid_depth"),
-                        )
-                    }
-                };
+                let pass = preprocess_pass(k, bg, &grid, call);
                 record_call(ctx, profiler, &mut enc, call.kernel(), &[pass])?;
             }
             defer_profiled(ctx, profiler, "preprocess", enc)
@@ -563,6 +502,85 @@ fn defer_profiled(
         None => {
             ctx.defer(step, enc);
             Ok(())
+        }
+    }
+}
+
+/// Checks that the raw frame has `raw_width x raw_height` depth and colour values and that
+/// the map, `stride` raw pixels per map pixel, fits in it.
+fn check_frame_size(params: &PreprocessParams, raw_depth: &[u16], raw_rgba: &[u32]) -> Result<()> {
+    let raw_n = (params.raw_width * params.raw_height) as usize;
+    if raw_depth.len() != raw_n || raw_rgba.len() != raw_n {
+        return Err(Error::Argument(format!(
+            "frame of {}x{} pixels needs {raw_n} depth and colour values, got {} and {}",
+            params.raw_width,
+            params.raw_height,
+            raw_depth.len(),
+            raw_rgba.len()
+        )));
+    }
+    if params.stride == 0
+        || params.camera.width * params.stride > params.raw_width
+        || params.camera.height * params.stride > params.raw_height
+    {
+        return Err(Error::Argument(format!(
+            "a {}x{} map with stride {} does not fit a {}x{} frame",
+            params.camera.width,
+            params.camera.height,
+            params.stride,
+            params.raw_width,
+            params.raw_height
+        )));
+    }
+    Ok(())
+}
+
+/// The kernel, bind group and grid of one call of `preprocess`'s plan.
+fn preprocess_pass<'a>(
+    k: &'a Kernels,
+    bg: &'a BindGroups,
+    grid: &StepGrid,
+    call: PreprocessCall,
+) -> Pass<'a> {
+    match call {
+        PreprocessCall::DepthToVertex => (
+            &k.depth_to_vertex,
+            &bg.depth_to_vertex,
+            grid.image("depth_to_vertex"),
+        ),
+        PreprocessCall::BilateralFilter => (
+            &k.bilateral_filter,
+            &bg.bilateral_filter,
+            grid.image("bilateral_filter"),
+        ),
+        PreprocessCall::VertexToNormal {
+            level: 0,
+            filtered,
+            filtered_points,
+        } => (
+            &k.vertex_to_normal,
+            match (filtered, filtered_points) {
+                (true, true) => &bg.vertex_to_normal_filtered,
+                (true, false) => &bg.vertex_to_normal_raw_points,
+                (false, _) => &bg.vertex_to_normal,
+            },
+            grid.image("vertex_to_normal"),
+        ),
+        PreprocessCall::VertexToNormal { level, .. } => (
+            &k.vertex_to_normal,
+            &bg.levels[level - 1].vertex_to_normal,
+            grid.level(level, "vertex_to_normal"),
+        ),
+        PreprocessCall::PyramidDepth { level, filtered } => {
+            let g = &bg.levels[level - 1];
+            (
+                &k.pyramid_depth,
+                match filtered {
+                    true => &g.pyramid_depth_filtered,
+                    false => &g.pyramid_depth,
+                },
+                grid.level(level, "pyramid_depth"),
+            )
         }
     }
 }

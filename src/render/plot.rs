@@ -13,6 +13,7 @@ use std::sync::Once;
 
 use glam::{DMat4, DVec3};
 use image::RgbImage;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 #[cfg(not(target_arch = "wasm32"))]
 use plotters::style::FontStyle;
@@ -119,181 +120,229 @@ pub fn trajectory_plot(
         return Err(Error::Argument("no estimated pose to plot".into()));
     }
     register_font()?;
-    let font = |px: u32| (FONT_NAME, px).into_font();
     let est_pts: Vec<DVec3> = estimated.iter().map(|(_, t)| t.w_axis.truncate()).collect();
-    // Only ground truth within the estimate's stamp range: the dataset may hold more.
-    let (s0, s1) = estimated
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (s, _)| {
-            (a.min(*s), b.max(*s))
-        });
-    let gt_pts: Vec<DVec3> = ground_truth
-        .iter()
-        .filter(|(s, _)| *s >= s0 - DEFAULT_MAX_DT && *s <= s1 + DEFAULT_MAX_DT)
-        .map(|(_, t)| t.w_axis.truncate())
-        .collect();
+    let gt_pts = ground_truth_in_range(estimated, ground_truth);
     let pairs = associate(estimated, ground_truth);
-    let (a0, a1) = horizontal_axes(if gt_pts.len() >= 2 { &gt_pts } else { &est_pts });
-
-    // Square data ranges so that the picture is not distorted.
-    let all: Vec<(f64, f64)> = est_pts
-        .iter()
-        .chain(gt_pts.iter())
-        .filter(|p| p.is_finite())
-        .map(|p| (p[a0], p[a1]))
-        .collect();
-    if all.is_empty() {
-        return Err(Error::Numerical(
-            "every estimated position is NaN or infinite".into(),
-        ));
-    }
-    let (mut lo0, mut hi0, mut lo1, mut hi1) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
-    for (x, y) in &all {
-        lo0 = lo0.min(*x);
-        hi0 = hi0.max(*x);
-        lo1 = lo1.min(*y);
-        hi1 = hi1.max(*y);
-    }
-    let half = ((hi0 - lo0).max(hi1 - lo1) * 0.55).max(0.05);
-    let (c0, c1) = ((lo0 + hi0) * 0.5, (lo1 + hi1) * 0.5);
+    let axes = horizontal_axes(if gt_pts.len() >= 2 { &gt_pts } else { &est_pts });
+    let view = SquareView::around(&est_pts, &gt_pts, axes)?;
 
     let mut buf = vec![255u8; w as usize * h as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_error)?;
         let (left, right) = root.split_horizontally(w * 9 / 20);
-
-        let mut chart = ChartBuilder::on(&left)
-            .caption("Camera path, seen from above", font(22))
-            .margin(16)
-            .x_label_area_size(48)
-            .y_label_area_size(64)
-            .build_cartesian_2d(c0 - half..c0 + half, c1 - half..c1 + half)
-            .map_err(plot_error)?;
-        chart
-            .configure_mesh()
-            .x_labels(6)
-            .x_desc(format!("{} [m]", AXIS_NAMES[a0]))
-            .y_desc(format!("{} [m]", AXIS_NAMES[a1]))
-            .label_style(font(15))
-            .axis_desc_style(font(17))
-            .draw()
-            .map_err(plot_error)?;
-        if gt_pts.len() >= 2 {
-            chart
-                .draw_series(LineSeries::new(
-                    gt_pts.iter().map(|p| (p[a0], p[a1])),
-                    GT_COLOR.stroke_width(3),
-                ))
-                .map_err(plot_error)?
-                .label("ground truth")
-                .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], GT_COLOR.stroke_width(3)));
-        }
-        chart
-            .draw_series(LineSeries::new(
-                est_pts
-                    .iter()
-                    .filter(|p| p.is_finite())
-                    .map(|p| (p[a0], p[a1])),
-                EST_COLOR.stroke_width(2),
-            ))
-            .map_err(plot_error)?
-            .label("estimated")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], EST_COLOR.stroke_width(2)));
-        let start = est_pts[0];
-        chart
-            .draw_series(std::iter::once(Circle::new(
-                (start[a0], start[a1]),
-                6,
-                BLACK.filled(),
-            )))
-            .map_err(plot_error)?
-            .label("start")
-            .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
-        chart
-            .configure_series_labels()
-            .label_font(font(16))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(plot_error)?;
-
+        draw_paths(&left, &est_pts, &gt_pts, axes, &view)?;
         if pairs.is_empty() {
-            let msg = if ground_truth.is_empty() {
-                "no ground truth: translation error not plotted"
-            } else {
-                "no ground-truth stamp matches an estimated one"
-            };
-            right
-                .draw(&Text::new(
-                    msg,
-                    ((w - w * 9 / 20) as i32 / 8, h as i32 / 2),
-                    font(18),
-                ))
-                .map_err(plot_error)?;
+            draw_no_error_note(&right, ground_truth.is_empty(), (w, h))?;
         } else {
-            let errs: Vec<(f64, f64)> = pairs
-                .iter()
-                .map(|(s, e, g)| (*s, (*e - *g).length()))
-                .collect();
-            let (f0, f1) = (errs[0].0, errs[errs.len() - 1].0);
-            let f1 = if f1 > f0 { f1 } else { f0 + 1.0 };
-            let emax = errs
-                .iter()
-                .map(|e| e.1)
-                .filter(|e| e.is_finite())
-                .fold(0.0, f64::max);
-            let emax = if emax > 0.0 { emax * 1.1 } else { 0.01 };
-            let rmse = (errs.iter().map(|e| e.1 * e.1).sum::<f64>() / errs.len() as f64).sqrt();
-            let mut chart = ChartBuilder::on(&right)
-                .caption(
-                    format!(
-                        "Translation error (no alignment), RMSE {:.1} mm",
-                        rmse * 1000.0
-                    ),
-                    font(22),
-                )
-                .margin(16)
-                .x_label_area_size(48)
-                .y_label_area_size(72)
-                .build_cartesian_2d(f0..f1, 0.0..emax * 1000.0)
-                .map_err(plot_error)?;
-            chart
-                .configure_mesh()
-                .x_desc("frame (dataset stamp)")
-                .y_desc("|t_est - t_gt| [mm]")
-                .label_style(font(15))
-                .axis_desc_style(font(17))
-                .draw()
-                .map_err(plot_error)?;
-            chart
-                .draw_series(LineSeries::new(
-                    errs.iter().map(|(s, e)| (*s, e * 1000.0)),
-                    EST_COLOR.stroke_width(2),
-                ))
-                .map_err(plot_error)?
-                .label("translation error")
-                .legend(|(x, y)| {
-                    PathElement::new([(x, y), (x + 24, y)], EST_COLOR.stroke_width(2))
-                });
-            chart
-                .configure_series_labels()
-                .label_font(font(16))
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::UpperLeft)
-                .draw()
-                .map_err(plot_error)?;
+            draw_error(&right, &pairs)?;
         }
         root.present().map_err(plot_error)?;
     }
     Ok(RgbImage::from_raw(w, h, buf).expect("buffer size matches the image size"))
+}
+
+/// One half of the figure, drawn into the image's buffer.
+type Panel<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// The bundled font at `px` pixels.
+fn font(px: u32) -> FontDesc<'static> {
+    (FONT_NAME, px).into_font()
+}
+
+/// The ground-truth positions within the estimate's stamp range (widened by the
+/// association window): the dataset may hold more.
+fn ground_truth_in_range(estimated: &[(f64, DMat4)], ground_truth: &[(f64, DMat4)]) -> Vec<DVec3> {
+    let (s0, s1) = estimated
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (s, _)| {
+            (a.min(*s), b.max(*s))
+        });
+    ground_truth
+        .iter()
+        .filter(|(s, _)| *s >= s0 - DEFAULT_MAX_DT && *s <= s1 + DEFAULT_MAX_DT)
+        .map(|(_, t)| t.w_axis.truncate())
+        .collect()
+}
+
+/// The square data range of the path panel, so that the picture is not distorted: centre
+/// `(c0, c1)` and half-width `half` along the plotted axes, metres.
+struct SquareView {
+    c0: f64,
+    c1: f64,
+    half: f64,
+}
+
+impl SquareView {
+    /// The square around every finite position of both paths, with a margin, along `axes`.
+    fn around(est_pts: &[DVec3], gt_pts: &[DVec3], (a0, a1): (usize, usize)) -> Result<Self> {
+        let all: Vec<(f64, f64)> = est_pts
+            .iter()
+            .chain(gt_pts.iter())
+            .filter(|p| p.is_finite())
+            .map(|p| (p[a0], p[a1]))
+            .collect();
+        if all.is_empty() {
+            return Err(Error::Numerical(
+                "every estimated position is NaN or infinite".into(),
+            ));
+        }
+        let (mut lo0, mut hi0, mut lo1, mut hi1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for (x, y) in &all {
+            lo0 = lo0.min(*x);
+            hi0 = hi0.max(*x);
+            lo1 = lo1.min(*y);
+            hi1 = hi1.max(*y);
+        }
+        let half = ((hi0 - lo0).max(hi1 - lo1) * 0.55).max(0.05);
+        let (c0, c1) = ((lo0 + hi0) * 0.5, (lo1 + hi1) * 0.5);
+        Ok(Self { c0, c1, half })
+    }
+}
+
+/// The left panel: both paths from above along `axes`, the start marked, with a legend.
+fn draw_paths(
+    area: &Panel<'_>,
+    est_pts: &[DVec3],
+    gt_pts: &[DVec3],
+    (a0, a1): (usize, usize),
+    view: &SquareView,
+) -> Result<()> {
+    let SquareView { c0, c1, half } = *view;
+    let mut chart = ChartBuilder::on(area)
+        .caption("Camera path, seen from above", font(22))
+        .margin(16)
+        .x_label_area_size(48)
+        .y_label_area_size(64)
+        .build_cartesian_2d(c0 - half..c0 + half, c1 - half..c1 + half)
+        .map_err(plot_error)?;
+    chart
+        .configure_mesh()
+        .x_labels(6)
+        .x_desc(format!("{} [m]", AXIS_NAMES[a0]))
+        .y_desc(format!("{} [m]", AXIS_NAMES[a1]))
+        .label_style(font(15))
+        .axis_desc_style(font(17))
+        .draw()
+        .map_err(plot_error)?;
+    if gt_pts.len() >= 2 {
+        chart
+            .draw_series(LineSeries::new(
+                gt_pts.iter().map(|p| (p[a0], p[a1])),
+                GT_COLOR.stroke_width(3),
+            ))
+            .map_err(plot_error)?
+            .label("ground truth")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], GT_COLOR.stroke_width(3)));
+    }
+    chart
+        .draw_series(LineSeries::new(
+            est_pts
+                .iter()
+                .filter(|p| p.is_finite())
+                .map(|p| (p[a0], p[a1])),
+            EST_COLOR.stroke_width(2),
+        ))
+        .map_err(plot_error)?
+        .label("estimated")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], EST_COLOR.stroke_width(2)));
+    let start = est_pts[0];
+    chart
+        .draw_series(std::iter::once(Circle::new(
+            (start[a0], start[a1]),
+            6,
+            BLACK.filled(),
+        )))
+        .map_err(plot_error)?
+        .label("start")
+        .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
+    chart
+        .configure_series_labels()
+        .label_font(font(16))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(plot_error)?;
+    Ok(())
+}
+
+/// The right panel without an error curve: a line saying why (no ground truth, or no stamp
+/// in common). `size` is the whole figure's, pixels.
+fn draw_no_error_note(area: &Panel<'_>, no_ground_truth: bool, (w, h): (u32, u32)) -> Result<()> {
+    let msg = if no_ground_truth {
+        "no ground truth: translation error not plotted"
+    } else {
+        "no ground-truth stamp matches an estimated one"
+    };
+    area.draw(&Text::new(
+        msg,
+        ((w - w * 9 / 20) as i32 / 8, h as i32 / 2),
+        font(18),
+    ))
+    .map_err(plot_error)?;
+    Ok(())
+}
+
+/// The right panel: the translation error of each associated pose over the stamps, in
+/// millimetres, with its RMSE in the caption. `pairs` is not empty.
+fn draw_error(area: &Panel<'_>, pairs: &[(f64, DVec3, DVec3)]) -> Result<()> {
+    let errs: Vec<(f64, f64)> = pairs
+        .iter()
+        .map(|(s, e, g)| (*s, (*e - *g).length()))
+        .collect();
+    let (f0, f1) = (errs[0].0, errs[errs.len() - 1].0);
+    let f1 = if f1 > f0 { f1 } else { f0 + 1.0 };
+    let emax = errs
+        .iter()
+        .map(|e| e.1)
+        .filter(|e| e.is_finite())
+        .fold(0.0, f64::max);
+    let emax = if emax > 0.0 { emax * 1.1 } else { 0.01 };
+    let rmse = (errs.iter().map(|e| e.1 * e.1).sum::<f64>() / errs.len() as f64).sqrt();
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!(
+                "Translation error (no alignment), RMSE {:.1} mm",
+                rmse * 1000.0
+            ),
+            font(22),
+        )
+        .margin(16)
+        .x_label_area_size(48)
+        .y_label_area_size(72)
+        .build_cartesian_2d(f0..f1, 0.0..emax * 1000.0)
+        .map_err(plot_error)?;
+    chart
+        .configure_mesh()
+        .x_desc("frame (dataset stamp)")
+        .y_desc("|t_est - t_gt| [mm]")
+        .label_style(font(15))
+        .axis_desc_style(font(17))
+        .draw()
+        .map_err(plot_error)?;
+    chart
+        .draw_series(LineSeries::new(
+            errs.iter().map(|(s, e)| (*s, e * 1000.0)),
+            EST_COLOR.stroke_width(2),
+        ))
+        .map_err(plot_error)?
+        .label("translation error")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], EST_COLOR.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .label_font(font(16))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(plot_error)?;
+    Ok(())
 }
 
 /// Draws [`trajectory_plot`] at [`TRAJECTORY_PLOT_SIZE`] and writes it as a PNG at `path`,

@@ -223,38 +223,11 @@ pub fn register_with(
     init_source_to_target: DMat4,
     params: &IcpParams,
 ) -> Result<IcpResult> {
-    if source.is_empty() {
-        return Err(Error::Argument("source cloud is empty".into()));
-    }
-    if nn.points().is_empty() {
-        return Err(Error::Argument("target cloud is empty".into()));
-    }
-    if !params.radius.is_finite() || params.radius <= 0.0 {
-        return Err(Error::Argument(format!(
-            "rejection radius must be a positive number of metres, got {}",
-            params.radius
-        )));
-    }
-    if params.threshold.is_nan() || params.threshold < 0.0 {
-        return Err(Error::Argument(format!(
-            "threshold must be >= 0, got {}",
-            params.threshold
-        )));
-    }
-    if u32::try_from(source.len()).is_err() {
-        return Err(Error::Argument("source has more than 2^32 points".into()));
-    }
+    check_inputs(source, nn, params)?;
     let k = match params.samples {
         Samples::All => source.len(),
         Samples::Count(n) => n.min(source.len()),
     };
-    if let Some(f) = params.final_radius {
-        if !f.is_finite() || f <= 0.0 {
-            return Err(Error::Argument(format!(
-                "final radius must be a positive number of metres, got {f}"
-            )));
-        }
-    }
     let needed = params.min_inliers.max(3);
     let final_radius = params
         .final_radius
@@ -328,6 +301,40 @@ pub fn register_with(
         iterations,
         final_stats: stats_of(&acc, k, radius),
     })
+}
+
+/// Checks that both clouds have points, the source fewer than 2^32, and that the radii
+/// and the threshold are usable.
+fn check_inputs(source: &[[f32; 3]], nn: &dyn NearestNeighbours, params: &IcpParams) -> Result<()> {
+    if source.is_empty() {
+        return Err(Error::Argument("source cloud is empty".into()));
+    }
+    if nn.points().is_empty() {
+        return Err(Error::Argument("target cloud is empty".into()));
+    }
+    if !params.radius.is_finite() || params.radius <= 0.0 {
+        return Err(Error::Argument(format!(
+            "rejection radius must be a positive number of metres, got {}",
+            params.radius
+        )));
+    }
+    if params.threshold.is_nan() || params.threshold < 0.0 {
+        return Err(Error::Argument(format!(
+            "threshold must be >= 0, got {}",
+            params.threshold
+        )));
+    }
+    if u32::try_from(source.len()).is_err() {
+        return Err(Error::Argument("source has more than 2^32 points".into()));
+    }
+    if let Some(f) = params.final_radius {
+        if !f.is_finite() || f <= 0.0 {
+            return Err(Error::Argument(format!(
+                "final radius must be a positive number of metres, got {f}"
+            )));
+        }
+    }
+    Ok(())
 }
 
 fn stats_of(acc: &CrossCovariance, sampled: usize, radius: f64) -> IterationStats {

@@ -29,14 +29,16 @@ use glam::DMat4;
 use serde::Serialize;
 use wasm_bindgen::prelude::*;
 
-use crate::dataset::{self, SequenceOptions};
+use crate::dataset::{self, Sequence, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
 use crate::gpu::context::{DeviceOptions, GpuContext};
 use crate::gpu::GpuBackend;
 use crate::layout::map::SurfelMap;
 use crate::render::orbit::Orbit;
 use crate::slam::params::{Profile, SlamParams};
-use crate::tools::run::{output_bytes, run_observed, summary_lines, Decode, FrameOutcome, Metrics};
+use crate::tools::run::{
+    output_bytes, run_observed, summary_lines, Decode, FrameOutcome, Metrics, RunResult,
+};
 use crate::Result;
 use files::PageFiles;
 use view::{render_map, status_words, LiveView, Shown, VIEW_SIZE};
@@ -323,6 +325,9 @@ fn set_panic_hook() {
     }));
 }
 
+/// Runs dense SLAM over frames `first..=last` of the page's files (by default from the
+/// first frame with ground truth to the last) on the browser's GPU, showing each frame
+/// through the page's callbacks, and keeps the result (see [`keep_result`]).
 fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
     let (files, root, profile) =
         STATE.with_borrow(|s| (s.files.clone(), s.root.clone(), s.profile));
@@ -396,6 +401,13 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
         Some(&mut live),
     )?;
 
+    keep_result(result, &seq, key_kernels)
+}
+
+/// Keeps a finished run in the state: what the page shows of it ([`WebResult`], as JSON),
+/// its output files, its map and trajectory for [`wgslam_web_render`]. `key_kernels`:
+/// which key kernels ran.
+fn keep_result(result: RunResult, seq: &Sequence, key_kernels: &'static str) -> Result<()> {
     // As `trajectory.tum`: after loop closure when a loop bent it.
     let est = result.trajectory();
     let position = |(stamp, t): &(f64, DMat4)| {

@@ -19,104 +19,9 @@ impl CpuBackend {
         params.capacity = (count + n_pix) as u32;
         self.fused_view = None;
         let chunk = MapChunk::whole(count);
-        // Flags and offsets in append order (holes for tiles outside the image stay 0).
-        let n_slots = append_slots(params.camera.width, params.camera.height);
         let mut added = 0u32;
         for call in plan::fuse(&params) {
-            let m = &mut self.map;
-            match call {
-                FuseCall::Clear(Buffer::Assoc) => {
-                    self.assoc.clear();
-                    self.assoc.resize(n_pix, 0);
-                }
-                FuseCall::Clear(Buffer::Merged) => {
-                    self.merged.clear();
-                    self.merged.resize(2 * n_pix, [0.0; 4]);
-                }
-                FuseCall::Clear(Buffer::IndexMap) => {
-                    self.index_map.clear();
-                    self.index_map.resize(n_pix, 0);
-                }
-                FuseCall::BlockBounds => self.refresh_bounds(),
-                FuseCall::FuseSelect => cpu::fuse_select::fuse_select(
-                    &params,
-                    &self.frame.normal_depth,
-                    &chunk,
-                    &self.block_bounds,
-                    &m.position_weight,
-                    &m.normal_frame,
-                    &m.color,
-                    &mut self.assoc,
-                    &mut self.index_map,
-                ),
-                FuseCall::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
-                    &params,
-                    &self.frame.normal_depth,
-                    &self.frame.color,
-                    &chunk,
-                    bytemuck::cast_slice_mut(&mut self.block_bounds),
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &mut m.color,
-                    &self.assoc,
-                    &mut self.merged,
-                ),
-                FuseCall::FusePrune => cpu::fuse_prune::fuse_prune(
-                    &params,
-                    &chunk,
-                    &self.block_bounds,
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &m.color,
-                    &self.merged,
-                ),
-                FuseCall::FuseMerge => cpu::fuse_merge::fuse_merge(
-                    &params,
-                    &self.frame.normal_depth,
-                    &self.frame.color,
-                    &chunk,
-                    bytemuck::cast_slice_mut(&mut self.block_bounds),
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &mut m.color,
-                    &mut self.assoc,
-                ),
-                FuseCall::FuseFlags => {
-                    self.add_flags.resize(n_slots, 0);
-                    cpu::fuse_flags::fuse_flags(
-                        &params,
-                        &self.frame.normal_depth,
-                        &self.assoc,
-                        &self.merged,
-                        &mut self.add_flags,
-                    );
-                }
-                FuseCall::FuseScan => {
-                    self.add_offsets.resize(n_slots, 0);
-                    cpu::prefix_sum::scan(
-                        &scan_params(n_slots),
-                        &self.add_flags,
-                        &mut self.add_offsets,
-                        &mut added,
-                    );
-                }
-                FuseCall::FuseAdd => {
-                    // Room for every pixel, as the GPU backend guarantees before its dispatch.
-                    m.resize(params.capacity as usize);
-                    cpu::fuse_add::fuse_add(
-                        &params,
-                        &self.frame.normal_depth,
-                        &self.frame.color,
-                        &self.add_flags,
-                        &self.add_offsets,
-                        &MapChunk::whole(params.capacity as usize),
-                        &mut m.position_weight,
-                        &mut m.normal_frame,
-                        &mut m.color,
-                        &mut self.index_map,
-                    );
-                }
-            }
+            self.fuse_call(call, &params, &chunk, &mut added);
         }
         let new_len = count + added as usize;
         self.map.resize(new_len);
@@ -124,5 +29,121 @@ impl CpuBackend {
         self.bounds_dirty_from = self.bounds_dirty_from.min(count);
         self.fused_view = FusedView::of_fuse(&params);
         new_len
+    }
+
+    /// One call of `fuse`'s plan: a buffer cleared, or a kernel's twin run over the frame's
+    /// maps and `chunk` of the map. `added` receives the prefix sum's total, the number of
+    /// surfels `fuse_add` appends.
+    fn fuse_call(
+        &mut self,
+        call: FuseCall,
+        params: &FuseParams,
+        chunk: &MapChunk,
+        added: &mut u32,
+    ) {
+        let n_pix = (params.camera.width * params.camera.height) as usize;
+        // Flags and offsets in append order (holes for tiles outside the image stay 0).
+        let n_slots = append_slots(params.camera.width, params.camera.height);
+        let m = &mut self.map;
+        match call {
+            FuseCall::Clear(buffer) => self.clear_fuse_buffer(buffer, n_pix),
+            FuseCall::BlockBounds => self.refresh_bounds(),
+            FuseCall::FuseSelect => cpu::fuse_select::fuse_select(
+                params,
+                &self.frame.normal_depth,
+                chunk,
+                &self.block_bounds,
+                &m.position_weight,
+                &m.normal_frame,
+                &m.color,
+                &mut self.assoc,
+                &mut self.index_map,
+            ),
+            FuseCall::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
+                params,
+                &self.frame.normal_depth,
+                &self.frame.color,
+                chunk,
+                bytemuck::cast_slice_mut(&mut self.block_bounds),
+                &mut m.position_weight,
+                &mut m.normal_frame,
+                &mut m.color,
+                &self.assoc,
+                &mut self.merged,
+            ),
+            FuseCall::FusePrune => cpu::fuse_prune::fuse_prune(
+                params,
+                chunk,
+                &self.block_bounds,
+                &mut m.position_weight,
+                &mut m.normal_frame,
+                &m.color,
+                &self.merged,
+            ),
+            FuseCall::FuseMerge => cpu::fuse_merge::fuse_merge(
+                params,
+                &self.frame.normal_depth,
+                &self.frame.color,
+                chunk,
+                bytemuck::cast_slice_mut(&mut self.block_bounds),
+                &mut m.position_weight,
+                &mut m.normal_frame,
+                &mut m.color,
+                &mut self.assoc,
+            ),
+            FuseCall::FuseFlags => {
+                self.add_flags.resize(n_slots, 0);
+                cpu::fuse_flags::fuse_flags(
+                    params,
+                    &self.frame.normal_depth,
+                    &self.assoc,
+                    &self.merged,
+                    &mut self.add_flags,
+                );
+            }
+            FuseCall::FuseScan => {
+                self.add_offsets.resize(n_slots, 0);
+                cpu::prefix_sum::scan(
+                    &scan_params(n_slots),
+                    &self.add_flags,
+                    &mut self.add_offsets,
+                    added,
+                );
+            }
+            FuseCall::FuseAdd => {
+                // Room for every pixel, as the GPU backend guarantees before its dispatch.
+                m.resize(params.capacity as usize);
+                cpu::fuse_add::fuse_add(
+                    params,
+                    &self.frame.normal_depth,
+                    &self.frame.color,
+                    &self.add_flags,
+                    &self.add_offsets,
+                    &MapChunk::whole(params.capacity as usize),
+                    &mut m.position_weight,
+                    &mut m.normal_frame,
+                    &mut m.color,
+                    &mut self.index_map,
+                );
+            }
+        }
+    }
+
+    /// Empties one of fusion's per-pixel buffers to its size at `n_pix` pixels, all zero.
+    fn clear_fuse_buffer(&mut self, buffer: Buffer, n_pix: usize) {
+        match buffer {
+            Buffer::Assoc => {
+                self.assoc.clear();
+                self.assoc.resize(n_pix, 0);
+            }
+            Buffer::Merged => {
+                self.merged.clear();
+                self.merged.resize(2 * n_pix, [0.0; 4]);
+            }
+            Buffer::IndexMap => {
+                self.index_map.clear();
+                self.index_map.resize(n_pix, 0);
+            }
+        }
     }
 }

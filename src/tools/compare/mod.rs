@@ -13,6 +13,7 @@
 //! differences accumulate: its pose bound grows as a random walk of per-frame lockstep
 //! differences ([`tolerance::pose_max_mm`]); maps are judged by what matters.
 
+mod checks;
 pub mod decisions;
 mod fusion;
 mod map_match;
@@ -30,6 +31,7 @@ use glam::DMat4;
 use serde::Serialize;
 
 use crate::dataset::Sequence;
+use crate::layout::map::SurfelMap;
 use crate::layout::{ICP_COUNT_INDEX, ICP_SYSTEM_LEN};
 use crate::slam::backend::{Backend, FrameMaps, Inspect};
 use crate::slam::instrumented::Instrumented;
@@ -38,6 +40,7 @@ use crate::slam::pipeline::Slam;
 use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
 use crate::{geometry::se3, Result};
+use checks::{check_frame, check_map, Limits};
 
 pub mod tolerance;
 
@@ -62,70 +65,6 @@ impl Mode {
             Mode::Lockstep { .. } => "lockstep",
             Mode::Free => "free",
         }
-    }
-}
-
-/// The bounds a mode checks each frame (and the map) against; the frame-map bounds are
-/// the same in both modes and stay in [`tolerance`].
-struct Limits {
-    system_rel_diff: f64,
-    pose_mm: f64,
-    pose_deg: f64,
-    surfel_count_rel_diff: f64,
-    map_match_radius_m: f32,
-    map_unmatched_fraction: f64,
-    /// Fusion's gates, which bound how far a surfel moves when one decision goes the other
-    /// way (see [`tolerance::MAP_UNEXPLAINED_MAX_FRACTION`]).
-    map_explain_radius_m: f32,
-    map_explain_normal_deg: f32,
-    map_unexplained_fraction: f64,
-    map_weight_sum_rel_diff: f64,
-}
-
-impl Limits {
-    /// The map comparison's bounds.
-    fn map_bounds(&self) -> MapBounds {
-        MapBounds {
-            match_radius_m: self.map_match_radius_m,
-            explain_radius_m: self.map_explain_radius_m,
-            explain_normal_deg: self.map_explain_normal_deg,
-        }
-    }
-
-    fn of(mode: Mode, frames: usize, params: &SlamParams) -> Limits {
-        use tolerance::*;
-        let fusion = &params.fusion;
-        let explain = |l: Limits| Limits {
-            map_explain_radius_m: fusion.dist_m + MAP_MATCH_RADIUS_M,
-            map_explain_normal_deg: fusion.normal_deg.min(180.0),
-            ..l
-        };
-        explain(match mode {
-            Mode::Lockstep { .. } => Limits {
-                system_rel_diff: lockstep::SYSTEM_REL_DIFF_MAX,
-                pose_mm: lockstep::POSE_MAX_MM,
-                pose_deg: lockstep::POSE_MAX_DEG,
-                surfel_count_rel_diff: lockstep::SURFEL_COUNT_REL_DIFF_MAX,
-                map_match_radius_m: MAP_MATCH_RADIUS_M,
-                map_unmatched_fraction: lockstep::MAP_UNMATCHED_MAX_FRACTION,
-                map_explain_radius_m: 0.0,
-                map_explain_normal_deg: 0.0,
-                map_unexplained_fraction: MAP_UNEXPLAINED_MAX_FRACTION,
-                map_weight_sum_rel_diff: lockstep::MAP_WEIGHT_SUM_REL_DIFF_MAX,
-            },
-            Mode::Free => Limits {
-                system_rel_diff: SYSTEM_REL_DIFF_MAX,
-                pose_mm: pose_max_mm(frames),
-                pose_deg: pose_max_deg(frames),
-                surfel_count_rel_diff: SURFEL_COUNT_REL_DIFF_MAX,
-                map_match_radius_m: MAP_MATCH_RADIUS_M,
-                map_unmatched_fraction: map_unmatched_max_fraction(frames),
-                map_explain_radius_m: 0.0,
-                map_explain_normal_deg: 0.0,
-                map_unexplained_fraction: MAP_UNEXPLAINED_MAX_FRACTION,
-                map_weight_sum_rel_diff: MAP_WEIGHT_SUM_REL_DIFF_MAX,
-            },
-        })
     }
 }
 
@@ -349,65 +288,8 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
             sb.backend.upload_map(map)?;
             sb.set_t_world_to_cam(sa.t_world_to_cam());
         }
-        let raw = seq.load(i)?;
-        let rgba = packed_rgba(&raw);
-        let gt = seq.frames[i].gt_cam_to_world;
-        sa.backend.clear_frame();
-        sb.backend.clear_frame();
-        let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
-        let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
-        let (frame_a, frame_b) = (sa.backend.download_frame()?, sb.backend.download_frame()?);
-        let maps = diff_frame_maps(&frame_a, &frame_b);
-        // The first system at the finest level: the most rows, so a row whose gate one
-        // backend decides the other way by an ulp moves it least (at the coarsest level,
-        // 80x60, one such row of a large residual moved it by 2.3e-3 on noisy frame 40).
-        let finest = |s: &[(usize, [f64; ICP_SYSTEM_LEN])]| {
-            s.iter().find(|(level, _)| *level == 0).map(|(_, sys)| *sys)
-        };
-        let (first_a, first_b) = (
-            finest(&sa.backend.frame_systems),
-            finest(&sb.backend.frame_systems),
-        );
-        let (system_rel_diff, inliers) = match (first_a, first_b) {
-            (Some(x), Some(y)) => (
-                Some(system_rel_diff(&x, &y)),
-                Some((x[ICP_COUNT_INDEX] as u64, y[ICP_COUNT_INDEX] as u64)),
-            ),
-            _ => (None, None),
-        };
-        let (mm, deg) = pose_diff(&ra.t_cam_to_world, &rb.t_cam_to_world);
-        let fused_surfels = sa.backend.fused_surfels.zip(sb.backend.fused_surfels);
-        let (fusion, decisions) = match (&before, fused_surfels) {
-            (Some(before), Some(_)) => {
-                let (fa, fb) = (sa.backend.download_fusion()?, sb.backend.download_fusion()?);
-                let (ta, tb) = (sa.t_world_to_cam(), sb.t_world_to_cam());
-                let pa = ta.map(|t| sa.fuse_params(&t, i as u32));
-                let pb = tb.map(|t| sb.fuse_params(&t, i as u32));
-                let decisions = match (pa, pb) {
-                    (Some(pa), Some(pb)) => Some(decisions::check(
-                        before,
-                        &FusionSide {
-                            params: &pa,
-                            normal_depth: &frame_a.normal_depth,
-                            assoc: &fa.assoc,
-                        },
-                        &FusionSide {
-                            params: &pb,
-                            normal_depth: &frame_b.normal_depth,
-                            assoc: &fb.assoc,
-                        },
-                        best_candidate,
-                    )),
-                    _ => None,
-                };
-                (
-                    Some(FusionKernelDiff::of(&fa, &fb, best_candidate)),
-                    decisions,
-                )
-            }
-            _ => (None, None),
-        };
-        let map = match (&mut a_map, mode) {
+        let mut d = diff_frame(&mut sa, &mut sb, seq, i, before.as_ref(), best_candidate)?;
+        d.map = match (&mut a_map, mode) {
             (Some(a_map), Mode::Lockstep { map_every }) => {
                 *a_map = sa.backend.download_map()?;
                 if (k + 1) % map_every.max(1) == 0 || i == last {
@@ -418,19 +300,6 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
                 }
             }
             _ => None,
-        };
-        let d = FrameDiff {
-            index: i,
-            maps,
-            system_rel_diff,
-            inliers,
-            pose_diff_mm: mm,
-            pose_diff_deg: deg,
-            fused_surfels,
-            surfels: (ra.surfels, rb.surfels),
-            map,
-            fusion,
-            decisions,
         };
         check_frame(&d, &limits, compacts, best_candidate, &mut violations);
         worst.add_frame(&d);
@@ -460,140 +329,108 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     })
 }
 
-/// "x% / y% of points unmatched within r mm".
-fn describe_unmatched(m: &SurfelMapDiff) -> String {
-    format!(
-        "{:.4}% / {:.4}% of points unmatched within {} mm",
-        m.unmatched_a_fraction * 100.0,
-        m.unmatched_b_fraction * 100.0,
-        m.match_radius_m * 1e3
-    )
-}
-
-/// Pushes a line per bound `d` exceeds, naming the frame and the stage. `compacts`: the
-/// profile removes unstable surfels (otherwise the count after the frame is the fused one).
-fn check_frame(
-    d: &FrameDiff,
-    limits: &Limits,
-    compacts: bool,
+/// Runs frame `i` on both backends and measures how far apart they are at each stage: the
+/// frame maps, the first ICP system, the pose, the surfel counts and (when `before`, the
+/// map both fused into in lockstep, is given) fusion. The maps after the frame are the
+/// caller's to compare (`map` is None).
+fn diff_frame<A: Backend + Inspect, B: Backend + Inspect>(
+    sa: &mut Slam<Instrumented<A>>,
+    sb: &mut Slam<Instrumented<B>>,
+    seq: &Sequence,
+    i: usize,
+    before: Option<&SurfelMap>,
     best_candidate: bool,
-    violations: &mut Vec<String>,
-) {
-    use tolerance::*;
-    let i = d.index;
-    let mut check = |ok: bool, stage: &str, what: String| {
-        if !ok {
-            violations.push(format!("frame {i}: {stage}: {what}"));
+) -> Result<FrameDiff> {
+    let raw = seq.load(i)?;
+    let rgba = packed_rgba(&raw);
+    let gt = seq.frames[i].gt_cam_to_world;
+    sa.backend.clear_frame();
+    sb.backend.clear_frame();
+    let ra = sa.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
+    let rb = sb.process(i as u32, &raw.depth, &rgba, gt.as_ref())?;
+    let (frame_a, frame_b) = (sa.backend.download_frame()?, sb.backend.download_frame()?);
+    let maps = diff_frame_maps(&frame_a, &frame_b);
+    let (system_rel_diff, inliers) =
+        diff_first_systems(&sa.backend.frame_systems, &sb.backend.frame_systems);
+    let (mm, deg) = pose_diff(&ra.t_cam_to_world, &rb.t_cam_to_world);
+    let fused_surfels = sa.backend.fused_surfels.zip(sb.backend.fused_surfels);
+    let (fusion, decisions) = match (before, fused_surfels) {
+        (Some(before), Some(_)) => {
+            let frames = (&frame_a, &frame_b);
+            diff_fusion(sa, sb, i, before, frames, best_candidate)?
         }
+        _ => (None, None),
     };
-    check(
-        d.maps.vertex_max_abs_m <= VERTEX_MAX_ABS_M,
-        "preprocess",
-        format!("vertex difference {:.3e} m", d.maps.vertex_max_abs_m),
-    );
-    check(
-        d.maps.normal_max_deg <= NORMAL_MAX_DEG,
-        "preprocess",
-        format!("normal difference {:.4} deg", d.maps.normal_max_deg),
-    );
-    check(
-        d.maps.validity_mismatch_fraction <= VALIDITY_MISMATCH_MAX_FRACTION,
-        "preprocess",
-        format!(
-            "validity differs on {:.4}% of pixels",
-            d.maps.validity_mismatch_fraction * 100.0
+    Ok(FrameDiff {
+        index: i,
+        maps,
+        system_rel_diff,
+        inliers,
+        pose_diff_mm: mm,
+        pose_diff_deg: deg,
+        fused_surfels,
+        surfels: (ra.surfels, rb.surfels),
+        map: None,
+        fusion,
+        decisions,
+    })
+}
+
+/// The relative difference and the inlier counts (A, B) of the two backends' first ICP
+/// systems of a frame at the finest level; None on a frame without tracking.
+fn diff_first_systems(
+    a: &[(usize, [f64; ICP_SYSTEM_LEN])],
+    b: &[(usize, [f64; ICP_SYSTEM_LEN])],
+) -> (Option<f64>, Option<(u64, u64)>) {
+    // The first system at the finest level: the most rows, so a row whose gate one
+    // backend decides the other way by an ulp moves it least (at the coarsest level,
+    // 80x60, one such row of a large residual moved it by 2.3e-3 on noisy frame 40).
+    let finest = |s: &[(usize, [f64; ICP_SYSTEM_LEN])]| {
+        s.iter().find(|(level, _)| *level == 0).map(|(_, sys)| *sys)
+    };
+    match (finest(a), finest(b)) {
+        (Some(x), Some(y)) => (
+            Some(system_rel_diff(&x, &y)),
+            Some((x[ICP_COUNT_INDEX] as u64, y[ICP_COUNT_INDEX] as u64)),
         ),
-    );
-    if let Some(r) = d.system_rel_diff {
-        check(
-            r <= limits.system_rel_diff,
-            "first ICP system",
-            format!("relative difference {r:.3e}"),
-        );
-    }
-    let (mm, deg) = (d.pose_diff_mm, d.pose_diff_deg);
-    check(
-        mm <= limits.pose_mm && deg <= limits.pose_deg,
-        "pose after ICP",
-        format!("difference {mm:.5} mm, {deg:.6} deg"),
-    );
-    if let Some((ca, cb)) = d.fused_surfels {
-        check(
-            count_rel_diff((ca, cb)) <= limits.surfel_count_rel_diff,
-            "fusion",
-            match d
-                .fusion
-                .as_ref()
-                .and_then(|k| k.first_difference(best_candidate))
-            {
-                Some(first) => {
-                    format!("surfel counts {ca} vs {cb}; first kernel to differ: {first}")
-                }
-                None => format!("surfel counts {ca} vs {cb}"),
-            },
-        );
-    }
-    if compacts || d.fused_surfels.is_none() {
-        let (ca, cb) = d.surfels;
-        check(
-            count_rel_diff((ca, cb)) <= limits.surfel_count_rel_diff,
-            if compacts { "compaction" } else { "surfels" },
-            format!("surfel counts {ca} vs {cb}"),
-        );
-    }
-    if let Some(c) = &d.decisions {
-        check(
-            c.within(FUSION_CLEAR_FLIPS_MAX),
-            "fusion decisions",
-            format!(
-                "{} of {} pixels decided the other way clear of the knife edge (largest \
-                 margin {:.2e} of the gate); first: {}",
-                c.clear_flips,
-                c.differing_pixels,
-                c.worst_relative_margin,
-                c.first.as_deref().unwrap_or("-")
-            ),
-        );
-    }
-    if let Some(m) = &d.map {
-        check_map(m, limits, &mut |ok, what| {
-            check(ok, "map after the frame", what)
-        });
+        _ => (None, None),
     }
 }
 
-/// Calls `check(ok, what)` for each bound of a map comparison: every surfel explained by one
-/// of the other map's (within fusion's gates), the total weights, and the fraction without
-/// a partner within the match radius (the knife-edge decisions).
-fn check_map(m: &SurfelMapDiff, limits: &Limits, check: &mut dyn FnMut(bool, String)) {
-    check(
-        m.unexplained_fraction() <= limits.map_unexplained_fraction,
-        format!(
-            "{:.4}% / {:.4}% of surfels with no surfel of the other map within {} mm and {} deg \
-             (limit {:.4}%)",
-            m.unexplained_a_fraction * 100.0,
-            m.unexplained_b_fraction * 100.0,
-            m.explain_radius_m * 1e3,
-            m.explain_normal_deg,
-            limits.map_unexplained_fraction * 100.0
-        ),
-    );
-    check(
-        m.weight_sum_rel_diff() <= limits.map_weight_sum_rel_diff,
-        format!(
-            "total weights {:.1} vs {:.1}: relative difference {:.2e} (limit {:.1e})",
-            m.weight_sums.0,
-            m.weight_sums.1,
-            m.weight_sum_rel_diff(),
-            limits.map_weight_sum_rel_diff
-        ),
-    );
-    check(
-        m.unmatched_fraction() <= limits.map_unmatched_fraction,
-        format!(
-            "{} (limit {:.4}%)",
-            describe_unmatched(m),
-            limits.map_unmatched_fraction * 100.0
-        ),
-    );
+/// Frame `i`'s fusion on both backends, which both fused into `before`: kernel by kernel,
+/// and the pixels whose decision differs judged against their knife edges (when both
+/// backends have a pose). `frames`: the two backends' frame maps (A, B).
+fn diff_fusion<A: Backend + Inspect, B: Backend + Inspect>(
+    sa: &mut Slam<Instrumented<A>>,
+    sb: &mut Slam<Instrumented<B>>,
+    i: usize,
+    before: &SurfelMap,
+    (frame_a, frame_b): (&FrameMaps, &FrameMaps),
+    best_candidate: bool,
+) -> Result<(Option<FusionKernelDiff>, Option<DecisionCheck>)> {
+    let (fa, fb) = (sa.backend.download_fusion()?, sb.backend.download_fusion()?);
+    let (ta, tb) = (sa.t_world_to_cam(), sb.t_world_to_cam());
+    let pa = ta.map(|t| sa.fuse_params(&t, i as u32));
+    let pb = tb.map(|t| sb.fuse_params(&t, i as u32));
+    let decisions = match (pa, pb) {
+        (Some(pa), Some(pb)) => Some(decisions::check(
+            before,
+            &FusionSide {
+                params: &pa,
+                normal_depth: &frame_a.normal_depth,
+                assoc: &fa.assoc,
+            },
+            &FusionSide {
+                params: &pb,
+                normal_depth: &frame_b.normal_depth,
+                assoc: &fb.assoc,
+            },
+            best_candidate,
+        )),
+        _ => None,
+    };
+    Ok((
+        Some(FusionKernelDiff::of(&fa, &fb, best_candidate)),
+        decisions,
+    ))
 }

@@ -18,8 +18,59 @@ pub(super) fn listing(
     order: StampOrder,
 ) -> Result<Listing> {
     let mut order_notes = Vec::new();
-    // (stamp, rgb, depth) in order of depth stamp.
-    let (pairs, gt_file): (Vec<(f64, PathBuf, PathBuf)>, Option<PathBuf>) = match layout {
+    let (pairs, gt_file) = frame_pairs(root, layout, max_time_diff, order, &mut order_notes)?;
+    if pairs.is_empty() {
+        return Err(Error::format(
+            root,
+            format!(
+                "empty sequence: no colour/depth pairs{}",
+                if matches!(layout, Layout::Tum | Layout::Bonn | Layout::Eth3d) {
+                    format!(" within {max_time_diff} s of each other")
+                } else {
+                    String::new()
+                }
+            ),
+        ));
+    }
+    let LayoutIntrinsics {
+        intrinsics,
+        no_intrinsics,
+        image_size,
+    } = layout_intrinsics(root, layout, &pairs[0].2)?;
+    Ok(Listing {
+        frames: pairs
+            .into_iter()
+            .map(|(timestamp, rgb_path, depth_path)| FrameRecord {
+                timestamp,
+                rgb_path,
+                depth_path,
+                gt_cam_to_world: None,
+            })
+            .collect(),
+        gt_file,
+        intrinsics,
+        no_intrinsics,
+        image_size,
+        depth_scale: None,
+        conventions: FrameConventions::default(),
+        notes: order_notes,
+    })
+}
+
+/// `(stamp, rgb path, depth path)` of one frame.
+type FramePair = (f64, PathBuf, PathBuf);
+
+/// `(stamp, rgb, depth)` of every frame, in order of depth stamp (or of the depth list with
+/// [`StampOrder::File`]), and the ground-truth file when there is one. A note on a depth
+/// list out of stamp order goes to `order_notes`.
+fn frame_pairs(
+    root: &Path,
+    layout: Layout,
+    max_time_diff: f64,
+    order: StampOrder,
+    order_notes: &mut Vec<String>,
+) -> Result<(Vec<FramePair>, Option<PathBuf>)> {
+    Ok(match layout {
         Layout::IclNuim => {
             let assoc = icl::read_associations(&root.join("associations.txt"))?;
             let pairs = assoc
@@ -53,29 +104,26 @@ pub(super) fn listing(
             let gt = root.join("groundtruth.txt");
             (pairs, super::source::present(&gt).then_some(gt))
         }
-    };
-    if pairs.is_empty() {
-        return Err(Error::format(
-            root,
-            format!(
-                "empty sequence: no colour/depth pairs{}",
-                if matches!(layout, Layout::Tum | Layout::Bonn | Layout::Eth3d) {
-                    format!(" within {max_time_diff} s of each other")
-                } else {
-                    String::new()
-                }
-            ),
-        ));
-    }
-    let mut image_size = None;
-    let (intrinsics, no_intrinsics) = match layout {
-        Layout::IclNuim => (Some(Intrinsics::ICL_NUIM), String::new()),
-        Layout::Bonn => (Some(bonn::INTRINSICS), String::new()),
+    })
+}
+
+/// What a layout says of its camera: see [`Listing`]'s fields of the same names.
+struct LayoutIntrinsics {
+    intrinsics: Option<Intrinsics>,
+    no_intrinsics: String,
+    image_size: Option<(u32, u32)>,
+}
+
+/// The layout's intrinsics where it has them (ETH3D's from calibration.txt, with the image
+/// size read from `first_depth`), else why not; and the image size when read here.
+fn layout_intrinsics(root: &Path, layout: Layout, first_depth: &Path) -> Result<LayoutIntrinsics> {
+    let (intrinsics, no_intrinsics, image_size) = match layout {
+        Layout::IclNuim => (Some(Intrinsics::ICL_NUIM), String::new(), None),
+        Layout::Bonn => (Some(bonn::INTRINSICS), String::new(), None),
         Layout::Eth3d => {
             // calibration.txt has no image size: the depth images have it.
             let [fx, fy, cx, cy] = eth3d::read_calibration(&root.join(eth3d::CALIBRATION))?;
-            let (width, height) = frame::image_size(&pairs[0].2)?;
-            image_size = Some((width, height));
+            let (width, height) = frame::image_size(first_depth)?;
             let k = Intrinsics {
                 width,
                 height,
@@ -84,7 +132,7 @@ pub(super) fn listing(
                 cx,
                 cy,
             };
-            (Some(k), String::new())
+            (Some(k), String::new(), Some((width, height)))
         }
         _ => (
             None,
@@ -93,24 +141,12 @@ pub(super) fn listing(
                  (a preset such as fr1, fr2, fr3, or fx,fy,cx,cy) or add a camera.json",
                 root.display()
             ),
+            None,
         ),
     };
-    Ok(Listing {
-        frames: pairs
-            .into_iter()
-            .map(|(timestamp, rgb_path, depth_path)| FrameRecord {
-                timestamp,
-                rgb_path,
-                depth_path,
-                gt_cam_to_world: None,
-            })
-            .collect(),
-        gt_file,
+    Ok(LayoutIntrinsics {
         intrinsics,
         no_intrinsics,
         image_size,
-        depth_scale: None,
-        conventions: FrameConventions::default(),
-        notes: order_notes,
     })
 }

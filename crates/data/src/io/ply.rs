@@ -303,143 +303,187 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
         n.saturating_mul(types.len())
             .min(bytes.len().saturating_sub(body)),
     );
-
     match format {
         Format::BinaryLe => {
-            let truncated = |at: usize, what: &str| {
-                Error::format(
-                    path,
-                    format!(
-                        "truncated PLY body: {what} needs bytes up to offset {at}, file has {}",
-                        bytes.len()
-                    ),
-                )
-            };
-            let mut pos = body;
-            for el in &elements[..vi] {
-                // Scalar properties only: a fixed record size, skipped in one step.
-                let fixed: Option<usize> = el
-                    .props
-                    .iter()
-                    .map(|p| match p {
-                        Property::Scalar { ty, .. } => Some(ty.size()),
-                        Property::List { .. } => None,
-                    })
-                    .sum();
-                if let Some(row) = fixed {
-                    pos = el
-                        .count
-                        .checked_mul(row)
-                        .and_then(|b| b.checked_add(pos))
-                        .filter(|&end| end <= bytes.len())
-                        .ok_or_else(|| {
-                            Error::format(
-                                path,
-                                format!(
-                                    "truncated PLY body: {} `{}` records of {row} bytes from \
-                                     byte offset {pos} do not fit in the file's {} bytes",
-                                    el.count,
-                                    el.name,
-                                    bytes.len()
-                                ),
-                            )
-                        })?;
-                    continue;
-                }
-                for _ in 0..el.count {
-                    // Each record takes at least a byte: the loop ends with the file.
-                    if pos > bytes.len() {
-                        return Err(truncated(pos, &format!("element {}", el.name)));
-                    }
-                    for p in &el.props {
-                        match p {
-                            Property::Scalar { ty, .. } => pos += ty.size(),
-                            Property::List { count, item } => {
-                                let end = pos + count.size();
-                                let b = bytes.get(pos..end).ok_or_else(|| {
-                                    truncated(end, &format!("element {}", el.name))
-                                })?;
-                                let k = count.read_le(b);
-                                if k < 0.0 {
-                                    return Err(Error::format(
-                                        path,
-                                        format!("negative list length at byte offset {pos}"),
-                                    ));
-                                }
-                                pos = (k as usize)
-                                    .checked_mul(item.size())
-                                    .and_then(|b| b.checked_add(end))
-                                    .unwrap_or(usize::MAX);
-                            }
-                        }
-                    }
-                }
-                if pos > bytes.len() {
-                    return Err(truncated(pos, &format!("element {}", el.name)));
-                }
-            }
-            let stride: usize = types.iter().map(|t| t.size()).sum();
-            let end = n
-                .checked_mul(stride)
-                .and_then(|b| b.checked_add(pos))
-                .unwrap_or(usize::MAX);
-            if end > bytes.len() {
-                return Err(truncated(end, &format!("{n} vertices of {stride} bytes")));
-            }
-            for v in 0..n {
-                let mut at = pos + v * stride;
-                for ty in &types {
-                    rows.push(ty.read_le(&bytes[at..]));
-                    at += ty.size();
-                }
-            }
+            let pos = skip_binary_elements(path, &bytes, body, &elements[..vi])?;
+            read_binary_vertices(path, &bytes, pos, n, &types, &mut rows)?;
         }
         Format::Ascii => {
-            let text = std::str::from_utf8(&bytes[body..])
-                .map_err(|_| Error::format(path, "ASCII PLY body is not valid UTF-8"))?;
-            let header_lines = bytes[..body].iter().filter(|&&b| b == b'\n').count();
-            let mut lines = text
-                .lines()
-                .enumerate()
-                .map(|(i, l)| (header_lines + i + 1, l.trim()))
-                .filter(|(_, l)| !l.is_empty());
-            let skip = elements[..vi]
-                .iter()
-                .fold(0usize, |a, e| a.saturating_add(e.count));
-            for _ in 0..skip {
-                lines.next().ok_or_else(|| {
-                    Error::format(path, "truncated PLY body: ends before the vertex element")
-                })?;
-            }
-            for v in 0..n {
-                let (lineno, line) = lines.next().ok_or_else(|| {
+            read_ascii_vertices(path, &bytes, body, &elements[..vi], n, &types, &mut rows)?;
+        }
+    }
+    Ok(cloud_from_rows(&rows, n, &cols, &types))
+}
+
+/// The error for a binary body that ends before byte offset `at`, which `what` needs.
+fn truncated_error(path: &Path, file_len: usize, at: usize, what: &str) -> Error {
+    Error::format(
+        path,
+        format!("truncated PLY body: {what} needs bytes up to offset {at}, file has {file_len}"),
+    )
+}
+
+/// Skips the binary records of `elements` (those before the vertex element) from byte
+/// offset `pos`; returns the offset just after them.
+fn skip_binary_elements(
+    path: &Path,
+    bytes: &[u8],
+    mut pos: usize,
+    elements: &[Element],
+) -> Result<usize> {
+    let truncated = |at: usize, what: &str| truncated_error(path, bytes.len(), at, what);
+    for el in elements {
+        // Scalar properties only: a fixed record size, skipped in one step.
+        let fixed: Option<usize> = el
+            .props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar { ty, .. } => Some(ty.size()),
+                Property::List { .. } => None,
+            })
+            .sum();
+        if let Some(row) = fixed {
+            pos = el
+                .count
+                .checked_mul(row)
+                .and_then(|b| b.checked_add(pos))
+                .filter(|&end| end <= bytes.len())
+                .ok_or_else(|| {
                     Error::format(
                         path,
-                        format!("truncated PLY body: {n} vertices declared, only {v} found"),
+                        format!(
+                            "truncated PLY body: {} `{}` records of {row} bytes from \
+                             byte offset {pos} do not fit in the file's {} bytes",
+                            el.count,
+                            el.name,
+                            bytes.len()
+                        ),
                     )
                 })?;
-                let f: Vec<&str> = line.split_whitespace().collect();
-                if f.len() != types.len() {
-                    return Err(Error::parse(
-                        path,
-                        lineno,
-                        format!(
-                            "expected {} values per vertex, found {}",
-                            types.len(),
-                            f.len()
-                        ),
-                    ));
-                }
-                for s in f {
-                    let x: f64 = s.parse().map_err(|_| {
-                        Error::parse(path, lineno, format!("{s:?} is not a number"))
-                    })?;
-                    rows.push(x);
+            continue;
+        }
+        for _ in 0..el.count {
+            // Each record takes at least a byte: the loop ends with the file.
+            if pos > bytes.len() {
+                return Err(truncated(pos, &format!("element {}", el.name)));
+            }
+            for p in &el.props {
+                match p {
+                    Property::Scalar { ty, .. } => pos += ty.size(),
+                    Property::List { count, item } => {
+                        let end = pos + count.size();
+                        let b = bytes
+                            .get(pos..end)
+                            .ok_or_else(|| truncated(end, &format!("element {}", el.name)))?;
+                        let k = count.read_le(b);
+                        if k < 0.0 {
+                            return Err(Error::format(
+                                path,
+                                format!("negative list length at byte offset {pos}"),
+                            ));
+                        }
+                        pos = (k as usize)
+                            .checked_mul(item.size())
+                            .and_then(|b| b.checked_add(end))
+                            .unwrap_or(usize::MAX);
+                    }
                 }
             }
         }
+        if pos > bytes.len() {
+            return Err(truncated(pos, &format!("element {}", el.name)));
+        }
     }
+    Ok(pos)
+}
 
+/// Appends the `n` binary vertex records from byte offset `pos` to `rows`, one f64 per
+/// property of `types`.
+fn read_binary_vertices(
+    path: &Path,
+    bytes: &[u8],
+    pos: usize,
+    n: usize,
+    types: &[Scalar],
+    rows: &mut Vec<f64>,
+) -> Result<()> {
+    let truncated = |at: usize, what: &str| truncated_error(path, bytes.len(), at, what);
+    let stride: usize = types.iter().map(|t| t.size()).sum();
+    let end = n
+        .checked_mul(stride)
+        .and_then(|b| b.checked_add(pos))
+        .unwrap_or(usize::MAX);
+    if end > bytes.len() {
+        return Err(truncated(end, &format!("{n} vertices of {stride} bytes")));
+    }
+    for v in 0..n {
+        let mut at = pos + v * stride;
+        for ty in types {
+            rows.push(ty.read_le(&bytes[at..]));
+            at += ty.size();
+        }
+    }
+    Ok(())
+}
+
+/// Appends the `n` ASCII vertex lines to `rows`, one f64 per property of `types`, after
+/// skipping the lines of `before` (the elements before the vertex element). The body
+/// starts at byte `body`; errors name the line in the file.
+fn read_ascii_vertices(
+    path: &Path,
+    bytes: &[u8],
+    body: usize,
+    before: &[Element],
+    n: usize,
+    types: &[Scalar],
+    rows: &mut Vec<f64>,
+) -> Result<()> {
+    let text = std::str::from_utf8(&bytes[body..])
+        .map_err(|_| Error::format(path, "ASCII PLY body is not valid UTF-8"))?;
+    let header_lines = bytes[..body].iter().filter(|&&b| b == b'\n').count();
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (header_lines + i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty());
+    let skip = before.iter().fold(0usize, |a, e| a.saturating_add(e.count));
+    for _ in 0..skip {
+        lines.next().ok_or_else(|| {
+            Error::format(path, "truncated PLY body: ends before the vertex element")
+        })?;
+    }
+    for v in 0..n {
+        let (lineno, line) = lines.next().ok_or_else(|| {
+            Error::format(
+                path,
+                format!("truncated PLY body: {n} vertices declared, only {v} found"),
+            )
+        })?;
+        let f: Vec<&str> = line.split_whitespace().collect();
+        if f.len() != types.len() {
+            return Err(Error::parse(
+                path,
+                lineno,
+                format!(
+                    "expected {} values per vertex, found {}",
+                    types.len(),
+                    f.len()
+                ),
+            ));
+        }
+        for s in f {
+            let x: f64 = s
+                .parse()
+                .map_err(|_| Error::parse(path, lineno, format!("{s:?} is not a number")))?;
+            rows.push(x);
+        }
+    }
+    Ok(())
+}
+
+/// The cloud from the vertex table `rows` (`n` rows of `types.len()` values): positions,
+/// and normals, colours (as 8-bit) and weights where `cols` finds them.
+fn cloud_from_rows(rows: &[f64], n: usize, cols: &Columns, types: &[Scalar]) -> PlyCloud {
     let m = types.len();
     let get3 = |r: usize, c: [usize; 3]| {
         [
@@ -448,7 +492,7 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
             rows[r * m + c[2]] as f32,
         ]
     };
-    Ok(PlyCloud {
+    PlyCloud {
         positions: (0..n).map(|r| get3(r, cols.xyz)).collect(),
         normals: cols.normal.map(|c| (0..n).map(|r| get3(r, c)).collect()),
         colors: cols.color.map(|c| {
@@ -459,5 +503,5 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
         weights: cols
             .weight
             .map(|c| (0..n).map(|r| rows[r * m + c] as f32).collect()),
-    })
+    }
 }
