@@ -218,7 +218,7 @@ mod tests {
                 cx: 1.0,
                 cy: 1.0,
             }),
-            dist_m: dist_m,
+            dist_m,
             ..Zeroable::zeroed()
         })
     }

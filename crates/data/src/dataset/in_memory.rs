@@ -96,7 +96,7 @@ mod tests {
 
     #[test]
     fn the_bundled_frames_in_memory_open_and_decode_as_from_disk() {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/icl_living_room_kt2");
         let on_disk = open(&root, &SequenceOptions::default()).unwrap();
         let mut files = InMemoryFiles::default();
         read_folder(&root, &mut files);
