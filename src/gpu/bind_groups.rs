@@ -30,13 +30,11 @@ pub(super) struct BindGroups {
     pub vertex_to_normal_raw_points: wgpu::BindGroup,
     /// The map kernels' bind groups, one per map chunk.
     pub block_bounds: Vec<wgpu::BindGroup>,
-    pub project_model: Vec<wgpu::BindGroup>,
     pub icp_reduce: wgpu::BindGroup,
     /// `photo_reduce` over level 0 (RGB-D tracking).
     pub photo_reduce: wgpu::BindGroup,
     /// `intensity_pyramid` making level 0 from the colour map (RGB-D tracking).
     pub intensity_pyramid: wgpu::BindGroup,
-    pub fuse_select: Vec<wgpu::BindGroup>,
     /// The registry's `generic` kernels' bind groups by kernel name: one per map chunk,
     /// or one over the frame (see `super::kernels::Shape`).
     pub generic: BTreeMap<&'static str, Vec<wgpu::BindGroup>>,
@@ -170,18 +168,18 @@ impl BindGroups {
             vertex_to_normal: vertex_to_normal(&f.vertex, &f.vertex),
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex, &f.filtered_vertex),
             vertex_to_normal_raw_points: vertex_to_normal(&f.filtered_vertex, &f.vertex),
-            project_model: per_chunk(k.project_model.first(), u.project.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
             photo_reduce: photo_reduce(ctx, k, r, &frame),
             intensity_pyramid: intensity_pyramid(ctx, k, &f.color, &f.intensity),
-            fuse_select: per_chunk(k.fuse_select.first(), u.fuse.binding()),
             generic: k
                 .generic(u)
                 .into_iter()
                 .map(|row| {
+                    // A key kernel's passes share the first's layout.
+                    let kernel = &row.passes[0];
                     let groups = match row.shape {
-                        Shape::OverFrame => vec![over_frame(row.kernel, row.params, Vec::new())],
-                        Shape::PerChunk | Shape::PerBlock => per_chunk(row.kernel, row.params),
+                        Shape::OverFrame => vec![over_frame(kernel, row.params, Vec::new())],
+                        Shape::PerChunk | Shape::PerBlock => per_chunk(kernel, row.params),
                     };
                     (row.name, groups)
                 })

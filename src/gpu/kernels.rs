@@ -1,11 +1,14 @@
 //! The kernel registry: one row per kernel, pairing its shader `shaders/<name>.wgsl` with
 //! its CPU twin `crate::cpu::<name>::<name>` (the model is vello's
-//! `add_shader!(name, ..., CpuShaderType::Present(cpu::name))`). From the rows, the
-//! `registry!` macro below makes
+//! `add_shader!(name, ..., CpuShaderType::Present(cpu::name))`). Every fact about a kernel
+//! that the runtime needs is in its row, and every list of kernels is made from the rows by
+//! the `registry!` macro below:
 //!
 //! - [`KERNELS`], every kernel's `(name, text of its file)` for the runtime and the naga
-//!   tests (a key kernel's portable variant is a second entry over the same text, see
-//!   [`super::shaders::PORTABLE_KERNELS`]);
+//!   tests, with a second entry over the same text for each key kernel's portable variant;
+//! - [`PORTABLE_KERNELS`], the key kernels (rows marked `key`) with their portable
+//!   variants' names, and [`SCAN_KERNELS`], the kernels prefixed with `scan_common.wgsl`
+//!   (the `scan` group);
 //! - [`Kernels`], the dense pipeline's pipelines, one field per kernel named after it,
 //!   built once per backend by [`Kernels::new`];
 //! - for the `generic` rows, how the kernel is bound and dispatched ([`Shape`], and the
@@ -24,54 +27,93 @@ use super::kernel::{Kernel, KeyKernel};
 use super::resources::Uniforms;
 use crate::Result;
 
-/// One row per kernel, in five groups by how the kernel is built:
+/// The text of `shaders/<name>.wgsl`.
+macro_rules! shader_text {
+    ($name:ident) => {
+        include_str!(concat!("../../shaders/", stringify!($name), ".wgsl"))
+    };
+}
+
+/// One row per kernel, in groups by how the kernel is built and run. The `key` groups hold
+/// the key kernels, which keep the nearest surfel per pixel in a map of 64-bit keys (a
+/// [`KeyKernel`]: the 64-bit kernel, or on a device without 64-bit atomics its portable
+/// variant `<name>_portable`, the same file built without `KEY_64`; both are in
+/// [`KERNELS`] and [`PORTABLE_KERNELS`]).
 ///
-/// - `generic`: `name: Shape(uniform)`, a [`Kernel`] field of [`Kernels`] whose bind groups
-///   and passes the row decides ([`Shape`]; `uniform` is the `super::resources::Uniforms`
-///   field bound as its `params`): nothing else in `src/gpu/` names it;
-/// - `kernels`: a [`Kernel`] field of [`Kernels`] with bind groups in `super::bind_groups`
-///   and passes in `super::steps` or `super::single_steps` of its own;
-/// - `key_kernels`: a [`KeyKernel`] field (the 64-bit kernel, or its portable variant
-///   `<name>_portable` on a device without 64-bit atomics; both are in [`KERNELS`]);
-/// - `elsewhere`: built by the code that runs it (`deform_surfels` at the first loop
-///   closure, the scan registration's and the renderer's kernels);
-/// - `key_elsewhere`: a key kernel built by the code that runs it (the renderer's splat).
+/// - `generic`, `generic_keys`: `name: Shape(uniform)`, a field of [`Kernels`] whose bind
+///   groups and passes the row decides ([`Shape`]; `uniform` is the
+///   `super::resources::Uniforms` field bound as its `params`): nothing else in `src/gpu/`
+///   names it;
+/// - `kernels`, `key_kernels`: a field of [`Kernels`] with bind groups in
+///   `super::bind_groups` and passes in `super::steps` or `super::single_steps` of its own;
+/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (`deform_surfels` at the
+///   first loop closure, the renderer's kernels);
+/// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
+///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry {
     (
         generic: { $($generic:ident: $shape:ident($uniform:ident),)* }
+        generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
         elsewhere: { $($other:ident,)* }
         key_elsewhere: { $($other_key:ident,)* }
+        scan: { $($scan:ident,)* }
     ) => {
         /// Every kernel the runtime builds as `(name, text of shaders/<file_of(name)>.wgsl)`:
-        /// one row per file, plus one per portable variant of a key kernel (the same text,
-        /// see [`super::shaders::PORTABLE_KERNELS`]). `tests/it/shaders.rs` fails when a
-        /// `.wgsl` file is missing here.
+        /// one row per file, plus one per portable variant of a key kernel (the same text).
+        /// `tests/it/shaders.rs` fails when a `.wgsl` file is missing here.
         pub const KERNELS: &[(&str, &str)] = &[
-            $((stringify!($generic), include_str!(concat!("../../shaders/", stringify!($generic), ".wgsl"))),)*
-            $((stringify!($kernel), include_str!(concat!("../../shaders/", stringify!($kernel), ".wgsl"))),)*
-            $((stringify!($key), include_str!(concat!("../../shaders/", stringify!($key), ".wgsl"))),)*
-            $((concat!(stringify!($key), "_portable"), include_str!(concat!("../../shaders/", stringify!($key), ".wgsl"))),)*
-            $((stringify!($other), include_str!(concat!("../../shaders/", stringify!($other), ".wgsl"))),)*
-            $((stringify!($other_key), include_str!(concat!("../../shaders/", stringify!($other_key), ".wgsl"))),)*
-            $((concat!(stringify!($other_key), "_portable"), include_str!(concat!("../../shaders/", stringify!($other_key), ".wgsl"))),)*
+            $((stringify!($generic), shader_text!($generic)),)*
+            $((stringify!($generic_key), shader_text!($generic_key)),)*
+            $((stringify!($kernel), shader_text!($kernel)),)*
+            $((stringify!($key), shader_text!($key)),)*
+            $((stringify!($other), shader_text!($other)),)*
+            $((stringify!($other_key), shader_text!($other_key)),)*
+            $((stringify!($scan), shader_text!($scan)),)*
+            $((concat!(stringify!($generic_key), "_portable"), shader_text!($generic_key)),)*
+            $((concat!(stringify!($key), "_portable"), shader_text!($key)),)*
+            $((concat!(stringify!($other_key), "_portable"), shader_text!($other_key)),)*
         ];
+
+        /// The key kernels (the registry's `key` groups), each built in two variants from
+        /// its one file `shaders/<kernel>.wgsl` followed by `shaders/key_writer.wgsl`:
+        /// `(kernel, portable)`. The kernel (the file with `KEY_64` defined) keeps the
+        /// nearest surfel per pixel with one 64-bit `atomicMax` and needs `SHADER_INT64`
+        /// and `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file without
+        /// `KEY_64`) keeps the same 64-bit key as two u32 words, (low = index, high = depth
+        /// word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
+        /// then 1), and decides the same winner bit for bit. Every other kernel, portable
+        /// variants included, validates without 64-bit integers (`tests/it/shaders.rs`).
+        /// The CPU twin `crates/core/src/cpu/<kernel>.rs` serves both, generic over
+        /// `cpu::key_writer::KeyWriter`.
+        pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
+            $((stringify!($generic_key), concat!(stringify!($generic_key), "_portable")),)*
+            $((stringify!($key), concat!(stringify!($key), "_portable")),)*
+            $((stringify!($other_key), concat!(stringify!($other_key), "_portable")),)*
+        ];
+
+        /// The kernels prefixed with `scan_common.wgsl` instead of `common.wgsl` (the
+        /// registry's `scan` group).
+        pub const SCAN_KERNELS: &[&str] = &[$(stringify!($scan),)*];
 
         /// Each row's CPU twin, `crate::cpu::<name>::<name>`: this does not compile when
         /// one is missing.
         #[allow(unused_imports)]
         mod twins {
             $(use crate::cpu::$generic::$generic as _;)*
+            $(use crate::cpu::$generic_key::$generic_key as _;)*
             $(use crate::cpu::$kernel::$kernel as _;)*
             $(use crate::cpu::$key::$key as _;)*
             $(use crate::cpu::$other::$other as _;)*
             $(use crate::cpu::$other_key::$other_key as _;)*
+            $(use crate::cpu::$scan::$scan as _;)*
         }
 
         /// Every kernel of the dense pipeline, one field per kernel named after it.
         pub(super) struct Kernels {
             $(pub $generic: Kernel,)*
+            $(pub $generic_key: KeyKernel,)*
             $(pub $kernel: Kernel,)*
             $(pub $key: KeyKernel,)*
         }
@@ -81,31 +123,41 @@ macro_rules! registry {
             pub fn new(ctx: &GpuContext) -> Result<Kernels> {
                 Ok(Kernels {
                     $($generic: Kernel::new(ctx, stringify!($generic))?,)*
+                    $($generic_key: KeyKernel::new(ctx, stringify!($generic_key))?,)*
                     $($kernel: Kernel::new(ctx, stringify!($kernel))?,)*
                     $($key: KeyKernel::new(ctx, stringify!($key))?,)*
                 })
             }
 
-            /// The `generic` rows: each kernel's name, pipeline, [`Shape`] and parameters.
+            /// The `generic` rows: each kernel's name, passes, [`Shape`] and parameters.
             pub fn generic<'a>(&'a self, u: &'a Uniforms) -> Vec<GenericRow<'a>> {
-                vec![$(GenericRow {
-                    name: stringify!($generic),
-                    kernel: &self.$generic,
-                    shape: Shape::$shape,
-                    params: u.$uniform.binding(),
-                },)*]
+                vec![
+                    $(GenericRow {
+                        name: stringify!($generic),
+                        passes: std::slice::from_ref(&self.$generic),
+                        shape: Shape::$shape,
+                        params: u.$uniform.binding(),
+                    },)*
+                    $(GenericRow {
+                        name: stringify!($generic_key),
+                        passes: &self.$generic_key.passes,
+                        shape: Shape::$key_shape,
+                        params: u.$key_uniform.binding(),
+                    },)*
+                ]
             }
 
-            /// The `generic` rows' kernels.
-            pub fn generic_kernels(&self) -> Vec<&Kernel> {
-                vec![$(&self.$generic,)*]
-            }
-
-            /// The `generic` row's kernel `name` and its [`Shape`], or `None` for a kernel
-            /// with bind groups and passes of its own.
-            pub fn generic_kernel(&self, name: &str) -> Option<(&Kernel, Shape)> {
+            /// The `generic` row's passes for the kernel `name` (one kernel, or a key
+            /// kernel's passes in order) and its [`Shape`], or `None` for a kernel with bind
+            /// groups and passes of its own.
+            pub fn generic_kernel(&self, name: &str) -> Option<(&[Kernel], Shape)> {
                 match name {
-                    $(stringify!($generic) => Some((&self.$generic, Shape::$shape)),)*
+                    $(stringify!($generic) => {
+                        Some((std::slice::from_ref(&self.$generic), Shape::$shape))
+                    })*
+                    $(stringify!($generic_key) => {
+                        Some((&self.$generic_key.passes[..], Shape::$key_shape))
+                    })*
                     _ => None,
                 }
             }
@@ -116,7 +168,9 @@ macro_rules! registry {
 /// How a `generic` row's kernel is bound and dispatched: its bind groups take what the
 /// kernel's WGSL declares from the frame's pool of named resources (and each map chunk's),
 /// with the row's uniform as `params` (see `super::bind_groups`); its passes follow the
-/// plan (see `super::step_grid::StepGrid::generic`).
+/// plan (see `super::step_grid::StepGrid::generic`). A key kernel's passes run in turn,
+/// each over every bind group before the next (the portable kernel's second pass reads the
+/// first's result over the whole map).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Shape {
     /// One bind group over the frame's pool; one pass over the frame's pixels.
@@ -131,7 +185,9 @@ pub(super) enum Shape {
 /// One `generic` row of the registry, as [`Kernels::generic`] lends it.
 pub(super) struct GenericRow<'a> {
     pub name: &'static str,
-    pub kernel: &'a Kernel,
+    /// The kernel's passes: one, or a key kernel's (the first's layout makes the bind
+    /// groups).
+    pub passes: &'a [Kernel],
     pub shape: Shape,
     /// The row's uniform buffer, bound as the kernel's `params`.
     pub params: wgpu::BindingResource<'a>,
@@ -144,6 +200,12 @@ registry! {
         fuse_prune: PerBlock(fuse),
         fuse_merge: PerBlock(fuse),
         fuse_flags: OverFrame(fuse),
+    }
+    generic_keys: {
+        // The map's depth keys at the predicted view, and fusion's choice of surfel per
+        // pixel (best-candidate association).
+        project_model: PerBlock(project),
+        fuse_select: PerBlock(fuse),
     }
     kernels: {
         depth_to_vertex,
@@ -170,21 +232,22 @@ registry! {
         compact_scatter,
     }
     key_kernels: {
-        project_model,
-        fuse_select,
+        // Its passes depend on the association (see `super::step_grid`).
         fuse_add,
     }
     elsewhere: {
         // Loop closure's map deformation (src/gpu/loops.rs), built at the first closure.
         deform_surfels,
-        // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
-        nn_brute,
-        nn_grid,
-        cross_covariance,
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
         render_resolve,
     }
     key_elsewhere: {
         render_splat,
+    }
+    scan: {
+        // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
+        nn_brute,
+        nn_grid,
+        cross_covariance,
     }
 }

@@ -48,24 +48,9 @@ pub const ENTRIES: &[(&str, &str)] = &[
     ),
 ];
 
-/// Kernels prefixed with `scan_common.wgsl` instead of `common.wgsl`.
-pub const SCAN_KERNELS: &[&str] = &["nn_brute", "nn_grid", "cross_covariance"];
-
-/// The key kernels, each built in two variants from its one file `shaders/<kernel>.wgsl`
-/// followed by [`KEY_WRITER`]: `(kernel, portable)`. The kernel (the file with [`KEY_64`]
-/// defined) keeps the nearest surfel per pixel with one 64-bit `atomicMax` and needs
-/// `SHADER_INT64` and `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file
-/// without [`KEY_64`]) keeps the same 64-bit key as two u32 words, (low = index, high =
-/// depth word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
-/// then 1), and decides the same winner bit for bit. Every other kernel, portable variants
-/// included, validates without 64-bit integers (`tests/it/shaders.rs`). The CPU twin
-/// `crates/core/src/cpu/<kernel>.rs` serves both, generic over `cpu::key_writer::KeyWriter`.
-pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
-    ("project_model", "project_model_portable"),
-    ("fuse_select", "fuse_select_portable"),
-    ("fuse_add", "fuse_add_portable"),
-    ("render_splat", "render_splat_portable"),
-];
+/// The kernels prefixed with `scan_common.wgsl`, and the key kernels with their portable
+/// variants: both made from the kernel registry's rows (`src/gpu/kernels.rs`).
+pub use super::kernels::{PORTABLE_KERNELS, SCAN_KERNELS};
 
 /// The name of the `override` constant that picks a portable kernel's pass (0: the high
 /// word, 1: the index word).

@@ -2,36 +2,61 @@
 //! groups are lent out, and the checks and look-ups the steps share. Not the steps
 //! themselves (see `super::steps`).
 
-use std::collections::BTreeMap;
-
 use super::bind_groups::BindGroups;
 use super::context::GpuContext;
-use super::kernel::{Kernel, KeyKernel};
+use super::kernel::{image_grid, Kernel, KeyKernel};
 use super::kernels::{Kernels, Shape};
 use super::recording::Pass;
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use crate::slam::backend::PyramidLevel;
 use crate::{Error, Result};
 
-/// The workgroups of one step's passes, worked out before its bind groups are lent out.
-#[derive(Default)]
+/// The workgroups of one step's passes, worked out before its bind groups are lent out:
+/// the sizes of the frame and its pyramid levels (a per-pixel kernel's grid follows from
+/// them and the kernel's workgroup size), the map chunks' workgroups and the stale block
+/// boxes.
 pub(super) struct StepGrid {
     /// The stale block boxes' `block_bounds` passes, `(chunk, workgroups)`.
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, block-walking and grid-stride workgroups (see `chunk_workgroups`).
     pub chunks: Vec<(u32, u32)>,
-    /// Per-pixel kernels at the frame's size, by kernel name.
-    pub image: BTreeMap<&'static str, [u32; 2]>,
-    /// Per coarser pyramid level, the grids of the level's kernels, by kernel name.
-    pub levels: Vec<BTreeMap<&'static str, [u32; 2]>>,
+    /// The frame's `[width, height]` in pixels.
+    frame: [u32; 2],
+    /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
+    levels: Vec<[u32; 2]>,
+    /// [`GpuContext::grid_workgroups_cap`] and [`GpuContext::is_cpu_adapter`] (see
+    /// [`image_grid`]).
+    cap: u32,
+    cpu_adapter: bool,
 }
 
 impl StepGrid {
-    pub fn image(&self, kernel: &str) -> [u32; 2] {
-        self.image[kernel]
+    /// The grids of a step over a `frame` of `[width, height]` pixels and its coarser
+    /// pyramid `levels` (1, 2, ...), with no map chunks and no stale boxes.
+    pub fn new(ctx: &GpuContext, frame: [u32; 2], levels: Vec<[u32; 2]>) -> StepGrid {
+        StepGrid {
+            bounds: Vec::new(),
+            chunks: Vec::new(),
+            frame,
+            levels,
+            cap: ctx.grid_workgroups_cap(),
+            cpu_adapter: ctx.is_cpu_adapter(),
+        }
     }
-    pub fn level(&self, level: usize, kernel: &str) -> [u32; 2] {
-        self.levels[level - 1][kernel]
+    /// A per-pixel `kernel`'s workgroups over the frame.
+    pub fn image(&self, kernel: &Kernel) -> [u32; 2] {
+        self.over(kernel, self.frame)
+    }
+    /// A per-pixel `kernel`'s workgroups over pyramid level `level >= 1`.
+    pub fn level(&self, level: usize, kernel: &Kernel) -> [u32; 2] {
+        self.over(kernel, self.levels[level - 1])
+    }
+    fn over(&self, kernel: &Kernel, [width, height]: [u32; 2]) -> [u32; 2] {
+        image_grid(
+            kernel.workgroups_for_image(width, height),
+            self.cap,
+            self.cpu_adapter,
+        )
     }
     /// One pass of `kernel` per map chunk with the chunk's block-walking workgroups.
     pub fn per_block<'a>(
@@ -45,36 +70,26 @@ impl StepGrid {
             .map(|(g, &(blocks, _))| (kernel, g, [blocks, 1]))
             .collect()
     }
-    /// [`StepGrid::per_block`] for each pass of a key kernel in turn: every chunk of a
-    /// pass before the next pass (the portable kernels' second pass reads the first's
-    /// result over the whole map).
-    pub fn per_block_keys<'a>(
-        &self,
-        kernel: &'a KeyKernel,
-        groups: &'a [wgpu::BindGroup],
-    ) -> Vec<Pass<'a>> {
-        kernel
-            .passes
-            .iter()
-            .flat_map(|pass| self.per_block(pass, groups))
-            .collect()
-    }
     /// The passes of a `generic` kernel of the registry (see `super::kernels::Shape`):
     /// per bind group a pass over the frame's pixels, or per map chunk one workgroup per
-    /// block. Panics on a kernel with neither a `generic` row nor an arm of its own in its
-    /// step (an internal contract: every planned kernel has one or the other).
+    /// block; a key kernel's passes in turn, each over every bind group. Panics on a
+    /// kernel with neither a `generic` row nor an arm of its own in its step (an internal
+    /// contract: every planned kernel has one or the other).
     pub fn generic<'a>(&self, k: &'a Kernels, bg: &'a BindGroups, kernel: &str) -> Vec<Pass<'a>> {
-        let (pipeline, shape) = k.generic_kernel(kernel).unwrap_or_else(|| {
+        let (passes, shape) = k.generic_kernel(kernel).unwrap_or_else(|| {
             panic!("`{kernel}` has neither a `generic` row in gpu::kernels nor an arm in its step")
         });
         let groups = &bg.generic[kernel];
-        match shape {
-            Shape::PerBlock => self.per_block(pipeline, groups),
-            Shape::OverFrame | Shape::PerChunk => groups
-                .iter()
-                .map(|g| (pipeline, g, self.image(kernel)))
-                .collect(),
-        }
+        let wg = self.image(&passes[0]);
+        passes
+            .iter()
+            .flat_map(|pass| match shape {
+                Shape::PerBlock => self.per_block(pass, groups),
+                Shape::OverFrame | Shape::PerChunk => {
+                    groups.iter().map(|g| (pass, g, wg)).collect()
+                }
+            })
+            .collect()
     }
     /// The `block_bounds` passes over the stale boxes.
     pub fn bounds<'a>(&self, k: &'a Kernels, bg: &'a BindGroups) -> Vec<Pass<'a>> {
@@ -116,38 +131,6 @@ pub(super) fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -
     Ok(())
 }
 
-/// The image grids of per-pixel `kernels` and of the registry's `generic` kernels over the
-/// frame's `width x height` maps, by kernel name.
-pub(super) fn frame_grids(
-    ctx: &GpuContext,
-    k: &Kernels,
-    kernels: &[&Kernel],
-    width: u32,
-    height: u32,
-) -> BTreeMap<&'static str, [u32; 2]> {
-    let generic = k.generic_kernels();
-    let all: Vec<&Kernel> = kernels.iter().copied().chain(generic).collect();
-    image_grids(ctx, &all, width, height)
-}
-
-/// The image grids of per-pixel `kernels` over a `width x height` map, by kernel name.
-pub(super) fn image_grids(
-    ctx: &GpuContext,
-    kernels: &[&Kernel],
-    width: u32,
-    height: u32,
-) -> BTreeMap<&'static str, [u32; 2]> {
-    kernels
-        .iter()
-        .map(|k| {
-            (
-                kernel_name(k),
-                k.grid_workgroups_for_image(ctx, width, height),
-            )
-        })
-        .collect()
-}
-
 /// How many of `fuse_add`'s passes a fuse step runs: all with best-candidate association;
 /// without it only the first (the portable kernel's second pass only sets the index words
 /// of the index map, which projective association does not build).
@@ -157,13 +140,4 @@ pub(super) fn key_passes_of_fuse_add(params: &FuseParams, fuse_add: &KeyKernel) 
     } else {
         1
     }
-}
-
-/// A kernel's name as the `'static` key of a [`StepGrid`] map.
-pub(super) fn kernel_name(kernel: &Kernel) -> &'static str {
-    crate::gpu::shaders::KERNELS
-        .iter()
-        .map(|(name, _)| *name)
-        .find(|name| *name == kernel.name)
-        .expect("every kernel is in shaders::KERNELS")
 }

@@ -13,7 +13,7 @@ use super::compaction::CompactionGroups;
 use super::context::GpuContext;
 use super::kernels::Kernels;
 use super::recording::{record_call, record_passes, submit_profiled, Pass};
-use super::step_grid::{check_pyramid, frame_grids, image_grids, key_passes_of_fuse_add, StepGrid};
+use super::step_grid::{check_pyramid, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
@@ -88,24 +88,8 @@ impl Backend for GpuBackend {
             }
             Ok(())
         })?;
-        let (w, h) = (params.camera.width, params.camera.height);
-        let (k, ctx) = (&self.kernels, &self.ctx);
-        let grid = StepGrid {
-            image: image_grids(
-                ctx,
-                &[&k.depth_to_vertex, &k.bilateral_filter, &k.vertex_to_normal],
-                w,
-                h,
-            ),
-            levels: pyramid
-                .iter()
-                .map(|p| {
-                    let kernels = [&k.pyramid_depth, &k.vertex_to_normal];
-                    image_grids(ctx, &kernels, p.down.camera.width, p.down.camera.height)
-                })
-                .collect(),
-            ..StepGrid::default()
-        };
+        let levels = pyramid.iter().map(|p| size(&p.down.camera)).collect();
+        let grid = StepGrid::new(&self.ctx, size(&params.camera), levels);
         let plan = plan::preprocess(bilateral, pyramid.len());
         let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
@@ -143,17 +127,9 @@ impl Backend for GpuBackend {
             )));
         }
         let plan = plan::predict(project, pyramid.len());
-        let (k, ctx) = (&self.kernels, &self.ctx);
-        let mut grid = StepGrid {
-            image: frame_grids(ctx, k, &[], f.width, f.height),
-            levels: f
-                .levels
-                .iter()
-                .map(|l| image_grids(ctx, &[&k.pyramid_model], l.width, l.height))
-                .collect(),
-            chunks: self.chunk_workgroups(k.project_model.first()),
-            ..StepGrid::default()
-        };
+        let levels = f.levels.iter().map(|l| [l.width, l.height]).collect();
+        let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], levels);
+        grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
         if plan.contains(&PredictCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
@@ -168,15 +144,13 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    PredictCall::ProjectModel => {
-                        grid.per_block_keys(&k.project_model, &bg.project_model)
-                    }
                     PredictCall::PyramidModel { level } => vec![(
                         &k.pyramid_model,
                         &bg.levels[level - 1].pyramid_model,
-                        grid.level(level, "pyramid_model"),
+                        grid.level(level, &k.pyramid_model),
                     )],
-                    // `predict_model`: bound and dispatched by its registry row.
+                    // `project_model`, `predict_model`: bound and dispatched by their
+                    // registry rows.
                     generic => grid.generic(k, bg, generic.kernel()),
                 };
                 record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
@@ -314,12 +288,9 @@ impl Backend for GpuBackend {
         params.surfel_count = self.count as u32;
         params.capacity = self.capacity() as u32;
         let plan = plan::fuse(&params);
-        let (f, k, ctx) = (self.frame(), &self.kernels, &self.ctx);
-        let mut grid = StepGrid {
-            image: frame_grids(ctx, k, &[k.fuse_add.first()], f.width, f.height),
-            chunks: self.chunk_workgroups(&self.kernels.fuse_merge),
-            ..StepGrid::default()
-        };
+        let f = self.frame();
+        let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], Vec::new());
+        grid.chunks = self.chunk_workgroups(&self.kernels.fuse_merge);
         if plan.contains(&FuseCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
@@ -343,8 +314,6 @@ impl Backend for GpuBackend {
                         Vec::new()
                     }
                     FuseCall::BlockBounds => grid.bounds(k, bg),
-                    // Surfels pick pixels, then each picked surfel merges from its pixel.
-                    FuseCall::FuseSelect => grid.per_block_keys(&k.fuse_select, &bg.fuse_select),
                     FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
                     // Each pass over every chunk (one pass, or the portable kernel's two;
                     // its second only sets index words, which projective association
@@ -353,12 +322,13 @@ impl Backend for GpuBackend {
                         [..key_passes_of_fuse_add(&params, &k.fuse_add)]
                         .iter()
                         .flat_map(|pass| {
-                            let wg = grid.image(&k.fuse_add.first().name);
+                            let wg = grid.image(k.fuse_add.first());
                             bg.fuse_add.iter().map(move |g| (pass, g, wg))
                         })
                         .collect(),
-                    // `fuse_merge_chosen`, `fuse_prune`, `fuse_merge`, `fuse_flags`: bound
-                    // and dispatched by their registry rows.
+                    // `fuse_select` (surfels pick pixels, then each picked surfel merges
+                    // from its pixel: `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`,
+                    // `fuse_flags`: bound and dispatched by their registry rows.
                     generic => grid.generic(k, bg, generic.kernel()),
                 };
                 record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
@@ -546,12 +516,12 @@ fn preprocess_pass<'a>(
         PreprocessCall::DepthToVertex => (
             &k.depth_to_vertex,
             &bg.depth_to_vertex,
-            grid.image("depth_to_vertex"),
+            grid.image(&k.depth_to_vertex),
         ),
         PreprocessCall::BilateralFilter => (
             &k.bilateral_filter,
             &bg.bilateral_filter,
-            grid.image("bilateral_filter"),
+            grid.image(&k.bilateral_filter),
         ),
         PreprocessCall::VertexToNormal {
             level: 0,
@@ -564,12 +534,12 @@ fn preprocess_pass<'a>(
                 (true, false) => &bg.vertex_to_normal_raw_points,
                 (false, _) => &bg.vertex_to_normal,
             },
-            grid.image("vertex_to_normal"),
+            grid.image(&k.vertex_to_normal),
         ),
         PreprocessCall::VertexToNormal { level, .. } => (
             &k.vertex_to_normal,
             &bg.levels[level - 1].vertex_to_normal,
-            grid.level(level, "vertex_to_normal"),
+            grid.level(level, &k.vertex_to_normal),
         ),
         PreprocessCall::PyramidDepth { level, filtered } => {
             let g = &bg.levels[level - 1];
@@ -579,8 +549,13 @@ fn preprocess_pass<'a>(
                     true => &g.pyramid_depth_filtered,
                     false => &g.pyramid_depth,
                 },
-                grid.level(level, "pyramid_depth"),
+                grid.level(level, &k.pyramid_depth),
             )
         }
     }
+}
+
+/// A camera's image size, `[width, height]` in pixels.
+fn size(camera: &crate::layout::Camera) -> [u32; 2] {
+    [camera.width, camera.height]
 }
