@@ -171,7 +171,7 @@ impl GpuBackend {
         if per_stage < MAX_STORAGE_TEXTURES_USED {
             return Err(Error::Gpu(format!(
                 "adapter \"{}\" allows {per_stage} storage textures per shader stage; \
-                 predict_model needs {MAX_STORAGE_TEXTURES_USED}; use --backend cpu",
+                 the prediction kernel needs {MAX_STORAGE_TEXTURES_USED}; use --backend cpu",
                 ctx.adapter_info().name
             )));
         }
@@ -386,24 +386,30 @@ impl GpuBackend {
     }
 
     /// Per map chunk, the workgroups of a block-walking kernel (`project_model`,
-    /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block, capped by
-    /// [`GpuContext::block_workgroups_cap`]) and of a grid-stride kernel over the chunk's
-    /// live surfels (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size,
-    /// capped by [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop
-    /// covers the rest).
-    pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<(u32, u32)> {
-        let (block_cap, cap) = (
-            self.ctx.block_workgroups_cap(),
-            self.ctx.grid_workgroups_cap(),
-        );
+    /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block holding live
+    /// surfels, capped by [`GpuContext::block_workgroups_cap`]).
+    pub(super) fn chunk_blocks(&self) -> Vec<u32> {
+        let cap = self.ctx.block_workgroups_cap();
         self.map
             .chunks
             .iter()
             .map(|ch| {
-                let live = ch.live(self.count);
-                let blocks = live.div_ceil(BLOCK_SURFELS as usize) as u32;
-                (blocks.min(block_cap), kernel.workgroups_for(live).min(cap))
+                let blocks = ch.live(self.count).div_ceil(BLOCK_SURFELS as usize) as u32;
+                blocks.min(cap)
             })
+            .collect()
+    }
+
+    /// Per map chunk, the workgroups of a grid-stride kernel over the chunk's live surfels
+    /// (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size, capped by
+    /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the
+    /// rest).
+    pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<u32> {
+        let cap = self.ctx.grid_workgroups_cap();
+        self.map
+            .chunks
+            .iter()
+            .map(|ch| kernel.workgroups_for(ch.live(self.count)).min(cap))
             .collect()
     }
 

@@ -93,6 +93,13 @@ macro_rules! registry {
             $((stringify!($other_key), concat!(stringify!($other_key), "_portable")),)*
         ];
 
+        /// The kernels of the `generic` rows, bound and dispatched by their rows alone
+        /// (`tests/it/kernel_places.rs` checks that nothing else in the engine names them).
+        pub const GENERIC_KERNELS: &[&str] = &[
+            $(stringify!($generic),)*
+            $(stringify!($generic_key),)*
+        ];
+
         /// The kernels prefixed with `scan_common.wgsl` instead of `common.wgsl` (the
         /// registry's `scan` group).
         pub const SCAN_KERNELS: &[&str] = &[$(stringify!($scan),)*];

@@ -85,7 +85,7 @@ pub fn defines_of(kernel_name: &str) -> &'static [&'static str] {
 
 /// Every kernel the runtime builds as `(name, text)`: made from the kernel registry's
 /// rows (`src/gpu/kernels.rs`), one per kernel pairing its file and its CPU twin.
-pub use super::kernels::KERNELS;
+pub use super::kernels::{GENERIC_KERNELS, KERNELS};
 
 /// The kernel file's text alone (without `common.wgsl`, not preprocessed), or `None` for an
 /// unknown name.

@@ -18,8 +18,8 @@ use crate::{Error, Result};
 pub(super) struct StepGrid {
     /// The stale block boxes' `block_bounds` passes, `(chunk, workgroups)`.
     pub bounds: Vec<(usize, u32)>,
-    /// Per map chunk, block-walking and grid-stride workgroups (see `chunk_workgroups`).
-    pub chunks: Vec<(u32, u32)>,
+    /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
+    pub chunks: Vec<u32>,
     /// The frame's `[width, height]` in pixels.
     frame: [u32; 2],
     /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
@@ -67,7 +67,7 @@ impl StepGrid {
         groups
             .iter()
             .zip(&self.chunks)
-            .map(|(g, &(blocks, _))| (kernel, g, [blocks, 1]))
+            .map(|(g, &blocks)| (kernel, g, [blocks, 1]))
             .collect()
     }
     /// The passes of a `generic` kernel of the registry (see `super::kernels::Shape`):

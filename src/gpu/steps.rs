@@ -129,7 +129,7 @@ impl Backend for GpuBackend {
         let plan = plan::predict(project, pyramid.len());
         let levels = f.levels.iter().map(|l| [l.width, l.height]).collect();
         let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], levels);
-        grid.chunks = self.chunk_workgroups(self.kernels.project_model.first());
+        grid.chunks = self.chunk_blocks();
         if plan.contains(&PredictCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
@@ -290,7 +290,7 @@ impl Backend for GpuBackend {
         let plan = plan::fuse(&params);
         let f = self.frame();
         let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], Vec::new());
-        grid.chunks = self.chunk_workgroups(&self.kernels.fuse_merge);
+        grid.chunks = self.chunk_blocks();
         if plan.contains(&FuseCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
@@ -389,13 +389,13 @@ impl Backend for GpuBackend {
                         .flags
                         .iter()
                         .zip(&flags_wg)
-                        .map(|(group, &(_, wg))| (&k.compact_flags, group, [wg, 1]))
+                        .map(|(group, &wg)| (&k.compact_flags, group, [wg, 1]))
                         .collect(),
                     CompactCall::Scan => g.scan.passes(k, n),
                     CompactCall::Scatter => scatter_wg
                         .iter()
                         .enumerate()
-                        .flat_map(|(s, &(_, wg))| {
+                        .flat_map(|(s, &wg)| {
                             // Pair (s, d) has SCATTER_ATTRIBUTES bind groups in a row.
                             (0..=s).flat_map(move |d| {
                                 (0..SCATTER_ATTRIBUTES).map(move |a| {

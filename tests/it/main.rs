@@ -20,6 +20,7 @@ mod gpu_parity;
 mod gpu_smoke;
 mod hostile;
 mod inputs;
+mod kernel_places;
 mod layout;
 mod loop_closure;
 mod mesh;
@@ -61,6 +62,7 @@ fn main() -> ExitCode {
         gpu_smoke,
         hostile,
         inputs,
+        kernel_places,
         layout,
         loop_closure,
         mesh,

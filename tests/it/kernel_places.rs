@@ -1,0 +1,296 @@
+//! Where each kernel is named in the code (comments and unit tests left out): its base
+//! places ([`base_places`]: its registry row, its shader, its twin and the twin's `pub mod`
+//! line, its plan call and the CPU backend's side of it; tests anywhere), and for a kernel
+//! that no `generic` row runs the places of [`OWN_PLACES`], each with its reason. A kernel
+//! named anywhere else fails, and so does an entry of [`OWN_PLACES`] that no longer names
+//! its kernel (drop it). This is the count `docs/extending.md` gives: a `generic` kernel
+//! has its base places alone. No GPU needed.
+
+use crate::common;
+
+use std::path::{Path, PathBuf};
+
+use common::harness::plain;
+use wgslam::gpu::shaders;
+
+pub fn tests() -> Vec<common::harness::Test> {
+    vec![plain(
+        "each_kernel_is_named_in_its_places_alone",
+        each_kernel_is_named_in_its_places_alone,
+    )]
+}
+
+/// The GPU backend's bind groups and its steps: a kernel that fits no `Shape` of the
+/// registry has its bind group and its arm there (`docs/extending.md`, "2 more").
+const BIND: &str = "src/gpu/bind_groups.rs";
+const STEPS: &str = "src/gpu/steps.rs";
+
+/// `(kernel, files, why)`: the places besides its base places where a kernel that no
+/// `generic` row runs is named.
+const OWN_PLACES: &[(&str, &[&str], &str)] = &[
+    (
+        "depth_to_vertex",
+        &[BIND, STEPS],
+        "binds the raw depth and colour uploads",
+    ),
+    (
+        "bilateral_filter",
+        &[BIND, STEPS, "src/slam/bilateral_quality.rs"],
+        "binds one of two vertex maps; the filter-quality check runs its twin",
+    ),
+    (
+        "vertex_to_normal",
+        &[BIND, STEPS],
+        "binds one of three pairs of vertex maps per level",
+    ),
+    (
+        "pyramid_depth",
+        &[BIND, STEPS],
+        "binds a pyramid level's maps",
+    ),
+    (
+        "pyramid_model",
+        &[BIND, STEPS],
+        "binds a pyramid level's maps",
+    ),
+    (
+        "icp_reduce",
+        &[BIND, STEPS, "crates/core/src/cpu/photo_reduce.rs"],
+        "binds a pyramid level's maps; photo_reduce's twin shares its Huber weight",
+    ),
+    (
+        "icp_reduce_final",
+        &[STEPS, "src/gpu/backend.rs"],
+        "sums the partial systems of icp_reduce and photo_reduce, bound per system",
+    ),
+    (
+        "photo_reduce",
+        &[
+            BIND,
+            STEPS,
+            "src/slam/step_params.rs",
+            "crates/core/src/cpu/predict_model.rs",
+        ],
+        "binds a pyramid level's maps; its twin's constants are the photometric term's",
+    ),
+    (
+        "intensity_pyramid",
+        &[BIND, STEPS],
+        "binds a pyramid level's intensity patches",
+    ),
+    (
+        "block_bounds",
+        &[
+            BIND,
+            "src/gpu/step_grid.rs",
+            "src/gpu/backend.rs",
+            "src/gpu/inspect.rs",
+            "crates/core/src/cpu/entries.rs",
+            "crates/core/src/cpu/fuse_merge.rs",
+            "crates/core/src/cpu/fuse_merge_chosen.rs",
+            "crates/core/src/cpu/fuse_prune.rs",
+            "crates/core/src/cpu/fuse_select.rs",
+            "crates/core/src/cpu/project_model.rs",
+            "shaders/fuse_merge.wgsl",
+            "shaders/fuse_merge_chosen.wgsl",
+            "shaders/fuse_prune.wgsl",
+            "shaders/fuse_select.wgsl",
+            "shaders/project_model.wgsl",
+            "shaders/visible_surfels.wgsl",
+        ],
+        "runs over the stale boxes only; the boxes it writes are the buffer `block_bounds` \
+         that every block-walking kernel reads",
+    ),
+    (
+        "fuse_add",
+        &[BIND, STEPS, "src/gpu/step_grid.rs"],
+        "runs one or both of its key passes by the association",
+    ),
+    (
+        "prefix_sum",
+        &[BIND, STEPS, "src/gpu/compaction.rs", "src/gpu/resources.rs"],
+        "one scan of three kernels over fusion's or compaction's flags, sized by its twin",
+    ),
+    (
+        "prefix_sum_reduce",
+        &[
+            BIND,
+            "crates/core/src/cpu/prefix_sum.rs",
+            "crates/core/src/cpu/prefix_sum_blocks.rs",
+        ],
+        "the scan's first kernel",
+    ),
+    (
+        "prefix_sum_blocks",
+        &[BIND, "crates/core/src/cpu/prefix_sum.rs"],
+        "the scan's second kernel",
+    ),
+    (
+        "compact_flags",
+        &["src/gpu/compaction.rs", STEPS],
+        "binds the live and the spare map",
+    ),
+    (
+        "compact_scatter",
+        &["src/gpu/compaction.rs", STEPS],
+        "binds the live and the spare map",
+    ),
+    (
+        "icp_candidates",
+        &[
+            "src/gpu/single_steps.rs",
+            STEPS,
+            "src/slam/backend.rs",
+            "src/slam/instrumented.rs",
+            "src/slam/tracker.rs",
+            "src/tools/compare/perturbed.rs",
+        ],
+        "a one-kernel step, and the step is named after it",
+    ),
+    (
+        "fern_encode",
+        &["src/gpu/single_steps.rs", STEPS],
+        "a one-kernel step, recorded ahead by fuse",
+    ),
+    (
+        "keypoint_detect",
+        &["src/gpu/single_steps.rs"],
+        "a one-kernel step",
+    ),
+    (
+        "keypoint_describe",
+        &["src/gpu/single_steps.rs"],
+        "a one-kernel step",
+    ),
+    (
+        "deform_surfels",
+        &["src/gpu/loops.rs"],
+        "built at the first loop closure",
+    ),
+    ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
+    ("nn_grid", &["src/scan/gpu.rs"], "scan registration's"),
+    (
+        "cross_covariance",
+        &["src/scan/gpu.rs"],
+        "scan registration's",
+    ),
+    (
+        "render_splat",
+        &["src/render/gpu.rs", "src/render/mod.rs"],
+        "the renderer's",
+    ),
+    (
+        "render_resolve",
+        &["src/render/gpu.rs", "src/render/mod.rs"],
+        "the renderer's",
+    ),
+];
+
+/// A kernel's places that every kernel has: its registry row, shader, twin (and the twin's
+/// `pub mod` line), its plan call, and the CPU backend's side of it.
+fn base_places(kernel: &str, file: &str) -> bool {
+    file == "src/gpu/kernels.rs"
+        || file == format!("shaders/{kernel}.wgsl")
+        || file == format!("crates/core/src/cpu/{kernel}.rs")
+        || file == "crates/core/src/cpu/mod.rs"
+        || file == "src/slam/plan.rs"
+        || file.starts_with("src/slam/cpu_backend/")
+}
+
+/// The `.rs` and `.wgsl` files under `dir`, recursively, sorted.
+fn source_files(dir: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).expect("source directory is readable") {
+        let path = entry.expect("directory entry").path();
+        if path.is_dir() {
+            files.extend(source_files(&path));
+        } else if path.extension().is_some_and(|e| e == "rs" || e == "wgsl") {
+            files.push(path);
+        }
+    }
+    files.sort();
+    files
+}
+
+/// A file's code: each line without its `//` comment (doc comments too), and nothing from
+/// the first `#[cfg(test)]` on (unit tests name kernels freely).
+fn code_of(text: &str) -> String {
+    let text = text.split("#[cfg(test)]").next().unwrap_or_default();
+    text.lines()
+        .map(|l| l.split("//").next().unwrap_or_default())
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// True when `code` has `word` with no identifier character on either side.
+fn names(code: &str, word: &str) -> bool {
+    let is_ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    code.match_indices(word).any(|(i, _)| {
+        let before = code[..i].chars().next_back();
+        let after = code[i + word.len()..].chars().next();
+        !before.is_some_and(is_ident) && !after.is_some_and(is_ident)
+    })
+}
+
+fn each_kernel_is_named_in_its_places_alone() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let files: Vec<(String, String)> = ["src", "crates", "shaders", "python/src"]
+        .iter()
+        .filter(|d| root.join(d).is_dir())
+        .flat_map(|d| source_files(&root.join(d)))
+        .map(|p| {
+            let shown = p.strip_prefix(root).unwrap_or(&p).display().to_string();
+            let text = std::fs::read_to_string(&p).expect("source file is readable");
+            (shown, code_of(&text))
+        })
+        .collect();
+    let kernels: Vec<&str> = shaders::KERNELS
+        .iter()
+        .map(|(name, _)| *name)
+        .filter(|name| shaders::file_of(name) == *name)
+        .collect();
+    let mut failures = Vec::new();
+    for &kernel in &kernels {
+        let own = OWN_PLACES.iter().find(|(k, _, _)| *k == kernel);
+        let generic = shaders::GENERIC_KERNELS.contains(&kernel);
+        match (generic, own) {
+            (true, Some(_)) => failures.push(format!(
+                "{kernel}: a `generic` row has no places of its own; drop it from OWN_PLACES"
+            )),
+            (false, None) => failures.push(format!(
+                "{kernel}: neither a `generic` row nor an OWN_PLACES entry"
+            )),
+            _ => {}
+        }
+        let own_files: &[&str] = own.map_or(&[], |(_, f, _)| f);
+        let named: Vec<&str> = files
+            .iter()
+            .filter(|(_, code)| names(code, kernel))
+            .map(|(f, _)| f.as_str())
+            .collect();
+        for file in &named {
+            if !base_places(kernel, file) && !own_files.contains(file) {
+                failures.push(format!(
+                    "{kernel} is named in {file}: a kernel is named by its registry row, \
+                     shader, twin, plan call and tests, and a kernel that fits no `Shape` \
+                     also by its places in OWN_PLACES (tests/it/kernel_places.rs)"
+                ));
+            }
+        }
+        for file in own_files {
+            if !named.contains(file) {
+                failures.push(format!(
+                    "{kernel}: {file} no longer names it; drop it from OWN_PLACES"
+                ));
+            }
+        }
+    }
+    for (kernel, _, _) in OWN_PLACES {
+        if !kernels.contains(kernel) {
+            failures.push(format!(
+                "OWN_PLACES lists `{kernel}`, which is not a kernel"
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
