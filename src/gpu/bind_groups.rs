@@ -19,8 +19,6 @@ use super::resources::{FrameBuffers, IntensityLevel, Uniforms};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
-    pub depth_to_vertex: wgpu::BindGroup,
-    pub bilateral_filter: wgpu::BindGroup,
     /// `vertex_to_normal` reading the unfiltered vertex map (filter off) ...
     pub vertex_to_normal: wgpu::BindGroup,
     /// ... the filtered one for normals and points (filter on, `filter_points`) ...
@@ -80,9 +78,14 @@ pub(super) struct Resources<'a> {
 type Pool<'a> = Vec<(&'static str, wgpu::BindingResource<'a>)>;
 
 /// The frame's maps and association buffers, by the names the kernels declare them with.
-/// Not the vertex maps: `vertex_map` means a different map to each preprocessing kernel.
+/// `vertex_map` is the unfiltered vertex map, as `depth_to_vertex` writes it and
+/// `bilateral_filter` reads it; `vertex_to_normal` and the pyramid bind their own.
 fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
     vec![
+        ("raw_depth", f.raw_depth.binding()),
+        ("raw_rgba", f.raw_rgba.binding()),
+        ("vertex_map", f.vertex.binding()),
+        ("filtered_vertex", f.filtered_vertex.binding()),
         ("normal_depth", f.normal_depth.binding()),
         ("color_map", f.color.binding()),
         ("index_map", f.index_map.binding()),
@@ -147,24 +150,6 @@ impl BindGroups {
         };
         BindGroups {
             block_bounds: per_chunk(&k.block_bounds, u.bounds.binding()),
-            depth_to_vertex: k.depth_to_vertex.bind_group(
-                ctx,
-                &[
-                    ("params", u.preprocess.binding()),
-                    ("raw_depth", f.raw_depth.binding()),
-                    ("raw_rgba", f.raw_rgba.binding()),
-                    ("vertex_map", f.vertex.binding()),
-                    ("color_map", f.color.binding()),
-                ],
-            ),
-            bilateral_filter: k.bilateral_filter.bind_group(
-                ctx,
-                &[
-                    ("params", u.bilateral.binding()),
-                    ("vertex_map", f.vertex.binding()),
-                    ("filtered_vertex", f.filtered_vertex.binding()),
-                ],
-            ),
             vertex_to_normal: vertex_to_normal(&f.vertex, &f.vertex),
             vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex, &f.filtered_vertex),
             vertex_to_normal_raw_points: vertex_to_normal(&f.filtered_vertex, &f.vertex),

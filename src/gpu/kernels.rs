@@ -202,6 +202,8 @@ pub(super) struct GenericRow<'a> {
 
 registry! {
     generic: {
+        depth_to_vertex: OverFrame(preprocess),
+        bilateral_filter: OverFrame(bilateral),
         predict_model: PerChunk(project),
         fuse_merge_chosen: PerChunk(fuse),
         fuse_prune: PerBlock(fuse),
@@ -215,8 +217,6 @@ registry! {
         fuse_select: PerBlock(fuse),
     }
     kernels: {
-        depth_to_vertex,
-        bilateral_filter,
         vertex_to_normal,
         pyramid_depth,
         block_bounds,

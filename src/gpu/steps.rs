@@ -95,8 +95,8 @@ impl Backend for GpuBackend {
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
-                let pass = preprocess_pass(k, bg, &grid, call);
-                record_call(ctx, profiler, &mut enc, call.kernel(), &[pass])?;
+                let passes = preprocess_passes(k, bg, &grid, call);
+                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
             }
             defer_profiled(ctx, profiler, "preprocess", enc)
         })
@@ -505,24 +505,14 @@ fn check_frame_size(params: &PreprocessParams, raw_depth: &[u16], raw_rgba: &[u3
     Ok(())
 }
 
-/// The kernel, bind group and grid of one call of `preprocess`'s plan.
-fn preprocess_pass<'a>(
+/// The passes (kernel, bind group, grid) of one call of `preprocess`'s plan.
+fn preprocess_passes<'a>(
     k: &'a Kernels,
     bg: &'a BindGroups,
     grid: &StepGrid,
     call: PreprocessCall,
-) -> Pass<'a> {
-    match call {
-        PreprocessCall::DepthToVertex => (
-            &k.depth_to_vertex,
-            &bg.depth_to_vertex,
-            grid.image(&k.depth_to_vertex),
-        ),
-        PreprocessCall::BilateralFilter => (
-            &k.bilateral_filter,
-            &bg.bilateral_filter,
-            grid.image(&k.bilateral_filter),
-        ),
+) -> Vec<Pass<'a>> {
+    let pass = match call {
         PreprocessCall::VertexToNormal {
             level: 0,
             filtered,
@@ -552,7 +542,11 @@ fn preprocess_pass<'a>(
                 grid.level(level, &k.pyramid_depth),
             )
         }
-    }
+        // `depth_to_vertex`, `bilateral_filter`: bound and dispatched by their registry
+        // rows.
+        generic => return grid.generic(k, bg, generic.kernel()),
+    };
+    vec![pass]
 }
 
 /// A camera's image size, `[width, height]` in pixels.

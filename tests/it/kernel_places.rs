@@ -1,10 +1,10 @@
 //! Where each kernel is named in the code (comments and unit tests left out): its base
 //! places ([`base_places`]: its registry row, its shader, its twin and the twin's `pub mod`
-//! line, its plan call and the CPU backend's side of it; tests anywhere), and for a kernel
-//! that no `generic` row runs the places of [`OWN_PLACES`], each with its reason. A kernel
-//! named anywhere else fails, and so does an entry of [`OWN_PLACES`] that no longer names
-//! its kernel (drop it). This is the count `docs/extending.md` gives: a `generic` kernel
-//! has its base places alone. No GPU needed.
+//! line, its plan call and the CPU backend's side of it; tests anywhere), and the places of
+//! [`OWN_PLACES`], each with its reason; a kernel of a `generic` row has none in the GPU
+//! engine. A kernel named anywhere else fails, and so does an entry of [`OWN_PLACES`] that
+//! no longer names its kernel (drop it). This is the count `docs/extending.md` gives. No
+//! GPU needed.
 
 use crate::common;
 
@@ -25,18 +25,13 @@ pub fn tests() -> Vec<common::harness::Test> {
 const BIND: &str = "src/gpu/bind_groups.rs";
 const STEPS: &str = "src/gpu/steps.rs";
 
-/// `(kernel, files, why)`: the places besides its base places where a kernel that no
-/// `generic` row runs is named.
+/// `(kernel, files, why)`: the places besides its base places where a kernel is named. A
+/// kernel of a `generic` row has none in the GPU engine (`src/gpu/`).
 const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     (
-        "depth_to_vertex",
-        &[BIND, STEPS],
-        "binds the raw depth and colour uploads",
-    ),
-    (
         "bilateral_filter",
-        &[BIND, STEPS, "src/slam/bilateral_quality.rs"],
-        "binds one of two vertex maps; the filter-quality check runs its twin",
+        &["src/slam/bilateral_quality.rs"],
+        "the filter-quality check runs its twin on the host",
     ),
     (
         "vertex_to_normal",
@@ -254,9 +249,14 @@ fn each_kernel_is_named_in_its_places_alone() {
         let own = OWN_PLACES.iter().find(|(k, _, _)| *k == kernel);
         let generic = shaders::GENERIC_KERNELS.contains(&kernel);
         match (generic, own) {
-            (true, Some(_)) => failures.push(format!(
-                "{kernel}: a `generic` row has no places of its own; drop it from OWN_PLACES"
-            )),
+            (true, Some((_, own_files, _))) => {
+                for file in own_files.iter().filter(|f| f.starts_with("src/gpu/")) {
+                    failures.push(format!(
+                        "{kernel}: a `generic` row is bound and dispatched by its row alone; \
+                         nothing else in the GPU engine names it ({file})"
+                    ));
+                }
+            }
             (false, None) => failures.push(format!(
                 "{kernel}: neither a `generic` row nor an OWN_PLACES entry"
             )),
@@ -285,7 +285,10 @@ fn each_kernel_is_named_in_its_places_alone() {
             }
         }
     }
-    for (kernel, _, _) in OWN_PLACES {
+    for (i, (kernel, _, _)) in OWN_PLACES.iter().enumerate() {
+        if OWN_PLACES[..i].iter().any(|(k, _, _)| k == kernel) {
+            failures.push(format!("OWN_PLACES lists `{kernel}` twice"));
+        }
         if !kernels.contains(kernel) {
             failures.push(format!(
                 "OWN_PLACES lists `{kernel}`, which is not a kernel"
