@@ -1,5 +1,5 @@
 //! Storage-buffer loads vs texture loads on the current adapter: the measurement behind
-//! keeping per-pixel maps and the surfel map in textures (`src/gpu/images.rs`).
+//! keeping per-pixel maps and the surfel map in textures (`crates/gpu/src/images.rs`).
 //!
 //! Three access patterns, each written once reading a `array<vec4<f32>>` storage buffer
 //! and once reading a `texture_2d<f32>` (rgba32float) with `textureLoad`, writing the same

@@ -1,7 +1,7 @@
 // common.wgsl: structs and helpers shared by the dense-SLAM and render kernels (the scan
 // kernels have their own prefix, scan_common.wgsl, with no 64-bit integers).
 //
-// Prepended to each `shaders/<kernel>.wgsl` by `src/gpu/shaders.rs` (WGSL has no
+// Prepended to each `shaders/<kernel>.wgsl` by `crates/gpu/src/shaders.rs` (WGSL has no
 // includes), so this file declares no bindings and no entry point. Each struct mirrors the
 // `#[repr(C)]` struct of the same name in `crates/core/src/layout/mod.rs` (checked by `tests/it/layout.rs`;
 // RenderParams: `crates/core/src/layout/render.rs`, checked by `tests/it/render/gpu.rs`); each helper mirrors
@@ -219,7 +219,7 @@ const ICP_RESIDUAL_INDEX: u32 = 28u;
 
 // Mirrors `layout::MapChunk`: one chunk of the surfel map (three storage arrays of `slots`
 // surfels; surfel i of the map is element i - base of the chunk that holds it). Kernels
-// that walk the map are dispatched once per chunk. See src/gpu/map_buffers.rs.
+// that walk the map are dispatched once per chunk. See crates/gpu/src/map_buffers.rs.
 struct MapChunk {
     base: u32,
     slots: u32,

@@ -9,7 +9,7 @@
 
 // Uses surfel_count, frame_id, stable_weight and max_age_frames.
 @group(0) @binding(0) var<storage, read> params: CompactParams;
-// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
+// The chunk's first map-wide index and slots (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
 // The chunk's surfels, xyz world frame, w = weight.
 @group(0) @binding(2) var<storage, read> position_weight: array<vec4<f32>>;

@@ -16,10 +16,10 @@
 @group(0) @binding(1) var<storage, read> flags: array<u32>;
 // Exclusive prefix sum of flags (prefix_sum).
 @group(0) @binding(2) var<storage, read> offsets: array<u32>;
-// The input chunk (first map-wide index, slots); see src/gpu/map_buffers.rs.
+// The input chunk (first map-wide index, slots); see crates/gpu/src/map_buffers.rs.
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
 // One of the input chunk's surfel arrays (position_weight, normal_frame or color, see
-// src/gpu/map_buffers.rs), its 16-byte entries copied as bits.
+// crates/gpu/src/map_buffers.rs), its 16-byte entries copied as bits.
 @group(0) @binding(4) var<storage, read> surfel_array: array<vec4<u32>>;
 // The output chunk: a chunk of the second map, which has the input's chunks.
 @group(0) @binding(5) var<storage, read> out_chunk: MapChunk;

@@ -9,7 +9,7 @@
 // queries' centroid) before accumulation so f32 sums of products stay well conditioned.
 
 // ScanNnResult, ScanCovParams, ScanCovPartial and SCAN_NN_NONE live in scan_common.wgsl
-// (prepended by src/gpu/shaders.rs).
+// (prepended by crates/gpu/src/shaders.rs).
 
 // The anchor, pair count, thread count and radius^2.
 @group(0) @binding(0) var<storage, read> params: ScanCovParams;

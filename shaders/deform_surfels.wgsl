@@ -11,7 +11,7 @@
 
 // Uses surfel_count and node_count.
 @group(0) @binding(0) var<storage, read> params: DeformParams;
-// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
+// The chunk's first map-wide index and slots (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
 // node_count nodes sorted by frame, each a frame and a world-frame correction.
 @group(0) @binding(2) var<storage, read> nodes: array<DeformNode>;

@@ -31,7 +31,7 @@
 // Exclusive prefix sum of flags (prefix_sum).
 @group(0) @binding(4) var<storage, read> offsets: array<u32>;
 // The chunk's first map-wide index and slots: map-wide surfel i is element i - chunk.base
-// of the chunk's arrays, which hold chunk.slots entries each (see src/gpu/map_buffers.rs).
+// of the chunk's arrays, which hold chunk.slots entries each (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(5) var<storage, read> chunk: MapChunk;
 // Out: xyz world frame, w = confidence.
 @group(0) @binding(6) var<storage, read_write> position_weight: array<vec4<f32>>;

@@ -18,7 +18,7 @@
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 // width x height, RGB 0..255.
 @group(0) @binding(2) var color_map: texture_2d<f32>;
-// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
+// The chunk's first map-wide index and slots (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
 // Per block 8 words, min xyz, pad, max xyz, pad (ordered_from_f32; the vec4<u32> pairs
 // other kernels read); grown with atomicMin/atomicMax to hold every merged surfel.

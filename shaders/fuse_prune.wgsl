@@ -16,7 +16,7 @@
 
 // Tracked pose, intrinsics, surfel_count, frame_id, prune_scale.
 @group(0) @binding(0) var<storage, read> params: FuseParams;
-// The chunk's first map-wide index and slots (see src/gpu/map_buffers.rs).
+// The chunk's first map-wide index and slots (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
 // Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
 // ordered_from_f32 encoded.

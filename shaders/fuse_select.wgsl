@@ -19,7 +19,7 @@
 // is rebuilt with back_project.
 @group(0) @binding(1) var normal_depth: texture_2d<f32>;
 // The chunk's first map-wide index and slots; the chunk's arrays hold its surfels from
-// slot 0 (see src/gpu/map_buffers.rs).
+// slot 0 (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(2) var<storage, read> chunk: MapChunk;
 // Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
 // ordered_from_f32 encoded.

@@ -1,5 +1,5 @@
 // key_writer.wgsl: how a key kernel's pixel keeps the larger of its key and a surfel's, in
-// both variants. Not a kernel: src/gpu/shaders.rs appends it to each key kernel
+// both variants. Not a kernel: crates/gpu/src/shaders.rs appends it to each key kernel
 // (project_model, fuse_select, fuse_add, render_splat) after the kernel's own text, with
 // KEY_64 defined or not, so every key kernel writes its `index_map` with this one code.
 // Mirrors crates/core/src/cpu/key_writer.rs (`KeyWriter`: `[u64]` for KEY_64, `KeyPass` without).

@@ -9,7 +9,7 @@
 // invocation's loops after ~65535 iterations in total, so the host splits big targets.
 
 // ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
-// live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
+// live in scan_common.wgsl (prepended by crates/gpu/src/shaders.rs).
 
 // Counts, radius^2, grid-stride thread count.
 @group(0) @binding(0) var<storage, read> params: ScanNnParams;

@@ -7,7 +7,7 @@
 // Assumes: params.n_threads = workgroups * 64 (grid-stride over queries).
 
 // ScanNnParams, ScanNnResult, SCAN_NN_NONE, SCAN_F32_MAX, scan_closer and scan_dist_sq
-// live in scan_common.wgsl (prepended by src/gpu/shaders.rs).
+// live in scan_common.wgsl (prepended by crates/gpu/src/shaders.rs).
 
 // Counts, radius^2, thread count, cell, mask.
 @group(0) @binding(0) var<storage, read> params: ScanNnParams;

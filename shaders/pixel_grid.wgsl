@@ -1,5 +1,5 @@
 // pixel_grid.wgsl: the entry point of every per-pixel kernel, appended to a kernel whose
-// file says `#entry pixel_grid` (src/gpu/shaders.rs).
+// file says `#entry pixel_grid` (crates/gpu/src/shaders.rs).
 // CPU twin: crates/core/src/cpu/entries.rs, fn pixel_grid (re-exported as cpu::pixel_grid).
 // Not valid alone: the kernel declares
 //   const TILE_X, TILE_Y: u32        its workgroup's tile of pixels;

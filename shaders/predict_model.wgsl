@@ -16,7 +16,7 @@
 // The chunk's surfels, xyz world frame + weight.
 @group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
 // Bits of the surfel normal (world frame) + last_frame (the packing:
-// src/gpu/map_buffers.rs).
+// crates/gpu/src/map_buffers.rs).
 @group(0) @binding(4) var<storage, read> normal_frame: array<vec4<u32>>;
 // The chunk's surfel colours, RGB 0..255 + radius.
 @group(0) @binding(5) var<storage, read> color: array<vec4<f32>>;

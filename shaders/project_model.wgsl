@@ -5,7 +5,7 @@
 // Bindings (@group(0)): each is described by the comment above its declaration.
 // Key = (u64(depth_key(z_cam)) << 32) | map-wide surfel index; the pixel keeps the maximum
 // (nearest surfel, ties to the larger index); 0 means no surfel. Two variants from this
-// file (src/gpu/shaders.rs, docs/portable-gpu.md): KEY_64 defined, one atomicMax on a u64
+// file (crates/gpu/src/shaders.rs, docs/portable-gpu.md): KEY_64 defined, one atomicMax on a u64
 // per pixel (needs SHADER_INT64_ATOMIC_MIN_MAX); else project_model_portable, the key as
 // (low, high) u32 words in two passes (KEY_PASS), equal bit for bit. keep_nearer
 // (shaders/key_writer.wgsl, appended) and index_map's type are all that differ.
@@ -20,7 +20,7 @@
 // Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
 // ordered_from_f32 encoded.
 @group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
-// The chunk's surfels, xyz world frame (metres) + weight (see src/gpu/map_buffers.rs).
+// The chunk's surfels, xyz world frame (metres) + weight (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
 // width x height keys, cleared to 0 by the host (before pass 0): one u64 each, or
 // without KEY_64 two u32 words each (low = index, high = depth word).

@@ -1,7 +1,7 @@
 // scan_common.wgsl: structs and helpers shared by the scan-registration kernels
 // (nn_brute, nn_grid, cross_covariance).
 //
-// Prepended to each of those kernels by `src/gpu/shaders.rs` instead of common.wgsl (WGSL
+// Prepended to each of those kernels by `crates/gpu/src/shaders.rs` instead of common.wgsl (WGSL
 // has no includes; these kernels need neither the dense-SLAM structs nor 64-bit integers),
 // so this file declares no bindings and no entry point. Each struct mirrors the
 // `#[repr(C)]` struct of the same name in `crates/core/src/layout/scan.rs` (checked by

@@ -1,6 +1,6 @@
 // system_grid.wgsl: the entry point of every kernel that reduces one 29-float
 // normal-equation system over the pixels (icp_reduce, photo_reduce), appended to a kernel
-// whose file says `#entry system_grid` (src/gpu/shaders.rs).
+// whose file says `#entry system_grid` (crates/gpu/src/shaders.rs).
 // CPU twin: crates/core/src/cpu/entries.rs, fn system_grid (re-exported as cpu::system_grid).
 // Not valid alone: the kernel declares
 //   params                           a binding whose `camera: Camera` has the image's

@@ -1,6 +1,6 @@
 // visible_surfels.wgsl: the entry point of every kernel that walks the map chunk's surfels
 // in view, appended to a kernel whose file says `#entry visible_surfels`
-// (src/gpu/shaders.rs).
+// (crates/gpu/src/shaders.rs).
 // CPU twin: crates/core/src/cpu/entries.rs, fn visible_surfels (re-exported as cpu::visible_surfels).
 // Not valid alone: the kernel declares
 //   params                             a binding whose struct has t_world_to_cam,

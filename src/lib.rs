@@ -55,8 +55,6 @@ pub(crate) mod batch;
 #[doc(hidden)]
 pub mod cli;
 #[doc(hidden)]
-pub mod gpu;
-#[doc(hidden)]
 pub mod mesh;
 #[doc(hidden)]
 pub mod render;
@@ -65,14 +63,17 @@ pub mod scan;
 #[doc(hidden)]
 pub mod slam;
 // The floors below, crates of their own that cannot import anything above them: here
-// their modules keep their paths (`crate::cpu`, `wgslam::dataset`). crates/core: the maths,
-// the layout contract, the CPU twins, the error kinds; crates/data: datasets and files.
+// their modules keep their paths (`crate::cpu`, `wgslam::gpu`, `wgslam::dataset`).
+// crates/core: the maths, the layout contract, the CPU twins, the backend steps and plans,
+// the error kinds; crates/gpu: the GPU engine; crates/data: datasets and files.
 pub use wgslam_core::error;
 pub(crate) use wgslam_core::stats;
 #[doc(hidden)]
 pub use wgslam_core::{cpu, geometry, layout};
 #[doc(hidden)]
 pub use wgslam_data::{dataset, eval, io};
+#[doc(hidden)]
+pub use wgslam_gpu as gpu;
 #[doc(hidden)]
 pub mod tools;
 // The browser build's entry points (deploy/web).

@@ -1,4 +1,4 @@
-// JavaScript Promise Integration (JSPI) for src/gpu/wait.rs: the WebAssembly module imports
+// JavaScript Promise Integration (JSPI) for crates/gpu/src/wait.rs: the WebAssembly module imports
 // `suspend` and `wake` from the module "wgslam_jspi" (this file, through the page's import
 // map). Rust calls `suspend` when a GPU future is pending: as a `WebAssembly.Suspending`
 // import it suspends the whole WebAssembly stack (which must have been entered through

@@ -5,7 +5,7 @@
 // folder with the command line's dataset code (src/web: the file list goes over up front,
 // each file's bytes are read from the browser only when a frame needs them), runs dense
 // SLAM through `WebAssembly.promising` (every GPU wait and file read suspends the module,
-// see src/gpu/wait.rs), and calls back after each frame with the input frame's pictures and,
+// see crates/gpu/src/wait.rs), and calls back after each frame with the input frame's pictures and,
 // every few frames, the map drawn from the user's view. Afterwards: the command line's
 // summary, the trajectory plot, the outputs to download and the map to turn.
 //

@@ -6,12 +6,13 @@
 //! The GPU backend itself lives in [`crate::gpu::backend`], beside the wgpu code it needs.
 
 pub mod any_backend;
-pub mod backend;
+// The steps every backend implements, their plans, and the fused view: the bottom floor
+// (crates/core), which the GPU engine (crates/gpu) stands on too.
+pub use wgslam_core::{backend, fused_view, plan};
 #[cfg(test)]
 mod bilateral_quality;
 pub mod cpu_backend;
 pub mod features;
-pub(crate) mod fused_view;
 pub mod health;
 pub(crate) mod instrumented;
 pub mod keyframes;
@@ -20,7 +21,6 @@ pub mod loops;
 pub mod loops_check;
 pub mod params;
 pub mod pipeline;
-pub(crate) mod plan;
 pub mod pose_graph;
 pub(crate) mod recovery;
 pub mod report;

@@ -22,11 +22,11 @@ pub fn tests() -> Vec<common::harness::Test> {
 
 /// The GPU backend's bind groups and its steps: a kernel that fits no `Shape` of the
 /// registry has its bind group and its arm there (`docs/extending.md`, "2 more").
-const BIND: &str = "src/gpu/bind_groups.rs";
-const STEPS: &str = "src/gpu/steps.rs";
+const BIND: &str = "crates/gpu/src/bind_groups.rs";
+const STEPS: &str = "crates/gpu/src/steps.rs";
 
 /// `(kernel, files, why)`: the places besides its base places where a kernel is named. A
-/// kernel of a `generic` row has none in the GPU engine (`src/gpu/`).
+/// kernel of a `generic` row has none in the GPU engine (`crates/gpu/src/`).
 const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     (
         "bilateral_filter",
@@ -55,7 +55,7 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     ),
     (
         "icp_reduce_final",
-        &[STEPS, "src/gpu/backend.rs"],
+        &[STEPS, "crates/gpu/src/backend.rs"],
         "sums the partial systems of icp_reduce and photo_reduce, bound per system",
     ),
     (
@@ -77,9 +77,9 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "block_bounds",
         &[
             BIND,
-            "src/gpu/step_grid.rs",
-            "src/gpu/backend.rs",
-            "src/gpu/inspect.rs",
+            "crates/gpu/src/step_grid.rs",
+            "crates/gpu/src/backend.rs",
+            "crates/gpu/src/inspect.rs",
             "crates/core/src/cpu/entries.rs",
             "crates/core/src/cpu/fuse_merge.rs",
             "crates/core/src/cpu/fuse_merge_chosen.rs",
@@ -98,12 +98,17 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     ),
     (
         "fuse_add",
-        &[BIND, STEPS, "src/gpu/step_grid.rs"],
+        &[BIND, STEPS, "crates/gpu/src/step_grid.rs"],
         "runs one or both of its key passes by the association",
     ),
     (
         "prefix_sum",
-        &[BIND, STEPS, "src/gpu/compaction.rs", "src/gpu/resources.rs"],
+        &[
+            BIND,
+            STEPS,
+            "crates/gpu/src/compaction.rs",
+            "crates/gpu/src/resources.rs",
+        ],
         "one scan of three kernels over fusion's or compaction's flags, sized by its twin",
     ),
     (
@@ -122,20 +127,20 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     ),
     (
         "compact_flags",
-        &["src/gpu/compaction.rs", STEPS],
+        &["crates/gpu/src/compaction.rs", STEPS],
         "binds the live and the spare map",
     ),
     (
         "compact_scatter",
-        &["src/gpu/compaction.rs", STEPS],
+        &["crates/gpu/src/compaction.rs", STEPS],
         "binds the live and the spare map",
     ),
     (
         "icp_candidates",
         &[
-            "src/gpu/single_steps.rs",
+            "crates/gpu/src/single_steps.rs",
             STEPS,
-            "src/slam/backend.rs",
+            "crates/core/src/backend.rs",
             "src/slam/instrumented.rs",
             "src/slam/tracker.rs",
             "src/tools/compare/perturbed.rs",
@@ -144,22 +149,22 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     ),
     (
         "fern_encode",
-        &["src/gpu/single_steps.rs", STEPS],
+        &["crates/gpu/src/single_steps.rs", STEPS],
         "a one-kernel step, recorded ahead by fuse",
     ),
     (
         "keypoint_detect",
-        &["src/gpu/single_steps.rs"],
+        &["crates/gpu/src/single_steps.rs"],
         "a one-kernel step",
     ),
     (
         "keypoint_describe",
-        &["src/gpu/single_steps.rs"],
+        &["crates/gpu/src/single_steps.rs"],
         "a one-kernel step",
     ),
     (
         "deform_surfels",
-        &["src/gpu/loops.rs"],
+        &["crates/gpu/src/loops.rs"],
         "built at the first loop closure",
     ),
     ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
@@ -184,11 +189,11 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
 /// A kernel's places that every kernel has: its registry row, shader, twin (and the twin's
 /// `pub mod` line), its plan call, and the CPU backend's side of it.
 fn base_places(kernel: &str, file: &str) -> bool {
-    file == "src/gpu/kernels.rs"
+    file == "crates/gpu/src/kernels.rs"
         || file == format!("shaders/{kernel}.wgsl")
         || file == format!("crates/core/src/cpu/{kernel}.rs")
         || file == "crates/core/src/cpu/mod.rs"
-        || file == "src/slam/plan.rs"
+        || file == "crates/core/src/plan.rs"
         || file.starts_with("src/slam/cpu_backend/")
 }
 
@@ -250,7 +255,10 @@ fn each_kernel_is_named_in_its_places_alone() {
         let generic = shaders::GENERIC_KERNELS.contains(&kernel);
         match (generic, own) {
             (true, Some((_, own_files, _))) => {
-                for file in own_files.iter().filter(|f| f.starts_with("src/gpu/")) {
+                for file in own_files
+                    .iter()
+                    .filter(|f| f.starts_with("crates/gpu/src/"))
+                {
                     failures.push(format!(
                         "{kernel}: a `generic` row is bound and dispatched by its row alone; \
                          nothing else in the GPU engine names it ({file})"

@@ -7,15 +7,21 @@
 //! | [`cpu`] | the CPU twins of the WGSL kernels: pure functions over typed slices, the shader's shape line by line |
 //! | [`error`] | [`Error`]: one documented variant per kind of thing a user can cause or meet, for every floor |
 //! | [`stats`] | the one median |
+//! | [`backend`] | the steps every backend implements (the CPU reference's twins, the GPU's kernels), and the maps they exchange |
+//! | [`plan`] | each step's kernels in order, written once for both backends |
+//! | [`fused_view`] | when the last fusion's index map is the next prediction's |
 //!
-//! Not here: wgpu, files, datasets, the frame loop. Those are in the `wgslam` package above
+//! Not here: wgpu (the GPU backend is `crates/gpu`), files, datasets, the frame loop. Those are in the `wgslam` package above
 //! this crate (which re-exports these modules under the same names), and a path from here
 //! to them does not compile: the workspace is the wall between the floors.
 
+pub mod backend;
 pub mod cpu;
 pub mod error;
+pub mod fused_view;
 pub mod geometry;
 pub mod layout;
+pub mod plan;
 pub mod stats;
 
 pub use error::{Error, Result};

@@ -1,6 +1,6 @@
 //! The key writers of the key kernels' CPU twins (`project_model`, `fuse_select`,
 //! `fuse_add`, `render_splat`): how a pixel keeps the larger of its key and a surfel's. CPU
-//! twin of `shaders/key_writer.wgsl`, which `src/gpu/shaders.rs` appends to each key kernel
+//! twin of `shaders/key_writer.wgsl`, which `crates/gpu/src/shaders.rs` appends to each key kernel
 //! (it is not a kernel of its own).
 //!
 //! A key is `(high, index)`: `high` a depth word ([`depth_key`](super::depth_key), larger

@@ -1,6 +1,6 @@
 //! The GPU backend's steps ([`Backend`] for [`GpuBackend`]): each step writes its
 //! parameters, then records one compute pass per kernel of its plan
-//! ([`crate::slam::plan`]; once per map chunk for the kernels that walk the map) in one
+//! ([`wgslam_core::plan`]; once per map chunk for the kernels that walk the map) in one
 //! command buffer, and reads back at most the ICP system or the surfel counter.
 //! `preprocess` and `predict` read nothing back: their commands are deferred and go with
 //! the first ICP iteration's submission (see `GpuContext::defer`), so a tracked frame
@@ -11,7 +11,7 @@ use super::backend::GpuBackend;
 use super::bind_groups::{BindGroups, SCATTER_ATTRIBUTES};
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
-use super::kernels::Kernels;
+use super::pipelines::Kernels;
 use super::recording::{record_call, record_passes, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
@@ -19,10 +19,10 @@ use crate::layout::{
     BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
     KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::{Backend, Described, Prediction, PyramidLevel, RgbdSystems};
-use crate::slam::fused_view::FusedView;
-use crate::slam::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 use crate::{Error, Result};
+use wgslam_core::backend::{Backend, Described, Prediction, PyramidLevel, RgbdSystems};
+use wgslam_core::fused_view::FusedView;
+use wgslam_core::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
 /// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A

@@ -5,11 +5,11 @@
 use super::bind_groups::BindGroups;
 use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel, KeyKernel};
-use super::kernels::{Kernels, Shape};
+use super::pipelines::{Kernels, Shape};
 use super::recording::Pass;
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
-use crate::slam::backend::PyramidLevel;
 use crate::{Error, Result};
+use wgslam_core::backend::PyramidLevel;
 
 /// The workgroups of one step's passes, worked out before its bind groups are lent out:
 /// the sizes of the frame and its pyramid levels (a per-pixel kernel's grid follows from

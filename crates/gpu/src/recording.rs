@@ -65,7 +65,7 @@ pub(super) fn submit_profiled(
     Ok(())
 }
 
-/// Records the passes of one call of a step's plan (`crate::slam::plan`), `kernel` being
+/// Records the passes of one call of a step's plan (`wgslam_core::plan`), `kernel` being
 /// the call's `kernel()`: each pass runs that kernel, a variant of it or one of its
 /// sub-kernels (a key kernel's portable passes, the scan's `prefix_sum_*`), all named
 /// `<kernel>...`; the check ties what the GPU records to what the plan says.

@@ -7,8 +7,8 @@
 use super::bind_groups::ScanGroups;
 use super::buffers::GpuArray;
 use super::context::GpuContext;
-use super::kernels::Kernels;
 use super::map_buffers::MapBuffers;
+use super::pipelines::Kernels;
 use super::resources::Uniforms;
 use crate::Result;
 

@@ -1,6 +1,6 @@
-//! The GPU backend: runs the dense-SLAM steps of [`crate::slam::backend::Backend`] as the
+//! The GPU backend: runs the dense-SLAM steps of [`wgslam_core::backend::Backend`] as the
 //! WGSL kernels in `shaders/`, each the twin of a CPU function in `crates/core/src/cpu/`, in the order
-//! of each step's plan (`crate::slam::plan`, shared with the CPU backend): one compute
+//! of each step's plan (`wgslam_core::plan`, shared with the CPU backend): one compute
 //! pass per planned kernel (one per map chunk for the kernels that walk the map), one
 //! command buffer per step: submitted at once by the steps whose results the host reads,
 //! deferred to the next submission by `preprocess` and `predict` (see `super::steps`).
@@ -36,16 +36,16 @@ use super::buffers::{GpuArray, Readback};
 use super::compaction::Compaction;
 use super::context::GpuContext;
 use super::kernel::Kernel;
-use super::kernels::Kernels;
 use super::map_buffers::MapBuffers;
+use super::pipelines::Kernels;
 use super::recording::{Profiler, PROFILED_PASSES_MAX};
 use super::resources::{FrameBuffers, Uniforms};
 use super::timing::StageTimer;
 use crate::layout::{BoundsParams, PreprocessParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
-use crate::slam::backend::PyramidLevel;
-use crate::slam::fused_view::FusedView;
 use crate::{Error, Result};
 use std::collections::BTreeMap;
+use wgslam_core::backend::PyramidLevel;
+use wgslam_core::fused_view::FusedView;
 
 // Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
 // index map is read as vec2<u32> (low word first): both assume a little-endian host, like
@@ -128,7 +128,7 @@ impl GpuBackend {
     ///
     /// [`Error::Gpu`] when the adapter allows too few storage buffers or textures per stage
     /// (WebGPU's defaults suffice); kernel creation errors likewise. Without 64-bit atomics
-    /// the key kernels are the portable ones ([`crate::gpu::kernel::KeyKernel`]).
+    /// the key kernels are the portable ones ([`crate::kernel::KeyKernel`]).
     pub fn new(ctx: GpuContext) -> Result<GpuBackend> {
         Self::with_initial_capacity(ctx, DEFAULT_INITIAL_CAPACITY)
     }

@@ -1,4 +1,4 @@
-//! The GPU backend's steps of one kernel each (`crate::slam::plan::Single`): relocalisation's
+//! The GPU backend's steps of one kernel each (`wgslam_core::plan::Single`): relocalisation's
 //! `fern_encode`, `keypoint_detect` and `keypoint_describe`, tracking health's
 //! `icp_candidates` and loop closure's `deform_surfels`; and the two copies a loop's
 //! verification needs (one pyramid level of the frame's maps down, a keyframe's snapshot up
@@ -20,9 +20,9 @@ use crate::layout::{
     DeformNode, DeformParams, Fern, FernParams, IcpParams, Keypoint, KeypointParams,
     DESCRIPTOR_WORDS,
 };
-use crate::slam::backend::{Described, Prediction};
-use crate::slam::plan::{self, Single};
 use crate::Result;
+use wgslam_core::backend::{Described, Prediction};
+use wgslam_core::plan::{self, Single};
 
 /// Records `call`'s `passes` in a command buffer of their own, after `before` and before
 /// `after` (a clear, the copies to read-backs), and submits it.

@@ -1,8 +1,11 @@
-//! The GPU backend: wgpu context, embedded WGSL kernels, typed buffers, timing, and
-//! [`GpuBackend`], which runs `slam::backend::Backend`'s steps as those kernels.
+//! wgslam's GPU engine, the second floor of its workspace: wgpu context, embedded WGSL
+//! kernels, typed buffers, timing, and [`GpuBackend`], which runs
+//! [`wgslam_core::backend::Backend`]'s steps as those kernels.
 //!
-//! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in `crates/core/src/cpu/<kernel>.rs`; this
-//! module only knows how to run them on a device. Nothing here reads files.
+//! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in
+//! `crates/core/src/cpu/<kernel>.rs`; this crate only knows how to run them on a device.
+//! Nothing here reads files, and nothing here can import the pipeline, the datasets or the
+//! tools above it (the `wgslam` package re-exports this crate as `wgslam::gpu`).
 //!
 //! - [`context`]: adapter (Vulkan / Metal / DX12, never GL), device, limits, error scopes.
 //! - [`shaders`]: `common.wgsl` + kernel sources, shared by the runtime and the naga test.
@@ -13,7 +16,7 @@
 //! - [`map_buffers`]: the surfel map as chunks of storage buffers (structure of arrays).
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU, each recorded from its plan
-//!   (`crate::slam::plan`); beside it, private: `kernels` (the kernel registry: one row
+//!   (`wgslam_core::plan`); beside it, private: `kernels` (the kernel registry: one row
 //!   per kernel pairing its shader and CPU twin; the pipelines), `resources` (parameter
 //!   and frame buffers), `bind_groups`, `compaction`, `recording` (passes and per-kernel
 //!   timing), `steps` (the steps' passes), `single_steps` (the steps of one kernel each)
@@ -22,6 +25,9 @@
 //!   imports are `steps`/`single_steps` -> `backend` -> helpers.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
 //! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
+
+// The floor below, under the paths the modules use (`crate::cpu`, `crate::layout`).
+pub(crate) use wgslam_core::{cpu, layout, Error, Result};
 
 pub mod backend;
 mod bind_groups;
@@ -37,6 +43,7 @@ mod kernels;
 mod keypoints;
 mod loops;
 pub mod map_buffers;
+mod pipelines;
 mod recording;
 mod resources;
 pub mod shaders;

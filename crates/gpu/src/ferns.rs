@@ -14,8 +14,8 @@ use super::kernel::Kernel;
 use super::recording::{record_call, Profiler};
 use super::resources::FrameBuffers;
 use crate::layout::{Fern, FernParams};
-use crate::slam::plan;
 use crate::Result;
+use wgslam_core::plan;
 
 /// `fern_encode`'s parameters, ferns, codes and the codes' read-back.
 pub(super) struct FernBuffers {

@@ -12,8 +12,8 @@ use super::buffers::GpuArray;
 use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
-use super::kernels::{Kernels, Shape};
 use super::map_buffers::{Chunk, MapBuffers};
+use super::pipelines::{Kernels, Shape};
 use super::recording::Pass;
 use super::resources::{FrameBuffers, IntensityLevel, Uniforms};
 

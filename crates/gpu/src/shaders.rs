@@ -14,11 +14,11 @@
 
 /// `shaders/common.wgsl`: the structs of `crates/core/src/layout/mod.rs` and the helpers of `crates/core/src/cpu/mod.rs`
 /// (dense SLAM and renders).
-pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+pub const COMMON: &str = include_str!("../../../shaders/common.wgsl");
 
 /// `shaders/scan_common.wgsl`: the structs of `crates/core/src/layout/scan.rs` and the scan helpers of
 /// `crates/core/src/cpu/mod.rs`.
-pub const SCAN_COMMON: &str = include_str!("../../shaders/scan_common.wgsl");
+pub const SCAN_COMMON: &str = include_str!("../../../shaders/scan_common.wgsl");
 
 /// The prefix files as `(name, text)` (not kernels: no entry point, no bindings).
 pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN_COMMON)];
@@ -26,7 +26,7 @@ pub const PREFIXES: &[(&str, &str)] = &[("common", COMMON), ("scan_common", SCAN
 /// `shaders/key_writer.wgsl`: how a key kernel's `index_map` keeps the larger key, in both
 /// variants (mirrors `crates/core/src/cpu/key_writer.rs`). Appended to each key kernel; not a kernel,
 /// and not valid alone (it writes the kernel's `index_map`).
-pub const KEY_WRITER: &str = include_str!("../../shaders/key_writer.wgsl");
+pub const KEY_WRITER: &str = include_str!("../../../shaders/key_writer.wgsl");
 
 /// The name of [`KEY_WRITER`]'s file, `shaders/<KEY_WRITER_FILE>.wgsl`.
 pub const KEY_WRITER_FILE: &str = "key_writer";
@@ -37,19 +37,22 @@ pub const KEY_WRITER_FILE: &str = "key_writer";
 /// defines (the file's header says which), and its CPU mirror is the `cpu` function of the
 /// same name.
 pub const ENTRIES: &[(&str, &str)] = &[
-    ("pixel_grid", include_str!("../../shaders/pixel_grid.wgsl")),
+    (
+        "pixel_grid",
+        include_str!("../../../shaders/pixel_grid.wgsl"),
+    ),
     (
         "visible_surfels",
-        include_str!("../../shaders/visible_surfels.wgsl"),
+        include_str!("../../../shaders/visible_surfels.wgsl"),
     ),
     (
         "system_grid",
-        include_str!("../../shaders/system_grid.wgsl"),
+        include_str!("../../../shaders/system_grid.wgsl"),
     ),
 ];
 
 /// The kernels prefixed with `scan_common.wgsl`, and the key kernels with their portable
-/// variants: both made from the kernel registry's rows (`src/gpu/kernels.rs`).
+/// variants: both made from the kernel registry's rows (`crates/gpu/src/kernels.rs`).
 pub use super::kernels::{PORTABLE_KERNELS, SCAN_KERNELS};
 
 /// The name of the `override` constant that picks a portable kernel's pass (0: the high
@@ -84,7 +87,7 @@ pub fn defines_of(kernel_name: &str) -> &'static [&'static str] {
 }
 
 /// Every kernel the runtime builds as `(name, text)`: made from the kernel registry's
-/// rows (`src/gpu/kernels.rs`), one per kernel pairing its file and its CPU twin.
+/// rows (`crates/gpu/src/kernels.rs`), one per kernel pairing its file and its CPU twin.
 pub use super::kernels::{GENERIC_KERNELS, KERNELS};
 
 /// The kernel file's text alone (without `common.wgsl`, not preprocessed), or `None` for an

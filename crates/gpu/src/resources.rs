@@ -14,8 +14,8 @@ use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, IntensityParams,
     NormalParams, PreprocessParams, ProjectParams, PyramidParams,
 };
-use crate::slam::backend::PyramidLevel;
 use crate::Result;
+use wgslam_core::backend::PyramidLevel;
 
 /// One parameter buffer per kernel parameter struct, written before each step (one per
 /// step at a time: a step's passes share its buffer).

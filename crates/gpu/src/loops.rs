@@ -1,4 +1,4 @@
-//! The GPU side of loop closure's map deformation (`crate::slam::loops`):
+//! The GPU side of loop closure's map deformation (`wgslam::slam::loops`):
 //! `deform_surfels`' kernel and node table, made at the first closure so a run without one
 //! pays nothing. The step itself, and the two copies a loop's verification needs, are in
 //! `super::single_steps`.

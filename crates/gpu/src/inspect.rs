@@ -7,10 +7,10 @@ use super::context::GpuContext;
 use super::images::GpuImage;
 use crate::layout::map::SurfelMap;
 use crate::layout::BLOCK_SURFELS;
-use crate::slam::backend::{
+use crate::Result;
+use wgslam_core::backend::{
     BackendCounters, FrameLevel, FrameMaps, FusionBuffers, Inspect, Prediction,
 };
-use crate::Result;
 
 /// A per-pixel `[f32; 4]` map read back row-major.
 fn read_map(ctx: &GpuContext, image: &GpuImage) -> Result<Vec<[f32; 4]>> {

@@ -197,7 +197,7 @@ pub fn preprocess(
 }
 
 /// `predict`: unless the last fusion left the index map of this very view (`project`
-/// false, see [`crate::slam::fused_view::FusedView`]), fresh block boxes, a cleared index
+/// false, see [`crate::fused_view::FusedView`]), fresh block boxes, a cleared index
 /// map and `project_model`; then `predict_model` and `pyramid_model` per coarser level.
 pub fn predict(project: bool, coarser_levels: usize) -> Vec<PredictCall> {
     let mut plan = Vec::new();

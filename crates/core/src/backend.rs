@@ -1,9 +1,9 @@
 //! The two backend traits. [`Backend`] is the pipeline's steps (`preprocess`, `predict`,
 //! `icp_system`, `fuse`, `compact`), each one or a few kernels; [`Inspect`] copies maps in
 //! and out of a backend, which only the tools (outputs, `compare`, `bench`) and the tests
-//! need. Both are implemented by the CPU reference ([`crate::slam::cpu_backend`]) and the
-//! GPU ([`crate::gpu::backend`]); [`SlamBackend`] is the two together, for `Box<dyn _>`.
-//! Also the per-frame maps the traits exchange. Not the step order: see `crate::slam::plan`.
+//! need. Both are implemented by the CPU reference (`wgslam::slam::cpu_backend`) and the
+//! GPU (`wgslam_gpu::backend`); [`SlamBackend`] is the two together, for `Box<dyn _>`.
+//! Also the per-frame maps the traits exchange. Not the step order: see [`crate::plan`].
 
 use crate::layout::map::SurfelMap;
 use crate::layout::{
@@ -146,7 +146,7 @@ pub trait Backend {
     /// `project_model` then `predict_model` at `params.t_world_to_cam`
     /// (`surfel_count` is filled in by the backend), then `pyramid_model` for each entry of
     /// `pyramid` (the same levels as the last `preprocess`'s). When the map last changed in
-    /// a best-candidate `fuse` at the same view (`crate::slam::fused_view::FusedView`), that fusion's index map
+    /// a best-candidate `fuse` at the same view ([`crate::fused_view::FusedView`]), that fusion's index map
     /// stands in for `project_model`'s.
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()>;
     /// `icp_reduce` at the current estimate on pyramid level `level` (0 = finest; `params`
@@ -235,7 +235,7 @@ pub trait Inspect {
 }
 
 /// A backend that can also be inspected: what the command line runs (`Box<dyn
-/// SlamBackend>`, see [`crate::slam::any_backend::AnyBackend`]). `Send` on native targets
+/// SlamBackend>`, see `wgslam::slam::any_backend::AnyBackend`). `Send` on native targets
 /// ([`MaybeSend`]), so that a boxed backend can run on a thread other than the one that
 /// opened it (the Python package processes frames with the interpreter's lock released).
 pub trait SlamBackend: Backend + Inspect + MaybeSend {}
@@ -257,7 +257,7 @@ impl<T: ?Sized> MaybeSend for T {}
 
 /// A boxed backend is a backend (the CLI picks CPU or GPU at run time): every step goes to
 /// the box's content. The one hand-written forwarding of the trait besides
-/// [`crate::slam::instrumented::Instrumented`].
+/// `wgslam::slam::instrumented::Instrumented`.
 impl<B: Backend + ?Sized> Backend for Box<B> {
     fn name(&self) -> &'static str {
         (**self).name()

@@ -1,0 +1,187 @@
+//! The kernel registry: one row per kernel, pairing its shader `shaders/<name>.wgsl` with
+//! its CPU twin `crate::cpu::<name>::<name>` (the model is vello's
+//! `add_shader!(name, ..., CpuShaderType::Present(cpu::name))`). Every fact about a kernel
+//! that the runtime needs is in its row, and every list of kernels is made from the rows by
+//! the `registry!` macro below:
+//!
+//! - [`KERNELS`], every kernel's `(name, text of its file)` for the runtime and the naga
+//!   tests, with a second entry over the same text for each key kernel's portable variant;
+//! - [`PORTABLE_KERNELS`], the key kernels (rows marked `key`) with their portable
+//!   variants' names, and [`SCAN_KERNELS`], the kernels prefixed with `scan_common.wgsl`
+//!   (the `scan` group);
+//! - [`GENERIC_KERNELS`], the kernels of the `generic` rows;
+//! - in `super::pipelines` (from the same rows, through [`kernel_rows`]), the dense
+//!   pipeline's pipelines, one field per kernel named after it, and for the `generic` rows
+//!   how the kernel is bound and dispatched (its `Shape`, and the uniform bound as its
+//!   `params`): `super::bind_groups` and `super::steps` then need nothing of their own for
+//!   it;
+//! - a compile-time check that each row's twin exists (an underscore import of
+//!   `crate::cpu::<name>::<name>`): a row without a twin does not build.
+//!
+//! This module imports nothing of the engine (the pipelines are built in
+//! `super::pipelines`), so the sources (`super::shaders`) and the kernels built from them
+//! (`super::kernel`) can read it without a circle. What the registry does not hold: a
+//! kernel's bindings (reflected from the WGSL, see `super::kernel::Kernel::new`, and bound
+//! by the WGSL variables' names), the bind groups and passes of the kernels that fit no
+//! `Shape` (`super::bind_groups`, `super::steps`), and the order kernels run in
+//! (`wgslam_core::plan`).
+
+/// The text of `shaders/<name>.wgsl`.
+macro_rules! shader_text {
+    ($name:ident) => {
+        include_str!(concat!("../../../shaders/", stringify!($name), ".wgsl"))
+    };
+}
+
+/// Calls the macro `$then` with the registry's rows: the one list of kernels, read by
+/// `registry_data!` here and by `registry_pipelines!` in `super::pipelines`.
+macro_rules! kernel_rows {
+    ($then:ident) => {
+        $then! {
+            generic: {
+                depth_to_vertex: OverFrame(preprocess),
+                bilateral_filter: OverFrame(bilateral),
+                predict_model: PerChunk(project),
+                fuse_merge_chosen: PerChunk(fuse),
+                fuse_prune: PerBlock(fuse),
+                fuse_merge: PerBlock(fuse),
+                fuse_flags: OverFrame(fuse),
+            }
+            generic_keys: {
+                // The map's depth keys at the predicted view, and fusion's choice of surfel per
+                // pixel (best-candidate association).
+                project_model: PerBlock(project),
+                fuse_select: PerBlock(fuse),
+            }
+            kernels: {
+                vertex_to_normal,
+                pyramid_depth,
+                block_bounds,
+                pyramid_model,
+                icp_reduce,
+                icp_reduce_final,
+                // RGB-D tracking's photometric term (its sum: icp_reduce_final) and the frame's
+                // intensity pyramid it reads.
+                photo_reduce,
+                intensity_pyramid,
+                icp_candidates,
+                fern_encode,
+                keypoint_detect,
+                keypoint_describe,
+                compact_flags,
+                // The scan's three kernels: block sums, their scan, each block's scan.
+                prefix_sum_reduce,
+                prefix_sum_blocks,
+                prefix_sum,
+                compact_scatter,
+            }
+            key_kernels: {
+                // Its passes depend on the association (see `super::step_grid`).
+                fuse_add,
+            }
+            elsewhere: {
+                // Loop closure's map deformation (crates/gpu/src/loops.rs), built at the first closure.
+                deform_surfels,
+                // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
+                render_resolve,
+            }
+            key_elsewhere: {
+                render_splat,
+            }
+            scan: {
+                // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
+                nn_brute,
+                nn_grid,
+                cross_covariance,
+            }
+        }
+    };
+}
+pub(super) use kernel_rows;
+
+/// One row per kernel, in groups by how the kernel is built and run. The `key` groups hold
+/// the key kernels, which keep the nearest surfel per pixel in a map of 64-bit keys (a
+/// `KeyKernel`: the 64-bit kernel, or on a device without 64-bit atomics its portable
+/// variant `<name>_portable`, the same file built without `KEY_64`; both are in
+/// [`KERNELS`] and [`PORTABLE_KERNELS`]).
+///
+/// - `generic`, `generic_keys`: `name: Shape(uniform)`, a field of `Kernels`
+///   (`super::pipelines`) whose bind groups and passes the row decides (`Shape`; `uniform` is the
+///   `super::resources::Uniforms` field bound as its `params`): nothing else in `crates/gpu/src/`
+///   names it;
+/// - `kernels`, `key_kernels`: a field of `Kernels` with bind groups in
+///   `super::bind_groups` and passes in `super::steps` or `super::single_steps` of its own;
+/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (`deform_surfels` at the
+///   first loop closure, the renderer's kernels);
+/// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
+///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
+macro_rules! registry_data {
+    (
+        generic: { $($generic:ident: $shape:ident($uniform:ident),)* }
+        generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
+        kernels: { $($kernel:ident,)* }
+        key_kernels: { $($key:ident,)* }
+        elsewhere: { $($other:ident,)* }
+        key_elsewhere: { $($other_key:ident,)* }
+        scan: { $($scan:ident,)* }
+    ) => {
+        /// Every kernel the runtime builds as `(name, text of shaders/<file_of(name)>.wgsl)`:
+        /// one row per file, plus one per portable variant of a key kernel (the same text).
+        /// `tests/it/shaders.rs` fails when a `.wgsl` file is missing here.
+        pub const KERNELS: &[(&str, &str)] = &[
+            $((stringify!($generic), shader_text!($generic)),)*
+            $((stringify!($generic_key), shader_text!($generic_key)),)*
+            $((stringify!($kernel), shader_text!($kernel)),)*
+            $((stringify!($key), shader_text!($key)),)*
+            $((stringify!($other), shader_text!($other)),)*
+            $((stringify!($other_key), shader_text!($other_key)),)*
+            $((stringify!($scan), shader_text!($scan)),)*
+            $((concat!(stringify!($generic_key), "_portable"), shader_text!($generic_key)),)*
+            $((concat!(stringify!($key), "_portable"), shader_text!($key)),)*
+            $((concat!(stringify!($other_key), "_portable"), shader_text!($other_key)),)*
+        ];
+
+        /// The key kernels (the registry's `key` groups), each built in two variants from
+        /// its one file `shaders/<kernel>.wgsl` followed by `shaders/key_writer.wgsl`:
+        /// `(kernel, portable)`. The kernel (the file with `KEY_64` defined) keeps the
+        /// nearest surfel per pixel with one 64-bit `atomicMax` and needs `SHADER_INT64`
+        /// and `SHADER_INT64_ATOMIC_MIN_MAX`; its portable variant (the same file without
+        /// `KEY_64`) keeps the same 64-bit key as two u32 words, (low = index, high = depth
+        /// word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
+        /// then 1), and decides the same winner bit for bit. Every other kernel, portable
+        /// variants included, validates without 64-bit integers (`tests/it/shaders.rs`).
+        /// The CPU twin `crates/core/src/cpu/<kernel>.rs` serves both, generic over
+        /// `cpu::key_writer::KeyWriter`.
+        pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
+            $((stringify!($generic_key), concat!(stringify!($generic_key), "_portable")),)*
+            $((stringify!($key), concat!(stringify!($key), "_portable")),)*
+            $((stringify!($other_key), concat!(stringify!($other_key), "_portable")),)*
+        ];
+
+        /// The kernels of the `generic` rows, bound and dispatched by their rows alone
+        /// (`tests/it/kernel_places.rs` checks that nothing else in the engine names them).
+        pub const GENERIC_KERNELS: &[&str] = &[
+            $(stringify!($generic),)*
+            $(stringify!($generic_key),)*
+        ];
+
+        /// The kernels prefixed with `scan_common.wgsl` instead of `common.wgsl` (the
+        /// registry's `scan` group).
+        pub const SCAN_KERNELS: &[&str] = &[$(stringify!($scan),)*];
+
+        /// Each row's CPU twin, `crate::cpu::<name>::<name>`: this does not compile when
+        /// one is missing.
+        #[allow(unused_imports)]
+        mod twins {
+            $(use crate::cpu::$generic::$generic as _;)*
+            $(use crate::cpu::$generic_key::$generic_key as _;)*
+            $(use crate::cpu::$kernel::$kernel as _;)*
+            $(use crate::cpu::$key::$key as _;)*
+            $(use crate::cpu::$other::$other as _;)*
+            $(use crate::cpu::$other_key::$other_key as _;)*
+            $(use crate::cpu::$scan::$scan as _;)*
+        }
+    };
+}
+
+kernel_rows!(registry_data);
