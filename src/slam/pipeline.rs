@@ -24,7 +24,7 @@
 //! What each step reads and writes. Frame maps are width x height (the downsampled
 //! image); the map is one entry per surfel in the packed representation of
 //! `common.wgsl` (`position_weight`, `normal_frame`, `color`). The CPU backend
-//! (`cpu_backend.rs`) holds them as `Vec`s, the GPU backend (`gpu/backend.rs`) as textures
+//! (`wgslam_core::cpu_backend`) holds them as `Vec`s, the GPU backend (`wgslam_gpu::backend`) as textures
 //! (frame maps and the map) and storage buffers (`index_map`, `assoc`, `partials`,
 //! `counter`).
 //!

@@ -194,7 +194,7 @@ fn base_places(kernel: &str, file: &str) -> bool {
         || file == format!("crates/core/src/cpu/{kernel}.rs")
         || file == "crates/core/src/cpu/mod.rs"
         || file == "crates/core/src/plan.rs"
-        || file.starts_with("src/slam/cpu_backend/")
+        || file.starts_with("crates/core/src/cpu_backend/")
 }
 
 /// The `.rs` and `.wgsl` files under `dir`, recursively, sorted.

@@ -7,6 +7,7 @@
 //! | [`cpu`] | the CPU twins of the WGSL kernels: pure functions over typed slices, the shader's shape line by line |
 //! | [`error`] | [`Error`]: one documented variant per kind of thing a user can cause or meet, for every floor |
 //! | [`stats`] | the one median |
+//! | [`cpu_backend`] | the CPU reference backend: the steps as calls of the twins, in the plans' order |
 //! | [`backend`] | the steps every backend implements (the CPU reference's twins, the GPU's kernels), and the maps they exchange |
 //! | [`plan`] | each step's kernels in order, written once for both backends |
 //! | [`fused_view`] | when the last fusion's index map is the next prediction's |
@@ -17,6 +18,7 @@
 
 pub mod backend;
 pub mod cpu;
+pub mod cpu_backend;
 pub mod error;
 pub mod fused_view;
 pub mod geometry;

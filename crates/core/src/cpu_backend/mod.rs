@@ -1,5 +1,5 @@
 //! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors, each step in
-//! the order of its plan (`crate::slam::plan`, shared with the GPU backend).
+//! the order of its plan (`crate::plan`, shared with the GPU backend).
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
@@ -8,17 +8,17 @@
 //! fusion appended to, all of them after a compaction or an upload, before the next
 //! culling step), so its cost per frame also follows what the camera sees.
 
+use crate::backend::RgbdSystems;
+use crate::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
 use crate::cpu;
+use crate::fused_view::FusedView;
 use crate::layout::map::SurfelMap;
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams,
     FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
     ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
-use crate::slam::backend::RgbdSystems;
-use crate::slam::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
-use crate::slam::fused_view::FusedView;
-use crate::slam::plan::{self, CompactCall, PredictCall, PreprocessCall};
+use crate::plan::{self, CompactCall, PredictCall, PreprocessCall};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -64,7 +64,7 @@ impl CpuBackend {
     }
 
     /// A backend starting from `map` (to resume from a saved map, or to start both backends
-    /// from the same map; [`Backend::upload_map`] does the same later).
+    /// from the same map; [`crate::backend::Inspect::upload_map`] does the same later).
     pub fn with_map(map: SurfelMap) -> Self {
         map.assert_consistent();
         CpuBackend {

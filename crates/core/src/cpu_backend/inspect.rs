@@ -2,8 +2,8 @@
 //! maps, prediction and fusion buffers are already host memory, so each is a clone.
 
 use super::CpuBackend;
+use crate::backend::{FrameMaps, FusionBuffers, Inspect, Prediction};
 use crate::layout::map::SurfelMap;
-use crate::slam::backend::{FrameMaps, FusionBuffers, Inspect, Prediction};
 use crate::Result;
 
 impl Inspect for CpuBackend {

@@ -4,9 +4,9 @@
 
 use super::CpuBackend;
 use crate::cpu;
+use crate::fused_view::FusedView;
 use crate::layout::{append_slots, scan_params, FuseParams, MapChunk};
-use crate::slam::fused_view::FusedView;
-use crate::slam::plan::{self, Buffer, FuseCall};
+use crate::plan::{self, Buffer, FuseCall};
 
 impl CpuBackend {
     /// `Backend::fuse` on the CPU: the plan's kernels over the frame's maps and the map;

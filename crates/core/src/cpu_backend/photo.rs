@@ -1,12 +1,12 @@
 //! The CPU backend's photometric system (`photo_reduce` over the level-0 prediction and
 //! a pyramid level's frame maps, with the frame's intensity pyramid made at the first call
-//! of a frame), for [`crate::slam::backend::Backend::rgbd_system`]; beside the step
+//! of a frame), for [`crate::backend::Backend::rgbd_system`]; beside the step
 //! implementations only to keep that file short.
 
 use super::CpuBackend;
+use crate::backend::PyramidLevel;
 use crate::cpu;
 use crate::layout::{IcpParams, IntensityParams, PreprocessParams, ICP_SYSTEM_LEN};
-use crate::slam::backend::PyramidLevel;
 
 /// The frame's intensity pyramid (`intensity_pyramid`): per level its parameters and
 /// intensity patches, each level made only when RGB-D tracking first asks for it or a
