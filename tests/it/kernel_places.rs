@@ -8,8 +8,9 @@
 
 use crate::common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use crate::suite::files_under;
 use common::harness::plain;
 use wgslam::gpu::shaders;
 
@@ -197,21 +198,6 @@ fn base_places(kernel: &str, file: &str) -> bool {
         || file.starts_with("crates/core/src/cpu_backend/")
 }
 
-/// The `.rs` and `.wgsl` files under `dir`, recursively, sorted.
-fn source_files(dir: &Path) -> Vec<PathBuf> {
-    let mut files = Vec::new();
-    for entry in std::fs::read_dir(dir).expect("source directory is readable") {
-        let path = entry.expect("directory entry").path();
-        if path.is_dir() {
-            files.extend(source_files(&path));
-        } else if path.extension().is_some_and(|e| e == "rs" || e == "wgsl") {
-            files.push(path);
-        }
-    }
-    files.sort();
-    files
-}
-
 /// A file's code: each line without its `//` comment (doc comments too), and nothing from
 /// the first `#[cfg(test)]` on (unit tests name kernels freely).
 fn code_of(text: &str) -> String {
@@ -237,7 +223,7 @@ fn each_kernel_is_named_in_its_places_alone() {
     let files: Vec<(String, String)> = ["src", "crates", "shaders", "python/src"]
         .iter()
         .filter(|d| root.join(d).is_dir())
-        .flat_map(|d| source_files(&root.join(d)))
+        .flat_map(|d| files_under(&root.join(d), &["rs", "wgsl"]))
         .map(|p| {
             let shown = p.strip_prefix(root).unwrap_or(&p).display().to_string();
             let text = std::fs::read_to_string(&p).expect("source file is readable");

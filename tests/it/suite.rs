@@ -17,14 +17,18 @@ pub fn tests() -> Vec<common::harness::Test> {
     )]
 }
 
-/// The `.rs` files under `dir`, recursively, sorted.
-fn rust_files(dir: &Path) -> Vec<PathBuf> {
+/// The files under `dir` whose extension is one of `extensions`, recursively, sorted (also
+/// for `kernel_places`).
+pub fn files_under(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
     let mut files = Vec::new();
-    for entry in std::fs::read_dir(dir).expect("test directory is readable") {
+    for entry in std::fs::read_dir(dir).expect("directory is readable") {
         let path = entry.expect("directory entry").path();
         if path.is_dir() {
-            files.extend(rust_files(&path));
-        } else if path.extension().is_some_and(|e| e == "rs") {
+            files.extend(files_under(&path, extensions));
+        } else if path
+            .extension()
+            .is_some_and(|e| extensions.iter().any(|x| e == *x))
+        {
             files.push(path);
         }
     }
@@ -45,7 +49,7 @@ fn every_test_file_is_a_module_under_the_harness() {
             ));
         }
     }
-    let files = rust_files(&it);
+    let files = files_under(&it, &["rs"]);
     for path in &files {
         let shown = path
             .strip_prefix(root)

@@ -159,21 +159,28 @@ impl GpuBackend {
                 MapBuffers::device_chunk_surfels(&ctx)
             )));
         }
-        let per_stage = ctx.limits().max_storage_buffers_per_shader_stage;
-        if per_stage < MAX_STORAGE_BUFFERS_USED {
-            return Err(Error::Gpu(format!(
-                "adapter \"{}\" allows {per_stage} storage buffers per shader stage; \
-                 the fusion kernels need {MAX_STORAGE_BUFFERS_USED}; use --backend cpu",
-                ctx.adapter_info().name
-            )));
-        }
-        let per_stage = ctx.limits().max_storage_textures_per_shader_stage;
-        if per_stage < MAX_STORAGE_TEXTURES_USED {
-            return Err(Error::Gpu(format!(
-                "adapter \"{}\" allows {per_stage} storage textures per shader stage; \
-                 the prediction kernel needs {MAX_STORAGE_TEXTURES_USED}; use --backend cpu",
-                ctx.adapter_info().name
-            )));
+        let limits = ctx.limits();
+        for (per_stage, needed, what, who) in [
+            (
+                limits.max_storage_buffers_per_shader_stage,
+                MAX_STORAGE_BUFFERS_USED,
+                "buffers",
+                "the fusion kernels need",
+            ),
+            (
+                limits.max_storage_textures_per_shader_stage,
+                MAX_STORAGE_TEXTURES_USED,
+                "textures",
+                "the prediction kernel needs",
+            ),
+        ] {
+            if per_stage < needed {
+                return Err(Error::Gpu(format!(
+                    "adapter \"{}\" allows {per_stage} storage {what} per shader stage; \
+                     {who} {needed}; use --backend cpu",
+                    ctx.adapter_info().name
+                )));
+            }
         }
         let max_surfels = MapBuffers::max_surfels();
         let capacity = capacity.clamp(1, max_surfels);

@@ -10,7 +10,7 @@
 //!   variants' names, and [`SCAN_KERNELS`], the kernels prefixed with `scan_common.wgsl`
 //!   (the `scan` group);
 //! - [`GENERIC_KERNELS`], the kernels of the `generic` rows;
-//! - in `super::pipelines` (from the same rows, through [`kernel_rows`]), the dense
+//! - in `super::pipelines` (from the same rows, through `pipeline_rows!`), the dense
 //!   pipeline's pipelines, one field per kernel named after it, and for the `generic` rows
 //!   how the kernel is bound and dispatched (its `Shape`, and the uniform bound as its
 //!   `params`): `super::bind_groups` and `super::steps` then need nothing of their own for
@@ -32,72 +32,6 @@ macro_rules! shader_text {
         include_str!(concat!("../../../shaders/", stringify!($name), ".wgsl"))
     };
 }
-
-/// Calls the macro `$then` with the registry's rows: the one list of kernels, read by
-/// `registry_data!` here and by `registry_pipelines!` in `super::pipelines`.
-macro_rules! kernel_rows {
-    ($then:ident) => {
-        $then! {
-            generic: {
-                depth_to_vertex: OverFrame(preprocess),
-                bilateral_filter: OverFrame(bilateral),
-                predict_model: PerChunk(project),
-                fuse_merge_chosen: PerChunk(fuse),
-                fuse_prune: PerBlock(fuse),
-                fuse_merge: PerBlock(fuse),
-                fuse_flags: OverFrame(fuse),
-            }
-            generic_keys: {
-                // The map's depth keys at the predicted view, and fusion's choice of surfel per
-                // pixel (best-candidate association).
-                project_model: PerBlock(project),
-                fuse_select: PerBlock(fuse),
-            }
-            kernels: {
-                vertex_to_normal,
-                pyramid_depth,
-                block_bounds,
-                pyramid_model,
-                icp_reduce,
-                icp_reduce_final,
-                // RGB-D tracking's photometric term (its sum: icp_reduce_final) and the frame's
-                // intensity pyramid it reads.
-                photo_reduce,
-                intensity_pyramid,
-                icp_candidates,
-                fern_encode,
-                keypoint_detect,
-                keypoint_describe,
-                compact_flags,
-                // The scan's three kernels: block sums, their scan, each block's scan.
-                prefix_sum_reduce,
-                prefix_sum_blocks,
-                prefix_sum,
-                compact_scatter,
-            }
-            key_kernels: {
-                // Its passes depend on the association (see `super::step_grid`).
-                fuse_add,
-            }
-            elsewhere: {
-                // Loop closure's map deformation (crates/gpu/src/loops.rs), built at the first closure.
-                deform_surfels,
-                // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
-                render_resolve,
-            }
-            key_elsewhere: {
-                render_splat,
-            }
-            scan: {
-                // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
-                nn_brute,
-                nn_grid,
-                cross_covariance,
-            }
-        }
-    };
-}
-pub(super) use kernel_rows;
 
 /// One row per kernel, in groups by how the kernel is built and run. The `key` groups hold
 /// the key kernels, which keep the nearest surfel per pixel in a map of 64-bit keys (a
@@ -181,7 +115,78 @@ macro_rules! registry_data {
             $(use crate::cpu::$other_key::$other_key as _;)*
             $(use crate::cpu::$scan::$scan as _;)*
         }
+
+        /// Calls `registry_pipelines!` (in scope where this is called: see
+        /// `super::pipelines`) with the rows the pipelines are built from.
+        macro_rules! pipeline_rows {
+            () => {
+                registry_pipelines! {
+                    generic: { $($generic: $shape($uniform),)* }
+                    generic_keys: { $($generic_key: $key_shape($key_uniform),)* }
+                    kernels: { $($kernel,)* }
+                    key_kernels: { $($key,)* }
+                }
+            };
+        }
+        pub(super) use pipeline_rows;
     };
 }
 
-kernel_rows!(registry_data);
+registry_data! {
+    generic: {
+        depth_to_vertex: OverFrame(preprocess),
+        bilateral_filter: OverFrame(bilateral),
+        predict_model: PerChunk(project),
+        fuse_merge_chosen: PerChunk(fuse),
+        fuse_prune: PerBlock(fuse),
+        fuse_merge: PerBlock(fuse),
+        fuse_flags: OverFrame(fuse),
+    }
+    generic_keys: {
+        // The map's depth keys at the predicted view, and fusion's choice of surfel per
+        // pixel (best-candidate association).
+        project_model: PerBlock(project),
+        fuse_select: PerBlock(fuse),
+    }
+    kernels: {
+        vertex_to_normal,
+        pyramid_depth,
+        block_bounds,
+        pyramid_model,
+        icp_reduce,
+        icp_reduce_final,
+        // RGB-D tracking's photometric term (its sum: icp_reduce_final) and the frame's
+        // intensity pyramid it reads.
+        photo_reduce,
+        intensity_pyramid,
+        icp_candidates,
+        fern_encode,
+        keypoint_detect,
+        keypoint_describe,
+        compact_flags,
+        // The scan's three kernels: block sums, their scan, each block's scan.
+        prefix_sum_reduce,
+        prefix_sum_blocks,
+        prefix_sum,
+        compact_scatter,
+    }
+    key_kernels: {
+        // Its passes depend on the association (see `super::step_grid`).
+        fuse_add,
+    }
+    elsewhere: {
+        // Loop closure's map deformation (crates/gpu/src/loops.rs), built at the first closure.
+        deform_surfels,
+        // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
+        render_resolve,
+    }
+    key_elsewhere: {
+        render_splat,
+    }
+    scan: {
+        // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
+        nn_brute,
+        nn_grid,
+        cross_covariance,
+    }
+}

@@ -1,10 +1,10 @@
 //! The dense pipeline's kernels, built: one field of [`Kernels`] per row of the registry
-//! (`super::kernels`, read through its `kernel_rows!`), and for the `generic` rows how each
+//! (`super::kernels`, read through its `pipeline_rows!`), and for the `generic` rows how each
 //! is bound and dispatched ([`Shape`], [`GenericRow`]).
 
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
-use super::kernels::kernel_rows;
+use super::kernels::pipeline_rows;
 use super::resources::Uniforms;
 use crate::Result;
 
@@ -15,9 +15,6 @@ macro_rules! registry_pipelines {
         generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
-        elsewhere: { $($other:ident,)* }
-        key_elsewhere: { $($other_key:ident,)* }
-        scan: { $($scan:ident,)* }
     ) => {
         /// Every kernel of the dense pipeline, one field per kernel named after it.
         pub(super) struct Kernels {
@@ -102,4 +99,4 @@ pub(super) struct GenericRow<'a> {
     pub params: wgpu::BindingResource<'a>,
 }
 
-kernel_rows!(registry_pipelines);
+pipeline_rows!();
