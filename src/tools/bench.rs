@@ -115,7 +115,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         None => run::trajectory(&frames),
     };
     let accuracy = run::accuracy(&est, &seq.ground_truth())?;
-    let camera = seq.intrinsics.downsampled(params.input.downsample.max(1));
+    let camera = seq.intrinsics.downsampled(params.input.downsample);
     let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
     let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
     let mut result = BenchResult {
@@ -327,7 +327,7 @@ pub fn bench_interleaved<G: Backend>(
     let ate = |f: &[run::FrameOutcome]| -> Result<Option<f64>> {
         Ok(run::accuracy(&run::trajectory(f), &gt)?.map(|a| a.ate_rmse_aligned_m))
     };
-    let camera = seq.intrinsics.downsampled(params.input.downsample.max(1));
+    let camera = seq.intrinsics.downsampled(params.input.downsample);
     Ok(InterleavedResult {
         frames: cpu_frames.len(),
         width: camera.width,
