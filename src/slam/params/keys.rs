@@ -96,7 +96,7 @@ impl SlamParams {
     ///
     /// The keys are set in one table of the profile's values ([`SlamParams::to_keys`]),
     /// which becomes parameters once, at the end; only when that fails are the keys set
-    /// again one at a time to name the first one refused ([`first_refused`]).
+    /// again one at a time to name the first one refused (`first_refused`).
     pub fn with_keys(profile: Profile, poses: PoseSource, keys: &[Key]) -> Result<ValidParams> {
         let mut t = SlamParams::profile(profile).to_keys();
         let (mut switched, mut touched) = (BTreeSet::new(), BTreeSet::new());
