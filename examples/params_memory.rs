@@ -17,7 +17,7 @@ use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
 use wgslam::slam::backend::Backend;
-use wgslam::slam::params::{Profile, SlamParams};
+use wgslam::slam::params::{Profile, ValidParams};
 use wgslam::slam::pipeline::Slam;
 use wgslam::tools::run::packed_rgba;
 
@@ -42,8 +42,8 @@ fn main() -> wgslam::Result<()> {
     let mut s = Slam::for_sequence(
         GpuBackend::open()?,
         &seq,
-        SlamParams::profile(Profile::Robust),
-    );
+        ValidParams::profile(Profile::Robust),
+    )?;
     for i in 1..=3 {
         let f = seq.load(i)?;
         s.process(

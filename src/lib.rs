@@ -4,7 +4,8 @@
 //!
 //! What a program needs is re-exported at the crate root: open a sequence
 //! ([`open_sequence`], [`SequenceOptions`], [`Sequence`]), configure ([`SlamParams`],
-//! [`Profile`], [`SlamParams::validate`]), choose a backend ([`open_backend`],
+//! [`Profile`], [`SlamParams::validate`], which makes the [`ValidParams`] a run takes),
+//! choose a backend ([`open_backend`],
 //! [`BackendChoice`]), run ([`run`], giving a [`RunResult`]) and read the results
 //! ([`Metrics`], the [`SurfelMap`], the per-frame [`FrameOutcome`]s) or write them as the
 //! command line does ([`write_outputs`]); [`Error`] says what went wrong.
@@ -13,8 +14,7 @@
 //! use std::path::Path;
 //!
 //! let seq = wgslam::open_sequence(Path::new("assets/icl_living_room_kt2"), &Default::default())?;
-//! let params = wgslam::SlamParams::profile(wgslam::Profile::Robust);
-//! params.validate()?;
+//! let params = wgslam::SlamParams::profile(wgslam::Profile::Robust).validate()?;
 //! let backend = wgslam::open_backend(wgslam::BackendChoice::Auto)?;
 //! let result = wgslam::run(backend, &seq, 0, seq.len() - 1, params, |_frame| {})?;
 //! println!("{} surfels, ATE {:?}", result.map.len(), result.metrics.accuracy);
@@ -85,5 +85,5 @@ pub use error::{Error, Result};
 pub use dataset::{open as open_sequence, Sequence, SequenceOptions};
 pub use layout::map::SurfelMap;
 pub use slam::any_backend::{open as open_backend, AnyBackend, BackendChoice};
-pub use slam::params::{Profile, SlamParams};
+pub use slam::params::{Profile, SlamParams, ValidParams};
 pub use tools::run::{run, write_outputs, FrameOutcome, Metrics, RunResult};

@@ -122,16 +122,12 @@ impl Stream {
                  fx, fy non-zero"
             )));
         }
-        if !(depth_scale.is_finite() && depth_scale > 0.0) {
-            return Err(PyValueError::new_err(format!(
-                "depth_scale {depth_scale}: want raw units per metre, finite and positive"
-            )));
-        }
         let choice = backend_choice(backend)?;
-        let mut params = embed::params_from_toml(&params_toml(params_json)?, pose_source(poses)?)
-            .map_err(py_err)?;
-        params.input.depth_scale = depth_scale;
-        params.validate().map_err(py_err)?;
+        // Validated once, by the parameter text's reading; the depth scale by its own check.
+        let params = embed::params_from_toml(&params_toml(params_json)?, pose_source(poses)?)
+            .map_err(py_err)?
+            .with_depth_scale(depth_scale)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let backend = py.detach(|| wgslam::open_backend(choice)).map_err(py_err)?;
         Ok(Stream {
             state: Mutex::new(State {

@@ -149,8 +149,8 @@ fn check_jobs(path: &Path, m: &Manifest, picked: &[usize]) -> Result<()> {
             )
         };
         let set = ParamOverrides::from_toml(&job.params_toml()).map_err(bad)?;
-        set.sequence_options()
-            .and_then(|_| set.slam_params(PoseSource::Track))
+        set.slam_params(PoseSource::Track)
+            .and_then(|params| set.sequence_options(&params))
             .map_err(|e| bad(e.to_string()))?;
     }
     Ok(())

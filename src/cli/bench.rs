@@ -8,7 +8,7 @@ use clap::Args;
 
 use super::pipeline_args::{frame_range, PipelineArgs, Setup};
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::params::PoseSource;
+use crate::slam::params::{PoseSource, ValidParams};
 use crate::tools::{bench, long_run, run};
 use crate::{Error, Result};
 
@@ -55,11 +55,11 @@ pub struct BenchArgs {
 /// Runs `wgslam bench`.
 pub fn execute(a: BenchArgs) -> Result<()> {
     let setup = a.pipeline.resolve()?;
-    // Bad parameters fail here, before any child starts.
-    setup.set.sequence_options()?;
-    setup.slam_params(PoseSource::Track)?;
+    // Bad parameters fail here, before any child starts (each child validates its own).
+    let params = setup.slam_params(PoseSource::Track)?;
+    setup.set.sequence_options(&params)?;
     if let Some(total) = a.revisit {
-        return bench_revisit(&a, &setup, total);
+        return bench_revisit(&a, &setup, &params, total);
     }
     let params_file = setup.child_params("bench")?;
     let bench_one_args = with_frames(setup.handoff_args(&params_file), &a.frames);
@@ -93,9 +93,8 @@ pub fn execute(a: BenchArgs) -> Result<()> {
     }
     let interleaved = if a.interleaved {
         eprintln!("benchmarking both backends frame by frame in one process ...");
-        let seq = setup.open_sequence()?;
+        let seq = setup.open_sequence(&params)?;
         let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
-        let params = setup.slam_params(PoseSource::Track)?;
         let gpu = crate::gpu::GpuBackend::open()?;
         let r = bench::bench_interleaved(gpu, &seq, first, last, &params)?;
         bench::print_interleaved(&r);
@@ -122,8 +121,8 @@ fn with_frames(mut args: Vec<String>, frames: &Option<String>) -> Vec<String> {
 }
 
 /// `bench --revisit N`: each backend's long run in a child `wgslam run`, then the table.
-fn bench_revisit(a: &BenchArgs, setup: &Setup, total: usize) -> Result<()> {
-    let seq = setup.open_sequence()?;
+fn bench_revisit(a: &BenchArgs, setup: &Setup, params: &ValidParams, total: usize) -> Result<()> {
+    let seq = setup.open_sequence(params)?;
     let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     let gt = seq.revisiting(first, last, total)?.ground_truth();
     let params_file = setup.child_params("bench")?;
@@ -151,9 +150,9 @@ fn bench_revisit(a: &BenchArgs, setup: &Setup, total: usize) -> Result<()> {
 /// Runs `wgslam bench-one` (a child of `bench`): one backend, its result as JSON on stdout.
 pub fn execute_one(a: BenchArgs) -> Result<()> {
     let setup = a.pipeline.resolve()?;
-    let seq = setup.open_sequence()?;
-    let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     let params = setup.slam_params(PoseSource::Track)?;
+    let seq = setup.open_sequence(&params)?;
+    let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
     let make = || any_backend::open(choice);
     let mut r = if a.frames_only {

@@ -42,9 +42,9 @@ pub struct CompareArgs {
 /// Runs `wgslam compare`.
 pub fn execute(a: CompareArgs) -> Result<()> {
     let setup = a.pipeline.resolve()?;
-    let seq = setup.open_sequence()?;
-    let (first, last) = frame_range(&seq, &a.frames, 20)?;
     let params = setup.slam_params(PoseSource::Track)?;
+    let seq = setup.open_sequence(&params)?;
+    let (first, last) = frame_range(&seq, &a.frames, 20)?;
     let mode = if a.free {
         compare::Mode::Free
     } else {

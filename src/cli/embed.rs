@@ -14,7 +14,7 @@ use clap::Parser;
 use super::pipeline_args::{default_first_frame, ParamOverrides, Setup};
 use super::{execute, Cli};
 use crate::dataset::{self, Sequence};
-use crate::slam::params::{PoseSource, SlamParams};
+use crate::slam::params::{PoseSource, ValidParams};
 use crate::{Error, Result};
 
 /// What the errors of a parameter text name in place of a file's path.
@@ -98,10 +98,10 @@ fn overrides(params_toml: &str) -> Result<ParamOverrides> {
 
 /// The pipeline's parameters from a parameter file's text, as `wgslam run --params FILE`
 /// makes them: the profile's (robust unless the text sets `profile`) with the text's keys
-/// in place and `poses`, validated. The dataset keys (`camera`, `intrinsics`,
+/// in place and `poses`, validated (the one time: [`ValidParams`]). The dataset keys (`camera`, `intrinsics`,
 /// `depth-scale`, `gt`, ...) are accepted and not used here: they open a sequence
 /// ([`resolve_run`]); a stream of frames gives its camera itself.
-pub fn params_from_toml(params_toml: &str, poses: PoseSource) -> Result<SlamParams> {
+pub fn params_from_toml(params_toml: &str, poses: PoseSource) -> Result<ValidParams> {
     overrides(params_toml)?.slam_params(poses)
 }
 
@@ -113,7 +113,7 @@ pub struct RunSetup {
     /// The frames to run, by position in the sequence.
     pub frames: RangeInclusive<usize>,
     /// The validated parameters.
-    pub params: SlamParams,
+    pub params: ValidParams,
 }
 
 /// The sequence and overrides of `wgslam run DATASET --params FILE`.
@@ -127,9 +127,11 @@ fn setup(dataset: Option<&Path>, params_toml: &str) -> Result<Setup> {
 /// Opens `dataset` (`None`: the bundled frames) as `wgslam run DATASET --params FILE`
 /// opens it, with the dataset keys of the parameter text `params_toml` (`camera`,
 /// `intrinsics`, `depth-scale`, `gt`, `max-time-diff`); what opening decided on the user's
-/// behalf is printed on stderr as `note: ...`, as by the command line.
+/// behalf is printed on stderr as `note: ...`, as by the command line. The text's
+/// parameters are validated (a depth scale it sets is their `input.depth_scale`).
 pub fn open_sequence(dataset: Option<&Path>, params_toml: &str) -> Result<Sequence> {
-    setup(dataset, params_toml)?.open_sequence()
+    let setup = setup(dataset, params_toml)?;
+    setup.open_sequence(&setup.slam_params(PoseSource::Track)?)
 }
 
 /// Resolves `wgslam run DATASET --frames FRAMES --params FILE --poses POSES` without
@@ -143,13 +145,13 @@ pub fn resolve_run(
     poses: PoseSource,
 ) -> Result<RunSetup> {
     let setup = setup(dataset, params_toml)?;
-    let sequence = setup.open_sequence()?;
+    let params = setup.slam_params(poses)?;
+    let sequence = setup.open_sequence(&params)?;
     let (first, last) = match frames {
         Some(r) => dataset::parse_range(r)?,
         None => (default_first_frame(&sequence), sequence.len() - 1),
     };
     let frames = sequence.select(first, last)?;
-    let params = setup.slam_params(poses)?;
     Ok(RunSetup {
         sequence,
         frames,
@@ -198,6 +200,43 @@ mod tests {
         );
     }
 
+    /// A run's parameters are validated once, where they are made, and never again: not
+    /// when the sequence is opened with them, not by the run; a value out of range is
+    /// refused there, by that one check, naming its key and flag once.
+    #[test]
+    fn a_run_validates_its_parameters_once() {
+        use crate::slam::cpu_backend::CpuBackend;
+        use crate::slam::params::valid::validations_on_this_thread as validations;
+        use crate::tools::run::{run_observed, Decode};
+        let before = validations();
+        let setup = resolve_run(None, Some("1..2"), "fuse-dist = 0.04", PoseSource::Track);
+        let setup = setup.unwrap();
+        assert_eq!(validations() - before, 1, "resolving the run");
+        let (seq, frames) = (&setup.sequence, setup.frames.clone());
+        let r = run_observed(
+            CpuBackend::new(),
+            seq,
+            frames,
+            setup.params,
+            Decode::BeforeEachFrame,
+            |_| {},
+            None,
+        )
+        .unwrap();
+        assert_eq!(r.frames.len(), 2);
+        assert_eq!(r.metrics.params.fusion.dist_m, 0.04);
+        assert_eq!(validations() - before, 1, "the run checked them again");
+        let before = validations();
+        let err = resolve_run(None, None, "fuse-dist = 0", PoseSource::Track).unwrap_err();
+        let msg = err.to_string();
+        assert_eq!(validations() - before, 1);
+        assert_eq!(
+            msg.matches("`fusion.dist_m` (--fuse-dist)").count(),
+            1,
+            "{msg}"
+        );
+    }
+
     /// A parameter text's errors are the parameter file's, naming the text `params`.
     #[test]
     fn parameter_text_errors_name_the_key() {
@@ -210,7 +249,7 @@ mod tests {
         let p = params_from_toml("profile = \"assignment\"", PoseSource::Track).unwrap();
         assert_eq!(
             p,
-            SlamParams::profile(crate::slam::params::Profile::Assignment)
+            ValidParams::profile(crate::slam::params::Profile::Assignment)
         );
     }
 }

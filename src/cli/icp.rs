@@ -35,10 +35,10 @@ pub struct IcpArgs {
 /// Runs `wgslam icp`.
 pub fn execute(a: IcpArgs) -> Result<()> {
     let setup = a.pipeline.resolve()?;
-    let seq = setup.open_sequence()?;
+    let params = setup.slam_params(PoseSource::Track)?;
+    let seq = setup.open_sequence(&params)?;
     let target = a.target.unwrap_or(50.min(seq.len() - 1));
     seq.select(a.source.min(target), a.source.max(target))?;
-    let params = setup.slam_params(PoseSource::Track)?;
     let r = two_frame::align_frames(
         any_backend::open(a.backend)?,
         &seq,

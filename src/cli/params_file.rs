@@ -149,7 +149,7 @@ mod tests {
     use super::*;
     use crate::cli::pipeline_args::PipelineArgs;
     use crate::geometry::camera::Intrinsics;
-    use crate::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams};
+    use crate::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams, ValidParams};
     use clap::Parser;
 
     /// The overrides `wgslam run ARGS` parses to.
@@ -162,7 +162,7 @@ mod tests {
         }
     }
 
-    fn params(o: &ParamOverrides) -> SlamParams {
+    fn params(o: &ParamOverrides) -> ValidParams {
         o.slam_params(PoseSource::Track).unwrap()
     }
 
@@ -200,7 +200,7 @@ mod tests {
         // The robust default written out changes nothing.
         let robust = crate::slam::params::defaults::ROBUST_FUSE_DIST_M;
         let same = ParamOverrides::from_toml(&format!("fuse-dist = {robust}")).unwrap();
-        assert_eq!(params(&same), SlamParams::default());
+        assert_eq!(params(&same), ValidParams::default());
     }
 
     /// Command line over file over profile, value by value.
@@ -376,7 +376,7 @@ mod tests {
             }
             let entry = o.options().into_iter().find(|e| e.flag == flag).unwrap();
             let p = params(&o);
-            let s = o.sequence_options().unwrap();
+            let s = o.sequence_options(&p).unwrap();
             match entry.key {
                 Some(key) => {
                     let got = p.get_key(key);
@@ -405,7 +405,7 @@ mod tests {
     /// the order flag, then top-level file key, then section; unset, the dataset decides.
     #[test]
     fn depth_scale_has_one_home_and_one_order() {
-        let scale = |o: &ParamOverrides| o.sequence_options().unwrap().depth_scale;
+        let scale = |o: &ParamOverrides| o.sequence_options(&params(o)).unwrap().depth_scale;
         let section = ParamOverrides::from_toml("[input]\ndepth_scale = 1000\n").unwrap();
         assert_eq!(scale(&section), Some(1000.0), "[input] depth_scale");
         assert_eq!(params(&section).input.depth_scale, 1000.0);
@@ -420,10 +420,14 @@ mod tests {
         assert_eq!(scale(&flag), Some(4000.0), "the flag over the file");
         assert_eq!(scale(&ParamOverrides::default()), None, "the dataset's own");
         let zero = ParamOverrides::from_toml("[input]\ndepth_scale = 0\n");
-        let refused = zero.map(|o| o.sequence_options().map(|_| ()));
+        let refused = zero.map(|o| {
+            o.slam_params(PoseSource::Track)
+                .and_then(|p| o.sequence_options(&p))
+                .map(|_| ())
+        });
         assert!(
             !matches!(refused, Ok(Ok(()))),
-            "a zero depth scale is refused, by the file's check or the options'"
+            "a zero depth scale is refused, by the file's check or the parameters' validation"
         );
     }
 

@@ -12,7 +12,9 @@ use serde::Serialize;
 
 use crate::dataset::{self, SequenceOptions};
 use crate::geometry::camera::Intrinsics;
-use crate::slam::params::{Association, Key, PoseSource, Profile, SlamParams, Tracking};
+use crate::slam::params::{
+    Association, Key, PoseSource, Profile, SlamParams, Tracking, ValidParams,
+};
 use crate::{Error, Result};
 
 /// The sequence, a parameter file and the overrides: flattened into `run`, `icp`,
@@ -312,10 +314,10 @@ impl ParamOverrides {
     }
 
     /// The pipeline's parameters: the profile's (robust without `profile`) with each set
-    /// value in place ([`SlamParams::with_keys`]) and `poses`, validated. An error names
-    /// the key and the flag that sets it (`` `fusion.dist_m` (--fuse-dist) 0 must be
-    /// positive ``).
-    pub fn slam_params(&self, poses: PoseSource) -> Result<SlamParams> {
+    /// value in place ([`SlamParams::with_keys`]) and `poses`, validated (the one time: a
+    /// run takes the [`ValidParams`] as they are). An error names the key and the flag that
+    /// sets it (`` `fusion.dist_m` (--fuse-dist) 0 must be positive ``).
+    pub fn slam_params(&self, poses: PoseSource) -> Result<ValidParams> {
         let profile = self.profile.unwrap_or(Profile::Robust);
         SlamParams::with_keys(profile, poses, &self.keys_set()).map_err(|e| match e {
             Error::Argument(why) => Error::Argument(with_flags(&why)),
@@ -324,7 +326,10 @@ impl ParamOverrides {
     }
 
     /// How to open the sequence: the dataset options set here, the layout's otherwise.
-    pub fn sequence_options(&self) -> Result<SequenceOptions> {
+    /// `params` are these overrides' [`ParamOverrides::slam_params`]: a depth scale set
+    /// here (by flag or file) is their `input.depth_scale`, checked by their validation
+    /// alone.
+    pub fn sequence_options(&self, params: &ValidParams) -> Result<SequenceOptions> {
         let mut intrinsics = match &self.camera {
             Some(name) => Some(Intrinsics::preset(name).ok_or_else(|| {
                 Error::Argument(format!(
@@ -357,35 +362,22 @@ impl ParamOverrides {
         Ok(SequenceOptions {
             gt_path: self.gt.clone(),
             intrinsics,
-            depth_scale: self.depth_scale()?,
+            depth_scale: self.sets_depth_scale().then_some(params.input.depth_scale),
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
             stamp_order: self.stamp_order.unwrap_or_default(),
         })
     }
 
-    /// The raw depth units per metre the user set, if any: the last `input.depth_scale` of
-    /// [`ParamOverrides::keys_set`] (the flag `--depth-scale` or a file's top-level
-    /// `depth-scale`, over a file's `[input] depth_scale`). `None` leaves the dataset's own
-    /// (`camera.json`, else the layout's convention): the one order of precedence, applied
-    /// once when the sequence is opened ([`dataset::open`]), whose value the pipeline's
-    /// `input.depth_scale` then records (`Slam::for_sequence`).
-    fn depth_scale(&self) -> Result<Option<f32>> {
-        let Some((_, value)) = self
-            .keys_set()
-            .into_iter()
-            .rev()
-            .find(|(key, _)| key == "input.depth_scale")
-        else {
-            return Ok(None);
-        };
-        let scale = value.as_float().or(value.as_integer().map(|i| i as f64));
-        match scale {
-            Some(s) if s.is_finite() && s > 0.0 && s <= f32::MAX as f64 => Ok(Some(s as f32)),
-            _ => Err(Error::Argument(with_flags(&format!(
-                "`input.depth_scale` {value} must be a positive number of raw depth units per \
-                 metre"
-            )))),
-        }
+    /// Whether the user set the raw depth units per metre: the key `input.depth_scale` is
+    /// among [`ParamOverrides::keys_set`] (the flag `--depth-scale`, a file's top-level
+    /// `depth-scale` or its `[input] depth_scale`, the later winning as there). Unset, the
+    /// dataset's own decides (`camera.json`, else the layout's convention): the one order of
+    /// precedence, applied once when the sequence is opened ([`dataset::open`]), whose value
+    /// the pipeline's `input.depth_scale` then records (`Slam::for_sequence`).
+    fn sets_depth_scale(&self) -> bool {
+        self.keys_set()
+            .iter()
+            .any(|(key, _)| key == "input.depth_scale")
     }
 }
 
@@ -428,22 +420,24 @@ pub struct Setup {
 }
 
 impl Setup {
-    /// Opens the sequence with the dataset options applied, and prints what opening it
+    /// Opens the sequence with the dataset options applied (the depth scale of `params`,
+    /// [`Setup::slam_params`], when the overrides set one), and prints what opening it
     /// decided on the user's behalf ([`dataset::Sequence::notes`]) on stderr.
-    pub fn open_sequence(&self) -> Result<dataset::Sequence> {
+    pub fn open_sequence(&self, params: &ValidParams) -> Result<dataset::Sequence> {
         let root = self
             .dataset
             .clone()
             .unwrap_or_else(crate::cli::bundled_dataset);
-        let seq = dataset::open(&root, &self.set.sequence_options()?)?;
+        let seq = dataset::open(&root, &self.set.sequence_options(params)?)?;
         for note in &seq.notes {
             eprintln!("note: {note}");
         }
         Ok(seq)
     }
 
-    /// The pipeline's parameters ([`ParamOverrides::slam_params`]), validated.
-    pub fn slam_params(&self, poses: PoseSource) -> Result<SlamParams> {
+    /// The pipeline's parameters ([`ParamOverrides::slam_params`]), validated: once per
+    /// run, before the sequence is opened with them ([`Setup::open_sequence`]).
+    pub fn slam_params(&self, poses: PoseSource) -> Result<ValidParams> {
         self.set.slam_params(poses)
     }
 

@@ -185,12 +185,12 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         None => println!("{line}"),
     };
     let setup = a.pipeline.resolve()?;
-    let (seq, range) = frames_to_run(&a, setup.open_sequence()?)?;
     let poses = match a.poses {
         PosesChoice::Track => PoseSource::Track,
         PosesChoice::Gt => PoseSource::GroundTruth,
     };
     let params = setup.slam_params(poses)?;
+    let (seq, range) = frames_to_run(&a, setup.open_sequence(&params)?)?;
     let bar = match hooks {
         Some(_) => indicatif::ProgressBar::hidden(),
         None => progress_bar(range.clone().count()),

@@ -63,7 +63,7 @@ pub fn close_loops<B: Backend>(
     let codes = &frame.offered.codes;
     let candidates = lc.candidates(frame.frame_id, &t_cam_to_world, codes, recovery.keyframes());
     let before = lc.loops().len();
-    let iters = icp.params.loop_closure.map_or(0, |l| l.verify_iterations);
+    let iters = lc.settings().verify_iterations;
     for c in candidates {
         let (vertex, normal) = lc.prediction(c.keyframe_frame, &lc.keyframe_pose(c.keyframe_frame));
         icp.backend.set_prediction(level, &vertex, &normal)?;

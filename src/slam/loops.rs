@@ -165,6 +165,11 @@ impl LoopClosure {
         self.level
     }
 
+    /// The settings this loop closure was made with (the run's `loop_closure`).
+    pub fn settings(&self) -> &LoopSettings {
+        &self.settings
+    }
+
     /// Every tracked frame's pose, in order.
     pub fn poses(&self) -> &[TrackedPose] {
         &self.poses

@@ -30,7 +30,7 @@
 //!
 //! | step (kernels) | reads | writes |
 //! |---|---|---|
-//! | `preprocess` (`depth_to_vertex`, with [`SlamParams::bilateral`] `bilateral_filter`, then `vertex_to_normal`; per coarser level `pyramid_depth` then `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame, unfiltered), `filtered_vertex` (camera frame; only with the filter), `normal_depth` (camera-frame normal, depth in w; normals from `filtered_vertex` with the filter, else from `vertex`; depth from `vertex` unless `filter_points`), `color`; per level `l >= 1`: its `vertex` (from level `l - 1`'s normals' source) and `normal_depth` |
+//! | `preprocess` (`depth_to_vertex`, with [`SlamParams::bilateral`](crate::slam::params::SlamParams::bilateral) `bilateral_filter`, then `vertex_to_normal`; per coarser level `pyramid_depth` then `vertex_to_normal`) | raw depth (u16), raw RGBA8 | `vertex` (camera frame, unfiltered), `filtered_vertex` (camera frame; only with the filter), `normal_depth` (camera-frame normal, depth in w; normals from `filtered_vertex` with the filter, else from `vertex`; depth from `vertex` unless `filter_points`), `color`; per level `l >= 1`: its `vertex` (from level `l - 1`'s normals' source) and `normal_depth` |
 //! | `predict` (`project_model` unless the last fusion built the index map at this view, see `FusedView`; `predict_model`; per coarser level `pyramid_model`) | map `position_weight`, `normal_frame`; `t_world_to_cam` of the last pose | `index_map` (packed depth/index per pixel), `pred_vertex`, `pred_normal` (world frame); per level `l >= 1` its `pred_vertex`, `pred_normal` (from level `l - 1`'s) |
 //! | `icp_system` (`icp_reduce`), per iteration, at a level | that level's `pred_vertex`, `pred_normal`, `normal_depth`; the current `t_world_to_cam`; the level's intrinsics | the 29-float system (host: [`crate::slam::solve`]; GPU: `partials`, one per workgroup, summed on the host) |
 //! | `fuse` (`fuse_merge`, or `fuse_select` + `fuse_merge_chosen` + with a prune scale, on removal frames, `fuse_prune`; then `fuse_flags`, `prefix_sum`, `fuse_add`) | `normal_depth`, `color`; the tracked pose | map (merged in place, duplicates retired, then appended), `assoc` (merged pixels), `merged` (the surfel each pixel merged into, best-candidate association), `index_map` (best candidate: the next prediction's, by `fuse_select` and `fuse_add`), `counter` (surfel count) |
@@ -56,7 +56,7 @@ use crate::slam::backend::{Backend, PyramidLevel};
 use crate::slam::health::TrackingHealth;
 use crate::slam::loop_closer::{self, FusedFrame};
 use crate::slam::loops::LoopClosure;
-use crate::slam::params::{PoseSource, SlamParams};
+use crate::slam::params::{PoseSource, ValidParams};
 use crate::slam::recovery::{Recovery, Relocalisation};
 pub use crate::slam::report::{FrameReport, RelocalisationAttempt, TrackStatus};
 use crate::slam::solve::IcpIteration;
@@ -66,7 +66,8 @@ use crate::Result;
 /// Drives a backend frame by frame through its tracker, recovery and loop closer.
 pub struct Slam<B: Backend> {
     pub backend: B,
-    pub params: SlamParams,
+    /// The parameters every step reads, validated once before the tracker was made.
+    pub params: ValidParams,
     /// Intrinsics of the raw frames.
     pub raw_intrinsics: Intrinsics,
     /// Intrinsics of the (downsampled) maps.
@@ -124,16 +125,20 @@ impl Tracked {
 impl<B: Backend> Slam<B> {
     /// A tracker for `seq`: its raw intrinsics, and its depth scale in place of
     /// `params.input.depth_scale` (the sequence knows its units; this is the one place that
-    /// copies them into the parameters).
-    pub fn for_sequence(backend: B, seq: &crate::dataset::Sequence, params: SlamParams) -> Self {
-        let mut params = params;
-        params.input.depth_scale = seq.depth_scale;
-        Self::new(backend, seq.intrinsics, params)
+    /// copies them into the parameters). An error only for a sequence whose depth scale is
+    /// not a positive number (one that `dataset::open` made is).
+    pub fn for_sequence(
+        backend: B,
+        seq: &crate::dataset::Sequence,
+        params: ValidParams,
+    ) -> Result<Self> {
+        let params = params.with_depth_scale(seq.depth_scale)?;
+        Ok(Self::new(backend, seq.intrinsics, params))
     }
 
     /// A tracker for frames with `raw_intrinsics` and `params.input.depth_scale` as given.
-    pub fn new(backend: B, raw_intrinsics: Intrinsics, params: SlamParams) -> Self {
-        let intrinsics = raw_intrinsics.downsampled(params.input.downsample.max(1));
+    pub fn new(backend: B, raw_intrinsics: Intrinsics, params: ValidParams) -> Self {
+        let intrinsics = raw_intrinsics.downsampled(params.input.downsample);
         let size = [intrinsics.width, intrinsics.height];
         let recovery = match (&params.health, &params.relocalisation) {
             (Some(_), Some(r)) => Some(Recovery::new(r, size)),
@@ -167,7 +172,6 @@ impl<B: Backend> Slam<B> {
         gt_cam_to_world: Option<&DMat4>,
     ) -> Result<FrameReport> {
         let given = self.given_pose(frame_id, gt_cam_to_world)?;
-        self.check_schedule()?;
         if raw_depth.iter().all(|&d| d == 0) {
             self.tracker.missed();
             return Ok(self.untracked(TrackStatus::EmptyDepth, Tracked::default()));
@@ -251,16 +255,6 @@ impl<B: Backend> Slam<B> {
                 se3::inverse_rigid(&se3::from_rt(nearest_rotation(r), p))
             }))),
             (PoseSource::Track, Some(_), _) => Ok(None),
-        }
-    }
-
-    /// An empty ICP schedule is an error (no level to track at).
-    fn check_schedule(&self) -> Result<()> {
-        match self.params.icp.level_iters.is_empty() {
-            true => Err(crate::Error::Argument(
-                "the ICP schedule (icp.level_iters) needs at least one level".into(),
-            )),
-            false => Ok(()),
         }
     }
 
@@ -383,7 +377,7 @@ mod tests {
         let robust = Slam::new(
             CpuBackend::new(),
             Intrinsics::ICL_NUIM,
-            SlamParams::profile(Profile::Robust),
+            ValidParams::profile(Profile::Robust),
         );
         let t = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3]);
         let view = FusedView::of_fuse(&robust.fuse_params(&t, 5)).expect("best candidate");
@@ -396,7 +390,7 @@ mod tests {
         let assignment = Slam::new(
             CpuBackend::new(),
             Intrinsics::ICL_NUIM,
-            SlamParams::profile(Profile::Assignment),
+            ValidParams::profile(Profile::Assignment),
         );
         assert_eq!(FusedView::of_fuse(&assignment.fuse_params(&t, 5)), None);
     }
@@ -409,7 +403,7 @@ mod tests {
         let slam = Slam::new(
             CpuBackend::new(),
             Intrinsics::ICL_NUIM,
-            SlamParams::profile(Profile::Robust),
+            ValidParams::profile(Profile::Robust),
         );
         let steps = slam.icp_steps(slam.pyramid_levels());
         assert!(slam.levels() > 1, "the robust profile has a pyramid");

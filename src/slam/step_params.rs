@@ -1,6 +1,8 @@
 //! The kernels' parameter structs (`crates/core/src/layout/mod.rs`) for one frame, made from the tracker's
 //! [`SlamParams`](crate::slam::params::SlamParams), intrinsics and pose: the one place
-//! where the pipeline's settings become what the shaders read.
+//! where the pipeline's settings become what the shaders read. The settings are
+//! [`ValidParams`](crate::slam::params::ValidParams), checked once before the tracker was
+//! made: nothing here guards against a value out of range again.
 
 use crate::cpu::photo_reduce::{PHOTO_GRADIENT_MIN, PHOTO_HUBER};
 use glam::DMat4;
@@ -25,7 +27,7 @@ impl<B: Backend> Slam<B> {
             camera: Camera::new(&self.intrinsics),
             raw_width: self.raw_intrinsics.width,
             raw_height: self.raw_intrinsics.height,
-            stride: self.params.input.downsample.max(1),
+            stride: self.params.input.downsample,
             depth_scale: self.params.input.depth_scale,
             min_depth_m: self.params.input.min_depth_m,
             max_depth_m: self.params.input.max_depth_m,
@@ -173,7 +175,7 @@ impl<B: Backend> Slam<B> {
         self.params
             .fusion
             .unstable_removal
-            .filter(|r| frame_id % r.every_frames.max(1) == 0)
+            .filter(|r| frame_id % r.every_frames == 0)
     }
 
     /// Parameters of the compaction kernels after fusing `frame_id` (count filled by the

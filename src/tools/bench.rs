@@ -16,7 +16,7 @@ use crate::gpu::backend::GpuBackend;
 use crate::slam::backend::{Backend, Inspect};
 use crate::slam::cpu_backend::CpuBackend;
 use crate::slam::instrumented::Instrumented;
-use crate::slam::params::SlamParams;
+use crate::slam::params::ValidParams;
 use crate::tools::run;
 use crate::Result;
 
@@ -71,12 +71,11 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: &SlamParams,
+    params: &ValidParams,
 ) -> Result<BenchResult> {
-    params.validate()?;
     let backend = make()?;
     let name = backend.name().to_string();
-    let mut slam = crate::slam::pipeline::Slam::for_sequence(backend, seq, params.clone());
+    let mut slam = crate::slam::pipeline::Slam::for_sequence(backend, seq, params.clone())?;
     let mut frames = Vec::new();
     let mut counts = Vec::new();
     for i in first..=last {
@@ -116,7 +115,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         None => run::trajectory(&frames),
     };
     let accuracy = run::accuracy(&est, &seq.ground_truth())?;
-    let camera = seq.intrinsics.downsampled(params.input.downsample.max(1));
+    let camera = seq.intrinsics.downsampled(params.input.downsample);
     let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
     let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
     let mut result = BenchResult {
@@ -196,7 +195,7 @@ pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: &SlamParams,
+    params: &ValidParams,
 ) -> Result<BenchResult> {
     let mut result = bench_frames(&mut make, seq, first, last, params)?;
     let backend = make()?;
@@ -204,7 +203,7 @@ pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         Instrumented::timed(backend),
         seq,
         params.clone(),
-    );
+    )?;
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     result.stages = slam
@@ -230,11 +229,11 @@ pub fn gpu_kernel_times(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: &SlamParams,
+    params: &ValidParams,
 ) -> Result<Vec<(String, f64, f64)>> {
     let mut gpu = GpuBackend::open()?;
     gpu.enable_kernel_timing();
-    let mut slam = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone());
+    let mut slam = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     Ok(slam
@@ -281,10 +280,11 @@ pub fn bench_interleaved<G: Backend>(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: &SlamParams,
+    params: &ValidParams,
 ) -> Result<InterleavedResult> {
-    let mut cpu = crate::slam::pipeline::Slam::for_sequence(CpuBackend::new(), seq, params.clone());
-    let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone());
+    let mut cpu =
+        crate::slam::pipeline::Slam::for_sequence(CpuBackend::new(), seq, params.clone())?;
+    let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
     let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
     for i in first..=last {
         let frame = seq.load(i)?;
@@ -327,7 +327,7 @@ pub fn bench_interleaved<G: Backend>(
     let ate = |f: &[run::FrameOutcome]| -> Result<Option<f64>> {
         Ok(run::accuracy(&run::trajectory(f), &gt)?.map(|a| a.ate_rmse_aligned_m))
     };
-    let camera = seq.intrinsics.downsampled(params.input.downsample.max(1));
+    let camera = seq.intrinsics.downsampled(params.input.downsample);
     Ok(InterleavedResult {
         frames: cpu_frames.len(),
         width: camera.width,

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::dataset::Sequence;
 use crate::slam::backend::{Backend, Inspect};
-use crate::slam::params::{PoseSource, SlamParams};
+use crate::slam::params::{PoseSource, ValidParams};
 use crate::slam::pipeline::{Slam, TrackStatus};
 use crate::slam::solve::IcpIteration;
 use crate::tools::run::packed_rgba;
@@ -40,18 +40,16 @@ pub struct TwoFrameResult {
     pub target_points: Vec<[f32; 4]>,
 }
 
-/// Aligns frame `target` to frame `source` with `params` (its `poses` is ignored).
+/// Aligns frame `target` to frame `source` with `params` (its `poses` is ignored:
+/// tracked).
 pub fn align_frames<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
     source: usize,
     target: usize,
-    params: SlamParams,
+    params: ValidParams,
 ) -> Result<TwoFrameResult> {
-    params.validate()?;
-    let mut params = params;
-    params.poses = PoseSource::Track;
-    let mut slam = Slam::for_sequence(backend, seq, params);
+    let mut slam = Slam::for_sequence(backend, seq, params.with_poses(PoseSource::Track))?;
     let mut source_points = Vec::new();
     for (i, gt) in [(source, Some(&DMat4::IDENTITY)), (target, None)] {
         let frame = seq.load(i)?;

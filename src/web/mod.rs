@@ -390,7 +390,8 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
         orbit: &orbit,
         show: &show,
     };
-    let params = SlamParams::profile(profile);
+    // The page's one validation of the parameters it runs with.
+    let params = SlamParams::profile(profile).validate()?;
     let result = run_observed(
         backend,
         &seq,

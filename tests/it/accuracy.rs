@@ -10,7 +10,7 @@ use common::ate_m;
 use common::harness::{plain, shared, Test};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::SlamParams;
+use wgslam::slam::params::{SlamParams, ValidParams};
 use wgslam::slam::pipeline::TrackStatus;
 use wgslam::tools::run::{self, RunResult};
 
@@ -52,8 +52,24 @@ fn noise_stop_saves_iterations() {
     let mut off = on.clone();
     off.icp.stop_chi2 = 0.0;
     off.icp.stop_on_reversal = false;
-    let a = run::run(CpuBackend::new(), &seq, 1, 23, on, |_| {}).unwrap();
-    let b = run::run(CpuBackend::new(), &seq, 1, 23, off, |_| {}).unwrap();
+    let a = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        23,
+        on.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
+    let b = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        23,
+        off.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     let (ate_a, ate_b) = (ate_m(&a), ate_m(&b));
     assert!(ate_a < ATE_NOISY_MAX_M, "ATE {ate_a} m");
     assert!(
@@ -81,7 +97,7 @@ fn seven_scenes_stops_before_the_limit(data: &Path) {
         &seq,
         0,
         299,
-        SlamParams::default(),
+        ValidParams::default(),
         |_| {},
     )
     .unwrap();

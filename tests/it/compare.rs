@@ -27,7 +27,16 @@ fn lockstep<A: Backend + Inspect, B: Backend + Inspect>(
     last: usize,
 ) -> Comparison {
     let params = SlamParams::profile(Profile::Robust);
-    compare(a, b, seq, 1, last, params, Mode::LOCKSTEP).unwrap()
+    compare(
+        a,
+        b,
+        seq,
+        1,
+        last,
+        params.validate().unwrap(),
+        Mode::LOCKSTEP,
+    )
+    .unwrap()
 }
 
 /// The GPU against the CPU reference on the bundled noisy frames with the robust profile:

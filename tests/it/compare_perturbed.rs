@@ -24,7 +24,16 @@ fn bundled_noisy() -> Sequence {
 /// The exact twins against `b` over frames `first..=last` in `mode` (robust profile).
 fn against(b: PerturbedCpu, seq: &Sequence, first: usize, last: usize, mode: Mode) -> Comparison {
     let params = SlamParams::profile(Profile::Robust);
-    compare(CpuBackend::new(), b, seq, first, last, params, mode).unwrap()
+    compare(
+        CpuBackend::new(),
+        b,
+        seq,
+        first,
+        last,
+        params.validate().unwrap(),
+        mode,
+    )
+    .unwrap()
 }
 
 /// Perturbed against exact passes in `mode`, and the perturbation changed something (the

@@ -20,7 +20,7 @@ use wgslam::geometry::camera::Intrinsics;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::{Profile, SlamParams};
+use wgslam::slam::params::{Profile, ValidParams};
 use wgslam::tools::compare::{compare, Mode};
 use wgslam::tools::run;
 
@@ -346,7 +346,7 @@ fn ate_of(seq: &Sequence) -> f64 {
         seq,
         0,
         seq.len() - 1,
-        SlamParams::profile(Profile::Robust),
+        ValidParams::profile(Profile::Robust),
         |_| {},
     )
     .unwrap();
@@ -362,7 +362,7 @@ fn tum_form_ate() -> f64 {
         &seq,
         *FIXTURE_FRAMES.start(),
         *FIXTURE_FRAMES.end(),
-        SlamParams::profile(Profile::Robust),
+        ValidParams::profile(Profile::Robust),
         |_| {},
     )
     .unwrap();
@@ -637,7 +637,7 @@ fn a_run_from_memory_gives_the_bytes_run_writes() {
             seq,
             1,
             4,
-            SlamParams::profile(Profile::Robust),
+            ValidParams::profile(Profile::Robust),
             |_| {},
         )
         .unwrap()
@@ -854,7 +854,7 @@ fn real_sensor_tracks<B: Backend + Inspect>(backend: B, root: &Path, bar: &RealB
         &seq,
         a,
         b,
-        SlamParams::profile(Profile::Robust),
+        ValidParams::profile(Profile::Robust),
         |_| {},
     )
     .unwrap();
@@ -894,7 +894,7 @@ fn compare_passes_on_real_sensors(ctx: GpuContext, data: &Path) {
             &seq,
             0,
             last,
-            SlamParams::profile(Profile::Robust),
+            ValidParams::profile(Profile::Robust),
             Mode::LOCKSTEP,
         )
         .unwrap();

@@ -13,7 +13,9 @@ use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::{BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval};
+use wgslam::slam::params::{
+    BilateralSettings, PoseSource, Profile, SlamParams, UnstableRemoval, ValidParams,
+};
 use wgslam::slam::pipeline::TrackStatus;
 use wgslam::slam::solve::LevelStop;
 use wgslam::tools::run;
@@ -149,7 +151,7 @@ fn bundled_frames_track_to_ground_truth<B: Backend + Inspect>(backend: B, params
     );
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let last = seq.len() - 1;
-    let r = run::run(backend, &seq, 1, last, params, |_| {}).unwrap();
+    let r = run::run(backend, &seq, 1, last, params.validate().unwrap(), |_| {}).unwrap();
     let acc = r
         .metrics
         .accuracy
@@ -177,7 +179,15 @@ fn full_resolution_tracks_too() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let mut params = SlamParams::profile(Profile::Assignment);
     params.input.downsample = 1;
-    let r = run::run(CpuBackend::new(), &seq, 1, 8, params, |_| {}).unwrap();
+    let r = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        8,
+        params.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     let acc = r.metrics.accuracy.unwrap();
     assert!(acc.ate_rmse_unaligned_m < ATE_BUNDLED_MAX_M, "{acc:?}");
     assert_eq!(r.metrics.width, 640);
@@ -189,7 +199,15 @@ fn ground_truth_poses_fuse_without_tracking() {
         poses: PoseSource::GroundTruth,
         ..SlamParams::profile(Profile::Assignment)
     };
-    let r = run::run(CpuBackend::new(), &seq, 1, 10, params, |_| {}).unwrap();
+    let r = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        10,
+        params.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     assert!(r
         .frames
         .iter()
@@ -213,7 +231,7 @@ fn frame_without_ground_truth() {
         &seq,
         0,
         2,
-        SlamParams::profile(Profile::Assignment),
+        ValidParams::profile(Profile::Assignment),
         |_| {},
     )
     .unwrap();
@@ -222,7 +240,15 @@ fn frame_without_ground_truth() {
         poses: PoseSource::GroundTruth,
         ..SlamParams::profile(Profile::Assignment)
     };
-    let err = run::run(CpuBackend::new(), &seq, 0, 2, params, |_| {}).unwrap_err();
+    let err = run::run(
+        CpuBackend::new(),
+        &seq,
+        0,
+        2,
+        params.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("ground truth"), "{err}");
 }
 
@@ -236,7 +262,7 @@ fn shared_sequence_1_to_200_within_1mm<B: Backend + Inspect>(backend: B, data: &
         &seq,
         1,
         200,
-        SlamParams::profile(Profile::Assignment),
+        ValidParams::profile(Profile::Assignment),
         |_| {},
     )
     .unwrap();
@@ -260,7 +286,7 @@ fn empty_and_untrackable_frames_are_reported_not_fused() {
     let mut slam = Slam::new(
         CpuBackend::new(),
         seq.intrinsics,
-        SlamParams::profile(Profile::Assignment),
+        ValidParams::profile(Profile::Assignment),
     );
     let load = |i: usize| {
         let f = seq.load(i).unwrap();
@@ -306,7 +332,7 @@ fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
         &seq,
         1,
         6,
-        &SlamParams::profile(Profile::Assignment),
+        &ValidParams::profile(Profile::Assignment),
     )
     .unwrap();
     eprintln!("{r:?}");
@@ -329,7 +355,15 @@ fn ate_and_map_fraction<B: Backend + Inspect>(
 ) -> (f64, f64) {
     let name = backend.name();
     let seq = dataset::open(dir, &SequenceOptions::default()).unwrap();
-    let r = run::run(backend, &seq, first, last, params, |_| {}).unwrap();
+    let r = run::run(
+        backend,
+        &seq,
+        first,
+        last,
+        params.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     let acc = r.metrics.accuracy.expect("ground truth");
     eprintln!(
         "{name} {} {first}..{last} ({:?}): ATE aligned {:.3} mm, unaligned {:.3} mm; map {} \
@@ -366,7 +400,7 @@ fn robust_icp_runs_coarse_to_fine<B: Backend + Inspect>(backend: B) {
     let robust = SlamParams::profile(Profile::Robust);
     let schedule = robust.icp.level_iters.clone();
     assert!(schedule.len() > 1, "the robust profile has a pyramid");
-    let r = run::run(backend, &seq, 1, 6, robust, |_| {}).unwrap();
+    let r = run::run(backend, &seq, 1, 6, robust.validate().unwrap(), |_| {}).unwrap();
     for f in &r.frames[1..] {
         let levels: Vec<usize> = f.report.iterations.iter().map(|it| it.level).collect();
         assert_eq!(

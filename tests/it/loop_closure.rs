@@ -13,7 +13,7 @@ use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::SlamParams;
+use wgslam::slam::params::{SlamParams, ValidParams};
 use wgslam::tools::run::{self, RunResult};
 
 /// ATE over a noisy ICL-NUIM run, metres: the bar of the tracking tests (10 mm).
@@ -52,8 +52,16 @@ fn revisit_finds_loops<B: Backend + Inspect>(with: B, without: B) {
     .revisiting(1, 23, REVISIT_FRAMES)
     .unwrap();
     let last = REVISIT_FRAMES - 1;
-    let on = run::run(with, &seq, 0, last, SlamParams::default(), |_| {}).unwrap();
-    let off = run::run(without, &seq, 0, last, without_loops(), |_| {}).unwrap();
+    let on = run::run(with, &seq, 0, last, ValidParams::default(), |_| {}).unwrap();
+    let off = run::run(
+        without,
+        &seq,
+        0,
+        last,
+        without_loops().validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     let lc = on.metrics.loop_closure.as_ref().expect("loop closure ran");
     assert!(off.metrics.loop_closure.is_none());
     // Loops are found where the camera returns after 60 frames or more, and not before.
@@ -98,8 +106,16 @@ fn no_loop_changes_nothing<B: Backend + Inspect>(with: B, without: B) {
     )
     .unwrap();
     let last = seq.len() - 1;
-    let on = run::run(with, &seq, 0, last, SlamParams::default(), |_| {}).unwrap();
-    let off = run::run(without, &seq, 0, last, without_loops(), |_| {}).unwrap();
+    let on = run::run(with, &seq, 0, last, ValidParams::default(), |_| {}).unwrap();
+    let off = run::run(
+        without,
+        &seq,
+        0,
+        last,
+        without_loops().validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     assert!(on.metrics.loop_closure.as_ref().unwrap().loops.is_empty());
     let bits = |r: &RunResult| -> Vec<[u64; 16]> {
         r.trajectory()
@@ -120,7 +136,7 @@ fn seven_scenes_not_worse(ctx: GpuContext, data: &Path) {
     )
     .unwrap();
     let backend = GpuBackend::new(ctx).unwrap();
-    let on = run::run(backend, &seq, 0, 299, SlamParams::default(), |_| {}).unwrap();
+    let on = run::run(backend, &seq, 0, 299, ValidParams::default(), |_| {}).unwrap();
     let lc = on.metrics.loop_closure.as_ref().unwrap();
     let off_ate = lc.odometry_accuracy.as_ref().unwrap().ate_rmse_aligned_m;
     let a_on = ate_m(&on);
@@ -166,8 +182,11 @@ fn injected_drift_is_undone<B: Backend + Inspect>(with: B, without: B) {
     let node = wgslam::slam::loops::deform_node;
     let gt = seq.ground_truth();
     let mut last_frames_ate = Vec::new();
-    for (backend, params) in [(with, SlamParams::default()), (without, without_loops())] {
-        let mut slam = Slam::for_sequence(backend, &seq, params);
+    for (backend, params) in [
+        (with, ValidParams::default()),
+        (without, without_loops().validate().unwrap()),
+    ] {
+        let mut slam = Slam::for_sequence(backend, &seq, params).unwrap();
         let mut reports = Vec::new();
         for i in 0..DRIFT_RUN_FRAMES {
             let f = seq.load(i).unwrap();

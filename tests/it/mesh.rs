@@ -13,7 +13,7 @@ use wgslam::mesh::accuracy::measure;
 use wgslam::mesh::write::write_mesh;
 use wgslam::mesh::{mesh_from_map, mesh_from_surfels, Mesh, MeshParams, Surfels};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::SlamParams;
+use wgslam::slam::params::ValidParams;
 use wgslam::tools::run;
 
 /// Sphere radius of the ground-truth test, metres (30 voxels of 1 cm).
@@ -172,7 +172,7 @@ fn bundled_map_mesh_reads_back_and_fits_the_map() {
         &seq,
         0,
         10,
-        SlamParams::default(),
+        ValidParams::default(),
         |_| {},
     )
     .unwrap();
@@ -228,7 +228,15 @@ fn mesh_command_writes_a_mesh_and_refuses_a_map_without_normals() {
     let dir = common::temp_dir("mesh_command");
     let root = common::bundled_icl();
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
-    let result = run::run(CpuBackend::new(), &seq, 0, 3, SlamParams::default(), |_| {}).unwrap();
+    let result = run::run(
+        CpuBackend::new(),
+        &seq,
+        0,
+        3,
+        ValidParams::default(),
+        |_| {},
+    )
+    .unwrap();
     let map = dir.join("map.ply");
     wgslam::io::ply::write_surfel_map(&map, &result.map).unwrap();
     let args = |out: &str| MeshArgs {

@@ -26,7 +26,7 @@ use wgslam::layout::{Camera, MapChunk, NormalParams, PreprocessParams, ProjectPa
 use wgslam::render::{self, MapCloud, RenderCamera, RenderSettings, View};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::{PoseSource, Profile, SlamParams};
+use wgslam::slam::params::{PoseSource, Profile, SlamParams, ValidParams};
 use wgslam::slam::pipeline::Slam;
 use wgslam::tools::run;
 
@@ -104,7 +104,11 @@ fn portable_twins_equal_the_64_bit_twins() {
         poses: PoseSource::GroundTruth,
         ..SlamParams::profile(Profile::Robust)
     };
-    let mut s = Slam::new(CpuBackend::new(), Intrinsics::ICL_NUIM, params);
+    let mut s = Slam::new(
+        CpuBackend::new(),
+        Intrinsics::ICL_NUIM,
+        params.validate().unwrap(),
+    );
     for i in 1..=3 {
         let f = load_frame(&root, i);
         s.process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
@@ -378,7 +382,15 @@ fn gpu_run(options: DeviceOptions, noisy: bool) -> (Vec<glam::DMat4>, usize, f64
     };
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
     let last = seq.len() - 1;
-    let r = run::run(backend, &seq, 1, last, SlamParams::profile(profile), |_| {}).unwrap();
+    let r = run::run(
+        backend,
+        &seq,
+        1,
+        last,
+        ValidParams::profile(profile),
+        |_| {},
+    )
+    .unwrap();
     let poses = r.frames.iter().map(|f| f.report.t_cam_to_world).collect();
     let ate = r.metrics.accuracy.expect("ground truth").ate_rmse_aligned_m;
     (poses, r.map.len(), ate)

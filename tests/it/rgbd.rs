@@ -62,7 +62,15 @@ fn every_frame_records_the_photometric_term(r: &RunResult) {
 /// RGB-D tracking on the bundled noisy frames beats the bar below geometric tracking's ATE.
 fn bundled_noisy_frames_track_with_colour(backend: impl Backend + Inspect) {
     let seq = dataset::open(&bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
-    let r = run::run(backend, &seq, 1, 23, rgbd_params(), |_| {}).unwrap();
+    let r = run::run(
+        backend,
+        &seq,
+        1,
+        23,
+        rgbd_params().validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     let ate = ate_m(&r);
     eprintln!(
         "bundled noisy frames, RGB-D tracking: ATE {:.3} mm",
@@ -78,7 +86,15 @@ fn noisy_icl_640_tracks_with_colour(data: &std::path::Path) {
     let seq = dataset::open(&shared_icl_noisy(data), &SequenceOptions::default()).unwrap();
     let mut params = rgbd_params();
     params.input.downsample = 1;
-    let r = run::run(CpuBackend::new(), &seq, 1, 200, params, |_| {}).unwrap();
+    let r = run::run(
+        CpuBackend::new(),
+        &seq,
+        1,
+        200,
+        params.validate().unwrap(),
+        |_| {},
+    )
+    .unwrap();
     let ate = ate_m(&r);
     eprintln!(
         "noisy ICL-NUIM 1..200 at 640x480, RGB-D: ATE {:.3} mm",

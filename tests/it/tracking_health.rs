@@ -17,7 +17,7 @@ use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::{Profile, SlamParams};
+use wgslam::slam::params::{Profile, ValidParams};
 use wgslam::slam::pipeline::{Slam, TrackStatus};
 use wgslam::tools::run::{self, RunResult};
 
@@ -45,7 +45,7 @@ fn assets(name: &str) -> PathBuf {
 fn run_all<B: Backend + Inspect>(backend: B, root: &Path) -> RunResult {
     let seq = dataset::open(root, &SequenceOptions::default()).unwrap();
     let last = seq.len() - 1;
-    run::run(backend, &seq, 0, last, SlamParams::default(), |_| {}).unwrap()
+    run::run(backend, &seq, 0, last, ValidParams::default(), |_| {}).unwrap()
 }
 
 fn statuses(r: &RunResult) -> Vec<&TrackStatus> {
@@ -106,7 +106,7 @@ fn bundled_splice_is_lost_then_recovers<B: Backend + Inspect>(backend: B, noisy:
 /// keyframe, lands on the ground truth, and tracking goes on from there.
 fn kidnapped_tracker_relocalises<B: Backend>(backend: B) {
     let seq = dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
-    let mut slam = Slam::for_sequence(backend, &seq, SlamParams::default());
+    let mut slam = Slam::for_sequence(backend, &seq, ValidParams::default()).unwrap();
     let process = |slam: &mut Slam<B>, i: usize| {
         let f = seq.load(i).unwrap();
         let gt = seq.frames[i].gt_cam_to_world;
@@ -146,7 +146,7 @@ fn kidnapped_tracker_relocalises<B: Backend>(backend: B) {
 /// frame's ground-truth pose, the empty frames have no pose, and nothing is lost.
 fn empty_first_frames_start_at_the_first_usable() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let mut slam = Slam::for_sequence(CpuBackend::new(), &seq, SlamParams::default());
+    let mut slam = Slam::for_sequence(CpuBackend::new(), &seq, ValidParams::default()).unwrap();
     for i in 1..=6 {
         let f = seq.load(i).unwrap();
         let rgba = run::packed_rgba(&f);
@@ -325,7 +325,7 @@ fn no_false_alarms_on_real_sequences(data: &Path) {
             &seq,
             first,
             last,
-            SlamParams::default(),
+            ValidParams::default(),
             |_| {},
         )
         .unwrap();
@@ -358,7 +358,7 @@ fn assignment_profile_relocalises_too() {
         &seq,
         0,
         seq.len() - 1,
-        SlamParams::profile(Profile::Assignment),
+        ValidParams::profile(Profile::Assignment),
         |_| {},
     )
     .unwrap();

@@ -14,7 +14,7 @@ use std::collections::BTreeSet;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use super::{PoseSource, Profile, SlamParams};
+use super::{PoseSource, Profile, SlamParams, ValidParams};
 use crate::{Error, Result};
 
 /// The sections, each a table of keys (`icp` holds `icp.pyramid`, `fusion` holds
@@ -86,20 +86,23 @@ impl SlamParams {
     }
 
     /// The values of `profile` with each of `keys` set in order (a later one wins),
-    /// validated ([`SlamParams::validate`]). Setting a value of an optional section that is
-    /// off turns it on (with its defaults elsewhere) unless the section's `enabled` is set
-    /// too; `fusion.unstable_removal.stable_weight = 0` turns the removal off; loop closure
-    /// is off without the keyframe database (`health` and `relocalisation`) unless
+    /// validated ([`SlamParams::validate`], the one time these parameters are checked).
+    /// Setting a value of an optional section that is off turns it on (with its defaults
+    /// elsewhere) unless the section's `enabled` is set too;
+    /// `fusion.unstable_removal.stable_weight = 0` turns the removal off; loop closure is
+    /// off without the keyframe database (`health` and `relocalisation`) unless
     /// `loop_closure` is set, in which case [`SlamParams::validate`] refuses it. Errors
     /// ([`Error::Argument`]) name the key in backquotes.
-    pub fn with_keys(profile: Profile, poses: PoseSource, keys: &[Key]) -> Result<SlamParams> {
+    ///
+    /// The keys are set in one table of the profile's values ([`SlamParams::to_keys`]),
+    /// which becomes parameters once, at the end; only when that fails are the keys set
+    /// again one at a time to name the first one refused (`first_refused`).
+    pub fn with_keys(profile: Profile, poses: PoseSource, keys: &[Key]) -> Result<ValidParams> {
         let mut t = SlamParams::profile(profile).to_keys();
         let (mut switched, mut touched) = (BTreeSet::new(), BTreeSet::new());
         for (key, value) in keys {
-            set_key(&mut t, key, value)?;
-            // Each value alone first, so a value its field refuses is reported by key.
-            if let Err(why) = SlamParams::from_keys(profile, poses, t.clone()) {
-                return Err(Error::Argument(format!("`{key}` = {value}: {why}")));
+            if let Err(e) = set_key(&mut t, key, value) {
+                return Err(first_refused(profile, poses, keys).unwrap_or(e));
             }
             let (section, field) = key.rsplit_once('.').expect("set_key checked the key");
             if field == "enabled" {
@@ -121,9 +124,10 @@ impl SlamParams {
         if !database && !asked {
             set_enabled(&mut t, "loop_closure", false);
         }
-        let p = SlamParams::from_keys(profile, poses, t).map_err(Error::Argument)?;
-        p.validate()?;
-        Ok(p)
+        match SlamParams::from_keys(profile, poses, t) {
+            Ok(p) => p.validate(),
+            Err(why) => Err(first_refused(profile, poses, keys).unwrap_or(Error::Argument(why))),
+        }
     }
 
     /// Checks that `key` is a key and `value` one its field takes, as
@@ -158,6 +162,23 @@ impl SlamParams {
         out.sort();
         out
     }
+}
+
+/// The first of `keys` that its field refuses, set in order on `profile`'s values (each
+/// value alone, before the rules between sections): the error that names the key, for
+/// [`SlamParams::with_keys`]'s failures. `None` when each is taken alone (the rules
+/// between sections, or the values together, are what fails).
+fn first_refused(profile: Profile, poses: PoseSource, keys: &[Key]) -> Option<Error> {
+    let mut t = SlamParams::profile(profile).to_keys();
+    for (key, value) in keys {
+        if let Err(e) = set_key(&mut t, key, value) {
+            return Some(e);
+        }
+        if let Err(why) = SlamParams::from_keys(profile, poses, t.clone()) {
+            return Some(Error::Argument(format!("`{key}` = {value}: {why}")));
+        }
+    }
+    None
 }
 
 fn value_of<T: Serialize>(v: &T) -> toml::Value {
@@ -267,13 +288,13 @@ mod tests {
             let back = SlamParams::from_keys(profile, PoseSource::Track, p.to_keys()).unwrap();
             assert_eq!(back, p, "{profile:?}");
             assert_eq!(
-                SlamParams::with_keys(profile, PoseSource::Track, &[]).unwrap(),
+                *SlamParams::with_keys(profile, PoseSource::Track, &[]).unwrap(),
                 p
             );
         }
     }
 
-    fn set(profile: Profile, keys: &[(&str, toml::Value)]) -> Result<SlamParams> {
+    fn set(profile: Profile, keys: &[(&str, toml::Value)]) -> Result<ValidParams> {
         let keys: Vec<Key> = keys
             .iter()
             .map(|(k, v)| (k.to_string(), v.clone()))

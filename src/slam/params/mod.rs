@@ -1,17 +1,20 @@
 //! [`SlamParams`]: every tunable of the dense pipeline, and the named [`Profile`]s they
 //! start from. The structs here are the parameters' schema: each field is a key
 //! (`icp.dist_m`, [`keys`]) that the command line's flags, parameter files and batch
-//! manifests set, [`validate`] checks the values and the rules between sections, and
+//! manifests set, [`SlamParams::validate`] checks the values and the rules between
+//! sections once and makes them [`ValidParams`] ([`valid`]), what a run takes, and
 //! [`defaults`] holds the profiles' measured constants (the reason in a line each) and the
 //! keyframe database's and loop closure's settings made of them.
 //! Turning these into the kernels' parameter structs is `step_params.rs`'s job.
 
 pub mod defaults;
 pub mod keys;
+pub mod valid;
 pub mod validate;
 
 pub use defaults::*;
 pub use keys::{Key, KEY_SECTIONS, OPTIONAL_SECTIONS};
+pub use valid::ValidParams;
 
 use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
@@ -51,7 +54,8 @@ pub enum Profile {
 /// groups its configuration by module). `Default` is the robust profile. Each leaf is a
 /// key, `section.field` ([`SlamParams::with_keys`]), most of them also a `wgslam run`
 /// option (named in its documentation; `docs/params-file.md` lists both);
-/// [`SlamParams::validate`] checks their ranges.
+/// [`SlamParams::validate`] checks their ranges, once, and makes the [`ValidParams`] a
+/// run takes.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SlamParams {
     /// The profile these values started from (each may have been overridden since;

@@ -1,16 +1,13 @@
-//! [`SlamParams::validate`]: every value's range, and the rules between sections.
+//! The checks behind [`SlamParams::validate`] (`valid.rs`): every value's range, and the
+//! rules between sections, each written once.
 
 use super::*;
 use crate::{Error, Result};
 
 impl SlamParams {
-    /// Checks every value's range, and that loop closure has the keyframe database it
-    /// searches; the error ([`Error::Argument`]) names the key of each value in
-    /// backquotes (`` `icp.dist_m` ``, see [`SlamParams::with_keys`]; the command line adds
-    /// the flag that sets it). Every command validates its parameters before running
-    /// ([`SlamParams::with_keys`] does), and so do the jobs `tools::run`,
-    /// `tools::two_frame` and `tools::compare`.
-    pub fn validate(&self) -> Result<()> {
+    /// Every check of [`SlamParams::validate`], which is the only caller: the parameters
+    /// are checked once, when they become [`ValidParams`](super::ValidParams).
+    pub(super) fn check(&self) -> Result<()> {
         check_input(&self.input)?;
         if let Some(b) = &self.bilateral {
             check_bilateral(b)?;
@@ -64,12 +61,7 @@ fn check_input(i: &InputSettings) -> Result<()> {
             i.downsample
         ));
     }
-    if !positive(i.depth_scale as f64) {
-        return fail(format!(
-            "`input.depth_scale` {} must be positive",
-            i.depth_scale
-        ));
-    }
+    check_depth_scale(i.depth_scale)?;
     if !(i.min_depth_m.is_finite()
         && i.min_depth_m >= 0.0
         && i.max_depth_m.is_finite()
@@ -78,6 +70,18 @@ fn check_input(i: &InputSettings) -> Result<()> {
         return fail(format!(
             "`input.min_depth_m` {} and `input.max_depth_m` {} must be a range 0 <= min < max",
             i.min_depth_m, i.max_depth_m
+        ));
+    }
+    Ok(())
+}
+
+/// The raw depth units per metre (`input.depth_scale`): the one check of its range, also
+/// [`ValidParams::with_depth_scale`](super::ValidParams::with_depth_scale)'s.
+pub(super) fn check_depth_scale(depth_scale: f32) -> Result<()> {
+    if !positive(depth_scale as f64) {
+        return fail(format!(
+            "`input.depth_scale` {depth_scale} must be a positive number of raw depth units \
+             per metre"
         ));
     }
     Ok(())

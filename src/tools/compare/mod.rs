@@ -35,7 +35,7 @@ use crate::layout::map::SurfelMap;
 use crate::layout::{ICP_COUNT_INDEX, ICP_SYSTEM_LEN};
 use crate::slam::backend::{Backend, FrameMaps, Inspect};
 use crate::slam::instrumented::Instrumented;
-use crate::slam::params::{Association, SlamParams};
+use crate::slam::params::{Association, ValidParams};
 use crate::slam::pipeline::Slam;
 use crate::slam::solve::NormalEquations;
 use crate::tools::run::packed_rgba;
@@ -259,16 +259,15 @@ pub fn compare<A: Backend + Inspect, B: Backend + Inspect>(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: SlamParams,
+    params: ValidParams,
     mode: Mode,
 ) -> Result<Comparison> {
-    params.validate()?;
     let names = (a.name().to_string(), b.name().to_string());
     let compacts = params.fusion.unstable_removal.is_some();
     let best_candidate = params.fusion.association == Association::BestCandidate;
     let limits = Limits::of(mode, (first..=last).count(), &params);
-    let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone());
-    let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params);
+    let mut sa = Slam::for_sequence(Instrumented::recording(a), seq, params.clone())?;
+    let mut sb = Slam::for_sequence(Instrumented::recording(b), seq, params)?;
     let mut frames = Vec::new();
     let mut violations = Vec::new();
     let mut worst = Worst::default();

@@ -20,7 +20,7 @@ use crate::eval;
 use crate::layout::map::SurfelMap;
 use crate::layout::pack_rgba8;
 use crate::slam::backend::{Backend, Inspect};
-use crate::slam::params::SlamParams;
+use crate::slam::params::{SlamParams, ValidParams};
 use crate::slam::pipeline::{FrameReport, Slam};
 use crate::Result;
 
@@ -309,7 +309,7 @@ pub fn run<B: Backend + Inspect>(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: SlamParams,
+    params: ValidParams,
     on_frame: impl FnMut(&FrameOutcome),
 ) -> Result<RunResult> {
     run_with(
@@ -329,7 +329,7 @@ pub fn run_with<B: Backend + Inspect>(
     seq: &Sequence,
     first: usize,
     last: usize,
-    params: SlamParams,
+    params: ValidParams,
     decode: Decode,
     on_frame: impl FnMut(&FrameOutcome),
 ) -> Result<RunResult> {
@@ -337,18 +337,18 @@ pub fn run_with<B: Backend + Inspect>(
 }
 
 /// [`run_with`] over `frames`, showing each frame (images, outcome, and the map when it
-/// asks) to `observer` when there is one; the final map is in the [`RunResult`]. Parameters
-/// out of range ([`SlamParams::validate`]) are refused before the first frame.
+/// asks) to `observer` when there is one; the final map is in the [`RunResult`]. The
+/// parameters were validated when they were made ([`SlamParams::validate`] makes
+/// [`ValidParams`]), and are not checked again.
 pub fn run_observed<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
     frames: std::ops::RangeInclusive<usize>,
-    params: SlamParams,
+    params: ValidParams,
     decode: Decode,
     on_frame: impl FnMut(&FrameOutcome),
     observer: Option<&mut dyn FrameObserver>,
 ) -> Result<RunResult> {
-    params.validate()?;
     if seq.root.to_str().is_none() {
         // metrics.json records the dataset's path as JSON text, which must be UTF-8; found
         // only after the last frame, this cost a whole run.
@@ -359,7 +359,7 @@ pub fn run_observed<B: Backend + Inspect>(
         ));
     }
     let (first, last) = (*frames.start(), *frames.end());
-    let mut slam = Slam::for_sequence(backend, seq, params);
+    let mut slam = Slam::for_sequence(backend, seq, params)?;
     let (frames, wall) = run_frames_observed(&mut slam, seq, frames, decode, on_frame, observer)?;
     let map = slam.backend.download_map()?;
     let counts = tracking_counts(&frames, slam.keyframe_count());
@@ -404,7 +404,7 @@ pub fn run_observed<B: Backend + Inspect>(
         width: k.width,
         height: k.height,
         intrinsics: seq.intrinsics,
-        params: slam.params.clone(),
+        params: SlamParams::clone(&slam.params),
         time_per_frame_median_s: crate::stats::median(&times),
         time_per_frame_mean_s: total / frames.len().max(1) as f64,
         time_total_s: total,

@@ -15,7 +15,7 @@ use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::ICP_SYSTEM_LEN;
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::{Profile, SlamParams};
+use wgslam::slam::params::{Profile, SlamParams, ValidParams};
 use wgslam::slam::pipeline::Slam;
 use wgslam::slam::solve::NormalEquations;
 use wgslam::tools::compare::system_rel_diffs;
@@ -109,7 +109,7 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
     let robust = Slam::new(
         CpuBackend::new(),
         Intrinsics::ICL_NUIM,
-        SlamParams::profile(Profile::Robust),
+        ValidParams::profile(Profile::Robust),
     );
     let cases = [
         ("true pose", s.icp_params(0, &t_true)),

@@ -140,7 +140,7 @@ fn root() -> std::path::PathBuf {
 }
 
 fn slam<B: Backend>(backend: B, params: SlamParams) -> Slam<B> {
-    Slam::new(backend, Intrinsics::ICL_NUIM, params)
+    Slam::new(backend, Intrinsics::ICL_NUIM, params.validate().unwrap())
 }
 
 fn gpu_backend(ctx: GpuContext) -> GpuBackend {

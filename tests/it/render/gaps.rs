@@ -8,7 +8,7 @@ use common::harness::{plain, Test};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::render::{self, MapCloud, RenderSettings, View};
 use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::SlamParams;
+use wgslam::slam::params::ValidParams;
 use wgslam::tools::run;
 
 use super::keep;
@@ -56,7 +56,7 @@ fn gap_fill_closes_the_stripes() {
         &seq,
         0,
         last,
-        SlamParams::default(),
+        ValidParams::default(),
         |_| {},
     )
     .unwrap();
