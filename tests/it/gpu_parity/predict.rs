@@ -5,6 +5,7 @@ use super::{check_index_maps, check_vec4_map, cpu_map_from_gt, robust_pyramids_o
 use super::{gpu_backend, root, small_chunk_backend, MASK_MISMATCH_FRACTION};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
+use crate::common::unfiltered_level_0;
 use wgslam::cpu;
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
@@ -20,9 +21,8 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     let map = s.backend.download_map().unwrap();
     gpu.upload_map(&map).unwrap();
     let frame = load_frame(&root(), 6);
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
+    let steps = unfiltered_level_0(&s);
+    gpu.preprocess(&steps, &frame.depth, &frame.rgba).unwrap();
     let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
     let proj = s.project_params(&t_world_to_cam);
     assert_eq!(proj.surfel_count as usize, map.len());
