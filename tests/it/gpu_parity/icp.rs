@@ -3,10 +3,10 @@
 //! icp_reduce's (`rgbd_system`); icp_candidates (the health test's
 //! denominator) against its twin.
 
-use super::{cpu_map_from_gt, gpu_backend, preprocess_both, robust_pyramids_on_both, root};
+use super::{cpu_map_from_gt, preprocess_both, robust_pyramids_on_both, root};
 use super::{increment_tol, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
 use crate::common::frames::{gt_at, load_frame};
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu, gpu_backend_test, Test};
 use crate::common::unfiltered_level_0;
 use glam::DMat4;
 use wgslam::cpu;
@@ -351,24 +351,20 @@ fn icp_candidates_matches_twin(mut gpu: GpuBackend) {
 
 pub(super) fn tests() -> Vec<Test> {
     vec![
-        gpu("icp_candidates_matches_twin", |ctx| {
-            icp_candidates_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("icp_system_matches_twin", |ctx| {
-            icp_system_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("rgbd_systems_match_twin", |ctx| {
-            rgbd_systems_match_twin(gpu_backend(ctx))
-        }),
+        gpu_backend_test("icp_candidates_matches_twin", icp_candidates_matches_twin),
+        gpu_backend_test("icp_system_matches_twin", icp_system_matches_twin),
+        gpu_backend_test("rgbd_systems_match_twin", rgbd_systems_match_twin),
         gpu(
             "icp_reduce_final_matches_twin",
             icp_reduce_final_matches_twin,
         ),
-        gpu("coarse_icp_systems_match_twin", |ctx| {
-            coarse_icp_systems_match_twin(gpu_backend(ctx))
-        }),
-        gpu("intensity_pyramid_and_coarse_rgbd_match_twin", |ctx| {
-            intensity_pyramid_and_coarse_rgbd_match_twin(gpu_backend(ctx))
-        }),
+        gpu_backend_test(
+            "coarse_icp_systems_match_twin",
+            coarse_icp_systems_match_twin,
+        ),
+        gpu_backend_test(
+            "intensity_pyramid_and_coarse_rgbd_match_twin",
+            intensity_pyramid_and_coarse_rgbd_match_twin,
+        ),
     ]
 }

@@ -16,6 +16,7 @@ mod run;
 use crate::common;
 
 use common::frames::{gt_at, load_frame, load_gt, Frame};
+use common::harness::gpu_backend;
 use glam::DMat4;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
@@ -152,10 +153,6 @@ fn preprocess_both(
 ) {
     cpu.preprocess(steps, &frame.depth, &frame.rgba).unwrap();
     gpu.preprocess(steps, &frame.depth, &frame.rgba).unwrap();
-}
-
-fn gpu_backend(ctx: GpuContext) -> GpuBackend {
-    GpuBackend::new(ctx).expect("GPU backend")
 }
 
 /// Counts mask mismatches and panics (naming the first pixels) past the allowance.

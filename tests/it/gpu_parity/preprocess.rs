@@ -3,10 +3,10 @@
 //! code of the preprocessed frame), keypoint_detect and keypoint_describe (feature-based
 //! relocalisation) against their twins, and a frame of the wrong size.
 
-use super::{check_vec4_map, gpu_backend, preprocess_both, root, slam};
+use super::{check_vec4_map, preprocess_both, root, slam};
 use super::{FILTERED_VERTEX_TOL_M, NORMAL_TOL, VERTEX_TOL_M};
 use crate::common::frames::load_frame;
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu_backend_test, Test};
 use crate::common::{level_0, unfiltered_level_0};
 use bytemuck::Zeroable;
 use std::collections::BTreeSet;
@@ -308,23 +308,17 @@ fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
 
 pub(super) fn tests() -> Vec<Test> {
     vec![
-        gpu("preprocess_matches_twins", |ctx| {
-            preprocess_matches_twins(gpu_backend(ctx))
-        }),
-        gpu("bilateral_filter_matches_twin", |ctx| {
-            bilateral_filter_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("pyramid_depth_matches_twin", |ctx| {
-            pyramid_depth_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("fern_encode_matches_twin", |ctx| {
-            fern_encode_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("keypoint_kernels_match_twins", |ctx| {
-            keypoint_kernels_match_twins(gpu_backend(ctx))
-        }),
-        gpu("bad_frame_size_is_an_argument_error", |ctx| {
-            bad_frame_size_is_an_argument_error(gpu_backend(ctx))
-        }),
+        gpu_backend_test("preprocess_matches_twins", preprocess_matches_twins),
+        gpu_backend_test(
+            "bilateral_filter_matches_twin",
+            bilateral_filter_matches_twin,
+        ),
+        gpu_backend_test("pyramid_depth_matches_twin", pyramid_depth_matches_twin),
+        gpu_backend_test("fern_encode_matches_twin", fern_encode_matches_twin),
+        gpu_backend_test("keypoint_kernels_match_twins", keypoint_kernels_match_twins),
+        gpu_backend_test(
+            "bad_frame_size_is_an_argument_error",
+            bad_frame_size_is_an_argument_error,
+        ),
     ]
 }
