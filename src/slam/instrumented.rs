@@ -13,12 +13,12 @@ use web_time::Instant;
 
 use crate::layout::map::SurfelMap;
 use crate::layout::{
-    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams,
+    ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
-    PyramidLevel, RgbdSystems,
+    PreprocessSteps, PyramidLevel, RgbdSystems,
 };
 use crate::Result;
 
@@ -80,19 +80,9 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn name(&self) -> &'static str {
         self.inner.name()
     }
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()> {
+    fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
         self.clear_frame();
-        self.step("preprocess", |b| {
-            b.preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba)
-        })
+        self.step("preprocess", |b| b.preprocess(steps, depth, rgba))
     }
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         self.step("predict", |b| b.predict(params, pyramid))

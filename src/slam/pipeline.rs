@@ -260,15 +260,9 @@ impl<B: Backend> Slam<B> {
 
     /// Runs `preprocess` on a raw frame; returns what its ICP reads.
     fn preprocess(&mut self, raw_depth: &[u16], raw_rgba: &[u32]) -> Result<IcpSteps> {
-        let (pp, bp, np) = (
-            self.preprocess_params(),
-            self.bilateral_params(),
-            self.normal_params(),
-        );
-        let pyramid = self.pyramid_levels();
-        self.backend
-            .preprocess(&pp, bp.as_ref(), &np, &pyramid, raw_depth, raw_rgba)?;
-        Ok(self.icp_steps(pyramid))
+        let steps = self.preprocess_steps();
+        self.backend.preprocess(&steps, raw_depth, raw_rgba)?;
+        Ok(self.icp_steps(steps.pyramid))
     }
 
     /// The kernels' parameters this frame's ICP reads, at the map's present surfel count.

@@ -13,7 +13,7 @@ use crate::layout::{
     gpu_mat4, BilateralParams, Camera, CompactParams, FuseParams, IcpParams, NormalParams,
     PreprocessParams, ProjectParams, PyramidParams,
 };
-use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::backend::{Backend, PreprocessSteps, PyramidLevel};
 use crate::slam::params::{FusionSettings, UnstableRemoval};
 use crate::slam::pipeline::Slam;
 
@@ -21,6 +21,17 @@ use crate::slam::pipeline::Slam;
 const ANGLE_GATE_OFF: f32 = -2.0;
 
 impl<B: Backend> Slam<B> {
+    /// Parameters of every kernel of `preprocess`: [`Slam::preprocess_params`],
+    /// [`Slam::bilateral_params`], [`Slam::normal_params`] and [`Slam::pyramid_levels`].
+    pub fn preprocess_steps(&self) -> PreprocessSteps {
+        PreprocessSteps {
+            params: self.preprocess_params(),
+            bilateral: self.bilateral_params(),
+            normal: self.normal_params(),
+            pyramid: self.pyramid_levels(),
+        }
+    }
+
     /// Parameters of `depth_to_vertex`.
     pub fn preprocess_params(&self) -> PreprocessParams {
         PreprocessParams {

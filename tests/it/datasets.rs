@@ -12,7 +12,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use common::cli::{text, wgslam};
-use common::harness::{gpu_shared, plain, shared};
+use common::harness::{gpu_backend, gpu_shared, plain, shared};
 use glam::DMat4;
 use image::{ImageBuffer, Luma, RgbImage};
 use wgslam::dataset::{self, Layout, Sequence, SequenceOptions};
@@ -111,10 +111,6 @@ pub fn tests() -> Vec<common::harness::Test> {
             cli_runs_and_evaluates_the_folder_as_it_is,
         ),
     ]
-}
-
-fn gpu_backend(ctx: GpuContext) -> GpuBackend {
-    GpuBackend::new(ctx).expect("GPU backend")
 }
 
 // ---------------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ use crate::common;
 
 use std::path::Path;
 
-use common::harness::{gpu, gpu_shared, plain, shared};
+use common::harness::{gpu, gpu_backend, gpu_backend_test, gpu_shared, plain, shared};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
@@ -82,15 +82,17 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain("robust_profile_tracks_bundled_noisy_frames", || {
             robust_profile_tracks_bundled_noisy_frames(CpuBackend::new())
         }),
-        gpu("gpu_robust_profile_tracks_bundled_noisy_frames", |ctx| {
-            robust_profile_tracks_bundled_noisy_frames(gpu_backend(ctx))
-        }),
+        gpu_backend_test(
+            "gpu_robust_profile_tracks_bundled_noisy_frames",
+            robust_profile_tracks_bundled_noisy_frames,
+        ),
         plain("robust_icp_runs_coarse_to_fine", || {
             robust_icp_runs_coarse_to_fine(CpuBackend::new())
         }),
-        gpu("gpu_robust_icp_runs_coarse_to_fine", |ctx| {
-            robust_icp_runs_coarse_to_fine(gpu_backend(ctx))
-        }),
+        gpu_backend_test(
+            "gpu_robust_icp_runs_coarse_to_fine",
+            robust_icp_runs_coarse_to_fine,
+        ),
         plain("removal_shrinks_the_bundled_noisy_map", || {
             removal_shrinks_the_bundled_noisy_map(CpuBackend::new(), CpuBackend::new())
         }),
@@ -122,10 +124,6 @@ pub fn tests() -> Vec<common::harness::Test> {
             interleaved_bench_tracks_both_backends,
         ),
     ]
-}
-
-fn gpu_backend(ctx: GpuContext) -> GpuBackend {
-    GpuBackend::new(ctx).expect("GPU backend")
 }
 
 /// The default parameters with the bilateral depth filter on, at its defaults.

@@ -10,6 +10,7 @@
 //! on portable keys.
 
 use crate::common;
+use crate::common::level_0;
 
 use common::frames::{gt_at, load_frame, load_gt};
 use common::harness::{gpu, plain, skipped, Test};
@@ -24,7 +25,7 @@ use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
 use wgslam::layout::{Camera, MapChunk, NormalParams, PreprocessParams, ProjectParams};
 use wgslam::render::{self, MapCloud, RenderCamera, RenderSettings, View};
-use wgslam::slam::backend::{Backend, Inspect};
+use wgslam::slam::backend::{Backend, Inspect, PreprocessSteps};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{PoseSource, Profile, SlamParams, ValidParams};
 use wgslam::slam::pipeline::Slam;
@@ -116,13 +117,9 @@ fn portable_twins_equal_the_64_bit_twins() {
     }
     let fused = s.backend.download_map().unwrap();
     let frame = load_frame(&root, 5);
-    let (pp, bp, np) = (
-        s.preprocess_params(),
-        s.bilateral_params(),
-        s.normal_params(),
-    );
+    let steps = level_0(&s);
     s.backend
-        .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
+        .preprocess(&steps, &frame.depth, &frame.rgba)
         .unwrap();
     let maps = s.backend.download_frame().unwrap();
     let t_cam_to_world = *gt_at(&gt, 5).unwrap();
@@ -353,15 +350,20 @@ fn webgpu_limits_device_has_the_defaults_and_no_features(ctx: GpuContext) {
         _pad0: 0,
         _pad1: 0,
     };
-    let normal = NormalParams {
-        width: w,
-        height: h,
-        max_depth_jump_m: 0.1,
-        _pad: 0,
+    let steps = PreprocessSteps {
+        params,
+        bilateral: None,
+        normal: NormalParams {
+            width: w,
+            height: h,
+            max_depth_jump_m: 0.1,
+            _pad: 0,
+        },
+        pyramid: vec![],
     };
     let n = (w * h) as usize;
     let err = gpu
-        .preprocess(&params, None, &normal, &[], &vec![0; n], &vec![0; n])
+        .preprocess(&steps, &vec![0; n], &vec![0; n])
         .expect_err("the frame buffers cannot fit");
     let msg = err.to_string();
     assert!(

@@ -11,10 +11,10 @@ use std::path::{Path, PathBuf};
 
 use crate::common;
 use common::ate_m;
-use common::harness::{gpu, gpu_shared, plain, shared, Test};
+use common::harness::{gpu, gpu_backend, gpu_backend_test, gpu_shared, plain, shared, Test};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::se3;
-use wgslam::gpu::{GpuBackend, GpuContext};
+
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{Profile, ValidParams};
@@ -31,10 +31,6 @@ const ATE_NOISY_MAX_M: f64 = 0.010;
 const ATE_7SCENES_MAX_M: f64 = 0.030;
 /// Frames after a recoverable jump that must be tracked again (the 90 %).
 const RECOVERED_MIN_FRACTION: f64 = 0.9;
-
-fn gpu_backend(ctx: GpuContext) -> GpuBackend {
-    GpuBackend::new(ctx).expect("GPU backend")
-}
 
 fn assets(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -387,9 +383,10 @@ pub fn tests() -> Vec<Test> {
         plain("kidnapped_tracker_relocalises", || {
             kidnapped_tracker_relocalises(CpuBackend::new())
         }),
-        gpu("gpu_kidnapped_tracker_relocalises", |ctx| {
-            kidnapped_tracker_relocalises(gpu_backend(ctx))
-        }),
+        gpu_backend_test(
+            "gpu_kidnapped_tracker_relocalises",
+            kidnapped_tracker_relocalises,
+        ),
         plain(
             "empty_first_frames_start_at_the_first_usable",
             empty_first_frames_start_at_the_first_usable,

@@ -47,6 +47,20 @@ pub struct FrameLevel {
 /// [`Backend::rgbd_system`]'s two 29-entry systems: the geometric, then the photometric.
 pub type RgbdSystems = [[f64; ICP_SYSTEM_LEN]; 2];
 
+/// What [`Backend::preprocess`] runs on a frame: its kernels' parameters, made once a frame
+/// by `Slam::preprocess_steps` (`crate::slam::step_params`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreprocessSteps {
+    /// `depth_to_vertex`'s.
+    pub params: PreprocessParams,
+    /// `bilateral_filter`'s; `None`: no filter.
+    pub bilateral: Option<BilateralParams>,
+    /// `vertex_to_normal`'s at level 0.
+    pub normal: NormalParams,
+    /// The coarser levels 1, 2, ... (empty: level 0 only).
+    pub pyramid: Vec<PyramidLevel>,
+}
+
 /// The parameters that make one coarser level `l >= 1` of the frame's and the model's
 /// pyramids from level `l - 1`: `pyramid_depth`'s and `pyramid_model`'s, and
 /// `vertex_to_normal`'s at the level's size.
@@ -127,22 +141,14 @@ pub type Described = (Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>);
 pub trait Backend {
     /// Short name for logs and reports (`cpu`, `gpu`).
     fn name(&self) -> &'static str;
-    /// `depth_to_vertex`, then `bilateral_filter` when `bilateral` is given, then
+    /// `depth_to_vertex`, then `bilateral_filter` when `steps.bilateral` is given, then
     /// `vertex_to_normal` on the filtered vertex map (or on the unfiltered one without the
     /// filter; the points' depth from the unfiltered map unless `filter_points`) on a raw
-    /// frame (`raw_depth`: u16 depth units; `raw_rgba`: packed RGBA8, both
-    /// raw_width x raw_height). The unfiltered vertex map is kept either way. Then, for
-    /// each entry of `pyramid` (levels 1, 2, ...), `pyramid_depth` from the finer level's
-    /// vertex map (at level 0 the one the normals were made from) and `vertex_to_normal`.
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()>;
+    /// frame (`depth`: u16 depth units; `rgba`: packed RGBA8, both raw_width x raw_height).
+    /// The unfiltered vertex map is kept either way. Then, for each entry of
+    /// `steps.pyramid` (levels 1, 2, ...), `pyramid_depth` from the finer level's vertex map
+    /// (at level 0 the one the normals were made from) and `vertex_to_normal`.
+    fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()>;
     /// `project_model` then `predict_model` at `params.t_world_to_cam`
     /// (`surfel_count` is filled in by the backend), then `pyramid_model` for each entry of
     /// `pyramid` (the same levels as the last `preprocess`'s). When the map last changed in
@@ -262,16 +268,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn name(&self) -> &'static str {
         (**self).name()
     }
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()> {
-        (**self).preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba)
+    fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
+        (**self).preprocess(steps, depth, rgba)
     }
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         (**self).predict(params, pyramid)

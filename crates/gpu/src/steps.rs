@@ -16,11 +16,13 @@ use super::recording::{record_call, record_passes, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
-    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
+    CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams,
+    PreprocessParams, ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::{Error, Result};
-use wgslam_core::backend::{Backend, Described, Prediction, PyramidLevel, RgbdSystems};
+use wgslam_core::backend::{
+    Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems,
+};
 use wgslam_core::fused_view::FusedView;
 use wgslam_core::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
 
@@ -50,47 +52,40 @@ impl Backend for GpuBackend {
         "gpu"
     }
 
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()> {
-        check_frame_size(params, raw_depth, raw_rgba)?;
-        check_pyramid(params.camera.width, params.camera.height, pyramid)?;
+    fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
+        check_frame_size(&steps.params, depth, rgba)?;
+        let (w, h) = (steps.params.camera.width, steps.params.camera.height);
+        check_pyramid(w, h, &steps.pyramid)?;
         // The uploads below would land before a deferred step (see `GpuContext::defer`).
         self.ctx.flush();
         if let Some(b) = &mut self.ferns {
             // Codes recorded ahead by the last fuse are the last frame's.
             b.ahead = None;
         }
-        self.ensure_frame(params, pyramid)?;
+        self.ensure_frame(&steps.params, &steps.pyramid)?;
         // A new frame: its intensity pyramid is made by the first `rgbd_system`.
         self.photo.intensity_made = 0;
         let ctx = &self.ctx;
         let u = &self.uniforms;
         ctx.scoped("preprocess", || {
             let f = self.frame.as_mut().expect("ensure_frame made it");
-            f.raw_depth.upload(ctx, raw_depth)?;
-            f.raw_rgba.upload(ctx, raw_rgba)?;
-            f.filtered = bilateral.is_some();
-            u.preprocess.write(ctx, params);
-            if let Some(b) = bilateral {
+            f.raw_depth.upload(ctx, depth)?;
+            f.raw_rgba.upload(ctx, rgba)?;
+            f.filtered = steps.bilateral.is_some();
+            u.preprocess.write(ctx, &steps.params);
+            if let Some(b) = &steps.bilateral {
                 u.bilateral.write(ctx, b);
             }
-            u.normal.write(ctx, normal);
-            for (level, p) in f.levels.iter().zip(pyramid) {
+            u.normal.write(ctx, &steps.normal);
+            for (level, p) in f.levels.iter().zip(&steps.pyramid) {
                 level.u_pyramid.write(ctx, &p.down);
                 level.u_normal.write(ctx, &p.normal);
             }
             Ok(())
         })?;
-        let levels = pyramid.iter().map(|p| size(&p.down.camera)).collect();
-        let grid = StepGrid::new(&self.ctx, size(&params.camera), levels);
-        let plan = plan::preprocess(bilateral, pyramid.len());
+        let levels = steps.pyramid.iter().map(|p| size(&p.down.camera)).collect();
+        let grid = StepGrid::new(&self.ctx, [w, h], levels);
+        let plan = plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len());
         let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");

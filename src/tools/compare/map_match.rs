@@ -185,15 +185,20 @@ impl Grid {
         })
     }
 
-    /// Keys of the 8 cells a ball of half a cell around `p` may overlap.
-    fn cells_near(&self, p: &[f32; 4]) -> [u64; 8] {
-        let axis = |x: f32| {
-            let c = x / self.cell_m;
+    /// Per axis, the cells a ball of half a cell around `p` may overlap: `p`'s own, then
+    /// the neighbour on its nearer side.
+    fn cells_per_axis(&self, p: &[f32; 4]) -> [[i32; 2]; 3] {
+        std::array::from_fn(|a| {
+            let c = p[a] / self.cell_m;
             let own = c.floor();
             let other = if c - own < 0.5 { own - 1.0 } else { own + 1.0 };
             [own as i32, other as i32]
-        };
-        let (cx, cy, cz) = (axis(p[0]), axis(p[1]), axis(p[2]));
+        })
+    }
+
+    /// Keys of the 8 cells a ball of half a cell around `p` may overlap.
+    fn cells_near(&self, p: &[f32; 4]) -> [u64; 8] {
+        let [cx, cy, cz] = self.cells_per_axis(p);
         std::array::from_fn(|k| Self::key([cx[k & 1], cy[(k >> 1) & 1], cz[k >> 2]]))
     }
 
@@ -201,13 +206,7 @@ impl Grid {
     /// a larger value or infinity): a ball of half a cell overlaps at most two cells per
     /// axis, `p`'s own and the neighbour on its nearer side, so 8 cells are searched.
     fn nearest_within_half_cell(&self, points: &[[f32; 4]], p: &[f32; 4]) -> f32 {
-        let axis = |x: f32| {
-            let c = x / self.cell_m;
-            let own = c.floor();
-            let other = if c - own < 0.5 { own - 1.0 } else { own + 1.0 };
-            [own as i32, other as i32]
-        };
-        let (cx, cy, cz) = (axis(p[0]), axis(p[1]), axis(p[2]));
+        let [cx, cy, cz] = self.cells_per_axis(p);
         let mut best = f32::INFINITY;
         for x in cx {
             for y in cy {

@@ -7,12 +7,12 @@
 use crate::cpu::arith::{self, Arith};
 use crate::layout::map::SurfelMap;
 use crate::layout::{
-    BilateralParams, CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint,
-    KeypointParams, NormalParams, PreprocessParams, ProjectParams, ICP_ATB_OFFSET, ICP_SYSTEM_LEN,
+    CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams,
+    ProjectParams, ICP_ATB_OFFSET, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
     Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
-    PyramidLevel, RgbdSystems,
+    PreprocessSteps, PyramidLevel, RgbdSystems,
 };
 use crate::slam::cpu_backend::CpuBackend;
 use crate::Result;
@@ -87,16 +87,8 @@ impl Backend for PerturbedCpu {
             (Arith::Perturbed { .. }, None) => "cpu-perturbed",
         }
     }
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()> {
-        self.run(|b| b.preprocess(params, bilateral, normal, pyramid, raw_depth, raw_rgba))
+    fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
+        self.run(|b| b.preprocess(steps, depth, rgba))
     }
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         self.run(|b| b.predict(params, pyramid))

@@ -1,17 +1,18 @@
 //! Running the `wgslam` executable from an integration test: its output, and stdout and
 //! stderr as one text for assertion messages.
 
+use std::ffi::OsStr;
 use std::process::{Command, Output};
 
-/// Runs `wgslam ARGS` to completion.
-pub fn wgslam(args: &[&str]) -> Output {
+/// Runs `wgslam ARGS` to completion (`&str`s, `String`s or paths).
+pub fn wgslam<S: AsRef<OsStr>>(args: &[S]) -> Output {
     wgslam_env(args, &[])
 }
 
 /// Runs `wgslam ARGS` with `env` set. The job-index variables of the schedulers (which
 /// `wgslam batch` reads) are removed unless `env` sets them, so a test run inside a Slurm
 /// or Kubernetes task still runs every job.
-pub fn wgslam_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+pub fn wgslam_env<S: AsRef<OsStr>>(args: &[S], env: &[(&str, &str)]) -> Output {
     let mut c = Command::new(env!("CARGO_BIN_EXE_wgslam"));
     c.args(args);
     for k in [

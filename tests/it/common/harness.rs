@@ -37,7 +37,7 @@ use std::process::ExitCode;
 
 use libtest_mimic::{Arguments, Completion, Failed, Trial};
 use wgslam::gpu::test_support::{gpu_for_test, NoGpu};
-use wgslam::gpu::GpuContext;
+use wgslam::gpu::{GpuBackend, GpuContext};
 
 /// Environment variable that turns a missing `../shared/data` from a skip into a failure.
 pub const REQUIRE_DATA_ENV: &str = "WGSLAM_REQUIRE_DATA";
@@ -103,6 +103,16 @@ pub fn plain<R: Finish>(name: &'static str, f: impl FnOnce() -> R + Send + 'stat
         needs_data: false,
         body: Box::new(move |_, _| f().finish()),
     }
+}
+
+/// A GPU backend on the trial's context (panics when it cannot be made).
+pub fn gpu_backend(ctx: GpuContext) -> GpuBackend {
+    GpuBackend::new(ctx).expect("GPU backend")
+}
+
+/// A [`gpu`] trial whose body takes a fresh [`gpu_backend`] instead of the context.
+pub fn gpu_backend_test<R: Finish + 'static>(name: &'static str, f: fn(GpuBackend) -> R) -> Test {
+    gpu(name, move |ctx| f(gpu_backend(ctx)))
 }
 
 /// A test that gets a fresh GPU context of its own.

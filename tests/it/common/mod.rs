@@ -14,6 +14,9 @@ pub mod wgsl;
 
 use std::path::{Path, PathBuf};
 
+use wgslam::slam::backend::{Backend, PreprocessSteps};
+use wgslam::slam::pipeline::Slam;
+
 /// The bundled real frames (always present in a clone).
 pub fn bundled_icl() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2")
@@ -77,5 +80,22 @@ impl Drop for Scratch {
         if !std::thread::panicking() {
             let _ = std::fs::remove_dir_all(&self.0);
         }
+    }
+}
+
+/// `s`'s `preprocess` steps at level 0 only (no pyramid), with the bilateral filter as its
+/// parameters say.
+pub fn level_0<B: Backend>(s: &Slam<B>) -> PreprocessSteps {
+    PreprocessSteps {
+        pyramid: vec![],
+        ..s.preprocess_steps()
+    }
+}
+
+/// [`level_0`] without the bilateral filter: `depth_to_vertex` and `vertex_to_normal` alone.
+pub fn unfiltered_level_0<B: Backend>(s: &Slam<B>) -> PreprocessSteps {
+    PreprocessSteps {
+        bilateral: None,
+        ..level_0(s)
     }
 }

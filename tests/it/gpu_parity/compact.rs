@@ -4,9 +4,9 @@
 //! map growth.
 
 use super::RUN_SURFEL_FRACTION_TOL;
-use super::{cpu_map_from_gt, gpu_backend, root, slam, small_chunk_backend};
+use super::{cpu_map_from_gt, root, slam, small_chunk_backend};
 use crate::common::frames::{gt_at, load_frame, load_gt};
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu, gpu_backend_test, Test};
 use wgslam::cpu;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
@@ -220,12 +220,8 @@ fn compaction_follows_map_growth(ctx: GpuContext) {
 
 pub(super) fn tests() -> Vec<Test> {
     vec![
-        gpu("compaction_matches_twins", |ctx| {
-            compaction_matches_twins(gpu_backend(ctx))
-        }),
-        gpu("compaction_sizes_match_twins", |ctx| {
-            compaction_sizes_match_twins(gpu_backend(ctx))
-        }),
+        gpu_backend_test("compaction_matches_twins", compaction_matches_twins),
+        gpu_backend_test("compaction_sizes_match_twins", compaction_sizes_match_twins),
         gpu("compaction_matches_twins_in_small_chunks", |ctx| {
             compaction_matches_twins(small_chunk_backend(ctx))
         }),

@@ -1,11 +1,12 @@
 //! Fusion of a frame into the map: fuse_select, fuse_merge, fuse_flags, prefix_sum,
 //! fuse_add and fuse_prune against their twins, for each profile and in small map chunks.
 
-use super::{check_index_maps, check_surfel, cpu_map_from_gt, gpu_backend, root};
+use super::{check_index_maps, check_surfel, cpu_map_from_gt, gpu_backend, preprocess_both, root};
 use super::{small_chunk_backend, SMALL_CHUNK_SURFELS};
 use super::{FUSED_INDEX_MAP_MISMATCH_FRACTION, MASK_MISMATCH_FRACTION, OFF_RAY_TOL_M};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
+use crate::common::level_0;
 use wgslam::cpu;
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
@@ -54,16 +55,8 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
     }
     gpu.upload_map(&before).unwrap();
     let frame = load_frame(&root(), 3);
-    let (pp, bp, np) = (
-        s.preprocess_params(),
-        s.bilateral_params(),
-        s.normal_params(),
-    );
-    s.backend
-        .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
-    gpu.preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
+    let steps = level_0(&s);
+    preprocess_both(&mut s.backend, &mut gpu, &steps, &frame);
     let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
     let mut fp = s.fuse_params(&t_world_to_cam, 3);
     // The pipeline prunes only on the frames the unstable-surfel removal runs after; the

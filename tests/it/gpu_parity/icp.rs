@@ -3,10 +3,11 @@
 //! icp_reduce's (`rgbd_system`); icp_candidates (the health test's
 //! denominator) against its twin.
 
-use super::{cpu_map_from_gt, gpu_backend, robust_pyramids_on_both, root};
+use super::{cpu_map_from_gt, preprocess_both, robust_pyramids_on_both, root};
 use super::{increment_tol, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
 use crate::common::frames::{gt_at, load_frame};
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu, gpu_backend_test, Test};
+use crate::common::unfiltered_level_0;
 use glam::DMat4;
 use wgslam::cpu;
 use wgslam::geometry::camera::Intrinsics;
@@ -24,17 +25,13 @@ use wgslam::Error;
 /// Both backends with a map fused from ground truth over frames 0..3, frame 4
 /// preprocessed and the map predicted from frame 3's pose: the ICP of frame 4; with frame
 /// 4's true world-to-camera pose.
-fn frame_4_on_both(gpu: &mut GpuBackend) -> (Slam<CpuBackend>, DMat4) {
-    let params = SlamParams::profile(Profile::Assignment);
+fn frame_4_on_both(gpu: &mut GpuBackend, profile: Profile) -> (Slam<CpuBackend>, DMat4) {
+    let params = SlamParams::profile(profile);
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
     let frame = load_frame(&root(), 4);
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
-    s.backend
-        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
-    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
+    let steps = unfiltered_level_0(&s);
+    preprocess_both(&mut s.backend, gpu, &steps, &frame);
     let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
     let proj = s.project_params(&t_prev);
     s.backend.predict(&proj, &[]).unwrap();
@@ -103,7 +100,7 @@ fn check_systems_of(
 /// icp_reduce against its twin: the decoded 6x6 systems and the solved increments agree,
 /// at a pose perturbed from the ground truth.
 fn icp_system_matches_twin(mut gpu: GpuBackend) {
-    let (mut s, t_true) = frame_4_on_both(&mut gpu);
+    let (mut s, t_true) = frame_4_on_both(&mut gpu, Profile::Assignment);
     // The robust profile's gates and weights too (angle gate, Huber, depth noise), with
     // the parameters its pipeline builds.
     let robust = Slam::new(
@@ -133,7 +130,7 @@ fn icp_system_matches_twin(mut gpu: GpuBackend) {
 /// through `rgbd_system`: both systems of one submission agree, the geometric one equal to
 /// `icp_system`'s, at the true and a perturbed pose.
 fn rgbd_systems_match_twin(mut gpu: GpuBackend) {
-    let (mut s, t_true) = frame_4_on_both(&mut gpu);
+    let (mut s, t_true) = frame_4_on_both(&mut gpu, Profile::Assignment);
     for (label, t) in [("true pose", t_true), ("perturbed pose", nudge() * t_true)] {
         let ip = s.icp_params(0, &t);
         let [geo_c, photo_c] = s.backend.rgbd_system(0, &ip).unwrap();
@@ -334,21 +331,7 @@ fn icp_reduce_final_matches_twin(ctx: GpuContext) {
 /// agree within the validity-mask allowance (a projection can land on the other side of a
 /// texel border after an FMA), and they are real counts (most of the image).
 fn icp_candidates_matches_twin(mut gpu: GpuBackend) {
-    let params = SlamParams::profile(Profile::Robust);
-    let (mut s, gt) = cpu_map_from_gt(3, &params);
-    gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
-    let frame = load_frame(&root(), 4);
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
-    s.backend
-        .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
-    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
-    let t_prev = se3::inverse_rigid(gt_at(&gt, 3).unwrap());
-    let proj = s.project_params(&t_prev);
-    s.backend.predict(&proj, &[]).unwrap();
-    gpu.predict(&proj, &[]).unwrap();
-    let t_true = se3::inverse_rigid(gt_at(&gt, 4).unwrap());
+    let (mut s, t_true) = frame_4_on_both(&mut gpu, Profile::Robust);
     let nudge = se3::exp(&[0.01, -0.02, 0.01, 0.05, 0.02, -0.03]);
     for (label, t) in [("true pose", t_true), ("perturbed pose", nudge * t_true)] {
         let ip = s.icp_params(0, &t);
@@ -368,24 +351,20 @@ fn icp_candidates_matches_twin(mut gpu: GpuBackend) {
 
 pub(super) fn tests() -> Vec<Test> {
     vec![
-        gpu("icp_candidates_matches_twin", |ctx| {
-            icp_candidates_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("icp_system_matches_twin", |ctx| {
-            icp_system_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("rgbd_systems_match_twin", |ctx| {
-            rgbd_systems_match_twin(gpu_backend(ctx))
-        }),
+        gpu_backend_test("icp_candidates_matches_twin", icp_candidates_matches_twin),
+        gpu_backend_test("icp_system_matches_twin", icp_system_matches_twin),
+        gpu_backend_test("rgbd_systems_match_twin", rgbd_systems_match_twin),
         gpu(
             "icp_reduce_final_matches_twin",
             icp_reduce_final_matches_twin,
         ),
-        gpu("coarse_icp_systems_match_twin", |ctx| {
-            coarse_icp_systems_match_twin(gpu_backend(ctx))
-        }),
-        gpu("intensity_pyramid_and_coarse_rgbd_match_twin", |ctx| {
-            intensity_pyramid_and_coarse_rgbd_match_twin(gpu_backend(ctx))
-        }),
+        gpu_backend_test(
+            "coarse_icp_systems_match_twin",
+            coarse_icp_systems_match_twin,
+        ),
+        gpu_backend_test(
+            "intensity_pyramid_and_coarse_rgbd_match_twin",
+            intensity_pyramid_and_coarse_rgbd_match_twin,
+        ),
     ]
 }

@@ -15,14 +15,15 @@ mod run;
 
 use crate::common;
 
-use common::frames::{gt_at, load_frame, load_gt};
+use common::frames::{gt_at, load_frame, load_gt, Frame};
+use common::harness::gpu_backend;
 use glam::DMat4;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
 use wgslam::layout::BLOCK_SURFELS;
-use wgslam::slam::backend::{Backend, Inspect};
+use wgslam::slam::backend::{Backend, Inspect, PreprocessSteps};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{PoseSource, Profile, SlamParams};
 use wgslam::slam::pipeline::Slam;
@@ -143,8 +144,15 @@ fn slam<B: Backend>(backend: B, params: SlamParams) -> Slam<B> {
     Slam::new(backend, Intrinsics::ICL_NUIM, params.validate().unwrap())
 }
 
-fn gpu_backend(ctx: GpuContext) -> GpuBackend {
-    GpuBackend::new(ctx).expect("GPU backend")
+/// `preprocess` of `frame` with `steps` on both backends.
+fn preprocess_both(
+    cpu: &mut impl Backend,
+    gpu: &mut GpuBackend,
+    steps: &PreprocessSteps,
+    frame: &Frame,
+) {
+    cpu.preprocess(steps, &frame.depth, &frame.rgba).unwrap();
+    gpu.preprocess(steps, &frame.depth, &frame.rgba).unwrap();
 }
 
 /// Counts mask mismatches and panics (naming the first pixels) past the allowance.
@@ -260,20 +268,11 @@ fn robust_pyramids_on_both(
     let (mut s, gt) = cpu_map_from_gt(3, &params);
     gpu.upload_map(&s.backend.download_map().unwrap()).unwrap();
     let f = load_frame(&root(), frame);
-    let (pp, bp, np, pyr) = (
-        s.preprocess_params(),
-        s.bilateral_params(),
-        s.normal_params(),
-        s.pyramid_levels(),
-    );
-    s.backend
-        .preprocess(&pp, bp.as_ref(), &np, &pyr, &f.depth, &f.rgba)
-        .unwrap();
-    gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &f.depth, &f.rgba)
-        .unwrap();
+    let steps = s.preprocess_steps();
+    preprocess_both(&mut s.backend, gpu, &steps, &f);
     let proj = s.project_params(&se3::inverse_rigid(gt_at(&gt, predict_at).unwrap()));
-    s.backend.predict(&proj, &pyr).unwrap();
-    gpu.predict(&proj, &pyr).unwrap();
+    s.backend.predict(&proj, &steps.pyramid).unwrap();
+    gpu.predict(&proj, &steps.pyramid).unwrap();
     (s, gt)
 }
 

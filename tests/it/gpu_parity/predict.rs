@@ -2,9 +2,10 @@
 //! (also in small map chunks) and pyramid_model's coarser levels.
 
 use super::{check_index_maps, check_vec4_map, cpu_map_from_gt, robust_pyramids_on_both};
-use super::{gpu_backend, root, small_chunk_backend, MASK_MISMATCH_FRACTION};
+use super::{root, small_chunk_backend, MASK_MISMATCH_FRACTION};
 use crate::common::frames::{gt_at, load_frame};
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu, gpu_backend_test, Test};
+use crate::common::unfiltered_level_0;
 use wgslam::cpu;
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
@@ -20,9 +21,8 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     let map = s.backend.download_map().unwrap();
     gpu.upload_map(&map).unwrap();
     let frame = load_frame(&root(), 6);
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
+    let steps = unfiltered_level_0(&s);
+    gpu.preprocess(&steps, &frame.depth, &frame.rgba).unwrap();
     let t_world_to_cam = se3::inverse_rigid(gt_at(&gt, 6).unwrap());
     let proj = s.project_params(&t_world_to_cam);
     assert_eq!(proj.surfel_count as usize, map.len());
@@ -106,14 +106,10 @@ fn pyramid_model_matches_twin(mut gpu: GpuBackend) {
 
 pub(super) fn tests() -> Vec<Test> {
     vec![
-        gpu("predict_matches_twins", |ctx| {
-            predict_matches_twins(gpu_backend(ctx))
-        }),
+        gpu_backend_test("predict_matches_twins", predict_matches_twins),
         gpu("predict_matches_twins_in_small_chunks", |ctx| {
             predict_matches_twins(small_chunk_backend(ctx))
         }),
-        gpu("pyramid_model_matches_twin", |ctx| {
-            pyramid_model_matches_twin(gpu_backend(ctx))
-        }),
+        gpu_backend_test("pyramid_model_matches_twin", pyramid_model_matches_twin),
     ]
 }

@@ -3,10 +3,11 @@
 //! code of the preprocessed frame), keypoint_detect and keypoint_describe (feature-based
 //! relocalisation) against their twins, and a frame of the wrong size.
 
-use super::{check_vec4_map, gpu_backend, root, slam};
+use super::{check_vec4_map, preprocess_both, root, slam};
 use super::{FILTERED_VERTEX_TOL_M, NORMAL_TOL, VERTEX_TOL_M};
 use crate::common::frames::load_frame;
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu_backend_test, Test};
+use crate::common::{level_0, unfiltered_level_0};
 use bytemuck::Zeroable;
 use std::collections::BTreeSet;
 use wgslam::cpu::fern_encode::fern_encode;
@@ -29,13 +30,9 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
         let mut params = SlamParams::profile(Profile::Assignment);
         params.input.downsample = downsample;
         let s = slam(CpuBackend::new(), params);
-        let (pp, np) = (s.preprocess_params(), s.normal_params());
+        let steps = unfiltered_level_0(&s);
         let mut cpu_b = s.backend;
-        cpu_b
-            .preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-            .unwrap();
-        gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-            .unwrap();
+        preprocess_both(&mut cpu_b, &mut gpu, &steps, &frame);
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
         let tag = format!("downsample {downsample}");
@@ -81,18 +78,10 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         params.input.downsample = downsample;
         params.bilateral = Some(settings);
         let s = slam(CpuBackend::new(), params);
-        let (pp, bp, np) = (
-            s.preprocess_params(),
-            s.bilateral_params(),
-            s.normal_params(),
-        );
-        assert!(bp.is_some());
+        let steps = level_0(&s);
+        assert!(steps.bilateral.is_some());
         let mut cpu_b = s.backend;
-        cpu_b
-            .preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
-            .unwrap();
-        gpu.preprocess(&pp, bp.as_ref(), &np, &[], &frame.depth, &frame.rgba)
-            .unwrap();
+        preprocess_both(&mut cpu_b, &mut gpu, &steps, &frame);
         let c = cpu_b.download_frame().unwrap();
         let g = gpu.download_frame().unwrap();
         let tag = format!("bilateral {settings:?}, downsample {downsample}");
@@ -143,9 +132,8 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
     }
     // Back to the filter off: the frame has no filtered map again.
     let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
+    let steps = unfiltered_level_0(&s);
+    gpu.preprocess(&steps, &frame.depth, &frame.rgba).unwrap();
     assert!(gpu.download_frame().unwrap().filtered_vertex.is_empty());
 }
 
@@ -161,20 +149,11 @@ fn pyramid_depth_matches_twin(mut gpu: GpuBackend) {
         params.input.downsample = downsample;
         params.bilateral = bilateral;
         let s = slam(CpuBackend::new(), params);
-        let (pp, bp, np, pyr) = (
-            s.preprocess_params(),
-            s.bilateral_params(),
-            s.normal_params(),
-            s.pyramid_levels(),
-        );
-        assert_eq!(pyr.len(), 2);
+        let steps = s.preprocess_steps();
+        assert_eq!(steps.pyramid.len(), 2);
         let level_intrinsics: Vec<Intrinsics> = (1..3).map(|l| s.level_intrinsics(l)).collect();
         let mut cpu_b = s.backend;
-        cpu_b
-            .preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
-            .unwrap();
-        gpu.preprocess(&pp, bp.as_ref(), &np, &pyr, &frame.depth, &frame.rgba)
-            .unwrap();
+        preprocess_both(&mut cpu_b, &mut gpu, &steps, &frame);
         let (c, g) = (
             cpu_b.download_frame().unwrap(),
             gpu.download_frame().unwrap(),
@@ -218,11 +197,10 @@ fn fern_encode_matches_twin(mut gpu: GpuBackend) {
         let mut params = SlamParams::profile(Profile::Robust);
         params.input.downsample = downsample;
         let s = slam(CpuBackend::new(), params.clone());
-        let (pp, np) = (s.preprocess_params(), s.normal_params());
-        gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-            .unwrap();
+        let steps = unfiltered_level_0(&s);
+        gpu.preprocess(&steps, &frame.depth, &frame.rgba).unwrap();
         let db = KeyframeDatabase::new(params.relocalisation.as_ref().unwrap());
-        let fp = db.params(pp.camera.width, pp.camera.height);
+        let fp = db.params(steps.params.camera.width, steps.params.camera.height);
         let g = gpu.encode_ferns(&fp, db.ferns()).unwrap();
         let maps = gpu.download_frame().unwrap();
         let mut c = vec![0; db.ferns().len()];
@@ -252,14 +230,13 @@ fn keypoint_kernels_match_twins(mut gpu: GpuBackend) {
     let frame = load_frame(&root(), 5);
     let params = SlamParams::profile(Profile::Robust);
     let s = slam(CpuBackend::new(), params);
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
-    gpu.preprocess(&pp, None, &np, &[], &frame.depth, &frame.rgba)
-        .unwrap();
+    let steps = unfiltered_level_0(&s);
+    gpu.preprocess(&steps, &frame.depth, &frame.rgba).unwrap();
     let maps = gpu.download_frame().unwrap();
     let pattern = features::pattern();
     let mut kp = KeypointParams {
-        width: pp.camera.width,
-        height: pp.camera.height,
+        width: steps.params.camera.width,
+        height: steps.params.camera.height,
         threshold: features::HARRIS_THRESHOLD,
         capacity: features::KEYPOINT_CAPACITY,
         count: 0,
@@ -317,38 +294,31 @@ fn bad_frame_size_is_an_argument_error(mut gpu: GpuBackend) {
     assert_eq!(gpu.download_frame().unwrap(), Default::default());
     assert!(gpu.download_prediction(0).unwrap().0.is_empty());
     let s = slam(CpuBackend::new(), SlamParams::profile(Profile::Assignment));
-    let (pp, np) = (s.preprocess_params(), s.normal_params());
+    let steps = unfiltered_level_0(&s);
     let short = vec![0u16; 100];
-    match gpu.preprocess(&pp, None, &np, &[], &short, &vec![0u32; 100]) {
+    match gpu.preprocess(&steps, &short, &vec![0u32; 100]) {
         Err(Error::Argument(msg)) => assert!(msg.contains("640x480"), "{msg}"),
         other => panic!("expected Error::Argument, got {other:?}"),
     }
     // The backend still works afterwards.
     let f = load_frame(&root(), 1);
-    gpu.preprocess(&pp, None, &np, &[], &f.depth, &f.rgba)
-        .unwrap();
+    gpu.preprocess(&steps, &f.depth, &f.rgba).unwrap();
     assert_eq!(gpu.download_frame().unwrap().vertex.len(), 320 * 240);
 }
 
 pub(super) fn tests() -> Vec<Test> {
     vec![
-        gpu("preprocess_matches_twins", |ctx| {
-            preprocess_matches_twins(gpu_backend(ctx))
-        }),
-        gpu("bilateral_filter_matches_twin", |ctx| {
-            bilateral_filter_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("pyramid_depth_matches_twin", |ctx| {
-            pyramid_depth_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("fern_encode_matches_twin", |ctx| {
-            fern_encode_matches_twin(gpu_backend(ctx))
-        }),
-        gpu("keypoint_kernels_match_twins", |ctx| {
-            keypoint_kernels_match_twins(gpu_backend(ctx))
-        }),
-        gpu("bad_frame_size_is_an_argument_error", |ctx| {
-            bad_frame_size_is_an_argument_error(gpu_backend(ctx))
-        }),
+        gpu_backend_test("preprocess_matches_twins", preprocess_matches_twins),
+        gpu_backend_test(
+            "bilateral_filter_matches_twin",
+            bilateral_filter_matches_twin,
+        ),
+        gpu_backend_test("pyramid_depth_matches_twin", pyramid_depth_matches_twin),
+        gpu_backend_test("fern_encode_matches_twin", fern_encode_matches_twin),
+        gpu_backend_test("keypoint_kernels_match_twins", keypoint_kernels_match_twins),
+        gpu_backend_test(
+            "bad_frame_size_is_an_argument_error",
+            bad_frame_size_is_an_argument_error,
+        ),
     ]
 }

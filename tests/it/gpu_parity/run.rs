@@ -1,10 +1,10 @@
 //! A whole tracked run over the bundled frames on both backends, and the GPU's against the
 //! ground truth.
 
-use super::{gpu_backend, root, slam};
+use super::{root, slam};
 use super::{GT_RMSE_MAX_M, RUN_POSE_TOL_DEG, RUN_POSE_TOL_M, RUN_SURFEL_FRACTION_TOL};
 use crate::common::frames::{gt_at, load_frame, load_gt};
-use crate::common::harness::{gpu, Test};
+use crate::common::harness::{gpu_backend_test, Test};
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
 use wgslam::slam::backend::{Backend, Inspect};
@@ -83,7 +83,8 @@ fn tracked_run_matches_cpu_and_ground_truth(gpu: GpuBackend) {
 }
 
 pub(super) fn tests() -> Vec<Test> {
-    vec![gpu("tracked_run_matches_cpu_and_ground_truth", |ctx| {
-        tracked_run_matches_cpu_and_ground_truth(gpu_backend(ctx))
-    })]
+    vec![gpu_backend_test(
+        "tracked_run_matches_cpu_and_ground_truth",
+        tracked_run_matches_cpu_and_ground_truth,
+    )]
 }

@@ -19,7 +19,10 @@ fn timed() -> Command {
 }
 
 /// `wgslam args` with `env` under [`timed`].
-pub(super) fn bounded(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
+pub(super) fn bounded<S: AsRef<std::ffi::OsStr>>(
+    args: &[S],
+    env: &[(&str, &str)],
+) -> std::process::Output {
     let mut c = timed();
     c.args(args);
     for (k, v) in env {
@@ -154,7 +157,6 @@ fn batch_and_params_inputs_that_are_not_files_are_refused() {
     for p in [s(&pipe), zero] {
         let mut args = run_args(2, &out);
         args.extend(["--params".into(), p.into()]);
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         refused_with(&format!("run --params {p}"), &bounded(&args, &[]), &[p]);
         assert!(!out.exists(), "run --params {p}: outputs written");
     }

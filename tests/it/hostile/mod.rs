@@ -19,12 +19,8 @@ mod wrong_results;
 pub(super) use std::path::{Path, PathBuf};
 pub(super) use std::process::{Child, Command};
 
-pub(super) use common::cli::{text, wgslam_env};
+pub(super) use common::cli::{text, wgslam, wgslam_env};
 pub(super) use common::harness::{gpu, plain};
-
-pub(super) fn wgslam(args: &[&str]) -> std::process::Output {
-    wgslam_env(args, &[])
-}
 
 pub(super) fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -225,12 +225,10 @@ fn caps_are_checked_at_parse_time() {
         ),
     ] {
         let args = with(&more);
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         refused_with(case, &bounded(&args, &[]), &[want]);
         assert!(!out.exists(), "{case}: outputs written");
     }
     let args = with(&["--revisit", "10000000000000"]);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = bounded(&args, &[("WGSLAM_MAX_REVISIT_FRAMES", "100000000000000")]);
     refused_with("revisit", &o, &["WGSLAM_MAX_REVISIT_FRAMES", "beyond"]);
     assert!(!out.exists(), "revisit: outputs written");

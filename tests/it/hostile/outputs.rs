@@ -47,23 +47,13 @@ fn leftovers_beside(out: &Path) -> Vec<String> {
 fn killed_runs_leave_the_old_set_or_the_new_one() {
     let dir = common::temp_dir("hostile-kill-run");
     let out = dir.join("out");
-    let o = wgslam(
-        &run_args(2, &out)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    let o = wgslam(&run_args(2, &out));
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(consistent_frames(&out), Some(2));
     // Time one run of 4 frames, then kill runs at points spread over its last part, where
     // the outputs are written.
     let t0 = std::time::Instant::now();
-    let o = wgslam(
-        &run_args(4, &dir.join("timing"))
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    let o = wgslam(&run_args(4, &dir.join("timing")));
     assert!(o.status.success(), "{}", text(&o));
     let full = t0.elapsed().as_secs_f64();
     const TRIALS: usize = 12;
@@ -86,12 +76,7 @@ fn killed_runs_leave_the_old_set_or_the_new_one() {
             other => panic!("trial {k}: {other:?} frames in {}", out.display()),
         }
         if consistent_frames(&out) == Some(4) {
-            let o = wgslam(
-                &run_args(2, &out)
-                    .iter()
-                    .map(String::as_str)
-                    .collect::<Vec<_>>(),
-            );
+            let o = wgslam(&run_args(2, &out));
             assert!(o.status.success(), "{}", text(&o));
         }
     }
@@ -100,12 +85,7 @@ fn killed_runs_leave_the_old_set_or_the_new_one() {
         seen[0], seen[1]
     );
     // The next run into the folder removes what the killed ones left beside it.
-    let o = wgslam(
-        &run_args(2, &out)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    let o = wgslam(&run_args(2, &out));
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(leftovers_beside(&out), Vec::<String>::new());
     let inside: Vec<String> = std::fs::read_dir(&out)
@@ -125,24 +105,14 @@ fn out_that_is_a_file_or_foreign_fails_before_the_run() {
     let dir = common::temp_dir("hostile-out-file");
     let file = dir.join("a-file");
     std::fs::write(&file, "x").unwrap();
-    let o = wgslam(
-        &run_args(2, &file)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    let o = wgslam(&run_args(2, &file));
     assert!(!o.status.success());
     assert!(text(&o).contains("is a file"), "{}", text(&o));
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
     let foreign = dir.join("mine");
     std::fs::create_dir_all(&foreign).unwrap();
     std::fs::write(foreign.join("thesis.tex"), "t").unwrap();
-    let o = wgslam(
-        &run_args(2, &foreign)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    let o = wgslam(&run_args(2, &foreign));
     assert!(!o.status.success());
     assert!(text(&o).contains("thesis.tex"), "{}", text(&o));
     assert!(!foreign.join("map.ply").exists());
@@ -163,17 +133,12 @@ fn a_failed_run_keeps_the_old_set_and_leaves_no_temporaries() {
     // run must leave the folder as it was.
     let dir = common::temp_dir("hostile-failed-run");
     let out = dir.join("out");
-    let o = wgslam(
-        &run_args(2, &out)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    let o = wgslam(&run_args(2, &out));
     assert!(o.status.success(), "{}", text(&o));
     let before = std::fs::read(out.join("map.ply")).unwrap();
     let mut args = run_args(4, &out);
     args.extend(["--intrinsics".into(), "nan,120,80,60".into()]);
-    let o = wgslam(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = wgslam(&args);
     assert!(!o.status.success(), "{}", text(&o));
     assert_eq!(consistent_frames(&out), Some(2));
     assert_eq!(std::fs::read(out.join("map.ply")).unwrap(), before);
@@ -188,7 +153,7 @@ fn the_map_cap_stops_the_run_with_a_clear_message() {
     let out = dir.join("out");
     let mut args = run_args(3, &out);
     args.extend(["--max-surfels".into(), "1000".into()]);
-    let o = wgslam(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = wgslam(&args);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(
         text(&o).contains("map capacity exceeded") && text(&o).contains("--max-surfels 1000"),

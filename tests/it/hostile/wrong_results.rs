@@ -94,7 +94,7 @@ fn run_with_nan_intrinsics_fails_before_writing() {
     let out = dir.join("out");
     let mut args = run_args(2, &out);
     args.extend(["--intrinsics".into(), "nan,480,320,240".into()]);
-    let o = wgslam(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = wgslam(&args);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("finite"), "{}", text(&o));
     assert!(!out.exists(), "outputs written");

@@ -11,6 +11,24 @@ use wgslam::render::{self, Cloud, MapCloud, RenderCamera, RenderSettings, View};
 
 use super::{bundled_map, coverage, frame_maps, gt_poses, keep};
 
+/// A cloud of `positions` with `colors` and no normals or weights.
+fn cloud_of<'a>(positions: &'a [[f32; 4]], colors: Option<&'a [[f32; 4]]>) -> Cloud<'a> {
+    Cloud {
+        positions,
+        normals: None,
+        colors,
+        weights: None,
+    }
+}
+
+/// A `size` x `size` camera at the origin, looking along +z.
+fn camera_at_origin(size: u32) -> RenderCamera {
+    RenderCamera {
+        t_cam_to_world: DMat4::IDENTITY,
+        intrinsics: render::framing_intrinsics(size, size, false),
+    }
+}
+
 fn render_from_the_frames_own_pose_matches_its_photo() {
     // Ground truth: the map of frame 1 seen from frame 1's pose with the dataset intrinsics
     // is (nearly) frame 1's own colour image.
@@ -104,16 +122,8 @@ fn nearest_surfel_wins_and_ties_go_to_the_larger_index() {
         [0.0, 255.0, 0.0, 255.0],
         [0.0, 0.0, 255.0, 255.0],
     ];
-    let cloud = Cloud {
-        positions: &positions,
-        normals: None,
-        colors: Some(&colors),
-        weights: None,
-    };
-    let camera = RenderCamera {
-        t_cam_to_world: DMat4::IDENTITY,
-        intrinsics: render::framing_intrinsics(9, 9, false),
-    };
+    let cloud = cloud_of(&positions, Some(&colors[..]));
+    let camera = camera_at_origin(9);
     let params =
         render::render_params(&cloud, &camera, View::Color, &RenderSettings::default()).unwrap();
     let (index_map, rgba) = render::render_cpu_raw(&params, &cloud);
@@ -174,22 +184,14 @@ fn overlay_shows_both_clouds_and_alignment_changes_it() {
 
 fn missing_attributes_fall_back_to_depth_and_say_so() {
     let positions = [[0.0, 0.0, 1.0, 1.0]];
-    let cloud = Cloud {
-        positions: &positions,
-        normals: None,
-        colors: None,
-        weights: None,
-    };
+    let cloud = cloud_of(&positions, None);
     for view in [View::Color, View::Normals, View::Weight] {
         let (used, why) = cloud.usable_view(view);
         assert_eq!(used, View::Depth);
         assert!(why.unwrap().contains("no "), "{view:?}");
     }
     assert_eq!(cloud.usable_view(View::Depth), (View::Depth, None));
-    let camera = RenderCamera {
-        t_cam_to_world: DMat4::IDENTITY,
-        intrinsics: render::framing_intrinsics(16, 16, false),
-    };
+    let camera = camera_at_origin(16);
     let img =
         render::render_cpu(&cloud, &camera, View::Normals, &RenderSettings::default()).unwrap();
     assert!(coverage(&img, [255, 255, 255]) > 0.0, "the point is drawn");
@@ -215,16 +217,8 @@ fn bad_sizes_and_clouds_are_refused() {
     // Mismatched attribute lengths are an error, not a panic.
     let positions = [[0.0, 0.0, 1.0, 1.0], [0.0, 0.0, 2.0, 1.0]];
     let colors = [[0.0; 4]];
-    let cloud = Cloud {
-        positions: &positions,
-        normals: None,
-        colors: Some(&colors),
-        weights: None,
-    };
-    let camera = RenderCamera {
-        t_cam_to_world: DMat4::IDENTITY,
-        intrinsics: render::framing_intrinsics(16, 16, false),
-    };
+    let cloud = cloud_of(&positions, Some(&colors[..]));
+    let camera = camera_at_origin(16);
     assert!(render::render_cpu(&cloud, &camera, View::Color, &RenderSettings::default()).is_err());
     // NaN and far-off points are skipped, not drawn across the picture.
     let wild = [
@@ -232,12 +226,7 @@ fn bad_sizes_and_clouds_are_refused() {
         [1.0e9, 0.0, 1.0, 1.0],
         [f32::INFINITY; 4],
     ];
-    let cloud = Cloud {
-        positions: &wild,
-        normals: None,
-        colors: None,
-        weights: None,
-    };
+    let cloud = cloud_of(&wild, None);
     let settings = RenderSettings {
         far_m: Some(10.0),
         ..RenderSettings::default()

@@ -9,14 +9,16 @@
 //! culling step), so its cost per frame also follows what the camera sees.
 
 use crate::backend::RgbdSystems;
-use crate::backend::{Backend, Described, FrameLevel, FrameMaps, Prediction, PyramidLevel};
+use crate::backend::{
+    Backend, Described, FrameLevel, FrameMaps, Prediction, PreprocessSteps, PyramidLevel,
+};
 use crate::cpu;
 use crate::fused_view::FusedView;
 use crate::layout::map::SurfelMap;
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams,
-    FuseParams, IcpParams, Keypoint, KeypointParams, MapChunk, NormalParams, PreprocessParams,
-    ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
+    BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams, FuseParams, IcpParams,
+    Keypoint, KeypointParams, MapChunk, ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS,
+    ICP_SYSTEM_LEN,
 };
 use crate::plan::{self, CompactCall, PredictCall, PreprocessCall};
 use crate::Result;
@@ -112,37 +114,33 @@ impl Backend for CpuBackend {
         "cpu"
     }
 
-    fn preprocess(
-        &mut self,
-        params: &PreprocessParams,
-        bilateral: Option<&BilateralParams>,
-        normal: &NormalParams,
-        pyramid: &[PyramidLevel],
-        raw_depth: &[u16],
-        raw_rgba: &[u32],
-    ) -> Result<()> {
-        self.intensity.new_frame(params, pyramid);
+    fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
+        self.intensity.new_frame(&steps.params, &steps.pyramid);
         let f = &mut self.frame;
-        let n = (params.camera.width * params.camera.height) as usize;
+        let n = (steps.params.camera.width * steps.params.camera.height) as usize;
         f.vertex.resize(n, cpu::INVALID);
         f.color.resize(n, cpu::INVALID);
         f.normal_depth.resize(n, cpu::INVALID);
-        f.pyramid.resize_with(pyramid.len(), FrameLevel::default);
+        f.pyramid
+            .resize_with(steps.pyramid.len(), FrameLevel::default);
         // `filtered_vertex` is empty without the filter (see `FrameMaps`).
-        if bilateral.is_none() {
+        if steps.bilateral.is_none() {
             f.filtered_vertex.clear();
         }
-        for call in plan::preprocess(bilateral, pyramid.len()) {
+        for call in plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len()) {
             match call {
                 PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
-                    params,
-                    raw_depth,
-                    raw_rgba,
+                    &steps.params,
+                    depth,
+                    rgba,
                     &mut f.vertex,
                     &mut f.color,
                 ),
                 PreprocessCall::BilateralFilter => {
-                    let b = bilateral.expect("the plan filters only with filter params");
+                    let b = steps
+                        .bilateral
+                        .as_ref()
+                        .expect("the plan filters only with filter params");
                     f.filtered_vertex.resize(n, cpu::INVALID);
                     cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
                 }
@@ -159,7 +157,7 @@ impl Backend for CpuBackend {
                         false => &f.vertex,
                     };
                     cpu::vertex_to_normal::vertex_to_normal(
-                        normal,
+                        &steps.normal,
                         map(filtered),
                         &mut f.normal_depth,
                         map(filtered_points),
@@ -168,7 +166,7 @@ impl Backend for CpuBackend {
                 PreprocessCall::VertexToNormal { level, .. } => {
                     let l = &mut f.pyramid[level - 1];
                     cpu::vertex_to_normal::vertex_to_normal(
-                        &pyramid[level - 1].normal,
+                        &steps.pyramid[level - 1].normal,
                         &l.vertex,
                         &mut l.normal_depth,
                         &l.vertex,
@@ -177,7 +175,7 @@ impl Backend for CpuBackend {
                 // Each coarser level from the finer one's vertex map (level 0's: the one
                 // the normals were made from).
                 PreprocessCall::PyramidDepth { level, filtered } => {
-                    let p = &pyramid[level - 1];
+                    let p = &steps.pyramid[level - 1];
                     let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
                     let fine_vertex = match finer.last() {
                         Some(l) => &l.vertex,

@@ -93,4 +93,17 @@ impl Intrinsics {
     pub fn floats(&self) -> [f32; 4] {
         [self.fx, self.fy, self.cx, self.cy]
     }
+
+    /// The camera of `[fx, fy, cx, cy]` (pixels, as [`Intrinsics::floats`] gives them) at
+    /// `width` x `height` pixels.
+    pub fn from_floats([fx, fy, cx, cy]: [f32; 4], (width, height): (u32, u32)) -> Intrinsics {
+        Intrinsics {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+        }
+    }
 }

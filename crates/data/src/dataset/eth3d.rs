@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use super::matrix_file::read_numbers;
+use crate::io::text::finite_f64;
 use crate::{Error, Result};
 
 /// The intrinsics file that marks the layout.
@@ -27,10 +28,7 @@ pub fn read_associated(path: &Path) -> Result<Vec<Association>> {
     let mut out = Vec::new();
     for (lineno, line) in crate::io::text::data_lines(&text) {
         let f: Vec<&str> = line.split_whitespace().collect();
-        let stamp = (f.len() == 4)
-            .then(|| f[2].parse::<f64>().ok())
-            .flatten()
-            .filter(|s| s.is_finite());
+        let stamp = (f.len() == 4).then(|| finite_f64(f[2])).flatten();
         let Some(stamp) = stamp else {
             return Err(Error::parse(
                 path,

@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::io::text::finite_f64;
 use crate::{Error, Result};
 
 /// One line of `associations.txt`; paths are relative to the root.
@@ -39,17 +40,13 @@ pub fn parse_associations(path: &Path, text: &str) -> Result<Vec<Association>> {
                 ),
             ));
         }
-        let stamp: f64 = f[0]
-            .parse()
-            .ok()
-            .filter(|s: &f64| s.is_finite())
-            .ok_or_else(|| {
-                Error::parse(
-                    path,
-                    lineno,
-                    format!("index {:?} is not a number: {line:?}", f[0]),
-                )
-            })?;
+        let stamp = finite_f64(f[0]).ok_or_else(|| {
+            Error::parse(
+                path,
+                lineno,
+                format!("index {:?} is not a number: {line:?}", f[0]),
+            )
+        })?;
         out.push(Association {
             stamp,
             depth_path: PathBuf::from(f[1]),

@@ -318,14 +318,9 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             Some((width, height)) => Intrinsics { width, height, ..k },
             None => k,
         },
-        (None, Some(c), _) => Intrinsics {
-            width: c.width,
-            height: c.height,
-            fx: c.fx,
-            fy: c.fy,
-            cx: c.cx,
-            cy: c.cy,
-        },
+        (None, Some(c), _) => {
+            Intrinsics::from_floats([c.fx, c.fy, c.cx, c.cy], (c.width, c.height))
+        }
         (None, None, Some(k)) => k,
         (None, None, None) => return Err(Error::Argument(listing.no_intrinsics)),
     };

@@ -19,6 +19,11 @@ pub struct Pattern {
 pub const MAX_FRAME_NUMBER: u64 = 1 << 53;
 
 impl Pattern {
+    /// The pattern `prefix`, digits, `suffix` (for the layouts' `const` patterns).
+    pub const fn new(prefix: &'static str, suffix: &'static str) -> Self {
+        Self { prefix, suffix }
+    }
+
     /// The digits of `name` when it fits the pattern (whatever their value).
     fn digits<'a>(&self, name: &'a str) -> Option<&'a str> {
         let digits = name.strip_prefix(self.prefix)?.strip_suffix(self.suffix)?;
@@ -128,18 +133,12 @@ mod tests {
 
     #[test]
     fn numbers_parse_only_where_the_pattern_fits() {
-        let p = Pattern {
-            prefix: "frame-",
-            suffix: ".depth.png",
-        };
+        let p = Pattern::new("frame-", ".depth.png");
         assert_eq!(p.number("frame-000012.depth.png"), Some(12));
         assert_eq!(p.number("frame-.depth.png"), None);
         assert_eq!(p.number("frame-12.color.png"), None);
         assert_eq!(p.number("frame-1a.depth.png"), None);
-        let bare = Pattern {
-            prefix: "",
-            suffix: ".jpg",
-        };
+        let bare = Pattern::new("", ".jpg");
         assert_eq!(bare.number("10.jpg"), Some(10));
         assert_eq!(bare.number("+1.jpg"), None);
         assert_eq!(bare.number("9007199254740992.jpg"), Some(MAX_FRAME_NUMBER));

@@ -16,15 +16,9 @@ use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
 /// `results/depthNNNNNN.png`.
-pub const DEPTH: Pattern = Pattern {
-    prefix: "depth",
-    suffix: ".png",
-};
+pub const DEPTH: Pattern = Pattern::new("depth", ".png");
 /// `results/frameNNNNNN.jpg`.
-pub const COLOR: Pattern = Pattern {
-    prefix: "frame",
-    suffix: ".jpg",
-};
+pub const COLOR: Pattern = Pattern::new("frame", ".jpg");
 /// NICE-SLAM's depth scale for Replica (65535 / 10 m), when `cam_params.json` has none.
 pub const DEPTH_SCALE: f32 = 6553.5;
 /// The intrinsics file's name.
@@ -56,23 +50,16 @@ fn read_cam_params(path: &Path) -> Result<(Intrinsics, Option<f32>)> {
         )
     })?;
     let c = c.camera;
-    let finite = [c.fx, c.fy, c.cx, c.cy].iter().all(|v| v.is_finite());
+    let floats = [c.fx, c.fy, c.cx, c.cy];
+    let finite = floats.iter().all(|v| v.is_finite());
     if !finite || c.fx == 0.0 || c.fy == 0.0 || c.w == 0 || c.h == 0 {
         return Err(Error::format(
             path,
             "w/h must be positive and fx, fy finite and non-zero",
         ));
     }
-    super::checks::pinhole_in_bounds([c.fx, c.fy, c.cx, c.cy], &path.display().to_string())?;
-    let k = Intrinsics {
-        width: c.w,
-        height: c.h,
-        fx: c.fx,
-        fy: c.fy,
-        cx: c.cx,
-        cy: c.cy,
-    };
-    Ok((k, c.scale))
+    super::checks::pinhole_in_bounds(floats, &path.display().to_string())?;
+    Ok((Intrinsics::from_floats(floats, (c.w, c.h)), c.scale))
 }
 
 /// Reads `traj.txt`: one pose per data line, 16 numbers each; an error naming

@@ -18,33 +18,13 @@ use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
 /// `depth/N.png`.
-pub const DEPTH: Pattern = Pattern {
-    prefix: "",
-    suffix: ".png",
-};
+pub const DEPTH: Pattern = Pattern::new("", ".png");
 /// `color/N.jpg`.
-pub const COLOR: Pattern = Pattern {
-    prefix: "",
-    suffix: ".jpg",
-};
+pub const COLOR: Pattern = Pattern::new("", ".jpg");
 /// `pose/N.txt`.
-pub const POSE: Pattern = Pattern {
-    prefix: "",
-    suffix: ".txt",
-};
+pub const POSE: Pattern = Pattern::new("", ".txt");
 /// Millimetres.
 pub const DEPTH_SCALE: f32 = 1000.0;
-
-fn intrinsics(k: [f32; 4], (width, height): (u32, u32)) -> Intrinsics {
-    Intrinsics {
-        width,
-        height,
-        fx: k[0],
-        fy: k[1],
-        cx: k[2],
-        cy: k[3],
-    }
-}
 
 /// Lists the frames of `root` with their poses and reads both intrinsics files.
 pub fn list(root: &Path) -> Result<Listing> {
@@ -105,13 +85,13 @@ pub fn list(root: &Path) -> Result<Listing> {
 
     let depth_k_path = root.join("intrinsic/intrinsic_depth.txt");
     let depth_k = if super::source::present(&depth_k_path) {
-        Some(intrinsics(read_k(&depth_k_path)?, depth_size))
+        Some(Intrinsics::from_floats(read_k(&depth_k_path)?, depth_size))
     } else {
         None
     };
     let color_k_path = root.join("intrinsic/intrinsic_color.txt");
     let color_intrinsics = if super::source::present(&color_k_path) {
-        Some(intrinsics(read_k(&color_k_path)?, color_size))
+        Some(Intrinsics::from_floats(read_k(&color_k_path)?, color_size))
     } else if color_size != depth_size {
         return Err(Error::io(
             &color_k_path,

@@ -19,25 +19,13 @@ use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
 /// Depth images, the files that make a folder a sequence of this layout.
-pub const DEPTH: Pattern = Pattern {
-    prefix: "frame-",
-    suffix: ".depth.png",
-};
+pub const DEPTH: Pattern = Pattern::new("frame-", ".depth.png");
 /// JPEG colour (7-Scenes as the tsdf-fusion demo ships it).
-pub const COLOR_JPG: Pattern = Pattern {
-    prefix: "frame-",
-    suffix: ".color.jpg",
-};
+pub const COLOR_JPG: Pattern = Pattern::new("frame-", ".color.jpg");
 /// PNG colour (official 7-Scenes, 3DMatch).
-pub const COLOR_PNG: Pattern = Pattern {
-    prefix: "frame-",
-    suffix: ".color.png",
-};
+pub const COLOR_PNG: Pattern = Pattern::new("frame-", ".color.png");
 /// Per-frame ground truth.
-pub const POSE: Pattern = Pattern {
-    prefix: "frame-",
-    suffix: ".pose.txt",
-};
+pub const POSE: Pattern = Pattern::new("frame-", ".pose.txt");
 /// The intrinsics file of 3DMatch and the tsdf-fusion demos.
 pub const INTRINSICS_FILE: &str = "camera-intrinsics.txt";
 /// Millimetres.
@@ -185,14 +173,7 @@ pub fn list(root: &Path) -> Result<Listing> {
     Ok(Listing {
         frames,
         gt_file: None,
-        intrinsics: Some(Intrinsics {
-            width,
-            height,
-            fx: k[0],
-            fy: k[1],
-            cx: k[2],
-            cy: k[3],
-        }),
+        intrinsics: Some(Intrinsics::from_floats(k, (width, height))),
         no_intrinsics: String::new(),
         image_size: Some((width, height)),
         depth_scale: Some(DEPTH_SCALE),

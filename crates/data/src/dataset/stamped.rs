@@ -122,17 +122,10 @@ fn layout_intrinsics(root: &Path, layout: Layout, first_depth: &Path) -> Result<
         Layout::Bonn => (Some(bonn::INTRINSICS), String::new(), None),
         Layout::Eth3d => {
             // calibration.txt has no image size: the depth images have it.
-            let [fx, fy, cx, cy] = eth3d::read_calibration(&root.join(eth3d::CALIBRATION))?;
-            let (width, height) = frame::image_size(first_depth)?;
-            let k = Intrinsics {
-                width,
-                height,
-                fx,
-                fy,
-                cx,
-                cy,
-            };
-            (Some(k), String::new(), Some((width, height)))
+            let floats = eth3d::read_calibration(&root.join(eth3d::CALIBRATION))?;
+            let size = frame::image_size(first_depth)?;
+            let k = Intrinsics::from_floats(floats, size);
+            (Some(k), String::new(), Some(size))
         }
         _ => (
             None,

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::io::text::finite_f64;
 use crate::{Error, Result};
 
 /// One `timestamp path` entry of `rgb.txt` or `depth.txt`; `path` is relative to the root.
@@ -28,17 +29,13 @@ pub fn read_list(path: &Path) -> Result<Vec<ListEntry>> {
                 format!("expected `timestamp path`: {line:?}"),
             ));
         };
-        let stamp: f64 = stamp
-            .parse()
-            .ok()
-            .filter(|s: &f64| s.is_finite())
-            .ok_or_else(|| {
-                Error::parse(
-                    path,
-                    lineno,
-                    format!("timestamp {stamp:?} is not a number: {line:?}"),
-                )
-            })?;
+        let stamp = finite_f64(stamp).ok_or_else(|| {
+            Error::parse(
+                path,
+                lineno,
+                format!("timestamp {stamp:?} is not a number: {line:?}"),
+            )
+        })?;
         out.push(ListEntry {
             stamp,
             path: PathBuf::from(file),

@@ -11,6 +11,12 @@ pub fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
     })
 }
 
+/// `field` as a finite number (`None` for anything else, `inf` and `NaN` included): a
+/// stamp or index column of a list file.
+pub fn finite_f64(field: &str) -> Option<f64> {
+    field.parse().ok().filter(|s: &f64| s.is_finite())
+}
+
 #[cfg(test)]
 mod tests {
     use super::data_lines;
