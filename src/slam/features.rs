@@ -18,7 +18,7 @@
 use glam::{DMat4, DVec3};
 
 use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
-use crate::slam::backend::Backend;
+use crate::slam::backend::{Backend, ToDescribe};
 use crate::slam::seeded::SplitMix;
 use crate::Result;
 
@@ -90,7 +90,11 @@ pub fn extract<B: Backend + ?Sized>(
     });
     keypoints.truncate(MAX_FEATURES);
     params.count = keypoints.len() as u32;
-    let (descriptors, points) = backend.describe_keypoints(&params, &keypoints, pattern)?;
+    let (descriptors, points) = backend.describe_keypoints(ToDescribe {
+        params: &params,
+        keypoints: &keypoints,
+        pattern,
+    })?;
     let mut f = Features::default();
     for (d, p) in descriptors.into_iter().zip(points) {
         if p[3] > 0.0 {

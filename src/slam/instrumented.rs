@@ -18,7 +18,7 @@ use crate::layout::{
 };
 use crate::slam::backend::{
     Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
-    PreprocessSteps, PyramidLevel, RgbdSystems,
+    PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use crate::Result;
 
@@ -106,15 +106,8 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         self.step("detect_keypoints", |b| b.detect_keypoints(params))
     }
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described> {
-        self.step("describe_keypoints", |b| {
-            b.describe_keypoints(params, keypoints, pattern)
-        })
+    fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
+        self.step("describe_keypoints", |b| b.describe_keypoints(what))
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         let surfels = self.step("fuse", |b| b.fuse(params))?;
@@ -130,15 +123,8 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn frame_level(&mut self, level: usize) -> Result<Prediction> {
         self.step("loop_snapshot", |b| b.frame_level(level))
     }
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()> {
-        self.step("loop_prediction", |b| {
-            b.set_prediction(level, vertex, normal)
-        })
+    fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()> {
+        self.step("loop_prediction", |b| b.set_prediction(level, prediction))
     }
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()

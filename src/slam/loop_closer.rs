@@ -65,8 +65,8 @@ pub fn close_loops<B: Backend>(
     let before = lc.loops().len();
     let iters = lc.settings().verify_iterations;
     for c in candidates {
-        let (vertex, normal) = lc.prediction(c.keyframe_frame, &lc.keyframe_pose(c.keyframe_frame));
-        icp.backend.set_prediction(level, &vertex, &normal)?;
+        let prediction = lc.prediction(c.keyframe_frame, &lc.keyframe_pose(c.keyframe_frame));
+        icp.backend.set_prediction(level, &prediction)?;
         let mut t = frame.t_world_to_cam;
         let mut iterations = Vec::new();
         // Geometric only: the snapshot prediction has no intensity.

@@ -52,24 +52,8 @@ fn noise_stop_saves_iterations() {
     let mut off = on.clone();
     off.icp.stop_chi2 = 0.0;
     off.icp.stop_on_reversal = false;
-    let a = run::run(
-        CpuBackend::new(),
-        &seq,
-        1,
-        23,
-        on.validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
-    let b = run::run(
-        CpuBackend::new(),
-        &seq,
-        1,
-        23,
-        off.validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
+    let a = common::run_cpu(&seq, 1, 23, on).unwrap();
+    let b = common::run_cpu(&seq, 1, 23, off).unwrap();
     let (ate_a, ate_b) = (ate_m(&a), ate_m(&b));
     assert!(ate_a < ATE_NOISY_MAX_M, "ATE {ate_a} m");
     assert!(

@@ -177,15 +177,7 @@ fn full_resolution_tracks_too() {
     let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
     let mut params = SlamParams::profile(Profile::Assignment);
     params.input.downsample = 1;
-    let r = run::run(
-        CpuBackend::new(),
-        &seq,
-        1,
-        8,
-        params.validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
+    let r = common::run_cpu(&seq, 1, 8, params).unwrap();
     let acc = r.metrics.accuracy.unwrap();
     assert!(acc.ate_rmse_unaligned_m < ATE_BUNDLED_MAX_M, "{acc:?}");
     assert_eq!(r.metrics.width, 640);
@@ -197,15 +189,7 @@ fn ground_truth_poses_fuse_without_tracking() {
         poses: PoseSource::GroundTruth,
         ..SlamParams::profile(Profile::Assignment)
     };
-    let r = run::run(
-        CpuBackend::new(),
-        &seq,
-        1,
-        10,
-        params.validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
+    let r = common::run_cpu(&seq, 1, 10, params).unwrap();
     assert!(r
         .frames
         .iter()
@@ -238,15 +222,7 @@ fn frame_without_ground_truth() {
         poses: PoseSource::GroundTruth,
         ..SlamParams::profile(Profile::Assignment)
     };
-    let err = run::run(
-        CpuBackend::new(),
-        &seq,
-        0,
-        2,
-        params.validate().unwrap(),
-        |_| {},
-    )
-    .unwrap_err();
+    let err = common::run_cpu(&seq, 0, 2, params).unwrap_err();
     assert!(err.to_string().contains("ground truth"), "{err}");
 }
 

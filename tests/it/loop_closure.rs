@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use crate::common;
 use common::ate_m;
 use common::harness::{gpu, gpu_shared, plain, Test};
-use wgslam::dataset::{self, SequenceOptions};
+use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
@@ -41,6 +41,19 @@ fn without_loops() -> SlamParams {
     }
 }
 
+/// Frames `0..=last` of `seq` with loop closure on `with`, and without on `without`.
+fn with_and_without<B: Backend + Inspect>(
+    with: B,
+    without: B,
+    seq: &Sequence,
+    last: usize,
+) -> (RunResult, RunResult) {
+    let on = run::run(with, seq, 0, last, ValidParams::default(), |_| {}).unwrap();
+    let off_params = without_loops().validate().unwrap();
+    let off = run::run(without, seq, 0, last, off_params, |_| {}).unwrap();
+    (on, off)
+}
+
 /// The revisiting run over the bundled noisy frames, with loop closure on `with` and
 /// without on `without` (two backends of one kind).
 fn revisit_finds_loops<B: Backend + Inspect>(with: B, without: B) {
@@ -52,16 +65,7 @@ fn revisit_finds_loops<B: Backend + Inspect>(with: B, without: B) {
     .revisiting(1, 23, REVISIT_FRAMES)
     .unwrap();
     let last = REVISIT_FRAMES - 1;
-    let on = run::run(with, &seq, 0, last, ValidParams::default(), |_| {}).unwrap();
-    let off = run::run(
-        without,
-        &seq,
-        0,
-        last,
-        without_loops().validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
+    let (on, off) = with_and_without(with, without, &seq, last);
     let lc = on.metrics.loop_closure.as_ref().expect("loop closure ran");
     assert!(off.metrics.loop_closure.is_none());
     // Loops are found where the camera returns after 60 frames or more, and not before.
@@ -106,16 +110,7 @@ fn no_loop_changes_nothing<B: Backend + Inspect>(with: B, without: B) {
     )
     .unwrap();
     let last = seq.len() - 1;
-    let on = run::run(with, &seq, 0, last, ValidParams::default(), |_| {}).unwrap();
-    let off = run::run(
-        without,
-        &seq,
-        0,
-        last,
-        without_loops().validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
+    let (on, off) = with_and_without(with, without, &seq, last);
     assert!(on.metrics.loop_closure.as_ref().unwrap().loops.is_empty());
     let bits = |r: &RunResult| -> Vec<[u64; 16]> {
         r.trajectory()

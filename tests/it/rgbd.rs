@@ -86,15 +86,7 @@ fn noisy_icl_640_tracks_with_colour(data: &std::path::Path) {
     let seq = dataset::open(&shared_icl_noisy(data), &SequenceOptions::default()).unwrap();
     let mut params = rgbd_params();
     params.input.downsample = 1;
-    let r = run::run(
-        CpuBackend::new(),
-        &seq,
-        1,
-        200,
-        params.validate().unwrap(),
-        |_| {},
-    )
-    .unwrap();
+    let r = common::run_cpu(&seq, 1, 200, params).unwrap();
     let ate = ate_m(&r);
     eprintln!(
         "noisy ICL-NUIM 1..200 at 640x480, RGB-D: ATE {:.3} mm",

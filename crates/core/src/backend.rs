@@ -107,6 +107,16 @@ impl FrameMaps {
 /// Predicted model vertex and normal maps of one pyramid level (world frame, `w = 1` valid).
 pub type Prediction = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
+/// The keypoints a `describe_keypoints` describes: the first `params.count` of
+/// `keypoints`, each with the first `params.tests` tests of `pattern` (pairs of pixel
+/// offsets).
+#[derive(Debug, Clone, Copy)]
+pub struct ToDescribe<'a> {
+    pub params: &'a KeypointParams,
+    pub keypoints: &'a [Keypoint],
+    pub pattern: &'a [[i32; 4]],
+}
+
 /// What the last `fuse` left in its per-pixel buffers, one kernel's output each, none of
 /// them overwritten by a later kernel of the step: `wgslam compare` checks fusion kernel by
 /// kernel with these. Empty before the first fusion.
@@ -176,14 +186,9 @@ pub trait Backend {
     /// `keypoint_detect` over the last `preprocess`'s level-0 maps: the corners found (at
     /// most `params.capacity`, in no particular order) and how many there were.
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)>;
-    /// `keypoint_describe` of the first `params.count` of `keypoints` with the first
-    /// `params.tests` tests of `pattern`: each one's descriptor and camera-frame vertex.
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described>;
+    /// `keypoint_describe` of the keypoints `what` names: each one's descriptor and
+    /// camera-frame vertex.
+    fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described>;
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
     /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
     /// `capacity` are filled in by the backend, which grows the map first when needed).
@@ -203,12 +208,7 @@ pub trait Backend {
     /// Replaces pyramid `level`'s predicted vertex and normal maps (world frame, `w = 1`
     /// valid, that level's size) until the next `predict`: ICP at that level then
     /// registers the frame against them (a loop closure's verification).
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()>;
+    fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()>;
     /// Surfels in the map.
     fn surfel_count(&self) -> usize;
     /// Blocks until all submitted work has finished (for per-stage wall-clock timing;
@@ -289,13 +289,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         (**self).detect_keypoints(params)
     }
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described> {
-        (**self).describe_keypoints(params, keypoints, pattern)
+    fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
+        (**self).describe_keypoints(what)
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         (**self).fuse(params)
@@ -309,13 +304,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn frame_level(&mut self, level: usize) -> Result<Prediction> {
         (**self).frame_level(level)
     }
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()> {
-        (**self).set_prediction(level, vertex, normal)
+    fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()> {
+        (**self).set_prediction(level, prediction)
     }
     fn surfel_count(&self) -> usize {
         (**self).surfel_count()

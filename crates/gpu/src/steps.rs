@@ -21,7 +21,7 @@ use crate::layout::{
 };
 use crate::{Error, Result};
 use wgslam_core::backend::{
-    Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems,
+    Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use wgslam_core::fused_view::FusedView;
 use wgslam_core::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
@@ -264,14 +264,9 @@ impl Backend for GpuBackend {
         self.detect_keypoints_on_gpu(params)
     }
 
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described> {
+    fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         self.ctx.flush();
-        self.describe_keypoints_on_gpu(params, keypoints, pattern)
+        self.describe_keypoints_on_gpu(what.params, what.keypoints, what.pattern)
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
@@ -434,12 +429,7 @@ impl Backend for GpuBackend {
         self.frame_level_on_gpu(level)
     }
 
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()> {
+    fn set_prediction(&mut self, level: usize, (vertex, normal): &Prediction) -> Result<()> {
         self.ctx.flush();
         self.set_prediction_on_gpu(level, vertex, normal)
     }

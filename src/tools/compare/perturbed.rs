@@ -12,7 +12,7 @@ use crate::layout::{
 };
 use crate::slam::backend::{
     Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
-    PreprocessSteps, PyramidLevel, RgbdSystems,
+    PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use crate::slam::cpu_backend::CpuBackend;
 use crate::Result;
@@ -116,13 +116,8 @@ impl Backend for PerturbedCpu {
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         self.run(|b| b.detect_keypoints(params))
     }
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described> {
-        self.run(|b| b.describe_keypoints(params, keypoints, pattern))
+    fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
+        self.run(|b| b.describe_keypoints(what))
     }
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
         self.run(|b| b.fuse(params))
@@ -136,13 +131,8 @@ impl Backend for PerturbedCpu {
     fn frame_level(&mut self, level: usize) -> Result<Prediction> {
         self.run(|b| b.frame_level(level))
     }
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()> {
-        self.run(|b| b.set_prediction(level, vertex, normal))
+    fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()> {
+        self.run(|b| b.set_prediction(level, prediction))
     }
     fn surfel_count(&self) -> usize {
         self.inner.surfel_count()

@@ -39,6 +39,19 @@ pub fn shared_icl_noisy(data: &Path) -> PathBuf {
     data.join("icl_living_room_kt2_noisy")
 }
 
+/// A run of frames `first..=last` of `seq` on the CPU reference backend with `params`,
+/// validated first (a test's parameters are valid: panics if not).
+pub fn run_cpu(
+    seq: &wgslam::Sequence,
+    first: usize,
+    last: usize,
+    params: wgslam::SlamParams,
+) -> wgslam::Result<wgslam::tools::run::RunResult> {
+    let params = params.validate().expect("a test's parameters are valid");
+    let backend = wgslam::slam::cpu_backend::CpuBackend::new();
+    wgslam::tools::run::run(backend, seq, first, last, params, |_| {})
+}
+
 /// A run's ATE RMSE after alignment, metres (the run must have ground truth).
 pub fn ate_m(r: &wgslam::tools::run::RunResult) -> f64 {
     r.metrics

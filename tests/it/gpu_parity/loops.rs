@@ -111,7 +111,8 @@ trait TestBackend {
 
 impl<B: Backend + Inspect> TestBackend for B {
     fn set(&mut self, level: usize, v: &[[f32; 4]], n: &[[f32; 4]]) {
-        self.set_prediction(level, v, n).unwrap();
+        self.set_prediction(level, &(v.to_vec(), n.to_vec()))
+            .unwrap();
     }
     fn get(&mut self, level: usize) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
         self.download_prediction(level).unwrap()

@@ -16,7 +16,7 @@ use wgslam::cpu::keypoint_detect::keypoint_detect;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS, FERN_NO_DEPTH};
-use wgslam::slam::backend::{Backend, FrameMaps, Inspect};
+use wgslam::slam::backend::{Backend, FrameMaps, Inspect, ToDescribe};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::features;
 use wgslam::slam::keyframes::KeyframeDatabase;
@@ -266,7 +266,12 @@ fn keypoint_kernels_match_twins(mut gpu: GpuBackend) {
     // The same keypoints described on both sides.
     c.truncate(features::MAX_FEATURES);
     kp.count = c.len() as u32;
-    let (gd, gp) = gpu.describe_keypoints(&kp, &c, &pattern).unwrap();
+    let what = ToDescribe {
+        params: &kp,
+        keypoints: &c,
+        pattern: &pattern,
+    };
+    let (gd, gp) = gpu.describe_keypoints(what).unwrap();
     let n = c.len();
     let mut cd = vec![0u32; n * DESCRIPTOR_WORDS];
     let mut cp = vec![[0.0f32; 4]; n];

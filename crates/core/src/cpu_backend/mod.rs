@@ -11,6 +11,7 @@
 use crate::backend::RgbdSystems;
 use crate::backend::{
     Backend, Described, FrameLevel, FrameMaps, Prediction, PreprocessSteps, PyramidLevel,
+    ToDescribe,
 };
 use crate::cpu;
 use crate::fused_view::FusedView;
@@ -326,12 +327,12 @@ impl Backend for CpuBackend {
         Ok((keypoints, counter[0]))
     }
 
-    fn describe_keypoints(
-        &mut self,
-        params: &KeypointParams,
-        keypoints: &[Keypoint],
-        pattern: &[[i32; 4]],
-    ) -> Result<Described> {
+    fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
+        let ToDescribe {
+            params,
+            keypoints,
+            pattern,
+        } = what;
         let n = params.count as usize;
         let mut words = vec![0u32; n * DESCRIPTOR_WORDS];
         let mut points = vec![[0.0f32; 4]; n];
@@ -465,12 +466,7 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn set_prediction(
-        &mut self,
-        level: usize,
-        vertex: &[[f32; 4]],
-        normal: &[[f32; 4]],
-    ) -> Result<()> {
+    fn set_prediction(&mut self, level: usize, (vertex, normal): &Prediction) -> Result<()> {
         let prediction = self
             .prediction
             .get_mut(level)
