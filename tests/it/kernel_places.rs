@@ -220,7 +220,7 @@ fn names(code: &str, word: &str) -> bool {
 
 fn each_kernel_is_named_in_its_places_alone() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let files: Vec<(String, String)> = ["src", "crates", "shaders", "python/src"]
+    let files: Vec<(String, String)> = ["src", "crates", "shaders", "python/src", "examples"]
         .iter()
         .filter(|d| root.join(d).is_dir())
         .flat_map(|d| files_under(&root.join(d), &["rs", "wgsl"]))
