@@ -190,7 +190,7 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
 /// A kernel's places that every kernel has: its registry row, shader, twin (and the twin's
 /// `pub mod` line), its plan call, and the CPU backend's side of it.
 fn base_places(kernel: &str, file: &str) -> bool {
-    file == "crates/gpu/src/kernels.rs"
+    file == "crates/core/src/registry.rs"
         || file == format!("shaders/{kernel}.wgsl")
         || file == format!("crates/core/src/cpu/{kernel}.rs")
         || file == "crates/core/src/cpu/mod.rs"

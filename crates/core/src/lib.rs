@@ -10,6 +10,7 @@
 //! | [`cpu_backend`] | the CPU reference backend: the steps as calls of the twins, in the plans' order |
 //! | [`backend`] | the steps every backend implements (the CPU reference's twins, the GPU's kernels), and the maps they exchange |
 //! | [`plan`] | each step's kernels in order, written once for both backends |
+//! | [`registry`] | one row per kernel: its shader's text, its twin, its id, how the GPU engine binds it |
 //! | [`fused_view`] | when the last fusion's index map is the next prediction's |
 //!
 //! Not here: wgpu (the GPU backend is `crates/gpu`), files, datasets, the frame loop. Those are in the `wgslam` package above
@@ -24,6 +25,7 @@ pub mod fused_view;
 pub mod geometry;
 pub mod layout;
 pub mod plan;
+pub mod registry;
 pub mod stats;
 
 pub use error::{Error, Result};

@@ -2,8 +2,8 @@
 //! (and buffer clears) that a step runs. Both backends execute the same plan, the CPU by
 //! calling the twins in `crates/core/src/cpu/` in its order, the GPU by recording one compute pass per
 //! invocation (once per map chunk for the kernels that walk the map), so the order of a
-//! step's kernels cannot differ between them. `wgslam compare` and the parity tests name
-//! kernels by each call's `kernel()`.
+//! step's kernels cannot differ between them. A call names its kernel by its registry id
+//! ([`Call::kernel`]); `wgslam compare` and the parity tests by its [`Call::name`].
 //!
 //! Not here: which buffers a kernel reads and writes (each backend binds its own; the
 //! GPU's bind groups are made by the WGSL variables' names) and ICP's per-iteration
@@ -12,6 +12,7 @@
 //! pair rather than a plan.
 
 use crate::layout::{BilateralParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
+use crate::registry::KernelId;
 
 /// A per-frame buffer that a step zeroes before its kernels accumulate into it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -25,12 +26,32 @@ pub enum Buffer {
     Merged,
 }
 
-/// Declares a step's call enum and its kernel names: one variant per kernel
-/// invocation (or clear) the step may plan, so each backend's `match` over a step's plan is
-/// exhaustive without a catch-all.
+/// What every step's call enum tells: the kernel it runs (by its registry id), and its name
+/// for timings and messages. Implemented by `step_calls!` for every call enum.
+pub trait Call: Copy + std::fmt::Debug {
+    /// The kernel the call runs, or `None` for a clear.
+    fn kernel(self) -> Option<KernelId>;
+    /// The kernel's name (`shaders/<kernel>.wgsl`, `crates/core/src/cpu/<kernel>.rs`), or
+    /// `clear` for a clear.
+    fn name(self) -> &'static str;
+}
+
+/// A call's kernel: `clear` for a clear, else the registry id of that name.
+macro_rules! kernel_of {
+    (clear) => {
+        None
+    };
+    ($kernel:ident) => {
+        Some(KernelId::$kernel)
+    };
+}
+
+/// Declares a step's call enum and its kernels: one variant per kernel invocation (or
+/// clear) the step may plan, so each backend's `match` over a step's plan is exhaustive
+/// without a catch-all, and [`Call`] for it.
 macro_rules! step_calls {
     ($(#[$doc:meta])* $name:ident {
-        $($(#[$vdoc:meta])* $variant:ident $({ $($field:ident: $ty:ty),* })? $(($inner:ty))? => $kernel:expr,)*
+        $($(#[$vdoc:meta])* $variant:ident $({ $($field:ident: $ty:ty),* })? $(($inner:ty))? => $kernel:ident,)*
     }) => {
         $(#[$doc])*
         #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,12 +59,16 @@ macro_rules! step_calls {
             $($(#[$vdoc])* $variant $({ $($field: $ty),* })? $(($inner))?,)*
         }
 
-        impl $name {
-            /// The kernel's name (`shaders/<kernel>.wgsl`, `crates/core/src/cpu/<kernel>.rs`), or
-            /// `clear` for a clear.
-            pub fn kernel(self) -> &'static str {
+        impl Call for $name {
+            fn kernel(self) -> Option<KernelId> {
                 match self {
-                    $($name::$variant { .. } => $kernel,)*
+                    $($name::$variant { .. } => kernel_of!($kernel),)*
+                }
+            }
+
+            fn name(self) -> &'static str {
+                match self {
+                    $($name::$variant { .. } => stringify!($kernel),)*
                 }
             }
         }
@@ -54,17 +79,17 @@ step_calls! {
     /// One call of the `preprocess` plan.
     PreprocessCall {
         /// `depth_to_vertex`: raw depth and colour -> `vertex`, `color`.
-        DepthToVertex => "depth_to_vertex",
+        DepthToVertex => depth_to_vertex,
         /// `bilateral_filter`: `vertex` -> `filtered_vertex`.
-        BilateralFilter => "bilateral_filter",
+        BilateralFilter => bilateral_filter,
         /// `vertex_to_normal` at pyramid level `level`: at level 0 the normals from
         /// `filtered_vertex` when `filtered`, else from `vertex`, and the points
         /// (`point_map`) from `filtered_vertex` when `filtered_points`, else from `vertex`;
         /// at a coarser level both from that level's vertex map.
-        VertexToNormal { level: usize, filtered: bool, filtered_points: bool } => "vertex_to_normal",
+        VertexToNormal { level: usize, filtered: bool, filtered_points: bool } => vertex_to_normal,
         /// `pyramid_depth` making level `level >= 1` from level `level - 1`'s vertex map (at
         /// level 1 the filtered one when `filtered`).
-        PyramidDepth { level: usize, filtered: bool } => "pyramid_depth",
+        PyramidDepth { level: usize, filtered: bool } => pyramid_depth,
     }
 }
 
@@ -74,16 +99,16 @@ step_calls! {
         /// `block_bounds` over the blocks whose boxes are stale (fusion appended to them, or
         /// the map was compacted or uploaded); nothing when none are. Every culling step
         /// starts with it.
-        BlockBounds => "block_bounds",
+        BlockBounds => block_bounds,
         /// Zero the index map ([`Buffer::IndexMap`]).
-        ClearIndexMap => "clear",
+        ClearIndexMap => clear,
         /// `project_model`: the map -> `index_map` at the predicted view.
-        ProjectModel => "project_model",
+        ProjectModel => project_model,
         /// `predict_model`: `index_map` and the map -> level 0's `pred_vertex`, `pred_normal`.
-        PredictModel => "predict_model",
+        PredictModel => predict_model,
         /// `pyramid_model` making level `level >= 1`'s predicted maps from level
         /// `level - 1`'s.
-        PyramidModel { level: usize } => "pyramid_model",
+        PyramidModel { level: usize } => pyramid_model,
     }
 }
 
@@ -91,23 +116,23 @@ step_calls! {
     /// One call of the `fuse` plan.
     FuseCall {
         /// Zero a buffer.
-        Clear(Buffer) => "clear",
+        Clear(Buffer) => clear,
         /// `block_bounds`, as in [`PredictCall::BlockBounds`].
-        BlockBounds => "block_bounds",
+        BlockBounds => block_bounds,
         /// `fuse_select`: each pixel chooses a surfel (best-candidate association).
-        FuseSelect => "fuse_select",
+        FuseSelect => fuse_select,
         /// `fuse_merge_chosen`: each chosen surfel merges its pixel's measurement.
-        FuseMergeChosen => "fuse_merge_chosen",
+        FuseMergeChosen => fuse_merge_chosen,
         /// `fuse_prune`: surfels this frame did not refresh retire next to a merged twin.
-        FusePrune => "fuse_prune",
+        FusePrune => fuse_prune,
         /// `fuse_merge`: every surfel merges with the pixel it projects to (projective).
-        FuseMerge => "fuse_merge",
+        FuseMerge => fuse_merge,
         /// `fuse_flags`: which pixels become new surfels, in append order.
-        FuseFlags => "fuse_flags",
+        FuseFlags => fuse_flags,
         /// `prefix_sum` over `fuse_flags`' flags: each new surfel's slot, and how many.
-        FuseScan => "prefix_sum",
+        FuseScan => prefix_sum,
         /// `fuse_add`: append the new surfels.
-        FuseAdd => "fuse_add",
+        FuseAdd => fuse_add,
     }
 }
 
@@ -115,11 +140,11 @@ step_calls! {
     /// One call of the `compact` plan.
     CompactCall {
         /// `compact_flags`: keep or remove each surfel.
-        Flags => "compact_flags",
+        Flags => compact_flags,
         /// `prefix_sum` over the keep flags: each survivor's slot, and how many.
-        Scan => "prefix_sum",
+        Scan => prefix_sum,
         /// `compact_scatter`: copy each survivor into the second map.
-        Scatter => "compact_scatter",
+        Scatter => compact_scatter,
     }
 }
 
@@ -129,15 +154,15 @@ step_calls! {
     /// [`detect_keypoints`], [`describe_keypoints`] or [`deform`].
     Single {
         /// `fern_encode`: one code per fern from the frame's level-0 maps.
-        FernEncode => "fern_encode",
+        FernEncode => fern_encode,
         /// `icp_candidates`: per workgroup, the pixels with an ICP candidate at level 0.
-        IcpCandidates => "icp_candidates",
+        IcpCandidates => icp_candidates,
         /// `keypoint_detect`: corners of the frame's colour map with a valid depth.
-        KeypointDetect => "keypoint_detect",
+        KeypointDetect => keypoint_detect,
         /// `keypoint_describe`: a binary descriptor and a camera-frame point per keypoint.
-        KeypointDescribe => "keypoint_describe",
+        KeypointDescribe => keypoint_describe,
         /// `deform_surfels`: every live surfel moved by the loop closure's deformation.
-        DeformSurfels => "deform_surfels",
+        DeformSurfels => deform_surfels,
     }
 }
 
@@ -255,7 +280,7 @@ mod tests {
     fn plans_list_each_steps_kernels_in_order() {
         macro_rules! names {
             ($plan:expr) => {
-                $plan.into_iter().map(|c| c.kernel()).collect::<Vec<_>>()
+                $plan.into_iter().map(|c| c.name()).collect::<Vec<_>>()
             };
         }
         assert_eq!(

@@ -13,9 +13,10 @@ use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
-use super::pipelines::{Kernels, Shape};
+use super::pipelines::Kernels;
 use super::recording::Pass;
 use super::resources::{FrameBuffers, IntensityLevel, Uniforms};
+use wgslam_core::registry::{KernelId, Shape};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
@@ -33,9 +34,9 @@ pub(super) struct BindGroups {
     pub photo_reduce: wgpu::BindGroup,
     /// `intensity_pyramid` making level 0 from the colour map (RGB-D tracking).
     pub intensity_pyramid: wgpu::BindGroup,
-    /// The registry's `generic` kernels' bind groups by kernel name: one per map chunk,
-    /// or one over the frame (see `super::kernels::Shape`).
-    pub generic: BTreeMap<&'static str, Vec<wgpu::BindGroup>>,
+    /// The registry's `generic` kernels' bind groups by kernel id: one per map chunk,
+    /// or one over the frame (see `wgslam_core::registry::Shape`).
+    pub generic: BTreeMap<KernelId, Vec<wgpu::BindGroup>>,
     /// The scan over the new-surfel flags (in append order, `append_slots` entries).
     pub fuse_scan: ScanGroups,
     pub fuse_add: Vec<wgpu::BindGroup>,
@@ -166,7 +167,7 @@ impl BindGroups {
                         Shape::OverFrame => vec![over_frame(kernel, row.params, Vec::new())],
                         Shape::PerChunk | Shape::PerBlock => per_chunk(kernel, row.params),
                     };
-                    (row.name, groups)
+                    (row.id, groups)
                 })
                 .collect(),
             fuse_scan: ScanGroups::new(

@@ -15,7 +15,7 @@ use super::recording::{record_call, Profiler};
 use super::resources::FrameBuffers;
 use crate::layout::{Fern, FernParams};
 use crate::Result;
-use wgslam_core::plan;
+use wgslam_core::plan::{self, Call};
 
 /// `fern_encode`'s parameters, ferns, codes and the codes' read-back.
 pub(super) struct FernBuffers {
@@ -90,7 +90,7 @@ pub(super) fn record_ahead(
     };
     let n = params.fern_count as usize;
     let group = frame.bind_level0(ctx, kernel, b.pool());
-    let call = plan::encode_ferns().kernel();
+    let call = plan::encode_ferns().name();
     record_call(
         ctx,
         profiler,

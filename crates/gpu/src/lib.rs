@@ -16,8 +16,8 @@
 //! - [`map_buffers`]: the surfel map as chunks of storage buffers (structure of arrays).
 //! - [`timing`]: per-pass timestamps (or wall time).
 //! - [`backend`]: the dense-SLAM steps on the GPU, each recorded from its plan
-//!   (`wgslam_core::plan`); beside it, private: `kernels` (the kernel registry: one row
-//!   per kernel pairing its shader and CPU twin; the pipelines), `resources` (parameter
+//!   (`wgslam_core::plan`); beside it, private: `pipelines` (the pipelines, built from the
+//!   kernel registry's rows, `wgslam_core::registry`), `resources` (parameter
 //!   and frame buffers), `bind_groups`, `compaction`, `recording` (passes and per-kernel
 //!   timing), `steps` (the steps' passes), `single_steps` (the steps of one kernel each)
 //!   with their buffers in `ferns`, `keypoints`, `candidates` and `loops`, `inspect`
@@ -39,7 +39,6 @@ mod ferns;
 pub mod images;
 mod inspect;
 pub mod kernel;
-mod kernels;
 mod keypoints;
 mod loops;
 pub mod map_buffers;

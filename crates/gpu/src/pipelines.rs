@@ -1,14 +1,14 @@
 //! The dense pipeline's kernels, built: one field of [`Kernels`] per row of the registry
-//! (`super::kernels`, read through its `pipeline_rows!`), and for the `generic` rows how each
-//! is bound and dispatched ([`Shape`], [`GenericRow`]).
+//! (`wgslam_core::registry`, read through its `pipeline_rows!`), and for the `generic` rows
+//! what each is bound with ([`GenericRow`]; how, its [`Shape`], is the row's too).
 
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
-use super::kernels::pipeline_rows;
 use super::resources::Uniforms;
 use crate::Result;
+use wgslam_core::registry::{KernelId, Shape};
 
-/// Makes [`Kernels`] from the registry's rows (see `super::kernels` for the groups).
+/// Makes [`Kernels`] from the registry's rows (see `wgslam_core::registry` for the groups).
 macro_rules! registry_pipelines {
     (
         generic: { $($generic:ident: $shape:ident($uniform:ident),)* }
@@ -35,17 +35,17 @@ macro_rules! registry_pipelines {
                 })
             }
 
-            /// The `generic` rows: each kernel's name, passes, [`Shape`] and parameters.
+            /// The `generic` rows: each kernel's id, passes, [`Shape`] and parameters.
             pub fn generic<'a>(&'a self, u: &'a Uniforms) -> Vec<GenericRow<'a>> {
                 vec![
                     $(GenericRow {
-                        name: stringify!($generic),
+                        id: KernelId::$generic,
                         passes: std::slice::from_ref(&self.$generic),
                         shape: Shape::$shape,
                         params: u.$uniform.binding(),
                     },)*
                     $(GenericRow {
-                        name: stringify!($generic_key),
+                        id: KernelId::$generic_key,
                         passes: &self.$generic_key.passes,
                         shape: Shape::$key_shape,
                         params: u.$key_uniform.binding(),
@@ -53,15 +53,15 @@ macro_rules! registry_pipelines {
                 ]
             }
 
-            /// The `generic` row's passes for the kernel `name` (one kernel, or a key
+            /// The `generic` row's passes for the kernel `id` (one kernel, or a key
             /// kernel's passes in order) and its [`Shape`], or `None` for a kernel with bind
             /// groups and passes of its own.
-            pub fn generic_kernel(&self, name: &str) -> Option<(&[Kernel], Shape)> {
-                match name {
-                    $(stringify!($generic) => {
+            pub fn generic_kernel(&self, id: KernelId) -> Option<(&[Kernel], Shape)> {
+                match id {
+                    $(KernelId::$generic => {
                         Some((std::slice::from_ref(&self.$generic), Shape::$shape))
                     })*
-                    $(stringify!($generic_key) => {
+                    $(KernelId::$generic_key => {
                         Some((&self.$generic_key.passes[..], Shape::$key_shape))
                     })*
                     _ => None,
@@ -71,26 +71,9 @@ macro_rules! registry_pipelines {
     };
 }
 
-/// How a `generic` row's kernel is bound and dispatched: its bind groups take what the
-/// kernel's WGSL declares from the frame's pool of named resources (and each map chunk's),
-/// with the row's uniform as `params` (see `super::bind_groups`); its passes follow the
-/// plan (see `super::step_grid::StepGrid::generic`). A key kernel's passes run in turn,
-/// each over every bind group before the next (the portable kernel's second pass reads the
-/// first's result over the whole map).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Shape {
-    /// One bind group over the frame's pool; one pass over the frame's pixels.
-    OverFrame,
-    /// One bind group per map chunk; per chunk a pass over the frame's pixels.
-    PerChunk,
-    /// One bind group per map chunk; per chunk a pass of one workgroup per culling block
-    /// holding live surfels.
-    PerBlock,
-}
-
 /// One `generic` row of the registry, as [`Kernels::generic`] lends it.
 pub(super) struct GenericRow<'a> {
-    pub name: &'static str,
+    pub id: KernelId,
     /// The kernel's passes: one, or a key kernel's (the first's layout makes the bind
     /// groups).
     pub passes: &'a [Kernel],
@@ -99,4 +82,4 @@ pub(super) struct GenericRow<'a> {
     pub params: wgpu::BindingResource<'a>,
 }
 
-pipeline_rows!();
+wgslam_core::pipeline_rows!();

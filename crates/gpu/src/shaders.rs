@@ -52,8 +52,8 @@ pub const ENTRIES: &[(&str, &str)] = &[
 ];
 
 /// The kernels prefixed with `scan_common.wgsl`, and the key kernels with their portable
-/// variants: both made from the kernel registry's rows (`crates/gpu/src/kernels.rs`).
-pub use super::kernels::{PORTABLE_KERNELS, SCAN_KERNELS};
+/// variants: both made from the kernel registry's rows (`wgslam_core::registry`).
+pub use wgslam_core::registry::{PORTABLE_KERNELS, SCAN_KERNELS};
 
 /// The name of the `override` constant that picks a portable kernel's pass (0: the high
 /// word, 1: the index word).
@@ -87,8 +87,8 @@ pub fn defines_of(kernel_name: &str) -> &'static [&'static str] {
 }
 
 /// Every kernel the runtime builds as `(name, text)`: made from the kernel registry's
-/// rows (`crates/gpu/src/kernels.rs`), one per kernel pairing its file and its CPU twin.
-pub use super::kernels::{GENERIC_KERNELS, KERNELS};
+/// rows (`wgslam_core::registry`), one per kernel pairing its file and its CPU twin.
+pub use wgslam_core::registry::{GENERIC_KERNELS, KERNELS};
 
 /// The kernel file's text alone (without `common.wgsl`, not preprocessed), or `None` for an
 /// unknown name.

@@ -22,7 +22,7 @@ use crate::layout::{
 };
 use crate::Result;
 use wgslam_core::backend::{Described, Prediction};
-use wgslam_core::plan::{self, Single};
+use wgslam_core::plan::{self, Call, Single};
 
 /// Records `call`'s `passes` in a command buffer of their own, after `before` and before
 /// `after` (a clear, the copies to read-backs), and submits it.
@@ -34,9 +34,9 @@ fn submit_single(
     before: impl FnOnce(&mut wgpu::CommandEncoder),
     after: impl FnOnce(&mut wgpu::CommandEncoder),
 ) -> Result<()> {
-    let mut enc = ctx.encoder(call.kernel());
+    let mut enc = ctx.encoder(call.name());
     before(&mut enc);
-    record_call(ctx, profiler, &mut enc, call.kernel(), passes)?;
+    record_call(ctx, profiler, &mut enc, call.name(), passes)?;
     after(&mut enc);
     submit_profiled(ctx, profiler, enc)
 }
@@ -72,12 +72,12 @@ impl GpuBackend {
         let b = self.ferns.as_mut().expect("just made");
         if b.ahead.take() == Some(*params) && b.uploaded[..] == fern_table[..n] {
             // Recorded by this frame's fuse and already done: only the read remains.
-            return ctx.scoped(call.kernel(), || b.readback.read(ctx));
+            return ctx.scoped(call.name(), || b.readback.read(ctx));
         }
         b.last = Some(*params);
         let frame = level0(&self.frame);
         let kernel = &self.kernels.fern_encode;
-        ctx.scoped(call.kernel(), || {
+        ctx.scoped(call.name(), || {
             b.params.write(ctx, params);
             if b.uploaded[..] != fern_table[..n] {
                 b.ferns.upload(ctx, &fern_table[..n])?;
@@ -102,7 +102,7 @@ impl GpuBackend {
         let b = self.candidates.as_mut().expect("just made");
         let frame = level0(&self.frame);
         let (u, kernel) = (&self.uniforms, &self.kernels.icp_candidates);
-        ctx.scoped(call.kernel(), || {
+        ctx.scoped(call.name(), || {
             u.icp.write(ctx, params);
             let own = vec![("params", u.icp.binding()), ("counts", b.counts.binding())];
             let group = frame.bind_level0(ctx, kernel, own);
@@ -125,7 +125,7 @@ impl GpuBackend {
         let frame = level0(&self.frame);
         let kernel = &self.kernels.keypoint_detect;
         let grid = kernel.grid_workgroups_for_image(ctx, params.width, params.height);
-        ctx.scoped(call.kernel(), || {
+        ctx.scoped(call.name(), || {
             b.params.write(ctx, params);
             let group = frame.bind_level0(ctx, kernel, b.pool());
             let clear = |enc: &mut _| b.counter.clear(enc);
@@ -159,7 +159,7 @@ impl GpuBackend {
         let b = keypoints::ensure(&mut self.keypoints, ctx, params, n, tests)?;
         let frame = level0(&self.frame);
         let kernel = &self.kernels.keypoint_describe;
-        ctx.scoped(call.kernel(), || {
+        ctx.scoped(call.name(), || {
             b.params.write(ctx, params);
             b.keypoints.upload(ctx, &found[..n])?;
             b.pattern.upload(ctx, &pattern[..tests])?;
@@ -209,7 +209,7 @@ impl GpuBackend {
         let count = self.count;
         let cap = self.ctx.grid_workgroups_cap();
         let map = &self.map;
-        ctx.scoped(call.kernel(), || {
+        ctx.scoped(call.name(), || {
             b.params.write(ctx, &params);
             b.nodes.upload(ctx, nodes)?;
             // One bind group per chunk: made per closure (closures are rare).

@@ -5,11 +5,13 @@
 use super::bind_groups::BindGroups;
 use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel, KeyKernel};
-use super::pipelines::{Kernels, Shape};
+use super::pipelines::Kernels;
 use super::recording::Pass;
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
+use wgslam_core::plan::Call;
+use wgslam_core::registry::Shape;
 
 /// The workgroups of one step's passes, worked out before its bind groups are lent out:
 /// the sizes of the frame and its pyramid levels (a per-pixel kernel's grid follows from
@@ -70,16 +72,28 @@ impl StepGrid {
             .map(|(g, &blocks)| (kernel, g, [blocks, 1]))
             .collect()
     }
-    /// The passes of a `generic` kernel of the registry (see `super::kernels::Shape`):
-    /// per bind group a pass over the frame's pixels, or per map chunk one workgroup per
-    /// block; a key kernel's passes in turn, each over every bind group. Panics on a
-    /// kernel with neither a `generic` row nor an arm of its own in its step (an internal
-    /// contract: every planned kernel has one or the other).
-    pub fn generic<'a>(&self, k: &'a Kernels, bg: &'a BindGroups, kernel: &str) -> Vec<Pass<'a>> {
-        let (passes, shape) = k.generic_kernel(kernel).unwrap_or_else(|| {
-            panic!("`{kernel}` has neither a `generic` row in gpu::kernels nor an arm in its step")
-        });
-        let groups = &bg.generic[kernel];
+    /// The passes of the `generic` kernel of the registry that `call` runs (see
+    /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels, or per
+    /// map chunk one workgroup per block; a key kernel's passes in turn, each over every
+    /// bind group. Panics on a call whose kernel has neither a `generic` row nor an arm of
+    /// its own in its step (an internal contract: every planned kernel has one or the
+    /// other).
+    pub fn generic<'a>(
+        &self,
+        k: &'a Kernels,
+        bg: &'a BindGroups,
+        call: impl Call,
+    ) -> Vec<Pass<'a>> {
+        let Some((kernel, (passes, shape))) = call
+            .kernel()
+            .and_then(|id| Some((id, k.generic_kernel(id)?)))
+        else {
+            panic!(
+                "`{}` has neither a `generic` registry row nor an arm in its step",
+                call.name()
+            )
+        };
+        let groups = &bg.generic[&kernel];
         let wg = self.image(&passes[0]);
         passes
             .iter()

@@ -24,7 +24,7 @@ use wgslam_core::backend::{
     Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use wgslam_core::fused_view::FusedView;
-use wgslam_core::plan::{self, Buffer, CompactCall, FuseCall, PredictCall, PreprocessCall};
+use wgslam_core::plan::{self, Buffer, Call, CompactCall, FuseCall, PredictCall, PreprocessCall};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
 /// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
@@ -91,7 +91,7 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
                 let passes = preprocess_passes(k, bg, &grid, call);
-                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             defer_profiled(ctx, profiler, "preprocess", enc)
         })
@@ -146,9 +146,9 @@ impl Backend for GpuBackend {
                     )],
                     // `project_model`, `predict_model`: bound and dispatched by their
                     // registry rows.
-                    generic => grid.generic(k, bg, generic.kernel()),
+                    generic => grid.generic(k, bg, generic),
                 };
-                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             defer_profiled(ctx, profiler, "predict", enc)
         })
@@ -319,9 +319,9 @@ impl Backend for GpuBackend {
                     // `fuse_select` (surfels pick pixels, then each picked surfel merges
                     // from its pixel: `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`,
                     // `fuse_flags`: bound and dispatched by their registry rows.
-                    generic => grid.generic(k, bg, generic.kernel()),
+                    generic => grid.generic(k, bg, generic),
                 };
-                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             let ferns = &mut self.ferns;
@@ -397,7 +397,7 @@ impl Backend for GpuBackend {
                         })
                         .collect(),
                 };
-                record_call(ctx, profiler, &mut enc, call.kernel(), &passes)?;
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             submit_profiled(ctx, profiler, enc)?;
@@ -529,7 +529,7 @@ fn preprocess_passes<'a>(
         }
         // `depth_to_vertex`, `bilateral_filter`: bound and dispatched by their registry
         // rows.
-        generic => return grid.generic(k, bg, generic.kernel()),
+        generic => return grid.generic(k, bg, generic),
     };
     vec![pass]
 }

@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use crate::slam::backend::FusionBuffers;
-use crate::slam::plan::FuseCall;
+use crate::slam::plan::{Call, FuseCall};
 
 /// Fusion's per-pixel outputs compared kernel by kernel, in the order of the step's plan
 /// (`crate::slam::plan::fuse`): the buffers no later kernel of the step overwrites
@@ -65,25 +65,25 @@ impl FusionKernelDiff {
             true => FuseCall::FuseSelect,
             false => FuseCall::FuseMerge,
         }
-        .kernel();
+        .name();
         if self.assoc_pixels > 0 {
             Some(format!("{assoc_kernel} ({} pixels)", self.assoc_pixels))
         } else if self.merged_max_abs > 0.0 {
             Some(format!(
                 "{} (merged surfels up to {:.3e} apart)",
-                FuseCall::FuseMergeChosen.kernel(),
+                FuseCall::FuseMergeChosen.name(),
                 self.merged_max_abs
             ))
         } else if self.flag_slots > 0 {
             Some(format!(
                 "{} ({} slots)",
-                FuseCall::FuseFlags.kernel(),
+                FuseCall::FuseFlags.name(),
                 self.flag_slots
             ))
         } else if self.offset_slots > 0 {
             Some(format!(
                 "{} ({} slots)",
-                FuseCall::FuseScan.kernel(),
+                FuseCall::FuseScan.name(),
                 self.offset_slots
             ))
         } else {

@@ -1,30 +1,32 @@
 //! The kernel registry: one row per kernel, pairing its shader `shaders/<name>.wgsl` with
 //! its CPU twin `crate::cpu::<name>::<name>` (the model is vello's
 //! `add_shader!(name, ..., CpuShaderType::Present(cpu::name))`). Every fact about a kernel
-//! that the runtime needs is in its row, and every list of kernels is made from the rows by
-//! the `registry!` macro below:
+//! that either backend needs is in its row, and every list of kernels is made from the
+//! rows by the `registry_data!` macro below:
 //!
-//! - [`KERNELS`], every kernel's `(name, text of its file)` for the runtime and the naga
+//! - [`KernelId`], one variant per kernel, named after it: what a plan call
+//!   (`crate::plan`) names, so a backend finds a kernel by a typed id that cannot be
+//!   misspelt, never by its name; with each kernel's [`KernelId::name`];
+//! - [`KERNELS`], every kernel's `(name, text of its file)` for the GPU engine and the naga
 //!   tests, with a second entry over the same text for each key kernel's portable variant;
 //! - [`PORTABLE_KERNELS`], the key kernels (rows marked `key`) with their portable
 //!   variants' names, and [`SCAN_KERNELS`], the kernels prefixed with `scan_common.wgsl`
 //!   (the `scan` group);
 //! - [`GENERIC_KERNELS`], the kernels of the `generic` rows;
-//! - in `super::pipelines` (from the same rows, through `pipeline_rows!`), the dense
-//!   pipeline's pipelines, one field per kernel named after it, and for the `generic` rows
-//!   how the kernel is bound and dispatched (its `Shape`, and the uniform bound as its
-//!   `params`): `super::bind_groups` and `super::steps` then need nothing of their own for
-//!   it;
+//! - in the GPU engine (`wgslam_gpu::pipelines`, from the same rows, through the
+//!   [`pipeline_rows!`](crate::pipeline_rows) macro the rows define), the dense pipeline's
+//!   pipelines, one field per kernel named after it, and for the `generic` rows their
+//!   [`Shape`] and the uniform bound as the kernel's `params`: its bind groups and passes then need nothing of their
+//!   own for it;
 //! - a compile-time check that each row's twin exists (an underscore import of
 //!   `crate::cpu::<name>::<name>`): a row without a twin does not build.
 //!
-//! This module imports nothing of the engine (the pipelines are built in
-//! `super::pipelines`), so the sources (`super::shaders`) and the kernels built from them
-//! (`super::kernel`) can read it without a circle. What the registry does not hold: a
-//! kernel's bindings (reflected from the WGSL, see `super::kernel::Kernel::new`, and bound
-//! by the WGSL variables' names), the bind groups and passes of the kernels that fit no
-//! `Shape` (`super::bind_groups`, `super::steps`), and the order kernels run in
-//! (`wgslam_core::plan`).
+//! The registry is on the bottom floor with the shaders' texts and the twins, so the plans
+//! (`crate::plan`) name its ids and the GPU engine above builds from its rows. What it does
+//! not hold: a kernel's bindings (reflected from the WGSL by the GPU engine, and bound by
+//! the WGSL variables' names), the bind groups and passes of the kernels that fit no
+//! [`Shape`] (`wgslam_gpu`'s `bind_groups.rs` and `steps.rs`), and the order kernels run in
+//! (`crate::plan`).
 
 /// The text of `shaders/<name>.wgsl`.
 macro_rules! shader_text {
@@ -33,18 +35,33 @@ macro_rules! shader_text {
     };
 }
 
+/// How a `generic` row's kernel is bound and dispatched on the GPU: its bind groups take
+/// what the kernel's WGSL declares from the frame's pool of named resources (and each map
+/// chunk's), with the row's uniform as `params`; its passes follow the plan. A key
+/// kernel's passes run in turn, each over every bind group before the next (the portable
+/// kernel's second pass reads the first's result over the whole map).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// One bind group over the frame's pool; one pass over the frame's pixels.
+    OverFrame,
+    /// One bind group per map chunk; per chunk a pass over the frame's pixels.
+    PerChunk,
+    /// One bind group per map chunk; per chunk a pass of one workgroup per culling block
+    /// holding live surfels.
+    PerBlock,
+}
+
 /// One row per kernel, in groups by how the kernel is built and run. The `key` groups hold
-/// the key kernels, which keep the nearest surfel per pixel in a map of 64-bit keys (a
-/// `KeyKernel`: the 64-bit kernel, or on a device without 64-bit atomics its portable
+/// the key kernels, which keep the nearest surfel per pixel in a map of 64-bit keys (on the
+/// GPU a `KeyKernel`: the 64-bit kernel, or on a device without 64-bit atomics its portable
 /// variant `<name>_portable`, the same file built without `KEY_64`; both are in
 /// [`KERNELS`] and [`PORTABLE_KERNELS`]).
 ///
-/// - `generic`, `generic_keys`: `name: Shape(uniform)`, a field of `Kernels`
-///   (`super::pipelines`) whose bind groups and passes the row decides (`Shape`; `uniform` is the
-///   `super::resources::Uniforms` field bound as its `params`): nothing else in `crates/gpu/src/`
-///   names it;
-/// - `kernels`, `key_kernels`: a field of `Kernels` with bind groups in
-///   `super::bind_groups` and passes in `super::steps` or `super::single_steps` of its own;
+/// - `generic`, `generic_keys`: `name: Shape(uniform)`, a kernel whose bind groups and
+///   passes the row decides ([`Shape`]; `uniform` is the GPU engine's `Uniforms` field bound
+///   as its `params`): nothing else in `crates/gpu/src/` names it;
+/// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
+///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
 /// - `elsewhere`, `key_elsewhere`: built by the code that runs it (`deform_surfels` at the
 ///   first loop closure, the renderer's kernels);
 /// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
@@ -59,7 +76,48 @@ macro_rules! registry_data {
         key_elsewhere: { $($other_key:ident,)* }
         scan: { $($scan:ident,)* }
     ) => {
-        /// Every kernel the runtime builds as `(name, text of shaders/<file_of(name)>.wgsl)`:
+        /// Every kernel of the registry, one variant per row, named as its shader and its
+        /// twin are (hence snake case). Plan calls name kernels by it.
+        #[allow(non_camel_case_types)]
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+        pub enum KernelId {
+            $($generic,)*
+            $($generic_key,)*
+            $($kernel,)*
+            $($key,)*
+            $($other,)*
+            $($other_key,)*
+            $($scan,)*
+        }
+
+        impl KernelId {
+            /// Every kernel, in the registry's order.
+            pub const ALL: &[KernelId] = &[
+                $(KernelId::$generic,)*
+                $(KernelId::$generic_key,)*
+                $(KernelId::$kernel,)*
+                $(KernelId::$key,)*
+                $(KernelId::$other,)*
+                $(KernelId::$other_key,)*
+                $(KernelId::$scan,)*
+            ];
+
+            /// The kernel's name: its shader `shaders/<name>.wgsl` and its twin
+            /// `crate::cpu::<name>::<name>`.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(KernelId::$generic => stringify!($generic),)*
+                    $(KernelId::$generic_key => stringify!($generic_key),)*
+                    $(KernelId::$kernel => stringify!($kernel),)*
+                    $(KernelId::$key => stringify!($key),)*
+                    $(KernelId::$other => stringify!($other),)*
+                    $(KernelId::$other_key => stringify!($other_key),)*
+                    $(KernelId::$scan => stringify!($scan),)*
+                }
+            }
+        }
+
+        /// Every kernel the GPU engine builds as `(name, text of shaders/<file_of(name)>.wgsl)`:
         /// one row per file, plus one per portable variant of a key kernel (the same text).
         /// `tests/it/shaders.rs` fails when a `.wgsl` file is missing here.
         pub const KERNELS: &[(&str, &str)] = &[
@@ -74,7 +132,6 @@ macro_rules! registry_data {
             $((concat!(stringify!($key), "_portable"), shader_text!($key)),)*
             $((concat!(stringify!($other_key), "_portable"), shader_text!($other_key)),)*
         ];
-
         /// The key kernels (the registry's `key` groups), each built in two variants from
         /// its one file `shaders/<kernel>.wgsl` followed by `shaders/key_writer.wgsl`:
         /// `(kernel, portable)`. The kernel (the file with `KEY_64` defined) keeps the
@@ -117,7 +174,8 @@ macro_rules! registry_data {
         }
 
         /// Calls `registry_pipelines!` (in scope where this is called: see
-        /// `super::pipelines`) with the rows the pipelines are built from.
+        /// `wgslam_gpu::pipelines`) with the rows the GPU engine's pipelines are built from.
+        #[macro_export]
         macro_rules! pipeline_rows {
             () => {
                 registry_pipelines! {
@@ -128,7 +186,6 @@ macro_rules! registry_data {
                 }
             };
         }
-        pub(super) use pipeline_rows;
     };
 }
 
