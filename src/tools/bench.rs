@@ -42,6 +42,9 @@ pub struct BenchResult {
     pub peak_memory_mib: Option<f64>,
     pub map_points: usize,
     pub ate_rmse_aligned_m: Option<f64>,
+    /// The ATE's and RPE's whole record, with the frames without a pose they leave out.
+    #[serde(default)]
+    pub accuracy: Option<run::Accuracy>,
     /// GPU only, with `--kernels`: (kernel, passes per frame, ms per pass) from GPU
     /// timestamps (or wall time per submission without them).
     #[serde(default)]
@@ -114,7 +117,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         }
         None => run::trajectory(&frames),
     };
-    let accuracy = run::accuracy(&est, &seq.ground_truth())?;
+    let accuracy = run::accuracy(&est, &seq.ground_truth(), frames.len())?;
     let camera = seq.intrinsics.downsampled(params.input.downsample);
     let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
     let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
@@ -131,7 +134,8 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         submissions_per_frame: 0.0,
         peak_memory_mib: run::peak_memory_mib(),
         map_points: slam.backend.surfel_count(),
-        ate_rmse_aligned_m: accuracy.map(|a| a.ate_rmse_aligned_m),
+        ate_rmse_aligned_m: accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
+        accuracy,
         kernels: Vec::new(),
         decode_ms_per_frame: decode_ms(&frames),
         round_trips: None,
@@ -260,6 +264,11 @@ pub struct InterleavedResult {
     pub ratio_p90: f64,
     pub cpu_ate_rmse_aligned_m: Option<f64>,
     pub gpu_ate_rmse_aligned_m: Option<f64>,
+    /// Each backend's ATE and RPE with the frames without a pose they leave out.
+    #[serde(default)]
+    pub cpu_accuracy: Option<run::Accuracy>,
+    #[serde(default)]
+    pub gpu_accuracy: Option<run::Accuracy>,
 }
 
 impl InterleavedResult {
@@ -324,9 +333,9 @@ pub fn bench_interleaved<G: Backend>(
     let mean =
         |f: &[run::FrameOutcome]| f.iter().map(|o| o.seconds).sum::<f64>() / f.len().max(1) as f64;
     let gt = seq.ground_truth();
-    let ate = |f: &[run::FrameOutcome]| -> Result<Option<f64>> {
-        Ok(run::accuracy(&run::trajectory(f), &gt)?.map(|a| a.ate_rmse_aligned_m))
-    };
+    let accuracy = |f: &[run::FrameOutcome]| run::accuracy(&run::trajectory(f), &gt, f.len());
+    let (cpu_accuracy, gpu_accuracy) = (accuracy(&cpu_frames)?, accuracy(&gpu_frames)?);
+    let ate = |a: &Option<run::Accuracy>| a.as_ref().map(|a| a.ate_rmse_aligned_m);
     let camera = seq.intrinsics.downsampled(params.input.downsample);
     Ok(InterleavedResult {
         frames: cpu_frames.len(),
@@ -337,14 +346,15 @@ pub fn bench_interleaved<G: Backend>(
         ratio_median: crate::stats::median(&ratios),
         ratio_p10: pick(0.1),
         ratio_p90: pick(0.9),
-        cpu_ate_rmse_aligned_m: ate(&cpu_frames)?,
-        gpu_ate_rmse_aligned_m: ate(&gpu_frames)?,
+        cpu_ate_rmse_aligned_m: ate(&cpu_accuracy),
+        gpu_ate_rmse_aligned_m: ate(&gpu_accuracy),
+        cpu_accuracy,
+        gpu_accuracy,
     })
 }
 
 /// Prints an interleaved result.
 pub fn print_interleaved(r: &InterleavedResult) {
-    let mm = |a: Option<f64>| a.map_or("n/a".into(), |a| format!("{:.3} mm", a * 1e3));
     println!(
         "interleaved, frame by frame in one process ({} frames {}x{}): cpu {:.1} ms/frame, \
          gpu {:.1} ms/frame mean; ATE cpu {}, gpu {}",
@@ -353,8 +363,8 @@ pub fn print_interleaved(r: &InterleavedResult) {
         r.height,
         r.cpu_frame_mean_s * 1e3,
         r.gpu_frame_mean_s * 1e3,
-        mm(r.cpu_ate_rmse_aligned_m),
-        mm(r.gpu_ate_rmse_aligned_m),
+        run::ate_mm_text(r.cpu_accuracy.as_ref()),
+        run::ate_mm_text(r.gpu_accuracy.as_ref()),
     );
     println!(
         "GPU/CPU interleaved: {:.2}x faster (ratio of means); per frame median {:.2}x, \
@@ -383,9 +393,7 @@ pub fn print_round(round: usize, results: &[BenchResult]) {
             r.backend,
             r.frame_median_s * 1e3,
             r.frame_mean_s * 1e3,
-            r.ate_rmse_aligned_m
-                .map(|a| format!("{:.3} mm", a * 1e3))
-                .unwrap_or_else(|| "n/a".into()),
+            run::ate_mm_text(r.accuracy.as_ref()),
         );
     }
     if let Some(x) = gpu_over_cpu(results) {
@@ -426,9 +434,7 @@ pub fn print_table(results: &[BenchResult]) {
             r.fps,
             r.peak_memory_mib.unwrap_or(f64::NAN),
             r.map_points,
-            r.ate_rmse_aligned_m
-                .map(|a| format!("{:.3} mm", a * 1e3))
-                .unwrap_or_else(|| "n/a".into()),
+            run::ate_mm_text(r.accuracy.as_ref()),
         );
         for (stage, calls, ms) in &r.stages {
             println!("      {stage:<14} {calls:5.2} calls/frame  {ms:8.2} ms/call");

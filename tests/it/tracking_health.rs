@@ -87,6 +87,15 @@ fn bundled_splice_is_lost_then_recovers<B: Backend + Inspect>(backend: B, noisy:
         (2, 2, 2, "recovered")
     );
     assert_eq!(run::trajectory(&r.frames).len(), 37, "tracked poses only");
+    // The ATE is over the tracked poses, and says how many frames it leaves out.
+    let acc = r.metrics.accuracy.as_ref().expect("ground truth");
+    assert_eq!(acc.frames_without_pose, 4, "2 lost, 2 without depth");
+    assert!(
+        acc.ate_text()
+            .ends_with("over 37 poses, 4 frames without a pose"),
+        "{}",
+        acc.ate_text()
+    );
     let bar = if noisy {
         ATE_NOISY_MAX_M
     } else {

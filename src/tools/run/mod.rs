@@ -13,7 +13,7 @@ use std::sync::mpsc;
 use web_time::Instant;
 
 use glam::DMat4;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::dataset::{RawFrame, Sequence};
 use crate::eval;
@@ -99,10 +99,14 @@ pub struct LoopMetrics {
 }
 
 /// ATE and RPE against ground truth (TUM benchmark definitions).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Accuracy {
     /// Pose pairs evaluated.
     pub pairs: usize,
+    /// Frames of the run without an estimated pose (lost, or without depth): the ATE and
+    /// RPE are over the other frames only, so every report of them gives this count too
+    /// ([`Accuracy::ate_text`]).
+    pub frames_without_pose: usize,
     /// Absolute trajectory error RMSE after a rigid (Horn/Umeyama, no scale) alignment, m.
     pub ate_rmse_aligned_m: f64,
     /// Absolute trajectory error RMSE without alignment, m.
@@ -284,10 +288,46 @@ pub fn trajectory(frames: &[FrameOutcome]) -> Vec<(f64, DMat4)> {
         .collect()
 }
 
-/// ATE/RPE of an estimated trajectory against ground truth, `None` with fewer than two
-/// estimated poses that have ground truth (one pose aligns onto any ground truth, and a run
-/// over frames 0..1 of ICL-NUIM, whose frame 0 has none, failed after its last frame).
-pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accuracy>> {
+impl Accuracy {
+    /// The aligned ATE with the count it is over: "12.345 mm over 398 poses, 2 frames
+    /// without a pose".
+    pub fn ate_text(&self) -> String {
+        format!(
+            "{:.3} mm over {} poses, {}",
+            self.ate_rmse_aligned_m * 1e3,
+            self.pairs,
+            without_pose_text(self.frames_without_pose)
+        )
+    }
+}
+
+/// "1 frame without a pose", "2 frames without a pose".
+fn without_pose_text(frames: usize) -> String {
+    let s = if frames == 1 { "" } else { "s" };
+    format!("{frames} frame{s} without a pose")
+}
+
+/// An aligned ATE as the benchmarks print it, with the frames it leaves out: "12.345 mm
+/// (2 frames without a pose)", or "n/a" without ground truth.
+pub fn ate_mm_text(accuracy: Option<&Accuracy>) -> String {
+    accuracy.map_or("n/a".into(), |a| {
+        format!(
+            "{:.3} mm ({})",
+            a.ate_rmse_aligned_m * 1e3,
+            without_pose_text(a.frames_without_pose)
+        )
+    })
+}
+
+/// ATE/RPE of an estimated trajectory of a run of `frames` frames against ground truth,
+/// `None` with fewer than two estimated poses that have ground truth (one pose aligns onto
+/// any ground truth, and a run over frames 0..1 of ICL-NUIM, whose frame 0 has none, failed
+/// after its last frame).
+pub fn accuracy(
+    est: &[(f64, DMat4)],
+    gt: &[(f64, DMat4)],
+    frames: usize,
+) -> Result<Option<Accuracy>> {
     if gt.is_empty() || est.len() < 2 || eval::associate(est, gt, eval::DEFAULT_MAX_DT).len() < 2 {
         return Ok(None);
     }
@@ -296,6 +336,7 @@ pub fn accuracy(est: &[(f64, DMat4)], gt: &[(f64, DMat4)]) -> Result<Option<Accu
     let rpe = eval::rpe(est, gt, 1)?;
     Ok(Some(Accuracy {
         pairs: aligned.pairs,
+        frames_without_pose: frames.saturating_sub(est.len()),
         ate_rmse_aligned_m: aligned.rmse_m,
         ate_rmse_unaligned_m: unaligned.rmse_m,
         rpe_trans_rmse_m: rpe.trans_rmse_m,
@@ -385,7 +426,7 @@ pub fn run_observed<B: Backend + Inspect>(
                 rejected: loops.len() - accepted,
                 graph_nodes: lc.graph().nodes().len(),
                 graph_edges: lc.graph().edges().len(),
-                odometry_accuracy: accuracy(&odometry, &gt)?,
+                odometry_accuracy: accuracy(&odometry, &gt, frames.len())?,
                 loops,
             };
             (Some(est), Some(metrics))
@@ -393,7 +434,7 @@ pub fn run_observed<B: Backend + Inspect>(
         None => (None, None),
     };
     let est = optimised.clone().unwrap_or(odometry);
-    let accuracy = accuracy(&est, &gt)?;
+    let accuracy = accuracy(&est, &gt, frames.len())?;
     let k = slam.intrinsics;
     let metrics = Metrics {
         backend: slam.backend.name().to_string(),
@@ -468,22 +509,18 @@ pub fn summary_lines(m: &Metrics) -> Vec<String> {
             l.graph_nodes,
             l.graph_edges,
             match &l.odometry_accuracy {
-                Some(a) => format!(
-                    "; ATE before closures {:.3} mm aligned",
-                    a.ate_rmse_aligned_m * 1e3
-                ),
+                Some(a) => format!("; ATE before closures {} (aligned)", a.ate_text()),
                 None => String::new(),
             }
         ));
     }
     if let Some(acc) = &m.accuracy {
         lines.push(format!(
-            "ATE RMSE {:.3} mm aligned, {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg ({} poses)",
-            acc.ate_rmse_aligned_m * 1e3,
+            "ATE RMSE {} (aligned), {:.3} mm unaligned; RPE {:.3} mm, {:.4} deg",
+            acc.ate_text(),
             acc.ate_rmse_unaligned_m * 1e3,
             acc.rpe_trans_rmse_m * 1e3,
             acc.rpe_rot_rmse_deg,
-            acc.pairs
         ));
     }
     if let Some(mem) = m.peak_memory_mib {
