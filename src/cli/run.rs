@@ -304,6 +304,9 @@ fn frames_to_run(
         None => (default_first_frame(&seq), seq.len() - 1),
     };
     let range = seq.select(first, last)?;
+    if let Some(note) = seq.jump_note(range.clone()) {
+        eprintln!("note: {note}");
+    }
     match a.revisit {
         Some(total) => {
             let max = crate::io::input::max_revisit_frames()?;

@@ -124,6 +124,9 @@ impl SlamParams {
         if !database && !asked {
             set_enabled(&mut t, "loop_closure", false);
         }
+        if let Some(e) = photometric_without_rgbd(&t, keys) {
+            return Err(e);
+        }
         match SlamParams::from_keys(profile, poses, t) {
             Ok(p) => p.validate(),
             Err(why) => Err(first_refused(profile, poses, keys).unwrap_or(Error::Argument(why))),
@@ -198,6 +201,25 @@ fn lookup(t: &toml::Table, key: &str) -> Option<toml::Value> {
         .split('.')
         .try_fold(t, |t, name| t.get(name)?.as_table())?;
     t.get(field).cloned()
+}
+
+/// The photometric keys do something only with RGB-D tracking: one set in `keys` while
+/// `icp.tracking` (in `t`, after every key) is not `rgbd` is refused, naming both keys (an
+/// option that does nothing in the current mode is refused, not silently ignored).
+fn photometric_without_rgbd(t: &toml::Table, keys: &[Key]) -> Option<Error> {
+    let rgbd = lookup(t, "icp.tracking").and_then(|v| v.as_str().map(String::from));
+    if rgbd.as_deref() == Some("rgbd") {
+        return None;
+    }
+    let (key, _) = keys
+        .iter()
+        .find(|(k, _)| k == "icp.photometric_weight" || k == "icp.photometric_levels")?;
+    Some(Error::Argument(format!(
+        "`{key}` does nothing unless `icp.tracking` is \"rgbd\" (the photometric term is \
+         part of RGB-D tracking only; here tracking is {}): set `icp.tracking` to \"rgbd\", \
+         or leave `{key}` out",
+        rgbd.as_deref().unwrap_or("geometric")
+    )))
 }
 
 fn is_zero(v: &Option<toml::Value>) -> bool {

@@ -15,6 +15,7 @@
 
 pub(crate) mod bonn;
 pub(crate) mod checks;
+pub use checks::repeated_stamps_note;
 pub(crate) mod detect;
 pub(crate) mod eth3d;
 pub mod frame;
@@ -66,6 +67,48 @@ pub struct SequenceOptions {
     pub max_time_diff: f64,
     /// The frames' order where a TUM-style list's stamps go backwards.
     pub stamp_order: StampOrder,
+    /// Who opens the sequence: an error's remedy is worded for it.
+    pub interface: Interface,
+}
+
+/// The interface a sequence is opened through, so that an error names the control that
+/// fixes it: a flag, a Python keyword, or what the page can do.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Interface {
+    /// `wgslam run`, `eval`, a batch job (flags and `--params` files).
+    #[default]
+    CommandLine,
+    /// The Python package (`params={...}`).
+    Python,
+    /// The browser page (a picked folder; no intrinsics control).
+    Page,
+}
+
+impl Interface {
+    /// How to give a sequence without intrinsics its camera; `presets`: whether the
+    /// camera presets (`fr1`, `fr2`, `fr3`, TUM RGB-D's Freiburg cameras) apply.
+    pub fn intrinsics_remedy(self, presets: bool) -> String {
+        match (self, presets) {
+            (Interface::CommandLine, true) => "pass --camera fr1, fr2 or fr3 (the Freiburg \
+                camera in the sequence's name: freiburg1_desk is fr1), or --intrinsics \
+                fx,fy,cx,cy, or add a camera.json to the folder"
+                .into(),
+            (Interface::CommandLine, false) => {
+                "pass --intrinsics fx,fy,cx,cy, or add a camera.json to the folder".into()
+            }
+            (Interface::Python, true) => "pass params={\"camera\": \"fr1\"} (or \"fr2\", \
+                \"fr3\": the Freiburg camera in the sequence's name), or \
+                params={\"intrinsics\": \"fx,fy,cx,cy\"}, or add a camera.json to the folder"
+                .into(),
+            (Interface::Python, false) => "pass params={\"intrinsics\": \"fx,fy,cx,cy\"}, or \
+                add a camera.json to the folder"
+                .into(),
+            (Interface::Page, _) => "add a camera.json (fx, fy, cx, cy, width, height; see \
+                docs/datasets.md) to the folder and pick it again: the page has no intrinsics \
+                control"
+                .into(),
+        }
+    }
 }
 
 /// The order of a TUM-style sequence's frames (`rgb.txt`, `depth.txt`): what a list whose
@@ -99,6 +142,7 @@ impl Default for SequenceOptions {
             depth_scale: None,
             max_time_diff: DEFAULT_MAX_TIME_DIFF,
             stamp_order: StampOrder::Time,
+            interface: Interface::CommandLine,
         }
     }
 }
@@ -306,7 +350,7 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     let camera = read_camera_json(&root.join("camera.json"))?;
     let listing = match layout {
         Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn => {
-            stamped::listing(root, layout, opts.max_time_diff, opts.stamp_order)?
+            stamped::listing(root, layout, opts)?
         }
         Layout::SevenScenes => seven_scenes::list(root)?,
         Layout::ScanNet => scannet::list(root)?,
@@ -322,7 +366,13 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             Intrinsics::from_floats([c.fx, c.fy, c.cx, c.cy], (c.width, c.height))
         }
         (None, None, Some(k)) => k,
-        (None, None, None) => return Err(Error::Argument(listing.no_intrinsics)),
+        (None, None, None) => {
+            return Err(Error::Argument(format!(
+                "{}; {}",
+                listing.no_intrinsics,
+                opts.interface.intrinsics_remedy(layout == Layout::Tum)
+            )))
+        }
     };
     let source = match (opts.intrinsics, &camera) {
         (Some(_), _) => "--intrinsics".to_string(),
@@ -355,6 +405,7 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         let mut gt = parse_tum(path, &text)?;
         gt.sort_by(|a, b| a.0.total_cmp(&b.0));
         let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
+        notes.extend(checks::repeated_stamps_note(path, &gt_stamps));
         for f in &mut frames {
             f.gt_cam_to_world =
                 tum::nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
@@ -366,7 +417,6 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             opts.max_time_diff,
         ));
     }
-    notes.extend(checks::jump_note(&frames));
 
     Ok(Sequence {
         root: root.to_path_buf(),
@@ -403,6 +453,14 @@ impl Sequence {
             )));
         }
         Ok(first..=last)
+    }
+
+    /// The note on the ground truth's jumps within the frames `range` (a run's, as
+    /// [`Sequence::select`] gives it; see [`checks::jump_note`]): frames outside a run
+    /// are not its concern.
+    pub fn jump_note(&self, range: RangeInclusive<usize>) -> Option<String> {
+        let first = *range.start();
+        checks::jump_note(self.frames.get(range)?, first)
     }
 
     /// Decodes frame `i` (position in [`Sequence::frames`]); checks pixel formats, that
