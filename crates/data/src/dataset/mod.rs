@@ -16,6 +16,7 @@
 pub(crate) mod bonn;
 pub(crate) mod checks;
 pub use checks::repeated_stamps_note;
+pub use matrix_file::pose_from_row_major;
 pub(crate) mod detect;
 pub(crate) mod eth3d;
 pub mod frame;
