@@ -289,10 +289,22 @@ fn run(a: BatchRunArgs) -> Result<()> {
             interrupted.join(", ")
         )));
     }
+    summarise(
+        &out,
+        chosen.selection == Selection::All,
+        &failed,
+        picked.len(),
+    )
+}
+
+/// After the jobs of this invocation (`picked` of them, `failed` by id): the summary and
+/// report when `all` jobs were this process's, notes on lost and unfinished jobs, and the
+/// error naming the failed ones.
+fn summarise(out: &Path, all: bool, failed: &[String], picked: usize) -> Result<()> {
     // One array task of many writes no summary: the others are still running, and a
     // thousand tasks each rewriting the report is waste; `batch collect` merges them.
-    let (pending, lost) = if chosen.selection == Selection::All {
-        let s = collect(&out)?;
+    let (pending, lost) = if all {
+        let s = collect(out)?;
         (s.pending, s.lost)
     } else {
         eprintln!(
@@ -312,7 +324,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
         return Err(Error::Batch(format!(
             "{} of {} jobs failed: {} (their errors are in summary.csv and their job.json)",
             failed.len(),
-            picked.len(),
+            picked,
             failed.join(", ")
         )));
     }

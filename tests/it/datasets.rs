@@ -824,10 +824,7 @@ const SUN3D_BAR: RealBar = RealBar {
 /// of frames 0..99 is not told of it (issue 46: it was, as "included in ATE and RPE").
 fn a_real_references_jump_is_noted(data: &Path) {
     let open = |name: &str| dataset::open(&data.join(name), &SequenceOptions::default()).unwrap();
-    let jump = |name: &str| {
-        let seq = open(name);
-        seq.jump_note(0..=seq.len() - 1)
-    };
+    let jump = |name: &str| open(name).jump_note(0..=open(name).len() - 1);
     assert_eq!(open(SEVEN_SCENES).jump_note(0..=99), None);
     let n = jump(SEVEN_SCENES).expect("7-Scenes' reference jump is noted");
     assert!(

@@ -301,7 +301,8 @@ fn a_link_loop_dataset_says_so() {
 fn a_link_loop_dataset_says_so() {}
 
 /// ScanNet colour images of 1x1 pixels became an all-black colour, with exit 0 and no
-/// warning: colour images the colour intrinsics cannot describe are refused.
+/// warning: colour images the colour intrinsics cannot describe are refused. And
+/// `--stamp-order file` on a layout of numbered frames is refused, not ignored.
 fn tiny_scannet_colour_is_refused() {
     let dir = common::temp_dir("hostile-round3-scannet");
     let seq = dir.join("scene");
@@ -331,5 +332,12 @@ fn tiny_scannet_colour_is_refused() {
     assert!(
         said.contains("colour image is 1x1") && said.contains("outside it"),
         "{said}"
+    );
+    // `--stamp-order` was silently ignored where frames are numbered files.
+    let o = run_on(&seq, &dir, &["--stamp-order", "file"]);
+    assert!(
+        text(&o).contains("--stamp-order file: ") && text(&o).contains("leave it out"),
+        "{}",
+        text(&o)
     );
 }

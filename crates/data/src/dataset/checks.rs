@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use super::{FrameRecord, Interface, StampOrder};
+use super::{FrameRecord, Interface, Layout, SequenceOptions, StampOrder};
 use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
@@ -67,6 +67,29 @@ pub fn stamps_distinct(root: &Path, frames: &[FrameRecord]) -> Result<()> {
             ),
         )),
     }
+}
+
+/// Refuses `StampOrder::File` for a layout whose frames are numbered files (7-Scenes,
+/// ScanNet, Replica): there is no frame list whose order it could choose, and an option
+/// that does nothing is refused, in `opts.interface`'s words.
+pub fn stamp_order_applies(root: &Path, layout: Layout, opts: &SequenceOptions) -> Result<()> {
+    let stamped = matches!(
+        layout,
+        Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn
+    );
+    if opts.stamp_order == StampOrder::Time || stamped {
+        return Ok(());
+    }
+    let option = match opts.interface {
+        Interface::Python => "params={\"stamp-order\": \"file\"}",
+        _ => "--stamp-order file",
+    };
+    Err(Error::Argument(format!(
+        "{option}: {} is a {} sequence, whose frames are numbered files in number order \
+         (no frame list whose stamps could go backwards); leave it out",
+        root.display(),
+        layout.name()
+    )))
 }
 
 /// A note when the ground truth at `gt_path` repeats stamps (`sorted`: its stamps in

@@ -16,12 +16,14 @@
 pub(crate) mod bonn;
 pub(crate) mod checks;
 pub use checks::repeated_stamps_note;
+pub use interface::Interface;
 pub use matrix_file::pose_from_row_major;
 pub(crate) mod detect;
 pub(crate) mod eth3d;
 pub mod frame;
 pub(crate) mod icl;
 pub(crate) mod in_memory;
+mod interface;
 pub(crate) mod matrix_file;
 pub(crate) mod numbered;
 pub(crate) mod replica;
@@ -70,46 +72,6 @@ pub struct SequenceOptions {
     pub stamp_order: StampOrder,
     /// Who opens the sequence: an error's remedy is worded for it.
     pub interface: Interface,
-}
-
-/// The interface a sequence is opened through, so that an error names the control that
-/// fixes it: a flag, a Python keyword, or what the page can do.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum Interface {
-    /// `wgslam run`, `eval`, a batch job (flags and `--params` files).
-    #[default]
-    CommandLine,
-    /// The Python package (`params={...}`).
-    Python,
-    /// The browser page (a picked folder; no intrinsics control).
-    Page,
-}
-
-impl Interface {
-    /// How to give a sequence without intrinsics its camera; `presets`: whether the
-    /// camera presets (`fr1`, `fr2`, `fr3`, TUM RGB-D's Freiburg cameras) apply.
-    pub fn intrinsics_remedy(self, presets: bool) -> String {
-        match (self, presets) {
-            (Interface::CommandLine, true) => "pass --camera fr1, fr2 or fr3 (the Freiburg \
-                camera in the sequence's name: freiburg1_desk is fr1), or --intrinsics \
-                fx,fy,cx,cy, or add a camera.json to the folder"
-                .into(),
-            (Interface::CommandLine, false) => {
-                "pass --intrinsics fx,fy,cx,cy, or add a camera.json to the folder".into()
-            }
-            (Interface::Python, true) => "pass params={\"camera\": \"fr1\"} (or \"fr2\", \
-                \"fr3\": the Freiburg camera in the sequence's name), or \
-                params={\"intrinsics\": \"fx,fy,cx,cy\"}, or add a camera.json to the folder"
-                .into(),
-            (Interface::Python, false) => "pass params={\"intrinsics\": \"fx,fy,cx,cy\"}, or \
-                add a camera.json to the folder"
-                .into(),
-            (Interface::Page, _) => "add a camera.json (fx, fy, cx, cy, width, height; see \
-                docs/datasets.md) to the folder and pick it again: the page has no intrinsics \
-                control"
-                .into(),
-        }
-    }
 }
 
 /// The order of a TUM-style sequence's frames (`rgb.txt`, `depth.txt`): what a list whose
@@ -348,6 +310,7 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         )));
     }
     let layout = detect::detect(root)?;
+    checks::stamp_order_applies(root, layout, opts)?;
     let camera = read_camera_json(&root.join("camera.json"))?;
     let listing = match layout {
         Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn => {
