@@ -358,8 +358,12 @@ mod tests {
                 other => panic!("{key}: {other}"),
             };
             assert_ne!(old, new, "{key}");
-            let p = set(Profile::Robust, &[(&key, new.clone())])
-                .unwrap_or_else(|e| panic!("{key} = {new}: {e}"));
+            // The photometric keys are refused without RGB-D tracking (issue 46).
+            let mut keys = vec![(key.as_str(), new.clone())];
+            if key.starts_with("icp.photometric_") {
+                keys.push(("icp.tracking", toml::Value::String("rgbd".into())));
+            }
+            let p = set(Profile::Robust, &keys).unwrap_or_else(|e| panic!("{key} = {new}: {e}"));
             let got = lookup(&p.to_keys(), &key).unwrap();
             // f32 fields hold the value rounded to f32.
             let same = match (&got, &new) {
@@ -368,6 +372,23 @@ mod tests {
             };
             assert!(same, "{key}: set {new}, read {got}");
         }
+    }
+
+    /// A photometric key without RGB-D tracking does nothing: refused, naming both keys
+    /// (issue 46: `--photometric-weight` was accepted without `--tracking rgbd`).
+    #[test]
+    fn photometric_keys_need_rgbd_tracking() {
+        use toml::Value::{Float, String};
+        let weight = ("icp.photometric_weight", Float(0.5));
+        let e = set(Profile::Robust, &[weight.clone()])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`icp.photometric_weight` does nothing unless `icp.tracking`"),
+            "{e}"
+        );
+        let rgbd = ("icp.tracking", String("rgbd".into()));
+        assert!(set(Profile::Robust, &[weight, rgbd]).is_ok());
     }
 
     /// The rules between sections, as the command line has always had them.
