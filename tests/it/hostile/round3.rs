@@ -225,6 +225,44 @@ fn reversed_association_lists_are_noted_and_ordered_as_asked() {
     assert_eq!(stamp, "1", "time order: frame 1 is stamp 1");
     let (_, stamp) = first_stamp(&["--stamp-order", "file"]);
     assert_eq!(stamp, "22", "file order: frame 1 is the list's second line");
+    // ETH3D's associated.txt, reversed: the same note and the same choice.
+    let eth3d = dir.join("eth3d");
+    std::fs::create_dir_all(&eth3d).unwrap();
+    for sub in ["rgb", "depth"] {
+        let ok = Command::new("cp")
+            .arg("-r")
+            .arg(seq.join(sub))
+            .arg(eth3d.join(sub))
+            .status()
+            .unwrap();
+        assert!(ok.success());
+    }
+    let k = wgslam::geometry::camera::Intrinsics::ICL_NUIM;
+    let calibration = format!("{} {} {} {}\n", k.fx, k.fy, k.cx, k.cy);
+    std::fs::write(eth3d.join("calibration.txt"), calibration).unwrap();
+    let assoc: String = (0..6)
+        .rev()
+        .map(|i| format!("{i}.0 rgb/{i}.png {i}.0 depth/{i}.png\n"))
+        .collect();
+    std::fs::write(eth3d.join("associated.txt"), assoc).unwrap();
+    let eth3d_first = |extra: &[&str]| {
+        let o = run_on(&eth3d, &dir, extra);
+        let said = text(&o);
+        assert!(o.status.success(), "{said}");
+        assert!(
+            said.contains("associated.txt: stamps go backwards 5 time(s)"),
+            "{said}"
+        );
+        let traj = std::fs::read_to_string(dir.join("out/trajectory.tum")).unwrap();
+        let first = traj
+            .lines()
+            .find(|l| !l.starts_with('#'))
+            .unwrap()
+            .to_string();
+        first.split_whitespace().next().unwrap().to_string()
+    };
+    assert_eq!(eth3d_first(&[]), "1");
+    assert_eq!(eth3d_first(&["--stamp-order", "file"]), "4");
 }
 
 /// A ground truth with a repeated stamp was accepted by `run` and `eval` without a note.
