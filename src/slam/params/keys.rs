@@ -380,7 +380,7 @@ mod tests {
     fn photometric_keys_need_rgbd_tracking() {
         use toml::Value::{Float, String};
         let weight = ("icp.photometric_weight", Float(0.5));
-        let e = set(Profile::Robust, &[weight.clone()])
+        let e = set(Profile::Robust, std::slice::from_ref(&weight))
             .unwrap_err()
             .to_string();
         assert!(
