@@ -95,8 +95,16 @@ pub(crate) fn pose_from_array(a: &PyReadonlyArray2<f64>) -> PyResult<DMat4> {
         )));
     }
     let v: Vec<f64> = a.as_array().iter().copied().collect();
-    let rows: [f64; 16] = v.try_into().expect("checked 4x4");
-    Ok(DMat4::from_cols_array(&rows).transpose())
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "pose holds {x}: a camera-to-world pose must be 16 finite numbers"
+        )));
+    }
+    // The checks a pose file gets (a rigid motion, bottom row 0 0 0 1, translation in
+    // range), naming the keyword where they would name the file.
+    wgslam::dataset::pose_from_row_major(std::path::Path::new("pose"), &v)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+        .ok_or_else(|| PyValueError::new_err("pose is not finite"))
 }
 
 /// A trajectory as arrays: stamps `(N,)` float64 and poses `(N, 4, 4)` float64.

@@ -188,6 +188,11 @@ impl Stream {
             None => vec![pack_rgba8([0, 0, 0]); w * h],
         };
         let pose = pose.as_ref().map(pose_from_array).transpose()?;
+        if let Some(t) = timestamp.filter(|t| !t.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "timestamp {t} must be a finite number (the frame's time, seconds)"
+            )));
+        }
         // The lock is taken with the interpreter's released: another thread's call waits for
         // it without holding the interpreter this call needs to return.
         let report = py.detach(|| -> PyResult<_> {

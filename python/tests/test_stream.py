@@ -103,6 +103,25 @@ def test_uint16_depth_needs_its_scale_and_a_pose_is_4x4(slam_and_frame):
         slam.track(depth, rgb, pose=np.eye(3))
 
 
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"pose": np.full((4, 4), np.nan)}, "pose holds NaN"),
+        ({"pose": np.diag([2.0, 2.0, 2.0, 1.0])}, "not a rotation"),
+        ({"pose": np.ones((4, 4))}, "last row"),
+        ({"timestamp": float("nan")}, "timestamp NaN must be a finite number"),
+    ],
+)
+def test_bad_poses_and_stamps_raise_before_any_work(slam_and_frame, kwargs, words):
+    # Issue 46: a NaN pose made every surfel NaN, a NaN stamp was kept, a scaled pose
+    # was taken silently; each is refused as a pose file would be.
+    slam, depth, rgb = slam_and_frame
+    with pytest.raises(ValueError) as e:
+        slam.track(depth, rgb, **kwargs)
+    assert words in str(e.value)
+    assert slam.track(depth, rgb).status == "given"
+
+
 def test_frames_are_tracked_with_the_lock_released():
     """A Python thread runs while a run processes frames. The progress callback (run with
     the lock held) hands each frame's number to a thread; with a switch interval longer

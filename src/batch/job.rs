@@ -240,7 +240,10 @@ impl Runner {
         log: &Path,
         progress: &dyn Fn(u64, u64),
     ) -> Result<ChildEnd> {
-        let file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
+        let mut file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
+        if let Some(why) = nul_argument(args, &mut file) {
+            return Ok(ChildEnd::Failed(why));
+        }
         let err_file = file.try_clone().map_err(|e| Error::write(log, e))?;
         let mut cmd = Command::new(&self.exe);
         cmd.args(args)
@@ -248,7 +251,17 @@ impl Runner {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(err_file);
-        let mut child = cmd.spawn().map_err(|e| Error::io(&self.exe, e))?;
+        let mut child = match cmd.spawn() {
+            Ok(child) => child,
+            // This job's run could not start (its arguments, a full process table): its
+            // failure, not the batch's.
+            Err(e) => {
+                return Ok(ChildEnd::Failed(format!(
+                    "could not start {}: {e}",
+                    self.exe.display()
+                )))
+            }
+        };
         let (tx, rx) = mpsc::channel();
         let stdout = child.stdout.take().expect("stdout was piped");
         let reader = std::thread::spawn(move || copy_output(stdout, file, tx));
@@ -310,6 +323,19 @@ enum ChildEnd {
     Interrupted,
 }
 
+/// Why `args` cannot be run, when one holds a NUL byte (no process can be given one, and
+/// no path holds one): the job's own input, its sequence path say, so the job fails and
+/// the batch goes on. The reason is written into the job's `log` too.
+fn nul_argument(args: &[String], log: &mut std::fs::File) -> Option<String> {
+    let a = args.iter().find(|a| a.contains('\0'))?;
+    let why = format!(
+        "its `wgslam run` argument {a:?} holds a NUL byte, which no path or argument can \
+         hold; fix the job's `sequence` (or `frames`) in the manifest"
+    );
+    let _ = writeln!(log, "error: {why}");
+    Some(why)
+}
+
 /// Runs `wgslam ARGS` through `launch` on this thread, every line it prints into `log`
 /// (its error last, as `wgslam` prints it), stopping at the next frame on an interrupt.
 /// A panic in the run fails this run only.
@@ -319,7 +345,10 @@ fn run_here(
     log: &Path,
     progress: &dyn Fn(u64, u64),
 ) -> Result<ChildEnd> {
-    let file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
+    let mut file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
+    if let Some(why) = nul_argument(args, &mut file) {
+        return Ok(ChildEnd::Failed(why));
+    }
     let file = std::sync::Mutex::new(file);
     let say = |line: &str| {
         let mut f = file.lock().unwrap_or_else(|p| p.into_inner());

@@ -52,7 +52,7 @@ pub fn render(out: &Path, s: &Summary) -> String {
         h,
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>wgslam batch report</title>\
          <style>{STYLE}</style></head><body>\n<h1>wgslam batch: {} jobs</h1>\n\
-         <p>{} ok, {} failed, {} pending. Folder: <code>{}</code>. ATE: RMSE after rigid \
+         <p>{} ok, {} lost, {} failed, {} pending. Folder: <code>{}</code>. ATE: RMSE after rigid \
          alignment; RPE: consecutive frames; GPU vs CPU: each backend tracked on its own, \
          largest camera difference and map points without a match within the radius. \
          Tracking health (no ground truth needed): ok, recovered (frames were lost, not \
@@ -60,6 +60,7 @@ pub fn render(out: &Path, s: &Summary) -> String {
          <p>Tracking health: {}</p>\n",
         s.jobs,
         s.ok,
+        s.lost,
         s.failed,
         s.pending,
         esc(&out.display().to_string()),

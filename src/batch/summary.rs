@@ -46,7 +46,8 @@ pub fn write_plan(out: &Path, manifest: &Manifest) -> Result<()> {
 pub struct Row {
     pub index: usize,
     pub id: String,
-    /// `ok`, `failed` or `pending` (no record yet, or a record for another spec).
+    /// `ok`, `lost` (ran to the end, but a backend's run ended lost or never tracked:
+    /// health `LOST`), `failed` or `pending` (no record yet, or a record for another spec).
     pub status: String,
     pub spec: JobSpec,
     pub record: Option<JobRecord>,
@@ -57,6 +58,9 @@ pub struct Row {
 pub struct Summary {
     pub jobs: usize,
     pub ok: usize,
+    /// Jobs that ran but whose tracking ended lost (status `lost`).
+    #[serde(default)]
+    pub lost: usize,
     pub failed: usize,
     pub pending: usize,
     pub rows: Vec<Row>,
@@ -108,9 +112,11 @@ pub fn collect(out: &Path) -> Result<Summary> {
                 }
                 Err(_) => None,
             };
-        let status = match record.as_ref().map(|r| r.status) {
-            Some(JobStatus::Ok) => "ok",
-            Some(JobStatus::Failed) => "failed",
+        let lost = |r: &JobRecord| r.runs.values().any(|n| n.health == "LOST");
+        let status = match record.as_ref() {
+            Some(r) if r.status == JobStatus::Failed => "failed",
+            Some(r) if lost(r) => "lost",
+            Some(_) => "ok",
             None => "pending",
         };
         rows.push(Row {
@@ -125,6 +131,7 @@ pub fn collect(out: &Path) -> Result<Summary> {
     Ok(Summary {
         jobs: rows.len(),
         ok: count("ok"),
+        lost: count("lost"),
         failed: count("failed"),
         pending: count("pending"),
         rows,

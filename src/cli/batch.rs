@@ -134,13 +134,17 @@ fn in_process_runs() -> Box<InProcessRun> {
 fn read_checked(path: &Path) -> Result<Manifest> {
     let m = Manifest::read(path)?;
     let all: Vec<usize> = (0..m.jobs.len()).collect();
-    check_jobs(path, &m, &all)?;
+    if let Some(e) = check_jobs(path, &m, &all).into_iter().next() {
+        return Err(e);
+    }
     Ok(m)
 }
 
 /// Checks the parameter files of jobs `picked` of `m` (an array task checks its own jobs
-/// only: `batch list`, which sizes the array, and a run of all jobs check them all).
-fn check_jobs(path: &Path, m: &Manifest, picked: &[usize]) -> Result<()> {
+/// only: `batch list`, which sizes the array, and a run of all jobs check them all); the
+/// error of each job whose parameters are wrong, naming it.
+fn check_jobs(path: &Path, m: &Manifest, picked: &[usize]) -> Vec<Error> {
+    let mut bad_jobs = Vec::new();
     for job in picked.iter().map(|&i| &m.jobs[i]) {
         let bad = |why: String| {
             Error::format(
@@ -148,10 +152,29 @@ fn check_jobs(path: &Path, m: &Manifest, picked: &[usize]) -> Result<()> {
                 format!("job {:?}: its `wgslam run` parameters: {why}", job.id),
             )
         };
-        let set = ParamOverrides::from_toml(&job.params_toml()).map_err(bad)?;
-        set.slam_params(PoseSource::Track)
-            .and_then(|params| set.sequence_options(&params))
-            .map_err(|e| bad(e.to_string()))?;
+        let checked = ParamOverrides::from_toml(&job.params_toml())
+            .map_err(bad)
+            .and_then(|set| {
+                set.slam_params(PoseSource::Track)
+                    .and_then(|params| set.sequence_options(&params))
+                    .map_err(|e| bad(e.to_string()))
+            });
+        bad_jobs.extend(checked.err());
+    }
+    bad_jobs
+}
+
+/// A batch whose every job has wrong parameters (a typo in the defaults or a grid axis)
+/// fails before the first job; when only some do, the others run and those fail on their
+/// own (their run refuses the same parameters, recorded in their `job.json`): one job's
+/// input never stops the rest.
+fn refuse_or_note(path: &Path, m: &Manifest, picked: &[usize]) -> Result<()> {
+    let bad = check_jobs(path, m, picked);
+    if !picked.is_empty() && bad.len() == picked.len() {
+        return Err(bad.into_iter().next().expect("one error per picked job"));
+    }
+    for e in bad {
+        eprintln!("note: {e}; this job will fail, the others run");
     }
     Ok(())
 }
@@ -207,7 +230,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
     let picked: Vec<usize> = (0..m.jobs.len())
         .filter(|&i| chosen.selection.picks(i))
         .collect();
-    check_jobs(path, &m, &picked)?;
+    refuse_or_note(path, &m, &picked)?;
     let concurrent = a.concurrent.or(m.concurrent).unwrap_or(1);
     if concurrent == 0 {
         return Err(Error::Argument(
@@ -266,23 +289,42 @@ fn run(a: BatchRunArgs) -> Result<()> {
             interrupted.join(", ")
         )));
     }
+    summarise(
+        &out,
+        chosen.selection == Selection::All,
+        &failed,
+        picked.len(),
+    )
+}
+
+/// After the jobs of this invocation (`picked` of them, `failed` by id): the summary and
+/// report when `all` jobs were this process's, notes on lost and unfinished jobs, and the
+/// error naming the failed ones.
+fn summarise(out: &Path, all: bool, failed: &[String], picked: usize) -> Result<()> {
     // One array task of many writes no summary: the others are still running, and a
     // thousand tasks each rewriting the report is waste; `batch collect` merges them.
-    let pending = if chosen.selection == Selection::All {
-        collect(&out)?.pending
+    let (pending, lost) = if all {
+        let s = collect(out)?;
+        (s.pending, s.lost)
     } else {
         eprintln!(
             "this task's jobs are done; when all tasks are, `wgslam batch collect {}` writes \
              the summary and the report",
             out.display()
         );
-        0
+        (0, 0)
     };
+    if lost > 0 {
+        eprintln!(
+            "note: {lost} job(s) ran to the end but their tracking ended lost (status `lost`; \
+             their health in summary.csv says why)"
+        );
+    }
     if !failed.is_empty() {
         return Err(Error::Batch(format!(
             "{} of {} jobs failed: {} (their errors are in summary.csv and their job.json)",
             failed.len(),
-            picked.len(),
+            picked,
             failed.join(", ")
         )));
     }
@@ -408,9 +450,11 @@ fn collect(dir: &Path) -> Result<Summary> {
         );
     }
     println!(
-        "{} jobs: {} ok, {} failed, {} pending; wrote {}/{{summary.csv, summary.json, report.html}}",
+        "{} jobs: {} ok, {} lost, {} failed, {} pending; wrote {}/{{summary.csv, summary.json, \
+         report.html}}",
         s.jobs,
         s.ok,
+        s.lost,
         s.failed,
         s.pending,
         dir.display()

@@ -17,6 +17,9 @@ use crate::dataset::{self, Sequence};
 use crate::slam::params::{PoseSource, ValidParams};
 use crate::{Error, Result};
 
+/// The interface whose words a binding's dataset errors use: the one binding is Python's.
+const BINDING: dataset::Interface = dataset::Interface::Python;
+
 /// What the errors of a parameter text name in place of a file's path.
 const PARAMS_TEXT_NAME: &str = "params";
 
@@ -131,7 +134,7 @@ fn setup(dataset: Option<&Path>, params_toml: &str) -> Result<Setup> {
 /// parameters are validated (a depth scale it sets is their `input.depth_scale`).
 pub fn open_sequence(dataset: Option<&Path>, params_toml: &str) -> Result<Sequence> {
     let setup = setup(dataset, params_toml)?;
-    setup.open_sequence(&setup.slam_params(PoseSource::Track)?)
+    setup.open_sequence_for(&setup.slam_params(PoseSource::Track)?, BINDING)
 }
 
 /// Resolves `wgslam run DATASET --frames FRAMES --params FILE --poses POSES` without
@@ -146,12 +149,15 @@ pub fn resolve_run(
 ) -> Result<RunSetup> {
     let setup = setup(dataset, params_toml)?;
     let params = setup.slam_params(poses)?;
-    let sequence = setup.open_sequence(&params)?;
+    let sequence = setup.open_sequence_for(&params, BINDING)?;
     let (first, last) = match frames {
         Some(r) => dataset::parse_range(r)?,
         None => (default_first_frame(&sequence), sequence.len() - 1),
     };
     let frames = sequence.select(first, last)?;
+    if let Some(note) = sequence.jump_note(frames.clone()) {
+        eprintln!("note: {note}");
+    }
     Ok(RunSetup {
         sequence,
         frames,

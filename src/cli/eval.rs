@@ -35,6 +35,9 @@ pub fn execute(a: EvalArgs) -> Result<()> {
             ..crate::dataset::SequenceOptions::default()
         };
         let seq = crate::dataset::open(&a.ground_truth, &opts)?;
+        for note in &seq.notes {
+            eprintln!("note: {note}");
+        }
         if !seq.has_ground_truth() {
             return Err(crate::Error::format(
                 &a.ground_truth,
@@ -43,7 +46,13 @@ pub fn execute(a: EvalArgs) -> Result<()> {
         }
         seq.ground_truth()
     } else {
-        io::trajectory::read_tum(&a.ground_truth)?
+        let gt = io::trajectory::read_tum(&a.ground_truth)?;
+        let mut stamps: Vec<f64> = gt.iter().map(|p| p.0).collect();
+        stamps.sort_by(f64::total_cmp);
+        if let Some(note) = crate::dataset::repeated_stamps_note(&a.ground_truth, &stamps) {
+            eprintln!("note: {note}");
+        }
+        gt
     };
     let aligned = eval::ate(&est, &gt, true)?;
     let unaligned = eval::ate(&est, &gt, false)?;

@@ -340,12 +340,15 @@ mod tests {
                 args.push("--profile=assignment".into());
                 file.push_str("profile = \"assignment\"\n");
             }
-            let companion = match flag {
-                f if f.starts_with("bilateral-") => "bilateral = true",
-                "photometric-levels" => "icp-level-iters = \"6,3\"",
-                _ => "",
+            // The photometric keys take effect only with RGB-D tracking (and are refused
+            // without it).
+            let companions: &[&str] = match flag {
+                f if f.starts_with("bilateral-") => &["bilateral = true"],
+                "photometric-levels" => &["icp-level-iters = \"6,3\"", "tracking = \"rgbd\""],
+                "photometric-weight" => &["tracking = \"rgbd\""],
+                _ => &[],
             };
-            if !companion.is_empty() {
+            for companion in companions {
                 let (k, v) = companion.split_once(" = ").expect("key = value");
                 args.push(arg(k, v.trim_matches('"')));
                 file.push_str(&format!("{companion}\n"));
@@ -359,10 +362,10 @@ mod tests {
                     &format!(
                         "[[job]]\nsequence = \"s\"\nprofile = \"assignment\"\n\
                          overrides = {{ {flag} = {value:?}{} }}\n",
-                        match companion {
-                            "" => String::new(),
-                            c => format!(", {c}"),
-                        }
+                        companions
+                            .iter()
+                            .map(|c| format!(", {c}"))
+                            .collect::<String>()
                     ),
                 )
                 .unwrap();

@@ -144,8 +144,9 @@ param_overrides! {
     /// Largest timestamp difference for association, seconds (default 0.02).
     #[arg(long)]
     max_time_diff: Option<f64>,
-    /// Frame order of a TUM-style list whose stamps go backwards: time (by stamp, the
-    /// default) or file (by line of depth.txt).
+    /// Frame order of a frame list whose stamps go backwards (TUM's depth.txt, ICL-NUIM's
+    /// associations.txt, ETH3D's associated.txt): time (by stamp, the default) or file
+    /// (by line); other layouts number their frames and refuse it.
     #[arg(long, value_enum)]
     stamp_order: Option<dataset::StampOrder>,
     /// Parameter set to start from: the robust tracker and fusion for real (noisy) depth,
@@ -365,6 +366,7 @@ impl ParamOverrides {
             depth_scale: self.sets_depth_scale().then_some(params.input.depth_scale),
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
             stamp_order: self.stamp_order.unwrap_or_default(),
+            interface: dataset::Interface::CommandLine,
         })
     }
 
@@ -424,11 +426,25 @@ impl Setup {
     /// [`Setup::slam_params`], when the overrides set one), and prints what opening it
     /// decided on the user's behalf ([`dataset::Sequence::notes`]) on stderr.
     pub fn open_sequence(&self, params: &ValidParams) -> Result<dataset::Sequence> {
+        self.open_sequence_for(params, dataset::Interface::CommandLine)
+    }
+
+    /// [`Setup::open_sequence`] for `interface`: its errors name that interface's controls
+    /// (a language binding's keywords where the command line's flags would be named).
+    pub fn open_sequence_for(
+        &self,
+        params: &ValidParams,
+        interface: dataset::Interface,
+    ) -> Result<dataset::Sequence> {
         let root = self
             .dataset
             .clone()
             .unwrap_or_else(crate::cli::bundled_dataset);
-        let seq = dataset::open(&root, &self.set.sequence_options(params)?)?;
+        let opts = dataset::SequenceOptions {
+            interface,
+            ..self.set.sequence_options(params)?
+        };
+        let seq = dataset::open(&root, &opts)?;
         for note in &seq.notes {
             eprintln!("note: {note}");
         }

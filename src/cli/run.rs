@@ -77,7 +77,22 @@ pub const MESH_FILE: &str = "mesh.ply";
 /// Meshes `map` into `path` (`run --mesh`) and says its size, time and accuracy.
 fn write_run_mesh(path: &Path, map: &SurfelMap, say: &dyn Fn(&str)) -> Result<()> {
     let start = web_time::Instant::now();
-    let mesh = crate::mesh::mesh_from_map(map, &Default::default())?;
+    let params = crate::mesh::MeshParams::default();
+    let surfels = crate::mesh::MapSurfels::new(map);
+    // Over the cap the run's other outputs still count: a note, and no mesh.ply.
+    if let Err(over) = crate::mesh::check_volume(&surfels.surfels(), &params) {
+        say(&format!(
+            "note: --mesh: {}",
+            over.describe(
+                map.len(),
+                params.voxel_m,
+                "no mesh.ply written; mesh map.ply with `wgslam mesh --max-memory-mib` or a \
+                 coarser --voxel"
+            )
+        ));
+        return Ok(());
+    }
+    let mesh = crate::mesh::mesh_from_surfels(&surfels.surfels(), &params)?;
     say(&format!(
         "mesh: {} vertices, {} triangles in {:.2} s",
         mesh.positions.len(),
@@ -87,11 +102,10 @@ fn write_run_mesh(path: &Path, map: &SurfelMap, say: &dyn Fn(&str)) -> Result<()
     if mesh.is_empty() {
         say("note: the map makes no surface; mesh.ply has no triangle");
     } else {
-        let s = crate::mesh::MapSurfels::new(map);
         let a = crate::mesh::accuracy::measure(
             &mesh,
-            &s.positions,
-            Some(&s.normals),
+            &surfels.positions,
+            Some(&surfels.normals),
             super::mesh::COVERED_WITHIN_MM,
         )?;
         for line in super::mesh::accuracy_lines(&a) {
@@ -290,6 +304,9 @@ fn frames_to_run(
         None => (default_first_frame(&seq), seq.len() - 1),
     };
     let range = seq.select(first, last)?;
+    if let Some(note) = seq.jump_note(range.clone()) {
+        eprintln!("note: {note}");
+    }
     match a.revisit {
         Some(total) => {
             let max = crate::io::input::max_revisit_frames()?;

@@ -29,9 +29,11 @@ pub struct DistanceStats {
 }
 
 impl DistanceStats {
-    /// The summary of `metres` (not empty).
+    /// The summary of the finite values of `metres` (at least one); non-finite ones are
+    /// left out, so one damaged point cannot make the mean 1e21 mm.
     pub fn of_metres(mut metres: Vec<f64>) -> DistanceStats {
-        assert!(!metres.is_empty(), "no distances to summarise");
+        metres.retain(|d| d.is_finite());
+        assert!(!metres.is_empty(), "no finite distances to summarise");
         metres.sort_by(f64::total_cmp);
         let at = |q: f64| metres[((metres.len() - 1) as f64 * q).round() as usize] * 1e3;
         DistanceStats {
@@ -91,22 +93,45 @@ pub fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
         .expect("three edges")
 }
 
+/// The points (and normals) of `points` whose position (and normal) is finite: the ones
+/// a measurement can use (a NaN point made the nearest-neighbour search panic).
+fn finite_points(
+    points: &[[f32; 3]],
+    normals: Option<&[[f32; 3]]>,
+) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
+    let finite = |p: &[f32; 3]| p.iter().all(|c| c.is_finite());
+    let keep: Vec<usize> = (0..points.len())
+        .filter(|&i| finite(&points[i]) && normals.is_none_or(|n| finite(&n[i])))
+        .collect();
+    (
+        keep.iter().map(|&i| points[i]).collect(),
+        normals.map(|n| keep.iter().map(|&i| n[i]).collect()),
+    )
+}
+
 /// Measures `mesh` against `points` (metres, the mesh's frame) and, when given, their unit
 /// `normals` (one per point); `covered_within_mm` is the distance up to which a point
-/// counts as covered.
+/// counts as covered. Points with a non-finite position or normal are left out.
 pub fn measure(
     mesh: &Mesh,
     points: &[[f32; 3]],
     normals: Option<&[[f32; 3]]>,
     covered_within_mm: f64,
 ) -> Result<MeshAccuracy> {
-    if mesh.is_empty() || points.is_empty() {
-        return Err(Error::Argument(
-            "cannot measure an empty mesh or against no points".into(),
-        ));
-    }
     if normals.is_some_and(|n| n.len() != points.len()) {
         return Err(Error::Argument("one normal per point needed".into()));
+    }
+    let (points, normals) = finite_points(points, normals);
+    let (points, normals) = (&points[..], normals.as_deref());
+    if mesh.is_empty() || points.is_empty() {
+        return Err(Error::Argument(
+            "cannot measure an empty mesh or against no points with finite coordinates".into(),
+        ));
+    }
+    if mesh.positions.iter().flatten().any(|c| !c.is_finite()) {
+        return Err(Error::Argument(
+            "cannot measure a mesh with a non-finite vertex".into(),
+        ));
     }
     let to_points = KdTreeTarget::new(points)?;
     let mut nn = vec![(0u32, 0f32); mesh.positions.len()];

@@ -56,7 +56,30 @@ pub struct MeshParams {
     /// Cells whose eight corners have less accumulated weight than this make no vertex
     /// (voxels touched only by the thin edge of one surfel's footprint).
     pub min_weight: f32,
+    /// The most memory the volume and its mesh may take, bytes ([`tsdf::volume_bytes`]
+    /// estimates it before anything is allocated; over it, meshing is refused).
+    pub max_memory_bytes: u64,
 }
+
+/// The largest [`MeshParams::voxel_m`]: 1 m. A surfel map is a room or a building seen by
+/// a depth camera (0.3-10 m range); at metre voxels no wall is thicker than one cell and
+/// the mesh says nothing, and far above it the integration's box arithmetic leaves `f32`
+/// (`--voxel 3e38` once made the truncation band infinite).
+pub const MAX_VOXEL_M: f32 = 1.0;
+
+/// The smallest [`MeshParams::voxel_m`]: 1 mm, finer than any depth camera resolves.
+pub const MIN_VOXEL_M: f32 = 0.001;
+
+/// Default [`MeshParams::max_memory_bytes`]: 4 GiB, half of an 8 GiB laptop. The 7-Scenes
+/// map of 300 frames takes about 0.1 GiB at 1 cm voxels; a map spread thin over a large
+/// space (300 k surfels over a cubic kilometre once asked for 5 GB) is refused instead of
+/// dying on the allocation.
+pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 4 << 30;
+
+/// Surfel weights above this are taken as corrupt and the surfel skipped: a fused map's
+/// weight counts observations (at most a few thousand), and sums of weights this large over
+/// overlapping surfels stay far inside `f32` (an `inf` weight once made NaN vertices).
+pub const MAX_SURFEL_WEIGHT: f32 = 1e9;
 
 /// Default [`MeshParams::voxel_m`]: 1 cm. Measured with `wgslam mesh` on the maps of the
 /// bundled frames and of 7-Scenes 0..299 (docs/meshes.md): at 1 cm the median distance of
@@ -74,15 +97,23 @@ impl Default for MeshParams {
             truncation_voxels: 3.0,
             support_scale: 1.5,
             min_weight: 0.5,
+            max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
         }
     }
 }
 
 impl MeshParams {
-    /// Checks that every setting is a positive finite number (the voxel at least 1 mm).
+    /// Checks that every setting is a positive finite number (the voxel from
+    /// [`MIN_VOXEL_M`] to [`MAX_VOXEL_M`]).
     pub fn validate(&self) -> Result<()> {
+        if !(MIN_VOXEL_M..=MAX_VOXEL_M).contains(&self.voxel_m) {
+            return Err(Error::Argument(format!(
+                "mesh voxel size {:?} m must be from {MIN_VOXEL_M} to {MAX_VOXEL_M} m \
+                 (the mesh's resolution; 0.01 is the default)",
+                self.voxel_m
+            )));
+        }
         let checks = [
-            ("voxel size", self.voxel_m, 0.001),
             ("truncation", self.truncation_voxels, 1.0),
             ("support scale", self.support_scale, f32::MIN_POSITIVE),
             ("minimum weight", self.min_weight, 0.0),
@@ -132,6 +163,28 @@ impl Surfels<'_> {
         }
         Ok(())
     }
+
+    /// Whether surfel `i` can be integrated: a finite position, a unit normal (zero in maps
+    /// read from a PLY without normals; NaN in a damaged one) and a weight in
+    /// `(0, MAX_SURFEL_WEIGHT]`, and a finite radius when radii are given.
+    pub fn usable(&self, i: usize) -> bool {
+        let p = glam::Vec3::from(self.positions[i]);
+        let n = glam::Vec3::from(self.normals[i]);
+        let w = self.weights.map_or(1.0, |w| w[i]);
+        let r = self.radii.map_or(0.0, |r| r[i]);
+        p.is_finite()
+            && (n.length() - 1.0).abs() < 1e-3
+            && w > 0.0
+            && w <= MAX_SURFEL_WEIGHT
+            && r.is_finite()
+    }
+
+    /// How many surfels [`Surfels::usable`] turns away (meshing skips them).
+    pub fn unusable(&self) -> usize {
+        (0..self.positions.len())
+            .filter(|&i| !self.usable(i))
+            .count()
+    }
 }
 
 /// The attributes of a [`SurfelMap`] as slices for [`Surfels`].
@@ -171,12 +224,86 @@ impl MapSurfels {
 }
 
 /// Meshes `surfels`: integrates the TSDF, then extracts its zero level set. An empty mesh
-/// when the surfels span no surface (none, or too few to give a cell both signs).
+/// when the surfels span no surface (none, or too few to give a cell both signs). Refused,
+/// before anything large is allocated, when [`tsdf::volume_bytes`] exceeds
+/// `params.max_memory_bytes`.
 pub fn mesh_from_surfels(surfels: &Surfels, params: &MeshParams) -> Result<Mesh> {
     params.validate()?;
     surfels.check()?;
+    check_volume(surfels, params).map_err(|over| {
+        Error::Argument(over.describe(
+            surfels.positions.len(),
+            params.voxel_m,
+            "raise the memory cap or use coarser voxels",
+        ))
+    })?;
     let grid = tsdf::integrate(surfels, params)?;
     Ok(surface_nets::extract(&grid, params))
+}
+
+/// A volume over [`MeshParams::max_memory_bytes`], as [`check_volume`] found it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OverCap {
+    /// Blocks the volume needs (counted up to [`COUNT_PAST_CAP`] times the cap's).
+    pub blocks: usize,
+    /// Whether `blocks` is the whole count (else the volume needs at least these).
+    pub complete: bool,
+    /// Their memory, bytes (blocks times [`tsdf::BYTES_PER_BLOCK`]).
+    pub bytes: u64,
+    /// The cap, bytes.
+    pub cap: u64,
+}
+
+impl OverCap {
+    /// The refusal for `surfels` surfels at `voxel_m`, ending with `remedy` (the words of
+    /// the interface that set the cap and the voxel).
+    pub fn describe(&self, surfels: usize, voxel_m: f32, remedy: &str) -> String {
+        format!(
+            "meshing {surfels} surfels at {voxel_m} m voxels needs {}{} of memory ({} blocks \
+             of {} voxels, with their share of the mesh), over the cap of {}; {remedy}",
+            if self.complete {
+                "about "
+            } else {
+                "more than "
+            },
+            gib(self.bytes),
+            self.blocks,
+            tsdf::BLOCK_VOXELS,
+            gib(self.cap)
+        )
+    }
+}
+
+/// [`check_volume`] counts blocks up to this many times the cap's before it stops: enough
+/// to name the real estimate of a map a few times too large, while the count's own set
+/// (about 20 bytes a block against the block's 14 KiB) stays near 2 % of the cap.
+pub const COUNT_PAST_CAP: usize = 16;
+
+/// Estimates the volume's memory before allocating it ([`tsdf::count_blocks`], stopped
+/// at [`COUNT_PAST_CAP`] times the cap): `Err` when over `params.max_memory_bytes`.
+pub fn check_volume(surfels: &Surfels, params: &MeshParams) -> std::result::Result<(), OverCap> {
+    let cap_blocks = (params.max_memory_bytes / tsdf::BYTES_PER_BLOCK) as usize;
+    let stop = cap_blocks.saturating_mul(COUNT_PAST_CAP);
+    let blocks = tsdf::count_blocks(surfels, params, stop);
+    if blocks <= cap_blocks {
+        return Ok(());
+    }
+    Err(OverCap {
+        blocks,
+        complete: blocks <= stop,
+        bytes: blocks as u64 * tsdf::BYTES_PER_BLOCK,
+        cap: params.max_memory_bytes,
+    })
+}
+
+/// `bytes` for a message: "1.25 GiB" (or MiB below 1 GiB).
+pub fn gib(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b >= (1u64 << 30) as f64 {
+        format!("{:.2} GiB", b / (1u64 << 30) as f64)
+    } else {
+        format!("{:.1} MiB", b / (1u64 << 20) as f64)
+    }
 }
 
 /// Meshes a fused map with `params` (see [`mesh_from_surfels`]).

@@ -78,7 +78,9 @@ fn cell_vertex(grid: &SparseGrid, origin: [i32; 3], min_weight: f32) -> Option<(
         count += 1.0;
     }
     let o = Vec3::new(origin[0] as f32, origin[1] as f32, origin[2] as f32);
-    Some(((o + pos / count) * grid.voxel_m, col / count))
+    let p = (o + pos / count) * grid.voxel_m;
+    // A mesh file never holds NaN: a field that overflowed makes no vertex.
+    (p.is_finite() && col.is_finite()).then_some((p, col / count))
 }
 
 /// Extracts the mesh of `grid` (see the module header). Deterministic: vertices and

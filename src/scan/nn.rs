@@ -45,6 +45,13 @@ impl<'a> KdTreeTarget<'a> {
         if target.is_empty() {
             return Err(Error::Argument("target cloud is empty".into()));
         }
+        // The tree's search panics on NaN distances.
+        if let Some(i) = target.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(Error::Argument(format!(
+                "target point {i} is not finite ({:?})",
+                target[i]
+            )));
+        }
         Ok(KdTreeTarget {
             tree: ImmutableKdTree::new_from_slice(target),
             points: target,
@@ -60,6 +67,15 @@ impl NearestNeighbours for KdTreeTarget<'_> {
         self.points
     }
     fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> Result<()> {
+        if let Some(i) = queries
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(Error::Argument(format!(
+                "query point {i} is not finite ({:?})",
+                queries[i]
+            )));
+        }
         queries
             .par_iter()
             .zip(out.par_iter_mut())

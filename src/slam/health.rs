@@ -77,6 +77,12 @@ fn short(x: f64, decimals: usize) -> String {
     }
 }
 
+/// The typical residual counts as at least this, metres (0.1 mm): below depth sensors'
+/// quantisation at any range (a Kinect's is about 1 mm at 1 m), so a smaller typical value
+/// is noise-free data (a synthetic flat wall), where a ratio over it measures nothing: a
+/// typical 1e-300 m once made a lost frame "0.0 mm ... 7.71e297x the typical".
+pub const RESIDUAL_FLOOR_M: f64 = 1e-4;
+
 /// Tracked frames the typical residual and motion are the median of.
 pub const HISTORY: usize = 30;
 
@@ -156,7 +162,7 @@ impl HealthMonitor {
         let warm = self.warm(settings);
         let residual_ratio = median(&self.residuals_m)
             .filter(|_| warm)
-            .map(|typical| rms / typical.max(f64::MIN_POSITIVE));
+            .map(|typical| rms / typical.max(RESIDUAL_FLOOR_M));
         let typical_motion = median(&self.motions_m).zip(median(&self.motions_deg));
         let motion_ratio = match (motion_gap, typical_motion) {
             (Some(gap), Some((typical_m, typical_deg))) if warm => {
@@ -276,6 +282,32 @@ impl HealthMonitor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Noise-free depth (a synthetic flat wall) makes the typical residual 0: a frame with a
+    /// residual of micrometres is not "7.71e297x the typical" but judged against
+    /// [`RESIDUAL_FLOOR_M`], and passes.
+    #[test]
+    fn a_zero_typical_residual_is_judged_against_the_floor() {
+        let s = HealthSettings::default();
+        let mut m = HealthMonitor::default();
+        let still = DMat4::IDENTITY;
+        for _ in 0..s.warmup_frames.max(1) {
+            let h = m
+                .measure(&s, &[iteration(900, 0.0)], 1000, &still, &still, Some(1))
+                .unwrap();
+            m.record(&h, true);
+        }
+        let h = m
+            .measure(&s, &[iteration(900, 1e-6)], 1000, &still, &still, Some(1))
+            .unwrap();
+        assert!(h.residual_ratio.unwrap() < 1.0, "{h:?}");
+        assert!(m.judge(&s, &h).is_ok());
+        let bad = m
+            .measure(&s, &[iteration(900, 0.05)], 1000, &still, &still, Some(1))
+            .unwrap();
+        let why = m.judge(&s, &bad).unwrap_err();
+        assert!(why.contains("50.0 mm is 500.0x"), "{why}");
+    }
 
     #[test]
     fn huge_ratios_print_short() {

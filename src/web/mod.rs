@@ -336,10 +336,15 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
             "no files: pick or drop a dataset folder first".into(),
         ));
     }
-    let seq = dataset::open_with(Arc::new(files), &root, &SequenceOptions::default())?;
+    let opts = SequenceOptions {
+        interface: dataset::Interface::Page,
+        ..SequenceOptions::default()
+    };
+    let mut seq = dataset::open_with(Arc::new(files), &root, &opts)?;
     let first = first.unwrap_or_else(|| seq.default_first_frame());
     let last = last.unwrap_or(seq.len() - 1);
     let range = seq.select(first, last)?;
+    seq.notes.extend(seq.jump_note(range.clone()));
     let total = range.clone().count();
     // The browser's own adapter and limits: features the adapter lacks (64-bit atomics
     // everywhere today) select the portable kernels.

@@ -156,9 +156,11 @@ fn a_failing_job_is_recorded_and_the_batch_goes_on() {
 }
 
 fn manifest_mistakes_fail_before_any_job() {
+    // A typo in every job's parameters fails before any job runs, naming the job.
     let dir = common::temp_dir("batch-typo");
     let body = cpu_grid("1..2").replace("icp-dist", "icp-dits");
-    let m = manifest(&dir, &body);
+    let only_named = &body[..body.find("[[grid]]").unwrap()];
+    let m = manifest(&dir, only_named);
     let o = wgslam(&["batch", s(&m)], &[]);
     assert!(!o.status.success());
     assert!(
@@ -167,6 +169,22 @@ fn manifest_mistakes_fail_before_any_job() {
         text(&o)
     );
     assert!(!dir.join("out").exists(), "nothing may run");
+    // In one job of three it fails that job only (issue 46): the others run and the
+    // summary is written.
+    let dir = common::temp_dir("batch-typo-one");
+    let m = manifest(&dir, &body);
+    let o = wgslam(&["batch", s(&m)], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        text(&o).contains("job \"named\"") && text(&o).contains("1 of 3 jobs failed: named"),
+        "{}",
+        text(&o)
+    );
+    let sum = summary(&dir.join("out"));
+    assert_eq!(
+        (sum["ok"].as_u64(), sum["failed"].as_u64()),
+        (Some(2), Some(1))
+    );
     let o = wgslam(&["batch", s(&dir.join("absent.toml"))], &[]);
     assert!(!o.status.success());
     assert!(text(&o).contains("absent.toml"), "{}", text(&o));

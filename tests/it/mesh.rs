@@ -243,6 +243,7 @@ fn mesh_command_writes_a_mesh_and_refuses_a_map_without_normals() {
         map: map.clone(),
         out: dir.join(out),
         voxel: 0.01,
+        max_memory_mib: wgslam::mesh::DEFAULT_MAX_MEMORY_BYTES >> 20,
     };
     let r = run_mesh(&args("m.ply")).unwrap();
     assert!(r.triangles > 0 && dir.join("m.ply").is_file());
@@ -300,8 +301,146 @@ fn run_mesh_flag_writes_mesh_ply_with_the_set() {
     assert!(out.join("map.ply").is_file() && !out.join("mesh.ply").exists());
 }
 
+/// A binary PLY of `points` (x y z nx ny nz weight) at `path`.
+fn write_weighted_ply(path: &Path, points: &[[f32; 7]]) {
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\n\
+         property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+         property float nz\nproperty float weight\nend_header\n",
+        points.len()
+    )
+    .into_bytes();
+    for p in points {
+        for v in p {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A 1 m x 1 m plane of points 1 cm apart facing +z, weight 1.
+fn plane_points() -> Vec<[f32; 7]> {
+    (0..100)
+        .flat_map(|i| {
+            (0..100).map(move |j| [i as f32 * 0.01, j as f32 * 0.01, 0.0, 0.0, 0.0, 1.0, 1.0])
+        })
+        .collect()
+}
+
+/// The number after `key` in `said` (e.g. the mean of "map point to mesh: mean 1.23").
+fn number_after(said: &str, key: &str) -> f64 {
+    let at = said
+        .find(key)
+        .unwrap_or_else(|| panic!("no {key:?} in {said}"))
+        + key.len();
+    said[at..]
+        .split_whitespace()
+        .next()
+        .and_then(|w| w.parse().ok())
+        .unwrap_or_else(|| panic!("no number after {key:?} in {said}"))
+}
+
+/// Issue 46: `wgslam mesh` on hostile maps. `inf` weights wrote NaN vertices and then
+/// panicked; 10 % NaN points made the printed mean 1.8e21 mm; `--voxel 3e38`, a map spread
+/// over a cubic kilometre and a huge PLY died on multi-GB allocations. Now unusable points
+/// are skipped with a count, statistics ignore them, and the memory is estimated first.
+fn mesh_command_bounds_memory_and_skips_unusable_points() {
+    use common::cli::{text, wgslam};
+    let dir = common::temp_dir("mesh_hostile");
+    let mesh = |map: &Path, extra: &[&str]| {
+        let out = dir.join("out.ply");
+        let _ = std::fs::remove_file(&out);
+        let mut a = vec!["mesh", map.to_str().unwrap(), "-o", out.to_str().unwrap()];
+        a.extend_from_slice(extra);
+        let o = wgslam(&a);
+        assert_ne!(o.status.code(), Some(101), "panicked: {}", text(&o));
+        (o, out)
+    };
+    // Every 7th weight infinite: skipped, counted, no NaN in the file or the summary.
+    let mut pts = plane_points();
+    for p in pts.iter_mut().step_by(7) {
+        p[6] = f32::INFINITY;
+    }
+    let inf = dir.join("inf.ply");
+    write_weighted_ply(&inf, &pts);
+    let (o, out) = mesh(&inf, &[]);
+    let said = text(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(said.contains("skipped 1429 of 10000 points"), "{said}");
+    let written = std::fs::read(&out).unwrap();
+    let m = read_back(&out);
+    assert!(!m.is_empty() && !String::from_utf8_lossy(&written).contains("nan"));
+    // 10 % NaN positions: the mean distance ignores them.
+    let mut pts = plane_points();
+    for p in pts.iter_mut().step_by(10) {
+        p[..3].fill(f32::NAN);
+    }
+    let nan = dir.join("nan.ply");
+    write_weighted_ply(&nan, &pts);
+    let (o, _) = mesh(&nan, &[]);
+    let said = text(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(said.contains("skipped 1000 of 10000"), "{said}");
+    assert!(
+        number_after(&said, "map point to mesh: mean") < 5.0,
+        "{said}"
+    );
+    // A voxel far outside the range is refused before reading, naming the flag.
+    let (o, _) = mesh(&inf, &["--voxel", "3e38"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        text(&o).contains("--voxel 3e38 must be from 0.001 to 1"),
+        "{}",
+        text(&o)
+    );
+    // 20 000 points over a cubic kilometre: each allocates its own blocks, refused with
+    // the estimate and the flag (a low cap keeps the test small).
+    let mut state = 1u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as f32 / (1u64 << 24) as f32 * 1000.0
+    };
+    let spread: Vec<[f32; 7]> = (0..20_000)
+        .map(|_| [next(), next(), next(), 0.0, 0.0, 1.0, 1.0])
+        .collect();
+    let km = dir.join("km.ply");
+    write_weighted_ply(&km, &spread);
+    let (o, out) = mesh(&km, &["--max-memory-mib", "64"]);
+    let said = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("over the cap of 64.0 MiB") && said.contains("--max-memory-mib"),
+        "{said}"
+    );
+    assert!(!out.exists());
+    // A PLY whose header declares 100 million vertices: refused from its header alone.
+    let huge = dir.join("huge.ply");
+    let header = std::fs::read(&inf).unwrap();
+    let body = header
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let declared =
+        String::from_utf8_lossy(&header[..body]).replace("vertex 10000", "vertex 100000000");
+    std::fs::write(&huge, declared).unwrap();
+    let (o, _) = mesh(&huge, &[]);
+    let said = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("reading this map takes about 8.20 GiB") && said.contains("--max-memory-mib"),
+        "{said}"
+    );
+}
+
 pub fn tests() -> Vec<Test> {
     vec![
+        plain(
+            "mesh_command_bounds_memory_and_skips_unusable_points",
+            mesh_command_bounds_memory_and_skips_unusable_points,
+        ),
         plain(
             "sphere_mesh_matches_the_sphere",
             sphere_mesh_matches_the_sphere,

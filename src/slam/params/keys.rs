@@ -124,6 +124,9 @@ impl SlamParams {
         if !database && !asked {
             set_enabled(&mut t, "loop_closure", false);
         }
+        if let Some(e) = photometric_without_rgbd(&t, keys) {
+            return Err(e);
+        }
         match SlamParams::from_keys(profile, poses, t) {
             Ok(p) => p.validate(),
             Err(why) => Err(first_refused(profile, poses, keys).unwrap_or(Error::Argument(why))),
@@ -198,6 +201,25 @@ fn lookup(t: &toml::Table, key: &str) -> Option<toml::Value> {
         .split('.')
         .try_fold(t, |t, name| t.get(name)?.as_table())?;
     t.get(field).cloned()
+}
+
+/// The photometric keys do something only with RGB-D tracking: one set in `keys` while
+/// `icp.tracking` (in `t`, after every key) is not `rgbd` is refused, naming both keys (an
+/// option that does nothing in the current mode is refused, not silently ignored).
+fn photometric_without_rgbd(t: &toml::Table, keys: &[Key]) -> Option<Error> {
+    let rgbd = lookup(t, "icp.tracking").and_then(|v| v.as_str().map(String::from));
+    if rgbd.as_deref() == Some("rgbd") {
+        return None;
+    }
+    let (key, _) = keys
+        .iter()
+        .find(|(k, _)| k == "icp.photometric_weight" || k == "icp.photometric_levels")?;
+    Some(Error::Argument(format!(
+        "`{key}` does nothing unless `icp.tracking` is \"rgbd\" (the photometric term is \
+         part of RGB-D tracking only; here tracking is {}): set `icp.tracking` to \"rgbd\", \
+         or leave `{key}` out",
+        rgbd.as_deref().unwrap_or("geometric")
+    )))
 }
 
 fn is_zero(v: &Option<toml::Value>) -> bool {
@@ -336,8 +358,12 @@ mod tests {
                 other => panic!("{key}: {other}"),
             };
             assert_ne!(old, new, "{key}");
-            let p = set(Profile::Robust, &[(&key, new.clone())])
-                .unwrap_or_else(|e| panic!("{key} = {new}: {e}"));
+            // The photometric keys are refused without RGB-D tracking (issue 46).
+            let mut keys = vec![(key.as_str(), new.clone())];
+            if key.starts_with("icp.photometric_") {
+                keys.push(("icp.tracking", toml::Value::String("rgbd".into())));
+            }
+            let p = set(Profile::Robust, &keys).unwrap_or_else(|e| panic!("{key} = {new}: {e}"));
             let got = lookup(&p.to_keys(), &key).unwrap();
             // f32 fields hold the value rounded to f32.
             let same = match (&got, &new) {
@@ -346,6 +372,23 @@ mod tests {
             };
             assert!(same, "{key}: set {new}, read {got}");
         }
+    }
+
+    /// A photometric key without RGB-D tracking does nothing: refused, naming both keys
+    /// (issue 46: `--photometric-weight` was accepted without `--tracking rgbd`).
+    #[test]
+    fn photometric_keys_need_rgbd_tracking() {
+        use toml::Value::{Float, String};
+        let weight = ("icp.photometric_weight", Float(0.5));
+        let e = set(Profile::Robust, std::slice::from_ref(&weight))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`icp.photometric_weight` does nothing unless `icp.tracking`"),
+            "{e}"
+        );
+        let rgbd = ("icp.tracking", String("rgbd".into()));
+        assert!(set(Profile::Robust, &[weight, rgbd]).is_ok());
     }
 
     /// The rules between sections, as the command line has always had them.

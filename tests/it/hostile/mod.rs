@@ -14,6 +14,7 @@ mod numbers;
 mod outputs;
 mod readers;
 mod report;
+mod round3;
 mod wrong_results;
 
 pub(super) use std::path::{Path, PathBuf};
@@ -72,6 +73,7 @@ pub fn tests() -> Vec<common::harness::Test> {
         messages::tests(),
         bounded::tests(),
         numbers::tests(),
+        round3::tests(),
     ] {
         v.extend(more);
     }

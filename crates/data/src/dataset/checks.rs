@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use super::{FrameRecord, StampOrder};
+use super::{FrameRecord, Interface, Layout, SequenceOptions, StampOrder};
 use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
@@ -69,21 +69,76 @@ pub fn stamps_distinct(root: &Path, frames: &[FrameRecord]) -> Result<()> {
     }
 }
 
+/// Refuses `StampOrder::File` for a layout whose frames are numbered files (7-Scenes,
+/// ScanNet, Replica): there is no frame list whose order it could choose, and an option
+/// that does nothing is refused, in `opts.interface`'s words.
+pub fn stamp_order_applies(root: &Path, layout: Layout, opts: &SequenceOptions) -> Result<()> {
+    let stamped = matches!(
+        layout,
+        Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn
+    );
+    if opts.stamp_order == StampOrder::Time || stamped {
+        return Ok(());
+    }
+    let option = match opts.interface {
+        Interface::Python => "params={\"stamp-order\": \"file\"}",
+        _ => "--stamp-order file",
+    };
+    Err(Error::Argument(format!(
+        "{option}: {} is a {} sequence, whose frames are numbered files in number order \
+         (no frame list whose stamps could go backwards); leave it out",
+        root.display(),
+        layout.name()
+    )))
+}
+
+/// A note when the ground truth at `gt_path` repeats stamps (`sorted`: its stamps in
+/// order): a frame near a repeated stamp is matched to one of its poses, which one is
+/// arbitrary. `None` when every stamp is its own.
+pub fn repeated_stamps_note(gt_path: &Path, sorted: &[f64]) -> Option<String> {
+    let repeats: Vec<f64> = sorted
+        .windows(2)
+        .filter(|w| w[0] == w[1])
+        .map(|w| w[0])
+        .collect();
+    let first = repeats.first()?;
+    Some(format!(
+        "{}: {} pose(s) repeat the stamp of the pose before (the first at stamp {first}); a \
+         frame at such a stamp is matched to one of them, which one is arbitrary: give each \
+         pose its own stamp",
+        gt_path.display(),
+        repeats.len()
+    ))
+}
+
 /// A note when `stamps`, in the order of `list`'s lines, go backwards, saying which order
-/// the frames are used in (`order`) and how to choose the other. `None` when they are in
-/// order.
-pub fn order_note(list: &Path, stamps: &[f64], order: StampOrder) -> Option<String> {
+/// the frames are used in (`order`) and how to choose the other (in `interface`'s words).
+/// `None` when they are in order.
+pub fn order_note(
+    list: &Path,
+    stamps: &[f64],
+    order: StampOrder,
+    interface: Interface,
+) -> Option<String> {
     let backwards = stamps.windows(2).filter(|w| w[1] < w[0]).count();
     (backwards > 0).then(|| {
+        let (file_order, chosen) = match interface {
+            Interface::CommandLine => ("pass --stamp-order file", "--stamp-order file"),
+            Interface::Python => (
+                "pass params={\"stamp-order\": \"file\"}",
+                "params={\"stamp-order\": \"file\"}",
+            ),
+            Interface::Page => ("the page cannot choose file order", "file order"),
+        };
         let used = match order {
-            StampOrder::Time => {
+            StampOrder::Time => format!(
                 "frames are used in order of time (sorted by stamp); if the stamps are not \
-                 times (per-frame intervals, a reset clock), pass --stamp-order file"
-            }
-            StampOrder::File => {
-                "frames are used in file order (--stamp-order file); their stamps, and so \
-                 the trajectory's, go backwards"
-            }
+                 times (per-frame intervals, a reset clock), {file_order}"
+            ),
+            StampOrder::File => format!(
+                "frames are used in file order ({chosen}); their stamps, and so the \
+                 trajectory's, go backwards"
+            ),
         };
         format!(
             "{}: stamps go backwards {backwards} time(s) in file order; {used}",
@@ -164,7 +219,9 @@ fn turn(a: &glam::DMat4, b: &glam::DMat4) -> f64 {
 /// unit, so a gap in the stamps (dropped frames of a timed recording) is no jump. `None`
 /// when there is none or too little ground truth to judge. ATE and RPE are computed
 /// against the reference as it is: the note says where it, not tracking, may be wrong.
-pub fn jump_note(frames: &[FrameRecord]) -> Option<String> {
+/// `frames` are the run's, the first of them frame `first` of the sequence (the numbers
+/// the note gives).
+pub fn jump_note(frames: &[FrameRecord], first: usize) -> Option<String> {
     struct Step {
         at: usize,
         step_m: f64,
@@ -210,9 +267,10 @@ pub fn jump_note(frames: &[FrameRecord]) -> Option<String> {
             .total_cmp(&(b.step_m / b.dt / speed.max(f64::MIN_POSITIVE)))
     })?;
     let (i, j) = (worst.at - 1, worst.at);
+    let (fi, fj) = (first + i, first + j);
     Some(format!(
         "ground truth jumps {} time(s) faster than {JUMP_SPEED_FACTOR} times its median \
-         speed; the largest: {:.1} mm / {:.2} deg between frames {i} and {j} (stamps {} and \
+         speed; the largest: {:.1} mm / {:.2} deg between frames {fi} and {fj} (stamps {} and \
          {}), where its median step is {:.1} mm / {:.2} deg. A reference glitch or frames \
          missing from the recording: ATE and RPE include it",
         jumps.len(),
@@ -265,12 +323,29 @@ mod tests {
     }
 
     #[test]
+    fn repeated_ground_truth_stamps_are_noted() {
+        let gt = Path::new("gt.txt");
+        assert_eq!(repeated_stamps_note(gt, &[1.0, 2.0, 3.0]), None);
+        let n = repeated_stamps_note(gt, &[1.0, 2.0, 2.0, 3.0, 3.0]).unwrap();
+        assert!(
+            n.contains("gt.txt: 2 pose(s) repeat") && n.contains("at stamp 2"),
+            "{n}"
+        );
+    }
+
+    #[test]
     fn backwards_stamps_and_partial_ground_truth_are_noted() {
         let time = StampOrder::Time;
-        assert_eq!(order_note(Path::new("d.txt"), &[1.0, 2.0, 3.0], time), None);
-        let n = order_note(Path::new("d.txt"), &[1.0, 3.0, 2.0, 4.0, 0.5], time).unwrap();
+        let cli = Interface::CommandLine;
+        assert_eq!(
+            order_note(Path::new("d.txt"), &[1.0, 2.0, 3.0], time, cli),
+            None
+        );
+        let n = order_note(Path::new("d.txt"), &[1.0, 3.0, 2.0, 4.0, 0.5], time, cli).unwrap();
         assert!(n.contains("--stamp-order file"), "{n}");
-        let f = order_note(Path::new("d.txt"), &[1.0, 0.5], StampOrder::File).unwrap();
+        let py = order_note(Path::new("d.txt"), &[1.0, 0.5], time, Interface::Python).unwrap();
+        assert!(py.contains(r#"params={"stamp-order": "file"}"#), "{py}");
+        let f = order_note(Path::new("d.txt"), &[1.0, 0.5], StampOrder::File, cli).unwrap();
         assert!(f.contains("used in file order"), "{f}");
         assert!(
             n.contains("d.txt") && n.contains("backwards 2 time(s)"),
@@ -306,7 +381,7 @@ mod tests {
             x += if i == 12 { 0.036 } else { 0.005 };
             frames.push(at(i as f64, x));
         }
-        let n = jump_note(&frames).expect("a 36 mm step among 5 mm ones is a jump");
+        let n = jump_note(&frames, 0).expect("a 36 mm step among 5 mm ones is a jump");
         assert!(
             n.contains("1 time(s)") && n.contains("36.0 mm") && n.contains("frames 11 and 12"),
             "{n}"
@@ -316,8 +391,13 @@ mod tests {
         for (k, f) in gap.iter_mut().enumerate().skip(12) {
             f.timestamp = k as f64 + 7.0;
         }
-        assert_eq!(jump_note(&gap), None);
+        assert_eq!(jump_note(&gap, 0), None);
         // Too few pairs to judge.
-        assert_eq!(jump_note(&frames[..5]), None);
+        assert_eq!(jump_note(&frames[..5], 0), None);
+        // Numbered as the sequence's frames; a run that stops before the jump has no note
+        // (7-Scenes 0..99 was told of a jump at frames 121-122).
+        let n = jump_note(&frames[2..], 2).unwrap();
+        assert!(n.contains("frames 11 and 12"), "{n}");
+        assert_eq!(jump_note(&frames[..12], 0), None);
     }
 }

@@ -71,21 +71,48 @@ fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
     }
 }
 
+/// Why `root` cannot be a dataset folder, in words: missing, a loop of symbolic links, a
+/// link to nothing, or not a folder.
+fn check_root(root: &Path) -> Result<()> {
+    let why = match super::source::current().entry(root) {
+        Ok(super::source::Entry::Folder) => return Ok(()),
+        Ok(_) => "is not a folder (a dataset is a folder of frame lists and images)",
+        Err(e) if is_link_loop(&e) => {
+            "is a loop of symbolic links (following them leads back to a link): give the \
+             dataset folder's real path"
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound && super::source::present(root) => {
+            "is a symbolic link to nothing (its target does not exist)"
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(Error::io(
+                root,
+                std::io::Error::new(e.kind(), "dataset directory does not exist"),
+            ))
+        }
+        Err(e) => return Err(Error::io(root, e)),
+    };
+    Err(Error::format(root, why))
+}
+
+/// Whether `e` says a path's symbolic links loop (`ELOOP`).
+fn is_link_loop(e: &std::io::Error) -> bool {
+    #[cfg(unix)]
+    {
+        e.raw_os_error() == Some(libc::ELOOP)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = e;
+        false
+    }
+}
+
 /// The layout of `root`: the first of [`Layout::DETECTION_ORDER`] whose telltale files are
 /// all there. A folder that fits none is an error listing the layouts tried and, for the
 /// one with the most telltales present, what is missing.
 pub fn detect(root: &Path) -> Result<Layout> {
-    if !super::source::is_dir(root) {
-        let kind = if super::source::present(root) {
-            std::io::ErrorKind::NotADirectory
-        } else {
-            std::io::ErrorKind::NotFound
-        };
-        return Err(Error::io(
-            root,
-            std::io::Error::new(kind, "dataset directory does not exist"),
-        ));
-    }
+    check_root(root)?;
     let mut closest: Option<(usize, Layout, Vec<String>)> = None;
     let mut tried = Vec::new();
     for layout in Layout::DETECTION_ORDER {

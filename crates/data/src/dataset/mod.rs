@@ -15,11 +15,15 @@
 
 pub(crate) mod bonn;
 pub(crate) mod checks;
+pub use checks::repeated_stamps_note;
+pub use interface::Interface;
+pub use matrix_file::pose_from_row_major;
 pub(crate) mod detect;
 pub(crate) mod eth3d;
 pub mod frame;
 pub(crate) mod icl;
 pub(crate) mod in_memory;
+mod interface;
 pub(crate) mod matrix_file;
 pub(crate) mod numbered;
 pub(crate) mod replica;
@@ -66,6 +70,8 @@ pub struct SequenceOptions {
     pub max_time_diff: f64,
     /// The frames' order where a TUM-style list's stamps go backwards.
     pub stamp_order: StampOrder,
+    /// Who opens the sequence: an error's remedy is worded for it.
+    pub interface: Interface,
 }
 
 /// The order of a TUM-style sequence's frames (`rgb.txt`, `depth.txt`): what a list whose
@@ -99,6 +105,7 @@ impl Default for SequenceOptions {
             depth_scale: None,
             max_time_diff: DEFAULT_MAX_TIME_DIFF,
             stamp_order: StampOrder::Time,
+            interface: Interface::CommandLine,
         }
     }
 }
@@ -303,10 +310,11 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         )));
     }
     let layout = detect::detect(root)?;
+    checks::stamp_order_applies(root, layout, opts)?;
     let camera = read_camera_json(&root.join("camera.json"))?;
     let listing = match layout {
         Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn => {
-            stamped::listing(root, layout, opts.max_time_diff, opts.stamp_order)?
+            stamped::listing(root, layout, opts)?
         }
         Layout::SevenScenes => seven_scenes::list(root)?,
         Layout::ScanNet => scannet::list(root)?,
@@ -322,7 +330,13 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             Intrinsics::from_floats([c.fx, c.fy, c.cx, c.cy], (c.width, c.height))
         }
         (None, None, Some(k)) => k,
-        (None, None, None) => return Err(Error::Argument(listing.no_intrinsics)),
+        (None, None, None) => {
+            return Err(Error::Argument(format!(
+                "{}; {}",
+                listing.no_intrinsics,
+                opts.interface.intrinsics_remedy(layout == Layout::Tum)
+            )))
+        }
     };
     let source = match (opts.intrinsics, &camera) {
         (Some(_), _) => "--intrinsics".to_string(),
@@ -355,6 +369,7 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         let mut gt = parse_tum(path, &text)?;
         gt.sort_by(|a, b| a.0.total_cmp(&b.0));
         let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
+        notes.extend(checks::repeated_stamps_note(path, &gt_stamps));
         for f in &mut frames {
             f.gt_cam_to_world =
                 tum::nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
@@ -366,7 +381,6 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
             opts.max_time_diff,
         ));
     }
-    notes.extend(checks::jump_note(&frames));
 
     Ok(Sequence {
         root: root.to_path_buf(),
@@ -403,6 +417,14 @@ impl Sequence {
             )));
         }
         Ok(first..=last)
+    }
+
+    /// The note on the ground truth's jumps within the frames `range` (a run's, as
+    /// [`Sequence::select`] gives it; see [`checks::jump_note`]): frames outside a run
+    /// are not its concern.
+    pub fn jump_note(&self, range: RangeInclusive<usize>) -> Option<String> {
+        let first = *range.start();
+        checks::jump_note(self.frames.get(range)?, first)
     }
 
     /// Decodes frame `i` (position in [`Sequence::frames`]); checks pixel formats, that

@@ -139,8 +139,8 @@ pub fn list(root: &Path) -> Result<Listing> {
         gt_file: None,
         intrinsics,
         no_intrinsics: format!(
-            "no {CAM_PARAMS} in {} or beside it: Replica's intrinsics are needed (or pass \
-             --intrinsics fx,fy,cx,cy; NICE-SLAM's are 600,600,599.5,339.5)",
+            "no {CAM_PARAMS} in {} or beside it: Replica's intrinsics are needed (NICE-SLAM's \
+             are 600,600,599.5,339.5)",
             root.display()
         ),
         image_size: Some(size),

@@ -17,6 +17,29 @@ use super::{FrameConventions, FrameRecord, Listing};
 use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
+/// Refuses colour images that cannot be the camera `k` describes: its principal point
+/// outside them (1x1 colour images under ScanNet's 1296x968 intrinsics were resampled into
+/// an all-black colour, silently).
+fn check_color_fits(k: &Intrinsics, k_path: &Path, first_rgb: &Path) -> Result<()> {
+    let (w, h) = (k.width as f32, k.height as f32);
+    if (0.0..=w).contains(&k.cx) && (0.0..=h).contains(&k.cy) {
+        return Ok(());
+    }
+    Err(Error::format(
+        first_rgb,
+        format!(
+            "colour image is {}x{}, but the colour intrinsics in {} put the principal point \
+             at ({}, {}), outside it: these are not the images those intrinsics describe \
+             (ScanNet's colour is 1296x968); use the sequence's own colour images",
+            k.width,
+            k.height,
+            k_path.display(),
+            k.cx,
+            k.cy
+        ),
+    ))
+}
+
 /// `depth/N.png`.
 pub const DEPTH: Pattern = Pattern::new("", ".png");
 /// `color/N.jpg`.
@@ -91,7 +114,9 @@ pub fn list(root: &Path) -> Result<Listing> {
     };
     let color_k_path = root.join("intrinsic/intrinsic_color.txt");
     let color_intrinsics = if super::source::present(&color_k_path) {
-        Some(Intrinsics::from_floats(read_k(&color_k_path)?, color_size))
+        let k = Intrinsics::from_floats(read_k(&color_k_path)?, color_size);
+        check_color_fits(&k, &color_k_path, &first.rgb_path)?;
+        Some(k)
     } else if color_size != depth_size {
         return Err(Error::io(
             &color_k_path,
@@ -112,8 +137,7 @@ pub fn list(root: &Path) -> Result<Listing> {
         gt_file: None,
         intrinsics: depth_k,
         no_intrinsics: format!(
-            "{} is missing: ScanNet's depth intrinsics are needed (or pass --intrinsics \
-             fx,fy,cx,cy)",
+            "{} is missing: ScanNet's depth intrinsics are needed",
             depth_k_path.display()
         ),
         image_size: Some(depth_size),

@@ -5,20 +5,16 @@
 use std::path::{Path, PathBuf};
 
 use super::{bonn, checks, eth3d, frame, icl, tum};
-use super::{FrameConventions, FrameRecord, Layout, Listing, StampOrder};
+use super::{FrameConventions, FrameRecord, Layout, Listing, SequenceOptions, StampOrder};
 use crate::geometry::camera::Intrinsics;
 use crate::{Error, Result};
 
 /// The TUM-like layouts (TUM, ICL-NUIM, ETH3D, Bonn): frames from the association lists,
 /// ground truth from one trajectory file.
-pub(super) fn listing(
-    root: &Path,
-    layout: Layout,
-    max_time_diff: f64,
-    order: StampOrder,
-) -> Result<Listing> {
+pub(super) fn listing(root: &Path, layout: Layout, opts: &SequenceOptions) -> Result<Listing> {
+    let max_time_diff = opts.max_time_diff;
     let mut order_notes = Vec::new();
-    let (pairs, gt_file) = frame_pairs(root, layout, max_time_diff, order, &mut order_notes)?;
+    let (pairs, gt_file) = frame_pairs(root, layout, opts, &mut order_notes)?;
     if pairs.is_empty() {
         return Err(Error::format(
             root,
@@ -60,30 +56,55 @@ pub(super) fn listing(
 /// `(stamp, rgb path, depth path)` of one frame.
 type FramePair = (f64, PathBuf, PathBuf);
 
+/// `pairs` (one association list's, in its lines' order) in the order `opts.stamp_order`
+/// chooses: sorted by stamp (stable), or as listed; a note in `order_notes` when the
+/// list's stamps go backwards, as a TUM depth list's get.
+fn in_order(
+    list: &Path,
+    mut pairs: Vec<FramePair>,
+    opts: &SequenceOptions,
+    order_notes: &mut Vec<String>,
+) -> Vec<FramePair> {
+    let stamps: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+    order_notes.extend(checks::order_note(
+        list,
+        &stamps,
+        opts.stamp_order,
+        opts.interface,
+    ));
+    if opts.stamp_order == StampOrder::Time {
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    pairs
+}
+
 /// `(stamp, rgb, depth)` of every frame, in order of depth stamp (or of the depth list with
-/// [`StampOrder::File`]), and the ground-truth file when there is one. A note on a depth
-/// list out of stamp order goes to `order_notes`.
+/// [`StampOrder::File`]), and the ground-truth file when there is one. A note on a list
+/// out of stamp order goes to `order_notes`.
 fn frame_pairs(
     root: &Path,
     layout: Layout,
-    max_time_diff: f64,
-    order: StampOrder,
+    opts: &SequenceOptions,
     order_notes: &mut Vec<String>,
 ) -> Result<(Vec<FramePair>, Option<PathBuf>)> {
+    let (max_time_diff, order) = (opts.max_time_diff, opts.stamp_order);
     Ok(match layout {
         Layout::IclNuim => {
-            let assoc = icl::read_associations(&root.join("associations.txt"))?;
-            let pairs = assoc
+            let list = root.join("associations.txt");
+            let pairs = icl::read_associations(&list)?
                 .into_iter()
                 .map(|a| (a.stamp, root.join(a.rgb_path), root.join(a.depth_path)))
                 .collect();
+            let pairs = in_order(&list, pairs, opts, order_notes);
             (pairs, icl::find_ground_truth(root)?)
         }
         Layout::Eth3d if super::source::present(&root.join("associated.txt")) => {
-            let pairs = eth3d::read_associated(&root.join("associated.txt"))?
+            let list = root.join("associated.txt");
+            let pairs = eth3d::read_associated(&list)?
                 .into_iter()
                 .map(|a| (a.stamp, root.join(a.rgb_path), root.join(a.depth_path)))
                 .collect();
+            let pairs = in_order(&list, pairs, opts, order_notes);
             let gt = root.join("groundtruth.txt");
             (pairs, super::source::present(&gt).then_some(gt))
         }
@@ -92,7 +113,12 @@ fn frame_pairs(
             let depth = tum::read_list(&root.join("depth.txt"))?;
             let rs: Vec<f64> = rgb.iter().map(|e| e.stamp).collect();
             let ds: Vec<f64> = depth.iter().map(|e| e.stamp).collect();
-            order_notes.extend(checks::order_note(&root.join("depth.txt"), &ds, order));
+            order_notes.extend(checks::order_note(
+                &root.join("depth.txt"),
+                &ds,
+                order,
+                opts.interface,
+            ));
             let mut assoc = tum::associate(&ds, &rs, max_time_diff);
             if order == StampOrder::File {
                 assoc.sort_by_key(|&(id, _)| id);
@@ -130,8 +156,7 @@ fn layout_intrinsics(root: &Path, layout: Layout, first_depth: &Path) -> Result<
         _ => (
             None,
             format!(
-                "{}: TUM RGB-D sequences do not record their intrinsics; pass --intrinsics \
-                 (a preset such as fr1, fr2, fr3, or fx,fy,cx,cy) or add a camera.json",
+                "{}: TUM RGB-D sequences do not record their intrinsics",
                 root.display()
             ),
             None,

@@ -315,6 +315,34 @@ pub fn read_ply(path: &Path) -> Result<PlyCloud> {
     Ok(cloud_from_rows(&rows, n, &cols, &types))
 }
 
+/// Bytes of a PLY file [`ply_read_bytes`] reads to find its header: a header is tens of
+/// lines (a few hundred bytes); 64 KiB leaves room for long comments.
+pub const HEADER_PROBE_BYTES: u64 = 64 << 10;
+
+/// Bytes of memory [`read_ply`] needs for `path`, from its header alone: the file itself,
+/// every vertex value as an `f64` while parsing, and 32 bytes a vertex for the cloud it
+/// returns. `None` when no header ends within [`HEADER_PROBE_BYTES`] (then [`read_ply`]
+/// gives the error). Lets a caller refuse a file too large to hold before reading it.
+pub fn ply_read_bytes(path: &Path) -> Result<Option<u64>> {
+    use std::io::Read;
+    let (file, len) = crate::io::input::open_kind(path, crate::io::input::InputKind::Cloud)?;
+    let mut head = Vec::new();
+    file.take(HEADER_PROBE_BYTES)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::io(path, e))?;
+    let Ok((_, elements, _)) = parse_header(path, &head) else {
+        return Ok(None);
+    };
+    let Some(vertex) = elements.iter().find(|e| e.name == "vertex") else {
+        return Ok(None);
+    };
+    let values = (vertex.count as u64).saturating_mul(vertex.props.len() as u64);
+    Ok(Some(
+        len.saturating_add(values.saturating_mul(8))
+            .saturating_add((vertex.count as u64).saturating_mul(32)),
+    ))
+}
+
 /// The error for a binary body that ends before byte offset `at`, which `what` needs.
 fn truncated_error(path: &Path, file_len: usize, at: usize, what: &str) -> Error {
     Error::format(
