@@ -430,21 +430,33 @@ fn collect(dir: &Path) -> Result<Summary> {
     summary::write(dir, &s)?;
     report::write(dir, &s)?;
     let w = s.rows.iter().map(|r| r.id.len()).max().unwrap_or(0).max(3);
+    // An ATE is over the frames with a pose: each is followed by how many had none.
     println!(
-        "{:>4}  {:<w$} {:>8} {:>10} {:>10} {:>9} {:>9}",
-        "#", "job", "status", "cpu ATE mm", "gpu ATE mm", "cpu ms/f", "gpu ms/f"
+        "{:>4}  {:<w$} {:>8} {:>20} {:>20} {:>9} {:>9}",
+        "#",
+        "job",
+        "status",
+        "cpu ATE mm (no pose)",
+        "gpu ATE mm (no pose)",
+        "cpu ms/f",
+        "gpu ms/f"
     );
     for r in &s.rows {
         let n = |b: &str| r.record.as_ref().and_then(|rec| rec.runs.get(b));
         let f =
             |x: Option<f64>, d: usize| x.map(|v| format!("{v:.d$}")).unwrap_or_else(|| "-".into());
+        let ate = |b: &str| match n(b).map(|n| (n.ate_rmse_mm, n.frames_without_pose)) {
+            Some((Some(ate), Some(without))) => format!("{ate:.3} ({without})"),
+            Some((Some(ate), None)) => format!("{ate:.3} (?)"),
+            _ => "-".into(),
+        };
         println!(
-            "{:>4}  {:<w$} {:>8} {:>10} {:>10} {:>9} {:>9}",
+            "{:>4}  {:<w$} {:>8} {:>20} {:>20} {:>9} {:>9}",
             r.index,
             r.id,
             r.status,
-            f(n("cpu").and_then(|n| n.ate_rmse_mm), 3),
-            f(n("gpu").and_then(|n| n.ate_rmse_mm), 3),
+            ate("cpu"),
+            ate("gpu"),
             f(n("cpu").map(|n| n.time_per_frame_median_ms), 1),
             f(n("gpu").map(|n| n.time_per_frame_median_ms), 1),
         );

@@ -134,6 +134,10 @@ pub struct RunNumbers {
     /// ATE RMSE after rigid alignment, and RPE between consecutive frames (None without
     /// ground truth), millimetres and degrees.
     pub ate_rmse_mm: Option<f64>,
+    /// Frames without a pose, which the ATE and RPE leave out (None without ground truth,
+    /// or in outputs from before the count).
+    #[serde(default)]
+    pub frames_without_pose: Option<u64>,
     pub rpe_trans_rmse_mm: Option<f64>,
     pub rpe_rot_rmse_deg: Option<f64>,
     /// Pipeline time per frame (median), milliseconds; whole-run wall time, seconds.
@@ -164,6 +168,7 @@ pub fn read_numbers(path: &Path) -> Result<RunNumbers> {
             .unwrap_or_default()
             .to_string(),
         ate_rmse_mm: opt("ate_rmse_aligned_m", 1e3),
+        frames_without_pose: acc["frames_without_pose"].as_u64(),
         rpe_trans_rmse_mm: opt("rpe_trans_rmse_m", 1e3),
         rpe_rot_rmse_deg: opt("rpe_rot_rmse_deg", 1.0),
         time_per_frame_median_ms: num(&m["time_per_frame_median_s"], "time_per_frame_median_s")?
