@@ -261,7 +261,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 43] = [
+    const OPTION_VALUES: [(&str, &str); 44] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -272,6 +272,7 @@ mod tests {
         ("downsample", "4"),
         ("icp-dist", "0.08"),
         ("icp-angle", "25"),
+        ("icp-full-res-angle", "35"),
         ("icp-huber", "0.015"),
         ("tracking", "rgbd"),
         ("photometric-weight", "0.5"),

@@ -162,6 +162,10 @@ param_overrides! {
     /// ICP normal-angle threshold, degrees; 180 turns it off (assignment 180, robust 20).
     #[arg(long)]
     icp_angle: Option<f32> => "icp.normal_deg",
+    /// ICP normal-angle threshold at full resolution (--downsample 1, the finest level),
+    /// degrees; 0 takes --icp-angle's (assignment 0, robust 30).
+    #[arg(long)]
+    icp_full_res_angle: Option<f32> => "icp.full_res_normal_deg",
     /// Huber threshold on ICP residuals, metres; 0 turns it off (assignment 0, robust 0.02).
     #[arg(long)]
     icp_huber: Option<f32> => "icp.huber_m",

@@ -123,6 +123,18 @@ impl<B: Backend> Slam<B> {
         }
     }
 
+    /// ICP's angle gate at pyramid `level`, degrees: `icp.full_res_normal_deg` where the
+    /// level's pixels are the sensor's own (no downsampling, level 0) and that is set,
+    /// else `icp.normal_deg`.
+    fn icp_normal_deg(&self, level: usize) -> f32 {
+        let icp = &self.params.icp;
+        let full_res = level == 0 && self.params.input.downsample == 1;
+        match full_res && icp.full_res_normal_deg > 0.0 {
+            true => icp.full_res_normal_deg,
+            false => icp.normal_deg,
+        }
+    }
+
     /// Parameters of `icp_reduce` at the current estimate on pyramid level `level`.
     pub fn icp_params(&self, level: usize, t_world_to_cam: &DMat4) -> IcpParams {
         let k = self.level_intrinsics(level);
@@ -130,10 +142,9 @@ impl<B: Backend> Slam<B> {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             camera: Camera::new(&k),
             dist_m: self.params.icp.dist_m,
-            cos_normal_threshold: if self.params.icp.normal_deg >= 180.0 {
-                ANGLE_GATE_OFF
-            } else {
-                self.params.icp.normal_deg.to_radians().cos()
+            cos_normal_threshold: match self.icp_normal_deg(level) {
+                deg if deg >= 180.0 => ANGLE_GATE_OFF,
+                deg => deg.to_radians().cos(),
             },
             huber_m: self.params.icp.huber_m,
             noise_weighting: self.params.icp.noise_weight as u32,

@@ -81,6 +81,18 @@ pub const ROBUST_STOP_CHI2: f64 = 6.0;
 /// -> 1.17-1.21x (`docs/rgbd-tracking.md`).
 pub const ROBUST_PHOTOMETRIC_STOP_CHI2: f64 = 60.0;
 
+/// The robust profile's ICP angle gate at full resolution (`icp.full_res_normal_deg`),
+/// degrees; 20 at every coarser level. At 640x480 the level-0 normals come from neighbours
+/// 1 pixel apart instead of 2, and the 20 degree gate cut the inlier fraction of ordinary
+/// frames of Kinect v1 depth to 0.7x its value at 320x240 (TUM fr1/rpy frame 30: 0.52
+/// against 0.71), so during fast motion frames fell under the health test's 30 % and were
+/// lost (fr1/rpy 0..399: 37 frames) though they track at 320x240. Measured (release, GPU on
+/// lavapipe, 640x480, 20 -> 30 degrees at level 0): fr1/rpy 0..399 37 lost, 22.96 mm over
+/// the tracked frames -> 0 lost, 30.17 mm over all 400; 7-Scenes 0..299 20.83 -> 20.29 mm;
+/// noisy ICL-NUIM 1..200 6.106 -> 5.539 mm; SUN3D frag2 8.336 -> 8.266 mm, none lost
+/// (`docs/real-sensors.md`).
+pub const ROBUST_ICP_FULL_RES_NORMAL_DEG: f32 = 30.0;
+
 /// ICP iterations per pyramid level of the robust profile, coarse to fine (level 2 at
 /// 80x60, level 1 at 160x120, level 0 at 320x240 with the default downsampling):
 /// KinectFusion's schedule, the cheapest measured that keeps tracking at every 12th frame

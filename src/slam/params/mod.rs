@@ -40,7 +40,8 @@ pub enum Profile {
     Assignment,
     /// Tracking and fusion for noisy depth (Keller et al. 2013, ElasticFusion): the
     /// bilateral depth filter; coarse-to-fine ICP over three levels (10, 5 and 4
-    /// iterations) with 0.10 m / 20 degree association gates, Huber-weighted rows scaled by
+    /// iterations) with 0.10 m / 20 degree association gates (30 degrees at full
+    /// resolution), Huber-weighted rows scaled by
     /// the depth-noise model and a convergence test that noisy data can meet; fusion with
     /// best-candidate association, confidence-weighted averages, surfel radii, wider gates
     /// (0.05 m / 60 degrees), the retirement of duplicate surfels and the removal of
@@ -231,6 +232,12 @@ pub struct IcpSettings {
     /// Filter 2: maximum angle between model and frame normals, degrees; 180 or more turns
     /// the gate off (`--icp-angle`).
     pub normal_deg: f32,
+    /// Filter 2's angle gate, degrees, at a pyramid level whose pixels are the sensor's own
+    /// (`input.downsample` 1, level 0), where the normals, from neighbours half as far
+    /// apart as at the default 2x downsampling, are noisier; 0: `normal_deg` there too
+    /// (the assignment's; `--icp-full-res-angle`). See [`ROBUST_ICP_FULL_RES_NORMAL_DEG`].
+    #[serde(default)]
+    pub full_res_normal_deg: f32,
     /// Huber threshold on the point-to-plane residual, metres; 0 turns the weight off
     /// (`--icp-huber`).
     pub huber_m: f32,
@@ -493,6 +500,7 @@ impl SlamParams {
             icp: IcpSettings {
                 dist_m: 0.07,
                 normal_deg: 180.0,
+                full_res_normal_deg: 0.0,
                 huber_m: 0.0,
                 noise_weight: false,
                 level_iters: vec![10],
@@ -527,6 +535,7 @@ impl SlamParams {
                 icp: IcpSettings {
                     dist_m: 0.10,
                     normal_deg: 20.0,
+                    full_res_normal_deg: ROBUST_ICP_FULL_RES_NORMAL_DEG,
                     huber_m: ROBUST_HUBER_M,
                     noise_weight: true,
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),

@@ -184,6 +184,12 @@ fn check_gates(normals: &NormalSettings, icp: &IcpSettings, f: &FusionSettings) 
             return fail(format!("{flag} {v} must be positive"));
         }
     }
+    let full_res = icp.full_res_normal_deg;
+    if !(full_res == 0.0 || positive(full_res as f64)) {
+        return fail(format!(
+            "`icp.full_res_normal_deg` {full_res} must be positive, or 0 for `icp.normal_deg`'s"
+        ));
+    }
     for (flag, v) in [
         ("`icp.huber_m`", icp.huber_m),
         ("`fusion.confidence_sigma`", f.confidence_sigma),
@@ -321,7 +327,7 @@ mod tests {
             p.fusion.unstable_removal = Some(r);
         }
         type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 32] = [
+        let cases: [(&str, Spoil); 33] = [
             ("`icp.level_iters`", |p| {
                 p.icp.level_iters = vec![MAX_ICP_ITERS_PER_LEVEL + 1]
             }),
@@ -352,6 +358,9 @@ mod tests {
                 bilateral(p, |b| b.sigma_depth_per_m2 = 0.0)
             }),
             ("`icp.dist_m`", |p| p.icp.dist_m = 0.0),
+            ("`icp.full_res_normal_deg`", |p| {
+                p.icp.full_res_normal_deg = -30.0
+            }),
             ("`icp.normal_deg`", |p| p.icp.normal_deg = -20.0),
             ("`icp.huber_m`", |p| p.icp.huber_m = -0.02),
             ("`icp.level_iters`", |p| p.icp.level_iters = vec![]),
