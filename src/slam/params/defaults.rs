@@ -90,7 +90,7 @@ pub const ROBUST_PHOTOMETRIC_STOP_CHI2: f64 = 60.0;
 /// lavapipe, 640x480, 20 -> 30 degrees at level 0): fr1/rpy 0..399 37 lost, 22.96 mm over
 /// the tracked frames -> 0 lost, 30.17 mm over all 400; 7-Scenes 0..299 20.83 -> 20.29 mm;
 /// noisy ICL-NUIM 1..200 6.106 -> 5.539 mm; SUN3D frag2 8.336 -> 8.266 mm, none lost
-/// (`docs/real-sensors.md`).
+/// (`docs/full-resolution.md`).
 pub const ROBUST_ICP_FULL_RES_NORMAL_DEG: f32 = 30.0;
 
 /// ICP iterations per pyramid level of the robust profile, coarse to fine (level 2 at
