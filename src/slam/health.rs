@@ -289,14 +289,8 @@ mod tests {
     #[test]
     fn a_zero_typical_residual_is_judged_against_the_floor() {
         let s = HealthSettings::default();
-        let mut m = HealthMonitor::default();
         let still = DMat4::IDENTITY;
-        for _ in 0..s.warmup_frames.max(1) {
-            let h = m
-                .measure(&s, &[iteration(900, 0.0)], 1000, &still, &still, Some(1))
-                .unwrap();
-            m.record(&h, true);
-        }
+        let m = warmed(&s, 0.0, &still, 1, true);
         let h = m
             .measure(&s, &[iteration(900, 1e-6)], 1000, &still, &still, Some(1))
             .unwrap();
@@ -316,6 +310,32 @@ mod tests {
     }
     use crate::geometry::se3;
 
+    /// A monitor past its warm-up: frames with `rms_m` residuals, each moved from the
+    /// identity to `to` over `gap` frames, their motion recorded when `motion_counts`.
+    fn warmed(
+        s: &HealthSettings,
+        rms_m: f64,
+        to: &DMat4,
+        gap: u32,
+        motion_counts: bool,
+    ) -> HealthMonitor {
+        let mut m = HealthMonitor::default();
+        for _ in 0..s.warmup_frames.max(1) {
+            let h = m
+                .measure(
+                    s,
+                    &[iteration(900, rms_m)],
+                    1000,
+                    &DMat4::IDENTITY,
+                    to,
+                    Some(gap),
+                )
+                .unwrap();
+            m.record(&h, motion_counts);
+        }
+        m
+    }
+
     fn iteration(inliers: u64, rms_m: f64) -> IcpIteration {
         IcpIteration {
             level: 0,
@@ -332,15 +352,9 @@ mod tests {
     #[test]
     fn warm_residuals_without_any_motion_history_judge_no_motion() {
         let s = HealthSettings::default();
-        let mut m = HealthMonitor::default();
         let still = DMat4::IDENTITY;
         let step = se3::exp(&[0.0, 0.0, 0.0, 0.01, 0.0, 0.0]);
-        for _ in 0..s.warmup_frames.max(1) {
-            let h = m
-                .measure(&s, &[iteration(900, 0.002)], 1000, &still, &step, Some(2))
-                .unwrap();
-            m.record(&h, false);
-        }
+        let m = warmed(&s, 0.002, &step, 2, false);
         let h = m
             .measure(&s, &[iteration(900, 0.002)], 1000, &still, &step, Some(1))
             .unwrap();

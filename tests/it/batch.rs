@@ -127,18 +127,7 @@ fn a_failing_job_is_recorded_and_the_batch_goes_on() {
     let dir = common::temp_dir("batch-fail");
     let body = cpu_grid("1..2") + &one_job("missing", Path::new("no/such/sequence"), "");
     let m = manifest(&dir, &body);
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    assert!(
-        text(&o).contains("1 of 4 jobs failed: missing"),
-        "{}",
-        text(&o)
-    );
-    let sum = summary(&dir.join("out"));
-    assert_eq!(
-        (sum["ok"].as_u64(), sum["failed"].as_u64()),
-        (Some(3), Some(1))
-    );
+    let sum = one_job_fails(&m, &dir.join("out"), &["1 of 4 jobs failed: missing"], 3);
     // [[job]] tables come first, in file order, then the grid.
     let row = &sum["rows"][1];
     assert_eq!(row["id"], "missing");
@@ -153,6 +142,22 @@ fn a_failing_job_is_recorded_and_the_batch_goes_on() {
         csv.lines().nth(2).unwrap().starts_with("1,missing,failed,"),
         "{csv}"
     );
+}
+
+/// Runs the batch of manifest `m`, which must fail one job and say each of `says`, with
+/// `ok` jobs done; its summary (in `out`).
+fn one_job_fails(m: &Path, out: &Path, says: &[&str], ok: u64) -> serde_json::Value {
+    let o = wgslam(&["batch", s(m)], &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    for said in says {
+        assert!(text(&o).contains(said), "{said:?} not in {}", text(&o));
+    }
+    let sum = summary(out);
+    assert_eq!(
+        (sum["ok"].as_u64(), sum["failed"].as_u64()),
+        (Some(ok), Some(1))
+    );
+    sum
 }
 
 fn manifest_mistakes_fail_before_any_job() {
@@ -173,18 +178,8 @@ fn manifest_mistakes_fail_before_any_job() {
     // summary is written.
     let dir = common::temp_dir("batch-typo-one");
     let m = manifest(&dir, &body);
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    assert!(
-        text(&o).contains("job \"named\"") && text(&o).contains("1 of 3 jobs failed: named"),
-        "{}",
-        text(&o)
-    );
-    let sum = summary(&dir.join("out"));
-    assert_eq!(
-        (sum["ok"].as_u64(), sum["failed"].as_u64()),
-        (Some(2), Some(1))
-    );
+    let says = ["job \"named\"", "1 of 3 jobs failed: named"];
+    one_job_fails(&m, &dir.join("out"), &says, 2);
     let o = wgslam(&["batch", s(&dir.join("absent.toml"))], &[]);
     assert!(!o.status.success());
     assert!(text(&o).contains("absent.toml"), "{}", text(&o));

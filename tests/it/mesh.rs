@@ -356,30 +356,26 @@ fn mesh_command_bounds_memory_and_skips_unusable_points() {
         assert_ne!(o.status.code(), Some(101), "panicked: {}", text(&o));
         (o, out)
     };
+    // The plane with every `step`-th point spoiled, written to `dir/name` and meshed; it
+    // succeeds: (the map, what it said, the mesh).
+    let spoiled = |name: &str, step: usize, spoil: fn(&mut [f32; 7])| {
+        let mut pts = plane_points();
+        pts.iter_mut().step_by(step).for_each(spoil);
+        let map = dir.join(name);
+        write_weighted_ply(&map, &pts);
+        let (o, out) = mesh(&map, &[]);
+        let said = text(&o);
+        assert!(o.status.success(), "{said}");
+        (map, said, out)
+    };
     // Every 7th weight infinite: skipped, counted, no NaN in the file or the summary.
-    let mut pts = plane_points();
-    for p in pts.iter_mut().step_by(7) {
-        p[6] = f32::INFINITY;
-    }
-    let inf = dir.join("inf.ply");
-    write_weighted_ply(&inf, &pts);
-    let (o, out) = mesh(&inf, &[]);
-    let said = text(&o);
-    assert!(o.status.success(), "{said}");
+    let (inf, said, out) = spoiled("inf.ply", 7, |p| p[6] = f32::INFINITY);
     assert!(said.contains("skipped 1429 of 10000 points"), "{said}");
     let written = std::fs::read(&out).unwrap();
     let m = read_back(&out);
     assert!(!m.is_empty() && !String::from_utf8_lossy(&written).contains("nan"));
     // 10 % NaN positions: the mean distance ignores them.
-    let mut pts = plane_points();
-    for p in pts.iter_mut().step_by(10) {
-        p[..3].fill(f32::NAN);
-    }
-    let nan = dir.join("nan.ply");
-    write_weighted_ply(&nan, &pts);
-    let (o, _) = mesh(&nan, &[]);
-    let said = text(&o);
-    assert!(o.status.success(), "{said}");
+    let (_, said, _) = spoiled("nan.ply", 10, |p| p[..3].fill(f32::NAN));
     assert!(said.contains("skipped 1000 of 10000"), "{said}");
     assert!(
         number_after(&said, "map point to mesh: mean") < 5.0,

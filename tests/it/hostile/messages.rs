@@ -4,36 +4,10 @@ use super::*;
 
 // ---- 6. messages -----------------------------------------------------------------------
 
-/// A copy of the bundled sequence in `dir/seq`, for damaging.
-fn copy_bundled(dir: &Path) -> PathBuf {
-    let seq = dir.join("seq");
-    let o = Command::new("cp")
-        .arg("-r")
-        .arg(common::bundled_icl())
-        .arg(&seq)
-        .status()
-        .unwrap();
-    assert!(o.success());
-    seq
-}
-
 fn messages_say_what_is_wrong() {
     let dir = common::temp_dir("hostile-messages");
-    let seq = copy_bundled(&dir);
-    let run = |extra: &[&str]| {
-        let mut a = vec![
-            "run",
-            s(&seq),
-            "--frames",
-            "1..3",
-            "--downsample",
-            "4",
-            "--backend",
-            "cpu",
-        ];
-        a.extend_from_slice(extra);
-        wgslam(&a)
-    };
+    let seq = copy_bundled(&dir, "seq");
+    let run = |extra: &[&str]| run_small(&seq, extra);
     // A ground-truth path that is a folder, or a loop of links, was silently ignored.
     let o = run(&["--gt", s(&dir), "--out", s(&dir.join("o1"))]);
     assert!(text(&o).contains("is a folder"), "{}", text(&o));

@@ -27,6 +27,40 @@ pub(super) fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `cp -r src dst`.
+pub(super) fn copy_dir(src: &Path, dst: &Path) {
+    let ok = Command::new("cp")
+        .arg("-r")
+        .arg(src)
+        .arg(dst)
+        .status()
+        .unwrap();
+    assert!(ok.success(), "cp -r {} {}", src.display(), dst.display());
+}
+
+/// A copy of the bundled sequence in `dir/name`, for damaging.
+pub(super) fn copy_bundled(dir: &Path, name: &str) -> PathBuf {
+    let seq = dir.join(name);
+    copy_dir(&common::bundled_icl(), &seq);
+    seq
+}
+
+/// `wgslam run SEQ` over frames 1..3 at 160x120 on the CPU, with `extra`.
+pub(super) fn run_small(seq: &Path, extra: &[&str]) -> std::process::Output {
+    let mut a = vec![
+        "run",
+        s(seq),
+        "--frames",
+        "1..3",
+        "--downsample",
+        "4",
+        "--backend",
+        "cpu",
+    ];
+    a.extend_from_slice(extra);
+    wgslam(&a)
+}
+
 /// A one-job CPU manifest over 2 bundled frames at 160x120, job `name`, into `output`.
 pub(super) fn small_manifest(dir: &Path, file: &str, name: &str, output: &str) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();

@@ -6,14 +6,7 @@ use super::*;
 /// A copy of the bundled sequence in `dir/name` whose depth images all read 0 (nothing
 /// can track).
 fn zero_depth_copy(dir: &Path, name: &str) -> PathBuf {
-    let seq = dir.join(name);
-    let ok = Command::new("cp")
-        .arg("-r")
-        .arg(common::bundled_icl())
-        .arg(&seq)
-        .status()
-        .unwrap();
-    assert!(ok.success());
+    let seq = copy_bundled(dir, name);
     for e in std::fs::read_dir(seq.join("depth")).unwrap() {
         let p = e.unwrap().path();
         let (w, h) = image::image_dimensions(&p).unwrap();
@@ -110,36 +103,12 @@ pub fn tests() -> Vec<common::harness::Test> {
     ]
 }
 
-/// A copy of the bundled sequence in `dir/name`.
-fn copy_bundled(dir: &Path, name: &str) -> PathBuf {
-    let seq = dir.join(name);
-    let ok = Command::new("cp")
-        .arg("-r")
-        .arg(common::bundled_icl())
-        .arg(&seq)
-        .status()
-        .unwrap();
-    assert!(ok.success());
-    seq
-}
-
 /// `wgslam run SEQ` over frames 1..3 at 160x120 on the CPU into `dir/out`, with `extra`.
 fn run_on(seq: &Path, dir: &Path, extra: &[&str]) -> std::process::Output {
     let out = dir.join("out");
-    let mut a = vec![
-        "run",
-        s(seq),
-        "--frames",
-        "1..3",
-        "--downsample",
-        "4",
-        "--backend",
-        "cpu",
-        "--out",
-        s(&out),
-    ];
+    let mut a = vec!["--out", s(&out)];
     a.extend_from_slice(extra);
-    wgslam(&a)
+    run_small(seq, &a)
 }
 
 /// A TUM folder without intrinsics was told "pass `--intrinsics` (a preset such as
@@ -151,13 +120,7 @@ fn missing_intrinsics_name_each_interfaces_control() {
     let icl = common::bundled_icl();
     std::fs::create_dir_all(&tum).unwrap();
     for sub in ["rgb", "depth"] {
-        let ok = Command::new("cp")
-            .arg("-r")
-            .arg(icl.join(sub))
-            .arg(tum.join(sub))
-            .status()
-            .unwrap();
-        assert!(ok.success());
+        copy_dir(&icl.join(sub), &tum.join(sub));
     }
     for (list, sub) in [("rgb.txt", "rgb"), ("depth.txt", "depth")] {
         let lines: String = (0..4)
@@ -208,34 +171,27 @@ fn reversed_association_lists_are_noted_and_ordered_as_asked() {
         .map(String::from)
         .collect();
     std::fs::write(&list, lines.join("\n") + "\n").unwrap();
-    let first_stamp = |extra: &[&str]| {
-        let o = run_on(&seq, &dir, extra);
+    // Runs `seq` with `extra`, which must succeed with the note `note`: what it said, and
+    // the trajectory's first stamp.
+    let first_stamp = |seq: &Path, note: &str, extra: &[&str]| {
+        let o = run_on(seq, &dir, extra);
         let said = text(&o);
-        assert!(o.status.success(), "{said}");
-        assert!(
-            said.contains("associations.txt: stamps go backwards"),
-            "{said}"
-        );
+        assert!(o.status.success() && said.contains(note), "{said}");
         let traj = std::fs::read_to_string(dir.join("out/trajectory.tum")).unwrap();
         let stamp = traj.lines().find(|l| !l.starts_with('#')).unwrap();
         (said, stamp.split_whitespace().next().unwrap().to_string())
     };
-    let (said, stamp) = first_stamp(&[]);
+    let note = "associations.txt: stamps go backwards";
+    let (said, stamp) = first_stamp(&seq, note, &[]);
     assert!(said.contains("pass --stamp-order file"), "{said}");
     assert_eq!(stamp, "1", "time order: frame 1 is stamp 1");
-    let (_, stamp) = first_stamp(&["--stamp-order", "file"]);
+    let (_, stamp) = first_stamp(&seq, note, &["--stamp-order", "file"]);
     assert_eq!(stamp, "22", "file order: frame 1 is the list's second line");
     // ETH3D's associated.txt, reversed: the same note and the same choice.
     let eth3d = dir.join("eth3d");
     std::fs::create_dir_all(&eth3d).unwrap();
     for sub in ["rgb", "depth"] {
-        let ok = Command::new("cp")
-            .arg("-r")
-            .arg(seq.join(sub))
-            .arg(eth3d.join(sub))
-            .status()
-            .unwrap();
-        assert!(ok.success());
+        copy_dir(&seq.join(sub), &eth3d.join(sub));
     }
     let k = wgslam::geometry::camera::Intrinsics::ICL_NUIM;
     let calibration = format!("{} {} {} {}\n", k.fx, k.fy, k.cx, k.cy);
@@ -245,24 +201,9 @@ fn reversed_association_lists_are_noted_and_ordered_as_asked() {
         .map(|i| format!("{i}.0 rgb/{i}.png {i}.0 depth/{i}.png\n"))
         .collect();
     std::fs::write(eth3d.join("associated.txt"), assoc).unwrap();
-    let eth3d_first = |extra: &[&str]| {
-        let o = run_on(&eth3d, &dir, extra);
-        let said = text(&o);
-        assert!(o.status.success(), "{said}");
-        assert!(
-            said.contains("associated.txt: stamps go backwards 5 time(s)"),
-            "{said}"
-        );
-        let traj = std::fs::read_to_string(dir.join("out/trajectory.tum")).unwrap();
-        let first = traj
-            .lines()
-            .find(|l| !l.starts_with('#'))
-            .unwrap()
-            .to_string();
-        first.split_whitespace().next().unwrap().to_string()
-    };
-    assert_eq!(eth3d_first(&[]), "1");
-    assert_eq!(eth3d_first(&["--stamp-order", "file"]), "4");
+    let note = "associated.txt: stamps go backwards 5 time(s)";
+    assert_eq!(first_stamp(&eth3d, note, &[]).1, "1");
+    assert_eq!(first_stamp(&eth3d, note, &["--stamp-order", "file"]).1, "4");
 }
 
 /// A ground truth with a repeated stamp was accepted by `run` and `eval` without a note.
