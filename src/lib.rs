@@ -76,6 +76,23 @@ pub use wgslam_data::{dataset, eval, io};
 pub use wgslam_gpu as gpu;
 #[doc(hidden)]
 pub mod tools;
+/// The crate-private readers of user files, for the seeded fuzz replay
+/// (tests/it/fuzz_replay.rs): each parses its input and drops the result.
+#[cfg(not(target_arch = "wasm32"))]
+#[doc(hidden)]
+pub mod fuzz_entry {
+    use std::path::Path;
+
+    /// A params file's text (`--params FILE`), as `ParamOverrides::from_toml` reads it.
+    pub fn params_toml(text: &str) -> std::result::Result<(), String> {
+        crate::cli::pipeline_args::ParamOverrides::from_toml(text).map(|_| ())
+    }
+
+    /// A batch manifest's text as if read from `path` (`wgslam batch MANIFEST`).
+    pub fn manifest(path: &Path, text: &str) -> crate::Result<()> {
+        crate::batch::manifest::Manifest::parse(path, text).map(|_| ())
+    }
+}
 // The browser build's entry points (deploy/web).
 #[cfg(target_arch = "wasm32")]
 pub mod web;

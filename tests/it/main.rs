@@ -16,6 +16,7 @@ mod compare_perturbed;
 mod datasets;
 mod end_to_end;
 mod eval;
+mod fuzz_replay;
 mod gpu_parity;
 mod gpu_smoke;
 mod hostile;
@@ -58,6 +59,7 @@ fn main() -> ExitCode {
         datasets,
         end_to_end,
         eval,
+        fuzz_replay,
         gpu_parity,
         gpu_smoke,
         hostile,

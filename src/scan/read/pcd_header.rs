@@ -218,6 +218,16 @@ impl PcdHeader {
                         ),
                     ));
                 }
+                // A coordinate without a value would index an empty record (fuzz replay).
+                if counts[i] == 0 {
+                    return Err(Error::format(
+                        path,
+                        format!(
+                            "PCD field `{}` has COUNT 0: a coordinate needs a value",
+                            fields[i]
+                        ),
+                    ));
+                }
                 layout.scalar[axis] = scalar;
                 layout.byte_offset[axis] = layout.record_bytes;
                 layout.token_index[axis] = layout.record_tokens;
