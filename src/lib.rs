@@ -69,7 +69,7 @@ pub mod slam;
 pub use wgslam_core::error;
 pub(crate) use wgslam_core::stats;
 #[doc(hidden)]
-pub use wgslam_core::{cpu, geometry, layout};
+pub use wgslam_core::{cpu, geometry, layout, seeded};
 #[doc(hidden)]
 pub use wgslam_data::{dataset, eval, io};
 #[doc(hidden)]

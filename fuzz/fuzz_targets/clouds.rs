@@ -2,27 +2,17 @@
 // the reader, the rest is the file.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
+use wgslam::scan::read;
 
 #[path = "common.rs"]
 mod common;
 
-fuzz_target!(|data: &[u8]| {
-    let Some((&pick, body)) = data.split_first() else {
-        return;
-    };
-    match pick % 5 {
-        0 => drop(wgslam::io::read_ply(&common::as_file("c.ply", body))),
-        1 => drop(wgslam::scan::read::read_ply_xyz(&common::as_file(
-            "c.ply", body,
-        ))),
-        2 => drop(wgslam::scan::read::read_pcd(&common::as_file(
-            "c.pcd", body,
-        ))),
-        3 => drop(wgslam::scan::read::read_kitti_bin(&common::as_file(
-            "c.bin", body,
-        ))),
-        _ => drop(wgslam::scan::read::read_xyz_text(&common::as_file(
-            "c.xyz", body,
-        ))),
-    }
-});
+const READERS: &[common::FileReader] = &[
+    ("c.ply", |p| drop(wgslam::io::read_ply(p))),
+    ("c.ply", |p| drop(read::read_ply_xyz(p))),
+    ("c.pcd", |p| drop(read::read_pcd(p))),
+    ("c.bin", |p| drop(read::read_kitti_bin(p))),
+    ("c.xyz", |p| drop(read::read_xyz_text(p))),
+];
+
+fuzz_target!(|data: &[u8]| common::read_picked(data, READERS));

@@ -6,17 +6,10 @@ use libfuzzer_sys::fuzz_target;
 #[path = "common.rs"]
 mod common;
 
-fuzz_target!(|data: &[u8]| {
-    let Some((&pick, body)) = data.split_first() else {
-        return;
-    };
-    match pick % 3 {
-        0 => drop(wgslam::io::read_tum(&common::as_file("t.txt", body))),
-        1 => drop(wgslam::scan::read::read_matrix4(&common::as_file(
-            "m.txt", body,
-        ))),
-        _ => drop(wgslam::scan::odometry::read_airsim_pose(&common::as_file(
-            "p.txt", body,
-        ))),
-    }
-});
+const READERS: &[common::FileReader] = &[
+    ("t.txt", |p| drop(wgslam::io::read_tum(p))),
+    ("m.txt", |p| drop(wgslam::scan::read::read_matrix4(p))),
+    ("p.txt", |p| drop(wgslam::scan::odometry::read_airsim_pose(p))),
+];
+
+fuzz_target!(|data: &[u8]| common::read_picked(data, READERS));

@@ -13,6 +13,7 @@ use crate::geometry::align::CrossCovariance;
 use crate::geometry::rigid::nearest_rotation;
 use crate::geometry::se3;
 use crate::{Error, Result};
+use wgslam_core::seeded::SplitMix;
 
 /// How many source points each iteration uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -149,39 +150,15 @@ impl IcpResult {
     }
 }
 
-/// SplitMix64: a small, fast, seedable generator (statistical quality is ample for sampling).
-#[derive(Debug, Clone)]
-pub struct SplitMix64(u64);
-
-impl SplitMix64 {
-    /// A generator started at `seed`.
-    pub fn new(seed: u64) -> Self {
-        SplitMix64(seed)
-    }
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform integer in `0..n` (`n > 0`), by widening multiply (bias below 2^-32 for
-    /// clouds under 4 billion points).
-    pub fn below(&mut self, n: usize) -> usize {
-        ((self.next_u64() as u128 * n as u128) >> 64) as usize
-    }
-}
-
 /// Draws sample indices: a partial Fisher-Yates shuffle of `order` (kept between calls, so
 /// each call is a fresh uniform sample without replacement); returns the first `k`.
-fn draw_sample<'a>(order: &'a mut [u32], k: usize, rng: &mut SplitMix64) -> &'a [u32] {
+fn draw_sample<'a>(order: &'a mut [u32], k: usize, rng: &mut SplitMix) -> &'a [u32] {
     let n = order.len();
     if k >= n {
         return order;
     }
     for i in 0..k {
-        let j = i + rng.below(n - i);
+        let j = i + rng.below_wide(n - i);
         order.swap(i, j);
     }
     &order[..k]
@@ -235,7 +212,7 @@ pub fn register_with(
         .min(params.radius);
     let mut radius = params.radius;
     let subsampled = k < source.len();
-    let mut rng = SplitMix64::new(params.seed);
+    let mut rng = SplitMix::new(params.seed);
     let mut order: Vec<u32> = (0..source.len() as u32).collect();
     let mut queries = vec![[0f32; 3]; k];
     let mut pairs = vec![(0u32, 0f32); k];
@@ -406,15 +383,15 @@ mod tests {
         let t = se3::exp(&[0.1, -0.2, 0.05, 0.3, 0.1, -0.2]);
         let mut exact = CrossCovariance::default();
         let mut noisy = CrossCovariance::default();
-        let mut rng = SplitMix64::new(1);
+        let mut rng = SplitMix::new(1);
         for p in cloud() {
             let q = t.transform_point3(p);
             exact.add(p, q);
             // Uniform noise in [-5, 5] mm per axis: sigma = 10 mm / sqrt(12) per axis.
             let e = DVec3::new(
-                rng.below(1001) as f64 - 500.0,
-                rng.below(1001) as f64 - 500.0,
-                rng.below(1001) as f64 - 500.0,
+                rng.below_wide(1001) as f64 - 500.0,
+                rng.below_wide(1001) as f64 - 500.0,
+                rng.below_wide(1001) as f64 - 500.0,
             ) * 1e-5;
             noisy.add(p, q + e);
         }
@@ -479,14 +456,14 @@ mod tests {
     #[test]
     fn sample_draws_are_distinct_and_seeded() {
         let mut order: Vec<u32> = (0..100).collect();
-        let mut rng = SplitMix64::new(5);
+        let mut rng = SplitMix::new(5);
         let s1 = draw_sample(&mut order, 30, &mut rng).to_vec();
         let mut sorted = s1.clone();
         sorted.sort();
         sorted.dedup();
         assert_eq!(sorted.len(), 30);
         let mut order2: Vec<u32> = (0..100).collect();
-        let s2 = draw_sample(&mut order2, 30, &mut SplitMix64::new(5)).to_vec();
+        let s2 = draw_sample(&mut order2, 30, &mut SplitMix::new(5)).to_vec();
         assert_eq!(s1, s2);
         assert_eq!(draw_sample(&mut order, 500, &mut rng).len(), 100);
     }

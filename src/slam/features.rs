@@ -19,8 +19,8 @@ use glam::{DMat4, DVec3};
 
 use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
 use crate::slam::backend::{Backend, ToDescribe};
-use crate::slam::seeded::SplitMix;
 use crate::Result;
+use wgslam_core::seeded::SplitMix;
 
 /// Corners kept per frame (the strongest).
 pub const MAX_FEATURES: usize = 500;

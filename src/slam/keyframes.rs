@@ -24,7 +24,7 @@ use glam::DMat4;
 use crate::geometry::se3;
 use crate::layout::{Fern, FernParams, FERN_GRID, FERN_NO_DEPTH};
 use crate::slam::params::RelocalisationSettings;
-use crate::slam::seeded::SplitMix;
+use wgslam_core::seeded::SplitMix;
 
 /// The depth thresholds' range, metres: ElasticFusion draws them from 0.4 m to its depth
 /// cut-off; 4 m covers the indoor range of the sequences here (ICL-NUIM 1.4-5.3 m,

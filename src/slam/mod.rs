@@ -25,7 +25,6 @@ pub mod pipeline;
 pub mod pose_graph;
 pub(crate) mod recovery;
 pub mod report;
-pub(crate) mod seeded;
 pub mod solve;
 pub(crate) mod step_params;
 pub(crate) mod tracker;

@@ -7,6 +7,7 @@
 //! | [`cpu`] | the CPU twins of the WGSL kernels: pure functions over typed slices, the shader's shape line by line |
 //! | [`error`] | [`Error`]: one documented variant per kind of thing a user can cause or meet, for every floor |
 //! | [`stats`] | the one median |
+//! | [`seeded`] | the one fixed-seed number stream (splitmix64) |
 //! | [`cpu_backend`] | the CPU reference backend: the steps as calls of the twins, in the plans' order |
 //! | [`backend`] | the steps every backend implements (the CPU reference's twins, the GPU's kernels), and the maps they exchange |
 //! | [`plan`] | each step's kernels in order, written once for both backends |
@@ -26,6 +27,7 @@ pub mod geometry;
 pub mod layout;
 pub mod plan;
 pub mod registry;
+pub mod seeded;
 pub mod stats;
 
 pub use error::{Error, Result};

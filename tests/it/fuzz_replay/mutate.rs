@@ -1,26 +1,24 @@
-//! The fixed-seed mutator of the fuzz replay: a small PRNG (SplitMix64, so no dependency
-//! and the same corpus on every platform) and the mutations a careless or hostile user's
-//! file shows.
+//! The fixed-seed mutator of the fuzz replay: the library's splitmix64 stream (no
+//! dependency, the same corpus on every platform) and the mutations a careless or hostile
+//! user's file shows.
 
-/// SplitMix64: a tiny PRNG whose sequence depends only on its seed.
-pub struct Rng(u64);
+use wgslam::seeded::SplitMix;
+
+/// The library's one splitmix64 stream ([`SplitMix`]), counted in `usize`.
+pub struct Rng(SplitMix);
 
 impl Rng {
     pub fn new(seed: u64) -> Rng {
-        Rng(seed)
+        Rng(SplitMix::new(seed))
     }
 
     pub fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// A number in `0..n` (`n > 0`).
     pub fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
+        self.0.below(n as u64) as usize
     }
 }
 

@@ -20,78 +20,70 @@ const ROOT: &str = "/fuzz-replay/seq";
 /// Stamp difference allowed when associating the in-memory sequences' streams, seconds.
 const MAX_TIME_DIFF: f64 = 0.02;
 
+/// A case whose reader reads one file: its name, the file's name, its seeds, the reader.
+macro_rules! file_reader {
+    ($name:literal, $file:literal, $seeds:expr, $read:path) => {
+        ($name, || ($seeds, on_file($name, $file, $read)))
+    };
+}
+
 pub const CASES: &[Case] = &[
-    ("ply", || {
-        (ply_seeds(), on_file("ply", "c.ply", wgslam::io::read_ply))
-    }),
-    ("ply_xyz", || {
-        (
-            ply_seeds(),
-            on_file("ply_xyz", "c.ply", wgslam::scan::read::read_ply_xyz),
-        )
-    }),
-    ("pcd", || {
-        (
-            pcd_seeds(),
-            on_file("pcd", "c.pcd", wgslam::scan::read::read_pcd),
-        )
-    }),
-    ("kitti_bin", || {
-        (
-            vec![kitti_seed()],
-            on_file("kitti_bin", "c.bin", wgslam::scan::read::read_kitti_bin),
-        )
-    }),
-    ("xyz_text", || {
-        (
-            vec![b"1 2 3\n4.5 -5 6e-1\n# note\n7,8,9\n".to_vec()],
-            on_file("xyz_text", "c.xyz", wgslam::scan::read::read_xyz_text),
-        )
-    }),
-    ("cloud_by_extension", || {
-        (
-            pcd_seeds(),
-            on_file(
-                "cloud_by_extension",
-                "c.pcd",
-                wgslam::scan::read::read_cloud,
-            ),
-        )
-    }),
-    ("matrix4", || {
-        (
-            vec![IDENTITY.to_vec()],
-            on_file("matrix4", "m.txt", wgslam::scan::read::read_matrix4),
-        )
-    }),
-    ("airsim_pose", || {
-        (
-            vec![b"1.0, 2.0, -3.0\n0.0, 0.0, 0.0, 1.0\n".to_vec()],
-            on_file(
-                "airsim_pose",
-                "p.txt",
-                wgslam::scan::odometry::read_airsim_pose,
-            ),
-        )
-    }),
-    ("tum_trajectory", || {
-        (
-            vec![TUM_GT.to_vec()],
-            on_file("tum_trajectory", "t.txt", wgslam::io::read_tum),
-        )
-    }),
-    ("depth_png", || {
-        (
-            vec![depth_png()],
-            on_file("depth_png", "d.png", wgslam::dataset::frame::load_depth),
-        )
-    }),
-    ("image_size", || {
-        (
-            vec![rgb_png(), rgb_jpg()],
-            on_file("image_size", "i.png", wgslam::dataset::frame::image_size),
-        )
-    }),
+    file_reader!("ply", "c.ply", ply_seeds(), wgslam::io::read_ply),
+    file_reader!(
+        "ply_xyz",
+        "c.ply",
+        ply_seeds(),
+        wgslam::scan::read::read_ply_xyz
+    ),
+    file_reader!("pcd", "c.pcd", pcd_seeds(), wgslam::scan::read::read_pcd),
+    file_reader!(
+        "kitti_bin",
+        "c.bin",
+        vec![kitti_seed()],
+        wgslam::scan::read::read_kitti_bin
+    ),
+    file_reader!(
+        "xyz_text",
+        "c.xyz",
+        vec![b"1 2 3\n4.5 -5 6e-1\n# note\n7,8,9\n".to_vec()],
+        wgslam::scan::read::read_xyz_text
+    ),
+    file_reader!(
+        "cloud_by_extension",
+        "c.pcd",
+        pcd_seeds(),
+        wgslam::scan::read::read_cloud
+    ),
+    file_reader!(
+        "matrix4",
+        "m.txt",
+        vec![IDENTITY.to_vec()],
+        wgslam::scan::read::read_matrix4
+    ),
+    file_reader!(
+        "airsim_pose",
+        "p.txt",
+        vec![b"1.0, 2.0, -3.0\n0.0, 0.0, 0.0, 1.0\n".to_vec()],
+        wgslam::scan::odometry::read_airsim_pose
+    ),
+    file_reader!(
+        "tum_trajectory",
+        "t.txt",
+        vec![TUM_GT.to_vec()],
+        wgslam::io::read_tum
+    ),
+    file_reader!(
+        "depth_png",
+        "d.png",
+        vec![depth_png()],
+        wgslam::dataset::frame::load_depth
+    ),
+    file_reader!(
+        "image_size",
+        "i.png",
+        vec![rgb_png(), rgb_jpg()],
+        wgslam::dataset::frame::image_size
+    ),
     ("icl_associations", || in_folder(icl(), "associations.txt")),
     ("icl_camera_json", || in_folder(icl(), "camera.json")),
     ("tum_rgb_list", || in_folder(tum(), "rgb.txt")),
