@@ -56,8 +56,9 @@ pub struct MeshParams {
     /// Cells whose eight corners have less accumulated weight than this make no vertex
     /// (voxels touched only by the thin edge of one surfel's footprint).
     pub min_weight: f32,
-    /// The most memory the volume and its mesh may take, bytes ([`tsdf::volume_bytes`]
-    /// estimates it before anything is allocated; over it, meshing is refused).
+    /// The most memory the volume and its mesh may take, bytes (estimated from the blocks
+    /// [`tsdf::count_blocks`] counts before anything is allocated; over it, meshing is
+    /// refused).
     pub max_memory_bytes: u64,
 }
 
@@ -225,8 +226,8 @@ impl MapSurfels {
 
 /// Meshes `surfels`: integrates the TSDF, then extracts its zero level set. An empty mesh
 /// when the surfels span no surface (none, or too few to give a cell both signs). Refused,
-/// before anything large is allocated, when [`tsdf::volume_bytes`] exceeds
-/// `params.max_memory_bytes`.
+/// before anything large is allocated, when the memory of the volume's blocks
+/// ([`tsdf::count_blocks`]) exceeds `params.max_memory_bytes`.
 pub fn mesh_from_surfels(surfels: &Surfels, params: &MeshParams) -> Result<Mesh> {
     params.validate()?;
     surfels.check()?;

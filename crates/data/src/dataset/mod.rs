@@ -420,7 +420,7 @@ impl Sequence {
     }
 
     /// The note on the ground truth's jumps within the frames `range` (a run's, as
-    /// [`Sequence::select`] gives it; see [`checks::jump_note`]): frames outside a run
+    /// [`Sequence::select`] gives it; see `checks::jump_note`): frames outside a run
     /// are not its concern.
     pub fn jump_note(&self, range: RangeInclusive<usize>) -> Option<String> {
         let first = *range.start();
