@@ -389,6 +389,29 @@ mod tests {
         assert_eq!(FusedView::of_fuse(&assignment.fuse_params(&t, 5)), None);
     }
 
+    /// The robust profile's ICP angle gate is `icp.full_res_normal_deg` (30 degrees) only
+    /// at a level of the sensor's own pixels (`--downsample 1`, level 0), and
+    /// `icp.normal_deg` (20) at every coarser level and at the default downsampling.
+    #[test]
+    fn the_full_resolution_angle_gate_is_level_zero_at_downsample_one() {
+        let gate_deg = |downsample: u32, level: usize| {
+            let mut p = crate::slam::params::SlamParams::profile(Profile::Robust);
+            p.input.downsample = downsample;
+            let slam = Slam::new(
+                CpuBackend::new(),
+                Intrinsics::ICL_NUIM,
+                p.validate().unwrap(),
+            );
+            let cos = slam
+                .icp_params(level, &DMat4::IDENTITY)
+                .cos_normal_threshold;
+            (cos.acos().to_degrees() * 1e3).round() / 1e3
+        };
+        assert_eq!(gate_deg(1, 0), 30.0);
+        assert_eq!(gate_deg(1, 1), 20.0);
+        assert_eq!(gate_deg(2, 0), 20.0);
+    }
+
     /// `IcpSteps` made once per frame give, at any pose and level, exactly the parameters
     /// `project_params` and `icp_params` make at that pose (the pose is the only thing in
     /// them that changes between uses).
