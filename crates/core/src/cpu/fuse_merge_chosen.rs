@@ -7,7 +7,7 @@
 //! block's box grows the box.
 
 use super::{
-    back_project, merged_surfel, normal_of, pixel_confidence, pixel_grid, surfel_radius,
+    back_project, merged_surfel, normal_of, pixel_confidence, pixel_grid_in_order, surfel_radius,
     transform_dir, transform_point, xyz,
 };
 use crate::layout::{ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
@@ -28,7 +28,7 @@ pub fn fuse_merge_chosen(
     merged: &mut [[f32; 4]],
 ) {
     // The shader's grid-stride loop as one thread whose stride is 1 x 1.
-    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+    pixel_grid_in_order(params.camera.width, params.camera.height, |[u, v]| {
         let pix = (v * params.camera.width + u) as usize;
         let key = assoc[pix];
         if key == 0 {
