@@ -15,8 +15,7 @@ use crate::batch::{folder, interrupt, report};
 use crate::cli::pipeline_args::ParamOverrides;
 use crate::gpu::backend::GpuBackend;
 use crate::gpu::context::GpuContext;
-use crate::slam::any_backend::{AnyBackend, BackendChoice};
-use crate::slam::cpu_backend::CpuBackend;
+use crate::slam::any_backend::{self, AnyBackend, BackendChoice};
 use crate::slam::params::PoseSource;
 use crate::{Error, Result};
 
@@ -101,7 +100,8 @@ struct RunOnly {
 /// Runs a job's backend in this process: `args` parsed as `wgslam run`'s, the CPU backend
 /// or a GPU backend on its own share of one device, opened at the first GPU run and shared
 /// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
-fn in_process_runs() -> Box<InProcessRun> {
+/// A CPU job gets its share of the `--threads` budget among the `concurrent` jobs.
+fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
         let a = RunOnly::try_parse_from(
@@ -117,7 +117,7 @@ fn in_process_runs() -> Box<InProcessRun> {
             Ok(Box::new(GpuBackend::new(shared.share())?))
         };
         let backend: AnyBackend = match a.backend {
-            BackendChoice::Cpu => Box::new(CpuBackend::new()),
+            BackendChoice::Cpu => Box::new(any_backend::cpu_backend(concurrent)?),
             BackendChoice::Gpu | BackendChoice::Auto => gpu()?,
         };
         let hooks = RunHooks {
@@ -267,7 +267,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
         return Ok(());
     }
     if concurrent > 1 {
-        r.in_process = Some(in_process_runs());
+        r.in_process = Some(in_process_runs(concurrent));
     }
     summary::write_plan(&out, &m)?;
     interrupt::install();
