@@ -7,6 +7,10 @@
 //! keeps the culling blocks' boxes as the GPU backend does (recomputed for the blocks
 //! fusion appended to, all of them after a compaction or an upload, before the next
 //! culling step), so its cost per frame also follows what the camera sees.
+//!
+//! The steps whose twins spread their invocations over threads (`preprocess`, `predict`,
+//! the ICP systems and candidates, `fuse`) run inside the backend's [`Threads`]
+//! (`cpu::invocations`); the outputs are the same bits on any number of threads.
 
 use crate::backend::RgbdSystems;
 use crate::backend::{
@@ -388,108 +392,97 @@ impl Backend for CpuBackend {
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
-        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
-        self.threads.clone().install(|| {
-            let n = self.map.len();
-            let mut params = *params;
-            params.surfel_count = n as u32;
-            let m = &self.map;
-            let chunk = MapChunk::whole(n);
-            let mut counter = 0u32;
-            for call in plan::compact() {
-                match call {
-                    CompactCall::Flags => {
-                        self.flags.resize(n, 0);
-                        cpu::compact_flags::compact_flags(
-                            &params,
-                            &chunk,
-                            &m.position_weight,
-                            &m.normal_frame,
-                            &mut self.flags,
-                        );
-                    }
-                    CompactCall::Scan => {
-                        self.offsets.resize(n, 0);
-                        cpu::prefix_sum::scan(
-                            &params,
-                            &self.flags,
-                            &mut self.offsets,
-                            &mut counter,
-                        );
-                    }
-                    // The second map, as large as the first (as on the GPU), cut to the survivors.
-                    CompactCall::Scatter => {
-                        let out = &mut self.spare;
-                        out.resize(n);
-                        // One call per attribute, as the kernel is dispatched.
-                        let (flags, offsets) = (&self.flags, &self.offsets);
-                        use bytemuck::{cast_slice, cast_slice_mut};
-                        use cpu::compact_scatter::compact_scatter as scatter;
-                        let (pw, c) = (cast_slice(&m.position_weight), cast_slice(&m.color));
-                        scatter(
-                            &params,
-                            flags,
-                            offsets,
-                            &chunk,
-                            pw,
-                            &chunk,
-                            cast_slice_mut(&mut out.position_weight),
-                        );
-                        scatter(
-                            &params,
-                            flags,
-                            offsets,
-                            &chunk,
-                            &m.normal_frame,
-                            &chunk,
-                            &mut out.normal_frame,
-                        );
-                        scatter(
-                            &params,
-                            flags,
-                            offsets,
-                            &chunk,
-                            c,
-                            &chunk,
-                            cast_slice_mut(&mut out.color),
-                        );
-                        out.resize(counter as usize);
-                    }
+        let n = self.map.len();
+        let mut params = *params;
+        params.surfel_count = n as u32;
+        let m = &self.map;
+        let chunk = MapChunk::whole(n);
+        let mut counter = 0u32;
+        for call in plan::compact() {
+            match call {
+                CompactCall::Flags => {
+                    self.flags.resize(n, 0);
+                    cpu::compact_flags::compact_flags(
+                        &params,
+                        &chunk,
+                        &m.position_weight,
+                        &m.normal_frame,
+                        &mut self.flags,
+                    );
+                }
+                CompactCall::Scan => {
+                    self.offsets.resize(n, 0);
+                    cpu::prefix_sum::scan(&params, &self.flags, &mut self.offsets, &mut counter);
+                }
+                // The second map, as large as the first (as on the GPU), cut to the survivors.
+                CompactCall::Scatter => {
+                    let out = &mut self.spare;
+                    out.resize(n);
+                    // One call per attribute, as the kernel is dispatched.
+                    let (flags, offsets) = (&self.flags, &self.offsets);
+                    use bytemuck::{cast_slice, cast_slice_mut};
+                    use cpu::compact_scatter::compact_scatter as scatter;
+                    let (pw, c) = (cast_slice(&m.position_weight), cast_slice(&m.color));
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        pw,
+                        &chunk,
+                        cast_slice_mut(&mut out.position_weight),
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        &m.normal_frame,
+                        &chunk,
+                        &mut out.normal_frame,
+                    );
+                    scatter(
+                        &params,
+                        flags,
+                        offsets,
+                        &chunk,
+                        c,
+                        &chunk,
+                        cast_slice_mut(&mut out.color),
+                    );
+                    out.resize(counter as usize);
                 }
             }
-            std::mem::swap(&mut self.map, &mut self.spare);
-            // Every surfel may have moved to another block, and to another index.
-            self.bounds_dirty_from = 0;
-            self.fused_view = None;
-            Ok(self.map.len())
-        })
+        }
+        std::mem::swap(&mut self.map, &mut self.spare);
+        // Every surfel may have moved to another block, and to another index.
+        self.bounds_dirty_from = 0;
+        self.fused_view = None;
+        Ok(self.map.len())
     }
 
     fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
-        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
-        self.threads.clone().install(|| {
-            let n = self.map.len();
-            if nodes.is_empty() || n == 0 {
-                return Ok(());
-            }
-            let params = DeformParams {
-                surfel_count: n as u32,
-                node_count: nodes.len() as u32,
-                _pad0: 0,
-                _pad1: 0,
-            };
-            cpu::deform_surfels::deform_surfels(
-                &params,
-                &MapChunk::whole(n),
-                nodes,
-                &mut self.map.position_weight,
-                &mut self.map.normal_frame,
-            );
-            // Every surfel may have left its block's box; the fused view is of the old map.
-            self.bounds_dirty_from = 0;
-            self.fused_view = None;
-            Ok(())
-        })
+        let n = self.map.len();
+        if nodes.is_empty() || n == 0 {
+            return Ok(());
+        }
+        let params = DeformParams {
+            surfel_count: n as u32,
+            node_count: nodes.len() as u32,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        cpu::deform_surfels::deform_surfels(
+            &params,
+            &MapChunk::whole(n),
+            nodes,
+            &mut self.map.position_weight,
+            &mut self.map.normal_frame,
+        );
+        // Every surfel may have left its block's box; the fused view is of the old map.
+        self.bounds_dirty_from = 0;
+        self.fused_view = None;
+        Ok(())
     }
 
     fn frame_level(&mut self, level: usize) -> Result<Prediction> {
