@@ -199,6 +199,21 @@ impl<'a, T: Pod> Storage<'a, T> {
     }
 }
 
+impl Storage<'_, u32> {
+    /// `atomicMin(&array[i], value)`: order-independent, so any number of invocations may
+    /// lower one element.
+    #[inline]
+    pub fn fetch_min(&self, i: usize, value: u32) {
+        self.words[i].fetch_min(value, Ordering::Relaxed);
+    }
+
+    /// `atomicMax(&array[i], value)` (see [`Storage::fetch_min`]).
+    #[inline]
+    pub fn fetch_max(&self, i: usize, value: u32) {
+        self.words[i].fetch_max(value, Ordering::Relaxed);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
