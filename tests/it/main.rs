@@ -14,6 +14,7 @@ mod cli;
 mod compare;
 mod compare_perturbed;
 mod datasets;
+mod decode_ahead;
 mod end_to_end;
 mod eval;
 mod fuzz_replay;
@@ -57,6 +58,7 @@ fn main() -> ExitCode {
         compare,
         compare_perturbed,
         datasets,
+        decode_ahead,
         end_to_end,
         eval,
         fuzz_replay,
