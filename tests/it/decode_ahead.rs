@@ -83,11 +83,11 @@ fn a_decode_error_stops_the_run_at_its_frame_with_the_same_error() {
     // Frame 5's depth is not a PNG.
     std::fs::write(root.join("depth/5.png"), b"not a png").unwrap();
     let (before, seen_before) = cpu_run(&root, (0, 9), Decode::BeforeEachFrame);
-    let before = before.err().expect("frame 5 fails").to_string();
+    let before = before.expect_err("frame 5 fails").to_string();
     assert_eq!(seen_before, (0..=4).collect::<Vec<_>>());
     for threads in [2, 4] {
         let (ahead, seen) = cpu_run(&root, (0, 9), Decode::with_threads(threads));
-        let ahead = ahead.err().expect("frame 5 fails").to_string();
+        let ahead = ahead.expect_err("frame 5 fails").to_string();
         assert_eq!(ahead, before, "{threads} threads");
         assert_eq!(
             seen, seen_before,
@@ -121,8 +121,9 @@ fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
 /// figure.
 const DECODE_WAIT_FRACTION_MAX: f64 = 0.25;
 /// The loop's wait with 2 decode threads over its wait decoding before each frame (all
-/// of every decode), in one test: at most half (measured 0.1-0.4 on this machine).
-const AHEAD_OVER_BEFORE_MAX: f64 = 0.5;
+/// of every decode), in one test: at most three quarters (measured 0.39 in the test
+/// profile under load; the first frame's decode, in both, is a fixed part of the ratio).
+const AHEAD_OVER_BEFORE_MAX: f64 = 0.75;
 
 /// The end-to-end figures of `bench`'s first pass over the bundled frames with ground
 /// truth, CPU backend, 320x240.
