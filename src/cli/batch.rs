@@ -101,14 +101,18 @@ struct RunOnly {
 /// Runs a job's backend in this process: `args` parsed as `wgslam run`'s, the CPU backend
 /// or a GPU backend on its own share of one device, opened at the first GPU run and shared
 /// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
-fn in_process_runs() -> Box<InProcessRun> {
+/// The `concurrent` jobs share the cores for decoding: each decodes ahead on its share
+/// (at least one thread).
+fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
-        let a = RunOnly::try_parse_from(
+        let mut a = RunOnly::try_parse_from(
             std::iter::once("wgslam run").chain(args.iter().skip(1).map(String::as_str)),
         )
         .map_err(|e| Error::Argument(e.to_string()))?
         .run;
+        let cores = crate::tools::run::Decode::ahead_on_every_core().threads();
+        a.decode.decode_threads = Some((cores / concurrent).max(1));
         let gpu = || -> Result<AnyBackend> {
             let shared = device
                 .get_or_init(|| GpuContext::new().map_err(|e| e.to_string()))
@@ -267,7 +271,7 @@ fn run(a: BatchRunArgs) -> Result<()> {
         return Ok(());
     }
     if concurrent > 1 {
-        r.in_process = Some(in_process_runs());
+        r.in_process = Some(in_process_runs(concurrent));
     }
     summary::write_plan(&out, &m)?;
     interrupt::install();
