@@ -9,7 +9,8 @@
 // every few frames, the map drawn from the user's view. Afterwards: the command line's
 // summary, the trajectory plot, the outputs to download and the map to turn.
 //
-// Query parameters: `frames=A..B` and `profile=robust|assignment` prefill the controls;
+// Query parameters: `frames=A..B`, `profile=robust|assignment` and `camera=fr1` (a preset
+// or fx,fy,cx,cy) prefill the controls;
 // `run=bundled` starts a run on the bundled frames at once.
 // For scripts (deploy/web/test): `document.body.dataset.state` is `ready` (waiting for the
 // user), `running`, `done` or `error`; `window.wgslam` holds `{ state, error, result,
@@ -139,6 +140,7 @@ async function main() {
   const query = new URLSearchParams(location.search);
   $("frames").value = query.get("frames") ?? "";
   if (query.get("profile")) $("profile").value = query.get("profile");
+  if (query.get("camera")) $("camera").value = query.get("camera");
   $("bundled").onclick = async () => choose(await bundled());
   $("folder").onchange = () => {
     try {
@@ -193,7 +195,8 @@ async function run() {
     window.wgslam.bytesRead += bytes.length;
     return bytes;
   });
-  const bad = mod.configure(data.root, $("profile").value);
+  const camera = $("camera").value.trim();
+  const bad = mod.configure(data.root, $("profile").value, camera);
   if (bad) return fail(bad);
   busy = true;
   $("controls").disabled = true;
@@ -217,6 +220,7 @@ async function run() {
   $("summary").textContent = [
     `data: ${data.describe}; layout ${result.layout}`,
     ...result.notes.map((n) => `note: ${n}`),
+    intrinsicsLine(result.metrics.intrinsics, camera),
     `WebGPU adapter: ${window.wgslam.adapterName || "(unnamed)"}; ${result.key_kernels} key kernels`,
     ...result.summary,
     `read ${window.wgslam.filesRead} files, ${(window.wgslam.bytesRead / 1e6).toFixed(1)} MB of the ` +
@@ -229,6 +233,15 @@ async function run() {
   offerDownloads(result.downloads);
   say("done: turn the map with the mouse, or download the outputs below");
   setState("done", { result, wallSeconds, suspensions: globalThis.wgslamSuspensions });
+}
+
+// Which intrinsics the run used (pixels of the raw frames), and where they came from.
+function intrinsicsLine(k, camera) {
+  const from = camera
+    ? `chosen on the page (${camera})`
+    : "the folder's own (camera.json or its layout's files)";
+  const n = (v) => Number(v.toFixed(3));
+  return `intrinsics: fx ${n(k.fx)}, fy ${n(k.fy)}, cx ${n(k.cx)}, cy ${n(k.cy)}, ${k.width}x${k.height}; ${from}`;
 }
 
 function plot(result) {

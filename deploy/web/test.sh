@@ -32,6 +32,20 @@ frames="${1:-0..9}"
 out="${WGSLAM_WEB_OUT:-/tmp/wgslam-web}"
 mkdir -p "$out"
 
+# The bundled ICL-NUIM frames rewritten in the TUM layout in folder $1, with their
+# camera.json unless $2 is "no-camera".
+icl_as_tum() {
+  local icl=assets/icl_living_room_kt2 to="$1"
+  rm -rf "$to"
+  mkdir -p "$to"
+  cp -r "$icl/rgb" "$icl/depth" "$to/"
+  [[ "${2:-}" == no-camera ]] || cp "$icl/camera.json" "$to/"
+  # ICL-NUIM's stamps are frame indices: the same numbers serve as TUM stamps.
+  awk '!/^[[:space:]]*(#|$)/ { print $3, $4 }' "$icl/associations.txt" >"$to/rgb.txt"
+  awk '!/^[[:space:]]*(#|$)/ { print $1, $2 }' "$icl/associations.txt" >"$to/depth.txt"
+  cp "$icl"/*.gt.freiburg "$to/groundtruth.txt"
+}
+
 folder=../shared/data/7scenes_redkitchen
 if [[ -d "$folder" && "${WGSLAM_WEB_DATA:-}" != bundled ]]; then
   folder="$(cd "$folder" && pwd)"
@@ -43,14 +57,22 @@ else
   [[ "${WGSLAM_WEB_DATA:-}" == bundled ]] && why="WGSLAM_WEB_DATA=bundled"
   step "data ($why): the bundled ICL-NUIM frames rewritten in the TUM layout in" \
     "$folder, frames $frames"
-  rm -rf "$folder"
-  mkdir -p "$folder"
-  cp -r "$icl/rgb" "$icl/depth" "$icl/camera.json" "$folder/"
-  # ICL-NUIM's stamps are frame indices: the same numbers serve as TUM stamps.
-  awk '!/^[[:space:]]*(#|$)/ { print $3, $4 }' "$icl/associations.txt" >"$folder/rgb.txt"
-  awk '!/^[[:space:]]*(#|$)/ { print $1, $2 }' "$icl/associations.txt" >"$folder/depth.txt"
-  cp "$icl"/*.gt.freiburg "$folder/groundtruth.txt"
+  icl_as_tum "$folder"
 fi
+
+# The camera box: a TUM folder without intrinsics (default: the bundled frames in the TUM
+# layout without camera.json, and ICL-NUIM's four numbers typed in; WGSLAM_WEB_CAMERA_FOLDER,
+# WGSLAM_WEB_CAMERA (a preset such as fr1, or fx,fy,cx,cy) and WGSLAM_WEB_CAMERA_FRAMES
+# choose another, e.g. a TUM RGB-D recording with fr1).
+camera_folder="${WGSLAM_WEB_CAMERA_FOLDER:-$out/icl_as_tum_no_camera}"
+camera="${WGSLAM_WEB_CAMERA:-481.2,-480,319.5,239.5}"
+camera_frames="${WGSLAM_WEB_CAMERA_FRAMES:-0..4}"
+if [[ -z "${WGSLAM_WEB_CAMERA_FOLDER:-}" ]]; then
+  icl_as_tum "$camera_folder" no-camera
+fi
+camera_flag=(--intrinsics "$camera")
+[[ "$camera" == *,* ]] || camera_flag=(--camera "$camera")
+step "camera box: $camera_folder with ${camera_flag[*]}, frames $camera_frames"
 
 if ((build)); then
   step "building the page (deploy/web/build.sh)"
@@ -70,6 +92,13 @@ step "the native run: ${native[*]} run --backend gpu --frames $frames (portable 
 WGSLAM_GPU_FEATURES=portable WGSLAM_GPU_LIMITS=webgpu \
   "${native[@]}" run --backend gpu --frames "$frames" --out "$out/native" "$folder" | tee "$out/native.log"
 
+rm -rf "$out/native-camera"
+step "the native run of the camera folder: ${camera_flag[*]} --frames $camera_frames"
+WGSLAM_GPU_FEATURES=portable WGSLAM_GPU_LIMITS=webgpu \
+  "${native[@]}" run --backend gpu "${camera_flag[@]}" --frames "$camera_frames" \
+  --out "$out/native-camera" "$camera_folder" | tee "$out/native-camera.log"
+
 step "the page in headless Chromium (SwiftShader WebGPU): pick, run, download, turn, errors"
 node deploy/web/test/check.mjs --dist deploy/web/dist --folder "$folder" --frames "$frames" \
-  --native "$out/native" --shots "$out"
+  --native "$out/native" --shots "$out" --camera-folder "$camera_folder" \
+  --camera-setting "$camera" --camera-frames "$camera_frames" --camera-native "$out/native-camera"

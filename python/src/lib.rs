@@ -274,7 +274,7 @@ fn run(
             &setup.sequence,
             setup.frames.clone(),
             setup.params.clone(),
-            Decode::Overlapped,
+            Decode::ahead_on_every_core(),
             |_| {},
             Some(&mut observer),
         )

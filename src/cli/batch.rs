@@ -100,15 +100,18 @@ struct RunOnly {
 /// Runs a job's backend in this process: `args` parsed as `wgslam run`'s, the CPU backend
 /// or a GPU backend on its own share of one device, opened at the first GPU run and shared
 /// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
-/// A CPU job gets its share of the `--threads` budget among the `concurrent` jobs.
+/// The `concurrent` jobs share the cores for decoding: each decodes ahead on its share
+/// (at least one thread); a CPU job's twins run on its share of the `--threads` budget.
 fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
-        let a = RunOnly::try_parse_from(
+        let mut a = RunOnly::try_parse_from(
             std::iter::once("wgslam run").chain(args.iter().skip(1).map(String::as_str)),
         )
         .map_err(|e| Error::Argument(e.to_string()))?
         .run;
+        let cores = crate::tools::run::Decode::ahead_on_every_core().threads();
+        a.decode.decode_threads = Some((cores / concurrent).max(1));
         let gpu = || -> Result<AnyBackend> {
             let shared = device
                 .get_or_init(|| GpuContext::new().map_err(|e| e.to_string()))

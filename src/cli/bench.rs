@@ -46,6 +46,8 @@ pub struct BenchArgs {
     /// bench-one only: time whole frames only (no per-stage pass, no kernels).
     #[arg(long, hide = true)]
     pub frames_only: bool,
+    #[command(flatten)]
+    pub decode: super::run::DecodeArgs,
     // The sequence, a parameter file and the parameters (last, so their help heading
     // follows this command's own options).
     #[command(flatten)]
@@ -62,7 +64,8 @@ pub fn execute(a: BenchArgs) -> Result<()> {
         return bench_revisit(&a, &setup, &params, total);
     }
     let params_file = setup.child_params("bench")?;
-    let bench_one_args = with_frames(setup.handoff_args(&params_file), &a.frames);
+    let mut bench_one_args = with_frames(setup.handoff_args(&params_file), &a.frames);
+    bench_one_args.extend(a.decode.child_args());
     let mut rounds = Vec::new();
     for round in 0..a.rounds {
         let mut order = a.backends.clone();
@@ -132,6 +135,7 @@ fn bench_revisit(a: &BenchArgs, setup: &Setup, params: &ValidParams, total: usiz
         eprintln!("{name}: {total} frames over {first}..{last} forwards and backwards ...");
         let mut args = vec!["run".to_string()];
         args.extend(with_frames(setup.handoff_args(&params_file), &a.frames));
+        args.extend(a.decode.child_args());
         args.extend([
             "--revisit".into(),
             total.to_string(),
@@ -156,9 +160,9 @@ pub fn execute_one(a: BenchArgs) -> Result<()> {
     let choice = *a.backends.first().unwrap_or(&BackendChoice::Cpu);
     let make = || any_backend::open(choice);
     let mut r = if a.frames_only {
-        bench::bench_frames(make, &seq, first, last, &params)?
+        bench::bench_frames(make, &seq, (first, last), &params, a.decode.decode())?
     } else {
-        bench::bench_backend(make, &seq, first, last, &params)?
+        bench::bench_backend(make, &seq, first, last, &params, a.decode.decode())?
     };
     if a.kernels && !a.frames_only && r.backend == "gpu" {
         r.kernels = bench::gpu_kernel_times(&seq, first, last, &params)?;

@@ -166,6 +166,11 @@ param_overrides! {
     /// degrees; 0 takes --icp-angle's (assignment 0, robust 30).
     #[arg(long)]
     icp_full_res_angle: Option<f32> => "icp.full_res_normal_deg",
+    /// ICP normal-angle threshold at the finest level of a second attempt at full resolution
+    /// (--downsample 1) from the last pose, made when the first fails the health test,
+    /// degrees; 0 makes none (assignment 0, robust 30).
+    #[arg(long)]
+    icp_retry_angle: Option<f32> => "icp.full_res_retry_normal_deg",
     /// Huber threshold on ICP residuals, metres; 0 turns it off (assignment 0, robust 0.02).
     #[arg(long)]
     icp_huber: Option<f32> => "icp.huber_m",
@@ -344,25 +349,11 @@ impl ParamOverrides {
             None => None,
         };
         if let Some(s) = &self.intrinsics {
-            let v: Vec<f32> = s
-                .split(',')
-                .map(|x| x.trim().parse::<f32>())
-                .collect::<std::result::Result<_, _>>()
-                .map_err(|_| Error::Argument(format!("--intrinsics {s:?}: want fx,fy,cx,cy")))?;
-            if v.len() != 4 || v[0] == 0.0 || v[1] == 0.0 || v.iter().any(|x| !x.is_finite()) {
-                return Err(Error::Argument(format!(
-                    "--intrinsics {s:?}: want four finite numbers fx,fy,cx,cy with fx, fy \
-                     non-zero"
-                )));
-            }
             let base = intrinsics.unwrap_or(Intrinsics::ICL_NUIM);
-            intrinsics = Some(Intrinsics {
-                fx: v[0],
-                fy: v[1],
-                cx: v[2],
-                cy: v[3],
-                ..base
-            });
+            intrinsics = Some(
+                base.with_focal_centre(s)
+                    .map_err(|why| Error::Argument(format!("--intrinsics {s:?}: {why}")))?,
+            );
         }
         Ok(SequenceOptions {
             gt_path: self.gt.clone(),

@@ -65,10 +65,39 @@ pub struct RunArgs {
     /// surfels at 1 cm voxels, surface nets; `wgslam mesh` makes one from a map.ply).
     #[arg(long)]
     pub mesh: bool,
+    #[command(flatten)]
+    pub decode: DecodeArgs,
     // The sequence, a parameter file and the parameters (last, so their help heading
     // follows this command's own options).
     #[command(flatten)]
     pub pipeline: PipelineArgs,
+}
+
+/// How the frame loop's frames are decoded: `--decode-threads`, of `run` (and so of
+/// `batch`'s jobs) and `bench`. Not a pipeline parameter: it changes no output, so it is
+/// not a key of parameter files.
+#[derive(Debug, Clone, Copy, Default, Args)]
+pub struct DecodeArgs {
+    /// Threads that load and decode frames ahead of the frame loop (PNG/JPEG; frames still
+    /// reach the pipeline in order; default: one per core); 0 decodes each frame on the
+    /// loop's thread before it.
+    #[arg(long, value_name = "N")]
+    pub decode_threads: Option<usize>,
+}
+
+impl DecodeArgs {
+    /// Where frames are decoded.
+    pub fn decode(&self) -> run::Decode {
+        self.decode_threads
+            .map_or_else(run::Decode::ahead_on_every_core, run::Decode::with_threads)
+    }
+
+    /// The flag as a child process's arguments (none when unset).
+    pub fn child_args(&self) -> Vec<String> {
+        self.decode_threads
+            .map(|n| vec!["--decode-threads".to_string(), n.to_string()])
+            .unwrap_or_default()
+    }
 }
 
 /// The mesh `run --mesh` writes beside map.ply.
@@ -234,7 +263,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         &seq,
         range,
         params,
-        run::Decode::Overlapped,
+        a.decode.decode(),
         on_frame,
         Some(&mut MapCap {
             max_surfels: a.max_surfels,

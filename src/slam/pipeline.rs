@@ -58,8 +58,9 @@ use crate::slam::loop_closer::{self, FusedFrame};
 use crate::slam::loops::LoopClosure;
 use crate::slam::params::{PoseSource, ValidParams};
 use crate::slam::recovery::{Recovery, Relocalisation};
-pub use crate::slam::report::{FrameReport, RelocalisationAttempt, TrackStatus};
+pub use crate::slam::report::{FrameReport, RelocalisationAttempt, TrackStatus, WideGateAttempt};
 use crate::slam::solve::IcpIteration;
+use crate::slam::step_params::cos_of_gate;
 use crate::slam::tracker::{Icp, IcpSteps, Start, Tracker};
 use crate::Result;
 
@@ -108,7 +109,9 @@ struct Tracked {
     iterations: Vec<IcpIteration>,
     /// That attempt's health.
     health: Option<TrackingHealth>,
-    /// Relocalisation attempts after it failed.
+    /// The second attempt with the wider gate after it failed, if one was made.
+    wide_gate: Option<WideGateAttempt>,
+    /// Relocalisation attempts after those failed.
     relocalisation: Vec<RelocalisationAttempt>,
 }
 
@@ -117,6 +120,7 @@ impl Tracked {
         Tracked {
             iterations,
             health,
+            wide_gate: None,
             relocalisation: vec![],
         }
     }
@@ -196,6 +200,34 @@ impl<B: Backend> Slam<B> {
         let Err(why) = first.verdict else {
             let accepted = Accepted::new(first.t_world_to_cam, first.status, gap == 1);
             return self.accept(frame_id, accepted, tracked, &steps);
+        };
+        // Again from the last pose with the wider full-resolution angle gate at level 0.
+        if let Some(normal_deg) = self.wide_gate_deg() {
+            let wide = steps.with_level0_gate(cos_of_gate(normal_deg));
+            let mut icp = Icp {
+                backend: &mut self.backend,
+                params: &self.params,
+                steps: &wide,
+            };
+            let second = self
+                .tracker
+                .attempt(&mut icp, Start::from_last(t_last, gap))?;
+            let passed = second.verdict.is_ok();
+            tracked.wide_gate = Some(WideGateAttempt {
+                normal_deg,
+                iterations: second.iterations.len(),
+                health: second.health,
+                rejected: second.verdict.err(),
+            });
+            if passed {
+                let accepted = Accepted::new(second.t_world_to_cam, second.status, gap == 1);
+                return self.accept(frame_id, accepted, tracked, &steps);
+            }
+        }
+        let mut icp = Icp {
+            backend: &mut self.backend,
+            params: &self.params,
+            steps: &steps,
         };
         // Lost from there: relocalise from the keyframes.
         let relocalised = match &self.recovery {
@@ -296,13 +328,14 @@ impl<B: Backend> Slam<B> {
             self.backend.compact(&cp)?;
         }
         // The health of the pose the frame was fused at: the attempt's from the last pose,
-        // or for a relocalised frame the accepted attempt's.
-        let fused_health = tracked
-            .relocalisation
-            .iter()
-            .find(|a| a.rejected.is_none())
-            .and_then(|a| a.health)
-            .or(tracked.health);
+        // or the accepted second or relocalisation attempt's.
+        let relocalised = tracked.relocalisation.iter().find(|a| a.rejected.is_none());
+        let wide = tracked.wide_gate.as_ref().filter(|a| a.rejected.is_none());
+        let fused_health = match (relocalised, wide) {
+            (Some(a), _) => a.health,
+            (None, Some(a)) => a.health,
+            (None, None) => tracked.health,
+        };
         self.tracker
             .tracked(t_world_to_cam, fused_health.as_ref(), motion_counts);
         let offered = match &mut self.recovery {
@@ -334,6 +367,7 @@ impl<B: Backend> Slam<B> {
             status,
             iterations: tracked.iterations,
             health: tracked.health,
+            wide_gate: tracked.wide_gate,
             relocalisation: tracked.relocalisation,
             keyframe: offered.is_some_and(|o| o.keyframe),
             loops,
@@ -349,6 +383,7 @@ impl<B: Backend> Slam<B> {
             status,
             iterations: tracked.iterations,
             health: tracked.health,
+            wide_gate: tracked.wide_gate,
             relocalisation: tracked.relocalisation,
             keyframe: false,
             loops: vec![],
@@ -389,27 +424,42 @@ mod tests {
         assert_eq!(FusedView::of_fuse(&assignment.fuse_params(&t, 5)), None);
     }
 
-    /// The robust profile's ICP angle gate is `icp.full_res_normal_deg` (30 degrees) only
+    /// The robust profile's ICP angle gate is `icp.full_res_normal_deg` (25 degrees) only
     /// at a level of the sensor's own pixels (`--downsample 1`, level 0), and
-    /// `icp.normal_deg` (20) at every coarser level and at the default downsampling.
+    /// `icp.normal_deg` (20) at every coarser level and at the default downsampling; a
+    /// second attempt with `icp.full_res_retry_normal_deg` (30) there is made only at full
+    /// resolution, and only when that is wider than the first attempt's gate.
     #[test]
-    fn the_full_resolution_angle_gate_is_level_zero_at_downsample_one() {
-        let gate_deg = |downsample: u32, level: usize| {
+    fn the_full_resolution_angle_gates_are_level_zero_at_downsample_one() {
+        use crate::slam::params::{
+            ROBUST_ICP_FULL_RES_NORMAL_DEG as FULL_RES, ROBUST_ICP_RETRY_NORMAL_DEG as RETRY,
+        };
+        let slam = |downsample: u32, retry_deg: Option<f32>| {
             let mut p = crate::slam::params::SlamParams::profile(Profile::Robust);
             p.input.downsample = downsample;
-            let slam = Slam::new(
+            if let Some(deg) = retry_deg {
+                p.icp.full_res_retry_normal_deg = deg;
+            }
+            Slam::new(
                 CpuBackend::new(),
                 Intrinsics::ICL_NUIM,
                 p.validate().unwrap(),
-            );
-            let cos = slam
+            )
+        };
+        let gate_deg = |downsample: u32, level: usize| {
+            let cos = slam(downsample, None)
                 .icp_params(level, &DMat4::IDENTITY)
                 .cos_normal_threshold;
             (cos.acos().to_degrees() * 1e3).round() / 1e3
         };
-        assert_eq!(gate_deg(1, 0), 30.0);
+        assert!(FULL_RES > 20.0 && RETRY > FULL_RES);
+        assert_eq!(gate_deg(1, 0), FULL_RES);
         assert_eq!(gate_deg(1, 1), 20.0);
         assert_eq!(gate_deg(2, 0), 20.0);
+        assert_eq!(slam(1, None).wide_gate_deg(), Some(RETRY));
+        assert_eq!(slam(2, None).wide_gate_deg(), None);
+        assert_eq!(slam(1, Some(FULL_RES)).wide_gate_deg(), None);
+        assert_eq!(slam(1, Some(0.0)).wide_gate_deg(), None);
     }
 
     /// `IcpSteps` made once per frame give, at any pose and level, exactly the parameters

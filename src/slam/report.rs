@@ -55,6 +55,20 @@ pub struct RelocalisationAttempt {
     pub rejected: Option<String>,
 }
 
+/// The second attempt from the last tracked pose, with filter 2's angle gate at level 0
+/// widened to `icp.full_res_normal_deg` (at full resolution only: `Slam::process`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct WideGateAttempt {
+    /// Level 0's angle gate, degrees.
+    pub normal_deg: f32,
+    /// Its ICP iterations, all levels.
+    pub iterations: usize,
+    /// Its health (`None` when ICP refused its first system).
+    pub health: Option<TrackingHealth>,
+    /// `None` when accepted, else why not.
+    pub rejected: Option<String>,
+}
+
 /// What the pipeline did with one frame.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct FrameReport {
@@ -67,7 +81,11 @@ pub struct FrameReport {
     pub iterations: Vec<IcpIteration>,
     /// The health of that attempt (`None` for a given pose or without the test).
     pub health: Option<TrackingHealth>,
-    /// Relocalisation attempts after it failed, in order (empty when none were made).
+    /// The second attempt from the last tracked pose with the wider full-resolution angle
+    /// gate, made when the first failed (`None` when none was made).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wide_gate: Option<WideGateAttempt>,
+    /// Relocalisation attempts after those failed, in order (empty when none were made).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub relocalisation: Vec<RelocalisationAttempt>,
     /// Whether the frame became a relocalisation keyframe.

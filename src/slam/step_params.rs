@@ -135,6 +135,16 @@ impl<B: Backend> Slam<B> {
         }
     }
 
+    /// The angle gate at level 0 of the second attempt from the last pose, degrees:
+    /// `icp.full_res_retry_normal_deg` where level 0's pixels are the sensor's own and it
+    /// is wider than the first attempt's gate there; else `None`, no second attempt
+    /// (`Slam::process`).
+    pub fn wide_gate_deg(&self) -> Option<f32> {
+        let retry = self.params.icp.full_res_retry_normal_deg;
+        let full_res = self.params.input.downsample == 1;
+        (full_res && retry > self.icp_normal_deg(0)).then_some(retry)
+    }
+
     /// Parameters of `icp_reduce` at the current estimate on pyramid level `level`.
     pub fn icp_params(&self, level: usize, t_world_to_cam: &DMat4) -> IcpParams {
         let k = self.level_intrinsics(level);
@@ -142,10 +152,7 @@ impl<B: Backend> Slam<B> {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             camera: Camera::new(&k),
             dist_m: self.params.icp.dist_m,
-            cos_normal_threshold: match self.icp_normal_deg(level) {
-                deg if deg >= 180.0 => ANGLE_GATE_OFF,
-                deg => deg.to_radians().cos(),
-            },
+            cos_normal_threshold: cos_of_gate(self.icp_normal_deg(level)),
             huber_m: self.params.icp.huber_m,
             noise_weighting: self.params.icp.noise_weight as u32,
             photo_depth_gate_m: self.params.icp.dist_m,
@@ -269,5 +276,14 @@ mod tests {
                 assert_eq!(fuse_depth_gate(&p, w), f.dist_m, "weight {w}");
             }
         }
+    }
+}
+
+/// `icp_reduce`'s `cos_normal_threshold` for an angle gate of `deg` degrees; 180 or more
+/// turns the gate off.
+pub fn cos_of_gate(deg: f32) -> f32 {
+    match deg {
+        deg if deg >= 180.0 => ANGLE_GATE_OFF,
+        deg => deg.to_radians().cos(),
     }
 }

@@ -34,6 +34,7 @@ use crate::Result;
 /// `project_model`'s and, per pyramid level, `icp_reduce`'s at some pose. Each use sets its
 /// own pose ([`IcpSteps::project_at`], [`IcpSteps::icp_at`]); nothing else in them depends
 /// on it. `project` holds the map's surfel count before this frame's fusion: tracking's.
+#[derive(Clone)]
 pub struct IcpSteps {
     pub pyramid: Vec<PyramidLevel>,
     pub project: ProjectParams,
@@ -48,6 +49,14 @@ impl IcpSteps {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             ..self.project
         }
+    }
+
+    /// The same steps with filter 2's angle gate at level 0 replaced by
+    /// `cos_normal_threshold` (the second attempt's wider gate: `Slam::process`).
+    pub fn with_level0_gate(&self, cos_normal_threshold: f32) -> IcpSteps {
+        let mut steps = self.clone();
+        steps.icp[0].cos_normal_threshold = cos_normal_threshold;
+        steps
     }
 
     /// `icp_reduce`'s parameters at pyramid `level` and world-to-camera pose `t`.

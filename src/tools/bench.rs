@@ -5,9 +5,12 @@
 //! is that backend's alone, and both are measured in the same `wgslam bench` invocation so
 //! the GPU/CPU ratio compares like with like. Per-stage times come from a second pass with
 //! `crate::slam::instrumented::Instrumented`, which waits for the device after each stage; frame times come
-//! from the first pass, which does not. Every pass decodes each frame before processing it
-//! ([`run::Decode::BeforeEachFrame`]), so decoding never competes with a backend for a
-//! core; its time is reported on its own line.
+//! from the first pass, which does not. The first pass decodes ahead as `run` does
+//! (`--decode-threads`, [`run::Decode`]) and also gives the end-to-end figures: frames per
+//! second of its wall time, start-up (device, pipelines) and decoding included, and how
+//! long the frame loop waited for decoded frames. The per-stage and kernel passes decode
+//! each frame before processing it ([`run::Decode::BeforeEachFrame`]), so decoding never
+//! competes with a stage for a core.
 
 use serde::{Deserialize, Serialize};
 
@@ -20,7 +23,8 @@ use crate::slam::params::ValidParams;
 use crate::tools::run;
 use crate::Result;
 
-/// Benchmarks decode on the pipeline's thread, outside the timed frame (see the header).
+/// The per-stage and kernel passes decode on the pipeline's thread, outside the timed
+/// frame (see the header).
 const BEFORE: run::Decode = run::Decode::BeforeEachFrame;
 
 /// One backend's figures.
@@ -52,10 +56,51 @@ pub struct BenchResult {
     /// Mean time to load and decode one frame's images (not part of the frame times).
     #[serde(default)]
     pub decode_ms_per_frame: f64,
+    /// The first pass end to end ([`EndToEnd`]).
+    #[serde(default)]
+    pub end_to_end: Option<EndToEnd>,
     /// Round trips and read-back per frame, from the plain pass (`readback_bytes_per_frame`
     /// and `submissions_per_frame` are their means over every frame).
     #[serde(default)]
     pub round_trips: Option<RoundTrips>,
+}
+
+/// The first pass as a user waits for it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct EndToEnd {
+    /// Worker threads that decoded ahead (0: each frame on the loop's thread before it).
+    pub decode_threads: usize,
+    /// Wall time of the pass, seconds: opening the backend (device, pipelines), the
+    /// pipeline's set-up and every frame, decoding included.
+    pub wall_s: f64,
+    /// Frames over `wall_s`.
+    pub wall_fps: f64,
+    /// Wall time of the frame loop alone (from asking for the first frame to the end of the
+    /// last), seconds.
+    pub loop_wall_s: f64,
+    /// Time the frame loop waited for decoded frames, seconds, and its fraction of
+    /// `loop_wall_s`.
+    pub decode_wait_s: f64,
+    pub decode_wait_fraction: f64,
+}
+
+impl EndToEnd {
+    /// The line `bench` prints: "end to end 8.1 frames/s of wall time (start-up and decoding
+    /// included); the frame loop waited 0.05 s for decoded frames, 1.2 % of its 2.90 s (2
+    /// decode threads)".
+    pub fn text(&self) -> String {
+        format!(
+            "end to end {:.1} frames/s of wall time ({:.2} s, start-up and decoding \
+             included); the frame loop waited {:.2} s for decoded frames, {:.1} % of its \
+             {:.2} s ({} decode threads)",
+            self.wall_fps,
+            self.wall_s,
+            self.decode_wait_s,
+            self.decode_wait_fraction * 100.0,
+            self.loop_wall_s,
+            self.decode_threads
+        )
+    }
 }
 
 /// Mean decode time of a run's frames, milliseconds.
@@ -65,31 +110,31 @@ fn decode_ms(frames: &[run::FrameOutcome]) -> f64 {
 }
 
 /// Runs one backend once over the frames without per-stage timing: whole-frame times,
-/// peak memory, accuracy, and the round trips and read-back of each frame (`stages`
-/// empty). The counters are read between frames of this pass, which adds no
-/// synchronisation (the per-stage pass waits after every step, which would add
+/// the end-to-end figures, peak memory, accuracy, and the round trips and read-back of
+/// each frame (`stages` empty). The counters are read between frames of this pass, which
+/// adds no synchronisation (the per-stage pass waits after every step, which would add
 /// submissions of its own).
 pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     mut make: F,
     seq: &Sequence,
-    first: usize,
-    last: usize,
+    (first, last): (usize, usize),
     params: &ValidParams,
+    decode: run::Decode,
 ) -> Result<BenchResult> {
+    let start = web_time::Instant::now();
     let backend = make()?;
     let name = backend.name().to_string();
     let mut slam = crate::slam::pipeline::Slam::for_sequence(backend, seq, params.clone())?;
     let mut frames = Vec::new();
     let mut counts = Vec::new();
-    for i in first..=last {
-        let t0 = web_time::Instant::now();
-        let frame = seq.load(i)?;
-        let rgba = run::packed_rgba(&frame);
-        let decode_seconds = t0.elapsed().as_secs_f64();
-        let rec = &seq.frames[i];
+    let loop_start = web_time::Instant::now();
+    run::for_each_frame(seq, first..=last, decode, |d| {
+        let rgba = run::packed_rgba(&d.frame);
+        let rec = &seq.frames[d.index];
         let before = slam.backend.counters();
         let t0 = web_time::Instant::now();
-        let report = slam.process(i as u32, &frame.depth, &rgba, rec.gt_cam_to_world.as_ref())?;
+        let gt = rec.gt_cam_to_world.as_ref();
+        let report = slam.process(d.index as u32, &d.frame.depth, &rgba, gt)?;
         let seconds = t0.elapsed().as_secs_f64();
         let after = slam.backend.counters();
         counts.push(FrameCounts {
@@ -99,25 +144,27 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
             plain: !report.keyframe && report.relocalisation.is_empty() && report.loops.is_empty(),
         });
         frames.push(run::FrameOutcome {
-            index: i,
+            index: d.index,
             timestamp: rec.timestamp,
             seconds,
-            decode_seconds,
+            decode_seconds: d.decode_seconds,
+            wait_seconds: d.wait_seconds,
             report,
         });
-    }
-    let est = match slam.loop_closure() {
-        Some(lc) => {
-            let stamp: std::collections::HashMap<usize, f64> =
-                frames.iter().map(|f| (f.index, f.timestamp)).collect();
-            lc.poses()
-                .iter()
-                .map(|p| (stamp[&(p.frame as usize)], p.estimate))
-                .collect()
-        }
-        None => run::trajectory(&frames),
+        Ok(())
+    })?;
+    let loop_wall_s = loop_start.elapsed().as_secs_f64();
+    let wall_s = start.elapsed().as_secs_f64();
+    let decode_wait_s: f64 = frames.iter().map(|f| f.wait_seconds).sum();
+    let end_to_end = EndToEnd {
+        decode_threads: decode.threads(),
+        wall_s,
+        wall_fps: frames.len() as f64 / wall_s.max(f64::MIN_POSITIVE),
+        loop_wall_s,
+        decode_wait_s,
+        decode_wait_fraction: decode_wait_s / loop_wall_s.max(f64::MIN_POSITIVE),
     };
-    let accuracy = run::accuracy(&est, &seq.ground_truth(), frames.len())?;
+    let accuracy = slam_accuracy(&slam, &frames, seq)?;
     let camera = seq.intrinsics.downsampled(params.input.downsample);
     let times: Vec<f64> = frames.iter().map(|f| f.seconds).collect();
     let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
@@ -138,10 +185,31 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         accuracy,
         kernels: Vec::new(),
         decode_ms_per_frame: decode_ms(&frames),
+        end_to_end: Some(end_to_end),
         round_trips: None,
     };
     result.set_counts(&counts);
     Ok(result)
+}
+
+/// The accuracy of a pass: of the poses after loop closure when it ran, else as tracked.
+fn slam_accuracy<B: Backend>(
+    slam: &crate::slam::pipeline::Slam<B>,
+    frames: &[run::FrameOutcome],
+    seq: &Sequence,
+) -> Result<Option<run::Accuracy>> {
+    let est = match slam.loop_closure() {
+        Some(lc) => {
+            let stamp: std::collections::HashMap<usize, f64> =
+                frames.iter().map(|f| (f.index, f.timestamp)).collect();
+            lc.poses()
+                .iter()
+                .map(|p| (stamp[&(p.frame as usize)], p.estimate))
+                .collect()
+        }
+        None => run::trajectory(frames),
+    };
+    run::accuracy(&est, &seq.ground_truth(), frames.len())
 }
 
 /// One frame's submissions and read-back in [`bench_frames`].
@@ -200,8 +268,9 @@ pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     first: usize,
     last: usize,
     params: &ValidParams,
+    decode: run::Decode,
 ) -> Result<BenchResult> {
-    let mut result = bench_frames(&mut make, seq, first, last, params)?;
+    let mut result = bench_frames(&mut make, seq, (first, last), params, decode)?;
     let backend = make()?;
     let mut slam = crate::slam::pipeline::Slam::for_sequence(
         Instrumented::timed(backend),
@@ -298,8 +367,8 @@ pub fn bench_interleaved<G: Backend>(
     )?;
     let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
     let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
-    for i in first..=last {
-        let frame = seq.load(i)?;
+    run::for_each_frame(seq, first..=last, BEFORE, |d| {
+        let (i, frame) = (d.index, d.frame);
         let rgba = run::packed_rgba(&frame);
         let rec = &seq.frames[i];
         let gt = rec.gt_cam_to_world.as_ref();
@@ -308,6 +377,7 @@ pub fn bench_interleaved<G: Backend>(
             timestamp: rec.timestamp,
             seconds,
             decode_seconds: 0.0,
+            wait_seconds: 0.0,
             report,
         };
         let cpu_first = (i - first) % 2 == 0;
@@ -321,7 +391,8 @@ pub fn bench_interleaved<G: Backend>(
                 gpu_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
             }
         }
-    }
+        Ok(())
+    })?;
     let mut ratios: Vec<f64> = cpu_frames
         .iter()
         .zip(&gpu_frames)
@@ -447,9 +518,12 @@ pub fn print_table(results: &[BenchResult]) {
         }
         println!(
             "      readback {:.0} bytes/frame, {:.1} submissions/frame; decoding the \
-             images took {:.1} ms/frame (before each frame, not timed in it)",
+             images took {:.1} ms/frame (not timed in the frame)",
             r.readback_bytes_per_frame, r.submissions_per_frame, r.decode_ms_per_frame
         );
+        if let Some(e) = &r.end_to_end {
+            println!("      {}", e.text());
+        }
         if let Some(t) = &r.round_trips {
             println!(
                 "      {:.1} ICP iterations/frame; on {} frames without keyframe, \

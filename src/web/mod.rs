@@ -48,6 +48,9 @@ struct State {
     files: PageFiles,
     root: PathBuf,
     profile: Profile,
+    /// The camera chosen on the page, in place of the folder's (`None`: the folder's
+    /// `camera.json` or its layout's).
+    camera: Option<Intrinsics>,
     progress: Option<js_sys::Function>,
     frame_view: Option<js_sys::Function>,
     orbit: Orbit,
@@ -69,6 +72,7 @@ thread_local! {
         files: PageFiles::default(),
         root: PathBuf::new(),
         profile: Profile::Robust,
+        camera: None,
         progress: None,
         frame_view: None,
         orbit: Orbit::default(),
@@ -103,22 +107,45 @@ pub fn set_reader(read: js_sys::Function) {
     files::set_reader(read);
 }
 
-/// Sets the folder to open (`root`, as the listed paths start) and the parameter profile
-/// (`robust` or `assignment`, as `wgslam run --profile`); an error message for an unknown
-/// profile, else `undefined`.
+/// Sets the folder to open (`root`, as the listed paths start), the parameter profile
+/// (`robust` or `assignment`, as `wgslam run --profile`) and the camera (as `--camera` or
+/// `--intrinsics`: [`page_camera`]); an error message for an unknown profile or camera,
+/// else `undefined`.
 #[wasm_bindgen]
-pub fn configure(root: &str, profile: &str) -> Option<String> {
+pub fn configure(root: &str, profile: &str, camera: &str) -> Option<String> {
     let parsed: std::result::Result<Profile, _> = serde_json::from_value(profile.into());
-    match parsed {
-        Ok(p) => {
-            STATE.with_borrow_mut(|s| {
-                s.root = PathBuf::from(root);
-                s.profile = p;
-            });
-            None
-        }
-        Err(_) => Some(format!("unknown profile {profile:?}: robust or assignment")),
+    let Ok(p) = parsed else {
+        return Some(format!("unknown profile {profile:?}: robust or assignment"));
+    };
+    let camera = match page_camera(camera) {
+        Ok(c) => c,
+        Err(why) => return Some(why),
+    };
+    STATE.with_borrow_mut(|s| {
+        s.root = PathBuf::from(root);
+        s.profile = p;
+        s.camera = camera;
+    });
+    None
+}
+
+/// The page's camera setting: empty for the folder's own (`camera.json` or the layout's
+/// files), a preset's name (`fr1`, `fr2`, `fr3`, `icl`, as `--camera`), or four numbers
+/// `fx,fy,cx,cy` in pixels of 640x480 frames (as `--intrinsics` without `--camera`).
+fn page_camera(setting: &str) -> std::result::Result<Option<Intrinsics>, String> {
+    let setting = setting.trim();
+    if setting.is_empty() {
+        return Ok(None);
     }
+    if let Some(preset) = Intrinsics::preset(setting) {
+        return Ok(Some(preset));
+    }
+    Intrinsics::ICL_NUIM
+        .with_focal_centre(setting)
+        .map(Some)
+        .map_err(|why| {
+            format!("camera {setting:?}: a preset (fr1, fr2, fr3, icl) or the four numbers; {why}")
+        })
 }
 
 /// Sets the function called after each frame with `(frames done, frames in all, map
@@ -329,8 +356,8 @@ fn set_panic_hook() {
 /// first frame with ground truth to the last) on the browser's GPU, showing each frame
 /// through the page's callbacks, and keeps the result (see [`keep_result`]).
 fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
-    let (files, root, profile) =
-        STATE.with_borrow(|s| (s.files.clone(), s.root.clone(), s.profile));
+    let (files, root, profile, camera) =
+        STATE.with_borrow(|s| (s.files.clone(), s.root.clone(), s.profile, s.camera));
     if files.list.is_empty() {
         return Err(crate::Error::Argument(
             "no files: pick or drop a dataset folder first".into(),
@@ -338,6 +365,7 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
     }
     let opts = SequenceOptions {
         interface: dataset::Interface::Page,
+        intrinsics: camera,
         ..SequenceOptions::default()
     };
     let mut seq = dataset::open_with(Arc::new(files), &root, &opts)?;

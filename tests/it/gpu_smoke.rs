@@ -8,6 +8,7 @@ use common::harness::{gpu, skipped};
 use libtest_mimic::Completion;
 use wgslam::gpu::buffers::{GpuArray, ParamBuffer};
 use wgslam::gpu::images::GpuImage;
+use wgslam::gpu::pipeline_cache::CACHE_ENV;
 use wgslam::gpu::shaders;
 use wgslam::gpu::{GpuContext, Kernel, StageTimer};
 use wgslam::Error;
@@ -332,11 +333,54 @@ fn headless_run_prints_no_window_system_error(_ctx: GpuContext) {
     );
 }
 
+/// Two one-frame GPU runs sharing a pipeline cache folder of this test's own: the first
+/// writes the cache file (on adapters wgpu keeps one for: Vulkan), garbage in its place is
+/// a note on the second run, which still succeeds and writes a good file back.
+fn a_corrupt_pipeline_cache_is_a_note_and_is_replaced(_ctx: GpuContext) {
+    let dir = common::temp_dir("gpu-smoke-pipeline-cache");
+    let cache = dir.join("cache");
+    let run = |out: &str| {
+        let out = dir.join(out).display().to_string();
+        let args = [
+            "run",
+            "--backend",
+            "gpu",
+            "--frames",
+            "1..1",
+            "--downsample",
+            "4",
+        ];
+        let env = [(CACHE_ENV, cache.to_str().unwrap())];
+        let o = common::cli::wgslam_env(&[&args[..], &["--out", &out]].concat(), &env);
+        let text = common::cli::text(&o);
+        assert!(o.status.success(), "{text}");
+        text
+    };
+    run("o1");
+    let files: Vec<_> =
+        std::fs::read_dir(&cache).map_or(Vec::new(), |d| d.map(|e| e.unwrap().path()).collect());
+    let Some(file) = files.first() else {
+        return; // not a Vulkan adapter: wgpu keeps no cache file
+    };
+    assert_eq!(files.len(), 1, "one file, no temporary left: {files:?}");
+    std::fs::write(file, b"not a pipeline cache").unwrap();
+    let text = run("o2");
+    assert!(
+        text.contains("note: the pipeline cache") && text.contains("starting an empty one"),
+        "{text}"
+    );
+    assert_ne!(std::fs::read(file).unwrap(), b"not a pipeline cache");
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     vec![
         gpu(
             "headless_run_prints_no_window_system_error",
             headless_run_prints_no_window_system_error,
+        ),
+        gpu(
+            "a_corrupt_pipeline_cache_is_a_note_and_is_replaced",
+            a_corrupt_pipeline_cache_is_a_note_and_is_replaced,
         ),
         gpu(
             "trivial_kernel_runs_in_validation_scope",

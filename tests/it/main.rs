@@ -14,6 +14,7 @@ mod cli;
 mod compare;
 mod compare_perturbed;
 mod datasets;
+mod decode_ahead;
 mod end_to_end;
 mod eval;
 mod fuzz_replay;
@@ -48,6 +49,10 @@ macro_rules! tests_of {
 }
 
 fn main() -> ExitCode {
+    // The pipeline cache of every GPU test (and of every `wgslam` they start) lives in a
+    // folder of this process's own, never the user's: set before any thread starts.
+    let cache = std::env::temp_dir().join(format!("wgslam-it-cache-{}", std::process::id()));
+    std::env::set_var(wgslam::gpu::pipeline_cache::CACHE_ENV, &cache);
     #[allow(unused_mut)]
     let mut modules = tests_of![
         accuracy,
@@ -57,6 +62,7 @@ fn main() -> ExitCode {
         compare,
         compare_perturbed,
         datasets,
+        decode_ahead,
         end_to_end,
         eval,
         fuzz_replay,
@@ -80,5 +86,7 @@ fn main() -> ExitCode {
     ];
     #[cfg(feature = "rerun")]
     modules.extend(tests_of![rerun]);
-    common::harness::run(modules.into_iter().flatten().collect())
+    let code = common::harness::run(modules.into_iter().flatten().collect());
+    let _ = std::fs::remove_dir_all(&cache);
+    code
 }

@@ -108,10 +108,14 @@ fn bundled_splice_is_lost_then_recovers<B: Backend + Inspect>(backend: B, noisy:
 
 /// A tracker kidnapped mid-run (its last pose moved 0.4 m and 20 degrees) on the bundled
 /// noisy frames: the next frame fails tracking from that pose, is relocalised from a
-/// keyframe, lands on the ground truth, and tracking goes on from there.
-fn kidnapped_tracker_relocalises<B: Backend>(backend: B) {
+/// keyframe, lands on the ground truth, and tracking goes on from there. At full resolution
+/// (`downsample` 1) the second attempt from the kidnapped pose, with the wider angle gate,
+/// is made and fails the same test: it does not place the frame.
+fn kidnapped_tracker_relocalises<B: Backend>(backend: B, downsample: u32) {
     let seq = dataset::open(&common::bundled_icl_noisy(), &SequenceOptions::default()).unwrap();
-    let mut slam = Slam::for_sequence(backend, &seq, ValidParams::default()).unwrap();
+    let mut params = wgslam::slam::params::SlamParams::profile(Profile::Robust);
+    params.input.downsample = downsample;
+    let mut slam = Slam::for_sequence(backend, &seq, params.validate().unwrap()).unwrap();
     let process = |slam: &mut Slam<B>, i: usize| {
         let f = seq.load(i).unwrap();
         let gt = seq.frames[i].gt_cam_to_world;
@@ -131,6 +135,11 @@ fn kidnapped_tracker_relocalises<B: Backend>(backend: B) {
         r.status,
         r.relocalisation
     );
+    match (downsample, &r.wide_gate) {
+        (1, Some(second)) => assert!(second.rejected.is_some(), "{second:?}"),
+        (1, None) => panic!("no second attempt at full resolution"),
+        (_, second) => assert!(second.is_none(), "{second:?}"),
+    }
     for i in [13, 14, 15] {
         let r = if i == 13 {
             r.clone()
@@ -390,11 +399,14 @@ pub fn tests() -> Vec<Test> {
             bundled_splice_is_lost_then_recovers(gpu_backend(ctx), true)
         }),
         plain("kidnapped_tracker_relocalises", || {
-            kidnapped_tracker_relocalises(CpuBackend::new())
+            kidnapped_tracker_relocalises(CpuBackend::new(), 2)
+        }),
+        gpu_backend_test("gpu_kidnapped_tracker_relocalises", |b| {
+            kidnapped_tracker_relocalises(b, 2)
         }),
         gpu_backend_test(
-            "gpu_kidnapped_tracker_relocalises",
-            kidnapped_tracker_relocalises,
+            "gpu_kidnapped_tracker_relocalises_at_full_resolution",
+            |b| kidnapped_tracker_relocalises(b, 1),
         ),
         plain(
             "empty_first_frames_start_at_the_first_usable",

@@ -8,6 +8,7 @@
 
 use std::sync::{Arc, Mutex};
 
+use super::pipeline_cache::{self, DiskCache};
 use super::stats::{GpuStats, StatsSnapshot};
 use crate::{Error, Result};
 
@@ -23,10 +24,13 @@ pub const BACKENDS: wgpu::Backends = wgpu::Backends::BROWSER_WEBGPU;
 
 /// Features the kernels use when the adapter offers them: 64-bit integers and 64-bit
 /// `atomicMax` (the packed depth + surfel index map of `project_model`) and timestamp
-/// queries (per-stage timing in [`super::timing`]).
+/// queries (per-stage timing in [`super::timing`]), and the pipeline cache across
+/// processes ([`super::pipeline_cache`]; unless [`super::pipeline_cache::CACHE_ENV`]
+/// switches it off).
 pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::SHADER_INT64
     .union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
-    .union(wgpu::Features::TIMESTAMP_QUERY);
+    .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::PIPELINE_CACHE);
 
 /// Environment variable choosing the kernels' integer width: `portable` creates the device
 /// without 64-bit integers, so the two-pass 32-bit key kernels (`*_portable`) run even where
@@ -170,6 +174,10 @@ pub struct GpuContext {
     /// Steps recorded but not yet submitted ([`GpuContext::defer`]), `(step, commands)` in
     /// recording order; the next submission carries them first.
     deferred: Mutex<Vec<(&'static str, wgpu::CommandBuffer)>>,
+    /// The pipelines' cache across processes, one for every context sharing the device
+    /// (written back when the last is dropped); `None` where the adapter has none or it is
+    /// switched off.
+    pipeline_cache: Option<Arc<DiskCache>>,
 }
 
 /// Objects built once per device by key (a kernel's name, or its name and its passes),
@@ -239,7 +247,12 @@ impl GpuContext {
             "wgslam: GPU adapter \"{}\" backend {:?} type {:?} driver \"{} {}\"",
             info.name, info.backend, info.device_type, info.driver, info.driver_info
         );
-        let features = options.features_from(adapter.features());
+        let mut features = options.features_from(adapter.features());
+        let cache_folder = pipeline_cache::cache_folder()
+            .filter(|_| features.contains(wgpu::Features::PIPELINE_CACHE));
+        if cache_folder.is_none() {
+            features.remove(wgpu::Features::PIPELINE_CACHE);
+        }
         let limits = options.limits_from(adapter.limits());
         if options != DeviceOptions::default() {
             eprintln!("wgslam: GPU device with {options:?}: features {features:?}");
@@ -264,6 +277,9 @@ impl GpuContext {
                     Some(format!("device lost ({reason:?}): {msg}"));
             }
         });
+        let pipeline_cache = cache_folder
+            .and_then(|folder| DiskCache::open(&device, &info, &folder))
+            .map(Arc::new);
         let uncaptured = Arc::new(Mutex::new(Vec::new()));
         let uncaptured_cb = Arc::clone(&uncaptured);
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
@@ -287,6 +303,7 @@ impl GpuContext {
             uncaptured,
             last_submission: Mutex::new(None),
             cache: Arc::default(),
+            pipeline_cache,
         })
     }
 
@@ -309,7 +326,13 @@ impl GpuContext {
             last_submission: Mutex::new(None),
             cache: Arc::clone(&self.cache),
             deferred: Mutex::new(Vec::new()),
+            pipeline_cache: self.pipeline_cache.clone(),
         }
+    }
+
+    /// The pipeline cache to create pipelines with (`None` without one).
+    pub fn pipeline_cache(&self) -> Option<&wgpu::PipelineCache> {
+        self.pipeline_cache.as_deref().map(|c| &c.cache)
     }
 
     /// The object stored under `key` on this device, built by `build` (and stored) the

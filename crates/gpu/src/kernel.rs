@@ -123,7 +123,7 @@ impl Kernel {
                         constants,
                         ..Default::default()
                     },
-                    cache: None,
+                    cache: ctx.pipeline_cache(),
                 });
             Ok(Kernel {
                 name: name.to_string(),

@@ -4,8 +4,9 @@
 //!
 //! Every kernel in `shaders/<kernel>.wgsl` has a CPU twin in
 //! `crates/core/src/cpu/<kernel>.rs`; this crate only knows how to run them on a device.
-//! Nothing here reads files, and nothing here can import the pipeline, the datasets or the
-//! tools above it (the `wgslam` package re-exports this crate as `wgslam::gpu`).
+//! Nothing here reads files but the pipeline cache's own ([`pipeline_cache`]), and nothing
+//! here can import the pipeline, the datasets or the tools above it (the `wgslam` package
+//! re-exports this crate as `wgslam::gpu`).
 //!
 //! - [`context`]: adapter (Vulkan / Metal / DX12, never GL), device, limits, error scopes.
 //! - [`shaders`]: `common.wgsl` + kernel sources, shared by the runtime and the naga test.
@@ -23,6 +24,7 @@
 //!   with their buffers in `ferns`, `keypoints`, `candidates` and `loops`, `inspect`
 //!   (downloads and uploads). The helper modules never import `backend`: the one-way
 //!   imports are `steps`/`single_steps` -> `backend` -> helpers.
+//! - [`pipeline_cache`]: the pipelines' cache across processes, in the user's cache folder.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
 //! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
 
@@ -42,6 +44,7 @@ pub mod kernel;
 mod keypoints;
 mod loops;
 pub mod map_buffers;
+pub mod pipeline_cache;
 mod pipelines;
 mod recording;
 mod resources;

@@ -48,6 +48,12 @@ function args() {
     shots: get("shots"),
     chromium: get("chromium", "/usr/bin/chromium"),
     timeoutS: Number(get("timeout-s", "600")),
+    // A TUM folder without intrinsics, run with the camera typed on the page (a preset or
+    // fx,fy,cx,cy), against the native run with the same --camera / --intrinsics.
+    cameraFolder: get("camera-folder", ""),
+    cameraSetting: get("camera-setting", ""),
+    cameraFrames: get("camera-frames", "0..4"),
+    cameraNative: get("camera-native", ""),
   };
 }
 
@@ -326,6 +332,8 @@ async function main() {
       failures.push(`a folder in no layout: not the command line's error: ${bad.status}`);
     }
 
+    if (opt.cameraFolder) await checkCamera(page, opt, failures);
+
     // Pages that cannot run: not a secure context (the local server under another name),
     // opened from disk, a browser with WebGPU off (Debian's Chromium without
     // --enable-unsafe-webgpu: navigator.gpu is there, requestAdapter gives null; measured
@@ -371,6 +379,52 @@ async function main() {
     for (const b of browsers) await b.close();
     server.kill();
   }
+}
+
+// A TUM folder without intrinsics: without a camera the page asks for one in its own
+// words; with the camera typed in its box it runs, says which intrinsics it used, and
+// gives the native run's ATE (the same tolerance as the main run).
+async function checkCamera(page, opt, failures) {
+  await page.setInputFiles("#folder", opt.cameraFolder);
+  await page.fill("#frames", opt.cameraFrames);
+  await page.fill("#camera", "");
+  await page.click("#run");
+  const asked = await settled(page, 60, ["error", "done"]);
+  console.log(`TUM folder, no camera: ${asked.status.slice(0, 200)}`);
+  if (!asked.status.includes("choose the camera on the page")) {
+    failures.push(`TUM folder without a camera: the page did not ask for one: ${asked.status}`);
+  }
+  await page.fill("#camera", opt.cameraSetting);
+  await page.click("#run");
+  const s = await settled(page, opt.timeoutS, ["done", "error"]);
+  if (s.state !== "done") {
+    failures.push(`TUM folder with camera ${opt.cameraSetting}: ${s.status}`);
+    return;
+  }
+  const summary = await page.textContent("#summary");
+  const line = summary.split("\n").find((l) => l.startsWith("intrinsics:")) ?? "";
+  console.log(`TUM folder with camera ${opt.cameraSetting}: ${line}`);
+  if (!line.includes(`chosen on the page (${opt.cameraSetting})`)) {
+    failures.push(`the summary does not say which intrinsics were used: ${JSON.stringify(line)}`);
+  }
+  await page.screenshot({ path: path.join(opt.shots, "page-camera.png"), fullPage: true });
+  const native = JSON.parse(readFileSync(path.join(opt.cameraNative, "metrics.json"), "utf8"));
+  const m = s.result.metrics;
+  if (JSON.stringify(m.intrinsics) !== JSON.stringify(native.intrinsics)) {
+    failures.push(`intrinsics: page ${JSON.stringify(m.intrinsics)}, native ${JSON.stringify(native.intrinsics)}`);
+  }
+  if (!m.accuracy || !native.accuracy) {
+    failures.push("TUM folder with a camera: no ATE (no ground truth?)");
+    return;
+  }
+  const [web, nat] = [m.accuracy.ate_rmse_aligned_m * 1e3, native.accuracy.ate_rmse_aligned_m * 1e3];
+  const diff = Math.abs(web - nat);
+  console.log(
+    `TUM folder with camera ${opt.cameraSetting}, frames ${opt.cameraFrames}: ATE page ${web.toFixed(4)} mm ` +
+      `(${m.accuracy.frames_without_pose} without a pose), native ${nat.toFixed(4)} mm ` +
+      `(${native.accuracy.frames_without_pose} without), |difference| ${diff.toFixed(4)} mm`,
+  );
+  if (!(diff <= ATE_TOLERANCE_MM)) failures.push(`camera run: ATE differs by ${diff.toFixed(4)} mm > ${ATE_TOLERANCE_MM} mm`);
 }
 
 main().catch((e) => {

@@ -238,6 +238,12 @@ pub struct IcpSettings {
     /// (the assignment's; `--icp-full-res-angle`). See [`ROBUST_ICP_FULL_RES_NORMAL_DEG`].
     #[serde(default)]
     pub full_res_normal_deg: f32,
+    /// Level 0's angle gate, degrees, of a second attempt from the last pose at full
+    /// resolution when the first failed the health test; 0 (the assignment's), or not
+    /// wider than the first attempt's gate: no second attempt (`--icp-retry-angle`). See
+    /// [`ROBUST_ICP_RETRY_NORMAL_DEG`].
+    #[serde(default)]
+    pub full_res_retry_normal_deg: f32,
     /// Huber threshold on the point-to-plane residual, metres; 0 turns the weight off
     /// (`--icp-huber`).
     pub huber_m: f32,
@@ -501,6 +507,7 @@ impl SlamParams {
                 dist_m: 0.07,
                 normal_deg: 180.0,
                 full_res_normal_deg: 0.0,
+                full_res_retry_normal_deg: 0.0,
                 huber_m: 0.0,
                 noise_weight: false,
                 level_iters: vec![10],
@@ -536,6 +543,7 @@ impl SlamParams {
                     dist_m: 0.10,
                     normal_deg: 20.0,
                     full_res_normal_deg: ROBUST_ICP_FULL_RES_NORMAL_DEG,
+                    full_res_retry_normal_deg: ROBUST_ICP_RETRY_NORMAL_DEG,
                     huber_m: ROBUST_HUBER_M,
                     noise_weight: true,
                     level_iters: ROBUST_ICP_LEVEL_ITERS.to_vec(),

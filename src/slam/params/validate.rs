@@ -190,6 +190,12 @@ fn check_gates(normals: &NormalSettings, icp: &IcpSettings, f: &FusionSettings) 
             "`icp.full_res_normal_deg` {full_res} must be positive, or 0 for `icp.normal_deg`'s"
         ));
     }
+    let retry = icp.full_res_retry_normal_deg;
+    if !(retry == 0.0 || positive(retry as f64)) {
+        return fail(format!(
+            "`icp.full_res_retry_normal_deg` {retry} must be positive, or 0 for no second attempt"
+        ));
+    }
     for (flag, v) in [
         ("`icp.huber_m`", icp.huber_m),
         ("`fusion.confidence_sigma`", f.confidence_sigma),
@@ -327,7 +333,7 @@ mod tests {
             p.fusion.unstable_removal = Some(r);
         }
         type Spoil = fn(&mut SlamParams);
-        let cases: [(&str, Spoil); 33] = [
+        let cases: [(&str, Spoil); 34] = [
             ("`icp.level_iters`", |p| {
                 p.icp.level_iters = vec![MAX_ICP_ITERS_PER_LEVEL + 1]
             }),
@@ -360,6 +366,9 @@ mod tests {
             ("`icp.dist_m`", |p| p.icp.dist_m = 0.0),
             ("`icp.full_res_normal_deg`", |p| {
                 p.icp.full_res_normal_deg = -30.0
+            }),
+            ("`icp.full_res_retry_normal_deg`", |p| {
+                p.icp.full_res_retry_normal_deg = f32::NAN
             }),
             ("`icp.normal_deg`", |p| p.icp.normal_deg = -20.0),
             ("`icp.huber_m`", |p| p.icp.huber_m = -0.02),

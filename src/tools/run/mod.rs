@@ -1,15 +1,14 @@
 //! The batch job: run the dense pipeline over a sequence, evaluate, write the outputs.
 //!
-//! Frames are decoded on a helper thread one frame ahead, so PNG decoding overlaps the
-//! pipeline; the per-frame time reported is the pipeline's (decode excluded), and the
-//! wall-clock total is reported beside it. Benchmarks decode each frame before processing
-//! it instead ([`Decode::BeforeEachFrame`]): on a machine with few cores the decoder thread
-//! takes a core from whichever backend runs beside it (lavapipe uses every core, the CPU
-//! reference one), which would charge decoding to one backend's "decode excluded" time.
+//! Frames are decoded ahead on a pool of worker threads ([`decode_ahead`]), so decoding
+//! overlaps the pipeline; the per-frame time reported is the pipeline's (decode excluded),
+//! and the wall-clock total and the loop's wait for decoded frames are reported beside it.
+//! The per-stage benchmark passes decode each frame before processing it instead
+//! ([`Decode::BeforeEachFrame`]): on a machine with few cores a decoder takes a core from
+//! the backend beside it, which would charge decoding to one stage's time.
 //! Outputs go to `--out DIR`, each file written completely or not at all (`io::atomic`).
 
 use std::path::PathBuf;
-use std::sync::mpsc;
 use web_time::Instant;
 
 use glam::DMat4;
@@ -25,8 +24,10 @@ use crate::slam::pipeline::{FrameReport, Slam};
 use crate::Result;
 
 mod counts;
+pub mod decode_ahead;
 mod outputs;
 pub use counts::{tracking_counts, TrackingCounts};
+pub use decode_ahead::{for_each_frame, Decode, Decoded};
 pub use outputs::{
     output_bytes, read_numbers, write_json, write_json_to, write_outputs, write_pictures,
     RunNumbers, OUTPUT_FILES,
@@ -41,20 +42,14 @@ pub struct FrameOutcome {
     pub timestamp: f64,
     /// Pipeline time for this frame, seconds (decode excluded).
     pub seconds: f64,
-    /// Time spent loading and decoding this frame's images, seconds (on the decoder
-    /// thread with [`Decode::Overlapped`]).
+    /// Time spent loading and decoding this frame's images, seconds (on a worker thread
+    /// with [`Decode::Ahead`]).
     pub decode_seconds: f64,
+    /// Time the frame loop waited for this frame's decoded images, seconds
+    /// ([`Decoded::wait_seconds`]).
+    #[serde(default)]
+    pub wait_seconds: f64,
     pub report: FrameReport,
-}
-
-/// Where frames are decoded relative to the pipeline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Decode {
-    /// On a helper thread one frame ahead, overlapping the pipeline (shortest wall time).
-    Overlapped,
-    /// On the pipeline's thread before each frame, so decoding never competes with the
-    /// pipeline for a core (for benchmarks).
-    BeforeEachFrame,
 }
 
 /// The result of a whole run.
@@ -136,6 +131,10 @@ pub struct Metrics {
     pub time_per_frame_mean_s: f64,
     pub time_total_s: f64,
     pub wall_total_s: f64,
+    /// Time the frame loop waited for decoded frames, seconds (part of `wall_total_s`).
+    pub decode_wait_s: f64,
+    /// Worker threads that decoded ahead of the loop (0: each frame before it).
+    pub decode_threads: usize,
     pub map_points: usize,
     /// Map points / (frames x H x W) of the downsampled maps.
     pub compression_ratio: f64,
@@ -161,7 +160,7 @@ pub fn peak_memory_mib() -> Option<f64> {
 }
 
 /// Runs `slam` over frames `first..=last` of `seq`, calling `on_frame` after each frame
-/// (for progress). Frames are decoded one ahead on a helper thread.
+/// (for progress). Frames are decoded ahead on one worker per core.
 pub fn run_frames<B: Backend + Inspect>(
     slam: &mut Slam<B>,
     seq: &Sequence,
@@ -169,7 +168,14 @@ pub fn run_frames<B: Backend + Inspect>(
     last: usize,
     on_frame: impl FnMut(&FrameOutcome),
 ) -> Result<(Vec<FrameOutcome>, f64)> {
-    run_frames_with(slam, seq, first, last, Decode::Overlapped, on_frame)
+    run_frames_with(
+        slam,
+        seq,
+        first,
+        last,
+        Decode::ahead_on_every_core(),
+        on_frame,
+    )
 }
 
 /// Watches a run frame by frame with more than [`FrameOutcome`] holds: the decoded images,
@@ -212,17 +218,15 @@ fn run_frames_observed<B: Backend + Inspect>(
     mut on_frame: impl FnMut(&FrameOutcome),
     mut observer: Option<&mut dyn FrameObserver>,
 ) -> Result<(Vec<FrameOutcome>, f64)> {
-    let (first, last) = (*frames.start(), *frames.end());
-    // A browser tab (wasm32) has no threads to decode on: decode before each frame.
-    #[cfg(target_arch = "wasm32")]
-    let decode = {
-        let _ = decode;
-        Decode::BeforeEachFrame
-    };
     let wall = Instant::now();
-    let mut outcomes = Vec::with_capacity(last + 1 - first);
-    let mut process = |i: usize, frame: Result<RawFrame>, decode_seconds: f64| -> Result<()> {
-        let frame = frame?;
+    let mut outcomes = Vec::with_capacity(frames.clone().count());
+    for_each_frame(seq, frames, decode, |decoded| {
+        let Decoded {
+            index: i,
+            frame,
+            decode_seconds,
+            wait_seconds,
+        } = decoded;
         let rgba = packed_rgba(&frame);
         let rec = &seq.frames[i];
         let t0 = Instant::now();
@@ -232,6 +236,7 @@ fn run_frames_observed<B: Backend + Inspect>(
             timestamp: rec.timestamp,
             seconds: t0.elapsed().as_secs_f64(),
             decode_seconds,
+            wait_seconds,
             report,
         };
         on_frame(&out);
@@ -244,37 +249,7 @@ fn run_frames_observed<B: Backend + Inspect>(
         }
         outcomes.push(out);
         Ok(())
-    };
-    let timed_load = |i: usize| {
-        let t = Instant::now();
-        let frame = seq.load(i);
-        (frame, t.elapsed().as_secs_f64())
-    };
-    match decode {
-        Decode::BeforeEachFrame => {
-            for i in first..=last {
-                let (frame, secs) = timed_load(i);
-                process(i, frame, secs)?;
-            }
-        }
-        Decode::Overlapped => {
-            let (tx, rx) = mpsc::sync_channel::<(usize, Result<RawFrame>, f64)>(1);
-            std::thread::scope(|s| -> Result<()> {
-                s.spawn(move || {
-                    for i in first..=last {
-                        let (frame, secs) = timed_load(i);
-                        if tx.send((i, frame, secs)).is_err() {
-                            break; // the consumer stopped on an error
-                        }
-                    }
-                });
-                for (i, frame, secs) in rx {
-                    process(i, frame, secs)?;
-                }
-                Ok(())
-            })?;
-        }
-    }
+    })?;
     Ok((outcomes, wall.elapsed().as_secs_f64()))
 }
 
@@ -359,7 +334,7 @@ pub fn run<B: Backend + Inspect>(
         first,
         last,
         params,
-        Decode::Overlapped,
+        Decode::ahead_on_every_core(),
         on_frame,
     )
 }
@@ -450,6 +425,8 @@ pub fn run_observed<B: Backend + Inspect>(
         time_per_frame_mean_s: total / frames.len().max(1) as f64,
         time_total_s: total,
         wall_total_s: wall,
+        decode_wait_s: frames.iter().map(|f| f.wait_seconds).sum(),
+        decode_threads: decode.threads(),
         map_points: map.len(),
         compression_ratio: map.len() as f64 / (frames.len().max(1) * k.pixels()) as f64,
         tracking: counts,

@@ -153,7 +153,10 @@ fn missing_intrinsics_name_each_interfaces_control() {
     )
     .unwrap_err();
     assert!(
-        page.to_string().contains("add a camera.json") && !page.to_string().contains("--"),
+        page.to_string()
+            .contains("choose the camera on the page (fr1")
+            && page.to_string().contains("add a camera.json")
+            && !page.to_string().contains("--"),
         "{page}"
     );
 }

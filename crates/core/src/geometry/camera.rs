@@ -68,6 +68,27 @@ impl Intrinsics {
         }
     }
 
+    /// These intrinsics with the four numbers `fx,fy,cx,cy` (pixels) of `text` in place of
+    /// their own (the command line's `--intrinsics`, the page's camera box); the error says
+    /// what the text should be.
+    pub fn with_focal_centre(&self, text: &str) -> Result<Intrinsics, &'static str> {
+        let v: Vec<f32> = text
+            .split(',')
+            .map(|x| x.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| "want fx,fy,cx,cy")?;
+        if v.len() != 4 || v[0] == 0.0 || v[1] == 0.0 || v.iter().any(|x| !x.is_finite()) {
+            return Err("want four finite numbers fx,fy,cx,cy with fx, fy non-zero");
+        }
+        Ok(Intrinsics {
+            fx: v[0],
+            fy: v[1],
+            cx: v[2],
+            cy: v[3],
+            ..*self
+        })
+    }
+
     /// Intrinsics after keeping every `factor`-th pixel in each direction
     /// (pixel `(u', v')` of the result is pixel `(factor u', factor v')` of the original).
     pub fn downsampled(&self, factor: u32) -> Intrinsics {

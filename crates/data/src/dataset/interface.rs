@@ -10,7 +10,7 @@ pub enum Interface {
     CommandLine,
     /// The Python package (`params={...}`).
     Python,
-    /// The browser page (a picked folder; no intrinsics control).
+    /// The browser page (a picked folder and its camera box).
     Page,
 }
 
@@ -33,9 +33,12 @@ impl Interface {
             (Interface::Python, false) => "pass params={\"intrinsics\": \"fx,fy,cx,cy\"}, or \
                 add a camera.json to the folder"
                 .into(),
-            (Interface::Page, _) => "add a camera.json (fx, fy, cx, cy, width, height; see \
-                docs/datasets.md) to the folder and pick it again: the page has no intrinsics \
-                control"
+            (Interface::Page, true) => "choose the camera on the page (fr1, fr2 or fr3: the \
+                Freiburg camera in the sequence's name, freiburg1_desk is fr1; or four numbers \
+                fx,fy,cx,cy), or add a camera.json to the folder"
+                .into(),
+            (Interface::Page, false) => "type the four numbers fx,fy,cx,cy in the page's \
+                camera box, or add a camera.json to the folder"
                 .into(),
         }
     }
