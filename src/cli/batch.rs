@@ -15,8 +15,7 @@ use crate::batch::{folder, interrupt, report};
 use crate::cli::pipeline_args::ParamOverrides;
 use crate::gpu::backend::GpuBackend;
 use crate::gpu::context::GpuContext;
-use crate::slam::any_backend::{AnyBackend, BackendChoice};
-use crate::slam::cpu_backend::CpuBackend;
+use crate::slam::any_backend::{self, AnyBackend, BackendChoice};
 use crate::slam::params::PoseSource;
 use crate::{Error, Result};
 
@@ -102,7 +101,7 @@ struct RunOnly {
 /// or a GPU backend on its own share of one device, opened at the first GPU run and shared
 /// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
 /// The `concurrent` jobs share the cores for decoding: each decodes ahead on its share
-/// (at least one thread).
+/// (at least one thread); a CPU job's twins run on its share of the `--threads` budget.
 fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
@@ -121,7 +120,7 @@ fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
             Ok(Box::new(GpuBackend::new(shared.share())?))
         };
         let backend: AnyBackend = match a.backend {
-            BackendChoice::Cpu => Box::new(CpuBackend::new()),
+            BackendChoice::Cpu => Box::new(any_backend::cpu_backend(concurrent)?),
             BackendChoice::Gpu | BackendChoice::Auto => gpu()?,
         };
         let hooks = RunHooks {

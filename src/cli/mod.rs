@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 use clap::{Parser, Subcommand};
 
 use crate::gpu::context::{GpuFeatures, GpuLimits, FEATURES_ENV, LIMITS_ENV};
+use crate::slam::any_backend::THREADS_ENV;
 use crate::Result;
 
 /// The bundled sequence used when no dataset is given (relative to the crate root).
@@ -51,6 +52,11 @@ pub struct Cli {
     /// WGSLAM_GPU_LIMITS for this command and the processes it starts.
     #[arg(long, global = true, value_enum, value_name = "adapter|webgpu")]
     pub gpu_limits: Option<GpuLimits>,
+    /// Threads of the CPU reference (--backend cpu, compare, bench), default one per core;
+    /// a batch running jobs at once shares them between its jobs. Outputs are the same for
+    /// any number. Sets WGSLAM_THREADS for this command and the processes it starts.
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<std::num::NonZeroUsize>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -111,6 +117,10 @@ pub fn execute(cli: Cli) -> Result<()> {
     // GPU context of this one (GpuContext::new reads it) make the same device.
     set_env(FEATURES_ENV, cli.gpu_features);
     set_env(LIMITS_ENV, cli.gpu_limits);
+    if let Some(n) = cli.threads {
+        // Before any thread of this process starts, as above.
+        std::env::set_var(THREADS_ENV, n.to_string());
+    }
     match cli.command {
         Command::Run(a) => run::execute(a),
         Command::Icp(a) => icp::execute(a),

@@ -16,8 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::dataset::Sequence;
 use crate::gpu::backend::GpuBackend;
+use crate::slam::any_backend;
 use crate::slam::backend::{Backend, Inspect};
-use crate::slam::cpu_backend::CpuBackend;
 use crate::slam::instrumented::Instrumented;
 use crate::slam::params::ValidParams;
 use crate::tools::run;
@@ -360,8 +360,11 @@ pub fn bench_interleaved<G: Backend>(
     last: usize,
     params: &ValidParams,
 ) -> Result<InterleavedResult> {
-    let mut cpu =
-        crate::slam::pipeline::Slam::for_sequence(CpuBackend::new(), seq, params.clone())?;
+    let mut cpu = crate::slam::pipeline::Slam::for_sequence(
+        any_backend::cpu_backend(1)?,
+        seq,
+        params.clone(),
+    )?;
     let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
     let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
     run::for_each_frame(seq, first..=last, BEFORE, |d| {

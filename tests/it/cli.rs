@@ -397,6 +397,26 @@ fn compare_runs_with_fuse_dist() {
     assert!(text(&o).contains("backends agree"), "{}", text(&o));
 }
 
+/// The CPU reference's outputs do not depend on its threads (issue 48): `--threads 1` and
+/// `--threads 2` write the same trajectory.tum and map.ply, byte for byte, at full
+/// resolution (every twin over 640x480, the reductions' blocks more than once).
+fn cpu_outputs_are_the_same_on_any_number_of_threads() {
+    let run = |threads: &str| {
+        let out = common::temp_dir(&format!("cli-threads-{threads}"));
+        let o = run_bundled(&out, "1..3", &["--downsample", "1", "--threads", threads]);
+        assert!(o.status.success(), "{}", text(&o));
+        out
+    };
+    let (one, two) = (run("1"), run("2"));
+    for f in ["trajectory.tum", "map.ply"] {
+        let (a, b) = (std::fs::read(one.join(f)), std::fs::read(two.join(f)));
+        assert!(
+            a.unwrap() == b.unwrap(),
+            "{f} differs between 1 and 2 threads"
+        );
+    }
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     let tests = vec![
         plain(
@@ -417,6 +437,10 @@ pub fn tests() -> Vec<common::harness::Test> {
             profile_values_are_flags_recorded_in_metrics,
         ),
         plain("clear_errors_for_bad_input", clear_errors_for_bad_input),
+        plain(
+            "cpu_outputs_are_the_same_on_any_number_of_threads",
+            cpu_outputs_are_the_same_on_any_number_of_threads,
+        ),
         plain(
             "bench_revisit_reports_each_pass",
             bench_revisit_reports_each_pass,

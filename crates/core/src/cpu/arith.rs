@@ -75,6 +75,14 @@ fn engaged() -> bool {
     ENGAGED_HERE.with(|e| e.get())
 }
 
+/// True once this thread entered a mode other than exact or a planted bug: the twins then
+/// run their invocations in order on this thread (`invocations`), since the mode is per
+/// thread and the perturbed sums are sequential.
+#[inline]
+pub fn engaged_here() -> bool {
+    engaged()
+}
+
 /// Runs `f` with the twins' arithmetic in `mode` on this thread, then restores the mode.
 pub fn with<R>(mode: Arith, f: impl FnOnce() -> R) -> R {
     if mode != Arith::Exact {

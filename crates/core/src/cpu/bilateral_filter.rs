@@ -50,6 +50,7 @@
 //! `sigma_depth = 0.01 z²`. The filter alone does not make noisy tracking good (fusion keeps
 //! the noise in the map).
 
+use super::invocations::Storage;
 use super::{back_project, is_valid, pixel_grid, valid_entry, INVALID};
 use crate::layout::BilateralParams;
 
@@ -104,8 +105,12 @@ pub fn bilateral_filter(
         w * h,
         "filtered_vertex has the wrong size"
     );
-    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+    let filtered_vertex = Storage::new(filtered_vertex);
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        filtered_vertex[v as usize * w + u as usize] = filtered_at(params, vertex_map, u, v);
+        filtered_vertex.store(
+            v as usize * w + u as usize,
+            filtered_at(params, vertex_map, u, v),
+        );
     });
 }

@@ -6,6 +6,7 @@
 //! raw pixel with the raw intrinsics. Invalid depth (0 or outside the depth range) gives the
 //! invalid entry `[0; 4]`.
 
+use super::invocations::Storage;
 use super::{back_project, pixel_grid, valid_entry, INVALID};
 use crate::layout::PreprocessParams;
 
@@ -28,9 +29,10 @@ pub fn depth_to_vertex(
         raw_depth.len(),
         (params.raw_width * params.raw_height) as usize
     );
-    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    let (vertex_map, color_map) = (Storage::new(vertex_map), Storage::new(color_map));
+    // The shader's entry, pixel_grid.wgsl: every pixel once.
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        convert_at(params, raw_depth, raw_rgba, vertex_map, color_map, u, v);
+        convert_at(params, raw_depth, raw_rgba, &vertex_map, &color_map, u, v);
     });
 }
 
@@ -39,8 +41,8 @@ fn convert_at(
     params: &PreprocessParams,
     raw_depth: &[u16],
     raw_rgba: &[u32],
-    vertex_map: &mut [[f32; 4]],
-    color_map: &mut [[f32; 4]],
+    vertex_map: &Storage<[f32; 4]>,
+    color_map: &Storage<[f32; 4]>,
     u: u32,
     v: u32,
 ) {
@@ -48,16 +50,19 @@ fn convert_at(
     let raw = (v * params.stride * params.raw_width + u * params.stride) as usize;
     let z = super::arith::div(raw_depth[raw] as f32, params.depth_scale);
     let c = raw_rgba[raw];
-    color_map[texel] = [
-        (c & 255) as f32,
-        ((c >> 8) & 255) as f32,
-        ((c >> 16) & 255) as f32,
-        255.0,
-    ];
+    color_map.store(
+        texel,
+        [
+            (c & 255) as f32,
+            ((c >> 8) & 255) as f32,
+            ((c >> 16) & 255) as f32,
+            255.0,
+        ],
+    );
     let mut vertex = INVALID;
     if z > 0.0 && z >= params.min_depth_m && z <= params.max_depth_m {
         let cam = super::camera_intrinsics(&params.camera);
         vertex = valid_entry(back_project(cam, [u, v], z));
     }
-    vertex_map[texel] = vertex;
+    vertex_map.store(texel, vertex);
 }

@@ -1,17 +1,31 @@
 //! The CPU mirrors of the shared entry points (`shaders/pixel_grid.wgsl`,
 //! `shaders/visible_surfels.wgsl`, `shaders/system_grid.wgsl`; see `gpu::shaders::ENTRIES`): the loop a kernel of one
-//! shape runs around its per-item function. Each is one thread whose stride is one item,
-//! so every item is visited once, in the order a twin's results are defined by (row by row;
-//! block by block, then surfel by surfel).
+//! shape runs around its per-item function. Every item is visited once; [`pixel_grid`]'s
+//! items run in parallel ([`super::invocations`]: each writes only its own outputs),
+//! [`system_grid`]'s rows are made in parallel and summed row by row, and
+//! [`visible_surfels`] visits block by block, then surfel by surfel, in order (its key
+//! and merge twins are order-dependent or write through `&mut`; see their notes).
 
 use super::{block_visible, chunk_blocks, decode_corner};
 use crate::layout::{FuseParams, GpuMat4, MapChunk, ProjectParams, BLOCK_SURFELS};
 use crate::layout::{ICP_ATB_OFFSET, ICP_COUNT_INDEX, ICP_RESIDUAL_INDEX, ICP_SYSTEM_LEN};
 
 /// Mirrors `pixel_grid.wgsl`'s `main`: `per_pixel(texel)` for every texel `(u, v)` of a
-/// `width` x `height` image, row by row.
+/// `width` x `height` image, in parallel ([`super::invocations::par_for_each_invocation`]:
+/// `per_pixel` writes through [`super::invocations::Storage`], only its own texels).
 #[inline]
-pub fn pixel_grid(width: u32, height: u32, mut per_pixel: impl FnMut([u32; 2])) {
+pub fn pixel_grid(width: u32, height: u32, per_pixel: impl Fn([u32; 2]) + Sync + Send) {
+    let w = width as usize;
+    super::invocations::par_for_each_invocation(w * height as usize, |i| {
+        per_pixel([(i % w) as u32, (i / w) as u32]);
+    });
+}
+
+/// [`pixel_grid`] in order on this thread, row by row: for a twin whose invocations write
+/// through `&mut` what others may also write (fusion's merges and appends, the key
+/// writers), where the order decides the result or a parallel write would need atomics.
+#[inline]
+pub fn pixel_grid_in_order(width: u32, height: u32, mut per_pixel: impl FnMut([u32; 2])) {
     for v in 0..height {
         for u in 0..width {
             per_pixel([u, v]);
@@ -69,21 +83,28 @@ pub fn visible_surfels(
 }
 
 /// Mirrors `system_grid.wgsl`'s `main`: the 29-float normal-equation system summed over
-/// the rows `system_row(texel)` gives for every texel of a `width` x `height` image, row by
-/// row (`None`: the pixel adds nothing), in f64 (the GPU sums f32 partials per thread and
+/// the rows `system_row(texel)` gives for every texel of a `width` x `height` image, summed
+/// row by row (`None`: the pixel adds nothing), in f64 (the GPU sums f32 partials per thread and
 /// workgroup, the host in f64; see `arith::accumulate`).
 #[inline]
 pub fn system_grid(
     width: u32,
     height: u32,
-    mut system_row: impl FnMut([u32; 2]) -> Option<([f32; 6], f32)>,
+    system_row: impl Fn([u32; 2]) -> Option<([f32; 6], f32)> + Sync + Send,
 ) -> [f64; ICP_SYSTEM_LEN] {
     let mut sys = [0.0f64; ICP_SYSTEM_LEN];
-    pixel_grid(width, height, |[u, v]| {
-        if let Some((a, b)) = system_row([u, v]) {
-            super::arith::accumulate(&mut sys, v * width + u, |s| accumulate(s, &a, b));
-        }
-    });
+    let w = width as usize;
+    // The rows in parallel, their sum in pixel order: the same bits on any number of
+    // threads, and as the loop over the pixels made them.
+    super::invocations::par_rows_in_order(
+        w * height as usize,
+        |i| system_row([(i % w) as u32, (i / w) as u32]),
+        |i, row| {
+            if let Some((a, b)) = row {
+                super::arith::accumulate(&mut sys, i as u32, |s| accumulate(s, &a, b));
+            }
+        },
+    );
     sys
 }
 

@@ -14,7 +14,7 @@
 
 use super::key_writer::KeyWriter;
 use super::{
-    append_index, back_project, depth_key, pixel_confidence, pixel_grid, surfel_radius,
+    append_index, back_project, depth_key, pixel_confidence, pixel_grid_in_order, surfel_radius,
     transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
@@ -36,7 +36,7 @@ pub fn fuse_add<K: KeyWriter + ?Sized>(
     index_map: &mut K,
 ) {
     let cam = super::camera_intrinsics(&params.camera);
-    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+    pixel_grid_in_order(params.camera.width, params.camera.height, |[u, v]| {
         let pix = (v * params.camera.width + u) as usize;
         let a = append_index([u, v]);
         if flags[a] == 0 {

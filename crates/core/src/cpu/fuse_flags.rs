@@ -12,6 +12,7 @@
 //! grow the map. It replaces a 3x3 window per surfel in `fuse_select`, at the cost of
 //! the image instead of the map.
 
+use super::invocations::Storage;
 use super::{
     append_index, candidate_off_ray, fuse_depth_gate, is_valid, pixel_grid, transform_dir,
     transform_point, xyz,
@@ -27,7 +28,8 @@ pub fn fuse_flags(
     merged: &[[f32; 4]],
     flags: &mut [u32],
 ) {
-    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+    let flags = Storage::new(flags);
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         let texel = [u, v];
         let pix = (v * params.camera.width + u) as usize;
@@ -37,7 +39,7 @@ pub fn fuse_flags(
         if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
             new_surfel = !neighbour_covers(params, merged, texel, nd);
         }
-        flags[append_index(texel)] = new_surfel as u32;
+        flags.store(append_index(texel), new_surfel as u32);
     });
 }
 

@@ -3,6 +3,7 @@
 //! texel with a valid normal), the denominator of the tracking-health inlier fraction
 //! (`slam::health`). The same test as the first half of `icp_row` (`cpu::icp_reduce`).
 
+use super::invocations::par_rows_in_order;
 use super::{is_valid, project_to_texel, transform_point, xyz};
 use crate::layout::IcpParams;
 
@@ -37,12 +38,19 @@ pub fn icp_candidates(
     normal_depth: &[[f32; 4]],
 ) -> u64 {
     let mut n = 0;
-    for v in 0..params.camera.height {
-        for u in 0..params.camera.width {
-            if is_candidate(params, [u, v], pred_vertex, normal_depth) {
-                n += 1;
-            }
-        }
-    }
+    let w = params.camera.width as usize;
+    // Every pixel's test on every thread, the count in pixel order.
+    par_rows_in_order(
+        w * params.camera.height as usize,
+        |i| {
+            is_candidate(
+                params,
+                [(i % w) as u32, (i / w) as u32],
+                pred_vertex,
+                normal_depth,
+            )
+        },
+        |_, candidate| n += candidate as u64,
+    );
     n
 }

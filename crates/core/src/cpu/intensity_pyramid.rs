@@ -16,6 +16,7 @@
 //! the pixel it samples, as the depth pyramid's `pyramid_depth` (so the halved intrinsics
 //! hold for it too), and smoothed so that the coarse image does not alias.
 
+use super::invocations::Storage;
 use super::{intensity_of, pixel_grid};
 use crate::layout::IntensityParams;
 
@@ -74,11 +75,15 @@ pub fn intensity_pyramid(
     ]) {
         assert_eq!(len, (sw * sh) as usize, "{name} is not {sw}x{sh}");
     }
-    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+    let intensity_patch = Storage::new(intensity_patch);
     pixel_grid(params.width, params.height, |[u, v]| {
         let (u, v) = (u as i32, v as i32);
         let at = |du, dv| level_intensity(params, fine, u + du, v + dv);
-        intensity_patch[v as usize * w + u as usize] = [at(0, 0), at(1, 0), at(0, 1), at(1, 1)];
+        intensity_patch.store(
+            v as usize * w + u as usize,
+            [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
+        );
     });
 }
 

@@ -36,6 +36,7 @@ pub mod icp_candidates;
 pub mod icp_reduce;
 pub mod icp_reduce_final;
 pub mod intensity_pyramid;
+pub mod invocations;
 pub mod key_writer;
 pub mod keypoint_describe;
 pub mod keypoint_detect;
@@ -53,7 +54,7 @@ pub mod render_resolve;
 pub mod render_splat;
 pub mod vertex_to_normal;
 
-pub use entries::{pixel_grid, system_grid, visible_surfels};
+pub use entries::{pixel_grid, pixel_grid_in_order, system_grid, visible_surfels};
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::layout::{

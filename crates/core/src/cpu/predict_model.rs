@@ -4,6 +4,7 @@
 //! per map chunk: each call writes the pixels whose surfel the chunk holds, and the first
 //! chunk's call also the pixels with no surfel.
 
+use super::invocations::{par_for_each_invocation, Storage};
 use super::photo_reduce::INTENSITY_NONE;
 use super::{intensity_of, INVALID};
 use crate::layout::{MapChunk, ProjectParams};
@@ -25,7 +26,10 @@ pub fn predict_model(
     let n = (params.camera.width * params.camera.height) as usize;
     assert!(index_map.len() == n && pred_vertex.len() == n && pred_normal.len() == n);
     assert_eq!(pred_intensity.len(), n);
-    for pix in 0..n {
+    let (pred_vertex, pred_normal) = (Storage::new(pred_vertex), Storage::new(pred_normal));
+    let pred_intensity = Storage::new(pred_intensity);
+    // One invocation per pixel, on every thread (each writes its own pixel).
+    par_for_each_invocation(n, |pix| {
         let key = index_map[pix];
         let mut vertex = INVALID;
         let mut normal = INVALID;
@@ -33,7 +37,7 @@ pub fn predict_model(
         if key != 0 {
             let slot = ((key & 0xffff_ffff) as u32).wrapping_sub(chunk.base);
             if slot >= chunk.slots {
-                continue;
+                return;
             }
             let p = position_weight[slot as usize];
             let nf = normal_frame[slot as usize];
@@ -42,10 +46,10 @@ pub fn predict_model(
             normal = [n[0], n[1], n[2], 1.0];
             intensity = intensity_of(color[slot as usize]);
         } else if chunk.base != 0 {
-            continue;
+            return;
         }
-        pred_vertex[pix] = vertex;
-        pred_normal[pix] = normal;
-        pred_intensity[pix] = intensity;
-    }
+        pred_vertex.store(pix, vertex);
+        pred_normal.store(pix, normal);
+        pred_intensity.store(pix, intensity);
+    });
 }

@@ -19,6 +19,7 @@
 //! The window is symmetric about the sampled pixel, so on a plane facing the camera the
 //! mean stays at the sampled pixel's depth and the sampling convention holds.
 
+use super::invocations::Storage;
 use super::{back_project, is_valid, pixel_grid, valid_entry, INVALID};
 use crate::layout::PyramidParams;
 
@@ -80,9 +81,13 @@ pub fn pyramid_depth(
         params.fine_width,
         params.fine_height
     );
-    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+    let coarse_vertex = Storage::new(coarse_vertex);
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        coarse_vertex[v as usize * w + u as usize] = coarse_at(params, fine_vertex, u, v);
+        coarse_vertex.store(
+            v as usize * w + u as usize,
+            coarse_at(params, fine_vertex, u, v),
+        );
     });
 }
 

@@ -9,6 +9,7 @@
 //! moves each source point into the frame and projects it with the coarse intrinsics), so
 //! any subset of the model's points is a valid coarse source.
 
+use super::invocations::Storage;
 use super::pixel_grid;
 use crate::layout::PyramidParams;
 
@@ -29,11 +30,12 @@ pub fn pyramid_model(
     assert!(fine_vertex.len() == fine_normal.len() && fine_vertex.len() % fine_w == 0);
     assert!(coarse_vertex.len() == w * h && coarse_normal.len() == w * h);
     assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_vertex.len() / fine_w);
-    // The shader's entry, pixel_grid.wgsl: every pixel once, row by row.
+    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+    let (coarse_vertex, coarse_normal) = (Storage::new(coarse_vertex), Storage::new(coarse_normal));
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         let (u, v) = (u as usize, v as usize);
         let fine = 2 * v * fine_w + 2 * u;
-        coarse_vertex[v * w + u] = fine_vertex[fine];
-        coarse_normal[v * w + u] = fine_normal[fine];
+        coarse_vertex.store(v * w + u, fine_vertex[fine]);
+        coarse_normal.store(v * w + u, fine_normal[fine]);
     });
 }

@@ -7,6 +7,10 @@
 //! keeps the culling blocks' boxes as the GPU backend does (recomputed for the blocks
 //! fusion appended to, all of them after a compaction or an upload, before the next
 //! culling step), so its cost per frame also follows what the camera sees.
+//!
+//! The steps whose twins spread their invocations over threads (`preprocess`, `predict`,
+//! the ICP systems and candidates, `fuse`) run inside the backend's [`Threads`]
+//! (`cpu::invocations`); the outputs are the same bits on any number of threads.
 
 use crate::backend::RgbdSystems;
 use crate::backend::{
@@ -14,6 +18,7 @@ use crate::backend::{
     ToDescribe,
 };
 use crate::cpu;
+use crate::cpu::invocations::Threads;
 use crate::fused_view::FusedView;
 use crate::layout::map::SurfelMap;
 use crate::layout::{
@@ -58,6 +63,8 @@ pub struct CpuBackend {
     block_bounds: Vec<[u32; 4]>,
     /// Blocks from the one holding this surfel index on have stale boxes.
     bounds_dirty_from: usize,
+    /// The threads the twins run on (rayon's global pool unless bounded).
+    threads: Threads,
 }
 
 impl CpuBackend {
@@ -72,6 +79,14 @@ impl CpuBackend {
         map.assert_consistent();
         CpuBackend {
             map,
+            ..Self::default()
+        }
+    }
+
+    /// An empty map whose twins run on `threads` (`--threads N`, or a batch job's share).
+    pub fn with_threads(threads: Threads) -> Self {
+        CpuBackend {
+            threads,
             ..Self::default()
         }
     }
@@ -116,189 +131,208 @@ impl Backend for CpuBackend {
     }
 
     fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
-        self.intensity.new_frame(&steps.params, &steps.pyramid);
-        let f = &mut self.frame;
-        let n = (steps.params.camera.width * steps.params.camera.height) as usize;
-        f.vertex.resize(n, cpu::INVALID);
-        f.color.resize(n, cpu::INVALID);
-        f.normal_depth.resize(n, cpu::INVALID);
-        f.pyramid
-            .resize_with(steps.pyramid.len(), FrameLevel::default);
-        // `filtered_vertex` is empty without the filter (see `FrameMaps`).
-        if steps.bilateral.is_none() {
-            f.filtered_vertex.clear();
-        }
-        for call in plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len()) {
-            match call {
-                PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
-                    &steps.params,
-                    depth,
-                    rgba,
-                    &mut f.vertex,
-                    &mut f.color,
-                ),
-                PreprocessCall::BilateralFilter => {
-                    let b = steps
-                        .bilateral
-                        .as_ref()
-                        .expect("the plan filters only with filter params");
-                    f.filtered_vertex.resize(n, cpu::INVALID);
-                    cpu::bilateral_filter::bilateral_filter(b, &f.vertex, &mut f.filtered_vertex);
-                }
-                // The normals see the filtered map when the filter is on, and so do the
-                // points (through normal_depth, ICP and fusion) with `filtered_points`;
-                // `vertex` stays unfiltered either way.
-                PreprocessCall::VertexToNormal {
-                    level: 0,
-                    filtered,
-                    filtered_points,
-                } => {
-                    let map = |filtered| match filtered {
-                        true => &f.filtered_vertex,
-                        false => &f.vertex,
-                    };
-                    cpu::vertex_to_normal::vertex_to_normal(
-                        &steps.normal,
-                        map(filtered),
-                        &mut f.normal_depth,
-                        map(filtered_points),
-                    );
-                }
-                PreprocessCall::VertexToNormal { level, .. } => {
-                    let l = &mut f.pyramid[level - 1];
-                    cpu::vertex_to_normal::vertex_to_normal(
-                        &steps.pyramid[level - 1].normal,
-                        &l.vertex,
-                        &mut l.normal_depth,
-                        &l.vertex,
-                    );
-                }
-                // Each coarser level from the finer one's vertex map (level 0's: the one
-                // the normals were made from).
-                PreprocessCall::PyramidDepth { level, filtered } => {
-                    let p = &steps.pyramid[level - 1];
-                    let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
-                    let fine_vertex = match finer.last() {
-                        Some(l) => &l.vertex,
-                        None if filtered => &f.filtered_vertex,
-                        None => &f.vertex,
-                    };
-                    let l = &mut coarser[0];
-                    let n = (p.down.camera.width * p.down.camera.height) as usize;
-                    l.vertex.resize(n, cpu::INVALID);
-                    l.normal_depth.resize(n, cpu::INVALID);
-                    cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
+        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
+        self.threads.clone().install(|| {
+            self.intensity.new_frame(&steps.params, &steps.pyramid);
+            let f = &mut self.frame;
+            let n = (steps.params.camera.width * steps.params.camera.height) as usize;
+            f.vertex.resize(n, cpu::INVALID);
+            f.color.resize(n, cpu::INVALID);
+            f.normal_depth.resize(n, cpu::INVALID);
+            f.pyramid
+                .resize_with(steps.pyramid.len(), FrameLevel::default);
+            // `filtered_vertex` is empty without the filter (see `FrameMaps`).
+            if steps.bilateral.is_none() {
+                f.filtered_vertex.clear();
+            }
+            for call in plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len()) {
+                match call {
+                    PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
+                        &steps.params,
+                        depth,
+                        rgba,
+                        &mut f.vertex,
+                        &mut f.color,
+                    ),
+                    PreprocessCall::BilateralFilter => {
+                        let b = steps
+                            .bilateral
+                            .as_ref()
+                            .expect("the plan filters only with filter params");
+                        f.filtered_vertex.resize(n, cpu::INVALID);
+                        cpu::bilateral_filter::bilateral_filter(
+                            b,
+                            &f.vertex,
+                            &mut f.filtered_vertex,
+                        );
+                    }
+                    // The normals see the filtered map when the filter is on, and so do the
+                    // points (through normal_depth, ICP and fusion) with `filtered_points`;
+                    // `vertex` stays unfiltered either way.
+                    PreprocessCall::VertexToNormal {
+                        level: 0,
+                        filtered,
+                        filtered_points,
+                    } => {
+                        let map = |filtered| match filtered {
+                            true => &f.filtered_vertex,
+                            false => &f.vertex,
+                        };
+                        cpu::vertex_to_normal::vertex_to_normal(
+                            &steps.normal,
+                            map(filtered),
+                            &mut f.normal_depth,
+                            map(filtered_points),
+                        );
+                    }
+                    PreprocessCall::VertexToNormal { level, .. } => {
+                        let l = &mut f.pyramid[level - 1];
+                        cpu::vertex_to_normal::vertex_to_normal(
+                            &steps.pyramid[level - 1].normal,
+                            &l.vertex,
+                            &mut l.normal_depth,
+                            &l.vertex,
+                        );
+                    }
+                    // Each coarser level from the finer one's vertex map (level 0's: the one
+                    // the normals were made from).
+                    PreprocessCall::PyramidDepth { level, filtered } => {
+                        let p = &steps.pyramid[level - 1];
+                        let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
+                        let fine_vertex = match finer.last() {
+                            Some(l) => &l.vertex,
+                            None if filtered => &f.filtered_vertex,
+                            None => &f.vertex,
+                        };
+                        let l = &mut coarser[0];
+                        let n = (p.down.camera.width * p.down.camera.height) as usize;
+                        l.vertex.resize(n, cpu::INVALID);
+                        l.normal_depth.resize(n, cpu::INVALID);
+                        cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
+                    }
                 }
             }
-        }
-        Ok(())
+            Ok(())
+        })
     }
 
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
-        let mut params = *params;
-        params.surfel_count = self.map.len() as u32;
-        let n = (params.camera.width * params.camera.height) as usize;
-        let chunk = MapChunk::whole(self.map.len());
-        let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
-        if project {
-            // The index map is about to hold another view (a relocalisation attempt
-            // predicts at a keyframe's pose): the fused one is gone.
-            self.fused_view = None;
-        }
-        self.prediction
-            .resize_with(1 + pyramid.len(), Default::default);
-        for call in plan::predict(project, pyramid.len()) {
-            match call {
-                PredictCall::BlockBounds => self.refresh_bounds(),
-                PredictCall::ClearIndexMap => {
-                    self.index_map.clear();
-                    self.index_map.resize(n, 0);
-                }
-                PredictCall::ProjectModel => cpu::project_model::project_model(
-                    &params,
-                    &chunk,
-                    &self.block_bounds,
-                    &self.map.position_weight,
-                    &mut self.index_map,
-                ),
-                PredictCall::PredictModel => {
-                    let (pred_vertex, pred_normal) = &mut self.prediction[0];
-                    pred_vertex.resize(n, cpu::INVALID);
-                    pred_normal.resize(n, cpu::INVALID);
-                    self.pred_intensity
-                        .resize(n, cpu::photo_reduce::INTENSITY_NONE);
-                    cpu::predict_model::predict_model(
+        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
+        self.threads.clone().install(|| {
+            let mut params = *params;
+            params.surfel_count = self.map.len() as u32;
+            let n = (params.camera.width * params.camera.height) as usize;
+            let chunk = MapChunk::whole(self.map.len());
+            let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
+            if project {
+                // The index map is about to hold another view (a relocalisation attempt
+                // predicts at a keyframe's pose): the fused one is gone.
+                self.fused_view = None;
+            }
+            self.prediction
+                .resize_with(1 + pyramid.len(), Default::default);
+            for call in plan::predict(project, pyramid.len()) {
+                match call {
+                    PredictCall::BlockBounds => self.refresh_bounds(),
+                    PredictCall::ClearIndexMap => {
+                        self.index_map.clear();
+                        self.index_map.resize(n, 0);
+                    }
+                    PredictCall::ProjectModel => cpu::project_model::project_model(
                         &params,
-                        &self.index_map,
                         &chunk,
+                        &self.block_bounds,
                         &self.map.position_weight,
-                        &self.map.normal_frame,
-                        &self.map.color,
-                        pred_vertex,
-                        pred_normal,
-                        &mut self.pred_intensity,
-                    );
-                }
-                PredictCall::PyramidModel { level } => {
-                    let p = &pyramid[level - 1];
-                    let (finer, coarser) = self.prediction.split_at_mut(level);
-                    let (fine_vertex, fine_normal) = &finer[level - 1];
-                    let (coarse_vertex, coarse_normal) = &mut coarser[0];
-                    let n = (p.down.camera.width * p.down.camera.height) as usize;
-                    coarse_vertex.resize(n, cpu::INVALID);
-                    coarse_normal.resize(n, cpu::INVALID);
-                    cpu::pyramid_model::pyramid_model(
-                        &p.down,
-                        fine_vertex,
-                        fine_normal,
-                        coarse_vertex,
-                        coarse_normal,
-                    );
+                        &mut self.index_map,
+                    ),
+                    PredictCall::PredictModel => {
+                        let (pred_vertex, pred_normal) = &mut self.prediction[0];
+                        pred_vertex.resize(n, cpu::INVALID);
+                        pred_normal.resize(n, cpu::INVALID);
+                        self.pred_intensity
+                            .resize(n, cpu::photo_reduce::INTENSITY_NONE);
+                        cpu::predict_model::predict_model(
+                            &params,
+                            &self.index_map,
+                            &chunk,
+                            &self.map.position_weight,
+                            &self.map.normal_frame,
+                            &self.map.color,
+                            pred_vertex,
+                            pred_normal,
+                            &mut self.pred_intensity,
+                        );
+                    }
+                    PredictCall::PyramidModel { level } => {
+                        let p = &pyramid[level - 1];
+                        let (finer, coarser) = self.prediction.split_at_mut(level);
+                        let (fine_vertex, fine_normal) = &finer[level - 1];
+                        let (coarse_vertex, coarse_normal) = &mut coarser[0];
+                        let n = (p.down.camera.width * p.down.camera.height) as usize;
+                        coarse_vertex.resize(n, cpu::INVALID);
+                        coarse_normal.resize(n, cpu::INVALID);
+                        cpu::pyramid_model::pyramid_model(
+                            &p.down,
+                            fine_vertex,
+                            fine_normal,
+                            coarse_vertex,
+                            coarse_normal,
+                        );
+                    }
                 }
             }
-        }
-        Ok(())
+            Ok(())
+        })
     }
 
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
-        let levels = 1 + self.frame.pyramid.len();
-        if level >= levels.min(self.prediction.len()) {
-            return Err(crate::Error::Argument(format!(
-                "ICP at pyramid level {level}, but preprocess() made {levels} level(s) and \
-                 predict() {}",
-                self.prediction.len()
-            )));
-        }
-        let (pred_vertex, pred_normal) = &self.prediction[level];
-        let normal_depth = match level {
-            0 => &self.frame.normal_depth,
-            l => &self.frame.pyramid[l - 1].normal_depth,
-        };
-        Ok(cpu::icp_reduce::icp_reduce(
-            params,
-            pred_vertex,
-            pred_normal,
-            normal_depth,
-        ))
+        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
+        self.threads.clone().install(|| {
+            let levels = 1 + self.frame.pyramid.len();
+            if level >= levels.min(self.prediction.len()) {
+                return Err(crate::Error::Argument(format!(
+                    "ICP at pyramid level {level}, but preprocess() made {levels} level(s) and \
+                     predict() {}",
+                    self.prediction.len()
+                )));
+            }
+            let (pred_vertex, pred_normal) = &self.prediction[level];
+            let normal_depth = match level {
+                0 => &self.frame.normal_depth,
+                l => &self.frame.pyramid[l - 1].normal_depth,
+            };
+            Ok(cpu::icp_reduce::icp_reduce(
+                params,
+                pred_vertex,
+                pred_normal,
+                normal_depth,
+            ))
+        })
     }
 
     fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
-        let geometric = self.icp_system(level, params)?;
-        Ok([geometric, self.photo_system(level, params)])
+        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
+        self.threads.clone().install(|| {
+            let geometric = self.icp_system(level, params)?;
+            Ok([geometric, self.photo_system(level, params)])
+        })
     }
 
     fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
-        if self.prediction.is_empty() {
-            return Err(crate::Error::Argument(
-                "icp_candidates() before predict()".into(),
-            ));
-        }
-        let (pred_vertex, _) = &self.prediction[0];
-        Ok(cpu::icp_candidates::icp_candidates(
-            params,
-            pred_vertex,
-            &self.frame.normal_depth,
-        ))
+        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
+        self.threads.clone().install(|| {
+            if self.prediction.is_empty() {
+                return Err(crate::Error::Argument(
+                    "icp_candidates() before predict()".into(),
+                ));
+            }
+            let (pred_vertex, _) = &self.prediction[0];
+            Ok(cpu::icp_candidates::icp_candidates(
+                params,
+                pred_vertex,
+                &self.frame.normal_depth,
+            ))
+        })
     }
 
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
@@ -353,7 +387,8 @@ impl Backend for CpuBackend {
     }
 
     fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        Ok(self.fuse_step(params))
+        // The step's twins on this backend's threads (`cpu::invocations::Threads`).
+        self.threads.clone().install(|| Ok(self.fuse_step(params)))
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {

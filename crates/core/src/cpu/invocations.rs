@@ -1,0 +1,260 @@
+//! How the twins spread a kernel's invocations over the machine's cores (rayon), as a GPU
+//! spreads them over its lanes: the per-invocation body is the shader's, only the
+//! distribution is here. Not a kernel twin of its own.
+//!
+//! The rule that keeps the CPU reference deterministic for any number of threads:
+//! - an invocation writes only what no other invocation writes or reads ([`Storage`]:
+//!   a storage buffer, one element per invocation or per slot the kernel's own indices
+//!   keep apart), or raises a key through an order-independent maximum
+//!   (`key_writer`'s atomic `keep_nearer`);
+//! - a reduction's rows are made in parallel and summed on one thread in invocation order
+//!   ([`par_rows_in_order`]), so its sum is bit for bit the sequential one;
+//! - an append through a counter, or a loop whose result depends on the order of its
+//!   invocations, stays sequential.
+//!
+//! Threads come from the rayon pool the caller runs in (`CpuBackend` installs its own
+//! around its steps when `--threads` bounds it; otherwise rayon's global pool, one thread
+//! per core). On a thread where `arith` left the exact mode (its test modes and planted
+//! bugs are per thread, and its perturbed sums are sequential), every loop here runs in
+//! order on the calling thread instead.
+
+use std::marker::PhantomData;
+use std::num::NonZeroUsize;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
+
+use bytemuck::Pod;
+use rayon::prelude::*;
+
+/// Invocations per rayon task: a 640x480 image is 75 tasks, enough to balance two to
+/// sixteen cores, each long enough (tens of microseconds) to repay its scheduling.
+pub const INVOCATIONS_PER_TASK: usize = 4096;
+
+/// Rows [`par_rows_in_order`] makes before summing them: bounds its buffer to a few
+/// hundred kilobytes whatever the image size.
+pub const ROWS_PER_BLOCK: usize = 16 * INVOCATIONS_PER_TASK;
+
+/// True when this thread must run a twin's invocations itself, in order (see the module
+/// notes).
+#[inline]
+fn in_order_here() -> bool {
+    super::arith::engaged_here()
+}
+
+/// `body(i)` for every invocation `i` in `0..n`, in parallel on the current rayon pool in
+/// tasks of [`INVOCATIONS_PER_TASK`]; in order on this thread where `arith` says so. The
+/// body may write only through [`Storage`] (or atomics) at indices no other invocation
+/// touches, as a shader invocation may.
+pub fn par_for_each_invocation(n: usize, body: impl Fn(usize) + Sync + Send) {
+    if in_order_here() {
+        (0..n).for_each(body);
+        return;
+    }
+    (0..n)
+        .into_par_iter()
+        .with_min_len(INVOCATIONS_PER_TASK)
+        .for_each(body);
+}
+
+/// A reduction's invocations: `row(i)` for every `i` in `0..n`, made in parallel, then
+/// `sum(i, row)` on this thread in increasing `i`, so the sum is bit for bit the
+/// sequential loop's for any number of threads. The rows are made in blocks of
+/// [`ROWS_PER_BLOCK`], the sum of one block overlapping the making of the next.
+pub fn par_rows_in_order<R: Send>(
+    n: usize,
+    row: impl Fn(usize) -> R + Sync + Send,
+    mut sum: impl FnMut(usize, R) + Send,
+) {
+    if in_order_here() {
+        (0..n).for_each(|i| sum(i, row(i)));
+        return;
+    }
+    // Two buffers, reused: a fresh one per block would cost the kernel's zeroing of its
+    // pages (measured: 5 % of a 640x480 frame).
+    let make = |start: usize, rows: &mut Vec<R>| {
+        (start..n.min(start + ROWS_PER_BLOCK))
+            .into_par_iter()
+            .with_min_len(INVOCATIONS_PER_TASK)
+            .map(&row)
+            .collect_into_vec(rows);
+    };
+    let (mut made, mut following) = (Vec::new(), Vec::new());
+    make(0, &mut made);
+    let mut start = 0;
+    while !made.is_empty() {
+        let next = start + ROWS_PER_BLOCK;
+        rayon::join(
+            || {
+                for (k, r) in made.drain(..).enumerate() {
+                    sum(start + k, r);
+                }
+            },
+            || match next < n {
+                true => make(next, &mut following),
+                false => following.clear(),
+            },
+        );
+        std::mem::swap(&mut made, &mut following);
+        start = next;
+    }
+}
+
+/// The threads a CPU backend's twins run on: rayon's global pool (one thread per core,
+/// the default) or a pool of its own of `--threads N` (a batch running jobs at once gives
+/// each a share of the cores). Clones share the pool.
+#[derive(Debug, Clone, Default)]
+pub struct Threads(Option<Arc<rayon::ThreadPool>>);
+
+impl Threads {
+    /// A pool of its own of `n` threads.
+    pub fn bounded(n: NonZeroUsize) -> crate::Result<Threads> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.get())
+            .thread_name(|i| format!("wgslam-cpu-{i}"))
+            .build()
+            .map_err(|e| crate::Error::Argument(format!("cannot start {n} CPU threads: {e}")))?;
+        Ok(Threads(Some(Arc::new(pool))))
+    }
+
+    /// Threads the twins may use.
+    pub fn count(&self) -> usize {
+        match &self.0 {
+            Some(pool) => pool.current_num_threads(),
+            None => rayon::current_num_threads(),
+        }
+    }
+
+    /// Runs `f` (a backend step) with its twins on these threads. On a thread where `arith`
+    /// left the exact mode, `f` runs here (its twins in order; see the module notes).
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.0 {
+            Some(pool) if !in_order_here() => pool.install(f),
+            _ => f(),
+        }
+    }
+}
+
+/// A storage array that many invocations write at once, each its own elements: the CPU
+/// side of a WGSL `var<storage, read_write>` array. Elements are stored as relaxed atomic
+/// 32-bit words, so two invocations that broke the rule and wrote one element would leave
+/// some mix of their words (as on a GPU), never undefined behaviour.
+pub struct Storage<'a, T> {
+    words: &'a [AtomicU32],
+    element: PhantomData<&'a mut [T]>,
+}
+
+impl<'a, T: Pod> Storage<'a, T> {
+    /// Words per element.
+    const WORDS: usize = std::mem::size_of::<T>() / 4;
+
+    /// A view of `data` that invocations on many threads write (`T`: a whole number of
+    /// 32-bit words, aligned to at least 4 bytes).
+    pub fn new(data: &'a mut [T]) -> Self {
+        assert!(
+            std::mem::size_of::<T>() % 4 == 0 && std::mem::align_of::<T>() >= 4,
+            "Storage: elements must be whole 32-bit words"
+        );
+        let words: &'a mut [u32] = bytemuck::cast_slice_mut(data);
+        // SAFETY: `AtomicU32` has the size and alignment of `u32` (documented), and the
+        // exclusive borrow of `data` is held for `'a`, so nothing reads or writes these
+        // words except through the atomics for as long as the view lives.
+        let words = unsafe { &*(words as *mut [u32] as *const [AtomicU32]) };
+        Storage {
+            words,
+            element: PhantomData,
+        }
+    }
+
+    /// Elements in the array.
+    pub fn len(&self) -> usize {
+        self.words.len() / Self::WORDS
+    }
+
+    /// True when the array holds no element.
+    pub fn is_empty(&self) -> bool {
+        self.words.is_empty()
+    }
+
+    /// Writes element `i`.
+    #[inline]
+    pub fn store(&self, i: usize, value: T) {
+        let w = &self.words[i * Self::WORDS..(i + 1) * Self::WORDS];
+        for (word, &bits) in w.iter().zip(bytemuck::cast_slice::<T, u32>(&[value])) {
+            word.store(bits, Ordering::Relaxed);
+        }
+    }
+
+    /// Reads element `i`.
+    #[inline]
+    pub fn load(&self, i: usize) -> T {
+        let mut value = T::zeroed();
+        let w = &self.words[i * Self::WORDS..(i + 1) * Self::WORDS];
+        for (bits, word) in bytemuck::cast_slice_mut::<T, u32>(std::slice::from_mut(&mut value))
+            .iter_mut()
+            .zip(w)
+        {
+            *bits = word.load(Ordering::Relaxed);
+        }
+        value
+    }
+}
+
+impl Storage<'_, u32> {
+    /// `atomicMin(&array[i], value)`: order-independent, so any number of invocations may
+    /// lower one element.
+    #[inline]
+    pub fn fetch_min(&self, i: usize, value: u32) {
+        self.words[i].fetch_min(value, Ordering::Relaxed);
+    }
+
+    /// `atomicMax(&array[i], value)` (see [`Storage::fetch_min`]).
+    #[inline]
+    pub fn fetch_max(&self, i: usize, value: u32) {
+        self.words[i].fetch_max(value, Ordering::Relaxed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rows are summed in order whatever the pool: the same bits on 1 and 3 threads.
+    #[test]
+    fn rows_are_summed_in_order_on_any_pool() {
+        let n = 3 * ROWS_PER_BLOCK + 17;
+        let sum_on = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut s = 0.0f64;
+                let mut seen = 0;
+                par_rows_in_order(
+                    n,
+                    |i| (i as f64 * 0.1).sin(),
+                    |i, r| {
+                        assert_eq!(i, seen);
+                        seen += 1;
+                        s += r;
+                    },
+                );
+                assert_eq!(seen, n);
+                s
+            })
+        };
+        let sequential: f64 = (0..n).map(|i| (i as f64 * 0.1).sin()).sum();
+        assert_eq!(sum_on(1).to_bits(), sequential.to_bits());
+        assert_eq!(sum_on(3).to_bits(), sequential.to_bits());
+    }
+
+    /// Every invocation runs once and writes its own element.
+    #[test]
+    fn each_invocation_writes_its_element() {
+        let mut out = vec![[0.0f32; 4]; 10_000];
+        let s = Storage::new(&mut out);
+        par_for_each_invocation(s.len(), |i| s.store(i, [i as f32, 1.0, 2.0, 3.0]));
+        assert_eq!(s.load(9_999), [9_999.0, 1.0, 2.0, 3.0]);
+        assert!(out.iter().enumerate().all(|(i, v)| v[0] == i as f32));
+    }
+}
