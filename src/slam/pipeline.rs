@@ -452,7 +452,7 @@ mod tests {
                 .cos_normal_threshold;
             (cos.acos().to_degrees() * 1e3).round() / 1e3
         };
-        assert!(FULL_RES > 20.0 && RETRY > FULL_RES);
+        const { assert!(FULL_RES > 20.0 && RETRY > FULL_RES) };
         assert_eq!(gate_deg(1, 0), FULL_RES);
         assert_eq!(gate_deg(1, 1), 20.0);
         assert_eq!(gate_deg(2, 0), 20.0);

@@ -231,6 +231,15 @@ fn confident_gate_m(f: &FusionSettings) -> f32 {
     }
 }
 
+/// `icp_reduce`'s `cos_normal_threshold` for an angle gate of `deg` degrees; 180 or more
+/// turns the gate off.
+pub fn cos_of_gate(deg: f32) -> f32 {
+    match deg {
+        deg if deg >= 180.0 => ANGLE_GATE_OFF,
+        deg => deg.to_radians().cos(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -276,14 +285,5 @@ mod tests {
                 assert_eq!(fuse_depth_gate(&p, w), f.dist_m, "weight {w}");
             }
         }
-    }
-}
-
-/// `icp_reduce`'s `cos_normal_threshold` for an angle gate of `deg` degrees; 180 or more
-/// turns the gate off.
-pub fn cos_of_gate(deg: f32) -> f32 {
-    match deg {
-        deg if deg >= 180.0 => ANGLE_GATE_OFF,
-        deg => deg.to_radians().cos(),
     }
 }
