@@ -261,7 +261,7 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 44] = [
+    const OPTION_VALUES: [(&str, &str); 45] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
@@ -273,6 +273,7 @@ mod tests {
         ("icp-dist", "0.08"),
         ("icp-angle", "25"),
         ("icp-full-res-angle", "35"),
+        ("icp-retry-angle", "40"),
         ("icp-huber", "0.015"),
         ("tracking", "rgbd"),
         ("photometric-weight", "0.5"),
