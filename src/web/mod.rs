@@ -109,7 +109,7 @@ pub fn set_reader(read: js_sys::Function) {
 
 /// Sets the folder to open (`root`, as the listed paths start), the parameter profile
 /// (`robust` or `assignment`, as `wgslam run --profile`) and the camera (as `--camera` or
-/// `--intrinsics`: [`page_camera`]); an error message for an unknown profile or camera,
+/// `--intrinsics`: `page_camera`); an error message for an unknown profile or camera,
 /// else `undefined`.
 #[wasm_bindgen]
 pub fn configure(root: &str, profile: &str, camera: &str) -> Option<String> {
