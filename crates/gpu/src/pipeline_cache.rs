@@ -34,6 +34,28 @@ pub fn cache_folder() -> Option<PathBuf> {
     }
 }
 
+/// The largest cache file read, bytes: a driver's cache of the ~40 pipelines wgslam builds
+/// is kilobytes to a few megabytes, so a larger file is not one wgslam wrote.
+pub const MAX_CACHE_BYTES: u64 = 256 << 20;
+
+/// The cache file's bytes, refused (as an `InvalidData` error, which becomes a note) when
+/// it is over [`MAX_CACHE_BYTES`]. Read here, not through `wgslam_data::io::input` (a floor
+/// above this crate): it is the file this program writes, not an input.
+fn read_bounded(path: &Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path)?;
+    let len = file.metadata()?.len();
+    if len > MAX_CACHE_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{len} bytes, over the {MAX_CACHE_BYTES} of any cache wgslam writes"),
+        ));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(MAX_CACHE_BYTES).read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
 /// A device's pipeline cache and the file it came from and goes back to.
 pub struct DiskCache {
     /// Give it to every pipeline the device creates.
@@ -51,7 +73,7 @@ impl DiskCache {
     /// unreadable, corrupt or another driver's is ignored with a note.
     pub fn open(device: &wgpu::Device, info: &wgpu::AdapterInfo, folder: &Path) -> Option<Self> {
         let path = folder.join(wgpu::util::pipeline_cache_key(info)?);
-        let loaded = match std::fs::read(&path) {
+        let loaded = match read_bounded(&path) {
             Ok(bytes) => bytes,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
             Err(e) => {
