@@ -1,8 +1,13 @@
 #!/usr/bin/env bash
 # deploy/gpu-check.sh: the real-GPU check of issue 33 in one go, for a user (or a lent
 # machine) with a GPU: bench at 640x480 and 320x240, compare in lockstep and free mode, and
-# the concurrent batch when the binary has one; writes ONE JSON with every command, its
-# exit status, its wall time and its JSON output (or the tail of its log).
+# the concurrent batch when the binary has one; and issue 48's throughput targets (group
+# `throughput`): `wgslam run` on 7-Scenes 0..299 at 640x480 (wall time of the whole
+# command), start-up of a one-frame run with an empty and then a filled pipeline cache, 16
+# jobs of 150 frames at 16 offsets with `batch --concurrent 16`, and the CPU reference's
+# ms/frame at 640x480 (`bench --backends cpu`), each against the baseline binary in the same
+# run when one is given; writes ONE JSON with every command, its exit status, its wall time
+# and its JSON output (or the tail of its log).
 #
 #   deploy/gpu-check.sh                      # target/release/wgslam, data in ../shared/data
 #   WGSLAM_BASE_BIN=/path/to/old/wgslam deploy/gpu-check.sh   # also bench a baseline
@@ -15,7 +20,8 @@
 #   OUT               write $OUT/gpu-check.json (default ./gpu-check.json)
 #   WGSLAM_CHECK_QUICK=1   tiny frame ranges (a smoke test of this script, e.g. on lavapipe)
 #   WGSLAM_CHECK_ROUNDS    whole-frame rounds per bench (default 2)
-#   WGSLAM_CHECK_STEPS     which groups to run, any of "bench compare batch" (default all)
+#   WGSLAM_CHECK_STEPS     which groups to run, any of "bench compare batch throughput"
+#                          (default all)
 #
 # Every step runs whatever the steps before it did (a failing command is recorded, not
 # fatal); the script exits 1 when any step failed, 0 otherwise. Sized for about 6 minutes
@@ -32,10 +38,13 @@ SCENES=$DATA/7scenes_redkitchen
 NOISY=$DATA/icl_living_room_kt2_noisy
 if [ "${WGSLAM_CHECK_QUICK:-0}" = 1 ]; then
   BENCH_FRAMES=0..3 LOCK_FRAMES=0..2 FREE_FRAMES=1..3 BATCH_SPAN=1
+  RUN_FRAMES=0..3 JOB_SPAN=1 JOB_STEP=1 CPU_FRAMES=0..1
 else
   BENCH_FRAMES=0..199 LOCK_FRAMES=0..40 FREE_FRAMES=1..40 BATCH_SPAN=99
+  # Issue 48: 16 jobs of 150 frames, at offsets 0, 9, ..., 135 (7-Scenes 0..284).
+  RUN_FRAMES=0..299 JOB_SPAN=149 JOB_STEP=9 CPU_FRAMES=0..40
 fi
-GROUPS_RUN=" ${WGSLAM_CHECK_STEPS:-bench compare batch} "
+GROUPS_RUN=" ${WGSLAM_CHECK_STEPS:-bench compare batch throughput} "
 wants() { [[ "$GROUPS_RUN" == *" $1 "* ]]; }
 
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/gpu-check.XXXXXX")
@@ -163,11 +172,59 @@ else
   skip batch-concurrent "this wgslam has no 'batch --concurrent'"
 fi
 
+# Issue 48's targets. `run` and start-up: the wall time of the whole command is the step's
+# wall_s. Start-up: a one-frame run twice over one new pipeline-cache folder (the first
+# fills it, the second is the "second run" of the target; a binary without the cache runs
+# the same). The 16-job batch: frames/s = 16 x (JOB_SPAN + 1) / wall_s.
+throughput() {
+  local label=$1 bin=$2
+  step "run-wall-$label" "" -- "$bin" run "$SCENES" --frames "$RUN_FRAMES" --downsample 1 \
+    --backend gpu --out "$WORK/run-$label"
+  local cache=$WORK/pipeline-cache-$label
+  mkdir -p "$cache"
+  for turn in first second; do
+    step "startup-$turn-$label" "" -- env WGSLAM_PIPELINE_CACHE="$cache" \
+      "$bin" run "$SCENES" --frames 0..0 --downsample 1 --backend gpu --out "$WORK/one-$label"
+  done
+  local manifest=$WORK/jobs16.toml
+  {
+    echo "output = \"unused\""
+    echo "[defaults]"
+    echo "downsample = 1"
+    echo "profile = \"robust\""
+    echo "backend = \"gpu\""
+    echo "[[grid]]"
+    echo "name = \"j\""
+    echo "sequence = [\"$SCENES\"]"
+    printf 'frames = ['
+    for j in $(seq 0 15); do
+      [ "$j" = 0 ] || printf ', '
+      printf '"%d..%d"' $((j * JOB_STEP)) $((j * JOB_STEP + JOB_SPAN))
+    done
+    echo ']'
+  } >"$manifest"
+  step "batch16-concurrent16-$label" "$WORK/batch16-$label/summary.json" -- \
+    "$bin" batch "$manifest" --out "$WORK/batch16-$label" --concurrent 16
+  step "cpu-reference-ds1-$label" "$WORK/cpu-$label.json" -- \
+    "$bin" bench "$SCENES" --frames "$CPU_FRAMES" --downsample 1 --backends cpu --rounds 1 \
+    --json "$WORK/cpu-$label.json"
+}
+if wants throughput; then
+  throughput new "$BIN"
+  if [ -n "$BASE" ]; then
+    throughput base "$BASE"
+    step compare-lockstep-7scenes-base "$WORK/compare-lockstep-base.json" -- \
+      "$BASE" compare "$SCENES" --frames "$LOCK_FRAMES" --downsample 1 \
+      --json "$WORK/compare-lockstep-base.json"
+  fi
+fi
+
 {
   printf '{\n"binary": %s,\n' "$(printf '%s' "$BIN" | json_string)"
   printf '"baseline": %s,\n' "$(printf '%s' "$BASE" | json_string)"
   printf '"data": %s,\n' "$(printf '%s' "$DATA" | json_string)"
   printf '"batch_frames": %d,\n' $((8 * (BATCH_SPAN + 1)))
+  printf '"batch16_frames": %d,\n' $((16 * (JOB_SPAN + 1)))
   printf '"quick": %s,\n' "$([ "${WGSLAM_CHECK_QUICK:-0}" = 1 ] && echo true || echo false)"
   printf '"failed": %s,\n"steps": [\n' "$([ "$FAILED" = 1 ] && echo true || echo false)"
   for i in "${!STEPS[@]}"; do
