@@ -88,6 +88,26 @@ skip() {
   STEPS+=("{\"name\": \"$1\", \"skipped\": $(printf '%s' "$2" | json_string)}")
 }
 
+# gpu_jobs_manifest NAME JOBS STEP SPAN: a batch manifest of JOBS GPU jobs over 7-Scenes
+# at 640x480, job j on frames j*STEP .. j*STEP+SPAN.
+gpu_jobs_manifest() {
+  local name=$1 jobs=$2 stride=$3 span=$4
+  echo "output = \"unused\""
+  echo "[defaults]"
+  echo "downsample = 1"
+  echo "profile = \"robust\""
+  echo "backend = \"gpu\""
+  echo "[[grid]]"
+  echo "name = \"$name\""
+  echo "sequence = [\"$SCENES\"]"
+  printf 'frames = ['
+  for ((j = 0; j < jobs; j++)); do
+    [ "$j" = 0 ] || printf ', '
+    printf '"%d..%d"' $((j * stride)) $((j * stride + span))
+  done
+  echo ']'
+}
+
 # bench LABEL BINARY DOWNSAMPLE: the GPU backend over 7-Scenes BENCH_FRAMES.
 bench() {
   local label=$1 bin=$2 ds=$3
@@ -137,22 +157,7 @@ if ! wants batch; then
   skip batch-concurrent "not in WGSLAM_CHECK_STEPS"
 elif "$BIN" batch --help 2>/dev/null | grep -q -- '--concurrent'; then
   manifest=$WORK/concurrent.toml
-  {
-    echo "output = \"unused\""
-    echo "[defaults]"
-    echo "downsample = 1"
-    echo "profile = \"robust\""
-    echo "backend = \"gpu\""
-    echo "[[grid]]"
-    echo "name = \"c\""
-    echo "sequence = [\"$SCENES\"]"
-    printf 'frames = ['
-    for j in 0 1 2 3 4 5 6 7; do
-      [ "$j" = 0 ] || printf ', '
-      printf '"%d..%d"' $((j * 12)) $((j * 12 + BATCH_SPAN))
-    done
-    echo ']'
-  } >"$manifest"
+  gpu_jobs_manifest c 8 12 "$BATCH_SPAN" >"$manifest"
   for n in 1 2 4 8; do
     # Frames/s of all jobs: 8 x (BATCH_SPAN + 1) frames over the step's wall_s.
     step "batch-concurrent-$n" "$WORK/batch-$n/summary.json" -- \
@@ -187,22 +192,7 @@ throughput() {
       "$bin" run "$SCENES" --frames 0..0 --downsample 1 --backend gpu --out "$WORK/one-$label"
   done
   local manifest=$WORK/jobs16.toml
-  {
-    echo "output = \"unused\""
-    echo "[defaults]"
-    echo "downsample = 1"
-    echo "profile = \"robust\""
-    echo "backend = \"gpu\""
-    echo "[[grid]]"
-    echo "name = \"j\""
-    echo "sequence = [\"$SCENES\"]"
-    printf 'frames = ['
-    for j in $(seq 0 15); do
-      [ "$j" = 0 ] || printf ', '
-      printf '"%d..%d"' $((j * JOB_STEP)) $((j * JOB_STEP + JOB_SPAN))
-    done
-    echo ']'
-  } >"$manifest"
+  gpu_jobs_manifest j 16 "$JOB_STEP" "$JOB_SPAN" >"$manifest"
   step "batch16-concurrent16-$label" "$WORK/batch16-$label/summary.json" -- \
     "$bin" batch "$manifest" --out "$WORK/batch16-$label" --concurrent 16
   step "cpu-reference-ds1-$label" "$WORK/cpu-$label.json" -- \
