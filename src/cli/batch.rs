@@ -100,8 +100,9 @@ struct RunOnly {
 /// Runs a job's backend in this process: `args` parsed as `wgslam run`'s, the CPU backend
 /// or a GPU backend on its own share of one device, opened at the first GPU run and shared
 /// by all ([`GpuContext::share`]; each pipeline built once: `GpuContext::kernels_cached`).
-/// The `concurrent` jobs share the cores for decoding: each decodes ahead on its share
-/// (at least one thread); a CPU job's twins run on its share of the `--threads` budget.
+/// The `concurrent` jobs share the cores for decoding: each decodes ahead on its share (at
+/// least one thread) unless its own `--decode-threads` says otherwise; a CPU job's twins
+/// run on its share of the `--threads` budget.
 fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
     let device: OnceLock<std::result::Result<GpuContext, String>> = OnceLock::new();
     Box::new(move |args: &[String], hooks: &RunHooks| {
@@ -110,8 +111,11 @@ fn in_process_runs(concurrent: usize) -> Box<InProcessRun> {
         )
         .map_err(|e| Error::Argument(e.to_string()))?
         .run;
+        // A job's own --decode-threads wins over its share.
         let cores = crate::tools::run::Decode::ahead_on_every_core().threads();
-        a.decode.decode_threads = Some((cores / concurrent).max(1));
+        a.decode
+            .decode_threads
+            .get_or_insert((cores / concurrent).max(1));
         let gpu = || -> Result<AnyBackend> {
             let shared = device
                 .get_or_init(|| GpuContext::new().map_err(|e| e.to_string()))

@@ -187,12 +187,14 @@ impl<B: Backend> Slam<B> {
             return self.accept(frame_id, accepted, Tracked::default(), &steps);
         };
         // Track from the last pose.
+        let gap = self.tracker.frames_since_tracked() + 1;
+        let wide_gate_deg = self.wide_gate_deg();
+        let wide_steps;
         let mut icp = Icp {
             backend: &mut self.backend,
             params: &self.params,
             steps: &steps,
         };
-        let gap = self.tracker.frames_since_tracked() + 1;
         let first = self
             .tracker
             .attempt(&mut icp, Start::from_last(t_last, gap))?;
@@ -202,16 +204,13 @@ impl<B: Backend> Slam<B> {
             return self.accept(frame_id, accepted, tracked, &steps);
         };
         // Again from the last pose with the wider full-resolution angle gate at level 0.
-        if let Some(normal_deg) = self.wide_gate_deg() {
-            let wide = steps.with_level0_gate(cos_of_gate(normal_deg));
-            let mut icp = Icp {
-                backend: &mut self.backend,
-                params: &self.params,
-                steps: &wide,
-            };
+        if let Some(normal_deg) = wide_gate_deg {
+            wide_steps = steps.with_level0_gate(cos_of_gate(normal_deg));
+            icp.steps = &wide_steps;
             let second = self
                 .tracker
                 .attempt(&mut icp, Start::from_last(t_last, gap))?;
+            icp.steps = &steps;
             let passed = second.verdict.is_ok();
             tracked.wide_gate = Some(WideGateAttempt {
                 normal_deg,
@@ -224,11 +223,6 @@ impl<B: Backend> Slam<B> {
                 return self.accept(frame_id, accepted, tracked, &steps);
             }
         }
-        let mut icp = Icp {
-            backend: &mut self.backend,
-            params: &self.params,
-            steps: &steps,
-        };
         // Lost from there: relocalise from the keyframes.
         let relocalised = match &self.recovery {
             Some(recovery) => recovery.relocalise(&mut icp, &self.tracker)?,
