@@ -139,6 +139,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         let after = slam.backend.counters();
         counts.push(FrameCounts {
             submissions: after.submissions - before.submissions,
+            waits: after.waits - before.waits,
             readback_bytes: after.readback_bytes - before.readback_bytes,
             icp_iterations: report.iterations.len(),
             plain: !report.keyframe && report.relocalisation.is_empty() && report.loops.is_empty(),
@@ -215,6 +216,7 @@ fn slam_accuracy<B: Backend>(
 /// One frame's submissions and read-back in [`bench_frames`].
 struct FrameCounts {
     submissions: u64,
+    waits: u64,
     readback_bytes: u64,
     icp_iterations: usize,
     /// Not a keyframe, no relocalisation, no loop-closure check: the frames whose
@@ -232,6 +234,10 @@ pub struct RoundTrips {
     /// Submissions beyond one per ICP iteration on a plain frame: mean and most.
     pub plain_submissions_beyond_icp_mean: f64,
     pub plain_submissions_beyond_icp_max: u64,
+    /// Host waits for the device beyond one per ICP iteration (its system's read-back) on a
+    /// plain frame: mean and most. 0 when preprocess, predict and fuse wait for nothing.
+    pub plain_waits_beyond_icp_mean: f64,
+    pub plain_waits_beyond_icp_max: u64,
     /// Bytes read back on a plain frame: mean and most.
     pub plain_readback_bytes_mean: f64,
     pub plain_readback_bytes_max: u64,
@@ -247,6 +253,7 @@ impl BenchResult {
         let plain: Vec<&FrameCounts> = counts.iter().filter(|c| c.plain).collect();
         let m = plain.len().max(1) as f64;
         let beyond = |c: &FrameCounts| c.submissions.saturating_sub(c.icp_iterations as u64);
+        let waits_beyond = |c: &FrameCounts| c.waits.saturating_sub(c.icp_iterations as u64);
         self.round_trips = Some(RoundTrips {
             plain_frames: plain.len(),
             icp_iterations_per_frame: counts.iter().map(|c| c.icp_iterations).sum::<usize>() as f64
@@ -254,6 +261,9 @@ impl BenchResult {
             plain_submissions_beyond_icp_mean: plain.iter().map(|c| beyond(c)).sum::<u64>() as f64
                 / m,
             plain_submissions_beyond_icp_max: plain.iter().map(|c| beyond(c)).max().unwrap_or(0),
+            plain_waits_beyond_icp_mean: plain.iter().map(|c| waits_beyond(c)).sum::<u64>() as f64
+                / m,
+            plain_waits_beyond_icp_max: plain.iter().map(|c| waits_beyond(c)).max().unwrap_or(0),
             plain_readback_bytes_mean: plain.iter().map(|c| c.readback_bytes).sum::<u64>() as f64
                 / m,
             plain_readback_bytes_max: plain.iter().map(|c| c.readback_bytes).max().unwrap_or(0),
@@ -528,11 +538,14 @@ pub fn print_table(results: &[BenchResult]) {
             println!(
                 "      {:.1} ICP iterations/frame; on {} frames without keyframe, \
                  relocalisation or loop check: submissions beyond one per ICP iteration \
-                 {:.2} mean, {} most; readback {:.0} bytes mean, {} most",
+                 {:.2} mean, {} most; waits beyond one per ICP iteration {:.2} mean, {} most; \
+                 readback {:.0} bytes mean, {} most",
                 t.icp_iterations_per_frame,
                 t.plain_frames,
                 t.plain_submissions_beyond_icp_mean,
                 t.plain_submissions_beyond_icp_max,
+                t.plain_waits_beyond_icp_mean,
+                t.plain_waits_beyond_icp_max,
                 t.plain_readback_bytes_mean,
                 t.plain_readback_bytes_max
             );

@@ -29,6 +29,7 @@ mod mesh;
 mod portable;
 mod render;
 mod rgbd;
+mod round_trips;
 // `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
 #[cfg(feature = "rerun")]
 mod rerun;
@@ -77,6 +78,7 @@ fn main() -> ExitCode {
         portable,
         render,
         rgbd,
+        round_trips,
         scan_gpu,
         scan_icp,
         scan_kernels,

@@ -141,6 +141,8 @@ pub struct BackendCounters {
     pub readback_bytes: u64,
     /// Command submissions since creation.
     pub submissions: u64,
+    /// Host waits for the device since creation (each read-back is one).
+    pub waits: u64,
 }
 
 /// `describe_keypoints`' result: each keypoint's descriptor, and its vertex (CAMERA frame,

@@ -498,7 +498,10 @@ impl GpuContext {
     /// Blocks until the work this context submitted is done, deferred steps submitted
     /// first (natively, only its own latest submission: work other contexts on the shared
     /// queue submitted later is not waited for); device loss or a timeout is
-    /// [`Error::Gpu`].
+    /// [`Error::Gpu`]. Natively, when nothing was submitted since the last wait (a second
+    /// read-back of the same finished work, as the fern codes fusion recorded), it only
+    /// polls without blocking, which runs the map callbacks of that finished work, and is
+    /// not counted as a wait.
     pub fn wait_idle(&self) -> Result<()> {
         self.flush();
         #[cfg(not(target_arch = "wasm32"))]
@@ -507,20 +510,29 @@ impl GpuContext {
                 .last_submission
                 .lock()
                 .unwrap_or_else(|p| p.into_inner())
-                .clone();
-            if let Some(index) = last {
-                self.device
-                    .poll(wgpu::PollType::Wait {
+                .take();
+            let poll = match last {
+                Some(index) => {
+                    self.stats.count_wait();
+                    wgpu::PollType::Wait {
                         submission_index: Some(index),
                         timeout: None,
-                    })
-                    .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-                return self.check_device();
-            }
+                    }
+                }
+                None => wgpu::PollType::Poll,
+            };
+            self.device
+                .poll(poll)
+                .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+            return self.check_device();
         }
-        super::wait::wait_for_submitted(&self.device, &self.queue)
-            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        self.check_device()
+        #[cfg(target_arch = "wasm32")]
+        {
+            self.stats.count_wait();
+            super::wait::wait_for_submitted(&self.device, &self.queue)
+                .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+            self.check_device()
+        }
     }
 
     /// [`Error::Gpu`] if the device was lost or an error escaped every error scope.

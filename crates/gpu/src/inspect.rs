@@ -110,6 +110,7 @@ impl Inspect for GpuBackend {
         BackendCounters {
             readback_bytes: s.readback_bytes,
             submissions: s.submissions,
+            waits: s.waits,
         }
     }
 }

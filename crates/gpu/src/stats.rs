@@ -1,5 +1,5 @@
 //! The byte and submission counters a [`super::GpuContext`] and all its buffers share, which
-//! `wgslam bench` reports (allocated, peak, uploaded and read-back bytes; submissions).
+//! `wgslam bench` reports (allocated, peak, uploaded and read-back bytes; submissions; waits).
 //! Counting only: nothing here allocates, submits or waits.
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -12,6 +12,7 @@ pub struct GpuStats {
     uploaded_bytes: AtomicU64,
     readback_bytes: AtomicU64,
     submissions: AtomicU64,
+    waits: AtomicU64,
 }
 
 /// A copy of the counters at one moment (all byte counts are bytes, not elements).
@@ -27,6 +28,9 @@ pub struct StatsSnapshot {
     pub readback_bytes: u64,
     /// Queue submissions made through [`super::GpuContext::submit`] and the buffer helpers.
     pub submissions: u64,
+    /// Times the host blocked until submitted work was done ([`super::GpuContext::wait_idle`]:
+    /// every read-back waits through it).
+    pub waits: u64,
 }
 
 impl GpuStats {
@@ -46,6 +50,9 @@ impl GpuStats {
     pub(crate) fn count_submission(&self) {
         self.submissions.fetch_add(1, Ordering::Relaxed);
     }
+    pub(crate) fn count_wait(&self) {
+        self.waits.fetch_add(1, Ordering::Relaxed);
+    }
     pub(crate) fn snapshot(&self) -> StatsSnapshot {
         StatsSnapshot {
             allocated_bytes: self.allocated_bytes.load(Ordering::Relaxed),
@@ -53,6 +60,7 @@ impl GpuStats {
             uploaded_bytes: self.uploaded_bytes.load(Ordering::Relaxed),
             readback_bytes: self.readback_bytes.load(Ordering::Relaxed),
             submissions: self.submissions.load(Ordering::Relaxed),
+            waits: self.waits.load(Ordering::Relaxed),
         }
     }
 }
