@@ -524,7 +524,7 @@ impl GpuContext {
             self.device
                 .poll(poll)
                 .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-            return self.check_device();
+            self.check_device()
         }
         #[cfg(target_arch = "wasm32")]
         {
