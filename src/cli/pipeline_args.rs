@@ -11,7 +11,7 @@ use clap::Args;
 use serde::Serialize;
 
 use crate::dataset::{self, SequenceOptions};
-use crate::geometry::camera::Intrinsics;
+use crate::geometry::camera::{Distortion, Intrinsics};
 use crate::slam::params::{
     Association, Key, PoseSource, Profile, SlamParams, Tracking, ValidParams,
 };
@@ -358,6 +358,8 @@ impl ParamOverrides {
         Ok(SequenceOptions {
             gt_path: self.gt.clone(),
             intrinsics,
+            // A preset's lens (freiburg1 and 2), kept under `--intrinsics`' focal lengths.
+            distortion: self.camera.as_deref().and_then(Distortion::preset),
             depth_scale: self.sets_depth_scale().then_some(params.input.depth_scale),
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
             stamp_order: self.stamp_order.unwrap_or_default(),

@@ -30,7 +30,7 @@ use serde::Serialize;
 use wasm_bindgen::prelude::*;
 
 use crate::dataset::{self, Sequence, SequenceOptions};
-use crate::geometry::camera::Intrinsics;
+use crate::geometry::camera::{Distortion, Intrinsics};
 use crate::gpu::context::{DeviceOptions, GpuContext};
 use crate::gpu::GpuBackend;
 use crate::layout::map::SurfelMap;
@@ -50,7 +50,7 @@ struct State {
     profile: Profile,
     /// The camera chosen on the page, in place of the folder's (`None`: the folder's
     /// `camera.json` or its layout's).
-    camera: Option<Intrinsics>,
+    camera: Option<PageCamera>,
     progress: Option<js_sys::Function>,
     frame_view: Option<js_sys::Function>,
     orbit: Orbit,
@@ -129,20 +129,24 @@ pub fn configure(root: &str, profile: &str, camera: &str) -> Option<String> {
     None
 }
 
+/// A camera chosen on the page: its pinhole values and its lens, if it has one.
+type PageCamera = (Intrinsics, Option<Distortion>);
+
 /// The page's camera setting: empty for the folder's own (`camera.json` or the layout's
 /// files), a preset's name (`fr1`, `fr2`, `fr3`, `icl`, as `--camera`), or four numbers
-/// `fx,fy,cx,cy` in pixels of 640x480 frames (as `--intrinsics` without `--camera`).
-fn page_camera(setting: &str) -> std::result::Result<Option<Intrinsics>, String> {
+/// `fx,fy,cx,cy` in pixels of 640x480 frames (as `--intrinsics` without `--camera`); with
+/// a preset, its lens ([`Distortion::preset`]).
+fn page_camera(setting: &str) -> std::result::Result<Option<PageCamera>, String> {
     let setting = setting.trim();
     if setting.is_empty() {
         return Ok(None);
     }
     if let Some(preset) = Intrinsics::preset(setting) {
-        return Ok(Some(preset));
+        return Ok(Some((preset, Distortion::preset(setting))));
     }
     Intrinsics::ICL_NUIM
         .with_focal_centre(setting)
-        .map(Some)
+        .map(|k| Some((k, None)))
         .map_err(|why| {
             format!("camera {setting:?}: a preset (fr1, fr2, fr3, icl) or the four numbers; {why}")
         })
@@ -365,7 +369,8 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
     }
     let opts = SequenceOptions {
         interface: dataset::Interface::Page,
-        intrinsics: camera,
+        intrinsics: camera.map(|c| c.0),
+        distortion: camera.and_then(|c| c.1),
         ..SequenceOptions::default()
     };
     let mut seq = dataset::open_with(Arc::new(files), &root, &opts)?;

@@ -24,6 +24,7 @@ mod hostile;
 mod inputs;
 mod kernel_places;
 mod layout;
+mod lens;
 mod loop_closure;
 mod mesh;
 mod portable;
@@ -73,6 +74,7 @@ fn main() -> ExitCode {
         inputs,
         kernel_places,
         layout,
+        lens,
         loop_closure,
         mesh,
         portable,

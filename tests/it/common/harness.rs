@@ -27,7 +27,11 @@
 //! ([`wgslam::gpu::test_support::gpu_for_test`]).
 //!
 //! Environment: `WGSLAM_REQUIRE_GPU=1` makes a missing adapter a failure and
-//! `WGSLAM_REQUIRE_DATA=1` a missing `../shared/data`; `.ci/run` sets both. Command-line
+//! `WGSLAM_REQUIRE_DATA=1` a missing `../shared/data`; `.ci/run` sets both.
+//! `WGSLAM_IT_GPU_ONLY=1` registers only the tests that need a GPU (a context of their
+//! own, or a `wgslam` child on the GPU: those are registered as [`gpu`] tests too), and
+//! prints how many it left out: `.ci/run`'s second pass under WebGPU's limits, which cannot
+//! change a test that touches no GPU. Command-line
 //! arguments are libtest's (`FILTER`, `--exact`, `--skip`, `--ignored`, `--include-ignored`,
 //! `--list`, `--test-threads`, `-q`); `RUST_TEST_THREADS` is honoured as libtest does.
 //! Unlike libtest, output is not captured: a test's `eprintln!` lines appear as it runs.
@@ -46,6 +50,9 @@ pub const REQUIRE_DATA_ENV: &str = "WGSLAM_REQUIRE_DATA";
 pub const NO_GPU_KIND: &str = "no GPU adapter";
 /// Trial kind of a test skipped because `../shared/data` is absent.
 pub const NO_DATA_KIND: &str = "no ../shared/data";
+
+/// Environment variable that keeps only the tests that need a GPU (see the module docs).
+pub const GPU_ONLY_ENV: &str = "WGSLAM_IT_GPU_ONLY";
 
 /// True when `WGSLAM_REQUIRE_DATA=1`.
 pub fn data_required() -> bool {
@@ -226,7 +233,17 @@ pub fn in_module(module: &str, tests: Vec<Test>) -> Vec<Test> {
 
 /// Parses libtest's arguments, marks the tests that cannot run here as ignored (printing
 /// why), runs them, and returns the exit code (non-zero when any failed).
-pub fn run(tests: Vec<Test>) -> ExitCode {
+pub fn run(mut tests: Vec<Test>) -> ExitCode {
+    if std::env::var(GPU_ONLY_ENV).is_ok_and(|v| v == "1") {
+        let all = tests.len();
+        tests.retain(|t| t.needs_gpu);
+        eprintln!(
+            "{GPU_ONLY_ENV}=1: {} of {all} tests need a GPU and are registered; the {} \
+             others are left out (not run, not counted)",
+            tests.len(),
+            all - tests.len()
+        );
+    }
     let mut names: Vec<&str> = tests.iter().map(|t| t.name.as_str()).collect();
     names.sort_unstable();
     if let Some(twice) = names.windows(2).find(|w| w[0] == w[1]) {

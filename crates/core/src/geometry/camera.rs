@@ -1,5 +1,7 @@
-//! Pinhole intrinsics and named presets (projection and back-projection are the CPU twins'
-//! helpers in `crate::cpu`, shared with the shaders).
+//! Pinhole intrinsics, lens distortion and named presets (projection and back-projection
+//! are the CPU twins' helpers in `crate::cpu`, shared with the shaders). The kernels see a
+//! pinhole camera only: a lens's distortion is removed from the images when they are
+//! decoded (`wgslam_data`'s `dataset::undistort`), through [`Distortion`].
 //!
 //! Pixel coordinates: `u` to the right (column), `v` down (row), pixel centres at integers.
 //! Camera coordinates: metres, `z` along the optical axis. `fy` may be negative (ICL-NUIM's
@@ -7,6 +9,27 @@
 //! so poses stay in the dataset's own convention and no sign flip is needed anywhere.
 
 use serde::{Deserialize, Serialize};
+
+/// The named cameras `--camera` (and the page's camera box) offer, by any of their names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Preset {
+    Icl,
+    Fr1,
+    Fr2,
+    Fr3,
+}
+
+impl Preset {
+    fn named(name: &str) -> Option<Preset> {
+        match name.to_ascii_lowercase().as_str() {
+            "icl" | "icl-nuim" | "icl_nuim" => Some(Preset::Icl),
+            "fr1" | "freiburg1" | "tum-fr1" => Some(Preset::Fr1),
+            "fr2" | "freiburg2" | "tum-fr2" => Some(Preset::Fr2),
+            "fr3" | "freiburg3" | "tum-fr3" => Some(Preset::Fr3),
+            _ => None,
+        }
+    }
+}
 
 /// Pinhole intrinsics for an image of `width` x `height` pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -57,14 +80,13 @@ impl Intrinsics {
         cy: 247.6,
     };
 
-    /// A named preset: `icl`, `fr1`, `fr2`, `fr3`.
+    /// A named preset: `icl`, `fr1`, `fr2`, `fr3` (its lens: [`Distortion::preset`]).
     pub fn preset(name: &str) -> Option<Intrinsics> {
-        match name.to_ascii_lowercase().as_str() {
-            "icl" | "icl-nuim" | "icl_nuim" => Some(Self::ICL_NUIM),
-            "fr1" | "freiburg1" | "tum-fr1" => Some(Self::TUM_FR1),
-            "fr2" | "freiburg2" | "tum-fr2" => Some(Self::TUM_FR2),
-            "fr3" | "freiburg3" | "tum-fr3" => Some(Self::TUM_FR3),
-            _ => None,
+        match Preset::named(name)? {
+            Preset::Icl => Some(Self::ICL_NUIM),
+            Preset::Fr1 => Some(Self::TUM_FR1),
+            Preset::Fr2 => Some(Self::TUM_FR2),
+            Preset::Fr3 => Some(Self::TUM_FR3),
         }
     }
 
@@ -126,5 +148,106 @@ impl Intrinsics {
             cx,
             cy,
         }
+    }
+}
+
+/// A lens's distortion (the Brown-Conrady model, coefficients in the order OpenCV, ROS's
+/// `CameraInfo` (`plumb_bob`) and the TUM RGB-D benchmark give them: `k1, k2, p1, p2, k3`):
+/// the ideal pinhole camera's normalised point `(x, y) = ((u - cx) / fx, (v - cy) / fy)`
+/// is seen at [`Distortion::distort`]`(x, y)`. Radial `k1, k2, k3`, tangential `p1, p2`,
+/// all dimensionless.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Distortion {
+    pub k1: f64,
+    pub k2: f64,
+    pub p1: f64,
+    pub p2: f64,
+    pub k3: f64,
+}
+
+impl Distortion {
+    /// TUM RGB-D freiburg1's colour camera (the benchmark's published calibration; its depth
+    /// images are registered to that camera's distorted pixels, so both are undistorted).
+    pub const TUM_FR1: Distortion = Distortion {
+        k1: 0.2624,
+        k2: -0.9531,
+        p1: -0.0054,
+        p2: 0.0026,
+        k3: 1.1633,
+    };
+    /// TUM RGB-D freiburg2's colour camera (as [`Distortion::TUM_FR1`]).
+    pub const TUM_FR2: Distortion = Distortion {
+        k1: 0.2312,
+        k2: -0.7849,
+        p1: -0.0033,
+        p2: -0.0001,
+        k3: 0.9172,
+    };
+
+    /// The lens of a named preset (as [`Intrinsics::preset`]): freiburg1 and freiburg2 have
+    /// one; freiburg3's images were undistorted by the benchmark already and ICL-NUIM's are
+    /// rendered through a pinhole, so `None` for those (and for an unknown name).
+    pub fn preset(name: &str) -> Option<Distortion> {
+        match Preset::named(name)? {
+            Preset::Fr1 => Some(Self::TUM_FR1),
+            Preset::Fr2 => Some(Self::TUM_FR2),
+            Preset::Icl | Preset::Fr3 => None,
+        }
+    }
+
+    /// The coefficients `[k1, k2, p1, p2, k3]` (a `camera.json`'s `distortion`, a
+    /// `CameraInfo`'s `D`), which must be finite; all zero is no distortion (`None`).
+    pub fn from_coefficients(c: [f64; 5]) -> Result<Option<Distortion>, &'static str> {
+        if c.iter().any(|v| !v.is_finite()) {
+            return Err("distortion coefficients k1, k2, p1, p2, k3 must be finite");
+        }
+        let [k1, k2, p1, p2, k3] = c;
+        Ok((c != [0.0; 5]).then_some(Distortion { k1, k2, p1, p2, k3 }))
+    }
+
+    /// `[k1, k2, p1, p2, k3]`.
+    pub fn coefficients(&self) -> [f64; 5] {
+        [self.k1, self.k2, self.p1, self.p2, self.k3]
+    }
+
+    /// Where the lens shows the ideal normalised point `(x, y)`: its distorted normalised
+    /// point.
+    pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        (
+            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_bring_their_lens_by_any_of_their_names() {
+        for name in ["fr1", "FREIBURG1", "tum-fr1"] {
+            assert_eq!(Intrinsics::preset(name), Some(Intrinsics::TUM_FR1));
+            assert_eq!(Distortion::preset(name), Some(Distortion::TUM_FR1));
+        }
+        assert_eq!(Distortion::preset("fr2"), Some(Distortion::TUM_FR2));
+        for pinhole in ["fr3", "icl"] {
+            assert!(Intrinsics::preset(pinhole).is_some());
+            assert_eq!(Distortion::preset(pinhole), None);
+        }
+        assert_eq!(Distortion::preset("kinect"), None);
+    }
+
+    #[test]
+    fn the_lens_moves_points_outward_with_radius_as_freiburg1_barrel() {
+        let lens = Distortion::TUM_FR1;
+        assert_eq!(lens.distort(0.0, 0.0), (0.0, 0.0));
+        // k1 > 0 dominates near the centre: a point moves away from it.
+        let (x, y) = lens.distort(0.3, 0.0);
+        assert!(x > 0.3 && y.abs() < 0.01, "{x} {y}");
+        assert!(Distortion::from_coefficients([f64::NAN, 0.0, 0.0, 0.0, 0.0]).is_err());
+        assert_eq!(Distortion::from_coefficients([0.0; 5]), Ok(None));
     }
 }

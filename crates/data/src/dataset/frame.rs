@@ -1,9 +1,10 @@
 //! One RGB-D frame decoded from its two image files (16-bit PNG depth; PNG or JPEG colour),
 //! at the depth image's full resolution, row-major.
 //!
-//! Decoding, the layout's "no reading" depth value set to 0, and colour from a camera of
-//! another size resampled onto the depth image; no depth scaling, filtering or
-//! downsampling (depth stays raw `u16`).
+//! Decoding, the layout's "no reading" depth value set to 0, colour from a camera of
+//! another size resampled onto the depth image, and a lens's distortion removed
+//! (`super::undistort`); no depth scaling, filtering or downsampling (depth stays raw
+//! `u16`).
 
 use std::path::Path;
 
@@ -257,11 +258,15 @@ pub(crate) fn load_frame(
         }
         None => {}
     }
-    Ok(RawFrame {
+    let frame = RawFrame {
         width: dw,
         height: dh,
         depth,
         rgb,
+    };
+    Ok(match &conventions.distortion {
+        Some(lens) => super::undistort::undistort(&frame, depth_k, lens),
+        None => frame,
     })
 }
 

@@ -32,6 +32,7 @@ pub(crate) mod seven_scenes;
 pub mod source;
 mod stamped;
 pub(crate) mod tum;
+pub(crate) mod undistort;
 
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
@@ -39,7 +40,7 @@ use std::path::{Path, PathBuf};
 use glam::DMat4;
 use serde::Deserialize;
 
-use crate::geometry::camera::Intrinsics;
+use crate::geometry::camera::{Distortion, Intrinsics};
 use crate::io::trajectory::parse_tum;
 use crate::{Error, Result};
 
@@ -63,6 +64,10 @@ pub struct SequenceOptions {
     /// carry no size elsewhere (7-Scenes, ScanNet, Replica) the image size is the depth
     /// images' and only `fx, fy, cx, cy` are taken from here.
     pub intrinsics: Option<Intrinsics>,
+    /// The lens of the camera `intrinsics` give (a preset's: `--camera fr1`), removed from
+    /// every frame; with `intrinsics` set it replaces `camera.json`'s lens as their pinhole
+    /// values replace its, and `None` is then a pinhole camera.
+    pub distortion: Option<Distortion>,
     /// Raw depth units per metre instead of `camera.json`'s or the layout's.
     pub depth_scale: Option<f32>,
     /// Largest |dt| in seconds (frame-number units where stamps are frame numbers) when
@@ -102,6 +107,7 @@ impl Default for SequenceOptions {
         SequenceOptions {
             gt_path: None,
             intrinsics: None,
+            distortion: None,
             depth_scale: None,
             max_time_diff: DEFAULT_MAX_TIME_DIFF,
             stamp_order: StampOrder::Time,
@@ -183,6 +189,10 @@ pub struct FrameConventions {
     /// (ScanNet's 1296x968 colour): colour is resampled onto the depth image through them
     /// (same optical centre, as ScanNet's exports assume).
     pub color_intrinsics: Option<Intrinsics>,
+    /// The lens of the camera the depth image's pixels belong to (TUM RGB-D's freiburg1
+    /// and freiburg2: the colour camera's, which depth is registered to), removed from
+    /// both images after decoding ([`undistort`]); `None` for a pinhole camera.
+    pub distortion: Option<Distortion>,
 }
 
 /// An opened sequence: the associated frame list, intrinsics and depth scale.
@@ -236,7 +246,8 @@ pub(crate) struct Listing {
     pub notes: Vec<String>,
 }
 
-/// `camera.json` in a dataset directory: intrinsics in pixels, optional depth scale.
+/// `camera.json` in a dataset directory: intrinsics in pixels, optional depth scale,
+/// optional lens distortion `[k1, k2, p1, p2, k3]` (see [`Distortion`]).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraJson {
@@ -247,6 +258,7 @@ struct CameraJson {
     cx: f32,
     cy: f32,
     depth_scale: Option<f32>,
+    distortion: Option<[f64; 5]>,
 }
 
 fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
@@ -262,7 +274,10 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
     let cam: CameraJson = serde_json::from_str(text).map_err(|e| {
         Error::format(
             path,
-            format!("expected {{width, height, fx, fy, cx, cy[, depth_scale]}}: {e}"),
+            format!(
+                "expected {{width, height, fx, fy, cx, cy[, depth_scale][, distortion: \
+                 [k1, k2, p1, p2, k3]]}}: {e}"
+            ),
         )
     })?;
     let finite = [cam.fx, cam.fy, cam.cx, cam.cy]
@@ -273,6 +288,9 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
             path,
             "width/height must be positive and fx, fy finite and non-zero",
         ));
+    }
+    if let Some(c) = cam.distortion {
+        Distortion::from_coefficients(c).map_err(|why| Error::format(path, why))?;
     }
     Ok(cam)
 }
@@ -344,6 +362,16 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         (None, None) => format!("the {layout:?} dataset's intrinsics in {}", root.display()),
     };
     checks::intrinsics_in_bounds(&intrinsics, &source)?;
+    // The lens comes with the pinhole values: the options', else camera.json's.
+    let distortion = match (opts.intrinsics, &camera) {
+        (Some(_), _) => opts.distortion,
+        (None, Some(c)) => match c.distortion {
+            Some(coefficients) => Distortion::from_coefficients(coefficients)
+                .map_err(|why| Error::Argument(format!("{source}: {why}")))?,
+            None => None,
+        },
+        (None, None) => listing.conventions.distortion,
+    };
     let depth_scale = opts
         .depth_scale
         .or(camera.as_ref().and_then(|c| c.depth_scale))
@@ -364,6 +392,18 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     let mut frames = listing.frames;
     checks::stamps_distinct(root, &frames)?;
     let mut notes = listing.notes;
+    if let Some(d) = &distortion {
+        let [k1, k2, p1, p2, k3] = d.coefficients();
+        notes.push(format!(
+            "lens distortion k1 {k1}, k2 {k2}, p1 {p1}, p2 {p2}, k3 {k3} (from {source}) is \
+             removed from every frame as it is decoded: the frames are the pinhole camera's",
+            source = if opts.intrinsics.is_some() {
+                "--camera"
+            } else {
+                source.as_str()
+            }
+        ));
+    }
     if let Some(path) = opts.gt_path.as_ref().or(listing.gt_file.as_ref()) {
         let text = source::read_string(path, crate::io::input::InputKind::List)?;
         let mut gt = parse_tum(path, &text)?;
@@ -388,7 +428,10 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         intrinsics,
         depth_scale,
         frames,
-        conventions: listing.conventions,
+        conventions: FrameConventions {
+            distortion,
+            ..listing.conventions
+        },
         notes,
         files: None,
     })

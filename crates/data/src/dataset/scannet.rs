@@ -145,6 +145,7 @@ pub fn list(root: &Path) -> Result<Listing> {
         conventions: FrameConventions {
             invalid_depth_raw: None,
             color_intrinsics,
+            distortion: None,
         },
         notes,
     })

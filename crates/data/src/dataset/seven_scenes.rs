@@ -180,6 +180,7 @@ pub fn list(root: &Path) -> Result<Listing> {
         conventions: FrameConventions {
             invalid_depth_raw: Some(INVALID_DEPTH_RAW),
             color_intrinsics: None,
+            distortion: None,
         },
         notes,
     })
