@@ -130,7 +130,8 @@ param_overrides! {
     /// Ground-truth file (TUM format) instead of the layout's default.
     #[arg(long)]
     gt: Option<PathBuf>,
-    /// Intrinsics preset: icl, fr1, fr2, fr3 (overrides camera.json).
+    /// Camera preset: icl, fr1, fr2, fr3 (overrides camera.json; fr1 and fr2 with their
+    /// published lens distortion, removed from the frames as they are decoded).
     #[arg(long)]
     camera: Option<String>,
     /// Intrinsics override "fx,fy,cx,cy" in pixels (image size from the frames' preset/json).

@@ -126,6 +126,10 @@ pub struct Metrics {
     /// `input.downsample`): the command line's over the parameter file's over the dataset's
     /// (docs/params-file.md, "Precedence").
     pub intrinsics: crate::geometry::camera::Intrinsics,
+    /// The lens removed from the raw frames as they were decoded (`camera.json`'s
+    /// `distortion`, a `--camera` preset's); absent for a pinhole camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distortion: Option<crate::geometry::camera::Distortion>,
     pub params: SlamParams,
     pub time_per_frame_median_s: f64,
     pub time_per_frame_mean_s: f64,
@@ -420,6 +424,7 @@ pub fn run_observed<B: Backend + Inspect>(
         width: k.width,
         height: k.height,
         intrinsics: seq.intrinsics,
+        distortion: seq.conventions.distortion,
         params: SlamParams::clone(&slam.params),
         time_per_frame_median_s: crate::stats::median(&times),
         time_per_frame_mean_s: total / frames.len().max(1) as f64,
