@@ -13,9 +13,9 @@
 // fine_width x fine_height, camera frame (metres), w = 1 / 0 (the finer level's vertex
 // map: at level 0 the one the normals are made from).
 @group(0) @binding(1) var fine_vertex: texture_2d<f32>;
-// Out: width x height, camera frame (metres), the vertex re-built (back_project, coarse
-// intrinsics) from the mean depth, w = 1 / 0.
-@group(0) @binding(2) var coarse_vertex: texture_storage_2d<rgba32float, write>;
+// Out: the level's vertex map, width x height, camera frame (metres), the vertex re-built
+// (back_project, coarse intrinsics) from the mean depth, w = 1 / 0.
+@group(0) @binding(2) var vertex_map: texture_storage_2d<rgba32float, write>;
 
 // The coarse vertex of pixel (u, v), or INVALID (the rules of the header). `params` is
 // main's copy of the binding (see pixel_grid.wgsl).
@@ -52,7 +52,7 @@ const TILE_Y: u32 = 8u;
 
 // One pixel of the 2-D grid-stride loop in tiles (the entry point: pixel_grid.wgsl).
 fn per_pixel(p: PyramidParams, texel: vec2<u32>) {
-    textureStore(coarse_vertex, texel, coarse_at(p, texel.x, texel.y));
+    textureStore(vertex_map, texel, coarse_at(p, texel.x, texel.y));
 }
 
 #define CAMERA_PARAMS

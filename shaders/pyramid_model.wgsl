@@ -9,13 +9,13 @@
 // Only camera.width and camera.height, the coarse size, are used.
 @group(0) @binding(0) var<storage, read> params: PyramidParams;
 // The finer level's pred_vertex, WORLD frame, w = 1 / 0.
-@group(0) @binding(1) var fine_vertex: texture_2d<f32>;
+@group(0) @binding(1) var fine_pred_vertex: texture_2d<f32>;
 // The finer level's pred_normal, WORLD frame, w = 1 / 0.
-@group(0) @binding(2) var fine_normal: texture_2d<f32>;
-// Out: width x height, WORLD frame.
-@group(0) @binding(3) var coarse_vertex: texture_storage_2d<rgba32float, write>;
-// Out: width x height, WORLD frame.
-@group(0) @binding(4) var coarse_normal: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(2) var fine_pred_normal: texture_2d<f32>;
+// Out: the level's pred_vertex, width x height, WORLD frame.
+@group(0) @binding(3) var pred_vertex: texture_storage_2d<rgba32float, write>;
+// Out: the level's pred_normal, width x height, WORLD frame.
+@group(0) @binding(4) var pred_normal: texture_storage_2d<rgba32float, write>;
 
 // Tiles 4 pixels wide and 16 high: on lavapipe this copy-and-convert kernel measured 0.6-0.7x
 // the time of 8x8 tiles at 640x480 (4x4, 4x8 and 4x16 alike; 2x32 and 1x64 slower; why was
@@ -27,8 +27,8 @@ const TILE_Y: u32 = 16u;
 // Coarse pixel `texel` takes its fine pixel 2 texel (the entry point: pixel_grid.wgsl).
 fn per_pixel(p: PyramidParams, texel: vec2<u32>) {
     let fine = 2u * texel;
-    textureStore(coarse_vertex, texel, textureLoad(fine_vertex, fine, 0));
-    textureStore(coarse_normal, texel, textureLoad(fine_normal, fine, 0));
+    textureStore(pred_vertex, texel, textureLoad(fine_pred_vertex, fine, 0));
+    textureStore(pred_normal, texel, textureLoad(fine_pred_normal, fine, 0));
 }
 
 #define CAMERA_PARAMS

@@ -35,21 +35,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "the filter-quality check runs its twin on the host",
     ),
     (
-        "vertex_to_normal",
-        &[BIND, STEPS],
-        "binds one of three pairs of vertex maps per level",
-    ),
-    (
-        "pyramid_depth",
-        &[BIND, STEPS],
-        "binds a pyramid level's maps",
-    ),
-    (
-        "pyramid_model",
-        &[BIND, STEPS],
-        "binds a pyramid level's maps",
-    ),
-    (
         "icp_reduce",
         &[BIND, STEPS, "crates/core/src/cpu/photo_reduce.rs"],
         "binds a pyramid level's maps; photo_reduce's twin shares its Huber weight",

@@ -12,7 +12,7 @@
 //! pair rather than a plan.
 
 use crate::layout::{BilateralParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
-use crate::registry::KernelId;
+use crate::registry::{At, KernelId};
 
 /// A per-frame buffer that a step zeroes before its kernels accumulate into it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -34,6 +34,9 @@ pub trait Call: Copy + std::fmt::Debug {
     /// The kernel's name (`shaders/<kernel>.wgsl`, `crates/core/src/cpu/<kernel>.rs`), or
     /// `clear` for a clear.
     fn name(self) -> &'static str;
+    /// Where the kernel runs: the pyramid level and the vertex maps of a
+    /// `registry::Shape::PerLevel` kernel, else [`At::FRAME`].
+    fn at(self) -> At;
 }
 
 /// A call's kernel: `clear` for a clear, else the registry id of that name.
@@ -52,7 +55,7 @@ macro_rules! kernel_of {
 macro_rules! step_calls {
     ($(#[$doc:meta])* $name:ident {
         $($(#[$vdoc:meta])* $variant:ident $({ $($field:ident: $ty:ty),* })? $(($inner:ty))? => $kernel:ident,)*
-    }) => {
+    } $(at($call:ident) $at:block)?) => {
         $(#[$doc])*
         #[derive(Debug, Clone, Copy, PartialEq, Eq)]
         pub enum $name {
@@ -70,6 +73,12 @@ macro_rules! step_calls {
                 match self {
                     $($name::$variant { .. } => stringify!($kernel),)*
                 }
+            }
+
+            #[allow(unreachable_code)]
+            fn at(self) -> At {
+                $(let $call = self; return $at;)?
+                At::FRAME
             }
         }
     };
@@ -91,6 +100,21 @@ step_calls! {
         /// level 1 the filtered one when `filtered`).
         PyramidDepth { level: usize, filtered: bool } => pyramid_depth,
     }
+    at(call) {
+        match call {
+            PreprocessCall::VertexToNormal { level, filtered, filtered_points } => At {
+                level,
+                filtered,
+                filtered_points,
+            },
+            PreprocessCall::PyramidDepth { level, filtered } => At {
+                level,
+                filtered,
+                filtered_points: false,
+            },
+            _ => At::FRAME,
+        }
+    }
 }
 
 step_calls! {
@@ -109,6 +133,15 @@ step_calls! {
         /// `pyramid_model` making level `level >= 1`'s predicted maps from level
         /// `level - 1`'s.
         PyramidModel { level: usize } => pyramid_model,
+    }
+    at(call) {
+        match call {
+            PredictCall::PyramidModel { level } => At {
+                level,
+                ..At::FRAME
+            },
+            _ => At::FRAME,
+        }
     }
 }
 
@@ -335,5 +368,27 @@ mod tests {
             names!(compact()),
             ["compact_flags", "prefix_sum", "compact_scatter"]
         );
+    }
+
+    /// Every place a plan runs a `PerLevel` kernel is one the GPU engine binds
+    /// ([`At::choices`]), with and without the filter and its filtered points.
+    #[test]
+    fn every_planned_level_is_a_bound_choice() {
+        let mut b: BilateralParams = bytemuck::Zeroable::zeroed();
+        for filter_points in [0, 1] {
+            b.filter_points = filter_points;
+            for bilateral in [None, Some(&b)] {
+                for levels in 0..4 {
+                    let ats = preprocess(bilateral, levels).into_iter().map(|c| c.at());
+                    let ats = ats.chain(predict(true, levels).into_iter().map(|c| c.at()));
+                    for at in ats {
+                        assert!(
+                            At::choices(at.level).contains(&at.choice()),
+                            "{at:?} ({bilateral:?}, {levels} levels)"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

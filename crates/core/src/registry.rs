@@ -49,6 +49,62 @@ pub enum Shape {
     /// One bind group per map chunk; per chunk a pass of one workgroup per culling block
     /// holding live surfels.
     PerBlock,
+    /// One bind group per pyramid level (and, for the levels that read level 0's vertex
+    /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
+    /// (`vertex_map`, `normal_depth`, `pred_vertex`, ...; the finer level's as
+    /// `fine_vertex`, `fine_pred_vertex`, `fine_pred_normal`); a pass over the level's
+    /// pixels, at the [`At`] the plan call gives. The row's uniform is the level's own
+    /// (a `generic_levels` row): a level without it has no bind group.
+    PerLevel,
+}
+
+/// Where a plan call's kernel runs, for a [`Shape::PerLevel`] row: pyramid level `level`
+/// (0: the frame's own maps), and which of level 0's vertex maps it reads where it reads
+/// one: its `vertex_map` (and level 1's `fine_vertex`) the filtered one when `filtered`,
+/// its `point_map` the filtered one when `filtered_points`. Every other call is at
+/// [`At::FRAME`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct At {
+    /// The pyramid level, 0 the finest.
+    pub level: usize,
+    /// Level 0's `vertex_map` (and level 1's `fine_vertex`) is the filtered vertex map.
+    pub filtered: bool,
+    /// Level 0's `point_map` is the filtered vertex map.
+    pub filtered_points: bool,
+}
+
+impl At {
+    /// Level 0, the unfiltered vertex maps: where every call of another [`Shape`] runs.
+    pub const FRAME: At = At {
+        level: 0,
+        filtered: false,
+        filtered_points: false,
+    };
+
+    /// Every [`At`] a plan may give at `level`: at levels 0 and 1 each choice of level 0's
+    /// vertex maps the plans make (the filtered points only with the filtered normals);
+    /// above them one (the choice reads nothing there).
+    pub fn choices(level: usize) -> Vec<At> {
+        let at = |filtered, filtered_points| At {
+            level,
+            filtered,
+            filtered_points,
+        };
+        match level {
+            0 => vec![at(false, false), at(true, true), at(true, false)],
+            1 => vec![at(false, false), at(true, false)],
+            _ => vec![at(false, false)],
+        }
+    }
+
+    /// This call's [`At`] as [`At::choices`] lists it: what it does not read dropped.
+    pub fn choice(self) -> At {
+        At {
+            level: self.level,
+            filtered: self.level <= 1 && self.filtered,
+            filtered_points: self.level == 0 && self.filtered_points,
+        }
+    }
 }
 
 /// One row per kernel, in groups by how the kernel is built and run. The `key` groups hold
@@ -60,6 +116,9 @@ pub enum Shape {
 /// - `generic`, `generic_keys`: `name: Shape(uniform)`, a kernel whose bind groups and
 ///   passes the row decides ([`Shape`]; `uniform` is the GPU engine's `Uniforms` field bound
 ///   as its `params`): nothing else in `crates/gpu/src/` names it;
+/// - `generic_levels`: the same for a kernel over one pyramid level's maps
+///   ([`Shape::PerLevel`]), its `uniform` a field of the GPU engine's `LevelUniforms`, the
+///   level's own parameter buffer;
 /// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
 ///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
 /// - `elsewhere`, `key_elsewhere`: built by the code that runs it (`deform_surfels` at the
@@ -70,6 +129,7 @@ macro_rules! registry_data {
     (
         generic: { $($generic:ident: $shape:ident($uniform:ident),)* }
         generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
+        generic_levels: { $($level:ident: $level_shape:ident($level_uniform:ident),)* }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
         elsewhere: { $($other:ident,)* }
@@ -83,6 +143,7 @@ macro_rules! registry_data {
         pub enum KernelId {
             $($generic,)*
             $($generic_key,)*
+            $($level,)*
             $($kernel,)*
             $($key,)*
             $($other,)*
@@ -95,6 +156,7 @@ macro_rules! registry_data {
             pub const ALL: &[KernelId] = &[
                 $(KernelId::$generic,)*
                 $(KernelId::$generic_key,)*
+                $(KernelId::$level,)*
                 $(KernelId::$kernel,)*
                 $(KernelId::$key,)*
                 $(KernelId::$other,)*
@@ -108,6 +170,7 @@ macro_rules! registry_data {
                 match self {
                     $(KernelId::$generic => stringify!($generic),)*
                     $(KernelId::$generic_key => stringify!($generic_key),)*
+                    $(KernelId::$level => stringify!($level),)*
                     $(KernelId::$kernel => stringify!($kernel),)*
                     $(KernelId::$key => stringify!($key),)*
                     $(KernelId::$other => stringify!($other),)*
@@ -123,6 +186,7 @@ macro_rules! registry_data {
         pub const KERNELS: &[(&str, &str)] = &[
             $((stringify!($generic), shader_text!($generic)),)*
             $((stringify!($generic_key), shader_text!($generic_key)),)*
+            $((stringify!($level), shader_text!($level)),)*
             $((stringify!($kernel), shader_text!($kernel)),)*
             $((stringify!($key), shader_text!($key)),)*
             $((stringify!($other), shader_text!($other)),)*
@@ -154,6 +218,7 @@ macro_rules! registry_data {
         pub const GENERIC_KERNELS: &[&str] = &[
             $(stringify!($generic),)*
             $(stringify!($generic_key),)*
+            $(stringify!($level),)*
         ];
 
         /// The kernels prefixed with `scan_common.wgsl` instead of `common.wgsl` (the
@@ -166,6 +231,7 @@ macro_rules! registry_data {
         mod twins {
             $(use crate::cpu::$generic::$generic as _;)*
             $(use crate::cpu::$generic_key::$generic_key as _;)*
+            $(use crate::cpu::$level::$level as _;)*
             $(use crate::cpu::$kernel::$kernel as _;)*
             $(use crate::cpu::$key::$key as _;)*
             $(use crate::cpu::$other::$other as _;)*
@@ -183,6 +249,7 @@ macro_rules! registry_data {
                     generic_keys: { $($generic_key: $key_shape($key_uniform),)* }
                     kernels: { $($kernel,)* }
                     key_kernels: { $($key,)* }
+                    generic_levels: { $($level: $level_shape($level_uniform),)* }
                 }
             };
         }
@@ -205,11 +272,15 @@ registry_data! {
         project_model: PerBlock(project),
         fuse_select: PerBlock(fuse),
     }
+    generic_levels: {
+        // The frame's normals per level (at level 0 from the vertex maps the plan
+        // chooses), and the frame's and the model's coarser levels.
+        vertex_to_normal: PerLevel(normal),
+        pyramid_depth: PerLevel(pyramid),
+        pyramid_model: PerLevel(pyramid),
+    }
     kernels: {
-        vertex_to_normal,
-        pyramid_depth,
         block_bounds,
-        pyramid_model,
         icp_reduce,
         icp_reduce_final,
         // RGB-D tracking's photometric term (its sum: icp_reduce_final) and the frame's

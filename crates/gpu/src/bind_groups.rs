@@ -2,9 +2,10 @@
 //! variables, made once per set of buffers and re-made only when a buffer they refer to is
 //! re-created (a new frame size, a grown map). The frame's buffers and each map chunk's
 //! arrays are pools of named resources (`("normal_depth", ...)`) from which a kernel takes
-//! what its WGSL declares; what differs per kernel (its `params`, which vertex map a
-//! preprocessing kernel reads, a pyramid level's maps) is bound explicitly. The kernels
-//! that walk the map get one bind group per map chunk.
+//! what its WGSL declares; so are each pyramid level's maps (with, at level 0, the vertex
+//! maps a plan call chooses: `wgslam_core::registry::At`). What differs per kernel of no
+//! `generic` row (its `params`, a level's maps) is bound explicitly. The kernels that walk
+//! the map get one bind group per map chunk.
 
 use std::collections::BTreeMap;
 
@@ -13,20 +14,13 @@ use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
-use super::pipelines::Kernels;
+use super::pipelines::{Kernels, LevelParams, RowParams};
 use super::recording::Pass;
 use super::resources::{FrameBuffers, IntensityLevel, Uniforms};
-use wgslam_core::registry::{KernelId, Shape};
+use wgslam_core::registry::{At, KernelId, Shape};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
-    /// `vertex_to_normal` reading the unfiltered vertex map (filter off) ...
-    pub vertex_to_normal: wgpu::BindGroup,
-    /// ... the filtered one for normals and points (filter on, `filter_points`) ...
-    pub vertex_to_normal_filtered: wgpu::BindGroup,
-    /// ... or the filtered one for the normals and the unfiltered one for the points
-    /// (filter on, raw points).
-    pub vertex_to_normal_raw_points: wgpu::BindGroup,
     /// The map kernels' bind groups, one per map chunk.
     pub block_bounds: Vec<wgpu::BindGroup>,
     pub icp_reduce: wgpu::BindGroup,
@@ -34,9 +28,10 @@ pub(super) struct BindGroups {
     pub photo_reduce: wgpu::BindGroup,
     /// `intensity_pyramid` making level 0 from the colour map (RGB-D tracking).
     pub intensity_pyramid: wgpu::BindGroup,
-    /// The registry's `generic` kernels' bind groups by kernel id: one per map chunk,
-    /// or one over the frame (see `wgslam_core::registry::Shape`).
-    pub generic: BTreeMap<KernelId, Vec<wgpu::BindGroup>>,
+    /// The registry's `generic` kernels' bind groups by kernel id and [`At`] (a
+    /// `PerLevel` kernel's level and vertex maps, else `At::FRAME`): one per map chunk, or
+    /// one over the frame or the level (see `wgslam_core::registry::Shape`).
+    pub generic: BTreeMap<(KernelId, At), Vec<wgpu::BindGroup>>,
     /// The scan over the new-surfel flags (in append order, `append_slots` entries).
     pub fuse_scan: ScanGroups,
     pub fuse_add: Vec<wgpu::BindGroup>,
@@ -46,13 +41,6 @@ pub(super) struct BindGroups {
 
 /// The bind groups of one coarser pyramid level.
 pub(super) struct LevelBindGroups {
-    /// `pyramid_depth` reading the finer level's vertex map: at level 1 the unfiltered
-    /// one (filter off) ...
-    pub pyramid_depth: wgpu::BindGroup,
-    /// ... or the filtered one (filter on); at levels 2 and up the same as `pyramid_depth`.
-    pub pyramid_depth_filtered: wgpu::BindGroup,
-    pub vertex_to_normal: wgpu::BindGroup,
-    pub pyramid_model: wgpu::BindGroup,
     pub icp_reduce: wgpu::BindGroup,
     /// `intensity_pyramid` from the finer level's intensity patches.
     pub intensity_pyramid: wgpu::BindGroup,
@@ -80,7 +68,7 @@ type Pool<'a> = Vec<(&'static str, wgpu::BindingResource<'a>)>;
 
 /// The frame's maps and association buffers, by the names the kernels declare them with.
 /// `vertex_map` is the unfiltered vertex map, as `depth_to_vertex` writes it and
-/// `bilateral_filter` reads it; `vertex_to_normal` and the pyramid bind their own.
+/// `bilateral_filter` reads it; the pyramid's kernels bind [`level_pool`]'s.
 fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
     vec![
         ("raw_depth", f.raw_depth.binding()),
@@ -99,6 +87,50 @@ fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
         ("flags", f.add_flags.binding()),
         ("offsets", f.add_offsets.binding()),
     ]
+}
+
+/// Pyramid level `at.level`'s maps by the names the `generic_levels` kernels declare them
+/// with, and its finer level's as `fine_*`: level 0's are the frame's, its `vertex_map`
+/// and `point_map` the vertex maps `at` chooses (see [`At`]), which level 1's `fine_vertex`
+/// is too.
+fn level_pool(f: &FrameBuffers, at: At) -> Pool<'_> {
+    let level0 = |filtered: bool| match filtered {
+        true => &f.filtered_vertex,
+        false => &f.vertex,
+    };
+    let maps: Vec<(&'static str, &GpuImage)> = match at.level.checked_sub(1) {
+        None => vec![
+            ("vertex_map", level0(at.filtered)),
+            ("point_map", level0(at.filtered_points)),
+            ("normal_depth", &f.normal_depth),
+            ("pred_vertex", &f.pred_vertex),
+            ("pred_normal", &f.pred_normal),
+        ],
+        Some(l) => {
+            let level = &f.levels[l];
+            // The finer level's maps: level 0's, or the previous coarser level's.
+            let (fine_vertex, fine_pred) = match l.checked_sub(1) {
+                None => (level0(at.filtered), [&f.pred_vertex, &f.pred_normal]),
+                Some(p) => {
+                    let p = &f.levels[p];
+                    (&p.vertex, [&p.pred_vertex, &p.pred_normal])
+                }
+            };
+            vec![
+                ("vertex_map", &level.vertex),
+                ("point_map", &level.vertex),
+                ("normal_depth", &level.normal_depth),
+                ("pred_vertex", &level.pred_vertex),
+                ("pred_normal", &level.pred_normal),
+                ("fine_vertex", fine_vertex),
+                ("fine_pred_vertex", fine_pred[0]),
+                ("fine_pred_normal", fine_pred[1]),
+            ]
+        }
+    };
+    maps.into_iter()
+        .map(|(name, map)| (name, map.binding()))
+        .collect()
 }
 
 /// One map chunk's arrays and the culling blocks' boxes.
@@ -138,36 +170,48 @@ impl BindGroups {
                 })
                 .collect::<Vec<_>>()
         };
-        let vertex_to_normal = |vertex_map: &GpuImage, point_map: &GpuImage| {
-            k.vertex_to_normal.bind_group(
-                ctx,
-                &[
-                    ("params", u.normal.binding()),
-                    ("vertex_map", vertex_map.binding()),
-                    ("normal_depth", f.normal_depth.binding()),
-                    ("point_map", point_map.binding()),
-                ],
-            )
+        // `kernel` with each level's `params` (where the level has them) over each of the
+        // level's pools.
+        let per_level = |kernel: &Kernel, params_of: LevelParams| {
+            (0..=f.levels.len())
+                .filter_map(|level| Some((level, params_of(&f.level_uniforms(u, level))?)))
+                .flat_map(|(level, params)| {
+                    At::choices(level).into_iter().map(move |at| {
+                        let mut pool = vec![("params", params.clone())];
+                        pool.extend(level_pool(f, at));
+                        (at, vec![kernel.bind_group_from(ctx, &pool)])
+                    })
+                })
+                .collect::<Vec<_>>()
         };
         BindGroups {
             block_bounds: per_chunk(&k.block_bounds, u.bounds.binding()),
-            vertex_to_normal: vertex_to_normal(&f.vertex, &f.vertex),
-            vertex_to_normal_filtered: vertex_to_normal(&f.filtered_vertex, &f.filtered_vertex),
-            vertex_to_normal_raw_points: vertex_to_normal(&f.filtered_vertex, &f.vertex),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
             photo_reduce: photo_reduce(ctx, k, r, &frame),
             intensity_pyramid: intensity_pyramid(ctx, k, &f.color, &f.intensity),
             generic: k
                 .generic(u)
                 .into_iter()
-                .map(|row| {
+                .flat_map(|row| {
                     // A key kernel's passes share the first's layout.
                     let kernel = &row.passes[0];
-                    let groups = match row.shape {
-                        Shape::OverFrame => vec![over_frame(kernel, row.params, Vec::new())],
-                        Shape::PerChunk | Shape::PerBlock => per_chunk(kernel, row.params),
+                    let groups = match (row.shape, row.params) {
+                        (Shape::PerLevel, RowParams::Level(params_of)) => {
+                            per_level(kernel, params_of)
+                        }
+                        (Shape::OverFrame, RowParams::Frame(p)) => {
+                            vec![(At::FRAME, vec![over_frame(kernel, p, Vec::new())])]
+                        }
+                        (Shape::PerChunk | Shape::PerBlock, RowParams::Frame(p)) => {
+                            vec![(At::FRAME, per_chunk(kernel, p))]
+                        }
+                        (shape, _) => panic!(
+                            "kernel `{}`: a {shape:?} row in the wrong group of the registry \
+                             (`generic_levels` rows are `PerLevel`, no other row is)",
+                            kernel.name
+                        ),
                     };
-                    (row.id, groups)
+                    groups.into_iter().map(move |(at, g)| ((row.id, at), g))
                 })
                 .collect(),
             fuse_scan: ScanGroups::new(
@@ -195,50 +239,11 @@ impl LevelBindGroups {
         let f = r.frame;
         let level = &f.levels[l];
         // The finer level's maps: level 0's, or the previous level's.
-        let (fine_vertex, fine_pred_vertex, fine_pred_normal, fine_intensity) = match l {
-            0 => (&f.vertex, &f.pred_vertex, &f.pred_normal, &f.intensity),
-            _ => {
-                let p = &f.levels[l - 1];
-                (&p.vertex, &p.pred_vertex, &p.pred_normal, &p.intensity)
-            }
-        };
-        let pyramid_depth = |fine: &GpuImage| {
-            k.pyramid_depth.bind_group(
-                ctx,
-                &[
-                    ("params", level.u_pyramid.binding()),
-                    ("fine_vertex", fine.binding()),
-                    ("coarse_vertex", level.vertex.binding()),
-                ],
-            )
-        };
-        let unfiltered = pyramid_depth(fine_vertex);
-        let filtered = match l {
-            0 => pyramid_depth(&f.filtered_vertex),
-            _ => unfiltered.clone(),
+        let fine_intensity = match l {
+            0 => &f.intensity,
+            _ => &f.levels[l - 1].intensity,
         };
         LevelBindGroups {
-            pyramid_depth: unfiltered,
-            pyramid_depth_filtered: filtered,
-            vertex_to_normal: k.vertex_to_normal.bind_group(
-                ctx,
-                &[
-                    ("params", level.u_normal.binding()),
-                    ("vertex_map", level.vertex.binding()),
-                    ("normal_depth", level.normal_depth.binding()),
-                    ("point_map", level.vertex.binding()),
-                ],
-            ),
-            pyramid_model: k.pyramid_model.bind_group(
-                ctx,
-                &[
-                    ("params", level.u_pyramid.binding()),
-                    ("fine_vertex", fine_pred_vertex.binding()),
-                    ("fine_normal", fine_pred_normal.binding()),
-                    ("coarse_vertex", level.pred_vertex.binding()),
-                    ("coarse_normal", level.pred_normal.binding()),
-                ],
-            ),
             icp_reduce: icp_reduce(
                 ctx,
                 k,

@@ -4,7 +4,7 @@
 
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
-use super::resources::Uniforms;
+use super::resources::{LevelUniforms, Uniforms};
 use crate::Result;
 use wgslam_core::registry::{KernelId, Shape};
 
@@ -15,11 +15,13 @@ macro_rules! registry_pipelines {
         generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
+        generic_levels: { $($level:ident: $level_shape:ident($level_uniform:ident),)* }
     ) => {
         /// Every kernel of the dense pipeline, one field per kernel named after it.
         pub(super) struct Kernels {
             $(pub $generic: Kernel,)*
             $(pub $generic_key: KeyKernel,)*
+            $(pub $level: Kernel,)*
             $(pub $kernel: Kernel,)*
             $(pub $key: KeyKernel,)*
         }
@@ -30,6 +32,7 @@ macro_rules! registry_pipelines {
                 Ok(Kernels {
                     $($generic: Kernel::new(ctx, stringify!($generic))?,)*
                     $($generic_key: KeyKernel::new(ctx, stringify!($generic_key))?,)*
+                    $($level: Kernel::new(ctx, stringify!($level))?,)*
                     $($kernel: Kernel::new(ctx, stringify!($kernel))?,)*
                     $($key: KeyKernel::new(ctx, stringify!($key))?,)*
                 })
@@ -42,13 +45,19 @@ macro_rules! registry_pipelines {
                         id: KernelId::$generic,
                         passes: std::slice::from_ref(&self.$generic),
                         shape: Shape::$shape,
-                        params: u.$uniform.binding(),
+                        params: RowParams::Frame(u.$uniform.binding()),
                     },)*
                     $(GenericRow {
                         id: KernelId::$generic_key,
                         passes: &self.$generic_key.passes,
                         shape: Shape::$key_shape,
-                        params: u.$key_uniform.binding(),
+                        params: RowParams::Frame(u.$key_uniform.binding()),
+                    },)*
+                    $(GenericRow {
+                        id: KernelId::$level,
+                        passes: std::slice::from_ref(&self.$level),
+                        shape: Shape::$level_shape,
+                        params: RowParams::Level(|l| l.$level_uniform.clone()),
                     },)*
                 ]
             }
@@ -63,6 +72,9 @@ macro_rules! registry_pipelines {
                     })*
                     $(KernelId::$generic_key => {
                         Some((&self.$generic_key.passes[..], Shape::$key_shape))
+                    })*
+                    $(KernelId::$level => {
+                        Some((std::slice::from_ref(&self.$level), Shape::$level_shape))
                     })*
                     _ => None,
                 }
@@ -79,7 +91,18 @@ pub(super) struct GenericRow<'a> {
     pub passes: &'a [Kernel],
     pub shape: Shape,
     /// The row's uniform buffer, bound as the kernel's `params`.
-    pub params: wgpu::BindingResource<'a>,
+    pub params: RowParams<'a>,
+}
+
+/// A `generic_levels` row's uniform at a level: its field of [`LevelUniforms`], `None`
+/// where the level has none.
+pub(super) type LevelParams = for<'b> fn(&LevelUniforms<'b>) -> Option<wgpu::BindingResource<'b>>;
+
+/// A `generic` row's `params`: the frame's uniform buffer of the row's name, or for a
+/// `generic_levels` row the one of each pyramid level.
+pub(super) enum RowParams<'a> {
+    Frame(wgpu::BindingResource<'a>),
+    Level(LevelParams),
 }
 
 wgslam_core::pipeline_rows!();

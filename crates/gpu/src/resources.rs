@@ -110,6 +110,17 @@ pub(super) struct LevelBuffers {
     pub intensity: IntensityLevel,
 }
 
+/// One pyramid level's parameter buffers by the names the registry's `generic_levels` rows
+/// give as their uniforms (see [`FrameBuffers::level_uniforms`]); `None` where the level
+/// has none, and then a row of that uniform has no bind group there (level 0 is made by no
+/// pyramid kernel).
+pub(super) struct LevelUniforms<'a> {
+    /// `vertex_to_normal`'s.
+    pub normal: Option<wgpu::BindingResource<'a>>,
+    /// `pyramid_depth`'s and `pyramid_model`'s (the level's size and its finer level's).
+    pub pyramid: Option<wgpu::BindingResource<'a>>,
+}
+
 /// One level of the frame's intensity pyramid: `intensity_pyramid`'s output and its
 /// parameters (written once: they depend on the sizes only).
 pub(super) struct IntensityLevel {
@@ -251,6 +262,24 @@ impl FrameBuffers {
             ("pred_vertex", self.pred_vertex.binding()),
         ]);
         kernel.bind_group_from(ctx, &own)
+    }
+
+    /// Pyramid level `level`'s parameter buffers, as a `generic_levels` row of the registry
+    /// names its uniform: level 0's are the frame's (`u`), a coarser level's its own.
+    pub fn level_uniforms<'a>(&'a self, u: &'a Uniforms, level: usize) -> LevelUniforms<'a> {
+        match level {
+            0 => LevelUniforms {
+                normal: Some(u.normal.binding()),
+                pyramid: None,
+            },
+            l => {
+                let lv = &self.levels[l - 1];
+                LevelUniforms {
+                    normal: Some(lv.u_normal.binding()),
+                    pyramid: Some(lv.u_pyramid.binding()),
+                }
+            }
+        }
     }
 
     pub fn pixels(&self) -> usize {

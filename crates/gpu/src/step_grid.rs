@@ -11,7 +11,7 @@ use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
-use wgslam_core::registry::Shape;
+use wgslam_core::registry::{At, Shape};
 
 /// The workgroups of one step's passes, worked out before its bind groups are lent out:
 /// the sizes of the frame and its pyramid levels (a per-pixel kernel's grid follows from
@@ -49,9 +49,12 @@ impl StepGrid {
     pub fn image(&self, kernel: &Kernel) -> [u32; 2] {
         self.over(kernel, self.frame)
     }
-    /// A per-pixel `kernel`'s workgroups over pyramid level `level >= 1`.
+    /// A per-pixel `kernel`'s workgroups over pyramid level `level` (0: the frame).
     pub fn level(&self, level: usize, kernel: &Kernel) -> [u32; 2] {
-        self.over(kernel, self.levels[level - 1])
+        match level {
+            0 => self.image(kernel),
+            l => self.over(kernel, self.levels[l - 1]),
+        }
     }
     fn over(&self, kernel: &Kernel, [width, height]: [u32; 2]) -> [u32; 2] {
         image_grid(
@@ -73,11 +76,12 @@ impl StepGrid {
             .collect()
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
-    /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels, or per
-    /// map chunk one workgroup per block; a key kernel's passes in turn, each over every
-    /// bind group. Panics on a call whose kernel has neither a `generic` row nor an arm of
-    /// its own in its step (an internal contract: every planned kernel has one or the
-    /// other).
+    /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
+    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; a
+    /// key kernel's passes in turn, each over every bind group. Panics on a call whose
+    /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
+    /// group where it runs (internal contracts: every planned kernel has one or the other,
+    /// and [`At::choices`] every place a plan gives).
     pub fn generic<'a>(
         &self,
         k: &'a Kernels,
@@ -93,13 +97,20 @@ impl StepGrid {
                 call.name()
             )
         };
-        let groups = &bg.generic[&kernel];
-        let wg = self.image(&passes[0]);
+        let at = match shape {
+            Shape::PerLevel => call.at().choice(),
+            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock => At::FRAME,
+        };
+        let groups = bg
+            .generic
+            .get(&(kernel, at))
+            .unwrap_or_else(|| panic!("`{}` has no bind group at {at:?}", call.name()));
+        let wg = self.level(at.level, &passes[0]);
         passes
             .iter()
             .flat_map(|pass| match shape {
                 Shape::PerBlock => self.per_block(pass, groups),
-                Shape::OverFrame | Shape::PerChunk => {
+                Shape::OverFrame | Shape::PerChunk | Shape::PerLevel => {
                     groups.iter().map(|g| (pass, g, wg)).collect()
                 }
             })

@@ -8,10 +8,9 @@
 //! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
-use super::bind_groups::{BindGroups, SCATTER_ATTRIBUTES};
+use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
-use super::pipelines::Kernels;
 use super::recording::{record_call, record_passes, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, key_passes_of_fuse_add, StepGrid};
 use crate::layout::scan_params;
@@ -24,7 +23,7 @@ use wgslam_core::backend::{
     Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use wgslam_core::fused_view::FusedView;
-use wgslam_core::plan::{self, Buffer, Call, CompactCall, FuseCall, PredictCall, PreprocessCall};
+use wgslam_core::plan::{self, Buffer, Call, CompactCall, FuseCall, PredictCall};
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
 /// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
@@ -90,7 +89,8 @@ impl Backend for GpuBackend {
         ctx.scoped("preprocess", || {
             let mut enc = ctx.encoder("preprocess");
             for call in plan {
-                let passes = preprocess_passes(k, bg, &grid, call);
+                // Every kernel of `preprocess` is bound and dispatched by its registry row.
+                let passes = grid.generic(k, bg, call);
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             defer_profiled(ctx, profiler, "preprocess", enc)
@@ -139,13 +139,8 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    PredictCall::PyramidModel { level } => vec![(
-                        &k.pyramid_model,
-                        &bg.levels[level - 1].pyramid_model,
-                        grid.level(level, &k.pyramid_model),
-                    )],
-                    // `project_model`, `predict_model`: bound and dispatched by their
-                    // registry rows.
+                    // `project_model`, `predict_model`, and per coarser level the model's
+                    // maps: bound and dispatched by their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
@@ -488,50 +483,6 @@ fn check_frame_size(params: &PreprocessParams, raw_depth: &[u16], raw_rgba: &[u3
         )));
     }
     Ok(())
-}
-
-/// The passes (kernel, bind group, grid) of one call of `preprocess`'s plan.
-fn preprocess_passes<'a>(
-    k: &'a Kernels,
-    bg: &'a BindGroups,
-    grid: &StepGrid,
-    call: PreprocessCall,
-) -> Vec<Pass<'a>> {
-    let pass = match call {
-        PreprocessCall::VertexToNormal {
-            level: 0,
-            filtered,
-            filtered_points,
-        } => (
-            &k.vertex_to_normal,
-            match (filtered, filtered_points) {
-                (true, true) => &bg.vertex_to_normal_filtered,
-                (true, false) => &bg.vertex_to_normal_raw_points,
-                (false, _) => &bg.vertex_to_normal,
-            },
-            grid.image(&k.vertex_to_normal),
-        ),
-        PreprocessCall::VertexToNormal { level, .. } => (
-            &k.vertex_to_normal,
-            &bg.levels[level - 1].vertex_to_normal,
-            grid.level(level, &k.vertex_to_normal),
-        ),
-        PreprocessCall::PyramidDepth { level, filtered } => {
-            let g = &bg.levels[level - 1];
-            (
-                &k.pyramid_depth,
-                match filtered {
-                    true => &g.pyramid_depth_filtered,
-                    false => &g.pyramid_depth,
-                },
-                grid.level(level, &k.pyramid_depth),
-            )
-        }
-        // `depth_to_vertex`, `bilateral_filter`: bound and dispatched by their registry
-        // rows.
-        generic => return grid.generic(k, bg, generic),
-    };
-    vec![pass]
 }
 
 /// A camera's image size, `[width, height]` in pixels.

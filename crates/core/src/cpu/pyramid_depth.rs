@@ -61,7 +61,7 @@ pub fn coarse_at(params: &PyramidParams, fine_vertex: &[[f32; 4]], u: u32, v: u3
 pub fn pyramid_depth(
     params: &PyramidParams,
     fine_vertex: &[[f32; 4]],
-    coarse_vertex: &mut [[f32; 4]],
+    vertex_map: &mut [[f32; 4]],
 ) {
     let (w, h) = (params.camera.width as usize, params.camera.height as usize);
     assert_eq!(
@@ -69,11 +69,7 @@ pub fn pyramid_depth(
         (params.fine_width * params.fine_height) as usize,
         "fine_vertex has the wrong size"
     );
-    assert_eq!(
-        coarse_vertex.len(),
-        w * h,
-        "coarse_vertex has the wrong size"
-    );
+    assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
     assert!(
         2 * params.camera.width - 1 <= params.fine_width
             && 2 * params.camera.height - 1 <= params.fine_height,
@@ -82,9 +78,9 @@ pub fn pyramid_depth(
         params.fine_height
     );
     // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
-    let coarse_vertex = Storage::new(coarse_vertex);
+    let vertex_map = Storage::new(vertex_map);
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        coarse_vertex.store(
+        vertex_map.store(
             v as usize * w + u as usize,
             coarse_at(params, fine_vertex, u, v),
         );

@@ -20,22 +20,24 @@ use crate::layout::PyramidParams;
 /// `fine_width` is also the row length of the finer slices.
 pub fn pyramid_model(
     params: &PyramidParams,
-    fine_vertex: &[[f32; 4]],
-    fine_normal: &[[f32; 4]],
-    coarse_vertex: &mut [[f32; 4]],
-    coarse_normal: &mut [[f32; 4]],
+    fine_pred_vertex: &[[f32; 4]],
+    fine_pred_normal: &[[f32; 4]],
+    pred_vertex: &mut [[f32; 4]],
+    pred_normal: &mut [[f32; 4]],
 ) {
     let (w, h) = (params.camera.width as usize, params.camera.height as usize);
     let fine_w = params.fine_width as usize;
-    assert!(fine_vertex.len() == fine_normal.len() && fine_vertex.len() % fine_w == 0);
-    assert!(coarse_vertex.len() == w * h && coarse_normal.len() == w * h);
-    assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_vertex.len() / fine_w);
+    assert!(
+        fine_pred_vertex.len() == fine_pred_normal.len() && fine_pred_vertex.len() % fine_w == 0
+    );
+    assert!(pred_vertex.len() == w * h && pred_normal.len() == w * h);
+    assert!(2 * w - 1 <= fine_w && 2 * h - 1 <= fine_pred_vertex.len() / fine_w);
     // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
-    let (coarse_vertex, coarse_normal) = (Storage::new(coarse_vertex), Storage::new(coarse_normal));
+    let (pred_vertex, pred_normal) = (Storage::new(pred_vertex), Storage::new(pred_normal));
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
         let (u, v) = (u as usize, v as usize);
         let fine = 2 * v * fine_w + 2 * u;
-        coarse_vertex.store(v * w + u, fine_vertex[fine]);
-        coarse_normal.store(v * w + u, fine_normal[fine]);
+        pred_vertex.store(v * w + u, fine_pred_vertex[fine]);
+        pred_normal.store(v * w + u, fine_pred_normal[fine]);
     });
 }
