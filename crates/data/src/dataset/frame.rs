@@ -77,7 +77,7 @@ const JPEG_END_WINDOW_BYTES: usize = 1024;
 
 /// A JPEG (`FF D8` first) must end with its end-of-image marker (`FF D9`): the decoder
 /// fills a truncated one with grey without an error (a file cut to a third decoded).
-fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
+pub(crate) fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
     if !bytes.starts_with(&[0xFF, 0xD8]) {
         return Ok(());
     }
@@ -148,7 +148,7 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
 
 /// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);
 /// `path` names it in errors.
-fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
+pub(crate) fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
     match img {
         DynamicImage::ImageRgb8(img) => {
             let (w, h) = img.dimensions();

@@ -13,6 +13,8 @@
 //! downsampling happen elsewhere. Ground-truth poses are `t_cam_to_world` in metres,
 //! exactly as the dataset gives them.
 
+#[cfg(not(target_arch = "wasm32"))]
+pub(crate) mod bag;
 pub(crate) mod bonn;
 pub(crate) mod checks;
 pub use checks::repeated_stamps_note;
@@ -40,7 +42,6 @@ use glam::DMat4;
 use serde::Deserialize;
 
 use crate::geometry::camera::Intrinsics;
-use crate::io::trajectory::parse_tum;
 use crate::{Error, Result};
 
 pub use frame::RawFrame;
@@ -72,6 +73,10 @@ pub struct SequenceOptions {
     pub stamp_order: StampOrder,
     /// Who opens the sequence: an error's remedy is worded for it.
     pub interface: Interface,
+    /// A recording's depth topic (`sensor_msgs/Image`), when it has several.
+    pub depth_topic: Option<String>,
+    /// A recording's colour topic (`Image` or `CompressedImage`), when it has several.
+    pub color_topic: Option<String>,
 }
 
 /// The order of a TUM-style sequence's frames (`rgb.txt`, `depth.txt`): what a list whose
@@ -106,6 +111,8 @@ impl Default for SequenceOptions {
             max_time_diff: DEFAULT_MAX_TIME_DIFF,
             stamp_order: StampOrder::Time,
             interface: Interface::CommandLine,
+            depth_topic: None,
+            color_topic: None,
         }
     }
 }
@@ -132,6 +139,12 @@ pub enum Layout {
     /// Replica as NICE-SLAM ships it: `results/frameNNNNNN.jpg`, `results/depthNNNNNN.png`,
     /// `traj.txt`, `cam_params.json` (stamps are frame numbers).
     Replica,
+    /// A ROS 1 `.bag` file (`bag.rs`; not among the detected folder layouts).
+    Ros1Bag,
+    /// A ROS 2 bag: a folder with `metadata.yaml` and one `.mcap` or `.db3` file.
+    Ros2Bag,
+    /// A single `.mcap` file.
+    Mcap,
 }
 
 impl Layout {
@@ -157,6 +170,9 @@ impl Layout {
             Layout::SevenScenes => "7-Scenes/3DMatch frame files",
             Layout::ScanNet => "ScanNet export",
             Layout::Replica => "Replica (NICE-SLAM)",
+            Layout::Ros1Bag => "ROS 1 bag",
+            Layout::Ros2Bag => "ROS 2 bag",
+            Layout::Mcap => "MCAP recording",
         }
     }
 }
@@ -283,8 +299,25 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
 /// or the layout's published values; plain TUM has none) and depth scale (override >
 /// `camera.json` > the layout's > 5000). Every listed image file must exist; images are
 /// only decoded by [`Sequence::load`].
+/// A recording (ROS 1 `.bag`, ROS 2 bag folder, `.mcap` file) is read from its messages.
 pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
+    #[cfg(not(target_arch = "wasm32"))]
+    if let Some(layout) = bag::recording_layout(root) {
+        check_max_time_diff(opts)?;
+        return bag::open(root, layout, opts);
+    }
     open_here(root, opts)
+}
+
+/// The association window must be a finite, non-negative number of seconds.
+fn check_max_time_diff(opts: &SequenceOptions) -> Result<()> {
+    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
+        return Err(Error::Argument(format!(
+            "max time difference must be finite and >= 0, got {}",
+            opts.max_time_diff
+        )));
+    }
+    Ok(())
 }
 
 /// [`open`] over the files of `files` instead of the disk (every layout, the same checks and
@@ -303,12 +336,7 @@ pub fn open_with(
 
 /// [`open`] over the current source ([`source::current`]).
 fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
-    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
-        return Err(Error::Argument(format!(
-            "max time difference must be finite and >= 0, got {}",
-            opts.max_time_diff
-        )));
-    }
+    check_max_time_diff(opts)?;
     let layout = detect::detect(root)?;
     checks::stamp_order_applies(root, layout, opts)?;
     let camera = read_camera_json(&root.join("camera.json"))?;
@@ -319,6 +347,9 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         Layout::SevenScenes => seven_scenes::list(root)?,
         Layout::ScanNet => scannet::list(root)?,
         Layout::Replica => replica::list(root)?,
+        Layout::Ros1Bag | Layout::Ros2Bag | Layout::Mcap => {
+            unreachable!("detect() returns folder layouts only")
+        }
     };
 
     let intrinsics = match (opts.intrinsics, &camera, listing.intrinsics) {
@@ -361,37 +392,24 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         }
     }
 
-    let mut frames = listing.frames;
+    let frames = listing.frames;
     checks::stamps_distinct(root, &frames)?;
-    let mut notes = listing.notes;
-    if let Some(path) = opts.gt_path.as_ref().or(listing.gt_file.as_ref()) {
-        let text = source::read_string(path, crate::io::input::InputKind::List)?;
-        let mut gt = parse_tum(path, &text)?;
-        gt.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
-        notes.extend(checks::repeated_stamps_note(path, &gt_stamps));
-        for f in &mut frames {
-            f.gt_cam_to_world =
-                tum::nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
-        }
-        notes.extend(checks::coverage_note(
-            path,
-            &gt_stamps,
-            &frames,
-            opts.max_time_diff,
-        ));
-    }
-
-    Ok(Sequence {
+    let mut seq = Sequence {
         root: root.to_path_buf(),
         layout,
         intrinsics,
         depth_scale,
         frames,
         conventions: listing.conventions,
-        notes,
+        notes: listing.notes,
         files: None,
-    })
+    };
+    tum::attach_ground_truth(
+        &mut seq,
+        opts.gt_path.as_ref().or(listing.gt_file.as_ref()),
+        opts,
+    )?;
+    Ok(seq)
 }
 
 impl Sequence {
@@ -446,7 +464,10 @@ impl Sequence {
             )
         };
         match &self.files {
-            Some(files) => source::with_source(&files.0, load),
+            Some(files) => match files.0.frame(&f.rgb_path, &f.depth_path, &self.intrinsics) {
+                Some(frame) => frame,
+                None => source::with_source(&files.0, load),
+            },
             None => load(),
         }
     }
