@@ -118,7 +118,7 @@ impl Stream {
 
 impl McapFile {
     /// Opens `path`, checking its magic bytes: a file of another format is an error here.
-    pub fn open(path: &Path) -> Result<McapFile> {
+    pub fn new(path: &Path) -> Result<McapFile> {
         let mut magic = [0u8; 8];
         let (mut file, _) = open_kind(path, InputKind::Recording)?;
         if file.read_exact(&mut magic).is_err() || magic != *mcap::MAGIC {

@@ -111,7 +111,7 @@ pub(crate) fn open(root: &Path, layout: Layout, opts: &SequenceOptions) -> Resul
             if file.extension().and_then(|e| e.to_str()) == Some("db3") {
                 Arc::new(db3::Db3::open(&file)?)
             } else {
-                Arc::new(mcap_file::McapFile::open(&file)?)
+                Arc::new(mcap_file::McapFile::new(&file)?)
             }
         }
     };
