@@ -47,3 +47,12 @@ def test_python_run_reads_a_bag(bags):
     params = {"depth-scale": 5000.0, "gt": str(GT)}
     result = wgslam.run(bags / "frames.bag", backend="cpu", params=params)
     assert len(result.stamps) == 2
+
+
+def test_a_bag_cut_short_is_refused(bags, tmp_path):
+    data = (bags / "frames.bag").read_bytes()
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(data[: len(data) // 2])
+    done = run_cli("run", cut, "--backend", "cpu", "--out", tmp_path / "o")
+    assert done.returncode != 0
+    assert "cut.bag" in done.stderr and "rosbag reindex" in done.stderr
