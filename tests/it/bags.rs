@@ -67,6 +67,18 @@ fn image_msg(stamp: u32, (w, h): (u32, u32), encoding: &str, bpp: u32, data: &[u
     m.0
 }
 
+/// `sensor_msgs/CompressedImage` in CDR holding `rgb` as a PNG.
+fn png_msg(stamp: u32, (w, h): (u32, u32), rgb: Vec<u8>) -> Vec<u8> {
+    let mut png = Vec::new();
+    image::RgbImage::from_raw(w, h, rgb)
+        .unwrap()
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let mut m = Cdr::new();
+    m.header(stamp).string("png").bytes(&png);
+    m.0
+}
+
 /// `sensor_msgs/CameraInfo` in CDR, every field.
 fn camera_info_msg(k: &Intrinsics) -> Vec<u8> {
     let mut m = Cdr::new();
@@ -123,6 +135,8 @@ fn depth_bytes(f: &RawFrame, float_scale: Option<f32>) -> Vec<u8> {
 struct McapOptions {
     /// Write depth a second time on another topic.
     second_depth: bool,
+    /// Colour as a PNG `sensor_msgs/CompressedImage` instead of a raw `rgb8` `Image`.
+    png_color: bool,
     compression: Option<mcap::Compression>,
 }
 
@@ -142,7 +156,12 @@ fn write_mcap(path: &Path, seq: &dataset::Sequence, frames: &[usize], o: &McapOp
         w.add_channel(schema, topic, "cdr", &none).unwrap()
     };
     let depth = channel("sensor_msgs/msg/Image", "/camera/depth/image_raw");
-    let color = channel("sensor_msgs/msg/Image", "/camera/rgb/image_raw");
+    let color_type = if o.png_color {
+        "sensor_msgs/msg/CompressedImage"
+    } else {
+        "sensor_msgs/msg/Image"
+    };
+    let color = channel(color_type, "/camera/rgb/image_raw");
     let info = channel("sensor_msgs/msg/CameraInfo", "/camera/depth/camera_info");
     let imu = channel("sensor_msgs/msg/Imu", "/imu");
     let depth2 = o
@@ -166,7 +185,12 @@ fn write_mcap(path: &Path, seq: &dataset::Sequence, frames: &[usize], o: &McapOp
         let stamp = seq.frames[i].timestamp as u32;
         let t = u64::from(stamp) * 1_000_000_000;
         let rgb: Vec<u8> = f.rgb.iter().flatten().copied().collect();
-        put(&mut w, color, t, &image_msg(stamp, size, "rgb8", 3, &rgb));
+        let color_msg = if o.png_color {
+            png_msg(stamp, size, rgb)
+        } else {
+            image_msg(stamp, size, "rgb8", 3, &rgb)
+        };
+        put(&mut w, color, t, &color_msg);
         let d = depth_bytes(&f, Some(seq.depth_scale));
         put(
             &mut w,
@@ -260,12 +284,13 @@ fn run_on_an_mcap_writes_the_folders_trajectory() {
 }
 
 /// Two depth topics: the error lists the image topics with type, encoding and count and
-/// names the flag; the flag chooses.
+/// names the flag; the flag chooses. (Colour here is PNG `CompressedImage`s, lz4 chunks.)
 fn two_depth_topics_ask_which() {
     let d = common::temp_dir("bags-two-depth");
     let path = d.join("two.mcap");
     let o = McapOptions {
         second_depth: true,
+        png_color: true,
         compression: Some(mcap::Compression::Lz4),
     };
     write_mcap(&path, &bundled(), &[0, 1], &o);
@@ -286,7 +311,9 @@ fn two_depth_topics_ask_which() {
     };
     let seq = dataset::open(&path, &chosen).unwrap();
     assert_eq!(seq.depth_scale, 1000.0, "16UC1 is millimetres");
-    assert_eq!(seq.load(1).unwrap().depth, bundled().load(1).unwrap().depth);
+    let (got, want) = (seq.load(1).unwrap(), bundled().load(1).unwrap());
+    assert_eq!(got.depth, want.depth, "16UC1 as written");
+    assert_eq!(got.rgb, want.rgb, "PNG colour is lossless");
     let e = dataset::open(
         &path,
         &SequenceOptions {
