@@ -79,13 +79,13 @@ fn png_msg(stamp: u32, (w, h): (u32, u32), rgb: Vec<u8>) -> Vec<u8> {
     m.0
 }
 
-/// `sensor_msgs/CameraInfo` in CDR, every field.
-fn camera_info_msg(k: &Intrinsics) -> Vec<u8> {
+/// `sensor_msgs/CameraInfo` in CDR, every field; `k1`: the first radial coefficient.
+fn camera_info_msg(k: &Intrinsics, k1: f64) -> Vec<u8> {
     let mut m = Cdr::new();
     m.header(0).u32(k.height).u32(k.width).string("plumb_bob");
     m.u32(5);
-    for _ in 0..5 {
-        m.f64(0.0);
+    for d in [k1, 0.0, 0.0, 0.0, 0.0] {
+        m.f64(d);
     }
     let kk = [
         k.fx as f64,
@@ -137,6 +137,8 @@ struct McapOptions {
     second_depth: bool,
     /// Colour as a PNG `sensor_msgs/CompressedImage` instead of a raw `rgb8` `Image`.
     png_color: bool,
+    /// A non-zero radial distortion coefficient in the camera info.
+    distortion: bool,
     compression: Option<mcap::Compression>,
 }
 
@@ -178,7 +180,8 @@ fn write_mcap(path: &Path, seq: &dataset::Sequence, frames: &[usize], o: &McapOp
         };
         w.write_to_known_channel(&header, data).unwrap();
     };
-    put(&mut w, info, 0, &camera_info_msg(&seq.intrinsics));
+    let k1 = if o.distortion { 0.1 } else { 0.0 };
+    put(&mut w, info, 0, &camera_info_msg(&seq.intrinsics, k1));
     for &i in frames {
         let f = seq.load(i).unwrap();
         let size = (f.width, f.height);
@@ -260,11 +263,15 @@ fn mcap_tracks_to_the_folders_poses() {
 }
 
 /// `wgslam run` reads an `.mcap` as it reads a folder: the same trajectory.tum, byte for
-/// byte, and the topics named.
+/// byte, and the topics named; the camera's distortion is named as ignored.
 fn run_on_an_mcap_writes_the_folders_trajectory() {
     let d = common::temp_dir("bags-run");
     let path = d.join("frames.mcap");
-    write_mcap(&path, &bundled(), &[0, 1, 2], &McapOptions::default());
+    let o = McapOptions {
+        distortion: true,
+        ..McapOptions::default()
+    };
+    write_mcap(&path, &bundled(), &[0, 1, 2], &o);
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let gt = s(&common::bundled_icl().join("livingRoom2.gt.freiburg"));
     let run = |input: String, out: &Path, extra: &[&str]| {
@@ -278,6 +285,7 @@ fn run_on_an_mcap_writes_the_folders_trajectory() {
     };
     let said = run(s(&path), &d.join("bag"), &["--gt", &gt]);
     assert!(said.contains("/camera/depth/image_raw"), "{said}");
+    assert!(said.contains("wgslam ignores it"), "{said}");
     run(s(&common::bundled_icl()), &d.join("folder"), &[]);
     let traj = |dir: &str| std::fs::read(d.join(dir).join("trajectory.tum")).unwrap();
     assert_eq!(traj("bag"), traj("folder"));
@@ -292,6 +300,7 @@ fn two_depth_topics_ask_which() {
         second_depth: true,
         png_color: true,
         compression: Some(mcap::Compression::Lz4),
+        ..McapOptions::default()
     };
     write_mcap(&path, &bundled(), &[0, 1], &o);
     let e = dataset::open(&path, &SequenceOptions::default())
