@@ -303,21 +303,10 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
 pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     #[cfg(not(target_arch = "wasm32"))]
     if let Some(layout) = bag::recording_layout(root) {
-        check_max_time_diff(opts)?;
+        checks::max_time_diff(opts)?;
         return bag::open(root, layout, opts);
     }
     open_here(root, opts)
-}
-
-/// The association window must be a finite, non-negative number of seconds.
-fn check_max_time_diff(opts: &SequenceOptions) -> Result<()> {
-    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
-        return Err(Error::Argument(format!(
-            "max time difference must be finite and >= 0, got {}",
-            opts.max_time_diff
-        )));
-    }
-    Ok(())
 }
 
 /// [`open`] over the files of `files` instead of the disk (every layout, the same checks and
@@ -336,7 +325,7 @@ pub fn open_with(
 
 /// [`open`] over the current source ([`source::current`]).
 fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
-    check_max_time_diff(opts)?;
+    checks::max_time_diff(opts)?;
     let layout = detect::detect(root)?;
     checks::stamp_order_applies(root, layout, opts)?;
     let camera = read_camera_json(&root.join("camera.json"))?;
