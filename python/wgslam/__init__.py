@@ -8,7 +8,9 @@ Frames in as numpy arrays, results out as numpy arrays (docs/python.md):
 - :class:`Slam` tracks a live stream one frame at a time (:meth:`Slam.track`), with the map
   at any time (:meth:`Slam.map`).
 - :func:`open_sequence` reads a dataset's frames as arrays (to replay them through
-  :class:`Slam`, or to look at them).
+  :class:`Slam`, or to look at them); a ROS bag or MCAP recording is a dataset too.
+- :mod:`wgslam.ros` turns live ROS messages (``sensor_msgs/Image``, ``CameraInfo``) into
+  the arrays :meth:`Slam.track` takes.
 
 Poses are 4x4 float64 camera-to-world matrices (metres), row-major. Frames are processed
 with the interpreter's lock released, so other Python threads run meanwhile. Failures of a

@@ -190,10 +190,11 @@ fn list(path: &Path) -> Result<()> {
     let m = read_checked(path)?;
     let r = runner(m.output.clone().unwrap_or_else(|| PathBuf::from("OUT")))?;
     for (i, job) in m.jobs.iter().enumerate() {
-        let missing = if job.sequence.is_dir() {
+        // A folder, or a recording file (ROS bag, MCAP).
+        let missing = if job.sequence.exists() {
             ""
         } else {
-            "  (sequence folder not found here)"
+            "  (sequence not found here)"
         };
         println!("{i:4}  {}{missing}", job.id);
         let params: Vec<String> = job

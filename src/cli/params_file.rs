@@ -261,13 +261,15 @@ mod tests {
     /// A value for every option, each other than the assignment profile's (the robust
     /// profile's for `profile`). The tests below fail on an option missing here, so a new
     /// option comes with its check.
-    const OPTION_VALUES: [(&str, &str); 45] = [
+    const OPTION_VALUES: [(&str, &str); 47] = [
         ("gt", "a/gt.txt"),
         ("camera", "fr1"),
         ("intrinsics", "500,500,319.5,239.5"),
         ("depth-scale", "1000"),
         ("max-time-diff", "0.03"),
         ("stamp-order", "file"),
+        ("depth-topic", "/camera/depth"),
+        ("color-topic", "/camera/rgb"),
         ("profile", "assignment"),
         ("downsample", "4"),
         ("icp-dist", "0.08"),
@@ -395,6 +397,8 @@ mod tests {
                         "intrinsics" => s.intrinsics.is_some_and(|k| k.fx == 500.0),
                         "max-time-diff" => s.max_time_diff == 0.03,
                         "stamp-order" => s.stamp_order == crate::dataset::StampOrder::File,
+                        "depth-topic" => s.depth_topic.as_deref() == Some("/camera/depth"),
+                        "color-topic" => s.color_topic.as_deref() == Some("/camera/rgb"),
                         "profile" => p.profile == Profile::Assignment,
                         _ => false,
                     };

@@ -150,6 +150,14 @@ param_overrides! {
     /// (by line); other layouts number their frames and refuse it.
     #[arg(long, value_enum)]
     stamp_order: Option<dataset::StampOrder>,
+    /// A recording's (ROS bag, MCAP) depth topic, a sensor_msgs/Image in 16UC1 or 32FC1;
+    /// needed only when it has more than one.
+    #[arg(long)]
+    depth_topic: Option<String>,
+    /// A recording's colour topic, a sensor_msgs/Image (rgb8, bgr8, rgba8, bgra8, mono8)
+    /// or a JPEG/PNG CompressedImage; needed only when it has more than one.
+    #[arg(long)]
+    color_topic: Option<String>,
     /// Parameter set to start from: the robust tracker and fusion for real (noisy) depth,
     /// the default, or the course assignment's exact algorithm.
     #[arg(long, value_enum)]
@@ -365,6 +373,8 @@ impl ParamOverrides {
             max_time_diff: self.max_time_diff.unwrap_or(dataset::DEFAULT_MAX_TIME_DIFF),
             stamp_order: self.stamp_order.unwrap_or_default(),
             interface: dataset::Interface::CommandLine,
+            depth_topic: self.depth_topic.clone(),
+            color_topic: self.color_topic.clone(),
         })
     }
 

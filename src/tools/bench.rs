@@ -20,6 +20,7 @@ use crate::slam::any_backend;
 use crate::slam::backend::{Backend, Inspect};
 use crate::slam::instrumented::Instrumented;
 use crate::slam::params::ValidParams;
+use crate::tools::round_trips::{FrameCounts, RoundTrips};
 use crate::tools::run;
 use crate::Result;
 
@@ -213,36 +214,6 @@ fn slam_accuracy<B: Backend>(
     run::accuracy(&est, &seq.ground_truth(), frames.len())
 }
 
-/// One frame's submissions and read-back in [`bench_frames`].
-struct FrameCounts {
-    submissions: u64,
-    waits: u64,
-    readback_bytes: u64,
-    icp_iterations: usize,
-    /// Not a keyframe, no relocalisation, no loop-closure check: the frames whose
-    /// read-back the budget bounds.
-    plain: bool,
-}
-
-/// Submissions and read-back per frame, as counted between the frames of the plain pass.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct RoundTrips {
-    /// Frames that are not keyframes and neither relocalised nor checked a loop.
-    pub plain_frames: usize,
-    /// ICP iterations (submit-and-wait round trips of `icp_system`) per frame, mean.
-    pub icp_iterations_per_frame: f64,
-    /// Submissions beyond one per ICP iteration on a plain frame: mean and most.
-    pub plain_submissions_beyond_icp_mean: f64,
-    pub plain_submissions_beyond_icp_max: u64,
-    /// Host waits for the device beyond one per ICP iteration (its system's read-back) on a
-    /// plain frame: mean and most. 0 when preprocess, predict and fuse wait for nothing.
-    pub plain_waits_beyond_icp_mean: f64,
-    pub plain_waits_beyond_icp_max: u64,
-    /// Bytes read back on a plain frame: mean and most.
-    pub plain_readback_bytes_mean: f64,
-    pub plain_readback_bytes_max: u64,
-}
-
 impl BenchResult {
     /// Fills the per-frame counters from each frame's counts.
     fn set_counts(&mut self, counts: &[FrameCounts]) {
@@ -250,24 +221,7 @@ impl BenchResult {
         self.submissions_per_frame = counts.iter().map(|c| c.submissions).sum::<u64>() as f64 / n;
         self.readback_bytes_per_frame =
             counts.iter().map(|c| c.readback_bytes).sum::<u64>() as f64 / n;
-        let plain: Vec<&FrameCounts> = counts.iter().filter(|c| c.plain).collect();
-        let m = plain.len().max(1) as f64;
-        let beyond = |c: &FrameCounts| c.submissions.saturating_sub(c.icp_iterations as u64);
-        let waits_beyond = |c: &FrameCounts| c.waits.saturating_sub(c.icp_iterations as u64);
-        self.round_trips = Some(RoundTrips {
-            plain_frames: plain.len(),
-            icp_iterations_per_frame: counts.iter().map(|c| c.icp_iterations).sum::<usize>() as f64
-                / n,
-            plain_submissions_beyond_icp_mean: plain.iter().map(|c| beyond(c)).sum::<u64>() as f64
-                / m,
-            plain_submissions_beyond_icp_max: plain.iter().map(|c| beyond(c)).max().unwrap_or(0),
-            plain_waits_beyond_icp_mean: plain.iter().map(|c| waits_beyond(c)).sum::<u64>() as f64
-                / m,
-            plain_waits_beyond_icp_max: plain.iter().map(|c| waits_beyond(c)).max().unwrap_or(0),
-            plain_readback_bytes_mean: plain.iter().map(|c| c.readback_bytes).sum::<u64>() as f64
-                / m,
-            plain_readback_bytes_max: plain.iter().map(|c| c.readback_bytes).max().unwrap_or(0),
-        });
+        self.round_trips = Some(RoundTrips::of(counts));
     }
 }
 

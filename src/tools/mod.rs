@@ -1,6 +1,7 @@
 //! The jobs a user runs on top of the SLAM core, as library functions the CLI calls:
 //! the batch run over a sequence with its outputs ([`run`]), the two-frame ICP experiment
-//! (`two_frame`), the CPU-vs-GPU comparison (`compare`) and the benchmark (`bench`);
+//! (`two_frame`), the CPU-vs-GPU comparison (`compare`) and the benchmark (`bench`, with
+//! the round trips it counts per frame: `round_trips`);
 //! with the `rerun` feature, the Rerun recording of a run (`rerun_log`).
 //! They compute and write results; parsing arguments and printing tables is `crate::cli`.
 
@@ -9,5 +10,6 @@ pub mod compare;
 pub(crate) mod long_run;
 #[cfg(feature = "rerun")]
 pub(crate) mod rerun_log;
+pub mod round_trips;
 pub mod run;
 pub(crate) mod two_frame;

@@ -8,6 +8,7 @@
 mod common;
 
 mod accuracy;
+mod bags;
 mod batch;
 mod bindings;
 mod cli;
@@ -58,6 +59,7 @@ fn main() -> ExitCode {
     #[allow(unused_mut)]
     let mut modules = tests_of![
         accuracy,
+        bags,
         batch,
         bindings,
         cli,

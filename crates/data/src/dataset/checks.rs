@@ -283,6 +283,17 @@ pub fn jump_note(frames: &[FrameRecord], first: usize) -> Option<String> {
     ))
 }
 
+/// The association window must be a finite, non-negative number of seconds.
+pub(crate) fn max_time_diff(opts: &super::SequenceOptions) -> crate::Result<()> {
+    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
+        return Err(crate::Error::Argument(format!(
+            "max time difference must be finite and >= 0, got {}",
+            opts.max_time_diff
+        )));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -68,6 +68,8 @@ fn telltales(layout: Layout, root: &Path) -> Vec<(String, bool)> {
                 numbered::any(&root.join("results"), replica::COLOR),
             ),
         ],
+        // Recordings are files (or a ROS 2 bag's folder), recognised before detection.
+        Layout::Ros1Bag | Layout::Ros2Bag | Layout::Mcap => Vec::new(),
     }
 }
 

@@ -1,9 +1,9 @@
 //! One RGB-D frame decoded from its two image files (16-bit PNG depth; PNG or JPEG colour),
 //! at the depth image's full resolution, row-major.
 //!
-//! Decoding, the layout's "no reading" depth value set to 0, colour from a camera of
-//! another size resampled onto the depth image, and a lens's distortion removed
-//! (`super::undistort`); no depth scaling, filtering or downsampling (depth stays raw
+//! Decoding, the layout's "no reading" depth value set to 0, and colour from a camera of
+//! another size resampled onto the depth image (the lens's distortion is removed after,
+//! by `Sequence::load`); no depth scaling, filtering or downsampling (depth stays raw
 //! `u16`).
 
 use std::path::Path;
@@ -78,7 +78,7 @@ const JPEG_END_WINDOW_BYTES: usize = 1024;
 
 /// A JPEG (`FF D8` first) must end with its end-of-image marker (`FF D9`): the decoder
 /// fills a truncated one with grey without an error (a file cut to a third decoded).
-fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
+pub(crate) fn check_jpeg_end(bytes: &[u8], path: &Path, role: &str) -> Result<()> {
     if !bytes.starts_with(&[0xFF, 0xD8]) {
         return Ok(());
     }
@@ -149,7 +149,7 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
 
 /// A decoded colour image's pixels, which must be 8-bit RGB or RGBA (alpha is dropped);
 /// `path` names it in errors.
-fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
+pub(crate) fn rgb_of(img: DynamicImage, path: &Path) -> Result<(u32, u32, Vec<[u8; 3]>)> {
     match img {
         DynamicImage::ImageRgb8(img) => {
             let (w, h) = img.dimensions();
@@ -258,15 +258,11 @@ pub(crate) fn load_frame(
         }
         None => {}
     }
-    let frame = RawFrame {
+    Ok(RawFrame {
         width: dw,
         height: dh,
         depth,
         rgb,
-    };
-    Ok(match &conventions.distortion {
-        Some(lens) => super::undistort::undistort(&frame, depth_k, lens),
-        None => frame,
     })
 }
 

@@ -13,7 +13,10 @@
 //! downsampling happen elsewhere. Ground-truth poses are `t_cam_to_world` in metres,
 //! exactly as the dataset gives them.
 
+#[cfg(not(target_arch = "wasm32"))]
+pub(crate) mod bag;
 pub(crate) mod bonn;
+pub(crate) mod camera_json;
 pub(crate) mod checks;
 pub use checks::repeated_stamps_note;
 pub use interface::Interface;
@@ -38,10 +41,8 @@ use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use glam::DMat4;
-use serde::Deserialize;
 
 use crate::geometry::camera::{Distortion, Intrinsics};
-use crate::io::trajectory::parse_tum;
 use crate::{Error, Result};
 
 pub use frame::RawFrame;
@@ -77,6 +78,10 @@ pub struct SequenceOptions {
     pub stamp_order: StampOrder,
     /// Who opens the sequence: an error's remedy is worded for it.
     pub interface: Interface,
+    /// A recording's depth topic (`sensor_msgs/Image`), when it has several.
+    pub depth_topic: Option<String>,
+    /// A recording's colour topic (`Image` or `CompressedImage`), when it has several.
+    pub color_topic: Option<String>,
 }
 
 /// The order of a TUM-style sequence's frames (`rgb.txt`, `depth.txt`): what a list whose
@@ -112,6 +117,8 @@ impl Default for SequenceOptions {
             max_time_diff: DEFAULT_MAX_TIME_DIFF,
             stamp_order: StampOrder::Time,
             interface: Interface::CommandLine,
+            depth_topic: None,
+            color_topic: None,
         }
     }
 }
@@ -138,6 +145,12 @@ pub enum Layout {
     /// Replica as NICE-SLAM ships it: `results/frameNNNNNN.jpg`, `results/depthNNNNNN.png`,
     /// `traj.txt`, `cam_params.json` (stamps are frame numbers).
     Replica,
+    /// A ROS 1 `.bag` file (`bag.rs`; not among the detected folder layouts).
+    Ros1Bag,
+    /// A ROS 2 bag: a folder with `metadata.yaml` and one `.mcap` or `.db3` file.
+    Ros2Bag,
+    /// A single `.mcap` file.
+    Mcap,
 }
 
 impl Layout {
@@ -163,6 +176,9 @@ impl Layout {
             Layout::SevenScenes => "7-Scenes/3DMatch frame files",
             Layout::ScanNet => "ScanNet export",
             Layout::Replica => "Replica (NICE-SLAM)",
+            Layout::Ros1Bag => "ROS 1 bag",
+            Layout::Ros2Bag => "ROS 2 bag",
+            Layout::Mcap => "MCAP recording",
         }
     }
 }
@@ -191,7 +207,7 @@ pub struct FrameConventions {
     pub color_intrinsics: Option<Intrinsics>,
     /// The lens of the camera the depth image's pixels belong to (TUM RGB-D's freiburg1
     /// and freiburg2: the colour camera's, which depth is registered to), removed from
-    /// both images after decoding ([`undistort`]); `None` for a pinhole camera.
+    /// both images after decoding (`undistort.rs`); `None` for a pinhole camera.
     pub distortion: Option<Distortion>,
 }
 
@@ -246,62 +262,19 @@ pub(crate) struct Listing {
     pub notes: Vec<String>,
 }
 
-/// `camera.json` in a dataset directory: intrinsics in pixels, optional depth scale,
-/// optional lens distortion `[k1, k2, p1, p2, k3]` (see [`Distortion`]).
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CameraJson {
-    width: u32,
-    height: u32,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    depth_scale: Option<f32>,
-    distortion: Option<[f64; 5]>,
-}
-
-fn read_camera_json(path: &Path) -> Result<Option<CameraJson>> {
-    if !source::present(path) {
-        return Ok(None);
-    }
-    let text = source::read_string(path, crate::io::input::InputKind::Settings)?;
-    parse_camera_json(path, &text).map(Some)
-}
-
-/// `camera.json`'s text, checked; `path` names it in errors.
-fn parse_camera_json(path: &Path, text: &str) -> Result<CameraJson> {
-    let cam: CameraJson = serde_json::from_str(text).map_err(|e| {
-        Error::format(
-            path,
-            format!(
-                "expected {{width, height, fx, fy, cx, cy[, depth_scale][, distortion: \
-                 [k1, k2, p1, p2, k3]]}}: {e}"
-            ),
-        )
-    })?;
-    let finite = [cam.fx, cam.fy, cam.cx, cam.cy]
-        .iter()
-        .all(|v| v.is_finite());
-    if !finite || cam.fx == 0.0 || cam.fy == 0.0 || cam.width == 0 || cam.height == 0 {
-        return Err(Error::format(
-            path,
-            "width/height must be positive and fx, fy finite and non-zero",
-        ));
-    }
-    if let Some(c) = cam.distortion {
-        Distortion::from_coefficients(c).map_err(|why| Error::format(path, why))?;
-    }
-    Ok(cam)
-}
-
 /// Opens the sequence in `root`: detects the layout ([`Layout`]), lists and associates the
 /// frames, attaches ground truth (`opts.gt_path` > the layout's trajectory file or pose
 /// files) and settles intrinsics (override > `camera.json` > the dataset's intrinsics file
 /// or the layout's published values; plain TUM has none) and depth scale (override >
 /// `camera.json` > the layout's > 5000). Every listed image file must exist; images are
 /// only decoded by [`Sequence::load`].
+/// A recording (ROS 1 `.bag`, ROS 2 bag folder, `.mcap` file) is read from its messages.
 pub fn open(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
+    #[cfg(not(target_arch = "wasm32"))]
+    if let Some(layout) = bag::recording_layout(root) {
+        checks::max_time_diff(opts)?;
+        return bag::open(root, layout, opts);
+    }
     open_here(root, opts)
 }
 
@@ -321,15 +294,10 @@ pub fn open_with(
 
 /// [`open`] over the current source ([`source::current`]).
 fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
-    if !(opts.max_time_diff.is_finite() && opts.max_time_diff >= 0.0) {
-        return Err(Error::Argument(format!(
-            "max time difference must be finite and >= 0, got {}",
-            opts.max_time_diff
-        )));
-    }
+    checks::max_time_diff(opts)?;
     let layout = detect::detect(root)?;
     checks::stamp_order_applies(root, layout, opts)?;
-    let camera = read_camera_json(&root.join("camera.json"))?;
+    let camera = camera_json::read(&root.join("camera.json"))?;
     let listing = match layout {
         Layout::Tum | Layout::IclNuim | Layout::Eth3d | Layout::Bonn => {
             stamped::listing(root, layout, opts)?
@@ -337,6 +305,9 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         Layout::SevenScenes => seven_scenes::list(root)?,
         Layout::ScanNet => scannet::list(root)?,
         Layout::Replica => replica::list(root)?,
+        Layout::Ros1Bag | Layout::Ros2Bag | Layout::Mcap => {
+            unreachable!("detect() returns folder layouts only")
+        }
     };
 
     let intrinsics = match (opts.intrinsics, &camera, listing.intrinsics) {
@@ -389,40 +360,18 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         }
     }
 
-    let mut frames = listing.frames;
+    let frames = listing.frames;
     checks::stamps_distinct(root, &frames)?;
     let mut notes = listing.notes;
     if let Some(d) = &distortion {
-        let [k1, k2, p1, p2, k3] = d.coefficients();
-        notes.push(format!(
-            "lens distortion k1 {k1}, k2 {k2}, p1 {p1}, p2 {p2}, k3 {k3} (from {source}) is \
-             removed from every frame as it is decoded: the frames are the pinhole camera's",
-            source = if opts.intrinsics.is_some() {
-                "--camera"
-            } else {
-                source.as_str()
-            }
-        ));
+        let from = if opts.intrinsics.is_some() {
+            "--camera"
+        } else {
+            source.as_str()
+        };
+        notes.push(camera_json::lens_note(d, from));
     }
-    if let Some(path) = opts.gt_path.as_ref().or(listing.gt_file.as_ref()) {
-        let text = source::read_string(path, crate::io::input::InputKind::List)?;
-        let mut gt = parse_tum(path, &text)?;
-        gt.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
-        notes.extend(checks::repeated_stamps_note(path, &gt_stamps));
-        for f in &mut frames {
-            f.gt_cam_to_world =
-                tum::nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
-        }
-        notes.extend(checks::coverage_note(
-            path,
-            &gt_stamps,
-            &frames,
-            opts.max_time_diff,
-        ));
-    }
-
-    Ok(Sequence {
+    let mut seq = Sequence {
         root: root.to_path_buf(),
         layout,
         intrinsics,
@@ -434,7 +383,13 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         },
         notes,
         files: None,
-    })
+    };
+    tum::attach_ground_truth(
+        &mut seq,
+        opts.gt_path.as_ref().or(listing.gt_file.as_ref()),
+        opts,
+    )?;
+    Ok(seq)
 }
 
 impl Sequence {
@@ -472,7 +427,8 @@ impl Sequence {
 
     /// Decodes frame `i` (position in [`Sequence::frames`]); checks pixel formats, that
     /// colour and depth have the same size (or resamples colour through the colour camera's
-    /// intrinsics, [`FrameConventions`]), and that the size matches the intrinsics.
+    /// intrinsics, [`FrameConventions`]), and that the size matches the intrinsics; removes
+    /// the lens's distortion, if any ([`FrameConventions::distortion`]).
     pub fn load(&self, i: usize) -> Result<RawFrame> {
         let f = self.frames.get(i).ok_or_else(|| {
             Error::Argument(format!(
@@ -488,10 +444,17 @@ impl Sequence {
                 &self.conventions,
             )
         };
-        match &self.files {
-            Some(files) => source::with_source(&files.0, load),
+        let frame = match &self.files {
+            Some(files) => match files.0.frame(&f.rgb_path, &f.depth_path, &self.intrinsics) {
+                Some(frame) => frame,
+                None => source::with_source(&files.0, load),
+            },
             None => load(),
-        }
+        }?;
+        Ok(match &self.conventions.distortion {
+            Some(lens) => undistort::undistort(&frame, &self.intrinsics, lens),
+            None => frame,
+        })
     }
 
     /// A long sequence that revisits frames `first..=last`: forwards, backwards, forwards

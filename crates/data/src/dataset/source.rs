@@ -46,6 +46,19 @@ pub trait DatasetFiles: Debug + Send + Sync {
     fn list(&self, dir: &Path) -> std::io::Result<Vec<PathBuf>>;
     /// The whole of regular file `path`, within `kind`'s cap ([`InputKind::max_bytes`]).
     fn read(&self, path: &Path, kind: InputKind) -> Result<Vec<u8>>;
+    /// The frame whose colour and depth are `rgb` and `depth`, for a source that decodes
+    /// frames itself (a recording's messages, `bag.rs`) instead of from image files;
+    /// `None` (the default) for a source of files. `depth_k`: the depth images'
+    /// intrinsics, whose size the frame must have.
+    fn frame(
+        &self,
+        rgb: &Path,
+        depth: &Path,
+        depth_k: &crate::geometry::camera::Intrinsics,
+    ) -> Option<Result<super::RawFrame>> {
+        let _ = (rgb, depth, depth_k);
+        None
+    }
 }
 
 /// The local file system, read with the bounds of [`crate::io::input`].

@@ -98,6 +98,36 @@ pub fn nearest_within(sorted: &[f64], t: f64, max_dt: f64) -> Option<usize> {
     best.map(|(j, _)| j)
 }
 
+/// Gives each frame of `seq` the pose of the nearest stamp of the TUM trajectory `path`
+/// within the window, with notes on repeated stamps and on frames without one.
+pub(crate) fn attach_ground_truth(
+    seq: &mut super::Sequence,
+    path: Option<&std::path::PathBuf>,
+    opts: &super::SequenceOptions,
+) -> Result<()> {
+    let Some(path) = path else {
+        return Ok(());
+    };
+    let frames = &mut seq.frames;
+    let notes = &mut seq.notes;
+    let text = super::source::read_string(path, crate::io::input::InputKind::List)?;
+    let mut gt = crate::io::trajectory::parse_tum(path, &text)?;
+    gt.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let gt_stamps: Vec<f64> = gt.iter().map(|g| g.0).collect();
+    notes.extend(super::checks::repeated_stamps_note(path, &gt_stamps));
+    for f in frames.iter_mut() {
+        f.gt_cam_to_world =
+            nearest_within(&gt_stamps, f.timestamp, opts.max_time_diff).map(|k| gt[k].1);
+    }
+    notes.extend(super::checks::coverage_note(
+        path,
+        &gt_stamps,
+        frames,
+        opts.max_time_diff,
+    ));
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -87,6 +87,10 @@ pub enum InputKind {
     Image,
     /// A point cloud or a log (PLY, PCD, XYZ, a run log): up to [`max_input_bytes`].
     Cloud,
+    /// A recording (ROS bag, MCAP file): streamed a message at a time, never read whole,
+    /// so its size is not capped; each message is capped at [`MAX_IMAGE_BYTES`]
+    /// (`dataset/bag`).
+    Recording,
 }
 
 /// Cap of an [`InputKind::Matrix`] file, bytes: 16 numbers of 24 characters with
@@ -114,6 +118,7 @@ impl InputKind {
             InputKind::List => MAX_LIST_BYTES,
             InputKind::Image => MAX_IMAGE_BYTES,
             InputKind::Cloud => u64::MAX,
+            InputKind::Recording => return Ok(u64::MAX),
         };
         Ok(own.min(max_input_bytes()?))
     }
@@ -127,6 +132,7 @@ impl InputKind {
             InputKind::List => "a frame list or trajectory",
             InputKind::Image => "an image",
             InputKind::Cloud => "an input file",
+            InputKind::Recording => "a recording",
         }
     }
 }
