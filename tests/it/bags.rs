@@ -271,6 +271,27 @@ const OTHER_LENS: (&str, &[f64]) = (
 /// A `plumb_bob` lens, removed as the frames are decoded.
 const PLUMB_BOB_LENS: [f64; 5] = [0.1, -0.05, 0.001, 0.0, 0.0];
 
+/// `wgslam run INPUT --backend cpu --frames 1..2 --out OUT [--gt GT]`, which must succeed;
+/// what it printed.
+fn run_frames_1_to_2(input: &Path, out: &Path, gt: Option<&Path>) -> String {
+    let mut args: Vec<&std::ffi::OsStr> = ["run"].map(std::ffi::OsStr::new).to_vec();
+    args.push(input.as_os_str());
+    args.extend(["--backend", "cpu", "--frames", "1..2", "--out"].map(std::ffi::OsStr::new));
+    args.push(out.as_os_str());
+    if let Some(gt) = gt {
+        args.extend([std::ffi::OsStr::new("--gt"), gt.as_os_str()]);
+    }
+    let o = wgslam(&args);
+    assert!(o.status.success(), "{}", text(&o));
+    text(&o)
+}
+
+/// The runs written into `a` and `b` have the same `trajectory.tum`, byte for byte.
+fn assert_same_trajectory(a: &Path, b: &Path) {
+    let traj = |dir: &Path| std::fs::read(dir.join("trajectory.tum")).unwrap();
+    assert_eq!(traj(a), traj(b), "{} and {}", a.display(), b.display());
+}
+
 /// `wgslam run` reads an `.mcap` as it reads a folder: the same trajectory.tum, byte for
 /// byte, and the topics named; a lens of another model than `plumb_bob` is named as
 /// ignored.
@@ -282,23 +303,12 @@ fn run_on_an_mcap_writes_the_folders_trajectory() {
         ..McapOptions::default()
     };
     write_mcap(&path, &bundled(), &[0, 1, 2], &o);
-    let s = |p: &Path| p.to_str().unwrap().to_string();
-    let gt = s(&common::bundled_icl().join("livingRoom2.gt.freiburg"));
-    let run = |input: String, out: &Path, extra: &[&str]| {
-        let mut args = vec!["run".to_string(), input, "--backend".into(), "cpu".into()];
-        args.extend(["--frames", "1..2", "--out"].map(String::from));
-        args.push(s(out));
-        args.extend(extra.iter().map(|a| a.to_string()));
-        let o = wgslam(&args);
-        assert!(o.status.success(), "{}", text(&o));
-        text(&o)
-    };
-    let said = run(s(&path), &d.join("bag"), &["--gt", &gt]);
+    let gt = common::bundled_icl().join("livingRoom2.gt.freiburg");
+    let said = run_frames_1_to_2(&path, &d.join("bag"), Some(&gt));
     assert!(said.contains("/camera/depth/image_raw"), "{said}");
     assert!(said.contains("ignored"), "{said}");
-    run(s(&common::bundled_icl()), &d.join("folder"), &[]);
-    let traj = |dir: &str| std::fs::read(d.join(dir).join("trajectory.tum")).unwrap();
-    assert_eq!(traj("bag"), traj("folder"));
+    run_frames_1_to_2(&common::bundled_icl(), &d.join("folder"), None);
+    assert_same_trajectory(&d.join("bag"), &d.join("folder"));
 }
 
 /// A `plumb_bob` lens in the camera info is removed as the frames are decoded, as the same
@@ -339,35 +349,18 @@ fn a_plumb_bob_lens_is_removed_as_camera_json_s() {
         "0 depth/0.png 0 rgb/0.png\n1 depth/1.png 1 rgb/1.png\n2 depth/2.png 2 rgb/2.png\n",
     )
     .unwrap();
-    let s = |p: &Path| p.to_str().unwrap().to_string();
-    let gt = s(&src.join("livingRoom2.gt.freiburg"));
-    let run = |input: String, out: &Path| {
-        let args = [
-            input,
-            "--backend".into(),
-            "cpu".into(),
-            "--frames".into(),
-            "1..2".into(),
-        ];
-        let mut all = vec!["run".to_string()];
-        all.extend(args);
-        all.extend(["--gt".to_string(), gt.clone(), "--out".into(), s(out)]);
-        let o = wgslam(&all);
-        assert!(o.status.success(), "{}", text(&o));
-        text(&o)
-    };
-    let said = run(s(&path), &d.join("bag-out"));
+    let gt = src.join("livingRoom2.gt.freiburg");
+    let said = run_frames_1_to_2(&path, &d.join("bag-out"), Some(&gt));
     assert!(
         said.contains("lens distortion k1 0.1") && said.contains("camera info"),
         "{said}"
     );
-    let said = run(s(&folder), &d.join("folder-out"));
+    let said = run_frames_1_to_2(&folder, &d.join("folder-out"), Some(&gt));
     assert!(
         said.contains("lens distortion k1 0.1") && said.contains("camera.json"),
         "{said}"
     );
-    let traj = |dir: &str| std::fs::read(d.join(dir).join("trajectory.tum")).unwrap();
-    assert_eq!(traj("bag-out"), traj("folder-out"));
+    assert_same_trajectory(&d.join("bag-out"), &d.join("folder-out"));
 }
 
 /// Two depth topics: the error lists the image topics with type, encoding and count and

@@ -15,14 +15,14 @@ use crate::{Error, Result};
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct CameraJson {
-    pub width: u32,
-    pub height: u32,
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    pub depth_scale: Option<f32>,
-    pub distortion: Option<[f64; 5]>,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) fx: f32,
+    pub(crate) fy: f32,
+    pub(crate) cx: f32,
+    pub(crate) cy: f32,
+    pub(crate) depth_scale: Option<f32>,
+    pub(crate) distortion: Option<[f64; 5]>,
 }
 
 pub(crate) fn read(path: &Path) -> Result<Option<CameraJson>> {

@@ -189,20 +189,27 @@ pub fn resample_color(rgb: &[[u8; 3]], color_k: &Intrinsics, depth_k: &Intrinsic
                 out.push([0; 3]);
                 continue;
             }
-            let (u0, v0) = (uc.floor() as usize, vc.floor() as usize);
-            let (u1, v1) = ((u0 + 1).min(cw - 1), (v0 + 1).min(ch - 1));
-            let (a, b) = (uc - u0 as f32, vc - v0 as f32);
-            let px = |uu: usize, vv: usize| rgb[vv * cw + uu];
-            let mut c = [0u8; 3];
-            for (k, ck) in c.iter_mut().enumerate() {
-                let top = (1.0 - a) * px(u0, v0)[k] as f32 + a * px(u1, v0)[k] as f32;
-                let bottom = (1.0 - a) * px(u0, v1)[k] as f32 + a * px(u1, v1)[k] as f32;
-                *ck = ((1.0 - b) * top + b * bottom).round() as u8;
-            }
-            out.push(c);
+            out.push(bilinear(rgb, cw, ch, uc, vc));
         }
     }
     out
+}
+
+/// The colour at `(u, v)` (within half a pixel of the `w` x `h` image's pixel centres;
+/// clamped onto them) interpolated from its four pixels.
+pub(crate) fn bilinear(rgb: &[[u8; 3]], w: usize, h: usize, u: f32, v: f32) -> [u8; 3] {
+    let (u, v) = (u.clamp(0.0, (w - 1) as f32), v.clamp(0.0, (h - 1) as f32));
+    let (u0, v0) = (u.floor() as usize, v.floor() as usize);
+    let (u1, v1) = ((u0 + 1).min(w - 1), (v0 + 1).min(h - 1));
+    let (a, b) = (u - u0 as f32, v - v0 as f32);
+    let px = |uu: usize, vv: usize| rgb[vv * w + uu];
+    let mut c = [0u8; 3];
+    for (i, ci) in c.iter_mut().enumerate() {
+        let top = (1.0 - a) * px(u0, v0)[i] as f32 + a * px(u1, v0)[i] as f32;
+        let bottom = (1.0 - a) * px(u0, v1)[i] as f32 + a * px(u1, v1)[i] as f32;
+        *ci = ((1.0 - b) * top + b * bottom).round() as u8;
+    }
+    c
 }
 
 /// Decodes both images of a frame and checks their sizes against each other and against

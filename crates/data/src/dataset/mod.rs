@@ -371,19 +371,12 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
         };
         notes.push(camera_json::lens_note(d, from));
     }
-    let mut seq = Sequence {
-        root: root.to_path_buf(),
-        layout,
-        intrinsics,
-        depth_scale,
-        frames,
-        conventions: FrameConventions {
-            distortion,
-            ..listing.conventions
-        },
-        notes,
-        files: None,
+    let conventions = FrameConventions {
+        distortion,
+        ..listing.conventions
     };
+    let camera = (intrinsics, depth_scale, conventions);
+    let mut seq = Sequence::opened(root, layout, camera, frames, notes);
     tum::attach_ground_truth(
         &mut seq,
         opts.gt_path.as_ref().or(listing.gt_file.as_ref()),
@@ -393,6 +386,28 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
 }
 
 impl Sequence {
+    /// A sequence opened from a folder or a recording (its file source, if not the disk,
+    /// set after): where, its layout, its camera (intrinsics, depth scale, how frames are
+    /// decoded), its frames and its notes.
+    pub(crate) fn opened(
+        root: &Path,
+        layout: Layout,
+        (intrinsics, depth_scale, conventions): (Intrinsics, f32, FrameConventions),
+        frames: Vec<FrameRecord>,
+        notes: Vec<String>,
+    ) -> Sequence {
+        Sequence {
+            root: root.to_path_buf(),
+            layout,
+            intrinsics,
+            depth_scale,
+            frames,
+            conventions,
+            notes,
+            files: None,
+        }
+    }
+
     /// Number of associated frames.
     pub fn len(&self) -> usize {
         self.frames.len()

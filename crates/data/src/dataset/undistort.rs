@@ -13,6 +13,7 @@
 
 use std::sync::{Arc, Mutex};
 
+use super::frame::bilinear;
 use super::RawFrame;
 use crate::geometry::camera::{Distortion, Intrinsics};
 
@@ -83,23 +84,6 @@ pub(crate) fn undistort(frame: &RawFrame, k: &Intrinsics, lens: &Distortion) -> 
         depth,
         rgb,
     }
-}
-
-/// The colour at `(u, v)` (within half a pixel of the `w` x `h` image's pixel centres;
-/// clamped onto them) interpolated from its four pixels.
-fn bilinear(rgb: &[[u8; 3]], w: usize, h: usize, u: f32, v: f32) -> [u8; 3] {
-    let (u, v) = (u.clamp(0.0, (w - 1) as f32), v.clamp(0.0, (h - 1) as f32));
-    let (u0, v0) = (u.floor() as usize, v.floor() as usize);
-    let (u1, v1) = ((u0 + 1).min(w - 1), (v0 + 1).min(h - 1));
-    let (a, b) = (u - u0 as f32, v - v0 as f32);
-    let px = |uu: usize, vv: usize| rgb[vv * w + uu];
-    let mut c = [0u8; 3];
-    for (i, ci) in c.iter_mut().enumerate() {
-        let top = (1.0 - a) * px(u0, v0)[i] as f32 + a * px(u1, v0)[i] as f32;
-        let bottom = (1.0 - a) * px(u0, v1)[i] as f32 + a * px(u1, v1)[i] as f32;
-        *ci = ((1.0 - b) * top + b * bottom).round() as u8;
-    }
-    c
 }
 
 #[cfg(test)]

@@ -113,13 +113,7 @@ impl Recording for Db3 {
     }
 
     fn message(&self, topic: &str, ordinal: usize) -> Result<Vec<u8>> {
-        let id = self
-            .rows
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(topic)
-            .and_then(|ids| ids.get(ordinal).copied())
-            .ok_or_else(|| Error::format(&self.path, format!("no message {ordinal} of {topic}")))?;
+        let id = super::nth_message(&self.rows, topic, ordinal, &self.path)?;
         let conn = self.conn.lock().unwrap_or_else(|e| e.into_inner());
         conn.query_row("SELECT data FROM messages WHERE id = ?1", [id], |r| {
             r.get(0)

@@ -163,19 +163,12 @@ pub(crate) fn open(root: &Path, layout: Layout, opts: &SequenceOptions) -> Resul
         ));
     }
     super::checks::stamps_distinct(root, &frames)?;
-    let mut seq = Sequence {
-        root: root.to_path_buf(),
-        layout,
-        intrinsics,
-        depth_scale,
-        frames,
-        conventions: FrameConventions {
-            distortion,
-            ..FrameConventions::default()
-        },
-        notes,
-        files: None,
+    let conventions = FrameConventions {
+        distortion,
+        ..FrameConventions::default()
     };
+    let camera = (intrinsics, depth_scale, conventions);
+    let mut seq = Sequence::opened(root, layout, camera, frames, notes);
     let source = BagFrames {
         recording,
         depth_topic: choice.depth.topic.clone(),
@@ -319,4 +312,21 @@ impl DatasetFiles for BagFrames {
     fn frame(&self, rgb: &Path, depth: &Path, depth_k: &Intrinsics) -> Option<Result<RawFrame>> {
         Some(self.decode(rgb, depth, depth_k))
     }
+}
+
+/// Where the `ordinal`-th message of `topic` is, from a recording's per-topic index (a
+/// `.db3`'s row ids, a ROS 1 bag's chunk places); an error naming the recording at `path`
+/// when it has no such message.
+fn nth_message<T: Copy>(
+    index: &std::sync::Mutex<std::collections::HashMap<String, Vec<T>>>,
+    topic: &str,
+    ordinal: usize,
+    path: &Path,
+) -> Result<T> {
+    index
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .get(topic)
+        .and_then(|at| at.get(ordinal).copied())
+        .ok_or_else(|| Error::format(path, format!("no message {ordinal} of {topic}")))
 }

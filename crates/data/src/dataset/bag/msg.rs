@@ -122,24 +122,27 @@ impl<'a> Reader<'a> {
         Ok(self.take(1)?[0])
     }
 
-    fn u32(&mut self) -> Result<u32, Why> {
-        self.align(4)?;
-        let b: [u8; 4] = self.take(4)?.try_into().expect("4 bytes");
+    /// A number of `N` bytes, aligned to `N`, in the message's byte order.
+    fn number<const N: usize, T>(
+        &mut self,
+        from_le: fn([u8; N]) -> T,
+        from_be: fn([u8; N]) -> T,
+    ) -> Result<T, Why> {
+        self.align(N)?;
+        let b: [u8; N] = self.take(N)?.try_into().expect("N bytes");
         Ok(if self.big_endian {
-            u32::from_be_bytes(b)
+            from_be(b)
         } else {
-            u32::from_le_bytes(b)
+            from_le(b)
         })
     }
 
+    fn u32(&mut self) -> Result<u32, Why> {
+        self.number(u32::from_le_bytes, u32::from_be_bytes)
+    }
+
     fn f64(&mut self) -> Result<f64, Why> {
-        self.align(8)?;
-        let b: [u8; 8] = self.take(8)?.try_into().expect("8 bytes");
-        Ok(if self.big_endian {
-            f64::from_be_bytes(b)
-        } else {
-            f64::from_le_bytes(b)
-        })
+        self.number(f64::from_le_bytes, f64::from_be_bytes)
     }
 
     /// A length-prefixed byte array (`uint8[]`), borrowed.

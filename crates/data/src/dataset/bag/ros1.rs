@@ -178,13 +178,7 @@ impl Recording for Ros1 {
     }
 
     fn message(&self, topic: &str, ordinal: usize) -> Result<Vec<u8>> {
-        let (pos, index) = self
-            .places
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(topic)
-            .and_then(|p| p.get(ordinal).copied())
-            .ok_or_else(|| Error::format(&self.path, format!("no message {ordinal} of {topic}")))?;
+        let (pos, index) = super::nth_message(&self.places, topic, ordinal, &self.path)?;
         let mut out = None;
         self.chunk(pos, &mut |i, record| {
             if i == index {
