@@ -364,11 +364,7 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
     checks::stamps_distinct(root, &frames)?;
     let mut notes = listing.notes;
     if let Some(d) = &distortion {
-        let from = if opts.intrinsics.is_some() {
-            "--camera"
-        } else {
-            source.as_str()
-        };
+        let from = opts.intrinsics.map_or(source.as_str(), |_| "--camera");
         notes.push(camera_json::lens_note(d, from));
     }
     let conventions = FrameConventions {
@@ -386,9 +382,8 @@ fn open_here(root: &Path, opts: &SequenceOptions) -> Result<Sequence> {
 }
 
 impl Sequence {
-    /// A sequence opened from a folder or a recording (its file source, if not the disk,
-    /// set after): where, its layout, its camera (intrinsics, depth scale, how frames are
-    /// decoded), its frames and its notes.
+    /// A sequence opened from a folder or a recording (a file source other than the disk is
+    /// set after); its camera: intrinsics, depth scale and how its frames are decoded.
     pub(crate) fn opened(
         root: &Path,
         layout: Layout,
