@@ -326,7 +326,8 @@ fn camera_of(
         ));
     }
     let lens = match info.distortion_model.as_str() {
-        "" | "none" if info.d.iter().all(|&d| d == 0.0) => None,
+        // No coefficients, or all zero, is a pinhole camera whatever the model says.
+        _ if info.d.iter().all(|&d| d == 0.0) => None,
         "plumb_bob" | "" if info.d.len() == 5 => {
             let c = [info.d[0], info.d[1], info.d[2], info.d[3], info.d[4]];
             Distortion::from_coefficients(c).map_err(|why| {
