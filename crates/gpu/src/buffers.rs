@@ -262,8 +262,22 @@ pub(crate) fn map_read<R>(
     f: impl FnOnce(&[u8]) -> R,
 ) -> Result<R> {
     let (mapped, when_mapped) = super::wait::callback();
-    staging.map_async(wgpu::MapMode::Read, .., mapped);
+    let fired = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let seen = fired.clone();
+    staging.map_async(wgpu::MapMode::Read, .., move |result| {
+        seen.store(true, std::sync::atomic::Ordering::SeqCst);
+        mapped(result)
+    });
     ctx.wait_idle()?;
+    // Natively the map is settled now: `wait_idle` waited for this context's submission
+    // or, with nothing submitted since its last wait, polled once. Should that poll not
+    // have run the callback, wait for the whole queue rather than block on it for ever.
+    #[cfg(not(target_arch = "wasm32"))]
+    if !fired.load(std::sync::atomic::Ordering::SeqCst) {
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for a read-back: {e}")))?;
+    }
     // Natively the wait above ran the callback; in a browser it may still be queued.
     if let Err(e) = super::wait::block_on(when_mapped) {
         return Err(Error::Gpu(format!("mapping a read-back buffer: {e}")));
