@@ -23,7 +23,7 @@ use wgslam::cli::embed;
 use wgslam::dataset::{RawFrame, Sequence};
 use wgslam::io::outputs::OutputSet;
 use wgslam::layout::map::SurfelMap;
-use wgslam::slam::params::PoseSource;
+use wgslam::slam::params::{resolution, PoseSource};
 use wgslam::tools::run::{self as run_job, Decode, FrameObserver, FrameOutcome, RunResult};
 use wgslam::BackendChoice;
 
@@ -269,15 +269,22 @@ fn run(
     };
     let result = py.detach(|| {
         let backend = wgslam::open_backend(choice)?;
-        run_job::run_observed(
+        let (params, downsample_from) = resolution::for_backends(
+            setup.params.clone(),
+            setup.sets_downsample,
+            &[backend.name()],
+        )?;
+        let mut result = run_job::run_observed(
             backend,
             &setup.sequence,
             setup.frames.clone(),
-            setup.params.clone(),
+            params,
             Decode::ahead_on_every_core(),
             |_| {},
             Some(&mut observer),
-        )
+        )?;
+        result.metrics.downsample_from = Some(downsample_from);
+        Ok::<_, wgslam::Error>(result)
     });
     match (result, observer.raised) {
         (Ok(result), _) => Ok(Run {

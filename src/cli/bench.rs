@@ -56,7 +56,7 @@ pub struct BenchArgs {
 
 /// Runs `wgslam bench`.
 pub fn execute(a: BenchArgs) -> Result<()> {
-    let setup = a.pipeline.resolve()?;
+    let setup = with_backends_downsample(a.pipeline.resolve()?, &a);
     // Bad parameters fail here, before any child starts (each child validates its own).
     let params = setup.slam_params(PoseSource::Track)?;
     setup.set.sequence_options(&params)?;
@@ -112,6 +112,33 @@ pub fn execute(a: BenchArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// `setup` with the downsampling its backends run when it sets none (one for all of
+/// them, handed to every child: `crate::slam::params::resolution`): the full frames when
+/// only the GPU is timed, every second pixel when the CPU reference is (the default
+/// `--backends cpu,gpu`, `--interleaved`).
+fn with_backends_downsample(mut setup: Setup, a: &BenchArgs) -> Setup {
+    if setup.set.sets_downsample() {
+        return setup;
+    }
+    let names: Vec<&str> = match a.interleaved {
+        true => vec!["cpu", "gpu"],
+        false => a
+            .backends
+            .iter()
+            .map(|b| match b {
+                BackendChoice::Cpu => "cpu",
+                BackendChoice::Gpu | BackendChoice::Auto => "gpu",
+            })
+            .collect(),
+    };
+    let (downsample, from) = crate::slam::params::resolution::default_downsample(&names);
+    if let Some(why) = from.describe() {
+        eprintln!("bench: --downsample {downsample} ({why})");
+    }
+    setup.set.downsample = Some(downsample);
+    setup
 }
 
 /// A child's arguments with `--frames` when this invocation has it; without it the

@@ -117,6 +117,9 @@ pub struct RunSetup {
     pub frames: RangeInclusive<usize>,
     /// The validated parameters.
     pub params: ValidParams,
+    /// Whether the parameters set `input.downsample`; unset, the backend that runs them
+    /// chooses it (`crate::slam::params::resolution::for_backends`).
+    pub sets_downsample: bool,
 }
 
 /// The sequence and overrides of `wgslam run DATASET --params FILE`.
@@ -162,6 +165,7 @@ pub fn resolve_run(
         sequence,
         frames,
         params,
+        sets_downsample: setup.set.sets_downsample(),
     })
 }
 

@@ -162,7 +162,8 @@ param_overrides! {
     /// the default, or the course assignment's exact algorithm.
     #[arg(long, value_enum)]
     profile: Option<Profile>,
-    /// Keep every N-th pixel in each direction (default 2).
+    /// Keep every N-th pixel in each direction (default: 1 on the GPU backend, 2 where the
+    /// CPU reference runs).
     #[arg(long)]
     downsample: Option<u32> => "input.downsample",
     /// ICP correspondence distance threshold, metres (assignment 0.07, robust 0.10).
@@ -330,6 +331,15 @@ impl ParamOverrides {
             .filter_map(|o| Some((o.key?.to_string(), o.value?)))
             .filter(|(key, _)| self.bilateral || !key.starts_with("bilateral."));
         self.section_keys.iter().cloned().chain(options).collect()
+    }
+
+    /// Whether `input.downsample` is set (`--downsample`, a file's `downsample` or
+    /// `[input] downsample`); unset, the run's backends choose it
+    /// ([`crate::slam::params::resolution`]).
+    pub fn sets_downsample(&self) -> bool {
+        self.keys_set()
+            .iter()
+            .any(|(key, _)| key == "input.downsample")
     }
 
     /// The pipeline's parameters: the profile's (robust without `profile`) with each set

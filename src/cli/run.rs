@@ -11,7 +11,7 @@ use crate::dataset;
 use crate::io::outputs::OutputSet;
 use crate::layout::map::SurfelMap;
 use crate::slam::any_backend::{self, BackendChoice};
-use crate::slam::params::PoseSource;
+use crate::slam::params::{resolution, PoseSource};
 use crate::tools::run;
 use crate::{Error, Result};
 
@@ -258,6 +258,9 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         Some(b) => b,
         None => any_backend::open(a.backend)?,
     };
+    let sets_downsample = setup.set.sets_downsample();
+    let (params, downsample_from) =
+        resolution::for_backends(params, sets_downsample, &[backend.name()])?;
     let mut result = run::run_observed(
         backend,
         &seq,
@@ -272,6 +275,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         }),
     )?;
     bar.finish_and_clear();
+    result.metrics.downsample_from = Some(downsample_from);
     if hooks.is_some() {
         result.metrics.peak_memory_mib = None;
     }

@@ -30,6 +30,7 @@ mod loop_closure;
 mod mesh;
 mod portable;
 mod render;
+mod resolution;
 mod rgbd;
 mod round_trips;
 // `wgslam run --rerun` (cargo feature `rerun`): `cargo test --features rerun --test it rerun`.
@@ -81,6 +82,7 @@ fn main() -> ExitCode {
         mesh,
         portable,
         render,
+        resolution,
         rgbd,
         round_trips,
         scan_gpu,

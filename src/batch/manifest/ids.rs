@@ -37,7 +37,7 @@ pub(super) fn generated_id(
         parts.push(format!("f{}", c.frames.as_deref().unwrap_or("all")));
     }
     if has("downsample") {
-        parts.push(format!("ds{}", c.downsample));
+        parts.push(format!("ds{}", c.downsample.unwrap_or_default()));
     }
     if has("profile") {
         parts.push(c.profile.clone());

@@ -5,7 +5,7 @@
 //! concurrent = 4                  # jobs at once in one process (`batch --concurrent` wins)
 //! [defaults]                      # every job's values unless the job sets its own
 //! frames = "1..60"                # as `wgslam run --frames` (absent: the run's default)
-//! downsample = 2
+//! downsample = 2                  # absent: 1 for a GPU-only job, 2 where the CPU runs
 //! profile = "robust"              # robust | assignment
 //! backend = "both"                # cpu | gpu | both (both adds the GPU-vs-CPU comparison)
 //! [defaults.overrides]            # parameters: the keys of a `--params` file (docs/params-file.md)
@@ -50,7 +50,8 @@ pub struct JobSpec {
     pub sequence: PathBuf,
     /// `--frames` value, or `None` for the run's default range.
     pub frames: Option<String>,
-    /// `--downsample` value.
+    /// `--downsample` value: the manifest's, or where it sets none the default of the
+    /// job's backends (`crate::slam::params::resolution`: 1 for the GPU alone, else 2).
     pub downsample: u32,
     /// `--profile` value: `robust` or `assignment`.
     pub profile: String,
@@ -84,8 +85,8 @@ pub const BACKENDS: [&str; 2] = ["cpu", "gpu"];
 const PROFILES: [&str; 2] = ["robust", "assignment"];
 
 /// Defaults of values neither the job nor `[defaults]` sets (those of `wgslam run`,
-/// but for the backend: a batch checks the GPU against the CPU unless told otherwise).
-const DEFAULT_DOWNSAMPLE: u32 = 2;
+/// but for the backend: a batch checks the GPU against the CPU unless told otherwise;
+/// the downsampling's is its backends', at `resolve`).
 const DEFAULT_PROFILE: &str = "robust";
 const DEFAULT_BACKEND: &str = "both";
 
@@ -172,7 +173,7 @@ impl Fields {
 struct Combination {
     sequence: Option<PathBuf>,
     frames: Option<String>,
-    downsample: u32,
+    downsample: Option<u32>,
     profile: String,
     backend: String,
     overrides: BTreeMap<String, toml::Value>,
@@ -220,7 +221,7 @@ impl Manifest {
         let base = Combination {
             sequence: None,
             frames: None,
-            downsample: DEFAULT_DOWNSAMPLE,
+            downsample: None,
             profile: DEFAULT_PROFILE.into(),
             backend: DEFAULT_BACKEND.into(),
             overrides: BTreeMap::new(),
@@ -318,7 +319,7 @@ fn expand(base: &Combination, t: &Fields) -> Vec<Combination> {
     let mut out = vec![base.clone()];
     out = axis(out, t.sequence.as_ref(), |c, v| c.sequence = Some(v));
     out = axis(out, t.frames.as_ref(), |c, v| c.frames = Some(v));
-    out = axis(out, t.downsample.as_ref(), |c, v| c.downsample = v);
+    out = axis(out, t.downsample.as_ref(), |c, v| c.downsample = Some(v));
     out = axis(out, t.profile.as_ref(), |c, v| c.profile = v);
     out = axis(out, t.backend.as_ref(), |c, v| c.backend = v);
     for (name, values) in &t.overrides {
@@ -474,7 +475,11 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
         b if BACKENDS.contains(&b) => vec![b.to_string()],
         b => return Err(bad(format!("backend {b:?}: want cpu, gpu or both"))),
     };
-    if c.downsample == 0 {
+    let names: Vec<&str> = backends.iter().map(String::as_str).collect();
+    let downsample = c
+        .downsample
+        .unwrap_or_else(|| crate::slam::params::resolution::default_downsample(&names).0);
+    if downsample == 0 {
         return Err(bad("downsample must be at least 1".into()));
     }
     if let Some(f) = &c.frames {
@@ -498,7 +503,7 @@ fn resolve(path: &Path, dir: &Path, id: &str, c: &Combination, origin: &str) -> 
         id: id.to_string(),
         sequence: lexically_normal(&dir.join(sequence)),
         frames: c.frames.clone(),
-        downsample: c.downsample,
+        downsample,
         profile: c.profile.clone(),
         backends,
         overrides,

@@ -6,6 +6,32 @@ fn parse(text: &str) -> Result<Manifest> {
     Manifest::parse(Path::new("/m/batch.toml"), text)
 }
 
+/// A job that sets no downsampling takes its backends' default: the full frames for the
+/// GPU alone, every second pixel wherever the CPU reference runs (both backends of a job
+/// run the same frames); a value the manifest sets wins.
+#[test]
+fn unset_downsampling_is_the_jobs_backends_default() {
+    let m = parse(
+        r#"
+        [[grid]]
+        sequence = "s"
+        backend = ["gpu", "cpu", "both"]
+        [[job]]
+        name = "set"
+        sequence = "s"
+        backend = "gpu"
+        downsample = 2
+        "#,
+    )
+    .unwrap();
+    let ds: Vec<(&str, u32)> = m
+        .jobs
+        .iter()
+        .map(|j| (j.id.as_str(), j.downsample))
+        .collect();
+    assert_eq!(ds, [("set", 2), ("s-gpu", 1), ("s-cpu", 2), ("s-both", 2)]);
+}
+
 #[test]
 fn grid_expands_in_index_order_with_ids_from_varying_values() {
     let m = parse(
@@ -51,7 +77,7 @@ fn grid_expands_in_index_order_with_ids_from_varying_values() {
     );
     assert_eq!(j.frames.as_deref(), Some("1..10"), "from [defaults]");
     assert_eq!(j.backends, ["cpu"]);
-    assert_eq!(j.downsample, DEFAULT_DOWNSAMPLE);
+    assert_eq!(j.downsample, 2, "the CPU reference's default");
     // The grid's overrides join the defaults', sorted by name.
     assert_eq!(
         j.overrides,

@@ -9,6 +9,7 @@
 
 pub mod defaults;
 pub mod keys;
+pub mod resolution;
 pub mod valid;
 pub mod validate;
 
@@ -200,7 +201,8 @@ pub struct RelocalisationSettings {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct InputSettings {
     /// Keep every N-th pixel in each direction, 1 to [`MAX_DOWNSAMPLE`] (`--downsample`;
-    /// both profiles 2).
+    /// both profiles 2; a command that the user gives none takes the backends' default,
+    /// [`resolution`]).
     pub downsample: u32,
     /// Raw depth units per metre, the value the run used. Set by key (`--depth-scale`, a
     /// file's `depth-scale` or `[input] depth_scale`, a manifest's override), it is the

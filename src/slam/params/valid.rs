@@ -94,6 +94,15 @@ impl ValidParams {
         self.0.input.depth_scale = depth_scale;
         Ok(self)
     }
+
+    /// The same parameters with `input.downsample` `downsample`, checked as
+    /// [`SlamParams::validate`] checks it (the same function); the rest is not checked
+    /// again.
+    pub fn with_downsample(mut self, downsample: u32) -> Result<ValidParams> {
+        super::validate::check_downsample(downsample)?;
+        self.0.input.downsample = downsample;
+        Ok(self)
+    }
 }
 
 impl Deref for ValidParams {

@@ -55,12 +55,7 @@ fn off_or_positive(v: f64) -> bool {
 
 /// The input section: the downsampling, the depth scale and the depth range.
 fn check_input(i: &InputSettings) -> Result<()> {
-    if i.downsample == 0 || i.downsample > MAX_DOWNSAMPLE {
-        return fail(format!(
-            "`input.downsample` {} must be between 1 and {MAX_DOWNSAMPLE}",
-            i.downsample
-        ));
-    }
+    check_downsample(i.downsample)?;
     check_depth_scale(i.depth_scale)?;
     if !(i.min_depth_m.is_finite()
         && i.min_depth_m >= 0.0
@@ -70,6 +65,17 @@ fn check_input(i: &InputSettings) -> Result<()> {
         return fail(format!(
             "`input.min_depth_m` {} and `input.max_depth_m` {} must be a range 0 <= min < max",
             i.min_depth_m, i.max_depth_m
+        ));
+    }
+    Ok(())
+}
+
+/// The downsampling (`input.downsample`): the one check of its range, also
+/// [`ValidParams::with_downsample`](super::ValidParams::with_downsample)'s.
+pub(super) fn check_downsample(downsample: u32) -> Result<()> {
+    if downsample == 0 || downsample > MAX_DOWNSAMPLE {
+        return fail(format!(
+            "`input.downsample` {downsample} must be between 1 and {MAX_DOWNSAMPLE}"
         ));
     }
     Ok(())

@@ -131,6 +131,11 @@ pub struct Metrics {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distortion: Option<crate::geometry::camera::Distortion>,
     pub params: SlamParams,
+    /// Where `params.input.downsample` came from: set by the user, or the default of the
+    /// backends that ran (`crate::slam::params::resolution`); absent where the caller
+    /// passed parameters of its own making (the library, the page).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub downsample_from: Option<crate::slam::params::resolution::DownsampleFrom>,
     pub time_per_frame_median_s: f64,
     pub time_per_frame_mean_s: f64,
     pub time_total_s: f64,
@@ -425,6 +430,7 @@ pub fn run_observed<B: Backend + Inspect>(
         height: k.height,
         intrinsics: seq.intrinsics,
         distortion: seq.conventions.distortion,
+        downsample_from: None,
         params: SlamParams::clone(&slam.params),
         time_per_frame_median_s: crate::stats::median(&times),
         time_per_frame_mean_s: total / frames.len().max(1) as f64,
@@ -451,14 +457,16 @@ pub fn run_observed<B: Backend + Inspect>(
 /// and RPE, peak memory), one line each; the browser page shows the same lines.
 pub fn summary_lines(m: &Metrics) -> Vec<String> {
     let mut lines = Vec::new();
+    let why = m.downsample_from.and_then(|f| f.describe());
     lines.push(format!(
-        "{} frames {}..{} on {} ({}x{}): {:.1} ms/frame median, {:.2} s total",
+        "{} frames {}..{} on {} ({}x{}{}): {:.1} ms/frame median, {:.2} s total",
         m.frames,
         m.first_frame,
         m.last_frame,
         m.backend,
         m.width,
         m.height,
+        why.map(|w| format!(", {w}")).unwrap_or_default(),
         m.time_per_frame_median_s * 1e3,
         m.time_total_s
     ));
