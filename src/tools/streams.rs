@@ -61,6 +61,9 @@ pub fn bench_streams(
     if streams == 0 {
         return Err(Error::Argument("--streams: want at least 1".into()));
     }
+    // Builds the kernels (cached per device) before any pass is timed, so the lone
+    // stream's wall time does not carry the pipelines' start-up that the others reuse.
+    drop(GpuBackend::new(ctx.share())?);
     let one = pass(ctx, seq, frames, params, 1)?;
     let many = pass(ctx, seq, frames, params, streams)?;
     let same = |r: &BenchResult| {

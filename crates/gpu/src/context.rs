@@ -9,7 +9,7 @@
 use std::sync::{Arc, Mutex};
 
 use super::pipeline_cache::{self, DiskCache};
-use super::shared_wait::QueueWaits;
+use super::shared_wait::Stream;
 use super::stats::{GpuStats, StatsSnapshot};
 use crate::{Error, Result};
 
@@ -168,10 +168,10 @@ pub struct GpuContext {
     /// Errors raised outside any error scope (wgpu's default handler would panic).
     uncaptured: Arc<Mutex<Vec<String>>>,
     /// The number of this context's latest submission not yet waited for
-    /// ([`QueueWaits::submit`]): [`GpuContext::wait_idle`] waits until it is done.
+    /// ([`super::shared_wait::QueueWaits::submit`]): [`GpuContext::wait_idle`] waits until it is done.
     last_submission: Mutex<Option<u64>>,
     /// Submissions and device waits of every context sharing the queue.
-    queue_waits: Arc<QueueWaits>,
+    queue_waits: Stream,
     /// Objects built once per device, by key ([`GpuContext::cached`]: the kernels); one map
     /// for every context sharing the device.
     cache: Arc<Mutex<DeviceCache>>,
@@ -306,7 +306,7 @@ impl GpuContext {
             lost,
             uncaptured,
             last_submission: Mutex::new(None),
-            queue_waits: Arc::default(),
+            queue_waits: Stream::default(),
             cache: Arc::default(),
             pipeline_cache,
         })
@@ -330,7 +330,7 @@ impl GpuContext {
             lost: Arc::clone(&self.lost),
             uncaptured: Arc::clone(&self.uncaptured),
             last_submission: Mutex::new(None),
-            queue_waits: Arc::clone(&self.queue_waits),
+            queue_waits: self.queue_waits.share(),
             cache: Arc::clone(&self.cache),
             deferred: Mutex::new(Vec::new()),
             pipeline_cache: self.pipeline_cache.clone(),

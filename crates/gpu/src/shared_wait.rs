@@ -14,7 +14,16 @@
 // A browser has one thread: it waits through `super::wait` and never shares a wait.
 #![cfg_attr(target_arch = "wasm32", allow(dead_code))]
 
-use std::sync::{Condvar, Mutex, MutexGuard};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::Duration;
+
+/// Longest a thread about to wait for the device first waits for the other streams that
+/// have submitted work to submit their next step and sleep (so that its one wait covers
+/// them too). Bounded, since a stream may be busy on the host (decoding a frame, say):
+/// while the host delays, the device runs the submitted work anyway, so a short delay
+/// rarely delays the result. A lone stream never delays.
+const GATHER: Duration = Duration::from_millis(1);
 
 /// The submissions and the device wait of every context sharing one queue.
 #[derive(Debug, Default)]
@@ -34,6 +43,53 @@ struct State {
     waiting_for: Option<u64>,
     /// The last device wait that failed: the number it waited for and wgpu's message.
     failed: Option<(u64, String)>,
+    /// Streams (contexts) that have submitted work and are not dropped.
+    streams: usize,
+    /// Threads sleeping until the device wait under way (or being gathered) ends.
+    sleeping: usize,
+}
+
+/// One context's handle on the [`QueueWaits`] of its queue: counted among the streams from
+/// its first submission until it is dropped.
+#[derive(Debug, Default)]
+pub(crate) struct Stream {
+    waits: Arc<QueueWaits>,
+    counted: AtomicBool,
+}
+
+impl Stream {
+    /// Another stream on the same queue.
+    pub(crate) fn share(&self) -> Stream {
+        Stream {
+            waits: Arc::clone(&self.waits),
+            counted: AtomicBool::new(false),
+        }
+    }
+
+    /// [`QueueWaits::submit`], counting this stream from its first submission.
+    pub(crate) fn submit(&self, queue: &wgpu::Queue, buffers: Vec<wgpu::CommandBuffer>) -> u64 {
+        if !self.counted.swap(true, Ordering::SeqCst) {
+            self.waits.lock().streams += 1;
+        }
+        self.waits.submit(queue, buffers)
+    }
+
+    /// [`QueueWaits::wait_for`].
+    #[cfg(not(target_arch = "wasm32"))]
+    pub(crate) fn wait_for(&self, device: &wgpu::Device, number: u64) -> Result<Waited, String> {
+        self.waits.wait_for(device, number)
+    }
+}
+
+impl Drop for Stream {
+    fn drop(&mut self) {
+        if self.counted.load(Ordering::SeqCst) {
+            let mut s = self.waits.lock();
+            s.streams = s.streams.saturating_sub(1);
+            drop(s);
+            self.waits.wait_ended.notify_all();
+        }
+    }
 }
 
 /// Who waited for a context's submission.
@@ -77,8 +133,32 @@ impl QueueWaits {
                 }
             }
             if s.waiting_for.is_some() {
+                s.sleeping += 1;
+                // Wakes a thread gathering sleepers (below) as well.
+                self.wait_ended.notify_all();
                 s = self.wait_ended.wait(s).unwrap_or_else(|p| p.into_inner());
+                s.sleeping -= 1;
                 continue;
+            }
+            // This thread waits. First, for a little while, for every other stream to
+            // submit and sleep: the placeholder target makes arriving threads sleep, and
+            // the guard ends it should anything below panic.
+            s.waiting_for = Some(0);
+            let gathering = EndWait {
+                waits: self,
+                target: 0,
+            };
+            let deadline = std::time::Instant::now() + GATHER;
+            while s.sleeping + 1 < s.streams {
+                let left = deadline.saturating_duration_since(std::time::Instant::now());
+                if left.is_zero() {
+                    break;
+                }
+                s = self
+                    .wait_ended
+                    .wait_timeout(s, left)
+                    .unwrap_or_else(|p| p.into_inner())
+                    .0;
             }
             let (target, index) = s
                 .newest
@@ -88,6 +168,7 @@ impl QueueWaits {
             drop(s);
             // Ends the wait under way whatever happens, a panic included, so that no
             // sleeping context is left waiting for a wait that will never end.
+            std::mem::forget(gathering);
             let ended = EndWait {
                 waits: self,
                 target,

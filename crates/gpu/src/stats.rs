@@ -57,6 +57,8 @@ impl GpuStats {
     pub(crate) fn count_wait(&self) {
         self.waits.fetch_add(1, Ordering::Relaxed);
     }
+    // A browser has one thread and never shares a wait.
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     pub(crate) fn count_shared_wait(&self) {
         self.shared_waits.fetch_add(1, Ordering::Relaxed);
     }
