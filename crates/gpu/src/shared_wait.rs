@@ -141,13 +141,9 @@ impl QueueWaits {
                 continue;
             }
             // This thread waits. First, for a little while, for every other stream to
-            // submit and sleep: the placeholder target makes arriving threads sleep, and
-            // the guard ends it should anything below panic.
+            // submit and sleep: the placeholder target makes arriving threads sleep (nothing
+            // here can panic while it stands).
             s.waiting_for = Some(0);
-            let gathering = EndWait {
-                waits: self,
-                target: 0,
-            };
             let deadline = std::time::Instant::now() + GATHER;
             while s.sleeping + 1 < s.streams {
                 let left = deadline.saturating_duration_since(std::time::Instant::now());
@@ -160,15 +156,17 @@ impl QueueWaits {
                     .unwrap_or_else(|p| p.into_inner())
                     .0;
             }
-            let (target, index) = s
-                .newest
-                .clone()
-                .expect("a submission numbered before it is waited for");
+            let Some((target, index)) = s.newest.clone() else {
+                // Numbers come from `submit`: none can be waited for before it.
+                s.waiting_for = None;
+                drop(s);
+                self.wait_ended.notify_all();
+                return Err(format!("submission {number} was never made"));
+            };
             s.waiting_for = Some(target);
             drop(s);
             // Ends the wait under way whatever happens, a panic included, so that no
             // sleeping context is left waiting for a wait that will never end.
-            std::mem::forget(gathering);
             let ended = EndWait {
                 waits: self,
                 target,
