@@ -9,7 +9,7 @@ use clap::Args;
 use super::pipeline_args::{frame_range, PipelineArgs, Setup};
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::params::{PoseSource, ValidParams};
-use crate::tools::{bench, long_run, run};
+use crate::tools::{bench, long_run, run, streams};
 use crate::{Error, Result};
 
 #[derive(Debug, Args)]
@@ -40,6 +40,12 @@ pub struct BenchArgs {
     /// peak memory and ATE.
     #[arg(long, value_name = "N")]
     pub revisit: Option<usize>,
+    /// The GPU streams benchmark instead: the frames as one stream, then as N streams at
+    /// once in this process on one device and queue (as `batch --concurrent N` runs jobs);
+    /// prints waits and submissions per stream-frame, ICP iterations per frame and wall
+    /// time against N runs one at a time (needs a GPU; ignores --backends).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub streams: Option<u32>,
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -62,6 +68,18 @@ pub fn execute(a: BenchArgs) -> Result<()> {
     setup.set.sequence_options(&params)?;
     if let Some(total) = a.revisit {
         return bench_revisit(&a, &setup, &params, total);
+    }
+    if let Some(streams) = a.streams {
+        let seq = setup.open_sequence(&params)?;
+        let (first, last) = frame_range(&seq, &a.frames, usize::MAX)?;
+        let ctx = crate::gpu::GpuContext::new()?;
+        eprintln!("{first}..{last} as 1 GPU stream, then as {streams} at once ...");
+        let r = streams::bench_streams(&ctx, &seq, (first, last), &params, streams as usize)?;
+        streams::print_streams(&r);
+        if let Some(path) = &a.json {
+            run::write_json(path, &serde_json::json!({ "streams": r }))?;
+        }
+        return Ok(());
     }
     let params_file = setup.child_params("bench")?;
     let mut bench_one_args = with_frames(setup.handoff_args(&params_file), &a.frames);

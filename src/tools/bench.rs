@@ -141,6 +141,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         counts.push(FrameCounts {
             submissions: after.submissions - before.submissions,
             waits: after.waits - before.waits,
+            shared_waits: after.shared_waits - before.shared_waits,
             readback_bytes: after.readback_bytes - before.readback_bytes,
             icp_iterations: report.iterations.len(),
             plain: !report.keyframe && report.relocalisation.is_empty() && report.loops.is_empty(),

@@ -1,7 +1,8 @@
 //! The jobs a user runs on top of the SLAM core, as library functions the CLI calls:
 //! the batch run over a sequence with its outputs ([`run`]), the two-frame ICP experiment
 //! (`two_frame`), the CPU-vs-GPU comparison (`compare`) and the benchmark (`bench`, with
-//! the round trips it counts per frame: `round_trips`);
+//! the round trips it counts per frame: `round_trips`, and N GPU streams at once in one
+//! process: `streams`);
 //! with the `rerun` feature, the Rerun recording of a run (`rerun_log`).
 //! They compute and write results; parsing arguments and printing tables is `crate::cli`.
 
@@ -12,4 +13,5 @@ pub(crate) mod long_run;
 pub(crate) mod rerun_log;
 pub mod round_trips;
 pub mod run;
+pub mod streams;
 pub(crate) mod two_frame;

@@ -8,6 +8,8 @@ use serde::{Deserialize, Serialize};
 pub(crate) struct FrameCounts {
     pub submissions: u64,
     pub waits: u64,
+    /// Waits served by another stream's device wait (`GpuContext::share`).
+    pub shared_waits: u64,
     pub readback_bytes: u64,
     pub icp_iterations: usize,
     /// Not a keyframe, no relocalisation, no loop-closure check: the frames whose
@@ -22,6 +24,13 @@ pub struct RoundTrips {
     pub plain_frames: usize,
     /// ICP iterations (submit-and-wait round trips of `icp_system`) per frame, mean.
     pub icp_iterations_per_frame: f64,
+    /// Host device waits of this stream's own per frame, every frame, mean.
+    #[serde(default)]
+    pub waits_per_frame: f64,
+    /// Waits per frame served by another stream's device wait on the shared queue (0 with
+    /// one stream), every frame, mean.
+    #[serde(default)]
+    pub shared_waits_per_frame: f64,
     /// Submissions beyond one per ICP iteration on a plain frame: mean and most.
     pub plain_submissions_beyond_icp_mean: f64,
     pub plain_submissions_beyond_icp_max: u64,
@@ -48,10 +57,14 @@ impl RoundTrips {
         let submissions = mean_max(&|c| c.submissions.saturating_sub(its(c)));
         let waits = mean_max(&|c| c.waits.saturating_sub(its(c)));
         let readback = mean_max(&|c| c.readback_bytes);
+        let n = counts.len().max(1) as f64;
+        let per_frame =
+            |f: &dyn Fn(&FrameCounts) -> u64| counts.iter().map(f).sum::<u64>() as f64 / n;
         RoundTrips {
             plain_frames: plain.len(),
-            icp_iterations_per_frame: counts.iter().map(|c| c.icp_iterations).sum::<usize>() as f64
-                / counts.len().max(1) as f64,
+            icp_iterations_per_frame: per_frame(&|c| c.icp_iterations as u64),
+            waits_per_frame: per_frame(&|c| c.waits),
+            shared_waits_per_frame: per_frame(&|c| c.shared_waits),
             plain_submissions_beyond_icp_mean: submissions.0,
             plain_submissions_beyond_icp_max: submissions.1,
             plain_waits_beyond_icp_mean: waits.0,

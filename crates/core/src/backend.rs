@@ -141,8 +141,12 @@ pub struct BackendCounters {
     pub readback_bytes: u64,
     /// Command submissions since creation.
     pub submissions: u64,
-    /// Host waits for the device since creation (each read-back is one).
+    /// Host waits for the device since creation (each read-back is one), in a device wait
+    /// of the backend's own.
     pub waits: u64,
+    /// Host waits served by another stream's device wait on a shared queue (GPU contexts
+    /// made by `GpuContext::share`): no device wait of the backend's own.
+    pub shared_waits: u64,
 }
 
 /// `describe_keypoints`' result: each keypoint's descriptor, and its vertex (CAMERA frame,

@@ -9,6 +9,7 @@
 use std::sync::{Arc, Mutex};
 
 use super::pipeline_cache::{self, DiskCache};
+use super::shared_wait::Stream;
 use super::stats::{GpuStats, StatsSnapshot};
 use crate::{Error, Result};
 
@@ -146,9 +147,10 @@ pub const GPU_REDUCTION_WORKGROUPS: u32 = 1024;
 /// accounting shared by every buffer created from it.
 ///
 /// [`GpuContext::share`] gives another handle on the same device and queue with its own
-/// accounting and its own waits (`wgslam batch --concurrent`: one context per job, one
-/// device for all; wgpu's error scopes are per thread, so each job's thread scopes its own
-/// work).
+/// accounting (`wgslam batch --concurrent`: one context per job, one device for all; wgpu's
+/// error scopes are per thread, so each job's thread scopes its own work). Their waits
+/// combine: one thread's device wait serves every context whose work it covers
+/// ([`super::shared_wait`]).
 pub struct GpuContext {
     /// Kept alive for the lifetime of the adapter and device.
     _instance: wgpu::Instance,
@@ -165,9 +167,11 @@ pub struct GpuContext {
     lost: Arc<Mutex<Option<String>>>,
     /// Errors raised outside any error scope (wgpu's default handler would panic).
     uncaptured: Arc<Mutex<Vec<String>>>,
-    /// This context's latest submission: [`GpuContext::wait_idle`] waits for it, not for
-    /// what other contexts sharing the queue submitted since.
-    last_submission: Mutex<Option<wgpu::SubmissionIndex>>,
+    /// The number of this context's latest submission not yet waited for
+    /// ([`super::shared_wait::QueueWaits::submit`]): [`GpuContext::wait_idle`] waits until it is done.
+    last_submission: Mutex<Option<u64>>,
+    /// Submissions and device waits of every context sharing the queue.
+    queue_waits: Stream,
     /// Objects built once per device, by key ([`GpuContext::cached`]: the kernels); one map
     /// for every context sharing the device.
     cache: Arc<Mutex<DeviceCache>>,
@@ -302,15 +306,17 @@ impl GpuContext {
             lost,
             uncaptured,
             last_submission: Mutex::new(None),
+            queue_waits: Stream::default(),
             cache: Arc::default(),
             pipeline_cache,
         })
     }
 
     /// Another context on this one's device and queue (no new adapter or device): its own
-    /// byte and submission counters, and [`GpuContext::wait_idle`] waiting for its own
-    /// submissions only. A lost device, and an error escaping every error scope, show in
-    /// every context of the device.
+    /// byte, submission and wait counters, and [`GpuContext::wait_idle`] waiting until its
+    /// own submissions are done (by its own device wait or by another context's that covers
+    /// them). A lost device, and an error escaping every error scope, show in every context
+    /// of the device.
     pub fn share(&self) -> GpuContext {
         GpuContext {
             _instance: self._instance.clone(),
@@ -324,6 +330,7 @@ impl GpuContext {
             lost: Arc::clone(&self.lost),
             uncaptured: Arc::clone(&self.uncaptured),
             last_submission: Mutex::new(None),
+            queue_waits: self.queue_waits.share(),
             cache: Arc::clone(&self.cache),
             deferred: Mutex::new(Vec::new()),
             pipeline_cache: self.pipeline_cache.clone(),
@@ -445,21 +452,21 @@ impl GpuContext {
 
     /// Submits one encoder's commands, after every deferred step's in recording order, as
     /// one submission, and counts it.
-    pub fn submit(&self, encoder: wgpu::CommandEncoder) -> wgpu::SubmissionIndex {
+    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
         let mut buffers = self.take_deferred();
         buffers.push(encoder.finish());
-        self.stats.count_submission();
-        let index = self.queue.submit(buffers);
-        self.note_submission(&index);
-        index
+        self.submit_buffers(buffers);
     }
 
-    /// Remembers this context's latest submission, which [`GpuContext::wait_idle`] waits for.
-    fn note_submission(&self, index: &wgpu::SubmissionIndex) {
+    /// Submits `buffers` as one counted submission and remembers its number, which
+    /// [`GpuContext::wait_idle`] waits for.
+    fn submit_buffers(&self, buffers: Vec<wgpu::CommandBuffer>) {
+        self.stats.count_submission();
+        let number = self.queue_waits.submit(&self.queue, buffers);
         *self
             .last_submission
             .lock()
-            .unwrap_or_else(|p| p.into_inner()) = Some(index.clone());
+            .unwrap_or_else(|p| p.into_inner()) = Some(number);
     }
 
     /// Keeps step `step`'s commands for the next submission instead of submitting them now
@@ -484,9 +491,7 @@ impl GpuContext {
     pub fn flush(&self) {
         let buffers = self.take_deferred();
         if !buffers.is_empty() {
-            self.stats.count_submission();
-            let index = self.queue.submit(buffers);
-            self.note_submission(&index);
+            self.submit_buffers(buffers);
         }
     }
 
@@ -496,38 +501,51 @@ impl GpuContext {
     }
 
     /// Blocks until the work this context submitted is done, deferred steps submitted
-    /// first (natively, only its own latest submission: work other contexts on the shared
-    /// queue submitted later is not waited for); device loss or a timeout is
-    /// [`Error::Gpu`]. Natively, when nothing was submitted since the last wait (a second
-    /// read-back of the same finished work, as the fern codes fusion recorded), it only
-    /// polls without blocking, which runs the map callbacks of that finished work, and is
-    /// not counted as a wait.
+    /// first; device loss or a timeout is [`Error::Gpu`]. Natively, when another context
+    /// sharing the queue is already blocked in a device wait that covers this context's
+    /// work, it sleeps until that wait ends (counted as a shared wait, not its own);
+    /// otherwise it waits for the newest submission on the queue, covering every context's
+    /// work submitted so far ([`super::shared_wait`]). When nothing was submitted since the
+    /// last wait (a second read-back of the same finished work, as the fern codes fusion
+    /// recorded), or another context's wait served it, it only polls without blocking,
+    /// which runs the map callbacks of that finished work.
     pub fn wait_idle(&self) -> Result<()> {
         self.flush();
         #[cfg(not(target_arch = "wasm32"))]
         {
+            use super::shared_wait::Waited;
             let last = self
                 .last_submission
                 .lock()
                 .unwrap_or_else(|p| p.into_inner())
                 .take();
-            let poll = match last {
-                Some(index) => {
-                    self.stats.count_wait();
-                    wgpu::PollType::Wait {
-                        submission_index: Some(index),
-                        timeout: None,
-                    }
-                }
-                None => wgpu::PollType::Poll,
+            let waited = match last {
+                Some(number) => self
+                    .queue_waits
+                    .wait_for(&self.device, number)
+                    .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?,
+                None => Waited::Shared,
             };
-            self.device
-                .poll(poll)
-                .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+            match waited {
+                Waited::Own => self.stats.count_wait(),
+                Waited::Shared => {
+                    if last.is_some() {
+                        self.stats.count_shared_wait();
+                    }
+                    self.device
+                        .poll(wgpu::PollType::Poll)
+                        .map_err(|e| Error::Gpu(format!("polling the GPU: {e}")))?;
+                }
+            }
             self.check_device()
         }
         #[cfg(target_arch = "wasm32")]
         {
+            // One thread in a browser: nothing to share a wait with.
+            self.last_submission
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .take();
             self.stats.count_wait();
             super::wait::wait_for_submitted(&self.device, &self.queue)
                 .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;

@@ -111,6 +111,7 @@ impl Inspect for GpuBackend {
             readback_bytes: s.readback_bytes,
             submissions: s.submissions,
             waits: s.waits,
+            shared_waits: s.shared_waits,
         }
     }
 }

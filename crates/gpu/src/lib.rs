@@ -49,6 +49,7 @@ mod pipelines;
 mod recording;
 mod resources;
 pub mod shaders;
+mod shared_wait;
 mod single_steps;
 pub mod stats;
 mod step_grid;

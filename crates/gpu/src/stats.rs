@@ -13,6 +13,7 @@ pub struct GpuStats {
     readback_bytes: AtomicU64,
     submissions: AtomicU64,
     waits: AtomicU64,
+    shared_waits: AtomicU64,
 }
 
 /// A copy of the counters at one moment (all byte counts are bytes, not elements).
@@ -29,8 +30,11 @@ pub struct StatsSnapshot {
     /// Queue submissions made through [`super::GpuContext::submit`] and the buffer helpers.
     pub submissions: u64,
     /// Times the host blocked until submitted work was done ([`super::GpuContext::wait_idle`]:
-    /// every read-back waits through it).
+    /// every read-back waits through it) in a device wait of its own.
     pub waits: u64,
+    /// Times the host's wait for submitted work was served by another context's device
+    /// wait on the shared queue ([`super::GpuContext::share`]): no device wait of its own.
+    pub shared_waits: u64,
 }
 
 impl GpuStats {
@@ -53,6 +57,11 @@ impl GpuStats {
     pub(crate) fn count_wait(&self) {
         self.waits.fetch_add(1, Ordering::Relaxed);
     }
+    // A browser has one thread and never shares a wait.
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
+    pub(crate) fn count_shared_wait(&self) {
+        self.shared_waits.fetch_add(1, Ordering::Relaxed);
+    }
     pub(crate) fn snapshot(&self) -> StatsSnapshot {
         StatsSnapshot {
             allocated_bytes: self.allocated_bytes.load(Ordering::Relaxed),
@@ -61,6 +70,7 @@ impl GpuStats {
             readback_bytes: self.readback_bytes.load(Ordering::Relaxed),
             submissions: self.submissions.load(Ordering::Relaxed),
             waits: self.waits.load(Ordering::Relaxed),
+            shared_waits: self.shared_waits.load(Ordering::Relaxed),
         }
     }
 }
