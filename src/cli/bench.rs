@@ -134,15 +134,16 @@ pub fn execute(a: BenchArgs) -> Result<()> {
 
 /// `setup` with the downsampling its backends run when it sets none (one for all of
 /// them, handed to every child: `crate::slam::params::resolution`): the full frames when
-/// only the GPU is timed, every second pixel when the CPU reference is (the default
-/// `--backends cpu,gpu`, `--interleaved`).
+/// only the GPU is timed (`--backends gpu`, `--streams`), every second pixel when the CPU
+/// reference is (the default `--backends cpu,gpu`, `--interleaved`).
 fn with_backends_downsample(mut setup: Setup, a: &BenchArgs) -> Setup {
     if setup.set.sets_downsample() {
         return setup;
     }
-    let names: Vec<&str> = match a.interleaved {
-        true => vec!["cpu", "gpu"],
-        false => a
+    let names: Vec<&str> = match (a.interleaved, a.streams.is_some()) {
+        (true, _) => vec!["cpu", "gpu"],
+        (false, true) => vec!["gpu"],
+        (false, false) => a
             .backends
             .iter()
             .map(|b| match b {
