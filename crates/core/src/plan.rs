@@ -147,10 +147,7 @@ step_calls! {
     }
     at(call) {
         match call {
-            PredictCall::PyramidModel { level } => At {
-                level,
-                ..At::FRAME
-            },
+            PredictCall::PyramidModel { level } => At::of_level(level),
             _ => At::FRAME,
         }
     }
@@ -200,10 +197,7 @@ step_calls! {
     }
     at(call) {
         match call {
-            IntensityCall::IntensityPyramid { level } => At {
-                level,
-                ..At::FRAME
-            },
+            IntensityCall::IntensityPyramid { level } => At::of_level(level),
         }
     }
 }

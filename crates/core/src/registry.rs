@@ -82,6 +82,11 @@ impl At {
         filtered_points: false,
     };
 
+    /// Pyramid level `level` for a kernel that reads none of level 0's vertex maps.
+    pub const fn of_level(level: usize) -> At {
+        At { level, ..At::FRAME }
+    }
+
     /// Every [`At`] a plan may give at `level`: at levels 0 and 1 each choice of level 0's
     /// vertex maps the plans make (the filtered points only with the filtered normals);
     /// above them one (the choice reads nothing there).
