@@ -13,7 +13,7 @@
 @group(0) @binding(0) var<storage, read> params: IntensityParams;
 // fine_width x fine_height: at level 0 the frame's colour map (RGB 0..255,
 // depth_to_vertex), at a coarser level the finer level's intensity patches (x: intensity).
-@group(0) @binding(1) var fine: texture_2d<f32>;
+@group(0) @binding(1) var fine_map: texture_2d<f32>;
 // Out: width x height intensity patches (0..1).
 @group(0) @binding(2) var intensity_patch: texture_storage_2d<rgba32float, write>;
 
@@ -22,7 +22,7 @@
 fn fine_intensity(params: IntensityParams, x: i32, y: i32) -> f32 {
     let xc = clamp(x, 0, i32(params.fine_width) - 1);
     let yc = clamp(y, 0, i32(params.fine_height) - 1);
-    let t = textureLoad(fine, vec2<i32>(xc, yc), 0);
+    let t = textureLoad(fine_map, vec2<i32>(xc, yc), 0);
     if params.level == 0u {
         return intensity_of(t.xyz);
     }

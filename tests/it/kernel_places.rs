@@ -55,11 +55,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "binds a pyramid level's maps; its twin's constants are the photometric term's",
     ),
     (
-        "intensity_pyramid",
-        &[BIND, STEPS],
-        "binds a pyramid level's intensity patches",
-    ),
-    (
         "block_bounds",
         &[
             BIND,
@@ -81,11 +76,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         ],
         "runs over the stale boxes only; the boxes it writes are the buffer `block_bounds` \
          that every block-walking kernel reads",
-    ),
-    (
-        "fuse_add",
-        &[BIND, STEPS, "crates/gpu/src/step_grid.rs"],
-        "runs one or both of its key passes by the association",
     ),
     (
         "prefix_sum",

@@ -37,6 +37,11 @@ pub trait Call: Copy + std::fmt::Debug {
     /// Where the kernel runs: the pyramid level and the vertex maps of a
     /// `registry::Shape::PerLevel` kernel, else [`At::FRAME`].
     fn at(self) -> At;
+    /// Whether a key kernel's call runs every pass of its portable variant (on a device
+    /// without 64-bit atomics), or its first alone (a call whose later passes would write
+    /// nothing the step keeps: [`FuseCall::FuseAdd`] without `index_words`). True for every
+    /// other call.
+    fn every_key_pass(self) -> bool;
 }
 
 /// A call's kernel: `clear` for a clear, else the registry id of that name.
@@ -55,7 +60,7 @@ macro_rules! kernel_of {
 macro_rules! step_calls {
     ($(#[$doc:meta])* $name:ident {
         $($(#[$vdoc:meta])* $variant:ident $({ $($field:ident: $ty:ty),* })? $(($inner:ty))? => $kernel:ident,)*
-    } $(at($call:ident) $at:block)?) => {
+    } $(at($call:ident) $at:block)? $(every_key_pass($kcall:ident) $kp:block)?) => {
         $(#[$doc])*
         #[derive(Debug, Clone, Copy, PartialEq, Eq)]
         pub enum $name {
@@ -79,6 +84,12 @@ macro_rules! step_calls {
             fn at(self) -> At {
                 $(let $call = self; return $at;)?
                 At::FRAME
+            }
+
+            #[allow(unreachable_code)]
+            fn every_key_pass(self) -> bool {
+                $(let $kcall = self; return $kp;)?
+                true
             }
         }
     };
@@ -136,10 +147,7 @@ step_calls! {
     }
     at(call) {
         match call {
-            PredictCall::PyramidModel { level } => At {
-                level,
-                ..At::FRAME
-            },
+            PredictCall::PyramidModel { level } => At::of_level(level),
             _ => At::FRAME,
         }
     }
@@ -164,8 +172,33 @@ step_calls! {
         FuseFlags => fuse_flags,
         /// `prefix_sum` over `fuse_flags`' flags: each new surfel's slot, and how many.
         FuseScan => prefix_sum,
-        /// `fuse_add`: append the new surfels.
-        FuseAdd => fuse_add,
+        /// `fuse_add`: append the new surfels; with `index_words` (best-candidate
+        /// association, which builds the next prediction's index map) also every pass of
+        /// the portable kernel (its second only sets index words, which projective
+        /// association leaves alone).
+        FuseAdd { index_words: bool } => fuse_add,
+    }
+    every_key_pass(call) {
+        match call {
+            FuseCall::FuseAdd { index_words } => index_words,
+            _ => true,
+        }
+    }
+}
+
+step_calls! {
+    /// One call of the plan that makes the frame's intensity pyramid (RGB-D tracking's
+    /// photometric term reads it; each level is made as a `rgbd_system` first reads it or a
+    /// coarser one).
+    IntensityCall {
+        /// `intensity_pyramid` making level `level` (level 0 from the colour map, a
+        /// coarser level from level `level - 1`'s intensity patches).
+        IntensityPyramid { level: usize } => intensity_pyramid,
+    }
+    at(call) {
+        match call {
+            IntensityCall::IntensityPyramid { level } => At::of_level(level),
+        }
     }
 }
 
@@ -293,8 +326,23 @@ pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     } else {
         plan.push(FuseCall::FuseMerge);
     }
-    plan.extend([FuseCall::FuseFlags, FuseCall::FuseScan, FuseCall::FuseAdd]);
+    plan.extend([
+        FuseCall::FuseFlags,
+        FuseCall::FuseScan,
+        FuseCall::FuseAdd {
+            index_words: best_candidate,
+        },
+    ]);
     plan
+}
+
+/// The frame's intensity pyramid up to `level` where the first `made` levels are made
+/// since the frame's `preprocess`: `intensity_pyramid` at levels `made..=level`, finest
+/// first (none when `made > level`).
+pub fn intensity_levels(made: usize, level: usize) -> Vec<IntensityCall> {
+    (made..=level)
+        .map(|level| IntensityCall::IntensityPyramid { level })
+        .collect()
 }
 
 /// `compact`: keep flags, their prefix sum, and the copy of the survivors.
@@ -381,6 +429,7 @@ mod tests {
                 for levels in 0..4 {
                     let ats = preprocess(bilateral, levels).into_iter().map(|c| c.at());
                     let ats = ats.chain(predict(true, levels).into_iter().map(|c| c.at()));
+                    let ats = ats.chain(intensity_levels(0, levels).into_iter().map(|c| c.at()));
                     for at in ats {
                         assert!(
                             At::choices(at.level).contains(&at.choice()),

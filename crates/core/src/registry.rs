@@ -51,8 +51,9 @@ pub enum Shape {
     PerBlock,
     /// One bind group per pyramid level (and, for the levels that read level 0's vertex
     /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
-    /// (`vertex_map`, `normal_depth`, `pred_vertex`, ...; the finer level's as
-    /// `fine_vertex`, `fine_pred_vertex`, `fine_pred_normal`); a pass over the level's
+    /// (`vertex_map`, `normal_depth`, `pred_vertex`, `intensity_patch`, ...; the finer
+    /// level's as `fine_vertex`, `fine_pred_vertex`, `fine_pred_normal`, and its intensity
+    /// patches, at level 0 the colour map, as `fine_map`); a pass over the level's
     /// pixels, at the [`At`] the plan call gives. The row's uniform is the level's own
     /// (a `generic_levels` row): a level without it has no bind group.
     PerLevel,
@@ -80,6 +81,11 @@ impl At {
         filtered: false,
         filtered_points: false,
     };
+
+    /// Pyramid level `level` for a kernel that reads none of level 0's vertex maps.
+    pub const fn of_level(level: usize) -> At {
+        At { level, ..At::FRAME }
+    }
 
     /// Every [`At`] a plan may give at `level`: at levels 0 and 1 each choice of level 0's
     /// vertex maps the plans make (the filtered points only with the filtered normals);
@@ -271,6 +277,9 @@ registry_data! {
         // pixel (best-candidate association).
         project_model: PerBlock(project),
         fuse_select: PerBlock(fuse),
+        // Fusion's new surfels, per map chunk the ones whose slots it holds (its later
+        // passes as the plan call says: `Call::every_key_pass`).
+        fuse_add: PerChunk(fuse),
     }
     generic_levels: {
         // The frame's normals per level (at level 0 from the vertex maps the plan
@@ -278,15 +287,16 @@ registry_data! {
         vertex_to_normal: PerLevel(normal),
         pyramid_depth: PerLevel(pyramid),
         pyramid_model: PerLevel(pyramid),
+        // The frame's intensity pyramid (RGB-D tracking), each level from the finer one's
+        // (level 0 from the colour map), made as the photometric term first reads it.
+        intensity_pyramid: PerLevel(intensity),
     }
     kernels: {
         block_bounds,
         icp_reduce,
         icp_reduce_final,
-        // RGB-D tracking's photometric term (its sum: icp_reduce_final) and the frame's
-        // intensity pyramid it reads.
+        // RGB-D tracking's photometric term (its sum: icp_reduce_final).
         photo_reduce,
-        intensity_pyramid,
         icp_candidates,
         fern_encode,
         keypoint_detect,
@@ -298,10 +308,7 @@ registry_data! {
         prefix_sum,
         compact_scatter,
     }
-    key_kernels: {
-        // Its passes depend on the association (see `super::step_grid`).
-        fuse_add,
-    }
+    key_kernels: {}
     elsewhere: {
         // Loop closure's map deformation (crates/gpu/src/loops.rs), built at the first closure.
         deform_surfels,

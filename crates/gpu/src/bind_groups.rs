@@ -16,7 +16,7 @@ use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
 use super::pipelines::{Kernels, LevelParams, RowParams};
 use super::recording::Pass;
-use super::resources::{FrameBuffers, IntensityLevel, Uniforms};
+use super::resources::{FrameBuffers, Uniforms};
 use wgslam_core::registry::{At, KernelId, Shape};
 
 /// The bind groups of the per-frame steps for one map set.
@@ -26,15 +26,12 @@ pub(super) struct BindGroups {
     pub icp_reduce: wgpu::BindGroup,
     /// `photo_reduce` over level 0 (RGB-D tracking).
     pub photo_reduce: wgpu::BindGroup,
-    /// `intensity_pyramid` making level 0 from the colour map (RGB-D tracking).
-    pub intensity_pyramid: wgpu::BindGroup,
     /// The registry's `generic` kernels' bind groups by kernel id and [`At`] (a
     /// `PerLevel` kernel's level and vertex maps, else `At::FRAME`): one per map chunk, or
     /// one over the frame or the level (see `wgslam_core::registry::Shape`).
     pub generic: BTreeMap<(KernelId, At), Vec<wgpu::BindGroup>>,
     /// The scan over the new-surfel flags (in append order, `append_slots` entries).
     pub fuse_scan: ScanGroups,
-    pub fuse_add: Vec<wgpu::BindGroup>,
     /// Per coarser pyramid level (1, 2, ...).
     pub levels: Vec<LevelBindGroups>,
 }
@@ -42,8 +39,6 @@ pub(super) struct BindGroups {
 /// The bind groups of one coarser pyramid level.
 pub(super) struct LevelBindGroups {
     pub icp_reduce: wgpu::BindGroup,
-    /// `intensity_pyramid` from the finer level's intensity patches.
-    pub intensity_pyramid: wgpu::BindGroup,
     /// `photo_reduce` over the level's frame maps (the source is level 0's prediction).
     pub photo_reduce: wgpu::BindGroup,
 }
@@ -92,7 +87,8 @@ fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
 /// Pyramid level `at.level`'s maps by the names the `generic_levels` kernels declare them
 /// with, and its finer level's as `fine_*`: level 0's are the frame's, its `vertex_map`
 /// and `point_map` the vertex maps `at` chooses (see [`At`]), which level 1's `fine_vertex`
-/// is too.
+/// is too. Its intensity patches are `intensity_patch`, the finer level's `fine_map` (at
+/// level 0 the colour map, which the intensity pyramid starts from).
 fn level_pool(f: &FrameBuffers, at: At) -> Pool<'_> {
     let level0 = |filtered: bool| match filtered {
         true => &f.filtered_vertex,
@@ -105,15 +101,25 @@ fn level_pool(f: &FrameBuffers, at: At) -> Pool<'_> {
             ("normal_depth", &f.normal_depth),
             ("pred_vertex", &f.pred_vertex),
             ("pred_normal", &f.pred_normal),
+            ("intensity_patch", &f.intensity.patch),
+            ("fine_map", &f.color),
         ],
         Some(l) => {
             let level = &f.levels[l];
             // The finer level's maps: level 0's, or the previous coarser level's.
-            let (fine_vertex, fine_pred) = match l.checked_sub(1) {
-                None => (level0(at.filtered), [&f.pred_vertex, &f.pred_normal]),
+            let (fine_vertex, fine_pred, fine_map) = match l.checked_sub(1) {
+                None => (
+                    level0(at.filtered),
+                    [&f.pred_vertex, &f.pred_normal],
+                    &f.intensity.patch,
+                ),
                 Some(p) => {
                     let p = &f.levels[p];
-                    (&p.vertex, [&p.pred_vertex, &p.pred_normal])
+                    (
+                        &p.vertex,
+                        [&p.pred_vertex, &p.pred_normal],
+                        &p.intensity.patch,
+                    )
                 }
             };
             vec![
@@ -125,6 +131,8 @@ fn level_pool(f: &FrameBuffers, at: At) -> Pool<'_> {
                 ("fine_vertex", fine_vertex),
                 ("fine_pred_vertex", fine_pred[0]),
                 ("fine_pred_normal", fine_pred[1]),
+                ("intensity_patch", &level.intensity.patch),
+                ("fine_map", fine_map),
             ]
         }
     };
@@ -188,7 +196,6 @@ impl BindGroups {
             block_bounds: per_chunk(&k.block_bounds, u.bounds.binding()),
             icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
             photo_reduce: photo_reduce(ctx, k, r, &frame),
-            intensity_pyramid: intensity_pyramid(ctx, k, &f.color, &f.intensity),
             generic: k
                 .generic(u)
                 .into_iter()
@@ -225,7 +232,6 @@ impl BindGroups {
                     ("counter", r.counter.binding()),
                 ],
             ),
-            fuse_add: per_chunk(k.fuse_add.first(), u.fuse.binding()),
             levels: (0..f.levels.len())
                 .map(|l| LevelBindGroups::new(ctx, k, r, l))
                 .collect(),
@@ -238,11 +244,6 @@ impl LevelBindGroups {
     fn new(ctx: &GpuContext, k: &Kernels, r: &Resources, l: usize) -> LevelBindGroups {
         let f = r.frame;
         let level = &f.levels[l];
-        // The finer level's maps: level 0's, or the previous level's.
-        let fine_intensity = match l {
-            0 => &f.intensity,
-            _ => &f.levels[l - 1].intensity,
-        };
         LevelBindGroups {
             icp_reduce: icp_reduce(
                 ctx,
@@ -250,7 +251,6 @@ impl LevelBindGroups {
                 r,
                 [&level.pred_vertex, &level.pred_normal, &level.normal_depth],
             ),
-            intensity_pyramid: intensity_pyramid(ctx, k, &fine_intensity.patch, &level.intensity),
             photo_reduce: k.photo_reduce.bind_group(
                 ctx,
                 &[
@@ -287,24 +287,6 @@ fn photo_reduce<'a>(
             frame.clone(),
         ]
         .concat(),
-    )
-}
-
-/// `intensity_pyramid` making `level` from `fine` (the colour map at level 0, else the
-/// finer level's intensity patches).
-fn intensity_pyramid(
-    ctx: &GpuContext,
-    k: &Kernels,
-    fine: &GpuImage,
-    level: &IntensityLevel,
-) -> wgpu::BindGroup {
-    k.intensity_pyramid.bind_group(
-        ctx,
-        &[
-            ("params", level.u_params.binding()),
-            ("fine", fine.binding()),
-            ("intensity_patch", level.patch.binding()),
-        ],
     )
 }
 

@@ -119,13 +119,14 @@ pub(super) struct LevelUniforms<'a> {
     pub normal: Option<wgpu::BindingResource<'a>>,
     /// `pyramid_depth`'s and `pyramid_model`'s (the level's size and its finer level's).
     pub pyramid: Option<wgpu::BindingResource<'a>>,
+    /// `intensity_pyramid`'s (the level's [`IntensityLevel`]'s).
+    pub intensity: Option<wgpu::BindingResource<'a>>,
 }
 
 /// One level of the frame's intensity pyramid: `intensity_pyramid`'s output and its
 /// parameters (written once: they depend on the sizes only).
 pub(super) struct IntensityLevel {
     pub patch: GpuImage,
-    pub params: IntensityParams,
     pub u_params: ParamBuffer<IntensityParams>,
 }
 
@@ -140,7 +141,6 @@ impl IntensityLevel {
                 wgpu::TextureFormat::Rgba32Float,
                 true,
             )?,
-            params,
             u_params: ParamBuffer::new(ctx, "IntensityParams", &params),
         })
     }
@@ -271,12 +271,14 @@ impl FrameBuffers {
             0 => LevelUniforms {
                 normal: Some(u.normal.binding()),
                 pyramid: None,
+                intensity: Some(self.intensity.u_params.binding()),
             },
             l => {
                 let lv = &self.levels[l - 1];
                 LevelUniforms {
                     normal: Some(lv.u_normal.binding()),
                     pyramid: Some(lv.u_pyramid.binding()),
+                    intensity: Some(lv.intensity.u_params.binding()),
                 }
             }
         }

@@ -4,10 +4,9 @@
 
 use super::bind_groups::BindGroups;
 use super::context::GpuContext;
-use super::kernel::{image_grid, Kernel, KeyKernel};
+use super::kernel::{image_grid, Kernel};
 use super::pipelines::Kernels;
 use super::recording::Pass;
-use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
@@ -78,7 +77,8 @@ impl StepGrid {
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
     /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; a
-    /// key kernel's passes in turn, each over every bind group. Panics on a call whose
+    /// key kernel's passes in turn, each over every bind group (its first alone where the
+    /// call says so: `Call::every_key_pass`). Panics on a call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
     /// group where it runs (internal contracts: every planned kernel has one or the other,
     /// and [`At::choices`] every place a plan gives).
@@ -106,6 +106,10 @@ impl StepGrid {
             .get(&(kernel, at))
             .unwrap_or_else(|| panic!("`{}` has no bind group at {at:?}", call.name()));
         let wg = self.level(at.level, &passes[0]);
+        let passes = match call.every_key_pass() {
+            true => passes,
+            false => &passes[..1],
+        };
         passes
             .iter()
             .flat_map(|pass| match shape {
@@ -154,15 +158,4 @@ pub(super) fn check_pyramid(width: u32, height: u32, pyramid: &[PyramidLevel]) -
         fine = coarse;
     }
     Ok(())
-}
-
-/// How many of `fuse_add`'s passes a fuse step runs: all with best-candidate association;
-/// without it only the first (the portable kernel's second pass only sets the index words
-/// of the index map, which projective association does not build).
-pub(super) fn key_passes_of_fuse_add(params: &FuseParams, fuse_add: &KeyKernel) -> usize {
-    if params.association == ASSOCIATION_BEST_CANDIDATE {
-        fuse_add.passes.len()
-    } else {
-        1
-    }
 }

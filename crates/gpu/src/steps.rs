@@ -12,7 +12,7 @@ use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
 use super::recording::{record_call, record_passes, submit_profiled, Pass};
-use super::step_grid::{check_pyramid, key_passes_of_fuse_add, StepGrid};
+use super::step_grid::{check_pyramid, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
     CompactParams, DeformNode, Fern, FernParams, FuseParams, IcpParams, Keypoint, KeypointParams,
@@ -195,40 +195,33 @@ impl Backend for GpuBackend {
             )));
         }
         let wg = self.reduction_workgroups;
-        // The frame's intensity pyramid up to this level, finest first, where not made since
-        // `preprocess`: in this iteration's submission.
-        let made = self.photo.intensity_made;
-        self.photo.intensity_made = made.max(level + 1);
-        let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
+        let plan = plan::intensity_levels(self.photo.intensity_made, level);
+        self.photo.intensity_made = self.photo.intensity_made.max(level + 1);
+        let f = self.frame();
+        let levels = f.levels.iter().map(|l| [l.width, l.height]).collect();
+        let grid = StepGrid::new(&self.ctx, [f.width, f.height], levels);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
         let (final_group, photo) = (&self.icp_final_group, &mut self.photo);
-        let mut passes: Vec<Pass> = Vec::new();
-        for l in made..=level {
-            let (group, p) = match l {
-                0 => (&bg.intensity_pyramid, &f.intensity),
-                l => (
-                    &bg.levels[l - 1].intensity_pyramid,
-                    &f.levels[l - 1].intensity,
-                ),
-            };
-            let grid =
-                k.intensity_pyramid
-                    .grid_workgroups_for_image(ctx, p.params.width, p.params.height);
-            passes.push((&k.intensity_pyramid, group, grid));
-        }
         let (icp_group, photo_group) = match level {
             0 => (&bg.icp_reduce, &bg.photo_reduce),
             l => (&bg.levels[l - 1].icp_reduce, &bg.levels[l - 1].photo_reduce),
         };
         let len = ICP_SYSTEM_LEN as u32;
-        passes.extend([
+        let passes: [Pass; 4] = [
             (&k.icp_reduce, icp_group, [wg, 1]),
             (&k.icp_reduce_final, final_group, [len, 1]),
             (&k.photo_reduce, photo_group, [wg, 1]),
             (&k.icp_reduce_final, &photo.final_group, [len, 1]),
-        ]);
+        ];
         let both = ctx.scoped("icp_reduce", || {
             u.icp.write(ctx, params);
             let mut enc = ctx.encoder("icp_reduce");
+            for call in plan {
+                // Every level of the intensity pyramid not made since `preprocess`, bound
+                // and dispatched by its registry row, in this iteration's submission.
+                let passes = grid.generic(k, bg, call);
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
+            }
             record_passes(ctx, profiler, &mut enc, &passes)?;
             let srcs = [&self.system, &photo.system];
             photo
@@ -300,20 +293,10 @@ impl Backend for GpuBackend {
                     }
                     FuseCall::BlockBounds => grid.bounds(k, bg),
                     FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
-                    // Each pass over every chunk (one pass, or the portable kernel's two;
-                    // its second only sets index words, which projective association
-                    // leaves alone, so it runs with best-candidate association only).
-                    FuseCall::FuseAdd => k.fuse_add.passes
-                        [..key_passes_of_fuse_add(&params, &k.fuse_add)]
-                        .iter()
-                        .flat_map(|pass| {
-                            let wg = grid.image(k.fuse_add.first());
-                            bg.fuse_add.iter().map(move |g| (pass, g, wg))
-                        })
-                        .collect(),
                     // `fuse_select` (surfels pick pixels, then each picked surfel merges
                     // from its pixel: `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`,
-                    // `fuse_flags`: bound and dispatched by their registry rows.
+                    // `fuse_flags`, `fuse_add` (its passes as the call says): bound and
+                    // dispatched by their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;

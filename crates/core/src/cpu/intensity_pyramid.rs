@@ -61,7 +61,7 @@ pub fn level_intensity(params: &IntensityParams, fine: &[[f32; 4]], u: i32, v: i
 /// declarations in `shaders/intensity_pyramid.wgsl` for shapes and units.
 pub fn intensity_pyramid(
     params: &IntensityParams,
-    fine: &[[f32; 4]],
+    fine_map: &[[f32; 4]],
     intensity_patch: &mut [[f32; 4]],
 ) {
     let w = params.width as usize;
@@ -70,7 +70,7 @@ pub fn intensity_pyramid(
         (params.width, params.height),
     ];
     for ((sw, sh), (name, len)) in sizes.into_iter().zip([
-        ("fine", fine.len()),
+        ("fine_map", fine_map.len()),
         ("intensity_patch", intensity_patch.len()),
     ]) {
         assert_eq!(len, (sw * sh) as usize, "{name} is not {sw}x{sh}");
@@ -79,7 +79,7 @@ pub fn intensity_pyramid(
     let intensity_patch = Storage::new(intensity_patch);
     pixel_grid(params.width, params.height, |[u, v]| {
         let (u, v) = (u as i32, v as i32);
-        let at = |du, dv| level_intensity(params, fine, u + du, v + dv);
+        let at = |du, dv| level_intensity(params, fine_map, u + du, v + dv);
         intensity_patch.store(
             v as usize * w + u as usize,
             [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],

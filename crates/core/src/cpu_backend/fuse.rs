@@ -110,7 +110,7 @@ impl CpuBackend {
                     added,
                 );
             }
-            FuseCall::FuseAdd => {
+            FuseCall::FuseAdd { .. } => {
                 // Room for every pixel, as the GPU backend guarantees before its dispatch.
                 m.resize(params.capacity as usize);
                 cpu::fuse_add::fuse_add(

@@ -7,6 +7,7 @@ use super::CpuBackend;
 use crate::backend::PyramidLevel;
 use crate::cpu;
 use crate::layout::{IcpParams, IntensityParams, PreprocessParams, ICP_SYSTEM_LEN};
+use crate::plan::{self, IntensityCall};
 
 /// The frame's intensity pyramid (`intensity_pyramid`): per level its parameters and
 /// intensity patches, each level made only when RGB-D tracking first asks for it or a
@@ -32,7 +33,8 @@ impl IntensityPyramid {
     /// Makes the levels up to `level` not yet made from `color` (the frame's colour map),
     /// finest first (each from the one before).
     fn make(&mut self, color: &[[f32; 4]], level: usize) {
-        for l in self.made..=level {
+        for call in plan::intensity_levels(self.made, level) {
+            let IntensityCall::IntensityPyramid { level: l } = call;
             let p = &self.params[l];
             let (finer, this) = self.patches.split_at_mut(l);
             let fine = match finer.last() {
