@@ -64,8 +64,9 @@ pub fn bench_streams(
     // Builds the kernels (cached per device) before any pass is timed, so the lone
     // stream's wall time does not carry the pipelines' start-up that the others reuse.
     drop(GpuBackend::new(ctx.share())?);
-    let one = pass(ctx, seq, frames, params, 1)?;
-    let many = pass(ctx, seq, frames, params, streams)?;
+    let run = Frames { frames, params };
+    let one = pass(ctx, seq, run, 1)?;
+    let many = pass(ctx, seq, run, streams)?;
     let same = |r: &BenchResult| {
         let lone = &one.each[0];
         r.map_points == lone.map_points
@@ -82,14 +83,17 @@ pub fn bench_streams(
     })
 }
 
-/// `streams` streams at once over the frames, each in a thread of its own.
-fn pass(
-    ctx: &GpuContext,
-    seq: &Sequence,
+/// What every stream runs: frames `frames.0..=frames.1` with `params`.
+#[derive(Clone, Copy)]
+struct Frames<'a> {
     frames: (usize, usize),
-    params: &ValidParams,
-    streams: usize,
-) -> Result<StreamsPass> {
+    params: &'a ValidParams,
+}
+
+/// `streams` streams at once over `frames` of `seq`, each in a thread of its own on a
+/// context shared from `ctx`.
+fn pass(ctx: &GpuContext, seq: &Sequence, run: Frames<'_>, streams: usize) -> Result<StreamsPass> {
+    let Frames { frames, params } = run;
     let start = web_time::Instant::now();
     let each: Vec<Result<BenchResult>> = std::thread::scope(|scope| {
         let handles: Vec<_> = (0..streams)
@@ -135,22 +139,26 @@ fn pass(
     })
 }
 
-/// Prints the two passes side by side.
+impl StreamsPass {
+    /// The pass's figures in a line (without every stream's whole result).
+    pub fn line(&self) -> String {
+        format!(
+            "{} stream(s): ICP {:.2}, waits {:.2}, shared {:.2}, submissions {:.2} per \
+             stream-frame, {:.2} s",
+            self.streams,
+            self.icp_iterations_per_frame,
+            self.waits_per_stream_frame,
+            self.shared_waits_per_stream_frame,
+            self.submissions_per_stream_frame,
+            self.wall_s
+        )
+    }
+}
+
+/// Prints the two passes, one line each, and how they compare.
 pub fn print_streams(r: &StreamsResult) {
-    println!(
-        "{:>7} {:>10} {:>14} {:>14} {:>14} {:>8}",
-        "streams", "ICP/frame", "waits/s-frame", "shared/s-frame", "submits/s-frame", "wall s"
-    );
     for p in [&r.one, &r.many] {
-        println!(
-            "{:>7} {:>10.2} {:>14.2} {:>14.2} {:>14.2} {:>8.2}",
-            p.streams,
-            p.icp_iterations_per_frame,
-            p.waits_per_stream_frame,
-            p.shared_waits_per_stream_frame,
-            p.submissions_per_stream_frame,
-            p.wall_s
-        );
+        println!("{}", p.line());
     }
     println!(
         "{} frames per stream; wall time of {} at once / {} one at a time: {:.2}; results {}",

@@ -100,20 +100,7 @@ fn gpu_streams_share_waits_and_match_one_stream(ctx: GpuContext) {
         STREAMS,
     )
     .unwrap();
-    // The passes' figures without every stream's whole result.
-    let pass = |p: &streams::StreamsPass| {
-        format!(
-            "{} stream(s): ICP {:.2}, waits {:.2}, shared {:.2}, submissions {:.2} per \
-             stream-frame, {:.2} s",
-            p.streams,
-            p.icp_iterations_per_frame,
-            p.waits_per_stream_frame,
-            p.shared_waits_per_stream_frame,
-            p.submissions_per_stream_frame,
-            p.wall_s
-        )
-    };
-    let summary = format!("{}; {}", pass(&r.one), pass(&r.many));
+    let summary = format!("{}; {}", r.one.line(), r.many.line());
     eprintln!("{summary}");
     assert_eq!(r.one.shared_waits_per_stream_frame, 0.0, "{summary}");
     assert!(r.one.icp_iterations_per_frame >= 1.0, "{summary}");
