@@ -13,5 +13,7 @@ pub(crate) mod long_run;
 pub(crate) mod rerun_log;
 pub mod round_trips;
 pub mod run;
+// Threads, one per stream: native only (a browser tab has one).
+#[cfg(not(target_arch = "wasm32"))]
 pub mod streams;
 pub(crate) mod two_frame;

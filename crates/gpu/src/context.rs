@@ -150,7 +150,7 @@ pub const GPU_REDUCTION_WORKGROUPS: u32 = 1024;
 /// accounting (`wgslam batch --concurrent`: one context per job, one device for all; wgpu's
 /// error scopes are per thread, so each job's thread scopes its own work). Their waits
 /// combine: one thread's device wait serves every context whose work it covers
-/// ([`super::shared_wait`]).
+/// (`shared_wait.rs`).
 pub struct GpuContext {
     /// Kept alive for the lifetime of the adapter and device.
     _instance: wgpu::Instance,
@@ -505,7 +505,7 @@ impl GpuContext {
     /// sharing the queue is already blocked in a device wait that covers this context's
     /// work, it sleeps until that wait ends (counted as a shared wait, not its own);
     /// otherwise it waits for the newest submission on the queue, covering every context's
-    /// work submitted so far ([`super::shared_wait`]). When nothing was submitted since the
+    /// work submitted so far (`shared_wait.rs`). When nothing was submitted since the
     /// last wait (a second read-back of the same finished work, as the fern codes fusion
     /// recorded), or another context's wait served it, it only polls without blocking,
     /// which runs the map callbacks of that finished work.
