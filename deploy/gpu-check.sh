@@ -195,6 +195,13 @@ throughput() {
   gpu_jobs_manifest j 16 "$JOB_STEP" "$JOB_SPAN" >"$manifest"
   step "batch16-concurrent16-$label" "$WORK/batch16-$label/summary.json" -- \
     "$bin" batch "$manifest" --out "$WORK/batch16-$label" --concurrent 16
+  # Shared waits (issue 48 item 2): 16 GPU streams in one process, waits and submissions
+  # per stream-frame against one stream, where the binary has `bench --streams`.
+  if "$bin" bench --help 2>/dev/null | grep -q -- '--streams'; then
+    step "streams16-$label" "$WORK/streams16-$label.json" -- \
+      "$bin" bench "$SCENES" --frames "$BENCH_FRAMES" --downsample 1 --streams 16 \
+      --json "$WORK/streams16-$label.json"
+  fi
   step "cpu-reference-ds1-$label" "$WORK/cpu-$label.json" -- \
     "$bin" bench "$SCENES" --frames "$CPU_FRAMES" --downsample 1 --backends cpu --rounds 1 \
     --json "$WORK/cpu-$label.json"
