@@ -261,8 +261,11 @@ impl LoopClosure {
             .map(|i| db.keyframe(i))
             .filter(|kf| old_enough(kf.frame_id))
             .map(|kf| {
-                let t = se3::inverse_rigid(&kf.t_world_to_cam);
-                (kf.frame_id, pose_change(&t, t_cam_to_world))
+                let t_world_to_cam = se3::inverse_rigid(t_cam_to_world);
+                (
+                    kf.frame_id,
+                    pose_change(&kf.t_world_to_cam, &t_world_to_cam),
+                )
             })
             .filter(|(_, (m, deg))| *m <= s.local_radius_m && *deg <= s.local_angle_deg)
             .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
@@ -321,7 +324,7 @@ impl LoopClosure {
         let inliers = last.map_or(0, |it| it.inliers);
         let rms_m = last.map_or(f64::INFINITY, |it| it.mean_sq_residual.max(0.0).sqrt());
         let inlier_fraction = inliers as f64 / valid as f64;
-        let (correction_m, correction_deg) = pose_change(t_tracked, t_loop);
+        let (correction_m, correction_deg) = camera_change(t_tracked, t_loop);
         let verdict = if let Some(why) = refused {
             Err(format!("ICP refused a system: {why}"))
         } else if inlier_fraction < s.min_inlier_fraction {
@@ -392,8 +395,9 @@ impl LoopClosure {
             return (None, current);
         }
         let window = s.confirm_within_searches * s.search_every_frames;
+        // Where the pending correction puts this frame against where this loop does.
         let confirmed = self.pending.is_some_and(|(f, c)| {
-            let (m, deg) = pose_change(&c, &correction);
+            let (m, deg) = camera_change(&(c * current), t_loop);
             frame <= f + window && m <= s.confirm_agreement_m && deg <= s.confirm_agreement_deg
         });
         if !confirmed {
@@ -437,6 +441,18 @@ impl LoopClosure {
         let new_current = self.poses.last().expect("recorded").estimate;
         (Some(nodes), new_current)
     }
+}
+
+/// The change between two camera-to-world poses as the camera sees it: how far its
+/// centre moved (metres) and how far it turned (degrees), wherever the world's origin is
+/// ([`pose_change`] of the world-to-camera poses). The difference of the camera-to-world
+/// poses themselves would add the turn times the camera's distance from the origin: on
+/// TUM fr1/rpy, 2.2 m from the motion-capture origin, 20 mm to a 0.5 degree turn.
+fn camera_change(a_cam_to_world: &DMat4, b_cam_to_world: &DMat4) -> (f64, f64) {
+    pose_change(
+        &se3::inverse_rigid(a_cam_to_world),
+        &se3::inverse_rigid(b_cam_to_world),
+    )
 }
 
 /// `deform_surfels`' table entry for the node of `frame` with the world-frame rigid
@@ -516,6 +532,23 @@ mod tests {
     /// it `offset_m` along y from its tracked pose; returns what `close` did.
     fn loop_at(lc: &mut LoopClosure, frame: u32, offset_m: f64) -> Option<LoopAction> {
         record_to(lc, frame);
+        let tracked = lc.poses().last().unwrap().estimate;
+        let t_loop = DMat4::from_translation(DVec3::new(0.0, offset_m, 0.0)) * tracked;
+        verified_loop(lc, frame, &t_loop)
+    }
+
+    /// Records frames up to `frame` and a verified loop of it to keyframe 0 that turns it
+    /// `deg` about its own centre (its optical axis); returns what `close` did.
+    fn turning_loop_at(lc: &mut LoopClosure, frame: u32, deg: f64) -> Option<LoopAction> {
+        record_to(lc, frame);
+        let tracked = lc.poses().last().unwrap().estimate;
+        let t_loop = tracked * DMat4::from_rotation_z(deg.to_radians());
+        verified_loop(lc, frame, &t_loop)
+    }
+
+    /// Judges and closes a loop of the last recorded `frame` to keyframe 0 that puts it at
+    /// `t_loop` (camera to world); returns what `close` did.
+    fn verified_loop(lc: &mut LoopClosure, frame: u32, t_loop: &DMat4) -> Option<LoopAction> {
         let candidate = Candidate {
             keyframe_frame: 0,
             kind: LoopKind::Global,
@@ -529,11 +562,10 @@ mod tests {
             ..IcpIteration::default()
         };
         let tracked = lc.poses().last().unwrap().estimate;
-        let t_loop = DMat4::from_translation(DVec3::new(0.0, offset_m, 0.0)) * tracked;
-        lc.judge(frame, &candidate, &[it], None, &tracked, &t_loop)
+        lc.judge(frame, &candidate, &[it], None, &tracked, t_loop)
             .unwrap();
         let mut db = KeyframeDatabase::new(&RelocalisationSettings::default());
-        let (nodes, _) = lc.close(frame, 0, &t_loop, &mut db);
+        let (nodes, _) = lc.close(frame, 0, t_loop, &mut db);
         let record = lc.loops().last().unwrap();
         assert_eq!(nodes.is_some(), record.action == Some(LoopAction::Bent));
         record.action
@@ -580,5 +612,27 @@ mod tests {
         assert!(record.optimised.is_none());
         let after: Vec<DMat4> = lc.poses().iter().map(|p| p.estimate).collect();
         assert_eq!(before[..], after[..before.len()], "nothing moved");
+    }
+
+    /// A loop's correction is measured as the camera sees it, wherever the world's origin
+    /// is: frames 105 and 110 (1.05 and 1.1 m from the origin) are turned 1.2 and 2
+    /// degrees about their own centres. Each moves its camera 0 mm, and the two agree
+    /// within 1 degree and 10 mm, so the second confirms the first and bends. As
+    /// differences of camera-to-world poses they would read 22 mm and disagree by 16 mm.
+    #[test]
+    fn a_loops_correction_does_not_depend_on_the_worlds_origin() {
+        let mut lc = straight_run(100);
+        assert_eq!(
+            turning_loop_at(&mut lc, 105, 1.2),
+            Some(LoopAction::AwaitingConfirmation)
+        );
+        let first = lc.loops().last().unwrap();
+        assert!(first.correction_m < 1e-9, "{}", first.correction_m);
+        assert!(
+            (first.correction_deg - 1.2).abs() < 1e-6,
+            "{}",
+            first.correction_deg
+        );
+        assert_eq!(turning_loop_at(&mut lc, 110, 2.0), Some(LoopAction::Bent));
     }
 }
