@@ -36,23 +36,16 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     ),
     (
         "icp_reduce",
-        &[BIND, STEPS, "crates/core/src/cpu/photo_reduce.rs"],
-        "binds a pyramid level's maps; photo_reduce's twin shares its Huber weight",
-    ),
-    (
-        "icp_reduce_final",
-        &[STEPS, "crates/gpu/src/backend.rs"],
-        "sums the partial systems of icp_reduce and photo_reduce, bound per system",
+        &["crates/core/src/cpu/photo_reduce.rs"],
+        "photo_reduce's twin shares its Huber weight",
     ),
     (
         "photo_reduce",
         &[
-            BIND,
-            STEPS,
             "src/slam/step_params.rs",
             "crates/core/src/cpu/predict_model.rs",
         ],
-        "binds a pyramid level's maps; its twin's constants are the photometric term's",
+        "its twin's constants are the photometric term's",
     ),
     (
         "block_bounds",

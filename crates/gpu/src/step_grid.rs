@@ -7,6 +7,7 @@ use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel};
 use super::pipelines::Kernels;
 use super::recording::Pass;
+use crate::layout::ICP_SYSTEM_LEN;
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
@@ -29,6 +30,9 @@ pub(super) struct StepGrid {
     /// [`image_grid`]).
     cap: u32,
     cpu_adapter: bool,
+    /// [`GpuContext::reduction_workgroups`]: a reduction's workgroups, one partial system
+    /// each.
+    reduction: u32,
 }
 
 impl StepGrid {
@@ -42,6 +46,7 @@ impl StepGrid {
             levels,
             cap: ctx.grid_workgroups_cap(),
             cpu_adapter: ctx.is_cpu_adapter(),
+            reduction: ctx.reduction_workgroups(),
         }
     }
     /// A per-pixel `kernel`'s workgroups over the frame.
@@ -76,7 +81,9 @@ impl StepGrid {
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
-    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; a
+    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; at
+    /// the call's [`At`] a reduction's pass of the reduction workgroups, or a system's sum
+    /// of one workgroup per entry; a
     /// key kernel's passes in turn, each over every bind group (its first alone where the
     /// call says so: `Call::every_key_pass`). Panics on a call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
@@ -99,13 +106,20 @@ impl StepGrid {
         };
         let at = match shape {
             Shape::PerLevel => call.at().choice(),
+            Shape::Reduce | Shape::PerSystem => call.at(),
             Shape::OverFrame | Shape::PerChunk | Shape::PerBlock => At::FRAME,
         };
         let groups = bg
             .generic
             .get(&(kernel, at))
             .unwrap_or_else(|| panic!("`{}` has no bind group at {at:?}", call.name()));
-        let wg = self.level(at.level, &passes[0]);
+        let wg = match shape {
+            Shape::Reduce => [self.reduction, 1],
+            Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
+            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock | Shape::PerLevel => {
+                self.level(at.level, &passes[0])
+            }
+        };
         let passes = match call.every_key_pass() {
             true => passes,
             false => &passes[..1],
@@ -114,9 +128,11 @@ impl StepGrid {
             .iter()
             .flat_map(|pass| match shape {
                 Shape::PerBlock => self.per_block(pass, groups),
-                Shape::OverFrame | Shape::PerChunk | Shape::PerLevel => {
-                    groups.iter().map(|g| (pass, g, wg)).collect()
-                }
+                Shape::OverFrame
+                | Shape::PerChunk
+                | Shape::PerLevel
+                | Shape::Reduce
+                | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
             .collect()
     }

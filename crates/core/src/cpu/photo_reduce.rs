@@ -66,7 +66,7 @@ fn bilinear(i: [f32; 4], tx: f32, ty: f32) -> [f32; 3] {
 pub fn photo_row(
     params: &IcpParams,
     src_texel: [u32; 2],
-    pred_vertex: &[[f32; 4]],
+    level0_pred_vertex: &[[f32; 4]],
     pred_intensity: &[f32],
     normal_depth: &[[f32; 4]],
     intensity_patch: &[[f32; 4]],
@@ -74,7 +74,7 @@ pub fn photo_row(
     let w = params.camera.width;
     let step = params.photo_source_step;
     let src = (step * src_texel[1] * params.photo_source_width + step * src_texel[0]) as usize;
-    let src_world = pred_vertex[src];
+    let src_world = level0_pred_vertex[src];
     let i_model = pred_intensity[src];
     if !is_valid(src_world) || i_model < 0.0 {
         return None;
@@ -121,7 +121,7 @@ pub fn photo_row(
 /// `partials` is returned instead of written: the summed system, in f64.
 pub fn photo_reduce(
     params: &IcpParams,
-    pred_vertex: &[[f32; 4]],
+    level0_pred_vertex: &[[f32; 4]],
     pred_intensity: &[f32],
     normal_depth: &[[f32; 4]],
     intensity_patch: &[[f32; 4]],
@@ -130,7 +130,7 @@ pub fn photo_reduce(
         photo_row(
             params,
             texel,
-            pred_vertex,
+            level0_pred_vertex,
             pred_intensity,
             normal_depth,
             intensity_patch,

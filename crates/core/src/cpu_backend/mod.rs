@@ -43,8 +43,8 @@ pub struct CpuBackend {
     prediction: Vec<Prediction>,
     /// `predict_model`'s predicted intensity (level 0; see `cpu::photo_reduce`).
     pred_intensity: Vec<f32>,
-    /// The frame's intensity pyramid, made by `rgbd_system` (see `photo.rs`).
-    intensity: photo::IntensityPyramid,
+    /// The frame's intensity pyramid, made by `rgbd_system` (see `systems.rs`).
+    intensity: systems::IntensityPyramid,
     assoc: Vec<u64>,
     /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
     /// on every frame of best-candidate association (`fuse_flags`, `fuse_prune`).
@@ -288,33 +288,17 @@ impl Backend for CpuBackend {
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
-            let levels = 1 + self.frame.pyramid.len();
-            if level >= levels.min(self.prediction.len()) {
-                return Err(crate::Error::Argument(format!(
-                    "ICP at pyramid level {level}, but preprocess() made {levels} level(s) and \
-                     predict() {}",
-                    self.prediction.len()
-                )));
-            }
-            let (pred_vertex, pred_normal) = &self.prediction[level];
-            let normal_depth = match level {
-                0 => &self.frame.normal_depth,
-                l => &self.frame.pyramid[l - 1].normal_depth,
-            };
-            Ok(cpu::icp_reduce::icp_reduce(
-                params,
-                pred_vertex,
-                pred_normal,
-                normal_depth,
-            ))
+            self.check_system_level(level, "ICP")?;
+            let [geometric, _] = self.run_systems(plan::icp_system(level), params);
+            Ok(geometric)
         })
     }
 
     fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
-            let geometric = self.icp_system(level, params)?;
-            Ok([geometric, self.photo_system(level, params)])
+            self.check_system_level(level, "RGB-D ICP")?;
+            Ok(self.run_systems(plan::rgbd_system(level), params))
         })
     }
 
@@ -523,7 +507,7 @@ impl Backend for CpuBackend {
 
 mod fuse;
 mod inspect;
-mod photo;
+mod systems;
 
 #[cfg(test)]
 mod tests;
