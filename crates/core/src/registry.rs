@@ -317,7 +317,8 @@ registry_data! {
         fuse_flags: OverFrame(fuse),
         // ICP's and RGB-D tracking's systems at a pyramid level: the geometric and the
         // photometric term's rows into per-workgroup partial systems, and their sum
-        // (`icp_reduce_final` binds no parameters: its row names the reductions').
+        // (`icp_reduce_final` declares no `params`: its row's uniform, the reductions', is
+        // offered to its bind groups and not taken).
         icp_reduce: Reduce(icp),
         photo_reduce: Reduce(icp),
         icp_reduce_final: PerSystem(icp),

@@ -82,10 +82,10 @@ impl StepGrid {
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
     /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; at
-    /// the call's [`At`] a reduction's pass of the reduction workgroups, or a system's sum
-    /// of one workgroup per entry; a
-    /// key kernel's passes in turn, each over every bind group (its first alone where the
-    /// call says so: `Call::every_key_pass`). Panics on a call whose
+    /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
+    /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
+    /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
+    /// call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
     /// group where it runs (internal contracts: every planned kernel has one or the other,
     /// and [`At::choices`] every place a plan gives).
