@@ -35,11 +35,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "the filter-quality check runs its twin on the host",
     ),
     (
-        "icp_reduce",
-        &["crates/core/src/cpu/photo_reduce.rs"],
-        "photo_reduce's twin shares its Huber weight",
-    ),
-    (
         "photo_reduce",
         &[
             "src/slam/step_params.rs",

@@ -121,6 +121,17 @@ pub fn chunk_blocks(chunk: &MapChunk, surfel_count: u32) -> (u32, u32) {
     ((end - chunk.base).div_ceil(BLOCK_SURFELS), end)
 }
 
+/// Huber weight of a residual `b` (metres in `icp_reduce`, intensity in `photo_reduce`): 1
+/// within `delta`, `delta / |b|` beyond; 1 when `delta` is 0 (off). Mirrors `huber_weight`
+/// in common.wgsl.
+#[inline]
+pub fn huber_weight(b: f32, delta: f32) -> f32 {
+    if delta <= 0.0 || b.abs() <= delta {
+        return 1.0;
+    }
+    delta / b.abs()
+}
+
 /// The invalid map entry. Mirrors `INVALID` in common.wgsl.
 pub const INVALID: [f32; 4] = [0.0; 4];
 

@@ -25,8 +25,7 @@
 //! (`photo_huber`) scales the row by `sqrt(w)`.
 
 use super::arith;
-use super::icp_reduce::huber_weight;
-use super::{is_valid, transform_point, xyz};
+use super::{huber_weight, is_valid, transform_point, xyz};
 use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
 
 /// `pred_intensity` where the pixel has no surfel (intensities are 0..1).
