@@ -43,29 +43,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "its twin's constants are the photometric term's",
     ),
     (
-        "block_bounds",
-        &[
-            BIND,
-            "crates/gpu/src/step_grid.rs",
-            "crates/gpu/src/backend.rs",
-            "crates/gpu/src/inspect.rs",
-            "crates/core/src/cpu/entries.rs",
-            "crates/core/src/cpu/fuse_merge.rs",
-            "crates/core/src/cpu/fuse_merge_chosen.rs",
-            "crates/core/src/cpu/fuse_prune.rs",
-            "crates/core/src/cpu/fuse_select.rs",
-            "crates/core/src/cpu/project_model.rs",
-            "shaders/fuse_merge.wgsl",
-            "shaders/fuse_merge_chosen.wgsl",
-            "shaders/fuse_prune.wgsl",
-            "shaders/fuse_select.wgsl",
-            "shaders/project_model.wgsl",
-            "shaders/visible_surfels.wgsl",
-        ],
-        "runs over the stale boxes only; the boxes it writes are the buffer `block_bounds` \
-         that every block-walking kernel reads",
-    ),
-    (
         "prefix_sum",
         &[
             BIND,

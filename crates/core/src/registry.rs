@@ -49,6 +49,10 @@ pub enum Shape {
     /// One bind group per map chunk; per chunk a pass of one workgroup per culling block
     /// holding live surfels.
     PerBlock,
+    /// One bind group per map chunk; per chunk holding culling blocks whose boxes are
+    /// stale (fusion appended to them, or the map was compacted or uploaded) a pass of one
+    /// workgroup per stale block, none where no box is stale.
+    PerStaleBlock,
     /// One bind group per pyramid level (and, for the levels that read level 0's vertex
     /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
     /// (`vertex_map`, `normal_depth`, `pred_vertex`, `intensity_patch`, ...; the finer
@@ -315,6 +319,9 @@ registry_data! {
         fuse_prune: PerBlock(fuse),
         fuse_merge: PerBlock(fuse),
         fuse_flags: OverFrame(fuse),
+        // The culling blocks' boxes (`block_boxes`) where they are stale: the first
+        // call of every culling step.
+        block_bounds: PerStaleBlock(bounds),
         // ICP's and RGB-D tracking's systems at a pyramid level: the geometric and the
         // photometric term's rows into per-workgroup partial systems, and their sum
         // (`icp_reduce_final` declares no `params`: its row's uniform, the reductions', is
@@ -343,7 +350,6 @@ registry_data! {
         intensity_pyramid: PerLevel(intensity),
     }
     kernels: {
-        block_bounds,
         icp_candidates,
         fern_encode,
         keypoint_detect,

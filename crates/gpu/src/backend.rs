@@ -15,7 +15,7 @@
 //! The surfel map is chunks of three storage buffers each ([`MapBuffers`]); the index map,
 //! the association buffers, the counter and the ICP partials are storage buffers too
 //! (atomics). Each block of [`BLOCK_SURFELS`] map slots has a world-frame box in
-//! `block_bounds`: the culling kernels skip the blocks the camera cannot see, `fuse_merge`
+//! `block_boxes`: the culling kernels skip the blocks the camera cannot see, `fuse_merge`
 //! grows a box a merge moved a surfel out of, and `block_bounds` recomputes the boxes of the
 //! blocks fusion appended to (all of them after a compaction or an upload) at the start of
 //! the next culling step.
@@ -80,7 +80,7 @@ pub struct GpuBackend {
     pub(super) map: MapBuffers,
     /// Per culling block of map slots, its box: entries `2b` (min) and `2b + 1` (max),
     /// ordered-encoded (see `block_bounds.wgsl`); one buffer for both map sets.
-    pub(super) block_bounds: GpuArray<[u32; 4]>,
+    pub(super) block_boxes: GpuArray<[u32; 4]>,
     /// Blocks from the one holding this surfel index on have stale boxes (fusion appended
     /// to them, or the map was compacted or uploaded); recomputed before the next culling.
     pub(super) bounds_dirty_from: usize,
@@ -189,12 +189,12 @@ impl GpuBackend {
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
             let map = MapBuffers::new(&ctx, capacity, chunk_surfels)?;
-            let mut block_bounds = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
-            block_bounds.set_len(bounds_entries(&map));
-            Ok((kernels, small, (map, block_bounds)))
+            let mut block_boxes = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
+            block_boxes.set_len(bounds_entries(&map));
+            Ok((kernels, small, (map, block_boxes)))
         })?;
         let (systems, counter, counter_readback) = small;
-        let (map, block_bounds) = map;
+        let (map, block_boxes) = map;
         let uniforms = Uniforms::new(&ctx);
         Ok(GpuBackend {
             ctx,
@@ -206,7 +206,7 @@ impl GpuBackend {
             counter_readback,
             frame: None,
             map,
-            block_bounds,
+            block_boxes,
             bounds_dirty_from: 0,
             fused_view: None,
             count: 0,
@@ -321,9 +321,9 @@ impl GpuBackend {
             .max(needed)
             .min(self.max_surfels);
         self.map.grow(&self.ctx, grown, self.count)?;
-        self.block_bounds
+        self.block_boxes
             .grow(&self.ctx, bounds_entries(&self.map))?;
-        self.block_bounds.set_len(bounds_entries(&self.map));
+        self.block_boxes.set_len(bounds_entries(&self.map));
         // The spare map follows the new layout at the next `compact`.
         self.bind_groups = None;
         self.spare_bind_groups = None;
@@ -358,7 +358,7 @@ impl GpuBackend {
                     .as_ref()
                     .expect("preprocess() runs before any other step"),
                 map: &self.map,
-                block_bounds: &self.block_bounds,
+                block_boxes: &self.block_boxes,
                 systems: &self.systems.buffers,
                 counter: &self.counter,
             };
@@ -428,7 +428,7 @@ impl GpuBackend {
     }
 }
 
-/// Entries of `block_bounds` for `map`'s slots: a min and a max corner per block.
+/// Entries of `block_boxes` for `map`'s slots: a min and a max corner per block.
 fn bounds_entries(map: &MapBuffers) -> usize {
     2 * map.capacity().div_ceil(BLOCK_SURFELS as usize)
 }

@@ -21,8 +21,6 @@ use wgslam_core::registry::{At, KernelId, Shape, System};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
-    /// The map kernels' bind groups, one per map chunk.
-    pub block_bounds: Vec<wgpu::BindGroup>,
     /// The registry's `generic` kernels' bind groups by kernel id and [`At`] (a
     /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, else
     /// `At::FRAME`): one per map chunk, or one over the frame, the level or the system
@@ -38,7 +36,7 @@ pub(super) struct Resources<'a> {
     pub frame: &'a FrameBuffers,
     pub map: &'a MapBuffers,
     /// Per culling block its box (see `block_bounds.wgsl`).
-    pub block_bounds: &'a GpuArray<[u32; 4]>,
+    pub block_boxes: &'a GpuArray<[u32; 4]>,
     /// Per reduced system, in `System::ALL`'s order, its partial systems and their sum.
     pub systems: &'a [SystemBuffers; 2],
     /// `prefix_sum`'s total.
@@ -147,13 +145,13 @@ fn system_pool(systems: &[SystemBuffers; 2], system: System) -> Pool<'_> {
 }
 
 /// One map chunk's arrays and the culling blocks' boxes.
-fn chunk_pool<'a>(ch: &'a Chunk, block_bounds: &'a GpuArray<[u32; 4]>) -> Pool<'a> {
+fn chunk_pool<'a>(ch: &'a Chunk, block_boxes: &'a GpuArray<[u32; 4]>) -> Pool<'a> {
     vec![
         ("chunk", ch.info_buffer.binding()),
         ("position_weight", ch.position_weight.binding()),
         ("normal_frame", ch.normal_frame.binding()),
         ("color", ch.color.binding()),
-        ("block_bounds", block_bounds.binding()),
+        ("block_boxes", block_boxes.binding()),
     ]
 }
 
@@ -177,7 +175,7 @@ impl BindGroups {
                 .iter()
                 .map(|ch| {
                     let mut pool = vec![("params", params.clone())];
-                    pool.extend(chunk_pool(ch, r.block_bounds));
+                    pool.extend(chunk_pool(ch, r.block_boxes));
                     pool.extend(frame.iter().cloned());
                     kernel.bind_group_from(ctx, &pool)
                 })
@@ -212,7 +210,6 @@ impl BindGroups {
                 .collect::<Vec<_>>()
         };
         BindGroups {
-            block_bounds: per_chunk(&k.block_bounds, u.bounds.binding()),
             generic: k
                 .generic(u)
                 .into_iter()
@@ -226,7 +223,10 @@ impl BindGroups {
                         (Shape::OverFrame, RowParams::Frame(p)) => {
                             vec![(At::FRAME, vec![over_frame(kernel, p, Vec::new())])]
                         }
-                        (Shape::PerChunk | Shape::PerBlock, RowParams::Frame(p)) => {
+                        (
+                            Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock,
+                            RowParams::Frame(p),
+                        ) => {
                             vec![(At::FRAME, per_chunk(kernel, p))]
                         }
                         (Shape::Reduce, RowParams::Frame(p)) => per_system(kernel, p, true),

@@ -18,7 +18,8 @@ use wgslam_core::registry::{At, Shape};
 /// them and the kernel's workgroup size), the map chunks' workgroups and the stale block
 /// boxes.
 pub(super) struct StepGrid {
-    /// The stale block boxes' `block_bounds` passes, `(chunk, workgroups)`.
+    /// The stale block boxes' passes, `(chunk, workgroups)` (a `PerStaleBlock` row's;
+    /// see `stale_bounds_passes`).
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
     pub chunks: Vec<u32>,
@@ -81,7 +82,8 @@ impl StepGrid {
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
-    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; at
+    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
+    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]); at
     /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
     /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
@@ -107,7 +109,9 @@ impl StepGrid {
         let at = match shape {
             Shape::PerLevel => call.at().choice(),
             Shape::Reduce | Shape::PerSystem => call.at(),
-            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock => At::FRAME,
+            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
+                At::FRAME
+            }
         };
         let groups = bg
             .generic
@@ -116,9 +120,11 @@ impl StepGrid {
         let wg = match shape {
             Shape::Reduce => [self.reduction, 1],
             Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
-            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock | Shape::PerLevel => {
-                self.level(at.level, &passes[0])
-            }
+            Shape::OverFrame
+            | Shape::PerChunk
+            | Shape::PerBlock
+            | Shape::PerStaleBlock
+            | Shape::PerLevel => self.level(at.level, &passes[0]),
         };
         let passes = match call.every_key_pass() {
             true => passes,
@@ -128,19 +134,17 @@ impl StepGrid {
             .iter()
             .flat_map(|pass| match shape {
                 Shape::PerBlock => self.per_block(pass, groups),
+                Shape::PerStaleBlock => self
+                    .bounds
+                    .iter()
+                    .map(|&(c, wg)| (pass, &groups[c], [wg, 1]))
+                    .collect(),
                 Shape::OverFrame
                 | Shape::PerChunk
                 | Shape::PerLevel
                 | Shape::Reduce
                 | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
-            .collect()
-    }
-    /// The `block_bounds` passes over the stale boxes.
-    pub fn bounds<'a>(&self, k: &'a Kernels, bg: &'a BindGroups) -> Vec<Pass<'a>> {
-        self.bounds
-            .iter()
-            .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
             .collect()
     }
 }

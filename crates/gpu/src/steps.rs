@@ -137,13 +137,13 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("predict");
             for call in plan {
                 let passes = match call {
-                    PredictCall::BlockBounds => grid.bounds(k, bg),
                     PredictCall::ClearIndexMap => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    // `project_model`, `predict_model`, and per coarser level the model's
-                    // maps: bound and dispatched by their registry rows.
+                    // The stale boxes' `block_bounds`, `project_model`, `predict_model`,
+                    // and per coarser level the model's maps: bound and dispatched by
+                    // their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
@@ -220,12 +220,12 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    FuseCall::BlockBounds => grid.bounds(k, bg),
                     FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
-                    // `fuse_select` (surfels pick pixels, then each picked surfel merges
-                    // from its pixel: `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`,
-                    // `fuse_flags`, `fuse_add` (its passes as the call says): bound and
-                    // dispatched by their registry rows.
+                    // The stale boxes' `block_bounds`, `fuse_select` (surfels pick
+                    // pixels, then each picked surfel merges from its pixel:
+                    // `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`, `fuse_flags`,
+                    // `fuse_add` (its passes as the call says): bound and dispatched by
+                    // their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;

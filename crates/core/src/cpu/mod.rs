@@ -68,7 +68,7 @@ pub const CULL_MARGIN_PX: f32 = 2.0;
 /// Margin, metres, behind the camera for [`block_visible`]. Mirrors `CULL_NEAR_MARGIN_M`.
 pub const CULL_NEAR_MARGIN_M: f32 = 0.001;
 
-/// A box corner decoded from `block_bounds` (xyz of one `[u32; 4]` entry). Mirrors
+/// A box corner decoded from `block_boxes` (xyz of one `[u32; 4]` entry). Mirrors
 /// `decode_corner` in common.wgsl.
 #[inline]
 pub fn decode_corner(v: [u32; 4]) -> Vec3 {

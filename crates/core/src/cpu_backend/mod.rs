@@ -60,7 +60,7 @@ pub struct CpuBackend {
     offsets: Vec<u32>,
     spare: SurfelMap,
     /// Per culling block, its box: entries `2b` (min), `2b + 1` (max), ordered-encoded.
-    block_bounds: Vec<[u32; 4]>,
+    block_boxes: Vec<[u32; 4]>,
     /// Blocks from the one holding this surfel index on have stale boxes.
     bounds_dirty_from: usize,
     /// The threads the twins run on (rayon's global pool unless bounded).
@@ -108,20 +108,20 @@ impl CpuBackend {
         let n = self.map.len();
         if self.bounds_dirty_from < n {
             let blocks = n.div_ceil(BLOCK_SURFELS as usize);
-            self.block_bounds.resize(2 * blocks, [0; 4]);
+            self.block_boxes.resize(2 * blocks, [0; 4]);
             cpu::block_bounds::block_bounds(
                 &BoundsParams::stale(n, self.bounds_dirty_from),
                 &MapChunk::whole(n),
                 &self.map.position_weight,
-                &mut self.block_bounds,
+                &mut self.block_boxes,
             );
         }
         self.bounds_dirty_from = n;
     }
 
     /// The block boxes (for tests: every surfel must lie in its block's box).
-    pub fn block_bounds(&self) -> &[[u32; 4]] {
-        &self.block_bounds
+    pub fn block_boxes(&self) -> &[[u32; 4]] {
+        &self.block_boxes
     }
 }
 
@@ -241,7 +241,7 @@ impl Backend for CpuBackend {
                     PredictCall::ProjectModel => cpu::project_model::project_model(
                         &params,
                         &chunk,
-                        &self.block_bounds,
+                        &self.block_boxes,
                         &self.map.position_weight,
                         &mut self.index_map,
                     ),
