@@ -17,7 +17,7 @@
 @group(0) @binding(2) var<storage, read> position_weight: array<vec4<f32>>;
 // Out: per block, min (2b) and max (2b + 1) of its surfels' positions, ordered_from_f32
 // encoded, w = 0.
-@group(0) @binding(3) var<storage, read_write> block_bounds: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> block_boxes: array<vec4<u32>>;
 
 const WORKGROUP_SIZE: u32 = 64u;
 
@@ -59,8 +59,8 @@ fn main(
             let block = first + b;
             lo = lo_box[0];
             hi = hi_box[0];
-            block_bounds[2u * block] = vec4<u32>(ordered_from_f32(lo.x), ordered_from_f32(lo.y), ordered_from_f32(lo.z), 0u);
-            block_bounds[2u * block + 1u] = vec4<u32>(ordered_from_f32(hi.x), ordered_from_f32(hi.y), ordered_from_f32(hi.z), 0u);
+            block_boxes[2u * block] = vec4<u32>(ordered_from_f32(lo.x), ordered_from_f32(lo.y), ordered_from_f32(lo.z), 0u);
+            block_boxes[2u * block + 1u] = vec4<u32>(ordered_from_f32(hi.x), ordered_from_f32(hi.y), ordered_from_f32(hi.z), 0u);
         }
         // The next block's boxes overwrite these only after thread 0 has read them.
         workgroupBarrier();

@@ -443,7 +443,7 @@ fn xyz(v: vec4<f32>) -> vec3<f32> {
 }
 
 // Huber weight of a residual b (metres in icp_reduce, intensity in photo_reduce): 1 within delta, delta / |b| beyond; 1 when
-// delta is 0 (off). Mirrors `huber_weight` in crates/core/src/cpu/icp_reduce.rs.
+// delta is 0 (off). Mirrors `cpu::huber_weight`.
 fn huber_weight(b: f32, delta: f32) -> f32 {
     if delta <= 0.0 || abs(b) <= delta {
         return 1.0;

@@ -22,7 +22,7 @@
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
 // Per block 8 words, min xyz, pad, max xyz, pad (ordered_from_f32; the vec4<u32> pairs
 // other kernels read); grown with atomicMin/atomicMax to hold every merged surfel.
-@group(0) @binding(4) var<storage, read_write> block_bounds: array<atomic<u32>>;
+@group(0) @binding(4) var<storage, read_write> block_boxes: array<atomic<u32>>;
 // The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(5) var<storage, read_write> position_weight: array<vec4<f32>>;
 // Bits of the unit normal (world frame), w = frame that last touched the surfel.
@@ -38,7 +38,7 @@ const WORKGROUP_SIZE: u32 = 64u;
 
 // Word k of block b's box (0..2 min xyz, 4..6 max xyz) as a float.
 fn box_word(block: u32, k: u32) -> f32 {
-    return f32_from_ordered(atomicLoad(&block_bounds[8u * block + k]));
+    return f32_from_ordered(atomicLoad(&block_boxes[8u * block + k]));
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -73,10 +73,10 @@ fn main(
         }
         for (var k = 0u; k < 3u; k++) {
             if grown_lo[k] < lo[k] {
-                atomicMin(&block_bounds[8u * block + k], ordered_from_f32(grown_lo[k]));
+                atomicMin(&block_boxes[8u * block + k], ordered_from_f32(grown_lo[k]));
             }
             if grown_hi[k] > hi[k] {
-                atomicMax(&block_bounds[8u * block + 4u + k], ordered_from_f32(grown_hi[k]));
+                atomicMax(&block_boxes[8u * block + 4u + k], ordered_from_f32(grown_hi[k]));
             }
         }
     }

@@ -20,7 +20,7 @@
 @group(0) @binding(3) var<storage, read> chunk: MapChunk;
 // Per block 8 words, min xyz, pad, max xyz, pad (ordered_from_f32), grown to hold every
 // merged surfel.
-@group(0) @binding(4) var<storage, read_write> block_bounds: array<atomic<u32>>;
+@group(0) @binding(4) var<storage, read_write> block_boxes: array<atomic<u32>>;
 // The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(5) var<storage, read_write> position_weight: array<vec4<f32>>;
 // Bits of the unit normal (world frame), w = last frame.
@@ -78,11 +78,11 @@ fn per_pixel(params: FuseParams, chunk: MapChunk, texel: vec2<u32>) {
     let p = m.position_weight.xyz;
     for (var k = 0u; k < 3u; k++) {
         let e = ordered_from_f32(p[k]);
-        if e < atomicLoad(&block_bounds[8u * block + k]) {
-            atomicMin(&block_bounds[8u * block + k], e);
+        if e < atomicLoad(&block_boxes[8u * block + k]) {
+            atomicMin(&block_boxes[8u * block + k], e);
         }
-        if e > atomicLoad(&block_bounds[8u * block + 4u + k]) {
-            atomicMax(&block_bounds[8u * block + 4u + k], e);
+        if e > atomicLoad(&block_boxes[8u * block + 4u + k]) {
+            atomicMax(&block_boxes[8u * block + 4u + k], e);
         }
     }
 }

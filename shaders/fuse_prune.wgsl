@@ -20,7 +20,7 @@
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
 // Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
 // ordered_from_f32 encoded.
-@group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read> block_boxes: array<vec4<u32>>;
 // The chunk's surfels, xyz world frame (metres), w = confidence.
 @group(0) @binding(3) var<storage, read_write> position_weight: array<vec4<f32>>;
 // Bits of the unit normal (world frame), w = last frame.

@@ -11,7 +11,7 @@
 @group(0) @binding(0) var<storage, read> params: IcpParams;
 // The source: level 0's prediction (whatever the level), WORLD frame, w = 1 / 0; the
 // level's pixel (u, v) reads its pixel (step u, step v), step = params.photo_source_step.
-@group(0) @binding(1) var pred_vertex: texture_2d<f32>;
+@group(0) @binding(1) var level0_pred_vertex: texture_2d<f32>;
 // The source's intensity (0..1; INTENSITY_NONE where no surfel), level 0's size
 // (predict_model), rows of params.photo_source_width.
 @group(0) @binding(2) var<storage, read> pred_intensity: array<f32>;
@@ -43,7 +43,7 @@ fn system_row(params: IcpParams, src_texel: vec2<u32>) -> IcpRow {
     row.valid = false;
     let w = params.camera.width;
     let src = params.photo_source_step * src_texel;
-    let src_world = textureLoad(pred_vertex, src, 0);
+    let src_world = textureLoad(level0_pred_vertex, src, 0);
     let i_model = pred_intensity[src.y * params.photo_source_width + src.x];
     if !is_valid(src_world) || i_model < 0.0 {
         return row;

@@ -19,7 +19,7 @@
 @group(0) @binding(1) var<storage, read> chunk: MapChunk;
 // Per block, min (2b) and max (2b + 1) corner of its surfels' world-frame box,
 // ordered_from_f32 encoded.
-@group(0) @binding(2) var<storage, read> block_bounds: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read> block_boxes: array<vec4<u32>>;
 // The chunk's surfels, xyz world frame (metres) + weight (see crates/gpu/src/map_buffers.rs).
 @group(0) @binding(3) var<storage, read> position_weight: array<vec4<f32>>;
 // width x height keys, cleared to 0 by the host (before pass 0): one u64 each, or

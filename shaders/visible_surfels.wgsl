@@ -6,7 +6,7 @@
 //   params                             a binding whose struct has t_world_to_cam,
 //                                      camera: Camera (intrinsics and image size) and
 //                                      surfel_count;
-//   chunk: MapChunk, block_bounds       the chunk and its blocks' world-frame boxes
+//   chunk: MapChunk, block_boxes        the chunk and its blocks' world-frame boxes
 //                                      (array<vec4<u32>>, min at 2b, max at 2b + 1);
 //   fn per_surfel(p, i, slot, cam)     the work of surfel i (map-wide index; `slot` in the
 //                                      chunk's arrays), on main's copy of the params, with
@@ -31,8 +31,8 @@ fn main(
     let base = chunk.base;
     for (var b = wid.x; b < span.x; b += nwg.x) {
         let block = base / BLOCK_SURFELS + b;
-        let lo = decode_corner(block_bounds[2u * block]);
-        let hi = decode_corner(block_bounds[2u * block + 1u]);
+        let lo = decode_corner(block_boxes[2u * block]);
+        let hi = decode_corner(block_boxes[2u * block + 1u]);
         if !block_visible(p.t_world_to_cam, cam, p.camera.width, p.camera.height, lo, hi) {
             continue;
         }

@@ -35,47 +35,12 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "the filter-quality check runs its twin on the host",
     ),
     (
-        "icp_reduce",
-        &[BIND, STEPS, "crates/core/src/cpu/photo_reduce.rs"],
-        "binds a pyramid level's maps; photo_reduce's twin shares its Huber weight",
-    ),
-    (
-        "icp_reduce_final",
-        &[STEPS, "crates/gpu/src/backend.rs"],
-        "sums the partial systems of icp_reduce and photo_reduce, bound per system",
-    ),
-    (
         "photo_reduce",
         &[
-            BIND,
-            STEPS,
             "src/slam/step_params.rs",
             "crates/core/src/cpu/predict_model.rs",
         ],
-        "binds a pyramid level's maps; its twin's constants are the photometric term's",
-    ),
-    (
-        "block_bounds",
-        &[
-            BIND,
-            "crates/gpu/src/step_grid.rs",
-            "crates/gpu/src/backend.rs",
-            "crates/gpu/src/inspect.rs",
-            "crates/core/src/cpu/entries.rs",
-            "crates/core/src/cpu/fuse_merge.rs",
-            "crates/core/src/cpu/fuse_merge_chosen.rs",
-            "crates/core/src/cpu/fuse_prune.rs",
-            "crates/core/src/cpu/fuse_select.rs",
-            "crates/core/src/cpu/project_model.rs",
-            "shaders/fuse_merge.wgsl",
-            "shaders/fuse_merge_chosen.wgsl",
-            "shaders/fuse_prune.wgsl",
-            "shaders/fuse_select.wgsl",
-            "shaders/project_model.wgsl",
-            "shaders/visible_surfels.wgsl",
-        ],
-        "runs over the stale boxes only; the boxes it writes are the buffer `block_bounds` \
-         that every block-walking kernel reads",
+        "its twin's constants are the photometric term's",
     ),
     (
         "prefix_sum",

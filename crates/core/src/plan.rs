@@ -6,13 +6,10 @@
 //! ([`Call::kernel`]); `wgslam compare` and the parity tests by its [`Call::name`].
 //!
 //! Not here: which buffers a kernel reads and writes (each backend binds its own; the
-//! GPU's bind groups are made by the WGSL variables' names) and ICP's per-iteration
-//! reduction (`icp_reduce`, then on the GPU `icp_reduce_final` over the per-workgroup
-//! partials; the CPU twin of `icp_reduce` sums in one pass), which is one fixed kernel
-//! pair rather than a plan.
+//! GPU's bind groups are made by the WGSL variables' names).
 
 use crate::layout::{BilateralParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
-use crate::registry::{At, KernelId};
+use crate::registry::{At, KernelId, System};
 
 /// A per-frame buffer that a step zeroes before its kernels accumulate into it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -117,11 +114,12 @@ step_calls! {
                 level,
                 filtered,
                 filtered_points,
+                ..At::FRAME
             },
             PreprocessCall::PyramidDepth { level, filtered } => At {
                 level,
                 filtered,
-                filtered_points: false,
+                ..At::FRAME
             },
             _ => At::FRAME,
         }
@@ -198,6 +196,29 @@ step_calls! {
     at(call) {
         match call {
             IntensityCall::IntensityPyramid { level } => At::of_level(level),
+        }
+    }
+}
+
+step_calls! {
+    /// One call of the `icp_system` and `rgbd_system` plans: one ICP iteration's
+    /// normal-equation systems at a pyramid level.
+    SystemCall {
+        /// `icp_reduce` at pyramid level `level`: the geometric (point-to-plane) rows into
+        /// per-workgroup partial systems (the CPU twin sums them into the system, in f64).
+        IcpReduce { level: usize } => icp_reduce,
+        /// `photo_reduce` at pyramid level `level`: the photometric rows (against level 0's
+        /// prediction) likewise.
+        PhotoReduce { level: usize } => photo_reduce,
+        /// `icp_reduce_final`: the system's partial systems summed into one (the GPU's
+        /// second stage; the CPU twins of the reductions have summed already).
+        SumPartials(System) => icp_reduce_final,
+    }
+    at(call) {
+        match call {
+            SystemCall::IcpReduce { level } => At::of_system(level, System::Geometric),
+            SystemCall::PhotoReduce { level } => At::of_system(level, System::Photometric),
+            SystemCall::SumPartials(system) => At::of_system(0, system),
         }
     }
 }
@@ -345,6 +366,25 @@ pub fn intensity_levels(made: usize, level: usize) -> Vec<IntensityCall> {
         .collect()
 }
 
+/// `icp_system` at pyramid level `level`: `icp_reduce`, then the sum of its partials.
+pub fn icp_system(level: usize) -> Vec<SystemCall> {
+    vec![
+        SystemCall::IcpReduce { level },
+        SystemCall::SumPartials(System::Geometric),
+    ]
+}
+
+/// `rgbd_system` at pyramid level `level` (after the intensity pyramid's
+/// [`intensity_levels`]): `icp_system`'s, then `photo_reduce` and the sum of its partials.
+pub fn rgbd_system(level: usize) -> Vec<SystemCall> {
+    let mut plan = icp_system(level);
+    plan.extend([
+        SystemCall::PhotoReduce { level },
+        SystemCall::SumPartials(System::Photometric),
+    ]);
+    plan
+}
+
 /// `compact`: keep flags, their prefix sum, and the copy of the survivors.
 pub fn compact() -> Vec<CompactCall> {
     vec![CompactCall::Flags, CompactCall::Scan, CompactCall::Scatter]
@@ -410,6 +450,16 @@ mod tests {
                 "fuse_flags",
                 "prefix_sum",
                 "fuse_add"
+            ]
+        );
+        assert_eq!(names!(icp_system(1)), ["icp_reduce", "icp_reduce_final"]);
+        assert_eq!(
+            names!(rgbd_system(0)),
+            [
+                "icp_reduce",
+                "icp_reduce_final",
+                "photo_reduce",
+                "icp_reduce_final"
             ]
         );
         assert_eq!(

@@ -49,6 +49,10 @@ pub enum Shape {
     /// One bind group per map chunk; per chunk a pass of one workgroup per culling block
     /// holding live surfels.
     PerBlock,
+    /// One bind group per map chunk; per chunk holding culling blocks whose boxes are
+    /// stale (fusion appended to them, or the map was compacted or uploaded) a pass of one
+    /// workgroup per stale block, none where no box is stale.
+    PerStaleBlock,
     /// One bind group per pyramid level (and, for the levels that read level 0's vertex
     /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
     /// (`vertex_map`, `normal_depth`, `pred_vertex`, `intensity_patch`, ...; the finer
@@ -57,12 +61,41 @@ pub enum Shape {
     /// pixels, at the [`At`] the plan call gives. The row's uniform is the level's own
     /// (a `generic_levels` row): a level without it has no bind group.
     PerLevel,
+    /// One bind group per pyramid level and [`System`] over the level's maps (as
+    /// `PerLevel`'s at [`At::of_level`], with level 0's prediction as `level0_pred_vertex`
+    /// and `pred_intensity`) and the system's partial systems (`partials`); a pass of the
+    /// adapter's reduction workgroups (each writes one partial system, its threads walking
+    /// the level's pixels in a grid-stride loop: `system_grid.wgsl`), at the plan call's
+    /// [`At`]. The row's uniform is the frame's (the same at every level).
+    Reduce,
+    /// One bind group per [`System`] over its partial systems (`partials`) and their sum
+    /// (`system`); a pass of one workgroup per entry of the system (`ICP_SYSTEM_LEN`), at
+    /// the plan call's [`At::system`].
+    PerSystem,
+}
+
+/// The normal-equation systems an ICP iteration reduces, each into partial systems of
+/// its own and their sum: [`Shape::Reduce`] and [`Shape::PerSystem`] rows are bound per
+/// system, and a plan call's [`At::system`] says which it writes or sums.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub enum System {
+    /// The geometric (point-to-plane) term's.
+    #[default]
+    Geometric,
+    /// RGB-D tracking's photometric term's.
+    Photometric,
+}
+
+impl System {
+    /// Every system, in the order of the pair `rgbd_system` returns (geometric first).
+    pub const ALL: [System; 2] = [System::Geometric, System::Photometric];
 }
 
 /// Where a plan call's kernel runs, for a [`Shape::PerLevel`] row: pyramid level `level`
 /// (0: the frame's own maps), and which of level 0's vertex maps it reads where it reads
 /// one: its `vertex_map` (and level 1's `fine_vertex`) the filtered one when `filtered`,
-/// its `point_map` the filtered one when `filtered_points`. Every other call is at
+/// its `point_map` the filtered one when `filtered_points`; for a [`Shape::Reduce`] or
+/// [`Shape::PerSystem`] row, which [`System`] it writes or sums. Every other call is at
 /// [`At::FRAME`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct At {
@@ -72,6 +105,8 @@ pub struct At {
     pub filtered: bool,
     /// Level 0's `point_map` is the filtered vertex map.
     pub filtered_points: bool,
+    /// The system a reduction writes the partials of, or whose partials it sums.
+    pub system: System,
 }
 
 impl At {
@@ -80,11 +115,22 @@ impl At {
         level: 0,
         filtered: false,
         filtered_points: false,
+        system: System::Geometric,
     };
 
     /// Pyramid level `level` for a kernel that reads none of level 0's vertex maps.
     pub const fn of_level(level: usize) -> At {
         At { level, ..At::FRAME }
+    }
+
+    /// A reduction's place: pyramid level `level` (the frame's at 0) and the [`System`] it
+    /// writes or sums.
+    pub const fn of_system(level: usize, system: System) -> At {
+        At {
+            level,
+            system,
+            ..At::FRAME
+        }
     }
 
     /// Every [`At`] a plan may give at `level`: at levels 0 and 1 each choice of level 0's
@@ -95,6 +141,7 @@ impl At {
             level,
             filtered,
             filtered_points,
+            ..At::FRAME
         };
         match level {
             0 => vec![at(false, false), at(true, true), at(true, false)],
@@ -109,6 +156,7 @@ impl At {
             level: self.level,
             filtered: self.level <= 1 && self.filtered,
             filtered_points: self.level == 0 && self.filtered_points,
+            ..At::FRAME
         }
     }
 }
@@ -271,6 +319,16 @@ registry_data! {
         fuse_prune: PerBlock(fuse),
         fuse_merge: PerBlock(fuse),
         fuse_flags: OverFrame(fuse),
+        // The culling blocks' boxes (`block_boxes`) where they are stale: the first
+        // call of every culling step.
+        block_bounds: PerStaleBlock(bounds),
+        // ICP's and RGB-D tracking's systems at a pyramid level: the geometric and the
+        // photometric term's rows into per-workgroup partial systems, and their sum
+        // (`icp_reduce_final` declares no `params`: its row's uniform, the reductions', is
+        // offered to its bind groups and not taken).
+        icp_reduce: Reduce(icp),
+        photo_reduce: Reduce(icp),
+        icp_reduce_final: PerSystem(icp),
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -292,11 +350,6 @@ registry_data! {
         intensity_pyramid: PerLevel(intensity),
     }
     kernels: {
-        block_bounds,
-        icp_reduce,
-        icp_reduce_final,
-        // RGB-D tracking's photometric term (its sum: icp_reduce_final).
-        photo_reduce,
         icp_candidates,
         fern_encode,
         keypoint_detect,

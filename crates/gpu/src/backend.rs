@@ -15,7 +15,7 @@
 //! The surfel map is chunks of three storage buffers each ([`MapBuffers`]); the index map,
 //! the association buffers, the counter and the ICP partials are storage buffers too
 //! (atomics). Each block of [`BLOCK_SURFELS`] map slots has a world-frame box in
-//! `block_bounds`: the culling kernels skip the blocks the camera cannot see, `fuse_merge`
+//! `block_boxes`: the culling kernels skip the blocks the camera cannot see, `fuse_merge`
 //! grows a box a merge moved a surfel out of, and `block_bounds` recomputes the boxes of the
 //! blocks fusion appended to (all of them after a compaction or an upload) at the start of
 //! the next culling step.
@@ -39,7 +39,7 @@ use super::kernel::Kernel;
 use super::map_buffers::MapBuffers;
 use super::pipelines::Kernels;
 use super::recording::{Profiler, PROFILED_PASSES_MAX};
-use super::resources::{FrameBuffers, Uniforms};
+use super::resources::{FrameBuffers, Systems, Uniforms};
 use super::timing::StageTimer;
 use crate::layout::{BoundsParams, PreprocessParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
 use crate::{Error, Result};
@@ -71,23 +71,16 @@ pub struct GpuBackend {
     pub(super) kernels: Kernels,
     pub(super) uniforms: Uniforms,
     pub(super) reduction_workgroups: u32,
-    pub(super) partials: GpuArray<f32>,
-    /// The summed system (`icp_reduce_final`), the one read-back per ICP iteration.
-    pub(super) system: GpuArray<f32>,
-    pub(super) system_readback: Readback<f32>,
-    /// `icp_reduce_final` over `partials` into `system` (neither is ever re-created).
-    pub(super) icp_final_group: wgpu::BindGroup,
-    /// RGB-D tracking's photometric system: `photo_reduce`'s per-workgroup partials, their
-    /// sum (`icp_reduce_final` over them, `photo_final_group`), and the read-back of both
-    /// systems at once (geometric first).
-    pub(super) photo: PhotoSystem,
     pub(super) counter: GpuArray<u32>,
     pub(super) counter_readback: Readback<u32>,
+    /// ICP's and RGB-D tracking's systems: per system its partials and their sum, the one
+    /// read-back per ICP iteration.
+    pub(super) systems: Systems,
     pub(super) frame: Option<FrameBuffers>,
     pub(super) map: MapBuffers,
     /// Per culling block of map slots, its box: entries `2b` (min) and `2b + 1` (max),
     /// ordered-encoded (see `block_bounds.wgsl`); one buffer for both map sets.
-    pub(super) block_bounds: GpuArray<[u32; 4]>,
+    pub(super) block_boxes: GpuArray<[u32; 4]>,
     /// Blocks from the one holding this surfel index on have stale boxes (fusion appended
     /// to them, or the map was compacted or uploaded); recomputed before the next culling.
     pub(super) bounds_dirty_from: usize,
@@ -188,50 +181,32 @@ impl GpuBackend {
         let system_floats = reduction_workgroups as usize * ICP_SYSTEM_LEN;
         let (kernels, small, map) = ctx.scoped("creating the GPU backend", || {
             let kernels = Kernels::new(&ctx)?;
-            let mut partials = GpuArray::new(&ctx, "icp partials", system_floats)?;
-            partials.set_len(system_floats);
             let mut counter = GpuArray::new(&ctx, "surfel counter", 1)?;
             counter.set_len(1);
-            let mut system = GpuArray::new(&ctx, "icp system", ICP_SYSTEM_LEN)?;
-            system.set_len(ICP_SYSTEM_LEN);
             let small = (
-                partials,
-                system,
-                Readback::new(&ctx, "icp system read-back", ICP_SYSTEM_LEN),
+                Systems::new(&ctx, system_floats)?,
                 counter,
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
             let map = MapBuffers::new(&ctx, capacity, chunk_surfels)?;
-            let mut block_bounds = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
-            block_bounds.set_len(bounds_entries(&map));
-            Ok((kernels, small, (map, block_bounds)))
+            let mut block_boxes = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
+            block_boxes.set_len(bounds_entries(&map));
+            Ok((kernels, small, (map, block_boxes)))
         })?;
-        let (partials, system, system_readback, counter, counter_readback) = small;
-        let (map, block_bounds) = map;
-        let icp_final_group = kernels.icp_reduce_final.bind_group(
-            &ctx,
-            &[
-                ("partials", partials.binding()),
-                ("system", system.binding()),
-            ],
-        );
-        let photo = PhotoSystem::new(&ctx, &kernels, system_floats)?;
+        let (systems, counter, counter_readback) = small;
+        let (map, block_boxes) = map;
         let uniforms = Uniforms::new(&ctx);
         Ok(GpuBackend {
             ctx,
             kernels,
             uniforms,
             reduction_workgroups,
-            partials,
-            system,
-            system_readback,
-            icp_final_group,
-            photo,
+            systems,
             counter,
             counter_readback,
             frame: None,
             map,
-            block_bounds,
+            block_boxes,
             bounds_dirty_from: 0,
             fused_view: None,
             count: 0,
@@ -346,9 +321,9 @@ impl GpuBackend {
             .max(needed)
             .min(self.max_surfels);
         self.map.grow(&self.ctx, grown, self.count)?;
-        self.block_bounds
+        self.block_boxes
             .grow(&self.ctx, bounds_entries(&self.map))?;
-        self.block_bounds.set_len(bounds_entries(&self.map));
+        self.block_boxes.set_len(bounds_entries(&self.map));
         // The spare map follows the new layout at the next `compact`.
         self.bind_groups = None;
         self.spare_bind_groups = None;
@@ -383,9 +358,8 @@ impl GpuBackend {
                     .as_ref()
                     .expect("preprocess() runs before any other step"),
                 map: &self.map,
-                block_bounds: &self.block_bounds,
-                partials: &self.partials,
-                photo_partials: &self.photo.partials,
+                block_boxes: &self.block_boxes,
+                systems: &self.systems.buffers,
                 counter: &self.counter,
             };
             self.bind_groups = Some(BindGroups::new(&self.ctx, &self.kernels, &resources));
@@ -454,46 +428,7 @@ impl GpuBackend {
     }
 }
 
-/// Entries of `block_bounds` for `map`'s slots: a min and a max corner per block.
+/// Entries of `block_boxes` for `map`'s slots: a min and a max corner per block.
 fn bounds_entries(map: &MapBuffers) -> usize {
     2 * map.capacity().div_ceil(BLOCK_SURFELS as usize)
-}
-
-/// RGB-D tracking's photometric system on the GPU (see [`GpuBackend::photo`]), made with
-/// the backend and never re-created.
-pub(super) struct PhotoSystem {
-    pub partials: GpuArray<f32>,
-    pub system: GpuArray<f32>,
-    pub final_group: wgpu::BindGroup,
-    /// Both systems, `2 * ICP_SYSTEM_LEN` floats, geometric first.
-    pub readback: Readback<f32>,
-    /// How many levels of the frame's intensity pyramid (`intensity_pyramid`), finest
-    /// first, are of the last `preprocess`'s frame: each made by the frame's first
-    /// `rgbd_system` at it or a coarser level.
-    pub intensity_made: usize,
-}
-
-impl PhotoSystem {
-    /// Partials of `system_floats` (as `icp_reduce`'s), the summed system and the read-back.
-    fn new(ctx: &GpuContext, kernels: &Kernels, system_floats: usize) -> Result<Self> {
-        let mut partials = GpuArray::new(ctx, "photometric partials", system_floats)?;
-        partials.set_len(system_floats);
-        let mut system = GpuArray::new(ctx, "photometric system", ICP_SYSTEM_LEN)?;
-        system.set_len(ICP_SYSTEM_LEN);
-        let final_group = kernels.icp_reduce_final.bind_group(
-            ctx,
-            &[
-                ("partials", partials.binding()),
-                ("system", system.binding()),
-            ],
-        );
-        let readback = Readback::new(ctx, "rgbd systems read-back", 2 * ICP_SYSTEM_LEN);
-        Ok(PhotoSystem {
-            partials,
-            system,
-            final_group,
-            readback,
-            intensity_made: 0,
-        })
-    }
 }

@@ -3,9 +3,9 @@
 //! re-created (a new frame size, a grown map). The frame's buffers and each map chunk's
 //! arrays are pools of named resources (`("normal_depth", ...)`) from which a kernel takes
 //! what its WGSL declares; so are each pyramid level's maps (with, at level 0, the vertex
-//! maps a plan call chooses: `wgslam_core::registry::At`). What differs per kernel of no
-//! `generic` row (its `params`, a level's maps) is bound explicitly. The kernels that walk
-//! the map get one bind group per map chunk.
+//! maps a plan call chooses: `wgslam_core::registry::At`), and so are each reduced system's
+//! buffers. What differs per kernel of no `generic` row (its `params`, its own buffers) is
+//! bound explicitly. The kernels that walk the map get one bind group per map chunk.
 
 use std::collections::BTreeMap;
 
@@ -16,31 +16,18 @@ use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
 use super::pipelines::{Kernels, LevelParams, RowParams};
 use super::recording::Pass;
-use super::resources::{FrameBuffers, Uniforms};
-use wgslam_core::registry::{At, KernelId, Shape};
+use super::resources::{FrameBuffers, SystemBuffers, Uniforms};
+use wgslam_core::registry::{At, KernelId, Shape, System};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
-    /// The map kernels' bind groups, one per map chunk.
-    pub block_bounds: Vec<wgpu::BindGroup>,
-    pub icp_reduce: wgpu::BindGroup,
-    /// `photo_reduce` over level 0 (RGB-D tracking).
-    pub photo_reduce: wgpu::BindGroup,
     /// The registry's `generic` kernels' bind groups by kernel id and [`At`] (a
-    /// `PerLevel` kernel's level and vertex maps, else `At::FRAME`): one per map chunk, or
-    /// one over the frame or the level (see `wgslam_core::registry::Shape`).
+    /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, else
+    /// `At::FRAME`): one per map chunk, or one over the frame, the level or the system
+    /// (see `wgslam_core::registry::Shape`).
     pub generic: BTreeMap<(KernelId, At), Vec<wgpu::BindGroup>>,
     /// The scan over the new-surfel flags (in append order, `append_slots` entries).
     pub fuse_scan: ScanGroups,
-    /// Per coarser pyramid level (1, 2, ...).
-    pub levels: Vec<LevelBindGroups>,
-}
-
-/// The bind groups of one coarser pyramid level.
-pub(super) struct LevelBindGroups {
-    pub icp_reduce: wgpu::BindGroup,
-    /// `photo_reduce` over the level's frame maps (the source is level 0's prediction).
-    pub photo_reduce: wgpu::BindGroup,
 }
 
 /// What the bind groups refer to besides the kernels: the buffers a backend owns.
@@ -49,11 +36,9 @@ pub(super) struct Resources<'a> {
     pub frame: &'a FrameBuffers,
     pub map: &'a MapBuffers,
     /// Per culling block its box (see `block_bounds.wgsl`).
-    pub block_bounds: &'a GpuArray<[u32; 4]>,
-    /// `icp_reduce`'s per-workgroup partial systems.
-    pub partials: &'a GpuArray<f32>,
-    /// `photo_reduce`'s.
-    pub photo_partials: &'a GpuArray<f32>,
+    pub block_boxes: &'a GpuArray<[u32; 4]>,
+    /// Per reduced system, in `System::ALL`'s order, its partial systems and their sum.
+    pub systems: &'a [SystemBuffers; 2],
     /// `prefix_sum`'s total.
     pub counter: &'a GpuArray<u32>,
 }
@@ -84,11 +69,13 @@ fn frame_pool<'a>(f: &'a FrameBuffers) -> Pool<'a> {
     ]
 }
 
-/// Pyramid level `at.level`'s maps by the names the `generic_levels` kernels declare them
-/// with, and its finer level's as `fine_*`: level 0's are the frame's, its `vertex_map`
-/// and `point_map` the vertex maps `at` chooses (see [`At`]), which level 1's `fine_vertex`
-/// is too. Its intensity patches are `intensity_patch`, the finer level's `fine_map` (at
-/// level 0 the colour map, which the intensity pyramid starts from).
+/// Pyramid level `at.level`'s maps by the names the `generic_levels` kernels (and the
+/// reductions) declare them with, and its finer level's as `fine_*`: level 0's are the
+/// frame's, its `vertex_map` and `point_map` the vertex maps `at` chooses (see [`At`]),
+/// which level 1's `fine_vertex` is too. Its intensity patches are `intensity_patch`, the
+/// finer level's `fine_map` (at level 0 the colour map, which the intensity pyramid starts
+/// from). At every level, level 0's prediction is `level0_pred_vertex` and
+/// `pred_intensity` (the photometric term's source).
 fn level_pool(f: &FrameBuffers, at: At) -> Pool<'_> {
     let level0 = |filtered: bool| match filtered {
         true => &f.filtered_vertex,
@@ -136,19 +123,35 @@ fn level_pool(f: &FrameBuffers, at: At) -> Pool<'_> {
             ]
         }
     };
-    maps.into_iter()
+    let mut pool: Pool = maps
+        .into_iter()
         .map(|(name, map)| (name, map.binding()))
-        .collect()
+        .collect();
+    pool.extend([
+        ("level0_pred_vertex", f.pred_vertex.binding()),
+        ("pred_intensity", f.pred_intensity.binding()),
+    ]);
+    pool
+}
+
+/// Reduced system `system`'s buffers: its per-workgroup partial systems (`partials`) and
+/// their sum (`system`).
+fn system_pool(systems: &[SystemBuffers; 2], system: System) -> Pool<'_> {
+    let b = &systems[system as usize];
+    vec![
+        ("partials", b.partials.binding()),
+        ("system", b.sum.binding()),
+    ]
 }
 
 /// One map chunk's arrays and the culling blocks' boxes.
-fn chunk_pool<'a>(ch: &'a Chunk, block_bounds: &'a GpuArray<[u32; 4]>) -> Pool<'a> {
+fn chunk_pool<'a>(ch: &'a Chunk, block_boxes: &'a GpuArray<[u32; 4]>) -> Pool<'a> {
     vec![
         ("chunk", ch.info_buffer.binding()),
         ("position_weight", ch.position_weight.binding()),
         ("normal_frame", ch.normal_frame.binding()),
         ("color", ch.color.binding()),
-        ("block_bounds", block_bounds.binding()),
+        ("block_boxes", block_boxes.binding()),
     ]
 }
 
@@ -172,7 +175,7 @@ impl BindGroups {
                 .iter()
                 .map(|ch| {
                     let mut pool = vec![("params", params.clone())];
-                    pool.extend(chunk_pool(ch, r.block_bounds));
+                    pool.extend(chunk_pool(ch, r.block_boxes));
                     pool.extend(frame.iter().cloned());
                     kernel.bind_group_from(ctx, &pool)
                 })
@@ -192,10 +195,21 @@ impl BindGroups {
                 })
                 .collect::<Vec<_>>()
         };
+        // `kernel` with `params` over each system's buffers, and for a reduction
+        // (`levels`) over each pyramid level's pool: one bind group per system (and level).
+        let per_system = |kernel: &Kernel, params: wgpu::BindingResource, levels: bool| {
+            let levels = if levels { 0..=f.levels.len() } else { 0..=0 };
+            levels
+                .flat_map(|level| System::ALL.map(|system| At::of_system(level, system)))
+                .map(|at| {
+                    let mut pool = vec![("params", params.clone())];
+                    pool.extend(system_pool(r.systems, at.system));
+                    pool.extend(level_pool(f, at));
+                    (at, vec![kernel.bind_group_from(ctx, &pool)])
+                })
+                .collect::<Vec<_>>()
+        };
         BindGroups {
-            block_bounds: per_chunk(&k.block_bounds, u.bounds.binding()),
-            icp_reduce: icp_reduce(ctx, k, r, [&f.pred_vertex, &f.pred_normal, &f.normal_depth]),
-            photo_reduce: photo_reduce(ctx, k, r, &frame),
             generic: k
                 .generic(u)
                 .into_iter()
@@ -209,9 +223,14 @@ impl BindGroups {
                         (Shape::OverFrame, RowParams::Frame(p)) => {
                             vec![(At::FRAME, vec![over_frame(kernel, p, Vec::new())])]
                         }
-                        (Shape::PerChunk | Shape::PerBlock, RowParams::Frame(p)) => {
+                        (
+                            Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock,
+                            RowParams::Frame(p),
+                        ) => {
                             vec![(At::FRAME, per_chunk(kernel, p))]
                         }
+                        (Shape::Reduce, RowParams::Frame(p)) => per_system(kernel, p, true),
+                        (Shape::PerSystem, RowParams::Frame(p)) => per_system(kernel, p, false),
                         (shape, _) => panic!(
                             "kernel `{}`: a {shape:?} row in the wrong group of the registry \
                              (`generic_levels` rows are `PerLevel`, no other row is)",
@@ -232,81 +251,8 @@ impl BindGroups {
                     ("counter", r.counter.binding()),
                 ],
             ),
-            levels: (0..f.levels.len())
-                .map(|l| LevelBindGroups::new(ctx, k, r, l))
-                .collect(),
         }
     }
-}
-
-impl LevelBindGroups {
-    /// The bind groups of coarser level `l + 1` (`f.levels[l]`).
-    fn new(ctx: &GpuContext, k: &Kernels, r: &Resources, l: usize) -> LevelBindGroups {
-        let f = r.frame;
-        let level = &f.levels[l];
-        LevelBindGroups {
-            icp_reduce: icp_reduce(
-                ctx,
-                k,
-                r,
-                [&level.pred_vertex, &level.pred_normal, &level.normal_depth],
-            ),
-            photo_reduce: k.photo_reduce.bind_group(
-                ctx,
-                &[
-                    ("params", r.uniforms.icp.binding()),
-                    ("pred_vertex", f.pred_vertex.binding()),
-                    ("pred_intensity", f.pred_intensity.binding()),
-                    ("normal_depth", level.normal_depth.binding()),
-                    ("intensity_patch", level.intensity.patch.binding()),
-                    ("partials", r.photo_partials.binding()),
-                ],
-            ),
-        }
-    }
-}
-
-/// `photo_reduce` at level 0: the prediction's vertices and the frame's intensity patches,
-/// over the frame's pool `frame`.
-fn photo_reduce<'a>(
-    ctx: &GpuContext,
-    k: &Kernels,
-    r: &Resources<'a>,
-    frame: &Pool<'a>,
-) -> wgpu::BindGroup {
-    let (u, f) = (r.uniforms, r.frame);
-    k.photo_reduce.bind_group_from(
-        ctx,
-        &[
-            vec![
-                ("params", u.icp.binding()),
-                ("pred_vertex", f.pred_vertex.binding()),
-                ("intensity_patch", f.intensity.patch.binding()),
-                ("partials", r.photo_partials.binding()),
-            ],
-            frame.clone(),
-        ]
-        .concat(),
-    )
-}
-
-/// `icp_reduce` over one pyramid level's predicted maps and frame normals.
-fn icp_reduce(
-    ctx: &GpuContext,
-    k: &Kernels,
-    r: &Resources,
-    [pred_vertex, pred_normal, normal_depth]: [&GpuImage; 3],
-) -> wgpu::BindGroup {
-    k.icp_reduce.bind_group(
-        ctx,
-        &[
-            ("params", r.uniforms.icp.binding()),
-            ("pred_vertex", pred_vertex.binding()),
-            ("pred_normal", pred_normal.binding()),
-            ("normal_depth", normal_depth.binding()),
-            ("partials", r.partials.binding()),
-        ],
-    )
 }
 
 /// The surfel arrays `compact_scatter` copies, one dispatch each.

@@ -170,7 +170,7 @@ impl GpuBackend {
     /// ordered-encoded), for tests; boxes of blocks fusion appended to since the last
     /// `predict` or `fuse` are stale until the next one.
     pub fn download_block_bounds(&mut self) -> Result<Vec<[u32; 4]>> {
-        let (ctx, b) = (&self.ctx, &self.block_bounds);
+        let (ctx, b) = (&self.ctx, &self.block_boxes);
         let n = 2 * self.count.div_ceil(BLOCK_SURFELS as usize);
         ctx.scoped("download block bounds", || b.read_back_range(ctx, 0..n))
     }

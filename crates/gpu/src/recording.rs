@@ -23,7 +23,7 @@ pub(super) struct Profiler {
 pub(super) type Pass<'a> = (&'a Kernel, &'a wgpu::BindGroup, [u32; 2]);
 
 /// Records one compute pass per dispatch, timed when profiling.
-pub(super) fn record_passes(
+fn record_passes(
     ctx: &GpuContext,
     profiler: &mut Option<Profiler>,
     enc: &mut wgpu::CommandEncoder,

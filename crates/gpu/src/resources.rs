@@ -1,18 +1,19 @@
 //! The GPU backend's per-frame resources: the kernels' parameter buffers ([`Uniforms`],
 //! made once) and the buffers sized by the frame ([`FrameBuffers`]: raw inputs, per-pixel
 //! maps as textures, the prediction, the association buffers, the pyramid's coarser levels),
-//! made at the first `preprocess` and again only when the frame size or the pyramid changes.
+//! made at the first `preprocess` and again only when the frame size or the pyramid changes;
+//! and ICP's reduced systems ([`Systems`], made once).
 //! The surfel map is [`super::map_buffers::MapBuffers`]; the bind groups over all of them are
 //! [`super::bind_groups`].
 
-use super::buffers::{GpuArray, ParamBuffer};
+use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, IntensityParams,
-    NormalParams, PreprocessParams, ProjectParams, PyramidParams,
+    NormalParams, PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
 };
 use crate::Result;
 use wgslam_core::backend::PyramidLevel;
@@ -286,5 +287,44 @@ impl FrameBuffers {
 
     pub fn pixels(&self) -> usize {
         (self.width * self.height) as usize
+    }
+}
+
+/// ICP's and RGB-D tracking's normal-equation systems on the GPU (see
+/// `GpuBackend::systems`), made with the backend and never re-created.
+pub(super) struct Systems {
+    /// Per system, in `System::ALL`'s order (geometric, photometric): its reduction's
+    /// per-workgroup partial systems and their sum (`ICP_SYSTEM_LEN` floats).
+    pub buffers: [SystemBuffers; 2],
+    /// The sums an ICP iteration reads, `ICP_SYSTEM_LEN` floats each, in plan order.
+    pub readback: Readback<f32>,
+    /// How many levels of the frame's intensity pyramid (`intensity_pyramid`), finest
+    /// first, are of the last `preprocess`'s frame: each made by the frame's first
+    /// `rgbd_system` at it or a coarser level.
+    pub intensity_made: usize,
+}
+
+/// One system's buffers: the per-workgroup partial systems (`system_floats` floats) and
+/// their sum.
+pub(super) struct SystemBuffers {
+    pub partials: GpuArray<f32>,
+    pub sum: GpuArray<f32>,
+}
+
+impl Systems {
+    /// Partials of `system_floats` per system, the sums and the read-back of both.
+    pub fn new(ctx: &GpuContext, system_floats: usize) -> Result<Self> {
+        let buffers = |what: &str| -> Result<SystemBuffers> {
+            let mut partials = GpuArray::new(ctx, &format!("{what} partials"), system_floats)?;
+            partials.set_len(system_floats);
+            let mut sum = GpuArray::new(ctx, &format!("{what} system"), ICP_SYSTEM_LEN)?;
+            sum.set_len(ICP_SYSTEM_LEN);
+            Ok(SystemBuffers { partials, sum })
+        };
+        Ok(Systems {
+            buffers: [buffers("icp")?, buffers("photometric")?],
+            readback: Readback::new(ctx, "icp systems read-back", 2 * ICP_SYSTEM_LEN),
+            intensity_made: 0,
+        })
     }
 }

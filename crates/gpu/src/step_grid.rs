@@ -7,6 +7,7 @@ use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel};
 use super::pipelines::Kernels;
 use super::recording::Pass;
+use crate::layout::ICP_SYSTEM_LEN;
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
@@ -17,7 +18,8 @@ use wgslam_core::registry::{At, Shape};
 /// them and the kernel's workgroup size), the map chunks' workgroups and the stale block
 /// boxes.
 pub(super) struct StepGrid {
-    /// The stale block boxes' `block_bounds` passes, `(chunk, workgroups)`.
+    /// The stale block boxes' passes, `(chunk, workgroups)` (a `PerStaleBlock` row's;
+    /// see `stale_bounds_passes`).
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
     pub chunks: Vec<u32>,
@@ -29,6 +31,9 @@ pub(super) struct StepGrid {
     /// [`image_grid`]).
     cap: u32,
     cpu_adapter: bool,
+    /// [`GpuContext::reduction_workgroups`]: a reduction's workgroups, one partial system
+    /// each.
+    reduction: u32,
 }
 
 impl StepGrid {
@@ -42,6 +47,7 @@ impl StepGrid {
             levels,
             cap: ctx.grid_workgroups_cap(),
             cpu_adapter: ctx.is_cpu_adapter(),
+            reduction: ctx.reduction_workgroups(),
         }
     }
     /// A per-pixel `kernel`'s workgroups over the frame.
@@ -76,9 +82,12 @@ impl StepGrid {
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
-    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block; a
-    /// key kernel's passes in turn, each over every bind group (its first alone where the
-    /// call says so: `Call::every_key_pass`). Panics on a call whose
+    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
+    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]); at
+    /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
+    /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
+    /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
+    /// call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
     /// group where it runs (internal contracts: every planned kernel has one or the other,
     /// and [`At::choices`] every place a plan gives).
@@ -99,13 +108,24 @@ impl StepGrid {
         };
         let at = match shape {
             Shape::PerLevel => call.at().choice(),
-            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock => At::FRAME,
+            Shape::Reduce | Shape::PerSystem => call.at(),
+            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
+                At::FRAME
+            }
         };
         let groups = bg
             .generic
             .get(&(kernel, at))
             .unwrap_or_else(|| panic!("`{}` has no bind group at {at:?}", call.name()));
-        let wg = self.level(at.level, &passes[0]);
+        let wg = match shape {
+            Shape::Reduce => [self.reduction, 1],
+            Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
+            Shape::OverFrame
+            | Shape::PerChunk
+            | Shape::PerBlock
+            | Shape::PerStaleBlock
+            | Shape::PerLevel => self.level(at.level, &passes[0]),
+        };
         let passes = match call.every_key_pass() {
             true => passes,
             false => &passes[..1],
@@ -114,17 +134,17 @@ impl StepGrid {
             .iter()
             .flat_map(|pass| match shape {
                 Shape::PerBlock => self.per_block(pass, groups),
-                Shape::OverFrame | Shape::PerChunk | Shape::PerLevel => {
-                    groups.iter().map(|g| (pass, g, wg)).collect()
-                }
+                Shape::PerStaleBlock => self
+                    .bounds
+                    .iter()
+                    .map(|&(c, wg)| (pass, &groups[c], [wg, 1]))
+                    .collect(),
+                Shape::OverFrame
+                | Shape::PerChunk
+                | Shape::PerLevel
+                | Shape::Reduce
+                | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
-            .collect()
-    }
-    /// The `block_bounds` passes over the stale boxes.
-    pub fn bounds<'a>(&self, k: &'a Kernels, bg: &'a BindGroups) -> Vec<Pass<'a>> {
-        self.bounds
-            .iter()
-            .map(|&(c, wg)| (&k.block_bounds, &bg.block_bounds[c], [wg, 1]))
             .collect()
     }
 }

@@ -11,7 +11,7 @@ use super::backend::GpuBackend;
 use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
-use super::recording::{record_call, record_passes, submit_profiled, Pass};
+use super::recording::{record_call, submit_profiled, Pass};
 use super::step_grid::{check_pyramid, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
@@ -23,7 +23,10 @@ use wgslam_core::backend::{
     Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use wgslam_core::fused_view::FusedView;
-use wgslam_core::plan::{self, Buffer, Call, CompactCall, FuseCall, PredictCall};
+use wgslam_core::plan::{
+    self, Buffer, Call, CompactCall, FuseCall, IntensityCall, PredictCall, SystemCall,
+};
+use wgslam_core::registry::System;
 
 /// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
 /// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
@@ -63,7 +66,7 @@ impl Backend for GpuBackend {
         }
         self.ensure_frame(&steps.params, &steps.pyramid)?;
         // A new frame: its intensity pyramid is made by the first `rgbd_system`.
-        self.photo.intensity_made = 0;
+        self.systems.intensity_made = 0;
         let ctx = &self.ctx;
         let u = &self.uniforms;
         ctx.scoped("preprocess", || {
@@ -134,13 +137,13 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("predict");
             for call in plan {
                 let passes = match call {
-                    PredictCall::BlockBounds => grid.bounds(k, bg),
                     PredictCall::ClearIndexMap => {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    // `project_model`, `predict_model`, and per coarser level the model's
-                    // maps: bound and dispatched by their registry rows.
+                    // The stale boxes' `block_bounds`, `project_model`, `predict_model`,
+                    // and per coarser level the model's maps: bound and dispatched by
+                    // their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
@@ -150,91 +153,17 @@ impl Backend for GpuBackend {
     }
 
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
-        let levels = 1 + self.frame().levels.len();
-        if level >= levels {
-            return Err(Error::Argument(format!(
-                "ICP at pyramid level {level}, but preprocess() made {levels} level(s)"
-            )));
-        }
-        let wg = self.reduction_workgroups;
-        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
-        let group = match level {
-            0 => &bg.icp_reduce,
-            l => &bg.levels[l - 1].icp_reduce,
-        };
-        let final_group = &self.icp_final_group;
-        let system = ctx.scoped("icp_reduce", || {
-            u.icp.write(ctx, params);
-            let mut enc = ctx.encoder("icp_reduce");
-            record_passes(
-                ctx,
-                profiler,
-                &mut enc,
-                &[
-                    (&k.icp_reduce, group, [wg, 1]),
-                    (&k.icp_reduce_final, final_group, [ICP_SYSTEM_LEN as u32, 1]),
-                ],
-            )?;
-            self.system_readback
-                .copy_from(&mut enc, &self.system, ICP_SYSTEM_LEN);
-            submit_profiled(ctx, profiler, enc)?;
-            self.system_readback.read(ctx)
-        })?;
-        let mut sys = [0.0f64; ICP_SYSTEM_LEN];
-        for (s, &x) in sys.iter_mut().zip(&system) {
-            *s = x as f64;
-        }
-        Ok(sys)
+        self.check_system_level(level, "ICP")?;
+        let [geometric] = self.run_systems(Vec::new(), plan::icp_system(level), params)?;
+        Ok(geometric)
     }
 
     fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
-        let levels = 1 + self.frame().levels.len();
-        if level >= levels {
-            return Err(Error::Argument(format!(
-                "RGB-D ICP at pyramid level {level}, but preprocess() made {levels} level(s)"
-            )));
-        }
-        let wg = self.reduction_workgroups;
-        let plan = plan::intensity_levels(self.photo.intensity_made, level);
-        self.photo.intensity_made = self.photo.intensity_made.max(level + 1);
-        let f = self.frame();
-        let levels = f.levels.iter().map(|l| [l.width, l.height]).collect();
-        let grid = StepGrid::new(&self.ctx, [f.width, f.height], levels);
-        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
-        let (final_group, photo) = (&self.icp_final_group, &mut self.photo);
-        let (icp_group, photo_group) = match level {
-            0 => (&bg.icp_reduce, &bg.photo_reduce),
-            l => (&bg.levels[l - 1].icp_reduce, &bg.levels[l - 1].photo_reduce),
-        };
-        let len = ICP_SYSTEM_LEN as u32;
-        let passes: [Pass; 4] = [
-            (&k.icp_reduce, icp_group, [wg, 1]),
-            (&k.icp_reduce_final, final_group, [len, 1]),
-            (&k.photo_reduce, photo_group, [wg, 1]),
-            (&k.icp_reduce_final, &photo.final_group, [len, 1]),
-        ];
-        let both = ctx.scoped("icp_reduce", || {
-            u.icp.write(ctx, params);
-            let mut enc = ctx.encoder("icp_reduce");
-            for call in plan {
-                // Every level of the intensity pyramid not made since `preprocess`, bound
-                // and dispatched by its registry row, in this iteration's submission.
-                let passes = grid.generic(k, bg, call);
-                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
-            }
-            record_passes(ctx, profiler, &mut enc, &passes)?;
-            let srcs = [&self.system, &photo.system];
-            photo
-                .readback
-                .copy_from_each(&mut enc, &srcs, ICP_SYSTEM_LEN);
-            submit_profiled(ctx, profiler, enc)?;
-            photo.readback.read(ctx)
-        })?;
-        let mut systems = [[0.0f64; ICP_SYSTEM_LEN]; 2];
-        for (s, &x) in systems.iter_mut().flatten().zip(&both) {
-            *s = x as f64;
-        }
-        Ok(systems)
+        self.check_system_level(level, "RGB-D ICP")?;
+        let made = self.systems.intensity_made;
+        self.systems.intensity_made = made.max(level + 1);
+        let intensity = plan::intensity_levels(made, level);
+        self.run_systems(intensity, plan::rgbd_system(level), params)
     }
 
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
@@ -291,12 +220,12 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    FuseCall::BlockBounds => grid.bounds(k, bg),
                     FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
-                    // `fuse_select` (surfels pick pixels, then each picked surfel merges
-                    // from its pixel: `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`,
-                    // `fuse_flags`, `fuse_add` (its passes as the call says): bound and
-                    // dispatched by their registry rows.
+                    // The stale boxes' `block_bounds`, `fuse_select` (surfels pick
+                    // pixels, then each picked surfel merges from its pixel:
+                    // `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`, `fuse_flags`,
+                    // `fuse_add` (its passes as the call says): bound and dispatched by
+                    // their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
@@ -418,6 +347,73 @@ impl Backend for GpuBackend {
 
     fn finish(&mut self) -> Result<()> {
         self.ctx.wait_idle()
+    }
+}
+
+impl GpuBackend {
+    /// [`Error::Argument`] unless pyramid level `level` was preprocessed (`what`: the step,
+    /// for the message).
+    fn check_system_level(&self, level: usize, what: &str) -> Result<()> {
+        let levels = 1 + self.frame().levels.len();
+        if level >= levels {
+            return Err(Error::Argument(format!(
+                "{what} at pyramid level {level}, but preprocess() made {levels} level(s)"
+            )));
+        }
+        Ok(())
+    }
+
+    /// One ICP iteration's submission: the intensity pyramid's levels `intensity` (those
+    /// the systems' photometric term reads and the frame has not made yet), then the
+    /// systems' `plan` at `params`; reads back the sum of each system the plan sums, in
+    /// its order (`N` of them).
+    fn run_systems<const N: usize>(
+        &mut self,
+        intensity: Vec<IntensityCall>,
+        plan: Vec<SystemCall>,
+        params: &IcpParams,
+    ) -> Result<[[f64; ICP_SYSTEM_LEN]; N]> {
+        let summed: Vec<System> = plan
+            .iter()
+            .filter_map(|call| match call {
+                SystemCall::SumPartials(system) => Some(*system),
+                SystemCall::IcpReduce { .. } | SystemCall::PhotoReduce { .. } => None,
+            })
+            .collect();
+        assert_eq!(summed.len(), N, "a systems plan sums {N} system(s)");
+        let f = self.frame();
+        let levels = f.levels.iter().map(|l| [l.width, l.height]).collect();
+        let grid = StepGrid::new(&self.ctx, [f.width, f.height], levels);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let systems = &mut self.systems;
+        let sums = ctx.scoped("icp_system", || {
+            u.icp.write(ctx, params);
+            let mut enc = ctx.encoder("icp_system");
+            // The intensity pyramid's levels, the reductions and their sums: each bound and
+            // dispatched by its registry row, in this iteration's submission.
+            for call in intensity {
+                let passes = grid.generic(k, bg, call);
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
+            }
+            for call in plan {
+                let passes = grid.generic(k, bg, call);
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
+            }
+            let srcs: Vec<_> = summed
+                .iter()
+                .map(|&s| &systems.buffers[s as usize].sum)
+                .collect();
+            systems
+                .readback
+                .copy_from_each(&mut enc, &srcs, ICP_SYSTEM_LEN);
+            submit_profiled(ctx, profiler, enc)?;
+            systems.readback.read(ctx)
+        })?;
+        let mut out = [[0.0f64; ICP_SYSTEM_LEN]; N];
+        for (s, &x) in out.iter_mut().flatten().zip(&sums) {
+            *s = x as f64;
+        }
+        Ok(out)
     }
 }
 

@@ -237,7 +237,7 @@ fn block_boxes_hold_their_surfels(ctx: GpuContext) {
     c.backend.predict(&proj, &pyramid).unwrap();
     g.backend.predict(&proj, &pyramid).unwrap();
     let cm = c.backend.download_map().unwrap();
-    surfels_in_their_boxes(&cm, c.backend.block_bounds()).unwrap();
+    surfels_in_their_boxes(&cm, c.backend.block_boxes()).unwrap();
     let gm = g.backend.download_map().unwrap();
     let gb = g.backend.download_block_bounds().unwrap();
     surfels_in_their_boxes(&gm, &gb).unwrap();
@@ -259,7 +259,7 @@ fn block_boxes_hold_their_surfels(ctx: GpuContext) {
     assert!(gb.len() >= twin.len(), "{} GPU box entries", gb.len());
     if let Some(e) = (0..twin.len()).find(|&e| gb[e] != twin[e]) {
         panic!(
-            "block_bounds: block {} {} gpu {:?} twin {:?}",
+            "block_boxes: block {} {} gpu {:?} twin {:?}",
             e / 2,
             ["min", "max"][e % 2],
             gb[e],

@@ -3,7 +3,7 @@
 //! with ([`super::block_visible`]).
 //!
 //! A block is [`BLOCK_SURFELS`] consecutive map slots; its box is entries `2b` (min corner)
-//! and `2b + 1` (max corner) of `block_bounds`, each coordinate [`ordered_from_f32`]
+//! and `2b + 1` (max corner) of `block_boxes`, each coordinate [`ordered_from_f32`]
 //! encoded so that `fuse_merge` can grow it with integer atomics. In the shader's shape:
 //! per block, [`WORKGROUP_SIZE`] strided boxes halved pairwise (min and max are exact, so
 //! the box is the serial one).
@@ -20,7 +20,7 @@ pub fn block_bounds(
     params: &BoundsParams,
     chunk: &MapChunk,
     position_weight: &[[f32; 4]],
-    block_bounds: &mut [[u32; 4]],
+    block_boxes: &mut [[u32; 4]],
 ) {
     let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
     let first = chunk.base / BLOCK_SURFELS;
@@ -57,8 +57,8 @@ pub fn block_bounds(
                 0,
             ]
         };
-        block_bounds[2 * block] = enc(lo);
-        block_bounds[2 * block + 1] = enc(hi);
+        block_boxes[2 * block] = enc(lo);
+        block_boxes[2 * block + 1] = enc(hi);
     }
 }
 

@@ -63,15 +63,15 @@ surfel_view!(ProjectParams, FuseParams);
 pub fn visible_surfels(
     params: &impl SurfelView,
     chunk: &MapChunk,
-    block_bounds: &[[u32; 4]],
+    block_boxes: &[[u32; 4]],
     mut per_surfel: impl FnMut(u32, u32),
 ) {
     let (t_world_to_cam, cam, size, surfel_count) = params.view();
     let (blocks, span_end) = chunk_blocks(chunk, surfel_count);
     for b in 0..blocks {
         let block = (chunk.base / BLOCK_SURFELS + b) as usize;
-        let lo = decode_corner(block_bounds[2 * block]);
-        let hi = decode_corner(block_bounds[2 * block + 1]);
+        let lo = decode_corner(block_boxes[2 * block]);
+        let hi = decode_corner(block_boxes[2 * block + 1]);
         if !block_visible(t_world_to_cam, cam, size[0], size[1], lo, hi) {
             continue;
         }

@@ -36,7 +36,7 @@ pub fn fuse_merge(
     normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
     chunk: &MapChunk,
-    block_bounds: &mut [u32],
+    block_boxes: &mut [u32],
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &mut [[f32; 4]],
@@ -51,7 +51,7 @@ pub fn fuse_merge(
     };
     for b in 0..blocks {
         let block = (chunk.base / BLOCK_SURFELS + b) as usize;
-        let word = |k: usize| f32_from_ordered(block_bounds[8 * block + k]);
+        let word = |k: usize| f32_from_ordered(block_boxes[8 * block + k]);
         let lo = Vec3::new(word(0), word(1), word(2));
         let hi = Vec3::new(word(4), word(5), word(6));
         if !block_visible(
@@ -84,11 +84,11 @@ pub fn fuse_merge(
         }
         for k in 0..3 {
             if grown_lo[k] < lo[k] {
-                let w = &mut block_bounds[8 * block + k];
+                let w = &mut block_boxes[8 * block + k];
                 *w = (*w).min(ordered_from_f32(grown_lo[k]));
             }
             if grown_hi[k] > hi[k] {
-                let w = &mut block_bounds[8 * block + 4 + k];
+                let w = &mut block_boxes[8 * block + 4 + k];
                 *w = (*w).max(ordered_from_f32(grown_hi[k]));
             }
         }

@@ -21,7 +21,7 @@ pub fn fuse_merge_chosen(
     normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
     chunk: &MapChunk,
-    block_bounds: &mut [u32],
+    block_boxes: &mut [u32],
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &mut [[f32; 4]],
@@ -30,7 +30,7 @@ pub fn fuse_merge_chosen(
 ) {
     let (position_weight, color) = (Storage::new(position_weight), Storage::new(color));
     let (normal_frame, merged) = (Storage::new(normal_frame), Storage::new(merged));
-    let block_bounds = Storage::new(block_bounds);
+    let block_boxes = Storage::new(block_boxes);
     // The shader's grid-stride loop: every pixel once, in parallel (each surfel has at most
     // one writer, and the boxes grow through atomic min / max).
     pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
@@ -73,8 +73,8 @@ pub fn fuse_merge_chosen(
         for k in 0..3 {
             let e = ordered_from_f32(m.position_weight[k]);
             // atomicMin / atomicMax: order-independent, so the pixels run on any thread.
-            block_bounds.fetch_min(8 * block + k, e);
-            block_bounds.fetch_max(8 * block + 4 + k, e);
+            block_boxes.fetch_min(8 * block + k, e);
+            block_boxes.fetch_max(8 * block + 4 + k, e);
         }
     });
 }

@@ -24,14 +24,14 @@ pub const PRUNE_COS_NORMAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
 pub fn fuse_prune(
     params: &FuseParams,
     chunk: &MapChunk,
-    block_bounds: &[[u32; 4]],
+    block_boxes: &[[u32; 4]],
     position_weight: &mut [[f32; 4]],
     normal_frame: &mut [[u32; 4]],
     color: &[[f32; 4]],
     merged: &[[f32; 4]],
 ) {
     let cam = super::camera_intrinsics(&params.camera);
-    visible_surfels(params, chunk, block_bounds, |_, slot| {
+    visible_surfels(params, chunk, block_boxes, |_, slot| {
         prune_surfel(
             params,
             position_weight,

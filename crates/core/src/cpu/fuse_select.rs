@@ -38,7 +38,7 @@ pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     chunk: &MapChunk,
-    block_bounds: &[[u32; 4]],
+    block_boxes: &[[u32; 4]],
     position_weight: &[[f32; 4]],
     normal_frame: &[[u32; 4]],
     color: &[[f32; 4]],
@@ -51,7 +51,7 @@ pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
         normal_frame,
         color,
     };
-    visible_surfels(params, chunk, block_bounds, |i, slot| {
+    visible_surfels(params, chunk, block_boxes, |i, slot| {
         select_for_surfel(params, normal_depth, &map, assoc, index_map, i, slot, cam);
     });
 }

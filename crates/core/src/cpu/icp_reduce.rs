@@ -15,12 +15,14 @@
 //! `crate::slam::solve`).
 //!
 //! Weights (robust profile; both off in the assignment's): a Huber weight on `b`
-//! ([`huber_weight`]) times a depth-noise weight of the target depth ([`noise_weight`]).
+//! ([`super::huber_weight`]) times a depth-noise weight of the target depth ([`noise_weight`]).
 //! The row is scaled by `sqrt(w)`, so the system stays 29 floats: AᵀWA, AᵀWb, the inlier
 //! count and the weighted squared residuals. With both off `w` is exactly 1 and the row
 //! is the unweighted one bit for bit.
 
-use super::{back_project, is_valid, project_to_texel, transform_dir, transform_point, xyz};
+use super::{
+    back_project, huber_weight, is_valid, project_to_texel, transform_dir, transform_point, xyz,
+};
 use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
 
 /// Axial depth noise of a Kinect-like sensor, after Nguyen, Izadi and Lovell (2012):
@@ -37,16 +39,6 @@ pub fn noise_weight(z: f32) -> f32 {
     let sigma = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD * dz * dz;
     let r = NOISE_SIGMA_0_M / sigma;
     r * r
-}
-
-/// Huber weight of a residual `b` (metres): 1 within `delta`, `delta / |b|` beyond; 1 when
-/// `delta` is 0 (off). Mirrors `huber_weight` in common.wgsl.
-#[inline]
-pub fn huber_weight(b: f32, delta: f32) -> f32 {
-    if delta <= 0.0 || b.abs() <= delta {
-        return 1.0;
-    }
-    delta / b.abs()
 }
 
 /// The weighted Jacobian row `A` and residual `b` of source pixel `src_texel` (both scaled

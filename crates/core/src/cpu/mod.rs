@@ -68,7 +68,7 @@ pub const CULL_MARGIN_PX: f32 = 2.0;
 /// Margin, metres, behind the camera for [`block_visible`]. Mirrors `CULL_NEAR_MARGIN_M`.
 pub const CULL_NEAR_MARGIN_M: f32 = 0.001;
 
-/// A box corner decoded from `block_bounds` (xyz of one `[u32; 4]` entry). Mirrors
+/// A box corner decoded from `block_boxes` (xyz of one `[u32; 4]` entry). Mirrors
 /// `decode_corner` in common.wgsl.
 #[inline]
 pub fn decode_corner(v: [u32; 4]) -> Vec3 {
@@ -119,6 +119,17 @@ pub fn chunk_blocks(chunk: &MapChunk, surfel_count: u32) -> (u32, u32) {
         return (0, chunk.base);
     }
     ((end - chunk.base).div_ceil(BLOCK_SURFELS), end)
+}
+
+/// Huber weight of a residual `b` (metres in `icp_reduce`, intensity in `photo_reduce`): 1
+/// within `delta`, `delta / |b|` beyond; 1 when `delta` is 0 (off). Mirrors `huber_weight`
+/// in common.wgsl.
+#[inline]
+pub fn huber_weight(b: f32, delta: f32) -> f32 {
+    if delta <= 0.0 || b.abs() <= delta {
+        return 1.0;
+    }
+    delta / b.abs()
 }
 
 /// The invalid map entry. Mirrors `INVALID` in common.wgsl.

@@ -25,8 +25,7 @@
 //! (`photo_huber`) scales the row by `sqrt(w)`.
 
 use super::arith;
-use super::icp_reduce::huber_weight;
-use super::{is_valid, transform_point, xyz};
+use super::{huber_weight, is_valid, transform_point, xyz};
 use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
 
 /// `pred_intensity` where the pixel has no surfel (intensities are 0..1).
@@ -66,7 +65,7 @@ fn bilinear(i: [f32; 4], tx: f32, ty: f32) -> [f32; 3] {
 pub fn photo_row(
     params: &IcpParams,
     src_texel: [u32; 2],
-    pred_vertex: &[[f32; 4]],
+    level0_pred_vertex: &[[f32; 4]],
     pred_intensity: &[f32],
     normal_depth: &[[f32; 4]],
     intensity_patch: &[[f32; 4]],
@@ -74,7 +73,7 @@ pub fn photo_row(
     let w = params.camera.width;
     let step = params.photo_source_step;
     let src = (step * src_texel[1] * params.photo_source_width + step * src_texel[0]) as usize;
-    let src_world = pred_vertex[src];
+    let src_world = level0_pred_vertex[src];
     let i_model = pred_intensity[src];
     if !is_valid(src_world) || i_model < 0.0 {
         return None;
@@ -121,7 +120,7 @@ pub fn photo_row(
 /// `partials` is returned instead of written: the summed system, in f64.
 pub fn photo_reduce(
     params: &IcpParams,
-    pred_vertex: &[[f32; 4]],
+    level0_pred_vertex: &[[f32; 4]],
     pred_intensity: &[f32],
     normal_depth: &[[f32; 4]],
     intensity_patch: &[[f32; 4]],
@@ -130,7 +129,7 @@ pub fn photo_reduce(
         photo_row(
             params,
             texel,
-            pred_vertex,
+            level0_pred_vertex,
             pred_intensity,
             normal_depth,
             intensity_patch,

@@ -21,7 +21,7 @@ use crate::layout::{MapChunk, ProjectParams};
 pub fn project_model<K: KeyWriter + ?Sized>(
     params: &ProjectParams,
     chunk: &MapChunk,
-    block_bounds: &[[u32; 4]],
+    block_boxes: &[[u32; 4]],
     position_weight: &[[f32; 4]],
     index_map: &mut K,
 ) {
@@ -30,7 +30,7 @@ pub fn project_model<K: KeyWriter + ?Sized>(
         index_map.pixels(),
         (params.camera.width * params.camera.height) as usize
     );
-    visible_surfels(params, chunk, block_bounds, |i, slot| {
+    visible_surfels(params, chunk, block_boxes, |i, slot| {
         let p = transform_point(&params.t_world_to_cam, xyz(position_weight[slot as usize]));
         if let Some(pix) = project_to_pixel(cam, params.camera.width, params.camera.height, p) {
             index_map.keep_nearer(pix, depth_key(p.z), i);

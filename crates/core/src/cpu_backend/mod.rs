@@ -43,8 +43,8 @@ pub struct CpuBackend {
     prediction: Vec<Prediction>,
     /// `predict_model`'s predicted intensity (level 0; see `cpu::photo_reduce`).
     pred_intensity: Vec<f32>,
-    /// The frame's intensity pyramid, made by `rgbd_system` (see `photo.rs`).
-    intensity: photo::IntensityPyramid,
+    /// The frame's intensity pyramid, made by `rgbd_system` (see `systems.rs`).
+    intensity: systems::IntensityPyramid,
     assoc: Vec<u64>,
     /// Per pixel, the surfel it merged into (two entries; see `fuse_merge_chosen`), filled
     /// on every frame of best-candidate association (`fuse_flags`, `fuse_prune`).
@@ -60,7 +60,7 @@ pub struct CpuBackend {
     offsets: Vec<u32>,
     spare: SurfelMap,
     /// Per culling block, its box: entries `2b` (min), `2b + 1` (max), ordered-encoded.
-    block_bounds: Vec<[u32; 4]>,
+    block_boxes: Vec<[u32; 4]>,
     /// Blocks from the one holding this surfel index on have stale boxes.
     bounds_dirty_from: usize,
     /// The threads the twins run on (rayon's global pool unless bounded).
@@ -108,20 +108,20 @@ impl CpuBackend {
         let n = self.map.len();
         if self.bounds_dirty_from < n {
             let blocks = n.div_ceil(BLOCK_SURFELS as usize);
-            self.block_bounds.resize(2 * blocks, [0; 4]);
+            self.block_boxes.resize(2 * blocks, [0; 4]);
             cpu::block_bounds::block_bounds(
                 &BoundsParams::stale(n, self.bounds_dirty_from),
                 &MapChunk::whole(n),
                 &self.map.position_weight,
-                &mut self.block_bounds,
+                &mut self.block_boxes,
             );
         }
         self.bounds_dirty_from = n;
     }
 
     /// The block boxes (for tests: every surfel must lie in its block's box).
-    pub fn block_bounds(&self) -> &[[u32; 4]] {
-        &self.block_bounds
+    pub fn block_boxes(&self) -> &[[u32; 4]] {
+        &self.block_boxes
     }
 }
 
@@ -241,7 +241,7 @@ impl Backend for CpuBackend {
                     PredictCall::ProjectModel => cpu::project_model::project_model(
                         &params,
                         &chunk,
-                        &self.block_bounds,
+                        &self.block_boxes,
                         &self.map.position_weight,
                         &mut self.index_map,
                     ),
@@ -288,33 +288,17 @@ impl Backend for CpuBackend {
     fn icp_system(&mut self, level: usize, params: &IcpParams) -> Result<[f64; ICP_SYSTEM_LEN]> {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
-            let levels = 1 + self.frame.pyramid.len();
-            if level >= levels.min(self.prediction.len()) {
-                return Err(crate::Error::Argument(format!(
-                    "ICP at pyramid level {level}, but preprocess() made {levels} level(s) and \
-                     predict() {}",
-                    self.prediction.len()
-                )));
-            }
-            let (pred_vertex, pred_normal) = &self.prediction[level];
-            let normal_depth = match level {
-                0 => &self.frame.normal_depth,
-                l => &self.frame.pyramid[l - 1].normal_depth,
-            };
-            Ok(cpu::icp_reduce::icp_reduce(
-                params,
-                pred_vertex,
-                pred_normal,
-                normal_depth,
-            ))
+            self.check_system_level(level, "ICP")?;
+            let [geometric, _] = self.run_systems(plan::icp_system(level), params);
+            Ok(geometric)
         })
     }
 
     fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems> {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
-            let geometric = self.icp_system(level, params)?;
-            Ok([geometric, self.photo_system(level, params)])
+            self.check_system_level(level, "RGB-D ICP")?;
+            Ok(self.run_systems(plan::rgbd_system(level), params))
         })
     }
 
@@ -523,7 +507,7 @@ impl Backend for CpuBackend {
 
 mod fuse;
 mod inspect;
-mod photo;
+mod systems;
 
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,121 @@
+//! The CPU backend's ICP systems: the `icp_system` and `rgbd_system` plans run by their
+//! twins (`icp_reduce`, `photo_reduce` over the level-0 prediction and a pyramid level's
+//! frame maps), with the frame's intensity pyramid made as the photometric term first
+//! reads it, for [`crate::backend::Backend::icp_system`] and
+//! [`crate::backend::Backend::rgbd_system`]; beside the step implementations only to keep
+//! that file short.
+
+use super::CpuBackend;
+use crate::backend::PyramidLevel;
+use crate::backend::RgbdSystems;
+use crate::cpu;
+use crate::layout::{IcpParams, IntensityParams, PreprocessParams, ICP_SYSTEM_LEN};
+use crate::plan::{self, IntensityCall, SystemCall};
+use crate::registry::System;
+use crate::Result;
+
+/// The frame's intensity pyramid (`intensity_pyramid`): per level its parameters and
+/// intensity patches, each level made only when RGB-D tracking first asks for it or a
+/// coarser one.
+#[derive(Debug, Default)]
+pub(super) struct IntensityPyramid {
+    params: Vec<IntensityParams>,
+    /// Per level, the intensity patches; the first `made` are of the last preprocessed
+    /// frame.
+    patches: Vec<Vec<[f32; 4]>>,
+    made: usize,
+}
+
+impl IntensityPyramid {
+    /// A new frame of `params`' size with `pyramid`'s coarser levels: the patches are stale.
+    pub fn new_frame(&mut self, params: &PreprocessParams, pyramid: &[PyramidLevel]) {
+        self.params =
+            PyramidLevel::intensity_params(params.camera.width, params.camera.height, pyramid);
+        self.patches.resize_with(self.params.len(), Vec::new);
+        self.made = 0;
+    }
+
+    /// Makes the levels up to `level` not yet made from `color` (the frame's colour map),
+    /// finest first (each from the one before).
+    fn make(&mut self, color: &[[f32; 4]], level: usize) {
+        for call in plan::intensity_levels(self.made, level) {
+            let IntensityCall::IntensityPyramid { level: l } = call;
+            let p = &self.params[l];
+            let (finer, this) = self.patches.split_at_mut(l);
+            let fine = match finer.last() {
+                Some(f) => f.as_slice(),
+                None => color,
+            };
+            let out = &mut this[0];
+            out.resize((p.width * p.height) as usize, [0.0; 4]);
+            cpu::intensity_pyramid::intensity_pyramid(p, fine, out);
+        }
+        self.made = self.made.max(level + 1);
+    }
+}
+
+impl CpuBackend {
+    /// [`crate::Error::Argument`] unless pyramid level `level` was preprocessed and
+    /// predicted (`what`: the step, for the message).
+    pub(super) fn check_system_level(&self, level: usize, what: &str) -> Result<()> {
+        let levels = 1 + self.frame.pyramid.len();
+        if level >= levels.min(self.prediction.len()) {
+            return Err(crate::Error::Argument(format!(
+                "{what} at pyramid level {level}, but preprocess() made {levels} level(s) and \
+                 predict() {}",
+                self.prediction.len()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Runs an `icp_system` or `rgbd_system` plan at `params` (after
+    /// [`CpuBackend::check_system_level`]): the summed 29-entry systems, geometric and
+    /// photometric (zero where the plan reduces none).
+    pub(super) fn run_systems(&mut self, plan: Vec<SystemCall>, params: &IcpParams) -> RgbdSystems {
+        let mut systems = [[0.0; ICP_SYSTEM_LEN]; 2];
+        for call in plan {
+            match call {
+                SystemCall::IcpReduce { level } => {
+                    let (pred_vertex, pred_normal) = &self.prediction[level];
+                    systems[System::Geometric as usize] = cpu::icp_reduce::icp_reduce(
+                        params,
+                        pred_vertex,
+                        pred_normal,
+                        self.normal_depth(level),
+                    );
+                }
+                SystemCall::PhotoReduce { level } => {
+                    self.intensity.make(&self.frame.color, level);
+                    let (level0_pred_vertex, _) = &self.prediction[0];
+                    systems[System::Photometric as usize] = cpu::photo_reduce::photo_reduce(
+                        params,
+                        level0_pred_vertex,
+                        &self.pred_intensity,
+                        self.normal_depth(level),
+                        &self.intensity.patches[level],
+                    );
+                }
+                // The reductions' twins sum their rows into the system themselves (in f64,
+                // in pixel order): the GPU's second stage has nothing left to sum here.
+                SystemCall::SumPartials(_) => {}
+            }
+        }
+        systems
+    }
+
+    /// Pyramid level `level`'s frame normals with the depth in w (level 0: the frame's).
+    fn normal_depth(&self, level: usize) -> &[[f32; 4]] {
+        match level {
+            0 => &self.frame.normal_depth,
+            l => &self.frame.pyramid[l - 1].normal_depth,
+        }
+    }
+
+    /// The frame's intensity patches at every level (made if not yet), for parity tests.
+    pub fn intensity_patches(&mut self) -> &[Vec<[f32; 4]>] {
+        let levels = self.intensity.params.len();
+        self.intensity.make(&self.frame.color, levels - 1);
+        &self.intensity.patches
+    }
+}
