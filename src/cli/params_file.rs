@@ -166,6 +166,34 @@ mod tests {
         o.slam_params(PoseSource::Track).unwrap()
     }
 
+    /// A `--bilateral-*` setting tunes the robust profile's filter without `--bilateral`
+    /// (it was once dropped there without a word), and is refused, naming the flag and
+    /// the fix, for the assignment profile, which runs no filter.
+    #[test]
+    fn bilateral_settings_apply_where_the_filter_runs_and_are_refused_elsewhere() {
+        let robust = params(&flags(&["--bilateral-radius", "2"]));
+        assert_eq!(robust.bilateral.map(|b| b.radius_px), Some(2));
+        let from_file = ParamOverrides::from_toml("bilateral-sigma-space = 2.5").unwrap();
+        let sigma = params(&from_file).bilateral.map(|b| b.sigma_space_px);
+        assert_eq!(sigma, Some(2.5));
+        let why = flags(&["--profile", "assignment", "--bilateral-radius", "2"])
+            .slam_params(PoseSource::Track)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            why.contains("--bilateral-radius") && why.contains("add --bilateral"),
+            "{why}"
+        );
+        let on = flags(&[
+            "--profile",
+            "assignment",
+            "--bilateral",
+            "--bilateral-radius",
+            "2",
+        ]);
+        assert_eq!(params(&on).bilateral.map(|b| b.radius_px), Some(2));
+    }
+
     /// A file setting a value gives the same parameters as the flag, for every form.
     #[test]
     fn file_values_mean_what_the_flags_mean() {
@@ -336,8 +364,8 @@ mod tests {
         let assignment = SlamParams::profile(Profile::Assignment);
         for (flag, value) in OPTION_VALUES {
             // The assignment profile under each (`profile` itself over the robust default),
-            // `--bilateral` under its settings, which take effect only with it, and a
-            // two-level schedule under `--photometric-levels` (a level must exist).
+            // `--bilateral` under its settings (the assignment profile refuses them without
+            // it), and a two-level schedule under `--photometric-levels` (a level must exist).
             let mut args = vec![arg(flag, value)];
             let mut file = format!("{flag} = {value:?}\n");
             if flag != "profile" {

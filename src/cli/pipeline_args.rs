@@ -291,9 +291,10 @@ param_overrides! {
     #[arg(long)]
     max_depth_jump: Option<f32> => "normals.max_depth_jump_m",
     /// Smooth the depth with an edge-preserving bilateral filter for the normals and the
-    /// coarser ICP levels (KinectFusion's; for noisy sensors) with the --bilateral-*
-    /// settings below, which take effect only with it; without it the profile decides
-    /// (assignment off, robust on with the defaults). In a file: `bilateral = true`.
+    /// coarser ICP levels (KinectFusion's; for noisy sensors); without it the profile
+    /// decides (assignment off, robust on). The --bilateral-* settings below tune the
+    /// filter that runs; for the assignment profile they need this flag. In a file:
+    /// `bilateral = true`.
     #[arg(long)]
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     bilateral: bool => "bilateral.enabled",
@@ -321,16 +322,36 @@ param_overrides! {
 
 impl ParamOverrides {
     /// The [`SlamParams`] keys set: the sections' (in order), then the options' (in the
-    /// options' order; so an option wins over a section's key). The `--bilateral-*`
-    /// settings take effect only with `--bilateral` (without it the profile's filter runs,
-    /// as documented).
+    /// options' order; so an option wins over a section's key).
     pub fn keys_set(&self) -> Vec<Key> {
         let options = self
             .options()
             .into_iter()
-            .filter_map(|o| Some((o.key?.to_string(), o.value?)))
-            .filter(|(key, _)| self.bilateral || !key.starts_with("bilateral."));
+            .filter_map(|o| Some((o.key?.to_string(), o.value?)));
         self.section_keys.iter().cloned().chain(options).collect()
+    }
+
+    /// `Err` naming the flag when a `--bilateral-*` setting is given for a profile that
+    /// runs no bilateral filter (the assignment's) without `--bilateral`: the settings tune
+    /// the filter and do not switch it on. With the robust profile's filter they apply as
+    /// given (they were once dropped there without a word).
+    fn check_bilateral_settings(&self, profile: Profile) -> Result<()> {
+        if self.bilateral || SlamParams::profile(profile).bilateral.is_some() {
+            return Ok(());
+        }
+        match self
+            .options()
+            .into_iter()
+            .find(|o| o.value.is_some() && o.key.is_some_and(|k| k.starts_with("bilateral.")))
+        {
+            Some(o) => Err(Error::Argument(format!(
+                "--{} tunes the bilateral filter, which the {} profile does not run: \
+                 add --bilateral (in a file: `bilateral = true`)",
+                o.flag,
+                format!("{profile:?}").to_lowercase()
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// Whether `input.downsample` is set (`--downsample`, a file's `downsample` or
@@ -348,6 +369,7 @@ impl ParamOverrides {
     /// sets it (`` `fusion.dist_m` (--fuse-dist) 0 must be positive ``).
     pub fn slam_params(&self, poses: PoseSource) -> Result<ValidParams> {
         let profile = self.profile.unwrap_or(Profile::Robust);
+        self.check_bilateral_settings(profile)?;
         SlamParams::with_keys(profile, poses, &self.keys_set()).map_err(|e| match e {
             Error::Argument(why) => Error::Argument(with_flags(&why)),
             other => other,
