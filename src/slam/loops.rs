@@ -257,11 +257,11 @@ impl LoopClosure {
                 similarity: Some(m.similarity),
             });
         }
+        let t_world_to_cam = se3::inverse_rigid(t_cam_to_world);
         let local = (0..db.len())
             .map(|i| db.keyframe(i))
             .filter(|kf| old_enough(kf.frame_id))
             .map(|kf| {
-                let t_world_to_cam = se3::inverse_rigid(t_cam_to_world);
                 (
                     kf.frame_id,
                     pose_change(&kf.t_world_to_cam, &t_world_to_cam),
