@@ -17,6 +17,7 @@ use wgslam::cli::embed;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::layout::pack_rgba8;
 use wgslam::slam::backend::Inspect;
+use wgslam::slam::params::resolution::{self, DownsampleFrom};
 use wgslam::slam::pipeline::{Slam, TrackStatus};
 use wgslam::AnyBackend;
 
@@ -81,6 +82,9 @@ pub struct Stream {
     state: Mutex<State>,
     /// The frames' size, `(width, height)` pixels.
     size: (usize, usize),
+    /// The input's downsampling and where it came from (the parameters, or the backend's
+    /// default when they set none).
+    downsample: (u32, DownsampleFrom),
 }
 
 impl Stream {
@@ -124,12 +128,19 @@ impl Stream {
         }
         let choice = backend_choice(backend)?;
         // Validated once, by the parameter text's reading; the depth scale by its own check.
-        let params = embed::params_from_toml(&params_toml(params_json)?, pose_source(poses)?)
-            .map_err(py_err)?
+        let text = embed::params_from_toml(&params_toml(params_json)?, pose_source(poses)?)
+            .map_err(py_err)?;
+        let params = text
+            .params
             .with_depth_scale(depth_scale)
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let backend = py.detach(|| wgslam::open_backend(choice)).map_err(py_err)?;
+        // Unset, the resolution is the backend's default, as `wgslam run` chooses it.
+        let (params, downsample_from) =
+            resolution::for_backends(params, text.sets_downsample, &[backend.name()])
+                .map_err(py_err)?;
         Ok(Stream {
+            downsample: (params.input.downsample, downsample_from),
             state: Mutex::new(State {
                 slam: Slam::new(backend, k, params),
                 next_frame: 0,
@@ -220,6 +231,23 @@ impl Stream {
         let json =
             serde_json::to_string(&report).map_err(|e| crate::Error::new_err(e.to_string()))?;
         Ok((pose_array(py, &report.t_cam_to_world), status, detail, json))
+    }
+
+    /// The input's downsampling: 1 tracks every pixel, 2 every second pixel in each
+    /// direction.
+    #[getter]
+    fn downsample(&self) -> u32 {
+        self.downsample.0
+    }
+
+    /// Where [`Stream::downsample`] came from, as `metrics.json`'s `downsample_from`
+    /// writes it: `"set"` (the parameters), `"gpu-default"` or `"cpu-default"`.
+    #[getter]
+    fn downsample_from(&self) -> PyResult<String> {
+        serde_json::to_value(self.downsample.1)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .ok_or_else(|| crate::Error::new_err("downsample_from has no name"))
     }
 
     /// The map now, as a dict of arrays (see `wgslam.RunResult.map`).

@@ -2,6 +2,7 @@
 for bit; bad arrays are refused with a clear error; frames are tracked with the
 interpreter's lock released."""
 
+import os
 import sys
 import threading
 
@@ -49,6 +50,40 @@ def test_streaming_equals_wgslam_run_on_7_scenes(shared_data):
     result = wgslam.run(kitchen, frames="0..299", backend="cpu")
     slam, _ = stream(seq, 0, 299)
     assert_same_trajectory(slam, result)
+
+
+def test_the_resolution_is_the_backends_default_unless_set():
+    """Unset, the stream tracks at the resolution `wgslam run` chooses for its backend (every
+    second pixel on the CPU); a parameter that sets it is kept."""
+    seq = wgslam.open_sequence(BUNDLED)
+    cpu = wgslam.Slam.for_sequence(seq, backend="cpu")
+    assert (cpu.downsample, cpu.downsample_from) == (2, "cpu-default")
+    full = wgslam.Slam.for_sequence(seq, {"downsample": 1}, backend="cpu")
+    assert (full.downsample, full.downsample_from) == (1, "set")
+
+
+def gpu_or_skip(seq):
+    """A GPU stream over `seq`, or a skip when no adapter is here (a failure under
+    WGSLAM_REQUIRE_GPU=1, as `.ci/run` sets it)."""
+    try:
+        return wgslam.Slam.for_sequence(seq, backend="gpu")
+    except RuntimeError as e:
+        if os.environ.get("WGSLAM_REQUIRE_GPU") == "1":
+            pytest.fail(f"no GPU backend ({e}) and WGSLAM_REQUIRE_GPU=1")
+        pytest.skip(f"no GPU backend here: {e}")
+
+
+def test_a_gpu_stream_equals_wgslam_run_on_the_gpu():
+    """The GPU's default resolution (every pixel) in a stream as in `wgslam run`: the same
+    trajectory bit for bit (it was every second pixel, whatever the backend)."""
+    seq = wgslam.open_sequence(BUNDLED)
+    slam = gpu_or_skip(seq)
+    assert (slam.downsample, slam.downsample_from) == (1, "gpu-default")
+    first, last = seq.default_first_frame(), len(seq) - 1
+    for i in range(first, last + 1):
+        depth, rgb = seq.frame(i)
+        slam.track(depth, rgb, seq.timestamp(i), pose=seq.ground_truth(i), frame_id=i)
+    assert_same_trajectory(slam, wgslam.run(BUNDLED, backend="gpu"))
 
 
 def test_float_metres_track_like_raw_depth():

@@ -311,6 +311,19 @@ class Slam:
         )
         return Track(pose_out, status, detail, report)
 
+    @property
+    def downsample(self) -> int:
+        """The input's downsampling: 1 tracks every pixel, 2 every second pixel in each
+        direction. Unless ``params`` set it, the backend's default, as ``wgslam run``
+        chooses it (every pixel on the GPU, every second pixel on the CPU)."""
+        return self._native.downsample
+
+    @property
+    def downsample_from(self) -> str:
+        """Where :attr:`downsample` came from, as ``metrics.json``'s ``downsample_from``:
+        ``"set"`` (``params``), ``"gpu-default"`` or ``"cpu-default"``."""
+        return self._native.downsample_from
+
     def map(self) -> Dict[str, np.ndarray]:
         """The map now (a copy from the backend), as :attr:`RunResult.map`."""
         return self._native.map()

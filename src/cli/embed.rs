@@ -104,8 +104,22 @@ fn overrides(params_toml: &str) -> Result<ParamOverrides> {
 /// in place and `poses`, validated (the one time: [`ValidParams`]). The dataset keys (`camera`, `intrinsics`,
 /// `depth-scale`, `gt`, ...) are accepted and not used here: they open a sequence
 /// ([`resolve_run`]); a stream of frames gives its camera itself.
-pub fn params_from_toml(params_toml: &str, poses: PoseSource) -> Result<ValidParams> {
-    overrides(params_toml)?.slam_params(poses)
+pub fn params_from_toml(params_toml: &str, poses: PoseSource) -> Result<TextParams> {
+    let set = overrides(params_toml)?;
+    Ok(TextParams {
+        params: set.slam_params(poses)?,
+        sets_downsample: set.sets_downsample(),
+    })
+}
+
+/// A parameter text's validated parameters ([`params_from_toml`]).
+#[derive(Debug, Clone)]
+pub struct TextParams {
+    /// The validated parameters.
+    pub params: ValidParams,
+    /// Whether the text set `input.downsample`; unset, the backend that runs the frames
+    /// chooses it (`crate::slam::params::resolution::for_backends`), as for `wgslam run`.
+    pub sets_downsample: bool,
 }
 
 /// A whole run as `wgslam run` resolves it before its first frame.
@@ -258,8 +272,11 @@ mod tests {
         );
         let p = params_from_toml("profile = \"assignment\"", PoseSource::Track).unwrap();
         assert_eq!(
-            p,
+            p.params,
             ValidParams::profile(crate::slam::params::Profile::Assignment)
         );
+        assert!(!p.sets_downsample);
+        let p = params_from_toml("[input]\ndownsample = 1", PoseSource::Track).unwrap();
+        assert!(p.sets_downsample);
     }
 }
