@@ -53,6 +53,11 @@ pub enum Shape {
     /// stale (fusion appended to them, or the map was compacted or uploaded) a pass of one
     /// workgroup per stale block, none where no box is stale.
     PerStaleBlock,
+    /// One bind group per map chunk over the chunk's pool alone (no frame's maps: such a
+    /// kernel also runs before the first frame, on an uploaded map); per chunk holding live
+    /// surfels a pass of the kernel's grid-stride workgroups over them (one thread per
+    /// surfel, at most the adapter's grid cap), none for an empty chunk.
+    PerSurfel,
     /// One bind group per pyramid level (and, for the levels that read level 0's vertex
     /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
     /// (`vertex_map`, `normal_depth`, `pred_vertex`, `intensity_patch`, ...; the finer
@@ -175,8 +180,7 @@ impl At {
 ///   level's own parameter buffer;
 /// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
 ///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
-/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (`deform_surfels` at the
-///   first loop closure, the renderer's kernels);
+/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels);
 /// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
 ///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry_data {
@@ -329,6 +333,11 @@ registry_data! {
         icp_reduce: Reduce(icp),
         photo_reduce: Reduce(icp),
         icp_reduce_final: PerSystem(icp),
+        // Loop closure's map deformation: every live surfel moved by the pose graph's
+        // corrections (`nodes`, the node table).
+        deform_surfels: PerSurfel(deform),
+        // Compaction's keep flag per surfel (its `flags`, one per map slot).
+        compact_flags: PerSurfel(compact),
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -354,7 +363,6 @@ registry_data! {
         fern_encode,
         keypoint_detect,
         keypoint_describe,
-        compact_flags,
         // The scan's three kernels: block sums, their scan, each block's scan.
         prefix_sum_reduce,
         prefix_sum_blocks,
@@ -363,8 +371,6 @@ registry_data! {
     }
     key_kernels: {}
     elsewhere: {
-        // Loop closure's map deformation (crates/gpu/src/loops.rs), built at the first closure.
-        deform_surfels,
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
         render_resolve,
     }

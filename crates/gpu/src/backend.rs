@@ -41,7 +41,7 @@ use super::pipelines::Kernels;
 use super::recording::{Profiler, PROFILED_PASSES_MAX};
 use super::resources::{FrameBuffers, Systems, Uniforms};
 use super::timing::StageTimer;
-use crate::layout::{BoundsParams, PreprocessParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
+use crate::layout::{BoundsParams, DeformNode, PreprocessParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
 use crate::{Error, Result};
 use std::collections::BTreeMap;
 use wgslam_core::backend::PyramidLevel;
@@ -55,6 +55,8 @@ compile_error!("the GPU backend assumes a little-endian host (u32/u64 data read 
 
 /// Surfel slots allocated up front: a little over three 320x240 frames, ~10 MB.
 pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
+/// Nodes the loop closure's node table holds before its first growth (a few KB).
+const DEFORM_NODES_INITIAL: usize = 64;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
@@ -106,8 +108,9 @@ pub struct GpuBackend {
     pub(super) candidates: Option<super::candidates::CandidateBuffers>,
     /// Buffers of the keypoint kernels, `None` until their first call.
     pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
-    /// `deform_surfels`' kernel and buffers, `None` until the first loop closure.
-    pub(super) deform: Option<super::loops::DeformBuffers>,
+    /// A loop closure's node table (`deform_surfels`' `nodes`), grown to the next power
+    /// of two when a closure needs more nodes (the bind groups are then re-made).
+    pub(super) deform_nodes: GpuArray<DeformNode>,
 }
 
 impl GpuBackend {
@@ -189,11 +192,12 @@ impl GpuBackend {
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
             let map = MapBuffers::new(&ctx, capacity, chunk_surfels)?;
+            let nodes = GpuArray::new(&ctx, "deformation nodes", DEFORM_NODES_INITIAL)?;
             let mut block_boxes = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
             block_boxes.set_len(bounds_entries(&map));
-            Ok((kernels, small, (map, block_boxes)))
+            Ok((kernels, (small, nodes), (map, block_boxes)))
         })?;
-        let (systems, counter, counter_readback) = small;
+        let ((systems, counter, counter_readback), deform_nodes) = small;
         let (map, block_boxes) = map;
         let uniforms = Uniforms::new(&ctx);
         Ok(GpuBackend {
@@ -218,7 +222,7 @@ impl GpuBackend {
             ferns: None,
             candidates: None,
             keypoints: None,
-            deform: None,
+            deform_nodes,
         })
     }
 
@@ -334,16 +338,18 @@ impl GpuBackend {
     /// layout (first call, or after the map grew). [`Error::Capacity`] when a flag per
     /// surfel slot outgrows the device's storage-buffer binding limit.
     pub(super) fn ensure_compaction(&mut self) -> Result<()> {
-        match self.compaction.as_mut() {
-            Some(c) => {
-                if c.follow(&self.ctx, &self.map)? {
-                    self.spare_bind_groups = None;
-                }
-            }
+        let remade = match self.compaction.as_mut() {
+            Some(c) => c.follow(&self.ctx, &self.map)?,
             None => {
                 self.compaction = Some(Compaction::new(&self.ctx, &self.map)?);
-                self.spare_bind_groups = None;
+                true
             }
+        };
+        if remade {
+            // Both map sets' bind groups bind the keep flags (`compact_flags`' row), and
+            // the spare set's the spare map.
+            self.bind_groups = None;
+            self.spare_bind_groups = None;
         }
         Ok(())
     }
@@ -353,11 +359,10 @@ impl GpuBackend {
         if self.bind_groups.is_none() {
             let resources = Resources {
                 uniforms: &self.uniforms,
-                frame: self
-                    .frame
-                    .as_ref()
-                    .expect("preprocess() runs before any other step"),
+                frame: self.frame.as_ref(),
                 map: &self.map,
+                nodes: &self.deform_nodes,
+                keep_flags: self.compaction.as_ref().map(|c| &c.flags),
                 block_boxes: &self.block_boxes,
                 systems: &self.systems.buffers,
                 counter: &self.counter,
@@ -378,6 +383,15 @@ impl GpuBackend {
                 let blocks = ch.live(self.count).div_ceil(BLOCK_SURFELS as usize) as u32;
                 blocks.min(cap)
             })
+            .collect()
+    }
+
+    /// Per map chunk, its live surfels (a `PerSurfel` row's passes: `StepGrid::live`).
+    pub(super) fn chunk_live(&self) -> Vec<usize> {
+        self.map
+            .chunks
+            .iter()
+            .map(|ch| ch.live(self.count))
             .collect()
     }
 

@@ -12,8 +12,8 @@ use super::images::GpuImage;
 use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, IntensityParams,
-    NormalParams, PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, DeformParams, FuseParams, IcpParams,
+    IntensityParams, NormalParams, PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
 };
 use crate::Result;
 use wgslam_core::backend::PyramidLevel;
@@ -32,6 +32,8 @@ pub(super) struct Uniforms {
     pub compact: ParamBuffer<CompactParams>,
     /// `block_bounds`' parameters.
     pub bounds: ParamBuffer<BoundsParams>,
+    /// `deform_surfels`' parameters (a loop closure's deformation).
+    pub deform: ParamBuffer<DeformParams>,
 }
 
 impl Uniforms {
@@ -47,6 +49,7 @@ impl Uniforms {
             fuse_scan: ParamBuffer::new(ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed()),
             compact: ParamBuffer::new(ctx, "CompactParams", &bytemuck::Zeroable::zeroed()),
             bounds: ParamBuffer::new(ctx, "BoundsParams", &bytemuck::Zeroable::zeroed()),
+            deform: ParamBuffer::new(ctx, "DeformParams", &bytemuck::Zeroable::zeroed()),
         }
     }
 }

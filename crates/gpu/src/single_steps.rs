@@ -1,21 +1,23 @@
 //! The GPU backend's steps of one kernel each (`wgslam_core::plan::Single`): relocalisation's
 //! `fern_encode`, `keypoint_detect` and `keypoint_describe`, tracking health's
-//! `icp_candidates` and loop closure's `deform_surfels`; and the two copies a loop's
-//! verification needs (one pyramid level of the frame's maps down, a keyframe's snapshot up
-//! into a level's prediction). Each step writes its parameters, records its plan's one
-//! call in a command buffer of its own ([`record_call`], as the other steps do) and reads
-//! its results back. Their buffers live beside: `super::{ferns, keypoints, candidates,
-//! loops}`, made at a step's first call.
+//! `icp_candidates` and loop closure's `deform_surfels` (bound and dispatched by its
+//! registry row); and the two copies a loop's verification needs (one pyramid level of the
+//! frame's maps down, a keyframe's snapshot up into a level's prediction). Each step writes
+//! its parameters, records its plan's one call in a command buffer of its own
+//! ([`record_call`], as the other steps do) and reads its results back. Their buffers live
+//! beside: `super::{ferns, keypoints, candidates}`, made at a step's first call (the
+//! deformation's node table is the backend's).
 
 use super::backend::GpuBackend;
+use super::buffers::GpuArray;
 use super::candidates::{CandidateBuffers, CANDIDATE_WORKGROUPS_MAX};
 use super::context::GpuContext;
 use super::ferns::{self, FernBuffers};
 use super::images::GpuImage;
 use super::keypoints;
-use super::loops::DeformBuffers;
 use super::recording::{record_call, submit_profiled, Pass, Profiler};
 use super::resources::FrameBuffers;
+use super::step_grid::StepGrid;
 use crate::layout::{
     DeformNode, DeformParams, Fern, FernParams, IcpParams, Keypoint, KeypointParams,
     DESCRIPTOR_WORDS,
@@ -185,7 +187,9 @@ impl GpuBackend {
         })
     }
 
-    /// `deform_surfels` over the live surfels of every chunk; see `Backend::deform`.
+    /// `deform_surfels` over the live surfels of every chunk, bound and dispatched by its
+    /// registry row (the map alone: it runs on an uploaded map before any frame too); see
+    /// `Backend::deform`.
     pub(super) fn deform_on_gpu(&mut self, nodes: &[DeformNode]) -> Result<()> {
         if nodes.is_empty() || self.count == 0 {
             return Ok(());
@@ -197,45 +201,26 @@ impl GpuBackend {
             _pad1: 0,
         };
         let call = plan::deform();
-        let ctx = &self.ctx;
-        if self
-            .deform
-            .as_ref()
-            .is_none_or(|b| b.nodes.capacity() < nodes.len())
-        {
-            self.deform = Some(DeformBuffers::new(ctx, &params, nodes.len())?);
+        if self.deform_nodes.capacity() < nodes.len() {
+            let grown = nodes.len().next_power_of_two();
+            self.deform_nodes = GpuArray::new(&self.ctx, "deformation nodes", grown)?;
+            // The bind groups refer to the table.
+            self.bind_groups = None;
+            self.spare_bind_groups = None;
         }
-        let b = self.deform.as_mut().expect("just made");
-        let count = self.count;
-        let cap = self.ctx.grid_workgroups_cap();
-        let map = &self.map;
+        // The map alone: no frame's pixels.
+        let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());
+        grid.live = self.chunk_live();
+        self.bind_groups();
+        let (ctx, k, u) = (&self.ctx, &self.kernels, &self.uniforms);
+        let bg = self.bind_groups.as_ref().expect("just built");
+        let table = &mut self.deform_nodes;
+        let profiler = &mut self.profiler;
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, &params);
-            b.nodes.upload(ctx, nodes)?;
-            // One bind group per chunk: made per closure (closures are rare).
-            let groups: Vec<(wgpu::BindGroup, u32)> = map
-                .chunks
-                .iter()
-                .filter(|ch| ch.live(count) > 0)
-                .map(|ch| {
-                    let group = b.kernel.bind_group(
-                        ctx,
-                        &[
-                            ("params", b.params.binding()),
-                            ("chunk", ch.info_buffer.binding()),
-                            ("nodes", b.nodes.binding()),
-                            ("position_weight", ch.position_weight.binding()),
-                            ("normal_frame", ch.normal_frame.binding()),
-                        ],
-                    );
-                    (group, b.kernel.workgroups_for(ch.live(count)).min(cap))
-                })
-                .collect();
-            let passes: Vec<_> = groups
-                .iter()
-                .map(|(g, wg)| (&b.kernel, g, [*wg, 1]))
-                .collect();
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, |_| {})
+            u.deform.write(ctx, &params);
+            table.upload(ctx, nodes)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, |_| {}, |_| {})
         })?;
         // Every surfel may have left its block's box, and the fused view is of the old map.
         self.bounds_dirty_from = 0;

@@ -23,6 +23,8 @@ pub(super) struct StepGrid {
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
     pub chunks: Vec<u32>,
+    /// Per map chunk, its live surfels (a `PerSurfel` row's passes; see `chunk_live`).
+    pub live: Vec<usize>,
     /// The frame's `[width, height]` in pixels.
     frame: [u32; 2],
     /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
@@ -43,6 +45,7 @@ impl StepGrid {
         StepGrid {
             bounds: Vec::new(),
             chunks: Vec::new(),
+            live: Vec::new(),
             frame,
             levels,
             cap: ctx.grid_workgroups_cap(),
@@ -80,10 +83,25 @@ impl StepGrid {
             .map(|(g, &blocks)| (kernel, g, [blocks, 1]))
             .collect()
     }
+    /// One pass of grid-stride `kernel` per map chunk holding live surfels, one thread per
+    /// surfel (at most the grid cap: the loop covers the rest).
+    pub fn per_surfel<'a>(
+        &self,
+        kernel: &'a Kernel,
+        groups: &'a [wgpu::BindGroup],
+    ) -> Vec<Pass<'a>> {
+        groups
+            .iter()
+            .zip(&self.live)
+            .filter(|(_, &live)| live > 0)
+            .map(|(g, &live)| (kernel, g, [kernel.workgroups_for(live).min(self.cap), 1]))
+            .collect()
+    }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
     /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
-    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]); at
+    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
+    /// live surfels a grid-stride pass over them: [`StepGrid::live`]); at
     /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
     /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
@@ -109,9 +127,11 @@ impl StepGrid {
         let at = match shape {
             Shape::PerLevel => call.at().choice(),
             Shape::Reduce | Shape::PerSystem => call.at(),
-            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
-                At::FRAME
-            }
+            Shape::OverFrame
+            | Shape::PerChunk
+            | Shape::PerBlock
+            | Shape::PerStaleBlock
+            | Shape::PerSurfel => At::FRAME,
         };
         let groups = bg
             .generic
@@ -124,6 +144,7 @@ impl StepGrid {
             | Shape::PerChunk
             | Shape::PerBlock
             | Shape::PerStaleBlock
+            | Shape::PerSurfel
             | Shape::PerLevel => self.level(at.level, &passes[0]),
         };
         let passes = match call.every_key_pass() {
@@ -134,6 +155,7 @@ impl StepGrid {
             .iter()
             .flat_map(|pass| match shape {
                 Shape::PerBlock => self.per_block(pass, groups),
+                Shape::PerSurfel => self.per_surfel(pass, groups),
                 Shape::PerStaleBlock => self
                     .bounds
                     .iter()

@@ -220,7 +220,11 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
+                    FuseCall::FuseScan => bg
+                        .fuse_scan
+                        .as_ref()
+                        .expect("made with the frame")
+                        .passes(k, f.add_flags.len()),
                     // The stale boxes' `block_bounds`, `fuse_select` (surfels pick
                     // pixels, then each picked surfel merges from its pixel:
                     // `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`, `fuse_flags`,
@@ -260,8 +264,12 @@ impl Backend for GpuBackend {
         self.ensure_compaction()?;
         let mut params = *params;
         params.surfel_count = n as u32;
-        let flags_wg = self.chunk_workgroups(&self.kernels.compact_flags);
         let scatter_wg = self.chunk_workgroups(&self.kernels.compact_scatter);
+        // The map alone: no frame's pixels.
+        let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());
+        grid.live = self.chunk_live();
+        self.bind_groups();
+        let bg = self.bind_groups.as_ref().expect("just built");
         let (ctx, k, u) = (&self.ctx, &self.kernels, &self.uniforms);
         let c = self.compaction.as_mut().expect("ensure_compaction made it");
         // Made once per map set (live and spare swap every call, and so do these).
@@ -282,12 +290,8 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("compact");
             for call in plan::compact() {
                 let passes: Vec<Pass> = match call {
-                    CompactCall::Flags => g
-                        .flags
-                        .iter()
-                        .zip(&flags_wg)
-                        .map(|(group, &wg)| (&k.compact_flags, group, [wg, 1]))
-                        .collect(),
+                    // Bound and dispatched by its registry row.
+                    CompactCall::Flags => grid.generic(k, bg, call),
                     CompactCall::Scan => g.scan.passes(k, n),
                     CompactCall::Scatter => scatter_wg
                         .iter()
