@@ -83,21 +83,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         ],
         "a one-kernel step, and the step is named after it",
     ),
-    (
-        "fern_encode",
-        &["crates/gpu/src/single_steps.rs", STEPS],
-        "a one-kernel step, recorded ahead by fuse",
-    ),
-    (
-        "keypoint_detect",
-        &["crates/gpu/src/single_steps.rs"],
-        "a one-kernel step",
-    ),
-    (
-        "keypoint_describe",
-        &["crates/gpu/src/single_steps.rs"],
-        "a one-kernel step",
-    ),
     ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
     ("nn_grid", &["src/scan/gpu.rs"], "scan registration's"),
     (

@@ -42,7 +42,9 @@ macro_rules! shader_text {
 /// kernel's second pass reads the first's result over the whole map).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shape {
-    /// One bind group over the frame's pool; one pass over the frame's pixels.
+    /// One bind group over the frame's pool (and the buffers of the steps that make their
+    /// own, once made: a row that binds one has no bind group before); one pass over the
+    /// frame's pixels.
     OverFrame,
     /// One bind group per map chunk; per chunk a pass over the frame's pixels.
     PerChunk,
@@ -53,11 +55,17 @@ pub enum Shape {
     /// stale (fusion appended to them, or the map was compacted or uploaded) a pass of one
     /// workgroup per stale block, none where no box is stale.
     PerStaleBlock,
-    /// One bind group per map chunk over the chunk's pool alone (no frame's maps: such a
-    /// kernel also runs before the first frame, on an uploaded map); per chunk holding live
-    /// surfels a pass of the kernel's grid-stride workgroups over them (one thread per
-    /// surfel, at most the adapter's grid cap), none for an empty chunk.
+    /// One bind group per map chunk over the chunk's pool and the map-wide arrays alone
+    /// (no frame's maps: such a kernel also runs before the first frame, on an uploaded
+    /// map); per chunk a pass of the kernel's grid-stride workgroups over its live surfels
+    /// (one thread per surfel, at most the adapter's grid cap; an empty pass for a chunk
+    /// without).
     PerSurfel,
+    /// One bind group over the frame's pool (as `OverFrame`'s, with the buffers of the
+    /// steps that make their own: the ferns', the keypoints'); a pass of one thread per item
+    /// the step counts (ferns, keypoints), at most the adapter's reduction workgroups (a
+    /// grid-stride loop covers the rest).
+    PerItem,
     /// One bind group per pyramid level (and, for the levels that read level 0's vertex
     /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
     /// (`vertex_map`, `normal_depth`, `pred_vertex`, `intensity_patch`, ...; the finer
@@ -338,6 +346,12 @@ registry_data! {
         deform_surfels: PerSurfel(deform),
         // Compaction's keep flag per surfel (its `flags`, one per map slot).
         compact_flags: PerSurfel(compact),
+        // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
+        // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
+        // `points`).
+        fern_encode: PerItem(ferns),
+        keypoint_detect: OverFrame(keypoints),
+        keypoint_describe: PerItem(keypoints),
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -360,9 +374,6 @@ registry_data! {
     }
     kernels: {
         icp_candidates,
-        fern_encode,
-        keypoint_detect,
-        keypoint_describe,
         // The scan's three kernels: block sums, their scan, each block's scan.
         prefix_sum_reduce,
         prefix_sum_blocks,

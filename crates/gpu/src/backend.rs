@@ -47,6 +47,28 @@ use std::collections::BTreeMap;
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::fused_view::FusedView;
 
+/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
+/// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
+/// macro rather than a method so the borrows stay per field: the step still reads its
+/// read-backs (and its own buffers) while the profiler is borrowed mutably. Used by
+/// `super::steps` and `super::single_steps` (hence `#[macro_use]` on this module).
+macro_rules! encoding_parts {
+    ($backend:ident) => {{
+        $backend.bind_groups();
+        (
+            &$backend.ctx,
+            &$backend.kernels,
+            $backend.bind_groups.as_ref().expect("just built"),
+            &mut $backend.profiler,
+            $backend
+                .frame
+                .as_ref()
+                .expect("preprocess() runs before any other step"),
+            &$backend.uniforms,
+        )
+    }};
+}
+
 // Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
 // index map is read as vec2<u32> (low word first): both assume a little-endian host, like
 // every platform wgpu runs on.
@@ -354,6 +376,12 @@ impl GpuBackend {
         Ok(())
     }
 
+    /// Drops both map sets' bind groups: a buffer they bind was made or re-made.
+    pub(super) fn drop_bind_groups(&mut self) {
+        self.bind_groups = None;
+        self.spare_bind_groups = None;
+    }
+
     /// Builds the bind groups if a buffer changed since they were made.
     pub(super) fn bind_groups(&mut self) {
         if self.bind_groups.is_none() {
@@ -363,6 +391,11 @@ impl GpuBackend {
                 map: &self.map,
                 nodes: &self.deform_nodes,
                 keep_flags: self.compaction.as_ref().map(|c| &c.flags),
+                steps: [
+                    super::ferns::bindings(self.ferns.as_ref()),
+                    super::keypoints::bindings(self.keypoints.as_ref()),
+                ]
+                .concat(),
                 block_boxes: &self.block_boxes,
                 systems: &self.systems.buffers,
                 counter: &self.counter,

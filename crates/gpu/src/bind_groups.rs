@@ -46,6 +46,9 @@ pub(super) struct Resources<'a> {
     /// Compaction's keep flags, one per map slot (`compact_flags`' `flags`), `None` before
     /// the first `compact`.
     pub keep_flags: Option<&'a GpuArray<u32>>,
+    /// The buffers of the steps that make their own (relocalisation's ferns and
+    /// keypoints), bound by the rows over the frame's pool (`OverFrame`, `PerItem`).
+    pub steps: OnDemand<'a>,
     /// Per culling block its box (see `block_bounds.wgsl`).
     pub block_boxes: &'a GpuArray<[u32; 4]>,
     /// Per reduced system, in `System::ALL`'s order, its partial systems and their sum.
@@ -56,6 +59,25 @@ pub(super) struct Resources<'a> {
 
 /// A pool of named resources (see [`super::kernel::Kernel::bind_group_from`]).
 type Pool<'a> = Vec<(&'static str, wgpu::BindingResource<'a>)>;
+
+/// Resources a step makes at its first call, by the names the kernels declare them with:
+/// `None` until made. A row that binds one not yet made has no bind group: the step drops
+/// the bind groups when it makes its buffers, and they are made again with them.
+pub(super) type OnDemand<'a> = Vec<(&'static str, Option<wgpu::BindingResource<'a>>)>;
+
+/// The made resources of `on_demand` as pool entries, or `None` when `kernel` binds one
+/// not yet made.
+fn made<'a>(kernel: &Kernel, on_demand: OnDemand<'a>) -> Option<Pool<'a>> {
+    let mut pool = Vec::new();
+    for (name, resource) in on_demand {
+        match resource {
+            Some(resource) => pool.push((name, resource)),
+            None if kernel.binds(name) => return None,
+            None => {}
+        }
+    }
+    Some(pool)
+}
 
 /// The frame's maps and association buffers, by the names the kernels declare them with.
 /// `vertex_map` is the unfiltered vertex map, as `depth_to_vertex` writes it and
@@ -200,27 +222,20 @@ impl BindGroups {
     }
 }
 
-/// The arrays over every map slot or the whole map, by the names the kernels over the map
-/// alone declare them with: the loop closure's node table `nodes`, and once the first
-/// `compact` made them, compaction's keep flags `flags` (this pool has no frame's `flags`).
-fn map_pool<'a>(r: &Resources<'a>) -> Pool<'a> {
-    let mut pool = vec![("nodes", r.nodes.binding())];
-    pool.extend(r.keep_flags.map(|f| ("flags", f.binding())));
-    pool
-}
-
 /// The bind groups, by [`At`], of a `generic` `row` over the map alone
-/// ([`Shape::PerSurfel`]): per map chunk its pool and [`map_pool`], with the row's
-/// `params`. None for a row of another shape, nor before the first `compact` for a row
-/// that binds its keep flags.
+/// ([`Shape::PerSurfel`]): per map chunk its pool and the arrays over every map slot or
+/// the whole map (the loop closure's node table `nodes`; compaction's keep flags `flags`,
+/// made on demand: this pool has no frame's `flags`), with the row's `params`. None for a
+/// row of another shape.
 fn map_row_groups(ctx: &GpuContext, r: &Resources, row: &GenericRow) -> Vec<(At, Groups)> {
     let (Shape::PerSurfel, RowParams::Frame(params)) = (row.shape, &row.params) else {
         return Vec::new();
     };
     let kernel = &row.passes[0];
-    if r.keep_flags.is_none() && kernel.binds("flags") {
+    let on_demand = vec![("flags", r.keep_flags.map(|f| f.binding()))];
+    let Some(keep_flags) = made(kernel, on_demand) else {
         return Vec::new();
-    }
+    };
     let groups = r
         .map
         .chunks
@@ -228,7 +243,8 @@ fn map_row_groups(ctx: &GpuContext, r: &Resources, row: &GenericRow) -> Vec<(At,
         .map(|ch| {
             let mut pool = vec![("params", params.clone())];
             pool.extend(chunk_pool(ch, r.block_boxes));
-            pool.extend(map_pool(r));
+            pool.push(("nodes", r.nodes.binding()));
+            pool.extend(keep_flags.iter().cloned());
             kernel.bind_group_from(ctx, &pool)
         })
         .collect();
@@ -247,11 +263,13 @@ fn row_groups(
     let frame = frame_pool(f);
     // A key kernel's passes share the first's layout.
     let kernel = &row.passes[0];
-    // `kernel` with `params` over the frame's pool.
+    // `kernel` with `params` over the steps' buffers and the frame's pool; none when it
+    // binds a step's buffer not yet made.
     let over_frame = |params: wgpu::BindingResource| {
         let mut pool = vec![("params", params)];
+        pool.extend(made(kernel, r.steps.clone())?);
         pool.extend(frame.iter().cloned());
-        kernel.bind_group_from(ctx, &pool)
+        Some(kernel.bind_group_from(ctx, &pool))
     };
     // `kernel` with its `params` over each map chunk's pool and the frame's: one bind
     // group per chunk.
@@ -297,7 +315,10 @@ fn row_groups(
     };
     match (row.shape, &row.params) {
         (Shape::PerLevel, RowParams::Level(params_of)) => per_level(*params_of),
-        (Shape::OverFrame, RowParams::Frame(p)) => vec![(At::FRAME, vec![over_frame(p.clone())])],
+        (Shape::OverFrame | Shape::PerItem, RowParams::Frame(p)) => over_frame(p.clone())
+            .map(|g| (At::FRAME, vec![g]))
+            .into_iter()
+            .collect(),
         (Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock, RowParams::Frame(p)) => {
             vec![(At::FRAME, per_chunk(p))]
         }

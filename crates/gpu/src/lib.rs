@@ -31,6 +31,7 @@
 // The floor below, under the paths the modules use (`crate::cpu`, `crate::layout`).
 pub(crate) use wgslam_core::{cpu, layout, Error, Result};
 
+#[macro_use]
 pub mod backend;
 mod bind_groups;
 pub mod buffers;

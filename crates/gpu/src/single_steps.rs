@@ -12,7 +12,7 @@ use super::backend::GpuBackend;
 use super::buffers::GpuArray;
 use super::candidates::{CandidateBuffers, CANDIDATE_WORKGROUPS_MAX};
 use super::context::GpuContext;
-use super::ferns::{self, FernBuffers};
+use super::ferns::FernBuffers;
 use super::images::GpuImage;
 use super::keypoints;
 use super::recording::{record_call, submit_profiled, Pass, Profiler};
@@ -51,7 +51,8 @@ fn level0(frame: &Option<FrameBuffers>) -> &FrameBuffers {
 }
 
 impl GpuBackend {
-    /// `fern_encode` over the frame's level-0 maps; see `Backend::encode_ferns`.
+    /// `fern_encode` over the frame's level-0 maps, bound and dispatched by its registry
+    /// row; see `Backend::encode_ferns`.
     pub(super) fn encode_ferns_on_gpu(
         &mut self,
         params: &FernParams,
@@ -67,28 +68,29 @@ impl GpuBackend {
             return Ok(vec![]);
         }
         let call = plan::encode_ferns();
-        let ctx = &self.ctx;
         if self.ferns.as_ref().is_none_or(|b| b.ferns.capacity() < n) {
-            self.ferns = Some(FernBuffers::new(ctx, params, n)?);
+            self.ferns = Some(FernBuffers::new(&self.ctx, n)?);
+            self.drop_bind_groups();
         }
         let b = self.ferns.as_mut().expect("just made");
         if b.ahead.take() == Some(*params) && b.uploaded[..] == fern_table[..n] {
             // Recorded by this frame's fuse and already done: only the read remains.
+            let ctx = &self.ctx;
             return ctx.scoped(call.name(), || b.readback.read(ctx));
         }
+        let grid = self.frame_grid(n);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let b = self.ferns.as_mut().expect("just made");
         b.last = Some(*params);
-        let frame = level0(&self.frame);
-        let kernel = &self.kernels.fern_encode;
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, params);
+            u.ferns.write(ctx, params);
             if b.uploaded[..] != fern_table[..n] {
                 b.ferns.upload(ctx, &fern_table[..n])?;
                 b.uploaded = fern_table[..n].to_vec();
             }
-            let group = frame.bind_level0(ctx, kernel, b.pool());
-            let passes = [(kernel, &group, [ferns::workgroups(ctx, n), 1])];
+            let passes = grid.generic(k, bg, call);
             let copy = |enc: &mut _| b.readback.copy_from(enc, &b.codes, n);
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            submit_single(ctx, profiler, call, &passes, |_| {}, copy)?;
             b.readback.read(ctx)
         })
     }
@@ -115,28 +117,30 @@ impl GpuBackend {
         })
     }
 
-    /// `keypoint_detect`; see `Backend::detect_keypoints`.
+    /// `keypoint_detect` over the frame's level-0 maps, bound and dispatched by its registry
+    /// row; see `Backend::detect_keypoints`.
     pub(super) fn detect_keypoints_on_gpu(
         &mut self,
         params: &KeypointParams,
     ) -> Result<(Vec<Keypoint>, u32)> {
         let call = plan::detect_keypoints();
-        let ctx = &self.ctx;
         let capacity = params.capacity as usize;
-        let b = keypoints::ensure(&mut self.keypoints, ctx, params, capacity, 1)?;
-        let frame = level0(&self.frame);
-        let kernel = &self.kernels.keypoint_detect;
-        let grid = kernel.grid_workgroups_for_image(ctx, params.width, params.height);
+        if keypoints::ensure(&mut self.keypoints, &self.ctx, capacity, 1)? {
+            self.drop_bind_groups();
+        }
+        // Over the frame's pixels: no items.
+        let grid = self.frame_grid(0);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let b = self.keypoints.as_mut().expect("ensure made them");
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, params);
-            let group = frame.bind_level0(ctx, kernel, b.pool());
+            u.keypoints.write(ctx, params);
             let clear = |enc: &mut _| b.counter.clear(enc);
             let copy = |enc: &mut _| {
                 b.counter_back.copy_from(enc, &b.counter, 1);
                 b.keypoints_back.copy_from(enc, &b.keypoints, capacity);
             };
-            let passes = [(kernel, &group, grid)];
-            submit_single(ctx, &mut self.profiler, call, &passes, clear, copy)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, clear, copy)?;
             let found = b.counter_back.read(ctx)?[0];
             let mut kps = b.keypoints_back.read(ctx)?;
             kps.truncate(found.min(params.capacity) as usize);
@@ -144,7 +148,8 @@ impl GpuBackend {
         })
     }
 
-    /// `keypoint_describe`; see `Backend::describe_keypoints`.
+    /// `keypoint_describe`, one thread per keypoint, bound and dispatched by its registry
+    /// row; see `Backend::describe_keypoints`.
     pub(super) fn describe_keypoints_on_gpu(
         &mut self,
         params: &KeypointParams,
@@ -157,26 +162,23 @@ impl GpuBackend {
             return Ok((vec![], vec![]));
         }
         let call = plan::describe_keypoints();
-        let ctx = &self.ctx;
-        let b = keypoints::ensure(&mut self.keypoints, ctx, params, n, tests)?;
-        let frame = level0(&self.frame);
-        let kernel = &self.kernels.keypoint_describe;
+        if keypoints::ensure(&mut self.keypoints, &self.ctx, n, tests)? {
+            self.drop_bind_groups();
+        }
+        let grid = self.frame_grid(n);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let b = self.keypoints.as_mut().expect("ensure made them");
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, params);
+            u.keypoints.write(ctx, params);
             b.keypoints.upload(ctx, &found[..n])?;
             b.pattern.upload(ctx, &pattern[..tests])?;
-            let group = frame.bind_level0(ctx, kernel, b.pool());
-            // One thread per keypoint, at most the adapter's reduction workgroups.
-            let workgroups = (n as u32)
-                .div_ceil(64)
-                .min(ctx.reduction_workgroups().max(1));
             let copy = |enc: &mut _| {
                 b.descriptors_back
                     .copy_from(enc, &b.descriptors, n * DESCRIPTOR_WORDS);
                 b.points_back.copy_from(enc, &b.points, n);
             };
-            let passes = [(kernel, &group, [workgroups, 1])];
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, |_| {}, copy)?;
             let words = b.descriptors_back.read(ctx)?;
             let points = b.points_back.read(ctx)?;
             let descriptors = words
@@ -185,6 +187,15 @@ impl GpuBackend {
                 .collect();
             Ok((descriptors, points))
         })
+    }
+
+    /// The grid of a relocalisation step over the frame's level-0 pixels and `items`
+    /// items (ferns, keypoints).
+    fn frame_grid(&self, items: usize) -> StepGrid {
+        let f = self.frame();
+        let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], Vec::new());
+        grid.items = items;
+        grid
     }
 
     /// `deform_surfels` over the live surfels of every chunk, bound and dispatched by its
@@ -205,8 +216,7 @@ impl GpuBackend {
             let grown = nodes.len().next_power_of_two();
             self.deform_nodes = GpuArray::new(&self.ctx, "deformation nodes", grown)?;
             // The bind groups refer to the table.
-            self.bind_groups = None;
-            self.spare_bind_groups = None;
+            self.drop_bind_groups();
         }
         // The map alone: no frame's pixels.
         let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());

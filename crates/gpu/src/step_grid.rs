@@ -25,6 +25,8 @@ pub(super) struct StepGrid {
     pub chunks: Vec<u32>,
     /// Per map chunk, its live surfels (a `PerSurfel` row's passes; see `chunk_live`).
     pub live: Vec<usize>,
+    /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints).
+    pub items: usize,
     /// The frame's `[width, height]` in pixels.
     frame: [u32; 2],
     /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
@@ -46,6 +48,7 @@ impl StepGrid {
             bounds: Vec::new(),
             chunks: Vec::new(),
             live: Vec::new(),
+            items: 0,
             frame,
             levels,
             cap: ctx.grid_workgroups_cap(),
@@ -71,37 +74,27 @@ impl StepGrid {
             self.cpu_adapter,
         )
     }
-    /// One pass of `kernel` per map chunk with the chunk's block-walking workgroups.
-    pub fn per_block<'a>(
-        &self,
+    /// One pass of `kernel` per map chunk (bind group) with the chunk's `workgroups`: a
+    /// block-walking kernel's ([`StepGrid::chunks`]), or a grid-stride kernel's over the
+    /// chunk's live surfels ([`StepGrid::live`], one thread each, at most the grid cap: the
+    /// loop covers the rest). A chunk of none records an empty pass.
+    fn per_chunk<'a>(
         kernel: &'a Kernel,
         groups: &'a [wgpu::BindGroup],
+        workgroups: impl Iterator<Item = u32>,
     ) -> Vec<Pass<'a>> {
         groups
             .iter()
-            .zip(&self.chunks)
-            .map(|(g, &blocks)| (kernel, g, [blocks, 1]))
-            .collect()
-    }
-    /// One pass of grid-stride `kernel` per map chunk holding live surfels, one thread per
-    /// surfel (at most the grid cap: the loop covers the rest).
-    pub fn per_surfel<'a>(
-        &self,
-        kernel: &'a Kernel,
-        groups: &'a [wgpu::BindGroup],
-    ) -> Vec<Pass<'a>> {
-        groups
-            .iter()
-            .zip(&self.live)
-            .filter(|(_, &live)| live > 0)
-            .map(|(g, &live)| (kernel, g, [kernel.workgroups_for(live).min(self.cap), 1]))
+            .zip(workgroups)
+            .map(|(g, wg)| (kernel, g, [wg, 1]))
             .collect()
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
     /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
     /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
-    /// live surfels a grid-stride pass over them: [`StepGrid::live`]); at
+    /// live surfels a grid-stride pass over them: [`StepGrid::live`]); a pass of one thread
+    /// per item ([`StepGrid::items`]); at
     /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
     /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
@@ -131,7 +124,8 @@ impl StepGrid {
             | Shape::PerChunk
             | Shape::PerBlock
             | Shape::PerStaleBlock
-            | Shape::PerSurfel => At::FRAME,
+            | Shape::PerSurfel
+            | Shape::PerItem => At::FRAME,
         };
         let groups = bg
             .generic
@@ -140,6 +134,13 @@ impl StepGrid {
         let wg = match shape {
             Shape::Reduce => [self.reduction, 1],
             Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
+            // One thread per item, at most the reduction workgroups.
+            Shape::PerItem => [
+                passes[0]
+                    .workgroups_for(self.items)
+                    .min(self.reduction.max(1)),
+                1,
+            ],
             Shape::OverFrame
             | Shape::PerChunk
             | Shape::PerBlock
@@ -154,8 +155,12 @@ impl StepGrid {
         passes
             .iter()
             .flat_map(|pass| match shape {
-                Shape::PerBlock => self.per_block(pass, groups),
-                Shape::PerSurfel => self.per_surfel(pass, groups),
+                Shape::PerBlock => Self::per_chunk(pass, groups, self.chunks.iter().copied()),
+                Shape::PerSurfel => {
+                    let live = self.live.iter();
+                    let wg = live.map(|&n| pass.workgroups_for(n).min(self.cap));
+                    Self::per_chunk(pass, groups, wg)
+                }
                 Shape::PerStaleBlock => self
                     .bounds
                     .iter()
@@ -164,6 +169,7 @@ impl StepGrid {
                 Shape::OverFrame
                 | Shape::PerChunk
                 | Shape::PerLevel
+                | Shape::PerItem
                 | Shape::Reduce
                 | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
             })

@@ -28,27 +28,6 @@ use wgslam_core::plan::{
 };
 use wgslam_core::registry::System;
 
-/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
-/// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
-/// macro rather than a method so the borrows stay per field: the step still reads its
-/// read-backs while the profiler is borrowed mutably.
-macro_rules! encoding_parts {
-    ($backend:ident) => {{
-        $backend.bind_groups();
-        (
-            &$backend.ctx,
-            &$backend.kernels,
-            $backend.bind_groups.as_ref().expect("just built"),
-            &mut $backend.profiler,
-            $backend
-                .frame
-                .as_ref()
-                .expect("preprocess() runs before any other step"),
-            &$backend.uniforms,
-        )
-    }};
-}
-
 impl Backend for GpuBackend {
     fn name(&self) -> &'static str {
         "gpu"
@@ -236,7 +215,8 @@ impl Backend for GpuBackend {
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             let ferns = &mut self.ferns;
-            super::ferns::record_ahead(ctx, &k.fern_encode, ferns, f, profiler, &mut enc)?;
+            let size = [f.width, f.height];
+            super::ferns::record_ahead(ctx, (k, bg), ferns, size, profiler, &mut enc)?;
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
