@@ -370,8 +370,7 @@ impl GpuBackend {
         if remade {
             // Both map sets' bind groups bind the keep flags (`compact_flags`' row), and
             // the spare set's the spare map.
-            self.bind_groups = None;
-            self.spare_bind_groups = None;
+            self.drop_bind_groups();
         }
         Ok(())
     }
@@ -429,7 +428,7 @@ impl GpuBackend {
     }
 
     /// Per map chunk, the workgroups of a grid-stride kernel over the chunk's live surfels
-    /// (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size, capped by
+    /// (`compact_scatter`) with `kernel`'s workgroup size, capped by
     /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the
     /// rest).
     pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<u32> {
