@@ -13,7 +13,7 @@
 // Level-0 normals (camera frame) with depth (metres) in w, zero where invalid.
 @group(0) @binding(2) var normal_depth: texture_2d<f32>;
 // Level-0 colour, red, green, blue in 0..255.
-@group(0) @binding(3) var color: texture_2d<f32>;
+@group(0) @binding(3) var color_map: texture_2d<f32>;
 // Out: fern_count codes, 0..15, or FERN_NO_DEPTH for a cell without valid depth.
 @group(0) @binding(4) var<storage, read_write> codes: array<u32>;
 
@@ -35,7 +35,7 @@ fn fern_code(p: FernParams, fern: Fern) -> u32 {
             if nd.w <= 0.0 {
                 continue;
             }
-            rgb += textureLoad(color, vec2<u32>(u, v), 0).xyz;
+            rgb += textureLoad(color_map, vec2<u32>(u, v), 0).xyz;
             depth += nd.w;
             count += 1u;
         }

@@ -8,9 +8,9 @@
 // width, height, count and tests are used.
 @group(0) @binding(0) var<storage, read> params: KeypointParams;
 // Level-0 colour, red, green, blue in 0..255.
-@group(0) @binding(1) var color: texture_2d<f32>;
+@group(0) @binding(1) var color_map: texture_2d<f32>;
 // Level-0 vertices, CAMERA frame, metres, w = 1 valid / 0.
-@group(0) @binding(2) var vertex: texture_2d<f32>;
+@group(0) @binding(2) var vertex_map: texture_2d<f32>;
 // `count` keypoints to describe.
 @group(0) @binding(3) var<storage, read> keypoints: array<Keypoint>;
 // `tests` pairs of pixel offsets (ax, ay, bx, by) from the keypoint.
@@ -32,7 +32,7 @@ fn box_grey(p: KeypointParams, u: u32, v: u32, d: vec2<i32>) -> f32 {
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let t = clamp(c + vec2<i32>(dx, dy), vec2<i32>(0), last);
-            let rgb = textureLoad(color, vec2<u32>(t), 0);
+            let rgb = textureLoad(color_map, vec2<u32>(t), 0);
             sum += rgb.x + rgb.y + rgb.z;
         }
     }
@@ -61,6 +61,6 @@ fn main(
             }
             descriptors[k * DESCRIPTOR_WORDS + w] = bits;
         }
-        points[k] = textureLoad(vertex, vec2<u32>(kp.u, kp.v), 0);
+        points[k] = textureLoad(vertex_map, vec2<u32>(kp.u, kp.v), 0);
     }
 }

@@ -10,7 +10,7 @@
 // width, height, threshold and capacity are used.
 @group(0) @binding(0) var<storage, read> params: KeypointParams;
 // Level-0 colour, red, green, blue in 0..255.
-@group(0) @binding(1) var color: texture_2d<f32>;
+@group(0) @binding(1) var color_map: texture_2d<f32>;
 // Level-0 normals with depth (metres) in w; a corner needs valid depth (w > 0).
 @group(0) @binding(2) var normal_depth: texture_2d<f32>;
 // Out: the first `capacity` corners found, in no particular order.
@@ -27,7 +27,7 @@ const HARRIS_K: f32 = 0.04;
 // Grey level of texel (u, v): r + g + b (0..765; a sum, not a mean, so it is exact).
 // Mirrors `grey` in crates/core/src/cpu/keypoint_detect.rs.
 fn grey(u: u32, v: u32) -> f32 {
-    let c = textureLoad(color, vec2<u32>(u, v), 0);
+    let c = textureLoad(color_map, vec2<u32>(u, v), 0);
     return c.x + c.y + c.z;
 }
 

@@ -67,11 +67,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "the scan's second kernel",
     ),
     (
-        "compact_flags",
-        &["crates/gpu/src/compaction.rs", STEPS],
-        "binds the live and the spare map",
-    ),
-    (
         "compact_scatter",
         &["crates/gpu/src/compaction.rs", STEPS],
         "binds the live and the spare map",
@@ -87,26 +82,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
             "src/tools/compare/perturbed.rs",
         ],
         "a one-kernel step, and the step is named after it",
-    ),
-    (
-        "fern_encode",
-        &["crates/gpu/src/single_steps.rs", STEPS],
-        "a one-kernel step, recorded ahead by fuse",
-    ),
-    (
-        "keypoint_detect",
-        &["crates/gpu/src/single_steps.rs"],
-        "a one-kernel step",
-    ),
-    (
-        "keypoint_describe",
-        &["crates/gpu/src/single_steps.rs"],
-        "a one-kernel step",
-    ),
-    (
-        "deform_surfels",
-        &["crates/gpu/src/loops.rs"],
-        "built at the first loop closure",
     ),
     ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
     ("nn_grid", &["src/scan/gpu.rs"], "scan registration's"),

@@ -42,7 +42,9 @@ macro_rules! shader_text {
 /// kernel's second pass reads the first's result over the whole map).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shape {
-    /// One bind group over the frame's pool; one pass over the frame's pixels.
+    /// One bind group over the frame's pool (and the buffers of the steps that make their
+    /// own, once made: a row that binds one has no bind group before); one pass over the
+    /// frame's pixels.
     OverFrame,
     /// One bind group per map chunk; per chunk a pass over the frame's pixels.
     PerChunk,
@@ -53,6 +55,17 @@ pub enum Shape {
     /// stale (fusion appended to them, or the map was compacted or uploaded) a pass of one
     /// workgroup per stale block, none where no box is stale.
     PerStaleBlock,
+    /// One bind group per map chunk over the chunk's pool and the map-wide arrays alone
+    /// (no frame's maps: such a kernel also runs before the first frame, on an uploaded
+    /// map); per chunk a pass of the kernel's grid-stride workgroups over its live surfels
+    /// (one thread per surfel, at most the adapter's grid cap; an empty pass for a chunk
+    /// without).
+    PerSurfel,
+    /// One bind group over the frame's pool (as `OverFrame`'s, with the buffers of the
+    /// steps that make their own: the ferns', the keypoints'); a pass of one thread per item
+    /// the step counts (ferns, keypoints), at most the adapter's reduction workgroups (a
+    /// grid-stride loop covers the rest).
+    PerItem,
     /// One bind group per pyramid level (and, for the levels that read level 0's vertex
     /// maps, per choice of them: see [`At`]) over that level's maps, named as at level 0
     /// (`vertex_map`, `normal_depth`, `pred_vertex`, `intensity_patch`, ...; the finer
@@ -175,8 +188,7 @@ impl At {
 ///   level's own parameter buffer;
 /// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
 ///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
-/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (`deform_surfels` at the
-///   first loop closure, the renderer's kernels);
+/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels);
 /// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
 ///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry_data {
@@ -329,6 +341,17 @@ registry_data! {
         icp_reduce: Reduce(icp),
         photo_reduce: Reduce(icp),
         icp_reduce_final: PerSystem(icp),
+        // Loop closure's map deformation: every live surfel moved by the pose graph's
+        // corrections (`nodes`, the node table).
+        deform_surfels: PerSurfel(deform),
+        // Compaction's keep flag per surfel (its `flags`, one per map slot).
+        compact_flags: PerSurfel(compact),
+        // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
+        // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
+        // `points`).
+        fern_encode: PerItem(ferns),
+        keypoint_detect: OverFrame(keypoints),
+        keypoint_describe: PerItem(keypoints),
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -351,10 +374,6 @@ registry_data! {
     }
     kernels: {
         icp_candidates,
-        fern_encode,
-        keypoint_detect,
-        keypoint_describe,
-        compact_flags,
         // The scan's three kernels: block sums, their scan, each block's scan.
         prefix_sum_reduce,
         prefix_sum_blocks,
@@ -363,8 +382,6 @@ registry_data! {
     }
     key_kernels: {}
     elsewhere: {
-        // Loop closure's map deformation (crates/gpu/src/loops.rs), built at the first closure.
-        deform_surfels,
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
         render_resolve,
     }

@@ -41,11 +41,33 @@ use super::pipelines::Kernels;
 use super::recording::{Profiler, PROFILED_PASSES_MAX};
 use super::resources::{FrameBuffers, Systems, Uniforms};
 use super::timing::StageTimer;
-use crate::layout::{BoundsParams, PreprocessParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
+use crate::layout::{BoundsParams, DeformNode, PreprocessParams, BLOCK_SURFELS, ICP_SYSTEM_LEN};
 use crate::{Error, Result};
 use std::collections::BTreeMap;
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::fused_view::FusedView;
+
+/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
+/// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
+/// macro rather than a method so the borrows stay per field: the step still reads its
+/// read-backs (and its own buffers) while the profiler is borrowed mutably. Used by
+/// `super::steps` and `super::single_steps` (hence `#[macro_use]` on this module).
+macro_rules! encoding_parts {
+    ($backend:ident) => {{
+        $backend.bind_groups();
+        (
+            &$backend.ctx,
+            &$backend.kernels,
+            $backend.bind_groups.as_ref().expect("just built"),
+            &mut $backend.profiler,
+            $backend
+                .frame
+                .as_ref()
+                .expect("preprocess() runs before any other step"),
+            &$backend.uniforms,
+        )
+    }};
+}
 
 // Packed RGBA8 u32s are uploaded as rgba8uint texels (r in the low byte) and the u64
 // index map is read as vec2<u32> (low word first): both assume a little-endian host, like
@@ -55,6 +77,8 @@ compile_error!("the GPU backend assumes a little-endian host (u32/u64 data read 
 
 /// Surfel slots allocated up front: a little over three 320x240 frames, ~10 MB.
 pub const DEFAULT_INITIAL_CAPACITY: usize = 256 * 1024;
+/// Nodes the loop closure's node table holds before its first growth (a few KB).
+const DEFORM_NODES_INITIAL: usize = 64;
 /// Growth factor of the map buffers when a frame might not fit.
 const GROWTH_NUM: usize = 3;
 const GROWTH_DEN: usize = 2;
@@ -106,8 +130,9 @@ pub struct GpuBackend {
     pub(super) candidates: Option<super::candidates::CandidateBuffers>,
     /// Buffers of the keypoint kernels, `None` until their first call.
     pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
-    /// `deform_surfels`' kernel and buffers, `None` until the first loop closure.
-    pub(super) deform: Option<super::loops::DeformBuffers>,
+    /// A loop closure's node table (`deform_surfels`' `nodes`), grown to the next power
+    /// of two when a closure needs more nodes (the bind groups are then re-made).
+    pub(super) deform_nodes: GpuArray<DeformNode>,
 }
 
 impl GpuBackend {
@@ -189,11 +214,12 @@ impl GpuBackend {
                 Readback::new(&ctx, "surfel counter read-back", 1),
             );
             let map = MapBuffers::new(&ctx, capacity, chunk_surfels)?;
+            let nodes = GpuArray::new(&ctx, "deformation nodes", DEFORM_NODES_INITIAL)?;
             let mut block_boxes = GpuArray::new(&ctx, "block bounds", bounds_entries(&map))?;
             block_boxes.set_len(bounds_entries(&map));
-            Ok((kernels, small, (map, block_boxes)))
+            Ok((kernels, (small, nodes), (map, block_boxes)))
         })?;
-        let (systems, counter, counter_readback) = small;
+        let ((systems, counter, counter_readback), deform_nodes) = small;
         let (map, block_boxes) = map;
         let uniforms = Uniforms::new(&ctx);
         Ok(GpuBackend {
@@ -218,7 +244,7 @@ impl GpuBackend {
             ferns: None,
             candidates: None,
             keypoints: None,
-            deform: None,
+            deform_nodes,
         })
     }
 
@@ -334,18 +360,25 @@ impl GpuBackend {
     /// layout (first call, or after the map grew). [`Error::Capacity`] when a flag per
     /// surfel slot outgrows the device's storage-buffer binding limit.
     pub(super) fn ensure_compaction(&mut self) -> Result<()> {
-        match self.compaction.as_mut() {
-            Some(c) => {
-                if c.follow(&self.ctx, &self.map)? {
-                    self.spare_bind_groups = None;
-                }
-            }
+        let remade = match self.compaction.as_mut() {
+            Some(c) => c.follow(&self.ctx, &self.map)?,
             None => {
                 self.compaction = Some(Compaction::new(&self.ctx, &self.map)?);
-                self.spare_bind_groups = None;
+                true
             }
+        };
+        if remade {
+            // Both map sets' bind groups bind the keep flags (`compact_flags`' row), and
+            // the spare set's the spare map.
+            self.drop_bind_groups();
         }
         Ok(())
+    }
+
+    /// Drops both map sets' bind groups: a buffer they bind was made or re-made.
+    pub(super) fn drop_bind_groups(&mut self) {
+        self.bind_groups = None;
+        self.spare_bind_groups = None;
     }
 
     /// Builds the bind groups if a buffer changed since they were made.
@@ -353,11 +386,15 @@ impl GpuBackend {
         if self.bind_groups.is_none() {
             let resources = Resources {
                 uniforms: &self.uniforms,
-                frame: self
-                    .frame
-                    .as_ref()
-                    .expect("preprocess() runs before any other step"),
+                frame: self.frame.as_ref(),
                 map: &self.map,
+                nodes: &self.deform_nodes,
+                keep_flags: self.compaction.as_ref().map(|c| &c.flags),
+                steps: [
+                    super::ferns::bindings(self.ferns.as_ref()),
+                    super::keypoints::bindings(self.keypoints.as_ref()),
+                ]
+                .concat(),
                 block_boxes: &self.block_boxes,
                 systems: &self.systems.buffers,
                 counter: &self.counter,
@@ -381,8 +418,17 @@ impl GpuBackend {
             .collect()
     }
 
+    /// Per map chunk, its live surfels (a `PerSurfel` row's passes: `StepGrid::live`).
+    pub(super) fn chunk_live(&self) -> Vec<usize> {
+        self.map
+            .chunks
+            .iter()
+            .map(|ch| ch.live(self.count))
+            .collect()
+    }
+
     /// Per map chunk, the workgroups of a grid-stride kernel over the chunk's live surfels
-    /// (`compact_flags`, `compact_scatter`) with `kernel`'s workgroup size, capped by
+    /// (`compact_scatter`) with `kernel`'s workgroup size, capped by
     /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the
     /// rest).
     pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<u32> {

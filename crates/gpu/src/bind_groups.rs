@@ -14,9 +14,10 @@ use super::context::GpuContext;
 use super::images::GpuImage;
 use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
-use super::pipelines::{Kernels, LevelParams, RowParams};
+use super::pipelines::{GenericRow, Kernels, LevelParams, RowParams};
 use super::recording::Pass;
 use super::resources::{FrameBuffers, SystemBuffers, Uniforms};
+use crate::layout::DeformNode;
 use wgslam_core::registry::{At, KernelId, Shape, System};
 
 /// The bind groups of the per-frame steps for one map set.
@@ -25,16 +26,29 @@ pub(super) struct BindGroups {
     /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, else
     /// `At::FRAME`): one per map chunk, or one over the frame, the level or the system
     /// (see `wgslam_core::registry::Shape`).
-    pub generic: BTreeMap<(KernelId, At), Vec<wgpu::BindGroup>>,
-    /// The scan over the new-surfel flags (in append order, `append_slots` entries).
-    pub fuse_scan: ScanGroups,
+    pub generic: BTreeMap<(KernelId, At), Groups>,
+    /// The scan over the new-surfel flags (in append order, `append_slots` entries); `None`
+    /// before the first frame.
+    pub fuse_scan: Option<ScanGroups>,
 }
+
+/// A kernel's bind groups at one [`At`]: one, or one per map chunk.
+type Groups = Vec<wgpu::BindGroup>;
 
 /// What the bind groups refer to besides the kernels: the buffers a backend owns.
 pub(super) struct Resources<'a> {
     pub uniforms: &'a Uniforms,
-    pub frame: &'a FrameBuffers,
+    /// The frame's buffers, `None` before the first `preprocess`.
+    pub frame: Option<&'a FrameBuffers>,
     pub map: &'a MapBuffers,
+    /// A loop closure's node table (`deform_surfels`' `nodes`).
+    pub nodes: &'a GpuArray<DeformNode>,
+    /// Compaction's keep flags, one per map slot (`compact_flags`' `flags`), `None` before
+    /// the first `compact`.
+    pub keep_flags: Option<&'a GpuArray<u32>>,
+    /// The buffers of the steps that make their own (relocalisation's ferns and
+    /// keypoints), bound by the rows over the frame's pool (`OverFrame`, `PerItem`).
+    pub steps: OnDemand<'a>,
     /// Per culling block its box (see `block_bounds.wgsl`).
     pub block_boxes: &'a GpuArray<[u32; 4]>,
     /// Per reduced system, in `System::ALL`'s order, its partial systems and their sum.
@@ -45,6 +59,25 @@ pub(super) struct Resources<'a> {
 
 /// A pool of named resources (see [`super::kernel::Kernel::bind_group_from`]).
 type Pool<'a> = Vec<(&'static str, wgpu::BindingResource<'a>)>;
+
+/// Resources a step makes at its first call, by the names the kernels declare them with:
+/// `None` until made. A row that binds one not yet made has no bind group: the step drops
+/// the bind groups when it makes its buffers, and they are made again with them.
+pub(super) type OnDemand<'a> = Vec<(&'static str, Option<wgpu::BindingResource<'a>>)>;
+
+/// The made resources of `on_demand` as pool entries, or `None` when `kernel` binds one
+/// not yet made.
+fn made<'a>(kernel: &Kernel, on_demand: OnDemand<'a>) -> Option<Pool<'a>> {
+    let mut pool = Vec::new();
+    for (name, resource) in on_demand {
+        match resource {
+            Some(resource) => pool.push((name, resource)),
+            None if kernel.binds(name) => return None,
+            None => {}
+        }
+    }
+    Some(pool)
+}
 
 /// The frame's maps and association buffers, by the names the kernels declare them with.
 /// `vertex_map` is the unfiltered vertex map, as `depth_to_vertex` writes it and
@@ -156,102 +189,147 @@ fn chunk_pool<'a>(ch: &'a Chunk, block_boxes: &'a GpuArray<[u32; 4]>) -> Pool<'a
 }
 
 impl BindGroups {
-    /// Every per-frame step's bind groups over `r`.
+    /// Every per-frame step's bind groups over `r` (before the first frame only those of
+    /// the rows over the map alone: [`Shape::PerSurfel`]).
     pub fn new(ctx: &GpuContext, k: &Kernels, r: &Resources) -> BindGroups {
-        let (u, f) = (r.uniforms, r.frame);
-        let frame = frame_pool(f);
-        // `kernel` with `params` over the frame's pool (and `extra`).
-        let over_frame = |kernel: &Kernel, params: wgpu::BindingResource, extra: Pool| {
-            let mut pool = vec![("params", params)];
-            pool.extend(extra);
-            pool.extend(frame.iter().cloned());
-            kernel.bind_group_from(ctx, &pool)
-        };
-        // `kernel` with its `params` over each map chunk's pool and the frame's: one bind
-        // group per chunk.
-        let per_chunk = |kernel: &Kernel, params: wgpu::BindingResource| {
-            r.map
-                .chunks
-                .iter()
-                .map(|ch| {
-                    let mut pool = vec![("params", params.clone())];
-                    pool.extend(chunk_pool(ch, r.block_boxes));
-                    pool.extend(frame.iter().cloned());
-                    kernel.bind_group_from(ctx, &pool)
-                })
-                .collect::<Vec<_>>()
-        };
-        // `kernel` with each level's `params` (where the level has them) over each of the
-        // level's pools.
-        let per_level = |kernel: &Kernel, params_of: LevelParams| {
-            (0..=f.levels.len())
-                .filter_map(|level| Some((level, params_of(&f.level_uniforms(u, level))?)))
-                .flat_map(|(level, params)| {
-                    At::choices(level).into_iter().map(move |at| {
-                        let mut pool = vec![("params", params.clone())];
-                        pool.extend(level_pool(f, at));
-                        (at, vec![kernel.bind_group_from(ctx, &pool)])
-                    })
-                })
-                .collect::<Vec<_>>()
-        };
-        // `kernel` with `params` over each system's buffers, and for a reduction
-        // (`levels`) over each pyramid level's pool: one bind group per system (and level).
-        let per_system = |kernel: &Kernel, params: wgpu::BindingResource, levels: bool| {
-            let levels = if levels { 0..=f.levels.len() } else { 0..=0 };
-            levels
-                .flat_map(|level| System::ALL.map(|system| At::of_system(level, system)))
-                .map(|at| {
-                    let mut pool = vec![("params", params.clone())];
-                    pool.extend(system_pool(r.systems, at.system));
-                    pool.extend(level_pool(f, at));
-                    (at, vec![kernel.bind_group_from(ctx, &pool)])
-                })
-                .collect::<Vec<_>>()
-        };
+        let u = r.uniforms;
+        let rows = k.generic(u);
         BindGroups {
-            generic: k
-                .generic(u)
-                .into_iter()
+            generic: rows
+                .iter()
                 .flat_map(|row| {
-                    // A key kernel's passes share the first's layout.
-                    let kernel = &row.passes[0];
-                    let groups = match (row.shape, row.params) {
-                        (Shape::PerLevel, RowParams::Level(params_of)) => {
-                            per_level(kernel, params_of)
-                        }
-                        (Shape::OverFrame, RowParams::Frame(p)) => {
-                            vec![(At::FRAME, vec![over_frame(kernel, p, Vec::new())])]
-                        }
-                        (
-                            Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock,
-                            RowParams::Frame(p),
-                        ) => {
-                            vec![(At::FRAME, per_chunk(kernel, p))]
-                        }
-                        (Shape::Reduce, RowParams::Frame(p)) => per_system(kernel, p, true),
-                        (Shape::PerSystem, RowParams::Frame(p)) => per_system(kernel, p, false),
-                        (shape, _) => panic!(
-                            "kernel `{}`: a {shape:?} row in the wrong group of the registry \
-                             (`generic_levels` rows are `PerLevel`, no other row is)",
-                            kernel.name
-                        ),
+                    let groups = match r.frame {
+                        Some(f) => row_groups(ctx, r, f, row),
+                        None => map_row_groups(ctx, r, row),
                     };
                     groups.into_iter().map(move |(at, g)| ((row.id, at), g))
                 })
                 .collect(),
-            fuse_scan: ScanGroups::new(
-                ctx,
-                k,
-                [
-                    ("params", u.fuse_scan.binding()),
-                    ("flags", f.add_flags.binding()),
-                    ("block_sums", f.add_block_sums.binding()),
-                    ("offsets", f.add_offsets.binding()),
-                    ("counter", r.counter.binding()),
-                ],
-            ),
+            fuse_scan: r.frame.map(|f| {
+                ScanGroups::new(
+                    ctx,
+                    k,
+                    [
+                        ("params", u.fuse_scan.binding()),
+                        ("flags", f.add_flags.binding()),
+                        ("block_sums", f.add_block_sums.binding()),
+                        ("offsets", f.add_offsets.binding()),
+                        ("counter", r.counter.binding()),
+                    ],
+                )
+            }),
         }
+    }
+}
+
+/// The bind groups, by [`At`], of a `generic` `row` over the map alone
+/// ([`Shape::PerSurfel`]): per map chunk its pool and the arrays over every map slot or
+/// the whole map (the loop closure's node table `nodes`; compaction's keep flags `flags`,
+/// made on demand: this pool has no frame's `flags`), with the row's `params`. None for a
+/// row of another shape.
+fn map_row_groups(ctx: &GpuContext, r: &Resources, row: &GenericRow) -> Vec<(At, Groups)> {
+    let (Shape::PerSurfel, RowParams::Frame(params)) = (row.shape, &row.params) else {
+        return Vec::new();
+    };
+    let kernel = &row.passes[0];
+    let on_demand = vec![("flags", r.keep_flags.map(|f| f.binding()))];
+    let Some(keep_flags) = made(kernel, on_demand) else {
+        return Vec::new();
+    };
+    let groups = r
+        .map
+        .chunks
+        .iter()
+        .map(|ch| {
+            let mut pool = vec![("params", params.clone())];
+            pool.extend(chunk_pool(ch, r.block_boxes));
+            pool.push(("nodes", r.nodes.binding()));
+            pool.extend(keep_flags.iter().cloned());
+            kernel.bind_group_from(ctx, &pool)
+        })
+        .collect();
+    vec![(At::FRAME, groups)]
+}
+
+/// The bind groups, by [`At`], of a `generic` `row` once the frame `f` exists: as its
+/// [`Shape`] says (see `wgslam_core::registry::Shape`).
+fn row_groups(
+    ctx: &GpuContext,
+    r: &Resources,
+    f: &FrameBuffers,
+    row: &GenericRow,
+) -> Vec<(At, Groups)> {
+    let u = r.uniforms;
+    let frame = frame_pool(f);
+    // A key kernel's passes share the first's layout.
+    let kernel = &row.passes[0];
+    // `kernel` with `params` over the steps' buffers and the frame's pool; none when it
+    // binds a step's buffer not yet made.
+    let over_frame = |params: wgpu::BindingResource| {
+        let mut pool = vec![("params", params)];
+        pool.extend(made(kernel, r.steps.clone())?);
+        pool.extend(frame.iter().cloned());
+        Some(kernel.bind_group_from(ctx, &pool))
+    };
+    // `kernel` with its `params` over each map chunk's pool and the frame's: one bind
+    // group per chunk.
+    let per_chunk = |params: &wgpu::BindingResource| {
+        r.map
+            .chunks
+            .iter()
+            .map(|ch| {
+                let mut pool = vec![("params", params.clone())];
+                pool.extend(chunk_pool(ch, r.block_boxes));
+                pool.extend(frame.iter().cloned());
+                kernel.bind_group_from(ctx, &pool)
+            })
+            .collect::<Vec<_>>()
+    };
+    // `kernel` with each level's `params` (where the level has them) over each of the
+    // level's pools.
+    let per_level = |params_of: LevelParams| {
+        (0..=f.levels.len())
+            .filter_map(|level| Some((level, params_of(&f.level_uniforms(u, level))?)))
+            .flat_map(|(level, params)| {
+                At::choices(level).into_iter().map(move |at| {
+                    let mut pool = vec![("params", params.clone())];
+                    pool.extend(level_pool(f, at));
+                    (at, vec![kernel.bind_group_from(ctx, &pool)])
+                })
+            })
+            .collect::<Vec<_>>()
+    };
+    // `kernel` with `params` over each system's buffers, and for a reduction (`levels`)
+    // over each pyramid level's pool: one bind group per system (and level).
+    let per_system = |params: &wgpu::BindingResource, levels: bool| {
+        let levels = if levels { 0..=f.levels.len() } else { 0..=0 };
+        levels
+            .flat_map(|level| System::ALL.map(|system| At::of_system(level, system)))
+            .map(|at| {
+                let mut pool = vec![("params", params.clone())];
+                pool.extend(system_pool(r.systems, at.system));
+                pool.extend(level_pool(f, at));
+                (at, vec![kernel.bind_group_from(ctx, &pool)])
+            })
+            .collect::<Vec<_>>()
+    };
+    match (row.shape, &row.params) {
+        (Shape::PerLevel, RowParams::Level(params_of)) => per_level(*params_of),
+        (Shape::OverFrame | Shape::PerItem, RowParams::Frame(p)) => over_frame(p.clone())
+            .map(|g| (At::FRAME, vec![g]))
+            .into_iter()
+            .collect(),
+        (Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock, RowParams::Frame(p)) => {
+            vec![(At::FRAME, per_chunk(p))]
+        }
+        (Shape::PerSurfel, RowParams::Frame(_)) => map_row_groups(ctx, r, row),
+        (Shape::Reduce, RowParams::Frame(p)) => per_system(p, true),
+        (Shape::PerSystem, RowParams::Frame(p)) => per_system(p, false),
+        (shape, _) => panic!(
+            "kernel `{}`: a {shape:?} row in the wrong group of the registry \
+             (`generic_levels` rows are `PerLevel`, no other row is)",
+            kernel.name
+        ),
     }
 }
 

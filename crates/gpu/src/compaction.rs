@@ -77,10 +77,10 @@ fn block_sums_for(ctx: &GpuContext, cap: usize) -> Result<GpuArray<u32>> {
     Ok(block_sums)
 }
 
-/// Bind groups of `compact_flags` (per chunk), `prefix_sum` and `compact_scatter` (per
-/// input chunk and output chunk no later than it, and per surfel array) for one map set.
+/// Bind groups of `prefix_sum` and `compact_scatter` (per input chunk and output chunk no
+/// later than it, and per surfel array) for one map set (the keep flags' kernel is bound
+/// by its registry row: `super::bind_groups`).
 pub(super) struct CompactionGroups {
-    pub flags: Vec<wgpu::BindGroup>,
     pub scan: ScanGroups,
     /// Input chunk s, output chunk d <= s (offsets[i] <= i), surfel array a (position_weight,
     /// normal_frame, color) at [`super::bind_groups::SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
@@ -98,22 +98,6 @@ impl CompactionGroups {
         c: &Compaction,
     ) -> CompactionGroups {
         CompactionGroups {
-            flags: map
-                .chunks
-                .iter()
-                .map(|ch| {
-                    k.compact_flags.bind_group(
-                        ctx,
-                        &[
-                            ("params", u.compact.binding()),
-                            ("chunk", ch.info_buffer.binding()),
-                            ("position_weight", ch.position_weight.binding()),
-                            ("normal_frame", ch.normal_frame.binding()),
-                            ("flags", c.flags.binding()),
-                        ],
-                    )
-                })
-                .collect(),
             scan: ScanGroups::new(
                 ctx,
                 k,

@@ -223,6 +223,11 @@ impl Kernel {
         self.bind_group(ctx, &chosen)
     }
 
+    /// Whether the kernel declares a binding named `name`.
+    pub fn binds(&self, name: &str) -> bool {
+        self.bindings.iter().any(|b| b.name == name)
+    }
+
     /// Workgroups needed to give each of `n` items one thread: `ceil(n / workgroup_size)`.
     pub fn workgroups_for(&self, n: usize) -> u32 {
         n.div_ceil(self.workgroup_size as usize) as u32

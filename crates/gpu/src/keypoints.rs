@@ -1,18 +1,19 @@
 //! The GPU side of feature-based relocalisation: `keypoint_detect`'s and
 //! `keypoint_describe`'s buffers (made at the first call, re-made when a call needs more
 //! room) and read-backs. Both run only on keyframes and lost frames; the steps themselves
-//! are in `super::single_steps`.
+//! are in `super::single_steps`, the kernels bound by their registry rows over
+//! [`bindings`].
 
-use super::buffers::{GpuArray, ParamBuffer, Readback};
+use super::bind_groups::OnDemand;
+use super::buffers::{GpuArray, Readback};
 use super::context::GpuContext;
-use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
+use crate::layout::{Keypoint, DESCRIPTOR_WORDS};
 use crate::Result;
 
 /// The keypoint kernels' buffers, sized for `capacity` keypoints and `tests` tests.
 pub(super) struct KeypointBuffers {
     pub capacity: usize,
     pub tests: usize,
-    pub params: ParamBuffer<KeypointParams>,
     pub keypoints: GpuArray<Keypoint>,
     pub counter: GpuArray<u32>,
     pub pattern: GpuArray<[i32; 4]>,
@@ -25,12 +26,7 @@ pub(super) struct KeypointBuffers {
 }
 
 impl KeypointBuffers {
-    pub fn new(
-        ctx: &GpuContext,
-        p: &KeypointParams,
-        capacity: usize,
-        tests: usize,
-    ) -> Result<Self> {
+    pub fn new(ctx: &GpuContext, capacity: usize, tests: usize) -> Result<Self> {
         let array = |label: &str, n: usize| -> Result<GpuArray<u32>> {
             let mut a = GpuArray::new(ctx, label, n)?;
             a.set_len(n);
@@ -45,7 +41,6 @@ impl KeypointBuffers {
         Ok(KeypointBuffers {
             capacity,
             tests,
-            params: ParamBuffer::new(ctx, "KeypointParams", p),
             keypoints,
             counter: array("keypoint counter", 1)?,
             pattern,
@@ -63,35 +58,32 @@ impl KeypointBuffers {
     }
 }
 
-impl KeypointBuffers {
-    /// Both keypoint kernels' resources besides the frame's maps (each kernel takes what
-    /// its WGSL declares).
-    pub fn pool(&self) -> Vec<(&'static str, wgpu::BindingResource<'_>)> {
-        vec![
-            ("params", self.params.binding()),
-            ("keypoints", self.keypoints.binding()),
-            ("counter", self.counter.binding()),
-            ("pattern", self.pattern.binding()),
-            ("descriptors", self.descriptors.binding()),
-            ("points", self.points.binding()),
-        ]
-    }
+/// Both keypoint kernels' buffers by the names they declare them with (each kernel takes
+/// what its WGSL declares), `None` before the first keypoint step.
+pub(super) fn bindings(b: Option<&KeypointBuffers>) -> OnDemand<'_> {
+    vec![
+        ("keypoints", b.map(|b| b.keypoints.binding())),
+        ("counter", b.map(|b| b.counter.binding())),
+        ("pattern", b.map(|b| b.pattern.binding())),
+        ("descriptors", b.map(|b| b.descriptors.binding())),
+        ("points", b.map(|b| b.points.binding())),
+    ]
 }
 
 /// Makes `slot` hold buffers for at least `capacity` keypoints and `tests` tests (re-made,
-/// never grown in place).
-pub(super) fn ensure<'a>(
-    slot: &'a mut Option<KeypointBuffers>,
+/// never grown in place). Returns whether it made them (the bind groups that bind them
+/// are then stale).
+pub(super) fn ensure(
+    slot: &mut Option<KeypointBuffers>,
     ctx: &GpuContext,
-    p: &KeypointParams,
     capacity: usize,
     tests: usize,
-) -> Result<&'a mut KeypointBuffers> {
+) -> Result<bool> {
     let fits = slot
         .as_ref()
         .is_some_and(|b| b.capacity >= capacity && b.tests >= tests);
     if !fits {
-        *slot = Some(KeypointBuffers::new(ctx, p, capacity.max(1), tests.max(1))?);
+        *slot = Some(KeypointBuffers::new(ctx, capacity.max(1), tests.max(1))?);
     }
-    Ok(slot.as_mut().expect("just made"))
+    Ok(!fits)
 }

@@ -21,7 +21,7 @@
 //!   kernel registry's rows, `wgslam_core::registry`), `resources` (parameter
 //!   and frame buffers), `bind_groups`, `compaction`, `recording` (passes and per-kernel
 //!   timing), `steps` (the steps' passes), `single_steps` (the steps of one kernel each)
-//!   with their buffers in `ferns`, `keypoints`, `candidates` and `loops`, `inspect`
+//!   with their buffers in `ferns`, `keypoints` and `candidates`, `inspect`
 //!   (downloads and uploads). The helper modules never import `backend`: the one-way
 //!   imports are `steps`/`single_steps` -> `backend` -> helpers.
 //! - [`pipeline_cache`]: the pipelines' cache across processes, in the user's cache folder.
@@ -31,6 +31,7 @@
 // The floor below, under the paths the modules use (`crate::cpu`, `crate::layout`).
 pub(crate) use wgslam_core::{cpu, layout, Error, Result};
 
+#[macro_use]
 pub mod backend;
 mod bind_groups;
 pub mod buffers;
@@ -42,7 +43,6 @@ pub mod images;
 mod inspect;
 pub mod kernel;
 mod keypoints;
-mod loops;
 pub mod map_buffers;
 pub mod pipeline_cache;
 mod pipelines;

@@ -12,8 +12,9 @@ use super::images::GpuImage;
 use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
-    BilateralParams, BoundsParams, CompactParams, FuseParams, IcpParams, IntensityParams,
-    NormalParams, PreprocessParams, ProjectParams, PyramidParams, ICP_SYSTEM_LEN,
+    BilateralParams, BoundsParams, CompactParams, DeformParams, FernParams, FuseParams, IcpParams,
+    IntensityParams, KeypointParams, NormalParams, PreprocessParams, ProjectParams, PyramidParams,
+    ICP_SYSTEM_LEN,
 };
 use crate::Result;
 use wgslam_core::backend::PyramidLevel;
@@ -32,6 +33,12 @@ pub(super) struct Uniforms {
     pub compact: ParamBuffer<CompactParams>,
     /// `block_bounds`' parameters.
     pub bounds: ParamBuffer<BoundsParams>,
+    /// `deform_surfels`' parameters (a loop closure's deformation).
+    pub deform: ParamBuffer<DeformParams>,
+    /// `fern_encode`'s parameters.
+    pub ferns: ParamBuffer<FernParams>,
+    /// The keypoint kernels' parameters.
+    pub keypoints: ParamBuffer<KeypointParams>,
 }
 
 impl Uniforms {
@@ -47,6 +54,9 @@ impl Uniforms {
             fuse_scan: ParamBuffer::new(ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed()),
             compact: ParamBuffer::new(ctx, "CompactParams", &bytemuck::Zeroable::zeroed()),
             bounds: ParamBuffer::new(ctx, "BoundsParams", &bytemuck::Zeroable::zeroed()),
+            deform: ParamBuffer::new(ctx, "DeformParams", &bytemuck::Zeroable::zeroed()),
+            ferns: ParamBuffer::new(ctx, "FernParams", &bytemuck::Zeroable::zeroed()),
+            keypoints: ParamBuffer::new(ctx, "KeypointParams", &bytemuck::Zeroable::zeroed()),
         }
     }
 }
@@ -246,10 +256,9 @@ impl FrameBuffers {
     }
 
     /// `kernel`'s bind group over `own` resources (a one-kernel step's buffers, its
-    /// `params` first) and the frame's level-0 maps that the one-kernel steps
-    /// (`super::single_steps`) read, each binding taking the resource of its WGSL name (see
-    /// [`super::kernel::Kernel::bind_group_from`]; `color` is the frame's colour map: those
-    /// kernels bind no map chunk, whose `color` it would otherwise be).
+    /// `params` first) and the frame's level-0 maps that the one-kernel step of no registry
+    /// `Shape` (`super::single_steps`' candidate count) reads, each binding taking the
+    /// resource of its WGSL name (see [`super::kernel::Kernel::bind_group_from`]).
     pub fn bind_level0<'a>(
         &'a self,
         ctx: &GpuContext,
@@ -257,8 +266,6 @@ impl FrameBuffers {
         mut own: Vec<(&'static str, wgpu::BindingResource<'a>)>,
     ) -> wgpu::BindGroup {
         own.extend([
-            ("color", self.color.binding()),
-            ("vertex", self.vertex.binding()),
             ("normal_depth", self.normal_depth.binding()),
             ("pred_vertex", self.pred_vertex.binding()),
         ]);

@@ -1,21 +1,23 @@
 //! The GPU backend's steps of one kernel each (`wgslam_core::plan::Single`): relocalisation's
 //! `fern_encode`, `keypoint_detect` and `keypoint_describe`, tracking health's
-//! `icp_candidates` and loop closure's `deform_surfels`; and the two copies a loop's
-//! verification needs (one pyramid level of the frame's maps down, a keyframe's snapshot up
-//! into a level's prediction). Each step writes its parameters, records its plan's one
-//! call in a command buffer of its own ([`record_call`], as the other steps do) and reads
-//! its results back. Their buffers live beside: `super::{ferns, keypoints, candidates,
-//! loops}`, made at a step's first call.
+//! `icp_candidates` and loop closure's `deform_surfels` (bound and dispatched by its
+//! registry row); and the two copies a loop's verification needs (one pyramid level of the
+//! frame's maps down, a keyframe's snapshot up into a level's prediction). Each step writes
+//! its parameters, records its plan's one call in a command buffer of its own
+//! ([`record_call`], as the other steps do) and reads its results back. Their buffers live
+//! beside: `super::{ferns, keypoints, candidates}`, made at a step's first call (the
+//! deformation's node table is the backend's).
 
 use super::backend::GpuBackend;
+use super::buffers::GpuArray;
 use super::candidates::{CandidateBuffers, CANDIDATE_WORKGROUPS_MAX};
 use super::context::GpuContext;
-use super::ferns::{self, FernBuffers};
+use super::ferns::FernBuffers;
 use super::images::GpuImage;
 use super::keypoints;
-use super::loops::DeformBuffers;
 use super::recording::{record_call, submit_profiled, Pass, Profiler};
 use super::resources::FrameBuffers;
+use super::step_grid::StepGrid;
 use crate::layout::{
     DeformNode, DeformParams, Fern, FernParams, IcpParams, Keypoint, KeypointParams,
     DESCRIPTOR_WORDS,
@@ -49,7 +51,8 @@ fn level0(frame: &Option<FrameBuffers>) -> &FrameBuffers {
 }
 
 impl GpuBackend {
-    /// `fern_encode` over the frame's level-0 maps; see `Backend::encode_ferns`.
+    /// `fern_encode` over the frame's level-0 maps, bound and dispatched by its registry
+    /// row; see `Backend::encode_ferns`.
     pub(super) fn encode_ferns_on_gpu(
         &mut self,
         params: &FernParams,
@@ -65,28 +68,29 @@ impl GpuBackend {
             return Ok(vec![]);
         }
         let call = plan::encode_ferns();
-        let ctx = &self.ctx;
         if self.ferns.as_ref().is_none_or(|b| b.ferns.capacity() < n) {
-            self.ferns = Some(FernBuffers::new(ctx, params, n)?);
+            self.ferns = Some(FernBuffers::new(&self.ctx, n)?);
+            self.drop_bind_groups();
         }
         let b = self.ferns.as_mut().expect("just made");
         if b.ahead.take() == Some(*params) && b.uploaded[..] == fern_table[..n] {
             // Recorded by this frame's fuse and already done: only the read remains.
+            let ctx = &self.ctx;
             return ctx.scoped(call.name(), || b.readback.read(ctx));
         }
+        let grid = self.frame_grid(n);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let b = self.ferns.as_mut().expect("just made");
         b.last = Some(*params);
-        let frame = level0(&self.frame);
-        let kernel = &self.kernels.fern_encode;
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, params);
+            u.ferns.write(ctx, params);
             if b.uploaded[..] != fern_table[..n] {
                 b.ferns.upload(ctx, &fern_table[..n])?;
                 b.uploaded = fern_table[..n].to_vec();
             }
-            let group = frame.bind_level0(ctx, kernel, b.pool());
-            let passes = [(kernel, &group, [ferns::workgroups(ctx, n), 1])];
+            let passes = grid.generic(k, bg, call);
             let copy = |enc: &mut _| b.readback.copy_from(enc, &b.codes, n);
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            submit_single(ctx, profiler, call, &passes, |_| {}, copy)?;
             b.readback.read(ctx)
         })
     }
@@ -113,28 +117,30 @@ impl GpuBackend {
         })
     }
 
-    /// `keypoint_detect`; see `Backend::detect_keypoints`.
+    /// `keypoint_detect` over the frame's level-0 maps, bound and dispatched by its registry
+    /// row; see `Backend::detect_keypoints`.
     pub(super) fn detect_keypoints_on_gpu(
         &mut self,
         params: &KeypointParams,
     ) -> Result<(Vec<Keypoint>, u32)> {
         let call = plan::detect_keypoints();
-        let ctx = &self.ctx;
         let capacity = params.capacity as usize;
-        let b = keypoints::ensure(&mut self.keypoints, ctx, params, capacity, 1)?;
-        let frame = level0(&self.frame);
-        let kernel = &self.kernels.keypoint_detect;
-        let grid = kernel.grid_workgroups_for_image(ctx, params.width, params.height);
+        if keypoints::ensure(&mut self.keypoints, &self.ctx, capacity, 1)? {
+            self.drop_bind_groups();
+        }
+        // Over the frame's pixels: no items.
+        let grid = self.frame_grid(0);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let b = self.keypoints.as_mut().expect("ensure made them");
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, params);
-            let group = frame.bind_level0(ctx, kernel, b.pool());
+            u.keypoints.write(ctx, params);
             let clear = |enc: &mut _| b.counter.clear(enc);
             let copy = |enc: &mut _| {
                 b.counter_back.copy_from(enc, &b.counter, 1);
                 b.keypoints_back.copy_from(enc, &b.keypoints, capacity);
             };
-            let passes = [(kernel, &group, grid)];
-            submit_single(ctx, &mut self.profiler, call, &passes, clear, copy)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, clear, copy)?;
             let found = b.counter_back.read(ctx)?[0];
             let mut kps = b.keypoints_back.read(ctx)?;
             kps.truncate(found.min(params.capacity) as usize);
@@ -142,7 +148,8 @@ impl GpuBackend {
         })
     }
 
-    /// `keypoint_describe`; see `Backend::describe_keypoints`.
+    /// `keypoint_describe`, one thread per keypoint, bound and dispatched by its registry
+    /// row; see `Backend::describe_keypoints`.
     pub(super) fn describe_keypoints_on_gpu(
         &mut self,
         params: &KeypointParams,
@@ -155,26 +162,23 @@ impl GpuBackend {
             return Ok((vec![], vec![]));
         }
         let call = plan::describe_keypoints();
-        let ctx = &self.ctx;
-        let b = keypoints::ensure(&mut self.keypoints, ctx, params, n, tests)?;
-        let frame = level0(&self.frame);
-        let kernel = &self.kernels.keypoint_describe;
+        if keypoints::ensure(&mut self.keypoints, &self.ctx, n, tests)? {
+            self.drop_bind_groups();
+        }
+        let grid = self.frame_grid(n);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
+        let b = self.keypoints.as_mut().expect("ensure made them");
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, params);
+            u.keypoints.write(ctx, params);
             b.keypoints.upload(ctx, &found[..n])?;
             b.pattern.upload(ctx, &pattern[..tests])?;
-            let group = frame.bind_level0(ctx, kernel, b.pool());
-            // One thread per keypoint, at most the adapter's reduction workgroups.
-            let workgroups = (n as u32)
-                .div_ceil(64)
-                .min(ctx.reduction_workgroups().max(1));
             let copy = |enc: &mut _| {
                 b.descriptors_back
                     .copy_from(enc, &b.descriptors, n * DESCRIPTOR_WORDS);
                 b.points_back.copy_from(enc, &b.points, n);
             };
-            let passes = [(kernel, &group, [workgroups, 1])];
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, |_| {}, copy)?;
             let words = b.descriptors_back.read(ctx)?;
             let points = b.points_back.read(ctx)?;
             let descriptors = words
@@ -185,7 +189,18 @@ impl GpuBackend {
         })
     }
 
-    /// `deform_surfels` over the live surfels of every chunk; see `Backend::deform`.
+    /// The grid of a relocalisation step over the frame's level-0 pixels and `items`
+    /// items (ferns, keypoints).
+    fn frame_grid(&self, items: usize) -> StepGrid {
+        let f = self.frame();
+        let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], Vec::new());
+        grid.items = items;
+        grid
+    }
+
+    /// `deform_surfels` over the live surfels of every chunk, bound and dispatched by its
+    /// registry row (the map alone: it runs on an uploaded map before any frame too); see
+    /// `Backend::deform`.
     pub(super) fn deform_on_gpu(&mut self, nodes: &[DeformNode]) -> Result<()> {
         if nodes.is_empty() || self.count == 0 {
             return Ok(());
@@ -197,45 +212,25 @@ impl GpuBackend {
             _pad1: 0,
         };
         let call = plan::deform();
-        let ctx = &self.ctx;
-        if self
-            .deform
-            .as_ref()
-            .is_none_or(|b| b.nodes.capacity() < nodes.len())
-        {
-            self.deform = Some(DeformBuffers::new(ctx, &params, nodes.len())?);
+        if self.deform_nodes.capacity() < nodes.len() {
+            let grown = nodes.len().next_power_of_two();
+            self.deform_nodes = GpuArray::new(&self.ctx, "deformation nodes", grown)?;
+            // The bind groups refer to the table.
+            self.drop_bind_groups();
         }
-        let b = self.deform.as_mut().expect("just made");
-        let count = self.count;
-        let cap = self.ctx.grid_workgroups_cap();
-        let map = &self.map;
+        // The map alone: no frame's pixels.
+        let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());
+        grid.live = self.chunk_live();
+        self.bind_groups();
+        let (ctx, k, u) = (&self.ctx, &self.kernels, &self.uniforms);
+        let bg = self.bind_groups.as_ref().expect("just built");
+        let table = &mut self.deform_nodes;
+        let profiler = &mut self.profiler;
         ctx.scoped(call.name(), || {
-            b.params.write(ctx, &params);
-            b.nodes.upload(ctx, nodes)?;
-            // One bind group per chunk: made per closure (closures are rare).
-            let groups: Vec<(wgpu::BindGroup, u32)> = map
-                .chunks
-                .iter()
-                .filter(|ch| ch.live(count) > 0)
-                .map(|ch| {
-                    let group = b.kernel.bind_group(
-                        ctx,
-                        &[
-                            ("params", b.params.binding()),
-                            ("chunk", ch.info_buffer.binding()),
-                            ("nodes", b.nodes.binding()),
-                            ("position_weight", ch.position_weight.binding()),
-                            ("normal_frame", ch.normal_frame.binding()),
-                        ],
-                    );
-                    (group, b.kernel.workgroups_for(ch.live(count)).min(cap))
-                })
-                .collect();
-            let passes: Vec<_> = groups
-                .iter()
-                .map(|(g, wg)| (&b.kernel, g, [*wg, 1]))
-                .collect();
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, |_| {})
+            u.deform.write(ctx, &params);
+            table.upload(ctx, nodes)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, |_| {}, |_| {})
         })?;
         // Every surfel may have left its block's box, and the fused view is of the old map.
         self.bounds_dirty_from = 0;

@@ -23,6 +23,10 @@ pub(super) struct StepGrid {
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
     pub chunks: Vec<u32>,
+    /// Per map chunk, its live surfels (a `PerSurfel` row's passes; see `chunk_live`).
+    pub live: Vec<usize>,
+    /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints).
+    pub items: usize,
     /// The frame's `[width, height]` in pixels.
     frame: [u32; 2],
     /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
@@ -43,6 +47,8 @@ impl StepGrid {
         StepGrid {
             bounds: Vec::new(),
             chunks: Vec::new(),
+            live: Vec::new(),
+            items: 0,
             frame,
             levels,
             cap: ctx.grid_workgroups_cap(),
@@ -68,22 +74,27 @@ impl StepGrid {
             self.cpu_adapter,
         )
     }
-    /// One pass of `kernel` per map chunk with the chunk's block-walking workgroups.
-    pub fn per_block<'a>(
-        &self,
+    /// One pass of `kernel` per map chunk (bind group) with the chunk's `workgroups`: a
+    /// block-walking kernel's ([`StepGrid::chunks`]), or a grid-stride kernel's over the
+    /// chunk's live surfels ([`StepGrid::live`], one thread each, at most the grid cap: the
+    /// loop covers the rest). A chunk of none records an empty pass.
+    fn per_chunk<'a>(
         kernel: &'a Kernel,
         groups: &'a [wgpu::BindGroup],
+        workgroups: impl Iterator<Item = u32>,
     ) -> Vec<Pass<'a>> {
         groups
             .iter()
-            .zip(&self.chunks)
-            .map(|(g, &blocks)| (kernel, g, [blocks, 1]))
+            .zip(workgroups)
+            .map(|(g, wg)| (kernel, g, [wg, 1]))
             .collect()
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
     /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
-    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]); at
+    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
+    /// live surfels a grid-stride pass over them: [`StepGrid::live`]); a pass of one thread
+    /// per item ([`StepGrid::items`]); at
     /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
     /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
@@ -109,9 +120,12 @@ impl StepGrid {
         let at = match shape {
             Shape::PerLevel => call.at().choice(),
             Shape::Reduce | Shape::PerSystem => call.at(),
-            Shape::OverFrame | Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
-                At::FRAME
-            }
+            Shape::OverFrame
+            | Shape::PerChunk
+            | Shape::PerBlock
+            | Shape::PerStaleBlock
+            | Shape::PerSurfel
+            | Shape::PerItem => At::FRAME,
         };
         let groups = bg
             .generic
@@ -120,10 +134,18 @@ impl StepGrid {
         let wg = match shape {
             Shape::Reduce => [self.reduction, 1],
             Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
+            // One thread per item, at most the reduction workgroups.
+            Shape::PerItem => [
+                passes[0]
+                    .workgroups_for(self.items)
+                    .min(self.reduction.max(1)),
+                1,
+            ],
             Shape::OverFrame
             | Shape::PerChunk
             | Shape::PerBlock
             | Shape::PerStaleBlock
+            | Shape::PerSurfel
             | Shape::PerLevel => self.level(at.level, &passes[0]),
         };
         let passes = match call.every_key_pass() {
@@ -133,7 +155,12 @@ impl StepGrid {
         passes
             .iter()
             .flat_map(|pass| match shape {
-                Shape::PerBlock => self.per_block(pass, groups),
+                Shape::PerBlock => Self::per_chunk(pass, groups, self.chunks.iter().copied()),
+                Shape::PerSurfel => {
+                    let live = self.live.iter();
+                    let wg = live.map(|&n| pass.workgroups_for(n).min(self.cap));
+                    Self::per_chunk(pass, groups, wg)
+                }
                 Shape::PerStaleBlock => self
                     .bounds
                     .iter()
@@ -142,6 +169,7 @@ impl StepGrid {
                 Shape::OverFrame
                 | Shape::PerChunk
                 | Shape::PerLevel
+                | Shape::PerItem
                 | Shape::Reduce
                 | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
             })

@@ -28,27 +28,6 @@ use wgslam_core::plan::{
 };
 use wgslam_core::registry::System;
 
-/// Builds the bind groups if a buffer changed, then lends what a step needs to encode and
-/// submit its passes: `(ctx, kernels, bind groups, profiler, frame buffers, uniforms)`. A
-/// macro rather than a method so the borrows stay per field: the step still reads its
-/// read-backs while the profiler is borrowed mutably.
-macro_rules! encoding_parts {
-    ($backend:ident) => {{
-        $backend.bind_groups();
-        (
-            &$backend.ctx,
-            &$backend.kernels,
-            $backend.bind_groups.as_ref().expect("just built"),
-            &mut $backend.profiler,
-            $backend
-                .frame
-                .as_ref()
-                .expect("preprocess() runs before any other step"),
-            &$backend.uniforms,
-        )
-    }};
-}
-
 impl Backend for GpuBackend {
     fn name(&self) -> &'static str {
         "gpu"
@@ -220,7 +199,11 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    FuseCall::FuseScan => bg.fuse_scan.passes(k, f.add_flags.len()),
+                    FuseCall::FuseScan => bg
+                        .fuse_scan
+                        .as_ref()
+                        .expect("made with the frame")
+                        .passes(k, f.add_flags.len()),
                     // The stale boxes' `block_bounds`, `fuse_select` (surfels pick
                     // pixels, then each picked surfel merges from its pixel:
                     // `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`, `fuse_flags`,
@@ -232,7 +215,8 @@ impl Backend for GpuBackend {
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
             let ferns = &mut self.ferns;
-            super::ferns::record_ahead(ctx, &k.fern_encode, ferns, f, profiler, &mut enc)?;
+            let size = [f.width, f.height];
+            super::ferns::record_ahead(ctx, (k, bg), ferns, size, profiler, &mut enc)?;
             submit_profiled(ctx, profiler, enc)?;
             self.counter_readback.read(ctx)
         })?[0] as usize;
@@ -260,8 +244,12 @@ impl Backend for GpuBackend {
         self.ensure_compaction()?;
         let mut params = *params;
         params.surfel_count = n as u32;
-        let flags_wg = self.chunk_workgroups(&self.kernels.compact_flags);
         let scatter_wg = self.chunk_workgroups(&self.kernels.compact_scatter);
+        // The map alone: no frame's pixels.
+        let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());
+        grid.live = self.chunk_live();
+        self.bind_groups();
+        let bg = self.bind_groups.as_ref().expect("just built");
         let (ctx, k, u) = (&self.ctx, &self.kernels, &self.uniforms);
         let c = self.compaction.as_mut().expect("ensure_compaction made it");
         // Made once per map set (live and spare swap every call, and so do these).
@@ -282,12 +270,8 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("compact");
             for call in plan::compact() {
                 let passes: Vec<Pass> = match call {
-                    CompactCall::Flags => g
-                        .flags
-                        .iter()
-                        .zip(&flags_wg)
-                        .map(|(group, &wg)| (&k.compact_flags, group, [wg, 1]))
-                        .collect(),
+                    // Bound and dispatched by its registry row.
+                    CompactCall::Flags => grid.generic(k, bg, call),
                     CompactCall::Scan => g.scan.passes(k, n),
                     CompactCall::Scatter => scatter_wg
                         .iter()

@@ -22,7 +22,7 @@ pub fn fern_code(
     p: &FernParams,
     fern: &Fern,
     normal_depth: &[[f32; 4]],
-    color: &[[f32; 4]],
+    color_map: &[[f32; 4]],
 ) -> u32 {
     let u0 = fern.cell_u * p.cell_width;
     let v0 = fern.cell_v * p.cell_height;
@@ -36,7 +36,7 @@ pub fn fern_code(
             if nd[3] <= 0.0 {
                 continue;
             }
-            let c = color[texel];
+            let c = color_map[texel];
             rgb[0] += c[0];
             rgb[1] += c[1];
             rgb[2] += c[2];
@@ -61,16 +61,16 @@ pub fn fern_encode(
     params: &FernParams,
     ferns: &[Fern],
     normal_depth: &[[f32; 4]],
-    color: &[[f32; 4]],
+    color_map: &[[f32; 4]],
     codes: &mut [u32],
 ) {
     let pixels = (params.width * params.height) as usize;
-    assert!(normal_depth.len() == pixels && color.len() == pixels);
+    assert!(normal_depth.len() == pixels && color_map.len() == pixels);
     let n = params.fern_count as usize;
     assert!(ferns.len() >= n && codes.len() >= n);
     // The shader's grid-stride loop as one thread with stride 1.
     for i in 0..n {
-        codes[i] = fern_code(params, &ferns[i], normal_depth, color);
+        codes[i] = fern_code(params, &ferns[i], normal_depth, color_map);
     }
 }
 
@@ -104,7 +104,7 @@ mod tests {
         ];
         let c = |r: f32| [r, 100.0, 0.0, 255.0];
         // Mean red of the valid pixels 20, of all four 35 (the invalid one is 100).
-        let color = [
+        let color_map = [
             c(10.0),
             c(20.0),
             c(0.0),
@@ -121,7 +121,7 @@ mod tests {
         };
         let ferns = [fern(0, [25.0, 50.0, 0.0, 1.9]), fern(1, [0.0; 4])];
         let mut codes = [0; 2];
-        fern_encode(&p, &ferns, &normal_depth, &color, &mut codes);
+        fern_encode(&p, &ferns, &normal_depth, &color_map, &mut codes);
         // red 20 < 25, green 100 > 50, blue 0 = 0 (not above), depth 2 > 1.9.
         assert_eq!(codes, [0b0101, FERN_NO_DEPTH]);
     }

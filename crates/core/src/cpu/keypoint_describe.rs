@@ -12,7 +12,7 @@ use crate::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS};
 
 /// Sum of `r + g + b` over the 3x3 box around `(u, v) + d`, clamped to the image. Mirrors
 /// `box_grey` in keypoint_describe.wgsl.
-pub fn box_grey(p: &KeypointParams, color: &[[f32; 4]], u: u32, v: u32, d: [i32; 2]) -> f32 {
+pub fn box_grey(p: &KeypointParams, color_map: &[[f32; 4]], u: u32, v: u32, d: [i32; 2]) -> f32 {
     let last = [p.width as i32 - 1, p.height as i32 - 1];
     let c = [u as i32 + d[0], v as i32 + d[1]];
     let mut sum = 0.0f32;
@@ -20,7 +20,7 @@ pub fn box_grey(p: &KeypointParams, color: &[[f32; 4]], u: u32, v: u32, d: [i32;
         for dx in -1..=1 {
             let x = (c[0] + dx).clamp(0, last[0]);
             let y = (c[1] + dy).clamp(0, last[1]);
-            let rgb = color[(y * p.width as i32 + x) as usize];
+            let rgb = color_map[(y * p.width as i32 + x) as usize];
             sum += rgb[0] + rgb[1] + rgb[2];
         }
     }
@@ -32,8 +32,8 @@ pub fn box_grey(p: &KeypointParams, color: &[[f32; 4]], u: u32, v: u32, d: [i32;
 #[allow(clippy::too_many_arguments)]
 pub fn keypoint_describe(
     params: &KeypointParams,
-    color: &[[f32; 4]],
-    vertex: &[[f32; 4]],
+    color_map: &[[f32; 4]],
+    vertex_map: &[[f32; 4]],
     keypoints: &[Keypoint],
     pattern: &[[i32; 4]],
     descriptors: &mut [u32],
@@ -43,7 +43,7 @@ pub fn keypoint_describe(
     let n = p.count as usize;
     assert!(keypoints.len() >= n && pattern.len() >= p.tests as usize);
     assert!(descriptors.len() >= n * DESCRIPTOR_WORDS && points.len() >= n);
-    assert_eq!(vertex.len(), color.len());
+    assert_eq!(vertex_map.len(), color_map.len());
     // The shader's grid-stride loop as one thread with stride 1.
     for k in 0..n {
         let kp = keypoints[k];
@@ -53,8 +53,8 @@ pub fn keypoint_describe(
                 let t = w * 32 + b;
                 if t < p.tests {
                     let o = pattern[t as usize];
-                    let a = box_grey(&p, color, kp.u, kp.v, [o[0], o[1]]);
-                    let c = box_grey(&p, color, kp.u, kp.v, [o[2], o[3]]);
+                    let a = box_grey(&p, color_map, kp.u, kp.v, [o[0], o[1]]);
+                    let c = box_grey(&p, color_map, kp.u, kp.v, [o[2], o[3]]);
                     if a < c {
                         bits |= 1 << b;
                     }
@@ -62,6 +62,6 @@ pub fn keypoint_describe(
             }
             descriptors[k * DESCRIPTOR_WORDS + w as usize] = bits;
         }
-        points[k] = vertex[(kp.v * p.width + kp.u) as usize];
+        points[k] = vertex_map[(kp.v * p.width + kp.u) as usize];
     }
 }

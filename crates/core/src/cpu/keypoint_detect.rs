@@ -22,14 +22,14 @@ pub const BORDER: u32 = 3;
 pub const HARRIS_K: f32 = 0.04;
 
 /// Grey level of texel `(u, v)`: `r + g + b`. Mirrors `grey` in keypoint_detect.wgsl.
-pub fn grey(color: &[[f32; 4]], width: u32, u: u32, v: u32) -> f32 {
-    let c = color[(v * width + u) as usize];
+pub fn grey(color_map: &[[f32; 4]], width: u32, u: u32, v: u32) -> f32 {
+    let c = color_map[(v * width + u) as usize];
     c[0] + c[1] + c[2]
 }
 
 /// Harris response at `(u, v)`. Mirrors `harris` in keypoint_detect.wgsl.
-pub fn harris(color: &[[f32; 4]], width: u32, u: u32, v: u32) -> f32 {
-    let g = |x: u32, y: u32| grey(color, width, x, y);
+pub fn harris(color_map: &[[f32; 4]], width: u32, u: u32, v: u32) -> f32 {
+    let g = |x: u32, y: u32| grey(color_map, width, x, y);
     let (mut sxx, mut syy, mut sxy) = (0.0f32, 0.0f32, 0.0f32);
     for y in v - 1..=v + 1 {
         for x in u - 1..=u + 1 {
@@ -47,7 +47,7 @@ pub fn harris(color: &[[f32; 4]], width: u32, u: u32, v: u32) -> f32 {
 /// The response at `(u, v)` when it is a corner, else -1. Mirrors `corner_at`.
 pub fn corner_at(
     p: &KeypointParams,
-    color: &[[f32; 4]],
+    color_map: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
     u: u32,
     v: u32,
@@ -55,7 +55,7 @@ pub fn corner_at(
     if normal_depth[(v * p.width + u) as usize][3] <= 0.0 {
         return -1.0;
     }
-    let r = harris(color, p.width, u, v);
+    let r = harris(color_map, p.width, u, v);
     if r <= p.threshold {
         return -1.0;
     }
@@ -64,7 +64,7 @@ pub fn corner_at(
             if x == u && y == v {
                 continue;
             }
-            let n = harris(color, p.width, x, y);
+            let n = harris(color_map, p.width, x, y);
             let earlier = y < v || (y == v && x < u);
             if n > r || (n == r && earlier) {
                 return -1.0;
@@ -78,21 +78,21 @@ pub fn corner_at(
 /// declarations in `shaders/keypoint_detect.wgsl`. `counter[0]` must be zero on entry.
 pub fn keypoint_detect(
     params: &KeypointParams,
-    color: &[[f32; 4]],
+    color_map: &[[f32; 4]],
     normal_depth: &[[f32; 4]],
     keypoints: &mut [Keypoint],
     counter: &mut [u32],
 ) {
     let p = *params;
-    assert_eq!(color.len(), (p.width * p.height) as usize);
-    assert_eq!(normal_depth.len(), color.len());
+    assert_eq!(color_map.len(), (p.width * p.height) as usize);
+    assert_eq!(normal_depth.len(), color_map.len());
     assert!(keypoints.len() >= p.capacity as usize);
     // The shader's grid-stride loop as one thread with stride 1: raster order.
     let mut v = BORDER;
     while v + BORDER < p.height {
         let mut u = BORDER;
         while u + BORDER < p.width {
-            let r = corner_at(&p, color, normal_depth, u, v);
+            let r = corner_at(&p, color_map, normal_depth, u, v);
             if r >= 0.0 {
                 let slot = counter[0];
                 counter[0] += 1;
@@ -121,10 +121,10 @@ mod tests {
     #[test]
     fn finds_the_corners_of_a_square() {
         let (w, h) = (24u32, 24u32);
-        let mut color = vec![[0.0f32, 0.0, 0.0, 255.0]; (w * h) as usize];
+        let mut color_map = vec![[0.0f32, 0.0, 0.0, 255.0]; (w * h) as usize];
         for v in 8..16 {
             for u in 8..16 {
-                color[(v * w + u) as usize] = [200.0, 200.0, 200.0, 255.0];
+                color_map[(v * w + u) as usize] = [200.0, 200.0, 200.0, 255.0];
             }
         }
         let mut nd = vec![[0.0, 0.0, 1.0, 2.0f32]; (w * h) as usize];
@@ -138,7 +138,7 @@ mod tests {
         let run = |nd: &[[f32; 4]]| {
             let mut kps = vec![Keypoint::zeroed(); 16];
             let mut counter = [0u32];
-            keypoint_detect(&p, &color, nd, &mut kps, &mut counter);
+            keypoint_detect(&p, &color_map, nd, &mut kps, &mut counter);
             kps.truncate(counter[0] as usize);
             kps.iter().map(|k| (k.u, k.v)).collect::<Vec<_>>()
         };
