@@ -5,6 +5,9 @@
 //! source camera), then the target frame is tracked against it. The result maps source
 //! camera coordinates into target camera coordinates (`t_source_to_target`); with ground
 //! truth it is compared with `inv(T_target_cam_to_world) * T_source_cam_to_world`.
+//!
+//! The target may come before the source in the sequence. Two frames close no loop, so
+//! loop closure is off here: its pose graph takes frames in the sequence's order only.
 
 use glam::DMat4;
 use serde::Serialize;
@@ -40,8 +43,8 @@ pub struct TwoFrameResult {
     pub target_points: Vec<[f32; 4]>,
 }
 
-/// Aligns frame `target` to frame `source` with `params` (its `poses` is ignored:
-/// tracked).
+/// Aligns frame `target` to frame `source` (either may come first) with `params` (its
+/// `poses` is ignored: tracked; its loop closure too).
 pub fn align_frames<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
@@ -49,7 +52,8 @@ pub fn align_frames<B: Backend + Inspect>(
     target: usize,
     params: ValidParams,
 ) -> Result<TwoFrameResult> {
-    let mut slam = Slam::for_sequence(backend, seq, params.with_poses(PoseSource::Track))?;
+    let params = params.with_poses(PoseSource::Track).without_loop_closure();
+    let mut slam = Slam::for_sequence(backend, seq, params)?;
     let mut source_points = Vec::new();
     for (i, gt) in [(source, Some(&DMat4::IDENTITY)), (target, None)] {
         let frame = seq.load(i)?;
