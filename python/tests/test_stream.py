@@ -157,6 +157,20 @@ def test_bad_poses_and_stamps_raise_before_any_work(slam_and_frame, kwargs, word
     assert slam.track(depth, rgb).status == "given"
 
 
+def test_frame_numbers_go_forward(slam_and_frame):
+    """A frame number not after the last one is refused before any work (an earlier one
+    panicked in loop closure's pose graph once it became a node); numbers left out go on
+    from the last."""
+    slam, depth, rgb = slam_and_frame
+    assert slam.track(depth, rgb, frame_id=100).status == "given"
+    for earlier in (100, 5):
+        with pytest.raises(ValueError) as e:
+            slam.track(depth, rgb, frame_id=earlier)
+        assert f"frame_id {earlier} is not after the last frame's 100" in str(e.value)
+    assert slam.track(depth, rgb).status == "tracked"
+    assert slam.track(depth, rgb, frame_id=200).status == "tracked"
+
+
 def test_frames_are_tracked_with_the_lock_released():
     """A Python thread runs while a run processes frames. The progress callback (run with
     the lock held) hands each frame's number to a thread; with a switch interval longer
