@@ -31,8 +31,6 @@ struct State {
     slam: Slam<AnyBackend>,
     /// The next frame's number when `track` is not given one.
     next_frame: u32,
-    /// The last frame's number, once one was given (the next must be greater).
-    last_frame: Option<u32>,
     /// Every fused frame's stamp by frame number (for loop closure's poses).
     stamps: HashMap<u32, f64>,
     /// The tracked frames' `(stamp, camera-to-world)` in order, as tracked.
@@ -146,7 +144,6 @@ impl Stream {
             state: Mutex::new(State {
                 slam: Slam::new(backend, k, params),
                 next_frame: 0,
-                last_frame: None,
                 stamps: HashMap::new(),
                 tracked: vec![],
             }),
@@ -212,14 +209,6 @@ impl Stream {
         let report = py.detach(|| -> PyResult<_> {
             let mut state = self.state()?;
             let id = frame_id.unwrap_or(state.next_frame);
-            // Frames go in order: the map's ages, surfel removal's schedule and loop
-            // closure's pose graph count forward (an earlier number panicked in the graph).
-            if let Some(last) = state.last_frame.filter(|&last| id <= last) {
-                return Err(PyValueError::new_err(format!(
-                    "frame_id {id} is not after the last frame's {last}: frames go in order \
-                     (leave frame_id out to number them one after another)"
-                )));
-            }
             let raw = match depth {
                 Depth::Raw(d) => d,
                 Depth::Metres(m) => {
@@ -231,7 +220,6 @@ impl Stream {
                 .process(id, &raw, &rgba, pose.as_ref())
                 .map_err(py_err)?;
             state.next_frame = id.saturating_add(1);
-            state.last_frame = Some(id);
             if report.status.is_tracked() {
                 let stamp = timestamp.unwrap_or(f64::from(id));
                 state.stamps.insert(id, stamp);

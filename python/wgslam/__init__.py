@@ -298,7 +298,7 @@ class Slam:
         a known camera-to-world (4, 4): the first frame's places the map (default: the
         identity); with ``poses="gt"`` every frame needs one. ``frame_id``: the frame's
         number, stored in the map and read by the surfel removal's schedule (default: the
-        last one plus one, from 0); each must be greater than the last (``ValueError``).
+        last one plus one, from 0); each must be greater than the last (:class:`Error`).
         """
         depth = self._check_depth(depth)
         color = self._check_color(color)

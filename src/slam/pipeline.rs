@@ -80,6 +80,9 @@ pub struct Slam<B: Backend> {
     /// Loop closure's state (`None` with `--loop-closure off`, or without the recovery's
     /// keyframes).
     loop_closer: Option<LoopClosure>,
+    /// The last frame's number, once one was processed: the next must be greater (the
+    /// map's ages, surfel removal's schedule and loop closure's pose graph count forward).
+    last_frame: Option<u32>,
 }
 
 /// The pose a frame is fused at and how it was obtained.
@@ -163,11 +166,13 @@ impl<B: Backend> Slam<B> {
             tracker: Tracker::default(),
             recovery,
             loop_closer,
+            last_frame: None,
         }
     }
 
     /// Processes one raw frame. `gt_cam_to_world` is used for the first frame (and for every
-    /// frame with [`PoseSource::GroundTruth`]); `frame_id` is stored in fused surfels.
+    /// frame with [`PoseSource::GroundTruth`]); `frame_id` is stored in fused surfels and
+    /// must be greater than the last frame's (else an error, before any work).
     pub fn process(
         &mut self,
         frame_id: u32,
@@ -175,7 +180,13 @@ impl<B: Backend> Slam<B> {
         raw_rgba: &[u32],
         gt_cam_to_world: Option<&DMat4>,
     ) -> Result<FrameReport> {
+        if let Some(last) = self.last_frame.filter(|&last| frame_id <= last) {
+            return Err(crate::Error::Argument(format!(
+                "frame {frame_id} is not after the last frame, {last}: frames go in order"
+            )));
+        }
         let given = self.given_pose(frame_id, gt_cam_to_world)?;
+        self.last_frame = Some(frame_id);
         if raw_depth.iter().all(|&d| d == 0) {
             self.tracker.missed();
             return Ok(self.untracked(TrackStatus::EmptyDepth, Tracked::default()));

@@ -6,8 +6,8 @@
 //! camera coordinates into target camera coordinates (`t_source_to_target`); with ground
 //! truth it is compared with `inv(T_target_cam_to_world) * T_source_cam_to_world`.
 //!
-//! The target may come before the source in the sequence. Two frames close no loop, so
-//! loop closure is off here: its pose graph takes frames in the sequence's order only.
+//! The target may come before the source in the sequence: the pipeline numbers the two
+//! frames 0 and 1, in the order they are fused (it takes frames in increasing order only).
 
 use glam::DMat4;
 use serde::Serialize;
@@ -44,7 +44,7 @@ pub struct TwoFrameResult {
 }
 
 /// Aligns frame `target` to frame `source` (either may come first) with `params` (its
-/// `poses` is ignored: tracked; its loop closure too).
+/// `poses` is ignored: tracked).
 pub fn align_frames<B: Backend + Inspect>(
     backend: B,
     seq: &Sequence,
@@ -52,10 +52,12 @@ pub fn align_frames<B: Backend + Inspect>(
     target: usize,
     params: ValidParams,
 ) -> Result<TwoFrameResult> {
-    let params = params.with_poses(PoseSource::Track).without_loop_closure();
-    let mut slam = Slam::for_sequence(backend, seq, params)?;
+    let mut slam = Slam::for_sequence(backend, seq, params.with_poses(PoseSource::Track))?;
     let mut source_points = Vec::new();
-    for (i, gt) in [(source, Some(&DMat4::IDENTITY)), (target, None)] {
+    for (fused, (i, gt)) in [(source, Some(&DMat4::IDENTITY)), (target, None)]
+        .into_iter()
+        .enumerate()
+    {
         let frame = seq.load(i)?;
         if frame.valid_depth_pixels() == 0 {
             return Err(crate::Error::format(
@@ -64,7 +66,7 @@ pub fn align_frames<B: Backend + Inspect>(
             ));
         }
         let rgba = packed_rgba(&frame);
-        let report = slam.process(i as u32, &frame.depth, &rgba, gt)?;
+        let report = slam.process(fused as u32, &frame.depth, &rgba, gt)?;
         if source_points.is_empty() {
             source_points = slam.backend.download_frame()?.vertex;
         }

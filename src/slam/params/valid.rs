@@ -86,13 +86,6 @@ impl ValidParams {
         self
     }
 
-    /// The same parameters without loop closure (turning a stage off leaves them valid:
-    /// the keyframes it needs stay).
-    pub fn without_loop_closure(mut self) -> ValidParams {
-        self.0.loop_closure = None;
-        self
-    }
-
     /// The same parameters with `input.depth_scale` raw depth units per metre; the value
     /// is checked as [`SlamParams::validate`] checks it (the same function), and the rest
     /// is not checked again.
