@@ -41,6 +41,10 @@ pub fn tests() -> Vec<common::harness::Test> {
             "gpu_streams_share_waits_and_match_one_stream",
             gpu_streams_share_waits_and_match_one_stream,
         ),
+        gpu(
+            "gpu_a_waiter_gathers_other_threads_not_its_own_streams",
+            gpu_a_waiter_gathers_other_threads_not_its_own_streams,
+        ),
     ]
 }
 
@@ -121,5 +125,52 @@ fn gpu_streams_share_waits_and_match_one_stream(ctx: GpuContext) {
             .iter()
             .map(|e| (e.map_points, e.ate_rmse_aligned_m))
             .collect::<Vec<_>>()
+    );
+}
+
+/// Round trips of [`gpu_a_waiter_gathers_other_threads_not_its_own_streams`]'s first part.
+const ONE_THREAD_ROUND_TRIPS: usize = 20;
+
+/// A thread about to wait for the device gathers the *other threads* that drive streams on
+/// its queue, never its own streams: one thread driving two contexts (Python looping over
+/// two trackers) never waits the gathering time out, while a second thread that has work
+/// in flight and does not come to wait makes the waiter wait it out once.
+fn gpu_a_waiter_gathers_other_threads_not_its_own_streams(ctx: GpuContext) {
+    let round_trip = |c: &GpuContext| {
+        let enc = c.encoder("round trip");
+        c.submit(enc);
+    };
+    let other = ctx.share();
+    for _ in 0..ONE_THREAD_ROUND_TRIPS {
+        round_trip(&ctx);
+        round_trip(&other);
+        ctx.wait_idle().unwrap();
+        other.wait_idle().unwrap();
+    }
+    assert_eq!(
+        ctx.gathers_timed_out(),
+        0,
+        "one thread gathered for its own streams"
+    );
+
+    // A thread that submits and then stays away from the device: the waiter gathers it.
+    let (submitted_tx, submitted_rx) = std::sync::mpsc::channel();
+    let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+    let away = ctx.share();
+    std::thread::scope(|scope| {
+        scope.spawn(move || {
+            round_trip(&away);
+            submitted_tx.send(()).unwrap();
+            done_rx.recv().unwrap();
+        });
+        submitted_rx.recv().unwrap();
+        round_trip(&ctx);
+        ctx.wait_idle().unwrap();
+        done_tx.send(()).unwrap();
+    });
+    assert_eq!(
+        ctx.gathers_timed_out(),
+        1,
+        "the waiter did not gather the other thread"
     );
 }

@@ -553,6 +553,14 @@ impl GpuContext {
         }
     }
 
+    /// Device waits on this context's queue (every context [`GpuContext::share`] made from
+    /// the same device counts here) that first waited the whole gathering time for other
+    /// threads' streams that did not come (`shared_wait.rs`). A diagnostic: one thread
+    /// driving several contexts never gathers for its own.
+    pub fn gathers_timed_out(&self) -> u64 {
+        self.queue_waits.gathers_timed_out()
+    }
+
     /// [`Error::Gpu`] if the device was lost or an error escaped every error scope.
     pub fn check_device(&self) -> Result<()> {
         if let Some(msg) = self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone() {

@@ -10,19 +10,24 @@
 //! own older work would end barely sooner. A stream that submits while the wait is under
 //! way sleeps until it ends, then becomes the next waiter, covering every stream that
 //! submitted meanwhile.
+//!
+//! Streams are counted by the thread that drives them (the thread of each stream's last
+//! submission): a waiter gathers the other *threads*, since the streams of its own thread
+//! cannot submit while it waits (Python driving several trackers in one loop).
 
 // A browser has one thread: it waits through `super::wait` and never shares a wait.
 #![cfg_attr(target_arch = "wasm32", allow(dead_code))]
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::HashMap;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::ThreadId;
 use std::time::Duration;
 
-/// Longest a thread about to wait for the device first waits for the other streams that
-/// have submitted work to submit their next step and sleep (so that its one wait covers
-/// them too). Bounded, since a stream may be busy on the host (decoding a frame, say):
-/// while the host delays, the device runs the submitted work anyway, so a short delay
-/// rarely delays the result. A lone stream never delays.
+/// Longest a thread about to wait for the device first waits for the other threads that
+/// drive streams to submit their next step and sleep (so that its one wait covers them
+/// too). Bounded, since a stream may be busy on the host (decoding a frame, say): while the
+/// host delays, the device runs the submitted work anyway, so a short delay rarely delays
+/// the result. A lone thread never delays, however many streams it drives.
 const GATHER: Duration = Duration::from_millis(1);
 
 /// The submissions and the device wait of every context sharing one queue.
@@ -43,18 +48,40 @@ struct State {
     waiting_for: Option<u64>,
     /// The last device wait that failed: the number it waited for and wgpu's message.
     failed: Option<(u64, String)>,
-    /// Streams (contexts) that have submitted work and are not dropped.
-    streams: usize,
+    /// Streams (contexts) that have submitted work and are not dropped, counted by the
+    /// thread of their last submission (a thread without streams has no entry).
+    threads: HashMap<ThreadId, usize>,
     /// Threads sleeping until the device wait under way (or being gathered) ends.
     sleeping: usize,
+    /// Gathers that ended at their deadline, the other threads not all asleep
+    /// ([`Stream::gathers_timed_out`]).
+    gathers_timed_out: u64,
+}
+
+impl State {
+    /// Counts a stream under `to` instead of `from` (`None`: not counted).
+    fn move_stream(&mut self, from: Option<ThreadId>, to: Option<ThreadId>) {
+        if let Some(from) = from {
+            if let Some(n) = self.threads.get_mut(&from) {
+                *n -= 1;
+                if *n == 0 {
+                    self.threads.remove(&from);
+                }
+            }
+        }
+        if let Some(to) = to {
+            *self.threads.entry(to).or_default() += 1;
+        }
+    }
 }
 
 /// One context's handle on the [`QueueWaits`] of its queue: counted among the streams from
-/// its first submission until it is dropped.
+/// its first submission until it is dropped, under the thread of its last submission.
 #[derive(Debug, Default)]
 pub(crate) struct Stream {
     waits: Arc<QueueWaits>,
-    counted: AtomicBool,
+    /// The thread this stream is counted under; `None` before its first submission.
+    thread: Mutex<Option<ThreadId>>,
 }
 
 impl Stream {
@@ -62,16 +89,26 @@ impl Stream {
     pub(crate) fn share(&self) -> Stream {
         Stream {
             waits: Arc::clone(&self.waits),
-            counted: AtomicBool::new(false),
+            thread: Mutex::new(None),
         }
     }
 
-    /// [`QueueWaits::submit`], counting this stream from its first submission.
+    /// [`QueueWaits::submit`], counting this stream under the submitting thread.
     pub(crate) fn submit(&self, queue: &wgpu::Queue, buffers: Vec<wgpu::CommandBuffer>) -> u64 {
-        if !self.counted.swap(true, Ordering::SeqCst) {
-            self.waits.lock().streams += 1;
+        let me = std::thread::current().id();
+        let mut thread = self.thread.lock().unwrap_or_else(|p| p.into_inner());
+        if *thread != Some(me) {
+            self.waits.lock().move_stream(*thread, Some(me));
+            *thread = Some(me);
         }
+        drop(thread);
         self.waits.submit(queue, buffers)
+    }
+
+    /// How many device waits on this queue first waited the whole [`GATHER`] for other
+    /// threads that did not come (a diagnostic: a thread's own streams never count).
+    pub(crate) fn gathers_timed_out(&self) -> u64 {
+        self.waits.lock().gathers_timed_out
     }
 
     /// [`QueueWaits::wait_for`].
@@ -83,10 +120,9 @@ impl Stream {
 
 impl Drop for Stream {
     fn drop(&mut self) {
-        if self.counted.load(Ordering::SeqCst) {
-            let mut s = self.waits.lock();
-            s.streams = s.streams.saturating_sub(1);
-            drop(s);
+        let thread = *self.thread.get_mut().unwrap_or_else(|p| p.into_inner());
+        if thread.is_some() {
+            self.waits.lock().move_stream(thread, None);
             self.waits.wait_ended.notify_all();
         }
     }
@@ -140,14 +176,15 @@ impl QueueWaits {
                 s.sleeping -= 1;
                 continue;
             }
-            // This thread waits. First, for a little while, for every other stream to
-            // submit and sleep: the placeholder target makes arriving threads sleep (nothing
-            // here can panic while it stands).
+            // This thread waits. First, for a little while, for every other thread that
+            // drives a stream to submit and sleep: the placeholder target makes arriving
+            // threads sleep (nothing here can panic while it stands).
             s.waiting_for = Some(0);
             let deadline = std::time::Instant::now() + GATHER;
-            while s.sleeping + 1 < s.streams {
+            while s.sleeping + 1 < s.threads.len() {
                 let left = deadline.saturating_duration_since(std::time::Instant::now());
                 if left.is_zero() {
+                    s.gathers_timed_out += 1;
                     break;
                 }
                 s = self
