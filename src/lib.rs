@@ -101,6 +101,8 @@ pub use error::{Error, Result};
 
 pub use dataset::{open as open_sequence, Sequence, SequenceOptions};
 pub use layout::map::SurfelMap;
-pub use slam::any_backend::{open as open_backend, AnyBackend, BackendChoice};
+pub use slam::any_backend::{
+    open as open_backend, open_shared as open_backend_shared, AnyBackend, BackendChoice,
+};
 pub use slam::params::{Profile, SlamParams, ValidParams};
 pub use tools::run::{run, write_outputs, FrameOutcome, Metrics, RunResult};

@@ -268,7 +268,7 @@ fn run(
         raised: None,
     };
     let result = py.detach(|| {
-        let backend = wgslam::open_backend(choice)?;
+        let backend = wgslam::open_backend_shared(choice)?;
         let (params, downsample_from) = resolution::for_backends(
             setup.params.clone(),
             setup.sets_downsample,
@@ -304,6 +304,13 @@ fn main(py: Python<'_>, args: Vec<OsString>) -> u8 {
 }
 
 /// The extension module `wgslam._native`.
+/// GPU devices this process has opened: `wgslam.Slam`s and `wgslam.run`s share one, so
+/// it does not grow with them (a diagnostic for tests).
+#[pyfunction]
+fn devices_opened() -> u64 {
+    wgslam::gpu::GpuContext::devices_opened()
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("Error", m.py().get_type::<Error>())?;
@@ -313,5 +320,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::open_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(main, m)?)?;
+    m.add_function(wrap_pyfunction!(devices_opened, m)?)?;
     Ok(())
 }

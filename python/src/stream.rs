@@ -134,7 +134,9 @@ impl Stream {
             .params
             .with_depth_scale(depth_scale)
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let backend = py.detach(|| wgslam::open_backend(choice)).map_err(py_err)?;
+        let backend = py
+            .detach(|| wgslam::open_backend_shared(choice))
+            .map_err(py_err)?;
         // Unset, the resolution is the backend's default, as `wgslam run` chooses it.
         let (params, downsample_from) =
             resolution::for_backends(params, text.sets_downsample, &[backend.name()])

@@ -86,6 +86,26 @@ def test_a_gpu_stream_equals_wgslam_run_on_the_gpu():
     assert_same_trajectory(slam, wgslam.run(BUNDLED, backend="gpu"))
 
 
+def test_gpu_streams_in_one_thread_share_one_device_and_each_equals_wgslam_run():
+    """Two GPU trackers fed in turn from one thread, as a Python loop over several
+    recordings does, track on the process's one shared device (none is opened for the
+    second) and each gives `wgslam run`'s trajectory bit for bit."""
+    seq = wgslam.open_sequence(BUNDLED)
+    a = gpu_or_skip(seq)
+    devices = wgslam._native.devices_opened()
+    b = wgslam.Slam.for_sequence(seq, backend="gpu")
+    assert wgslam._native.devices_opened() == devices
+    first, last = seq.default_first_frame(), len(seq) - 1
+    for i in range(first, last + 1):
+        depth, rgb = seq.frame(i)
+        for slam in (a, b):
+            slam.track(depth, rgb, seq.timestamp(i), pose=seq.ground_truth(i), frame_id=i)
+    result = wgslam.run(BUNDLED, backend="gpu")
+    assert wgslam._native.devices_opened() == devices
+    assert_same_trajectory(a, result)
+    assert_same_trajectory(b, result)
+
+
 def test_float_metres_track_like_raw_depth():
     """float32 metres are turned into the raw units the scale gives: the same frames as
     raw depth / scale give the same poses."""

@@ -30,12 +30,43 @@ pub enum BackendChoice {
 /// impls next to the traits in `backend.rs`).
 pub type AnyBackend = Box<dyn SlamBackend>;
 
-/// Opens the chosen backend.
+/// Opens the chosen backend, the GPU's on a device of its own.
 pub fn open(choice: BackendChoice) -> Result<AnyBackend> {
+    open_on(choice, GpuContext::new)
+}
+
+/// Opens the chosen backend, the GPU's on the process's shared device: every backend
+/// opened so shares one device and queue ([`GpuContext::share`]: their device waits are
+/// shared, and the pipelines are compiled once for all of them), as issue 48 asks of
+/// several trackers in one process (Python's `wgslam.Slam`s and `wgslam.run`s). The device
+/// is made at the first call and kept for the process's life; a lost one is replaced at the
+/// next call.
+pub fn open_shared(choice: BackendChoice) -> Result<AnyBackend> {
+    open_on(choice, shared_gpu_context)
+}
+
+/// The process's shared device (see [`open_shared`]).
+static SHARED_DEVICE: std::sync::Mutex<Option<GpuContext>> = std::sync::Mutex::new(None);
+
+/// A context on the process's shared device, made at the first call (or after the last one
+/// was lost).
+fn shared_gpu_context() -> Result<GpuContext> {
+    let mut shared = SHARED_DEVICE.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some(ctx) = shared.as_ref().filter(|c| c.check_device().is_ok()) {
+        return Ok(ctx.share());
+    }
+    let ctx = GpuContext::new()?;
+    let this_one = ctx.share();
+    *shared = Some(ctx);
+    Ok(this_one)
+}
+
+/// Opens the chosen backend with `gpu` giving the GPU's context.
+fn open_on(choice: BackendChoice, gpu: fn() -> Result<GpuContext>) -> Result<AnyBackend> {
     match choice {
         BackendChoice::Cpu => Ok(Box::new(cpu_backend(1)?)),
-        BackendChoice::Gpu => Ok(Box::new(GpuBackend::new(GpuContext::new()?)?)),
-        BackendChoice::Auto => match GpuContext::new().and_then(GpuBackend::new) {
+        BackendChoice::Gpu => Ok(Box::new(GpuBackend::new(gpu()?)?)),
+        BackendChoice::Auto => match gpu().and_then(GpuBackend::new) {
             Ok(g) => Ok(Box::new(g)),
             Err(e @ (Error::NoAdapter(_) | Error::Gpu(_))) => {
                 eprintln!("note: no usable GPU ({e}); running the CPU reference instead");

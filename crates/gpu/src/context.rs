@@ -199,6 +199,9 @@ impl std::fmt::Debug for GpuContext {
     }
 }
 
+/// Devices opened in this process ([`GpuContext::devices_opened`]).
+static DEVICES_OPENED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 impl GpuContext {
     /// Opens the high-performance adapter among Vulkan / Metal / DX12, logs it to stderr and
     /// creates a device with every [`WANTED_FEATURES`] flag the adapter has and the
@@ -213,6 +216,13 @@ impl GpuContext {
     /// [`FEATURES_ENV`] or [`LIMITS_ENV`].
     pub fn new() -> Result<GpuContext> {
         Self::with_options(DeviceOptions::from_env()?)
+    }
+
+    /// Devices this process has opened ([`GpuContext::new`], [`GpuContext::with_options`];
+    /// not [`GpuContext::share`], which opens none): a diagnostic for the tests that check
+    /// that streams share one device.
+    pub fn devices_opened() -> u64 {
+        DEVICES_OPENED.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// [`GpuContext::new`] with the device's features and limits chosen by `options`
@@ -293,6 +303,7 @@ impl GpuContext {
                 .push(e.to_string());
         }));
 
+        DEVICES_OPENED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Ok(GpuContext {
             _instance: instance,
             adapter,
