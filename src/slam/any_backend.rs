@@ -40,16 +40,18 @@ pub fn open(choice: BackendChoice) -> Result<AnyBackend> {
 /// shared, and the pipelines are compiled once for all of them), as issue 48 asks of
 /// several trackers in one process (Python's `wgslam.Slam`s and `wgslam.run`s). The device
 /// is made at the first call and kept for the process's life; a lost one is replaced at the
-/// next call.
+/// next call. In a browser (wasm32) each backend has a device of its own.
 pub fn open_shared(choice: BackendChoice) -> Result<AnyBackend> {
     open_on(choice, shared_gpu_context)
 }
 
 /// The process's shared device (see [`open_shared`]).
+#[cfg(not(target_arch = "wasm32"))]
 static SHARED_DEVICE: std::sync::Mutex<Option<GpuContext>> = std::sync::Mutex::new(None);
 
 /// A context on the process's shared device, made at the first call (or after the last one
 /// was lost).
+#[cfg(not(target_arch = "wasm32"))]
 fn shared_gpu_context() -> Result<GpuContext> {
     let mut shared = SHARED_DEVICE.lock().unwrap_or_else(|p| p.into_inner());
     if let Some(ctx) = shared.as_ref().filter(|c| c.check_device().is_ok()) {
@@ -59,6 +61,13 @@ fn shared_gpu_context() -> Result<GpuContext> {
     let this_one = ctx.share();
     *shared = Some(ctx);
     Ok(this_one)
+}
+
+/// In a browser (one thread, and wgpu's device there cannot be sent between threads) a
+/// device of its own.
+#[cfg(target_arch = "wasm32")]
+fn shared_gpu_context() -> Result<GpuContext> {
+    GpuContext::new()
 }
 
 /// Opens the chosen backend with `gpu` giving the GPU's context.
