@@ -67,11 +67,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "the scan's second kernel",
     ),
     (
-        "compact_scatter",
-        &["crates/gpu/src/compaction.rs", STEPS],
-        "binds the live and the spare map",
-    ),
-    (
         "icp_candidates",
         &[
             "crates/gpu/src/single_steps.rs",

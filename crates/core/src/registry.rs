@@ -61,6 +61,15 @@ pub enum Shape {
     /// (one thread per surfel, at most the adapter's grid cap; an empty pass for a chunk
     /// without).
     PerSurfel,
+    /// One bind group per pair of a map chunk `s` and a chunk `d <= s` of the spare map
+    /// (compaction's second map, of the same chunks; made on demand: before it a row of
+    /// this shape has no bind group), and per surfel array (`position_weight`,
+    /// `normal_frame`, `color`), over the map alone as `PerSurfel`'s: chunk `s` as
+    /// `chunk`, its array as `surfel_array`, chunk `d` and its array as `out_chunk` and
+    /// `out_surfel_array`; per pair and array, in that order (`s`, then `d`, then the
+    /// array), a pass of the kernel's grid-stride workgroups over chunk `s`'s live surfels
+    /// (as `PerSurfel`'s).
+    PerChunkPair,
     /// One bind group over the frame's pool (as `OverFrame`'s, with the buffers of the
     /// steps that make their own: the ferns', the keypoints'); a pass of one thread per item
     /// the step counts (ferns, keypoints), at most the adapter's reduction workgroups (a
@@ -346,6 +355,9 @@ registry_data! {
         deform_surfels: PerSurfel(deform),
         // Compaction's keep flag per surfel (its `flags`, one per map slot).
         compact_flags: PerSurfel(compact),
+        // Compaction's copy of the survivors into the spare map (one surfel array at a
+        // time keeps it within WebGPU's 8 storage buffers per stage).
+        compact_scatter: PerChunkPair(compact),
         // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
@@ -378,7 +390,6 @@ registry_data! {
         prefix_sum_reduce,
         prefix_sum_blocks,
         prefix_sum,
-        compact_scatter,
     }
     key_kernels: {}
     elsewhere: {

@@ -43,9 +43,12 @@ pub(super) struct Resources<'a> {
     pub map: &'a MapBuffers,
     /// A loop closure's node table (`deform_surfels`' `nodes`).
     pub nodes: &'a GpuArray<DeformNode>,
-    /// Compaction's keep flags, one per map slot (`compact_flags`' `flags`), `None` before
-    /// the first `compact`.
-    pub keep_flags: Option<&'a GpuArray<u32>>,
+    /// Compaction's arrays over every map slot, by the names its kernels declare them with
+    /// (`flags`, the keep flags; `offsets`, their prefix sum), made at the first `compact`.
+    pub compaction: OnDemand<'a>,
+    /// Compaction's spare map (the map set the survivors are copied into), made at the
+    /// first `compact`.
+    pub spare: Option<&'a MapBuffers>,
     /// The buffers of the steps that make their own (relocalisation's ferns and
     /// keypoints), bound by the rows over the frame's pool (`OverFrame`, `PerItem`).
     pub steps: OnDemand<'a>,
@@ -190,7 +193,7 @@ fn chunk_pool<'a>(ch: &'a Chunk, block_boxes: &'a GpuArray<[u32; 4]>) -> Pool<'a
 
 impl BindGroups {
     /// Every per-frame step's bind groups over `r` (before the first frame only those of
-    /// the rows over the map alone: [`Shape::PerSurfel`]).
+    /// the rows over the map alone: [`Shape::PerSurfel`], [`Shape::PerChunkPair`]).
     pub fn new(ctx: &GpuContext, k: &Kernels, r: &Resources) -> BindGroups {
         let u = r.uniforms;
         let rows = k.generic(u);
@@ -223,32 +226,69 @@ impl BindGroups {
 }
 
 /// The bind groups, by [`At`], of a `generic` `row` over the map alone
-/// ([`Shape::PerSurfel`]): per map chunk its pool and the arrays over every map slot or
-/// the whole map (the loop closure's node table `nodes`; compaction's keep flags `flags`,
-/// made on demand: this pool has no frame's `flags`), with the row's `params`. None for a
-/// row of another shape.
+/// ([`Shape::PerSurfel`], [`Shape::PerChunkPair`]): per map chunk (per pair of chunks and
+/// surfel array) its pool and the arrays over every map slot or the whole map (the loop
+/// closure's node table `nodes`; compaction's arrays, made on demand: this pool has no
+/// frame's `flags`), with the row's `params`. None for a row of another shape, or one that
+/// binds what is not made yet.
 fn map_row_groups(ctx: &GpuContext, r: &Resources, row: &GenericRow) -> Vec<(At, Groups)> {
-    let (Shape::PerSurfel, RowParams::Frame(params)) = (row.shape, &row.params) else {
+    let RowParams::Frame(params) = &row.params else {
         return Vec::new();
     };
     let kernel = &row.passes[0];
-    let on_demand = vec![("flags", r.keep_flags.map(|f| f.binding()))];
-    let Some(keep_flags) = made(kernel, on_demand) else {
+    let Some(compaction) = made(kernel, r.compaction.clone()) else {
         return Vec::new();
     };
-    let groups = r
-        .map
-        .chunks
-        .iter()
-        .map(|ch| {
-            let mut pool = vec![("params", params.clone())];
-            pool.extend(chunk_pool(ch, r.block_boxes));
-            pool.push(("nodes", r.nodes.binding()));
-            pool.extend(keep_flags.iter().cloned());
-            kernel.bind_group_from(ctx, &pool)
-        })
-        .collect();
+    // Map chunk `ch`'s pool with the map-wide arrays.
+    let pool_of = |ch| {
+        let mut pool = vec![("params", params.clone())];
+        pool.extend(chunk_pool(ch, r.block_boxes));
+        pool.push(("nodes", r.nodes.binding()));
+        pool.extend(compaction.iter().cloned());
+        pool
+    };
+    let groups = match (row.shape, r.spare) {
+        (Shape::PerSurfel, _) => r
+            .map
+            .chunks
+            .iter()
+            .map(|ch| kernel.bind_group_from(ctx, &pool_of(ch)))
+            .collect(),
+        (Shape::PerChunkPair, Some(spare)) => r
+            .map
+            .chunks
+            .iter()
+            .enumerate()
+            .flat_map(|(s, from)| spare.chunks[..=s].iter().map(move |to| (from, to)))
+            .flat_map(|(from, to)| {
+                surfel_arrays(from)
+                    .into_iter()
+                    .zip(surfel_arrays(to))
+                    .map(move |(array, out_array)| (from, to, array, out_array))
+            })
+            .map(|(from, to, array, out_array)| {
+                let mut pool = vec![
+                    ("surfel_array", array),
+                    ("out_chunk", to.info_buffer.binding()),
+                    ("out_surfel_array", out_array),
+                ];
+                pool.extend(pool_of(from));
+                kernel.bind_group_from(ctx, &pool)
+            })
+            .collect(),
+        _ => return Vec::new(),
+    };
     vec![(At::FRAME, groups)]
+}
+
+/// A map chunk's surfel arrays, [`SURFEL_ARRAYS`] of them: `position_weight`,
+/// `normal_frame`, `color` (a [`Shape::PerChunkPair`] row binds one at a time).
+fn surfel_arrays(ch: &Chunk) -> [wgpu::BindingResource<'_>; SURFEL_ARRAYS] {
+    [
+        ch.position_weight.binding(),
+        ch.normal_frame.binding(),
+        ch.color.binding(),
+    ]
 }
 
 /// The bind groups, by [`At`], of a `generic` `row` once the frame `f` exists: as its
@@ -322,7 +362,9 @@ fn row_groups(
         (Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock, RowParams::Frame(p)) => {
             vec![(At::FRAME, per_chunk(p))]
         }
-        (Shape::PerSurfel, RowParams::Frame(_)) => map_row_groups(ctx, r, row),
+        (Shape::PerSurfel | Shape::PerChunkPair, RowParams::Frame(_)) => {
+            map_row_groups(ctx, r, row)
+        }
         (Shape::Reduce, RowParams::Frame(p)) => per_system(p, true),
         (Shape::PerSystem, RowParams::Frame(p)) => per_system(p, false),
         (shape, _) => panic!(
@@ -333,8 +375,9 @@ fn row_groups(
     }
 }
 
-/// The surfel arrays `compact_scatter` copies, one dispatch each.
-pub(super) const SCATTER_ATTRIBUTES: usize = 3;
+/// The surfel arrays of a map chunk ([`surfel_arrays`]): a [`Shape::PerChunkPair`] row has
+/// this many bind groups per pair of chunks, one pass each.
+pub(super) const SURFEL_ARRAYS: usize = 3;
 
 /// The bind groups of one scan's three kernels (prefix_sum_reduce, prefix_sum_blocks,
 /// prefix_sum) over one set of flags.

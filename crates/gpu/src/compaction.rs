@@ -1,10 +1,11 @@
 //! What the GPU's `compact` step needs besides the map, allocated at its first call (the
 //! assignment profile never pays for it) and re-allocated when the map grows: one keep
 //! flag and one offset per surfel slot, and a second map of the same chunk sizes that
-//! `compact_scatter` writes and that then swaps with the map; and the bind groups of the
-//! three passes over them ([`CompactionGroups`]).
+//! the copy of the survivors writes and that then swaps with the map; and the bind groups
+//! of the scan over them ([`CompactionGroups`]; the keep flags' and the copy's kernels are
+//! bound by their registry rows, over [`bindings`] and the spare map).
 
-use super::bind_groups::ScanGroups;
+use super::bind_groups::{OnDemand, ScanGroups};
 use super::buffers::GpuArray;
 use super::context::GpuContext;
 use super::map_buffers::MapBuffers;
@@ -18,7 +19,7 @@ pub(super) struct Compaction {
     /// The scan's per-block sums over `flags` (see prefix_sum_reduce.wgsl).
     pub block_sums: GpuArray<u32>,
     pub spare: MapBuffers,
-    /// The three passes' bind groups for the live map (`groups`) and for the spare one
+    /// The scan's bind groups for the live map (`groups`) and for the spare one
     /// (`spare_groups`), made once each and swapped with the maps.
     pub groups: Option<CompactionGroups>,
     pub spare_groups: Option<CompactionGroups>,
@@ -77,24 +78,28 @@ fn block_sums_for(ctx: &GpuContext, cap: usize) -> Result<GpuArray<u32>> {
     Ok(block_sums)
 }
 
-/// Bind groups of `prefix_sum` and `compact_scatter` (per input chunk and output chunk no
-/// later than it, and per surfel array) for one map set (the keep flags' kernel is bound
-/// by its registry row: `super::bind_groups`).
+/// Compaction's arrays over every map slot by the names its kernels declare them with
+/// (`flags`, `offsets`), `None` before the first `compact` (see `super::bind_groups::OnDemand`).
+pub(super) fn bindings(c: Option<&Compaction>) -> OnDemand<'_> {
+    vec![
+        ("flags", c.map(|c| c.flags.binding())),
+        ("offsets", c.map(|c| c.offsets.binding())),
+    ]
+}
+
+/// Bind groups of the scan over the keep flags, for one map set (the keep flags' and the
+/// copy's kernels are bound by their registry rows: `super::bind_groups`).
 pub(super) struct CompactionGroups {
     pub scan: ScanGroups,
-    /// Input chunk s, output chunk d <= s (offsets[i] <= i), surfel array a (position_weight,
-    /// normal_frame, color) at [`super::bind_groups::SCATTER_ATTRIBUTES`] (s (s + 1) / 2 + d) + a.
-    pub scatter: Vec<wgpu::BindGroup>,
 }
 
 impl CompactionGroups {
-    /// The compaction's bind groups from `map` into `c.spare`.
+    /// The scan's bind groups over `c`'s flags.
     pub fn new(
         ctx: &GpuContext,
         k: &Kernels,
         u: &Uniforms,
         counter: &GpuArray<u32>,
-        map: &MapBuffers,
         c: &Compaction,
     ) -> CompactionGroups {
         CompactionGroups {
@@ -109,34 +114,6 @@ impl CompactionGroups {
                     ("counter", counter.binding()),
                 ],
             ),
-            scatter: map
-                .chunks
-                .iter()
-                .enumerate()
-                .flat_map(|(s, from)| c.spare.chunks[..=s].iter().map(move |to| (from, to)))
-                .flat_map(|(from, to)| {
-                    // One bind group per surfel array, in the order of SCATTER_ATTRIBUTES.
-                    [
-                        (from.position_weight.binding(), to.position_weight.binding()),
-                        (from.normal_frame.binding(), to.normal_frame.binding()),
-                        (from.color.binding(), to.color.binding()),
-                    ]
-                    .map(|(surfel_array, out_surfel_array)| {
-                        k.compact_scatter.bind_group(
-                            ctx,
-                            &[
-                                ("params", u.compact.binding()),
-                                ("flags", c.flags.binding()),
-                                ("offsets", c.offsets.binding()),
-                                ("chunk", from.info_buffer.binding()),
-                                ("surfel_array", surfel_array),
-                                ("out_chunk", to.info_buffer.binding()),
-                                ("out_surfel_array", out_surfel_array),
-                            ],
-                        )
-                    })
-                })
-                .collect(),
         }
     }
 }

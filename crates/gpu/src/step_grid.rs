@@ -2,7 +2,7 @@
 //! groups are lent out, and the checks and look-ups the steps share. Not the steps
 //! themselves (see `super::steps`).
 
-use super::bind_groups::BindGroups;
+use super::bind_groups::{BindGroups, SURFEL_ARRAYS};
 use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel};
 use super::pipelines::Kernels;
@@ -23,7 +23,8 @@ pub(super) struct StepGrid {
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
     pub chunks: Vec<u32>,
-    /// Per map chunk, its live surfels (a `PerSurfel` row's passes; see `chunk_live`).
+    /// Per map chunk, its live surfels (a `PerSurfel` or `PerChunkPair` row's passes; see
+    /// `chunk_live`).
     pub live: Vec<usize>,
     /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints).
     pub items: usize,
@@ -93,7 +94,8 @@ impl StepGrid {
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
     /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
     /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
-    /// live surfels a grid-stride pass over them: [`StepGrid::live`]); a pass of one thread
+    /// live surfels a grid-stride pass over them: [`StepGrid::live`], per pair of chunks
+    /// and surfel array over the first chunk's); a pass of one thread
     /// per item ([`StepGrid::items`]); at
     /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
     /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
@@ -125,6 +127,7 @@ impl StepGrid {
             | Shape::PerBlock
             | Shape::PerStaleBlock
             | Shape::PerSurfel
+            | Shape::PerChunkPair
             | Shape::PerItem => At::FRAME,
         };
         let groups = bg
@@ -146,6 +149,7 @@ impl StepGrid {
             | Shape::PerBlock
             | Shape::PerStaleBlock
             | Shape::PerSurfel
+            | Shape::PerChunkPair
             | Shape::PerLevel => self.level(at.level, &passes[0]),
         };
         let passes = match call.every_key_pass() {
@@ -159,6 +163,15 @@ impl StepGrid {
                 Shape::PerSurfel => {
                     let live = self.live.iter();
                     let wg = live.map(|&n| pass.workgroups_for(n).min(self.cap));
+                    Self::per_chunk(pass, groups, wg)
+                }
+                // Chunk s's workgroups for each of its s + 1 pairs' SURFEL_ARRAYS groups.
+                Shape::PerChunkPair => {
+                    let live = self.live.iter().enumerate();
+                    let wg = live.flat_map(|(s, &n)| {
+                        let wg = pass.workgroups_for(n).min(self.cap);
+                        std::iter::repeat_n(wg, (s + 1) * SURFEL_ARRAYS)
+                    });
                     Self::per_chunk(pass, groups, wg)
                 }
                 Shape::PerStaleBlock => self

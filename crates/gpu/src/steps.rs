@@ -8,7 +8,6 @@
 //! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
-use super::bind_groups::SCATTER_ATTRIBUTES;
 use super::compaction::CompactionGroups;
 use super::context::GpuContext;
 use super::recording::{record_call, submit_profiled, Pass};
@@ -244,7 +243,6 @@ impl Backend for GpuBackend {
         self.ensure_compaction()?;
         let mut params = *params;
         params.surfel_count = n as u32;
-        let scatter_wg = self.chunk_workgroups(&self.kernels.compact_scatter);
         // The map alone: no frame's pixels.
         let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());
         grid.live = self.chunk_live();
@@ -254,14 +252,7 @@ impl Backend for GpuBackend {
         let c = self.compaction.as_mut().expect("ensure_compaction made it");
         // Made once per map set (live and spare swap every call, and so do these).
         if c.groups.is_none() {
-            c.groups = Some(CompactionGroups::new(
-                ctx,
-                k,
-                u,
-                &self.counter,
-                &self.map,
-                c,
-            ));
+            c.groups = Some(CompactionGroups::new(ctx, k, u, &self.counter, c));
         }
         let g = c.groups.as_ref().expect("just made");
         let profiler = &mut self.profiler;
@@ -270,23 +261,10 @@ impl Backend for GpuBackend {
             let mut enc = ctx.encoder("compact");
             for call in plan::compact() {
                 let passes: Vec<Pass> = match call {
-                    // Bound and dispatched by its registry row.
-                    CompactCall::Flags => grid.generic(k, bg, call),
                     CompactCall::Scan => g.scan.passes(k, n),
-                    CompactCall::Scatter => scatter_wg
-                        .iter()
-                        .enumerate()
-                        .flat_map(|(s, &wg)| {
-                            // Pair (s, d) has SCATTER_ATTRIBUTES bind groups in a row.
-                            (0..=s).flat_map(move |d| {
-                                (0..SCATTER_ATTRIBUTES).map(move |a| {
-                                    let pair = s * (s + 1) / 2 + d;
-                                    let group = &g.scatter[SCATTER_ATTRIBUTES * pair + a];
-                                    (&k.compact_scatter, group, [wg, 1])
-                                })
-                            })
-                        })
-                        .collect(),
+                    // The keep flags, and the copy of the survivors into the spare map:
+                    // bound and dispatched by their registry rows.
+                    CompactCall::Flags | CompactCall::Scatter => grid.generic(k, bg, call),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
