@@ -21,9 +21,8 @@ pub fn tests() -> Vec<common::harness::Test> {
     )]
 }
 
-/// The GPU backend's bind groups and its steps: a kernel that fits no `Shape` of the
-/// registry has its bind group and its arm there (`docs/extending.md`, "2 more").
-const BIND: &str = "crates/gpu/src/bind_groups.rs";
+/// The GPU backend's steps: a kernel that fits no `Shape` of the registry has its arm
+/// there (`docs/extending.md`, "2 more").
 const STEPS: &str = "crates/gpu/src/steps.rs";
 
 /// `(kernel, files, why)`: the places besides its base places where a kernel is named. A
@@ -43,28 +42,18 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "its twin's constants are the photometric term's",
     ),
     (
-        "prefix_sum",
-        &[
-            BIND,
-            STEPS,
-            "crates/gpu/src/compaction.rs",
-            "crates/gpu/src/resources.rs",
-        ],
-        "one scan of three kernels over fusion's or compaction's flags, sized by its twin",
-    ),
-    (
         "prefix_sum_reduce",
         &[
-            BIND,
             "crates/core/src/cpu/prefix_sum.rs",
             "crates/core/src/cpu/prefix_sum_blocks.rs",
         ],
-        "the scan's first kernel",
+        "the scan's other twins share its Hillis-Steele scan, and `cpu::prefix_sum::scan` \
+         runs the three twins in order (the parity tests' reference)",
     ),
     (
         "prefix_sum_blocks",
-        &[BIND, "crates/core/src/cpu/prefix_sum.rs"],
-        "the scan's second kernel",
+        &["crates/core/src/cpu/prefix_sum.rs"],
+        "`cpu::prefix_sum::scan` runs the three twins in order",
     ),
     (
         "icp_candidates",

@@ -70,6 +70,14 @@ pub enum Shape {
     /// array), a pass of the kernel's grid-stride workgroups over chunk `s`'s live surfels
     /// (as `PerSurfel`'s).
     PerChunkPair,
+    /// One bind group per set of flags a plan scans ([`Scanned`]: fusion's new-surfel
+    /// flags, the frame's `flags`, `offsets` and `block_sums`, from the first frame on;
+    /// compaction's keep flags and theirs, made on demand), each with the surfel
+    /// `counter`; a pass of one workgroup per block of `layout::SCAN_BLOCK` flags, at the
+    /// plan call's [`At::scanned`].
+    PerScanBlock,
+    /// Bound as [`Shape::PerScanBlock`]; a pass of one workgroup (over the blocks' sums).
+    OneWorkgroup,
     /// One bind group over the frame's pool (as `OverFrame`'s, with the buffers of the
     /// steps that make their own: the ferns', the keypoints'); a pass of one thread per item
     /// the step counts (ferns, keypoints), at most the adapter's reduction workgroups (a
@@ -113,12 +121,23 @@ impl System {
     pub const ALL: [System; 2] = [System::Geometric, System::Photometric];
 }
 
+/// The flags a scan covers: [`Shape::PerScanBlock`] and [`Shape::OneWorkgroup`] rows are
+/// bound per set, and a plan call's [`At::scanned`] says which it scans.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub enum Scanned {
+    /// Fusion's new-surfel flags, one per entry of append order.
+    #[default]
+    NewSurfels,
+    /// Compaction's keep flags, one per surfel.
+    KeepFlags,
+}
+
 /// Where a plan call's kernel runs, for a [`Shape::PerLevel`] row: pyramid level `level`
 /// (0: the frame's own maps), and which of level 0's vertex maps it reads where it reads
 /// one: its `vertex_map` (and level 1's `fine_vertex`) the filtered one when `filtered`,
 /// its `point_map` the filtered one when `filtered_points`; for a [`Shape::Reduce`] or
-/// [`Shape::PerSystem`] row, which [`System`] it writes or sums. Every other call is at
-/// [`At::FRAME`].
+/// [`Shape::PerSystem`] row, which [`System`] it writes or sums; for a scan's row, which
+/// flags it scans ([`Scanned`]). Every other call is at [`At::FRAME`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct At {
     /// The pyramid level, 0 the finest.
@@ -129,6 +148,8 @@ pub struct At {
     pub filtered_points: bool,
     /// The system a reduction writes the partials of, or whose partials it sums.
     pub system: System,
+    /// The flags a scan's kernel scans.
+    pub scanned: Scanned,
 }
 
 impl At {
@@ -138,6 +159,7 @@ impl At {
         filtered: false,
         filtered_points: false,
         system: System::Geometric,
+        scanned: Scanned::NewSurfels,
     };
 
     /// Pyramid level `level` for a kernel that reads none of level 0's vertex maps.
@@ -151,6 +173,14 @@ impl At {
         At {
             level,
             system,
+            ..At::FRAME
+        }
+    }
+
+    /// A scan's place: the flags it scans.
+    pub const fn of_scan(scanned: Scanned) -> At {
+        At {
+            scanned,
             ..At::FRAME
         }
     }
@@ -358,6 +388,11 @@ registry_data! {
         // Compaction's copy of the survivors into the spare map (one surfel array at a
         // time keeps it within WebGPU's 8 storage buffers per stage).
         compact_scatter: PerChunkPair(compact),
+        // The scan's three kernels (fusion's over its new-surfel flags, compaction's over
+        // its keep flags): block sums, their scan, each block's scan.
+        prefix_sum_reduce: PerScanBlock(scan),
+        prefix_sum_blocks: OneWorkgroup(scan),
+        prefix_sum: PerScanBlock(scan),
         // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
@@ -386,10 +421,6 @@ registry_data! {
     }
     kernels: {
         icp_candidates,
-        // The scan's three kernels: block sums, their scan, each block's scan.
-        prefix_sum_reduce,
-        prefix_sum_blocks,
-        prefix_sum,
     }
     key_kernels: {}
     elsewhere: {

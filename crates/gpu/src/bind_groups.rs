@@ -15,21 +15,17 @@ use super::images::GpuImage;
 use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
 use super::pipelines::{GenericRow, Kernels, LevelParams, RowParams};
-use super::recording::Pass;
 use super::resources::{FrameBuffers, SystemBuffers, Uniforms};
 use crate::layout::DeformNode;
-use wgslam_core::registry::{At, KernelId, Shape, System};
+use wgslam_core::registry::{At, KernelId, Scanned, Shape, System};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
     /// The registry's `generic` kernels' bind groups by kernel id and [`At`] (a
-    /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, else
-    /// `At::FRAME`): one per map chunk, or one over the frame, the level or the system
-    /// (see `wgslam_core::registry::Shape`).
+    /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, a scan's
+    /// flags, else `At::FRAME`): one per map chunk, or one over the frame, the level, the
+    /// system or the flags (see `wgslam_core::registry::Shape`).
     pub generic: BTreeMap<(KernelId, At), Groups>,
-    /// The scan over the new-surfel flags (in append order, `append_slots` entries); `None`
-    /// before the first frame.
-    pub fuse_scan: Option<ScanGroups>,
 }
 
 /// A kernel's bind groups at one [`At`]: one, or one per map chunk.
@@ -44,7 +40,8 @@ pub(super) struct Resources<'a> {
     /// A loop closure's node table (`deform_surfels`' `nodes`).
     pub nodes: &'a GpuArray<DeformNode>,
     /// Compaction's arrays over every map slot, by the names its kernels declare them with
-    /// (`flags`, the keep flags; `offsets`, their prefix sum), made at the first `compact`.
+    /// (`flags`, the keep flags; `offsets`, their prefix sum; the scan's `block_sums`), made
+    /// at the first `compact`.
     pub compaction: OnDemand<'a>,
     /// Compaction's spare map (the map set the survivors are copied into), made at the
     /// first `compact`.
@@ -56,7 +53,7 @@ pub(super) struct Resources<'a> {
     pub block_boxes: &'a GpuArray<[u32; 4]>,
     /// Per reduced system, in `System::ALL`'s order, its partial systems and their sum.
     pub systems: &'a [SystemBuffers; 2],
-    /// `prefix_sum`'s total.
+    /// The surfel counter: the scan's total.
     pub counter: &'a GpuArray<u32>,
 }
 
@@ -193,7 +190,8 @@ fn chunk_pool<'a>(ch: &'a Chunk, block_boxes: &'a GpuArray<[u32; 4]>) -> Pool<'a
 
 impl BindGroups {
     /// Every per-frame step's bind groups over `r` (before the first frame only those of
-    /// the rows over the map alone: [`Shape::PerSurfel`], [`Shape::PerChunkPair`]).
+    /// the rows over the map alone: [`Shape::PerSurfel`], [`Shape::PerChunkPair`], and the
+    /// scans over compaction's keep flags).
     pub fn new(ctx: &GpuContext, k: &Kernels, r: &Resources) -> BindGroups {
         let u = r.uniforms;
         let rows = k.generic(u);
@@ -208,19 +206,6 @@ impl BindGroups {
                     groups.into_iter().map(move |(at, g)| ((row.id, at), g))
                 })
                 .collect(),
-            fuse_scan: r.frame.map(|f| {
-                ScanGroups::new(
-                    ctx,
-                    k,
-                    [
-                        ("params", u.fuse_scan.binding()),
-                        ("flags", f.add_flags.binding()),
-                        ("block_sums", f.add_block_sums.binding()),
-                        ("offsets", f.add_offsets.binding()),
-                        ("counter", r.counter.binding()),
-                    ],
-                )
-            }),
         }
     }
 }
@@ -229,13 +214,17 @@ impl BindGroups {
 /// ([`Shape::PerSurfel`], [`Shape::PerChunkPair`]): per map chunk (per pair of chunks and
 /// surfel array) its pool and the arrays over every map slot or the whole map (the loop
 /// closure's node table `nodes`; compaction's arrays, made on demand: this pool has no
-/// frame's `flags`), with the row's `params`. None for a row of another shape, or one that
-/// binds what is not made yet.
+/// frame's `flags`), with the row's `params`; a scan's over compaction's keep flags
+/// ([`scan_groups`]). None for a row of another shape, or one that binds what is not made
+/// yet.
 fn map_row_groups(ctx: &GpuContext, r: &Resources, row: &GenericRow) -> Vec<(At, Groups)> {
     let RowParams::Frame(params) = &row.params else {
         return Vec::new();
     };
     let kernel = &row.passes[0];
+    if let Shape::PerScanBlock | Shape::OneWorkgroup = row.shape {
+        return scan_groups(ctx, r, None, kernel, params);
+    }
     let Some(compaction) = made(kernel, r.compaction.clone()) else {
         return Vec::new();
     };
@@ -365,6 +354,9 @@ fn row_groups(
         (Shape::PerSurfel | Shape::PerChunkPair, RowParams::Frame(_)) => {
             map_row_groups(ctx, r, row)
         }
+        (Shape::PerScanBlock | Shape::OneWorkgroup, RowParams::Frame(p)) => {
+            scan_groups(ctx, r, Some(f), kernel, p)
+        }
         (Shape::Reduce, RowParams::Frame(p)) => per_system(p, true),
         (Shape::PerSystem, RowParams::Frame(p)) => per_system(p, false),
         (shape, _) => panic!(
@@ -379,37 +371,37 @@ fn row_groups(
 /// this many bind groups per pair of chunks, one pass each.
 pub(super) const SURFEL_ARRAYS: usize = 3;
 
-/// The bind groups of one scan's three kernels (prefix_sum_reduce, prefix_sum_blocks,
-/// prefix_sum) over one set of flags.
-pub(super) struct ScanGroups {
-    pub reduce: wgpu::BindGroup,
-    pub blocks: wgpu::BindGroup,
-    pub scan: wgpu::BindGroup,
-}
-
-impl ScanGroups {
-    /// The three bind groups over `pool`: the scan's `params`, `flags`, `block_sums`,
-    /// `offsets` and `counter`, each kernel taking what it declares.
-    pub(super) fn new(
-        ctx: &GpuContext,
-        k: &Kernels,
-        pool: [(&'static str, wgpu::BindingResource); 5],
-    ) -> Self {
-        ScanGroups {
-            reduce: k.prefix_sum_reduce.bind_group_from(ctx, &pool),
-            blocks: k.prefix_sum_blocks.bind_group_from(ctx, &pool),
-            scan: k.prefix_sum.bind_group_from(ctx, &pool),
-        }
-    }
-
-    /// The scan's three dispatches over `n` flags: one workgroup per block, the one
-    /// workgroup over the block sums, one workgroup per block.
-    pub fn passes<'a>(&'a self, k: &'a Kernels, n: usize) -> Vec<Pass<'a>> {
-        let blocks = crate::cpu::prefix_sum::scan_blocks(n) as u32;
+/// The bind groups, by [`At`] (its [`Scanned`]), of a scan's `kernel` with its `params`:
+/// over fusion's new-surfel flags (the frame's `flags`, `offsets` and `block_sums`; none
+/// before the first frame, `f` `None`) and over compaction's keep flags (theirs, made on
+/// demand), each with the surfel counter `counter`.
+fn scan_groups(
+    ctx: &GpuContext,
+    r: &Resources,
+    f: Option<&FrameBuffers>,
+    kernel: &Kernel,
+    params: &wgpu::BindingResource,
+) -> Vec<(At, Groups)> {
+    let new_surfels = f.map(|f| {
         vec![
-            (&k.prefix_sum_reduce, &self.reduce, [blocks, 1]),
-            (&k.prefix_sum_blocks, &self.blocks, [1, 1]),
-            (&k.prefix_sum, &self.scan, [blocks, 1]),
+            ("flags", f.add_flags.binding()),
+            ("offsets", f.add_offsets.binding()),
+            ("block_sums", f.add_block_sums.binding()),
         ]
-    }
+    });
+    let keep_flags = made(kernel, r.compaction.clone());
+    [
+        (Scanned::NewSurfels, new_surfels),
+        (Scanned::KeepFlags, keep_flags),
+    ]
+    .into_iter()
+    .filter_map(|(scanned, flags)| {
+        let mut pool = vec![("params", params.clone()), ("counter", r.counter.binding())];
+        pool.extend(flags?);
+        Some((
+            At::of_scan(scanned),
+            vec![kernel.bind_group_from(ctx, &pool)],
+        ))
+    })
+    .collect()
 }

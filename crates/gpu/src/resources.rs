@@ -28,8 +28,9 @@ pub(super) struct Uniforms {
     pub project: ParamBuffer<ProjectParams>,
     pub icp: ParamBuffer<IcpParams>,
     pub fuse: ParamBuffer<FuseParams>,
-    /// `prefix_sum`'s parameters for fusion's scan over the new-surfel flags.
-    pub fuse_scan: ParamBuffer<CompactParams>,
+    /// The scan's parameters (`layout::scan_params`), written by the step that scans:
+    /// fusion over its new-surfel flags, compaction over its keep flags.
+    pub scan: ParamBuffer<CompactParams>,
     pub compact: ParamBuffer<CompactParams>,
     /// `block_bounds`' parameters.
     pub bounds: ParamBuffer<BoundsParams>,
@@ -51,7 +52,7 @@ impl Uniforms {
             project: ParamBuffer::new(ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
             icp: ParamBuffer::new(ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
             fuse: ParamBuffer::new(ctx, "FuseParams", &bytemuck::Zeroable::zeroed()),
-            fuse_scan: ParamBuffer::new(ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed()),
+            scan: ParamBuffer::new(ctx, "CompactParams (scan)", &bytemuck::Zeroable::zeroed()),
             compact: ParamBuffer::new(ctx, "CompactParams", &bytemuck::Zeroable::zeroed()),
             bounds: ParamBuffer::new(ctx, "BoundsParams", &bytemuck::Zeroable::zeroed()),
             deform: ParamBuffer::new(ctx, "DeformParams", &bytemuck::Zeroable::zeroed()),
@@ -93,11 +94,11 @@ pub(super) struct FrameBuffers {
     /// cleared and filled on every frame of best-candidate association (fuse_flags and
     /// fuse_prune read it).
     pub merged: GpuArray<[f32; 4]>,
-    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, the scan), in
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     pub add_flags: GpuArray<u32>,
     pub add_offsets: GpuArray<u32>,
-    /// The scan's per-block sums over `add_flags` (see prefix_sum_reduce.wgsl).
+    /// The scan's per-block sums over `add_flags`.
     pub add_block_sums: GpuArray<u32>,
     /// The ICP pyramid's coarser levels 1, 2, ... (none with a one-level schedule).
     pub levels: Vec<LevelBuffers>,
@@ -188,7 +189,7 @@ impl FrameBuffers {
         add_flags.set_len(n_append);
         let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n_append)?;
         add_offsets.set_len(n_append);
-        let n_blocks = crate::cpu::prefix_sum::scan_blocks(n_append);
+        let n_blocks = crate::layout::scan_blocks(n_append);
         let mut add_block_sums = GpuArray::new(ctx, "new-surfel block sums", n_blocks)?;
         add_block_sums.set_len(n_blocks);
         let mut intensity =

@@ -7,7 +7,7 @@ use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel};
 use super::pipelines::Kernels;
 use super::recording::Pass;
-use crate::layout::ICP_SYSTEM_LEN;
+use crate::layout::{scan_blocks, ICP_SYSTEM_LEN};
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
@@ -28,6 +28,8 @@ pub(super) struct StepGrid {
     pub live: Vec<usize>,
     /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints).
     pub items: usize,
+    /// The flags a scan's rows cover (`PerScanBlock`: one workgroup per block of them).
+    pub flags: usize,
     /// The frame's `[width, height]` in pixels.
     frame: [u32; 2],
     /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
@@ -50,6 +52,7 @@ impl StepGrid {
             chunks: Vec::new(),
             live: Vec::new(),
             items: 0,
+            flags: 0,
             frame,
             levels,
             cap: ctx.grid_workgroups_cap(),
@@ -98,7 +101,8 @@ impl StepGrid {
     /// and surfel array over the first chunk's); a pass of one thread
     /// per item ([`StepGrid::items`]); at
     /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
-    /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
+    /// of one workgroup per entry, or a scan's pass of one workgroup per block of
+    /// [`StepGrid::flags`] (or one workgroup); a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
     /// call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
@@ -121,7 +125,9 @@ impl StepGrid {
         };
         let at = match shape {
             Shape::PerLevel => call.at().choice(),
-            Shape::Reduce | Shape::PerSystem => call.at(),
+            Shape::Reduce | Shape::PerSystem | Shape::PerScanBlock | Shape::OneWorkgroup => {
+                call.at()
+            }
             Shape::OverFrame
             | Shape::PerChunk
             | Shape::PerBlock
@@ -137,6 +143,8 @@ impl StepGrid {
         let wg = match shape {
             Shape::Reduce => [self.reduction, 1],
             Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
+            Shape::PerScanBlock => [scan_blocks(self.flags) as u32, 1],
+            Shape::OneWorkgroup => [1, 1],
             // One thread per item, at most the reduction workgroups.
             Shape::PerItem => [
                 passes[0]
@@ -184,7 +192,9 @@ impl StepGrid {
                 | Shape::PerLevel
                 | Shape::PerItem
                 | Shape::Reduce
-                | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
+                | Shape::PerSystem
+                | Shape::PerScanBlock
+                | Shape::OneWorkgroup => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
             .collect()
     }
