@@ -21,10 +21,6 @@ pub fn tests() -> Vec<common::harness::Test> {
     )]
 }
 
-/// The GPU backend's steps: a kernel that fits no `Shape` of the registry has its arm
-/// there (`docs/extending.md`, "2 more").
-const STEPS: &str = "crates/gpu/src/steps.rs";
-
 /// `(kernel, files, why)`: the places besides its base places where a kernel is named. A
 /// kernel of a `generic` row has none in the GPU engine (`crates/gpu/src/`).
 const OWN_PLACES: &[(&str, &[&str], &str)] = &[
@@ -57,15 +53,8 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
     ),
     (
         "icp_candidates",
-        &[
-            "crates/gpu/src/single_steps.rs",
-            STEPS,
-            "crates/core/src/backend.rs",
-            "src/slam/instrumented.rs",
-            "src/slam/tracker.rs",
-            "src/tools/compare/perturbed.rs",
-        ],
-        "a one-kernel step, and the step is named after it",
+        &["src/slam/instrumented.rs"],
+        "its step is timed under its name",
     ),
     ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
     ("nn_grid", &["src/scan/gpu.rs"], "scan registration's"),

@@ -261,7 +261,7 @@ step_calls! {
 
 step_calls! {
     /// The steps of one kernel each (relocalisation, tracking health, loop closure): the
-    /// plan of such a step is its one call, [`encode_ferns`], [`icp_candidates`],
+    /// plan of such a step is its one call, [`encode_ferns`], [`count_candidates`],
     /// [`detect_keypoints`], [`describe_keypoints`] or [`deform`].
     Single {
         /// `fern_encode`: one code per fern from the frame's level-0 maps.
@@ -282,8 +282,8 @@ pub const fn encode_ferns() -> Single {
     Single::FernEncode
 }
 
-/// `icp_candidates`: `icp_candidates`.
-pub const fn icp_candidates() -> Single {
+/// `count_candidates`: `icp_candidates`.
+pub const fn count_candidates() -> Single {
     Single::IcpCandidates
 }
 

@@ -78,6 +78,10 @@ pub enum Shape {
     PerScanBlock,
     /// Bound as [`Shape::PerScanBlock`]; a pass of one workgroup (over the blocks' sums).
     OneWorkgroup,
+    /// One bind group over the frame's pool (as `PerItem`'s, with the buffers of the steps
+    /// that make their own: the candidates' `counts`); a pass of one workgroup per count
+    /// the step reads back (its threads walk the frame's pixels in a grid-stride loop).
+    PerCount,
     /// One bind group over the frame's pool (as `OverFrame`'s, with the buffers of the
     /// steps that make their own: the ferns', the keypoints'); a pass of one thread per item
     /// the step counts (ferns, keypoints), at most the adapter's reduction workgroups (a
@@ -399,6 +403,9 @@ registry_data! {
         fern_encode: PerItem(ferns),
         keypoint_detect: OverFrame(keypoints),
         keypoint_describe: PerItem(keypoints),
+        // Tracking health's: per workgroup, the pixels with an ICP candidate at level 0
+        // (`counts`, summed on the host).
+        icp_candidates: PerCount(icp),
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -419,9 +426,7 @@ registry_data! {
         // (level 0 from the colour map), made as the photometric term first reads it.
         intensity_pyramid: PerLevel(intensity),
     }
-    kernels: {
-        icp_candidates,
-    }
+    kernels: {}
     key_kernels: {}
     elsewhere: {
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.

@@ -125,7 +125,7 @@ pub struct GpuBackend {
     pub(super) compaction: Option<Compaction>,
     /// Buffers of `fern_encode`, `None` until its first call.
     pub(super) ferns: Option<super::ferns::FernBuffers>,
-    /// Buffers of `icp_candidates`, `None` until its first call.
+    /// Buffers of the candidate count, `None` until its first call.
     pub(super) candidates: Option<super::candidates::CandidateBuffers>,
     /// Buffers of the keypoint kernels, `None` until their first call.
     pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
@@ -393,6 +393,7 @@ impl GpuBackend {
                 steps: [
                     super::ferns::bindings(self.ferns.as_ref()),
                     super::keypoints::bindings(self.keypoints.as_ref()),
+                    super::candidates::bindings(self.candidates.as_ref()),
                 ]
                 .concat(),
                 block_boxes: &self.block_boxes,

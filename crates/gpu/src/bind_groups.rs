@@ -344,10 +344,12 @@ fn row_groups(
     };
     match (row.shape, &row.params) {
         (Shape::PerLevel, RowParams::Level(params_of)) => per_level(*params_of),
-        (Shape::OverFrame | Shape::PerItem, RowParams::Frame(p)) => over_frame(p.clone())
-            .map(|g| (At::FRAME, vec![g]))
-            .into_iter()
-            .collect(),
+        (Shape::OverFrame | Shape::PerItem | Shape::PerCount, RowParams::Frame(p)) => {
+            over_frame(p.clone())
+                .map(|g| (At::FRAME, vec![g]))
+                .into_iter()
+                .collect()
+        }
         (Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock, RowParams::Frame(p)) => {
             vec![(At::FRAME, per_chunk(p))]
         }

@@ -9,7 +9,6 @@
 use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
 use super::images::GpuImage;
-use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, DeformParams, FernParams, FuseParams, IcpParams,
@@ -254,23 +253,6 @@ impl FrameBuffers {
                 .iter()
                 .zip(pyramid)
                 .all(|(l, p)| (l.width, l.height) == (p.down.camera.width, p.down.camera.height))
-    }
-
-    /// `kernel`'s bind group over `own` resources (a one-kernel step's buffers, its
-    /// `params` first) and the frame's level-0 maps that the one-kernel step of no registry
-    /// `Shape` (`super::single_steps`' candidate count) reads, each binding taking the
-    /// resource of its WGSL name (see [`super::kernel::Kernel::bind_group_from`]).
-    pub fn bind_level0<'a>(
-        &'a self,
-        ctx: &GpuContext,
-        kernel: &Kernel,
-        mut own: Vec<(&'static str, wgpu::BindingResource<'a>)>,
-    ) -> wgpu::BindGroup {
-        own.extend([
-            ("normal_depth", self.normal_depth.binding()),
-            ("pred_vertex", self.pred_vertex.binding()),
-        ]);
-        kernel.bind_group_from(ctx, &own)
     }
 
     /// Pyramid level `level`'s parameter buffers, as a `generic_levels` row of the registry

@@ -26,7 +26,8 @@ pub(super) struct StepGrid {
     /// Per map chunk, its live surfels (a `PerSurfel` or `PerChunkPair` row's passes; see
     /// `chunk_live`).
     pub live: Vec<usize>,
-    /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints).
+    /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints), or a
+    /// `PerCount` row's one workgroup each (its counts).
     pub items: usize,
     /// The flags a scan's rows cover (`PerScanBlock`: one workgroup per block of them).
     pub flags: usize,
@@ -134,7 +135,8 @@ impl StepGrid {
             | Shape::PerStaleBlock
             | Shape::PerSurfel
             | Shape::PerChunkPair
-            | Shape::PerItem => At::FRAME,
+            | Shape::PerItem
+            | Shape::PerCount => At::FRAME,
         };
         let groups = bg
             .generic
@@ -145,6 +147,8 @@ impl StepGrid {
             Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
             Shape::PerScanBlock => [scan_blocks(self.flags) as u32, 1],
             Shape::OneWorkgroup => [1, 1],
+            // One workgroup per count.
+            Shape::PerCount => [self.items as u32, 1],
             // One thread per item, at most the reduction workgroups.
             Shape::PerItem => [
                 passes[0]
@@ -194,7 +198,8 @@ impl StepGrid {
                 | Shape::Reduce
                 | Shape::PerSystem
                 | Shape::PerScanBlock
-                | Shape::OneWorkgroup => groups.iter().map(|g| (pass, g, wg)).collect(),
+                | Shape::OneWorkgroup
+                | Shape::PerCount => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
             .collect()
     }

@@ -4,7 +4,7 @@
 //! command buffer, and reads back at most the ICP system or the surfel counter.
 //! `preprocess` and `predict` read nothing back: their commands are deferred and go with
 //! the first ICP iteration's submission (see `GpuContext::defer`), so a tracked frame
-//! costs one submit-and-wait per ICP iteration, then `icp_candidates`, `fuse` and
+//! costs one submit-and-wait per ICP iteration, then `count_candidates`, `fuse` and
 //! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
@@ -146,9 +146,9 @@ impl Backend for GpuBackend {
         self.encode_ferns_on_gpu(params, ferns)
     }
 
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
         self.ctx.flush();
-        self.icp_candidates_on_gpu(params)
+        self.count_candidates_on_gpu(params)
     }
 
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {

@@ -304,12 +304,12 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
             if self.prediction.is_empty() {
                 return Err(crate::Error::Argument(
-                    "icp_candidates() before predict()".into(),
+                    "count_candidates() before predict()".into(),
                 ));
             }
             let (pred_vertex, _) = &self.prediction[0];
