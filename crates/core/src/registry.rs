@@ -108,6 +108,20 @@ pub enum Shape {
     PerSystem,
 }
 
+impl Shape {
+    /// Where a row of this shape has the bind groups a plan call at `at` runs over: a
+    /// `PerLevel` row's at the call's choice of level and vertex maps ([`At::choice`]), a
+    /// reduction's, a system's sum's and a scan's at the call's [`At`]; every other row's at
+    /// [`At::FRAME`].
+    pub fn bound_at(self, at: At) -> At {
+        match self {
+            Shape::PerLevel => at.choice(),
+            Shape::Reduce | Shape::PerSystem | Shape::PerScanBlock | Shape::OneWorkgroup => at,
+            _ => At::FRAME,
+        }
+    }
+}
+
 /// The normal-equation systems an ICP iteration reduces, each into partial systems of
 /// its own and their sum: [`Shape::Reduce`] and [`Shape::PerSystem`] rows are bound per
 /// system, and a plan call's [`At::system`] says which it writes or sums.

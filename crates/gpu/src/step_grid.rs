@@ -11,7 +11,7 @@ use crate::layout::{scan_blocks, ICP_SYSTEM_LEN};
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
-use wgslam_core::registry::{At, Shape};
+use wgslam_core::registry::Shape;
 
 /// The workgroups of one step's passes, worked out before its bind groups are lent out:
 /// the sizes of the frame and its pyramid levels (a per-pixel kernel's grid follows from
@@ -96,19 +96,19 @@ impl StepGrid {
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
-    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
+    /// pyramid level's, at the call's [`At`](wgslam_core::registry::At)), or per map chunk one workgroup per block (per
     /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
     /// live surfels a grid-stride pass over them: [`StepGrid::live`], per pair of chunks
     /// and surfel array over the first chunk's); a pass of one thread
     /// per item ([`StepGrid::items`]); at
-    /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
+    /// the call's [`At`](wgslam_core::registry::At), a reduction's pass of the reduction workgroups or a system's sum
     /// of one workgroup per entry, or a scan's pass of one workgroup per block of
     /// [`StepGrid::flags`] (or one workgroup); a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
     /// call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
     /// group where it runs (internal contracts: every planned kernel has one or the other,
-    /// and [`At::choices`] every place a plan gives).
+    /// and [`At::choices`](wgslam_core::registry::At::choices) every place a plan gives).
     pub fn generic<'a>(
         &self,
         k: &'a Kernels,
@@ -124,20 +124,7 @@ impl StepGrid {
                 call.name()
             )
         };
-        let at = match shape {
-            Shape::PerLevel => call.at().choice(),
-            Shape::Reduce | Shape::PerSystem | Shape::PerScanBlock | Shape::OneWorkgroup => {
-                call.at()
-            }
-            Shape::OverFrame
-            | Shape::PerChunk
-            | Shape::PerBlock
-            | Shape::PerStaleBlock
-            | Shape::PerSurfel
-            | Shape::PerChunkPair
-            | Shape::PerItem
-            | Shape::PerCount => At::FRAME,
-        };
+        let at = shape.bound_at(call.at());
         let groups = bg
             .generic
             .get(&(kernel, at))
