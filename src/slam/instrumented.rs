@@ -97,8 +97,9 @@ impl<B: Backend> Backend for Instrumented<B> {
         self.frame_systems.push((level, systems[0]));
         Ok(systems)
     }
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
-        self.step("icp_candidates", |b| b.icp_candidates(params))
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        // Timed under its kernel's name, as before the step was renamed.
+        self.step("icp_candidates", |b| b.count_candidates(params))
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.step("encode_ferns", |b| b.encode_ferns(params, ferns))

@@ -230,7 +230,9 @@ impl<B: Backend> Icp<'_, B> {
     /// health test's inlier fraction; `None` without the test.
     fn candidates_at(&mut self, t: &DMat4) -> Result<Option<u64>> {
         match self.params.health {
-            Some(_) => Ok(Some(self.backend.icp_candidates(&self.steps.icp_at(0, t))?)),
+            Some(_) => Ok(Some(
+                self.backend.count_candidates(&self.steps.icp_at(0, t))?,
+            )),
             None => Ok(None),
         }
     }

@@ -21,11 +21,6 @@ pub fn tests() -> Vec<common::harness::Test> {
     )]
 }
 
-/// The GPU backend's bind groups and its steps: a kernel that fits no `Shape` of the
-/// registry has its bind group and its arm there (`docs/extending.md`, "2 more").
-const BIND: &str = "crates/gpu/src/bind_groups.rs";
-const STEPS: &str = "crates/gpu/src/steps.rs";
-
 /// `(kernel, files, why)`: the places besides its base places where a kernel is named. A
 /// kernel of a `generic` row has none in the GPU engine (`crates/gpu/src/`).
 const OWN_PLACES: &[(&str, &[&str], &str)] = &[
@@ -43,45 +38,23 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         "its twin's constants are the photometric term's",
     ),
     (
-        "prefix_sum",
-        &[
-            BIND,
-            STEPS,
-            "crates/gpu/src/compaction.rs",
-            "crates/gpu/src/resources.rs",
-        ],
-        "one scan of three kernels over fusion's or compaction's flags, sized by its twin",
-    ),
-    (
         "prefix_sum_reduce",
         &[
-            BIND,
             "crates/core/src/cpu/prefix_sum.rs",
             "crates/core/src/cpu/prefix_sum_blocks.rs",
         ],
-        "the scan's first kernel",
+        "the scan's other twins share its Hillis-Steele scan, and `cpu::prefix_sum::scan` \
+         runs the three twins in order (the parity tests' reference)",
     ),
     (
         "prefix_sum_blocks",
-        &[BIND, "crates/core/src/cpu/prefix_sum.rs"],
-        "the scan's second kernel",
-    ),
-    (
-        "compact_scatter",
-        &["crates/gpu/src/compaction.rs", STEPS],
-        "binds the live and the spare map",
+        &["crates/core/src/cpu/prefix_sum.rs"],
+        "`cpu::prefix_sum::scan` runs the three twins in order",
     ),
     (
         "icp_candidates",
-        &[
-            "crates/gpu/src/single_steps.rs",
-            STEPS,
-            "crates/core/src/backend.rs",
-            "src/slam/instrumented.rs",
-            "src/slam/tracker.rs",
-            "src/tools/compare/perturbed.rs",
-        ],
-        "a one-kernel step, and the step is named after it",
+        &["src/slam/instrumented.rs"],
+        "its step is timed under its name",
     ),
     ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
     ("nn_grid", &["src/scan/gpu.rs"], "scan registration's"),

@@ -185,7 +185,7 @@ pub trait Backend {
     fn rgbd_system(&mut self, level: usize, params: &IcpParams) -> Result<RgbdSystems>;
     /// `icp_candidates` at level 0 (`params` at level 0's size and intrinsics): source
     /// pixels of the last `predict` that pass ICP's filter 1 at `params.t_world_to_cam`.
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64>;
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64>;
     /// `fern_encode` over the last `preprocess`'s level-0 maps: the code of each of the
     /// first `params.fern_count` of `ferns` (for the relocalisation keyframe database).
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>>;
@@ -289,8 +289,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         (**self).encode_ferns(params, ferns)
     }
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
-        (**self).icp_candidates(params)
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        (**self).count_candidates(params)
     }
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         (**self).detect_keypoints(params)

@@ -9,7 +9,7 @@
 //! GPU's bind groups are made by the WGSL variables' names).
 
 use crate::layout::{BilateralParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
-use crate::registry::{At, KernelId, System};
+use crate::registry::{At, KernelId, Scanned, System};
 
 /// A per-frame buffer that a step zeroes before its kernels accumulate into it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -168,13 +168,25 @@ step_calls! {
         FuseMerge => fuse_merge,
         /// `fuse_flags`: which pixels become new surfels, in append order.
         FuseFlags => fuse_flags,
-        /// `prefix_sum` over `fuse_flags`' flags: each new surfel's slot, and how many.
+        /// The scan over `fuse_flags`' flags: the sum of each block of flags,
+        FuseScanReduce => prefix_sum_reduce,
+        /// the blocks' offsets and the total (how many new surfels),
+        FuseScanBlocks => prefix_sum_blocks,
+        /// and each new surfel's slot.
         FuseScan => prefix_sum,
         /// `fuse_add`: append the new surfels; with `index_words` (best-candidate
         /// association, which builds the next prediction's index map) also every pass of
         /// the portable kernel (its second only sets index words, which projective
         /// association leaves alone).
         FuseAdd { index_words: bool } => fuse_add,
+    }
+    at(call) {
+        match call {
+            FuseCall::FuseScanReduce | FuseCall::FuseScanBlocks | FuseCall::FuseScan => {
+                At::of_scan(Scanned::NewSurfels)
+            }
+            _ => At::FRAME,
+        }
     }
     every_key_pass(call) {
         match call {
@@ -228,16 +240,28 @@ step_calls! {
     CompactCall {
         /// `compact_flags`: keep or remove each surfel.
         Flags => compact_flags,
-        /// `prefix_sum` over the keep flags: each survivor's slot, and how many.
+        /// The scan over the keep flags: the sum of each block of flags,
+        ScanReduce => prefix_sum_reduce,
+        /// the blocks' offsets and the total (how many survive),
+        ScanBlocks => prefix_sum_blocks,
+        /// and each survivor's slot.
         Scan => prefix_sum,
         /// `compact_scatter`: copy each survivor into the second map.
         Scatter => compact_scatter,
+    }
+    at(call) {
+        match call {
+            CompactCall::ScanReduce | CompactCall::ScanBlocks | CompactCall::Scan => {
+                At::of_scan(Scanned::KeepFlags)
+            }
+            _ => At::FRAME,
+        }
     }
 }
 
 step_calls! {
     /// The steps of one kernel each (relocalisation, tracking health, loop closure): the
-    /// plan of such a step is its one call, [`encode_ferns`], [`icp_candidates`],
+    /// plan of such a step is its one call, [`encode_ferns`], [`count_candidates`],
     /// [`detect_keypoints`], [`describe_keypoints`] or [`deform`].
     Single {
         /// `fern_encode`: one code per fern from the frame's level-0 maps.
@@ -258,8 +282,8 @@ pub const fn encode_ferns() -> Single {
     Single::FernEncode
 }
 
-/// `icp_candidates`: `icp_candidates`.
-pub const fn icp_candidates() -> Single {
+/// `count_candidates`: `icp_candidates`.
+pub const fn count_candidates() -> Single {
     Single::IcpCandidates
 }
 
@@ -328,7 +352,8 @@ pub fn predict(project: bool, coarser_levels: usize) -> Vec<PredictCall> {
 /// `fuse` with `params`: cleared association buffers (and, with best-candidate
 /// association, the merged surfels and the index map it builds), fresh block boxes; then
 /// best candidate `fuse_select`, `fuse_merge_chosen` and with a prune scale `fuse_prune`,
-/// or projective `fuse_merge`; then `fuse_flags`, their prefix sum and `fuse_add`.
+/// or projective `fuse_merge`; then `fuse_flags`, their prefix sum (three kernels) and
+/// `fuse_add`.
 pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     let best_candidate = params.association == ASSOCIATION_BEST_CANDIDATE;
     let mut plan = vec![FuseCall::Clear(Buffer::Assoc)];
@@ -349,6 +374,8 @@ pub fn fuse(params: &FuseParams) -> Vec<FuseCall> {
     }
     plan.extend([
         FuseCall::FuseFlags,
+        FuseCall::FuseScanReduce,
+        FuseCall::FuseScanBlocks,
         FuseCall::FuseScan,
         FuseCall::FuseAdd {
             index_words: best_candidate,
@@ -385,9 +412,15 @@ pub fn rgbd_system(level: usize) -> Vec<SystemCall> {
     plan
 }
 
-/// `compact`: keep flags, their prefix sum, and the copy of the survivors.
+/// `compact`: keep flags, their prefix sum (three kernels), and the copy of the survivors.
 pub fn compact() -> Vec<CompactCall> {
-    vec![CompactCall::Flags, CompactCall::Scan, CompactCall::Scatter]
+    vec![
+        CompactCall::Flags,
+        CompactCall::ScanReduce,
+        CompactCall::ScanBlocks,
+        CompactCall::Scan,
+        CompactCall::Scatter,
+    ]
 }
 
 #[cfg(test)]
@@ -436,6 +469,8 @@ mod tests {
                 "fuse_merge_chosen",
                 "fuse_prune",
                 "fuse_flags",
+                "prefix_sum_reduce",
+                "prefix_sum_blocks",
                 "prefix_sum",
                 "fuse_add"
             ]
@@ -448,6 +483,8 @@ mod tests {
                 "block_bounds",
                 "fuse_merge",
                 "fuse_flags",
+                "prefix_sum_reduce",
+                "prefix_sum_blocks",
                 "prefix_sum",
                 "fuse_add"
             ]
@@ -464,7 +501,13 @@ mod tests {
         );
         assert_eq!(
             names!(compact()),
-            ["compact_flags", "prefix_sum", "compact_scatter"]
+            [
+                "compact_flags",
+                "prefix_sum_reduce",
+                "prefix_sum_blocks",
+                "prefix_sum",
+                "compact_scatter"
+            ]
         );
     }
 

@@ -61,6 +61,27 @@ pub enum Shape {
     /// (one thread per surfel, at most the adapter's grid cap; an empty pass for a chunk
     /// without).
     PerSurfel,
+    /// One bind group per pair of a map chunk `s` and a chunk `d <= s` of the spare map
+    /// (compaction's second map, of the same chunks; made on demand: before it a row of
+    /// this shape has no bind group), and per surfel array (`position_weight`,
+    /// `normal_frame`, `color`), over the map alone as `PerSurfel`'s: chunk `s` as
+    /// `chunk`, its array as `surfel_array`, chunk `d` and its array as `out_chunk` and
+    /// `out_surfel_array`; per pair and array, in that order (`s`, then `d`, then the
+    /// array), a pass of the kernel's grid-stride workgroups over chunk `s`'s live surfels
+    /// (as `PerSurfel`'s).
+    PerChunkPair,
+    /// One bind group per set of flags a plan scans ([`Scanned`]: fusion's new-surfel
+    /// flags, the frame's `flags`, `offsets` and `block_sums`, from the first frame on;
+    /// compaction's keep flags and theirs, made on demand), each with the surfel
+    /// `counter`; a pass of one workgroup per block of `layout::SCAN_BLOCK` flags, at the
+    /// plan call's [`At::scanned`].
+    PerScanBlock,
+    /// Bound as [`Shape::PerScanBlock`]; a pass of one workgroup (over the blocks' sums).
+    OneWorkgroup,
+    /// One bind group over the frame's pool (as `PerItem`'s, with the buffers of the steps
+    /// that make their own: the candidates' `counts`); a pass of one workgroup per count
+    /// the step reads back (its threads walk the frame's pixels in a grid-stride loop).
+    PerCount,
     /// One bind group over the frame's pool (as `OverFrame`'s, with the buffers of the
     /// steps that make their own: the ferns', the keypoints'); a pass of one thread per item
     /// the step counts (ferns, keypoints), at most the adapter's reduction workgroups (a
@@ -87,6 +108,20 @@ pub enum Shape {
     PerSystem,
 }
 
+impl Shape {
+    /// Where a row of this shape has the bind groups a plan call at `at` runs over: a
+    /// `PerLevel` row's at the call's choice of level and vertex maps ([`At::choice`]), a
+    /// reduction's, a system's sum's and a scan's at the call's [`At`]; every other row's at
+    /// [`At::FRAME`].
+    pub fn bound_at(self, at: At) -> At {
+        match self {
+            Shape::PerLevel => at.choice(),
+            Shape::Reduce | Shape::PerSystem | Shape::PerScanBlock | Shape::OneWorkgroup => at,
+            _ => At::FRAME,
+        }
+    }
+}
+
 /// The normal-equation systems an ICP iteration reduces, each into partial systems of
 /// its own and their sum: [`Shape::Reduce`] and [`Shape::PerSystem`] rows are bound per
 /// system, and a plan call's [`At::system`] says which it writes or sums.
@@ -104,12 +139,23 @@ impl System {
     pub const ALL: [System; 2] = [System::Geometric, System::Photometric];
 }
 
+/// The flags a scan covers: [`Shape::PerScanBlock`] and [`Shape::OneWorkgroup`] rows are
+/// bound per set, and a plan call's [`At::scanned`] says which it scans.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub enum Scanned {
+    /// Fusion's new-surfel flags, one per entry of append order.
+    #[default]
+    NewSurfels,
+    /// Compaction's keep flags, one per surfel.
+    KeepFlags,
+}
+
 /// Where a plan call's kernel runs, for a [`Shape::PerLevel`] row: pyramid level `level`
 /// (0: the frame's own maps), and which of level 0's vertex maps it reads where it reads
 /// one: its `vertex_map` (and level 1's `fine_vertex`) the filtered one when `filtered`,
 /// its `point_map` the filtered one when `filtered_points`; for a [`Shape::Reduce`] or
-/// [`Shape::PerSystem`] row, which [`System`] it writes or sums. Every other call is at
-/// [`At::FRAME`].
+/// [`Shape::PerSystem`] row, which [`System`] it writes or sums; for a scan's row, which
+/// flags it scans ([`Scanned`]). Every other call is at [`At::FRAME`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct At {
     /// The pyramid level, 0 the finest.
@@ -120,6 +166,8 @@ pub struct At {
     pub filtered_points: bool,
     /// The system a reduction writes the partials of, or whose partials it sums.
     pub system: System,
+    /// The flags a scan's kernel scans.
+    pub scanned: Scanned,
 }
 
 impl At {
@@ -129,6 +177,7 @@ impl At {
         filtered: false,
         filtered_points: false,
         system: System::Geometric,
+        scanned: Scanned::NewSurfels,
     };
 
     /// Pyramid level `level` for a kernel that reads none of level 0's vertex maps.
@@ -142,6 +191,14 @@ impl At {
         At {
             level,
             system,
+            ..At::FRAME
+        }
+    }
+
+    /// A scan's place: the flags it scans.
+    pub const fn of_scan(scanned: Scanned) -> At {
+        At {
+            scanned,
             ..At::FRAME
         }
     }
@@ -346,12 +403,23 @@ registry_data! {
         deform_surfels: PerSurfel(deform),
         // Compaction's keep flag per surfel (its `flags`, one per map slot).
         compact_flags: PerSurfel(compact),
+        // Compaction's copy of the survivors into the spare map (one surfel array at a
+        // time keeps it within WebGPU's 8 storage buffers per stage).
+        compact_scatter: PerChunkPair(compact),
+        // The scan's three kernels (fusion's over its new-surfel flags, compaction's over
+        // its keep flags): block sums, their scan, each block's scan.
+        prefix_sum_reduce: PerScanBlock(scan),
+        prefix_sum_blocks: OneWorkgroup(scan),
+        prefix_sum: PerScanBlock(scan),
         // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
         fern_encode: PerItem(ferns),
         keypoint_detect: OverFrame(keypoints),
         keypoint_describe: PerItem(keypoints),
+        // Tracking health's: per workgroup, the pixels with an ICP candidate at level 0
+        // (`counts`, summed on the host).
+        icp_candidates: PerCount(icp),
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -372,14 +440,7 @@ registry_data! {
         // (level 0 from the colour map), made as the photometric term first reads it.
         intensity_pyramid: PerLevel(intensity),
     }
-    kernels: {
-        icp_candidates,
-        // The scan's three kernels: block sums, their scan, each block's scan.
-        prefix_sum_reduce,
-        prefix_sum_blocks,
-        prefix_sum,
-        compact_scatter,
-    }
+    kernels: {}
     key_kernels: {}
     elsewhere: {
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.

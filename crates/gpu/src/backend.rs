@@ -35,7 +35,6 @@ use super::bind_groups::{BindGroups, Resources};
 use super::buffers::{GpuArray, Readback};
 use super::compaction::Compaction;
 use super::context::GpuContext;
-use super::kernel::Kernel;
 use super::map_buffers::MapBuffers;
 use super::pipelines::Kernels;
 use super::recording::{Profiler, PROFILED_PASSES_MAX};
@@ -126,7 +125,7 @@ pub struct GpuBackend {
     pub(super) compaction: Option<Compaction>,
     /// Buffers of `fern_encode`, `None` until its first call.
     pub(super) ferns: Option<super::ferns::FernBuffers>,
-    /// Buffers of `icp_candidates`, `None` until its first call.
+    /// Buffers of the candidate count, `None` until its first call.
     pub(super) candidates: Option<super::candidates::CandidateBuffers>,
     /// Buffers of the keypoint kernels, `None` until their first call.
     pub(super) keypoints: Option<super::keypoints::KeypointBuffers>,
@@ -368,8 +367,8 @@ impl GpuBackend {
             }
         };
         if remade {
-            // Both map sets' bind groups bind the keep flags (`compact_flags`' row), and
-            // the spare set's the spare map.
+            // Both map sets' bind groups bind the keep flags and offsets, and each the
+            // other's map (the copy of the survivors writes into it).
             self.drop_bind_groups();
         }
         Ok(())
@@ -389,10 +388,12 @@ impl GpuBackend {
                 frame: self.frame.as_ref(),
                 map: &self.map,
                 nodes: &self.deform_nodes,
-                keep_flags: self.compaction.as_ref().map(|c| &c.flags),
+                compaction: super::compaction::bindings(self.compaction.as_ref()),
+                spare: self.compaction.as_ref().map(|c| &c.spare),
                 steps: [
                     super::ferns::bindings(self.ferns.as_ref()),
                     super::keypoints::bindings(self.keypoints.as_ref()),
+                    super::candidates::bindings(self.candidates.as_ref()),
                 ]
                 .concat(),
                 block_boxes: &self.block_boxes,
@@ -418,25 +419,13 @@ impl GpuBackend {
             .collect()
     }
 
-    /// Per map chunk, its live surfels (a `PerSurfel` row's passes: `StepGrid::live`).
+    /// Per map chunk, its live surfels (a `PerSurfel` or `PerChunkPair` row's passes:
+    /// `StepGrid::live`).
     pub(super) fn chunk_live(&self) -> Vec<usize> {
         self.map
             .chunks
             .iter()
             .map(|ch| ch.live(self.count))
-            .collect()
-    }
-
-    /// Per map chunk, the workgroups of a grid-stride kernel over the chunk's live surfels
-    /// (`compact_scatter`) with `kernel`'s workgroup size, capped by
-    /// [`GpuContext::grid_workgroups_cap`] (few on a CPU adapter; the loop covers the
-    /// rest).
-    pub(super) fn chunk_workgroups(&self, kernel: &Kernel) -> Vec<u32> {
-        let cap = self.ctx.grid_workgroups_cap();
-        self.map
-            .chunks
-            .iter()
-            .map(|ch| kernel.workgroups_for(ch.live(self.count)).min(cap))
             .collect()
     }
 

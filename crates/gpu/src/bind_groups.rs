@@ -15,21 +15,17 @@ use super::images::GpuImage;
 use super::kernel::Kernel;
 use super::map_buffers::{Chunk, MapBuffers};
 use super::pipelines::{GenericRow, Kernels, LevelParams, RowParams};
-use super::recording::Pass;
 use super::resources::{FrameBuffers, SystemBuffers, Uniforms};
 use crate::layout::DeformNode;
-use wgslam_core::registry::{At, KernelId, Shape, System};
+use wgslam_core::registry::{At, KernelId, Scanned, Shape, System};
 
 /// The bind groups of the per-frame steps for one map set.
 pub(super) struct BindGroups {
     /// The registry's `generic` kernels' bind groups by kernel id and [`At`] (a
-    /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, else
-    /// `At::FRAME`): one per map chunk, or one over the frame, the level or the system
-    /// (see `wgslam_core::registry::Shape`).
+    /// `PerLevel` kernel's level and vertex maps, a reduction's level and system, a scan's
+    /// flags, else `At::FRAME`): one per map chunk, or one over the frame, the level, the
+    /// system or the flags (see `wgslam_core::registry::Shape`).
     pub generic: BTreeMap<(KernelId, At), Groups>,
-    /// The scan over the new-surfel flags (in append order, `append_slots` entries); `None`
-    /// before the first frame.
-    pub fuse_scan: Option<ScanGroups>,
 }
 
 /// A kernel's bind groups at one [`At`]: one, or one per map chunk.
@@ -43,9 +39,13 @@ pub(super) struct Resources<'a> {
     pub map: &'a MapBuffers,
     /// A loop closure's node table (`deform_surfels`' `nodes`).
     pub nodes: &'a GpuArray<DeformNode>,
-    /// Compaction's keep flags, one per map slot (`compact_flags`' `flags`), `None` before
-    /// the first `compact`.
-    pub keep_flags: Option<&'a GpuArray<u32>>,
+    /// Compaction's arrays over every map slot, by the names its kernels declare them with
+    /// (`flags`, the keep flags; `offsets`, their prefix sum; the scan's `block_sums`), made
+    /// at the first `compact`.
+    pub compaction: OnDemand<'a>,
+    /// Compaction's spare map (the map set the survivors are copied into), made at the
+    /// first `compact`.
+    pub spare: Option<&'a MapBuffers>,
     /// The buffers of the steps that make their own (relocalisation's ferns and
     /// keypoints), bound by the rows over the frame's pool (`OverFrame`, `PerItem`).
     pub steps: OnDemand<'a>,
@@ -53,7 +53,7 @@ pub(super) struct Resources<'a> {
     pub block_boxes: &'a GpuArray<[u32; 4]>,
     /// Per reduced system, in `System::ALL`'s order, its partial systems and their sum.
     pub systems: &'a [SystemBuffers; 2],
-    /// `prefix_sum`'s total.
+    /// The surfel counter: the scan's total.
     pub counter: &'a GpuArray<u32>,
 }
 
@@ -190,7 +190,8 @@ fn chunk_pool<'a>(ch: &'a Chunk, block_boxes: &'a GpuArray<[u32; 4]>) -> Pool<'a
 
 impl BindGroups {
     /// Every per-frame step's bind groups over `r` (before the first frame only those of
-    /// the rows over the map alone: [`Shape::PerSurfel`]).
+    /// the rows over the map alone: [`Shape::PerSurfel`], [`Shape::PerChunkPair`], and the
+    /// scans over compaction's keep flags).
     pub fn new(ctx: &GpuContext, k: &Kernels, r: &Resources) -> BindGroups {
         let u = r.uniforms;
         let rows = k.generic(u);
@@ -205,50 +206,78 @@ impl BindGroups {
                     groups.into_iter().map(move |(at, g)| ((row.id, at), g))
                 })
                 .collect(),
-            fuse_scan: r.frame.map(|f| {
-                ScanGroups::new(
-                    ctx,
-                    k,
-                    [
-                        ("params", u.fuse_scan.binding()),
-                        ("flags", f.add_flags.binding()),
-                        ("block_sums", f.add_block_sums.binding()),
-                        ("offsets", f.add_offsets.binding()),
-                        ("counter", r.counter.binding()),
-                    ],
-                )
-            }),
         }
     }
 }
 
 /// The bind groups, by [`At`], of a `generic` `row` over the map alone
-/// ([`Shape::PerSurfel`]): per map chunk its pool and the arrays over every map slot or
-/// the whole map (the loop closure's node table `nodes`; compaction's keep flags `flags`,
-/// made on demand: this pool has no frame's `flags`), with the row's `params`. None for a
-/// row of another shape.
+/// ([`Shape::PerSurfel`], [`Shape::PerChunkPair`]): per map chunk (per pair of chunks and
+/// surfel array) its pool and the arrays over every map slot or the whole map (the loop
+/// closure's node table `nodes`; compaction's arrays, made on demand: this pool has no
+/// frame's `flags`), with the row's `params`; a scan's over compaction's keep flags
+/// ([`scan_groups`]). None for a row of another shape, or one that binds what is not made
+/// yet.
 fn map_row_groups(ctx: &GpuContext, r: &Resources, row: &GenericRow) -> Vec<(At, Groups)> {
-    let (Shape::PerSurfel, RowParams::Frame(params)) = (row.shape, &row.params) else {
+    let RowParams::Frame(params) = &row.params else {
         return Vec::new();
     };
     let kernel = &row.passes[0];
-    let on_demand = vec![("flags", r.keep_flags.map(|f| f.binding()))];
-    let Some(keep_flags) = made(kernel, on_demand) else {
+    if let Shape::PerScanBlock | Shape::OneWorkgroup = row.shape {
+        return scan_groups(ctx, r, None, kernel, params);
+    }
+    let Some(compaction) = made(kernel, r.compaction.clone()) else {
         return Vec::new();
     };
-    let groups = r
-        .map
-        .chunks
-        .iter()
-        .map(|ch| {
-            let mut pool = vec![("params", params.clone())];
-            pool.extend(chunk_pool(ch, r.block_boxes));
-            pool.push(("nodes", r.nodes.binding()));
-            pool.extend(keep_flags.iter().cloned());
-            kernel.bind_group_from(ctx, &pool)
-        })
-        .collect();
+    // Map chunk `ch`'s pool with the map-wide arrays.
+    let pool_of = |ch| {
+        let mut pool = vec![("params", params.clone())];
+        pool.extend(chunk_pool(ch, r.block_boxes));
+        pool.push(("nodes", r.nodes.binding()));
+        pool.extend(compaction.iter().cloned());
+        pool
+    };
+    let groups = match (row.shape, r.spare) {
+        (Shape::PerSurfel, _) => r
+            .map
+            .chunks
+            .iter()
+            .map(|ch| kernel.bind_group_from(ctx, &pool_of(ch)))
+            .collect(),
+        (Shape::PerChunkPair, Some(spare)) => r
+            .map
+            .chunks
+            .iter()
+            .enumerate()
+            .flat_map(|(s, from)| spare.chunks[..=s].iter().map(move |to| (from, to)))
+            .flat_map(|(from, to)| {
+                surfel_arrays(from)
+                    .into_iter()
+                    .zip(surfel_arrays(to))
+                    .map(move |(array, out_array)| (from, to, array, out_array))
+            })
+            .map(|(from, to, array, out_array)| {
+                let mut pool = vec![
+                    ("surfel_array", array),
+                    ("out_chunk", to.info_buffer.binding()),
+                    ("out_surfel_array", out_array),
+                ];
+                pool.extend(pool_of(from));
+                kernel.bind_group_from(ctx, &pool)
+            })
+            .collect(),
+        _ => return Vec::new(),
+    };
     vec![(At::FRAME, groups)]
+}
+
+/// A map chunk's surfel arrays, [`SURFEL_ARRAYS`] of them: `position_weight`,
+/// `normal_frame`, `color` (a [`Shape::PerChunkPair`] row binds one at a time).
+fn surfel_arrays(ch: &Chunk) -> [wgpu::BindingResource<'_>; SURFEL_ARRAYS] {
+    [
+        ch.position_weight.binding(),
+        ch.normal_frame.binding(),
+        ch.color.binding(),
+    ]
 }
 
 /// The bind groups, by [`At`], of a `generic` `row` once the frame `f` exists: as its
@@ -315,14 +344,21 @@ fn row_groups(
     };
     match (row.shape, &row.params) {
         (Shape::PerLevel, RowParams::Level(params_of)) => per_level(*params_of),
-        (Shape::OverFrame | Shape::PerItem, RowParams::Frame(p)) => over_frame(p.clone())
-            .map(|g| (At::FRAME, vec![g]))
-            .into_iter()
-            .collect(),
+        (Shape::OverFrame | Shape::PerItem | Shape::PerCount, RowParams::Frame(p)) => {
+            over_frame(p.clone())
+                .map(|g| (At::FRAME, vec![g]))
+                .into_iter()
+                .collect()
+        }
         (Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock, RowParams::Frame(p)) => {
             vec![(At::FRAME, per_chunk(p))]
         }
-        (Shape::PerSurfel, RowParams::Frame(_)) => map_row_groups(ctx, r, row),
+        (Shape::PerSurfel | Shape::PerChunkPair, RowParams::Frame(_)) => {
+            map_row_groups(ctx, r, row)
+        }
+        (Shape::PerScanBlock | Shape::OneWorkgroup, RowParams::Frame(p)) => {
+            scan_groups(ctx, r, Some(f), kernel, p)
+        }
         (Shape::Reduce, RowParams::Frame(p)) => per_system(p, true),
         (Shape::PerSystem, RowParams::Frame(p)) => per_system(p, false),
         (shape, _) => panic!(
@@ -333,40 +369,41 @@ fn row_groups(
     }
 }
 
-/// The surfel arrays `compact_scatter` copies, one dispatch each.
-pub(super) const SCATTER_ATTRIBUTES: usize = 3;
+/// The surfel arrays of a map chunk ([`surfel_arrays`]): a [`Shape::PerChunkPair`] row has
+/// this many bind groups per pair of chunks, one pass each.
+pub(super) const SURFEL_ARRAYS: usize = 3;
 
-/// The bind groups of one scan's three kernels (prefix_sum_reduce, prefix_sum_blocks,
-/// prefix_sum) over one set of flags.
-pub(super) struct ScanGroups {
-    pub reduce: wgpu::BindGroup,
-    pub blocks: wgpu::BindGroup,
-    pub scan: wgpu::BindGroup,
-}
-
-impl ScanGroups {
-    /// The three bind groups over `pool`: the scan's `params`, `flags`, `block_sums`,
-    /// `offsets` and `counter`, each kernel taking what it declares.
-    pub(super) fn new(
-        ctx: &GpuContext,
-        k: &Kernels,
-        pool: [(&'static str, wgpu::BindingResource); 5],
-    ) -> Self {
-        ScanGroups {
-            reduce: k.prefix_sum_reduce.bind_group_from(ctx, &pool),
-            blocks: k.prefix_sum_blocks.bind_group_from(ctx, &pool),
-            scan: k.prefix_sum.bind_group_from(ctx, &pool),
-        }
-    }
-
-    /// The scan's three dispatches over `n` flags: one workgroup per block, the one
-    /// workgroup over the block sums, one workgroup per block.
-    pub fn passes<'a>(&'a self, k: &'a Kernels, n: usize) -> Vec<Pass<'a>> {
-        let blocks = crate::cpu::prefix_sum::scan_blocks(n) as u32;
+/// The bind groups, by [`At`] (its [`Scanned`]), of a scan's `kernel` with its `params`:
+/// over fusion's new-surfel flags (the frame's `flags`, `offsets` and `block_sums`; none
+/// before the first frame, `f` `None`) and over compaction's keep flags (theirs, made on
+/// demand), each with the surfel counter `counter`.
+fn scan_groups(
+    ctx: &GpuContext,
+    r: &Resources,
+    f: Option<&FrameBuffers>,
+    kernel: &Kernel,
+    params: &wgpu::BindingResource,
+) -> Vec<(At, Groups)> {
+    let new_surfels = f.map(|f| {
         vec![
-            (&k.prefix_sum_reduce, &self.reduce, [blocks, 1]),
-            (&k.prefix_sum_blocks, &self.blocks, [1, 1]),
-            (&k.prefix_sum, &self.scan, [blocks, 1]),
+            ("flags", f.add_flags.binding()),
+            ("offsets", f.add_offsets.binding()),
+            ("block_sums", f.add_block_sums.binding()),
         ]
-    }
+    });
+    let keep_flags = made(kernel, r.compaction.clone());
+    [
+        (Scanned::NewSurfels, new_surfels),
+        (Scanned::KeepFlags, keep_flags),
+    ]
+    .into_iter()
+    .filter_map(|(scanned, flags)| {
+        let mut pool = vec![("params", params.clone()), ("counter", r.counter.binding())];
+        pool.extend(flags?);
+        Some((
+            At::of_scan(scanned),
+            vec![kernel.bind_group_from(ctx, &pool)],
+        ))
+    })
+    .collect()
 }

@@ -1,7 +1,9 @@
-//! The GPU side of `icp_candidates`: one count per `icp_reduce` workgroup, read back and
-//! summed on the host, once per tracked frame (the tracking-health inlier fraction). The
-//! step itself is in `super::single_steps`.
+//! The GPU side of the candidate count: one count per workgroup, read back and summed on
+//! the host, once per tracked frame (the tracking-health inlier fraction). The step itself
+//! is in `super::single_steps`; its kernel is bound by its registry row, over
+//! [`bindings`].
 
+use super::bind_groups::OnDemand;
 use super::buffers::{GpuArray, Readback};
 use super::context::GpuContext;
 use crate::Result;
@@ -27,4 +29,10 @@ impl CandidateBuffers {
         let readback = Readback::new(ctx, "icp candidate counts read-back", n);
         Ok(CandidateBuffers { counts, readback })
     }
+}
+
+/// The counts by the name the kernel declares them with, `None` before the first count
+/// (see `super::bind_groups::OnDemand`).
+pub(super) fn bindings(b: Option<&CandidateBuffers>) -> OnDemand<'_> {
+    vec![("counts", b.map(|b| b.counts.binding()))]
 }

@@ -28,8 +28,8 @@
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
 //! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
 
-// The floor below, under the paths the modules use (`crate::cpu`, `crate::layout`).
-pub(crate) use wgslam_core::{cpu, layout, Error, Result};
+// The floor below, under the paths the modules use (`crate::layout`).
+pub(crate) use wgslam_core::{layout, Error, Result};
 
 #[macro_use]
 pub mod backend;

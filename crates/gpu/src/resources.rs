@@ -9,7 +9,6 @@
 use super::buffers::{GpuArray, ParamBuffer, Readback};
 use super::context::GpuContext;
 use super::images::GpuImage;
-use super::kernel::Kernel;
 use crate::layout::append_slots;
 use crate::layout::{
     BilateralParams, BoundsParams, CompactParams, DeformParams, FernParams, FuseParams, IcpParams,
@@ -28,8 +27,9 @@ pub(super) struct Uniforms {
     pub project: ParamBuffer<ProjectParams>,
     pub icp: ParamBuffer<IcpParams>,
     pub fuse: ParamBuffer<FuseParams>,
-    /// `prefix_sum`'s parameters for fusion's scan over the new-surfel flags.
-    pub fuse_scan: ParamBuffer<CompactParams>,
+    /// The scan's parameters (`layout::scan_params`), written by the step that scans:
+    /// fusion over its new-surfel flags, compaction over its keep flags.
+    pub scan: ParamBuffer<CompactParams>,
     pub compact: ParamBuffer<CompactParams>,
     /// `block_bounds`' parameters.
     pub bounds: ParamBuffer<BoundsParams>,
@@ -51,7 +51,7 @@ impl Uniforms {
             project: ParamBuffer::new(ctx, "ProjectParams", &bytemuck::Zeroable::zeroed()),
             icp: ParamBuffer::new(ctx, "IcpParams", &bytemuck::Zeroable::zeroed()),
             fuse: ParamBuffer::new(ctx, "FuseParams", &bytemuck::Zeroable::zeroed()),
-            fuse_scan: ParamBuffer::new(ctx, "CompactParams (fuse)", &bytemuck::Zeroable::zeroed()),
+            scan: ParamBuffer::new(ctx, "CompactParams (scan)", &bytemuck::Zeroable::zeroed()),
             compact: ParamBuffer::new(ctx, "CompactParams", &bytemuck::Zeroable::zeroed()),
             bounds: ParamBuffer::new(ctx, "BoundsParams", &bytemuck::Zeroable::zeroed()),
             deform: ParamBuffer::new(ctx, "DeformParams", &bytemuck::Zeroable::zeroed()),
@@ -93,11 +93,11 @@ pub(super) struct FrameBuffers {
     /// cleared and filled on every frame of best-candidate association (fuse_flags and
     /// fuse_prune read it).
     pub merged: GpuArray<[f32; 4]>,
-    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, `prefix_sum`), in
+    /// Fusion's new-surfel flag and slot offset per pixel (`fuse_flags`, the scan), in
     /// append order (`append_slots` entries; see `layout::APPEND_TILE_PX`).
     pub add_flags: GpuArray<u32>,
     pub add_offsets: GpuArray<u32>,
-    /// The scan's per-block sums over `add_flags` (see prefix_sum_reduce.wgsl).
+    /// The scan's per-block sums over `add_flags`.
     pub add_block_sums: GpuArray<u32>,
     /// The ICP pyramid's coarser levels 1, 2, ... (none with a one-level schedule).
     pub levels: Vec<LevelBuffers>,
@@ -188,7 +188,7 @@ impl FrameBuffers {
         add_flags.set_len(n_append);
         let mut add_offsets = GpuArray::new(ctx, "new-surfel offsets", n_append)?;
         add_offsets.set_len(n_append);
-        let n_blocks = crate::cpu::prefix_sum::scan_blocks(n_append);
+        let n_blocks = crate::layout::scan_blocks(n_append);
         let mut add_block_sums = GpuArray::new(ctx, "new-surfel block sums", n_blocks)?;
         add_block_sums.set_len(n_blocks);
         let mut intensity =
@@ -253,23 +253,6 @@ impl FrameBuffers {
                 .iter()
                 .zip(pyramid)
                 .all(|(l, p)| (l.width, l.height) == (p.down.camera.width, p.down.camera.height))
-    }
-
-    /// `kernel`'s bind group over `own` resources (a one-kernel step's buffers, its
-    /// `params` first) and the frame's level-0 maps that the one-kernel step of no registry
-    /// `Shape` (`super::single_steps`' candidate count) reads, each binding taking the
-    /// resource of its WGSL name (see [`super::kernel::Kernel::bind_group_from`]).
-    pub fn bind_level0<'a>(
-        &'a self,
-        ctx: &GpuContext,
-        kernel: &Kernel,
-        mut own: Vec<(&'static str, wgpu::BindingResource<'a>)>,
-    ) -> wgpu::BindGroup {
-        own.extend([
-            ("normal_depth", self.normal_depth.binding()),
-            ("pred_vertex", self.pred_vertex.binding()),
-        ]);
-        kernel.bind_group_from(ctx, &own)
     }
 
     /// Pyramid level `level`'s parameter buffers, as a `generic_levels` row of the registry

@@ -1,7 +1,7 @@
 //! The GPU backend's steps of one kernel each (`wgslam_core::plan::Single`): relocalisation's
-//! `fern_encode`, `keypoint_detect` and `keypoint_describe`, tracking health's
-//! `icp_candidates` and loop closure's `deform_surfels` (bound and dispatched by its
-//! registry row); and the two copies a loop's verification needs (one pyramid level of the
+//! `fern_encode`, `keypoint_detect` and `keypoint_describe`, tracking health's candidate
+//! count and loop closure's `deform_surfels` (each bound and dispatched by its registry
+//! row); and the two copies a loop's verification needs (one pyramid level of the
 //! frame's maps down, a keyframe's snapshot up into a level's prediction). Each step writes
 //! its parameters, records its plan's one call in a command buffer of its own
 //! ([`record_call`], as the other steps do) and reads its results back. Their buffers live
@@ -16,7 +16,6 @@ use super::ferns::FernBuffers;
 use super::images::GpuImage;
 use super::keypoints;
 use super::recording::{record_call, submit_profiled, Pass, Profiler};
-use super::resources::FrameBuffers;
 use super::step_grid::StepGrid;
 use crate::layout::{
     DeformNode, DeformParams, Fern, FernParams, IcpParams, Keypoint, KeypointParams,
@@ -41,13 +40,6 @@ fn submit_single(
     record_call(ctx, profiler, &mut enc, call.name(), passes)?;
     after(&mut enc);
     submit_profiled(ctx, profiler, enc)
-}
-
-/// The frame's buffers (a step's borrow of that one field, beside its own buffers').
-fn level0(frame: &Option<FrameBuffers>) -> &FrameBuffers {
-    frame
-        .as_ref()
-        .expect("preprocess() runs before any other step")
 }
 
 impl GpuBackend {
@@ -95,24 +87,25 @@ impl GpuBackend {
         })
     }
 
-    /// `icp_candidates` at level 0; see `Backend::icp_candidates`.
-    pub(super) fn icp_candidates_on_gpu(&mut self, params: &IcpParams) -> Result<u64> {
-        let call = plan::icp_candidates();
-        let ctx = &self.ctx;
+    /// The ICP candidates at level 0, counted per workgroup (at most
+    /// [`CANDIDATE_WORKGROUPS_MAX`]) by the kernel its registry row binds and dispatches,
+    /// and summed here; see `Backend::count_candidates`.
+    pub(super) fn count_candidates_on_gpu(&mut self, params: &IcpParams) -> Result<u64> {
+        let call = plan::count_candidates();
         let wg = self.reduction_workgroups.min(CANDIDATE_WORKGROUPS_MAX);
         if self.candidates.is_none() {
-            self.candidates = Some(CandidateBuffers::new(ctx, wg)?);
+            self.candidates = Some(CandidateBuffers::new(&self.ctx, wg)?);
+            self.drop_bind_groups();
         }
+        // One workgroup per count.
+        let grid = self.frame_grid(wg as usize);
+        let (ctx, k, bg, profiler, _, u) = encoding_parts!(self);
         let b = self.candidates.as_mut().expect("just made");
-        let frame = level0(&self.frame);
-        let (u, kernel) = (&self.uniforms, &self.kernels.icp_candidates);
         ctx.scoped(call.name(), || {
             u.icp.write(ctx, params);
-            let own = vec![("params", u.icp.binding()), ("counts", b.counts.binding())];
-            let group = frame.bind_level0(ctx, kernel, own);
             let copy = |enc: &mut _| b.readback.copy_from(enc, &b.counts, wg as usize);
-            let passes = [(kernel, &group, [wg, 1])];
-            submit_single(ctx, &mut self.profiler, call, &passes, |_| {}, copy)?;
+            let passes = grid.generic(k, bg, call);
+            submit_single(ctx, profiler, call, &passes, |_| {}, copy)?;
             Ok(b.readback.read(ctx)?.iter().map(|&c| c as u64).sum())
         })
     }
@@ -189,8 +182,8 @@ impl GpuBackend {
         })
     }
 
-    /// The grid of a relocalisation step over the frame's level-0 pixels and `items`
-    /// items (ferns, keypoints).
+    /// The grid of a one-kernel step over the frame's level-0 pixels and `items` items
+    /// (ferns, keypoints, counts).
     fn frame_grid(&self, items: usize) -> StepGrid {
         let f = self.frame();
         let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], Vec::new());

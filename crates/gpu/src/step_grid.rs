@@ -2,16 +2,16 @@
 //! groups are lent out, and the checks and look-ups the steps share. Not the steps
 //! themselves (see `super::steps`).
 
-use super::bind_groups::BindGroups;
+use super::bind_groups::{BindGroups, SURFEL_ARRAYS};
 use super::context::GpuContext;
 use super::kernel::{image_grid, Kernel};
 use super::pipelines::Kernels;
 use super::recording::Pass;
-use crate::layout::ICP_SYSTEM_LEN;
+use crate::layout::{scan_blocks, ICP_SYSTEM_LEN};
 use crate::{Error, Result};
 use wgslam_core::backend::PyramidLevel;
 use wgslam_core::plan::Call;
-use wgslam_core::registry::{At, Shape};
+use wgslam_core::registry::Shape;
 
 /// The workgroups of one step's passes, worked out before its bind groups are lent out:
 /// the sizes of the frame and its pyramid levels (a per-pixel kernel's grid follows from
@@ -23,10 +23,14 @@ pub(super) struct StepGrid {
     pub bounds: Vec<(usize, u32)>,
     /// Per map chunk, the block-walking kernels' workgroups (see `chunk_blocks`).
     pub chunks: Vec<u32>,
-    /// Per map chunk, its live surfels (a `PerSurfel` row's passes; see `chunk_live`).
+    /// Per map chunk, its live surfels (a `PerSurfel` or `PerChunkPair` row's passes; see
+    /// `chunk_live`).
     pub live: Vec<usize>,
-    /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints).
+    /// The items a `PerItem` row's pass gives one thread each (ferns, keypoints), or a
+    /// `PerCount` row's one workgroup each (its counts).
     pub items: usize,
+    /// The flags a scan's rows cover (`PerScanBlock`: one workgroup per block of them).
+    pub flags: usize,
     /// The frame's `[width, height]` in pixels.
     frame: [u32; 2],
     /// Per coarser pyramid level (1, 2, ...), its `[width, height]` in pixels.
@@ -49,6 +53,7 @@ impl StepGrid {
             chunks: Vec::new(),
             live: Vec::new(),
             items: 0,
+            flags: 0,
             frame,
             levels,
             cap: ctx.grid_workgroups_cap(),
@@ -91,17 +96,19 @@ impl StepGrid {
     }
     /// The passes of the `generic` kernel of the registry that `call` runs (see
     /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
-    /// pyramid level's, at the call's [`At`]), or per map chunk one workgroup per block (per
+    /// pyramid level's, at the call's [`At`](wgslam_core::registry::At)), or per map chunk one workgroup per block (per
     /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
-    /// live surfels a grid-stride pass over them: [`StepGrid::live`]); a pass of one thread
+    /// live surfels a grid-stride pass over them: [`StepGrid::live`], per pair of chunks
+    /// and surfel array over the first chunk's); a pass of one thread
     /// per item ([`StepGrid::items`]); at
-    /// the call's [`At`], a reduction's pass of the reduction workgroups or a system's sum
-    /// of one workgroup per entry; a key kernel's passes in turn, each over every bind
+    /// the call's [`At`](wgslam_core::registry::At), a reduction's pass of the reduction workgroups or a system's sum
+    /// of one workgroup per entry, or a scan's pass of one workgroup per block of
+    /// [`StepGrid::flags`] (or one workgroup); a key kernel's passes in turn, each over every bind
     /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
     /// call whose
     /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
     /// group where it runs (internal contracts: every planned kernel has one or the other,
-    /// and [`At::choices`] every place a plan gives).
+    /// and [`At::choices`](wgslam_core::registry::At::choices) every place a plan gives).
     pub fn generic<'a>(
         &self,
         k: &'a Kernels,
@@ -117,16 +124,7 @@ impl StepGrid {
                 call.name()
             )
         };
-        let at = match shape {
-            Shape::PerLevel => call.at().choice(),
-            Shape::Reduce | Shape::PerSystem => call.at(),
-            Shape::OverFrame
-            | Shape::PerChunk
-            | Shape::PerBlock
-            | Shape::PerStaleBlock
-            | Shape::PerSurfel
-            | Shape::PerItem => At::FRAME,
-        };
+        let at = shape.bound_at(call.at());
         let groups = bg
             .generic
             .get(&(kernel, at))
@@ -134,6 +132,10 @@ impl StepGrid {
         let wg = match shape {
             Shape::Reduce => [self.reduction, 1],
             Shape::PerSystem => [ICP_SYSTEM_LEN as u32, 1],
+            Shape::PerScanBlock => [scan_blocks(self.flags) as u32, 1],
+            Shape::OneWorkgroup => [1, 1],
+            // One workgroup per count.
+            Shape::PerCount => [self.items as u32, 1],
             // One thread per item, at most the reduction workgroups.
             Shape::PerItem => [
                 passes[0]
@@ -146,6 +148,7 @@ impl StepGrid {
             | Shape::PerBlock
             | Shape::PerStaleBlock
             | Shape::PerSurfel
+            | Shape::PerChunkPair
             | Shape::PerLevel => self.level(at.level, &passes[0]),
         };
         let passes = match call.every_key_pass() {
@@ -161,6 +164,15 @@ impl StepGrid {
                     let wg = live.map(|&n| pass.workgroups_for(n).min(self.cap));
                     Self::per_chunk(pass, groups, wg)
                 }
+                // Chunk s's workgroups for each of its s + 1 pairs' SURFEL_ARRAYS groups.
+                Shape::PerChunkPair => {
+                    let live = self.live.iter().enumerate();
+                    let wg = live.flat_map(|(s, &n)| {
+                        let wg = pass.workgroups_for(n).min(self.cap);
+                        std::iter::repeat_n(wg, (s + 1) * SURFEL_ARRAYS)
+                    });
+                    Self::per_chunk(pass, groups, wg)
+                }
                 Shape::PerStaleBlock => self
                     .bounds
                     .iter()
@@ -171,7 +183,10 @@ impl StepGrid {
                 | Shape::PerLevel
                 | Shape::PerItem
                 | Shape::Reduce
-                | Shape::PerSystem => groups.iter().map(|g| (pass, g, wg)).collect(),
+                | Shape::PerSystem
+                | Shape::PerScanBlock
+                | Shape::OneWorkgroup
+                | Shape::PerCount => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
             .collect()
     }

@@ -4,14 +4,12 @@
 //! command buffer, and reads back at most the ICP system or the surfel counter.
 //! `preprocess` and `predict` read nothing back: their commands are deferred and go with
 //! the first ICP iteration's submission (see `GpuContext::defer`), so a tracked frame
-//! costs one submit-and-wait per ICP iteration, then `icp_candidates`, `fuse` and
+//! costs one submit-and-wait per ICP iteration, then `count_candidates`, `fuse` and
 //! `fern_encode` one each; every other step first submits what is deferred.
 
 use super::backend::GpuBackend;
-use super::bind_groups::SCATTER_ATTRIBUTES;
-use super::compaction::CompactionGroups;
 use super::context::GpuContext;
-use super::recording::{record_call, submit_profiled, Pass};
+use super::recording::{record_call, submit_profiled};
 use super::step_grid::{check_pyramid, StepGrid};
 use crate::layout::scan_params;
 use crate::layout::{
@@ -23,9 +21,7 @@ use wgslam_core::backend::{
     Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use wgslam_core::fused_view::FusedView;
-use wgslam_core::plan::{
-    self, Buffer, Call, CompactCall, FuseCall, IntensityCall, PredictCall, SystemCall,
-};
+use wgslam_core::plan::{self, Buffer, Call, FuseCall, IntensityCall, PredictCall, SystemCall};
 use wgslam_core::registry::System;
 
 impl Backend for GpuBackend {
@@ -150,9 +146,9 @@ impl Backend for GpuBackend {
         self.encode_ferns_on_gpu(params, ferns)
     }
 
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
         self.ctx.flush();
-        self.icp_candidates_on_gpu(params)
+        self.count_candidates_on_gpu(params)
     }
 
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
@@ -177,13 +173,14 @@ impl Backend for GpuBackend {
         let f = self.frame();
         let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], Vec::new());
         grid.chunks = self.chunk_blocks();
+        grid.flags = f.add_flags.len();
         if plan.contains(&FuseCall::BlockBounds) {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
         let added = ctx.scoped("fuse", || {
             u.fuse.write(ctx, &params);
-            u.fuse_scan.write(ctx, &scan_params(f.add_flags.len()));
+            u.scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
             for call in plan {
                 let passes = match call {
@@ -199,16 +196,11 @@ impl Backend for GpuBackend {
                         f.index_map.clear(&mut enc);
                         Vec::new()
                     }
-                    FuseCall::FuseScan => bg
-                        .fuse_scan
-                        .as_ref()
-                        .expect("made with the frame")
-                        .passes(k, f.add_flags.len()),
                     // The stale boxes' `block_bounds`, `fuse_select` (surfels pick
                     // pixels, then each picked surfel merges from its pixel:
-                    // `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`, `fuse_flags`,
-                    // `fuse_add` (its passes as the call says): bound and dispatched by
-                    // their registry rows.
+                    // `fuse_merge_chosen`), `fuse_prune`, `fuse_merge`, `fuse_flags`, the
+                    // scan over its flags, `fuse_add` (its passes as the call says): bound
+                    // and dispatched by their registry rows.
                     generic => grid.generic(k, bg, generic),
                 };
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
@@ -244,50 +236,22 @@ impl Backend for GpuBackend {
         self.ensure_compaction()?;
         let mut params = *params;
         params.surfel_count = n as u32;
-        let scatter_wg = self.chunk_workgroups(&self.kernels.compact_scatter);
         // The map alone: no frame's pixels.
         let mut grid = StepGrid::new(&self.ctx, [0, 0], Vec::new());
         grid.live = self.chunk_live();
+        grid.flags = n;
         self.bind_groups();
         let bg = self.bind_groups.as_ref().expect("just built");
         let (ctx, k, u) = (&self.ctx, &self.kernels, &self.uniforms);
-        let c = self.compaction.as_mut().expect("ensure_compaction made it");
-        // Made once per map set (live and spare swap every call, and so do these).
-        if c.groups.is_none() {
-            c.groups = Some(CompactionGroups::new(
-                ctx,
-                k,
-                u,
-                &self.counter,
-                &self.map,
-                c,
-            ));
-        }
-        let g = c.groups.as_ref().expect("just made");
         let profiler = &mut self.profiler;
         let kept = ctx.scoped("compact", || {
             u.compact.write(ctx, &params);
+            u.scan.write(ctx, &scan_params(n));
             let mut enc = ctx.encoder("compact");
+            // The keep flags, their scan and the copy of the survivors into the spare map:
+            // each bound and dispatched by its registry row.
             for call in plan::compact() {
-                let passes: Vec<Pass> = match call {
-                    // Bound and dispatched by its registry row.
-                    CompactCall::Flags => grid.generic(k, bg, call),
-                    CompactCall::Scan => g.scan.passes(k, n),
-                    CompactCall::Scatter => scatter_wg
-                        .iter()
-                        .enumerate()
-                        .flat_map(|(s, &wg)| {
-                            // Pair (s, d) has SCATTER_ATTRIBUTES bind groups in a row.
-                            (0..=s).flat_map(move |d| {
-                                (0..SCATTER_ATTRIBUTES).map(move |a| {
-                                    let pair = s * (s + 1) / 2 + d;
-                                    let group = &g.scatter[SCATTER_ATTRIBUTES * pair + a];
-                                    (&k.compact_scatter, group, [wg, 1])
-                                })
-                            })
-                        })
-                        .collect(),
-                };
+                let passes = grid.generic(k, bg, call);
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
@@ -296,12 +260,11 @@ impl Backend for GpuBackend {
         })?[0] as usize;
         if kept > n {
             return Err(Error::Gpu(format!(
-                "prefix_sum kept {kept} of {n} surfels (an internal contract)"
+                "the scan kept {kept} of {n} surfels (an internal contract)"
             )));
         }
         let c = self.compaction.as_mut().expect("ensure_compaction made it");
         std::mem::swap(&mut self.map, &mut c.spare);
-        std::mem::swap(&mut c.groups, &mut c.spare_groups);
         std::mem::swap(&mut self.bind_groups, &mut self.spare_bind_groups);
         self.count = kept;
         // Every surfel may have moved to another block, and to another index.

@@ -107,8 +107,8 @@ impl Backend for PerturbedCpu {
         }
         Ok(systems)
     }
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
-        self.run(|b| b.icp_candidates(params))
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+        self.run(|b| b.count_candidates(params))
     }
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         self.run(|b| b.encode_ferns(params, ferns))

@@ -336,8 +336,8 @@ fn icp_candidates_matches_twin(mut gpu: GpuBackend) {
     for (label, t) in [("true pose", t_true), ("perturbed pose", nudge * t_true)] {
         let ip = s.icp_params(0, &t);
         let (c, g) = (
-            s.backend.icp_candidates(&ip).unwrap(),
-            gpu.icp_candidates(&ip).unwrap(),
+            s.backend.count_candidates(&ip).unwrap(),
+            gpu.count_candidates(&ip).unwrap(),
         );
         eprintln!("{label}: candidates cpu {c} gpu {g}");
         let pixels = (ip.camera.width * ip.camera.height) as u64;

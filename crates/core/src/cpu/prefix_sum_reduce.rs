@@ -3,19 +3,7 @@
 
 use crate::layout::CompactParams;
 
-/// Threads of each block's workgroup (`SCAN_THREADS` in prefix_sum_reduce.wgsl and
-/// prefix_sum.wgsl).
-pub const SCAN_THREADS: u32 = 64;
-/// Flags per thread (`SCAN_ITEMS`).
-pub const SCAN_ITEMS: u32 = 32;
-/// Flags per block and workgroup (`SCAN_BLOCK`), `SCAN_THREADS * SCAN_ITEMS`.
-pub const SCAN_BLOCK: u32 = SCAN_THREADS * SCAN_ITEMS;
-
-/// Blocks (workgroups of `prefix_sum_reduce` and `prefix_sum`, entries of `block_sums`)
-/// of a scan over `n` flags.
-pub fn scan_blocks(n: usize) -> usize {
-    n.div_ceil(SCAN_BLOCK as usize)
-}
+pub use crate::layout::{scan_blocks, SCAN_BLOCK, SCAN_ITEMS, SCAN_THREADS};
 
 /// The inclusive Hillis-Steele scan of `own`, pass by pass as a workgroup does it: after
 /// the pass with stride s, entry t holds the sum of the 2s entries ending at t.

@@ -5,8 +5,9 @@
 use super::CpuBackend;
 use crate::cpu;
 use crate::fused_view::FusedView;
-use crate::layout::{append_slots, scan_params, FuseParams, MapChunk};
-use crate::plan::{self, Buffer, FuseCall};
+use crate::layout::{append_slots, scan_blocks, scan_params, FuseParams, MapChunk};
+use crate::plan::{self, Buffer, Call, FuseCall};
+use crate::registry::KernelId;
 
 impl CpuBackend {
     /// `Backend::fuse` on the CPU: the plan's kernels over the frame's maps and the map;
@@ -101,14 +102,10 @@ impl CpuBackend {
                     &mut self.add_flags,
                 );
             }
-            FuseCall::FuseScan => {
-                self.add_offsets.resize(n_slots, 0);
-                cpu::prefix_sum::scan(
-                    &scan_params(n_slots),
-                    &self.add_flags,
-                    &mut self.add_offsets,
-                    added,
-                );
+            FuseCall::FuseScanReduce | FuseCall::FuseScanBlocks | FuseCall::FuseScan => {
+                let offsets = &mut self.add_offsets;
+                let (flags, block_sums) = (&self.add_flags, &mut self.block_sums);
+                scan_twin(call.kernel(), n_slots, flags, block_sums, offsets, added);
             }
             FuseCall::FuseAdd { .. } => {
                 // Room for every pixel, as the GPU backend guarantees before its dispatch.
@@ -145,5 +142,34 @@ impl CpuBackend {
                 self.index_map.resize(n_pix, 0);
             }
         }
+    }
+}
+
+/// The twin of a scan call's `kernel` (one of the scan's three, run in plan order) over
+/// `n` `flags`, fusion's or compaction's: the sums of the blocks of flags into
+/// `block_sums`, then the blocks' offsets in place and the total into `counter`, then each
+/// flag's offset into `offsets`.
+pub(super) fn scan_twin(
+    kernel: Option<KernelId>,
+    n: usize,
+    flags: &[u32],
+    block_sums: &mut Vec<u32>,
+    offsets: &mut Vec<u32>,
+    counter: &mut u32,
+) {
+    let params = scan_params(n);
+    match kernel {
+        Some(KernelId::prefix_sum_reduce) => {
+            block_sums.resize(scan_blocks(n), 0);
+            cpu::prefix_sum_reduce::prefix_sum_reduce(&params, flags, block_sums);
+        }
+        Some(KernelId::prefix_sum_blocks) => {
+            cpu::prefix_sum_blocks::prefix_sum_blocks(&params, block_sums, counter);
+        }
+        Some(KernelId::prefix_sum) => {
+            offsets.resize(n, 0);
+            cpu::prefix_sum::prefix_sum(&params, flags, block_sums, offsets);
+        }
+        other => panic!("{other:?} is not one of the scan's kernels"),
     }
 }

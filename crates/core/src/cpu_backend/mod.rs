@@ -26,7 +26,7 @@ use crate::layout::{
     Keypoint, KeypointParams, MapChunk, ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS,
     ICP_SYSTEM_LEN,
 };
-use crate::plan::{self, CompactCall, PredictCall, PreprocessCall};
+use crate::plan::{self, Call, CompactCall, PredictCall, PreprocessCall};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -59,6 +59,8 @@ pub struct CpuBackend {
     flags: Vec<u32>,
     offsets: Vec<u32>,
     spare: SurfelMap,
+    /// The scan's per-block sums (fusion's scan's, then compaction's).
+    block_sums: Vec<u32>,
     /// Per culling block, its box: entries `2b` (min), `2b + 1` (max), ordered-encoded.
     block_boxes: Vec<[u32; 4]>,
     /// Blocks from the one holding this surfel index on have stale boxes.
@@ -302,12 +304,12 @@ impl Backend for CpuBackend {
         })
     }
 
-    fn icp_candidates(&mut self, params: &IcpParams) -> Result<u64> {
+    fn count_candidates(&mut self, params: &IcpParams) -> Result<u64> {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
             if self.prediction.is_empty() {
                 return Err(crate::Error::Argument(
-                    "icp_candidates() before predict()".into(),
+                    "count_candidates() before predict()".into(),
                 ));
             }
             let (pred_vertex, _) = &self.prediction[0];
@@ -394,9 +396,10 @@ impl Backend for CpuBackend {
                         &mut self.flags,
                     );
                 }
-                CompactCall::Scan => {
-                    self.offsets.resize(n, 0);
-                    cpu::prefix_sum::scan(&params, &self.flags, &mut self.offsets, &mut counter);
+                CompactCall::ScanReduce | CompactCall::ScanBlocks | CompactCall::Scan => {
+                    let (flags, block_sums) = (&self.flags, &mut self.block_sums);
+                    let offsets = &mut self.offsets;
+                    fuse::scan_twin(call.kernel(), n, flags, block_sums, offsets, &mut counter);
                 }
                 // The second map, as large as the first (as on the GPU), cut to the survivors.
                 CompactCall::Scatter => {

@@ -320,8 +320,23 @@ pub struct FuseParams {
     pub _pad2: u32,
 }
 
-/// `prefix_sum`'s parameters for a scan of `n` flags that are not surfels (fusion's
-/// new-surfel flags, one per entry of append order): only `surfel_count` (= n) is read.
+/// Threads of each block's workgroup of the scan (`SCAN_THREADS` in prefix_sum_reduce.wgsl
+/// and prefix_sum.wgsl).
+pub const SCAN_THREADS: u32 = 64;
+/// Flags per thread of the scan (`SCAN_ITEMS`).
+pub const SCAN_ITEMS: u32 = 32;
+/// Flags per block and workgroup of the scan (`SCAN_BLOCK`), `SCAN_THREADS * SCAN_ITEMS`.
+pub const SCAN_BLOCK: u32 = SCAN_THREADS * SCAN_ITEMS;
+
+/// Blocks (workgroups of `prefix_sum_reduce` and `prefix_sum`, entries of `block_sums`)
+/// of a scan over `n` flags.
+pub fn scan_blocks(n: usize) -> usize {
+    n.div_ceil(SCAN_BLOCK as usize)
+}
+
+/// The scan's parameters for a scan of `n` flags (fusion's new-surfel flags, one per entry
+/// of append order; compaction's keep flags, one per surfel): only `surfel_count` (= n) is
+/// read.
 pub fn scan_params(n: usize) -> CompactParams {
     CompactParams {
         surfel_count: n as u32,
