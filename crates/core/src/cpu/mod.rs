@@ -18,6 +18,7 @@
 
 pub mod arith;
 pub mod bilateral_filter;
+pub mod binding;
 pub mod block_bounds;
 pub mod compact_flags;
 pub mod compact_scatter;
