@@ -93,20 +93,17 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
 }
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/bilateral_filter.wgsl` for shapes, units and frames.
+    /// `vertex_map` filtered into `filtered_vertex`; shapes, units and frames as declared in
+    /// `shaders/bilateral_filter.wgsl`, whose bindings the parameters are, in order.
     pub fn bilateral_filter(
         params: &BilateralParams,
         vertex_map: &[[f32; 4]],
         filtered_vertex: &mut [[f32; 4]],
     ) {
-        let (w, h) = (params.camera.width as usize, params.camera.height as usize);
-        assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
-        assert_eq!(
-            filtered_vertex.len(),
-            w * h,
-            "filtered_vertex has the wrong size"
-        );
+        let w = params.camera.width as usize;
+        let pixels = w * params.camera.height as usize;
+        assert_eq!(vertex_map.len(), pixels, "vertex_map has the wrong size");
+        assert_eq!(filtered_vertex.len(), pixels, "filtered_vertex has the wrong size");
         // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
         let filtered_vertex = Storage::new(filtered_vertex);
         pixel_grid(params.camera.width, params.camera.height, |[u, v]| {

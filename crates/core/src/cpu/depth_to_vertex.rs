@@ -12,8 +12,9 @@ use super::{back_project, pixel_grid, valid_entry, INVALID};
 use crate::layout::PreprocessParams;
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/depth_to_vertex.wgsl` for shapes, units and frames.
+    /// Raw depth and colour to the frame's vertex and colour maps: the parameters are the
+    /// shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/depth_to_vertex.wgsl` for shapes, units and frames).
     ///
     /// `raw_depth` holds the r16uint texture's texels as `u16`, and `raw_rgba` the rgba8uint
     /// texture's texels packed as `r | g << 8 | b << 16 | a << 24`.

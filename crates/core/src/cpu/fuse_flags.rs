@@ -21,8 +21,9 @@ use super::{
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/fuse_flags.wgsl` for shapes, units and frames.
+    /// Which pixels become new surfels, one flag per append slot: the parameters are the
+    /// shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/fuse_flags.wgsl` for shapes, units and frames).
     pub fn fuse_flags(
         params: &FuseParams,
         normal_depth: &[[f32; 4]],

@@ -59,8 +59,9 @@ pub fn level_intensity(params: &IntensityParams, fine: &[[f32; 4]], u: i32, v: i
 }
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/intensity_pyramid.wgsl` for shapes and units.
+    /// A level's intensity patches from its finer level's (`fine_map`): the parameters are
+    /// the shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/intensity_pyramid.wgsl` for shapes and units).
     pub fn intensity_pyramid(
         params: &IntensityParams,
         fine_map: &[[f32; 4]],

@@ -76,8 +76,9 @@ pub fn corner_at(
 }
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/keypoint_detect.wgsl`. `counter[0]` must be zero on entry.
+    /// The colour map's corners with a valid depth, appended through `counter`: the
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/keypoint_detect.wgsl`). `counter[0]` must be zero on entry.
     pub fn keypoint_detect(
         params: &KeypointParams,
         color_map: &[[f32; 4]],

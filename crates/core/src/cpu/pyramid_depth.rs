@@ -58,8 +58,9 @@ pub fn coarse_at(params: &PyramidParams, fine_vertex: &[[f32; 4]], u: u32, v: u3
 }
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/pyramid_depth.wgsl` for shapes, units and frames.
+    /// A coarser level's vertex map from its finer level's (`fine_vertex`): the parameters
+    /// are the shader's bindings in `@binding` order, named as there (see the declarations
+    /// in `shaders/pyramid_depth.wgsl` for shapes, units and frames).
     pub fn pyramid_depth(
         params: &PyramidParams,
         fine_vertex: &[[f32; 4]],

@@ -15,8 +15,9 @@ use super::pixel_grid;
 use crate::layout::PyramidParams;
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/pyramid_model.wgsl` for shapes, units and frames.
+    /// A coarser level's predicted maps from its finer level's: the parameters are the
+    /// shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/pyramid_model.wgsl` for shapes, units and frames).
     ///
     /// Of `params`, the shader uses only `width` and `height` (the coarse size); here
     /// `fine_width` is also the row length of the finer slices.

@@ -76,8 +76,9 @@ pub fn normal_at(
 }
 
 twin! {
-    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
-    /// declarations in `shaders/vertex_to_normal.wgsl` for shapes, units and frames.
+    /// A level's normals, with the depth of its points in w (`normal_depth`): the
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/vertex_to_normal.wgsl` for shapes, units and frames).
     pub fn vertex_to_normal(
         params: &NormalParams,
         vertex_map: &[[f32; 4]],
