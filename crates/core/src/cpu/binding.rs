@@ -3,7 +3,7 @@
 //! kernel twin of its own, and no wgpu.
 //!
 //! A twin with the shape is a [`TwinFn`], `fn(&mut [Binding])`: the shader's bindings as
-//! bytes, in `@binding` order. It is written with [`twin!`] as a plain function over typed
+//! bytes, in `@binding` order. It is written with `twin!` as a plain function over typed
 //! slices, its parameters named as the WGSL variables and in their order:
 //!
 //! ```ignore
@@ -81,14 +81,14 @@ impl<'a> Binding<'a> {
 pub type TwinFn = fn(&mut [Binding<'_>]);
 
 /// A registry row's twin: the function, and the bindings it takes in order (the module's
-/// `BINDINGS`, made by [`twin!`] from its parameters).
+/// `BINDINGS`, made by `twin!` from its parameters).
 #[derive(Debug, Clone, Copy)]
 pub struct Twin {
     pub run: TwinFn,
     pub bindings: &'static [Slot],
 }
 
-/// A twin's parameter type, as [`twin!`] views a [`Binding`]: `&T` a read-only value,
+/// A twin's parameter type, as `twin!` views a [`Binding`]: `&T` a read-only value,
 /// `&[T]` a read-only array, `&mut [T]` a writable one.
 pub trait Param<'b>: Sized {
     /// How the kernel uses the binding.
@@ -136,7 +136,7 @@ fn read_bytes<'b>(binding: &'b mut Binding<'_>) -> &'b [u8] {
     }
 }
 
-/// The [`Slot`] of a twin's parameter `name` of type `P` (for [`twin!`]).
+/// The [`Slot`] of a twin's parameter `name` of type `P` (for `twin!`).
 pub const fn slot<'b, P: Param<'b>>(name: &'static str) -> Slot {
     Slot {
         name,

@@ -1,5 +1,7 @@
 //! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors, each step in
-//! the order of its plan (`crate::plan`, shared with the GPU backend).
+//! the order of its plan (`crate::plan`, shared with the GPU backend): a twin in the one
+//! call shape through its registry row (`engine.rs`, bound by the WGSL names from pools of
+//! the backend's buffers), the others by the step's own calls.
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
