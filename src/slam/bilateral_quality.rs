@@ -109,7 +109,7 @@ fn smooths_a_noisy_plane() {
 }
 
 fn smooths_a_noisy_plane_with(p: &BilateralParams, map: &[[f32; 4]], truth: &[f32]) {
-    let mut out = vec![[9.0; 4]; map.len()];
+    let mut out = vec![[9.0f32; 4]; map.len()];
     bilateral_filter(&mut [Binding::of(p), Binding::read(map), Binding::write(&mut out)]);
     let interior: Vec<usize> = (0..map.len())
         .filter(|&i| {
@@ -150,7 +150,7 @@ fn keeps_a_depth_step_sharp() {
     let (map, truth) = noisy_map(step);
     for s in settings() {
         let p = params(&s);
-        let mut out = vec![[0.0; 4]; map.len()];
+        let mut out = vec![[0.0f32; 4]; map.len()];
         bilateral_filter(&mut [
             Binding::of(&p),
             Binding::read(&map),

@@ -52,7 +52,11 @@ fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
         _pad1: 0,
     };
     let n = k.pixels();
-    let (mut vmap, mut cmap, mut nmap) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
+    let (mut vmap, mut cmap, mut nmap) = (
+        vec![[0.0f32; 4]; n],
+        vec![[0.0f32; 4]; n],
+        vec![[0.0f32; 4]; n],
+    );
     depth_to_vertex(&mut [
         Binding::of(&pp),
         Binding::read(&depth),

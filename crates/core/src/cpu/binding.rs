@@ -6,7 +6,7 @@
 //! bytes, in `@binding` order. It is written with `twin!` as a plain function over typed
 //! slices, its parameters named as the WGSL variables and in their order:
 //!
-//! ```ignore
+//! ```text
 //! twin! {
 //!     /// docs
 //!     pub fn pyramid_depth(

@@ -110,7 +110,7 @@ mod tests {
             })
             .collect();
         let p = IntensityParams::levels(w, h, &[[4, 3]]);
-        let mut l0 = vec![[0.0; 4]; (w * h) as usize];
+        let mut l0 = vec![[0.0f32; 4]; (w * h) as usize];
         intensity_pyramid(&mut [
             Binding::of(&p[0]),
             Binding::read(&color),
@@ -127,7 +127,7 @@ mod tests {
                 }
             }
         }
-        let mut l1 = vec![[0.0; 4]; 12];
+        let mut l1 = vec![[0.0f32; 4]; 12];
         intensity_pyramid(&mut [
             Binding::of(&p[1]),
             Binding::read(&l0),
@@ -156,7 +156,7 @@ mod tests {
         let mut fine = vec![[0.0f32; 4]; 36];
         fine[2 * 6 + 2] = [1.0, 0.0, 0.0, 0.0];
         let p = IntensityParams::levels(6, 6, &[[3, 3]])[1];
-        let mut out = vec![[0.0; 4]; 9];
+        let mut out = vec![[0.0f32; 4]; 9];
         intensity_pyramid(&mut [
             Binding::of(&p),
             Binding::read(&fine),

@@ -193,7 +193,7 @@ mod tests {
 
     /// The level-0 intensity patches of a `w` x `h` colour map (`intensity_pyramid`).
     fn patches(w: u32, h: u32, color: &[[f32; 4]]) -> Vec<[f32; 4]> {
-        let mut out = vec![[0.0; 4]; color.len()];
+        let mut out = vec![[0.0f32; 4]; color.len()];
         let p = crate::layout::IntensityParams::levels(w, h, &[])[0];
         crate::cpu::intensity_pyramid::intensity_pyramid(&mut [
             Binding::of(&p),
