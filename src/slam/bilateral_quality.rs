@@ -4,6 +4,7 @@
 //! settings are the pipeline's (`slam::params`), a floor above the twins' crate.
 
 use crate::cpu::bilateral_filter::bilateral_filter;
+use crate::cpu::binding::Binding;
 use crate::cpu::{back_project, is_valid, valid_entry, INVALID};
 use crate::geometry::camera::Intrinsics;
 use crate::layout::BilateralParams;
@@ -108,8 +109,8 @@ fn smooths_a_noisy_plane() {
 }
 
 fn smooths_a_noisy_plane_with(p: &BilateralParams, map: &[[f32; 4]], truth: &[f32]) {
-    let mut out = vec![[9.0; 4]; map.len()];
-    bilateral_filter(p, map, &mut out);
+    let mut out = vec![[9.0f32; 4]; map.len()];
+    bilateral_filter(&mut [Binding::of(p), Binding::read(map), Binding::write(&mut out)]);
     let interior: Vec<usize> = (0..map.len())
         .filter(|&i| {
             let (u, v) = (i as u32 % W, i as u32 / W);
@@ -149,8 +150,12 @@ fn keeps_a_depth_step_sharp() {
     let (map, truth) = noisy_map(step);
     for s in settings() {
         let p = params(&s);
-        let mut out = vec![[0.0; 4]; map.len()];
-        bilateral_filter(&p, &map, &mut out);
+        let mut out = vec![[0.0f32; 4]; map.len()];
+        bilateral_filter(&mut [
+            Binding::of(&p),
+            Binding::read(&map),
+            Binding::write(&mut out),
+        ]);
         keeps_the_step_columns(&p, &map, &truth, &out);
     }
 }

@@ -10,7 +10,9 @@
 use crate::common;
 
 use common::harness::plain;
+use wgslam::cpu::binding::{Access, Slot};
 use wgslam::gpu::{self, shaders};
+use wgslam_core::registry::KernelId;
 
 fn every_kernel_reflects_into_bindable_layouts() {
     let mut failures = Vec::new();
@@ -331,6 +333,141 @@ fn portable_variant_problems(variant: &str, kernel: &str) -> Vec<String> {
     problems
 }
 
+/// The bindings kernel `name`'s WGSL declares, as [`Slot`]s in `@binding` order: how it
+/// uses each (read only unless it may store), and the bytes of an element where WGSL
+/// fixes them (a struct's size, an array's stride, a storage texture's texel; a sampled
+/// float texture is one of the frame's rgba32float maps; a sampled integer texture's
+/// format, the raw depth's or colour's, is the host's: `None`).
+fn declared_slots(name: &str) -> Vec<(Slot, Option<usize>)> {
+    let module = common::wgsl::parse(name, &shaders::source(name));
+    let mut layouter = naga::proc::Layouter::default();
+    layouter
+        .update(module.to_ctx())
+        .expect("naga lays out the module");
+    let mut slots: Vec<(u32, Slot, Option<usize>)> = Vec::new();
+    for (_, g) in module.global_variables.iter() {
+        let Some(binding) = g.binding.as_ref() else {
+            continue;
+        };
+        let stores = |access: naga::StorageAccess| match access.contains(naga::StorageAccess::STORE)
+        {
+            true => Access::ReadWrite,
+            false => Access::Read,
+        };
+        let (access, bytes) = match (g.space, &module.types[g.ty].inner) {
+            (naga::AddressSpace::Storage { access }, naga::TypeInner::Array { stride, .. }) => {
+                (stores(access), Some(*stride as usize))
+            }
+            (naga::AddressSpace::Storage { access }, _) => {
+                (stores(access), Some(layouter[g.ty].size as usize))
+            }
+            (_, naga::TypeInner::Image { class, .. }) => match class {
+                naga::ImageClass::Storage { access, format } => {
+                    let texel = match format {
+                        naga::StorageFormat::Rgba32Float | naga::StorageFormat::Rgba32Uint => 16,
+                        other => panic!("kernel `{name}`: no texel size for {other:?}"),
+                    };
+                    (stores(*access), Some(texel))
+                }
+                naga::ImageClass::Sampled { kind, .. } => (
+                    Access::Read,
+                    (*kind == naga::ScalarKind::Float).then_some(16),
+                ),
+                other => panic!("kernel `{name}`: unexpected image class {other:?}"),
+            },
+            (space, _) => panic!("kernel `{name}`: unexpected binding space {space:?}"),
+        };
+        let slot = Slot {
+            name: g.name.clone().map_or("", |n| n.leak()),
+            access,
+            element_bytes: bytes.unwrap_or(0),
+        };
+        slots.push((binding.binding, slot, bytes));
+    }
+    slots.sort_by_key(|&(binding, _, _)| binding);
+    slots
+        .into_iter()
+        .map(|(_, slot, bytes)| (slot, bytes))
+        .collect()
+}
+
+/// Where `twin` (the bindings a twin takes) differs from kernel `name`'s declarations:
+/// one sentence per binding.
+fn slot_problems(name: &str, twin: &[Slot]) -> Vec<String> {
+    let declared = declared_slots(name);
+    let mut problems = Vec::new();
+    for i in 0..declared.len().max(twin.len()) {
+        match (declared.get(i), twin.get(i)) {
+            (Some((wgsl, bytes)), Some(rust)) => {
+                if wgsl.name != rust.name || wgsl.access != rust.access {
+                    problems.push(format!(
+                        "kernel `{name}` binding {i}: the shader declares `{}` ({:?}), the twin \
+                         takes `{}` ({:?})",
+                        wgsl.name, wgsl.access, rust.name, rust.access
+                    ));
+                }
+                if bytes.is_some_and(|b| b != rust.element_bytes) {
+                    problems.push(format!(
+                        "kernel `{name}` binding {i} (`{}`): elements of {} bytes in WGSL, {} in \
+                         the twin",
+                        wgsl.name, wgsl.element_bytes, rust.element_bytes
+                    ));
+                }
+            }
+            (Some((wgsl, _)), None) => problems.push(format!(
+                "kernel `{name}`: the twin takes no binding {i} (`{}`)",
+                wgsl.name
+            )),
+            (None, Some(rust)) => problems.push(format!(
+                "kernel `{name}`: the twin takes `{}` at {i}, which the shader does not declare",
+                rust.name
+            )),
+            (None, None) => unreachable!(),
+        }
+    }
+    problems
+}
+
+/// Every twin in the one call shape (`KernelId::twin`, the registry's `bound` rows) takes
+/// the bindings its shader declares as naga reflects them: the same names in `@binding`
+/// order, read only where the shader only reads (and writable where it may write), and
+/// elements of the shader's size. The CPU engine binds a twin by these names, so a twin that
+/// would bind another buffer than its shader fails here. Every mismatch reported at once.
+fn every_bound_twin_takes_its_shaders_declarations() {
+    let mut failures = Vec::new();
+    let mut bound = 0;
+    for kernel in KernelId::ALL {
+        if let Some(twin) = kernel.twin() {
+            failures.extend(slot_problems(kernel.name(), twin.bindings));
+            bound += 1;
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    assert!(bound > 0, "no twin in the one call shape");
+    eprintln!(
+        "{bound} of {} twins in the one call shape match their shaders",
+        KernelId::ALL.len()
+    );
+}
+
+/// The check above sees a twin that binds another buffer than its shader: two bindings
+/// swapped, one read-only where the shader writes it, one of another element size.
+fn a_twin_binding_another_buffer_is_refused() {
+    let twin = KernelId::vertex_to_normal
+        .twin()
+        .expect("vertex_to_normal is bound");
+    let mut swapped = twin.bindings.to_vec();
+    swapped.swap(1, 3);
+    assert_eq!(slot_problems("vertex_to_normal", &swapped).len(), 2);
+    let mut read_only = twin.bindings.to_vec();
+    read_only[2].access = Access::Read;
+    assert_eq!(slot_problems("vertex_to_normal", &read_only).len(), 1);
+    let mut narrow = twin.bindings.to_vec();
+    narrow[1].element_bytes = 12;
+    assert_eq!(slot_problems("vertex_to_normal", &narrow).len(), 1);
+    assert!(slot_problems("vertex_to_normal", twin.bindings).is_empty());
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     vec![
         plain(
@@ -344,6 +481,14 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "every_twin_takes_its_shaders_bindings_in_order",
             every_twin_takes_its_shaders_bindings_in_order,
+        ),
+        plain(
+            "every_bound_twin_takes_its_shaders_declarations",
+            every_bound_twin_takes_its_shaders_declarations,
+        ),
+        plain(
+            "a_twin_binding_another_buffer_is_refused",
+            a_twin_binding_another_buffer_is_refused,
         ),
     ]
 }

@@ -28,6 +28,8 @@
 //! [`Shape`] (`wgslam_gpu`'s `bind_groups.rs` and `steps.rs`), and the order kernels run in
 //! (`crate::plan`).
 
+use crate::cpu::binding::Twin;
+
 /// The text of `shaders/<name>.wgsl`.
 macro_rules! shader_text {
     ($name:ident) => {
@@ -231,6 +233,19 @@ impl At {
     }
 }
 
+/// The [`Twin`] of a row: `None`, or for a `bound` row its twin in the one call shape.
+macro_rules! twin_of {
+    ($name:ident) => {
+        None
+    };
+    ($name:ident bound) => {
+        Some(Twin {
+            run: crate::cpu::$name::$name,
+            bindings: crate::cpu::$name::BINDINGS,
+        })
+    };
+}
+
 /// One row per kernel, in groups by how the kernel is built and run. The `key` groups hold
 /// the key kernels, which keep the nearest surfel per pixel in a map of 64-bit keys (on the
 /// GPU a `KeyKernel`: the 64-bit kernel, or on a device without 64-bit atomics its portable
@@ -239,7 +254,9 @@ impl At {
 ///
 /// - `generic`, `generic_keys`: `name: Shape(uniform)`, a kernel whose bind groups and
 ///   passes the row decides ([`Shape`]; `uniform` is the GPU engine's `Uniforms` field bound
-///   as its `params`): nothing else in `crates/gpu/src/` names it;
+///   as its `params`): nothing else in `crates/gpu/src/` names it; a row ending in `bound`
+///   has a twin in the one call shape (`crate::cpu::binding`), which the CPU backend runs
+///   through the row ([`KernelId::twin`]) as the GPU engine does;
 /// - `generic_levels`: the same for a kernel over one pyramid level's maps
 ///   ([`Shape::PerLevel`]), its `uniform` a field of the GPU engine's `LevelUniforms`, the
 ///   level's own parameter buffer;
@@ -250,9 +267,11 @@ impl At {
 ///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry_data {
     (
-        generic: { $($generic:ident: $shape:ident($uniform:ident),)* }
+        generic: { $($generic:ident: $shape:ident($uniform:ident) $($bound:ident)?,)* }
         generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
-        generic_levels: { $($level:ident: $level_shape:ident($level_uniform:ident),)* }
+        generic_levels: {
+            $($level:ident: $level_shape:ident($level_uniform:ident) $($level_bound:ident)?,)*
+        }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
         elsewhere: { $($other:ident,)* }
@@ -299,6 +318,39 @@ macro_rules! registry_data {
                     $(KernelId::$other => stringify!($other),)*
                     $(KernelId::$other_key => stringify!($other_key),)*
                     $(KernelId::$scan => stringify!($scan),)*
+                }
+            }
+
+            /// The [`Shape`] of a `generic` row's kernel, `None` for another row's.
+            pub const fn shape(self) -> Option<Shape> {
+                match self {
+                    $(KernelId::$generic => Some(Shape::$shape),)*
+                    $(KernelId::$generic_key => Some(Shape::$key_shape),)*
+                    $(KernelId::$level => Some(Shape::$level_shape),)*
+                    _ => None,
+                }
+            }
+
+            /// The name of a `generic` row's uniform, bound as the kernel's `params` (on
+            /// the GPU a field of `Uniforms` or `LevelUniforms`; in the CPU backend's
+            /// [`Pool`](crate::cpu::binding::Pool) a uniform of that name).
+            pub const fn uniform(self) -> Option<&'static str> {
+                match self {
+                    $(KernelId::$generic => Some(stringify!($uniform)),)*
+                    $(KernelId::$generic_key => Some(stringify!($key_uniform)),)*
+                    $(KernelId::$level => Some(stringify!($level_uniform)),)*
+                    _ => None,
+                }
+            }
+
+            /// The twin of a `bound` row: `crate::cpu::<name>::<name>` in the one call
+            /// shape, with the bindings it takes (`crate::cpu::binding`). `None` for a
+            /// row whose twin still takes typed arguments.
+            pub fn twin(self) -> Option<Twin> {
+                match self {
+                    $(KernelId::$generic => twin_of!($generic $($bound)?),)*
+                    $(KernelId::$level => twin_of!($level $($level_bound)?),)*
+                    _ => None,
                 }
             }
         }
@@ -381,13 +433,13 @@ macro_rules! registry_data {
 
 registry_data! {
     generic: {
-        depth_to_vertex: OverFrame(preprocess),
-        bilateral_filter: OverFrame(bilateral),
+        depth_to_vertex: OverFrame(preprocess) bound,
+        bilateral_filter: OverFrame(bilateral) bound,
         predict_model: PerChunk(project),
         fuse_merge_chosen: PerChunk(fuse),
         fuse_prune: PerBlock(fuse),
         fuse_merge: PerBlock(fuse),
-        fuse_flags: OverFrame(fuse),
+        fuse_flags: OverFrame(fuse) bound,
         // The culling blocks' boxes (`block_boxes`) where they are stale: the first
         // call of every culling step.
         block_bounds: PerStaleBlock(bounds),
@@ -415,7 +467,7 @@ registry_data! {
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
         fern_encode: PerItem(ferns),
-        keypoint_detect: OverFrame(keypoints),
+        keypoint_detect: OverFrame(keypoints) bound,
         keypoint_describe: PerItem(keypoints),
         // Tracking health's: per workgroup, the pixels with an ICP candidate at level 0
         // (`counts`, summed on the host).
@@ -433,12 +485,12 @@ registry_data! {
     generic_levels: {
         // The frame's normals per level (at level 0 from the vertex maps the plan
         // chooses), and the frame's and the model's coarser levels.
-        vertex_to_normal: PerLevel(normal),
-        pyramid_depth: PerLevel(pyramid),
-        pyramid_model: PerLevel(pyramid),
+        vertex_to_normal: PerLevel(normal) bound,
+        pyramid_depth: PerLevel(pyramid) bound,
+        pyramid_model: PerLevel(pyramid) bound,
         // The frame's intensity pyramid (RGB-D tracking), each level from the finer one's
         // (level 0 from the colour map), made as the photometric term first reads it.
-        intensity_pyramid: PerLevel(intensity),
+        intensity_pyramid: PerLevel(intensity) bound,
     }
     kernels: {}
     key_kernels: {}

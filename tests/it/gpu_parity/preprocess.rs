@@ -10,6 +10,7 @@ use crate::common::harness::{gpu_backend_test, Test};
 use crate::common::{level_0, unfiltered_level_0};
 use bytemuck::Zeroable;
 use std::collections::BTreeSet;
+use wgslam::cpu::binding::Binding;
 use wgslam::cpu::fern_encode::fern_encode;
 use wgslam::cpu::keypoint_describe::keypoint_describe;
 use wgslam::cpu::keypoint_detect::keypoint_detect;
@@ -247,7 +248,13 @@ fn keypoint_kernels_match_twins(mut gpu: GpuBackend) {
     let (g, g_found) = gpu.detect_keypoints(&kp).unwrap();
     let mut c = vec![Keypoint::zeroed(); kp.capacity as usize];
     let mut counter = [0u32];
-    keypoint_detect(&kp, &maps.color, &maps.normal_depth, &mut c, &mut counter);
+    keypoint_detect(&mut [
+        Binding::of(&kp),
+        Binding::read(&maps.color),
+        Binding::read(&maps.normal_depth),
+        Binding::write(&mut c),
+        Binding::write(&mut counter),
+    ]);
     c.truncate(counter[0] as usize);
     let key = |k: &Keypoint| (k.v, k.u);
     let gs: BTreeSet<_> = g.iter().map(key).collect();

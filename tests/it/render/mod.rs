@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 
 use common::frames::{load_frame, load_gt, Frame};
 use glam::{DMat4, DVec3};
+use wgslam::cpu::binding::Binding;
 use wgslam::cpu::depth_to_vertex::depth_to_vertex;
 use wgslam::cpu::vertex_to_normal::vertex_to_normal;
 use wgslam::geometry::camera::Intrinsics;
@@ -51,15 +52,30 @@ fn frame_maps(root: &Path, i: usize, stride: u32) -> Maps {
         _pad1: 0,
     };
     let n = k.pixels();
-    let (mut vmap, mut cmap, mut nmap) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
-    depth_to_vertex(&pp, &depth, &rgba, &mut vmap, &mut cmap);
+    let (mut vmap, mut cmap, mut nmap) = (
+        vec![[0.0f32; 4]; n],
+        vec![[0.0f32; 4]; n],
+        vec![[0.0f32; 4]; n],
+    );
+    depth_to_vertex(&mut [
+        Binding::of(&pp),
+        Binding::read(&depth),
+        Binding::read(&rgba),
+        Binding::write(&mut vmap),
+        Binding::write(&mut cmap),
+    ]);
     let np = NormalParams {
         width: k.width,
         height: k.height,
         max_depth_jump_m: 0.1,
         _pad: 0,
     };
-    vertex_to_normal(&np, &vmap, &mut nmap, &vmap);
+    vertex_to_normal(&mut [
+        Binding::of(&np),
+        Binding::read(&vmap),
+        Binding::write(&mut nmap),
+        Binding::read(&vmap),
+    ]);
     (k, vmap, nmap, cmap)
 }
 

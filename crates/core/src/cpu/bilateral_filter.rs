@@ -50,6 +50,7 @@
 //! `sigma_depth = 0.01 z²`. The filter alone does not make noisy tracking good (fusion keeps
 //! the noise in the map).
 
+use super::binding::twin;
 use super::invocations::Storage;
 use super::{back_project, is_valid, pixel_grid, valid_entry, INVALID};
 use crate::layout::BilateralParams;
@@ -91,26 +92,25 @@ pub fn filtered_at(params: &BilateralParams, vertex_map: &[[f32; 4]], u: u32, v:
     valid_entry(back_project(cam, [u, v], sum_wz / sum_w))
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/bilateral_filter.wgsl` for shapes, units and frames.
-pub fn bilateral_filter(
-    params: &BilateralParams,
-    vertex_map: &[[f32; 4]],
-    filtered_vertex: &mut [[f32; 4]],
-) {
-    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
-    assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
-    assert_eq!(
-        filtered_vertex.len(),
-        w * h,
-        "filtered_vertex has the wrong size"
-    );
-    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
-    let filtered_vertex = Storage::new(filtered_vertex);
-    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        filtered_vertex.store(
-            v as usize * w + u as usize,
-            filtered_at(params, vertex_map, u, v),
-        );
-    });
+twin! {
+    /// `vertex_map` filtered into `filtered_vertex`; shapes, units and frames as declared in
+    /// `shaders/bilateral_filter.wgsl`, whose bindings the parameters are, in order.
+    pub fn bilateral_filter(
+        params: &BilateralParams,
+        vertex_map: &[[f32; 4]],
+        filtered_vertex: &mut [[f32; 4]],
+    ) {
+        let w = params.camera.width as usize;
+        let pixels = w * params.camera.height as usize;
+        assert_eq!(vertex_map.len(), pixels, "vertex_map has the wrong size");
+        assert_eq!(filtered_vertex.len(), pixels, "filtered_vertex has the wrong size");
+        // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+        let filtered_vertex = Storage::new(filtered_vertex);
+        pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+            filtered_vertex.store(
+                v as usize * w + u as usize,
+                filtered_at(params, vertex_map, u, v),
+            );
+        });
+    }
 }

@@ -6,34 +6,38 @@
 //! raw pixel with the raw intrinsics. Invalid depth (0 or outside the depth range) gives the
 //! invalid entry `[0; 4]`.
 
+use super::binding::twin;
 use super::invocations::Storage;
 use super::{back_project, pixel_grid, valid_entry, INVALID};
 use crate::layout::PreprocessParams;
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/depth_to_vertex.wgsl` for shapes, units and frames.
-///
-/// `raw_depth` holds the r16uint texture's texels as `u16`, and `raw_rgba` the rgba8uint
-/// texture's texels packed as `r | g << 8 | b << 16 | a << 24`.
-pub fn depth_to_vertex(
-    params: &PreprocessParams,
-    raw_depth: &[u16],
-    raw_rgba: &[u32],
-    vertex_map: &mut [[f32; 4]],
-    color_map: &mut [[f32; 4]],
-) {
-    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
-    assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
-    assert_eq!(color_map.len(), w * h, "color_map has the wrong size");
-    assert_eq!(
-        raw_depth.len(),
-        (params.raw_width * params.raw_height) as usize
-    );
-    let (vertex_map, color_map) = (Storage::new(vertex_map), Storage::new(color_map));
-    // The shader's entry, pixel_grid.wgsl: every pixel once.
-    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        convert_at(params, raw_depth, raw_rgba, &vertex_map, &color_map, u, v);
-    });
+twin! {
+    /// Raw depth and colour to the frame's vertex and colour maps: the parameters are the
+    /// shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/depth_to_vertex.wgsl` for shapes, units and frames).
+    ///
+    /// `raw_depth` holds the r16uint texture's texels as `u16`, and `raw_rgba` the rgba8uint
+    /// texture's texels packed as `r | g << 8 | b << 16 | a << 24`.
+    pub fn depth_to_vertex(
+        params: &PreprocessParams,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+        vertex_map: &mut [[f32; 4]],
+        color_map: &mut [[f32; 4]],
+    ) {
+        let (w, h) = (params.camera.width as usize, params.camera.height as usize);
+        assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
+        assert_eq!(color_map.len(), w * h, "color_map has the wrong size");
+        assert_eq!(
+            raw_depth.len(),
+            (params.raw_width * params.raw_height) as usize
+        );
+        let (vertex_map, color_map) = (Storage::new(vertex_map), Storage::new(color_map));
+        // The shader's entry, pixel_grid.wgsl: every pixel once.
+        pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+            convert_at(params, raw_depth, raw_rgba, &vertex_map, &color_map, u, v);
+        });
+    }
 }
 
 /// Converts output pixel `(u, v)`. Mirrors `convert_at` in depth_to_vertex.wgsl.

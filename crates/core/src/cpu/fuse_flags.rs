@@ -12,6 +12,7 @@
 //! grow the map. It replaces a 3x3 window per surfel in `fuse_select`, at the cost of
 //! the image instead of the map.
 
+use super::binding::twin;
 use super::invocations::Storage;
 use super::{
     append_index, candidate_off_ray, fuse_depth_gate, is_valid, pixel_grid, transform_dir,
@@ -19,28 +20,31 @@ use super::{
 };
 use crate::layout::{FuseParams, ASSOCIATION_BEST_CANDIDATE};
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fuse_flags.wgsl` for shapes, units and frames.
-pub fn fuse_flags(
-    params: &FuseParams,
-    normal_depth: &[[f32; 4]],
-    assoc: &[u64],
-    merged: &[[f32; 4]],
-    flags: &mut [u32],
-) {
-    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
-    let flags = Storage::new(flags);
-    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        let texel = [u, v];
-        let pix = (v * params.camera.width + u) as usize;
-        let nd = normal_depth[pix];
-        // Valid normal (w = depth > 0) implies a valid vertex.
-        let mut new_surfel = assoc[pix] == 0 && is_valid(nd);
-        if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
-            new_surfel = !neighbour_covers(params, merged, texel, nd);
-        }
-        flags.store(append_index(texel), new_surfel as u32);
-    });
+twin! {
+    /// Which pixels become new surfels, one flag per append slot: the parameters are the
+    /// shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/fuse_flags.wgsl` for shapes, units and frames).
+    pub fn fuse_flags(
+        params: &FuseParams,
+        normal_depth: &[[f32; 4]],
+        assoc: &[u64],
+        merged: &[[f32; 4]],
+        flags: &mut [u32],
+    ) {
+        // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+        let flags = Storage::new(flags);
+        pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+            let texel = [u, v];
+            let pix = (v * params.camera.width + u) as usize;
+            let nd = normal_depth[pix];
+            // Valid normal (w = depth > 0) implies a valid vertex.
+            let mut new_surfel = assoc[pix] == 0 && is_valid(nd);
+            if new_surfel && params.association == ASSOCIATION_BEST_CANDIDATE {
+                new_surfel = !neighbour_covers(params, merged, texel, nd);
+            }
+            flags.store(append_index(texel), new_surfel as u32);
+        });
+    }
 }
 
 /// Whether a surfel that one of the 8 neighbours of `texel` (measurement `nd`, valid)

@@ -16,6 +16,7 @@
 //! the pixel it samples, as the depth pyramid's `pyramid_depth` (so the halved intrinsics
 //! hold for it too), and smoothed so that the coarse image does not alias.
 
+use super::binding::twin;
 use super::invocations::Storage;
 use super::{intensity_of, pixel_grid};
 use crate::layout::IntensityParams;
@@ -57,39 +58,43 @@ pub fn level_intensity(params: &IntensityParams, fine: &[[f32; 4]], u: i32, v: i
     sum
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/intensity_pyramid.wgsl` for shapes and units.
-pub fn intensity_pyramid(
-    params: &IntensityParams,
-    fine_map: &[[f32; 4]],
-    intensity_patch: &mut [[f32; 4]],
-) {
-    let w = params.width as usize;
-    let sizes = [
-        (params.fine_width, params.fine_height),
-        (params.width, params.height),
-    ];
-    for ((sw, sh), (name, len)) in sizes.into_iter().zip([
-        ("fine_map", fine_map.len()),
-        ("intensity_patch", intensity_patch.len()),
-    ]) {
-        assert_eq!(len, (sw * sh) as usize, "{name} is not {sw}x{sh}");
+twin! {
+    /// A level's intensity patches from its finer level's (`fine_map`): the parameters are
+    /// the shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/intensity_pyramid.wgsl` for shapes and units).
+    pub fn intensity_pyramid(
+        params: &IntensityParams,
+        fine_map: &[[f32; 4]],
+        intensity_patch: &mut [[f32; 4]],
+    ) {
+        let w = params.width as usize;
+        let sizes = [
+            (params.fine_width, params.fine_height),
+            (params.width, params.height),
+        ];
+        for ((sw, sh), (name, len)) in sizes.into_iter().zip([
+            ("fine_map", fine_map.len()),
+            ("intensity_patch", intensity_patch.len()),
+        ]) {
+            assert_eq!(len, (sw * sh) as usize, "{name} is not {sw}x{sh}");
+        }
+        // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+        let intensity_patch = Storage::new(intensity_patch);
+        pixel_grid(params.width, params.height, |[u, v]| {
+            let (u, v) = (u as i32, v as i32);
+            let at = |du, dv| level_intensity(params, fine_map, u + du, v + dv);
+            intensity_patch.store(
+                v as usize * w + u as usize,
+                [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
+            );
+        });
     }
-    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
-    let intensity_patch = Storage::new(intensity_patch);
-    pixel_grid(params.width, params.height, |[u, v]| {
-        let (u, v) = (u as i32, v as i32);
-        let at = |du, dv| level_intensity(params, fine_map, u + du, v + dv);
-        intensity_patch.store(
-            v as usize * w + u as usize,
-            [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
-        );
-    });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::binding::Binding;
 
     /// Level 0: each patch holds the luma of its four texels, the last column and row
     /// repeating themselves; level 1 of a linear ramp is the ramp sampled at the even
@@ -105,8 +110,12 @@ mod tests {
             })
             .collect();
         let p = IntensityParams::levels(w, h, &[[4, 3]]);
-        let mut l0 = vec![[0.0; 4]; (w * h) as usize];
-        intensity_pyramid(&p[0], &color, &mut l0);
+        let mut l0 = vec![[0.0f32; 4]; (w * h) as usize];
+        intensity_pyramid(&mut [
+            Binding::of(&p[0]),
+            Binding::read(&color),
+            Binding::write(&mut l0),
+        ]);
         let close = |a: f32, b: f32| (a - b).abs() < 1e-6;
         for v in 0..h {
             for u in 0..w {
@@ -118,8 +127,12 @@ mod tests {
                 }
             }
         }
-        let mut l1 = vec![[0.0; 4]; 12];
-        intensity_pyramid(&p[1], &l0, &mut l1);
+        let mut l1 = vec![[0.0f32; 4]; 12];
+        intensity_pyramid(&mut [
+            Binding::of(&p[1]),
+            Binding::read(&l0),
+            Binding::write(&mut l1),
+        ]);
         // Coarse (1, 1) and (2, 1) sample finer (2, 2) and (4, 2), inside the border.
         for u in 1..3u32 {
             let got = l1[(4 + u) as usize];
@@ -143,8 +156,12 @@ mod tests {
         let mut fine = vec![[0.0f32; 4]; 36];
         fine[2 * 6 + 2] = [1.0, 0.0, 0.0, 0.0];
         let p = IntensityParams::levels(6, 6, &[[3, 3]])[1];
-        let mut out = vec![[0.0; 4]; 9];
-        intensity_pyramid(&p, &fine, &mut out);
+        let mut out = vec![[0.0f32; 4]; 9];
+        intensity_pyramid(&mut [
+            Binding::of(&p),
+            Binding::read(&fine),
+            Binding::write(&mut out),
+        ]);
         assert_eq!(out[4][0], 0.25);
         assert_eq!(out[0][0], 0.0);
         // Coarse (1, 1)'s patch: itself, then (2, 1), (1, 2), (2, 2), which sample finer

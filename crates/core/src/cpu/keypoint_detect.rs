@@ -14,6 +14,7 @@
 //! appends them in raster order. The host sorts them (`slam::features`), so the order
 //! does not reach the result.
 
+use super::binding::twin;
 use crate::layout::{Keypoint, KeypointParams};
 
 /// Pixels this close to the border are skipped (the neighbours' windows need 3 more).
@@ -74,46 +75,50 @@ pub fn corner_at(
     r
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/keypoint_detect.wgsl`. `counter[0]` must be zero on entry.
-pub fn keypoint_detect(
-    params: &KeypointParams,
-    color_map: &[[f32; 4]],
-    normal_depth: &[[f32; 4]],
-    keypoints: &mut [Keypoint],
-    counter: &mut [u32],
-) {
-    let p = *params;
-    assert_eq!(color_map.len(), (p.width * p.height) as usize);
-    assert_eq!(normal_depth.len(), color_map.len());
-    assert!(keypoints.len() >= p.capacity as usize);
-    // The shader's grid-stride loop as one thread with stride 1: raster order.
-    let mut v = BORDER;
-    while v + BORDER < p.height {
-        let mut u = BORDER;
-        while u + BORDER < p.width {
-            let r = corner_at(&p, color_map, normal_depth, u, v);
-            if r >= 0.0 {
-                let slot = counter[0];
-                counter[0] += 1;
-                if slot < p.capacity {
-                    keypoints[slot as usize] = Keypoint {
-                        u,
-                        v,
-                        score: r,
-                        _pad: 0,
-                    };
+twin! {
+    /// The colour map's corners with a valid depth, appended through `counter`: the
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/keypoint_detect.wgsl`). `counter[0]` must be zero on entry.
+    pub fn keypoint_detect(
+        params: &KeypointParams,
+        color_map: &[[f32; 4]],
+        normal_depth: &[[f32; 4]],
+        keypoints: &mut [Keypoint],
+        counter: &mut [u32],
+    ) {
+        let p = *params;
+        assert_eq!(color_map.len(), (p.width * p.height) as usize);
+        assert_eq!(normal_depth.len(), color_map.len());
+        assert!(keypoints.len() >= p.capacity as usize);
+        // The shader's grid-stride loop as one thread with stride 1: raster order.
+        let mut v = BORDER;
+        while v + BORDER < p.height {
+            let mut u = BORDER;
+            while u + BORDER < p.width {
+                let r = corner_at(&p, color_map, normal_depth, u, v);
+                if r >= 0.0 {
+                    let slot = counter[0];
+                    counter[0] += 1;
+                    if slot < p.capacity {
+                        keypoints[slot as usize] = Keypoint {
+                            u,
+                            v,
+                            score: r,
+                            _pad: 0,
+                        };
+                    }
                 }
+                u += 1;
             }
-            u += 1;
+            v += 1;
         }
-        v += 1;
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::binding::Binding;
     use bytemuck::Zeroable;
 
     /// A bright square on a dark field with valid depth: its four corners are found, the
@@ -138,7 +143,13 @@ mod tests {
         let run = |nd: &[[f32; 4]]| {
             let mut kps = vec![Keypoint::zeroed(); 16];
             let mut counter = [0u32];
-            keypoint_detect(&p, &color_map, nd, &mut kps, &mut counter);
+            keypoint_detect(&mut [
+                Binding::of(&p),
+                Binding::read(&color_map),
+                Binding::read(nd),
+                Binding::write(&mut kps),
+                Binding::write(&mut counter),
+            ]);
             kps.truncate(counter[0] as usize);
             kps.iter().map(|k| (k.u, k.v)).collect::<Vec<_>>()
         };

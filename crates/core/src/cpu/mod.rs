@@ -15,9 +15,14 @@
 //! three storage arrays; a twin of a kernel that walks the map takes one chunk's `MapChunk`
 //! and arrays, as the shader does per dispatch (the CPU backend passes its whole map as one
 //! chunk).
+//!
+//! The twins of the registry's `bound` rows (8 of the 33 kernels so far) are written in
+//! `binding::twin!`: the same typed parameters, called in the one call shape
+//! `fn(&mut [Binding])` that the CPU backend's engine runs by the row ([`binding`]).
 
 pub mod arith;
 pub mod bilateral_filter;
+pub mod binding;
 pub mod block_bounds;
 pub mod compact_flags;
 pub mod compact_scatter;

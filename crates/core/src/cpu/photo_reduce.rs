@@ -140,6 +140,7 @@ pub fn photo_reduce(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::binding::Binding;
     use crate::geometry::camera::Intrinsics;
     use crate::geometry::se3;
     use crate::layout::{gpu_mat4, Camera};
@@ -192,9 +193,13 @@ mod tests {
 
     /// The level-0 intensity patches of a `w` x `h` colour map (`intensity_pyramid`).
     fn patches(w: u32, h: u32, color: &[[f32; 4]]) -> Vec<[f32; 4]> {
-        let mut out = vec![[0.0; 4]; color.len()];
+        let mut out = vec![[0.0f32; 4]; color.len()];
         let p = crate::layout::IntensityParams::levels(w, h, &[])[0];
-        crate::cpu::intensity_pyramid::intensity_pyramid(&p, color, &mut out);
+        crate::cpu::intensity_pyramid::intensity_pyramid(&mut [
+            Binding::of(&p),
+            Binding::read(color),
+            Binding::write(&mut out),
+        ]);
         out
     }
 

@@ -19,6 +19,7 @@
 //! The window is symmetric about the sampled pixel, so on a plane facing the camera the
 //! mean stays at the sampled pixel's depth and the sampling convention holds.
 
+use super::binding::twin;
 use super::invocations::Storage;
 use super::{back_project, is_valid, pixel_grid, valid_entry, INVALID};
 use crate::layout::PyramidParams;
@@ -56,40 +57,44 @@ pub fn coarse_at(params: &PyramidParams, fine_vertex: &[[f32; 4]], u: u32, v: u3
     valid_entry(back_project(cam, [u, v], sum_z / count))
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/pyramid_depth.wgsl` for shapes, units and frames.
-pub fn pyramid_depth(
-    params: &PyramidParams,
-    fine_vertex: &[[f32; 4]],
-    vertex_map: &mut [[f32; 4]],
-) {
-    let (w, h) = (params.camera.width as usize, params.camera.height as usize);
-    assert_eq!(
-        fine_vertex.len(),
-        (params.fine_width * params.fine_height) as usize,
-        "fine_vertex has the wrong size"
-    );
-    assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
-    assert!(
-        2 * params.camera.width - 1 <= params.fine_width
-            && 2 * params.camera.height - 1 <= params.fine_height,
-        "a {w}x{h} level does not sample a {}x{} one",
-        params.fine_width,
-        params.fine_height
-    );
-    // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
-    let vertex_map = Storage::new(vertex_map);
-    pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
-        vertex_map.store(
-            v as usize * w + u as usize,
-            coarse_at(params, fine_vertex, u, v),
+twin! {
+    /// A coarser level's vertex map from its finer level's (`fine_vertex`): the parameters
+    /// are the shader's bindings in `@binding` order, named as there (see the declarations
+    /// in `shaders/pyramid_depth.wgsl` for shapes, units and frames).
+    pub fn pyramid_depth(
+        params: &PyramidParams,
+        fine_vertex: &[[f32; 4]],
+        vertex_map: &mut [[f32; 4]],
+    ) {
+        let (w, h) = (params.camera.width as usize, params.camera.height as usize);
+        assert_eq!(
+            fine_vertex.len(),
+            (params.fine_width * params.fine_height) as usize,
+            "fine_vertex has the wrong size"
         );
-    });
+        assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
+        assert!(
+            2 * params.camera.width - 1 <= params.fine_width
+                && 2 * params.camera.height - 1 <= params.fine_height,
+            "a {w}x{h} level does not sample a {}x{} one",
+            params.fine_width,
+            params.fine_height
+        );
+        // The shader's entry, pixel_grid.wgsl: every pixel once, in parallel.
+        let vertex_map = Storage::new(vertex_map);
+        pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
+            vertex_map.store(
+                v as usize * w + u as usize,
+                coarse_at(params, fine_vertex, u, v),
+            );
+        });
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::binding::Binding;
     use crate::geometry::camera::Intrinsics;
 
     fn params(fine: Intrinsics, radius_px: u32, gate_m: f32) -> PyramidParams {
@@ -120,7 +125,11 @@ mod tests {
         let p = params(fine, 1, 0.05);
         assert_eq!((p.camera.width, p.camera.height), (5, 4));
         let mut out = vec![INVALID; 20];
-        pyramid_depth(&p, &fine_map, &mut out);
+        pyramid_depth(&mut [
+            Binding::of(&p),
+            Binding::read(&fine_map),
+            Binding::write(&mut out),
+        ]);
         for v in 0..4u32 {
             for u in 0..5u32 {
                 let c = out[(v * 5 + u) as usize];
@@ -164,7 +173,11 @@ mod tests {
         fine_map[10] = INVALID; // (2, 2): coarse (1, 1) samples it
         let p = params(fine, 1, 0.1);
         let mut out = vec![INVALID; 4];
-        pyramid_depth(&p, &fine_map, &mut out);
+        pyramid_depth(&mut [
+            Binding::of(&p),
+            Binding::read(&fine_map),
+            Binding::write(&mut out),
+        ]);
         // Coarse (0, 0) samples (0, 0) at 1.0 m: window (0..=1, 0..=1) minus the invalid
         // (1, 1): 1.0, 1.0, 1.02 -> mean 1.00667; the 3 m column is outside the window.
         assert!((out[0][2] - 3.02 / 3.0).abs() < 1e-6, "{:?}", out[0]);

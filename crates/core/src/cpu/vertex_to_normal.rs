@@ -24,6 +24,7 @@
 //! and 0.095 -> 0.083 mm; 7-Scenes kitchen 0..299 20.80 -> 20.78 mm; SUN3D office frag2
 //! 7.99 -> 8.04 mm (docs/robust-profile.md).
 
+use super::binding::twin;
 use super::invocations::Storage;
 use super::{is_valid, pixel_grid, xyz, INVALID};
 use crate::layout::NormalParams;
@@ -74,24 +75,27 @@ pub fn normal_at(
     [nn.x, nn.y, nn.z, point[2]]
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/vertex_to_normal.wgsl` for shapes, units and frames.
-pub fn vertex_to_normal(
-    params: &NormalParams,
-    vertex_map: &[[f32; 4]],
-    normal_depth: &mut [[f32; 4]],
-    point_map: &[[f32; 4]],
-) {
-    let (w, h) = (params.width as usize, params.height as usize);
-    assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
-    assert_eq!(normal_depth.len(), w * h, "normal_depth has the wrong size");
-    assert_eq!(point_map.len(), w * h, "point_map has the wrong size");
-    let normal_depth = Storage::new(normal_depth);
-    // The shader's entry, pixel_grid.wgsl: every pixel once.
-    pixel_grid(params.width, params.height, |[u, v]| {
-        normal_depth.store(
-            v as usize * w + u as usize,
-            normal_at(params, vertex_map, point_map, u, v),
-        );
-    });
+twin! {
+    /// A level's normals, with the depth of its points in w (`normal_depth`): the
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/vertex_to_normal.wgsl` for shapes, units and frames).
+    pub fn vertex_to_normal(
+        params: &NormalParams,
+        vertex_map: &[[f32; 4]],
+        normal_depth: &mut [[f32; 4]],
+        point_map: &[[f32; 4]],
+    ) {
+        let (w, h) = (params.width as usize, params.height as usize);
+        assert_eq!(vertex_map.len(), w * h, "vertex_map has the wrong size");
+        assert_eq!(normal_depth.len(), w * h, "normal_depth has the wrong size");
+        assert_eq!(point_map.len(), w * h, "point_map has the wrong size");
+        let normal_depth = Storage::new(normal_depth);
+        // The shader's entry, pixel_grid.wgsl: every pixel once.
+        pixel_grid(params.width, params.height, |[u, v]| {
+            normal_depth.store(
+                v as usize * w + u as usize,
+                normal_at(params, vertex_map, point_map, u, v),
+            );
+        });
+    }
 }

@@ -4,6 +4,7 @@
 
 use super::CpuBackend;
 use crate::cpu;
+use crate::cpu::binding::Pool;
 use crate::fused_view::FusedView;
 use crate::layout::{append_slots, scan_blocks, scan_params, FuseParams, MapChunk};
 use crate::plan::{self, Buffer, Call, FuseCall};
@@ -94,13 +95,9 @@ impl CpuBackend {
             ),
             FuseCall::FuseFlags => {
                 self.add_flags.resize(n_slots, 0);
-                cpu::fuse_flags::fuse_flags(
-                    params,
-                    &self.frame.normal_depth,
-                    &self.assoc,
-                    &self.merged,
-                    &mut self.add_flags,
-                );
+                let mut step = Pool::new();
+                step.uniform("fuse", params);
+                self.dispatch(call, step);
             }
             FuseCall::FuseScanReduce | FuseCall::FuseScanBlocks | FuseCall::FuseScan => {
                 let offsets = &mut self.add_offsets;

@@ -1,5 +1,7 @@
 //! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors, each step in
-//! the order of its plan (`crate::plan`, shared with the GPU backend).
+//! the order of its plan (`crate::plan`, shared with the GPU backend): a twin in the one
+//! call shape through its registry row (`engine.rs`, bound by the WGSL names from pools of
+//! the backend's buffers), the others by the step's own calls.
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
@@ -18,6 +20,7 @@ use crate::backend::{
     ToDescribe,
 };
 use crate::cpu;
+use crate::cpu::binding::Pool;
 use crate::cpu::invocations::Threads;
 use crate::fused_view::FusedView;
 use crate::layout::map::SurfelMap;
@@ -26,7 +29,7 @@ use crate::layout::{
     Keypoint, KeypointParams, MapChunk, ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS,
     ICP_SYSTEM_LEN,
 };
-use crate::plan::{self, Call, CompactCall, PredictCall, PreprocessCall};
+use crate::plan::{self, Call, CompactCall, PredictCall};
 use crate::Result;
 
 /// Host-side state: the current frame's maps (with its pyramid), the prediction (one per
@@ -136,83 +139,13 @@ impl Backend for CpuBackend {
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| {
             self.intensity.new_frame(&steps.params, &steps.pyramid);
-            let f = &mut self.frame;
-            let n = (steps.params.camera.width * steps.params.camera.height) as usize;
-            f.vertex.resize(n, cpu::INVALID);
-            f.color.resize(n, cpu::INVALID);
-            f.normal_depth.resize(n, cpu::INVALID);
-            f.pyramid
-                .resize_with(steps.pyramid.len(), FrameLevel::default);
-            // `filtered_vertex` is empty without the filter (see `FrameMaps`).
-            if steps.bilateral.is_none() {
-                f.filtered_vertex.clear();
-            }
+            size_frame(&mut self.frame, steps);
             for call in plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len()) {
-                match call {
-                    PreprocessCall::DepthToVertex => cpu::depth_to_vertex::depth_to_vertex(
-                        &steps.params,
-                        depth,
-                        rgba,
-                        &mut f.vertex,
-                        &mut f.color,
-                    ),
-                    PreprocessCall::BilateralFilter => {
-                        let b = steps
-                            .bilateral
-                            .as_ref()
-                            .expect("the plan filters only with filter params");
-                        f.filtered_vertex.resize(n, cpu::INVALID);
-                        cpu::bilateral_filter::bilateral_filter(
-                            b,
-                            &f.vertex,
-                            &mut f.filtered_vertex,
-                        );
-                    }
-                    // The normals see the filtered map when the filter is on, and so do the
-                    // points (through normal_depth, ICP and fusion) with `filtered_points`;
-                    // `vertex` stays unfiltered either way.
-                    PreprocessCall::VertexToNormal {
-                        level: 0,
-                        filtered,
-                        filtered_points,
-                    } => {
-                        let map = |filtered| match filtered {
-                            true => &f.filtered_vertex,
-                            false => &f.vertex,
-                        };
-                        cpu::vertex_to_normal::vertex_to_normal(
-                            &steps.normal,
-                            map(filtered),
-                            &mut f.normal_depth,
-                            map(filtered_points),
-                        );
-                    }
-                    PreprocessCall::VertexToNormal { level, .. } => {
-                        let l = &mut f.pyramid[level - 1];
-                        cpu::vertex_to_normal::vertex_to_normal(
-                            &steps.pyramid[level - 1].normal,
-                            &l.vertex,
-                            &mut l.normal_depth,
-                            &l.vertex,
-                        );
-                    }
-                    // Each coarser level from the finer one's vertex map (level 0's: the one
-                    // the normals were made from).
-                    PreprocessCall::PyramidDepth { level, filtered } => {
-                        let p = &steps.pyramid[level - 1];
-                        let (finer, coarser) = f.pyramid.split_at_mut(level - 1);
-                        let fine_vertex = match finer.last() {
-                            Some(l) => &l.vertex,
-                            None if filtered => &f.filtered_vertex,
-                            None => &f.vertex,
-                        };
-                        let l = &mut coarser[0];
-                        let n = (p.down.camera.width * p.down.camera.height) as usize;
-                        l.vertex.resize(n, cpu::INVALID);
-                        l.normal_depth.resize(n, cpu::INVALID);
-                        cpu::pyramid_depth::pyramid_depth(&p.down, fine_vertex, &mut l.vertex);
-                    }
-                }
+                let mut step = Pool::new();
+                step.read("raw_depth", depth);
+                step.read("raw_rgba", rgba);
+                preprocess_uniforms(steps, call.at().level, &mut step);
+                self.dispatch(call, step);
             }
             Ok(())
         })
@@ -233,6 +166,12 @@ impl Backend for CpuBackend {
             }
             self.prediction
                 .resize_with(1 + pyramid.len(), Default::default);
+            // The coarser levels' predicted maps (`pyramid_model`'s).
+            for (p, (vertex, normal)) in pyramid.iter().zip(&mut self.prediction[1..]) {
+                let n = (p.down.camera.width * p.down.camera.height) as usize;
+                vertex.resize(n, cpu::INVALID);
+                normal.resize(n, cpu::INVALID);
+            }
             for call in plan::predict(project, pyramid.len()) {
                 match call {
                     PredictCall::BlockBounds => self.refresh_bounds(),
@@ -266,20 +205,9 @@ impl Backend for CpuBackend {
                         );
                     }
                     PredictCall::PyramidModel { level } => {
-                        let p = &pyramid[level - 1];
-                        let (finer, coarser) = self.prediction.split_at_mut(level);
-                        let (fine_vertex, fine_normal) = &finer[level - 1];
-                        let (coarse_vertex, coarse_normal) = &mut coarser[0];
-                        let n = (p.down.camera.width * p.down.camera.height) as usize;
-                        coarse_vertex.resize(n, cpu::INVALID);
-                        coarse_normal.resize(n, cpu::INVALID);
-                        cpu::pyramid_model::pyramid_model(
-                            &p.down,
-                            fine_vertex,
-                            fine_normal,
-                            coarse_vertex,
-                            coarse_normal,
-                        );
+                        let mut step = Pool::new();
+                        step.uniform("pyramid", &pyramid[level - 1].down);
+                        self.dispatch(call, step);
                     }
                 }
             }
@@ -336,13 +264,11 @@ impl Backend for CpuBackend {
     fn detect_keypoints(&mut self, params: &KeypointParams) -> Result<(Vec<Keypoint>, u32)> {
         let mut keypoints = vec![bytemuck::Zeroable::zeroed(); params.capacity as usize];
         let mut counter = [0u32];
-        cpu::keypoint_detect::keypoint_detect(
-            params,
-            &self.frame.color,
-            &self.frame.normal_depth,
-            &mut keypoints,
-            &mut counter,
-        );
+        let mut step = Pool::new();
+        step.uniform("keypoints", params);
+        step.write("keypoints", &mut keypoints);
+        step.write("counter", &mut counter);
+        self.dispatch(plan::detect_keypoints(), step);
         keypoints.truncate(counter[0].min(params.capacity) as usize);
         Ok((keypoints, counter[0]))
     }
@@ -508,6 +434,46 @@ impl Backend for CpuBackend {
     }
 }
 
+/// Sizes the frame's maps for `steps` before its kernels write them: level 0's (the
+/// filtered vertex map empty without the filter: see `FrameMaps`) and the pyramid's.
+fn size_frame(f: &mut FrameMaps, steps: &PreprocessSteps) {
+    let n = (steps.params.camera.width * steps.params.camera.height) as usize;
+    let filtered = if steps.bilateral.is_some() { n } else { 0 };
+    for (map, n) in [
+        (&mut f.vertex, n),
+        (&mut f.filtered_vertex, filtered),
+        (&mut f.normal_depth, n),
+        (&mut f.color, n),
+    ] {
+        map.resize(n, cpu::INVALID);
+    }
+    f.pyramid
+        .resize_with(steps.pyramid.len(), FrameLevel::default);
+    for (p, level) in steps.pyramid.iter().zip(&mut f.pyramid) {
+        let n = (p.down.camera.width * p.down.camera.height) as usize;
+        level.vertex.resize(n, cpu::INVALID);
+        level.normal_depth.resize(n, cpu::INVALID);
+    }
+}
+
+/// `steps`' uniforms at pyramid level `level`, named as the registry's rows name them:
+/// the frame's (`preprocess`, `bilateral`) and the level's (`normal`, and above level 0
+/// `pyramid`, which makes it from the finer one).
+fn preprocess_uniforms<'a>(steps: &'a PreprocessSteps, level: usize, pool: &mut Pool<'a>) {
+    pool.uniform("preprocess", &steps.params);
+    if let Some(bilateral) = &steps.bilateral {
+        pool.uniform("bilateral", bilateral);
+    }
+    match level.checked_sub(1) {
+        None => pool.uniform("normal", &steps.normal),
+        Some(l) => {
+            pool.uniform("normal", &steps.pyramid[l].normal);
+            pool.uniform("pyramid", &steps.pyramid[l].down);
+        }
+    }
+}
+
+mod engine;
 mod fuse;
 mod inspect;
 mod systems;

@@ -9,8 +9,9 @@ use super::CpuBackend;
 use crate::backend::PyramidLevel;
 use crate::backend::RgbdSystems;
 use crate::cpu;
+use crate::cpu::binding::Pool;
 use crate::layout::{IcpParams, IntensityParams, PreprocessParams, ICP_SYSTEM_LEN};
-use crate::plan::{self, IntensityCall, SystemCall};
+use crate::plan::{self, SystemCall};
 use crate::registry::System;
 use crate::Result;
 
@@ -19,10 +20,10 @@ use crate::Result;
 /// coarser one.
 #[derive(Debug, Default)]
 pub(super) struct IntensityPyramid {
-    params: Vec<IntensityParams>,
+    pub(super) params: Vec<IntensityParams>,
     /// Per level, the intensity patches; the first `made` are of the last preprocessed
     /// frame.
-    patches: Vec<Vec<[f32; 4]>>,
+    pub(super) patches: Vec<Vec<[f32; 4]>>,
     made: usize,
 }
 
@@ -32,29 +33,23 @@ impl IntensityPyramid {
         self.params =
             PyramidLevel::intensity_params(params.camera.width, params.camera.height, pyramid);
         self.patches.resize_with(self.params.len(), Vec::new);
-        self.made = 0;
-    }
-
-    /// Makes the levels up to `level` not yet made from `color` (the frame's colour map),
-    /// finest first (each from the one before).
-    fn make(&mut self, color: &[[f32; 4]], level: usize) {
-        for call in plan::intensity_levels(self.made, level) {
-            let IntensityCall::IntensityPyramid { level: l } = call;
-            let p = &self.params[l];
-            let (finer, this) = self.patches.split_at_mut(l);
-            let fine = match finer.last() {
-                Some(f) => f.as_slice(),
-                None => color,
-            };
-            let out = &mut this[0];
-            out.resize((p.width * p.height) as usize, [0.0; 4]);
-            cpu::intensity_pyramid::intensity_pyramid(p, fine, out);
+        for (patches, p) in self.patches.iter_mut().zip(&self.params) {
+            patches.resize((p.width * p.height) as usize, [0.0; 4]);
         }
-        self.made = self.made.max(level + 1);
+        self.made = 0;
     }
 }
 
 impl CpuBackend {
+    /// Makes the frame's intensity levels up to `level` not yet made, finest first (each
+    /// from the one before, level 0 from the colour map).
+    fn make_intensity(&mut self, level: usize) {
+        for call in plan::intensity_levels(self.intensity.made, level) {
+            self.dispatch(call, Pool::new());
+        }
+        self.intensity.made = self.intensity.made.max(level + 1);
+    }
+
     /// [`crate::Error::Argument`] unless pyramid level `level` was preprocessed and
     /// predicted (`what`: the step, for the message).
     pub(super) fn check_system_level(&self, level: usize, what: &str) -> Result<()> {
@@ -86,7 +81,7 @@ impl CpuBackend {
                     );
                 }
                 SystemCall::PhotoReduce { level } => {
-                    self.intensity.make(&self.frame.color, level);
+                    self.make_intensity(level);
                     let (level0_pred_vertex, _) = &self.prediction[0];
                     systems[System::Photometric as usize] = cpu::photo_reduce::photo_reduce(
                         params,
@@ -115,7 +110,7 @@ impl CpuBackend {
     /// The frame's intensity patches at every level (made if not yet), for parity tests.
     pub fn intensity_patches(&mut self) -> &[Vec<[f32; 4]>] {
         let levels = self.intensity.params.len();
-        self.intensity.make(&self.frame.color, levels - 1);
+        self.make_intensity(levels - 1);
         &self.intensity.patches
     }
 }
