@@ -466,9 +466,9 @@ registry_data! {
         // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
-        fern_encode: PerItem(ferns),
+        fern_encode: PerItem(ferns) bound,
         keypoint_detect: OverFrame(keypoints) bound,
-        keypoint_describe: PerItem(keypoints),
+        keypoint_describe: PerItem(keypoints) bound,
         // Tracking health's: per workgroup, the pixels with an ICP candidate at level 0
         // (`counts`, summed on the host).
         icp_candidates: PerCount(icp),

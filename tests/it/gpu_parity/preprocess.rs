@@ -205,7 +205,13 @@ fn fern_encode_matches_twin(mut gpu: GpuBackend) {
         let g = gpu.encode_ferns(&fp, db.ferns()).unwrap();
         let maps = gpu.download_frame().unwrap();
         let mut c = vec![0; db.ferns().len()];
-        fern_encode(&fp, db.ferns(), &maps.normal_depth, &maps.color, &mut c);
+        fern_encode(&mut [
+            Binding::of(&fp),
+            Binding::read(db.ferns()),
+            Binding::read(&maps.normal_depth),
+            Binding::read(&maps.color),
+            Binding::write(&mut c),
+        ]);
         assert_eq!(c, g, "downsample {downsample}: fern codes differ");
         let distinct: std::collections::BTreeSet<u32> = c.iter().copied().collect();
         let no_depth = c.iter().filter(|&&x| x == FERN_NO_DEPTH).count();
@@ -282,15 +288,15 @@ fn keypoint_kernels_match_twins(mut gpu: GpuBackend) {
     let n = c.len();
     let mut cd = vec![0u32; n * DESCRIPTOR_WORDS];
     let mut cp = vec![[0.0f32; 4]; n];
-    keypoint_describe(
-        &kp,
-        &maps.color,
-        &maps.vertex,
-        &c,
-        &pattern,
-        &mut cd,
-        &mut cp,
-    );
+    keypoint_describe(&mut [
+        Binding::of(&kp),
+        Binding::read(&maps.color),
+        Binding::read(&maps.vertex),
+        Binding::read(&c),
+        Binding::read(&pattern),
+        Binding::write(&mut cd),
+        Binding::write(&mut cp),
+    ]);
     assert_eq!(gd.concat(), cd, "descriptors differ");
     assert_eq!(gp, cp, "keypoint vertices differ");
     let distinct: BTreeSet<_> = gd.iter().collect();

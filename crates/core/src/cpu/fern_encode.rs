@@ -15,6 +15,7 @@
 //! [`FERN_GRID`]: crate::layout::FERN_GRID
 //! [`FERN_NO_DEPTH`]: crate::layout::FERN_NO_DEPTH
 
+use super::binding::twin;
 use crate::layout::{Fern, FernParams, FERN_NO_DEPTH};
 
 /// The code of `fern`. Mirrors `fern_code` in fern_encode.wgsl.
@@ -55,28 +56,32 @@ pub fn fern_code(
         | (if depth > t[3] * n { 1 } else { 0 })
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fern_encode.wgsl` for shapes, units and frames.
-pub fn fern_encode(
-    params: &FernParams,
-    ferns: &[Fern],
-    normal_depth: &[[f32; 4]],
-    color_map: &[[f32; 4]],
-    codes: &mut [u32],
-) {
-    let pixels = (params.width * params.height) as usize;
-    assert!(normal_depth.len() == pixels && color_map.len() == pixels);
-    let n = params.fern_count as usize;
-    assert!(ferns.len() >= n && codes.len() >= n);
-    // The shader's grid-stride loop as one thread with stride 1.
-    for i in 0..n {
-        codes[i] = fern_code(params, &ferns[i], normal_depth, color_map);
+twin! {
+    /// The code of each of the first `params.fern_count` ferns into `codes`: the
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/fern_encode.wgsl` for shapes, units and frames).
+    pub fn fern_encode(
+        params: &FernParams,
+        ferns: &[Fern],
+        normal_depth: &[[f32; 4]],
+        color_map: &[[f32; 4]],
+        codes: &mut [u32],
+    ) {
+        let pixels = (params.width * params.height) as usize;
+        assert!(normal_depth.len() == pixels && color_map.len() == pixels);
+        let n = params.fern_count as usize;
+        assert!(ferns.len() >= n && codes.len() >= n);
+        // The shader's grid-stride loop as one thread with stride 1.
+        for i in 0..n {
+            codes[i] = fern_code(params, &ferns[i], normal_depth, color_map);
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::binding::Binding;
     use bytemuck::Zeroable;
 
     /// A 4 x 2 image, cells of 2 x 2: the left cell's valid pixels decide its code, the
@@ -121,7 +126,13 @@ mod tests {
         };
         let ferns = [fern(0, [25.0, 50.0, 0.0, 1.9]), fern(1, [0.0; 4])];
         let mut codes = [0; 2];
-        fern_encode(&p, &ferns, &normal_depth, &color_map, &mut codes);
+        fern_encode(&mut [
+            Binding::of(&p),
+            Binding::read(&ferns),
+            Binding::read(&normal_depth),
+            Binding::read(&color_map),
+            Binding::write(&mut codes),
+        ]);
         // red 20 < 25, green 100 > 50, blue 0 = 0 (not above), depth 2 > 1.9.
         assert_eq!(codes, [0b0101, FERN_NO_DEPTH]);
     }

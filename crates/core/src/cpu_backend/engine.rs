@@ -2,8 +2,8 @@
 //! ([`KernelId::twin`](crate::registry::KernelId::twin)), its bindings taken from a
 //! [`Pool`] of the backend's buffers by the names the WGSL declares them with, as the GPU
 //! engine's bind groups take them (`wgslam_gpu`'s `bind_groups.rs`: `frame_pool`,
-//! `level_pool`). Rows of the `OverFrame` and `PerLevel` [`Shape`]s bind here; a step
-//! runs the kernels of other rows through arms of its own.
+//! `level_pool`). Rows of the `OverFrame`, `PerItem` and `PerLevel` [`Shape`]s bind here;
+//! a step runs the kernels of other rows through arms of its own.
 //!
 //! Not here: the buffers' sizes (each step sizes what its kernels write before its plan
 //! runs, as the GPU backend allocates its frame's buffers), and the order of the kernels
@@ -17,10 +17,10 @@ use crate::registry::{At, Shape};
 impl CpuBackend {
     /// Runs `call`'s kernel through its row: its twin over the bindings it names, from
     /// `step` (the step's own uniforms and buffers: the kernel's `params` is the uniform
-    /// its row names) and the frame's pool (an `OverFrame` row) or the pool of the pyramid
-    /// level the call gives (a `PerLevel` row). Panics on a call whose kernel has no twin
-    /// in the one call shape, or a row of another shape (internal contracts: such a call
-    /// has an arm in its step).
+    /// its row names) and the frame's pool (an `OverFrame` or `PerItem` row) or the pool
+    /// of the pyramid level the call gives (a `PerLevel` row). Panics on a call whose
+    /// kernel has no twin in the one call shape, or a row of another shape (internal
+    /// contracts: such a call has an arm in its step).
     pub(super) fn dispatch(&mut self, call: impl Call, step: Pool<'_>) {
         let kernel = call.kernel();
         let row = kernel.and_then(|k| Some((k.twin()?, k.shape()?, k.uniform()?)));
@@ -28,7 +28,7 @@ impl CpuBackend {
             panic!("`{}` has no twin in the one call shape", call.name())
         };
         let mut pool = match shape {
-            Shape::OverFrame => self.frame_pool(step),
+            Shape::OverFrame | Shape::PerItem => self.frame_pool(step),
             Shape::PerLevel => self.level_pool(step, call.at().choice()),
             other => panic!("`{}`: the CPU engine binds no {other:?} row", call.name()),
         };

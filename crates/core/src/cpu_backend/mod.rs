@@ -251,13 +251,11 @@ impl Backend for CpuBackend {
 
     fn encode_ferns(&mut self, params: &FernParams, ferns: &[Fern]) -> Result<Vec<u32>> {
         let mut codes = vec![0; params.fern_count as usize];
-        cpu::fern_encode::fern_encode(
-            params,
-            ferns,
-            &self.frame.normal_depth,
-            &self.frame.color,
-            &mut codes,
-        );
+        let mut step = Pool::new();
+        step.uniform("ferns", params);
+        step.read("ferns", ferns);
+        step.write("codes", &mut codes);
+        self.dispatch(plan::encode_ferns(), step);
         Ok(codes)
     }
 
@@ -282,15 +280,13 @@ impl Backend for CpuBackend {
         let n = params.count as usize;
         let mut words = vec![0u32; n * DESCRIPTOR_WORDS];
         let mut points = vec![[0.0f32; 4]; n];
-        cpu::keypoint_describe::keypoint_describe(
-            params,
-            &self.frame.color,
-            &self.frame.vertex,
-            keypoints,
-            pattern,
-            &mut words,
-            &mut points,
-        );
+        let mut step = Pool::new();
+        step.uniform("keypoints", params);
+        step.read("keypoints", keypoints);
+        step.read("pattern", pattern);
+        step.write("descriptors", &mut words);
+        step.write("points", &mut points);
+        self.dispatch(plan::describe_keypoints(), step);
         let descriptors = words
             .chunks_exact(DESCRIPTOR_WORDS)
             .map(|c| c.try_into().expect("chunks of DESCRIPTOR_WORDS"))
