@@ -137,7 +137,7 @@ fn run_with_an_icp_schedule() {
 
 /// Either frame may come first. With the target before the source and a keyframe at
 /// every frame (so that the target joins loop closure's pose graph), the graph panicked
-/// on frames out of order before loop closure was off here.
+/// on frames out of order before `wgslam icp` numbered its two frames 0 and 1.
 fn icp_two_frames_prints_iterations_and_error() {
     let dir = common::temp_dir("cli-icp");
     let every_frame_a_keyframe = dir.join("keyframes.toml");

@@ -94,21 +94,26 @@ impl StepGrid {
             .map(|(g, wg)| (kernel, g, [wg, 1]))
             .collect()
     }
+
     /// The passes of the `generic` kernel of the registry that `call` runs (see
-    /// `wgslam_core::registry::Shape`): per bind group a pass over the frame's pixels (a
-    /// pyramid level's, at the call's [`At`](wgslam_core::registry::At)), or per map chunk one workgroup per block (per
-    /// chunk with stale boxes one per stale block: [`StepGrid::bounds`]; per chunk with
-    /// live surfels a grid-stride pass over them: [`StepGrid::live`], per pair of chunks
-    /// and surfel array over the first chunk's); a pass of one thread
-    /// per item ([`StepGrid::items`]); at
-    /// the call's [`At`](wgslam_core::registry::At), a reduction's pass of the reduction workgroups or a system's sum
-    /// of one workgroup per entry, or a scan's pass of one workgroup per block of
-    /// [`StepGrid::flags`] (or one workgroup); a key kernel's passes in turn, each over every bind
-    /// group (its first alone where the call says so: `Call::every_key_pass`). Panics on a
-    /// call whose
-    /// kernel has neither a `generic` row nor an arm of its own in its step, or no bind
-    /// group where it runs (internal contracts: every planned kernel has one or the other,
-    /// and [`At::choices`](wgslam_core::registry::At::choices) every place a plan gives).
+    /// `wgslam_core::registry::Shape`), over its bind groups at the call's
+    /// [`At`](wgslam_core::registry::At):
+    /// - per bind group a pass over the frame's pixels (a pyramid level's);
+    /// - per map chunk one workgroup per block, or per chunk with stale boxes one per stale
+    ///   block ([`StepGrid::bounds`]);
+    /// - per chunk with live surfels a grid-stride pass over them ([`StepGrid::live`]), and
+    ///   per pair of chunks and surfel array one over the first chunk's;
+    /// - one thread per item, or one workgroup per count ([`StepGrid::items`]);
+    /// - a reduction's pass of the reduction workgroups, a system's sum of one workgroup per
+    ///   entry;
+    /// - a scan's pass of one workgroup per block of [`StepGrid::flags`], or of one
+    ///   workgroup;
+    /// - a key kernel's passes in turn, each over every bind group (its first alone where
+    ///   the call says so: `Call::every_key_pass`).
+    ///
+    /// Panics on a call whose kernel has no `generic` row, or no bind group where it runs
+    /// (internal contracts: every planned kernel has a row, and
+    /// [`At::choices`](wgslam_core::registry::At::choices) lists every place a plan gives).
     pub fn generic<'a>(
         &self,
         k: &'a Kernels,
