@@ -16,6 +16,7 @@ use common::frames::{gt_at, load_frame, load_gt};
 use common::harness::{gpu, plain, skipped, Test};
 use libtest_mimic::Completion;
 use wgslam::cpu;
+use wgslam::cpu::binding::Binding;
 use wgslam::cpu::key_writer::KeyPass;
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::camera::Intrinsics;
@@ -137,16 +138,22 @@ fn portable_twins_equal_the_64_bit_twins() {
         };
         let pixels = (proj.camera.width * proj.camera.height) as usize;
         let mut keys = vec![0u64; pixels];
-        cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut keys);
+        cpu::project_model::project_model(&mut [
+            Binding::of(&proj),
+            Binding::of(&whole),
+            Binding::read(&bounds),
+            Binding::read(&map.position_weight),
+            Binding::write(&mut keys),
+        ]);
         let mut words = vec![0u32; 2 * pixels];
         for key_pass in 0..2 {
-            cpu::project_model::project_model(
-                &proj,
-                &whole,
-                &bounds,
-                &map.position_weight,
-                &mut KeyPass::new(&mut words, key_pass),
-            );
+            cpu::project_model::project_model(&mut [
+                Binding::of(&proj),
+                Binding::of(&whole),
+                Binding::read(&bounds),
+                Binding::read(&map.position_weight),
+                Binding::key_pass(&mut words, key_pass),
+            ]);
         }
         check_equal(&format!("{name}: project_model"), &keys, &words);
         if name == "doubled map" {
@@ -162,30 +169,30 @@ fn portable_twins_equal_the_64_bit_twins() {
         fp.surfel_count = n_surfels as u32;
         fp.capacity = (n_surfels + pixels) as u32;
         let (mut assoc, mut index_map) = (vec![0u64; pixels], vec![0u64; pixels]);
-        cpu::fuse_select::fuse_select(
-            &fp,
-            &maps.normal_depth,
-            &whole,
-            &bounds,
-            &map.position_weight,
-            &map.normal_frame,
-            &map.color,
-            &mut assoc,
-            &mut index_map,
-        );
+        cpu::fuse_select::fuse_select(&mut [
+            Binding::of(&fp),
+            Binding::read(&maps.normal_depth),
+            Binding::of(&whole),
+            Binding::read(&bounds),
+            Binding::read(&map.position_weight),
+            Binding::read(&map.normal_frame),
+            Binding::read(&map.color),
+            Binding::write(&mut assoc),
+            Binding::write(&mut index_map),
+        ]);
         let (mut assoc_w, mut index_w) = (vec![0u32; 2 * pixels], vec![0u32; 2 * pixels]);
         for key_pass in 0..2 {
-            cpu::fuse_select::fuse_select(
-                &fp,
-                &maps.normal_depth,
-                &whole,
-                &bounds,
-                &map.position_weight,
-                &map.normal_frame,
-                &map.color,
-                &mut KeyPass::new(&mut assoc_w, key_pass),
-                &mut KeyPass::new(&mut index_w, key_pass),
-            );
+            cpu::fuse_select::fuse_select(&mut [
+                Binding::of(&fp),
+                Binding::read(&maps.normal_depth),
+                Binding::of(&whole),
+                Binding::read(&bounds),
+                Binding::read(&map.position_weight),
+                Binding::read(&map.normal_frame),
+                Binding::read(&map.color),
+                Binding::key_pass(&mut assoc_w, key_pass),
+                Binding::key_pass(&mut index_w, key_pass),
+            ]);
         }
         check_equal(&format!("{name}: fuse_select assoc"), &assoc, &assoc_w);
         check_equal(
@@ -210,32 +217,32 @@ fn portable_twins_equal_the_64_bit_twins() {
         grown.color.resize(slots, [0.0; 4]);
         fp.capacity = slots as u32;
         let mut added = grown.clone();
-        cpu::fuse_add::fuse_add(
-            &fp,
-            &maps.normal_depth,
-            &maps.color,
-            &flags,
-            &offsets,
-            &add_chunk,
-            &mut added.position_weight,
-            &mut added.normal_frame,
-            &mut added.color,
-            &mut index_map,
-        );
+        cpu::fuse_add::fuse_add(&mut [
+            Binding::of(&fp),
+            Binding::read(&maps.normal_depth),
+            Binding::read(&maps.color),
+            Binding::read(&flags),
+            Binding::read(&offsets),
+            Binding::of(&add_chunk),
+            Binding::write(&mut added.position_weight),
+            Binding::write(&mut added.normal_frame),
+            Binding::write(&mut added.color),
+            Binding::write(&mut index_map),
+        ]);
         let mut added_portable = grown.clone();
         for key_pass in 0..2 {
-            cpu::fuse_add::fuse_add(
-                &fp,
-                &maps.normal_depth,
-                &maps.color,
-                &flags,
-                &offsets,
-                &add_chunk,
-                &mut added_portable.position_weight,
-                &mut added_portable.normal_frame,
-                &mut added_portable.color,
-                &mut KeyPass::new(&mut index_w, key_pass),
-            );
+            cpu::fuse_add::fuse_add(&mut [
+                Binding::of(&fp),
+                Binding::read(&maps.normal_depth),
+                Binding::read(&maps.color),
+                Binding::read(&flags),
+                Binding::read(&offsets),
+                Binding::of(&add_chunk),
+                Binding::write(&mut added_portable.position_weight),
+                Binding::write(&mut added_portable.normal_frame),
+                Binding::write(&mut added_portable.color),
+                Binding::key_pass(&mut index_w, key_pass),
+            ]);
         }
         check_equal(&format!("{name}: fuse_add index map"), &index_map, &index_w);
         let new_keys = index_map

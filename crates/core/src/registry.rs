@@ -268,7 +268,9 @@ macro_rules! twin_of {
 macro_rules! registry_data {
     (
         generic: { $($generic:ident: $shape:ident($uniform:ident) $($bound:ident)?,)* }
-        generic_keys: { $($generic_key:ident: $key_shape:ident($key_uniform:ident),)* }
+        generic_keys: {
+            $($generic_key:ident: $key_shape:ident($key_uniform:ident) $($key_bound:ident)?,)*
+        }
         generic_levels: {
             $($level:ident: $level_shape:ident($level_uniform:ident) $($level_bound:ident)?,)*
         }
@@ -349,6 +351,7 @@ macro_rules! registry_data {
             pub fn twin(self) -> Option<Twin> {
                 match self {
                     $(KernelId::$generic => twin_of!($generic $($bound)?),)*
+                    $(KernelId::$generic_key => twin_of!($generic_key $($key_bound)?),)*
                     $(KernelId::$level => twin_of!($level $($level_bound)?),)*
                     _ => None,
                 }
@@ -380,8 +383,9 @@ macro_rules! registry_data {
         /// word), in two dispatches over the same bind groups (its `override KEY_PASS`: 0
         /// then 1), and decides the same winner bit for bit. Every other kernel, portable
         /// variants included, validates without 64-bit integers (`tests/it/shaders.rs`).
-        /// The CPU twin `crates/core/src/cpu/<kernel>.rs` serves both, generic over
-        /// `cpu::key_writer::KeyWriter`.
+        /// The CPU twin `crates/core/src/cpu/<kernel>.rs` serves both, through its key maps
+        /// (`cpu::key_writer::KeyMap` parameters in the one call shape, or for a twin not
+        /// yet in it a type generic over `cpu::key_writer::KeyWriter`).
         pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
             $((stringify!($generic_key), concat!(stringify!($generic_key), "_portable")),)*
             $((stringify!($key), concat!(stringify!($key), "_portable")),)*
@@ -435,14 +439,14 @@ registry_data! {
     generic: {
         depth_to_vertex: OverFrame(preprocess) bound,
         bilateral_filter: OverFrame(bilateral) bound,
-        predict_model: PerChunk(project),
-        fuse_merge_chosen: PerChunk(fuse),
-        fuse_prune: PerBlock(fuse),
-        fuse_merge: PerBlock(fuse),
+        predict_model: PerChunk(project) bound,
+        fuse_merge_chosen: PerChunk(fuse) bound,
+        fuse_prune: PerBlock(fuse) bound,
+        fuse_merge: PerBlock(fuse) bound,
         fuse_flags: OverFrame(fuse) bound,
         // The culling blocks' boxes (`block_boxes`) where they are stale: the first
         // call of every culling step.
-        block_bounds: PerStaleBlock(bounds),
+        block_bounds: PerStaleBlock(bounds) bound,
         // ICP's and RGB-D tracking's systems at a pyramid level: the geometric and the
         // photometric term's rows into per-workgroup partial systems, and their sum
         // (`icp_reduce_final` declares no `params`: its row's uniform, the reductions', is
@@ -452,12 +456,12 @@ registry_data! {
         icp_reduce_final: PerSystem(icp),
         // Loop closure's map deformation: every live surfel moved by the pose graph's
         // corrections (`nodes`, the node table).
-        deform_surfels: PerSurfel(deform),
+        deform_surfels: PerSurfel(deform) bound,
         // Compaction's keep flag per surfel (its `flags`, one per map slot).
-        compact_flags: PerSurfel(compact),
+        compact_flags: PerSurfel(compact) bound,
         // Compaction's copy of the survivors into the spare map (one surfel array at a
         // time keeps it within WebGPU's 8 storage buffers per stage).
-        compact_scatter: PerChunkPair(compact),
+        compact_scatter: PerChunkPair(compact) bound,
         // The scan's three kernels (fusion's over its new-surfel flags, compaction's over
         // its keep flags): block sums, their scan, each block's scan.
         prefix_sum_reduce: PerScanBlock(scan),
@@ -476,11 +480,11 @@ registry_data! {
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
         // pixel (best-candidate association).
-        project_model: PerBlock(project),
-        fuse_select: PerBlock(fuse),
+        project_model: PerBlock(project) bound,
+        fuse_select: PerBlock(fuse) bound,
         // Fusion's new surfels, per map chunk the ones whose slots it holds (its later
         // passes as the plan call says: `Call::every_key_pass`).
-        fuse_add: PerChunk(fuse),
+        fuse_add: PerChunk(fuse) bound,
     }
     generic_levels: {
         // The frame's normals per level (at level 0 from the vertex maps the plan

@@ -8,6 +8,7 @@ use super::{cpu_map_from_gt, root, slam, small_chunk_backend};
 use crate::common::frames::{gt_at, load_frame, load_gt};
 use crate::common::harness::{gpu, gpu_backend_test, Test};
 use wgslam::cpu;
+use wgslam::cpu::binding::Binding;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
 use wgslam::layout::{CompactParams, MapChunk};
@@ -27,13 +28,13 @@ fn check_compaction(gpu: &mut GpuBackend, map: &SurfelMap, params: &CompactParam
     };
     // The twins, kernel by kernel.
     let mut flags = vec![0u32; n];
-    cpu::compact_flags::compact_flags(
-        &params,
-        &MapChunk::whole(n),
-        &map.position_weight,
-        &map.normal_frame,
-        &mut flags,
-    );
+    cpu::compact_flags::compact_flags(&mut [
+        Binding::of(&params),
+        Binding::of(&MapChunk::whole(n)),
+        Binding::read(&map.position_weight),
+        Binding::read(&map.normal_frame),
+        Binding::write(&mut flags),
+    ]);
     let mut offsets = vec![0u32; n];
     let mut kept = 0u32;
     cpu::prefix_sum::scan(&params, &flags, &mut offsets, &mut kept);

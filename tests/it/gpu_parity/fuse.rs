@@ -8,6 +8,7 @@ use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, Test};
 use crate::common::level_0;
 use wgslam::cpu;
+use wgslam::cpu::binding::Binding;
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::map::SurfelMap;
@@ -192,7 +193,13 @@ fn check_fused_index_map(map: &SurfelMap, first_new: usize, fused: &[u64], proj:
         surfel_count: map.len() as u32,
         ..*proj
     };
-    cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut fresh);
+    cpu::project_model::project_model(&mut [
+        Binding::of(&proj),
+        Binding::of(&whole),
+        Binding::read(&bounds),
+        Binding::read(&map.position_weight),
+        Binding::write(&mut fresh),
+    ]);
     let surfel = |k: u64| (k != 0).then_some(k & 0xffff_ffff);
     assert!(
         fused
@@ -245,17 +252,17 @@ fn check_fuse_select(
     let mut index_map = vec![0u64; n];
     let whole = MapChunk::whole(map.len());
     let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
-    cpu::fuse_select::fuse_select(
-        &params,
-        &frame.normal_depth,
-        &whole,
-        &bounds,
-        &map.position_weight,
-        &map.normal_frame,
-        &map.color,
-        &mut keys,
-        &mut index_map,
-    );
+    cpu::fuse_select::fuse_select(&mut [
+        Binding::of(&params),
+        Binding::read(&frame.normal_depth),
+        Binding::of(&whole),
+        Binding::read(&bounds),
+        Binding::read(&map.position_weight),
+        Binding::read(&map.normal_frame),
+        Binding::read(&map.color),
+        Binding::write(&mut keys),
+        Binding::write(&mut index_map),
+    ]);
     // The index map it builds on the way is project_model's at the same view, key for key
     // (the same transform and projection functions).
     let proj = ProjectParams {
@@ -267,7 +274,13 @@ fn check_fuse_select(
         _pad2: 0,
     };
     let mut projected = vec![0u64; n];
-    cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut projected);
+    cpu::project_model::project_model(&mut [
+        Binding::of(&proj),
+        Binding::of(&whole),
+        Binding::read(&bounds),
+        Binding::read(&map.position_weight),
+        Binding::write(&mut projected),
+    ]);
     assert!(
         projected.iter().filter(|&&k| k != 0).count() > 1000,
         "too few keys"

@@ -6,6 +6,7 @@ use super::{RUN_SURFEL_FRACTION_TOL, SMALL_CHUNK_SURFELS};
 use crate::common::frames::{gt_at, load_frame, load_gt};
 use crate::common::harness::{gpu, plain, Test};
 use wgslam::cpu;
+use wgslam::cpu::binding::Binding;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
@@ -171,7 +172,13 @@ fn culling_is_conservative() {
         let n = (proj.camera.width * proj.camera.height) as usize;
         let splat = |b: &[[u32; 4]]| {
             let mut index = vec![0u64; n];
-            cpu::project_model::project_model(&proj, &whole, b, &map.position_weight, &mut index);
+            cpu::project_model::project_model(&mut [
+                Binding::of(&proj),
+                Binding::of(&whole),
+                Binding::read(b),
+                Binding::read(&map.position_weight),
+                Binding::write(&mut index),
+            ]);
             index
         };
         let (culled_index, full_index) = (splat(&bounds), splat(&world));

@@ -7,6 +7,7 @@ use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, gpu_backend_test, Test};
 use crate::common::unfiltered_level_0;
 use wgslam::cpu;
+use wgslam::cpu::binding::Binding;
 use wgslam::geometry::se3;
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::MapChunk;
@@ -31,20 +32,26 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     let mut index_cpu = vec![0u64; n];
     let whole = MapChunk::whole(map.len());
     let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
-    cpu::project_model::project_model(&proj, &whole, &bounds, &map.position_weight, &mut index_cpu);
+    cpu::project_model::project_model(&mut [
+        Binding::of(&proj),
+        Binding::of(&whole),
+        Binding::read(&bounds),
+        Binding::read(&map.position_weight),
+        Binding::write(&mut index_cpu),
+    ]);
     let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
     let mut pi_cpu = vec![0.0; n];
-    cpu::predict_model::predict_model(
-        &proj,
-        &index_cpu,
-        &whole,
-        &map.position_weight,
-        &map.normal_frame,
-        &map.color,
-        &mut pv_cpu,
-        &mut pn_cpu,
-        &mut pi_cpu,
-    );
+    cpu::predict_model::predict_model(&mut [
+        Binding::of(&proj),
+        Binding::read(&index_cpu),
+        Binding::of(&whole),
+        Binding::read(&map.position_weight),
+        Binding::read(&map.normal_frame),
+        Binding::read(&map.color),
+        Binding::write(&mut pv_cpu),
+        Binding::write(&mut pn_cpu),
+        Binding::write(&mut pi_cpu),
+    ]);
     gpu.predict(&proj, &[]).unwrap();
     let index_gpu = gpu.download_index_map().unwrap();
     let (pv_gpu, pn_gpu) = gpu.download_prediction(0).unwrap();

@@ -21,7 +21,9 @@
 //! each binding as its parameter's type and runs the body, and the module's [`BINDINGS`]
 //! (one [`Slot`] per parameter: name, [`Access`], element size), which the registry row
 //! carries ([`Twin`]). A parameter `&T` is a read-only value (the kernel's `params`), `&[T]`
-//! a read-only array or texture, `&mut [T]` a writable one. `tests/it/bindings.rs` checks
+//! a read-only array or texture, `&mut [T]` a writable one, and a key kernel's key map a
+//! [`KeyMap`](super::key_writer::KeyMap) (the 64-bit kernel's `u64` keys, or a
+//! [`Binding::KeyPass`] of the portable variant's). `tests/it/bindings.rs` checks
 //! every [`BINDINGS`] against the shader's declarations as naga reflects them (names,
 //! order, read-only or writable, element size), so a twin that would bind another buffer
 //! than its shader fails a test.
@@ -58,6 +60,11 @@ pub struct Slot {
 pub enum Binding<'a> {
     Read(&'a [u8]),
     ReadWrite(&'a mut [u8]),
+    /// A key map of a key kernel's portable variant: its `(low, high)` u32 words, and the
+    /// pass (the variant's `override KEY_PASS`, on the GPU a constant of the pipeline, not
+    /// of the bind group) its twin runs (`cpu::key_writer::KeyMap`). A [`Pool`] never
+    /// makes one: the CPU engine binds a key map as the 64-bit kernel's, a `ReadWrite`.
+    KeyPass(&'a mut [u8], u32),
 }
 
 impl<'a> Binding<'a> {
@@ -74,6 +81,12 @@ impl<'a> Binding<'a> {
     /// A writable array (or storage texture, row-major).
     pub fn write<T: Pod>(data: &'a mut [T]) -> Self {
         Binding::ReadWrite(bytemuck::cast_slice_mut(data))
+    }
+
+    /// The portable variant's key map `words` (two per pixel), in pass `key_pass` (0 or 1)
+    /// of two.
+    pub fn key_pass(words: &'a mut [u32], key_pass: u32) -> Self {
+        Binding::KeyPass(bytemuck::cast_slice_mut(words), key_pass)
     }
 }
 
@@ -124,6 +137,7 @@ impl<'b, T: Pod> Param<'b> for &'b mut [T] {
         match binding {
             Binding::ReadWrite(bytes) => bytemuck::cast_slice_mut(bytes),
             Binding::Read(_) => panic!("a writable parameter bound read-only"),
+            Binding::KeyPass(..) => panic!("an array parameter bound as a key map"),
         }
     }
 }
@@ -132,7 +146,7 @@ impl<'b, T: Pod> Param<'b> for &'b mut [T] {
 fn read_bytes<'b>(binding: &'b mut Binding<'_>) -> &'b [u8] {
     match binding {
         Binding::Read(bytes) => bytes,
-        Binding::ReadWrite(bytes) => bytes,
+        Binding::ReadWrite(bytes) | Binding::KeyPass(bytes, _) => bytes,
     }
 }
 
@@ -173,7 +187,8 @@ macro_rules! twin {
                     BINDINGS.len()
                 )
             };
-            $(let $arg: $ty = $crate::cpu::binding::Param::view($arg);)*
+            // `mut`: a key map (`cpu::key_writer::KeyMap`) is raised through `&mut self`.
+            $(#[allow(unused_mut)] let mut $arg: $ty = $crate::cpu::binding::Param::view($arg);)*
             $body
         }
     };
@@ -221,8 +236,10 @@ impl<'a> Pool<'a> {
         self.entries.len() - 1
     }
 
-    /// The resource of index `entry` under another `name` too.
+    /// The resource of index `entry` under another `name` too; the name no longer names
+    /// what it named before (a pool bound once per surfel array names each in turn).
     pub fn alias(&mut self, name: &'static str, entry: usize) {
+        self.names.retain(|&(n, _)| n != name);
         self.names.push((name, entry));
     }
 

@@ -5,6 +5,7 @@
 //! correction alone. Positions: the two corrected positions blended; normals: the two
 //! rotated normals blended and renormalised.
 
+use super::binding::twin;
 use super::chunk_blocks;
 use crate::layout::{DeformNode, DeformParams, MapChunk};
 
@@ -42,51 +43,55 @@ pub fn correct_normal(node: &DeformNode, n: [f32; 3]) -> [f32; 3] {
     [0, 1, 2].map(|i| dot3(r[i], n))
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/deform_surfels.wgsl` for shapes, units and frames.
-pub fn deform_surfels(
-    params: &DeformParams,
-    chunk: &MapChunk,
-    nodes: &[DeformNode],
-    position_weight: &mut [[f32; 4]],
-    normal_frame: &mut [[u32; 4]],
-) {
-    let p = *params;
-    if p.node_count == 0 {
-        return;
-    }
-    let (_, end) = chunk_blocks(chunk, p.surfel_count);
-    for i in chunk.base..end {
-        let surfel = (i - chunk.base) as usize;
-        let pw = position_weight[surfel];
-        let nf = normal_frame[surfel];
-        let k = node_after(nodes, nf[3], p.node_count);
-        let a = &nodes[if k == 0 { 0 } else { k - 1 } as usize];
-        let b = &nodes[k.min(p.node_count - 1) as usize];
-        let mut w = 0.0f32;
-        if k > 0 && k < p.node_count {
-            w = (nf[3] - a.frame) as f32 / (b.frame - a.frame) as f32;
+twin! {
+    /// Moves the chunk's surfels with the pose graph's corrections: the parameters are the
+    /// shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/deform_surfels.wgsl` for shapes, units and frames).
+    pub fn deform_surfels(
+        params: &DeformParams,
+        chunk: &MapChunk,
+        nodes: &[DeformNode],
+        position_weight: &mut [[f32; 4]],
+        normal_frame: &mut [[u32; 4]],
+    ) {
+        let p = *params;
+        if p.node_count == 0 {
+            return;
         }
-        let xyz = [pw[0], pw[1], pw[2]];
-        let (pa, pb) = (correct_point(a, xyz), correct_point(b, xyz));
-        let position = [0, 1, 2].map(|j| pa[j] * (1.0 - w) + pb[j] * w);
-        let n = [nf[0], nf[1], nf[2]].map(f32::from_bits);
-        let (na, nb) = (correct_normal(a, n), correct_normal(b, n));
-        let blended = [0, 1, 2].map(|j| na[j] * (1.0 - w) + nb[j] * w);
-        let len = dot3([blended[0], blended[1], blended[2], 0.0], blended).sqrt();
-        let normal = blended.map(|c| c / len);
-        position_weight[surfel] = [position[0], position[1], position[2], pw[3]];
-        normal_frame[surfel] = [
-            normal[0].to_bits(),
-            normal[1].to_bits(),
-            normal[2].to_bits(),
-            nf[3],
-        ];
+        let (_, end) = chunk_blocks(chunk, p.surfel_count);
+        for i in chunk.base..end {
+            let surfel = (i - chunk.base) as usize;
+            let pw = position_weight[surfel];
+            let nf = normal_frame[surfel];
+            let k = node_after(nodes, nf[3], p.node_count);
+            let a = &nodes[if k == 0 { 0 } else { k - 1 } as usize];
+            let b = &nodes[k.min(p.node_count - 1) as usize];
+            let mut w = 0.0f32;
+            if k > 0 && k < p.node_count {
+                w = (nf[3] - a.frame) as f32 / (b.frame - a.frame) as f32;
+            }
+            let xyz = [pw[0], pw[1], pw[2]];
+            let (pa, pb) = (correct_point(a, xyz), correct_point(b, xyz));
+            let position = [0, 1, 2].map(|j| pa[j] * (1.0 - w) + pb[j] * w);
+            let n = [nf[0], nf[1], nf[2]].map(f32::from_bits);
+            let (na, nb) = (correct_normal(a, n), correct_normal(b, n));
+            let blended = [0, 1, 2].map(|j| na[j] * (1.0 - w) + nb[j] * w);
+            let len = dot3([blended[0], blended[1], blended[2], 0.0], blended).sqrt();
+            let normal = blended.map(|c| c / len);
+            position_weight[surfel] = [position[0], position[1], position[2], pw[3]];
+            normal_frame[surfel] = [
+                normal[0].to_bits(),
+                normal[1].to_bits(),
+                normal[2].to_bits(),
+                nf[3],
+            ];
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::binding::Binding;
     use super::*;
 
     fn translation(frame: u32, t: [f32; 3]) -> DeformNode {
@@ -119,7 +124,13 @@ mod tests {
             _pad0: 0,
             _pad1: 0,
         };
-        deform_surfels(&params, &MapChunk::whole(64), &nodes, &mut pw, &mut nf);
+        deform_surfels(&mut [
+            Binding::of(&params),
+            Binding::of(&MapChunk::whole(64)),
+            Binding::read(&nodes),
+            Binding::write(&mut pw),
+            Binding::write(&mut nf),
+        ]);
         let x: Vec<f32> = pw.iter().map(|p| p[0]).collect();
         assert_eq!(x, vec![0.0, 0.0, 0.5, 1.0, 1.0]);
         assert!(pw.iter().all(|p| p[3] == 2.0), "weights are kept");

@@ -20,6 +20,7 @@
 //! ([`block_visible`]); a merge that moves a surfel out of its block's box grows the box
 //! (the shader does it with `atomicMin`/`atomicMax` on the ordered encoding).
 
+use super::binding::twin;
 use glam::Vec3;
 
 use super::{
@@ -28,68 +29,70 @@ use super::{
 };
 use crate::layout::{f32_from_ordered, ordered_from_f32, FuseParams, MapChunk, BLOCK_SURFELS};
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fuse_merge.wgsl` for shapes, units and frames.
-#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
-pub fn fuse_merge(
-    params: &FuseParams,
-    normal_depth: &[[f32; 4]],
-    color_map: &[[f32; 4]],
-    chunk: &MapChunk,
-    block_boxes: &mut [u32],
-    position_weight: &mut [[f32; 4]],
-    normal_frame: &mut [[u32; 4]],
-    color: &mut [[f32; 4]],
-    assoc: &mut [u64],
-) {
-    let cam = super::camera_intrinsics(&params.camera);
-    let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
-    let mut map = ChunkMut {
-        position_weight,
-        normal_frame,
-        color,
-    };
-    for b in 0..blocks {
-        let block = (chunk.base / BLOCK_SURFELS + b) as usize;
-        let word = |k: usize| f32_from_ordered(block_boxes[8 * block + k]);
-        let lo = Vec3::new(word(0), word(1), word(2));
-        let hi = Vec3::new(word(4), word(5), word(6));
-        if !block_visible(
-            &params.t_world_to_cam,
-            cam,
-            params.camera.width,
-            params.camera.height,
-            lo,
-            hi,
-        ) {
-            continue;
-        }
-        // The box grown by the merged surfels.
-        let mut grown_lo = lo;
-        let mut grown_hi = hi;
-        let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
-        for i in chunk.base + b * BLOCK_SURFELS..end {
-            if let Some(moved) = merge_surfel(
-                params,
-                normal_depth,
-                color_map,
-                &mut map,
-                assoc,
-                i - chunk.base,
+twin! {
+    /// Merges the frame into the chunk's visible surfels (projective association): the
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/fuse_merge.wgsl` for shapes, units and frames).
+    pub fn fuse_merge(
+        params: &FuseParams,
+        normal_depth: &[[f32; 4]],
+        color_map: &[[f32; 4]],
+        chunk: &MapChunk,
+        block_boxes: &mut [u32],
+        position_weight: &mut [[f32; 4]],
+        normal_frame: &mut [[u32; 4]],
+        color: &mut [[f32; 4]],
+        assoc: &mut [u32],
+    ) {
+        let cam = super::camera_intrinsics(&params.camera);
+        let (blocks, span_end) = chunk_blocks(chunk, params.surfel_count);
+        let mut map = ChunkMut {
+            position_weight,
+            normal_frame,
+            color,
+        };
+        for b in 0..blocks {
+            let block = (chunk.base / BLOCK_SURFELS + b) as usize;
+            let word = |k: usize| f32_from_ordered(block_boxes[8 * block + k]);
+            let lo = Vec3::new(word(0), word(1), word(2));
+            let hi = Vec3::new(word(4), word(5), word(6));
+            if !block_visible(
+                &params.t_world_to_cam,
                 cam,
+                params.camera.width,
+                params.camera.height,
+                lo,
+                hi,
             ) {
-                grown_lo = grown_lo.min(moved);
-                grown_hi = grown_hi.max(moved);
+                continue;
             }
-        }
-        for k in 0..3 {
-            if grown_lo[k] < lo[k] {
-                let w = &mut block_boxes[8 * block + k];
-                *w = (*w).min(ordered_from_f32(grown_lo[k]));
+            // The box grown by the merged surfels.
+            let mut grown_lo = lo;
+            let mut grown_hi = hi;
+            let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
+            for i in chunk.base + b * BLOCK_SURFELS..end {
+                if let Some(moved) = merge_surfel(
+                    params,
+                    normal_depth,
+                    color_map,
+                    &mut map,
+                    assoc,
+                    i - chunk.base,
+                    cam,
+                ) {
+                    grown_lo = grown_lo.min(moved);
+                    grown_hi = grown_hi.max(moved);
+                }
             }
-            if grown_hi[k] > hi[k] {
-                let w = &mut block_boxes[8 * block + 4 + k];
-                *w = (*w).max(ordered_from_f32(grown_hi[k]));
+            for k in 0..3 {
+                if grown_lo[k] < lo[k] {
+                    let w = &mut block_boxes[8 * block + k];
+                    *w = (*w).min(ordered_from_f32(grown_lo[k]));
+                }
+                if grown_hi[k] > hi[k] {
+                    let w = &mut block_boxes[8 * block + 4 + k];
+                    *w = (*w).max(ordered_from_f32(grown_hi[k]));
+                }
             }
         }
     }
@@ -110,7 +113,7 @@ fn merge_surfel(
     normal_depth: &[[f32; 4]],
     color_map: &[[f32; 4]],
     map: &mut ChunkMut,
-    assoc: &mut [u64],
+    assoc: &mut [u32],
     slot: u32,
     cam: [f32; 4],
 ) -> Option<Vec3> {
@@ -142,6 +145,8 @@ fn merge_surfel(
     let n = m.normal;
     map.normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
     map.color[surfel] = m.color;
-    assoc[pix] = assoc[pix].max(1);
+    // The key's low word (its (low, high) words, as the shader sees them) maxed with 1: the
+    // key reads 1, with no 64-bit integers.
+    assoc[2 * pix] = assoc[2 * pix].max(1);
     Some(xyz(m.position_weight))
 }

@@ -10,6 +10,7 @@
 //! map on every revisit (see `ROBUST_PRUNE_RADIUS_SCALE`). Called once per map chunk; the
 //! merged surfel may be in any chunk, as its copy is per pixel.
 
+use super::binding::twin;
 use super::{normal_of, project_to_texel, transform_point, visible_surfels, xyz};
 use crate::layout::{FuseParams, MapChunk};
 
@@ -18,30 +19,32 @@ use crate::layout::{FuseParams, MapChunk};
 /// in the shader.
 pub const PRUNE_COS_NORMAL: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fuse_prune.wgsl` for shapes, units and frames.
-#[allow(clippy::too_many_arguments)] // the shader's seven bindings, in order
-pub fn fuse_prune(
-    params: &FuseParams,
-    chunk: &MapChunk,
-    block_boxes: &[[u32; 4]],
-    position_weight: &mut [[f32; 4]],
-    normal_frame: &mut [[u32; 4]],
-    color: &[[f32; 4]],
-    merged: &[[f32; 4]],
-) {
-    let cam = super::camera_intrinsics(&params.camera);
-    visible_surfels(params, chunk, block_boxes, |_, slot| {
-        prune_surfel(
-            params,
-            position_weight,
-            normal_frame,
-            color,
-            merged,
-            slot as usize,
-            cam,
-        );
-    });
+twin! {
+    /// Retires the chunk's visible surfels that duplicate the surfel their pixel merged into:
+    /// the parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/fuse_prune.wgsl` for shapes, units and frames).
+    pub fn fuse_prune(
+        params: &FuseParams,
+        chunk: &MapChunk,
+        block_boxes: &[[u32; 4]],
+        position_weight: &mut [[f32; 4]],
+        normal_frame: &mut [[u32; 4]],
+        color: &[[f32; 4]],
+        merged: &[[f32; 4]],
+    ) {
+        let cam = super::camera_intrinsics(&params.camera);
+        visible_surfels(params, chunk, block_boxes, |_, slot| {
+            prune_surfel(
+                params,
+                position_weight,
+                normal_frame,
+                color,
+                merged,
+                slot as usize,
+                cam,
+            );
+        });
+    }
 }
 
 /// Retires the surfel at `slot` in the chunk's arrays if it duplicates the surfel its

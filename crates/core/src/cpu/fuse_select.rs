@@ -11,9 +11,9 @@
 //! covers the ray), and the normal angle (`cos > cos_normal_threshold`). Of the surfels
 //! that pass, the pixel keeps the one nearest its ray (smallest off-ray distance; ties to
 //! the larger index): `assoc[pix] = max(assoc[pix], pack_depth_index(off_ray, i))`, so the
-//! choice does not depend on thread order. Both maps are [`KeyWriter`]s: `[u64]` keys (the
-//! 64-bit kernel) or a [`KeyPass`](super::key_writer::KeyPass) each (fuse_select_portable,
-//! every chunk of pass 0 before pass 1), with the same keys in the end. As in
+//! choice does not depend on thread order. Both maps are [`KeyMap`]s: `u64` keys (the
+//! 64-bit kernel) or a pass of the words each (fuse_select_portable, every chunk of pass 0
+//! before pass 1), with the same keys in the end. As in
 //! ElasticFusion's index map, a pixel only chooses among the surfels whose centres project
 //! into it. `fuse_merge_chosen` then merges each chosen surfel with its pixel; `fuse_flags`
 //! adds only the pixels that chose nothing and that no neighbour's merged surfel covers
@@ -23,37 +23,40 @@
 //! second copy of a surface stops gaining confidence, `fuse_prune` retires it when it lies
 //! on the merged one, and the removal of unstable surfels (`compact_flags`) takes it away.
 
-use super::key_writer::KeyWriter;
+use super::binding::twin;
+use super::key_writer::{KeyMap, KeyWriter};
 use super::{
     candidate_off_ray, depth_key, fuse_depth_gate, is_valid, normal_of, project_to_texel,
     transform_dir, transform_point, visible_surfels, xyz,
 };
 use crate::layout::{FuseParams, MapChunk};
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/fuse_select.wgsl` for shapes, units and frames; `assoc` and
-/// `index_map` carry the key variant (and the portable kernel's `override KEY_PASS`).
-#[allow(clippy::too_many_arguments)] // the shader's nine bindings, in order
-pub fn fuse_select<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
-    params: &FuseParams,
-    normal_depth: &[[f32; 4]],
-    chunk: &MapChunk,
-    block_boxes: &[[u32; 4]],
-    position_weight: &[[f32; 4]],
-    normal_frame: &[[u32; 4]],
-    color: &[[f32; 4]],
-    assoc: &mut A,
-    index_map: &mut K,
-) {
-    let cam = super::camera_intrinsics(&params.camera);
-    let map = Chunk {
-        position_weight,
-        normal_frame,
-        color,
-    };
-    visible_surfels(params, chunk, block_boxes, |i, slot| {
-        select_for_surfel(params, normal_depth, &map, assoc, index_map, i, slot, cam);
-    });
+twin! {
+    /// Each pixel's choice among the chunk's visible surfels: the parameters are the shader's
+    /// bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/fuse_select.wgsl` for shapes, units and frames). The key maps are [`KeyMap`]s,
+    /// which carry the key variant (and the portable kernel's `override KEY_PASS`).
+    pub fn fuse_select(
+        params: &FuseParams,
+        normal_depth: &[[f32; 4]],
+        chunk: &MapChunk,
+        block_boxes: &[[u32; 4]],
+        position_weight: &[[f32; 4]],
+        normal_frame: &[[u32; 4]],
+        color: &[[f32; 4]],
+        assoc: KeyMap<'_>,
+        index_map: KeyMap<'_>,
+    ) {
+        let cam = super::camera_intrinsics(&params.camera);
+        let map = Chunk {
+            position_weight,
+            normal_frame,
+            color,
+        };
+        visible_surfels(params, chunk, block_boxes, |i, slot| {
+            select_for_surfel(params, normal_depth, &map, &mut assoc, &mut index_map, i, slot, cam);
+        });
+    }
 }
 
 /// The chunk's three arrays (the shader's bindings 4..6).

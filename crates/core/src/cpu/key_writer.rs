@@ -10,7 +10,15 @@
 //! one WGSL source with two variants (`KEY_64` defined or not): a `[u64]` map is the 64-bit
 //! kernel (one pass), a [`KeyPass`] the portable one (two passes over `(low, high)` u32
 //! words).
+//!
+//! In the one call shape (`cpu::binding`) a key twin takes each key map as a [`KeyMap`]
+//! parameter, which is either, chosen by the binding: a `Binding::ReadWrite` of `u64` keys
+//! (the 64-bit kernel's `array<atomic<u64>>`, as the CPU engine binds it) or a
+//! `Binding::KeyPass` of words and the pass (the portable variant's `array<atomic<u32>>`
+//! and its `override KEY_PASS`). The twin's body is then one body for both, as the
+//! shader's is.
 
+use super::binding::{Access, Binding, Param};
 use super::keep_nearer;
 
 /// A map of keys, one per pixel, that a key twin raises. Mirrors `keep_nearer` and
@@ -90,6 +98,55 @@ impl KeyWriter for KeyPass<'_> {
 
     fn keep_nearer(&mut self, pix: usize, high: u32, index: u32) {
         keep_nearer(self.words, pix, high, index, self.key_pass);
+    }
+}
+
+/// A key twin's key map parameter (`index_map`, `assoc`) as its binding gives it: the
+/// 64-bit kernel's keys, or a pass of the portable variant's (see the module notes).
+#[derive(Debug)]
+pub enum KeyMap<'a> {
+    /// One `u64` key per pixel (`Binding::ReadWrite`).
+    Keys(&'a mut [u64]),
+    /// The portable variant's words in one pass (`Binding::KeyPass`).
+    Pass(KeyPass<'a>),
+}
+
+impl KeyWriter for KeyMap<'_> {
+    fn pixels(&self) -> usize {
+        match self {
+            KeyMap::Keys(keys) => keys.pixels(),
+            KeyMap::Pass(pass) => pass.pixels(),
+        }
+    }
+
+    fn first_pass(&self) -> bool {
+        match self {
+            KeyMap::Keys(keys) => keys.first_pass(),
+            KeyMap::Pass(pass) => pass.first_pass(),
+        }
+    }
+
+    fn keep_nearer(&mut self, pix: usize, high: u32, index: u32) {
+        match self {
+            KeyMap::Keys(keys) => keys.keep_nearer(pix, high, index),
+            KeyMap::Pass(pass) => pass.keep_nearer(pix, high, index),
+        }
+    }
+}
+
+/// A key map is written, in elements of the 64-bit kernel's key (the portable variant's
+/// pair of words has its size).
+impl<'b> Param<'b> for KeyMap<'b> {
+    const ACCESS: Access = Access::ReadWrite;
+    const ELEMENT_BYTES: usize = std::mem::size_of::<u64>();
+    fn view(binding: &'b mut Binding<'_>) -> Self {
+        match binding {
+            Binding::ReadWrite(bytes) => KeyMap::Keys(bytemuck::cast_slice_mut(bytes)),
+            Binding::KeyPass(bytes, key_pass) => {
+                KeyMap::Pass(KeyPass::new(bytemuck::cast_slice_mut(bytes), *key_pass))
+            }
+            Binding::Read(_) => panic!("a key map bound read-only"),
+        }
     }
 }
 

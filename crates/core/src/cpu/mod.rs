@@ -11,12 +11,13 @@
 //!
 //! Textures become row-major slices: texel `(u, v)` of a `width`-wide map is element
 //! `v * width + u`. A 64-bit key map (`atomic<u64>`, or `vec2<u32>` read low word first)
-//! becomes a `u64` slice. The GPU's surfel map is a list of chunks (`layout::MapChunk`), each
-//! three storage arrays; a twin of a kernel that walks the map takes one chunk's `MapChunk`
-//! and arrays, as the shader does per dispatch (the CPU backend passes its whole map as one
-//! chunk).
+//! becomes a `u64` slice (a key kernel's key map, a [`key_writer::KeyMap`], is that or a
+//! pass of the portable variant's words). The GPU's surfel map is a list of chunks
+//! (`layout::MapChunk`), each three storage arrays; a twin of a kernel that walks the map
+//! takes one chunk's `MapChunk` and arrays, as the shader does per dispatch (the CPU
+//! backend binds its whole map as one chunk).
 //!
-//! The twins of the registry's `bound` rows (10 of the 33 kernels so far) are written in
+//! The twins of the registry's `bound` rows (21 of the 33 kernels so far) are written in
 //! `binding::twin!`: the same typed parameters, called in the one call shape
 //! `fn(&mut [Binding])` that the CPU backend's engine runs by the row ([`binding`]).
 

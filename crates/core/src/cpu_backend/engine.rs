@@ -2,23 +2,40 @@
 //! ([`KernelId::twin`](crate::registry::KernelId::twin)), its bindings taken from a
 //! [`Pool`] of the backend's buffers by the names the WGSL declares them with, as the GPU
 //! engine's bind groups take them (`wgslam_gpu`'s `bind_groups.rs`: `frame_pool`,
-//! `level_pool`). Rows of the `OverFrame`, `PerItem` and `PerLevel` [`Shape`]s bind here;
-//! a step runs the kernels of other rows through arms of its own.
+//! `level_pool`, `chunk_pool`, `map_row_groups`). Rows of the `OverFrame`, `PerItem`,
+//! `PerLevel` and map [`Shape`]s (`PerChunk`, `PerBlock`, `PerStaleBlock`, `PerSurfel`,
+//! `PerChunkPair`) bind here; a step runs the kernels of other rows through arms of its
+//! own.
+//!
+//! The map is one chunk: the CPU map is one array per attribute, grown without a cap, so
+//! a map row's pool binds it whole as the GPU binds each of its chunks (`chunk` is
+//! `MapChunk::whole` of the map's length, `position_weight`, `normal_frame` and `color`
+//! the map's arrays), and the kernel runs once where the GPU runs it once per chunk. The
+//! twins walk `chunk` as the shaders do, so the outputs are the GPU's whatever its
+//! chunking (the key kernels keep the same key per pixel in any order: see
+//! `cpu::key_writer`). A key map binds as the 64-bit kernel's (`u64` keys: the CPU has
+//! 64-bit integers); the portable variant's passes are for tests to bind
+//! (`Binding::key_pass`).
 //!
 //! Not here: the buffers' sizes (each step sizes what its kernels write before its plan
 //! runs, as the GPU backend allocates its frame's buffers), and the order of the kernels
 //! (`crate::plan`).
 
 use super::CpuBackend;
-use crate::cpu::binding::Pool;
+use crate::cpu::binding::{Pool, Twin};
+use crate::layout::map::SurfelMap;
+use crate::layout::MapChunk;
 use crate::plan::Call;
 use crate::registry::{At, Shape};
 
 impl CpuBackend {
     /// Runs `call`'s kernel through its row: its twin over the bindings it names, from
     /// `step` (the step's own uniforms and buffers: the kernel's `params` is the uniform
-    /// its row names) and the frame's pool (an `OverFrame` or `PerItem` row) or the pool
-    /// of the pyramid level the call gives (a `PerLevel` row). Panics on a call whose
+    /// its row names) and the frame's pool (an `OverFrame` or `PerItem` row), the pool
+    /// of the pyramid level the call gives (a `PerLevel` row), the map's one chunk's pool
+    /// with the frame's (a `PerChunk`, `PerBlock` or `PerStaleBlock` row) or without it (a
+    /// `PerSurfel` row; a `PerChunkPair` row's, once per surfel array, with the spare map
+    /// as its output chunk: see [`CpuBackend::map_pool`]). Panics on a call whose
     /// kernel has no twin in the one call shape, or a row of another shape (internal
     /// contracts: such a call has an arm in its step).
     pub(super) fn dispatch(&mut self, call: impl Call, step: Pool<'_>) {
@@ -27,9 +44,21 @@ impl CpuBackend {
         let Some((twin, shape, uniform)) = row else {
             panic!("`{}` has no twin in the one call shape", call.name())
         };
+        // The map as its one chunk (see the module notes), and the spare map as compaction's
+        // output chunk.
+        let chunk = MapChunk::whole(self.map.len());
+        let out_chunk = MapChunk::whole(self.spare.len());
         let mut pool = match shape {
-            Shape::OverFrame | Shape::PerItem => self.frame_pool(step),
+            Shape::OverFrame | Shape::PerItem => self.frame_pool(step, None),
             Shape::PerLevel => self.level_pool(step, call.at().choice()),
+            Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
+                self.frame_pool(step, Some(&chunk))
+            }
+            Shape::PerSurfel => self.map_pool(step, &chunk, None).0,
+            Shape::PerChunkPair => {
+                let (pool, pairs) = self.map_pool(step, &chunk, Some(&out_chunk));
+                return scatter_pairs(pool, pairs, twin, uniform);
+            }
             other => panic!("`{}`: the CPU engine binds no {other:?} row", call.name()),
         };
         (twin.run)(&mut pool.bind(twin.bindings, uniform));
@@ -37,8 +66,13 @@ impl CpuBackend {
 
     /// `pool` with the frame's maps and per-pixel buffers, by the names the kernels
     /// declare them with (the GPU's `frame_pool`): `vertex_map` the unfiltered vertex map,
-    /// as `depth_to_vertex` writes it and `bilateral_filter` reads it.
-    fn frame_pool<'a>(&'a mut self, mut pool: Pool<'a>) -> Pool<'a> {
+    /// as `depth_to_vertex` writes it and `bilateral_filter` reads it. With a `chunk`, the
+    /// map as that chunk too ([`chunk_pool`]), as the GPU binds a `PerChunk`, `PerBlock` or
+    /// `PerStaleBlock` row per chunk over the chunk's pool and the frame's.
+    fn frame_pool<'a>(&'a mut self, mut pool: Pool<'a>, chunk: Option<&'a MapChunk>) -> Pool<'a> {
+        if let Some(chunk) = chunk {
+            chunk_pool(&mut pool, chunk, &mut self.map, &mut self.block_boxes);
+        }
         let f = &mut self.frame;
         pool.write("vertex_map", &mut f.vertex);
         pool.write("filtered_vertex", &mut f.filtered_vertex);
@@ -111,5 +145,66 @@ impl CpuBackend {
             pool.uniform("intensity", &intensity.params[at.level]);
         }
         pool
+    }
+
+    /// `pool` with the map alone, as the GPU binds a `PerSurfel` or `PerChunkPair` row
+    /// (its `map_row_groups`: no frame's maps, so such a kernel also runs before the first
+    /// frame): the map as `chunk` ([`chunk_pool`]) and compaction's arrays over every map
+    /// slot, `flags` (the keep flags), `offsets` (their prefix sum) and `block_sums`; the
+    /// step gives the rest (deformation's `nodes`). With an `out_chunk`, the spare map as
+    /// that chunk too, and the pairs of entries a `PerChunkPair` row binds in turn
+    /// ([`scatter_pairs`]): each surfel array of the map with the spare map's.
+    fn map_pool<'a>(
+        &'a mut self,
+        mut pool: Pool<'a>,
+        chunk: &'a MapChunk,
+        out_chunk: Option<&'a MapChunk>,
+    ) -> (Pool<'a>, Vec<(usize, usize)>) {
+        let arrays = chunk_pool(&mut pool, chunk, &mut self.map, &mut self.block_boxes);
+        pool.write("flags", &mut self.flags);
+        pool.write("offsets", &mut self.offsets);
+        pool.write("block_sums", &mut self.block_sums);
+        let Some(out_chunk) = out_chunk else {
+            return (pool, Vec::new());
+        };
+        pool.read("out_chunk", std::slice::from_ref(out_chunk));
+        let spare = &mut self.spare;
+        let out_arrays = [
+            pool.lend(&mut spare.position_weight),
+            pool.lend(&mut spare.normal_frame),
+            pool.lend(&mut spare.color),
+        ];
+        (pool, arrays.into_iter().zip(out_arrays).collect())
+    }
+}
+
+/// The map's arrays as map chunk `chunk`, and the culling blocks' boxes, by the names the
+/// kernels declare them with (the GPU's `chunk_pool`): `chunk`, `position_weight`,
+/// `normal_frame`, `color`, `block_boxes`. Returns the entries of the three surfel arrays
+/// in that order (the GPU's `surfel_arrays`).
+fn chunk_pool<'a>(
+    pool: &mut Pool<'a>,
+    chunk: &'a MapChunk,
+    map: &'a mut SurfelMap,
+    block_boxes: &'a mut [[u32; 4]],
+) -> [usize; 3] {
+    pool.read("chunk", std::slice::from_ref(chunk));
+    pool.write("block_boxes", block_boxes);
+    [
+        pool.write("position_weight", &mut map.position_weight),
+        pool.write("normal_frame", &mut map.normal_frame),
+        pool.write("color", &mut map.color),
+    ]
+}
+
+/// A `PerChunkPair` row's `twin` over `pool` ([`CpuBackend::map_pool`] with its output
+/// chunk), once per pair of entries of `pairs`: a surfel array of the map as
+/// `surfel_array`, the spare map's as `out_surfel_array`, in the order the GPU's passes
+/// take them (`position_weight`, `normal_frame`, `color`), with `uniform` as `params`.
+fn scatter_pairs(mut pool: Pool<'_>, pairs: Vec<(usize, usize)>, twin: Twin, uniform: &str) {
+    for (array, out_array) in pairs {
+        pool.alias("surfel_array", array);
+        pool.alias("out_surfel_array", out_array);
+        (twin.run)(&mut pool.bind(twin.bindings, uniform));
     }
 }

@@ -1,12 +1,13 @@
 //! The CPU backend's `fuse` step: `plan::fuse`'s kernels in order over the frame's maps
-//! and the surfel map (the twins of `fuse_select`, `fuse_merge_chosen`, `fuse_prune`,
-//! `fuse_merge`, `fuse_flags`, `prefix_sum` and `fuse_add`).
+//! and the surfel map (the twins of `block_bounds`, `fuse_select`, `fuse_merge_chosen`,
+//! `fuse_prune`, `fuse_merge`, `fuse_flags` and `fuse_add` through their rows, `engine.rs`;
+//! the scan's by hand, `scan_twin`).
 
 use super::CpuBackend;
 use crate::cpu;
 use crate::cpu::binding::Pool;
 use crate::fused_view::FusedView;
-use crate::layout::{append_slots, scan_blocks, scan_params, FuseParams, MapChunk};
+use crate::layout::{append_slots, scan_blocks, scan_params, FuseParams};
 use crate::plan::{self, Buffer, Call, FuseCall};
 use crate::registry::KernelId;
 
@@ -20,10 +21,9 @@ impl CpuBackend {
         params.surfel_count = count as u32;
         params.capacity = (count + n_pix) as u32;
         self.fused_view = None;
-        let chunk = MapChunk::whole(count);
         let mut added = 0u32;
         for call in plan::fuse(&params) {
-            self.fuse_call(call, &params, &chunk, &mut added);
+            self.fuse_call(call, &params, &mut added);
         }
         let new_len = count + added as usize;
         self.map.resize(new_len);
@@ -34,69 +34,24 @@ impl CpuBackend {
     }
 
     /// One call of `fuse`'s plan: a buffer cleared, or a kernel's twin run over the frame's
-    /// maps and `chunk` of the map. `added` receives the prefix sum's total, the number of
-    /// surfels `fuse_add` appends.
-    fn fuse_call(
-        &mut self,
-        call: FuseCall,
-        params: &FuseParams,
-        chunk: &MapChunk,
-        added: &mut u32,
-    ) {
+    /// maps and the map (through its row, with `params` as the `fuse` uniform, but for the
+    /// scan's). `added` receives the prefix sum's total, the number of surfels `fuse_add`
+    /// appends.
+    fn fuse_call(&mut self, call: FuseCall, params: &FuseParams, added: &mut u32) {
         let n_pix = (params.camera.width * params.camera.height) as usize;
         // Flags and offsets in append order (holes for tiles outside the image stay 0).
         let n_slots = append_slots(params.camera.width, params.camera.height);
-        let m = &mut self.map;
+        let mut step = Pool::new();
+        step.uniform("fuse", params);
         match call {
             FuseCall::Clear(buffer) => self.clear_fuse_buffer(buffer, n_pix),
-            FuseCall::BlockBounds => self.refresh_bounds(),
-            FuseCall::FuseSelect => cpu::fuse_select::fuse_select(
-                params,
-                &self.frame.normal_depth,
-                chunk,
-                &self.block_boxes,
-                &m.position_weight,
-                &m.normal_frame,
-                &m.color,
-                &mut self.assoc,
-                &mut self.index_map,
-            ),
-            FuseCall::FuseMergeChosen => cpu::fuse_merge_chosen::fuse_merge_chosen(
-                params,
-                &self.frame.normal_depth,
-                &self.frame.color,
-                chunk,
-                bytemuck::cast_slice_mut(&mut self.block_boxes),
-                &mut m.position_weight,
-                &mut m.normal_frame,
-                &mut m.color,
-                &self.assoc,
-                &mut self.merged,
-            ),
-            FuseCall::FusePrune => cpu::fuse_prune::fuse_prune(
-                params,
-                chunk,
-                &self.block_boxes,
-                &mut m.position_weight,
-                &mut m.normal_frame,
-                &m.color,
-                &self.merged,
-            ),
-            FuseCall::FuseMerge => cpu::fuse_merge::fuse_merge(
-                params,
-                &self.frame.normal_depth,
-                &self.frame.color,
-                chunk,
-                bytemuck::cast_slice_mut(&mut self.block_boxes),
-                &mut m.position_weight,
-                &mut m.normal_frame,
-                &mut m.color,
-                &mut self.assoc,
-            ),
+            FuseCall::BlockBounds => self.refresh_bounds(call),
+            FuseCall::FuseSelect
+            | FuseCall::FuseMergeChosen
+            | FuseCall::FusePrune
+            | FuseCall::FuseMerge => self.dispatch(call, step),
             FuseCall::FuseFlags => {
                 self.add_flags.resize(n_slots, 0);
-                let mut step = Pool::new();
-                step.uniform("fuse", params);
                 self.dispatch(call, step);
             }
             FuseCall::FuseScanReduce | FuseCall::FuseScanBlocks | FuseCall::FuseScan => {
@@ -105,20 +60,10 @@ impl CpuBackend {
                 scan_twin(call.kernel(), n_slots, flags, block_sums, offsets, added);
             }
             FuseCall::FuseAdd { .. } => {
-                // Room for every pixel, as the GPU backend guarantees before its dispatch.
-                m.resize(params.capacity as usize);
-                cpu::fuse_add::fuse_add(
-                    params,
-                    &self.frame.normal_depth,
-                    &self.frame.color,
-                    &self.add_flags,
-                    &self.add_offsets,
-                    &MapChunk::whole(params.capacity as usize),
-                    &mut m.position_weight,
-                    &mut m.normal_frame,
-                    &mut m.color,
-                    &mut self.index_map,
-                );
+                // Room for every pixel, as the GPU backend guarantees before its dispatch: the
+                // map's one chunk is then `params.capacity` slots.
+                self.map.resize(params.capacity as usize);
+                self.dispatch(call, step);
             }
         }
     }

@@ -5,7 +5,8 @@
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
-//! and is passed to the map twins as one chunk (`MapChunk { base: 0, slots: len }`). It
+//! and is bound to the map twins as one chunk (`MapChunk { base: 0, slots: len }`: see
+//! `engine.rs`). It
 //! keeps the culling blocks' boxes as the GPU backend does (recomputed for the blocks
 //! fusion appended to, all of them after a compaction or an upload, before the next
 //! culling step), so its cost per frame also follows what the camera sees.
@@ -26,8 +27,7 @@ use crate::fused_view::FusedView;
 use crate::layout::map::SurfelMap;
 use crate::layout::{
     BoundsParams, CompactParams, DeformNode, DeformParams, Fern, FernParams, FuseParams, IcpParams,
-    Keypoint, KeypointParams, MapChunk, ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS,
-    ICP_SYSTEM_LEN,
+    Keypoint, KeypointParams, ProjectParams, BLOCK_SURFELS, DESCRIPTOR_WORDS, ICP_SYSTEM_LEN,
 };
 use crate::plan::{self, Call, CompactCall, PredictCall};
 use crate::Result;
@@ -107,19 +107,17 @@ impl CpuBackend {
         &self.index_map
     }
 
-    /// Recomputes the stale block boxes (`block_bounds`, as the GPU backend records it at
-    /// the start of a culling submission).
-    fn refresh_bounds(&mut self) {
+    /// Recomputes the stale block boxes: `call`, a plan's `block_bounds` (as the GPU backend
+    /// records it at the start of a culling submission), where a box is stale.
+    fn refresh_bounds(&mut self, call: impl Call) {
         let n = self.map.len();
         if self.bounds_dirty_from < n {
             let blocks = n.div_ceil(BLOCK_SURFELS as usize);
             self.block_boxes.resize(2 * blocks, [0; 4]);
-            cpu::block_bounds::block_bounds(
-                &BoundsParams::stale(n, self.bounds_dirty_from),
-                &MapChunk::whole(n),
-                &self.map.position_weight,
-                &mut self.block_boxes,
-            );
+            let bounds = BoundsParams::stale(n, self.bounds_dirty_from);
+            let mut step = Pool::new();
+            step.uniform("bounds", &bounds);
+            self.dispatch(call, step);
         }
         self.bounds_dirty_from = n;
     }
@@ -157,7 +155,6 @@ impl Backend for CpuBackend {
             let mut params = *params;
             params.surfel_count = self.map.len() as u32;
             let n = (params.camera.width * params.camera.height) as usize;
-            let chunk = MapChunk::whole(self.map.len());
             let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
             if project {
                 // The index map is about to hold another view (a relocalisation attempt
@@ -173,39 +170,24 @@ impl Backend for CpuBackend {
                 normal.resize(n, cpu::INVALID);
             }
             for call in plan::predict(project, pyramid.len()) {
+                let mut step = Pool::new();
+                step.uniform("project", &params);
                 match call {
-                    PredictCall::BlockBounds => self.refresh_bounds(),
+                    PredictCall::BlockBounds => self.refresh_bounds(call),
                     PredictCall::ClearIndexMap => {
                         self.index_map.clear();
                         self.index_map.resize(n, 0);
                     }
-                    PredictCall::ProjectModel => cpu::project_model::project_model(
-                        &params,
-                        &chunk,
-                        &self.block_boxes,
-                        &self.map.position_weight,
-                        &mut self.index_map,
-                    ),
+                    PredictCall::ProjectModel => self.dispatch(call, step),
                     PredictCall::PredictModel => {
                         let (pred_vertex, pred_normal) = &mut self.prediction[0];
                         pred_vertex.resize(n, cpu::INVALID);
                         pred_normal.resize(n, cpu::INVALID);
                         self.pred_intensity
                             .resize(n, cpu::photo_reduce::INTENSITY_NONE);
-                        cpu::predict_model::predict_model(
-                            &params,
-                            &self.index_map,
-                            &chunk,
-                            &self.map.position_weight,
-                            &self.map.normal_frame,
-                            &self.map.color,
-                            pred_vertex,
-                            pred_normal,
-                            &mut self.pred_intensity,
-                        );
+                        self.dispatch(call, step);
                     }
                     PredictCall::PyramidModel { level } => {
-                        let mut step = Pool::new();
                         step.uniform("pyramid", &pyramid[level - 1].down);
                         self.dispatch(call, step);
                     }
@@ -303,63 +285,26 @@ impl Backend for CpuBackend {
         let n = self.map.len();
         let mut params = *params;
         params.surfel_count = n as u32;
-        let m = &self.map;
-        let chunk = MapChunk::whole(n);
         let mut counter = 0u32;
         for call in plan::compact() {
+            let mut step = Pool::new();
+            step.uniform("compact", &params);
             match call {
                 CompactCall::Flags => {
                     self.flags.resize(n, 0);
-                    cpu::compact_flags::compact_flags(
-                        &params,
-                        &chunk,
-                        &m.position_weight,
-                        &m.normal_frame,
-                        &mut self.flags,
-                    );
+                    self.dispatch(call, step);
                 }
                 CompactCall::ScanReduce | CompactCall::ScanBlocks | CompactCall::Scan => {
                     let (flags, block_sums) = (&self.flags, &mut self.block_sums);
                     let offsets = &mut self.offsets;
                     fuse::scan_twin(call.kernel(), n, flags, block_sums, offsets, &mut counter);
                 }
-                // The second map, as large as the first (as on the GPU), cut to the survivors.
+                // The second map, as large as the first (as on the GPU), cut to the survivors;
+                // one call per surfel array, as the kernel is dispatched (`engine.rs`).
                 CompactCall::Scatter => {
-                    let out = &mut self.spare;
-                    out.resize(n);
-                    // One call per attribute, as the kernel is dispatched.
-                    let (flags, offsets) = (&self.flags, &self.offsets);
-                    use bytemuck::{cast_slice, cast_slice_mut};
-                    use cpu::compact_scatter::compact_scatter as scatter;
-                    let (pw, c) = (cast_slice(&m.position_weight), cast_slice(&m.color));
-                    scatter(
-                        &params,
-                        flags,
-                        offsets,
-                        &chunk,
-                        pw,
-                        &chunk,
-                        cast_slice_mut(&mut out.position_weight),
-                    );
-                    scatter(
-                        &params,
-                        flags,
-                        offsets,
-                        &chunk,
-                        &m.normal_frame,
-                        &chunk,
-                        &mut out.normal_frame,
-                    );
-                    scatter(
-                        &params,
-                        flags,
-                        offsets,
-                        &chunk,
-                        c,
-                        &chunk,
-                        cast_slice_mut(&mut out.color),
-                    );
-                    out.resize(counter as usize);
+                    self.spare.resize(n);
+                    self.dispatch(call, step);
+                    self.spare.resize(counter as usize);
                 }
             }
         }
@@ -381,13 +326,10 @@ impl Backend for CpuBackend {
             _pad0: 0,
             _pad1: 0,
         };
-        cpu::deform_surfels::deform_surfels(
-            &params,
-            &MapChunk::whole(n),
-            nodes,
-            &mut self.map.position_weight,
-            &mut self.map.normal_frame,
-        );
+        let mut step = Pool::new();
+        step.uniform("deform", &params);
+        step.read("nodes", nodes);
+        self.dispatch(plan::deform(), step);
         // Every surfel may have left its block's box; the fused view is of the old map.
         self.bounds_dirty_from = 0;
         self.fused_view = None;
