@@ -446,10 +446,11 @@ registry_data! {
         // ICP's and RGB-D tracking's systems at a pyramid level: the geometric and the
         // photometric term's rows into per-workgroup partial systems, and their sum
         // (`icp_reduce_final` declares no `params`: its row's uniform, the reductions', is
-        // offered to its bind groups and not taken).
-        icp_reduce: Reduce(icp),
-        photo_reduce: Reduce(icp),
-        icp_reduce_final: PerSystem(icp),
+        // offered to its bind groups and not taken). The CPU's partials and sum are f64
+        // (`cpu::icp_reduce`'s notes).
+        icp_reduce: Reduce(icp) bound,
+        photo_reduce: Reduce(icp) bound,
+        icp_reduce_final: PerSystem(icp) bound,
         // Loop closure's map deformation: every live surfel moved by the pose graph's
         // corrections (`nodes`, the node table).
         deform_surfels: PerSurfel(deform),
@@ -460,9 +461,9 @@ registry_data! {
         compact_scatter: PerChunkPair(compact),
         // The scan's three kernels (fusion's over its new-surfel flags, compaction's over
         // its keep flags): block sums, their scan, each block's scan.
-        prefix_sum_reduce: PerScanBlock(scan),
-        prefix_sum_blocks: OneWorkgroup(scan),
-        prefix_sum: PerScanBlock(scan),
+        prefix_sum_reduce: PerScanBlock(scan) bound,
+        prefix_sum_blocks: OneWorkgroup(scan) bound,
+        prefix_sum: PerScanBlock(scan) bound,
         // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
@@ -471,7 +472,7 @@ registry_data! {
         keypoint_describe: PerItem(keypoints) bound,
         // Tracking health's: per workgroup, the pixels with an ICP candidate at level 0
         // (`counts`, summed on the host).
-        icp_candidates: PerCount(icp),
+        icp_candidates: PerCount(icp) bound,
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per

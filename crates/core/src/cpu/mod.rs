@@ -16,7 +16,7 @@
 //! and arrays, as the shader does per dispatch (the CPU backend passes its whole map as one
 //! chunk).
 //!
-//! The twins of the registry's `bound` rows (10 of the 33 kernels so far) are written in
+//! The twins of the registry's `bound` rows (17 of the 33 kernels so far) are written in
 //! `binding::twin!`: the same typed parameters, called in the one call shape
 //! `fn(&mut [Binding])` that the CPU backend's engine runs by the row ([`binding`]).
 

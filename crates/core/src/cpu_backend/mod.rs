@@ -240,12 +240,13 @@ impl Backend for CpuBackend {
                     "count_candidates() before predict()".into(),
                 ));
             }
-            let (pred_vertex, _) = &self.prediction[0];
-            Ok(cpu::icp_candidates::icp_candidates(
-                params,
-                pred_vertex,
-                &self.frame.normal_depth,
-            ))
+            // One workgroup's count: the total.
+            let mut counts = [0u32];
+            let mut step = Pool::new();
+            step.uniform("icp", params);
+            step.write("counts", &mut counts);
+            self.dispatch(plan::count_candidates(), step);
+            Ok(counts[0] as u64)
         })
     }
 
@@ -303,12 +304,12 @@ impl Backend for CpuBackend {
         let n = self.map.len();
         let mut params = *params;
         params.surfel_count = n as u32;
-        let m = &self.map;
         let chunk = MapChunk::whole(n);
         let mut counter = 0u32;
         for call in plan::compact() {
             match call {
                 CompactCall::Flags => {
+                    let m = &self.map;
                     self.flags.resize(n, 0);
                     cpu::compact_flags::compact_flags(
                         &params,
@@ -319,13 +320,11 @@ impl Backend for CpuBackend {
                     );
                 }
                 CompactCall::ScanReduce | CompactCall::ScanBlocks | CompactCall::Scan => {
-                    let (flags, block_sums) = (&self.flags, &mut self.block_sums);
-                    let offsets = &mut self.offsets;
-                    fuse::scan_twin(call.kernel(), n, flags, block_sums, offsets, &mut counter);
+                    self.scan_call(call, n, &mut counter);
                 }
                 // The second map, as large as the first (as on the GPU), cut to the survivors.
                 CompactCall::Scatter => {
-                    let out = &mut self.spare;
+                    let (m, out) = (&self.map, &mut self.spare);
                     out.resize(n);
                     // One call per attribute, as the kernel is dispatched.
                     let (flags, offsets) = (&self.flags, &self.offsets);
