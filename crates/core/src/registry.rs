@@ -262,8 +262,11 @@ macro_rules! twin_of {
 ///   level's own parameter buffer;
 /// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
 ///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
-/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels);
-/// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
+/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels),
+///   from its [`KernelId`] (`Kernel::of` in `wgslam_gpu`), a row ending in `bound` with its
+///   twin in the one call shape (for the twin's callers and the bindings check; no engine
+///   runs it);
+/// - `scan`: the same for scan registration's kernels (`src/scan/gpu.rs`), prefixed with
 ///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry_data {
     (
@@ -274,9 +277,9 @@ macro_rules! registry_data {
         }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
-        elsewhere: { $($other:ident,)* }
+        elsewhere: { $($other:ident $($other_bound:ident)?,)* }
         key_elsewhere: { $($other_key:ident,)* }
-        scan: { $($scan:ident,)* }
+        scan: { $($scan:ident $($scan_bound:ident)?,)* }
     ) => {
         /// Every kernel of the registry, one variant per row, named as its shader and its
         /// twin are (hence snake case). Plan calls name kernels by it.
@@ -350,6 +353,8 @@ macro_rules! registry_data {
                 match self {
                     $(KernelId::$generic => twin_of!($generic $($bound)?),)*
                     $(KernelId::$level => twin_of!($level $($level_bound)?),)*
+                    $(KernelId::$other => twin_of!($other $($other_bound)?),)*
+                    $(KernelId::$scan => twin_of!($scan $($scan_bound)?),)*
                     _ => None,
                 }
             }
@@ -497,15 +502,15 @@ registry_data! {
     key_kernels: {}
     elsewhere: {
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
-        render_resolve,
+        render_resolve bound,
     }
     key_elsewhere: {
         render_splat,
     }
     scan: {
         // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
-        nn_brute,
-        nn_grid,
-        cross_covariance,
+        nn_brute bound,
+        nn_grid bound,
+        cross_covariance bound,
     }
 }
