@@ -63,8 +63,8 @@ impl CpuBackend {
     }
 
     /// Runs an `icp_system` or `rgbd_system` plan at `params` (after
-    /// [`CpuBackend::check_system_level`]), every call through the engine: per [`System`]
-    /// its `partials`, one partial system of f64 sums (the CPU's reductions run as one
+    /// [`CpuBackend::check_system_level`]), every call through the engine: per
+    /// [`System`](crate::registry::System) its `partials`, one partial system of f64 sums (the CPU's reductions run as one
     /// workgroup: `cpu::icp_reduce`), and their sum `system`; the summed 29-entry systems,
     /// geometric and photometric (zero where the plan reduces none).
     pub(super) fn run_systems(&mut self, plan: Vec<SystemCall>, params: &IcpParams) -> RgbdSystems {
