@@ -13,6 +13,7 @@ use crate::gpu::kernel::KeyKernel;
 use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
 use crate::layout::render::RenderParams;
 use crate::Result;
+use wgslam_core::registry::KernelId;
 
 /// The two render kernels, created once per context.
 #[derive(Debug)]
@@ -25,8 +26,8 @@ impl GpuRenderer {
     /// Creates the pipelines (three on a device without 64-bit atomics).
     pub fn new(ctx: &GpuContext) -> Result<GpuRenderer> {
         Ok(GpuRenderer {
-            splat: KeyKernel::new(ctx, "render_splat")?,
-            resolve: Kernel::new(ctx, "render_resolve")?,
+            splat: KeyKernel::of(ctx, KernelId::render_splat)?,
+            resolve: Kernel::of(ctx, KernelId::render_resolve)?,
         })
     }
 

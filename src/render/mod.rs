@@ -36,6 +36,7 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 use image::RgbImage;
 
+use crate::cpu::binding::Binding;
 use crate::cpu::render_resolve::render_resolve;
 use crate::cpu::render_splat::render_splat;
 use crate::geometry::camera::Intrinsics;
@@ -279,21 +280,21 @@ pub fn rgba_to_image(width: u32, height: u32, rgba: &[u32]) -> RgbImage {
 pub fn render_cpu_raw(params: &RenderParams, cloud: &Cloud) -> (Vec<u64>, Vec<u32>) {
     let n = params.camera.width as usize * params.camera.height as usize;
     let mut index_map = vec![0u64; n];
-    render_splat(
-        params,
-        cloud.positions,
-        cloud.normals.unwrap_or(&[]),
-        &mut index_map,
-    );
+    render_splat(&mut [
+        Binding::of(params),
+        Binding::read(cloud.positions),
+        Binding::read(cloud.normals.unwrap_or(&[])),
+        Binding::write(&mut index_map),
+    ]);
     let mut rgba = vec![0u32; n];
-    render_resolve(
-        params,
-        &index_map,
-        cloud.normals.unwrap_or(&[]),
-        cloud.colors.unwrap_or(&[]),
-        cloud.weights.unwrap_or(&[]),
-        &mut rgba,
-    );
+    render_resolve(&mut [
+        Binding::of(params),
+        Binding::read(&index_map),
+        Binding::read(cloud.normals.unwrap_or(&[])),
+        Binding::read(cloud.colors.unwrap_or(&[])),
+        Binding::read(cloud.weights.unwrap_or(&[])),
+        Binding::write(&mut rgba),
+    ]);
     (index_map, rgba)
 }
 

@@ -22,6 +22,7 @@ use crate::layout::scan::{
     ScanCovParams, ScanCovPartial, ScanNnParams, ScanNnResult, SCAN_BRUTE_CHUNK, SCAN_NN_NONE,
 };
 use crate::{Error, Result};
+use wgslam_core::registry::KernelId;
 
 /// Which nearest-neighbour kernel to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,9 +45,9 @@ impl ScanKernels {
     /// Builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<ScanKernels> {
         Ok(ScanKernels {
-            nn_brute: Kernel::new(ctx, "nn_brute")?,
-            nn_grid: Kernel::new(ctx, "nn_grid")?,
-            cross_covariance: Kernel::new(ctx, "cross_covariance")?,
+            nn_brute: Kernel::of(ctx, KernelId::nn_brute)?,
+            nn_grid: Kernel::of(ctx, KernelId::nn_grid)?,
+            cross_covariance: Kernel::of(ctx, KernelId::cross_covariance)?,
         })
     }
 }

@@ -69,32 +69,6 @@ fn a_broken_declaration_is_reported_by_name() {
     assert_eq!(problems, ["kernel `fuse_add` has no `@compute fn main`"]);
 }
 
-/// Bindings a CPU twin returns instead of taking as an argument: `(kernel, binding, why)`.
-/// Every other binding of every kernel is a parameter of `pub fn <kernel>` in
-/// `crates/core/src/cpu/<kernel>.rs`, in `@binding` order and under the WGSL variable's name.
-const TWIN_RETURNS: &[(&str, &str, &str)] = &[
-    (
-        "icp_reduce",
-        "partials",
-        "the twin returns the summed system (f64) instead of one f32 partial per workgroup",
-    ),
-    (
-        "photo_reduce",
-        "partials",
-        "the twin returns the summed system (f64) instead of one f32 partial per workgroup",
-    ),
-    (
-        "icp_reduce_final",
-        "system",
-        "the twin returns the summed system instead of writing it",
-    ),
-    (
-        "icp_candidates",
-        "counts",
-        "the twin returns the total instead of one count per workgroup",
-    ),
-];
-
 /// The parameter names of `pub fn <name>(...)` (or `pub fn <name><generics>(...)`) in
 /// `source`, or why they cannot be read: the text from the `(` to its matching `)`, split on
 /// top-level commas, each parameter's name the identifier before its `:` (a leading `mut`
@@ -182,12 +156,12 @@ fn twin_parameters(name: &str, source: &str) -> Result<(Vec<String>, bool), Stri
 }
 
 /// Every kernel's CPU twin takes the shader's bindings as its parameters, in `@binding` order
-/// and named as the WGSL variables (less the bindings of [`TWIN_RETURNS`], which it returns),
-/// so the binding descriptions at the WGSL declarations describe the twin's arguments too.
+/// and named as the WGSL variables, and returns nothing (it writes its outputs to its
+/// bindings), so the binding descriptions at the WGSL declarations describe the twin's
+/// arguments too.
 /// A key kernel's portable variant has the twin of its key kernel, whose key maps carry the
 /// variant ([`portable_variant_problems`]). Every mismatch of every kernel is reported at
-/// once; a missing twin file or function is a mismatch, not a skip, and so is an exception
-/// that names no binding of its kernel.
+/// once; a missing twin file or function is a mismatch, not a skip.
 fn every_twin_takes_its_shaders_bindings_in_order() {
     let cpu = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/core/src/cpu");
     let mut failures = Vec::new();
@@ -204,19 +178,6 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
                 continue;
             }
         };
-        let returned: Vec<&str> = TWIN_RETURNS
-            .iter()
-            .filter(|(kernel, _, _)| kernel == name)
-            .map(|&(_, binding, _)| binding)
-            .collect();
-        for binding in &returned {
-            if !bindings.iter().any(|b| b.name == *binding) {
-                failures.push(format!(
-                    "kernel `{name}`: TWIN_RETURNS names `{binding}`, which is not one of its \
-                     bindings"
-                ));
-            }
-        }
         let path = cpu.join(format!("{name}.rs"));
         let source = match std::fs::read_to_string(&path) {
             Ok(source) => source,
@@ -235,17 +196,16 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
                 continue;
             }
         };
-        if !returned.is_empty() && !returns {
+        if returns {
             failures.push(format!(
-                "kernel `{name}`: TWIN_RETURNS says the twin returns {returned:?}, but \
-                 `pub fn {name}` returns nothing"
+                "kernel `{name}`: `pub fn {name}` returns a value; a twin writes its outputs \
+                 to its bindings"
             ));
         }
         // The bindings, then the shader's `override` constants in snake case.
         let module = common::wgsl::parse(name, &shaders::source(name));
         let expected: Vec<(String, String)> = bindings
             .iter()
-            .filter(|b| !returned.contains(&b.name.as_str()))
             .map(|b| (format!("binding {}", b.binding), b.name.clone()))
             .chain(module.overrides.iter().filter_map(|(_, o)| {
                 let n = o.name.as_ref()?;
@@ -264,9 +224,8 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
                 )),
                 (None, Some(param)) => failures.push(format!(
                     "kernel `{name}`: twin parameter {i} `{param}` is no binding (the shader \
-                     has {} binding(s), {} returned)",
-                    bindings.len(),
-                    returned.len()
+                     has {} binding(s))",
+                    bindings.len()
                 )),
                 (None, None) => unreachable!(),
             }
@@ -275,15 +234,13 @@ fn every_twin_takes_its_shaders_bindings_in_order() {
     }
     assert!(
         failures.is_empty(),
-        "{} twin/shader mismatch(es) (a binding a twin returns instead belongs in \
-         TWIN_RETURNS, with the reason):\n{}",
+        "{} twin/shader mismatch(es):\n{}",
         failures.len(),
         failures.join("\n")
     );
     eprintln!(
-        "{checked} twin parameters of {} kernels match their bindings ({} returned)",
-        shaders::KERNELS.len(),
-        TWIN_RETURNS.len()
+        "{checked} twin parameters of {} kernels match their bindings",
+        shaders::KERNELS.len()
     );
 }
 
@@ -391,8 +348,40 @@ fn declared_slots(name: &str) -> Vec<(Slot, Option<usize>)> {
         .collect()
 }
 
+/// `(kernel, binding, why)`: the bindings whose elements are the CPU's own, f64 where the
+/// shader's are f32 (twice the bytes; everything else of the binding as declared). A
+/// reduction's partial systems and their sum: the CPU sums its rows in f64, and its outputs
+/// are those sums bit for bit, whereas the GPU's f32 partials differ from them by rounding
+/// (`docs/extending.md`, "The one call shape"). Every entry must name a bound twin's
+/// binding that is wider (a stale entry fails).
+const CPU_F64: &[(&str, &str, &str)] = &[
+    (
+        "icp_reduce",
+        "partials",
+        "the CPU reduces as one workgroup whose sums are f64",
+    ),
+    (
+        "photo_reduce",
+        "partials",
+        "the CPU reduces as one workgroup whose sums are f64",
+    ),
+    (
+        "icp_reduce_final",
+        "partials",
+        "it sums the reductions' f64 partials",
+    ),
+    (
+        "icp_reduce_final",
+        "system",
+        "the CPU's system is the f64 sum of its partials",
+    ),
+];
+
+/// Bytes of an f32, the shader's element where [`CPU_F64`] lets the twin take an f64.
+const F32_BYTES: usize = 4;
+
 /// Where `twin` (the bindings a twin takes) differs from kernel `name`'s declarations:
-/// one sentence per binding.
+/// one sentence per binding (an element of [`CPU_F64`] may be an f64 for the shader's f32).
 fn slot_problems(name: &str, twin: &[Slot]) -> Vec<String> {
     let declared = declared_slots(name);
     let mut problems = Vec::new();
@@ -406,7 +395,10 @@ fn slot_problems(name: &str, twin: &[Slot]) -> Vec<String> {
                         wgsl.name, wgsl.access, rust.name, rust.access
                     ));
                 }
-                if bytes.is_some_and(|b| b != rust.element_bytes) {
+                let widened = CPU_F64.iter().any(|&(k, b, _)| k == name && b == wgsl.name)
+                    && *bytes == Some(F32_BYTES)
+                    && rust.element_bytes == 2 * F32_BYTES;
+                if bytes.is_some_and(|b| b != rust.element_bytes) && !widened {
                     problems.push(format!(
                         "kernel `{name}` binding {i} (`{}`): elements of {} bytes in WGSL, {} in \
                          the twin",
@@ -437,13 +429,36 @@ fn every_bound_twin_takes_its_shaders_declarations() {
     let mut failures = Vec::new();
     let mut bound = 0;
     for kernel in KernelId::ALL {
-        if let Some(twin) = kernel.twin() {
-            failures.extend(slot_problems(kernel.name(), twin.bindings));
-            bound += 1;
+        match kernel.twin() {
+            Some(twin) => {
+                failures.extend(slot_problems(kernel.name(), twin.bindings));
+                bound += 1;
+            }
+            // Every row names its twin in the one call shape (a row ending in `bound`).
+            None => failures.push(format!(
+                "`{}`'s row names no twin in the one call shape (end the row in `bound`)",
+                kernel.name()
+            )),
+        }
+    }
+    for &(kernel, binding, _) in CPU_F64 {
+        let slot = KernelId::ALL
+            .iter()
+            .find(|k| k.name() == kernel)
+            .and_then(|k| k.twin())
+            .and_then(|twin| twin.bindings.iter().find(|s| s.name == binding));
+        if slot.is_none_or(|s| s.element_bytes != 2 * F32_BYTES) {
+            failures.push(format!(
+                "CPU_F64 names `{kernel}`'s `{binding}`, which is no f64 binding of a bound twin"
+            ));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-    assert!(bound > 0, "no twin in the one call shape");
+    assert_eq!(
+        bound,
+        KernelId::ALL.len(),
+        "every kernel's twin in the one call shape"
+    );
     eprintln!(
         "{bound} of {} twins in the one call shape match their shaders",
         KernelId::ALL.len()
@@ -451,7 +466,8 @@ fn every_bound_twin_takes_its_shaders_declarations() {
 }
 
 /// The check above sees a twin that binds another buffer than its shader: two bindings
-/// swapped, one read-only where the shader writes it, one of another element size.
+/// swapped, one read-only where the shader writes it, one of another element size (an f64
+/// for an f32 too, where [`CPU_F64`] does not allow it, or wider than an f64 where it does).
 fn a_twin_binding_another_buffer_is_refused() {
     let twin = KernelId::vertex_to_normal
         .twin()
@@ -466,6 +482,18 @@ fn a_twin_binding_another_buffer_is_refused() {
     narrow[1].element_bytes = 12;
     assert_eq!(slot_problems("vertex_to_normal", &narrow).len(), 1);
     assert!(slot_problems("vertex_to_normal", twin.bindings).is_empty());
+    // An f64 for an f32 only where CPU_F64 says so: icp_candidates' u32 counts are not.
+    let twin = KernelId::icp_candidates
+        .twin()
+        .expect("icp_candidates is bound");
+    let mut wide = twin.bindings.to_vec();
+    wide[3].element_bytes = 2 * F32_BYTES;
+    assert_eq!(slot_problems("icp_candidates", &wide).len(), 1);
+    let twin = KernelId::icp_reduce.twin().expect("icp_reduce is bound");
+    assert!(slot_problems("icp_reduce", twin.bindings).is_empty());
+    let mut wider = twin.bindings.to_vec();
+    wider[4].element_bytes = 4 * F32_BYTES;
+    assert_eq!(slot_problems("icp_reduce", &wider).len(), 1);
 }
 
 pub fn tests() -> Vec<common::harness::Test> {

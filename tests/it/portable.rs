@@ -17,7 +17,6 @@ use common::harness::{gpu, plain, skipped, Test};
 use libtest_mimic::Completion;
 use wgslam::cpu;
 use wgslam::cpu::binding::Binding;
-use wgslam::cpu::key_writer::KeyPass;
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::geometry::se3;
@@ -272,12 +271,12 @@ fn portable_twins_equal_the_64_bit_twins() {
         let (splat_keys, _) = render::render_cpu_raw(&rp, &cloud);
         let mut splat_words = vec![0u32; 2 * splat_keys.len()];
         for key_pass in 0..2 {
-            cpu::render_splat::render_splat(
-                &rp,
-                cloud.positions,
-                cloud.normals.unwrap_or(&[]),
-                &mut KeyPass::new(&mut splat_words, key_pass),
-            );
+            cpu::render_splat::render_splat(&mut [
+                Binding::of(&rp),
+                Binding::read(cloud.positions),
+                Binding::read(cloud.normals.unwrap_or(&[])),
+                Binding::key_pass(&mut splat_words, key_pass),
+            ]);
         }
         check_equal(&format!("{name}: render_splat"), &splat_keys, &splat_words);
     }

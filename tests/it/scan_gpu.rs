@@ -8,6 +8,7 @@ use common::harness::gpu;
 use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
 
 use glam::DMat4;
+use wgslam::cpu::binding::Binding;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
@@ -66,15 +67,20 @@ fn gpu_nn_kernels_match_twins(ctx: GpuContext) {
     let grid = HashGrid::build(&target, RADIUS);
     let params = nn_params(n, &target, RADIUS, &grid);
     let mut cpu_brute = zeroed_results(n);
-    nn_brute(&params, &v4(&queries), &v4(&target), &mut cpu_brute);
+    nn_brute(&mut [
+        Binding::of(&params),
+        Binding::read(&v4(&queries)),
+        Binding::read(&v4(&target)),
+        Binding::write(&mut cpu_brute),
+    ]);
     let mut cpu_grid = cpu_brute.clone();
-    nn_grid(
-        &params,
-        &v4(&queries),
-        &grid.points,
-        &grid.bucket_start,
-        &mut cpu_grid,
-    );
+    nn_grid(&mut [
+        Binding::of(&params),
+        Binding::read(&v4(&queries)),
+        Binding::read(&grid.points),
+        Binding::read(&grid.bucket_start),
+        Binding::write(&mut cpu_grid),
+    ]);
 
     let brute = GpuTarget::new(&ctx, &kernels, &target, RADIUS, NnMethod::Brute).unwrap();
     compare_nn(
@@ -134,7 +140,13 @@ fn gpu_cross_covariance_matches_twin(ctx: GpuContext) {
         radius_sq: 1.0,
         _pad0: 0,
     };
-    cross_covariance(&params, &v4(&queries), &v4(&target), &nn, &mut twin);
+    cross_covariance(&mut [
+        Binding::of(&params),
+        Binding::read(&v4(&queries)),
+        Binding::read(&v4(&target)),
+        Binding::read(&nn),
+        Binding::write(&mut twin),
+    ]);
     let (g, c) = (decode(&partials), decode(&twin));
     assert_eq!(g.count, c.count);
     assert!(c.count > 1000, "{}", c.count);

@@ -8,6 +8,7 @@ use common::harness::plain;
 use common::scans::{fast_gicp_pair, nn_params, v4, zeroed_results};
 use common::wgsl::{self, rust_layout, RustLayout};
 use glam::DVec3;
+use wgslam::cpu::binding::Binding;
 use wgslam::cpu::cross_covariance::{cross_covariance, decode, unshift};
 use wgslam::cpu::nn_brute::nn_brute;
 use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
@@ -118,18 +119,24 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
     let params = nn_params(n, &target, RADIUS, &grid);
     let (q4, t4) = (v4(&queries), v4(&target));
     let mut brute = zeroed_results(n);
-    nn_brute(&params, &q4, &t4, &mut brute);
+    nn_brute(&mut [
+        Binding::of(&params),
+        Binding::read(&q4),
+        Binding::read(&t4),
+        Binding::write(&mut brute),
+    ]);
     let mut gridded = brute.clone();
-    nn_grid(
-        &ScanNnParams {
-            n_targets: grid.points.len() as u32,
-            ..params
-        },
-        &q4,
-        &grid.points,
-        &grid.bucket_start,
-        &mut gridded,
-    );
+    let grid_params = ScanNnParams {
+        n_targets: grid.points.len() as u32,
+        ..params
+    };
+    nn_grid(&mut [
+        Binding::of(&grid_params),
+        Binding::read(&q4),
+        Binding::read(&grid.points),
+        Binding::read(&grid.bucket_start),
+        Binding::write(&mut gridded),
+    ]);
     let tree = KdTreeTarget::new(&target).unwrap();
     let mut kd = vec![(0u32, 0f32); n];
     tree.nearest(&queries, &mut kd).unwrap();
@@ -187,7 +194,12 @@ fn cross_covariance_twin_matches_f64_reduction() {
         target_begin: 0,
         target_end: target.len() as u32,
     };
-    nn_brute(&p, &q4, &t4, &mut nn);
+    nn_brute(&mut [
+        Binding::of(&p),
+        Binding::read(&q4),
+        Binding::read(&t4),
+        Binding::write(&mut nn),
+    ]);
     let centroid = queries.iter().fold(DVec3::ZERO, |a, q| {
         a + DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64)
     }) / n as f64;
@@ -201,7 +213,13 @@ fn cross_covariance_twin_matches_f64_reduction() {
         _pad0: 0,
     };
     let mut partials = vec![bytemuck::Zeroable::zeroed(); workgroups as usize];
-    cross_covariance(&params, &q4, &t4, &nn, &mut partials);
+    cross_covariance(&mut [
+        Binding::of(&params),
+        Binding::read(&q4),
+        Binding::read(&t4),
+        Binding::read(&nn),
+        Binding::write(&mut partials),
+    ]);
     let shifted = decode(&partials);
 
     let mut reference = CrossCovariance::default();

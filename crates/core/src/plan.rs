@@ -217,13 +217,13 @@ step_calls! {
     /// normal-equation systems at a pyramid level.
     SystemCall {
         /// `icp_reduce` at pyramid level `level`: the geometric (point-to-plane) rows into
-        /// per-workgroup partial systems (the CPU twin sums them into the system, in f64).
+        /// per-workgroup partial systems (on the CPU one partial, its sums f64).
         IcpReduce { level: usize } => icp_reduce,
         /// `photo_reduce` at pyramid level `level`: the photometric rows (against level 0's
         /// prediction) likewise.
         PhotoReduce { level: usize } => photo_reduce,
-        /// `icp_reduce_final`: the system's partial systems summed into one (the GPU's
-        /// second stage; the CPU twins of the reductions have summed already).
+        /// `icp_reduce_final`: the system's partial systems summed into one (on the CPU
+        /// its one f64 partial, given back unchanged).
         SumPartials(System) => icp_reduce_final,
     }
     at(call) {

@@ -262,8 +262,11 @@ macro_rules! twin_of {
 ///   level's own parameter buffer;
 /// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
 ///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
-/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels);
-/// - `scan`: built by the scan registration (`src/scan/gpu.rs`), and prefixed with
+/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels),
+///   from its [`KernelId`] (`Kernel::of` in `wgslam_gpu`), a row ending in `bound` with its
+///   twin in the one call shape (for the twin's callers and the bindings check; no engine
+///   runs it);
+/// - `scan`: the same for scan registration's kernels (`src/scan/gpu.rs`), prefixed with
 ///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry_data {
     (
@@ -276,9 +279,9 @@ macro_rules! registry_data {
         }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
-        elsewhere: { $($other:ident,)* }
-        key_elsewhere: { $($other_key:ident,)* }
-        scan: { $($scan:ident,)* }
+        elsewhere: { $($other:ident $($other_bound:ident)?,)* }
+        key_elsewhere: { $($other_key:ident $($other_key_bound:ident)?,)* }
+        scan: { $($scan:ident $($scan_bound:ident)?,)* }
     ) => {
         /// Every kernel of the registry, one variant per row, named as its shader and its
         /// twin are (hence snake case). Plan calls name kernels by it.
@@ -346,14 +349,17 @@ macro_rules! registry_data {
             }
 
             /// The twin of a `bound` row: `crate::cpu::<name>::<name>` in the one call
-            /// shape, with the bindings it takes (`crate::cpu::binding`). `None` for a
-            /// row whose twin still takes typed arguments.
+            /// shape, with the bindings it takes (`crate::cpu::binding`). Every row is
+            /// `bound`; `None` would be a row added without the marker, which
+            /// `tests/it/bindings.rs` refuses.
             pub fn twin(self) -> Option<Twin> {
                 match self {
                     $(KernelId::$generic => twin_of!($generic $($bound)?),)*
                     $(KernelId::$generic_key => twin_of!($generic_key $($key_bound)?),)*
                     $(KernelId::$level => twin_of!($level $($level_bound)?),)*
-                    _ => None,
+                    $(KernelId::$other => twin_of!($other $($other_bound)?),)*
+                    $(KernelId::$other_key => twin_of!($other_key $($other_key_bound)?),)*
+                    $(KernelId::$scan => twin_of!($scan $($scan_bound)?),)*
                 }
             }
         }
@@ -450,10 +456,11 @@ registry_data! {
         // ICP's and RGB-D tracking's systems at a pyramid level: the geometric and the
         // photometric term's rows into per-workgroup partial systems, and their sum
         // (`icp_reduce_final` declares no `params`: its row's uniform, the reductions', is
-        // offered to its bind groups and not taken).
-        icp_reduce: Reduce(icp),
-        photo_reduce: Reduce(icp),
-        icp_reduce_final: PerSystem(icp),
+        // offered to its bind groups and not taken). The CPU's partials and sum are f64
+        // (`cpu::icp_reduce`'s notes).
+        icp_reduce: Reduce(icp) bound,
+        photo_reduce: Reduce(icp) bound,
+        icp_reduce_final: PerSystem(icp) bound,
         // Loop closure's map deformation: every live surfel moved by the pose graph's
         // corrections (`nodes`, the node table).
         deform_surfels: PerSurfel(deform) bound,
@@ -464,9 +471,9 @@ registry_data! {
         compact_scatter: PerChunkPair(compact) bound,
         // The scan's three kernels (fusion's over its new-surfel flags, compaction's over
         // its keep flags): block sums, their scan, each block's scan.
-        prefix_sum_reduce: PerScanBlock(scan),
-        prefix_sum_blocks: OneWorkgroup(scan),
-        prefix_sum: PerScanBlock(scan),
+        prefix_sum_reduce: PerScanBlock(scan) bound,
+        prefix_sum_blocks: OneWorkgroup(scan) bound,
+        prefix_sum: PerScanBlock(scan) bound,
         // Relocalisation's: the frame's fern codes (`ferns` in, `codes` out), its corners
         // (`keypoints`, `counter`) and their descriptors (`pattern`, `descriptors`,
         // `points`).
@@ -475,7 +482,7 @@ registry_data! {
         keypoint_describe: PerItem(keypoints) bound,
         // Tracking health's: per workgroup, the pixels with an ICP candidate at level 0
         // (`counts`, summed on the host).
-        icp_candidates: PerCount(icp),
+        icp_candidates: PerCount(icp) bound,
     }
     generic_keys: {
         // The map's depth keys at the predicted view, and fusion's choice of surfel per
@@ -500,15 +507,15 @@ registry_data! {
     key_kernels: {}
     elsewhere: {
         // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
-        render_resolve,
+        render_resolve bound,
     }
     key_elsewhere: {
-        render_splat,
+        render_splat bound,
     }
     scan: {
         // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
-        nn_brute,
-        nn_grid,
-        cross_covariance,
+        nn_brute bound,
+        nn_grid bound,
+        cross_covariance bound,
     }
 }

@@ -12,6 +12,7 @@
 use super::context::GpuContext;
 use super::shaders;
 use crate::{Error, Result};
+use wgslam_core::registry::KernelId;
 
 /// One `@group(0) @binding(i)` of a kernel as naga reflects it from the WGSL: the layout
 /// is built from these, and bind groups are made by `name`. Parameter structs are
@@ -57,6 +58,13 @@ impl Kernel {
         ctx.cached(name, || {
             Self::from_source(ctx, name, &shaders::source(name))
         })
+    }
+
+    /// The kernel of registry row `id` ([`Kernel::new`] of its name): how the code that
+    /// runs a kernel outside the dense pipeline (the renderer's, scan registration's) builds
+    /// it, by a typed id that cannot be misspelt, as the engine's rows build theirs.
+    pub fn of(ctx: &GpuContext, id: KernelId) -> Result<Kernel> {
+        Self::new(ctx, id.name())
     }
 
     /// Builds a kernel from full WGSL text (used by [`Kernel::new`] and by tests with
@@ -317,6 +325,12 @@ impl KeyKernel {
             Kernel::key_passes(ctx, portable)?.into()
         };
         Ok(KeyKernel { passes })
+    }
+
+    /// The key kernel of registry row `id` ([`KeyKernel::new`] of its name; see
+    /// [`Kernel::of`]).
+    pub fn of(ctx: &GpuContext, id: KernelId) -> Result<KeyKernel> {
+        Self::new(ctx, id.name())
     }
 
     /// The first pass: its layout makes the bind groups, its workgroup size the grid.

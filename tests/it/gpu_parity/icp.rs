@@ -294,7 +294,9 @@ fn icp_reduce_final_matches_twin(ctx: GpuContext) {
                 x * 10f32.powi((i % 7) as i32 - 3)
             })
             .collect();
-        let twin = cpu::icp_reduce_final::icp_reduce_final(&partials);
+        // The twin's tree over the shader's f32 (the CPU backend runs it over f64).
+        let mut twin = [0.0f32; ICP_SYSTEM_LEN];
+        cpu::icp_reduce_final::sum_tree(&partials, &mut twin);
         let input = GpuArray::from_slice(&ctx, "partials", &partials).unwrap();
         let mut system = GpuArray::<f32>::new(&ctx, "system", ICP_SYSTEM_LEN).unwrap();
         system.set_len(ICP_SYSTEM_LEN);

@@ -3,6 +3,7 @@
 //! thread, then a tree reduction over the 64 threads of each workgroup). The host sums the
 //! partials in f64 with [`decode`]. Arguments follow the shader's bindings.
 
+use super::binding::twin;
 use bytemuck::Zeroable;
 use glam::{DMat4, DVec3};
 
@@ -48,54 +49,56 @@ pub fn scan_cov_pair(acc: &mut ScanCovPartial, p: [f32; 3], q: [f32; 3]) {
     }
 }
 
-/// Reduces the inlier pairs `(queries[i], targets[nn[i].index])` for `i < n_pairs`
-/// (inlier: index valid and `dist_sq <= radius_sq`) into one partial per workgroup;
-/// `partials.len()` is the workgroup count and `params.n_threads` must equal
-/// `partials.len() * 64`.
-///
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/cross_covariance.wgsl` for shapes, units and frames.
-pub fn cross_covariance(
-    params: &ScanCovParams,
-    queries: &[[f32; 4]],
-    targets: &[[f32; 4]],
-    nn: &[ScanNnResult],
-    partials: &mut [ScanCovPartial],
-) {
-    let wg_size = SCAN_WORKGROUP_SIZE as usize;
-    assert_eq!(
-        params.n_threads as usize,
-        partials.len() * wg_size,
-        "cross_covariance: n_threads must be workgroups * 64"
-    );
-    let a = params.anchor;
-    for (wg, out) in partials.iter_mut().enumerate() {
-        // Each thread's registers, then the workgroup's shared scratch.
-        let mut scratch = vec![ScanCovPartial::zeroed(); wg_size];
-        for (lid, acc) in scratch.iter_mut().enumerate() {
-            let mut i = wg * wg_size + lid;
-            while i < params.n_pairs as usize {
-                let r = nn[i];
-                if r.index != SCAN_NN_NONE && r.dist_sq <= params.radius_sq {
-                    let s = queries[i];
-                    let t = targets[r.index as usize];
-                    scan_cov_pair(
-                        acc,
-                        [s[0] - a[0], s[1] - a[1], s[2] - a[2]],
-                        [t[0] - a[0], t[1] - a[1], t[2] - a[2]],
-                    );
+twin! {
+    /// Reduces the inlier pairs `(queries[i], targets[nn[i].index])` for `i < n_pairs`
+    /// (inlier: index valid and `dist_sq <= radius_sq`) into one partial per workgroup;
+    /// `partials.len()` is the workgroup count and `params.n_threads` must equal
+    /// `partials.len() * 64`.
+    ///
+    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
+    /// declarations in `shaders/cross_covariance.wgsl` for shapes, units and frames.
+    pub fn cross_covariance(
+        params: &ScanCovParams,
+        queries: &[[f32; 4]],
+        targets: &[[f32; 4]],
+        nn: &[ScanNnResult],
+        partials: &mut [ScanCovPartial],
+    ) {
+        let wg_size = SCAN_WORKGROUP_SIZE as usize;
+        assert_eq!(
+            params.n_threads as usize,
+            partials.len() * wg_size,
+            "cross_covariance: n_threads must be workgroups * 64"
+        );
+        let a = params.anchor;
+        for (wg, out) in partials.iter_mut().enumerate() {
+            // Each thread's registers, then the workgroup's shared scratch.
+            let mut scratch = vec![ScanCovPartial::zeroed(); wg_size];
+            for (lid, acc) in scratch.iter_mut().enumerate() {
+                let mut i = wg * wg_size + lid;
+                while i < params.n_pairs as usize {
+                    let r = nn[i];
+                    if r.index != SCAN_NN_NONE && r.dist_sq <= params.radius_sq {
+                        let s = queries[i];
+                        let t = targets[r.index as usize];
+                        scan_cov_pair(
+                            acc,
+                            [s[0] - a[0], s[1] - a[1], s[2] - a[2]],
+                            [t[0] - a[0], t[1] - a[1], t[2] - a[2]],
+                        );
+                    }
+                    i += params.n_threads as usize;
                 }
-                i += params.n_threads as usize;
             }
-        }
-        let mut stride = wg_size / 2;
-        while stride > 0 {
-            for lid in 0..stride {
-                scratch[lid] = scan_cov_add(&scratch[lid], &scratch[lid + stride]);
+            let mut stride = wg_size / 2;
+            while stride > 0 {
+                for lid in 0..stride {
+                    scratch[lid] = scan_cov_add(&scratch[lid], &scratch[lid + stride]);
+                }
+                stride /= 2;
             }
-            stride /= 2;
+            *out = scratch[0];
         }
-        *out = scratch[0];
     }
 }
 

@@ -108,6 +108,16 @@ pub fn system_grid(
     sys
 }
 
+/// `partials` as the one partial system a CPU reduction writes (`icp_reduce`,
+/// `photo_reduce`: the shader's one workgroup, its sums f64). Panics (an internal contract:
+/// the CPU backend binds one system's entries) on another length.
+pub fn one_partial(partials: &mut [f64]) -> &mut [f64; ICP_SYSTEM_LEN] {
+    let given = partials.len();
+    partials.try_into().unwrap_or_else(|_| {
+        panic!("a CPU reduction writes one partial system ({ICP_SYSTEM_LEN} f64), given {given}")
+    })
+}
+
 /// The row of a point `p` (camera frame) whose residual `b` moves along direction `d` (the
 /// frame normal, or the intensity gradient through the projection) under the twist
 /// `(alpha, beta, gamma, tx, ty, tz)`: `a = [(p x d), d]` and `b`, both scaled by

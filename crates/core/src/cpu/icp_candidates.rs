@@ -3,6 +3,7 @@
 //! texel with a valid normal), the denominator of the tracking-health inlier fraction
 //! (`slam::health`). The same test as the first half of `icp_row` (`cpu::icp_reduce`).
 
+use super::binding::twin;
 use super::invocations::par_rows_in_order;
 use super::{is_valid, project_to_texel, transform_point, xyz};
 use crate::layout::IcpParams;
@@ -27,30 +28,37 @@ pub fn is_candidate(
     }
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/icp_candidates.wgsl`.
-///
-/// `counts` is returned instead of written: the total (the GPU writes one count per
-/// workgroup; the host sums them).
-pub fn icp_candidates(
-    params: &IcpParams,
-    pred_vertex: &[[f32; 4]],
-    normal_depth: &[[f32; 4]],
-) -> u64 {
-    let mut n = 0;
-    let w = params.camera.width as usize;
-    // Every pixel's test on every thread, the count in pixel order.
-    par_rows_in_order(
-        w * params.camera.height as usize,
-        |i| {
-            is_candidate(
-                params,
-                [(i % w) as u32, (i / w) as u32],
-                pred_vertex,
-                normal_depth,
-            )
-        },
-        |_, candidate| n += candidate as u64,
-    );
-    n
+/// Threads of each of the shader's workgroups (`WORKGROUP_SIZE` in icp_candidates.wgsl).
+pub const WORKGROUP_SIZE: usize = 64;
+
+twin! {
+    /// The candidates of each workgroup into `counts`, one entry per workgroup the
+    /// shader's grid-stride loop runs (`counts.len()` of them: the host sums them; the CPU
+    /// backend binds one, so its one entry is the total): pixel `pix` is thread
+    /// `pix % (counts.len() * WORKGROUP_SIZE)`'s, of workgroup that / `WORKGROUP_SIZE`. The
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/icp_candidates.wgsl` for shapes, units and frames).
+    pub fn icp_candidates(
+        params: &IcpParams,
+        pred_vertex: &[[f32; 4]],
+        normal_depth: &[[f32; 4]],
+        counts: &mut [u32],
+    ) {
+        let w = params.camera.width as usize;
+        let stride = counts.len() * WORKGROUP_SIZE;
+        counts.fill(0);
+        // Every pixel's test on every thread, each count in pixel order.
+        par_rows_in_order(
+            w * params.camera.height as usize,
+            |pix| {
+                is_candidate(
+                    params,
+                    [(pix % w) as u32, (pix / w) as u32],
+                    pred_vertex,
+                    normal_depth,
+                )
+            },
+            |pix, candidate| counts[pix % stride / WORKGROUP_SIZE] += candidate as u32,
+        );
+    }
 }

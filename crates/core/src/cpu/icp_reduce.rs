@@ -19,11 +19,19 @@
 //! The row is scaled by `sqrt(w)`, so the system stays 29 floats: AᵀWA, AᵀWb, the inlier
 //! count and the weighted squared residuals. With both off `w` is exactly 1 and the row
 //! is the unweighted one bit for bit.
+//!
+//! The reduction's element is the CPU's own: where the shader writes one f32 partial
+//! system per workgroup, the twin runs as one workgroup whose sums are f64 (every row in
+//! pixel order, `cpu::system_grid`) and its `partials` binding is one system of f64
+//! entries, which `cpu::icp_reduce_final` gives back unchanged: the CPU backend's systems
+//! are f64 sums, as they were before the one call shape (`docs/extending.md`, "The
+//! reductions' f64 system"; `tests/it/bindings.rs`'s `CPU_F64` allows exactly this).
 
+use super::binding::twin;
 use super::{
     back_project, huber_weight, is_valid, project_to_texel, transform_dir, transform_point, xyz,
 };
-use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
+use crate::layout::IcpParams;
 
 /// Axial depth noise of a Kinect-like sensor, after Nguyen, Izadi and Lovell (2012):
 /// `sigma(z) = NOISE_SIGMA_0_M + NOISE_SIGMA_QUAD (z - NOISE_Z_0_M)^2`, metres.
@@ -90,20 +98,25 @@ pub fn icp_row(
 
 pub use super::entries::accumulate;
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/icp_reduce.wgsl` for shapes, units and frames.
-///
-/// `partials` is returned instead of written: the summed system, in f64 (the GPU writes
-/// one f32 partial per workgroup; the host sums them in f64).
-pub fn icp_reduce(
-    params: &IcpParams,
-    pred_vertex: &[[f32; 4]],
-    pred_normal: &[[f32; 4]],
-    normal_depth: &[[f32; 4]],
-) -> [f64; ICP_SYSTEM_LEN] {
-    super::system_grid(params.camera.width, params.camera.height, |texel| {
-        icp_row(params, texel, pred_vertex, pred_normal, normal_depth)
-    })
+twin! {
+    /// The system of every pixel's row into `partials`, as one workgroup of the shader
+    /// whose sums are f64: the CPU's `partials` is one partial system of f64 entries (the
+    /// shader writes one f32 partial per workgroup; see `cpu::icp_reduce_final` for their
+    /// sum, and `docs/extending.md` for why the CPU's element is wider). The parameters are
+    /// the shader's bindings in `@binding` order, named as there (see the declarations in
+    /// `shaders/icp_reduce.wgsl` for shapes, units and frames).
+    pub fn icp_reduce(
+        params: &IcpParams,
+        pred_vertex: &[[f32; 4]],
+        pred_normal: &[[f32; 4]],
+        normal_depth: &[[f32; 4]],
+        partials: &mut [f64],
+    ) {
+        let sys = super::system_grid(params.camera.width, params.camera.height, |texel| {
+            icp_row(params, texel, pred_vertex, pred_normal, normal_depth)
+        });
+        super::entries::one_partial(partials).copy_from_slice(&sys);
+    }
 }
 
 #[cfg(test)]

@@ -17,9 +17,10 @@
 //! takes one chunk's `MapChunk` and arrays, as the shader does per dispatch (the CPU
 //! backend binds its whole map as one chunk).
 //!
-//! The twins of the registry's `bound` rows (21 of the 33 kernels so far) are written in
+//! The twins of the registry's rows (all 33 kernels, each row `bound`) are written in
 //! `binding::twin!`: the same typed parameters, called in the one call shape
-//! `fn(&mut [Binding])` that the CPU backend's engine runs by the row ([`binding`]).
+//! `fn(&mut [Binding])` that the CPU backend's engine runs by the row ([`binding`]); the
+//! renderer's and scan registration's (5 of them) are called in it by their callers.
 
 pub mod arith;
 pub mod bilateral_filter;

@@ -6,6 +6,7 @@
 //! lies in the 3x3x3 cells around the query's cell, so the answer equals brute force
 //! within the radius (same tie rule). Hash collisions only add candidates.
 
+use super::binding::twin;
 use super::{scan_closer, scan_dist_sq};
 use crate::layout::scan::{ScanNnParams, ScanNnResult, SCAN_NN_NONE};
 
@@ -80,46 +81,48 @@ impl HashGrid {
     }
 }
 
-/// For every query, the nearest grid point within `radius_sq` (searching the 27 cells
-/// around the query's cell), as an index into the ORIGINAL target cloud; `SCAN_NN_NONE`
-/// with `dist_sq` = the best squared distance seen (`f32::MAX` if none) otherwise.
-///
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/nn_grid.wgsl` for shapes, units and frames.
-pub fn nn_grid(
-    params: &ScanNnParams,
-    queries: &[[f32; 4]],
-    grid_points: &[[f32; 4]],
-    bucket_start: &[u32],
-    results: &mut [ScanNnResult],
-) {
-    for q in 0..params.n_queries as usize {
-        let p = queries[q];
-        let c = scan_cell_of(p, params.cell_size);
-        let mut best_d = f32::MAX;
-        let mut best_i = SCAN_NN_NONE;
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let b =
-                        scan_bucket([c[0] + dx, c[1] + dy, c[2] + dz], params.table_mask) as usize;
-                    for t in &grid_points[bucket_start[b] as usize..bucket_start[b + 1] as usize] {
-                        let d2 = scan_dist_sq(*t, p);
-                        let i = t[3].to_bits();
-                        if scan_closer(d2, i, best_d, best_i) {
-                            best_d = d2;
-                            best_i = i;
+twin! {
+    /// For every query, the nearest grid point within `radius_sq` (searching the 27 cells
+    /// around the query's cell), as an index into the ORIGINAL target cloud; `SCAN_NN_NONE`
+    /// with `dist_sq` = the best squared distance seen (`f32::MAX` if none) otherwise.
+    ///
+    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
+    /// declarations in `shaders/nn_grid.wgsl` for shapes, units and frames.
+    pub fn nn_grid(
+        params: &ScanNnParams,
+        queries: &[[f32; 4]],
+        grid_points: &[[f32; 4]],
+        bucket_start: &[u32],
+        results: &mut [ScanNnResult],
+    ) {
+        for q in 0..params.n_queries as usize {
+            let p = queries[q];
+            let c = scan_cell_of(p, params.cell_size);
+            let mut best_d = f32::MAX;
+            let mut best_i = SCAN_NN_NONE;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let b =
+                            scan_bucket([c[0] + dx, c[1] + dy, c[2] + dz], params.table_mask) as usize;
+                        for t in &grid_points[bucket_start[b] as usize..bucket_start[b + 1] as usize] {
+                            let d2 = scan_dist_sq(*t, p);
+                            let i = t[3].to_bits();
+                            if scan_closer(d2, i, best_d, best_i) {
+                                best_d = d2;
+                                best_i = i;
+                            }
                         }
                     }
                 }
             }
+            if best_d > params.radius_sq {
+                best_i = SCAN_NN_NONE;
+            }
+            results[q] = ScanNnResult {
+                index: best_i,
+                dist_sq: best_d,
+            };
         }
-        if best_d > params.radius_sq {
-            best_i = SCAN_NN_NONE;
-        }
-        results[q] = ScanNnResult {
-            index: best_i,
-            dist_sq: best_d,
-        };
     }
 }

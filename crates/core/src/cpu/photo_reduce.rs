@@ -23,10 +23,14 @@
 //! `J = [(p' x g)ᵀ, gᵀ]`, `g = (dπ/dp')ᵀ ∇I = (fx Ix / z, fy Iy / z,
 //! -(fx Ix x + fy Iy y) / z²)` (units: intensity per metre). A Huber weight on `r`
 //! (`photo_huber`) scales the row by `sqrt(w)`.
+//!
+//! As `cpu::icp_reduce`'s, the twin's `partials` is one partial system of f64 sums (the
+//! shader's one workgroup, its sums wider than the shader's f32; see its notes).
 
 use super::arith;
+use super::binding::twin;
 use super::{huber_weight, is_valid, transform_point, xyz};
-use crate::layout::{IcpParams, ICP_SYSTEM_LEN};
+use crate::layout::IcpParams;
 
 /// `pred_intensity` where the pixel has no surfel (intensities are 0..1).
 pub const INTENSITY_NONE: f32 = -1.0;
@@ -114,27 +118,31 @@ pub fn photo_row(
     Some(super::entries::scaled_row(p, g, r, s))
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/photo_reduce.wgsl` for shapes, units and frames.
-///
-/// `partials` is returned instead of written: the summed system, in f64.
-pub fn photo_reduce(
-    params: &IcpParams,
-    level0_pred_vertex: &[[f32; 4]],
-    pred_intensity: &[f32],
-    normal_depth: &[[f32; 4]],
-    intensity_patch: &[[f32; 4]],
-) -> [f64; ICP_SYSTEM_LEN] {
-    super::system_grid(params.camera.width, params.camera.height, |texel| {
-        photo_row(
-            params,
-            texel,
-            level0_pred_vertex,
-            pred_intensity,
-            normal_depth,
-            intensity_patch,
-        )
-    })
+twin! {
+    /// The system of every pixel's row into `partials`, as `icp_reduce` writes it: one
+    /// partial system of f64 entries, the shader's one workgroup with f64 sums. The
+    /// parameters are the shader's bindings in `@binding` order, named as there (see the
+    /// declarations in `shaders/photo_reduce.wgsl` for shapes, units and frames).
+    pub fn photo_reduce(
+        params: &IcpParams,
+        level0_pred_vertex: &[[f32; 4]],
+        pred_intensity: &[f32],
+        normal_depth: &[[f32; 4]],
+        intensity_patch: &[[f32; 4]],
+        partials: &mut [f64],
+    ) {
+        let sys = super::system_grid(params.camera.width, params.camera.height, |texel| {
+            photo_row(
+                params,
+                texel,
+                level0_pred_vertex,
+                pred_intensity,
+                normal_depth,
+                intensity_patch,
+            )
+        });
+        super::entries::one_partial(partials).copy_from_slice(&sys);
+    }
 }
 
 #[cfg(test)]

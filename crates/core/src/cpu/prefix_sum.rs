@@ -6,42 +6,67 @@
 //! `FuseScan` and `CompactScan` do. Integer sums: the result is the plain running sum,
 //! whatever the order.
 
+use super::binding::{twin, Binding};
 use super::prefix_sum_blocks::prefix_sum_blocks;
 use super::prefix_sum_reduce::{hillis_steele_inclusive, prefix_sum_reduce};
 pub use super::prefix_sum_reduce::{scan_blocks, SCAN_BLOCK, SCAN_ITEMS, SCAN_THREADS};
 use crate::layout::CompactParams;
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/prefix_sum.wgsl` for shapes, units and frames.
-pub fn prefix_sum(params: &CompactParams, flags: &[u32], block_sums: &[u32], offsets: &mut [u32]) {
-    let n = params.surfel_count;
-    for wid in 0..n.div_ceil(SCAN_BLOCK) {
-        let range = |t: u32| {
-            let begin = (wid * SCAN_BLOCK + t * SCAN_ITEMS).min(n);
-            begin..(begin + SCAN_ITEMS).min(n)
-        };
-        let own: Vec<u32> = (0..SCAN_THREADS)
-            .map(|t| range(t).map(|i| flags[i as usize]).sum())
-            .collect();
-        let sums = hillis_steele_inclusive(&own);
-        for t in 0..SCAN_THREADS {
-            let mut running = block_sums[wid as usize] + sums[t as usize] - own[t as usize];
-            for i in range(t) {
-                offsets[i as usize] = running;
-                running += flags[i as usize];
+twin! {
+    /// Each flag's exclusive offset into `offsets`: its block's scan offset by the sum of
+    /// the blocks before it. The parameters are the shader's bindings in `@binding` order,
+    /// named as there (see the declarations in `shaders/prefix_sum.wgsl` for shapes, units
+    /// and frames).
+    pub fn prefix_sum(
+        params: &CompactParams,
+        flags: &[u32],
+        block_sums: &[u32],
+        offsets: &mut [u32],
+    ) {
+        let n = params.surfel_count;
+        for wid in 0..n.div_ceil(SCAN_BLOCK) {
+            let range = |t: u32| {
+                let begin = (wid * SCAN_BLOCK + t * SCAN_ITEMS).min(n);
+                begin..(begin + SCAN_ITEMS).min(n)
+            };
+            let own: Vec<u32> = (0..SCAN_THREADS)
+                .map(|t| range(t).map(|i| flags[i as usize]).sum())
+                .collect();
+            let sums = hillis_steele_inclusive(&own);
+            for t in 0..SCAN_THREADS {
+                let mut running = block_sums[wid as usize] + sums[t as usize] - own[t as usize];
+                for i in range(t) {
+                    offsets[i as usize] = running;
+                    running += flags[i as usize];
+                }
             }
         }
     }
 }
 
-/// The whole scan of `params.surfel_count` flags, the three kernels' twins in order:
-/// `offsets[i] = flags[0] + ... + flags[i - 1]` and `counter` their total.
+/// The whole scan of `params.surfel_count` flags, the three kernels' twins in order in
+/// the one call shape: `offsets[i] = flags[0] + ... + flags[i - 1]` and `counter` their
+/// total.
 pub fn scan(params: &CompactParams, flags: &[u32], offsets: &mut [u32], counter: &mut u32) {
     let blocks = scan_blocks(params.surfel_count as usize);
     let mut block_sums = vec![0u32; blocks];
-    prefix_sum_reduce(params, flags, &mut block_sums);
-    prefix_sum_blocks(params, &mut block_sums, counter);
-    prefix_sum(params, flags, &block_sums, offsets);
+    let params = || Binding::of(params);
+    prefix_sum_reduce(&mut [
+        params(),
+        Binding::read(flags),
+        Binding::write(&mut block_sums),
+    ]);
+    prefix_sum_blocks(&mut [
+        params(),
+        Binding::write(&mut block_sums),
+        Binding::write(std::slice::from_mut(counter)),
+    ]);
+    prefix_sum(&mut [
+        params(),
+        Binding::read(flags),
+        Binding::read(&block_sums),
+        Binding::write(offsets),
+    ]);
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@
 //! while silhouettes (covered on one side only) and depth jumps stay as they are. Keys are
 //! read from the index map only, so the shader and this twin fill the same pixels.
 
+use super::binding::twin;
 use glam::Vec3;
 
 use crate::layout::render::{RenderParams, VIEW_COLOR, VIEW_DEPTH, VIEW_NORMALS, VIEW_WEIGHT};
@@ -129,30 +130,32 @@ pub fn shade(
     }
 }
 
-/// Arguments: the shader's bindings in `@binding` order, named as there; see the
-/// declarations in `shaders/render_resolve.wgsl` for shapes, units and frames.
-pub fn render_resolve(
-    params: &RenderParams,
-    index_map: &[u64],
-    normals: &[[f32; 4]],
-    colors: &[[f32; 4]],
-    weights: &[f32],
-    out_rgba: &mut [u32],
-) {
-    let n = params.camera.width as usize * params.camera.height as usize;
-    assert_eq!(index_map.len(), n, "index_map has the wrong size");
-    assert_eq!(out_rgba.len(), n, "out_rgba has the wrong size");
-    for pix in 0..n {
-        let mut key = index_map[pix];
-        if key == 0 {
-            key = fill_gap(params, index_map, pix);
+twin! {
+    /// Arguments: the shader's bindings in `@binding` order, named as there; see the
+    /// declarations in `shaders/render_resolve.wgsl` for shapes, units and frames.
+    pub fn render_resolve(
+        params: &RenderParams,
+        index_map: &[u64],
+        normals: &[[f32; 4]],
+        colors: &[[f32; 4]],
+        weights: &[f32],
+        out_rgba: &mut [u32],
+    ) {
+        let n = params.camera.width as usize * params.camera.height as usize;
+        assert_eq!(index_map.len(), n, "index_map has the wrong size");
+        assert_eq!(out_rgba.len(), n, "out_rgba has the wrong size");
+        for pix in 0..n {
+            let mut key = index_map[pix];
+            if key == 0 {
+                key = fill_gap(params, index_map, pix);
+            }
+            if key == 0 {
+                out_rgba[pix] = params.background;
+                continue;
+            }
+            let index = (key & 0xffff_ffff) as usize;
+            let z = key_depth(key);
+            out_rgba[pix] = pack_rgb(shade(params, index, z, normals, colors, weights));
         }
-        if key == 0 {
-            out_rgba[pix] = params.background;
-            continue;
-        }
-        let index = (key & 0xffff_ffff) as usize;
-        let z = key_depth(key);
-        out_rgba[pix] = pack_rgb(shade(params, index, z, normals, colors, weights));
     }
 }

@@ -2,10 +2,10 @@
 //! ([`KernelId::twin`](crate::registry::KernelId::twin)), its bindings taken from a
 //! [`Pool`] of the backend's buffers by the names the WGSL declares them with, as the GPU
 //! engine's bind groups take them (`wgslam_gpu`'s `bind_groups.rs`: `frame_pool`,
-//! `level_pool`, `chunk_pool`, `map_row_groups`). Rows of the `OverFrame`, `PerItem`,
-//! `PerLevel` and map [`Shape`]s (`PerChunk`, `PerBlock`, `PerStaleBlock`, `PerSurfel`,
-//! `PerChunkPair`) bind here; a step runs the kernels of other rows through arms of its
-//! own.
+//! `level_pool`, `chunk_pool`, `map_row_groups`, `scan_groups`, `system_pool`). Rows of
+//! every [`Shape`] of the SLAM pipeline bind here: `OverFrame`, `PerItem`, `PerCount`,
+//! `PerLevel`, `Reduce`, `PerSystem`, `PerScanBlock`, `OneWorkgroup` and the map's
+//! (`PerChunk`, `PerBlock`, `PerStaleBlock`, `PerSurfel`, `PerChunkPair`).
 //!
 //! The map is one chunk: the CPU map is one array per attribute, grown without a cap, so
 //! a map row's pool binds it whole as the GPU binds each of its chunks (`chunk` is
@@ -26,18 +26,21 @@ use crate::cpu::binding::{Pool, Twin};
 use crate::layout::map::SurfelMap;
 use crate::layout::MapChunk;
 use crate::plan::Call;
-use crate::registry::{At, Shape};
+use crate::registry::{At, Scanned, Shape};
 
 impl CpuBackend {
     /// Runs `call`'s kernel through its row: its twin over the bindings it names, from
     /// `step` (the step's own uniforms and buffers: the kernel's `params` is the uniform
-    /// its row names) and the frame's pool (an `OverFrame` or `PerItem` row), the pool
-    /// of the pyramid level the call gives (a `PerLevel` row), the map's one chunk's pool
-    /// with the frame's (a `PerChunk`, `PerBlock` or `PerStaleBlock` row) or without it (a
+    /// its row names) and the frame's pool (an `OverFrame`, `PerItem` or `PerCount` row),
+    /// the pool of the pyramid level the call gives (a `PerLevel` or `Reduce` row), the
+    /// pool of the flags it scans (a scan's row), the map's one chunk's pool with the
+    /// frame's (a `PerChunk`, `PerBlock` or `PerStaleBlock` row) or without it (a
     /// `PerSurfel` row; a `PerChunkPair` row's, once per surfel array, with the spare map
-    /// as its output chunk: see [`CpuBackend::map_pool`]). Panics on a call whose
-    /// kernel has no twin in the one call shape, or a row of another shape (internal
-    /// contracts: such a call has an arm in its step).
+    /// as its output chunk: see [`CpuBackend::map_pool`]). A `PerSystem` row binds the
+    /// step's alone (a system's `partials` and `system`, which the step owns). Panics on a
+    /// call with no kernel or a kernel whose row names no twin or uniform (internal
+    /// contracts: every row of the SLAM pipeline has all three, which `tests/it/bindings.rs`
+    /// checks for the twins).
     pub(super) fn dispatch(&mut self, call: impl Call, step: Pool<'_>) {
         let kernel = call.kernel();
         let row = kernel.and_then(|k| Some((k.twin()?, k.shape()?, k.uniform()?)));
@@ -49,8 +52,10 @@ impl CpuBackend {
         let chunk = MapChunk::whole(self.map.len());
         let out_chunk = MapChunk::whole(self.spare.len());
         let mut pool = match shape {
-            Shape::OverFrame | Shape::PerItem => self.frame_pool(step, None),
-            Shape::PerLevel => self.level_pool(step, call.at().choice()),
+            Shape::OverFrame | Shape::PerItem | Shape::PerCount => self.frame_pool(step, None),
+            Shape::PerLevel | Shape::Reduce => self.level_pool(step, call.at().choice()),
+            Shape::PerSystem => step,
+            Shape::PerScanBlock | Shape::OneWorkgroup => self.scan_pool(step, call.at().scanned),
             Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
                 self.frame_pool(step, Some(&chunk))
             }
@@ -59,7 +64,6 @@ impl CpuBackend {
                 let (pool, pairs) = self.map_pool(step, &chunk, Some(&out_chunk));
                 return scatter_pairs(pool, pairs, twin, uniform);
             }
-            other => panic!("`{}`: the CPU engine binds no {other:?} row", call.name()),
         };
         (twin.run)(&mut pool.bind(twin.bindings, uniform));
     }
@@ -92,13 +96,28 @@ impl CpuBackend {
         pool
     }
 
+    /// `pool` with the flags a scan covers (the GPU's `scan_groups`): fusion's new-surfel
+    /// flags or compaction's keep flags as `flags`, their prefix sum as `offsets`, and the
+    /// scan's `block_sums` (the step gives the surfel `counter` and the `scan` uniform).
+    fn scan_pool<'a>(&'a mut self, mut pool: Pool<'a>, scanned: Scanned) -> Pool<'a> {
+        let (flags, offsets) = match scanned {
+            Scanned::NewSurfels => (&mut self.add_flags, &mut self.add_offsets),
+            Scanned::KeepFlags => (&mut self.flags, &mut self.offsets),
+        };
+        pool.write("flags", flags);
+        pool.write("offsets", offsets);
+        pool.write("block_sums", &mut self.block_sums);
+        pool
+    }
+
     /// `pool` with pyramid level `at.level`'s maps, named as at level 0, and its finer
     /// level's as `fine_*` (the GPU's `level_pool`): level 0's are the frame's, its
     /// `vertex_map` and `point_map` the vertex maps `at` chooses (see [`At`]), which level
     /// 1's `fine_vertex` is too; its intensity patches are `intensity_patch`, the finer
     /// level's `fine_map` (at level 0 the colour map), with the level's `intensity`
-    /// uniform. Maps a step has not made yet (the prediction before the first `predict`)
-    /// are not in the pool.
+    /// uniform; at every level, the reductions' source, level 0's predicted vertex map
+    /// (`level0_pred_vertex`) and intensity (`pred_intensity`). Maps a step has not made yet
+    /// (the prediction before the first `predict`) are not in the pool.
     fn level_pool<'a>(&'a mut self, mut pool: Pool<'a>, at: At) -> Pool<'a> {
         let f = &mut self.frame;
         let level0 = [pool.lend(&mut f.vertex), pool.lend(&mut f.filtered_vertex)];
@@ -124,16 +143,22 @@ impl CpuBackend {
             // A level the last `preprocess` did not make (a `predict` of more levels).
             Some(_) => {}
         }
-        if at.level < self.prediction.len() {
-            let (finer, this) = self.prediction.split_at_mut(at.level);
-            let (pred_vertex, pred_normal) = &mut this[0];
-            pool.write("pred_vertex", pred_vertex);
-            pool.write("pred_normal", pred_normal);
-            if let Some((fine_vertex, fine_normal)) = finer.last_mut() {
-                pool.write("fine_pred_vertex", fine_vertex);
-                pool.write("fine_pred_normal", fine_normal);
-            }
+        let pred: Vec<[usize; 2]> = (self.prediction.iter_mut())
+            .map(|(vertex, normal)| [pool.lend(vertex), pool.lend(normal)])
+            .collect();
+        if let Some(&[vertex, normal]) = pred.get(at.level) {
+            pool.alias("pred_vertex", vertex);
+            pool.alias("pred_normal", normal);
         }
+        if let Some(&[vertex, normal]) = at.level.checked_sub(1).and_then(|l| pred.get(l)) {
+            pool.alias("fine_pred_vertex", vertex);
+            pool.alias("fine_pred_normal", normal);
+        }
+        // The reductions' source at every level: level 0's prediction.
+        if let Some(&[vertex, _]) = pred.first() {
+            pool.alias("level0_pred_vertex", vertex);
+        }
+        pool.write("pred_intensity", &mut self.pred_intensity);
         let intensity = &mut self.intensity;
         if at.level < intensity.patches.len() {
             let (finer, this) = intensity.patches.split_at_mut(at.level);

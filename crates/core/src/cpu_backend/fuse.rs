@@ -1,15 +1,14 @@
 //! The CPU backend's `fuse` step: `plan::fuse`'s kernels in order over the frame's maps
 //! and the surfel map (the twins of `block_bounds`, `fuse_select`, `fuse_merge_chosen`,
-//! `fuse_prune`, `fuse_merge`, `fuse_flags` and `fuse_add` through their rows, `engine.rs`;
-//! the scan's by hand, `scan_twin`).
+//! `fuse_prune`, `fuse_merge`, `fuse_flags`, the scan's three and `fuse_add`, each through
+//! its row, `engine.rs`), and the scan's calls, fusion's and compaction's (`scan_call`).
 
 use super::CpuBackend;
-use crate::cpu;
 use crate::cpu::binding::Pool;
 use crate::fused_view::FusedView;
 use crate::layout::{append_slots, scan_blocks, scan_params, FuseParams};
 use crate::plan::{self, Buffer, Call, FuseCall};
-use crate::registry::KernelId;
+use crate::registry::{KernelId, Scanned};
 
 impl CpuBackend {
     /// `Backend::fuse` on the CPU: the plan's kernels over the frame's maps and the map;
@@ -55,9 +54,7 @@ impl CpuBackend {
                 self.dispatch(call, step);
             }
             FuseCall::FuseScanReduce | FuseCall::FuseScanBlocks | FuseCall::FuseScan => {
-                let offsets = &mut self.add_offsets;
-                let (flags, block_sums) = (&self.add_flags, &mut self.block_sums);
-                scan_twin(call.kernel(), n_slots, flags, block_sums, offsets, added);
+                self.scan_call(call, n_slots, added);
             }
             FuseCall::FuseAdd { .. } => {
                 // Room for every pixel, as the GPU backend guarantees before its dispatch: the
@@ -87,31 +84,24 @@ impl CpuBackend {
     }
 }
 
-/// The twin of a scan call's `kernel` (one of the scan's three, run in plan order) over
-/// `n` `flags`, fusion's or compaction's: the sums of the blocks of flags into
-/// `block_sums`, then the blocks' offsets in place and the total into `counter`, then each
-/// flag's offset into `offsets`.
-pub(super) fn scan_twin(
-    kernel: Option<KernelId>,
-    n: usize,
-    flags: &[u32],
-    block_sums: &mut Vec<u32>,
-    offsets: &mut Vec<u32>,
-    counter: &mut u32,
-) {
-    let params = scan_params(n);
-    match kernel {
-        Some(KernelId::prefix_sum_reduce) => {
-            block_sums.resize(scan_blocks(n), 0);
-            cpu::prefix_sum_reduce::prefix_sum_reduce(&params, flags, block_sums);
+impl CpuBackend {
+    /// One of a scan's three calls over `n` flags, fusion's or compaction's (the call's
+    /// [`Scanned`](crate::registry::Scanned)), through the engine: at the first, the scan's
+    /// `block_sums` and the flags' `offsets` sized for `n` flags (as the GPU allocates
+    /// them); `counter` receives the flags' total (the scan's `counter`, the GPU's surfel
+    /// counter).
+    pub(super) fn scan_call(&mut self, call: impl Call, n: usize, counter: &mut u32) {
+        if call.kernel() == Some(KernelId::prefix_sum_reduce) {
+            self.block_sums.resize(scan_blocks(n), 0);
+            match call.at().scanned {
+                Scanned::NewSurfels => self.add_offsets.resize(n, 0),
+                Scanned::KeepFlags => self.offsets.resize(n, 0),
+            }
         }
-        Some(KernelId::prefix_sum_blocks) => {
-            cpu::prefix_sum_blocks::prefix_sum_blocks(&params, block_sums, counter);
-        }
-        Some(KernelId::prefix_sum) => {
-            offsets.resize(n, 0);
-            cpu::prefix_sum::prefix_sum(&params, flags, block_sums, offsets);
-        }
-        other => panic!("{other:?} is not one of the scan's kernels"),
+        let params = scan_params(n);
+        let mut step = Pool::new();
+        step.uniform("scan", &params);
+        step.write("counter", std::slice::from_mut(counter));
+        self.dispatch(call, step);
     }
 }

@@ -222,12 +222,13 @@ impl Backend for CpuBackend {
                     "count_candidates() before predict()".into(),
                 ));
             }
-            let (pred_vertex, _) = &self.prediction[0];
-            Ok(cpu::icp_candidates::icp_candidates(
-                params,
-                pred_vertex,
-                &self.frame.normal_depth,
-            ))
+            // One workgroup's count: the total.
+            let mut counts = [0u32];
+            let mut step = Pool::new();
+            step.uniform("icp", params);
+            step.write("counts", &mut counts);
+            self.dispatch(plan::count_candidates(), step);
+            Ok(counts[0] as u64)
         })
     }
 
@@ -295,9 +296,7 @@ impl Backend for CpuBackend {
                     self.dispatch(call, step);
                 }
                 CompactCall::ScanReduce | CompactCall::ScanBlocks | CompactCall::Scan => {
-                    let (flags, block_sums) = (&self.flags, &mut self.block_sums);
-                    let offsets = &mut self.offsets;
-                    fuse::scan_twin(call.kernel(), n, flags, block_sums, offsets, &mut counter);
+                    self.scan_call(call, n, &mut counter);
                 }
                 // The second map, as large as the first (as on the GPU), cut to the survivors;
                 // one call per surfel array, as the kernel is dispatched (`engine.rs`).

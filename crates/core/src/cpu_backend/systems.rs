@@ -1,6 +1,6 @@
-//! The CPU backend's ICP systems: the `icp_system` and `rgbd_system` plans run by their
-//! twins (`icp_reduce`, `photo_reduce` over the level-0 prediction and a pyramid level's
-//! frame maps), with the frame's intensity pyramid made as the photometric term first
+//! The CPU backend's ICP systems: the `icp_system` and `rgbd_system` plans run through the
+//! engine (`icp_reduce`, `photo_reduce` over the level-0 prediction and a pyramid level's
+//! frame maps into their system's f64 partials, `icp_reduce_final` summing them), with the frame's intensity pyramid made as the photometric term first
 //! reads it, for [`crate::backend::Backend::icp_system`] and
 //! [`crate::backend::Backend::rgbd_system`]; beside the step implementations only to keep
 //! that file short.
@@ -8,11 +8,9 @@
 use super::CpuBackend;
 use crate::backend::PyramidLevel;
 use crate::backend::RgbdSystems;
-use crate::cpu;
 use crate::cpu::binding::Pool;
 use crate::layout::{IcpParams, IntensityParams, PreprocessParams, ICP_SYSTEM_LEN};
-use crate::plan::{self, SystemCall};
-use crate::registry::System;
+use crate::plan::{self, Call, SystemCall};
 use crate::Result;
 
 /// The frame's intensity pyramid (`intensity_pyramid`): per level its parameters and
@@ -65,46 +63,25 @@ impl CpuBackend {
     }
 
     /// Runs an `icp_system` or `rgbd_system` plan at `params` (after
-    /// [`CpuBackend::check_system_level`]): the summed 29-entry systems, geometric and
-    /// photometric (zero where the plan reduces none).
+    /// [`CpuBackend::check_system_level`]), every call through the engine: per
+    /// [`System`](crate::registry::System) its `partials`, one partial system of f64 sums (the CPU's reductions run as one
+    /// workgroup: `cpu::icp_reduce`), and their sum `system`; the summed 29-entry systems,
+    /// geometric and photometric (zero where the plan reduces none).
     pub(super) fn run_systems(&mut self, plan: Vec<SystemCall>, params: &IcpParams) -> RgbdSystems {
+        let mut partials = [[0.0; ICP_SYSTEM_LEN]; 2];
         let mut systems = [[0.0; ICP_SYSTEM_LEN]; 2];
         for call in plan {
-            match call {
-                SystemCall::IcpReduce { level } => {
-                    let (pred_vertex, pred_normal) = &self.prediction[level];
-                    systems[System::Geometric as usize] = cpu::icp_reduce::icp_reduce(
-                        params,
-                        pred_vertex,
-                        pred_normal,
-                        self.normal_depth(level),
-                    );
-                }
-                SystemCall::PhotoReduce { level } => {
-                    self.make_intensity(level);
-                    let (level0_pred_vertex, _) = &self.prediction[0];
-                    systems[System::Photometric as usize] = cpu::photo_reduce::photo_reduce(
-                        params,
-                        level0_pred_vertex,
-                        &self.pred_intensity,
-                        self.normal_depth(level),
-                        &self.intensity.patches[level],
-                    );
-                }
-                // The reductions' twins sum their rows into the system themselves (in f64,
-                // in pixel order): the GPU's second stage has nothing left to sum here.
-                SystemCall::SumPartials(_) => {}
+            if let SystemCall::PhotoReduce { level } = call {
+                self.make_intensity(level);
             }
+            let system = call.at().system as usize;
+            let mut step = Pool::new();
+            step.uniform("icp", params);
+            step.write("partials", &mut partials[system]);
+            step.write("system", &mut systems[system]);
+            self.dispatch(call, step);
         }
         systems
-    }
-
-    /// Pyramid level `level`'s frame normals with the depth in w (level 0: the frame's).
-    fn normal_depth(&self, level: usize) -> &[[f32; 4]] {
-        match level {
-            0 => &self.frame.normal_depth,
-            l => &self.frame.pyramid[l - 1].normal_depth,
-        }
     }
 
     /// The frame's intensity patches at every level (made if not yet), for parity tests.
