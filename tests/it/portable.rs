@@ -168,19 +168,8 @@ fn portable_twins_equal_the_64_bit_twins() {
         fp.surfel_count = n_surfels as u32;
         fp.capacity = (n_surfels + pixels) as u32;
         let (mut assoc, mut index_map) = (vec![0u64; pixels], vec![0u64; pixels]);
-        cpu::fuse_select::fuse_select(&mut [
-            Binding::of(&fp),
-            Binding::read(&maps.normal_depth),
-            Binding::of(&whole),
-            Binding::read(&bounds),
-            Binding::read(&map.position_weight),
-            Binding::read(&map.normal_frame),
-            Binding::read(&map.color),
-            Binding::write(&mut assoc),
-            Binding::write(&mut index_map),
-        ]);
-        let (mut assoc_w, mut index_w) = (vec![0u32; 2 * pixels], vec![0u32; 2 * pixels]);
-        for key_pass in 0..2 {
+        // fuse_select with its two key maps bound as `assoc` and `index_map`.
+        let select = |assoc: Binding, index_map: Binding| {
             cpu::fuse_select::fuse_select(&mut [
                 Binding::of(&fp),
                 Binding::read(&maps.normal_depth),
@@ -189,9 +178,17 @@ fn portable_twins_equal_the_64_bit_twins() {
                 Binding::read(&map.position_weight),
                 Binding::read(&map.normal_frame),
                 Binding::read(&map.color),
+                assoc,
+                index_map,
+            ])
+        };
+        select(Binding::write(&mut assoc), Binding::write(&mut index_map));
+        let (mut assoc_w, mut index_w) = (vec![0u32; 2 * pixels], vec![0u32; 2 * pixels]);
+        for key_pass in 0..2 {
+            select(
                 Binding::key_pass(&mut assoc_w, key_pass),
                 Binding::key_pass(&mut index_w, key_pass),
-            ]);
+            );
         }
         check_equal(&format!("{name}: fuse_select assoc"), &assoc, &assoc_w);
         check_equal(
@@ -215,21 +212,8 @@ fn portable_twins_equal_the_64_bit_twins() {
         grown.normal_frame.resize(slots, [0; 4]);
         grown.color.resize(slots, [0.0; 4]);
         fp.capacity = slots as u32;
-        let mut added = grown.clone();
-        cpu::fuse_add::fuse_add(&mut [
-            Binding::of(&fp),
-            Binding::read(&maps.normal_depth),
-            Binding::read(&maps.color),
-            Binding::read(&flags),
-            Binding::read(&offsets),
-            Binding::of(&add_chunk),
-            Binding::write(&mut added.position_weight),
-            Binding::write(&mut added.normal_frame),
-            Binding::write(&mut added.color),
-            Binding::write(&mut index_map),
-        ]);
-        let mut added_portable = grown.clone();
-        for key_pass in 0..2 {
+        // fuse_add into a copy of the grown map, with the key map bound as `key_map`.
+        let add = |out: &mut SurfelMap, key_map: Binding| {
             cpu::fuse_add::fuse_add(&mut [
                 Binding::of(&fp),
                 Binding::read(&maps.normal_depth),
@@ -237,11 +221,20 @@ fn portable_twins_equal_the_64_bit_twins() {
                 Binding::read(&flags),
                 Binding::read(&offsets),
                 Binding::of(&add_chunk),
-                Binding::write(&mut added_portable.position_weight),
-                Binding::write(&mut added_portable.normal_frame),
-                Binding::write(&mut added_portable.color),
+                Binding::write(&mut out.position_weight),
+                Binding::write(&mut out.normal_frame),
+                Binding::write(&mut out.color),
+                key_map,
+            ])
+        };
+        let mut added = grown.clone();
+        add(&mut added, Binding::write(&mut index_map));
+        let mut added_portable = grown.clone();
+        for key_pass in 0..2 {
+            add(
+                &mut added_portable,
                 Binding::key_pass(&mut index_w, key_pass),
-            ]);
+            );
         }
         check_equal(&format!("{name}: fuse_add index map"), &index_map, &index_w);
         let new_keys = index_map
