@@ -390,8 +390,7 @@ macro_rules! registry_data {
         /// then 1), and decides the same winner bit for bit. Every other kernel, portable
         /// variants included, validates without 64-bit integers (`tests/it/shaders.rs`).
         /// The CPU twin `crates/core/src/cpu/<kernel>.rs` serves both, through its key maps
-        /// (`cpu::key_writer::KeyMap` parameters in the one call shape, or for a twin not
-        /// yet in it a type generic over `cpu::key_writer::KeyWriter`).
+        /// (`cpu::key_writer::KeyMap` parameters: the 64-bit keys or a portable pass).
         pub const PORTABLE_KERNELS: &[(&str, &str)] = &[
             $((stringify!($generic_key), concat!(stringify!($generic_key), "_portable")),)*
             $((stringify!($key), concat!(stringify!($key), "_portable")),)*

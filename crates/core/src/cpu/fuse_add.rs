@@ -59,7 +59,8 @@ twin! {
             if index_map.first_pass() {
                 let surfel = slot as usize;
                 position_weight[surfel] = [p.x, p.y, p.z, w];
-                normal_frame[surfel] = [n.x.to_bits(), n.y.to_bits(), n.z.to_bits(), params.frame_id];
+                let bits = n.to_array().map(f32::to_bits);
+                normal_frame[surfel] = [bits[0], bits[1], bits[2], params.frame_id];
                 let c = color_map[pix];
                 color[surfel] = [c[0], c[1], c[2], r];
             }

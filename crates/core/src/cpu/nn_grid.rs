@@ -103,9 +103,10 @@ twin! {
             for dz in -1..=1 {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
-                        let b =
-                            scan_bucket([c[0] + dx, c[1] + dy, c[2] + dz], params.table_mask) as usize;
-                        for t in &grid_points[bucket_start[b] as usize..bucket_start[b + 1] as usize] {
+                        let cell = [c[0] + dx, c[1] + dy, c[2] + dz];
+                        let b = scan_bucket(cell, params.table_mask) as usize;
+                        let bucket = bucket_start[b] as usize..bucket_start[b + 1] as usize;
+                        for t in &grid_points[bucket] {
                             let d2 = scan_dist_sq(*t, p);
                             let i = t[3].to_bits();
                             if scan_closer(d2, i, best_d, best_i) {

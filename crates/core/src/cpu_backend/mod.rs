@@ -1,15 +1,14 @@
 //! The CPU reference backend: runs the CPU twins in `cpu/` over host vectors, each step in
-//! the order of its plan (`crate::plan`, shared with the GPU backend): a twin in the one
-//! call shape through its registry row (`engine.rs`, bound by the WGSL names from pools of
-//! the backend's buffers), the others by the step's own calls.
+//! the order of its plan (`crate::plan`, shared with the GPU backend), every twin through
+//! its registry row (`engine.rs`, bound by the WGSL names from pools of the backend's
+//! buffers).
 //!
 //! This is the ground the GPU backend is proven against, so it favours being obviously
 //! the same as the shaders over being fast; the map grows as a `Vec` without a capacity cap
 //! and is bound to the map twins as one chunk (`MapChunk { base: 0, slots: len }`: see
-//! `engine.rs`). It
-//! keeps the culling blocks' boxes as the GPU backend does (recomputed for the blocks
-//! fusion appended to, all of them after a compaction or an upload, before the next
-//! culling step), so its cost per frame also follows what the camera sees.
+//! `engine.rs`). It keeps the culling blocks' boxes as the GPU backend does (recomputed
+//! for the blocks fusion appended to, all of them after a compaction or an upload, before
+//! the next culling step), so its cost per frame also follows what the camera sees.
 //!
 //! The steps whose twins spread their invocations over threads (`preprocess`, `predict`,
 //! the ICP systems and candidates, `fuse`) run inside the backend's [`Threads`]

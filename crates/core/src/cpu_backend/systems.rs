@@ -1,7 +1,7 @@
 //! The CPU backend's ICP systems: the `icp_system` and `rgbd_system` plans run through the
 //! engine (`icp_reduce`, `photo_reduce` over the level-0 prediction and a pyramid level's
-//! frame maps into their system's f64 partials, `icp_reduce_final` summing them), with the frame's intensity pyramid made as the photometric term first
-//! reads it, for [`crate::backend::Backend::icp_system`] and
+//! frame maps into their system's f64 partials, `icp_reduce_final` summing them), with the
+//! frame's intensity pyramid made as the photometric term first reads it, for [`crate::backend::Backend::icp_system`] and
 //! [`crate::backend::Backend::rgbd_system`]; beside the step implementations only to keep
 //! that file short.
 
@@ -64,9 +64,10 @@ impl CpuBackend {
 
     /// Runs an `icp_system` or `rgbd_system` plan at `params` (after
     /// [`CpuBackend::check_system_level`]), every call through the engine: per
-    /// [`System`](crate::registry::System) its `partials`, one partial system of f64 sums (the CPU's reductions run as one
-    /// workgroup: `cpu::icp_reduce`), and their sum `system`; the summed 29-entry systems,
-    /// geometric and photometric (zero where the plan reduces none).
+    /// [`System`](crate::registry::System) its `partials`, one partial system of f64 sums
+    /// (the CPU's reductions run as one workgroup: `cpu::icp_reduce`), and their sum
+    /// `system`; the summed 29-entry systems, geometric and photometric (zero where the
+    /// plan reduces none).
     pub(super) fn run_systems(&mut self, plan: Vec<SystemCall>, params: &IcpParams) -> RgbdSystems {
         let mut partials = [[0.0; ICP_SYSTEM_LEN]; 2];
         let mut systems = [[0.0; ICP_SYSTEM_LEN]; 2];
