@@ -11,6 +11,7 @@
 //! left cannot pass for this one's outputs. The job's lock is held meanwhile.
 
 use std::collections::BTreeMap;
+use std::fs::File;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -180,18 +181,17 @@ impl Runner {
             let log = dir.join(format!("{backend}.log"));
             let args = self.run_args(spec, backend, &out);
             let progress = |done, total| progress(backend, done, total);
-            let end = match &self.in_process {
-                None => self.run_child(&args, &log, &progress)?,
-                Some(launch) => run_here(launch.as_ref(), &args, &log, &progress)?,
+            let end = match create_log(&args, &log)? {
+                Err(failed) => failed,
+                Ok(file) => match &self.in_process {
+                    None => self.run_child(&args, (file, &log), &progress)?,
+                    Some(launch) => run_here(launch.as_ref(), &args, file, &progress)?,
+                },
             };
             match end {
                 ChildEnd::Interrupted => return Ok(Outcome::Interrupted),
                 ChildEnd::Failed(why) => {
-                    rec.fail(format!(
-                        "{backend} run failed: {why}; end of {}:\n{}",
-                        log.display(),
-                        log_tail(&log)
-                    ));
+                    rec.fail(with_log_tail(format!("{backend} run failed: {why}"), &log));
                     break;
                 }
                 ChildEnd::Exited(status) if status.success() => {
@@ -206,10 +206,9 @@ impl Runner {
                     }
                 }
                 ChildEnd::Exited(status) => {
-                    rec.fail(format!(
-                        "{backend} run exited with {status}; end of {}:\n{}",
-                        log.display(),
-                        log_tail(&log)
+                    rec.fail(with_log_tail(
+                        format!("{backend} run exited with {status}"),
+                        &log,
                     ));
                     break;
                 }
@@ -232,18 +231,14 @@ impl Runner {
         Ok(Outcome::Ran(Box::new(rec)))
     }
 
-    /// Starts `wgslam ARGS`, stdout and stderr into `log` (progress lines to `progress`),
-    /// and waits for it, killing it on an interrupt.
+    /// Starts `wgslam ARGS`, stdout and stderr into the log `file` at `log` (progress
+    /// lines to `progress`), and waits for it, killing it on an interrupt.
     fn run_child(
         &self,
         args: &[String],
-        log: &Path,
+        (file, log): (File, &Path),
         progress: &dyn Fn(u64, u64),
     ) -> Result<ChildEnd> {
-        let mut file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
-        if let Some(why) = nul_argument(args, &mut file) {
-            return Ok(ChildEnd::Failed(why));
-        }
         let err_file = file.try_clone().map_err(|e| Error::write(log, e))?;
         let mut cmd = Command::new(&self.exe);
         cmd.args(args)
@@ -323,32 +318,32 @@ enum ChildEnd {
     Interrupted,
 }
 
-/// Why `args` cannot be run, when one holds a NUL byte (no process can be given one, and
-/// no path holds one): the job's own input, its sequence path say, so the job fails and
-/// the batch goes on. The reason is written into the job's `log` too.
-fn nul_argument(args: &[String], log: &mut std::fs::File) -> Option<String> {
-    let a = args.iter().find(|a| a.contains('\0'))?;
+/// The run's log, created at `log`; or, when one of `args` holds a NUL byte (no process
+/// can be given one, and no path holds one), the run's failure: the job's own input, its
+/// sequence path say, so the job fails and the batch goes on. The reason is written into
+/// the log too.
+fn create_log(args: &[String], log: &Path) -> Result<std::result::Result<File, ChildEnd>> {
+    let mut file = File::create(log).map_err(|e| Error::write(log, e))?;
+    let Some(a) = args.iter().find(|a| a.contains('\0')) else {
+        return Ok(Ok(file));
+    };
     let why = format!(
         "its `wgslam run` argument {a:?} holds a NUL byte, which no path or argument can \
          hold; fix the job's `sequence` (or `frames`) in the manifest"
     );
-    let _ = writeln!(log, "error: {why}");
-    Some(why)
+    let _ = writeln!(file, "error: {why}");
+    Ok(Err(ChildEnd::Failed(why)))
 }
 
-/// Runs `wgslam ARGS` through `launch` on this thread, every line it prints into `log`
-/// (its error last, as `wgslam` prints it), stopping at the next frame on an interrupt.
-/// A panic in the run fails this run only.
+/// Runs `wgslam ARGS` through `launch` on this thread, every line it prints into the log
+/// `file` (its error last, as `wgslam` prints it), stopping at the next frame on an
+/// interrupt. A panic in the run fails this run only.
 fn run_here(
     launch: &InProcessRun,
     args: &[String],
-    log: &Path,
+    file: File,
     progress: &dyn Fn(u64, u64),
 ) -> Result<ChildEnd> {
-    let mut file = std::fs::File::create(log).map_err(|e| Error::write(log, e))?;
-    if let Some(why) = nul_argument(args, &mut file) {
-        return Ok(ChildEnd::Failed(why));
-    }
     let file = std::sync::Mutex::new(file);
     let say = |line: &str| {
         let mut f = file.lock().unwrap_or_else(|p| p.into_inner());
@@ -388,11 +383,7 @@ fn stop(child: &mut Child) {
 
 /// Copies the child's stdout into its log, sending `progress DONE TOTAL` lines to `tx`
 /// instead.
-fn copy_output(
-    stdout: std::process::ChildStdout,
-    mut log: std::fs::File,
-    tx: mpsc::Sender<(u64, u64)>,
-) {
+fn copy_output(stdout: std::process::ChildStdout, mut log: File, tx: mpsc::Sender<(u64, u64)>) {
     for line in BufReader::new(stdout).lines() {
         let Ok(line) = line else { break };
         let mut words = line.split_whitespace();
@@ -410,6 +401,11 @@ fn copy_output(
 
 /// The last lines of a log, for an error message; for a run that panicked, the panic's
 /// place and message instead (a backtrace after it would push them out of the tail).
+/// `what`, followed by where the log is and its last lines.
+fn with_log_tail(what: String, log: &Path) -> String {
+    format!("{what}; end of {}:\n{}", log.display(), log_tail(log))
+}
+
 fn log_tail(log: &Path) -> String {
     let text = crate::io::input::read_kind_string(log, crate::io::input::InputKind::Cloud)
         .unwrap_or_default();

@@ -263,22 +263,9 @@ pub fn run_odometry(args: &OdometryArgs) -> Result<(ScanSequence, Odometry)> {
     print!("{tsv}");
     let summary = odometry::summarize(&seq, &odo);
     if let Some(s) = &summary {
-        println!(
-            "relative pose error over {} pairs: rotation mean {:.3} max {:.3} deg, translation mean {:.3} max {:.3} m; end position error {:.3} m over {:.2} m of path",
-            s.pairs,
-            s.mean_rotation_deg,
-            s.max_rotation_deg,
-            s.mean_translation_m,
-            s.max_translation_m,
-            s.end_position_error_m,
-            s.gt_path_length_m
-        );
+        println!("{s}");
     }
-    let failed = odo
-        .pairs
-        .iter()
-        .filter(|p| !p.icp.status.is_converged())
-        .count();
+    let failed = odo.not_converged();
     println!(
         "{} scans, {} pairs ({} not converged) in {:.2} s",
         seq.scans.len(),

@@ -261,15 +261,22 @@ fn draw_paths(
         .map_err(plot_error)?
         .label("start")
         .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.filled()));
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight)
+}
+
+/// The chart's legend at `position`, in the figure's font on a light box.
+fn draw_legend<'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'a>, CT>,
+    position: SeriesLabelPosition,
+) -> Result<()> {
     chart
         .configure_series_labels()
         .label_font(font(16))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
+        .position(position)
         .draw()
-        .map_err(plot_error)?;
-    Ok(())
+        .map_err(plot_error)
 }
 
 /// The right panel without an error curve: a line saying why (no ground truth, or no stamp
@@ -334,15 +341,7 @@ fn draw_error(area: &Panel<'_>, pairs: &[(f64, DVec3, DVec3)]) -> Result<()> {
         .map_err(plot_error)?
         .label("translation error")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 24, y)], EST_COLOR.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .label_font(font(16))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(plot_error)?;
-    Ok(())
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)
 }
 
 /// Draws [`trajectory_plot`] at [`TRAJECTORY_PLOT_SIZE`] and writes it as a PNG at `path`,

@@ -279,6 +279,14 @@ pub struct Odometry {
     pub pairs: Vec<PairResult>,
 }
 
+impl Odometry {
+    /// How many pairs ICP did not converge on (chained all the same).
+    pub fn not_converged(&self) -> usize {
+        let converged = |p: &&PairResult| p.icp.status.is_converged();
+        self.pairs.iter().filter(|p| !converged(p)).count()
+    }
+}
+
 /// Reads every scan (in parallel), keeps the points with `z` in `z_range` (sensor frame,
 /// metres; `None` keeps all), registers each consecutive pair (in parallel across pairs)
 /// from the identity, and chains the trajectory. Pairs that do not converge are still
@@ -388,6 +396,25 @@ pub struct ErrorSummary {
     pub end_position_error_m: f64,
     /// Ground-truth path length, metres.
     pub gt_path_length_m: f64,
+}
+
+/// One line, as `wgslam scan` prints it: the pairs' relative pose errors (mean and largest)
+/// and the end drift against the path's length.
+impl std::fmt::Display for ErrorSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "relative pose error over {} pairs: rotation mean {:.3} max {:.3} deg, translation \
+             mean {:.3} max {:.3} m; end position error {:.3} m over {:.2} m of path",
+            self.pairs,
+            self.mean_rotation_deg,
+            self.max_rotation_deg,
+            self.mean_translation_m,
+            self.max_translation_m,
+            self.end_position_error_m,
+            self.gt_path_length_m
+        )
+    }
 }
 
 /// Summarises [`PairResult::error`] and the end drift; `None` without ground truth.

@@ -55,7 +55,7 @@ use crate::geometry::se3;
 use crate::slam::backend::{Backend, PyramidLevel};
 use crate::slam::health::TrackingHealth;
 use crate::slam::loop_closer::{self, FusedFrame};
-use crate::slam::loops::LoopClosure;
+use crate::slam::loops::{LoopClosure, LoopRecord};
 use crate::slam::params::{PoseSource, ValidParams};
 use crate::slam::recovery::{Recovery, Relocalisation};
 pub use crate::slam::report::{FrameReport, RelocalisationAttempt, TrackStatus, WideGateAttempt};
@@ -367,31 +367,35 @@ impl<B: Backend> Slam<B> {
             }
             loops = closed.loops;
         }
-        Ok(FrameReport {
-            t_cam_to_world: se3::inverse_rigid(&t_world_to_cam),
-            status,
-            iterations: tracked.iterations,
-            health: tracked.health,
-            wide_gate: tracked.wide_gate,
-            relocalisation: tracked.relocalisation,
-            keyframe: offered.is_some_and(|o| o.keyframe),
-            loops,
-            surfels: self.backend.surfel_count(),
-        })
+        let keyframe = offered.is_some_and(|o| o.keyframe);
+        Ok(self.report(&t_world_to_cam, status, tracked, keyframe, loops))
     }
 
     /// The report of a frame that is not fused (lost or without depth).
     fn untracked(&self, status: TrackStatus, tracked: Tracked) -> FrameReport {
         let t_world_to_cam = self.tracker.t_world_to_cam().unwrap_or(DMat4::IDENTITY);
+        self.report(&t_world_to_cam, status, tracked, false, vec![])
+    }
+
+    /// A frame's report at `t_world_to_cam`, with its tracking attempts and the map's size
+    /// after it.
+    fn report(
+        &self,
+        t_world_to_cam: &DMat4,
+        status: TrackStatus,
+        tracked: Tracked,
+        keyframe: bool,
+        loops: Vec<LoopRecord>,
+    ) -> FrameReport {
         FrameReport {
-            t_cam_to_world: se3::inverse_rigid(&t_world_to_cam),
+            t_cam_to_world: se3::inverse_rigid(t_world_to_cam),
             status,
             iterations: tracked.iterations,
             health: tracked.health,
             wide_gate: tracked.wide_gate,
             relocalisation: tracked.relocalisation,
-            keyframe: false,
-            loops: vec![],
+            keyframe,
+            loops,
             surfels: self.backend.surfel_count(),
         }
     }
@@ -404,15 +408,20 @@ mod tests {
     use crate::slam::fused_view::FusedView;
     use crate::slam::params::Profile;
 
+    /// A CPU pipeline with `profile`'s parameters, for ICL-NUIM's camera.
+    fn cpu_slam(profile: Profile) -> Slam<CpuBackend> {
+        Slam::new(
+            CpuBackend::new(),
+            Intrinsics::ICL_NUIM,
+            ValidParams::profile(profile),
+        )
+    }
+
     /// `predict` reuses a fusion's index map only for the very view it was built at, and
     /// only after best-candidate association (the only one whose `fuse_select` builds it).
     #[test]
     fn fused_view_matches_only_its_own_view() {
-        let robust = Slam::new(
-            CpuBackend::new(),
-            Intrinsics::ICL_NUIM,
-            ValidParams::profile(Profile::Robust),
-        );
+        let robust = cpu_slam(Profile::Robust);
         let t = se3::exp(&[0.01, -0.02, 0.03, 0.1, 0.2, -0.3]);
         let view = FusedView::of_fuse(&robust.fuse_params(&t, 5)).expect("best candidate");
         assert!(view.is_view_of(&robust.project_params(&t)));
@@ -421,11 +430,7 @@ mod tests {
         let mut other_size = robust.project_params(&t);
         other_size.camera.width /= 2;
         assert!(!view.is_view_of(&other_size));
-        let assignment = Slam::new(
-            CpuBackend::new(),
-            Intrinsics::ICL_NUIM,
-            ValidParams::profile(Profile::Assignment),
-        );
+        let assignment = cpu_slam(Profile::Assignment);
         assert_eq!(FusedView::of_fuse(&assignment.fuse_params(&t, 5)), None);
     }
 
@@ -472,11 +477,7 @@ mod tests {
     /// them that changes between uses).
     #[test]
     fn icp_steps_at_a_pose_are_the_step_params_at_it() {
-        let slam = Slam::new(
-            CpuBackend::new(),
-            Intrinsics::ICL_NUIM,
-            ValidParams::profile(Profile::Robust),
-        );
+        let slam = cpu_slam(Profile::Robust);
         let steps = slam.icp_steps(slam.pyramid_levels());
         assert!(slam.levels() > 1, "the robust profile has a pyramid");
         for x in [

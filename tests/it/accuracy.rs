@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use crate::common;
-use common::ate_m;
 use common::harness::{plain, shared, Test};
+use common::{ate_m, ATE_7SCENES_MAX_M, ATE_NOISY_MAX_M, LOOP_ATE_SLACK_M};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{SlamParams, ValidParams};
@@ -20,15 +20,9 @@ const STOP_ATE_CHANGE_MAX_M: f64 = 1e-4;
 /// ... while it saves at least this fraction of the iterations (measured 35 % on these
 /// frames, 53 % on 7-Scenes 0..299).
 const STOP_SAVES_MIN_FRACTION: f64 = 0.25;
-/// ATE bar of the bundled noisy frames (the tracking tests' 10 mm).
-const ATE_NOISY_MAX_M: f64 = 0.010;
 /// Share of 7-Scenes 0..299's frames at the iteration limit at most (measured 0 of 299;
 /// 170 of 299 with the micrometre test alone).
 const AT_LIMIT_MAX_FRACTION: f64 = 0.05;
-/// 7-Scenes against its KinectFusion reference poses (good to 1-2 cm): 20-21 mm measured.
-const ATE_7SCENES_MAX_M: f64 = 0.030;
-/// Loop closure may move the ATE by noise either way; never more than a millimetre up.
-const LOOP_ATE_SLACK_M: f64 = 0.001;
 
 fn iterations_per_frame(r: &RunResult) -> f64 {
     let n: usize = r.frames.iter().map(|f| f.report.iterations.len()).sum();

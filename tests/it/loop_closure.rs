@@ -7,8 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::common;
-use common::ate_m;
 use common::harness::{gpu, gpu_shared, plain, Test};
+use common::{ate_m, ATE_7SCENES_MAX_M, ATE_NOISY_MAX_M, LOOP_ATE_SLACK_M};
 use wgslam::dataset::{self, Sequence, SequenceOptions};
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::slam::backend::{Backend, Inspect};
@@ -16,23 +16,9 @@ use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{SlamParams, ValidParams};
 use wgslam::tools::run::{self, RunResult};
 
-/// ATE over a noisy ICL-NUIM run, metres: the bar of the tracking tests (10 mm).
-const ATE_NOISY_MAX_M: f64 = 0.010;
-/// 7-Scenes against its KinectFusion reference poses (good to 1-2 cm): measured 19-20 mm
-/// on frames 0..299 with and without loop closure.
-const ATE_7SCENES_MAX_M: f64 = 0.030;
-/// Closing loops may move the ATE by noise either way; it must not grow by more than
-/// this (metres): a millimetre, a tenth of the noisy bar.
-const LOOP_ATE_SLACK_M: f64 = 0.001;
 /// Frames of the revisiting run over bundled frames 1..23 (22 per pass): 150 frames, so
 /// passes 3 to 7 return to keyframes more than `LOOP_MIN_GAP_FRAMES` (60) old.
 const REVISIT_FRAMES: usize = 150;
-
-fn assets(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("assets")
-        .join(name)
-}
 
 fn without_loops() -> SlamParams {
     SlamParams {
@@ -57,13 +43,9 @@ fn with_and_without<B: Backend + Inspect>(
 /// The revisiting run over the bundled noisy frames, with loop closure on `with` and
 /// without on `without` (two backends of one kind).
 fn revisit_finds_loops<B: Backend + Inspect>(with: B, without: B) {
-    let seq = dataset::open(
-        &assets("icl_living_room_kt2_noisy"),
-        &SequenceOptions::default(),
-    )
-    .unwrap()
-    .revisiting(1, 23, REVISIT_FRAMES)
-    .unwrap();
+    let seq = common::open_asset("icl_living_room_kt2_noisy")
+        .revisiting(1, 23, REVISIT_FRAMES)
+        .unwrap();
     let last = REVISIT_FRAMES - 1;
     let (on, off) = with_and_without(with, without, &seq, last);
     let lc = on.metrics.loop_closure.as_ref().expect("loop closure ran");
@@ -104,11 +86,7 @@ fn revisit_finds_loops<B: Backend + Inspect>(with: B, without: B) {
 /// loop closure's bookkeeping (snapshots, the graph) changes nothing: poses and map bit for
 /// bit as without it.
 fn no_loop_changes_nothing<B: Backend + Inspect>(with: B, without: B) {
-    let seq = dataset::open(
-        &assets("icl_living_room_kt2_noisy"),
-        &SequenceOptions::default(),
-    )
-    .unwrap();
+    let seq = common::open_asset("icl_living_room_kt2_noisy");
     let last = seq.len() - 1;
     let (on, off) = with_and_without(with, without, &seq, last);
     assert!(on.metrics.loop_closure.as_ref().unwrap().loops.is_empty());
@@ -168,8 +146,7 @@ fn injected_drift_is_undone<B: Backend + Inspect>(with: B, without: B) {
     use wgslam::geometry::se3;
     use wgslam::slam::pipeline::Slam;
 
-    let seq = dataset::open(&assets("icl_living_room_kt2"), &SequenceOptions::default())
-        .unwrap()
+    let seq = common::open_asset("icl_living_room_kt2")
         .revisiting(1, 23, DRIFT_RUN_FRAMES)
         .unwrap();
     let drift = DMat4::from_translation(DVec3::new(DRIFT_M, 0.0, 0.0))

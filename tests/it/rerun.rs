@@ -185,17 +185,21 @@ fn failed_run_leaves_no_recording() {
     // --out names a file, so writing the outputs fails after the frames ran.
     let not_a_dir = out.join("file");
     std::fs::write(&not_a_dir, b"x").unwrap();
-    let o = wgslam(&[
-        "run",
-        "--backend",
-        "cpu",
-        "--frames",
-        "1..2",
-        "--rerun",
-        rrd.to_str().unwrap(),
-        "--out",
-        not_a_dir.to_str().unwrap(),
-    ]);
+    let run_one_frame = |more: &[&str]| {
+        let rrd = rrd.to_str().unwrap();
+        let mut args = vec![
+            "run",
+            "--backend",
+            "cpu",
+            "--frames",
+            "1..2",
+            "--rerun",
+            rrd,
+        ];
+        args.extend_from_slice(more);
+        wgslam(&args)
+    };
+    let o = run_one_frame(&["--out", not_a_dir.to_str().unwrap()]);
     assert!(!o.status.success(), "{}", text(&o));
     let names: Vec<_> = std::fs::read_dir(&out)
         .unwrap()
@@ -203,19 +207,7 @@ fn failed_run_leaves_no_recording() {
         .collect();
     assert_eq!(names, vec!["file".to_string()], "left behind: {names:?}");
 
-    let o = wgslam(&[
-        "run",
-        "--backend",
-        "cpu",
-        "--frames",
-        "1..2",
-        "--rerun",
-        rrd.to_str().unwrap(),
-        "--rerun-map-every",
-        "0",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = run_one_frame(&["--rerun-map-every", "0", "--out", out.to_str().unwrap()]);
     assert!(!o.status.success(), "--rerun-map-every 0 accepted");
     assert!(text(&o).contains("--rerun-map-every"), "{}", text(&o));
     assert!(!rrd.exists());

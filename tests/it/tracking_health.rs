@@ -10,8 +10,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::common;
-use common::ate_m;
 use common::harness::{gpu, gpu_backend, gpu_backend_test, gpu_shared, plain, shared, Test};
+use common::{ate_m, ATE_7SCENES_MAX_M, ATE_NOISY_MAX_M};
 use wgslam::dataset::{self, SequenceOptions};
 use wgslam::geometry::se3;
 
@@ -24,19 +24,8 @@ use wgslam::tools::run::{self, RunResult};
 /// ATE over the tracked poses of a clean ICL-NUIM splice, metres: the bar (2 mm);
 /// measured 0.06-0.22 mm (bundled and shared splices, both backends).
 const ATE_CLEAN_MAX_M: f64 = 0.002;
-/// The same on the noisy frames: the bar (10 mm); measured 2.3-6.7 mm.
-const ATE_NOISY_MAX_M: f64 = 0.010;
-/// 7-Scenes (real Kinect v1) against its KinectFusion reference poses, which are good to
-/// 1-2 cm: measured 18-20 mm on the return splice and the straight run, both backends.
-const ATE_7SCENES_MAX_M: f64 = 0.030;
 /// Frames after a recoverable jump that must be tracked again (the 90 %).
 const RECOVERED_MIN_FRACTION: f64 = 0.9;
-
-fn assets(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("assets")
-        .join(name)
-}
 
 fn run_all<B: Backend + Inspect>(backend: B, root: &Path) -> RunResult {
     let seq = dataset::open(root, &SequenceOptions::default()).unwrap();
@@ -59,7 +48,7 @@ fn bundled_splice_is_lost_then_recovers<B: Backend + Inspect>(backend: B, noisy:
     } else {
         "icl_living_room_kt2_spliced"
     };
-    let r = run_all(backend, &assets(name));
+    let r = run_all(backend, &common::asset(name));
     let s = statuses(&r);
     assert_eq!(s.len(), 41);
     for (i, st) in s.iter().enumerate() {
@@ -362,11 +351,7 @@ fn no_false_alarms_on_real_sequences(data: &Path) {
 /// single-level ICP finds enough inliers in the mostly covered frames' patch of depth, at
 /// the right pose, to track them; the robust profile's coarsest level does not.)
 fn assignment_profile_relocalises_too() {
-    let seq = dataset::open(
-        &assets("icl_living_room_kt2_spliced"),
-        &SequenceOptions::default(),
-    )
-    .unwrap();
+    let seq = common::open_asset("icl_living_room_kt2_spliced");
     let r = run::run(
         CpuBackend::new(),
         &seq,

@@ -246,6 +246,31 @@ pub trait Inspect {
     }
 }
 
+/// Inside an `impl Inspect for W`, where `W` wraps another backend in the field named
+/// `$inner`: `download_frame`, `download_prediction`, `download_fusion` and `counters`
+/// passed through to it unchanged (the wrappers that time, record or perturb a backend
+/// change none of these).
+#[macro_export]
+macro_rules! inspect_through {
+    ($inner:ident) => {
+        fn download_frame(&mut self) -> $crate::Result<$crate::backend::FrameMaps> {
+            self.$inner.download_frame()
+        }
+        fn download_prediction(
+            &mut self,
+            level: usize,
+        ) -> $crate::Result<$crate::backend::Prediction> {
+            self.$inner.download_prediction(level)
+        }
+        fn download_fusion(&mut self) -> $crate::Result<$crate::backend::FusionBuffers> {
+            self.$inner.download_fusion()
+        }
+        fn counters(&self) -> $crate::backend::BackendCounters {
+            self.$inner.counters()
+        }
+    };
+}
+
 /// A backend that can also be inspected: what the command line runs (`Box<dyn
 /// SlamBackend>`, see `wgslam::slam::any_backend::AnyBackend`). `Send` on native targets
 /// ([`MaybeSend`]), so that a boxed backend can run on a thread other than the one that

@@ -186,14 +186,7 @@ impl PcdHeader {
 
     /// Where x, y and z sit in a record; they must be float32 or float64 fields.
     pub(super) fn xyz_layout(&self, path: &Path) -> Result<XyzLayout> {
-        let Self {
-            fields,
-            sizes,
-            types,
-            counts,
-            ..
-        } = self;
-        let n_fields = fields.len();
+        let (fields, sizes, types, counts) = (&self.fields, &self.sizes, &self.types, &self.counts);
         let mut layout = XyzLayout {
             scalar: [Scalar::F32; 3],
             byte_offset: [0; 3],
@@ -202,7 +195,7 @@ impl PcdHeader {
             record_tokens: 0,
         };
         let mut found = [false; 3];
-        for i in 0..n_fields {
+        for i in 0..fields.len() {
             let scalar = match (types[i], sizes[i]) {
                 ('F', 4) => Scalar::F32,
                 ('F', 8) => Scalar::F64,

@@ -372,7 +372,7 @@ fn gates(
     let cos_bound = COSINE_ULPS * eps;
     let dist = p.dist_m as f64;
     let cos_gate = p.cos_normal_threshold as f64;
-    if best_candidate {
+    let (cosine, off_ray) = if best_candidate {
         let ray = q / q.length();
         let d = p_cam - q;
         let along = d.dot(ray);
@@ -391,15 +391,8 @@ fn gates(
             dist,
         );
         gate("distance off the ray", radius - off, err, radius);
-        let n_cam = apply(&p.t_world_to_cam, n_world, 0.0);
-        gate(
-            "normal cosine",
-            n_cam.dot(n_nd) - cos_gate,
-            cos_bound,
-            cos_gate,
-        );
-        c.off_ray = off;
-        c.off_ray_err = err;
+        let cosine = apply(&p.t_world_to_cam, n_world, 0.0).dot(n_nd);
+        (cosine, Some((off, err)))
     } else {
         let pw = map.position_weight[s];
         let p_world = DVec3::new(pw[0] as f64, pw[1] as f64, pw[2] as f64);
@@ -407,13 +400,12 @@ fn gates(
         let len = (q_world - p_world).length();
         let err = 2.0 * e_pos + LENGTH_ULPS * eps * len;
         gate("world-frame distance", dist - len, err, dist);
-        let nq_world = apply(&p.t_cam_to_world, n_nd, 0.0);
-        gate(
-            "normal cosine",
-            n_world.dot(nq_world) - cos_gate,
-            cos_bound,
-            cos_gate,
-        );
+        (n_world.dot(apply(&p.t_cam_to_world, n_nd, 0.0)), None)
+    };
+    gate("normal cosine", cosine - cos_gate, cos_bound, cos_gate);
+    if let Some((off, err)) = off_ray {
+        c.off_ray = off;
+        c.off_ray_err = err;
     }
     c
 }

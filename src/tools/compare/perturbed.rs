@@ -11,8 +11,7 @@ use crate::layout::{
     ProjectParams, ICP_ATB_OFFSET, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
-    Backend, BackendCounters, Described, FrameMaps, FusionBuffers, Inspect, Prediction,
-    PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
+    Backend, Described, Inspect, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
 };
 use crate::slam::cpu_backend::CpuBackend;
 use crate::Result;
@@ -153,16 +152,5 @@ impl Inspect for PerturbedCpu {
         }
         self.run(|b| b.upload_map(&map))
     }
-    fn download_frame(&mut self) -> Result<FrameMaps> {
-        self.inner.download_frame()
-    }
-    fn download_prediction(&mut self, level: usize) -> Result<Prediction> {
-        self.inner.download_prediction(level)
-    }
-    fn download_fusion(&mut self) -> Result<FusionBuffers> {
-        self.inner.download_fusion()
-    }
-    fn counters(&self) -> BackendCounters {
-        self.inner.counters()
-    }
+    wgslam_core::inspect_through!(inner);
 }

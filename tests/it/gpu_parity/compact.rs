@@ -4,7 +4,7 @@
 //! map growth.
 
 use super::RUN_SURFEL_FRACTION_TOL;
-use super::{cpu_map_from_gt, root, slam, small_chunk_backend};
+use super::{check_count, cpu_map_from_gt, root, slam, small_chunk_backend};
 use crate::common::frames::{gt_at, load_frame, load_gt};
 use crate::common::harness::{gpu, gpu_backend_test, Test};
 use wgslam::cpu;
@@ -200,13 +200,8 @@ fn compaction_follows_map_growth(ctx: GpuContext) {
         let rg = g
             .process(i as u32, &f.depth, &f.rgba, gt_at(&gt, i))
             .unwrap();
-        let allowed = (rc.surfels as f64 * RUN_SURFEL_FRACTION_TOL).ceil() as usize;
-        assert!(
-            rc.surfels.abs_diff(rg.surfels) <= allowed,
-            "frame {i}: surfels cpu {} gpu {}",
-            rc.surfels,
-            rg.surfels
-        );
+        let what = format!("frame {i}: surfels");
+        check_count(&what, rc.surfels, rg.surfels, RUN_SURFEL_FRACTION_TOL);
         let map = c.backend.map();
         obeyed += (0..map.len()).all(|k| map.last_frame(k) + 1 >= i as u32 || map.weight(k) >= 3.0)
             as usize;

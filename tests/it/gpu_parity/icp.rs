@@ -3,7 +3,7 @@
 //! icp_reduce's (`rgbd_system`); icp_candidates (the health test's
 //! denominator) against its twin.
 
-use super::{cpu_map_from_gt, preprocess_both, robust_pyramids_on_both, root};
+use super::{check_count, cpu_map_from_gt, preprocess_both, robust_pyramids_on_both, root};
 use super::{increment_tol, INLIER_FRACTION_TOL, MASK_MISMATCH_FRACTION, SYSTEM_REL_TOL};
 use crate::common::frames::{gt_at, load_frame};
 use crate::common::harness::{gpu, gpu_backend_test, Test};
@@ -181,11 +181,12 @@ fn intensity_pyramid_and_coarse_rgbd_match_twin(mut gpu: GpuBackend) {
             pc.inliers, pg.inliers
         );
         assert!(pc.inliers > min, "level {level}: too few photometric rows");
-        let allowed = (pc.inliers as f64 * INLIER_FRACTION_TOL).ceil() as u64;
-        assert!(pc.inliers.abs_diff(pg.inliers) <= allowed, "level {level}");
-        assert!(
-            ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
-            "level {level}"
+        check_level_system(
+            level,
+            "photometric rows",
+            (pc.inliers, pg.inliers),
+            ata,
+            atb,
         );
         let w = s.params.icp.photometric_weight;
         let combined = |geo: &[f64; ICP_SYSTEM_LEN], photo: &NormalEquations| {
@@ -254,17 +255,7 @@ fn coarse_icp_systems_match_twin(mut gpu: GpuBackend) {
             c.inliers as usize > pixels / 4,
             "level {level}: too few inliers for a real test"
         );
-        let allowed = (c.inliers as f64 * INLIER_FRACTION_TOL).ceil() as u64;
-        assert!(
-            c.inliers.abs_diff(g.inliers) <= allowed,
-            "level {level}: inliers {} vs {}",
-            c.inliers,
-            g.inliers
-        );
-        assert!(
-            ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
-            "level {level}"
-        );
+        check_level_system(level, "inliers", (c.inliers, g.inliers), ata, atb);
         let (xc, xg) = (c.solve().unwrap(), g.solve().unwrap());
         let dx: f64 = (0..6).map(|k| (xc[k] - xg[k]).powi(2)).sum::<f64>().sqrt();
         assert!(
@@ -369,4 +360,16 @@ pub(super) fn tests() -> Vec<Test> {
             intensity_pyramid_and_coarse_rgbd_match_twin,
         ),
     ]
+}
+
+/// A level's system from both backends: the rows counted (`what`, CPU then GPU) within
+/// [`INLIER_FRACTION_TOL`], and the relative differences of AᵀA and Aᵀb within
+/// [`SYSTEM_REL_TOL`].
+fn check_level_system(level: usize, what: &str, rows: (u64, u64), ata: f64, atb: f64) {
+    let what = format!("level {level}: {what}");
+    check_count(&what, rows.0 as usize, rows.1 as usize, INLIER_FRACTION_TOL);
+    assert!(
+        ata <= SYSTEM_REL_TOL && atb <= SYSTEM_REL_TOL,
+        "{what}: AᵀA {ata:e} Aᵀb {atb:e}"
+    );
 }

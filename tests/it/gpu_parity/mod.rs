@@ -156,6 +156,16 @@ fn preprocess_both(
 }
 
 /// Counts mask mismatches and panics (naming the first pixels) past the allowance.
+/// A count the backends may differ in by at most `fraction` of the CPU's (rounded up): the
+/// tolerance constant passed says why they may differ at all.
+fn check_count(what: &str, cpu: usize, gpu: usize, fraction: f64) {
+    let allowed = (cpu as f64 * fraction).ceil() as usize;
+    assert!(
+        cpu.abs_diff(gpu) <= allowed,
+        "{what}: cpu {cpu} vs gpu {gpu}, more than {allowed} apart"
+    );
+}
+
 fn check_mask(what: &str, cpu: &[bool], gpu: &[bool]) {
     assert_eq!(cpu.len(), gpu.len());
     let bad: Vec<usize> = (0..cpu.len()).filter(|&i| cpu[i] != gpu[i]).collect();

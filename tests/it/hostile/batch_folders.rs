@@ -11,17 +11,10 @@ fn batch_refuses_a_folder_with_files_it_did_not_write() {
     std::fs::write(out.join("jobs/myjob/thesis.tex"), "my thesis").unwrap();
     std::fs::write(out.join("summary.csv"), "my numbers").unwrap();
     let m = small_manifest(&dir, "m.toml", "myjob", "out");
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(!o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("not a batch folder"), "{}", text(&o));
-    assert_eq!(
-        std::fs::read_to_string(out.join("jobs/myjob/thesis.tex")).unwrap(),
-        "my thesis"
-    );
-    assert_eq!(
-        std::fs::read_to_string(out.join("summary.csv")).unwrap(),
-        "my numbers"
-    );
+    let said = batch(&m, false);
+    assert!(said.contains("not a batch folder"), "{}", said);
+    still_holds(&out.join("jobs/myjob/thesis.tex"), "my thesis");
+    still_holds(&out.join("summary.csv"), "my numbers");
     assert!(!out.join("batch.json").exists());
 }
 
@@ -30,79 +23,59 @@ fn batch_job_folder_keeps_a_file_it_did_not_write() {
     // not started afresh (that would delete it), the file stays.
     let dir = common::temp_dir("hostile-jobfile");
     let m = small_manifest(&dir, "m.toml", "myjob", "out");
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(o.status.success(), "{}", text(&o));
+    batch(&m, true);
     let job = dir.join("out/jobs/myjob");
     std::fs::remove_file(job.join("job.json")).unwrap();
     std::fs::write(job.join("thesis.tex"), "my thesis").unwrap();
     std::fs::write(job.join("cpu/notes.txt"), "notes").unwrap();
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(!o.status.success(), "{}", text(&o));
+    let said = batch(&m, false);
     assert!(
-        text(&o).contains("thesis.tex") && text(&o).contains("did not write"),
+        said.contains("thesis.tex") && said.contains("did not write"),
         "{}",
-        text(&o)
+        said
     );
-    assert_eq!(
-        std::fs::read_to_string(job.join("thesis.tex")).unwrap(),
-        "my thesis"
-    );
-    assert_eq!(
-        std::fs::read_to_string(job.join("cpu/notes.txt")).unwrap(),
-        "notes"
-    );
+    still_holds(&job.join("thesis.tex"), "my thesis");
+    still_holds(&job.join("cpu/notes.txt"), "notes");
 }
 
 #[cfg(unix)]
 fn batch_never_deletes_through_a_link() {
     let dir = common::temp_dir("hostile-link");
     let m = small_manifest(&dir, "m.toml", "myjob", "out");
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(o.status.success(), "{}", text(&o));
+    batch(&m, true);
     let elsewhere = dir.join("elsewhere");
     std::fs::create_dir_all(elsewhere.join("myjob")).unwrap();
     std::fs::write(elsewhere.join("myjob/precious.txt"), "keep").unwrap();
     let out = dir.join("out");
     std::fs::rename(out.join("jobs"), dir.join("old-jobs")).unwrap();
     std::os::unix::fs::symlink(&elsewhere, out.join("jobs")).unwrap();
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(!o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("link"), "{}", text(&o));
-    assert_eq!(
-        std::fs::read_to_string(elsewhere.join("myjob/precious.txt")).unwrap(),
-        "keep"
-    );
+    let said = batch(&m, false);
+    assert!(said.contains("link"), "{}", said);
+    still_holds(&elsewhere.join("myjob/precious.txt"), "keep");
     // A link in place of a job's folder is not followed either.
     std::fs::remove_file(out.join("jobs")).unwrap();
     std::fs::create_dir(out.join("jobs")).unwrap();
     std::os::unix::fs::symlink(elsewhere.join("myjob"), out.join("jobs/myjob")).unwrap();
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(!o.status.success(), "{}", text(&o));
-    assert_eq!(
-        std::fs::read_to_string(elsewhere.join("myjob/precious.txt")).unwrap(),
-        "keep"
-    );
+    batch(&m, false);
+    still_holds(&elsewhere.join("myjob/precious.txt"), "keep");
 }
 
 fn two_manifests_cannot_share_a_folder() {
     let dir = common::temp_dir("hostile-two-manifests");
     let a = small_manifest(&dir, "a.toml", "job-a", "out");
     let b = small_manifest(&dir, "b.toml", "job-b", "out");
-    let o = wgslam(&["batch", s(&a)]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = wgslam(&["batch", s(&b)]);
-    assert!(!o.status.success(), "{}", text(&o));
+    batch(&a, true);
+    let said = batch(&b, false);
     assert!(
-        text(&o).contains("batch folder of manifest") && text(&o).contains("a.toml"),
+        said.contains("batch folder of manifest") && said.contains("a.toml"),
         "{}",
-        text(&o)
+        said
     );
     assert!(dir.join("out/jobs/job-a/job.json").is_file());
     assert!(!dir.join("out/jobs/job-b").exists());
     // The same manifest again resumes (skips its finished job).
-    let o = wgslam(&["batch", s(&a)]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("skipped"), "{}", text(&o));
+    let said = batch(&a, true);
+    assert!(said.contains("skipped"), "{}", said);
 }
 
 fn batch_refuses_the_root_and_a_file() {
@@ -159,8 +132,7 @@ fn release(mut child: Child) {
 fn a_second_batch_on_a_running_job_is_refused_by_its_lock() {
     let dir = common::temp_dir("hostile-lock");
     let m = small_manifest(&dir, "m.toml", "myjob", "out");
-    let o = wgslam(&["batch", s(&m)]);
-    assert!(o.status.success(), "{}", text(&o));
+    batch(&m, true);
     std::fs::remove_file(dir.join("out/jobs/myjob/job.json")).unwrap();
     let holder = hold_lock(&dir.join("out/locks/myjob.lock"));
     let o = wgslam(&["batch", s(&m)]);
@@ -205,4 +177,17 @@ pub fn tests() -> Vec<common::harness::Test> {
         batch_never_deletes_through_a_link,
     ));
     v
+}
+
+/// Runs `wgslam batch MANIFEST`, asserts whether it `succeeds`, and returns what it said.
+fn batch(manifest: &Path, succeeds: bool) -> String {
+    let o = wgslam(&["batch", s(manifest)]);
+    assert_eq!(o.status.success(), succeeds, "{}", text(&o));
+    text(&o)
+}
+
+/// `path` still holds exactly `contents` (a file the batch did not write).
+fn still_holds(path: &Path, contents: &str) {
+    let now = std::fs::read_to_string(path).unwrap();
+    assert_eq!(now, contents, "{} changed", path.display());
 }

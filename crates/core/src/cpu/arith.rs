@@ -85,12 +85,23 @@ pub fn engaged_here() -> bool {
 
 /// Runs `f` with the twins' arithmetic in `mode` on this thread, then restores the mode.
 pub fn with<R>(mode: Arith, f: impl FnOnce() -> R) -> R {
-    if mode != Arith::Exact {
+    with_set(&MODE, mode, mode != Arith::Exact, f)
+}
+
+/// Runs `f` with the thread's `cell` set to `value` (marking the thread as `engaged` in a
+/// non-default mode when asked), then restores the cell's old value.
+fn with_set<T: Copy + 'static, R>(
+    cell: &'static std::thread::LocalKey<Cell<T>>,
+    value: T,
+    engaged: bool,
+    f: impl FnOnce() -> R,
+) -> R {
+    if engaged {
         ENGAGED_HERE.with(|e| e.set(true));
     }
-    let old = MODE.with(|m| m.replace(mode));
+    let old = cell.with(|m| m.replace(value));
     let r = f();
-    MODE.with(|m| m.set(old));
+    cell.with(|m| m.set(old));
     r
 }
 
@@ -99,11 +110,7 @@ pub fn with<R>(mode: Arith, f: impl FnOnce() -> R) -> R {
 /// a hash of the surfel). Never set outside `tools::compare`'s planted-bug tests.
 #[doc(hidden)]
 pub fn with_skipped_merges<R>(f: impl FnOnce() -> R) -> R {
-    ENGAGED_HERE.with(|e| e.set(true));
-    let old = SKIP_MERGES.with(|m| m.replace(true));
-    let r = f();
-    SKIP_MERGES.with(|m| m.set(old));
-    r
+    with_set(&SKIP_MERGES, true, true, f)
 }
 
 /// Test-only hook: runs `f` with a planted bug, fusion's depth gate (`candidate_off_ray`'s
@@ -111,11 +118,7 @@ pub fn with_skipped_merges<R>(f: impl FnOnce() -> R) -> R {
 /// set outside `tools::compare`'s planted-bug tests.
 #[doc(hidden)]
 pub fn with_wide_depth_gate<R>(f: impl FnOnce() -> R) -> R {
-    ENGAGED_HERE.with(|e| e.set(true));
-    let old = WIDE_DEPTH_GATE.with(|m| m.replace(true));
-    let r = f();
-    WIDE_DEPTH_GATE.with(|m| m.set(old));
-    r
+    with_set(&WIDE_DEPTH_GATE, true, true, f)
 }
 
 /// The planted gate's factor: 1 % wide.

@@ -70,6 +70,12 @@ pub fn temp_path(path: &Path) -> Result<PathBuf> {
 mod tests {
     use super::*;
 
+    /// The folder `d` holds one entry (the written file, no temp file), and is removed.
+    fn only_the_file_is_left(d: &Path) {
+        assert_eq!(fs::read_dir(d).unwrap().count(), 1, "temp file left behind");
+        fs::remove_dir_all(d).unwrap();
+    }
+
     /// A fresh empty directory; each test removes it when it passes.
     fn scratch(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("wgslam-atomic-{}-{}", std::process::id(), name));
@@ -88,12 +94,7 @@ mod tests {
         })
         .unwrap();
         assert_eq!(fs::read(&p).unwrap(), b"hello");
-        assert_eq!(
-            fs::read_dir(&d).unwrap().count(),
-            1,
-            "temp file left behind"
-        );
-        fs::remove_dir_all(&d).unwrap();
+        only_the_file_is_left(&d);
     }
 
     #[test]
@@ -107,12 +108,7 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(fs::read(&p).unwrap(), b"old");
-        assert_eq!(
-            fs::read_dir(&d).unwrap().count(),
-            1,
-            "temp file left behind"
-        );
-        fs::remove_dir_all(&d).unwrap();
+        only_the_file_is_left(&d);
     }
 
     #[test]
