@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use common::cli::{text, wgslam_env as wgslam};
+use common::cli::{ok, text, wgslam_env as wgslam};
 use common::harness::{gpu, plain, shared};
 
 /// Writes `body` as `dir/batch.toml` with `output = "out"`; returns the manifest path.
@@ -31,15 +31,20 @@ fn s(p: &Path) -> &str {
 }
 
 fn summary(out: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+    common::read_json(out.join("summary.json"))
 }
 
-/// Three short CPU jobs over the bundled frames (a grid of two profiles and a named job).
+/// The batch of manifest `m` run again, uninterrupted, into `whole`: `batch diff` finds
+/// its three jobs' numbers equal to those in `out`.
+fn same_numbers_as_a_whole_batch(m: &Path, out: &Path, whole: &Path) {
+    succeeds(&["batch", s(m), "--out", s(whole)]);
+    let said = succeeds(&["batch", "diff", s(out), s(whole)]);
+    assert!(said.contains("equal: 3 jobs"), "{said}");
+}
+
 /// Runs `wgslam ARGS`, asserts that it succeeded, and returns what it printed.
 fn succeeds(args: &[&str]) -> String {
-    let o = wgslam(args, &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    text(&o)
+    text(&ok(wgslam(args, &[])))
 }
 
 /// Asserts that `output` says `jobs` jobs were skipped as already complete.
@@ -67,8 +72,7 @@ fn runs_resumes_and_reports() {
     let dir = common::temp_dir("batch-basic");
     let m = manifest(&dir, &cpu_grid("1..4"));
     let out = dir.join("out");
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&["batch", s(&m)], &[]));
     let sum = summary(&out);
     assert_eq!(
         (sum["jobs"].as_u64(), sum["ok"].as_u64()),
@@ -190,8 +194,7 @@ fn shards_and_scheduler_indices_split_the_jobs() {
     let m = manifest(&dir, &cpu_grid("1..2"));
     let out = dir.join("out");
     // Slurm's array index picks one job; the summary lists the others as pending.
-    let o = wgslam(&["batch", s(&m)], &[("SLURM_ARRAY_TASK_ID", "1")]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(wgslam(&["batch", s(&m)], &[("SLURM_ARRAY_TASK_ID", "1")]));
     assert!(
         text(&o).contains("1 of 3 jobs (index 1 of 3, from SLURM_ARRAY_TASK_ID"),
         "{}",
@@ -201,8 +204,7 @@ fn shards_and_scheduler_indices_split_the_jobs() {
         !out.join("summary.json").exists(),
         "an array task leaves the summary to collect"
     );
-    let o = wgslam(&["batch", "collect", s(&out)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&["batch", "collect", s(&out)], &[]));
     let sum = summary(&out);
     assert_eq!(
         (sum["ok"].as_u64(), sum["pending"].as_u64()),
@@ -210,17 +212,14 @@ fn shards_and_scheduler_indices_split_the_jobs() {
     );
     assert_eq!(sum["rows"][1]["status"], "ok");
     // A Kubernetes index and a shard flag fill in the rest (job 1 is already complete).
-    let o = wgslam(&["batch", s(&m)], &[("JOB_COMPLETION_INDEX", "2")]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = wgslam(&["batch", s(&m), "--shard", "0/2"], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&["batch", s(&m)], &[("JOB_COMPLETION_INDEX", "2")]));
+    let o = ok(wgslam(&["batch", s(&m), "--shard", "0/2"], &[]));
     assert!(
         text(&o).contains("job 2 g-assignment: outputs complete, skipped"),
         "{}",
         text(&o)
     );
-    let o = wgslam(&["batch", "collect", s(&out)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&["batch", "collect", s(&out)], &[]));
     assert_eq!(summary(&out)["ok"].as_u64(), Some(3));
     // An index past the last job is a mis-sized array, not a silent success.
     let o = wgslam(&["batch", s(&m)], &[("SLURM_ARRAY_TASK_ID", "3")]);
@@ -280,11 +279,7 @@ fn sigterm_half_way_then_resume_equals_an_uninterrupted_run() {
     // Resume: the finished job is skipped, the rest run.
     assert_skipped(&succeeds(&["batch", s(&m)]), 1);
     // The same numbers as an uninterrupted batch.
-    let o = wgslam(&["batch", s(&m), "--out", s(&dir.join("whole"))], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = wgslam(&["batch", "diff", s(&out), s(&dir.join("whole"))], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("equal: 3 jobs"), "{}", text(&o));
+    same_numbers_as_a_whole_batch(&m, &out, &dir.join("whole"));
     // ...and diff does see a changed number.
     let mut sum = summary(&out);
     sum["rows"][2]["record"]["runs"]["cpu"]["map_points"] = serde_json::json!(1);
@@ -306,8 +301,7 @@ fn both_backends_write_the_gpu_vs_cpu_comparison() {
         &dir,
         &one_job("both", &seq, "frames = \"1..4\"\ndownsample = 4\n"),
     );
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&["batch", s(&m)], &[]));
     let out = dir.join("out/jobs/both");
     for f in ["cpu/map.ply", "gpu/map.ply", "comparison.json", "job.json"] {
         assert!(out.join(f).is_file(), "{f}");
@@ -347,19 +341,17 @@ fn concurrent_jobs_equal_one_at_a_time() {
     let m = manifest(&dir, &mixed_jobs());
     // The manifest's `concurrent = 4`: the four jobs at once, in this process.
     let (at_once, one_by_one) = (dir.join("at-once"), dir.join("one-by-one"));
-    let o = wgslam(&["batch", s(&m), "--out", s(&at_once)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(wgslam(&["batch", s(&m), "--out", s(&at_once)], &[]));
     assert!(
         text(&o).contains("up to 4 at once in this process"),
         "{}",
         text(&o)
     );
     // The flag wins over the key: one job at a time, each run a child process.
-    let o = wgslam(
+    let o = ok(wgslam(
         &["batch", s(&m), "--out", s(&one_by_one), "--concurrent", "1"],
         &[],
-    );
-    assert!(o.status.success(), "{}", text(&o));
+    ));
     assert!(!text(&o).contains("at once"), "{}", text(&o));
     let jobs = [
         ("both", "cpu"),
@@ -381,8 +373,7 @@ fn concurrent_jobs_equal_one_at_a_time() {
             std::fs::read_to_string(at_once.join(format!("jobs/{job}/{backend}.log"))).unwrap();
         assert!(log.contains("wrote "), "{job} {backend}.log: {log}");
     }
-    let o = wgslam(&["batch", "diff", s(&at_once), s(&one_by_one)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(wgslam(&["batch", "diff", s(&at_once), s(&one_by_one)], &[]));
     assert!(text(&o).contains("equal: 4 jobs"), "{}", text(&o));
     // Resuming with several at once skips what is complete.
     assert_skipped(&succeeds(&["batch", s(&m), "--out", s(&at_once)]), 4);
@@ -408,18 +399,13 @@ fn sigterm_stops_concurrent_jobs_then_resume_completes() {
     );
     // Resume with several at once: the rest run, and the numbers are an uninterrupted
     // batch's.
-    let o = wgslam(&["batch", s(&m), "--concurrent", "2"], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(wgslam(&["batch", s(&m), "--concurrent", "2"], &[]));
     assert!(
         text(&o).contains("g-assignment: ok in"),
         "the stopped job runs again: {}",
         text(&o)
     );
-    let o = wgslam(&["batch", s(&m), "--out", s(&dir.join("whole"))], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = wgslam(&["batch", "diff", s(&out), s(&dir.join("whole"))], &[]);
-    assert!(o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("equal: 3 jobs"), "{}", text(&o));
+    same_numbers_as_a_whole_batch(&m, &out, &dir.join("whole"));
 }
 
 /// The full noisy sequence: the batch's numbers are the run's, on the real ground truth.
@@ -436,8 +422,7 @@ fn noisy_sequence_job_tracks_against_ground_truth(data: &Path) {
             "frames = \"1..40\"\ndownsample = 4\nbackend = \"cpu\"\n",
         ),
     );
-    let o = wgslam(&["batch", s(&m)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&["batch", s(&m)], &[]));
     let ate = summary(&dir.join("out"))["rows"][0]["record"]["runs"]["cpu"]["ate_rmse_mm"]
         .as_f64()
         .unwrap();

@@ -2,7 +2,7 @@
 
 use crate::common;
 
-use common::cli::{text, wgslam};
+use common::cli::{ok, text, wgslam};
 use common::harness::{gpu, plain};
 
 /// `wgslam bench --backends cpu --frames FRAMES ARGS...` on the bundled frames.
@@ -22,8 +22,7 @@ fn run_bundled(out: &std::path::Path, frames: &str, extra: &[&str]) -> std::proc
 
 fn run_writes_all_outputs_on_bundled_data() {
     let out = common::temp_dir("cli-run");
-    let o = run_bundled(&out, "1..4", &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(run_bundled(&out, "1..4", &[]));
     for f in [
         "trajectory.tum",
         "map.ply",
@@ -37,23 +36,21 @@ fn run_writes_all_outputs_on_bundled_data() {
     }
     let traj = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
     assert_eq!(traj.lines().filter(|l| !l.starts_with('#')).count(), 4);
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let m = common::read_json(out.join("metrics.json"));
     assert_eq!(m["frames"], 4);
     assert_eq!(m["params"]["profile"], "robust", "the default profile");
     assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
     // The written trajectory evaluates against the dataset's own ground truth.
     let gt = common::bundled_icl().join("livingRoom2.gt.freiburg");
-    let o = wgslam(&[
+    let o = ok(wgslam(&[
         "eval",
         out.join("trajectory.tum").to_str().unwrap(),
         gt.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    ]));
     assert!(text(&o).contains("ATE RMSE"), "{}", text(&o));
     // The map renders headlessly from the written PLY.
     let png = out.join("rerender.png");
-    let o = wgslam(&[
+    ok(wgslam(&[
         "render",
         out.join("map.ply").to_str().unwrap(),
         "--view",
@@ -64,8 +61,7 @@ fn run_writes_all_outputs_on_bundled_data() {
         "cpu",
         "-o",
         png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    ]));
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (320, 240));
 }
@@ -75,11 +71,12 @@ fn run_writes_all_outputs_on_bundled_data() {
 fn bench_rounds_write_every_round() {
     let out = common::temp_dir("cli-bench");
     let json = out.join("bench.json");
-    let o = bench_cpu("1..3", &["--rounds", "2", "--json", json.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(bench_cpu(
+        "1..3",
+        &["--rounds", "2", "--json", json.to_str().unwrap()],
+    ));
     assert!(text(&o).contains("round 2 (cpu)"), "{}", text(&o));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let report = common::read_json(&json);
     let rounds = report["rounds"].as_array().unwrap();
     assert!(report["interleaved"].is_null());
     assert_eq!(rounds.len(), 2);
@@ -114,11 +111,8 @@ fn bench_rounds_write_every_round() {
 /// tracked frame's iterations in frames.json name their level, coarse to fine.
 fn run_with_an_icp_schedule() {
     let out = common::temp_dir("cli-levels");
-    let o = run_bundled(&out, "1..3", &["--icp-level-iters", "3,2"]);
-    assert!(o.status.success(), "{}", text(&o));
-    let read = |f: &str| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(out.join(f)).unwrap()).unwrap()
-    };
+    ok(run_bundled(&out, "1..3", &["--icp-level-iters", "3,2"]));
+    let read = |f: &str| -> serde_json::Value { common::read_json(out.join(f)) };
     let m = read("metrics.json");
     assert_eq!(m["params"]["icp"]["level_iters"], serde_json::json!([3, 2]));
     assert!(m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap() < 1e-3);
@@ -170,7 +164,7 @@ fn icp_two_frames_prints_iterations_and_error() {
 /// assignment's profile with the robust fusion's values and others overridden.
 fn profile_values_are_flags_recorded_in_metrics() {
     let out = common::temp_dir("cli-overrides");
-    let o = run_bundled(
+    ok(run_bundled(
         &out,
         "1..3",
         &[
@@ -191,10 +185,8 @@ fn profile_values_are_flags_recorded_in_metrics() {
             "--pyramid-radius",
             "2",
         ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    ));
+    let m = common::read_json(out.join("metrics.json"));
     let p = &m["params"];
     assert_eq!(p["profile"], "assignment");
     assert_eq!(p["fusion"]["association"], "best-candidate");
@@ -273,7 +265,7 @@ const REVISIT_ATE_MAX_MM: f64 = 1.0;
 fn bench_revisit_reports_each_pass() {
     let out = common::temp_dir("cli-revisit");
     let json = out.join("revisit.json");
-    let o = bench_cpu(
+    ok(bench_cpu(
         "1..4",
         &[
             "--downsample",
@@ -283,10 +275,8 @@ fn bench_revisit_reports_each_pass() {
             "--json",
             json.to_str().unwrap(),
         ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    ));
+    let v = common::read_json(&json);
     let r = &v["revisit"][0];
     assert_eq!(r["backend"], "cpu");
     assert_eq!(r["frames"], 10);
@@ -331,14 +321,12 @@ fn params_file_sets_values_and_flags_win() {
          bilateral = true\ndownsample = 4\n",
     );
     let out = dir.join("run");
-    let o = run_bundled(
+    ok(run_bundled(
         &out,
         "1..3",
         &["--params", file.to_str().unwrap(), "--icp-dist", "0.09"],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    ));
+    let m = common::read_json(out.join("metrics.json"));
     let p = &m["params"];
     assert_eq!(p["profile"], "assignment", "from the file");
     assert_eq!(p["icp"]["level_iters"], serde_json::json!([3, 2]));
@@ -349,7 +337,7 @@ fn params_file_sets_values_and_flags_win() {
     assert_eq!(m["width"], 160);
     // bench's children read the same parameters (160x120 from the file's downsample).
     let json = dir.join("bench.json");
-    let o = bench_cpu(
+    ok(bench_cpu(
         "1..2",
         &[
             "--params",
@@ -357,10 +345,8 @@ fn params_file_sets_values_and_flags_win() {
             "--json",
             json.to_str().unwrap(),
         ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let b: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    ));
+    let b = common::read_json(&json);
     assert_eq!(b["rounds"][0][0]["width"], 160, "{b}");
     for (body, needle) in [
         ("icp-dits = 0.1", "icp-dits"),
@@ -399,7 +385,7 @@ fn compare_takes_the_pipeline_options() {
 
 /// `compare --fuse-dist` runs (lockstep on the GPU against the CPU) within the tolerances.
 fn compare_runs_with_fuse_dist() {
-    let o = wgslam(&[
+    let o = ok(wgslam(&[
         "compare",
         "--frames",
         "1..3",
@@ -407,8 +393,7 @@ fn compare_runs_with_fuse_dist() {
         "4",
         "--fuse-dist",
         "0.04",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    ]));
     assert!(text(&o).contains("backends agree"), "{}", text(&o));
 }
 
@@ -418,8 +403,11 @@ fn compare_runs_with_fuse_dist() {
 fn cpu_outputs_are_the_same_on_any_number_of_threads() {
     let run = |threads: &str| {
         let out = common::temp_dir(&format!("cli-threads-{threads}"));
-        let o = run_bundled(&out, "1..3", &["--downsample", "1", "--threads", threads]);
-        assert!(o.status.success(), "{}", text(&o));
+        ok(run_bundled(
+            &out,
+            "1..3",
+            &["--downsample", "1", "--threads", threads],
+        ));
         out
     };
     let (one, two) = (run("1"), run("2"));

@@ -189,8 +189,7 @@ fn cli_reports_the_mode() {
             text.contains(&format!("documented {mode} tolerances")),
             "{text}"
         );
-        let c: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let c = common::read_json(&json);
         assert_eq!(c["mode"]["name"], mode, "{}", c["mode"]);
     }
 }

@@ -11,7 +11,7 @@ use crate::common;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use common::cli::{text, wgslam};
+use common::cli::{ok, text, wgslam};
 use common::harness::{gpu_backend, gpu_shared, plain, shared};
 use glam::DMat4;
 use image::{ImageBuffer, Luma, RgbImage};
@@ -908,7 +908,7 @@ const COMPARE_LAST_FRAME: usize = 20;
 fn cli_runs_and_evaluates_the_folder_as_it_is(data: &Path) {
     let root = data.join(SEVEN_SCENES);
     let out = common::temp_dir("ds-cli");
-    let o = wgslam(&[
+    ok(wgslam(&[
         "run",
         root.to_str().unwrap(),
         "--backend",
@@ -917,14 +917,15 @@ fn cli_runs_and_evaluates_the_folder_as_it_is(data: &Path) {
         "0..9",
         "--out",
         out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let m: serde_json::Value =
-        serde_json::from_str(&fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    ]));
+    let m = common::read_json(out.join("metrics.json"));
     let ate = m["accuracy"]["ate_rmse_aligned_m"].as_f64().unwrap();
     let traj = out.join("trajectory.tum");
-    let o = wgslam(&["eval", traj.to_str().unwrap(), root.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(wgslam(&[
+        "eval",
+        traj.to_str().unwrap(),
+        root.to_str().unwrap(),
+    ]));
     let expected = format!("ATE RMSE {:.3} mm aligned", ate * 1e3);
     assert!(
         text(&o).contains(&expected),

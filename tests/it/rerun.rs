@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::io::BufReader;
 use std::path::Path;
 
-use common::cli::{text, wgslam};
+use common::cli::{ok, text, wgslam};
 use common::harness::plain;
 use rerun::external::arrow::array::{Array, AsArray};
 use rerun::external::re_log_encoding::DecoderApp;
@@ -91,7 +91,7 @@ fn run_writes_a_recording_the_decoder_reads() {
     let out = common::temp_dir("rerun-run");
     let rrd = out.join("run.rrd");
     let every = MAP_EVERY.to_string();
-    let o = wgslam(&[
+    let o = ok(wgslam(&[
         "run",
         "--backend",
         "cpu",
@@ -103,8 +103,7 @@ fn run_writes_a_recording_the_decoder_reads() {
         &every,
         "--out",
         out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    ]));
     assert!(
         text(&o).contains("run.rrd"),
         "path not reported: {}",
@@ -163,8 +162,7 @@ fn run_writes_a_recording_the_decoder_reads() {
     map_frames.sort();
     assert_eq!(map_frames, vec![2, 4, 5], "map rows");
     // The final map has every surfel (fewer than the 100k cap here) as a point.
-    let metrics: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let metrics = common::read_json(out.join("metrics.json"));
     let surfels = metrics["map_points"].as_u64().unwrap() as usize;
     assert!(surfels > 0 && surfels <= 100_000, "{surfels} surfels");
     let last = map

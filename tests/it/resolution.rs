@@ -7,7 +7,7 @@ use crate::common;
 
 use std::path::Path;
 
-use common::cli::{text, wgslam};
+use common::cli::{ok, wgslam};
 use common::harness::{gpu, plain};
 
 pub fn tests() -> Vec<common::harness::Test> {
@@ -28,10 +28,8 @@ fn run(dir: &Path, name: &str, args: &[&str]) -> ((u64, u64), String, String) {
     let out = dir.join(name);
     let mut all = vec!["run", "--frames", "1..2", "--out", out.to_str().unwrap()];
     all.extend(args);
-    let o = wgslam(&all);
-    assert!(o.status.success(), "{}", text(&o));
-    let m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let o = ok(wgslam(&all));
+    let m = common::read_json(out.join("metrics.json"));
     let size = (m["width"].as_u64().unwrap(), m["height"].as_u64().unwrap());
     let from = m["downsample_from"].as_str().unwrap().to_string();
     let stdout = String::from_utf8_lossy(&o.stdout);

@@ -9,6 +9,12 @@ pub fn wgslam<S: AsRef<OsStr>>(args: &[S]) -> Output {
     wgslam_env(args, &[])
 }
 
+/// `o`, asserted to be a run that succeeded (what it said when not).
+pub fn ok(o: Output) -> Output {
+    assert!(o.status.success(), "{}", text(&o));
+    o
+}
+
 /// Runs `wgslam ARGS` with `env` set. The job-index variables of the schedulers (which
 /// `wgslam batch` reads) are removed unless `env` sets them, so a test run inside a Slurm
 /// or Kubernetes task still runs every job.

@@ -35,6 +35,12 @@ pub fn asset(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// The JSON file at `path` (a run's metrics.json, a bench's or batch's report).
+pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
+    let text = std::fs::read_to_string(path.as_ref()).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
 /// The bundled sequence `assets/NAME`, opened with the default options.
 pub fn open_asset(name: &str) -> wgslam::dataset::Sequence {
     let options = wgslam::dataset::SequenceOptions::default();

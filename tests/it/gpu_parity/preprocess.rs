@@ -5,7 +5,7 @@
 
 use super::{check_vec4_map, preprocess_both, root, slam};
 use super::{FILTERED_VERTEX_TOL_M, NORMAL_TOL, VERTEX_TOL_M};
-use crate::common::frames::load_frame;
+use crate::common::frames::{load_frame, Frame};
 use crate::common::harness::{gpu_backend_test, Test};
 use crate::common::{level_0, unfiltered_level_0};
 use bytemuck::Zeroable;
@@ -17,12 +17,29 @@ use wgslam::cpu::keypoint_detect::keypoint_detect;
 use wgslam::geometry::camera::Intrinsics;
 use wgslam::gpu::GpuBackend;
 use wgslam::layout::{Keypoint, KeypointParams, DESCRIPTOR_WORDS, FERN_NO_DEPTH};
-use wgslam::slam::backend::{Backend, FrameMaps, Inspect, ToDescribe};
+use wgslam::slam::backend::{Backend, FrameMaps, Inspect, PreprocessSteps, ToDescribe};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::features;
 use wgslam::slam::keyframes::KeyframeDatabase;
 use wgslam::slam::params::{BilateralSettings, Profile, SlamParams};
+use wgslam::slam::pipeline::Slam;
 use wgslam::Error;
+
+/// The frame's maps on the CPU and the GPU after `preprocess` with `params`, and the
+/// steps `steps_of` made for the CPU pipeline (both backends run them).
+fn maps_on_both(
+    gpu: &mut GpuBackend,
+    params: SlamParams,
+    frame: &Frame,
+    steps_of: fn(&Slam<CpuBackend>) -> PreprocessSteps,
+) -> (FrameMaps, FrameMaps, PreprocessSteps) {
+    let s = slam(CpuBackend::new(), params);
+    let steps = steps_of(&s);
+    let mut cpu_b = s.backend;
+    preprocess_both(&mut cpu_b, gpu, &steps, frame);
+    let c = cpu_b.download_frame().unwrap();
+    (c, gpu.download_frame().unwrap(), steps)
+}
 
 /// depth_to_vertex and vertex_to_normal against their twins, at downsample 2 and 1.
 fn preprocess_matches_twins(mut gpu: GpuBackend) {
@@ -30,12 +47,7 @@ fn preprocess_matches_twins(mut gpu: GpuBackend) {
     for downsample in [2, 1] {
         let mut params = SlamParams::profile(Profile::Assignment);
         params.input.downsample = downsample;
-        let s = slam(CpuBackend::new(), params);
-        let steps = unfiltered_level_0(&s);
-        let mut cpu_b = s.backend;
-        preprocess_both(&mut cpu_b, &mut gpu, &steps, &frame);
-        let c = cpu_b.download_frame().unwrap();
-        let g = gpu.download_frame().unwrap();
+        let (c, g, _) = maps_on_both(&mut gpu, params, &frame, unfiltered_level_0);
         let tag = format!("downsample {downsample}");
         check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
         // Colour is integer-valued: exact.
@@ -78,13 +90,8 @@ fn bilateral_filter_matches_twin(mut gpu: GpuBackend) {
         let mut params = SlamParams::profile(Profile::Assignment);
         params.input.downsample = downsample;
         params.bilateral = Some(settings);
-        let s = slam(CpuBackend::new(), params);
-        let steps = level_0(&s);
+        let (c, g, steps) = maps_on_both(&mut gpu, params, &frame, level_0);
         assert!(steps.bilateral.is_some());
-        let mut cpu_b = s.backend;
-        preprocess_both(&mut cpu_b, &mut gpu, &steps, &frame);
-        let c = cpu_b.download_frame().unwrap();
-        let g = gpu.download_frame().unwrap();
         let tag = format!("bilateral {settings:?}, downsample {downsample}");
         check_vec4_map(&format!("{tag} vertex"), &c.vertex, &g.vertex, VERTEX_TOL_M);
         assert_eq!(c.filtered_vertex.len(), c.vertex.len());

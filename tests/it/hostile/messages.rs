@@ -21,8 +21,7 @@ fn messages_say_what_is_wrong() {
     }
     // `--max-time-diff 0` with identical stamps pairs them ("no pairs within 0 s").
     let out = dir.join("o3");
-    let o = run(&["--max-time-diff", "0", "--out", s(&out)]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(run(&["--max-time-diff", "0", "--out", s(&out)]));
     let metrics = std::fs::read_to_string(out.join("metrics.json")).unwrap();
     assert!(metrics.contains("ate_rmse_aligned_m"), "no ATE: {metrics}");
     // ICL-NUIM stamps near 1e15 ran the whole sequence and failed at the end.
@@ -44,8 +43,7 @@ fn messages_say_what_is_wrong() {
             .collect();
         std::fs::write(&p, shifted).unwrap();
     }
-    let o = run(&["--out", s(&dir.join("o4"))]);
-    assert!(o.status.success(), "{}", text(&o));
+    ok(run(&["--out", s(&dir.join("o4"))]));
     // An image entry that is a folder "does not exist".
     let rgb = seq.join("rgb/2.png");
     std::fs::remove_file(&rgb).unwrap();

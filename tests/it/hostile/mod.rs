@@ -20,7 +20,7 @@ mod wrong_results;
 pub(super) use std::path::{Path, PathBuf};
 pub(super) use std::process::{Child, Command};
 
-pub(super) use common::cli::{text, wgslam, wgslam_env};
+pub(super) use common::cli::{ok, text, wgslam, wgslam_env};
 pub(super) use common::harness::{gpu, plain};
 
 pub(super) fn s(p: &Path) -> &str {

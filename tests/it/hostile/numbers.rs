@@ -187,8 +187,7 @@ fn messages_say_what_to_do() {
     std::fs::write(tum.join("groundtruth.txt"), &gt).unwrap();
     let est = dir.join("est.tum");
     std::fs::write(&est, &gt).unwrap();
-    let o = bounded(&["eval", s(&est), s(&tum)], &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(bounded(&["eval", s(&est), s(&tum)], &[]));
     assert!(!text(&o).contains("--intrinsics"), "{}", text(&o));
     // ICL-NUIM without associations.txt.
     let icl = icl_copy(&dir.join("icl"), 2);
@@ -278,8 +277,7 @@ fn runs_that_never_track_are_lost(backend: &str) {
         zero_depth(&icl.join(format!("depth/{i}.png")));
     }
     let out = dir.join("out-alternate");
-    let o = run_on(backend, &icl, "0..3", &out, &[]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = ok(run_on(backend, &icl, "0..3", &out, &[]));
     assert!(!text(&o).contains("panicked"), "{}", text(&o));
     // A flat wall 2 m ahead in every frame (ICL depth scale 5000 per metre): ICP holds the
     // in-plane directions on every tracked frame; the run said "health ok".

@@ -47,14 +47,12 @@ fn leftovers_beside(out: &Path) -> Vec<String> {
 fn killed_runs_leave_the_old_set_or_the_new_one() {
     let dir = common::temp_dir("hostile-kill-run");
     let out = dir.join("out");
-    let o = wgslam(&run_args(2, &out));
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&run_args(2, &out)));
     assert_eq!(consistent_frames(&out), Some(2));
     // Time one run of 4 frames, then kill runs at points spread over its last part, where
     // the outputs are written.
     let t0 = std::time::Instant::now();
-    let o = wgslam(&run_args(4, &dir.join("timing")));
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&run_args(4, &dir.join("timing"))));
     let full = t0.elapsed().as_secs_f64();
     const TRIALS: usize = 12;
     let mut seen = [0usize; 2];
@@ -76,8 +74,7 @@ fn killed_runs_leave_the_old_set_or_the_new_one() {
             other => panic!("trial {k}: {other:?} frames in {}", out.display()),
         }
         if consistent_frames(&out) == Some(4) {
-            let o = wgslam(&run_args(2, &out));
-            assert!(o.status.success(), "{}", text(&o));
+            ok(wgslam(&run_args(2, &out)));
         }
     }
     eprintln!(
@@ -85,8 +82,7 @@ fn killed_runs_leave_the_old_set_or_the_new_one() {
         seen[0], seen[1]
     );
     // The next run into the folder removes what the killed ones left beside it.
-    let o = wgslam(&run_args(2, &out));
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&run_args(2, &out)));
     assert_eq!(leftovers_beside(&out), Vec::<String>::new());
     let inside: Vec<String> = std::fs::read_dir(&out)
         .unwrap()
@@ -133,8 +129,7 @@ fn a_failed_run_keeps_the_old_set_and_leaves_no_temporaries() {
     // run must leave the folder as it was.
     let dir = common::temp_dir("hostile-failed-run");
     let out = dir.join("out");
-    let o = wgslam(&run_args(2, &out));
-    assert!(o.status.success(), "{}", text(&o));
+    ok(wgslam(&run_args(2, &out)));
     let before = std::fs::read(out.join("map.ply")).unwrap();
     let mut args = run_args(4, &out);
     args.extend(["--intrinsics".into(), "nan,120,80,60".into()]);
