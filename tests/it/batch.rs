@@ -53,6 +53,7 @@ fn assert_skipped(output: &str, jobs: usize) {
     assert_eq!(skipped, jobs, "{output}");
 }
 
+/// Three short CPU jobs over the bundled frames (a grid of two profiles and a named job).
 fn cpu_grid(frames: &str) -> String {
     let seq = common::bundled_icl();
     format!(

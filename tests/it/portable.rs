@@ -137,22 +137,10 @@ fn portable_twins_equal_the_64_bit_twins() {
         };
         let pixels = (proj.camera.width * proj.camera.height) as usize;
         let mut keys = vec![0u64; pixels];
-        cpu::project_model::project_model(&mut [
-            Binding::of(&proj),
-            Binding::of(&whole),
-            Binding::read(&bounds),
-            Binding::read(&map.position_weight),
-            Binding::write(&mut keys),
-        ]);
+        crate::common::project_map(&proj, &map, None, Binding::write(&mut keys));
         let mut words = vec![0u32; 2 * pixels];
         for key_pass in 0..2 {
-            cpu::project_model::project_model(&mut [
-                Binding::of(&proj),
-                Binding::of(&whole),
-                Binding::read(&bounds),
-                Binding::read(&map.position_weight),
-                Binding::key_pass(&mut words, key_pass),
-            ]);
+            crate::common::project_map(&proj, &map, None, Binding::key_pass(&mut words, key_pass));
         }
         check_equal(&format!("{name}: project_model"), &keys, &words);
         if name == "doubled map" {

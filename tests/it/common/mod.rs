@@ -41,6 +41,34 @@ pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
     serde_json::from_str(&text).unwrap()
 }
 
+/// project_model's twin over the whole of `map` (one chunk) at `proj`, culled by `bounds`
+/// (per block its box; [`whole_map_bounds`](wgslam::cpu::block_bounds::whole_map_bounds)'
+/// when `None`), each pixel's key written to `keys` (a `u64` slice, or a key pass).
+pub fn project_map(
+    proj: &wgslam::layout::ProjectParams,
+    map: &wgslam::layout::map::SurfelMap,
+    bounds: Option<&[[u32; 4]]>,
+    keys: wgslam::cpu::binding::Binding,
+) {
+    use wgslam::cpu::{binding::Binding, block_bounds, project_model};
+    let whole = wgslam::layout::MapChunk::whole(map.len());
+    let own_bounds;
+    let bounds = match bounds {
+        Some(b) => b,
+        None => {
+            own_bounds = block_bounds::whole_map_bounds(&map.position_weight);
+            &own_bounds
+        }
+    };
+    project_model::project_model(&mut [
+        Binding::of(proj),
+        Binding::of(&whole),
+        Binding::read(bounds),
+        Binding::read(&map.position_weight),
+        keys,
+    ]);
+}
+
 /// The bundled sequence `assets/NAME`, opened with the default options.
 pub fn open_asset(name: &str) -> wgslam::dataset::Sequence {
     let options = wgslam::dataset::SequenceOptions::default();

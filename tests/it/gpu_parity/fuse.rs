@@ -187,19 +187,11 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
 fn check_fused_index_map(map: &SurfelMap, first_new: usize, fused: &[u64], proj: &ProjectParams) {
     let n = fused.len();
     let mut fresh = vec![0u64; n];
-    let whole = MapChunk::whole(map.len());
-    let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
     let proj = ProjectParams {
         surfel_count: map.len() as u32,
         ..*proj
     };
-    cpu::project_model::project_model(&mut [
-        Binding::of(&proj),
-        Binding::of(&whole),
-        Binding::read(&bounds),
-        Binding::read(&map.position_weight),
-        Binding::write(&mut fresh),
-    ]);
+    crate::common::project_map(&proj, map, None, Binding::write(&mut fresh));
     let surfel = |k: u64| (k != 0).then_some(k & 0xffff_ffff);
     assert!(
         fused
@@ -274,13 +266,7 @@ fn check_fuse_select(
         _pad2: 0,
     };
     let mut projected = vec![0u64; n];
-    cpu::project_model::project_model(&mut [
-        Binding::of(&proj),
-        Binding::of(&whole),
-        Binding::read(&bounds),
-        Binding::read(&map.position_weight),
-        Binding::write(&mut projected),
-    ]);
+    crate::common::project_map(&proj, map, None, Binding::write(&mut projected));
     assert!(
         projected.iter().filter(|&&k| k != 0).count() > 1000,
         "too few keys"

@@ -12,7 +12,7 @@ use wgslam::cpu::binding::Binding;
 use wgslam::geometry::se3;
 use wgslam::gpu::{GpuBackend, GpuContext};
 use wgslam::layout::map::SurfelMap;
-use wgslam::layout::{MapChunk, BLOCK_SURFELS};
+use wgslam::layout::BLOCK_SURFELS;
 use wgslam::slam::backend::{Backend, Inspect};
 use wgslam::slam::cpu_backend::CpuBackend;
 use wgslam::slam::params::{PoseSource, Profile, SlamParams};
@@ -134,7 +134,6 @@ fn culling_is_conservative() {
     let params = SlamParams::profile(Profile::Robust);
     let (s, gt) = cpu_map_from_gt(4, &params);
     let map = s.backend.map();
-    let whole = MapChunk::whole(map.len());
     let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
     surfels_in_their_boxes(map, &bounds).unwrap();
     // One box per block holding the whole world (1000 km either way).
@@ -176,13 +175,7 @@ fn culling_is_conservative() {
         let n = (proj.camera.width * proj.camera.height) as usize;
         let splat = |b: &[[u32; 4]]| {
             let mut index = vec![0u64; n];
-            cpu::project_model::project_model(&mut [
-                Binding::of(&proj),
-                Binding::of(&whole),
-                Binding::read(b),
-                Binding::read(&map.position_weight),
-                Binding::write(&mut index),
-            ]);
+            crate::common::project_map(&proj, map, Some(b), Binding::write(&mut index));
             index
         };
         let (culled_index, full_index) = (splat(&bounds), splat(&world));

@@ -31,14 +31,7 @@ fn predict_matches_twins(mut gpu: GpuBackend) {
     let n = (proj.camera.width * proj.camera.height) as usize;
     let mut index_cpu = vec![0u64; n];
     let whole = MapChunk::whole(map.len());
-    let bounds = cpu::block_bounds::whole_map_bounds(&map.position_weight);
-    cpu::project_model::project_model(&mut [
-        Binding::of(&proj),
-        Binding::of(&whole),
-        Binding::read(&bounds),
-        Binding::read(&map.position_weight),
-        Binding::write(&mut index_cpu),
-    ]);
+    crate::common::project_map(&proj, &map, None, Binding::write(&mut index_cpu));
     let (mut pv_cpu, mut pn_cpu) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
     let mut pi_cpu = vec![0.0; n];
     cpu::predict_model::predict_model(&mut [
