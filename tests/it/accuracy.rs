@@ -9,10 +9,9 @@ use crate::common;
 use common::harness::{plain, shared, Test};
 use common::{ate_m, ATE_7SCENES_MAX_M, ATE_NOISY_MAX_M, LOOP_ATE_SLACK_M};
 use wgslam::dataset::{self, SequenceOptions};
-use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::{SlamParams, ValidParams};
+use wgslam::slam::params::SlamParams;
 use wgslam::slam::pipeline::TrackStatus;
-use wgslam::tools::run::{self, RunResult};
+use wgslam::tools::run::RunResult;
 
 /// The noise stop test only cuts steps that follow the noise: the ATE moves by less than
 /// this (metres; measured 0.002 mm on these frames, 0.01 mm on 7-Scenes 0..299).
@@ -70,15 +69,7 @@ fn seven_scenes_stops_before_the_limit(data: &Path) {
         &SequenceOptions::default(),
     )
     .unwrap();
-    let r = run::run(
-        CpuBackend::new(),
-        &seq,
-        0,
-        299,
-        ValidParams::default(),
-        |_| {},
-    )
-    .unwrap();
+    let r = common::run_cpu(&seq, 0, 299, wgslam::SlamParams::default()).unwrap();
     let share = at_limit_fraction(&r);
     assert!(
         share <= AT_LIMIT_MAX_FRACTION,

@@ -212,7 +212,7 @@ fn write_mcap(path: &Path, seq: &dataset::Sequence, frames: &[usize], o: &McapOp
 }
 
 fn bundled() -> dataset::Sequence {
-    dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap()
+    common::open_asset("icl_living_room_kt2")
 }
 
 fn with_gt() -> SequenceOptions {

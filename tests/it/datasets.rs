@@ -337,13 +337,11 @@ fn write_tum_like(dir: &Path, s: &Source, eth3d: bool) {
 
 /// ATE (aligned, metres) of the robust profile over every frame of `seq` on the CPU.
 fn ate_of(seq: &Sequence) -> f64 {
-    let r = run::run(
-        CpuBackend::new(),
+    let r = common::run_cpu(
         seq,
         0,
         seq.len() - 1,
-        ValidParams::profile(Profile::Robust),
-        |_| {},
+        wgslam::SlamParams::profile(Profile::Robust),
     )
     .unwrap();
     assert_eq!(r.metrics.tracking.lost, 0);
@@ -352,14 +350,12 @@ fn ate_of(seq: &Sequence) -> f64 {
 
 /// The bundled frames 1..=12 in their TUM-compatible (ICL-NUIM) form.
 fn tum_form_ate() -> f64 {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let r = run::run(
-        CpuBackend::new(),
+    let seq = common::open_asset("icl_living_room_kt2");
+    let r = common::run_cpu(
         &seq,
         *FIXTURE_FRAMES.start(),
         *FIXTURE_FRAMES.end(),
-        ValidParams::profile(Profile::Robust),
-        |_| {},
+        wgslam::SlamParams::profile(Profile::Robust),
     )
     .unwrap();
     r.metrics.accuracy.unwrap().ate_rmse_aligned_m
@@ -628,15 +624,7 @@ fn a_run_from_memory_gives_the_bytes_run_writes() {
     let memory =
         dataset::open_with(std::sync::Arc::new(files), Path::new(IN_MEMORY_TOP), &opts).unwrap();
     let run_of = |seq: &Sequence| {
-        run::run(
-            CpuBackend::new(),
-            seq,
-            1,
-            4,
-            ValidParams::profile(Profile::Robust),
-            |_| {},
-        )
-        .unwrap()
+        common::run_cpu(seq, 1, 4, wgslam::SlamParams::profile(Profile::Robust)).unwrap()
     };
     let (from_disk, from_memory) = (run_of(&disk), run_of(&memory));
     let out = common::temp_dir("ds-memory-outputs");

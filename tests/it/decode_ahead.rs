@@ -128,7 +128,7 @@ const AHEAD_OVER_BEFORE_MAX: f64 = 0.75;
 /// The end-to-end figures of `bench`'s first pass over the bundled frames with ground
 /// truth, CPU backend, 320x240.
 fn cpu_end_to_end(decode: Decode) -> wgslam::tools::bench::EndToEnd {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let params = SlamParams::profile(Profile::Assignment).validate().unwrap();
     let r = wgslam::tools::bench::bench_frames(
         || Ok(CpuBackend::new()),

@@ -147,7 +147,7 @@ fn bundled_frames_track_to_ground_truth<B: Backend + Inspect>(backend: B, params
             ""
         }
     );
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let last = seq.len() - 1;
     let r = run::run(backend, &seq, 1, last, params.validate().unwrap(), |_| {}).unwrap();
     let acc = r
@@ -174,7 +174,7 @@ fn bundled_frames_track_to_ground_truth<B: Backend + Inspect>(backend: B, params
 }
 
 fn full_resolution_tracks_too() {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let mut params = SlamParams::profile(Profile::Assignment);
     params.input.downsample = 1;
     let r = common::run_cpu(&seq, 1, 8, params).unwrap();
@@ -184,7 +184,7 @@ fn full_resolution_tracks_too() {
 }
 
 fn ground_truth_poses_fuse_without_tracking() {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
         ..SlamParams::profile(Profile::Assignment)
@@ -207,16 +207,8 @@ fn ground_truth_poses_fuse_without_tracking() {
 /// Frame 0 of ICL-NUIM has no ground truth: tracking without GT starts at identity, and
 /// a ground-truth run refuses it with a clear error.
 fn frame_without_ground_truth() {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
-    let r = run::run(
-        CpuBackend::new(),
-        &seq,
-        0,
-        2,
-        ValidParams::profile(Profile::Assignment),
-        |_| {},
-    )
-    .unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
+    let r = common::run_cpu(&seq, 0, 2, wgslam::SlamParams::profile(Profile::Assignment)).unwrap();
     assert_eq!(r.frames[0].report.t_cam_to_world, glam::DMat4::IDENTITY);
     let params = SlamParams {
         poses: PoseSource::GroundTruth,
@@ -256,7 +248,7 @@ fn shared_sequence_1_to_200_within_1mm<B: Backend + Inspect>(backend: B, data: &
 /// valid depth to constrain ICP is reported as lost and not fused; tracking then resumes.
 fn empty_and_untrackable_frames_are_reported_not_fused() {
     use wgslam::slam::pipeline::Slam;
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let mut slam = Slam::new(
         CpuBackend::new(),
         seq.intrinsics,
@@ -300,7 +292,7 @@ fn empty_and_untrackable_frames_are_reported_not_fused() {
 /// The interleaved benchmark runs both backends over the same frames, each tracking to the
 /// ground truth, and reports ordered per-frame ratios.
 fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let r = wgslam::tools::bench::bench_interleaved(
         gpu_backend(ctx),
         &seq,

@@ -12,9 +12,6 @@ use wgslam::dataset::{self, SequenceOptions};
 use wgslam::mesh::accuracy::measure;
 use wgslam::mesh::write::write_mesh;
 use wgslam::mesh::{mesh_from_map, mesh_from_surfels, Mesh, MeshParams, Surfels};
-use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::ValidParams;
-use wgslam::tools::run;
 
 /// Sphere radius of the ground-truth test, metres (30 voxels of 1 cm).
 const SPHERE_RADIUS_M: f32 = 0.3;
@@ -167,15 +164,7 @@ fn read_back(path: &Path) -> Mesh {
 fn bundled_map_mesh_reads_back_and_fits_the_map() {
     let root = common::bundled_icl();
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
-    let result = run::run(
-        CpuBackend::new(),
-        &seq,
-        0,
-        10,
-        ValidParams::default(),
-        |_| {},
-    )
-    .unwrap();
+    let result = common::run_cpu(&seq, 0, 10, wgslam::SlamParams::default()).unwrap();
     let mesh = mesh_from_map(&result.map, &MeshParams::default()).unwrap();
     let dir = common::temp_dir("mesh_bundled");
     let path = dir.join("mesh.ply");
@@ -228,15 +217,7 @@ fn mesh_command_writes_a_mesh_and_refuses_a_map_without_normals() {
     let dir = common::temp_dir("mesh_command");
     let root = common::bundled_icl();
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
-    let result = run::run(
-        CpuBackend::new(),
-        &seq,
-        0,
-        3,
-        ValidParams::default(),
-        |_| {},
-    )
-    .unwrap();
+    let result = common::run_cpu(&seq, 0, 3, wgslam::SlamParams::default()).unwrap();
     let map = dir.join("map.ply");
     wgslam::io::ply::write_surfel_map(&map, &result.map).unwrap();
     let args = |out: &str| MeshArgs {

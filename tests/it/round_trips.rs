@@ -6,7 +6,6 @@
 use crate::common;
 
 use common::harness::{gpu, gpu_backend};
-use wgslam::dataset::{self, SequenceOptions};
 use wgslam::gpu::GpuContext;
 use wgslam::slam::params::{Profile, ValidParams};
 use wgslam::tools::{bench, run, streams};
@@ -50,7 +49,7 @@ pub fn tests() -> Vec<common::harness::Test> {
 
 /// `bench`'s first pass over the bundled frames with the default profile on the GPU.
 fn gpu_plain_frames_wait_only_for_icp_fusion_and_health(ctx: GpuContext) {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let mut backend = Some(gpu_backend(ctx));
     let r = bench::bench_frames(
         || Ok(backend.take().expect("one backend")),
@@ -95,7 +94,7 @@ const STREAM_WAITS_BEYOND_ICP: f64 = 3.0;
 /// stream's map and accuracy equal the lone stream's bit for bit, and the lone stream
 /// never has a wait served by another.
 fn gpu_streams_share_waits_and_match_one_stream(ctx: GpuContext) {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let r = streams::bench_streams(
         &ctx,
         &seq,

@@ -148,7 +148,7 @@ fn kidnapped_tracker_relocalises<B: Backend>(backend: B, downsample: u32) {
 /// A run whose first frames have no depth starts at the first usable one: it gets that
 /// frame's ground-truth pose, the empty frames have no pose, and nothing is lost.
 fn empty_first_frames_start_at_the_first_usable() {
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let mut slam = Slam::for_sequence(CpuBackend::new(), &seq, ValidParams::default()).unwrap();
     for i in 1..=6 {
         let f = seq.load(i).unwrap();
@@ -323,15 +323,7 @@ fn no_false_alarms_on_real_sequences(data: &Path) {
     ];
     for (root, first, last) in runs {
         let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
-        let r = run::run(
-            CpuBackend::new(),
-            &seq,
-            first,
-            last,
-            ValidParams::default(),
-            |_| {},
-        )
-        .unwrap();
+        let r = common::run_cpu(&seq, first, last, wgslam::SlamParams::default()).unwrap();
         let t = &r.metrics.tracking;
         eprintln!(
             "{}: {} frames, {} lost, {} relocalised, {} keyframes, ATE {:.2} mm",
@@ -352,13 +344,11 @@ fn no_false_alarms_on_real_sequences(data: &Path) {
 /// the right pose, to track them; the robust profile's coarsest level does not.)
 fn assignment_profile_relocalises_too() {
     let seq = common::open_asset("icl_living_room_kt2_spliced");
-    let r = run::run(
-        CpuBackend::new(),
+    let r = common::run_cpu(
         &seq,
         0,
         seq.len() - 1,
-        ValidParams::profile(Profile::Assignment),
-        |_| {},
+        wgslam::SlamParams::profile(Profile::Assignment),
     )
     .unwrap();
     for i in [23, 31] {

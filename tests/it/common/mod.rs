@@ -42,7 +42,7 @@ pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
 }
 
 /// project_model's twin over the whole of `map` (one chunk) at `proj`, culled by `bounds`
-/// (per block its box; [`whole_map_bounds`](wgslam::cpu::block_bounds::whole_map_bounds)'
+/// (per block its box; [`whole_map_bounds`](wgslam::cpu::block_bounds::whole_map_bounds)
 /// when `None`), each pixel's key written to `keys` (a `u64` slice, or a key pass).
 pub fn project_map(
     proj: &wgslam::layout::ProjectParams,

@@ -5,11 +5,7 @@
 use crate::common;
 
 use common::harness::{plain, Test};
-use wgslam::dataset::{self, SequenceOptions};
 use wgslam::render::{self, MapCloud, RenderSettings, View};
-use wgslam::slam::cpu_backend::CpuBackend;
-use wgslam::slam::params::ValidParams;
-use wgslam::tools::run;
 
 use super::keep;
 
@@ -49,17 +45,9 @@ fn stripe_pixels(rgba: &[u32], width: usize, background: u32) -> usize {
 fn gap_fill_closes_the_stripes() {
     // The map and view of `wgslam run`'s map_color.png on the bundled frames: all of them
     // fused on the CPU, seen from the elevated overview camera.
-    let seq = dataset::open(&common::bundled_icl(), &SequenceOptions::default()).unwrap();
+    let seq = common::open_asset("icl_living_room_kt2");
     let last = seq.len() - 1;
-    let result = run::run(
-        CpuBackend::new(),
-        &seq,
-        0,
-        last,
-        ValidParams::default(),
-        |_| {},
-    )
-    .unwrap();
+    let result = common::run_cpu(&seq, 0, last, wgslam::SlamParams::default()).unwrap();
     let map_cloud = MapCloud::new(&result.map);
     let cloud = map_cloud.cloud();
     let (w, h) = render::DEFAULT_SIZE;
