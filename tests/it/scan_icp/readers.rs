@@ -2,6 +2,7 @@
 //! and on malformed input with errors that name the file, line and problem.
 
 use crate::common;
+use std::path::Path;
 
 use common::harness::{plain, Test};
 use wgslam::scan::write::{encode_ply_xyz, format_matrix4};
@@ -43,41 +44,55 @@ fn err_text<T: std::fmt::Debug>(r: Result<T, Error>) -> String {
     r.expect_err("malformed input must be an error").to_string()
 }
 
+/// What `read` says of `bytes` written to `dir/name` (it must refuse them).
+fn read_error<T: std::fmt::Debug>(
+    read: fn(&Path) -> Result<T, Error>,
+    dir: &Path,
+    name: &str,
+    bytes: &[u8],
+) -> String {
+    err_text(read(&write(dir, name, bytes)))
+}
+
 fn pcd_malformed_inputs_name_the_problem() {
     let d = common::temp_dir("scan-pcd-bad");
-    let e = err_text(read_pcd(&write(
+    let e = read_error(
+        read_pcd,
         &d,
         "c.pcd",
         format!("{PCD_HEADER_XYZI}DATA binary_compressed\n\0\0\0\0").as_bytes(),
-    )));
+    );
     assert!(e.contains("unsupported") && e.contains("c.pcd"), "{e}");
 
     // 3 records of 16 bytes promised, 40 bytes present: record 2 is cut at its start.
     let mut bytes = format!("{PCD_HEADER_XYZI}DATA binary\n").into_bytes();
     let start = bytes.len();
     bytes.extend_from_slice(&[0u8; 40]);
-    let e = err_text(read_pcd(&write(&d, "t.pcd", &bytes)));
+    let e = read_error(read_pcd, &d, "t.pcd", &bytes);
     assert!(e.contains(&format!("byte offset {}", start + 32)), "{e}");
 
-    let e = err_text(read_pcd(&write(
+    let e = read_error(
+        read_pcd,
         &d,
         "n.pcd",
         format!("{PCD_HEADER_XYZI}DATA ascii\n1 2 3 4\n1 two 3 4\n1 2 3 4\n").as_bytes(),
-    )));
+    );
     assert!(e.contains("n.pcd:13") && e.contains("two"), "{e}");
 
-    let e = err_text(read_pcd(&write(
+    let e = read_error(
+        read_pcd,
         &d,
         "f.pcd",
         b"FIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n1 2 3\n",
-    )));
+    );
     assert!(e.contains("x, y, z"), "{e}");
 
-    let e = err_text(read_pcd(&write(
+    let e = read_error(
+        read_pcd,
         &d,
         "i.pcd",
         b"FIELDS x y z\nSIZE 2 2 2\nTYPE I I I\nPOINTS 1\nDATA ascii\n1 2 3\n",
-    )));
+    );
     assert!(e.contains("float32"), "{e}");
 
     assert!(matches!(
@@ -97,23 +112,15 @@ fn ply_ascii_and_binary() {
     assert_eq!(c.points, vec![[0.5, -1.0, 2.0], [3.0, 4.0, 5.0]]);
     assert_eq!(c.stats.dropped_non_finite, 1);
 
-    let e = err_text(read_ply_xyz(&write(
-        &d,
-        "be.ply",
-        b"ply\nformat binary_big_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
-    )));
+    let e = read_error(read_ply_xyz, &d, "be.ply", b"ply\nformat binary_big_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n");
     assert!(e.contains("big-endian PLY is not supported"), "{e}");
 
-    let e = err_text(read_ply_xyz(&write(
-        &d,
-        "short.ply",
-        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 2\n",
-    )));
+    let e = read_error(read_ply_xyz, &d, "short.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 2\n");
     assert!(e.contains("short.ply:9"), "{e}");
 
     let mut trunc = encode_ply_xyz(&pts);
     trunc.truncate(trunc.len() - 5);
-    let e = err_text(read_ply_xyz(&write(&d, "trunc.ply", &trunc)));
+    let e = read_error(read_ply_xyz, &d, "trunc.ply", &trunc);
     assert!(
         e.contains("truncated PLY body") && e.contains("offset 177"),
         "{e}"
