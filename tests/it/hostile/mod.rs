@@ -96,6 +96,15 @@ pub(super) fn run_args(last: u32, out: &Path) -> Vec<String> {
     .collect()
 }
 
+/// [`run_args`] with `more` after them, which must fail with exit code 1; what the run said.
+pub(super) fn run_fails(last: u32, out: &Path, more: &[&str]) -> String {
+    let mut args = run_args(last, out);
+    args.extend(more.iter().map(|m| m.to_string()));
+    let o = wgslam(&args);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    text(&o)
+}
+
 /// Every hostile-input test, by topic.
 pub fn tests() -> Vec<common::harness::Test> {
     let mut v = batch_folders::tests();

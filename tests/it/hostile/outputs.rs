@@ -131,10 +131,7 @@ fn a_failed_run_keeps_the_old_set_and_leaves_no_temporaries() {
     let out = dir.join("out");
     ok(wgslam(&run_args(2, &out)));
     let before = std::fs::read(out.join("map.ply")).unwrap();
-    let mut args = run_args(4, &out);
-    args.extend(["--intrinsics".into(), "nan,120,80,60".into()]);
-    let o = wgslam(&args);
-    assert!(!o.status.success(), "{}", text(&o));
+    run_fails(4, &out, &["--intrinsics", "nan,120,80,60"]);
     assert_eq!(consistent_frames(&out), Some(2));
     assert_eq!(std::fs::read(out.join("map.ply")).unwrap(), before);
     assert_eq!(leftovers_beside(&out), Vec::<String>::new());
@@ -146,14 +143,10 @@ fn the_map_cap_stops_the_run_with_a_clear_message() {
     // `--profile assignment` over 1000 revisiting frames grew to 75 M surfels unwarned.
     let dir = common::temp_dir("hostile-map-cap");
     let out = dir.join("out");
-    let mut args = run_args(3, &out);
-    args.extend(["--max-surfels".into(), "1000".into()]);
-    let o = wgslam(&args);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let said = run_fails(3, &out, &["--max-surfels", "1000"]);
     assert!(
-        text(&o).contains("map capacity exceeded") && text(&o).contains("--max-surfels 1000"),
-        "{}",
-        text(&o)
+        said.contains("map capacity exceeded") && said.contains("--max-surfels 1000"),
+        "{said}"
     );
     assert!(!out.exists(), "outputs of a capped run");
 }
