@@ -5,8 +5,9 @@
 //! pixels) into a 64-bit depth|index map (`render_splat`), then each pixel is shaded from
 //! its winning surfel (`render_resolve`), in the order of the render plan
 //! (`plan::render`). The CPU twins in `crates/core/src/cpu/render_*.rs` run here, through
-//! the twins' engine by their registry rows; the GPU pass lives in [`gpu`]. This module knows cameras, views and images, not files
-//! other than the PNG it is asked to write; trajectory plots are in `crate::render::plot`.
+//! the twins' engine by their registry rows; the GPU pass lives in [`gpu`]. This module
+//! knows cameras, views and images, not files other than the PNG it is asked to write;
+//! trajectory plots are in `crate::render::plot`.
 //!
 //! Submodules: `view` (what a pixel shows, image sizes), `framing` (virtual cameras
 //! that frame a cloud), `overlay` (ICP before/after pictures), `outputs` (the pictures

@@ -1,7 +1,8 @@
 //! GPU correspondence search and reduction for scan ICP: nearest neighbours by brute force
 //! (`shaders/nn_brute.wgsl`) or through a hashed voxel grid (`shaders/nn_grid.wgsl`), and
 //! the inlier cross-covariance (`shaders/cross_covariance.wgsl`). Plugs into
-//! [`register_with`](super::icp::register_with) through [`NearestNeighbours`].
+//! [`register_with`](super::icp::register_with) through
+//! [`NearestNeighbours`](super::NearestNeighbours).
 //!
 //! The kernels run in the order of the correspondence plan (`plan::scan_correspondences`),
 //! each bound and dispatched by its registry row (`RowKernels`) over this target's pool
@@ -16,9 +17,7 @@
 
 use std::sync::Mutex;
 
-use super::kernel_target::{cov_params, nearest_from, reduce_with, to_vec4, KernelTarget};
-use super::nn::NearestNeighbours;
-use crate::geometry::align::CrossCovariance;
+use super::kernel_target::{kernel_nearest_neighbours, to_vec4, KernelTarget};
 use crate::gpu::{GpuArray, GpuContext, ParamBuffer, RowKernels};
 use crate::layout::scan::{ScanCovParams, ScanCovPartial, ScanNnResult, SCAN_WORKGROUP_SIZE};
 use crate::Result;
@@ -46,7 +45,7 @@ impl ScanKernels {
 }
 
 /// Per-call buffers (queries, results, partials), behind a mutex because
-/// [`NearestNeighbours`] takes `&self`.
+/// [`NearestNeighbours`](super::NearestNeighbours) takes `&self`.
 struct Scratch {
     queries: GpuArray<[f32; 4]>,
     results: GpuArray<ScanNnResult>,
@@ -166,38 +165,12 @@ impl<'a> GpuTarget<'a> {
         s.results.read_back(self.ctx)
     }
 
-    /// Raw per-workgroup partials of the inlier pairs of `queries` within `radius_sq`,
-    /// points shifted by `anchor` (for parity tests).
-    pub fn reduce_raw(
-        &self,
-        queries: &[[f32; 3]],
-        anchor: [f32; 4],
-        radius_sq: f32,
-    ) -> Result<Vec<ScanCovPartial>> {
+    /// Raw per-workgroup partials of the pairs of `queries` under `cov` (see `reduce_raw`).
+    fn partials(&self, queries: &[[f32; 3]], cov: &ScanCovParams) -> Result<Vec<ScanCovPartial>> {
         let mut s = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
-        let cov = cov_params(anchor, queries.len(), radius_sq, self.workgroups);
-        self.run(&mut s, &to_vec4(queries), Some(&cov))?;
+        self.run(&mut s, &to_vec4(queries), Some(cov))?;
         s.partials.read_back(self.ctx)
     }
 }
 
-impl NearestNeighbours for GpuTarget<'_> {
-    fn points(&self) -> &[[f32; 3]] {
-        self.target.points
-    }
-
-    fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> Result<()> {
-        nearest_from(&self.nearest_raw(queries)?, out);
-        Ok(())
-    }
-
-    fn reduce_pairs(
-        &self,
-        queries: &[[f32; 3]],
-        radius_sq: f64,
-    ) -> Result<Option<CrossCovariance>> {
-        reduce_with(queries, radius_sq, |anchor, radius_sq| {
-            self.reduce_raw(queries, anchor, radius_sq)
-        })
-    }
-}
+kernel_nearest_neighbours!(GpuTarget);

@@ -10,7 +10,6 @@
 use bytemuck::Zeroable;
 use glam::DVec3;
 
-use super::nn::NearestNeighbours;
 use crate::cpu::binding::Pool;
 use crate::cpu::{decode_scan_partials, HashGrid};
 use crate::geometry::align::CrossCovariance;
@@ -154,8 +153,9 @@ pub(crate) fn cov_params(
     }
 }
 
-/// [`NearestNeighbours::nearest`] from a kernel's results: no neighbour within the radius
-/// is an infinite distance that every radius rejects.
+/// [`NearestNeighbours::nearest`](super::NearestNeighbours::nearest) from a kernel's
+/// results: no neighbour within the radius is an infinite distance that every radius
+/// rejects.
 pub(crate) fn nearest_from(results: &[ScanNnResult], out: &mut [(u32, f32)]) {
     for (o, n) in out.iter_mut().zip(results) {
         *o = match n.index {
@@ -165,9 +165,10 @@ pub(crate) fn nearest_from(results: &[ScanNnResult], out: &mut [(u32, f32)]) {
     }
 }
 
-/// [`NearestNeighbours::reduce_pairs`] through `reduce_raw` (the partials of the pairs of
-/// `queries` within `radius_sq`, shifted by an anchor): the anchor is the queries' mean,
-/// so the f32 sums stay small; the partials summed in f64 and shifted back.
+/// [`NearestNeighbours::reduce_pairs`](super::NearestNeighbours::reduce_pairs) through
+/// `reduce_raw` (the partials of the pairs of `queries` within `radius_sq`, shifted by an
+/// anchor): the anchor is the queries' mean, so the f32 sums stay small; the partials
+/// summed in f64 and shifted back.
 pub(crate) fn reduce_with(
     queries: &[[f32; 3]],
     radius_sq: f64,
@@ -247,41 +248,64 @@ impl<'a> TwinTarget<'a> {
         (results, partials)
     }
 
-    /// The twins' results for `queries` (metres), as the GPU target's `nearest_raw`.
-    pub fn nearest_raw(&self, queries: &[[f32; 3]]) -> Vec<ScanNnResult> {
-        self.run(&to_vec4(queries), None).0
+    /// The twins' results for `queries` (metres), as the GPU target's `nearest_raw` (which
+    /// may fail where this does not).
+    pub fn nearest_raw(&self, queries: &[[f32; 3]]) -> Result<Vec<ScanNnResult>> {
+        Ok(self.run(&to_vec4(queries), None).0)
     }
 
-    /// The twins' partials of the inlier pairs of `queries` within `radius_sq`, points
-    /// shifted by `anchor`, as the GPU target's `reduce_raw`.
-    pub fn reduce_raw(
-        &self,
-        queries: &[[f32; 3]],
-        anchor: [f32; 4],
-        radius_sq: f32,
-    ) -> Vec<ScanCovPartial> {
-        let cov = cov_params(anchor, queries.len(), radius_sq, self.workgroups);
-        self.run(&to_vec4(queries), Some(&cov)).1
+    /// The twins' partials of the pairs of `queries` under `cov` (see `reduce_raw`).
+    fn partials(&self, queries: &[[f32; 3]], cov: &ScanCovParams) -> Result<Vec<ScanCovPartial>> {
+        Ok(self.run(&to_vec4(queries), Some(cov)).1)
     }
 }
 
-impl NearestNeighbours for TwinTarget<'_> {
-    fn points(&self) -> &[[f32; 3]] {
-        self.target.points
-    }
+/// For a target that holds its [`KernelTarget`] as `target`, its reduction's workgroups
+/// as `workgroups`, and answers through its kernels' `nearest_raw` and `partials` (the GPU
+/// target, and [`TwinTarget`]: the same answers from either engine): its `reduce_raw` and
+/// [`NearestNeighbours`](super::NearestNeighbours).
+macro_rules! kernel_nearest_neighbours {
+    ($target:ident) => {
+        impl $target<'_> {
+            /// Raw per-workgroup partials of the inlier pairs of `queries` (metres) within
+            /// `radius_sq` (m^2), points shifted by `anchor` (for parity tests).
+            pub fn reduce_raw(
+                &self,
+                queries: &[[f32; 3]],
+                anchor: [f32; 4],
+                radius_sq: f32,
+            ) -> $crate::Result<Vec<$crate::layout::scan::ScanCovPartial>> {
+                let n = queries.len();
+                let cov =
+                    $crate::scan::kernel_target::cov_params(anchor, n, radius_sq, self.workgroups);
+                self.partials(queries, &cov)
+            }
+        }
 
-    fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> Result<()> {
-        nearest_from(&self.nearest_raw(queries), out);
-        Ok(())
-    }
+        impl $crate::scan::NearestNeighbours for $target<'_> {
+            fn points(&self) -> &[[f32; 3]] {
+                self.target.points
+            }
 
-    fn reduce_pairs(
-        &self,
-        queries: &[[f32; 3]],
-        radius_sq: f64,
-    ) -> Result<Option<CrossCovariance>> {
-        reduce_with(queries, radius_sq, |anchor, radius_sq| {
-            Ok(self.reduce_raw(queries, anchor, radius_sq))
-        })
-    }
+            fn nearest(&self, queries: &[[f32; 3]], out: &mut [(u32, f32)]) -> $crate::Result<()> {
+                $crate::scan::kernel_target::nearest_from(&self.nearest_raw(queries)?, out);
+                Ok(())
+            }
+
+            fn reduce_pairs(
+                &self,
+                queries: &[[f32; 3]],
+                radius_sq: f64,
+            ) -> $crate::Result<Option<$crate::geometry::align::CrossCovariance>> {
+                $crate::scan::kernel_target::reduce_with(queries, radius_sq, |anchor, radius_sq| {
+                    self.reduce_raw(queries, anchor, radius_sq)
+                })
+            }
+        }
+    };
 }
+// The GPU target's (`gpu.rs`: not on wasm, where scans are not registered).
+#[cfg_attr(target_arch = "wasm32", allow(unused_imports))]
+pub(crate) use kernel_nearest_neighbours;
+
+kernel_nearest_neighbours!(TwinTarget);

@@ -113,12 +113,13 @@ fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
 
 const RADIUS: f32 = 0.5;
 
-fn nn_twins_agree_with_each_other_and_the_kd_tree() {
-    let (queries, target) = real_pair();
+/// Each query's nearest target point within [`RADIUS`] by the twins, called directly over
+/// the whole target: `(brute force, grid)`.
+fn nn_by_twins(queries: &[[f32; 3]], target: &[[f32; 3]]) -> [Vec<ScanNnResult>; 2] {
     let n = queries.len();
-    let grid = HashGrid::build(&target, RADIUS);
-    let params = nn_params(n, &target, RADIUS, &grid);
-    let (q4, t4) = (v4(&queries), v4(&target));
+    let grid = HashGrid::build(target, RADIUS);
+    let params = nn_params(n, target, RADIUS, &grid);
+    let (q4, t4) = (v4(queries), v4(target));
     let mut brute = zeroed_results(n);
     nn_brute(&mut [
         Binding::of(&params),
@@ -138,6 +139,13 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
         Binding::read(&grid.bucket_start),
         Binding::write(&mut gridded),
     ]);
+    [brute, gridded]
+}
+
+fn nn_twins_agree_with_each_other_and_the_kd_tree() {
+    let (queries, target) = real_pair();
+    let n = queries.len();
+    let [brute, gridded] = nn_by_twins(&queries, &target);
     let tree = KdTreeTarget::new(&target).unwrap();
     let mut kd = vec![(0u32, 0f32); n];
     tree.nearest(&queries, &mut kd).unwrap();
@@ -262,32 +270,12 @@ fn twin_target_runs_the_plan_as_the_twins_run() {
         "several ranges of targets"
     );
     let n = queries.len();
-    let grid = HashGrid::build(&target, RADIUS);
-    let params = nn_params(n, &target, RADIUS, &grid);
+    let [brute, gridded] = nn_by_twins(&queries, &target);
     let (q4, t4) = (v4(&queries), v4(&target));
-    let mut brute = zeroed_results(n);
-    nn_brute(&mut [
-        Binding::of(&params),
-        Binding::read(&q4),
-        Binding::read(&t4),
-        Binding::write(&mut brute),
-    ]);
-    let mut gridded = zeroed_results(n);
-    let grid_params = ScanNnParams {
-        n_targets: grid.points.len() as u32,
-        ..params
-    };
-    nn_grid(&mut [
-        Binding::of(&grid_params),
-        Binding::read(&q4),
-        Binding::read(&grid.points),
-        Binding::read(&grid.bucket_start),
-        Binding::write(&mut gridded),
-    ]);
     let bytes = |r: &[ScanNnResult]| bytemuck::cast_slice::<_, u8>(r).to_vec();
     for (method, expected) in [(NnMethod::Brute, &brute), (NnMethod::Grid, &gridded)] {
         let twin = TwinTarget::new(&target, RADIUS, method, 3).unwrap();
-        let got = twin.nearest_raw(&queries);
+        let got = twin.nearest_raw(&queries).unwrap();
         assert!(bytes(&got) == bytes(expected), "{method:?}");
     }
     let anchor = [1.5, -2.0, 0.3, 0.0];
@@ -307,7 +295,7 @@ fn twin_target_runs_the_plan_as_the_twins_run() {
         Binding::write(&mut partials),
     ]);
     let twin = TwinTarget::new(&target, RADIUS, NnMethod::Grid, 3).unwrap();
-    let got = twin.reduce_raw(&queries, anchor, 0.2);
+    let got = twin.reduce_raw(&queries, anchor, 0.2).unwrap();
     let bytes = |p: &[ScanCovPartial]| bytemuck::cast_slice::<_, u8>(p).to_vec();
     assert!(bytes(&got) == bytes(&partials));
 }
