@@ -1,38 +1,37 @@
-//! The GPU pass of the renderer: `render_splat` then `render_resolve` in one submission,
-//! the same kernels as the CPU twins in `crates/core/src/cpu/render_*.rs`.
+//! The GPU pass of the renderer: the render plan (`plan::render`: a cleared index map, the
+//! splats' keys, the pixels) in one submission, each kernel bound and dispatched by its
+//! registry row (`RowKernels`) over the picture's pool of named buffers, as the CPU
+//! path runs the same plan through the twins (`super::render_cpu_raw`).
 //!
-//! Thin wrapper: two kernels created once, buffers created per picture (a render is a
-//! one-off, not a per-frame step), one read-back of the packed pixels. `render_splat` is
-//! a [`KeyKernel`]: the 64-bit kernel, or on a device without 64-bit atomics its portable
-//! variant `render_splat_portable` in two passes, with the same keys.
+//! Thin wrapper: the kernels created once, buffers created per picture (a render is a
+//! one-off, not a per-frame step), one read-back of the packed pixels. The splatting
+//! kernel is a key kernel: the 64-bit kernel, or on a device without 64-bit atomics its
+//! portable variant in two passes, with the same keys.
 
 use image::RgbImage;
 
 use super::{render_params, rgba_to_image, Cloud, RenderCamera, RenderSettings, View};
-use crate::gpu::kernel::KeyKernel;
-use crate::gpu::{GpuArray, GpuContext, Kernel, ParamBuffer};
+use crate::gpu::{GpuArray, GpuContext, ParamBuffer, RowKernels};
 use crate::layout::render::RenderParams;
 use crate::Result;
-use wgslam_core::registry::KernelId;
+use wgslam_core::plan::{self, RenderCall};
 
-/// The two render kernels, created once per context.
+/// The render kernels, created once per context from their registry rows.
 #[derive(Debug)]
 pub struct GpuRenderer {
-    splat: KeyKernel,
-    resolve: Kernel,
+    rows: RowKernels,
 }
 
 impl GpuRenderer {
     /// Creates the pipelines (three on a device without 64-bit atomics).
     pub fn new(ctx: &GpuContext) -> Result<GpuRenderer> {
         Ok(GpuRenderer {
-            splat: KeyKernel::of(ctx, KernelId::render_splat)?,
-            resolve: Kernel::of(ctx, KernelId::render_resolve)?,
+            rows: RowKernels::of_plan(ctx, &plan::render())?,
         })
     }
 
-    /// Runs both kernels for `params` and reads back the index map and the packed pixels
-    /// (`width * height` each, row-major). Attributes the cloud lacks are bound as a
+    /// Runs the render plan for `params` and reads back the index map and the packed
+    /// pixels (`width * height` each, row-major). Attributes the cloud lacks are bound as a
     /// one-element dummy that the chosen view never reads. [`Error::Capacity`] when a
     /// buffer exceeds the device's storage-binding limit.
     pub fn render_raw(
@@ -58,46 +57,29 @@ impl GpuRenderer {
         let mut out = GpuArray::<u32>::new(ctx, "render pixels", n)?;
         out.set_len(n);
         let params_buf = ParamBuffer::new(ctx, "RenderParams", params);
-        let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
-        let splat_groups = self
-            .splat
-            .first()
-            .workgroups_for(params.surfel_count as usize)
-            .min(max_groups);
-        let resolve_groups = self.resolve.workgroups_for(n).min(max_groups);
         ctx.scoped("render", || {
-            let splat_bg = self.splat.first().bind_group(
-                ctx,
-                &[
-                    ("params", params_buf.binding()),
-                    ("positions", positions.binding()),
-                    ("normals", normals.binding()),
-                    ("index_map", index_map.binding()),
-                ],
-            );
-            let resolve_bg = self.resolve.bind_group(
-                ctx,
-                &[
-                    ("params", params_buf.binding()),
-                    ("index_map", index_map.binding()),
-                    ("normals", normals.binding()),
-                    ("colors", colors.binding()),
-                    ("weights", weights.binding()),
-                    ("out_rgba", out.binding()),
-                ],
-            );
+            let pool = [
+                ("render", params_buf.binding()),
+                ("positions", positions.binding()),
+                ("normals", normals.binding()),
+                ("colors", colors.binding()),
+                ("weights", weights.binding()),
+                ("index_map", index_map.binding()),
+                ("out_rgba", out.binding()),
+            ];
             let mut enc = ctx.encoder("render");
-            index_map.clear(&mut enc);
-            // One pass per key pass: the portable kernel's second reads its first's map.
-            for splat in &self.splat.passes {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                splat.dispatch(ctx, &mut pass, &splat_bg, splat_groups)?;
-            }
-            {
-                // A second pass: every splat must land before any pixel is resolved.
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                self.resolve
-                    .dispatch(ctx, &mut pass, &resolve_bg, resolve_groups)?;
+            // One pass per call (a key kernel's per key pass): every splat lands before
+            // any pixel is resolved.
+            for call in plan::render() {
+                let points = match call {
+                    RenderCall::ClearIndexMap => {
+                        index_map.clear(&mut enc);
+                        continue;
+                    }
+                    RenderCall::RenderSplat => params.surfel_count as usize,
+                    RenderCall::RenderResolve => n,
+                };
+                self.rows.record(ctx, &mut enc, call, &pool, points)?;
             }
             ctx.submit(enc);
             ctx.wait_idle()

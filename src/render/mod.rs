@@ -3,9 +3,11 @@
 //!
 //! Surfels are drawn as small discs (a fixed world radius projected, clamped to a few
 //! pixels) into a 64-bit depth|index map (`render_splat`), then each pixel is shaded from
-//! its winning surfel (`render_resolve`). The CPU twins in `crates/core/src/cpu/render_*.rs` run here;
-//! the GPU pass lives in [`gpu`]. This module knows cameras, views and images, not files
-//! other than the PNG it is asked to write; trajectory plots are in `crate::render::plot`.
+//! its winning surfel (`render_resolve`), in the order of the render plan
+//! (`plan::render`). The CPU twins in `crates/core/src/cpu/render_*.rs` run here, through
+//! the twins' engine by their registry rows; the GPU pass lives in [`gpu`]. This module
+//! knows cameras, views and images, not files other than the PNG it is asked to write;
+//! trajectory plots are in `crate::render::plot`.
 //!
 //! Submodules: `view` (what a pixel shows, image sizes), `framing` (virtual cameras
 //! that frame a cloud), `overlay` (ICP before/after pictures), `outputs` (the pictures
@@ -36,15 +38,15 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 use image::RgbImage;
 
-use crate::cpu::binding::Binding;
-use crate::cpu::render_resolve::render_resolve;
-use crate::cpu::render_splat::render_splat;
+use crate::cpu::binding::Pool;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::se3;
 use crate::layout::map::SurfelMap;
 use crate::layout::render::RenderParams;
 use crate::layout::{gpu_mat4, Camera};
 use crate::{Error, Result};
+use wgslam_core::cpu_backend::run_call;
+use wgslam_core::plan::{self, RenderCall};
 
 /// A point cloud to draw: positions and whichever attributes it has. All arrays have one
 /// entry per point; positions and normals are world frame (`w` ignored), colours RGB 0..255.
@@ -276,25 +278,28 @@ pub fn rgba_to_image(width: u32, height: u32, rgba: &[u32]) -> RgbImage {
     RgbImage::from_raw(width, height, bytes).expect("buffer size matches the image size")
 }
 
-/// The CPU twins' index map and packed pixels for `params` (unused attributes may be empty).
+/// The CPU twins' index map and packed pixels for `params` (unused attributes may be
+/// empty): the render plan (`plan::render`) through the twins' engine
+/// (`cpu_backend::run_call`), over a pool named as the GPU pass's.
 pub fn render_cpu_raw(params: &RenderParams, cloud: &Cloud) -> (Vec<u64>, Vec<u32>) {
     let n = params.camera.width as usize * params.camera.height as usize;
     let mut index_map = vec![0u64; n];
-    render_splat(&mut [
-        Binding::of(params),
-        Binding::read(cloud.positions),
-        Binding::read(cloud.normals.unwrap_or(&[])),
-        Binding::write(&mut index_map),
-    ]);
     let mut rgba = vec![0u32; n];
-    render_resolve(&mut [
-        Binding::of(params),
-        Binding::read(&index_map),
-        Binding::read(cloud.normals.unwrap_or(&[])),
-        Binding::read(cloud.colors.unwrap_or(&[])),
-        Binding::read(cloud.weights.unwrap_or(&[])),
-        Binding::write(&mut rgba),
-    ]);
+    for call in plan::render() {
+        if call == RenderCall::ClearIndexMap {
+            index_map.fill(0);
+            continue;
+        }
+        let mut pool = Pool::new();
+        pool.uniform("render", params);
+        pool.read("positions", cloud.positions);
+        pool.read("normals", cloud.normals.unwrap_or(&[]));
+        pool.read("colors", cloud.colors.unwrap_or(&[]));
+        pool.read("weights", cloud.weights.unwrap_or(&[]));
+        pool.write("index_map", &mut index_map);
+        pool.write("out_rgba", &mut rgba);
+        run_call(call, pool);
+    }
     (index_map, rgba)
 }
 

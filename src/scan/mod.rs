@@ -13,6 +13,7 @@ pub(crate) mod cloud;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod gpu;
 pub(crate) mod icp;
+pub(crate) mod kernel_target;
 pub(crate) mod nn;
 pub mod odometry;
 pub mod read;
@@ -23,5 +24,6 @@ pub use crate::dataset::frame::load_depth as load_depth_png;
 pub use crate::geometry::align::{best_rigid_transform, CrossCovariance};
 pub use cloud::{cloud_from_depth, crop_z, CloudStats, PointCloud};
 pub use icp::{register, register_with, IcpParams, IcpResult, IcpStatus, IterationStats, Samples};
+pub use kernel_target::{NnMethod, TwinTarget};
 pub use nn::{KdTreeTarget, NearestNeighbours};
 pub use read::{read_cloud, read_kitti_bin, read_matrix4, read_pcd, read_ply_xyz, read_xyz_text};

@@ -56,23 +56,6 @@ const OWN_PLACES: &[(&str, &[&str], &str)] = &[
         &["src/slam/instrumented.rs"],
         "its step is timed under its name",
     ),
-    ("nn_brute", &["src/scan/gpu.rs"], "scan registration's"),
-    ("nn_grid", &["src/scan/gpu.rs"], "scan registration's"),
-    (
-        "cross_covariance",
-        &["src/scan/gpu.rs"],
-        "scan registration's",
-    ),
-    (
-        "render_splat",
-        &["src/render/gpu.rs", "src/render/mod.rs"],
-        "the renderer's",
-    ),
-    (
-        "render_resolve",
-        &["src/render/gpu.rs", "src/render/mod.rs"],
-        "the renderer's",
-    ),
 ];
 
 /// A kernel's places that every kernel has: its registry row, shader, twin (and the twin's

@@ -1,6 +1,7 @@
 //! Scan kernels without a GPU: the WGSL of `nn_brute`, `nn_grid` and `cross_covariance`
 //! parses and validates with naga, its structs match `layout::scan`, and the CPU twins
-//! agree with the KD-tree and with the f64 reduction of the ICP on real scans.
+//! agree with the KD-tree and with the f64 reduction of the ICP on real scans; the CPU
+//! engine's walk of the correspondence plan (`TwinTarget`) gives the twins' own results.
 
 use crate::common;
 
@@ -15,7 +16,7 @@ use wgslam::cpu::nn_grid::{nn_grid, HashGrid};
 use wgslam::geometry::se3;
 use wgslam::layout::scan::*;
 use wgslam::scan::write::transform_points;
-use wgslam::scan::{CrossCovariance, KdTreeTarget, NearestNeighbours};
+use wgslam::scan::{CrossCovariance, KdTreeTarget, NearestNeighbours, NnMethod, TwinTarget};
 
 const SHADERS: [&str; 3] = ["nn_brute", "nn_grid", "cross_covariance"];
 
@@ -112,12 +113,13 @@ fn real_pair() -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
 
 const RADIUS: f32 = 0.5;
 
-fn nn_twins_agree_with_each_other_and_the_kd_tree() {
-    let (queries, target) = real_pair();
+/// Each query's nearest target point within [`RADIUS`] by the twins, called directly over
+/// the whole target: `(brute force, grid)`.
+fn nn_by_twins(queries: &[[f32; 3]], target: &[[f32; 3]]) -> [Vec<ScanNnResult>; 2] {
     let n = queries.len();
-    let grid = HashGrid::build(&target, RADIUS);
-    let params = nn_params(n, &target, RADIUS, &grid);
-    let (q4, t4) = (v4(&queries), v4(&target));
+    let grid = HashGrid::build(target, RADIUS);
+    let params = nn_params(n, target, RADIUS, &grid);
+    let (q4, t4) = (v4(queries), v4(target));
     let mut brute = zeroed_results(n);
     nn_brute(&mut [
         Binding::of(&params),
@@ -137,6 +139,13 @@ fn nn_twins_agree_with_each_other_and_the_kd_tree() {
         Binding::read(&grid.bucket_start),
         Binding::write(&mut gridded),
     ]);
+    [brute, gridded]
+}
+
+fn nn_twins_agree_with_each_other_and_the_kd_tree() {
+    let (queries, target) = real_pair();
+    let n = queries.len();
+    let [brute, gridded] = nn_by_twins(&queries, &target);
     let tree = KdTreeTarget::new(&target).unwrap();
     let mut kd = vec![(0u32, 0f32); n];
     tree.nearest(&queries, &mut kd).unwrap();
@@ -251,6 +260,46 @@ fn cross_covariance_twin_matches_f64_reduction() {
     );
 }
 
+/// The correspondence plan run by the CPU engine over the twins' pool (`TwinTarget`: the
+/// brute force in ranges of `SCAN_BRUTE_CHUNK` targets, the grid, the reduction) gives the
+/// twins' results called directly over the whole target, bit for bit.
+fn twin_target_runs_the_plan_as_the_twins_run() {
+    let (queries, target) = real_pair();
+    assert!(
+        target.len() > SCAN_BRUTE_CHUNK as usize,
+        "several ranges of targets"
+    );
+    let n = queries.len();
+    let [brute, gridded] = nn_by_twins(&queries, &target);
+    let (q4, t4) = (v4(&queries), v4(&target));
+    let bytes = |r: &[ScanNnResult]| bytemuck::cast_slice::<_, u8>(r).to_vec();
+    for (method, expected) in [(NnMethod::Brute, &brute), (NnMethod::Grid, &gridded)] {
+        let twin = TwinTarget::new(&target, RADIUS, method, 3).unwrap();
+        let got = twin.nearest_raw(&queries).unwrap();
+        assert!(bytes(&got) == bytes(expected), "{method:?}");
+    }
+    let anchor = [1.5, -2.0, 0.3, 0.0];
+    let cov = ScanCovParams {
+        anchor,
+        n_pairs: n as u32,
+        n_threads: 3 * 64,
+        radius_sq: 0.2,
+        _pad0: 0,
+    };
+    let mut partials = vec![bytemuck::Zeroable::zeroed(); 3];
+    cross_covariance(&mut [
+        Binding::of(&cov),
+        Binding::read(&q4),
+        Binding::read(&t4),
+        Binding::read(&gridded),
+        Binding::write(&mut partials),
+    ]);
+    let twin = TwinTarget::new(&target, RADIUS, NnMethod::Grid, 3).unwrap();
+    let got = twin.reduce_raw(&queries, anchor, 0.2).unwrap();
+    let bytes = |p: &[ScanCovPartial]| bytemuck::cast_slice::<_, u8>(p).to_vec();
+    assert!(bytes(&got) == bytes(&partials));
+}
+
 pub fn tests() -> Vec<common::harness::Test> {
     vec![
         plain("scan_shaders_validate", scan_shaders_validate),
@@ -265,6 +314,10 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "cross_covariance_twin_matches_f64_reduction",
             cross_covariance_twin_matches_f64_reduction,
+        ),
+        plain(
+            "twin_target_runs_the_plan_as_the_twins_run",
+            twin_target_runs_the_plan_as_the_twins_run,
         ),
     ]
 }

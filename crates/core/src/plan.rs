@@ -1,5 +1,8 @@
 //! Each pipeline step's kernel plan, written once: the ordered list of kernel invocations
-//! (and buffer clears) that a step runs. Both backends execute the same plan, the CPU by
+//! (and buffer clears) that a step runs; likewise the renderer's ([`render`]) and scan
+//! registration's ([`scan_correspondences`]), whose callers bind their kernels over pools of
+//! their own (`crate::cpu_backend::run_call` on the CPU, `wgslam_gpu::row_kernels` on the
+//! GPU). Both backends execute the same plan, the CPU by
 //! calling the twins in `crates/core/src/cpu/` in its order, the GPU by recording one compute pass per
 //! invocation (once per map chunk for the kernels that walk the map), so the order of a
 //! step's kernels cannot differ between them. A call names its kernel by its registry id
@@ -8,6 +11,7 @@
 //! Not here: which buffers a kernel reads and writes (each backend binds its own; the
 //! GPU's bind groups are made by the WGSL variables' names).
 
+use crate::layout::scan::SCAN_BRUTE_CHUNK;
 use crate::layout::{BilateralParams, FuseParams, ASSOCIATION_BEST_CANDIDATE};
 use crate::registry::{At, KernelId, Scanned, System};
 
@@ -277,6 +281,65 @@ step_calls! {
     }
 }
 
+step_calls! {
+    /// One call of scan registration's correspondence plan ([`scan_correspondences`]), over
+    /// the caller's pool (`registry::Shape::bound_by_caller`): its `queries`, the target's
+    /// `targets` or hashed grid (`grid_points`, `bucket_start`), each query's nearest
+    /// neighbour (`results`, read back as `nn`) and the per-workgroup `partials`.
+    ScanCall {
+        /// `nn_brute` over target points `begin..end`, continuing from the results of the
+        /// range before (the ranges in order make the nearest of all).
+        NnBrute { begin: u32, end: u32 } => nn_brute,
+        /// `nn_grid`: each query's nearest target point through the hashed grid.
+        NnGrid => nn_grid,
+        /// `cross_covariance`: the inlier pairs into per-workgroup partials.
+        CrossCovariance => cross_covariance,
+    }
+}
+
+step_calls! {
+    /// One call of the renderer's plan ([`render`]), over the caller's pool: the cloud's
+    /// `positions`, `normals`, `colors`, `weights`, the picture's `index_map` and `out_rgba`.
+    RenderCall {
+        /// Zero the index map.
+        ClearIndexMap => clear,
+        /// `render_splat`: the nearest surfel's key per pixel.
+        RenderSplat => render_splat,
+        /// `render_resolve`: each pixel's colour from its key (or a neighbour's).
+        RenderResolve => render_resolve,
+    }
+}
+
+/// Scan registration's correspondences against a target of `n_targets` points: each
+/// query's nearest neighbour, through the hashed grid (`grid`) or by brute force in ranges
+/// of `SCAN_BRUTE_CHUNK` targets (one call each, in order: a dispatch stays short); then,
+/// with `reduce`, the inlier pairs' cross-covariance.
+pub fn scan_correspondences(grid: bool, n_targets: u32, reduce: bool) -> Vec<ScanCall> {
+    let mut plan = match grid {
+        true => vec![ScanCall::NnGrid],
+        false => (0..n_targets)
+            .step_by(SCAN_BRUTE_CHUNK as usize)
+            .map(|begin| ScanCall::NnBrute {
+                begin,
+                end: (begin + SCAN_BRUTE_CHUNK).min(n_targets),
+            })
+            .collect(),
+    };
+    if reduce {
+        plan.push(ScanCall::CrossCovariance);
+    }
+    plan
+}
+
+/// A picture of a cloud: a cleared index map, the splats' keys, the pixels.
+pub fn render() -> Vec<RenderCall> {
+    vec![
+        RenderCall::ClearIndexMap,
+        RenderCall::RenderSplat,
+        RenderCall::RenderResolve,
+    ]
+}
+
 /// `encode_ferns`: `fern_encode`.
 pub const fn encode_ferns() -> Single {
     Single::FernEncode
@@ -508,6 +571,23 @@ mod tests {
                 "prefix_sum",
                 "compact_scatter"
             ]
+        );
+        assert_eq!(
+            names!(render()),
+            ["clear", "render_splat", "render_resolve"]
+        );
+        assert_eq!(
+            names!(scan_correspondences(true, 5, true)),
+            ["nn_grid", "cross_covariance"]
+        );
+        let brute = scan_correspondences(false, SCAN_BRUTE_CHUNK * 2 + 1, false);
+        assert_eq!(
+            brute.iter().map(|c| (c.name(), *c)).collect::<Vec<_>>(),
+            [0, 1, 2].map(|i| {
+                let begin = i * SCAN_BRUTE_CHUNK;
+                let end = (begin + SCAN_BRUTE_CHUNK).min(SCAN_BRUTE_CHUNK * 2 + 1);
+                ("nn_brute", ScanCall::NnBrute { begin, end })
+            })
         );
     }
 

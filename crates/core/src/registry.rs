@@ -12,12 +12,16 @@
 //! - [`PORTABLE_KERNELS`], the key kernels (rows marked `key`) with their portable
 //!   variants' names, and [`SCAN_KERNELS`], the kernels prefixed with `scan_common.wgsl`
 //!   (the `scan` group);
-//! - [`GENERIC_KERNELS`], the kernels of the `generic` rows;
+//! - [`GENERIC_KERNELS`], the kernels bound and dispatched by their rows alone;
 //! - in the GPU engine (`wgslam_gpu::pipelines`, from the same rows, through the
 //!   [`pipeline_rows!`](crate::pipeline_rows) macro the rows define), the dense pipeline's
 //!   pipelines, one field per kernel named after it, and for the `generic` rows their
-//!   [`Shape`] and the uniform bound as the kernel's `params`: its bind groups and passes then need nothing of their
-//!   own for it;
+//!   [`Shape`] and the uniform bound as the kernel's `params`: its bind groups and passes
+//!   then need nothing of their own for it;
+//! - for the rows their callers bind (the renderer's, scan registration's:
+//!   [`Shape::bound_by_caller`]), their [`Shape`] and uniform likewise, by which
+//!   `wgslam_gpu::row_kernels` and [`run_call`](crate::cpu_backend::run_call) bind and
+//!   dispatch a plan call over the caller's pool;
 //! - a compile-time check that each row's twin exists (an underscore import of
 //!   `crate::cpu::<name>::<name>`): a row without a twin does not build.
 //!
@@ -108,9 +112,25 @@ pub enum Shape {
     /// (`system`); a pass of one workgroup per entry of the system (`ICP_SYSTEM_LEN`), at
     /// the plan call's [`At::system`].
     PerSystem,
+    /// A row its caller binds (the renderer's, scan registration's: outside the dense
+    /// pipeline, over buffers of their own): per plan call one bind group over the caller's
+    /// pool of named resources, the row's uniform the pool's resource of its name; a pass
+    /// of one thread per point the caller counts (a scan's query, a surfel, a pixel), at
+    /// least one workgroup and at most the device's per-dimension limit (the kernel's
+    /// grid-stride loop covers the rest).
+    PerPoint,
+    /// Bound as [`Shape::PerPoint`]; a pass of the adapter's reduction workgroups, each
+    /// writing one partial sum (its threads walk the points in a grid-stride loop).
+    PerPartial,
 }
 
 impl Shape {
+    /// Whether a row of this shape is bound over its caller's pool alone
+    /// ([`Shape::PerPoint`], [`Shape::PerPartial`]), not over the dense pipeline's buffers.
+    pub const fn bound_by_caller(self) -> bool {
+        matches!(self, Shape::PerPoint | Shape::PerPartial)
+    }
+
     /// Where a row of this shape has the bind groups a plan call at `at` runs over: a
     /// `PerLevel` row's at the call's choice of level and vertex maps ([`At::choice`]), a
     /// reduction's, a system's sum's and a scan's at the call's [`At`]; every other row's at
@@ -262,11 +282,12 @@ macro_rules! twin_of {
 ///   level's own parameter buffer;
 /// - `kernels`, `key_kernels`: a pipeline of the GPU engine with bind groups and passes of
 ///   its own (its `bind_groups.rs`, and `steps.rs` or `single_steps.rs`);
-/// - `elsewhere`, `key_elsewhere`: built by the code that runs it (the renderer's kernels),
-///   from its [`KernelId`] (`Kernel::of` in `wgslam_gpu`), a row ending in `bound` with its
-///   twin in the one call shape (for the twin's callers and the bindings check; no engine
-///   runs it);
-/// - `scan`: the same for scan registration's kernels (`src/scan/gpu.rs`), prefixed with
+/// - `elsewhere`, `key_elsewhere`, `scan`: `name: Shape(uniform)`, a kernel outside the
+///   dense pipeline that its caller (the renderer, scan registration) binds over a pool of
+///   its own ([`Shape::bound_by_caller`]) and runs in the order of its plan
+///   (`crate::plan::render`, `crate::plan::scan_correspondences`): on the GPU through
+///   `wgslam_gpu::row_kernels`, on the CPU through
+///   [`run_call`](crate::cpu_backend::run_call); `scan`'s are prefixed with
 ///   `shaders/scan_common.wgsl` instead of `common.wgsl` ([`SCAN_KERNELS`]).
 macro_rules! registry_data {
     (
@@ -279,9 +300,13 @@ macro_rules! registry_data {
         }
         kernels: { $($kernel:ident,)* }
         key_kernels: { $($key:ident,)* }
-        elsewhere: { $($other:ident $($other_bound:ident)?,)* }
-        key_elsewhere: { $($other_key:ident $($other_key_bound:ident)?,)* }
-        scan: { $($scan:ident $($scan_bound:ident)?,)* }
+        elsewhere: {
+            $($other:ident: $other_shape:ident($other_uniform:ident) $($other_bound:ident)?,)*
+        }
+        key_elsewhere: {
+            $($other_key:ident: $okey_shape:ident($okey_uniform:ident) $($other_key_bound:ident)?,)*
+        }
+        scan: { $($scan:ident: $scan_shape:ident($scan_uniform:ident) $($scan_bound:ident)?,)* }
     ) => {
         /// Every kernel of the registry, one variant per row, named as its shader and its
         /// twin are (hence snake case). Plan calls name kernels by it.
@@ -326,25 +351,37 @@ macro_rules! registry_data {
                 }
             }
 
-            /// The [`Shape`] of a `generic` row's kernel, `None` for another row's.
+            /// The [`Shape`] of a row's kernel (a `generic` row's, or one its caller binds:
+            /// the `elsewhere` and `scan` groups'), `None` for another row's.
             pub const fn shape(self) -> Option<Shape> {
                 match self {
                     $(KernelId::$generic => Some(Shape::$shape),)*
                     $(KernelId::$generic_key => Some(Shape::$key_shape),)*
                     $(KernelId::$level => Some(Shape::$level_shape),)*
-                    _ => None,
+                    $(KernelId::$other => Some(Shape::$other_shape),)*
+                    $(KernelId::$other_key => Some(Shape::$okey_shape),)*
+                    $(KernelId::$scan => Some(Shape::$scan_shape),)*
+                    // The rows with bind groups of their own.
+                    $(KernelId::$kernel => None,)*
+                    $(KernelId::$key => None,)*
                 }
             }
 
-            /// The name of a `generic` row's uniform, bound as the kernel's `params` (on
-            /// the GPU a field of `Uniforms` or `LevelUniforms`; in the CPU backend's
+            /// The name of a row's uniform, bound as the kernel's `params` (on the GPU a
+            /// field of `Uniforms` or `LevelUniforms`, or for a row its caller binds the
+            /// caller's pool's resource of that name; in the CPU engine's
             /// [`Pool`](crate::cpu::binding::Pool) a uniform of that name).
             pub const fn uniform(self) -> Option<&'static str> {
                 match self {
                     $(KernelId::$generic => Some(stringify!($uniform)),)*
                     $(KernelId::$generic_key => Some(stringify!($key_uniform)),)*
                     $(KernelId::$level => Some(stringify!($level_uniform)),)*
-                    _ => None,
+                    $(KernelId::$other => Some(stringify!($other_uniform)),)*
+                    $(KernelId::$other_key => Some(stringify!($okey_uniform)),)*
+                    $(KernelId::$scan => Some(stringify!($scan_uniform)),)*
+                    // The rows with bind groups of their own.
+                    $(KernelId::$kernel => None,)*
+                    $(KernelId::$key => None,)*
                 }
             }
 
@@ -397,12 +434,17 @@ macro_rules! registry_data {
             $((stringify!($other_key), concat!(stringify!($other_key), "_portable")),)*
         ];
 
-        /// The kernels of the `generic` rows, bound and dispatched by their rows alone
-        /// (`tests/it/kernel_places.rs` checks that nothing else in the engine names them).
+        /// The kernels bound and dispatched by their rows alone: the `generic` rows', and
+        /// those of the rows their callers bind over pools of their own (the `elsewhere`
+        /// and `scan` groups: [`Shape::bound_by_caller`]); `tests/it/kernel_places.rs`
+        /// checks that nothing else in the engine names them.
         pub const GENERIC_KERNELS: &[&str] = &[
             $(stringify!($generic),)*
             $(stringify!($generic_key),)*
             $(stringify!($level),)*
+            $(stringify!($other),)*
+            $(stringify!($other_key),)*
+            $(stringify!($scan),)*
         ];
 
         /// The kernels prefixed with `scan_common.wgsl` instead of `common.wgsl` (the
@@ -505,16 +547,21 @@ registry_data! {
     kernels: {}
     key_kernels: {}
     elsewhere: {
-        // Pictures of the map (src/render/gpu.rs), not part of the SLAM pipeline.
-        render_resolve bound,
+        // Pictures of the map (src/render/), not part of the SLAM pipeline: each pixel's
+        // colour from the splatted keys (planned by `plan::render`).
+        render_resolve: PerPoint(render) bound,
     }
     key_elsewhere: {
-        render_splat bound,
+        // The nearest surfel's key per pixel (`index_map`), one thread per surfel.
+        render_splat: PerPoint(render) bound,
     }
     scan: {
-        // Scan registration (point-to-point ICP): see src/scan/gpu.rs.
-        nn_brute bound,
-        nn_grid bound,
-        cross_covariance bound,
+        // Scan registration (point-to-point ICP, src/scan/), planned by
+        // `plan::scan_correspondences`: each query's nearest target point, by brute force
+        // (per range of targets) or through the hashed grid, and the inlier pairs'
+        // cross-covariance as per-workgroup partials.
+        nn_brute: PerPoint(neighbours) bound,
+        nn_grid: PerPoint(neighbours) bound,
+        cross_covariance: PerPartial(covariance) bound,
     }
 }

@@ -60,9 +60,9 @@ impl Kernel {
         })
     }
 
-    /// The kernel of registry row `id` ([`Kernel::new`] of its name): how the code that
-    /// runs a kernel outside the dense pipeline (the renderer's, scan registration's) builds
-    /// it, by a typed id that cannot be misspelt, as the engine's rows build theirs.
+    /// The kernel of registry row `id` ([`Kernel::new`] of its name): how the rows of the
+    /// kernels outside the dense pipeline (the renderer's, scan registration's) are built
+    /// (`super::row_kernels`), by a typed id that cannot be misspelt.
     pub fn of(ctx: &GpuContext, id: KernelId) -> Result<Kernel> {
         Self::new(ctx, id.name())
     }

@@ -24,6 +24,8 @@
 //!   with their buffers in `ferns`, `keypoints` and `candidates`, `inspect`
 //!   (downloads and uploads). The helper modules never import `backend`: the one-way
 //!   imports are `steps`/`single_steps` -> `backend` -> helpers.
+//! - [`row_kernels`]: the kernels outside the dense pipeline (the renderer's, scan
+//!   registration's), each plan call bound over its caller's pool by the kernel's row.
 //! - [`pipeline_cache`]: the pipelines' cache across processes, in the user's cache folder.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
 //! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
@@ -48,6 +50,7 @@ pub mod pipeline_cache;
 mod pipelines;
 mod recording;
 mod resources;
+pub mod row_kernels;
 pub mod shaders;
 mod shared_wait;
 mod single_steps;
@@ -62,5 +65,6 @@ pub use backend::GpuBackend;
 pub use buffers::{GpuArray, ParamBuffer, Readback};
 pub use context::GpuContext;
 pub use kernel::{reflect, Kernel, ReflectedBinding};
+pub use row_kernels::RowKernels;
 pub use stats::StatsSnapshot;
 pub use timing::{StageTime, StageTimer};

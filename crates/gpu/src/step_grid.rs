@@ -141,6 +141,10 @@ impl StepGrid {
             Shape::OneWorkgroup => [1, 1],
             // One workgroup per count.
             Shape::PerCount => [self.items as u32, 1],
+            // Bound by their callers (`row_kernels`): no row of the dense pipeline.
+            Shape::PerPoint | Shape::PerPartial => {
+                panic!("`{}` is bound by its caller", call.name())
+            }
             // One thread per item, at most the reduction workgroups.
             Shape::PerItem => [
                 passes[0]
@@ -191,7 +195,9 @@ impl StepGrid {
                 | Shape::PerSystem
                 | Shape::PerScanBlock
                 | Shape::OneWorkgroup
-                | Shape::PerCount => groups.iter().map(|g| (pass, g, wg)).collect(),
+                | Shape::PerCount
+                | Shape::PerPoint
+                | Shape::PerPartial => groups.iter().map(|g| (pass, g, wg)).collect(),
             })
             .collect()
     }

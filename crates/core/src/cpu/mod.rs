@@ -19,8 +19,9 @@
 //!
 //! The twins of the registry's rows (all 33 kernels, each row `bound`) are written in
 //! `binding::twin!`: the same typed parameters, called in the one call shape
-//! `fn(&mut [Binding])` that the CPU backend's engine runs by the row ([`binding`]); the
-//! renderer's and scan registration's (5 of them) are called in it by their callers.
+//! `fn(&mut [Binding])` that the CPU engine runs by the row ([`binding`]): the CPU
+//! backend's, and for the renderer's and scan registration's (5 of them) over their
+//! callers' pools (`crate::cpu_backend::run_call`).
 
 pub mod arith;
 pub mod bilateral_filter;
@@ -62,7 +63,12 @@ pub mod render_splat;
 pub mod vertex_to_normal;
 
 pub use entries::{pixel_grid, pixel_grid_in_order, system_grid, visible_surfels};
+// What scan registration's hosts take from its twins' files (they run the kernels by
+// their plan's calls and name none: `tests/it/kernel_places.rs`): the target's hashed grid
+// and the sum of the cross-covariance partials.
+pub use cross_covariance::decode as decode_scan_partials;
 use glam::{Mat4, Vec3, Vec4};
+pub use nn_grid::HashGrid;
 
 use crate::layout::{
     f32_from_ordered, morton_2d, Camera, FuseParams, GpuMat4, MapChunk, APPEND_TILE_PX,

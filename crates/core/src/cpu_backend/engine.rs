@@ -17,6 +17,10 @@
 //! 64-bit integers); the portable variant's passes are for tests to bind
 //! (`Binding::key_pass`).
 //!
+//! The rows of the kernels outside the dense pipeline (the renderer's and scan
+//! registration's: [`Shape::bound_by_caller`]) bind from their callers' pools alone, through
+//! [`run_call`], in the order of their plans.
+//!
 //! Not here: the buffers' sizes (each step sizes what its kernels write before its plan
 //! runs, as the GPU backend allocates its frame's buffers), and the order of the kernels
 //! (`crate::plan`).
@@ -38,15 +42,9 @@ impl CpuBackend {
     /// `PerSurfel` row; a `PerChunkPair` row's, once per surfel array, with the spare map
     /// as its output chunk: see [`CpuBackend::map_pool`]). A `PerSystem` row binds the
     /// step's alone (a system's `partials` and `system`, which the step owns). Panics on a
-    /// call with no kernel or a kernel whose row names no twin or uniform (internal
-    /// contracts: every row of the SLAM pipeline has all three, which `tests/it/bindings.rs`
-    /// checks for the twins).
+    /// call with no kernel or a kernel whose row names no twin or uniform ([`row`]).
     pub(super) fn dispatch(&mut self, call: impl Call, step: Pool<'_>) {
-        let kernel = call.kernel();
-        let row = kernel.and_then(|k| Some((k.twin()?, k.shape()?, k.uniform()?)));
-        let Some((twin, shape, uniform)) = row else {
-            panic!("`{}` has no twin in the one call shape", call.name())
-        };
+        let (twin, shape, uniform) = row(call);
         // The map as its one chunk (see the module notes), and the spare map as compaction's
         // output chunk.
         let chunk = MapChunk::whole(self.map.len());
@@ -54,7 +52,8 @@ impl CpuBackend {
         let mut pool = match shape {
             Shape::OverFrame | Shape::PerItem | Shape::PerCount => self.frame_pool(step, None),
             Shape::PerLevel | Shape::Reduce => self.level_pool(step, call.at().choice()),
-            Shape::PerSystem => step,
+            // A system's sum, and the rows their callers bind (`run_call`'s).
+            Shape::PerSystem | Shape::PerPoint | Shape::PerPartial => step,
             Shape::PerScanBlock | Shape::OneWorkgroup => self.scan_pool(step, call.at().scanned),
             Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
                 self.frame_pool(step, Some(&chunk))
@@ -201,6 +200,32 @@ impl CpuBackend {
         ];
         (pool, arrays.into_iter().zip(out_arrays).collect())
     }
+}
+
+/// Runs `call`'s kernel through its row over its caller's `pool` alone: a row of a
+/// [`Shape::bound_by_caller`] (the renderer's, scan registration's, whose callers own
+/// every buffer), its bindings taken from `pool` by their WGSL names and its `params` the
+/// pool's uniform its row names, as the GPU's `wgslam_gpu::row_kernels` binds it. Walked
+/// in the order of the caller's plan (`crate::plan::render`,
+/// `crate::plan::scan_correspondences`). Panics as [`CpuBackend::dispatch`] does, and on
+/// a call whose row the dense pipeline's buffers bind.
+pub fn run_call(call: impl Call, mut pool: Pool<'_>) {
+    let (twin, shape, uniform) = row(call);
+    assert!(
+        shape.bound_by_caller(),
+        "`{}` is a {shape:?} row: the CPU backend binds it",
+        call.name()
+    );
+    (twin.run)(&mut pool.bind(twin.bindings, uniform));
+}
+
+/// `call`'s twin, [`Shape`] and uniform, from its registry row. Panics on a call with no
+/// kernel, or a kernel whose row names no twin or uniform (internal contracts: every row
+/// has all three, which `tests/it/bindings.rs` checks for the twins).
+fn row(call: impl Call) -> (Twin, Shape, &'static str) {
+    let kernel = call.kernel();
+    let row = kernel.and_then(|k| Some((k.twin()?, k.shape()?, k.uniform()?)));
+    row.unwrap_or_else(|| panic!("`{}` has no twin in the one call shape", call.name()))
 }
 
 /// The map's arrays as map chunk `chunk`, and the culling blocks' boxes, by the names the

@@ -410,6 +410,7 @@ fn preprocess_uniforms<'a>(steps: &'a PreprocessSteps, level: usize, pool: &mut 
 }
 
 mod engine;
+pub use engine::run_call;
 mod fuse;
 mod inspect;
 mod systems;
