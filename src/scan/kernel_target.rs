@@ -30,7 +30,7 @@ pub enum NnMethod {
 }
 
 /// The most grid cells between the origin and a target point along an axis: 2^20, so the
-/// f32 quotient `p / cell` keeps 3 bits below the cell (see [`KernelTarget::new`]).
+/// f32 quotient `p / cell` keeps 3 bits below the cell (see `KernelTarget::new`).
 pub const GRID_MAX_CELLS_FROM_ORIGIN: f32 = (1u32 << 20) as f32;
 
 /// `[x, y, z, 0]` rows of `p` (metres), as the kernels read points.

@@ -207,7 +207,7 @@ impl CpuBackend {
 /// every buffer), its bindings taken from `pool` by their WGSL names and its `params` the
 /// pool's uniform its row names, as the GPU's `wgslam_gpu::row_kernels` binds it. Walked
 /// in the order of the caller's plan (`crate::plan::render`,
-/// `crate::plan::scan_correspondences`). Panics as [`CpuBackend::dispatch`] does, and on
+/// `crate::plan::scan_correspondences`). Panics as `CpuBackend::dispatch` does, and on
 /// a call whose row the dense pipeline's buffers bind.
 pub fn run_call(call: impl Call, mut pool: Pool<'_>) {
     let (twin, shape, uniform) = row(call);
