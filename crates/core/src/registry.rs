@@ -336,6 +336,18 @@ macro_rules! registry_data {
                 $(KernelId::$scan,)*
             ];
 
+            /// Whether the row is a key kernel's (64-bit keys, with a portable variant
+            /// in [`PORTABLE_KERNELS`]): the `generic_keys`, `key_kernels` and
+            /// `key_elsewhere` rows.
+            pub const fn is_key(self) -> bool {
+                match self {
+                    $(KernelId::$generic_key => true,)*
+                    $(KernelId::$key => true,)*
+                    $(KernelId::$other_key => true,)*
+                    _ => false,
+                }
+            }
+
             /// The kernel's name: its shader `shaders/<name>.wgsl` and its twin
             /// `crate::cpu::<name>::<name>`.
             pub const fn name(self) -> &'static str {
@@ -563,5 +575,24 @@ registry_data! {
         nn_brute: PerPoint(neighbours) bound,
         nn_grid: PerPoint(neighbours) bound,
         cross_covariance: PerPartial(covariance) bound,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A row is a key kernel's exactly when its kernel has a portable variant: the typed
+    /// test the engines use and the list the shaders are built from say the same.
+    #[test]
+    fn key_rows_are_the_kernels_with_a_portable_variant() {
+        let keys: Vec<&str> = KernelId::ALL
+            .iter()
+            .filter(|id| id.is_key())
+            .map(|id| id.name())
+            .collect();
+        let portable: Vec<&str> = PORTABLE_KERNELS.iter().map(|(k, _)| *k).collect();
+        assert_eq!(keys, portable);
+        assert!(keys.contains(&"render_splat") && keys.contains(&"fuse_select"));
     }
 }

@@ -12,7 +12,6 @@
 use super::context::GpuContext;
 use super::kernel::{Kernel, KeyKernel};
 use super::recording::{record_call, Pass};
-use super::shaders;
 use crate::Result;
 use wgslam_core::plan::Call;
 use wgslam_core::registry::{KernelId, Shape};
@@ -35,10 +34,7 @@ impl RowKernels {
             if rows.iter().any(|(k, _)| *k == id) {
                 continue;
             }
-            let key = shaders::PORTABLE_KERNELS
-                .iter()
-                .any(|(k, _)| *k == id.name());
-            let passes = match key {
+            let passes = match id.is_key() {
                 true => KeyKernel::of(ctx, id)?.passes,
                 false => vec![Kernel::of(ctx, id)?],
             };
