@@ -553,7 +553,7 @@ fn every_layout_opens_from_memory_as_from_disk() {
     write_scannet(&top.join("scannet"), &s);
     roots.push(top.join("scannet"));
     roots.push(write_replica(&top.join("replica"), &s));
-    let icl = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+    let icl = crate::common::bundled_icl();
     roots.push(icl.clone());
     fs::create_dir_all(top.join("empty/rgb")).unwrap();
     fs::write(top.join("empty/rgb/0.png"), b"").unwrap();
@@ -616,7 +616,7 @@ fn every_layout_opens_from_memory_as_from_disk() {
 /// (`run::write_outputs`), byte for byte, and a run over the bundled frames held in memory
 /// gives the same trajectories and map as from disk (the CPU backend is deterministic).
 fn a_run_from_memory_gives_the_bytes_run_writes() {
-    let icl = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+    let icl = crate::common::bundled_icl();
     let opts = SequenceOptions::default();
     let disk = dataset::open(&icl, &opts).unwrap();
     let mut files = dataset::InMemoryFiles::default();

@@ -3,8 +3,6 @@
 
 use crate::common;
 
-use std::path::Path;
-
 use common::harness::plain;
 use glam::{DMat4, DVec3};
 use wgslam::eval::{align_rigid, associate, ate, ate_with, rpe, rpe_with};
@@ -174,8 +172,7 @@ fn rpe_of_a_known_per_step_error() {
 }
 
 fn bundled_icl_ground_truth_evaluates_against_itself() {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/icl_living_room_kt2/livingRoom2.gt.freiburg");
+    let p = crate::common::asset("icl_living_room_kt2/livingRoom2.gt.freiburg");
     let gt = read_tum(&p).unwrap();
     // Frame indices as stamps associate one to one.
     let a = ate(&gt, &gt, true).unwrap();

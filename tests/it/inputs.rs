@@ -328,7 +328,7 @@ fn frame_range_outside_sequence() {
 }
 
 fn bundled_icl_frame_1() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2");
+    let root = crate::common::bundled_icl();
     let seq = dataset::open(&root, &SequenceOptions::default()).unwrap();
     assert_eq!(seq.layout, Layout::IclNuim);
     assert_eq!(seq.intrinsics, Intrinsics::ICL_NUIM);
@@ -393,8 +393,7 @@ fn trajectory_round_trip() {
 }
 
 fn bundled_icl_ground_truth_reads() {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/icl_living_room_kt2/livingRoom2.gt.freiburg");
+    let p = crate::common::asset("icl_living_room_kt2/livingRoom2.gt.freiburg");
     let gt = read_tum(&p).unwrap();
     assert!(gt.len() >= 23);
     assert_eq!(gt[0].0, 1.0);

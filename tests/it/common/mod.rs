@@ -77,13 +77,13 @@ pub fn open_asset(name: &str) -> wgslam::dataset::Sequence {
 
 /// The bundled real frames (always present in a clone).
 pub fn bundled_icl() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2")
+    asset("icl_living_room_kt2")
 }
 
 /// The same 24 frames with Kinect-like depth noise (depth only; the colour images are the
 /// clean subset's, which are byte-identical).
 pub fn bundled_icl_noisy() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2_noisy")
+    asset("icl_living_room_kt2_noisy")
 }
 
 /// The full 210-frame ICL-NUIM sequence inside the shared data directory that

@@ -1,7 +1,7 @@
 //! The bundled LiDAR pair (`assets/lidar/fast_gicp_pair`) and the inputs of the
 //! nearest-neighbour kernels (`nn_brute`, `nn_grid`) and their CPU twins, for the scan tests.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use glam::DMat4;
 use wgslam::cpu::nn_grid::HashGrid;
@@ -10,7 +10,7 @@ use wgslam::scan::{read_matrix4, read_pcd};
 
 /// The fast_gicp pair: `251370668.pcd`, `251371071.pcd` and `relative.txt`.
 pub fn fast_gicp_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/fast_gicp_pair/data")
+    super::asset("lidar/fast_gicp_pair/data")
 }
 
 /// `(source, target, relative)`: the later scan (251371071), the earlier one (251370668),

@@ -3,8 +3,6 @@
 
 use crate::common;
 
-use std::path::Path;
-
 use common::harness::{plain, Test};
 use common::scans::fast_gicp_dir;
 use glam::{DMat3, DMat4, DVec3};
@@ -94,7 +92,7 @@ fn odometry_chains_pairs_in_the_right_direction() {
 }
 
 fn airsim_layout_is_discovered_with_poses() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lidar/airsim_blocks");
+    let dir = crate::common::asset("lidar/airsim_blocks");
     let seq = odometry::discover(&dir).unwrap();
     assert_eq!(seq.scans.len(), 20);
     let gt = seq.gt_scan_to_world.as_ref().expect("poses/Drone0 present");

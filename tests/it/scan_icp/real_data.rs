@@ -54,7 +54,7 @@ fn fast_gicp_pair_matches_relative_txt() {
 }
 
 fn icl_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/icl_living_room_kt2")
+    crate::common::bundled_icl()
 }
 
 /// Ground-truth camera-to-world pose of ICL frame `index` (first column is the index).

@@ -52,8 +52,14 @@ impl CpuBackend {
         let mut pool = match shape {
             Shape::OverFrame | Shape::PerItem | Shape::PerCount => self.frame_pool(step, None),
             Shape::PerLevel | Shape::Reduce => self.level_pool(step, call.at().choice()),
-            // A system's sum, and the rows their callers bind (`run_call`'s).
-            Shape::PerSystem | Shape::PerPoint | Shape::PerPartial => step,
+            Shape::PerSystem => step,
+            // Bound by their callers (`run_call`), as the GPU's `StepGrid` refuses them.
+            Shape::PerPoint | Shape::PerPartial => {
+                panic!(
+                    "`{}` is bound by its caller: run it with run_call",
+                    call.name()
+                )
+            }
             Shape::PerScanBlock | Shape::OneWorkgroup => self.scan_pool(step, call.at().scanned),
             Shape::PerChunk | Shape::PerBlock | Shape::PerStaleBlock => {
                 self.frame_pool(step, Some(&chunk))
