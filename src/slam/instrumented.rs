@@ -17,7 +17,8 @@ use crate::layout::{
     ProjectParams, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
-    Backend, Described, Inspect, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
+    Backend, Described, Inspect, NextFrame, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems,
+    ToDescribe,
 };
 use crate::Result;
 
@@ -67,11 +68,19 @@ impl<B: Backend> Instrumented<B> {
         }
         let t0 = Instant::now();
         let out = f(&mut self.inner)?;
-        self.inner.finish()?;
-        let e = self.stages.entry(name).or_insert((0, 0.0));
-        e.0 += 1;
-        e.1 += t0.elapsed().as_secs_f64();
+        self.record(name, t0)?;
         Ok(out)
+    }
+
+    /// Counts a call of step `name` begun at `t0`, once its work has finished (when timing).
+    fn record(&mut self, name: &'static str, t0: Instant) -> Result<()> {
+        if self.timing {
+            self.inner.finish()?;
+            let e = self.stages.entry(name).or_insert((0, 0.0));
+            e.0 += 1;
+            e.1 += t0.elapsed().as_secs_f64();
+        }
+        Ok(())
     }
 }
 
@@ -82,6 +91,16 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
         self.clear_frame();
         self.step("preprocess", |b| b.preprocess(steps, depth, rgba))
+    }
+    fn preprocess_staged(&mut self, steps: &PreprocessSteps, frame_id: u32) -> Result<bool> {
+        // A `preprocess` call when it ran; else the `preprocess` that follows is the call.
+        let t0 = Instant::now();
+        let staged = self.inner.preprocess_staged(steps, frame_id)?;
+        if staged {
+            self.clear_frame();
+            self.record("preprocess", t0)?;
+        }
+        Ok(staged)
     }
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         self.step("predict", |b| b.predict(params, pyramid))
@@ -109,8 +128,8 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         self.step("describe_keypoints", |b| b.describe_keypoints(what))
     }
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        let surfels = self.step("fuse", |b| b.fuse(params))?;
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
+        let surfels = self.step("fuse", |b| b.fuse(params, next))?;
         self.fused_surfels = Some(surfels);
         Ok(surfels)
     }

@@ -52,7 +52,7 @@ use glam::DMat4;
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::rigid::nearest_rotation;
 use crate::geometry::se3;
-use crate::slam::backend::{Backend, PyramidLevel};
+use crate::slam::backend::{Backend, NextFrame, PyramidLevel};
 use crate::slam::health::TrackingHealth;
 use crate::slam::loop_closer::{self, FusedFrame};
 use crate::slam::loops::{LoopClosure, LoopRecord};
@@ -83,6 +83,9 @@ pub struct Slam<B: Backend> {
     /// The last frame's number, once one was processed: the next must be greater (the
     /// map's ages, surfel removal's schedule and loop closure's pose graph count forward).
     last_frame: Option<u32>,
+    /// Frames preprocessed from images the fusion before them uploaded
+    /// ([`Slam::process_before`]).
+    frames_uploaded_ahead: u64,
 }
 
 /// The pose a frame is fused at and how it was obtained.
@@ -167,6 +170,7 @@ impl<B: Backend> Slam<B> {
             recovery,
             loop_closer,
             last_frame: None,
+            frames_uploaded_ahead: 0,
         }
     }
 
@@ -180,6 +184,22 @@ impl<B: Backend> Slam<B> {
         raw_rgba: &[u32],
         gt_cam_to_world: Option<&DMat4>,
     ) -> Result<FrameReport> {
+        self.process_before(frame_id, raw_depth, raw_rgba, gt_cam_to_world, None)
+    }
+
+    /// [`Slam::process`] of a frame that `next` will follow (when the caller already holds
+    /// it): a backend that uploads its frames uploads `next`'s images while this frame's
+    /// fusion runs, and `next`'s own `process` finds them there (by its `frame_id`, so
+    /// `next` must hold the very images that frame will be processed with). The results are
+    /// the same as without `next`, whichever frame comes next.
+    pub fn process_before(
+        &mut self,
+        frame_id: u32,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+        gt_cam_to_world: Option<&DMat4>,
+        next: Option<NextFrame<'_>>,
+    ) -> Result<FrameReport> {
         if let Some(last) = self.last_frame.filter(|&last| frame_id <= last) {
             return Err(crate::Error::Argument(format!(
                 "frame {frame_id} is not after the last frame, {last}: frames go in order"
@@ -191,11 +211,11 @@ impl<B: Backend> Slam<B> {
             self.tracker.missed();
             return Ok(self.untracked(TrackStatus::EmptyDepth, Tracked::default()));
         }
-        let steps = self.preprocess(raw_depth, raw_rgba)?;
+        let steps = self.preprocess(frame_id, raw_depth, raw_rgba)?;
         let Some(t_last) = self.tracker.t_world_to_cam().filter(|_| given.is_none()) else {
             let t = given.expect("a first frame or a ground-truth pose");
             let accepted = Accepted::new(t, TrackStatus::Given, false);
-            return self.accept(frame_id, accepted, Tracked::default(), &steps);
+            return self.accept(frame_id, accepted, Tracked::default(), &steps, next);
         };
         // Track from the last pose.
         let gap = self.tracker.frames_since_tracked() + 1;
@@ -212,7 +232,7 @@ impl<B: Backend> Slam<B> {
         let mut tracked = Tracked::new(first.iterations, first.health);
         let Err(why) = first.verdict else {
             let accepted = Accepted::new(first.t_world_to_cam, first.status, gap == 1);
-            return self.accept(frame_id, accepted, tracked, &steps);
+            return self.accept(frame_id, accepted, tracked, &steps, next);
         };
         // Again from the last pose with the wider full-resolution angle gate at level 0.
         if let Some(normal_deg) = wide_gate_deg {
@@ -231,7 +251,7 @@ impl<B: Backend> Slam<B> {
             });
             if passed {
                 let accepted = Accepted::new(second.t_world_to_cam, second.status, gap == 1);
-                return self.accept(frame_id, accepted, tracked, &steps);
+                return self.accept(frame_id, accepted, tracked, &steps, next);
             }
         }
         // Lost from there: relocalise from the keyframes.
@@ -243,7 +263,7 @@ impl<B: Backend> Slam<B> {
         if let Some((att, keyframe_frame)) = relocalised.accepted {
             let status = TrackStatus::Relocalised { keyframe_frame };
             let accepted = Accepted::new(att.t_world_to_cam, status, false);
-            return self.accept(frame_id, accepted, tracked, &steps);
+            return self.accept(frame_id, accepted, tracked, &steps, next);
         }
         self.tracker.missed();
         Ok(self.untracked(TrackStatus::Lost(why), tracked))
@@ -268,6 +288,12 @@ impl<B: Backend> Slam<B> {
     /// without loop closure.
     pub fn loop_closure(&self) -> Option<&LoopClosure> {
         self.loop_closer.as_ref()
+    }
+
+    /// Frames so far whose images were uploaded while the frame before them fused
+    /// ([`Slam::process_before`]; 0 on a backend that does not upload).
+    pub fn frames_uploaded_ahead(&self) -> u64 {
+        self.frames_uploaded_ahead
     }
 
     /// Keyframes in the relocalisation database (0 without relocalisation).
@@ -295,10 +321,20 @@ impl<B: Backend> Slam<B> {
         }
     }
 
-    /// Runs `preprocess` on a raw frame; returns what its ICP reads.
-    fn preprocess(&mut self, raw_depth: &[u16], raw_rgba: &[u32]) -> Result<IcpSteps> {
+    /// Runs `preprocess` on a raw frame (on the images the last fusion staged, when they are
+    /// this frame's); returns what its ICP reads.
+    fn preprocess(
+        &mut self,
+        frame_id: u32,
+        raw_depth: &[u16],
+        raw_rgba: &[u32],
+    ) -> Result<IcpSteps> {
         let steps = self.preprocess_steps();
-        self.backend.preprocess(&steps, raw_depth, raw_rgba)?;
+        if self.backend.preprocess_staged(&steps, frame_id)? {
+            self.frames_uploaded_ahead += 1;
+        } else {
+            self.backend.preprocess(&steps, raw_depth, raw_rgba)?;
+        }
         Ok(self.icp_steps(steps.pyramid))
     }
 
@@ -313,14 +349,16 @@ impl<B: Backend> Slam<B> {
         }
     }
 
-    /// Fuses the frame at `t_world_to_cam` (world to camera), hands it to the tracker, the
-    /// recovery (fern code, perhaps a keyframe) and the loop closer, and reports it.
+    /// Fuses the frame at `t_world_to_cam` (world to camera), staging `next`'s images (see
+    /// [`Slam::process_before`]), hands it to the tracker, the recovery (fern code, perhaps
+    /// a keyframe) and the loop closer, and reports it.
     fn accept(
         &mut self,
         frame_id: u32,
         accepted: Accepted,
         tracked: Tracked,
         steps: &IcpSteps,
+        next: Option<NextFrame<'_>>,
     ) -> Result<FrameReport> {
         let Accepted {
             t_world_to_cam,
@@ -328,7 +366,7 @@ impl<B: Backend> Slam<B> {
             motion_counts,
         } = accepted;
         self.backend
-            .fuse(&self.fuse_params(&t_world_to_cam, frame_id))?;
+            .fuse(&self.fuse_params(&t_world_to_cam, frame_id), next)?;
         if let Some(cp) = self.compact_params(frame_id) {
             self.backend.compact(&cp)?;
         }

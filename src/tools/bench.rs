@@ -83,23 +83,28 @@ pub struct EndToEnd {
     /// `loop_wall_s`.
     pub decode_wait_s: f64,
     pub decode_wait_fraction: f64,
+    /// Frames whose images were uploaded while the frame before them fused
+    /// (`Slam::frames_uploaded_ahead`).
+    #[serde(default)]
+    pub uploaded_ahead: u64,
 }
 
 impl EndToEnd {
     /// The line `bench` prints: "end to end 8.1 frames/s of wall time (start-up and decoding
     /// included); the frame loop waited 0.05 s for decoded frames, 1.2 % of its 2.90 s (2
-    /// decode threads)".
+    /// decode threads); 21 frames uploaded during the fusion before them".
     pub fn text(&self) -> String {
         format!(
             "end to end {:.1} frames/s of wall time ({:.2} s, start-up and decoding \
              included); the frame loop waited {:.2} s for decoded frames, {:.1} % of its \
-             {:.2} s ({} decode threads)",
+             {:.2} s ({} decode threads); {} frames uploaded during the fusion before them",
             self.wall_fps,
             self.wall_s,
             self.decode_wait_s,
             self.decode_wait_fraction * 100.0,
             self.loop_wall_s,
-            self.decode_threads
+            self.decode_threads,
+            self.uploaded_ahead
         )
     }
 }
@@ -129,13 +134,13 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     let mut frames = Vec::new();
     let mut counts = Vec::new();
     let loop_start = web_time::Instant::now();
-    run::for_each_frame(seq, first..=last, decode, |d| {
-        let rgba = run::packed_rgba(&d.frame);
+    run::for_each_frame(seq, first..=last, decode, |d, next| {
         let rec = &seq.frames[d.index];
         let before = slam.backend.counters();
         let t0 = web_time::Instant::now();
         let gt = rec.gt_cam_to_world.as_ref();
-        let report = slam.process(d.index as u32, &d.frame.depth, &rgba, gt)?;
+        let next = next.map(run::Decoded::as_next);
+        let report = slam.process_before(d.index as u32, &d.frame.depth, &d.rgba, gt, next)?;
         let seconds = t0.elapsed().as_secs_f64();
         let after = slam.backend.counters();
         counts.push(FrameCounts {
@@ -166,6 +171,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         loop_wall_s,
         decode_wait_s,
         decode_wait_fraction: decode_wait_s / loop_wall_s.max(f64::MIN_POSITIVE),
+        uploaded_ahead: slam.frames_uploaded_ahead(),
     };
     let accuracy = slam_accuracy(&slam, &frames, seq)?;
     let camera = seq.intrinsics.downsampled(params.input.downsample);
@@ -332,9 +338,8 @@ pub fn bench_interleaved<G: Backend>(
     )?;
     let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
     let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
-    run::for_each_frame(seq, first..=last, BEFORE, |d| {
-        let (i, frame) = (d.index, d.frame);
-        let rgba = run::packed_rgba(&frame);
+    run::for_each_frame(seq, first..=last, BEFORE, |d, _| {
+        let (i, frame, rgba) = (d.index, d.frame, d.rgba);
         let rec = &seq.frames[i];
         let gt = rec.gt_cam_to_world.as_ref();
         let outcome = |report, seconds| run::FrameOutcome {

@@ -1,13 +1,19 @@
 //! Decoding ahead of the frame loop (`src/tools/run/decode_ahead.rs`, issue 48): frames reach
 //! the pipeline in order whatever the pool's size, a decode error surfaces at its frame
-//! with the error it has without the pool, and the loop's wait for decoded frames stays a
-//! small part of a CPU-backend run at 320x240.
+//! with the error it has without the pool, the next frame the loop is handed is the
+//! following frame as decoded, the GPU pipeline processes the next frame's images that it
+//! uploaded during the last fusion and gives the same bits as without them, and the loop's
+//! wait for decoded frames stays a small part of a CPU-backend run at 320x240.
 
 use crate::common;
 
-use common::harness::plain;
+use common::harness::{gpu_backend_test, plain};
 use wgslam::dataset::{self, SequenceOptions};
+use wgslam::gpu::GpuBackend;
+use wgslam::layout::map::SurfelMap;
+use wgslam::slam::backend::{Inspect, NextFrame};
 use wgslam::slam::cpu_backend::CpuBackend;
+use wgslam::slam::pipeline::Slam;
 use wgslam::tools::run::{self, Decode};
 use wgslam::{Profile, SlamParams};
 
@@ -20,6 +26,14 @@ pub fn tests() -> Vec<common::harness::Test> {
         plain(
             "a_decode_error_stops_the_run_at_its_frame_with_the_same_error",
             a_decode_error_stops_the_run_at_its_frame_with_the_same_error,
+        ),
+        plain(
+            "the_next_frame_handed_over_is_the_following_frame_as_decoded",
+            the_next_frame_handed_over_is_the_following_frame_as_decoded,
+        ),
+        gpu_backend_test(
+            "gpu_processes_the_next_frame_it_uploaded_during_fusion",
+            gpu_processes_the_next_frame_it_uploaded_during_fusion,
         ),
         plain(
             "decode_wait_is_a_small_part_of_a_cpu_run_at_320x240",
@@ -94,6 +108,97 @@ fn a_decode_error_stops_the_run_at_its_frame_with_the_same_error() {
             "{threads} threads: not stopped at frame 5"
         );
     }
+}
+
+fn the_next_frame_handed_over_is_the_following_frame_as_decoded() {
+    let seq = common::open_asset("icl_living_room_kt2");
+    for decode in [
+        Decode::BeforeEachFrame,
+        Decode::with_threads(1),
+        Decode::with_threads(3),
+    ] {
+        let mut seen = Vec::new();
+        run::for_each_frame(&seq, 2..=9, decode, |d, next| {
+            assert_eq!(d.rgba, run::packed_rgba(&d.frame), "{decode:?}");
+            if let Some(n) = next {
+                assert_eq!(n.index, d.index + 1, "{decode:?}");
+                let own = seq.load(n.index).unwrap();
+                assert!(n.frame.depth == own.depth && n.rgba == run::packed_rgba(&own));
+                assert!(
+                    n.index <= 9,
+                    "{decode:?}: handed frame {} past the range",
+                    n.index
+                );
+            }
+            if decode == Decode::BeforeEachFrame {
+                assert!(
+                    next.is_none(),
+                    "decoding before each frame has no next frame"
+                );
+            }
+            seen.push(d.index);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(seen, (2..=9).collect::<Vec<_>>(), "{decode:?}");
+    }
+}
+
+/// Bundled frames `1..=FRAMES_STAGED` of [`gpu_processes_the_next_frame_it_uploaded_during_fusion`].
+const FRAMES_STAGED: usize = 6;
+
+/// The bundled frames on a GPU pipeline at 320x240, each frame processed with `next(i)`
+/// as the frame after it: the poses (bits) and the map.
+fn gpu_run_with_next(
+    backend: GpuBackend,
+    next: impl Fn(usize) -> Option<usize>,
+) -> (Vec<[u64; 16]>, SurfelMap) {
+    let seq = common::open_asset("icl_living_room_kt2");
+    let mut params = SlamParams::profile(Profile::Robust);
+    params.input.downsample = 2;
+    let mut slam = Slam::for_sequence(backend, &seq, params.validate().unwrap()).unwrap();
+    let frames: Vec<_> = (0..=FRAMES_STAGED + 3)
+        .map(|i| {
+            let f = seq.load(i).unwrap();
+            let rgba = run::packed_rgba(&f);
+            (f, rgba)
+        })
+        .collect();
+    let mut poses = Vec::new();
+    for i in 1..=FRAMES_STAGED {
+        let (f, rgba) = &frames[i];
+        // Frame `i + 1`'s id with the images of frame `next(i)`.
+        let next = next(i).map(|j| NextFrame {
+            frame_id: i as u32 + 1,
+            depth: &frames[j].0.depth,
+            rgba: &frames[j].1,
+        });
+        let gt = seq.frames[i].gt_cam_to_world;
+        let r = slam.process_before(i as u32, &f.depth, rgba, gt.as_ref(), next);
+        poses.push(r.unwrap().t_cam_to_world.to_cols_array().map(f64::to_bits));
+    }
+    let map = slam.backend.download_map().unwrap();
+    (poses, map)
+}
+
+/// Issue 48 item 1's upload of frame k+1 while frame k fuses: with the true next frame the
+/// poses and the map are bit for bit those of a run without it; a wrong image handed in
+/// as the next frame changes the result, so the staged images are what the pipeline
+/// processed (and this test would see a staging that is never used).
+fn gpu_processes_the_next_frame_it_uploaded_during_fusion(backend: GpuBackend) {
+    let ctx = backend.ctx().share();
+    let (plain_poses, plain_map) = gpu_run_with_next(backend, |_| None);
+    let fresh = || GpuBackend::new(ctx.share()).unwrap();
+    let (poses, map) = gpu_run_with_next(fresh(), |i| Some(i + 1));
+    assert_eq!(poses, plain_poses, "uploading ahead changed the poses");
+    assert!(map == plain_map, "uploading ahead changed the map");
+    // Frame 3 is handed frame 7's images as frame 4's.
+    let (poses, _) = gpu_run_with_next(fresh(), |i| Some(if i == 3 { 7 } else { i + 1 }));
+    assert_eq!(poses[..3], plain_poses[..3]);
+    assert_ne!(
+        poses[3], plain_poses[3],
+        "frame 4 was not processed from the staged images"
+    );
 }
 
 /// Copies the files of `from` (and of its folders, one level deep) into `to`.

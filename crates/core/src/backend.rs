@@ -153,6 +153,19 @@ pub struct BackendCounters {
 /// metres, `w = 1` valid / `0`).
 pub type Described = (Vec<[u32; DESCRIPTOR_WORDS]>, Vec<[f32; 4]>);
 
+/// The next frame's raw images (as [`Backend::preprocess`] takes them), handed to
+/// [`Backend::fuse`] so that a backend which uploads its frames can upload them while the
+/// fusion runs rather than after its wait.
+#[derive(Debug, Clone, Copy)]
+pub struct NextFrame<'a> {
+    /// The frame's id, as the pipeline will process it.
+    pub frame_id: u32,
+    /// u16 depth units, raw_width x raw_height.
+    pub depth: &'a [u16],
+    /// Packed RGBA8, raw_width x raw_height.
+    pub rgba: &'a [u32],
+}
+
 /// Runs the kernel steps of one frame. Every method mirrors one or two kernels.
 pub trait Backend {
     /// Short name for logs and reports (`cpu`, `gpu`).
@@ -165,6 +178,14 @@ pub trait Backend {
     /// `steps.pyramid` (levels 1, 2, ...), `pyramid_depth` from the finer level's vertex map
     /// (at level 0 the one the normals were made from) and `vertex_to_normal`.
     fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()>;
+    /// [`Backend::preprocess`] on the images of frame `frame_id` that the last `fuse` was
+    /// handed as its [`NextFrame`] and uploaded while the fusion ran. `Ok(false)`, doing
+    /// nothing, when it holds no such images (a backend that never uploads ahead, another
+    /// frame's, or a frame of another size): then call `preprocess`.
+    fn preprocess_staged(&mut self, steps: &PreprocessSteps, frame_id: u32) -> Result<bool> {
+        let _ = (steps, frame_id);
+        Ok(false)
+    }
     /// `project_model` then `predict_model` at `params.t_world_to_cam`
     /// (`surfel_count` is filled in by the backend), then `pyramid_model` for each entry of
     /// `pyramid` (the same levels as the last `preprocess`'s). When the map last changed in
@@ -198,8 +219,10 @@ pub trait Backend {
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
     /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
     /// `capacity` are filled in by the backend, which grows the map first when needed).
-    /// Returns surfels after fusion.
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize>;
+    /// Returns surfels after fusion. A backend that uploads its frames (the GPU's) may upload
+    /// `next`, the next frame's raw images, while the fusion runs, for
+    /// [`Backend::preprocess_staged`]; others ignore it.
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize>;
     /// `compact_flags`, `prefix_sum`, then `compact_scatter` into a second map, which
     /// becomes the map: removes the unstable surfels and moves the survivors to the front
     /// in their order (`surfel_count` is filled in by the backend). Returns surfels after.
@@ -302,6 +325,9 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
         (**self).preprocess(steps, depth, rgba)
     }
+    fn preprocess_staged(&mut self, steps: &PreprocessSteps, frame_id: u32) -> Result<bool> {
+        (**self).preprocess_staged(steps, frame_id)
+    }
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         (**self).predict(params, pyramid)
     }
@@ -323,8 +349,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         (**self).describe_keypoints(what)
     }
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        (**self).fuse(params)
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
+        (**self).fuse(params, next)
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         (**self).compact(params)

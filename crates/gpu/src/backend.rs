@@ -112,6 +112,9 @@ pub struct GpuBackend {
     pub(super) fused_view: Option<FusedView>,
     /// Surfels in the map (the GPU counter as last read back).
     pub(super) count: usize,
+    /// The frame whose raw images the last `fuse` uploaded for `preprocess_staged` (while
+    /// they are still in the frame's raw textures).
+    pub(super) staged_frame: Option<u32>,
     /// Largest map the backend may allocate, in surfels.
     pub(super) max_surfels: usize,
     /// `None` after any buffer a bind group refers to was re-created.
@@ -235,6 +238,7 @@ impl GpuBackend {
             bounds_dirty_from: 0,
             fused_view: None,
             count: 0,
+            staged_frame: None,
             max_surfels,
             bind_groups: None,
             spare_bind_groups: None,
@@ -307,8 +311,9 @@ impl GpuBackend {
         if self.frame.as_ref().is_some_and(|f| f.fits(p, pyramid)) {
             return Ok(());
         }
-        // A new index map holds no fusion's keys.
+        // A new index map holds no fusion's keys, new raw textures no staged images.
         self.fused_view = None;
+        self.staged_frame = None;
         let frame = FrameBuffers::new(&self.ctx, p, pyramid).map_err(|e| match e {
             // Name the image, not an internal array: fusion's per-pixel arrays are in a
             // tiled (Morton) order that pads a long, thin image far beyond its pixels.

@@ -5,7 +5,10 @@
 //! `preprocess` and `predict` read nothing back: their commands are deferred and go with
 //! the first ICP iteration's submission (see `GpuContext::defer`), so a tracked frame
 //! costs one submit-and-wait per ICP iteration, then `count_candidates`, `fuse` and
-//! `fern_encode` one each; every other step first submits what is deferred.
+//! `fern_encode` one each; every other step first submits what is deferred. `fuse` also
+//! uploads the next frame's raw images when the pipeline hands them over, between its
+//! submission and its wait, so the copy overlaps the fusion rather than following it
+//! (`preprocess_staged` then skips the upload).
 
 use super::backend::GpuBackend;
 use super::context::GpuContext;
@@ -18,7 +21,8 @@ use crate::layout::{
 };
 use crate::{Error, Result};
 use wgslam_core::backend::{
-    Backend, Described, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
+    Backend, Described, NextFrame, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems,
+    ToDescribe,
 };
 use wgslam_core::fused_view::FusedView;
 use wgslam_core::plan::{self, Buffer, Call, FuseCall, IntensityCall, PredictCall, SystemCall};
@@ -31,48 +35,18 @@ impl Backend for GpuBackend {
 
     fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
         check_frame_size(&steps.params, depth, rgba)?;
-        let (w, h) = (steps.params.camera.width, steps.params.camera.height);
-        check_pyramid(w, h, &steps.pyramid)?;
-        // The uploads below would land before a deferred step (see `GpuContext::defer`).
-        self.ctx.flush();
-        if let Some(b) = &mut self.ferns {
-            // Codes recorded ahead by the last fuse are the last frame's.
-            b.ahead = None;
+        self.preprocess_images(steps, Some((depth, rgba)))
+    }
+
+    fn preprocess_staged(&mut self, steps: &PreprocessSteps, frame_id: u32) -> Result<bool> {
+        let staged = self.staged_frame.take();
+        // Frame buffers that fit stay as they are (`ensure_frame`), images included.
+        let kept = (self.frame.as_ref()).is_some_and(|f| f.fits(&steps.params, &steps.pyramid));
+        if staged != Some(frame_id) || !kept {
+            return Ok(false);
         }
-        self.ensure_frame(&steps.params, &steps.pyramid)?;
-        // A new frame: its intensity pyramid is made by the first `rgbd_system`.
-        self.systems.intensity_made = 0;
-        let ctx = &self.ctx;
-        let u = &self.uniforms;
-        ctx.scoped("preprocess", || {
-            let f = self.frame.as_mut().expect("ensure_frame made it");
-            f.raw_depth.upload(ctx, depth)?;
-            f.raw_rgba.upload(ctx, rgba)?;
-            f.filtered = steps.bilateral.is_some();
-            u.preprocess.write(ctx, &steps.params);
-            if let Some(b) = &steps.bilateral {
-                u.bilateral.write(ctx, b);
-            }
-            u.normal.write(ctx, &steps.normal);
-            for (level, p) in f.levels.iter().zip(&steps.pyramid) {
-                level.u_pyramid.write(ctx, &p.down);
-                level.u_normal.write(ctx, &p.normal);
-            }
-            Ok(())
-        })?;
-        let levels = steps.pyramid.iter().map(|p| size(&p.down.camera)).collect();
-        let grid = StepGrid::new(&self.ctx, [w, h], levels);
-        let plan = plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len());
-        let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
-        ctx.scoped("preprocess", || {
-            let mut enc = ctx.encoder("preprocess");
-            for call in plan {
-                // Every kernel of `preprocess` is bound and dispatched by its registry row.
-                let passes = grid.generic(k, bg, call);
-                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
-            }
-            defer_profiled(ctx, profiler, "preprocess", enc)
-        })
+        self.preprocess_images(steps, None)?;
+        Ok(true)
     }
 
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
@@ -161,7 +135,7 @@ impl Backend for GpuBackend {
         self.describe_keypoints_on_gpu(what.params, what.keypoints, what.pattern)
     }
 
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
         self.ctx.flush();
         let n = self.frame().pixels();
         self.fused_view = None;
@@ -178,7 +152,7 @@ impl Backend for GpuBackend {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
-        let added = ctx.scoped("fuse", || {
+        let (added, staged) = ctx.scoped("fuse", || {
             u.fuse.write(ctx, &params);
             u.scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
@@ -210,8 +184,11 @@ impl Backend for GpuBackend {
             let size = [f.width, f.height];
             super::ferns::record_ahead(ctx, (k, bg), ferns, size, profiler, &mut enc)?;
             submit_profiled(ctx, profiler, enc)?;
-            self.counter_readback.read(ctx)
-        })?[0] as usize;
+            // While the fusion runs, rather than after its wait: the next frame's images.
+            let staged = stage_next(ctx, f, next)?;
+            Ok((self.counter_readback.read(ctx)?[0] as usize, staged))
+        })?;
+        self.staged_frame = staged;
         let total = self.count + added;
         if total > params.capacity as usize {
             return Err(Error::Capacity(format!(
@@ -298,6 +275,61 @@ impl Backend for GpuBackend {
 }
 
 impl GpuBackend {
+    /// [`Backend::preprocess`] with `images` uploaded first, or, for `None`, on the raw
+    /// images a `fuse` staged (`stage_next`).
+    fn preprocess_images(
+        &mut self,
+        steps: &PreprocessSteps,
+        images: Option<(&[u16], &[u32])>,
+    ) -> Result<()> {
+        let (w, h) = (steps.params.camera.width, steps.params.camera.height);
+        check_pyramid(w, h, &steps.pyramid)?;
+        // The uploads below would land before a deferred step (see `GpuContext::defer`).
+        self.ctx.flush();
+        // Whatever was staged is overwritten now, or read by this very step.
+        self.staged_frame = None;
+        if let Some(b) = &mut self.ferns {
+            // Codes recorded ahead by the last fuse are the last frame's.
+            b.ahead = None;
+        }
+        self.ensure_frame(&steps.params, &steps.pyramid)?;
+        // A new frame: its intensity pyramid is made by the first `rgbd_system`.
+        self.systems.intensity_made = 0;
+        let ctx = &self.ctx;
+        let u = &self.uniforms;
+        ctx.scoped("preprocess", || {
+            let f = self.frame.as_mut().expect("ensure_frame made it");
+            if let Some((depth, rgba)) = images {
+                f.raw_depth.upload(ctx, depth)?;
+                f.raw_rgba.upload(ctx, rgba)?;
+            }
+            f.filtered = steps.bilateral.is_some();
+            u.preprocess.write(ctx, &steps.params);
+            if let Some(b) = &steps.bilateral {
+                u.bilateral.write(ctx, b);
+            }
+            u.normal.write(ctx, &steps.normal);
+            for (level, p) in f.levels.iter().zip(&steps.pyramid) {
+                level.u_pyramid.write(ctx, &p.down);
+                level.u_normal.write(ctx, &p.normal);
+            }
+            Ok(())
+        })?;
+        let levels = steps.pyramid.iter().map(|p| size(&p.down.camera)).collect();
+        let grid = StepGrid::new(&self.ctx, [w, h], levels);
+        let plan = plan::preprocess(steps.bilateral.as_ref(), steps.pyramid.len());
+        let (ctx, k, bg, profiler, _, _) = encoding_parts!(self);
+        ctx.scoped("preprocess", || {
+            let mut enc = ctx.encoder("preprocess");
+            for call in plan {
+                // Every kernel of `preprocess` is bound and dispatched by its registry row.
+                let passes = grid.generic(k, bg, call);
+                record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
+            }
+            defer_profiled(ctx, profiler, "preprocess", enc)
+        })
+    }
+
     /// [`Error::Argument`] unless pyramid level `level` was preprocessed (`what`: the step,
     /// for the message).
     fn check_system_level(&self, level: usize, what: &str) -> Result<()> {
@@ -384,6 +416,27 @@ fn defer_profiled(
 
 /// Checks that the raw frame has `raw_width x raw_height` depth and colour values and that
 /// the map, `stride` raw pixels per map pixel, fits in it.
+/// Uploads `next`'s raw images into the frame's raw textures for its
+/// [`Backend::preprocess_staged`], where they fit (else the frame's `preprocess` uploads or
+/// reports them); returns the frame staged. Only `depth_to_vertex` reads these textures, and
+/// this frame's has run (`fuse` submits after every deferred step).
+fn stage_next(
+    ctx: &GpuContext,
+    f: &crate::resources::FrameBuffers,
+    next: Option<NextFrame<'_>>,
+) -> Result<Option<u32>> {
+    let Some(next) = next else {
+        return Ok(None);
+    };
+    let texels = f.raw_depth.texels();
+    if next.depth.len() != texels || next.rgba.len() != texels {
+        return Ok(None);
+    }
+    f.raw_depth.upload(ctx, next.depth)?;
+    f.raw_rgba.upload(ctx, next.rgba)?;
+    Ok(Some(next.frame_id))
+}
+
 fn check_frame_size(params: &PreprocessParams, raw_depth: &[u16], raw_rgba: &[u32]) -> Result<()> {
     let raw_n = (params.raw_width * params.raw_height) as usize;
     if raw_depth.len() != raw_n || raw_rgba.len() != raw_n {

@@ -11,7 +11,8 @@ use crate::layout::{
     ProjectParams, ICP_ATB_OFFSET, ICP_SYSTEM_LEN,
 };
 use crate::slam::backend::{
-    Backend, Described, Inspect, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems, ToDescribe,
+    Backend, Described, Inspect, NextFrame, Prediction, PreprocessSteps, PyramidLevel, RgbdSystems,
+    ToDescribe,
 };
 use crate::slam::cpu_backend::CpuBackend;
 use crate::Result;
@@ -89,6 +90,9 @@ impl Backend for PerturbedCpu {
     fn preprocess(&mut self, steps: &PreprocessSteps, depth: &[u16], rgba: &[u32]) -> Result<()> {
         self.run(|b| b.preprocess(steps, depth, rgba))
     }
+    fn preprocess_staged(&mut self, steps: &PreprocessSteps, frame_id: u32) -> Result<bool> {
+        self.run(|b| b.preprocess_staged(steps, frame_id))
+    }
     fn predict(&mut self, params: &ProjectParams, pyramid: &[PyramidLevel]) -> Result<()> {
         self.run(|b| b.predict(params, pyramid))
     }
@@ -118,8 +122,8 @@ impl Backend for PerturbedCpu {
     fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         self.run(|b| b.describe_keypoints(what))
     }
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
-        self.run(|b| b.fuse(params))
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
+        self.run(|b| b.fuse(params, next))
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.run(|b| b.compact(params))

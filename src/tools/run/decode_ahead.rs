@@ -7,7 +7,10 @@
 //! Worker `w` of `n` decodes frames `first + w`, `first + w + n`, ...; each hands its frames
 //! over through its own bounded channel and the loop takes them round robin, so the order
 //! needs no sorting. Decoded frames in memory at once: at most `n x (depth + 1)` beside the
-//! loop's own, with `n` and `depth` cut down for large frames ([`AHEAD_BUDGET_BYTES`]).
+//! loop's own and the next one it took early, with `n` and `depth` cut down for large frames ([`AHEAD_BUDGET_BYTES`]).
+//! With the frame it hands over, the loop gets the next one when a worker has finished it
+//! already (it never waits for it), so the pipeline can upload the next frame's images
+//! while the GPU fuses this one (`Slam::process_before`).
 //! A decode error on frame k reaches the loop at frame k, as the same error. A loop that
 //! stops early drops the channels, and each worker stops at its next hand-over (after at
 //! most the one decode it is in), so the scope's join never hangs.
@@ -18,10 +21,12 @@ use std::sync::mpsc;
 use web_time::Instant;
 
 use crate::dataset::{RawFrame, Sequence};
+use crate::slam::backend::NextFrame;
 use crate::Result;
 
-/// Most bytes of decoded frames the pool holds ahead of the loop (depth and colour, at the
-/// frames' own size): 256 MiB is 170 frames at 640x480 but only 6 at 4096x2160, where it
+/// Most bytes of decoded frames the pool holds ahead of the loop (depth, colour and packed
+/// colour, at the frames' own size): 256 MiB is 97 frames at 640x480 but only 3 at
+/// 4096x2160, where it
 /// takes fewer workers and shallower queues instead.
 pub const AHEAD_BUDGET_BYTES: usize = 256 << 20;
 /// Decoded frames each worker may hold beyond the one in its hand (the channel's bound):
@@ -66,20 +71,35 @@ pub struct Decoded {
     pub index: usize,
     /// Its images, full resolution, as decoded.
     pub frame: RawFrame,
-    /// Time spent loading and decoding it, seconds (on a worker with [`Decode::Ahead`]).
+    /// Its colour packed as the pipeline takes it ([`super::packed_rgba`]), on the worker.
+    pub rgba: Vec<u32>,
+    /// Time spent loading, decoding and packing it, seconds (on a worker with
+    /// [`Decode::Ahead`]).
     pub decode_seconds: f64,
     /// Time the loop waited for it, seconds: its whole decode before each frame, only what
     /// the workers had not finished ahead otherwise.
     pub wait_seconds: f64,
 }
 
-/// Calls `body` on frames `frames` of `seq` in order, decoded where `decode` says; stops at
-/// the first error, a frame's own decode error (at that frame) or `body`'s.
+impl Decoded {
+    /// This frame as the one after the frame in hand (`Slam::process_before`).
+    pub fn as_next(&self) -> NextFrame<'_> {
+        NextFrame {
+            frame_id: self.index as u32,
+            depth: &self.frame.depth,
+            rgba: &self.rgba,
+        }
+    }
+}
+
+/// Calls `body` on frames `frames` of `seq` in order, decoded where `decode` says, each with
+/// the next frame when it is decoded already (never with [`Decode::BeforeEachFrame`]);
+/// stops at the first error, a frame's own decode error (at that frame) or `body`'s.
 pub fn for_each_frame(
     seq: &Sequence,
     frames: RangeInclusive<usize>,
     decode: Decode,
-    mut body: impl FnMut(Decoded) -> Result<()>,
+    mut body: impl FnMut(Decoded, Option<&Decoded>) -> Result<()>,
 ) -> Result<()> {
     // A browser tab (wasm32) has no threads to decode on: decode before each frame.
     #[cfg(target_arch = "wasm32")]
@@ -90,13 +110,9 @@ pub fn for_each_frame(
     match decode {
         Decode::BeforeEachFrame => {
             for index in frames {
-                let (frame, secs) = timed_load(seq, index);
-                body(Decoded {
-                    index,
-                    frame: frame?,
-                    decode_seconds: secs,
-                    wait_seconds: secs,
-                })?;
+                let loaded = timed_load(seq, index);
+                let wait = loaded.1;
+                body(decoded(index, loaded, wait)?, None)?;
             }
             Ok(())
         }
@@ -104,11 +120,29 @@ pub fn for_each_frame(
     }
 }
 
-/// Frame `i` of `seq` and the seconds its load took.
-fn timed_load(seq: &Sequence, i: usize) -> (Result<RawFrame>, f64) {
+/// Frame `i` of `seq` with its packed colour, and the seconds its load and packing took.
+type Loaded = (Result<(RawFrame, Vec<u32>)>, f64);
+
+/// Loads frame `i` of `seq` (see [`Loaded`]).
+fn timed_load(seq: &Sequence, i: usize) -> Loaded {
     let t = Instant::now();
-    let frame = seq.load(i);
+    let frame = seq.load(i).map(|f| {
+        let rgba = super::packed_rgba(&f);
+        (f, rgba)
+    });
     (frame, t.elapsed().as_secs_f64())
+}
+
+/// Frame `index` as the loop gets it, after waiting `wait_seconds` for it; its load error.
+fn decoded(index: usize, (frame, secs): Loaded, wait_seconds: f64) -> Result<Decoded> {
+    let (frame, rgba) = frame?;
+    Ok(Decoded {
+        index,
+        frame,
+        rgba,
+        decode_seconds: secs,
+        wait_seconds,
+    })
 }
 
 /// Workers and channel depth for `threads` asked over `count` frames of `frame_bytes`
@@ -126,13 +160,14 @@ fn ahead(
     seq: &Sequence,
     frames: RangeInclusive<usize>,
     threads: usize,
-    mut body: impl FnMut(Decoded) -> Result<()>,
+    mut body: impl FnMut(Decoded, Option<&Decoded>) -> Result<()>,
 ) -> Result<()> {
     let k = seq.intrinsics;
-    // Depth (u16) and colour (3 x u8) per pixel, at the intrinsics' size (which `load`
-    // checks the frames against).
-    let frame_bytes = (k.width as usize * k.height as usize) * 5;
-    let (workers, depth) = pool_shape(threads, frames.clone().count(), frame_bytes);
+    // Depth (u16), colour (3 x u8) and packed colour (u32) per pixel, at the intrinsics'
+    // size (which `load` checks the frames against).
+    let frame_bytes = (k.width as usize * k.height as usize) * 9;
+    let count = frames.clone().count();
+    let (workers, depth) = pool_shape(threads, count, frame_bytes);
     std::thread::scope(|s| {
         // Dropped when this closure returns (also on an error), before the scope joins:
         // a worker's next send fails and it stops.
@@ -149,19 +184,26 @@ fn ahead(
                 }
             });
         }
+        // Frame `n + 1`, taken from its worker early because it was ready (or its error).
+        let mut early: Option<Result<Decoded>> = None;
         for (n, index) in frames.enumerate() {
-            let t = Instant::now();
-            // A worker ends before handing over all its frames only by panicking; the scope
-            // then passes its panic on.
-            let Ok((frame, secs)) = handovers[n % workers].recv() else {
-                break;
+            let this = match early.take() {
+                Some(d) => d?,
+                None => {
+                    let t = Instant::now();
+                    // A worker ends before handing over all its frames only by panicking;
+                    // the scope then passes its panic on.
+                    let Ok(loaded) = handovers[n % workers].recv() else {
+                        break;
+                    };
+                    decoded(index, loaded, t.elapsed().as_secs_f64())?
+                }
             };
-            body(Decoded {
-                index,
-                frame: frame?,
-                decode_seconds: secs,
-                wait_seconds: t.elapsed().as_secs_f64(),
-            })?;
+            if n + 1 < count {
+                let ready = handovers[(n + 1) % workers].try_recv().ok();
+                early = ready.map(|loaded| decoded(index + 1, loaded, 0.0));
+            }
+            body(this, early.as_ref().and_then(|d| d.as_ref().ok()))?;
         }
         Ok(())
     })
@@ -173,7 +215,7 @@ mod tests {
 
     #[test]
     fn the_pool_has_no_more_workers_than_frames_and_stays_within_its_budget() {
-        let vga = 640 * 480 * 5;
+        let vga = 640 * 480 * 9;
         assert_eq!(pool_shape(8, 100, vga), (8, AHEAD_PER_WORKER));
         assert_eq!(pool_shape(8, 3, vga), (3, AHEAD_PER_WORKER));
         assert_eq!(pool_shape(8, 0, vga), (1, AHEAD_PER_WORKER));
@@ -183,7 +225,7 @@ mod tests {
         assert_eq!(pool_shape(8, 100, AHEAD_BUDGET_BYTES * 2), (1, 0));
         for (threads, bytes) in [
             (16, vga),
-            (16, 4096 * 2160 * 5),
+            (16, 4096 * 2160 * 9),
             (2, AHEAD_BUDGET_BYTES / 5),
         ] {
             let (w, d) = pool_shape(threads, 1000, bytes);

@@ -229,17 +229,19 @@ fn run_frames_observed<B: Backend + Inspect>(
 ) -> Result<(Vec<FrameOutcome>, f64)> {
     let wall = Instant::now();
     let mut outcomes = Vec::with_capacity(frames.clone().count());
-    for_each_frame(seq, frames, decode, |decoded| {
+    for_each_frame(seq, frames, decode, |decoded, next| {
         let Decoded {
             index: i,
             frame,
+            rgba,
             decode_seconds,
             wait_seconds,
         } = decoded;
-        let rgba = packed_rgba(&frame);
         let rec = &seq.frames[i];
         let t0 = Instant::now();
-        let report = slam.process(i as u32, &frame.depth, &rgba, rec.gt_cam_to_world.as_ref())?;
+        let gt = rec.gt_cam_to_world.as_ref();
+        let next = next.map(Decoded::as_next);
+        let report = slam.process_before(i as u32, &frame.depth, &rgba, gt, next)?;
         let out = FrameOutcome {
             index: i,
             timestamp: rec.timestamp,

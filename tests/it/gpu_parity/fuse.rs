@@ -78,8 +78,8 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         fp.dist_confident_m = NARROWING_GATE_M;
         check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
     }
-    let n_cpu = s.backend.fuse(&fp).unwrap();
-    let n_gpu = gpu.fuse(&fp).unwrap();
+    let n_cpu = s.backend.fuse(&fp, None).unwrap();
+    let n_gpu = gpu.fuse(&fp, None).unwrap();
     let c = s.backend.download_map().unwrap();
     let g = gpu.download_map().unwrap();
     assert_eq!((c.len(), g.len()), (n_cpu, n_gpu));
@@ -278,7 +278,7 @@ fn check_fuse_select(
         );
     }
     gpu.upload_map(map).unwrap();
-    gpu.fuse(&params).unwrap();
+    gpu.fuse(&params, None).unwrap();
     let g = gpu.download_assoc().unwrap();
     assert_eq!(g.len(), keys.len(), "assoc sizes");
     // A pixel's choice: the surfel (low word) must match; the off-ray distance (high word,

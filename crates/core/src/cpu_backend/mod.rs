@@ -14,11 +14,11 @@
 //! the ICP systems and candidates, `fuse`) run inside the backend's [`Threads`]
 //! (`cpu::invocations`); the outputs are the same bits on any number of threads.
 
-use crate::backend::RgbdSystems;
 use crate::backend::{
     Backend, Described, FrameLevel, FrameMaps, Prediction, PreprocessSteps, PyramidLevel,
     ToDescribe,
 };
+use crate::backend::{NextFrame, RgbdSystems};
 use crate::cpu;
 use crate::cpu::binding::Pool;
 use crate::cpu::invocations::Threads;
@@ -276,7 +276,8 @@ impl Backend for CpuBackend {
         Ok((descriptors, points))
     }
 
-    fn fuse(&mut self, params: &FuseParams) -> Result<usize> {
+    fn fuse(&mut self, params: &FuseParams, _next: Option<NextFrame<'_>>) -> Result<usize> {
+        // Nothing to upload ahead: `preprocess` reads the images where they are.
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
         self.threads.clone().install(|| Ok(self.fuse_step(params)))
     }
