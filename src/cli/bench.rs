@@ -9,7 +9,7 @@ use clap::Args;
 use super::pipeline_args::{frame_range, PipelineArgs, Setup};
 use crate::slam::any_backend::{self, BackendChoice};
 use crate::slam::params::{PoseSource, ValidParams};
-use crate::tools::{bench, long_run, run, streams};
+use crate::tools::{bench, long_run, run, streams, thread_scaling};
 use crate::{Error, Result};
 
 #[derive(Debug, Args)]
@@ -46,6 +46,11 @@ pub struct BenchArgs {
     /// time against N runs one at a time (needs a GPU; ignores --backends).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub streams: Option<u32>,
+    /// The CPU reference's thread scaling instead: the frames on one thread and on every
+    /// core (or `--threads N`), alternating frame by frame in one process; prints the
+    /// per-frame speed-up and whether both give the same bits (ignores --backends).
+    #[arg(long)]
+    pub thread_scaling: bool,
     /// Write the results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -78,6 +83,22 @@ pub fn execute(a: BenchArgs) -> Result<()> {
         streams::print_streams(&r);
         if let Some(path) = &a.json {
             run::write_json(path, &serde_json::json!({ "streams": r }))?;
+        }
+        return Ok(());
+    }
+    if a.thread_scaling {
+        let seq = setup.open_sequence(&params)?;
+        let range = frame_range(&seq, &a.frames, usize::MAX)?;
+        let many = any_backend::cpu_threads(1)?;
+        let n = many.count();
+        eprintln!(
+            "{}..{} on 1 and {n} CPU threads, frame by frame ...",
+            range.0, range.1
+        );
+        let r = thread_scaling::bench_thread_scaling(many, &seq, range, &params)?;
+        println!("{}", r.text());
+        if let Some(path) = &a.json {
+            run::write_json(path, &serde_json::json!({ "thread_scaling": r }))?;
         }
         return Ok(());
     }
@@ -141,6 +162,7 @@ fn with_backends_downsample(mut setup: Setup, a: &BenchArgs) -> Setup {
         return setup;
     }
     let names: Vec<&str> = match (a.interleaved, a.streams.is_some()) {
+        _ if a.thread_scaling => vec!["cpu"],
         (true, _) => vec!["cpu", "gpu"],
         (false, true) => vec!["gpu"],
         (false, false) => a

@@ -20,6 +20,7 @@ use crate::slam::any_backend;
 use crate::slam::backend::{Backend, Inspect};
 use crate::slam::instrumented::Instrumented;
 use crate::slam::params::ValidParams;
+use crate::slam::pipeline::Slam;
 use crate::tools::round_trips::{FrameCounts, RoundTrips};
 use crate::tools::run;
 use crate::Result;
@@ -130,7 +131,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
     let start = web_time::Instant::now();
     let backend = make()?;
     let name = backend.name().to_string();
-    let mut slam = crate::slam::pipeline::Slam::for_sequence(backend, seq, params.clone())?;
+    let mut slam = Slam::for_sequence(backend, seq, params.clone())?;
     let mut frames = Vec::new();
     let mut counts = Vec::new();
     let loop_start = web_time::Instant::now();
@@ -243,11 +244,7 @@ pub fn bench_backend<B: Backend + Inspect, F: FnMut() -> Result<B>>(
 ) -> Result<BenchResult> {
     let mut result = bench_frames(&mut make, seq, (first, last), params, decode)?;
     let backend = make()?;
-    let mut slam = crate::slam::pipeline::Slam::for_sequence(
-        Instrumented::timed(backend),
-        seq,
-        params.clone(),
-    )?;
+    let mut slam = Slam::for_sequence(Instrumented::timed(backend), seq, params.clone())?;
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     result.stages = slam
@@ -277,7 +274,7 @@ pub fn gpu_kernel_times(
 ) -> Result<Vec<(String, f64, f64)>> {
     let mut gpu = GpuBackend::open()?;
     gpu.enable_kernel_timing();
-    let mut slam = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
+    let mut slam = Slam::for_sequence(gpu, seq, params.clone())?;
     let (frames, _) = run::run_frames_with(&mut slam, seq, first, last, BEFORE, |_| {})?;
     let n = frames.len().max(1) as f64;
     Ok(slam
@@ -331,13 +328,41 @@ pub fn bench_interleaved<G: Backend>(
     last: usize,
     params: &ValidParams,
 ) -> Result<InterleavedResult> {
-    let mut cpu = crate::slam::pipeline::Slam::for_sequence(
-        any_backend::cpu_backend(1)?,
-        seq,
-        params.clone(),
-    )?;
-    let mut gpu = crate::slam::pipeline::Slam::for_sequence(gpu, seq, params.clone())?;
-    let (mut cpu_frames, mut gpu_frames) = (Vec::new(), Vec::new());
+    let mut cpu = Slam::for_sequence(any_backend::cpu_backend(1)?, seq, params.clone())?;
+    let mut gpu = Slam::for_sequence(gpu, seq, params.clone())?;
+    let (cpu_frames, gpu_frames) = interleave((&mut cpu, &mut gpu), seq, (first, last))?;
+    let ratios = PerFrameRatios::of(&cpu_frames, &gpu_frames)?;
+    let mean = mean_seconds;
+    let gt = seq.ground_truth();
+    let accuracy = |f: &[run::FrameOutcome]| run::accuracy(&run::trajectory(f), &gt, f.len());
+    let (cpu_accuracy, gpu_accuracy) = (accuracy(&cpu_frames)?, accuracy(&gpu_frames)?);
+    let ate = |a: &Option<run::Accuracy>| a.as_ref().map(|a| a.ate_rmse_aligned_m);
+    let camera = seq.intrinsics.downsampled(params.input.downsample);
+    Ok(InterleavedResult {
+        frames: cpu_frames.len(),
+        width: camera.width,
+        height: camera.height,
+        cpu_frame_mean_s: mean(&cpu_frames),
+        gpu_frame_mean_s: mean(&gpu_frames),
+        ratio_median: ratios.median,
+        ratio_p10: ratios.p10,
+        ratio_p90: ratios.p90,
+        cpu_ate_rmse_aligned_m: ate(&cpu_accuracy),
+        gpu_ate_rmse_aligned_m: ate(&gpu_accuracy),
+        cpu_accuracy,
+        gpu_accuracy,
+    })
+}
+
+/// Pipelines `a` and `b` over frames `first..=last` of `seq` in one process, alternating
+/// frame by frame (which goes first alternates too), each frame decoded beforehand (not
+/// timed): each pipeline's frames.
+pub(crate) fn interleave<A: Backend, B: Backend>(
+    (a, b): (&mut Slam<A>, &mut Slam<B>),
+    seq: &Sequence,
+    (first, last): (usize, usize),
+) -> Result<(Vec<run::FrameOutcome>, Vec<run::FrameOutcome>)> {
+    let (mut a_frames, mut b_frames) = (Vec::new(), Vec::new());
     run::for_each_frame(seq, first..=last, BEFORE, |d, _| {
         let (i, frame, rgba) = (d.index, d.frame, d.rgba);
         let rec = &seq.frames[i];
@@ -350,51 +375,52 @@ pub fn bench_interleaved<G: Backend>(
             wait_seconds: 0.0,
             report,
         };
-        let cpu_first = (i - first) % 2 == 0;
+        let a_first = (i - first) % 2 == 0;
         for turn in 0..2 {
             let t0 = web_time::Instant::now();
-            if (turn == 0) == cpu_first {
-                let report = cpu.process(i as u32, &frame.depth, &rgba, gt)?;
-                cpu_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
+            if (turn == 0) == a_first {
+                let report = a.process(i as u32, &frame.depth, &rgba, gt)?;
+                a_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
             } else {
-                let report = gpu.process(i as u32, &frame.depth, &rgba, gt)?;
-                gpu_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
+                let report = b.process(i as u32, &frame.depth, &rgba, gt)?;
+                b_frames.push(outcome(report, t0.elapsed().as_secs_f64()));
             }
         }
         Ok(())
     })?;
-    let mut ratios: Vec<f64> = cpu_frames
-        .iter()
-        .zip(&gpu_frames)
-        .map(|(c, g)| c.seconds / g.seconds.max(f64::MIN_POSITIVE))
-        .collect();
-    if ratios.is_empty() {
-        return Err(crate::Error::Argument("no frames to benchmark".into()));
+    Ok((a_frames, b_frames))
+}
+
+/// Mean pipeline time of `frames`, seconds.
+pub(crate) fn mean_seconds(frames: &[run::FrameOutcome]) -> f64 {
+    frames.iter().map(|o| o.seconds).sum::<f64>() / frames.len().max(1) as f64
+}
+
+/// Per frame, `a`'s time over `b`'s: the median and the 10th and 90th percentiles
+/// (nearest rank).
+pub(crate) struct PerFrameRatios {
+    pub median: f64,
+    pub p10: f64,
+    pub p90: f64,
+}
+
+impl PerFrameRatios {
+    /// The ratios of the same frames of two interleaved pipelines; an error without frames.
+    pub fn of(a: &[run::FrameOutcome], b: &[run::FrameOutcome]) -> Result<PerFrameRatios> {
+        let mut ratios: Vec<f64> = (a.iter().zip(b))
+            .map(|(a, b)| a.seconds / b.seconds.max(f64::MIN_POSITIVE))
+            .collect();
+        if ratios.is_empty() {
+            return Err(crate::Error::Argument("no frames to benchmark".into()));
+        }
+        ratios.sort_by(f64::total_cmp);
+        let pick = |q: f64| ratios[((ratios.len() - 1) as f64 * q).round() as usize];
+        Ok(PerFrameRatios {
+            median: crate::stats::median(&ratios),
+            p10: pick(0.1),
+            p90: pick(0.9),
+        })
     }
-    ratios.sort_by(f64::total_cmp);
-    // Nearest-rank percentile of the sorted ratios.
-    let pick = |q: f64| ratios[((ratios.len() - 1) as f64 * q).round() as usize];
-    let mean =
-        |f: &[run::FrameOutcome]| f.iter().map(|o| o.seconds).sum::<f64>() / f.len().max(1) as f64;
-    let gt = seq.ground_truth();
-    let accuracy = |f: &[run::FrameOutcome]| run::accuracy(&run::trajectory(f), &gt, f.len());
-    let (cpu_accuracy, gpu_accuracy) = (accuracy(&cpu_frames)?, accuracy(&gpu_frames)?);
-    let ate = |a: &Option<run::Accuracy>| a.as_ref().map(|a| a.ate_rmse_aligned_m);
-    let camera = seq.intrinsics.downsampled(params.input.downsample);
-    Ok(InterleavedResult {
-        frames: cpu_frames.len(),
-        width: camera.width,
-        height: camera.height,
-        cpu_frame_mean_s: mean(&cpu_frames),
-        gpu_frame_mean_s: mean(&gpu_frames),
-        ratio_median: crate::stats::median(&ratios),
-        ratio_p10: pick(0.1),
-        ratio_p90: pick(0.9),
-        cpu_ate_rmse_aligned_m: ate(&cpu_accuracy),
-        gpu_ate_rmse_aligned_m: ate(&gpu_accuracy),
-        cpu_accuracy,
-        gpu_accuracy,
-    })
 }
 
 /// Prints an interleaved result.

@@ -58,28 +58,31 @@ surfel_view!(ProjectParams, FuseParams);
 /// Mirrors `visible_surfels.wgsl`'s `main`: `per_surfel(i, slot)` for every surfel `i`
 /// (map-wide index; `slot` = `i - chunk.base`, in the chunk's arrays) of the chunk's first
 /// `surfel_count` whose block's world-frame box may be in view of `params`' camera
-/// ([`SurfelView`]).
+/// ([`SurfelView`]). The blocks run in parallel, as the shader's workgroups do
+/// (`invocations::par_for_each_group`), so `per_surfel` writes as an invocation may.
 #[inline]
 pub fn visible_surfels(
-    params: &impl SurfelView,
+    params: &(impl SurfelView + Sync),
     chunk: &MapChunk,
     block_boxes: &[[u32; 4]],
-    mut per_surfel: impl FnMut(u32, u32),
+    per_surfel: impl Fn(u32, u32) + Sync + Send,
 ) {
     let (t_world_to_cam, cam, size, surfel_count) = params.view();
     let (blocks, span_end) = chunk_blocks(chunk, surfel_count);
-    for b in 0..blocks {
+    let block_surfels = BLOCK_SURFELS as usize;
+    super::invocations::par_for_each_group(blocks as usize, block_surfels, |b| {
+        let b = b as u32;
         let block = (chunk.base / BLOCK_SURFELS + b) as usize;
         let lo = decode_corner(block_boxes[2 * block]);
         let hi = decode_corner(block_boxes[2 * block + 1]);
         if !block_visible(t_world_to_cam, cam, size[0], size[1], lo, hi) {
-            continue;
+            return;
         }
         let end = (chunk.base + (b + 1) * BLOCK_SURFELS).min(span_end);
         for i in chunk.base + b * BLOCK_SURFELS..end {
             per_surfel(i, i - chunk.base);
         }
-    }
+    });
 }
 
 /// Mirrors `system_grid.wgsl`'s `main`: the 29-float normal-equation system summed over

@@ -11,6 +11,7 @@
 //! merged surfel may be in any chunk, as its copy is per pixel.
 
 use super::binding::twin;
+use super::invocations::Storage;
 use super::{normal_of, project_to_texel, transform_point, visible_surfels, xyz};
 use crate::layout::{FuseParams, MapChunk};
 
@@ -33,11 +34,13 @@ twin! {
         merged: &[[f32; 4]],
     ) {
         let cam = super::camera_intrinsics(&params.camera);
+        // Each invocation writes its own surfel only.
+        let (position_weight, normal_frame) = (Storage::new(position_weight), Storage::new(normal_frame));
         visible_surfels(params, chunk, block_boxes, |_, slot| {
             prune_surfel(
                 params,
-                position_weight,
-                normal_frame,
+                &position_weight,
+                &normal_frame,
                 color,
                 merged,
                 slot as usize,
@@ -51,18 +54,18 @@ twin! {
 /// pixel merged into.
 fn prune_surfel(
     params: &FuseParams,
-    position_weight: &mut [[f32; 4]],
-    normal_frame: &mut [[u32; 4]],
+    position_weight: &Storage<[f32; 4]>,
+    normal_frame: &Storage<[u32; 4]>,
     color: &[[f32; 4]],
     merged: &[[f32; 4]],
     slot: usize,
     cam: [f32; 4],
 ) {
-    let nf = normal_frame[slot];
+    let nf = normal_frame.load(slot);
     if nf[3] == params.frame_id {
         return;
     }
-    let pw = position_weight[slot];
+    let pw = position_weight.load(slot);
     let Some(centre) = project_to_texel(
         cam,
         params.camera.width,
@@ -82,7 +85,7 @@ fn prune_surfel(
         && normal_of(nf).dot(xyz(nr_t)) > PRUNE_COS_NORMAL
         && pw[3] <= pw_t[3]
     {
-        position_weight[slot] = [pw[0], pw[1], pw[2], 0.0];
-        normal_frame[slot] = [nf[0], nf[1], nf[2], 0];
+        position_weight.store(slot, [pw[0], pw[1], pw[2], 0.0]);
+        normal_frame.store(slot, [nf[0], nf[1], nf[2], 0]);
     }
 }

@@ -54,7 +54,7 @@ twin! {
             color,
         };
         visible_surfels(params, chunk, block_boxes, |i, slot| {
-            select_for_surfel(params, normal_depth, &map, &mut assoc, &mut index_map, i, slot, cam);
+            select_for_surfel(params, normal_depth, &map, &assoc, &index_map, i, slot, cam);
         });
     }
 }
@@ -74,8 +74,8 @@ fn select_for_surfel<A: KeyWriter + ?Sized, K: KeyWriter + ?Sized>(
     params: &FuseParams,
     normal_depth: &[[f32; 4]],
     map: &Chunk,
-    assoc: &mut A,
-    index_map: &mut K,
+    assoc: &A,
+    index_map: &K,
     i: u32,
     slot: u32,
     cam: [f32; 4],

@@ -6,7 +6,7 @@
 //! - an invocation writes only what no other invocation writes or reads ([`Storage`]:
 //!   a storage buffer, one element per invocation or per slot the kernel's own indices
 //!   keep apart), or raises a key through an order-independent maximum
-//!   (`key_writer`'s atomic `keep_nearer`);
+//!   (`key_writer`'s atomic `keep_nearer`: [`atomic_keys`], [`atomic_words`]);
 //! - a reduction's rows are made in parallel and summed on one thread in invocation order
 //!   ([`par_rows_in_order`]), so its sum is bit for bit the sequential one;
 //! - an append through a counter, or a loop whose result depends on the order of its
@@ -20,7 +20,7 @@
 
 use std::marker::PhantomData;
 use std::num::NonZeroUsize;
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 
 use bytemuck::Pod;
@@ -54,6 +54,48 @@ pub fn par_for_each_invocation(n: usize, body: impl Fn(usize) + Sync + Send) {
         .into_par_iter()
         .with_min_len(INVOCATIONS_PER_TASK)
         .for_each(body);
+}
+
+/// `body(g)` for every workgroup `g` in `0..groups` of a kernel whose workgroups hold
+/// `invocations_per_group` invocations each (the body runs a group's invocations, as
+/// `visible_surfels` runs a culling block's surfels), in parallel in tasks of about
+/// [`INVOCATIONS_PER_TASK`] invocations; in order on this thread where `arith` says so.
+/// The body writes as [`par_for_each_invocation`]'s may.
+pub fn par_for_each_group(
+    groups: usize,
+    invocations_per_group: usize,
+    body: impl Fn(usize) + Sync + Send,
+) {
+    if in_order_here() {
+        (0..groups).for_each(body);
+        return;
+    }
+    let per_task = (INVOCATIONS_PER_TASK / invocations_per_group.max(1)).max(1);
+    (0..groups)
+        .into_par_iter()
+        .with_min_len(per_task)
+        .for_each(body);
+}
+
+/// `data` as atomic words that invocations on many threads may raise or write (relaxed):
+/// the CPU side of a WGSL `array<atomic<u32>>`, held for as long as the borrow of `data`.
+pub fn atomic_words(data: &mut [u32]) -> &[AtomicU32] {
+    // SAFETY: `AtomicU32` has the size and alignment of `u32` (documented), and the
+    // exclusive borrow of `data` is held for the view's lifetime, so nothing reads or writes
+    // these words except through the atomics while it lives.
+    unsafe { &*(data as *mut [u32] as *const [AtomicU32]) }
+}
+
+// `atomic_keys` below relies on this; it holds on every target wgslam builds for (x86-64,
+// AArch64, wasm32), and a target where it does not fails to compile here.
+const _: () = assert!(std::mem::align_of::<u64>() == std::mem::align_of::<AtomicU64>());
+
+/// `data` as atomic 64-bit keys (the CPU side of a WGSL `array<atomic<u64>>`; see
+/// [`atomic_words`]).
+pub fn atomic_keys(data: &mut [u64]) -> &[AtomicU64] {
+    // SAFETY: `AtomicU64` has the size of `u64` and, checked above, its alignment; the
+    // exclusive borrow is held as in `atomic_words`.
+    unsafe { &*(data as *mut [u64] as *const [AtomicU64]) }
 }
 
 /// A reduction's invocations: `row(i)` for every `i` in `0..n`, made in parallel, then
@@ -154,11 +196,7 @@ impl<'a, T: Pod> Storage<'a, T> {
             std::mem::size_of::<T>() % 4 == 0 && std::mem::align_of::<T>() >= 4,
             "Storage: elements must be whole 32-bit words"
         );
-        let words: &'a mut [u32] = bytemuck::cast_slice_mut(data);
-        // SAFETY: `AtomicU32` has the size and alignment of `u32` (documented), and the
-        // exclusive borrow of `data` is held for `'a`, so nothing reads or writes these
-        // words except through the atomics for as long as the view lives.
-        let words = unsafe { &*(words as *mut [u32] as *const [AtomicU32]) };
+        let words = atomic_words(bytemuck::cast_slice_mut(data));
         Storage {
             words,
             element: PhantomData,

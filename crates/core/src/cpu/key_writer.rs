@@ -17,8 +17,15 @@
 //! `Binding::KeyPass` of words and the pass (the portable variant's `array<atomic<u32>>`
 //! and its `override KEY_PASS`). The twin's body is then one body for both, as the
 //! shader's is.
+//!
+//! Keys are raised through atomics (relaxed `fetch_max`, as the shaders' `atomicMax`), so
+//! many threads may raise one map at once: the maximum does not depend on their order, and
+//! the twins' loops over surfels run in parallel (`cpu::invocations`).
+
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 use super::binding::{Access, Binding, Param};
+use super::invocations::{atomic_keys, atomic_words};
 use super::keep_nearer;
 
 /// A map of keys, one per pixel, that a key twin raises. Mirrors `keep_nearer` and
@@ -33,12 +40,12 @@ pub trait KeyWriter {
     fn first_pass(&self) -> bool;
 
     /// Pixel `pix` keeps the larger of its key and `(high, index)`; for a [`KeyPass`], this
-    /// pass's part of it.
-    fn keep_nearer(&mut self, pix: usize, high: u32, index: u32);
+    /// pass's part of it. Any number of threads may call it at once.
+    fn keep_nearer(&self, pix: usize, high: u32, index: u32);
 }
 
 /// The 64-bit kernel's map: one `u64` key per pixel, one pass (its `atomicMax`).
-impl KeyWriter for [u64] {
+impl KeyWriter for [AtomicU64] {
     fn pixels(&self) -> usize {
         self.len()
     }
@@ -47,23 +54,8 @@ impl KeyWriter for [u64] {
         true
     }
 
-    fn keep_nearer(&mut self, pix: usize, high: u32, index: u32) {
-        self[pix] = self[pix].max(pack_key(high, index));
-    }
-}
-
-/// As `[u64]`, so a twin takes a `&mut Vec<u64>` as callers hold it.
-impl KeyWriter for Vec<u64> {
-    fn pixels(&self) -> usize {
-        self.len()
-    }
-
-    fn first_pass(&self) -> bool {
-        true
-    }
-
-    fn keep_nearer(&mut self, pix: usize, high: u32, index: u32) {
-        self.as_mut_slice().keep_nearer(pix, high, index);
+    fn keep_nearer(&self, pix: usize, high: u32, index: u32) {
+        self[pix].fetch_max(pack_key(high, index), Ordering::Relaxed);
     }
 }
 
@@ -74,7 +66,7 @@ impl KeyWriter for Vec<u64> {
 #[derive(Debug)]
 pub struct KeyPass<'a> {
     /// `2 * pixels` words, cleared to 0 before pass 0.
-    pub words: &'a mut [u32],
+    pub words: &'a [AtomicU32],
     /// 0: raise the high words; 1: raise the index words where the high word is the
     /// surfel's.
     pub key_pass: u32,
@@ -83,7 +75,10 @@ pub struct KeyPass<'a> {
 impl<'a> KeyPass<'a> {
     /// Pass `key_pass` (0 or 1) over `words`.
     pub fn new(words: &'a mut [u32], key_pass: u32) -> KeyPass<'a> {
-        KeyPass { words, key_pass }
+        KeyPass {
+            words: atomic_words(words),
+            key_pass,
+        }
     }
 }
 
@@ -96,7 +91,7 @@ impl KeyWriter for KeyPass<'_> {
         self.key_pass == 0
     }
 
-    fn keep_nearer(&mut self, pix: usize, high: u32, index: u32) {
+    fn keep_nearer(&self, pix: usize, high: u32, index: u32) {
         keep_nearer(self.words, pix, high, index, self.key_pass);
     }
 }
@@ -106,9 +101,16 @@ impl KeyWriter for KeyPass<'_> {
 #[derive(Debug)]
 pub enum KeyMap<'a> {
     /// One `u64` key per pixel (`Binding::ReadWrite`).
-    Keys(&'a mut [u64]),
+    Keys(&'a [AtomicU64]),
     /// The portable variant's words in one pass (`Binding::KeyPass`).
     Pass(KeyPass<'a>),
+}
+
+impl<'a> KeyMap<'a> {
+    /// The 64-bit kernel's map over `keys`.
+    pub fn keys(keys: &'a mut [u64]) -> KeyMap<'a> {
+        KeyMap::Keys(atomic_keys(keys))
+    }
 }
 
 impl KeyWriter for KeyMap<'_> {
@@ -126,7 +128,7 @@ impl KeyWriter for KeyMap<'_> {
         }
     }
 
-    fn keep_nearer(&mut self, pix: usize, high: u32, index: u32) {
+    fn keep_nearer(&self, pix: usize, high: u32, index: u32) {
         match self {
             KeyMap::Keys(keys) => keys.keep_nearer(pix, high, index),
             KeyMap::Pass(pass) => pass.keep_nearer(pix, high, index),
@@ -141,7 +143,7 @@ impl<'b> Param<'b> for KeyMap<'b> {
     const ELEMENT_BYTES: usize = std::mem::size_of::<u64>();
     fn view(binding: &'b mut Binding<'_>) -> Self {
         match binding {
-            Binding::ReadWrite(bytes) => KeyMap::Keys(bytemuck::cast_slice_mut(bytes)),
+            Binding::ReadWrite(bytes) => KeyMap::Keys(atomic_keys(bytemuck::cast_slice_mut(bytes))),
             Binding::KeyPass(bytes, key_pass) => {
                 KeyMap::Pass(KeyPass::new(bytemuck::cast_slice_mut(bytes), *key_pass))
             }
@@ -173,12 +175,13 @@ mod tests {
             .map(|(i, &z)| (i % 2, depth_key(z), i as u32))
             .collect();
         let mut keys = vec![0u64; 2];
+        let map = KeyMap::keys(&mut keys);
         for &(pix, high, index) in surfels.iter().rev() {
-            keys.keep_nearer(pix, high, index);
+            map.keep_nearer(pix, high, index);
         }
         let mut words = vec![0u32; 4];
         for key_pass in 0..2 {
-            let mut pass = KeyPass::new(&mut words, key_pass);
+            let pass = KeyPass::new(&mut words, key_pass);
             for &(pix, high, index) in &surfels {
                 pass.keep_nearer(pix, high, index);
             }

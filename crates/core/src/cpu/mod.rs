@@ -67,6 +67,8 @@ pub use entries::{pixel_grid, pixel_grid_in_order, system_grid, visible_surfels}
 // their plan's calls and name none: `tests/it/kernel_places.rs`): the target's hashed grid
 // and the sum of the cross-covariance partials.
 pub use cross_covariance::decode as decode_scan_partials;
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use glam::{Mat4, Vec3, Vec4};
 pub use nn_grid::HashGrid;
 
@@ -319,12 +321,14 @@ pub fn depth_key(z_cam: f32) -> u32 {
 /// `high` is the pixel's high word. After pass 0 over every surfel and then pass 1 over
 /// every surfel, each pair equals the maximum 64-bit key ([`pack_depth_index`]) bit for
 /// bit. Mirrors `keep_nearer` in `shaders/key_writer.wgsl` without `KEY_64`.
+/// The words are atomics, as the shader's, so that many threads may raise one map: pass
+/// 1 reads only high words, which pass 0 finished.
 #[inline]
-pub fn keep_nearer(map: &mut [u32], pix: usize, high: u32, index: u32, key_pass: u32) {
+pub fn keep_nearer(map: &[AtomicU32], pix: usize, high: u32, index: u32, key_pass: u32) {
     if key_pass == 0 {
-        map[2 * pix + 1] = map[2 * pix + 1].max(high);
-    } else if map[2 * pix + 1] == high {
-        map[2 * pix] = map[2 * pix].max(index);
+        map[2 * pix + 1].fetch_max(high, Ordering::Relaxed);
+    } else if map[2 * pix + 1].load(Ordering::Relaxed) == high {
+        map[2 * pix].fetch_max(index, Ordering::Relaxed);
     }
 }
 
