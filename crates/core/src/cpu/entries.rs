@@ -21,18 +21,6 @@ pub fn pixel_grid(width: u32, height: u32, per_pixel: impl Fn([u32; 2]) + Sync +
     });
 }
 
-/// [`pixel_grid`] in order on this thread, row by row: for a twin whose invocations write
-/// through `&mut` what others may also write (fusion's merges and appends, the key
-/// writers), where the order decides the result or a parallel write would need atomics.
-#[inline]
-pub fn pixel_grid_in_order(width: u32, height: u32, mut per_pixel: impl FnMut([u32; 2])) {
-    for v in 0..height {
-        for u in 0..width {
-            per_pixel([u, v]);
-        }
-    }
-}
-
 /// What [`visible_surfels`] reads of a kernel's params (the fields `visible_surfels.wgsl`
 /// names): the camera a map chunk is culled against.
 pub trait SurfelView {

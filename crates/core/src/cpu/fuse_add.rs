@@ -13,9 +13,10 @@
 //! equals the 64-bit key.
 
 use super::binding::twin;
+use super::invocations::Storage;
 use super::key_writer::{KeyMap, KeyWriter};
 use super::{
-    append_index, back_project, depth_key, pixel_confidence, pixel_grid_in_order, surfel_radius,
+    append_index, back_project, depth_key, pixel_confidence, pixel_grid, surfel_radius,
     transform_dir, transform_point, xyz,
 };
 use crate::layout::{FuseParams, MapChunk, ASSOCIATION_BEST_CANDIDATE};
@@ -38,7 +39,10 @@ twin! {
         index_map: KeyMap<'_>,
     ) {
         let cam = super::camera_intrinsics(&params.camera);
-        pixel_grid_in_order(params.camera.width, params.camera.height, |[u, v]| {
+        // Each flagged pixel writes its own slot (the prefix sum keeps them apart).
+        let (position_weight, normal_frame) = (Storage::new(position_weight), Storage::new(normal_frame));
+        let color = Storage::new(color);
+        pixel_grid(params.camera.width, params.camera.height, |[u, v]| {
             let pix = (v * params.camera.width + u) as usize;
             let a = append_index([u, v]);
             if flags[a] == 0 {
@@ -58,11 +62,11 @@ twin! {
             let r = surfel_radius(params.camera.fx, q_cam, xyz(nd));
             if index_map.first_pass() {
                 let surfel = slot as usize;
-                position_weight[surfel] = [p.x, p.y, p.z, w];
+                position_weight.store(surfel, [p.x, p.y, p.z, w]);
                 let bits = n.to_array().map(f32::to_bits);
-                normal_frame[surfel] = [bits[0], bits[1], bits[2], params.frame_id];
+                normal_frame.store(surfel, [bits[0], bits[1], bits[2], params.frame_id]);
                 let c = color_map[pix];
-                color[surfel] = [c[0], c[1], c[2], r];
+                color.store(surfel, [c[0], c[1], c[2], r]);
             }
             if params.association == ASSOCIATION_BEST_CANDIDATE {
                 index_map.keep_nearer(pix, depth_key(q_cam.z), i);

@@ -62,7 +62,7 @@ pub mod render_resolve;
 pub mod render_splat;
 pub mod vertex_to_normal;
 
-pub use entries::{pixel_grid, pixel_grid_in_order, system_grid, visible_surfels};
+pub use entries::{pixel_grid, system_grid, visible_surfels};
 // What scan registration's hosts take from its twins' files (they run the kernels by
 // their plan's calls and name none: `tests/it/kernel_places.rs`): the target's hashed grid
 // and the sum of the cross-covariance partials.
