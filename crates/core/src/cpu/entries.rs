@@ -83,20 +83,19 @@ pub fn system_grid(
     height: u32,
     system_row: impl Fn([u32; 2]) -> Option<([f32; 6], f32)> + Sync + Send,
 ) -> [f64; ICP_SYSTEM_LEN] {
-    let mut sys = [0.0f64; ICP_SYSTEM_LEN];
     let w = width as usize;
-    // The rows in parallel, their sum in pixel order: the same bits on any number of
-    // threads, and as the loop over the pixels made them.
-    super::invocations::par_rows_in_order(
+    // Fixed runs of rows in parallel, each summed in pixel order, then the runs' sums in
+    // order: the same bits on any number of threads.
+    super::invocations::par_sum_rows(
         w * height as usize,
-        |i| system_row([(i % w) as u32, (i / w) as u32]),
-        |i, row| {
-            if let Some((a, b)) = row {
-                super::arith::accumulate(&mut sys, i as u32, |s| accumulate(s, &a, b));
+        || [0.0f64; ICP_SYSTEM_LEN],
+        |sys, i| {
+            if let Some((a, b)) = system_row([(i % w) as u32, (i / w) as u32]) {
+                super::arith::accumulate(sys, i as u32, |s| accumulate(s, &a, b));
             }
         },
-    );
-    sys
+        |sys, partial| sys.iter_mut().zip(partial).for_each(|(s, p)| *s += p),
+    )
 }
 
 /// `partials` as the one partial system a CPU reduction writes (`icp_reduce`,

@@ -4,7 +4,7 @@
 //! (`slam::health`). The same test as the first half of `icp_row` (`cpu::icp_reduce`).
 
 use super::binding::twin;
-use super::invocations::par_rows_in_order;
+use super::invocations::par_sum_rows;
 use super::{is_valid, project_to_texel, transform_point, xyz};
 use crate::layout::IcpParams;
 
@@ -46,19 +46,17 @@ twin! {
     ) {
         let w = params.camera.width as usize;
         let stride = counts.len() * WORKGROUP_SIZE;
-        counts.fill(0);
-        // Every pixel's test on every thread, each count in pixel order.
-        par_rows_in_order(
+        // Every pixel's test on every thread: whole counts, whose sum no order changes.
+        let summed = par_sum_rows(
             w * params.camera.height as usize,
-            |pix| {
-                is_candidate(
-                    params,
-                    [(pix % w) as u32, (pix / w) as u32],
-                    pred_vertex,
-                    normal_depth,
-                )
+            || vec![0u32; counts.len()],
+            |partial, pix| {
+                let texel = [(pix % w) as u32, (pix / w) as u32];
+                let candidate = is_candidate(params, texel, pred_vertex, normal_depth);
+                partial[pix % stride / WORKGROUP_SIZE] += candidate as u32;
             },
-            |pix, candidate| counts[pix % stride / WORKGROUP_SIZE] += candidate as u32,
+            |total, partial| total.iter_mut().zip(partial).for_each(|(t, p)| *t += p),
         );
+        counts.copy_from_slice(&summed);
     }
 }

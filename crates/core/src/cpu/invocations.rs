@@ -7,8 +7,9 @@
 //!   a storage buffer, one element per invocation or per slot the kernel's own indices
 //!   keep apart), or raises a key through an order-independent maximum
 //!   (`key_writer`'s atomic `keep_nearer`: [`atomic_keys`], [`atomic_words`]);
-//! - a reduction's rows are made in parallel and summed on one thread in invocation order
-//!   ([`par_rows_in_order`]), so its sum is bit for bit the sequential one;
+//! - a reduction sums fixed-size runs of its invocations in parallel, each in invocation
+//!   order, then the partial sums in their order ([`par_sum_rows`]), so its sum's bits do not
+//!   depend on the number of threads;
 //! - an append through a counter, or a loop whose result depends on the order of its
 //!   invocations, stays sequential.
 //!
@@ -30,9 +31,9 @@ use rayon::prelude::*;
 /// sixteen cores, each long enough (tens of microseconds) to repay its scheduling.
 pub const INVOCATIONS_PER_TASK: usize = 4096;
 
-/// Rows [`par_rows_in_order`] makes before summing them: bounds its buffer to a few
-/// hundred kilobytes whatever the image size.
-pub const ROWS_PER_BLOCK: usize = 16 * INVOCATIONS_PER_TASK;
+/// Invocations per partial sum of [`par_sum_rows`]: fixed, so that the partials (and the
+/// sum's bits) do not depend on the number of threads; a 640x480 image makes 75.
+pub const ROWS_PER_PARTIAL: usize = INVOCATIONS_PER_TASK;
 
 /// True when this thread must run a twin's invocations itself, in order (see the module
 /// notes).
@@ -98,47 +99,34 @@ pub fn atomic_keys(data: &mut [u64]) -> &[AtomicU64] {
     unsafe { &*(data as *mut [u64] as *const [AtomicU64]) }
 }
 
-/// A reduction's invocations: `row(i)` for every `i` in `0..n`, made in parallel, then
-/// `sum(i, row)` on this thread in increasing `i`, so the sum is bit for bit the
-/// sequential loop's for any number of threads. The rows are made in blocks of
-/// [`ROWS_PER_BLOCK`], the sum of one block overlapping the making of the next.
-pub fn par_rows_in_order<R: Send>(
+/// A reduction's invocations: `add_row(partial, i)` for every `i` in `0..n`, into partials
+/// of [`ROWS_PER_PARTIAL`] consecutive invocations each, made in parallel (each from
+/// `zero()`, in increasing `i`), then `add_partial(total, partial)` on this thread in the
+/// partials' order. The partials do not depend on the number of threads, so neither does
+/// the sum's every bit (a GPU sums per workgroup as well). Where `arith` says so, every row
+/// goes in order on this thread into one sum instead (its perturbed sums need one).
+pub fn par_sum_rows<S: Send>(
     n: usize,
-    row: impl Fn(usize) -> R + Sync + Send,
-    mut sum: impl FnMut(usize, R) + Send,
-) {
+    zero: impl Fn() -> S + Sync + Send,
+    add_row: impl Fn(&mut S, usize) + Sync + Send,
+    mut add_partial: impl FnMut(&mut S, S),
+) -> S {
+    let mut total = zero();
     if in_order_here() {
-        (0..n).for_each(|i| sum(i, row(i)));
-        return;
+        (0..n).for_each(|i| add_row(&mut total, i));
+        return total;
     }
-    // Two buffers, reused: a fresh one per block would cost the kernel's zeroing of its
-    // pages (measured: 5 % of a 640x480 frame).
-    let make = |start: usize, rows: &mut Vec<R>| {
-        (start..n.min(start + ROWS_PER_BLOCK))
-            .into_par_iter()
-            .with_min_len(INVOCATIONS_PER_TASK)
-            .map(&row)
-            .collect_into_vec(rows);
-    };
-    let (mut made, mut following) = (Vec::new(), Vec::new());
-    make(0, &mut made);
-    let mut start = 0;
-    while !made.is_empty() {
-        let next = start + ROWS_PER_BLOCK;
-        rayon::join(
-            || {
-                for (k, r) in made.drain(..).enumerate() {
-                    sum(start + k, r);
-                }
-            },
-            || match next < n {
-                true => make(next, &mut following),
-                false => following.clear(),
-            },
-        );
-        std::mem::swap(&mut made, &mut following);
-        start = next;
-    }
+    let partials: Vec<S> = (0..n.div_ceil(ROWS_PER_PARTIAL))
+        .into_par_iter()
+        .map(|c| {
+            let mut partial = zero();
+            (c * ROWS_PER_PARTIAL..n.min((c + 1) * ROWS_PER_PARTIAL))
+                .for_each(|i| add_row(&mut partial, i));
+            partial
+        })
+        .collect();
+    partials.into_iter().for_each(|p| add_partial(&mut total, p));
+    total
 }
 
 /// The threads a CPU backend's twins run on: rayon's global pool (one thread per core,
@@ -256,34 +244,42 @@ impl Storage<'_, u32> {
 mod tests {
     use super::*;
 
-    /// The rows are summed in order whatever the pool: the same bits on 1 and 3 threads.
+    /// The rows are summed in fixed partials whatever the pool: the same bits on 1, 2 and 3
+    /// threads, those of the partials' sequential sums summed in order, and every row once.
     #[test]
-    fn rows_are_summed_in_order_on_any_pool() {
-        let n = 3 * ROWS_PER_BLOCK + 17;
+    fn rows_are_summed_in_the_same_partials_on_any_pool() {
+        let n = 3 * ROWS_PER_PARTIAL + 17;
+        let row = |i: usize| (i as f64 * 0.1).sin();
         let sum_on = |threads| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap();
             pool.install(|| {
-                let mut s = 0.0f64;
-                let mut seen = 0;
-                par_rows_in_order(
+                let (s, rows) = par_sum_rows(
                     n,
-                    |i| (i as f64 * 0.1).sin(),
-                    |i, r| {
-                        assert_eq!(i, seen);
-                        seen += 1;
-                        s += r;
+                    || (0.0f64, 0usize),
+                    |(s, rows), i| {
+                        *s += row(i);
+                        *rows += 1;
+                    },
+                    |(s, rows), (p, p_rows)| {
+                        *s += p;
+                        *rows += p_rows;
                     },
                 );
-                assert_eq!(seen, n);
+                assert_eq!(rows, n);
                 s
             })
         };
-        let sequential: f64 = (0..n).map(|i| (i as f64 * 0.1).sin()).sum();
-        assert_eq!(sum_on(1).to_bits(), sequential.to_bits());
-        assert_eq!(sum_on(3).to_bits(), sequential.to_bits());
+        let mut expected = 0.0f64;
+        for c in 0..n.div_ceil(ROWS_PER_PARTIAL) {
+            let end = n.min((c + 1) * ROWS_PER_PARTIAL);
+            expected += (c * ROWS_PER_PARTIAL..end).map(row).fold(0.0, |s, r| s + r);
+        }
+        for threads in [1, 2, 3] {
+            assert_eq!(sum_on(threads).to_bits(), expected.to_bits(), "{threads} threads");
+        }
     }
 
     /// Every invocation runs once and writes its own element.
