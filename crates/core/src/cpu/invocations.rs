@@ -125,7 +125,9 @@ pub fn par_sum_rows<S: Send>(
             partial
         })
         .collect();
-    partials.into_iter().for_each(|p| add_partial(&mut total, p));
+    partials
+        .into_iter()
+        .for_each(|p| add_partial(&mut total, p));
     total
 }
 
@@ -278,7 +280,11 @@ mod tests {
             expected += (c * ROWS_PER_PARTIAL..end).map(row).fold(0.0, |s, r| s + r);
         }
         for threads in [1, 2, 3] {
-            assert_eq!(sum_on(threads).to_bits(), expected.to_bits(), "{threads} threads");
+            assert_eq!(
+                sum_on(threads).to_bits(),
+                expected.to_bits(),
+                "{threads} threads"
+            );
         }
     }
 

@@ -12,6 +12,7 @@
 //! read from the index map only, so the shader and this twin fill the same pixels.
 
 use super::binding::twin;
+use super::invocations::{par_for_each_invocation, Storage};
 use glam::Vec3;
 
 use crate::layout::render::{RenderParams, VIEW_COLOR, VIEW_DEPTH, VIEW_NORMALS, VIEW_WEIGHT};
@@ -144,18 +145,20 @@ twin! {
         let n = params.camera.width as usize * params.camera.height as usize;
         assert_eq!(index_map.len(), n, "index_map has the wrong size");
         assert_eq!(out_rgba.len(), n, "out_rgba has the wrong size");
-        for pix in 0..n {
+        // Every pixel on every thread, each writing its own.
+        let out_rgba = Storage::new(out_rgba);
+        par_for_each_invocation(n, |pix| {
             let mut key = index_map[pix];
             if key == 0 {
                 key = fill_gap(params, index_map, pix);
             }
             if key == 0 {
-                out_rgba[pix] = params.background;
-                continue;
+                out_rgba.store(pix, params.background);
+                return;
             }
             let index = (key & 0xffff_ffff) as usize;
             let z = key_depth(key);
-            out_rgba[pix] = pack_rgb(shade(params, index, z, normals, colors, weights));
-        }
+            out_rgba.store(pix, pack_rgb(shade(params, index, z, normals, colors, weights)));
+        });
     }
 }

@@ -42,22 +42,23 @@ twin! {
             "index_map has the wrong size"
         );
         let (w, h) = (params.camera.width, params.camera.height);
-        for i in 0..params.surfel_count as usize {
+        // Every surfel on every thread: the keys go up through the atomic key writer.
+        super::invocations::par_for_each_invocation(params.surfel_count as usize, |i| {
             let p = transform_point(&params.t_world_to_cam, xyz(positions[i]));
             // Written as a negated comparison so that a NaN depth is skipped too.
             if !(p.z > params.near_m && p.z <= params.far_m) {
-                continue;
+                return;
             }
             if params.cull_backfaces == 1 {
                 let n = transform_dir(&params.t_world_to_cam, xyz(normals[i]));
                 if n.dot(p) > 0.0 {
-                    continue;
+                    return;
                 }
             }
             let u = params.camera.fx * p.x / p.z + params.camera.cx;
             let v = params.camera.fy * p.y / p.z + params.camera.cy;
             if !(u.abs() < MAX_PROJECTED_PX && v.abs() < MAX_PROJECTED_PX) {
-                continue;
+                return;
             }
             let r = splat_radius_px(params, p.z);
             let u0 = (u - r).ceil().max(0.0);
@@ -65,7 +66,7 @@ twin! {
             let v0 = (v - r).ceil().max(0.0);
             let v1 = (v + r).floor().min((h - 1) as f32);
             if u0 > u1 || v0 > v1 {
-                continue;
+                return;
             }
             let depth_word = depth_key(p.z);
             for py in v0 as u32..=v1 as u32 {
@@ -77,6 +78,6 @@ twin! {
                     }
                 }
             }
-        }
+        });
     }
 }
