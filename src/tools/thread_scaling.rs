@@ -70,7 +70,7 @@ impl ThreadScaling {
 }
 
 /// Frames `first..=last` of `seq` on the CPU reference with one thread and on `many`,
-/// interleaved frame by frame ([`interleave`]).
+/// interleaved frame by frame (`bench::interleave`).
 pub fn bench_thread_scaling(
     many: Threads,
     seq: &Sequence,
