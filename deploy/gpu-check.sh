@@ -205,6 +205,13 @@ throughput() {
   step "cpu-reference-ds1-$label" "$WORK/cpu-$label.json" -- \
     "$bin" bench "$SCENES" --frames "$CPU_FRAMES" --downsample 1 --backends cpu --rounds 1 \
     --json "$WORK/cpu-$label.json"
+  # The reference on one thread against every core, frame by frame in one process (issue
+  # 48 item 5), where the binary has `bench --thread-scaling`.
+  if "$bin" bench --help 2>/dev/null | grep -q -- '--thread-scaling'; then
+    step "cpu-thread-scaling-ds1-$label" "$WORK/cpu-threads-$label.json" -- \
+      "$bin" bench "$SCENES" --frames "$CPU_FRAMES" --downsample 1 --thread-scaling \
+      --json "$WORK/cpu-threads-$label.json"
+  fi
 }
 if wants throughput; then
   throughput new "$BIN"
