@@ -294,11 +294,9 @@ pub struct InterleavedResult {
     /// Pipeline time per frame (decode excluded), seconds, for each backend.
     pub cpu_frame_mean_s: f64,
     pub gpu_frame_mean_s: f64,
-    /// CPU time over GPU time of each frame: median, and the 10th and 90th percentiles
-    /// (nearest rank).
-    pub ratio_median: f64,
-    pub ratio_p10: f64,
-    pub ratio_p90: f64,
+    /// CPU time over GPU time of each frame.
+    #[serde(flatten)]
+    pub ratios: PerFrameRatios,
     pub cpu_ate_rmse_aligned_m: Option<f64>,
     pub gpu_ate_rmse_aligned_m: Option<f64>,
     /// Each backend's ATE and RPE with the frames without a pose they leave out.
@@ -332,7 +330,6 @@ pub fn bench_interleaved<G: Backend>(
     let mut gpu = Slam::for_sequence(gpu, seq, params.clone())?;
     let (cpu_frames, gpu_frames) = interleave((&mut cpu, &mut gpu), seq, (first, last))?;
     let ratios = PerFrameRatios::of(&cpu_frames, &gpu_frames)?;
-    let mean = mean_seconds;
     let gt = seq.ground_truth();
     let accuracy = |f: &[run::FrameOutcome]| run::accuracy(&run::trajectory(f), &gt, f.len());
     let (cpu_accuracy, gpu_accuracy) = (accuracy(&cpu_frames)?, accuracy(&gpu_frames)?);
@@ -342,11 +339,9 @@ pub fn bench_interleaved<G: Backend>(
         frames: cpu_frames.len(),
         width: camera.width,
         height: camera.height,
-        cpu_frame_mean_s: mean(&cpu_frames),
-        gpu_frame_mean_s: mean(&gpu_frames),
-        ratio_median: ratios.median,
-        ratio_p10: ratios.p10,
-        ratio_p90: ratios.p90,
+        cpu_frame_mean_s: mean_seconds(&cpu_frames),
+        gpu_frame_mean_s: mean_seconds(&gpu_frames),
+        ratios,
         cpu_ate_rmse_aligned_m: ate(&cpu_accuracy),
         gpu_ate_rmse_aligned_m: ate(&gpu_accuracy),
         cpu_accuracy,
@@ -398,15 +393,19 @@ pub(crate) fn mean_seconds(frames: &[run::FrameOutcome]) -> f64 {
 
 /// Per frame, `a`'s time over `b`'s: the median and the 10th and 90th percentiles
 /// (nearest rank).
-pub(crate) struct PerFrameRatios {
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PerFrameRatios {
+    #[serde(rename = "ratio_median")]
     pub median: f64,
+    #[serde(rename = "ratio_p10")]
     pub p10: f64,
+    #[serde(rename = "ratio_p90")]
     pub p90: f64,
 }
 
 impl PerFrameRatios {
     /// The ratios of the same frames of two interleaved pipelines; an error without frames.
-    pub fn of(a: &[run::FrameOutcome], b: &[run::FrameOutcome]) -> Result<PerFrameRatios> {
+    pub(crate) fn of(a: &[run::FrameOutcome], b: &[run::FrameOutcome]) -> Result<PerFrameRatios> {
         let mut ratios: Vec<f64> = (a.iter().zip(b))
             .map(|(a, b)| a.seconds / b.seconds.max(f64::MIN_POSITIVE))
             .collect();
@@ -440,9 +439,9 @@ pub fn print_interleaved(r: &InterleavedResult) {
         "GPU/CPU interleaved: {:.2}x faster (ratio of means); per frame median {:.2}x, \
          10th-90th percentile {:.2}x..{:.2}x",
         r.ratio_of_means(),
-        r.ratio_median,
-        r.ratio_p10,
-        r.ratio_p90
+        r.ratios.median,
+        r.ratios.p10,
+        r.ratios.p90
     );
 }
 

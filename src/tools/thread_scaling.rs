@@ -28,11 +28,9 @@ pub struct ThreadScaling {
     /// Pipeline time per frame (decode excluded), seconds: one thread, `threads` threads.
     pub one_thread_mean_s: f64,
     pub many_threads_mean_s: f64,
-    /// One thread's time over `threads` threads' time of each frame: median, 10th and 90th
-    /// percentiles (nearest rank).
-    pub ratio_median: f64,
-    pub ratio_p10: f64,
-    pub ratio_p90: f64,
+    /// One thread's time over `threads` threads' time of each frame.
+    #[serde(flatten)]
+    pub ratios: PerFrameRatios,
     /// Both pipelines gave the same poses (bits) and the same map.
     pub identical: bool,
 }
@@ -58,9 +56,9 @@ impl ThreadScaling {
             self.many_threads_mean_s * 1e3,
             self.threads,
             self.ratio_of_means(),
-            self.ratio_median,
-            self.ratio_p10,
-            self.ratio_p90,
+            self.ratios.median,
+            self.ratios.p10,
+            self.ratios.p90,
             match self.identical {
                 true => "identical (poses bit for bit, map)",
                 false => "DIFFER",
@@ -96,9 +94,7 @@ pub fn bench_thread_scaling(
         height: camera.height,
         one_thread_mean_s: mean_seconds(&one_frames),
         many_threads_mean_s: mean_seconds(&many_frames),
-        ratio_median: ratios.median,
-        ratio_p10: ratios.p10,
-        ratio_p90: ratios.p90,
+        ratios,
         identical: poses(&one_frames) == poses(&many_frames)
             && one.backend.download_map()? == many.backend.download_map()?,
     })

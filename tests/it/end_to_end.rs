@@ -307,7 +307,8 @@ fn interleaved_bench_tracks_both_backends(ctx: GpuContext) {
         assert!(ate.expect("ground truth") < ATE_BUNDLED_MAX_M, "{r:?}");
     }
     assert!(r.cpu_frame_mean_s > 0.0 && r.gpu_frame_mean_s > 0.0);
-    assert!(0.0 < r.ratio_p10 && r.ratio_p10 <= r.ratio_median && r.ratio_median <= r.ratio_p90);
+    let q = &r.ratios;
+    assert!(0.0 < q.p10 && q.p10 <= q.median && q.median <= q.p90);
 }
 
 /// Runs `backend` over frames `first..=last` of `dir` with `params`; returns the aligned
