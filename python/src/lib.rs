@@ -233,8 +233,7 @@ impl Run {
     fn write(&self, py: Python<'_>, out_dir: PathBuf) -> PyResult<()> {
         py.detach(|| -> wgslam::Result<()> {
             let outputs = OutputSet::begin(&out_dir, &run_job::OUTPUT_FILES)?;
-            run_job::write_outputs(outputs.dir(), &self.result)?;
-            run_job::write_pictures(outputs.dir(), &self.result, &self.sequence)?;
+            run_job::write_files_and_pictures(outputs.dir(), &self.result, &self.sequence)?;
             outputs.commit()
         })
         .map_err(py_err)

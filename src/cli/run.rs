@@ -437,8 +437,7 @@ fn write_staged(
     seq: &dataset::Sequence,
     say: &dyn Fn(&str),
 ) -> Result<Vec<PathBuf>> {
-    run::write_outputs(dir, result)?;
-    let mut pictures = run::write_pictures(dir, result, seq)?;
+    let mut pictures = run::write_files_and_pictures(dir, result, seq)?;
     if a.mesh {
         let path = dir.join(MESH_FILE);
         write_run_mesh(&path, &result.map, say)?;

@@ -29,8 +29,8 @@ mod outputs;
 pub use counts::{tracking_counts, TrackingCounts};
 pub use decode_ahead::{for_each_frame, Decode, Decoded};
 pub use outputs::{
-    output_bytes, read_numbers, write_json, write_json_to, write_outputs, write_pictures,
-    RunNumbers, OUTPUT_FILES,
+    output_bytes, read_numbers, write_files_and_pictures, write_json, write_json_to, write_outputs,
+    write_pictures, RunNumbers, OUTPUT_FILES,
 };
 
 /// One processed frame: where it sits in the sequence and what the pipeline did.

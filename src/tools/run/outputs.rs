@@ -116,6 +116,31 @@ pub fn write_pictures(out: &Path, result: &RunResult, seq: &Sequence) -> Result<
     Ok(written)
 }
 
+/// [`write_outputs`] and [`write_pictures`] at once, the pictures on a second thread where
+/// there are threads: neither reads the other's files, and after the last frame the map's
+/// PLY and the renders are most of what a run still waits for. Returns the pictures
+/// written; the files' error first when both fail.
+pub fn write_files_and_pictures(
+    out: &Path,
+    result: &RunResult,
+    seq: &Sequence,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out).map_err(|e| crate::Error::write(out, e))?;
+    #[cfg(not(target_arch = "wasm32"))]
+    let (files, pictures) = std::thread::scope(|s| {
+        let pictures = s.spawn(|| write_pictures(out, result, seq));
+        let files = write_outputs(out, result);
+        let pictures = pictures
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (files, pictures)
+    });
+    #[cfg(target_arch = "wasm32")]
+    let (files, pictures) = (write_outputs(out, result), write_pictures(out, result, seq));
+    files?;
+    pictures
+}
+
 /// A finished run's headline numbers, read back from its `metrics.json` (by `wgslam batch`
 /// per job and backend, and by the long-sequence benchmark).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
