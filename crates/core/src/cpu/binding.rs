@@ -187,7 +187,7 @@ macro_rules! twin {
                     BINDINGS.len()
                 )
             };
-            // `mut`: a key map (`cpu::key_writer::KeyMap`) is raised through `&mut self`.
+            // `mut` allowed, not needed: key maps are raised through atomics (`&self`).
             $(#[allow(unused_mut)] let mut $arg: $ty = $crate::cpu::binding::Param::view($arg);)*
             $body
         }
