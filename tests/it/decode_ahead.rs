@@ -118,7 +118,11 @@ fn the_next_frame_handed_over_is_the_following_frame_as_decoded() {
         Decode::with_threads(3),
     ] {
         let mut seen = Vec::new();
+        let mut handed = 0;
         run::for_each_frame(&seq, 2..=9, decode, |d, next| {
+            // A slow frame: the workers have the next one ready by the end of this one.
+            std::thread::sleep(SLOW_FRAME);
+            handed += next.is_some() as usize;
             assert_eq!(d.rgba, run::packed_rgba(&d.frame), "{decode:?}");
             if let Some(n) = next {
                 assert_eq!(n.index, d.index + 1, "{decode:?}");
@@ -141,8 +145,19 @@ fn the_next_frame_handed_over_is_the_following_frame_as_decoded() {
         })
         .unwrap();
         assert_eq!(seen, (2..=9).collect::<Vec<_>>(), "{decode:?}");
+        if decode != Decode::BeforeEachFrame {
+            // Every frame but the first has had a slow frame's time to decode ahead.
+            assert!(
+                handed >= 1,
+                "{decode:?}: the loop was never handed the next frame"
+            );
+        }
     }
 }
+
+/// How long each frame of [`the_next_frame_handed_over_is_the_following_frame_as_decoded`]
+/// takes: several times a bundled frame's decode (10-18 ms at 640x480 on this machine).
+const SLOW_FRAME: std::time::Duration = std::time::Duration::from_millis(60);
 
 /// Bundled frames `1..=FRAMES_STAGED` of [`gpu_processes_the_next_frame_it_uploaded_during_fusion`].
 const FRAMES_STAGED: usize = 6;
