@@ -147,8 +147,8 @@ fn write_run_mesh(path: &Path, map: &SurfelMap, say: &dyn Fn(&str)) -> Result<()
 /// Default of `run --max-surfels`.
 pub const DEFAULT_MAX_SURFELS: usize = 20_000_000;
 
-/// Checks the map's size after every frame against `--max-surfels`, then shows the frame
-/// to the recording when there is one.
+/// Checks the map's size at every frame (the map it was tracked against) against
+/// `--max-surfels`, then shows the frame to the recording when there is one.
 struct MapCap<'a> {
     max_surfels: usize,
     recording: Option<&'a mut dyn run::FrameObserver>,
@@ -175,22 +175,28 @@ impl run::FrameObserver for MapCap<'_> {
                 outcome.index
             )));
         }
-        let surfels = outcome.report.surfels;
-        if surfels > self.max_surfels {
-            return Err(Error::Capacity(format!(
-                "after frame {} the map holds {surfels} surfels, more than --max-surfels {} \
-                 (about {:.0} MB in memory); nothing was written. Raise --max-surfels, run \
-                 fewer frames, or use --profile robust, which removes unstable surfels",
-                outcome.index,
-                self.max_surfels,
-                surfels as f64 * SURFEL_BYTES_IN_MEMORY / 1e6
-            )));
-        }
+        // The map this frame met: the last frame's fusion's (`surfels_before`).
+        let when = format!("at frame {}", outcome.index);
+        check_map_cap(outcome.report.surfels_before, self.max_surfels, &when)?;
         match self.recording.as_deref_mut() {
             Some(r) => r.frame(raw, outcome, map),
             None => Ok(()),
         }
     }
+}
+
+/// [`Error::Capacity`] when a map of `surfels` surfels, the one `when` (`at frame N`,
+/// `after the last frame`), passes `--max-surfels`.
+fn check_map_cap(surfels: usize, max_surfels: usize, when: &str) -> Result<()> {
+    if surfels <= max_surfels {
+        return Ok(());
+    }
+    Err(Error::Capacity(format!(
+        "{when} the map held {surfels} surfels, more than --max-surfels {max_surfels} (about \
+         {:.0} MB in memory); nothing was written. Raise --max-surfels, run fewer frames, or \
+         use --profile robust, which removes unstable surfels",
+        surfels as f64 * SURFEL_BYTES_IN_MEMORY / 1e6
+    )))
 }
 
 /// Memory per surfel, measured: 75 M surfels took 6.9 GB.
@@ -275,6 +281,7 @@ pub fn execute_in(a: RunArgs, embedded: Option<Embedded>) -> Result<()> {
         }),
     )?;
     bar.finish_and_clear();
+    check_map_cap(result.map.len(), a.max_surfels, "after the last frame")?;
     result.metrics.downsample_from = Some(downsample_from);
     if hooks.is_some() {
         result.metrics.peak_memory_mib = None;
@@ -302,7 +309,7 @@ fn report_frame(
     progress_lines: bool,
     total: usize,
 ) {
-    bar.set_message(format!("{} surfels", f.report.surfels));
+    bar.set_message(format!("{} surfels", f.report.surfels_before));
     bar.inc(1);
     if progress_lines {
         use std::io::Write;

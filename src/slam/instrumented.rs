@@ -26,7 +26,7 @@ use crate::Result;
 /// `frame_systems` holds the pyramid level and 29-float ICP system of every iteration of
 /// the frame in flight, in order (cleared
 /// by `preprocess`, so after a frame it holds that frame's iterations); `fused_surfels` the
-/// surfel count `fuse` returned in that frame (before `compact`), `None` if it did not fuse.
+/// surfel count after `fuse` in that frame (before `compact`), `None` if it did not fuse.
 pub struct Instrumented<B: Backend> {
     pub inner: B,
     pub stages: BTreeMap<&'static str, (u64, f64)>,
@@ -128,10 +128,12 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         self.step("describe_keypoints", |b| b.describe_keypoints(what))
     }
-    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
-        let surfels = self.step("fuse", |b| b.fuse(params, next))?;
-        self.fused_surfels = Some(surfels);
-        Ok(surfels)
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<()> {
+        self.step("fuse", |b| b.fuse(params, next))?;
+        // For `compare`'s per-frame check: on a GPU without timing a wait for the fusion,
+        // which the plain frame loop does not make (see `Backend::fuse`).
+        self.fused_surfels = Some(self.inner.surfel_count()?);
+        Ok(())
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.step("compact", |b| b.compact(params))
@@ -145,7 +147,7 @@ impl<B: Backend> Backend for Instrumented<B> {
     fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()> {
         self.step("loop_prediction", |b| b.set_prediction(level, prediction))
     }
-    fn surfel_count(&self) -> usize {
+    fn surfel_count(&mut self) -> Result<usize> {
         self.inner.surfel_count()
     }
     fn finish(&mut self) -> Result<()> {

@@ -132,6 +132,16 @@ impl Tracked {
     }
 }
 
+/// What a frame's report says of the map besides its tracking.
+struct Fused {
+    /// Whether it became a relocalisation keyframe.
+    keyframe: bool,
+    /// The loops verified at it.
+    loops: Vec<LoopRecord>,
+    /// The map's size before its fusion ([`FrameReport::surfels_before`]).
+    surfels_before: usize,
+}
+
 impl<B: Backend> Slam<B> {
     /// A tracker for `seq`: its raw intrinsics, and its depth scale in place of
     /// `params.input.depth_scale` (the sequence knows its units; this is the one place that
@@ -209,7 +219,7 @@ impl<B: Backend> Slam<B> {
         self.last_frame = Some(frame_id);
         if raw_depth.iter().all(|&d| d == 0) {
             self.tracker.missed();
-            return Ok(self.untracked(TrackStatus::EmptyDepth, Tracked::default()));
+            return self.untracked(TrackStatus::EmptyDepth, Tracked::default());
         }
         let steps = self.preprocess(frame_id, raw_depth, raw_rgba)?;
         let Some(t_last) = self.tracker.t_world_to_cam().filter(|_| given.is_none()) else {
@@ -266,7 +276,7 @@ impl<B: Backend> Slam<B> {
             return self.accept(frame_id, accepted, tracked, &steps, next);
         }
         self.tracker.missed();
-        Ok(self.untracked(TrackStatus::Lost(why), tracked))
+        self.untracked(TrackStatus::Lost(why), tracked)
     }
 
     /// The last tracked pose (the next frame's ICP starts from it), `None` before the
@@ -365,6 +375,8 @@ impl<B: Backend> Slam<B> {
             status,
             motion_counts,
         } = accepted;
+        // Known without a wait: the ICP read-backs' waits covered the last fusion.
+        let surfels_before = self.backend.surfel_count()?;
         self.backend
             .fuse(&self.fuse_params(&t_world_to_cam, frame_id), next)?;
         if let Some(cp) = self.compact_params(frame_id) {
@@ -406,25 +418,39 @@ impl<B: Backend> Slam<B> {
             loops = closed.loops;
         }
         let keyframe = offered.is_some_and(|o| o.keyframe);
-        Ok(self.report(&t_world_to_cam, status, tracked, keyframe, loops))
+        let fused = Fused {
+            keyframe,
+            loops,
+            surfels_before,
+        };
+        Ok(self.report(&t_world_to_cam, status, tracked, fused))
     }
 
     /// The report of a frame that is not fused (lost or without depth).
-    fn untracked(&self, status: TrackStatus, tracked: Tracked) -> FrameReport {
+    fn untracked(&mut self, status: TrackStatus, tracked: Tracked) -> Result<FrameReport> {
         let t_world_to_cam = self.tracker.t_world_to_cam().unwrap_or(DMat4::IDENTITY);
-        self.report(&t_world_to_cam, status, tracked, false, vec![])
+        let fused = Fused {
+            keyframe: false,
+            loops: vec![],
+            surfels_before: self.backend.surfel_count()?,
+        };
+        Ok(self.report(&t_world_to_cam, status, tracked, fused))
     }
 
-    /// A frame's report at `t_world_to_cam`, with its tracking attempts and the map's size
-    /// after it.
+    /// A frame's report at `t_world_to_cam`, with its tracking attempts and what its
+    /// fusion (or the lack of one) made of it.
     fn report(
         &self,
         t_world_to_cam: &DMat4,
         status: TrackStatus,
         tracked: Tracked,
-        keyframe: bool,
-        loops: Vec<LoopRecord>,
+        fused: Fused,
     ) -> FrameReport {
+        let Fused {
+            keyframe,
+            loops,
+            surfels_before,
+        } = fused;
         FrameReport {
             t_cam_to_world: se3::inverse_rigid(t_world_to_cam),
             status,
@@ -434,7 +460,7 @@ impl<B: Backend> Slam<B> {
             relocalisation: tracked.relocalisation,
             keyframe,
             loops,
-            surfels: self.backend.surfel_count(),
+            surfels_before,
         }
     }
 }

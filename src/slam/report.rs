@@ -94,6 +94,10 @@ pub struct FrameReport {
     /// Loop candidates verified at this frame, accepted or rejected (empty when none).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub loops: Vec<LoopRecord>,
-    /// Surfels after fusing this frame.
-    pub surfels: usize,
+    /// Surfels in the map this frame was tracked against: before its own fusion, after the
+    /// last fused frame's (and its removal of unstable surfels). Not the count after this
+    /// frame: on a GPU that is known only once the fusion has run, and waiting for it would
+    /// cost every frame a round trip (issue 48); the next frame's report has it, and the
+    /// final map's size is that of the map written.
+    pub surfels_before: usize,
 }

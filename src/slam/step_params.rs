@@ -116,7 +116,7 @@ impl<B: Backend> Slam<B> {
         ProjectParams {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             camera: Camera::new(&self.intrinsics),
-            surfel_count: self.backend.surfel_count() as u32,
+            surfel_count: 0, // Filled in by the backend (`Backend::predict`, `fuse`, `compact`).
             _pad0: 0,
             _pad1: 0,
             _pad2: 0,
@@ -172,7 +172,7 @@ impl<B: Backend> Slam<B> {
             t_world_to_cam: gpu_mat4(t_world_to_cam),
             t_cam_to_world: gpu_mat4(&se3::inverse_rigid(t_world_to_cam)),
             camera: Camera::new(&self.intrinsics),
-            surfel_count: self.backend.surfel_count() as u32,
+            surfel_count: 0, // Filled in by the backend (`Backend::predict`, `fuse`, `compact`).
             frame_id,
             dist_m: self.params.fusion.dist_m,
             cos_normal_threshold: self.params.fusion.normal_deg.to_radians().cos(),
@@ -213,7 +213,7 @@ impl<B: Backend> Slam<B> {
     pub fn compact_params(&self, frame_id: u32) -> Option<CompactParams> {
         let r = self.removal_after(frame_id)?;
         Some(CompactParams {
-            surfel_count: self.backend.surfel_count() as u32,
+            surfel_count: 0, // Filled in by the backend (`Backend::predict`, `fuse`, `compact`).
             frame_id,
             stable_weight: r.stable_weight,
             max_age_frames: r.max_age_frames,

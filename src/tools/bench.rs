@@ -190,7 +190,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         readback_bytes_per_frame: 0.0,
         submissions_per_frame: 0.0,
         peak_memory_mib: run::peak_memory_mib(),
-        map_points: slam.backend.surfel_count(),
+        map_points: slam.backend.surfel_count()?,
         ate_rmse_aligned_m: accuracy.as_ref().map(|a| a.ate_rmse_aligned_m),
         accuracy,
         kernels: Vec::new(),

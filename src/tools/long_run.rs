@@ -79,6 +79,18 @@ pub fn run_in_child(
     result
 }
 
+/// The map's size after each of a run's `frames` (`frames.json`'s records): after frame k
+/// the one frame k + 1 was tracked against, after the last frame the map written
+/// (`metrics.json`'s `map_points`).
+fn map_after_frames(frames: &[serde_json::Value], metrics: &serde_json::Value) -> Vec<usize> {
+    frames[1..]
+        .iter()
+        .map(|f| f["report"]["surfels_before"].as_u64().unwrap_or(0))
+        .chain([metrics["map_points"].as_u64().unwrap_or(0)])
+        .map(|n| n as usize)
+        .collect()
+}
+
 /// Reads `frames.json`, `metrics.json` and `trajectory.tum` of a finished `wgslam run
 /// --revisit` in `dir`; `gt` is the revisiting sequence's ground truth (stamps = positions).
 pub fn summarise(
@@ -99,13 +111,15 @@ pub fn summarise(
         .iter()
         .map(|f| f["seconds"].as_f64().unwrap_or(f64::NAN))
         .collect();
-    let surfels: Vec<usize> = frames
-        .iter()
-        .map(|f| f["report"]["surfels"].as_u64().unwrap_or(0) as usize)
-        .collect();
     if seconds.is_empty() || seconds.iter().any(|s| !s.is_finite()) || pass_frames == 0 {
         return Err(Error::format(&path, "no frame times"));
     }
+    let metrics_path = dir.join("metrics.json");
+    let metrics_text =
+        crate::io::input::read_kind_string(&metrics_path, crate::io::input::InputKind::List)?;
+    let metrics: serde_json::Value = serde_json::from_str(&metrics_text)
+        .map_err(|e| Error::format(&metrics_path, format!("not JSON: {e}")))?;
+    let surfels = map_after_frames(frames, &metrics);
     let n = seconds.len();
     let k = END_FRAMES.min(n);
     let mean_ms = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64 * 1e3;
@@ -122,11 +136,6 @@ pub fn summarise(
     let passes = map_after_pass.len();
     // Frame k belongs to pass (k - 1) / pass_frames (frame 0 to the first).
     let pass_of = |k: usize| (k.saturating_sub(1) / pass_frames).min(passes - 1);
-    let metrics_path = dir.join("metrics.json");
-    let metrics_text =
-        crate::io::input::read_kind_string(&metrics_path, crate::io::input::InputKind::List)?;
-    let metrics: serde_json::Value = serde_json::from_str(&metrics_text)
-        .map_err(|e| Error::format(&metrics_path, format!("not JSON: {e}")))?;
     let mut loops_per_pass = Vec::new();
     if let Some(loops) = metrics["loop_closure"]["loops"].as_array() {
         loops_per_pass = vec![0; passes];

@@ -396,7 +396,7 @@ fn run(first: Option<usize>, last: Option<usize>) -> Result<()> {
             let args = js_sys::Array::of5(
                 &done.into(),
                 &(total as u32).into(),
-                &(f.report.surfels as u32).into(),
+                &(f.report.surfels_before as u32).into(),
                 &(f.seconds * 1e3).into(),
                 &status_words(&f.report.status).into(),
             );

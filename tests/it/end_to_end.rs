@@ -267,7 +267,9 @@ fn empty_and_untrackable_frames_are_reported_not_fused() {
     let empty = vec![0u16; d1.len()];
     let r = slam.process(2, &empty, &c1, None).unwrap();
     assert_eq!(r.status, TrackStatus::EmptyDepth);
-    assert_eq!(r.surfels, surfels, "an empty frame adds nothing");
+    assert_eq!(r.surfels_before, surfels, "the map frame 1 left");
+    let after = slam.backend.surfel_count().unwrap();
+    assert_eq!(after, surfels, "an empty frame adds nothing");
 
     // Keep 40 scattered valid pixels: fewer correspondences than solve::MIN_INLIERS.
     let mut sparse = vec![0u16; d1.len()];
@@ -277,7 +279,9 @@ fn empty_and_untrackable_frames_are_reported_not_fused() {
     }
     let r = slam.process(3, &sparse, &c1, None).unwrap();
     assert!(matches!(r.status, TrackStatus::Lost(_)), "{:?}", r.status);
-    assert_eq!(r.surfels, surfels, "a lost frame is not fused");
+    assert_eq!(r.surfels_before, surfels, "the map an empty frame left");
+    let after = slam.backend.surfel_count().unwrap();
+    assert_eq!(after, surfels, "a lost frame is not fused");
     assert_eq!(r.t_cam_to_world, gt1.unwrap(), "the previous pose is kept");
 
     let (d4, c4) = load(4);

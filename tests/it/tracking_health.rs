@@ -62,10 +62,11 @@ fn bundled_splice_is_lost_then_recovers<B: Backend + Inspect>(backend: B, noisy:
             _ => assert!(st.is_tracked(), "frame {i} lost on clean tracking: {st:?}"),
         }
     }
-    let before = r.frames[26].report.surfels;
-    for f in &r.frames[27..=30] {
+    // The map frame 26 left, which frames 27..=30 (lost, no depth) meet and leave.
+    let before = r.frames[27].report.surfels_before;
+    for f in &r.frames[28..=31] {
         assert_eq!(
-            f.report.surfels, before,
+            f.report.surfels_before, before,
             "frame {} changed the map",
             f.index
         );

@@ -219,10 +219,12 @@ pub trait Backend {
     /// `fuse_merge` (projective) or `fuse_select` + `fuse_merge_chosen` (+ `fuse_prune`
     /// with a prune scale) (best candidate), then `fuse_add` (`surfel_count` and
     /// `capacity` are filled in by the backend, which grows the map first when needed).
-    /// Returns surfels after fusion. A backend that uploads its frames (the GPU's) may upload
-    /// `next`, the next frame's raw images, while the fusion runs, for
-    /// [`Backend::preprocess_staged`]; others ignore it.
-    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize>;
+    /// Returns without waiting for the fusion: the surfels it added are counted by the next
+    /// [`Backend::surfel_count`] (on a GPU, from a read-back that the next frame's first
+    /// wait completes). A backend that uploads its frames (the GPU's) may upload `next`, the
+    /// next frame's raw images, while the fusion runs, for [`Backend::preprocess_staged`];
+    /// others ignore it.
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<()>;
     /// `compact_flags`, `prefix_sum`, then `compact_scatter` into a second map, which
     /// becomes the map: removes the unstable surfels and moves the survivors to the front
     /// in their order (`surfel_count` is filled in by the backend). Returns surfels after.
@@ -238,8 +240,10 @@ pub trait Backend {
     /// valid, that level's size) until the next `predict`: ICP at that level then
     /// registers the frame against them (a loop closure's verification).
     fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()>;
-    /// Surfels in the map.
-    fn surfel_count(&self) -> usize;
+    /// Surfels in the map. After a `fuse`, a GPU learns its count from a read-back: at no
+    /// wait of its own once a later wait (the next ICP iteration's) has completed it, else
+    /// by waiting for the fusion.
+    fn surfel_count(&mut self) -> Result<usize>;
     /// Blocks until all submitted work has finished (for per-stage wall-clock timing;
     /// a no-op for the CPU).
     fn finish(&mut self) -> Result<()> {
@@ -349,7 +353,7 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         (**self).describe_keypoints(what)
     }
-    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<()> {
         (**self).fuse(params, next)
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
@@ -364,7 +368,7 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()> {
         (**self).set_prediction(level, prediction)
     }
-    fn surfel_count(&self) -> usize {
+    fn surfel_count(&mut self) -> Result<usize> {
         (**self).surfel_count()
     }
     fn finish(&mut self) -> Result<()> {

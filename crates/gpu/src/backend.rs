@@ -110,7 +110,9 @@ pub struct GpuBackend {
     /// The view the frame's `index_map` was built at by the last `fuse`, while the map is
     /// as that fusion left it (see [`FusedView`]).
     pub(super) fused_view: Option<FusedView>,
-    /// Surfels in the map (the GPU counter as last read back).
+    /// Surfels in the map (the GPU counter as last read back): while the last `fuse`'s
+    /// read-back of the surfels it added is pending (`counter_readback.is_requested()`),
+    /// the count before that fusion; see [`GpuBackend::settle_count`].
     pub(super) count: usize,
     /// The frame whose raw images the last `fuse` uploaded for `preprocess_staged` (while
     /// they are still in the frame's raw textures).
@@ -301,6 +303,32 @@ impl GpuBackend {
         self.reduction_workgroups
     }
 
+    /// The map's surfel count, after reading the surfels the last `fuse` added when that
+    /// read-back is pending: at no wait when a later wait (the next frame's ICP
+    /// iterations') covered the fusion, else after waiting for it. Every step that needs
+    /// the count calls this first; the frame loop of a tracked frame never waits here.
+    /// [`Error::Capacity`] when the fusion added more than the map's slots (an internal
+    /// contract: `fuse` grows the map first).
+    pub(super) fn settle_count(&mut self) -> Result<usize> {
+        if self.counter_readback.is_requested() {
+            let ctx = &self.ctx;
+            let rb = &mut self.counter_readback;
+            let added = ctx.scoped("fuse", || rb.take(ctx))?[0] as usize;
+            let total = self.count + added;
+            if total > self.capacity() {
+                return Err(Error::Capacity(format!(
+                    "fusion added {added} surfels to {} but only {} slots exist; surfels \
+                     past the capacity were dropped (the host should have grown the map \
+                     first)",
+                    self.count,
+                    self.capacity()
+                )));
+            }
+            self.count = total;
+        }
+        Ok(self.count)
+    }
+
     /// (Re-)creates the per-frame buffers when the frame size or the pyramid's levels
     /// change.
     pub(super) fn ensure_frame(
@@ -413,6 +441,10 @@ impl GpuBackend {
     /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block holding live
     /// surfels, capped by [`GpuContext::block_workgroups_cap`]).
     pub(super) fn chunk_blocks(&self) -> Vec<u32> {
+        debug_assert!(
+            !self.counter_readback.is_requested(),
+            "a count a fusion left pending"
+        );
         let cap = self.ctx.block_workgroups_cap();
         self.map
             .chunks
@@ -427,6 +459,10 @@ impl GpuBackend {
     /// Per map chunk, its live surfels (a `PerSurfel` or `PerChunkPair` row's passes:
     /// `StepGrid::live`).
     pub(super) fn chunk_live(&self) -> Vec<usize> {
+        debug_assert!(
+            !self.counter_readback.is_requested(),
+            "a count a fusion left pending"
+        );
         self.map
             .chunks
             .iter()
@@ -438,6 +474,10 @@ impl GpuBackend {
     /// boxes are stale (see `bounds_dirty_from`), one per chunk holding any; writes their
     /// params and marks the boxes fresh. Planned first in every culling step.
     pub(super) fn stale_bounds_passes(&mut self) -> Vec<(usize, u32)> {
+        debug_assert!(
+            !self.counter_readback.is_requested(),
+            "a count a fusion left pending"
+        );
         let from_block = self.bounds_dirty_from / BLOCK_SURFELS as usize;
         let block = BLOCK_SURFELS as usize;
         let mut out = Vec::new();

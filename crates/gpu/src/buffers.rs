@@ -261,35 +261,82 @@ pub(crate) fn map_read<R>(
     staging: &wgpu::Buffer,
     f: impl FnOnce(&[u8]) -> R,
 ) -> Result<R> {
-    let (mapped, when_mapped) = super::wait::callback();
-    let fired = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let seen = fired.clone();
-    staging.map_async(wgpu::MapMode::Read, .., move |result| {
-        seen.store(true, std::sync::atomic::Ordering::SeqCst);
-        mapped(result)
-    });
-    ctx.wait_idle()?;
-    // Natively the map is settled now: `wait_idle` waited for this context's submission
-    // or, with nothing submitted since its last wait, polled once. Should that poll not
-    // have run the callback, wait for the whole queue rather than block on it for ever.
-    #[cfg(not(target_arch = "wasm32"))]
-    if !fired.load(std::sync::atomic::Ordering::SeqCst) {
-        ctx.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for a read-back: {e}")))?;
+    MapRequest::new(staging).finish(ctx, staging, false, f)
+}
+
+/// The result of a `map_async` as [`super::wait::block_on`] waits for it.
+type MapResult = std::pin::Pin<
+    Box<dyn std::future::Future<Output = std::result::Result<(), wgpu::BufferAsyncError>> + Send>,
+>;
+
+/// A `map_async` of a `MAP_READ` buffer, requested after the submission that fills it and
+/// not yet waited for: a later wait or poll that finds that submission done runs its
+/// callback, and [`MapRequest::finish`] then reads the bytes without a wait of its own.
+pub(crate) struct MapRequest {
+    /// Set by the map's callback.
+    fired: Arc<std::sync::atomic::AtomicBool>,
+    result: MapResult,
+}
+
+impl MapRequest {
+    /// Requests the map of `staging` (valid once every submission using it is done).
+    pub fn new(staging: &wgpu::Buffer) -> Self {
+        let (mapped, when_mapped) = super::wait::callback();
+        let fired = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let seen = fired.clone();
+        staging.map_async(wgpu::MapMode::Read, .., move |result| {
+            seen.store(true, std::sync::atomic::Ordering::SeqCst);
+            mapped(result)
+        });
+        MapRequest {
+            fired,
+            result: Box::pin(when_mapped),
+        }
     }
-    // Natively the wait above ran the callback; in a browser it may still be queued.
-    if let Err(e) = super::wait::block_on(when_mapped) {
-        return Err(Error::Gpu(format!("mapping a read-back buffer: {e}")));
+
+    fn fired(&self) -> bool {
+        self.fired.load(std::sync::atomic::Ordering::SeqCst)
     }
-    let out = {
-        let view = staging
-            .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("reading a mapped buffer: {e}")))?;
-        f(&view)
-    };
-    staging.unmap();
-    Ok(out)
+
+    /// Waits for the map unless its callback has run, hands the bytes of `staging` (the
+    /// buffer it was requested on) to `f`, and unmaps. With `poll_first`, first polls the
+    /// device without blocking, which runs the callback when the work that fills the buffer
+    /// is done though not yet waited for; no wait is counted then.
+    pub fn finish<R>(
+        self,
+        ctx: &GpuContext,
+        staging: &wgpu::Buffer,
+        poll_first: bool,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R> {
+        if poll_first && !self.fired() {
+            ctx.poll_ready()?;
+        }
+        if !self.fired() {
+            ctx.wait_idle()?;
+        }
+        // Natively the map is settled now: `wait_idle` waited for this context's submission
+        // or, with nothing submitted since its last wait, polled once. Should that poll not
+        // have run the callback, wait for the whole queue rather than block on it for ever.
+        #[cfg(not(target_arch = "wasm32"))]
+        if !self.fired() {
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| Error::Gpu(format!("waiting for a read-back: {e}")))?;
+        }
+        // Natively the wait above ran the callback; in a browser it may still be queued.
+        if let Err(e) = super::wait::block_on(self.result) {
+            return Err(Error::Gpu(format!("mapping a read-back buffer: {e}")));
+        }
+        let out = {
+            let view = staging
+                .get_mapped_range(..)
+                .map_err(|e| Error::Gpu(format!("reading a mapped buffer: {e}")))?;
+            f(&view)
+        };
+        staging.unmap();
+        Ok(out)
+    }
 }
 
 /// A read-only storage buffer holding one `T` (a params struct from `crates/core/src/layout/mod.rs`),
@@ -349,6 +396,8 @@ pub struct Readback<T: Pod> {
     capacity: usize,
     /// Elements copied by the last [`Readback::copy_from`].
     pending: usize,
+    /// The map [`Readback::request`] asked for, until [`Readback::take`] reads it.
+    requested: Option<MapRequest>,
     _element: PhantomData<T>,
 }
 
@@ -365,13 +414,20 @@ impl<T: Pod> Readback<T> {
             staging,
             capacity: capacity.max(1),
             pending: 0,
+            requested: None,
             _element: PhantomData,
         }
     }
 
     /// Records a copy of the first `n` elements of `src` into the staging buffer.
-    /// Panics when `n` exceeds either capacity (an internal contract).
+    /// Panics when `n` exceeds either capacity, or while a requested map is not yet taken
+    /// (internal contracts: wgpu refuses a copy into a buffer with a map pending).
     pub fn copy_from(&mut self, encoder: &mut wgpu::CommandEncoder, src: &GpuArray<T>, n: usize) {
+        assert!(
+            self.requested.is_none(),
+            "a copy into `{}`'s read-back while its map is pending",
+            src.label
+        );
         assert!(
             n <= self.capacity && n <= src.capacity(),
             "read-back of {n} elements from `{}` exceeds a capacity",
@@ -393,6 +449,10 @@ impl<T: Pod> Readback<T> {
     ) {
         let size = std::mem::size_of::<T>();
         assert!(
+            self.requested.is_none(),
+            "a copy into a read-back while its map is pending"
+        );
+        assert!(
             n * srcs.len() <= self.capacity && srcs.iter().all(|s| n <= s.capacity()),
             "read-back of {n} elements from each of {} buffers exceeds a capacity",
             srcs.len()
@@ -411,9 +471,44 @@ impl<T: Pod> Readback<T> {
 
     /// Waits for the submitted copy and returns its elements (counted as read-back bytes).
     pub fn read(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
+        let request = self.requested.take();
+        let request = request.unwrap_or_else(|| MapRequest::new(&self.staging));
+        self.finish(ctx, request, false)
+    }
+
+    /// Requests the map of the submitted copy without waiting (call it after the
+    /// submission that holds the copy): a later wait that covers that submission completes
+    /// it, and [`Readback::take`] reads it then at no wait of its own.
+    pub fn request(&mut self) {
+        if self.requested.is_none() {
+            self.requested = Some(MapRequest::new(&self.staging));
+        }
+    }
+
+    /// Whether a map was requested and not yet taken.
+    pub fn is_requested(&self) -> bool {
+        self.requested.is_some()
+    }
+
+    /// The submitted copy's elements as [`Readback::read`] returns them, but without a
+    /// wait when the work that made them is done already (a later wait covered it, or the
+    /// device finished it since): the map is requested if it was not, the device polled
+    /// without blocking, and waited for only if the copy is still in flight.
+    pub fn take(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
+        self.request();
+        let request = self.requested.take().expect("just requested");
+        self.finish(ctx, request, true)
+    }
+
+    fn finish(
+        &mut self,
+        ctx: &GpuContext,
+        request: MapRequest,
+        poll_first: bool,
+    ) -> Result<Vec<T>> {
         let n = std::mem::take(&mut self.pending);
         let bytes = n * std::mem::size_of::<T>();
-        let out = map_read(ctx, &self.staging, |view| {
+        let out = request.finish(ctx, &self.staging, poll_first, |view| {
             bytemuck::pod_collect_to_vec::<u8, T>(&view[..bytes])
         })?;
         ctx.stats_handle().readback(bytes as u64);

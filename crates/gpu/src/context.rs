@@ -511,6 +511,17 @@ impl GpuContext {
         d.drain(..).map(|(_, c)| c).collect()
     }
 
+    /// Runs the map callbacks of work the device has finished, without blocking and
+    /// without counting a wait (a read-back whose work a later wait may already have
+    /// covered; see `Readback::take`). In a browser nothing runs them but the event loop.
+    pub fn poll_ready(&self) -> Result<()> {
+        #[cfg(not(target_arch = "wasm32"))]
+        self.device
+            .poll(wgpu::PollType::Poll)
+            .map_err(|e| Error::Gpu(format!("polling the GPU: {e}")))?;
+        Ok(())
+    }
+
     /// Blocks until the work this context submitted is done, deferred steps submitted
     /// first; device loss or a timeout is [`Error::Gpu`]. Natively, when another context
     /// sharing the queue is already blocked in a device wait that covers this context's

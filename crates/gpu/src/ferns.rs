@@ -3,10 +3,11 @@
 //! bound by its registry row over [`bindings`]) and the read-back of one `u32` code per
 //! fern (2 KB for the default 500 ferns). The step itself is in `super::single_steps`.
 //!
-//! Fern codes read only the frame's maps, not the surfel map, so `fuse` records the
-//! encoding with the last call's parameters into its own submission ([`record_ahead`]);
-//! the pipeline's `encode_ferns` after it then only reads the codes back, one round trip
-//! less per frame. `preprocess` drops codes recorded ahead (they belong to the last frame).
+//! Fern codes read only the frame's maps, not the surfel map, so `preprocess` records the
+//! encoding with the last call's parameters after its own kernels ([`record_ahead`]),
+//! and the codes' copy goes with the first ICP iteration's submission. The pipeline's
+//! `encode_ferns` after the fusion then only takes the codes (`Readback::take`): the ICP
+//! read-backs' waits covered them, so it waits for nothing, not even the fusion.
 
 use super::bind_groups::{BindGroups, OnDemand};
 use super::buffers::{GpuArray, Readback};
@@ -32,7 +33,7 @@ pub(super) struct FernBuffers {
     /// The parameters of the last encoding, which [`record_ahead`] repeats.
     pub last: Option<FernParams>,
     /// Set when the codes of the frame now in the frame buffers, with these parameters,
-    /// were recorded ahead into a submission and copied to `readback`.
+    /// were recorded ahead (by its `preprocess`) and copied to `readback`.
     pub(super) ahead: Option<FernParams>,
 }
 
@@ -65,7 +66,8 @@ pub(super) fn bindings(b: Option<&FernBuffers>) -> OnDemand<'_> {
 /// Records `fern_encode` with the last encoding's parameters (if there was one: still in
 /// `Uniforms::ferns`) over the frame's maps, `frame` `[width, height]` pixels, into `enc`,
 /// and the codes' copy to the read-back, so the next `encode_ferns` with those parameters
-/// reads them without a submission of its own.
+/// reads them without a submission of its own. Codes recorded for an earlier frame are
+/// forgotten either way.
 pub(super) fn record_ahead(
     ctx: &GpuContext,
     (k, bg): (&Kernels, &BindGroups),
@@ -77,6 +79,7 @@ pub(super) fn record_ahead(
     let Some(b) = ferns.as_mut() else {
         return Ok(());
     };
+    b.ahead = None;
     let Some(params) = b.last else {
         return Ok(());
     };

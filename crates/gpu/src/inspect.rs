@@ -19,6 +19,7 @@ fn read_map(ctx: &GpuContext, image: &GpuImage) -> Result<Vec<[f32; 4]>> {
 
 impl Inspect for GpuBackend {
     fn download_map(&mut self) -> Result<SurfelMap> {
+        self.settle_count()?;
         let (ctx, m) = (&self.ctx, &self.map);
         ctx.scoped("download map", || {
             let map = m.download(ctx, self.count)?;
@@ -33,6 +34,8 @@ impl Inspect for GpuBackend {
         map.assert_consistent();
         // The writes below would land before a deferred step (see `GpuContext::defer`).
         self.ctx.flush();
+        // A fusion's pending count is read (and replaced below) before the map changes.
+        self.settle_count()?;
         let n = map.len();
         self.ensure_capacity(n)?;
         let (ctx, m) = (&self.ctx, &mut self.map);

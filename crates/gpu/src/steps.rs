@@ -3,12 +3,14 @@
 //! ([`wgslam_core::plan`]; once per map chunk for the kernels that walk the map) in one
 //! command buffer, and reads back at most the ICP system or the surfel counter.
 //! `preprocess` and `predict` read nothing back: their commands are deferred and go with
-//! the first ICP iteration's submission (see `GpuContext::defer`), so a tracked frame
-//! costs one submit-and-wait per ICP iteration, then `count_candidates`, `fuse` and
-//! `fern_encode` one each; every other step first submits what is deferred. `fuse` also
-//! uploads the next frame's raw images when the pipeline hands them over, between its
-//! submission and its wait, so the copy overlaps the fusion rather than following it
-//! (`preprocess_staged` then skips the upload).
+//! the first ICP iteration's submission (see `GpuContext::defer`); every other step first
+//! submits what is deferred. `fuse` submits and does not wait: the count of surfels it
+//! added is mapped when a later wait finds the fusion done (`GpuBackend::settle_count`),
+//! and the fern codes were recorded by `preprocess` and read after the ICP waits covered
+//! them. So a tracked frame waits once per ICP iteration and once for `count_candidates`
+//! (and for `compact` on its frames). `fuse` also uploads the next frame's raw images
+//! when the pipeline hands them over, after its submission, so the copy overlaps the
+//! fusion rather than following it (`preprocess_staged` then skips the upload).
 
 use super::backend::GpuBackend;
 use super::context::GpuContext;
@@ -55,13 +57,16 @@ impl Backend for GpuBackend {
             self.ctx.flush();
         }
         let mut params = *params;
-        params.surfel_count = self.count as u32;
         let project = !self.fused_view.is_some_and(|v| v.is_view_of(&params));
         if project {
             // The index map is about to hold another view (a relocalisation attempt
-            // predicts at a keyframe's pose): the fused one is gone.
+            // predicts at a keyframe's pose): the fused one is gone. Projecting the map
+            // needs its size, which may wait for the last fusion (`settle_count`); at the
+            // fused view `predict_model` reads the fusion's index map and no count.
             self.fused_view = None;
+            self.settle_count()?;
         }
+        params.surfel_count = self.count as u32;
         let f = self.frame();
         let made: Vec<(u32, u32)> = f.levels.iter().map(|l| (l.width, l.height)).collect();
         let asked: Vec<(u32, u32)> = pyramid
@@ -76,8 +81,8 @@ impl Backend for GpuBackend {
         let plan = plan::predict(project, pyramid.len());
         let levels = f.levels.iter().map(|l| [l.width, l.height]).collect();
         let mut grid = StepGrid::new(&self.ctx, [f.width, f.height], levels);
-        grid.chunks = self.chunk_blocks();
-        if plan.contains(&PredictCall::BlockBounds) {
+        if project {
+            grid.chunks = self.chunk_blocks();
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
@@ -135,8 +140,9 @@ impl Backend for GpuBackend {
         self.describe_keypoints_on_gpu(what.params, what.keypoints, what.pattern)
     }
 
-    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<()> {
         self.ctx.flush();
+        self.settle_count()?;
         let n = self.frame().pixels();
         self.fused_view = None;
         self.ensure_capacity(self.count + n)?;
@@ -152,7 +158,7 @@ impl Backend for GpuBackend {
             grid.bounds = self.stale_bounds_passes();
         }
         let (ctx, k, bg, profiler, f, u) = encoding_parts!(self);
-        let (added, staged) = ctx.scoped("fuse", || {
+        let staged = ctx.scoped("fuse", || {
             u.fuse.write(ctx, &params);
             u.scan.write(ctx, &scan_params(f.add_flags.len()));
             let mut enc = ctx.encoder("fuse");
@@ -180,33 +186,23 @@ impl Backend for GpuBackend {
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
             self.counter_readback.copy_from(&mut enc, &self.counter, 1);
-            let ferns = &mut self.ferns;
-            let size = [f.width, f.height];
-            super::ferns::record_ahead(ctx, (k, bg), ferns, size, profiler, &mut enc)?;
             submit_profiled(ctx, profiler, enc)?;
-            // While the fusion runs, rather than after its wait: the next frame's images.
-            let staged = stage_next(ctx, f, next)?;
-            Ok((self.counter_readback.read(ctx)?[0] as usize, staged))
+            // No wait: the count of surfels added is mapped when a later wait (the next
+            // frame's first ICP iteration's) finds the fusion done (`settle_count`).
+            self.counter_readback.request();
+            // While the fusion runs: the next frame's images.
+            stage_next(ctx, f, next)
         })?;
         self.staged_frame = staged;
-        let total = self.count + added;
-        if total > params.capacity as usize {
-            return Err(Error::Capacity(format!(
-                "fusion added {added} surfels to {} but only {} slots exist; surfels past \
-                 the capacity were dropped (the host should have grown the map first)",
-                self.count, params.capacity
-            )));
-        }
         // The blocks from the one that held the old last surfel on have new surfels.
         self.bounds_dirty_from = self.bounds_dirty_from.min(self.count);
-        self.count = total;
         self.fused_view = FusedView::of_fuse(&params);
-        Ok(total)
+        Ok(())
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
         self.ctx.flush();
-        let n = self.count;
+        let n = self.settle_count()?;
         if n == 0 {
             return Ok(0);
         }
@@ -252,6 +248,7 @@ impl Backend for GpuBackend {
 
     fn deform(&mut self, nodes: &[DeformNode]) -> Result<()> {
         self.ctx.flush();
+        self.settle_count()?;
         self.deform_on_gpu(nodes)
     }
 
@@ -265,8 +262,8 @@ impl Backend for GpuBackend {
         self.set_prediction_on_gpu(level, vertex, normal)
     }
 
-    fn surfel_count(&self) -> usize {
-        self.count
+    fn surfel_count(&mut self) -> Result<usize> {
+        self.settle_count()
     }
 
     fn finish(&mut self) -> Result<()> {
@@ -288,10 +285,6 @@ impl GpuBackend {
         self.ctx.flush();
         // Whatever was staged is overwritten now, or read by this very step.
         self.staged_frame = None;
-        if let Some(b) = &mut self.ferns {
-            // Codes recorded ahead by the last fuse are the last frame's.
-            b.ahead = None;
-        }
         self.ensure_frame(&steps.params, &steps.pyramid)?;
         // A new frame: its intensity pyramid is made by the first `rgbd_system`.
         self.systems.intensity_made = 0;
@@ -326,6 +319,10 @@ impl GpuBackend {
                 let passes = grid.generic(k, bg, call);
                 record_call(ctx, profiler, &mut enc, call.name(), &passes)?;
             }
+            // The frame's fern codes, read after its fusion (`encode_ferns`) once the ICP
+            // read-backs' waits have covered them.
+            let ferns = &mut self.ferns;
+            super::ferns::record_ahead(ctx, (k, bg), ferns, [w, h], profiler, &mut enc)?;
             defer_profiled(ctx, profiler, "preprocess", enc)
         })
     }

@@ -368,7 +368,9 @@ fn diff_frame<A: Backend + Inspect, B: Backend + Inspect>(
         pose_diff_mm: mm,
         pose_diff_deg: deg,
         fused_surfels,
-        surfels: (ra.surfels, rb.surfels),
+        // After the frame (its report has the count before it): on a GPU a wait for the
+        // fusion, which `compare`'s lockstep makes anyway.
+        surfels: (sa.backend.surfel_count()?, sb.backend.surfel_count()?),
         map: None,
         fusion,
         decisions,

@@ -122,7 +122,7 @@ impl Backend for PerturbedCpu {
     fn describe_keypoints(&mut self, what: ToDescribe) -> Result<Described> {
         self.run(|b| b.describe_keypoints(what))
     }
-    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<usize> {
+    fn fuse(&mut self, params: &FuseParams, next: Option<NextFrame<'_>>) -> Result<()> {
         self.run(|b| b.fuse(params, next))
     }
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
@@ -137,7 +137,7 @@ impl Backend for PerturbedCpu {
     fn set_prediction(&mut self, level: usize, prediction: &Prediction) -> Result<()> {
         self.run(|b| b.set_prediction(level, prediction))
     }
-    fn surfel_count(&self) -> usize {
+    fn surfel_count(&mut self) -> Result<usize> {
         self.inner.surfel_count()
     }
 }

@@ -78,8 +78,10 @@ fn fuse_matches_twins(mut gpu: GpuBackend, profile: Profile, chunk_surfels: Opti
         fp.dist_confident_m = NARROWING_GATE_M;
         check_fuse_select(&mut gpu, &before, &s.backend.download_frame().unwrap(), &fp);
     }
-    let n_cpu = s.backend.fuse(&fp, None).unwrap();
-    let n_gpu = gpu.fuse(&fp, None).unwrap();
+    s.backend.fuse(&fp, None).unwrap();
+    gpu.fuse(&fp, None).unwrap();
+    let n_cpu = s.backend.surfel_count().unwrap();
+    let n_gpu = gpu.surfel_count().unwrap();
     let c = s.backend.download_map().unwrap();
     let g = gpu.download_map().unwrap();
     assert_eq!((c.len(), g.len()), (n_cpu, n_gpu));

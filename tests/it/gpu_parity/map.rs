@@ -42,12 +42,15 @@ fn map_grows_from_a_tiny_capacity(ctx: GpuContext) {
     eprintln!(
         "capacity grew 1024 -> {cap} in {} chunks; surfels cpu {} gpu {}",
         g.backend.map_chunks(),
-        c.backend.surfel_count(),
-        g.backend.surfel_count()
+        c.backend.surfel_count().unwrap(),
+        g.backend.surfel_count().unwrap()
     );
     assert!(g.backend.map_chunks() > 1, "the map grew past one chunk");
-    assert!(cap >= g.backend.surfel_count() + 76_800);
-    let (nc, ng) = (c.backend.surfel_count(), g.backend.surfel_count());
+    assert!(cap >= g.backend.surfel_count().unwrap() + 76_800);
+    let (nc, ng) = (
+        c.backend.surfel_count().unwrap(),
+        g.backend.surfel_count().unwrap(),
+    );
     check_count("surfels", nc, ng, RUN_SURFEL_FRACTION_TOL);
     // The first frame's surfels survived every grow-by-copy: compare them sorted.
     let (cm, gm) = (

@@ -11,9 +11,8 @@ use crate::plan::{self, Buffer, Call, FuseCall};
 use crate::registry::{KernelId, Scanned};
 
 impl CpuBackend {
-    /// `Backend::fuse` on the CPU: the plan's kernels over the frame's maps and the map;
-    /// the map's new length.
-    pub(super) fn fuse_step(&mut self, params: &FuseParams) -> usize {
+    /// `Backend::fuse` on the CPU: the plan's kernels over the frame's maps and the map.
+    pub(super) fn fuse_step(&mut self, params: &FuseParams) {
         let n_pix = (params.camera.width * params.camera.height) as usize;
         let count = self.map.len();
         let mut params = *params;
@@ -29,7 +28,6 @@ impl CpuBackend {
         // The blocks from the one that held the old last surfel on have new surfels.
         self.bounds_dirty_from = self.bounds_dirty_from.min(count);
         self.fused_view = FusedView::of_fuse(&params);
-        new_len
     }
 
     /// One call of `fuse`'s plan: a buffer cleared, or a kernel's twin run over the frame's

@@ -276,10 +276,11 @@ impl Backend for CpuBackend {
         Ok((descriptors, points))
     }
 
-    fn fuse(&mut self, params: &FuseParams, _next: Option<NextFrame<'_>>) -> Result<usize> {
+    fn fuse(&mut self, params: &FuseParams, _next: Option<NextFrame<'_>>) -> Result<()> {
         // Nothing to upload ahead: `preprocess` reads the images where they are.
         // The step's twins on this backend's threads (`cpu::invocations::Threads`).
-        self.threads.clone().install(|| Ok(self.fuse_step(params)))
+        self.threads.clone().install(|| self.fuse_step(params));
+        Ok(())
     }
 
     fn compact(&mut self, params: &CompactParams) -> Result<usize> {
@@ -366,8 +367,8 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn surfel_count(&self) -> usize {
-        self.map.len()
+    fn surfel_count(&mut self) -> Result<usize> {
+        Ok(self.map.len())
     }
 }
 
