@@ -78,6 +78,22 @@ pub fn par_for_each_group(
         .for_each(body);
 }
 
+/// `data` as `n` copies of `value` (a buffer cleared before a step, as the GPU clears
+/// one), written in parallel in tasks of [`INVOCATIONS_PER_TASK`]; in order on this thread
+/// where `arith` says so. Only a change of length allocates.
+pub fn par_fill<T: Copy + Send + Sync>(data: &mut Vec<T>, n: usize, value: T) {
+    data.truncate(n);
+    let kept = data.len();
+    data.resize(n, value);
+    let old = &mut data[..kept];
+    if in_order_here() {
+        old.fill(value);
+        return;
+    }
+    old.par_chunks_mut(INVOCATIONS_PER_TASK)
+        .for_each(|chunk| chunk.fill(value));
+}
+
 /// `data` as atomic words that invocations on many threads may raise or write (relaxed):
 /// the CPU side of a WGSL `array<atomic<u32>>`, held for as long as the borrow of `data`.
 pub fn atomic_words(data: &mut [u32]) -> &[AtomicU32] {

@@ -174,8 +174,7 @@ impl Backend for CpuBackend {
                 match call {
                     PredictCall::BlockBounds => self.refresh_bounds(call),
                     PredictCall::ClearIndexMap => {
-                        self.index_map.clear();
-                        self.index_map.resize(n, 0);
+                        crate::cpu::invocations::par_fill(&mut self.index_map, n, 0);
                     }
                     PredictCall::ProjectModel => self.dispatch(call, step),
                     PredictCall::PredictModel => {
