@@ -7,6 +7,7 @@
 //! whatever the order.
 
 use super::binding::{twin, Binding};
+use super::invocations::{par_for_each_group, Storage};
 use super::prefix_sum_blocks::prefix_sum_blocks;
 use super::prefix_sum_reduce::{hillis_steele_inclusive, prefix_sum_reduce};
 pub use super::prefix_sum_reduce::{scan_blocks, SCAN_BLOCK, SCAN_ITEMS, SCAN_THREADS};
@@ -24,7 +25,12 @@ twin! {
         offsets: &mut [u32],
     ) {
         let n = params.surfel_count;
-        for wid in 0..n.div_ceil(SCAN_BLOCK) {
+        let offsets = Storage::new(offsets);
+        // The workgroups on every thread, each writing its own block's offsets, weighed by
+        // the SCAN_BLOCK flags each walks.
+        let blocks = n.div_ceil(SCAN_BLOCK) as usize;
+        par_for_each_group(blocks, SCAN_BLOCK as usize, |wid| {
+            let wid = wid as u32;
             let range = |t: u32| {
                 let begin = (wid * SCAN_BLOCK + t * SCAN_ITEMS).min(n);
                 begin..(begin + SCAN_ITEMS).min(n)
@@ -36,11 +42,11 @@ twin! {
             for t in 0..SCAN_THREADS {
                 let mut running = block_sums[wid as usize] + sums[t as usize] - own[t as usize];
                 for i in range(t) {
-                    offsets[i as usize] = running;
+                    offsets.store(i as usize, running);
                     running += flags[i as usize];
                 }
             }
-        }
+        });
     }
 }
 
