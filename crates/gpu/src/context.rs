@@ -185,8 +185,13 @@ pub struct GpuContext {
 }
 
 /// Objects built once per device by key (a kernel's name, or its name and its passes),
-/// each of the type its key's callers ask for.
-type DeviceCache = std::collections::HashMap<String, Box<dyn std::any::Any + Send>>;
+/// each of the type its key's callers ask for, in a slot of its own (empty while its first
+/// build runs, or after that build failed).
+type DeviceCache = std::collections::HashMap<String, CacheSlot>;
+
+/// One key's entry of [`DeviceCache`]: locked while its object is built, so threads asking
+/// for the same key wait for that one build, and threads asking for other keys do not.
+type CacheSlot = Arc<Mutex<Option<Box<dyn std::any::Any + Send>>>>;
 
 impl std::fmt::Debug for GpuContext {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -356,22 +361,28 @@ impl GpuContext {
     /// The object stored under `key` on this device, built by `build` (and stored) the
     /// first time: pipelines cost 60-130 ms each on lavapipe, and a batch's concurrent jobs
     /// ([`GpuContext::share`]) need the same ones (`Kernel::new` caches through this).
-    /// Threads asking at once build once. Panics when one key is asked for as two types
-    /// (a broken internal contract).
+    /// Threads asking for one key at once build it once; threads asking for different keys
+    /// build them at the same time (`Kernels::new` builds the kernels on every core). A
+    /// failed build stores nothing, so the next caller tries again. Panics when one key is
+    /// asked for as two types (a broken internal contract).
     pub(crate) fn cached<T: Clone + Send + 'static>(
         &self,
         key: &str,
         build: impl FnOnce() -> Result<T>,
     ) -> Result<T> {
-        let mut cache = self.cache.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some(stored) = cache.get(key) {
+        let slot = {
+            let mut cache = self.cache.lock().unwrap_or_else(|p| p.into_inner());
+            Arc::clone(cache.entry(key.to_string()).or_default())
+        };
+        let mut stored = slot.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(stored) = stored.as_ref() {
             let typed = stored.downcast_ref::<T>();
             return Ok(typed
                 .unwrap_or_else(|| panic!("device cache key `{key}` asked for as two types"))
                 .clone());
         }
         let built = build()?;
-        cache.insert(key.to_string(), Box::new(built.clone()));
+        *stored = Some(Box::new(built.clone()));
         Ok(built)
     }
 
