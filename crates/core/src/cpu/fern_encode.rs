@@ -16,6 +16,7 @@
 //! [`FERN_NO_DEPTH`]: crate::layout::FERN_NO_DEPTH
 
 use super::binding::twin;
+use super::invocations::{par_for_each_group, Storage};
 use crate::layout::{Fern, FernParams, FERN_NO_DEPTH};
 
 /// The code of `fern`. Mirrors `fern_code` in fern_encode.wgsl.
@@ -71,10 +72,14 @@ twin! {
         assert!(normal_depth.len() == pixels && color_map.len() == pixels);
         let n = params.fern_count as usize;
         assert!(ferns.len() >= n && codes.len() >= n);
-        // The shader's grid-stride loop as one thread with stride 1.
-        for i in 0..n {
-            codes[i] = fern_code(params, &ferns[i], normal_depth, color_map);
-        }
+        // The shader's grid-stride loop over the ferns, on every thread, each fern writing
+        // its own code, weighed by the pixels of its cell (500 cells of 1600 pixels at
+        // 640x480 took 0.6 ms a frame on one thread).
+        let codes = Storage::new(&mut codes[..n]);
+        let cell = (params.cell_width * params.cell_height) as usize;
+        par_for_each_group(n, cell, |i| {
+            codes.store(i, fern_code(params, &ferns[i], normal_depth, color_map));
+        });
     }
 }
 
