@@ -329,6 +329,15 @@ impl GpuBackend {
         Ok(self.count)
     }
 
+    /// Debug builds: panics when the last fusion's count is still pending, in a helper
+    /// that reads `count` (its caller should have called [`GpuBackend::settle_count`]).
+    fn debug_assert_count_settled(&self) {
+        debug_assert!(
+            !self.counter_readback.is_requested(),
+            "a count a fusion left pending"
+        );
+    }
+
     /// (Re-)creates the per-frame buffers when the frame size or the pyramid's levels
     /// change.
     pub(super) fn ensure_frame(
@@ -441,10 +450,7 @@ impl GpuBackend {
     /// `fuse_select`, `fuse_merge`, `fuse_prune`: one workgroup per block holding live
     /// surfels, capped by [`GpuContext::block_workgroups_cap`]).
     pub(super) fn chunk_blocks(&self) -> Vec<u32> {
-        debug_assert!(
-            !self.counter_readback.is_requested(),
-            "a count a fusion left pending"
-        );
+        self.debug_assert_count_settled();
         let cap = self.ctx.block_workgroups_cap();
         self.map
             .chunks
@@ -459,10 +465,7 @@ impl GpuBackend {
     /// Per map chunk, its live surfels (a `PerSurfel` or `PerChunkPair` row's passes:
     /// `StepGrid::live`).
     pub(super) fn chunk_live(&self) -> Vec<usize> {
-        debug_assert!(
-            !self.counter_readback.is_requested(),
-            "a count a fusion left pending"
-        );
+        self.debug_assert_count_settled();
         self.map
             .chunks
             .iter()
@@ -474,10 +477,7 @@ impl GpuBackend {
     /// boxes are stale (see `bounds_dirty_from`), one per chunk holding any; writes their
     /// params and marks the boxes fresh. Planned first in every culling step.
     pub(super) fn stale_bounds_passes(&mut self) -> Vec<(usize, u32)> {
-        debug_assert!(
-            !self.counter_readback.is_requested(),
-            "a count a fusion left pending"
-        );
+        self.debug_assert_count_settled();
         let from_block = self.bounds_dirty_from / BLOCK_SURFELS as usize;
         let block = BLOCK_SURFELS as usize;
         let mut out = Vec::new();
