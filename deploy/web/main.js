@@ -1,22 +1,24 @@
 // The page's driver. First it checks what the browser offers (a secure context, WebGPU, an
-// adapter, JSPI), before fetching the module or any data, and says what to do when
+// adapter), before fetching the module or any data, and says what to do when
 // something is missing. Then the user picks the data (the bundled frames, a folder from the
 // picker, or a dropped folder), a frame range and a profile, and runs: the module opens the
 // folder with the command line's dataset code (src/web: the file list goes over up front,
 // each file's bytes are read from the browser only when a frame needs them), runs dense
-// SLAM through `WebAssembly.promising` (every GPU wait and file read suspends the module,
-// see crates/gpu/src/wait.rs), and calls back after each frame with the input frame's pictures and,
+// SLAM through suspend.js's `call` (every GPU wait and file read suspends the module, through
+// JSPI where the browser has it, else through the asyncify build; see crates/gpu/src/wait.rs), and calls back after each frame with the input frame's pictures and,
 // every few frames, the map drawn from the user's view. Afterwards: the command line's
 // summary, the trajectory plot, the outputs to download and the map to turn.
 //
 // Query parameters: `frames=A..B`, `profile=robust|assignment` and `camera=fr1` (a preset
 // or fx,fy,cx,cy) prefill the controls;
-// `run=bundled` starts a run on the bundled frames at once.
+// `run=bundled` starts a run on the bundled frames at once; `wait=asyncify` uses the asyncify
+// build even where the browser has JSPI.
 // For scripts (deploy/web/test): `document.body.dataset.state` is `ready` (waiting for the
 // user), `running`, `done` or `error`; `window.wgslam` holds `{ state, error, result,
-// wallSeconds, adapterName, suspensions, renders }`.
+// wallSeconds, adapterName, suspensions, renders, wait }` (wait: "jspi" or "asyncify").
 
 import { drawTrajectory } from "./plot.js";
+import * as suspending from "wgslam_suspend";
 import { filesOfInput, filesOfDrop } from "./picker.js";
 
 const BUNDLED_ROOT = "assets/icl_living_room_kt2";
@@ -55,12 +57,6 @@ async function preflight() {
       "or later; on Linux, start Chromium with --enable-unsafe-webgpu (WebGPU is off there " +
       "by default); in Firefox, set dom.webgpu.enabled; in Safari, turn on WebGPU under " +
       "Develop > Feature Flags."
-    );
-  }
-  if (typeof WebAssembly.promising !== "function" || typeof WebAssembly.Suspending !== "function") {
-    return (
-      "this browser lacks JavaScript Promise Integration (WebAssembly.promising), which the " +
-      "page uses to wait for the GPU: use Chrome or Chromium 137 or later."
     );
   }
   const adapter = await navigator.gpu.requestAdapter();
@@ -132,8 +128,16 @@ async function main() {
   const missing = await preflight();
   if (missing) return fail(missing);
   say("loading the WebAssembly module…");
+  // JSPI where the browser has it (the browser keeps suspended stacks); else the asyncify
+  // build, which unwinds and rewinds its own (about half again as large, and slower).
+  const wait = new URLSearchParams(location.search).get("wait") === "asyncify" || !suspending.hasJspi
+    ? "asyncify"
+    : "jspi";
+  window.wgslam.wait = wait;
+  const file = suspending.choose(wait);
   mod = await import("./pkg/wgslam.js");
-  wasm = await mod.default({ module_or_path: new URL("./pkg/wgslam_bg.wasm", import.meta.url) });
+  wasm = await mod.default({ module_or_path: new URL(`./pkg/${file}`, import.meta.url) });
+  suspending.attach(wasm);
   mod.set_progress(onProgress);
   mod.set_frame_view(onFrame);
 
@@ -209,7 +213,7 @@ async function run() {
   const t0 = performance.now();
   let rc;
   try {
-    rc = await WebAssembly.promising(wasm.wgslam_web_run)(range[0], range[1]);
+    rc = await suspending.call(wasm.wgslam_web_run, range[0], range[1]);
   } finally {
     busy = false;
     $("controls").disabled = false;
@@ -226,7 +230,7 @@ async function run() {
     `read ${window.wgslam.filesRead} files, ${(window.wgslam.bytesRead / 1e6).toFixed(1)} MB of the ` +
       `${(data.files.reduce((s, f) => s + f.size, 0) / 1e6).toFixed(1)} MB listed`,
     `wall time ${wallSeconds.toFixed(1)} s in this tab; ${globalThis.wgslamSuspensions} waits ` +
-      `for the GPU or a file (JSPI suspensions), ` +
+      `for the GPU or a file (suspensions through ${window.wgslam.wait === "jspi" ? "JSPI" : "asyncify"}), ` +
       `${(globalThis.wgslamSuspensions / result.metrics.frames).toFixed(0)} per frame`,
   ].join("\n");
   plot(result);
@@ -332,7 +336,7 @@ async function redraw() {
     do {
       again = false;
       mod.set_orbit(view.yaw, view.pitch, view.zoom, view.pan[0], view.pan[1]);
-      const rc = await WebAssembly.promising(wasm.wgslam_web_render)();
+      const rc = await suspending.call(wasm.wgslam_web_render);
       if (rc !== 0) return fail(mod.last_error() ?? "the map could not be drawn");
       showMap();
     } while (again);

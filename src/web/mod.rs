@@ -8,9 +8,11 @@
 //! and every reader, over the page's files: `files.rs`), the run is [`run_observed`] on a
 //! [`GpuBackend`], as on the command line. What differs is how waits happen (see
 //! [`crate::gpu::wait`]): every GPU wait and every file read suspends the WebAssembly stack
-//! through JSPI, so the entry points that wait, [`wgslam_web_run`] and
-//! [`wgslam_web_render`], are plain WebAssembly exports (no wasm-bindgen wrapper) that the
-//! page calls through `WebAssembly.promising`, one at a time. The others return at once.
+//! (through JSPI, or through Binaryen's asyncify where the browser lacks JSPI), so the entry
+//! points that wait, [`wgslam_web_run`] and [`wgslam_web_render`], are plain WebAssembly
+//! exports (no wasm-bindgen wrapper) that the page calls through its suspending wrapper
+//! (`call` in `deploy/web/suspend.js`), one at a time. The others return at once;
+//! [`wgslam_suspend_stack`] gives the asyncify build its buffer.
 //!
 //! Calling order: [`clear_files`], [`add_file`] for every file of the folder, [`set_reader`],
 //! [`configure`]; optionally [`set_progress`] and [`set_frame_view`]; `wgslam_web_run`
@@ -297,7 +299,8 @@ struct WebResult<'a> {
 /// default, the first frame with ground truth; a negative `last`: the last frame) of the
 /// folder [`configure`] named, with its profile's parameters and tracked poses, on the
 /// WebGPU adapter. Returns 0 on success, 1 on an error ([`last_error`]). Must be called
-/// through `WebAssembly.promising` (it suspends while the GPU works and files are read).
+/// through the page's suspending wrapper (it suspends while the GPU works and files are
+/// read).
 #[no_mangle]
 pub extern "C" fn wgslam_web_run(first: i32, last: i32) -> u32 {
     set_panic_hook();
@@ -317,7 +320,7 @@ pub extern "C" fn wgslam_web_run(first: i32, last: i32) -> u32 {
 
 /// Draws the finished run's map from the orbit of [`set_orbit`] into [`render_rgba`].
 /// Returns 0 on success, 1 on an error or without a finished run ([`last_error`]). Must be
-/// called through `WebAssembly.promising`, never while [`wgslam_web_run`] runs.
+/// called through the page's suspending wrapper, never while [`wgslam_web_run`] runs.
 #[no_mangle]
 pub extern "C" fn wgslam_web_render() -> u32 {
     set_panic_hook();
@@ -346,6 +349,20 @@ fn finish(result: Result<()>) -> u32 {
 
 /// A panic aborts the module (a trap, which rejects the page's promise) and prints nothing
 /// on wasm32: its message goes where the page looks, `globalThis.wgslamPanic`.
+/// Room for `bytes` bytes (8-byte aligned, zeroed, never freed) in the module's memory, at
+/// the address returned: the asyncify build's buffer, where a suspended stack's functions
+/// keep their locals until it resumes (`deploy/web/suspend.js` asks for it once). Returns 0
+/// when `bytes` is 0.
+#[no_mangle]
+pub extern "C" fn wgslam_suspend_stack(bytes: u32) -> u32 {
+    if bytes == 0 {
+        return 0;
+    }
+    let words = vec![0u64; bytes.div_ceil(8) as usize];
+    // wasm32: an address is 32 bits.
+    Vec::leak(words).as_mut_ptr() as usize as u32
+}
+
 fn set_panic_hook() {
     std::panic::set_hook(Box::new(|info| {
         let _ = js_sys::Reflect::set(

@@ -28,7 +28,7 @@
 //!   registration's), each plan call bound over its caller's pool by the kernel's row.
 //! - [`pipeline_cache`]: the pipelines' cache across processes, in the user's cache folder.
 //! - [`test_support`]: skip-or-require logic shared by every GPU test.
-//! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI).
+//! - [`wait`]: waiting for wgpu's futures and callbacks, natively and in a browser (JSPI or asyncify).
 
 // The floor below, under the paths the modules use (`crate::layout`).
 pub(crate) use wgslam_core::{layout, Error, Result};

@@ -8,14 +8,25 @@
 //! the JavaScript event loop, which runs only when WebAssembly returns to it; a thread that
 //! blocked or spun would wait for ever. Rather than turn the pipeline and its backend trait
 //! async (every step, every read-back), the synchronous code stays as it is and a wait
-//! *suspends the WebAssembly stack* through JavaScript Promise Integration (JSPI): the
-//! module imports `suspend` and `wake` from the module `wgslam_jspi` (the page's
-//! `deploy/web/jspi.js`); `suspend` is a `WebAssembly.Suspending` function returning a
-//! promise that `wake` resolves, and the page calls the run through
-//! `WebAssembly.promising`. While suspended, the event loop runs, WebGPU's callbacks fire
-//! and wake the future's waker, which calls `wake`, and the stack resumes where it left
-//! off. Only entry points called through `WebAssembly.promising` may wait (else the
-//! browser throws `SuspendError`).
+//! *suspends the WebAssembly stack*: the module imports `suspend` and `wake` from the module
+//! `wgslam_suspend` (the page's `deploy/web/suspend.js`). [`block_on`] polls the future and,
+//! while it is pending, calls `suspend`; the future's waker calls `wake`. While the stack is
+//! suspended the event loop runs, WebGPU's callbacks fire and wake the future, and the stack
+//! resumes inside `suspend`, where it left off. The page suspends one of two ways:
+//!
+//! - JavaScript Promise Integration (JSPI, Chromium 137 or later): `suspend` is a
+//!   `WebAssembly.Suspending` function returning a promise that `wake` resolves, and the page
+//!   calls the entry points that wait through `WebAssembly.promising`.
+//! - Binaryen's asyncify, in every other browser with WebGPU: the page loads a copy of the
+//!   module that `wasm-opt --asyncify` rewrote (`deploy/web/build.sh`) so that every function
+//!   on a path to `suspend` can save its locals and return, and later run back to where it
+//!   was. `suspend` starts that unwinding into a buffer of the page's
+//!   (`wgslam_suspend_stack`), the page's wrapper of the entry point awaits `wake`, then calls
+//!   the entry point again to rewind, and `suspend` returns.
+//!
+//! Either way only the page's entry points that it calls through its wrapper may wait (JSPI
+//! throws `SuspendError` elsewhere), and no JavaScript frame may lie between such an entry
+//! point and the wait.
 
 use std::future::Future;
 
@@ -28,7 +39,7 @@ pub fn block_on<F: Future>(fut: F) -> F::Output {
     }
     #[cfg(target_arch = "wasm32")]
     {
-        jspi::block_on(fut)
+        suspending::block_on(fut)
     }
 }
 
@@ -83,16 +94,16 @@ pub fn callback<T: Send + 'static>() -> (impl FnOnce(T) + Send + 'static, impl F
 }
 
 #[cfg(target_arch = "wasm32")]
-mod jspi {
+mod suspending {
     use std::future::Future;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     use std::task::{Context, Poll, Wake, Waker};
 
-    #[link(wasm_import_module = "wgslam_jspi")]
+    #[link(wasm_import_module = "wgslam_suspend")]
     extern "C" {
-        /// Suspends this WebAssembly stack until [`wake`] is called (a
-        /// `WebAssembly.Suspending` import: the event loop runs meanwhile).
+        /// Suspends this WebAssembly stack until [`wake`] is called (the event loop runs
+        /// meanwhile; see the module docs for the page's two ways).
         fn suspend();
         /// Resumes the stack [`suspend`] suspended, if any (else nothing).
         fn wake();
@@ -124,7 +135,7 @@ mod jspi {
                 return v;
             }
             if !flag.0.load(Ordering::SeqCst) {
-                // SAFETY: a JSPI-suspending import without arguments; see the module docs.
+                // SAFETY: the page's suspending import without arguments; see the module docs.
                 unsafe { suspend() }
             }
         }
