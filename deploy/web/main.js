@@ -4,8 +4,9 @@
 // picker, or a dropped folder), a frame range and a profile, and runs: the module opens the
 // folder with the command line's dataset code (src/web: the file list goes over up front,
 // each file's bytes are read from the browser only when a frame needs them), runs dense
-// SLAM through suspend.js's `call` (every GPU wait and file read suspends the module, through
-// JSPI where the browser has it, else through the asyncify build; see crates/gpu/src/wait.rs), and calls back after each frame with the input frame's pictures and,
+// SLAM through suspend.js's `call` (every GPU wait and file read suspends the module: through
+// JSPI where the browser has it, else through the asyncify build; crates/gpu/src/wait.rs),
+// and calls back after each frame with the input frame's pictures and,
 // every few frames, the map drawn from the user's view. Afterwards: the command line's
 // summary, the trajectory plot, the outputs to download and the map to turn.
 //
@@ -53,8 +54,8 @@ async function preflight() {
   }
   if (!navigator.gpu) {
     return (
-      "this browser offers no WebGPU (navigator.gpu is missing). Use Chrome or Chromium 137 " +
-      "or later; on Linux, start Chromium with --enable-unsafe-webgpu (WebGPU is off there " +
+      "this browser offers no WebGPU (navigator.gpu is missing). Use Chrome, Chromium or Edge " +
+      "113 or later; on Linux, start Chromium with --enable-unsafe-webgpu (WebGPU is off there " +
       "by default); in Firefox, set dom.webgpu.enabled; in Safari, turn on WebGPU under " +
       "Develop > Feature Flags."
     );

@@ -5,8 +5,11 @@
 // the native run's on the same folder and frames (ATE within ATE_TOLERANCE_MM, map points
 // within MAP_POINTS_TOLERANCE, the mesh has triangles), turns the map by dragging the mouse
 // and checks the picture changed, and checks the error texts of a page without WebGPU, of
-// a page that is not a secure context and of a page opened from disk. Every request must go
-// to the local server. Saves screenshots into --shots.
+// a page that is not a secure context and of a page opened from disk. A browser without
+// JSPI (WebAssembly.promising and WebAssembly.Suspending removed before the page runs:
+// Chromium 156 has no switch that takes JSPI away) runs the same folder through the
+// asyncify build and must download the same trajectory.tum and map.ply bytes. Every request
+// must go to the local server. Saves screenshots into --shots.
 //
 // node check.mjs --dist DIR --folder DIR --frames A..B --native DIR --shots DIR
 //                [--chromium PATH] [--timeout-s S]
@@ -218,16 +221,11 @@ async function main() {
     // The downloads, by clicking their links.
     const got = {};
     for (const name of ["trajectory.tum", "map.ply", "metrics.json", "frames.json", "mesh.ply"]) {
-      const [download] = await Promise.all([
-        page.waitForEvent("download", { timeout: 120_000 }),
-        page.click(`#downloads a[data-name="${name}"]`),
-      ]);
-      const file = path.join(opt.shots, `download-${name}`);
-      await download.saveAs(file);
-      got[name] = readFileSync(file);
+      got[name] = await downloaded(page, name, path.join(opt.shots, `download-${name}`));
     }
-    const downloaded = JSON.parse(got["metrics.json"].toString("utf8"));
-    if (JSON.stringify(downloaded) !== JSON.stringify(m)) failures.push("metrics.json differs from the page's metrics");
+    if (s.wait !== "jspi") failures.push(`the page waited through ${s.wait}, not JSPI, in a browser with JSPI`);
+    const metricsFile = JSON.parse(got["metrics.json"].toString("utf8"));
+    if (JSON.stringify(metricsFile) !== JSON.stringify(m)) failures.push("metrics.json differs from the page's metrics");
     const tumLines = got["trajectory.tum"].toString("utf8").split("\n").filter((l) => l && !l.startsWith("#"));
     if (tumLines.length !== m.frames - m.tracking.lost) {
       failures.push(`trajectory.tum has ${tumLines.length} poses for ${m.frames} frames (${m.tracking.lost} lost)`);
@@ -334,6 +332,8 @@ async function main() {
 
     if (opt.cameraFolder) await checkCamera(page, opt, failures);
 
+    await checkWithoutJspi(browser, origin, opt, got, failures);
+
     // Pages that cannot run: not a secure context (the local server under another name),
     // opened from disk, a browser with WebGPU off (Debian's Chromium without
     // --enable-unsafe-webgpu: navigator.gpu is there, requestAdapter gives null; measured
@@ -346,10 +346,6 @@ async function main() {
     const noAdapter = await errorText(plain, `${origin}/index.html`);
     const removeGpu = () => Object.defineProperty(Navigator.prototype, "gpu", { get: () => undefined });
     const noWebGpu = await errorText(plain, `${origin}/index.html`, removeGpu);
-    // And a browser without JSPI (the page waits for the GPU through it).
-    const noJspi = await errorText(browser, `${origin}/index.html`, () => {
-      delete WebAssembly.promising;
-    });
     const shot = await plain.newPage();
     await shot.goto(`${origin}/index.html`);
     await settled(shot, 60, ["error", "ready"]);
@@ -358,8 +354,7 @@ async function main() {
       ["not a secure context", insecure, ["not a secure context", "http://localhost"]],
       ["opened from disk", fromDisk, ["file://", "http.server"]],
       ["no adapter", noAdapter, ["no GPU adapter", "--enable-unsafe-webgpu"]],
-      ["no WebGPU", noWebGpu, ["offers no WebGPU", "Chromium 137"]],
-      ["no JSPI", noJspi, ["JavaScript Promise Integration", "Chromium 137"]],
+      ["no WebGPU", noWebGpu, ["offers no WebGPU", "Chrome, Chromium or Edge 113"]],
     ]) {
       console.log(`${what}: ${s2.status}`);
       if (s2.state !== "error") failures.push(`${what}: the page did not report an error (${s2.state})`);
@@ -379,6 +374,74 @@ async function main() {
     for (const b of browsers) await b.close();
     server.kill();
   }
+}
+
+// Clicks the page's download link for `name`, saves the file as `file` and returns its bytes.
+async function downloaded(page, name, file) {
+  const [download] = await Promise.all([
+    page.waitForEvent("download", { timeout: 120_000 }),
+    page.click(`#downloads a[data-name="${name}"]`),
+  ]);
+  await download.saveAs(file);
+  return readFileSync(file);
+}
+
+// A browser without JSPI: the page takes the asyncify build and runs the same folder and
+// frames as the main run, whose downloads are `got`. The module, the adapter and the data
+// are the same, and asyncify changes only how a wait returns to the event loop, so the
+// trajectory and the map must be the same bytes.
+async function checkWithoutJspi(browser, origin, opt, got, failures) {
+  const context = await browser.newContext({ viewport: { width: 1400, height: 1200 }, acceptDownloads: true });
+  const page = await context.newPage();
+  await page.addInitScript(() => {
+    delete WebAssembly.promising;
+    delete WebAssembly.Suspending;
+  });
+  await page.goto(`${origin}/index.html`);
+  const ready = await settled(page, 120, ["ready", "error"]);
+  if (ready.state !== "ready") {
+    failures.push(`without JSPI: the page did not get ready: ${ready.status}`);
+    return;
+  }
+  await page.setInputFiles("#folder", opt.folder);
+  await page.fill("#frames", opt.frames);
+  const t0 = Date.now();
+  await page.click("#run");
+  const s = await settled(page, opt.timeoutS, ["done", "error"]);
+  if (s.state !== "done") {
+    failures.push(`without JSPI: the page reports an error: ${s.status}`);
+    return;
+  }
+  console.log(
+    `without JSPI: waited through ${s.wait}, ${s.suspensions} suspensions, ` +
+      `${((Date.now() - t0) / 1000).toFixed(1)} s from Run to done, ` +
+      `${(s.result.metrics.time_per_frame_median_s * 1e3).toFixed(1)} ms/frame median`,
+  );
+  if (s.wait !== "asyncify") failures.push(`without JSPI: the page waited through ${s.wait}`);
+  for (const name of ["trajectory.tum", "map.ply"]) {
+    const bytes = await downloaded(page, name, path.join(opt.shots, `download-asyncify-${name}`));
+    const same = Buffer.compare(bytes, got[name]) === 0;
+    console.log(`without JSPI: ${name} ${same ? "is the same bytes as" : "DIFFERS from"} the JSPI run's`);
+    if (!same) failures.push(`without JSPI: ${name} differs from the JSPI run's`);
+  }
+  // A drag after the run draws through the other entry point that waits.
+  const before = await mapPixels(page);
+  const renders = await page.evaluate(() => window.wgslam.renders);
+  const box = await page.locator("#map").boundingBox();
+  const [x0, y0] = [box.x + box.width / 2, box.y + box.height / 2];
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  await page.mouse.move(x0 + box.height / 6, y0, { steps: 4 });
+  await page.mouse.up();
+  await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, renders, {
+    timeout: 60_000,
+    polling: 100,
+  });
+  const fraction = changedFraction(before, await mapPixels(page));
+  console.log(`without JSPI: a drag changed ${(fraction * 100).toFixed(1)} % of the map's pixels`);
+  if (!(fraction >= MIN_CHANGED_PIXELS)) failures.push(`without JSPI: the drag changed only ${(fraction * 100).toFixed(1)} % of the map`);
+  await page.screenshot({ path: path.join(opt.shots, "page-asyncify.png"), fullPage: true });
+  await context.close();
 }
 
 // A TUM folder without intrinsics: without a camera the page asks for one in its own
