@@ -42,8 +42,9 @@ pub struct BenchArgs {
     pub revisit: Option<usize>,
     /// The GPU streams benchmark instead: the frames as one stream, then as N streams at
     /// once in this process on one device and queue (as `batch --concurrent N` runs jobs);
-    /// prints waits and submissions per stream-frame, ICP iterations per frame and wall
-    /// time against N runs one at a time (needs a GPU; ignores --backends).
+    /// prints waits, submissions and the device's `queue.submit` calls (fewer where the
+    /// streams combine theirs) per stream-frame, ICP iterations per frame and wall time
+    /// against N runs one at a time (needs a GPU; ignores --backends).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub streams: Option<u32>,
     /// The CPU reference's thread scaling instead: the frames on one thread and on every

@@ -29,7 +29,9 @@ use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
 
-use crate::gpu::context::{GpuFeatures, GpuLimits, FEATURES_ENV, LIMITS_ENV};
+use crate::gpu::context::{
+    GpuFeatures, GpuLimits, GpuSubmissions, FEATURES_ENV, LIMITS_ENV, SUBMISSIONS_ENV,
+};
 use crate::slam::any_backend::THREADS_ENV;
 use crate::Result;
 
@@ -52,6 +54,13 @@ pub struct Cli {
     /// WGSLAM_GPU_LIMITS for this command and the processes it starts.
     #[arg(long, global = true, value_enum, value_name = "adapter|webgpu")]
     pub gpu_limits: Option<GpuLimits>,
+    /// How GPU streams sharing one device (`batch --concurrent`, `bench --streams`) submit:
+    /// `own` gives each step's work to the device at once, `combined` holds a stream's
+    /// work while the device is busy and gives every stream's held work to the device in
+    /// one submission (same results). Sets WGSLAM_GPU_SUBMISSIONS for this command and the
+    /// processes it starts.
+    #[arg(long, global = true, value_enum, value_name = "own|combined")]
+    pub gpu_submissions: Option<GpuSubmissions>,
     /// Threads of the CPU reference (--backend cpu, compare, bench), default one per core;
     /// a batch running jobs at once shares them between its jobs. Outputs are the same for
     /// any number. Sets WGSLAM_THREADS for this command and the processes it starts.
@@ -117,6 +126,7 @@ pub fn execute(cli: Cli) -> Result<()> {
     // GPU context of this one (GpuContext::new reads it) make the same device.
     set_env(FEATURES_ENV, cli.gpu_features);
     set_env(LIMITS_ENV, cli.gpu_limits);
+    set_env(SUBMISSIONS_ENV, cli.gpu_submissions);
     if let Some(n) = cli.threads {
         // Before any thread of this process starts, as above.
         std::env::set_var(THREADS_ENV, n.to_string());

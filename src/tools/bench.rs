@@ -146,6 +146,7 @@ pub fn bench_frames<B: Backend + Inspect, F: FnMut() -> Result<B>>(
         let after = slam.backend.counters();
         counts.push(FrameCounts {
             submissions: after.submissions - before.submissions,
+            device_submissions: after.device_submissions - before.device_submissions,
             waits: after.waits - before.waits,
             shared_waits: after.shared_waits - before.shared_waits,
             readback_bytes: after.readback_bytes - before.readback_bytes,

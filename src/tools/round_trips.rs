@@ -7,6 +7,9 @@ use serde::{Deserialize, Serialize};
 /// One frame's submissions, waits and read-back in `bench::bench_frames`.
 pub(crate) struct FrameCounts {
     pub submissions: u64,
+    /// `queue.submit` calls this stream's thread made (its own and other streams'
+    /// submissions in one call, `GpuContext::share`).
+    pub device_submissions: u64,
     pub waits: u64,
     /// Waits served by another stream's device wait (`GpuContext::share`).
     pub shared_waits: u64,
@@ -24,6 +27,11 @@ pub struct RoundTrips {
     pub plain_frames: usize,
     /// ICP iterations (submit-and-wait round trips of `icp_system`) per frame, mean.
     pub icp_iterations_per_frame: f64,
+    /// `queue.submit` calls of this stream's thread per frame, every frame, mean: equal to
+    /// the submissions alone; fewer, summed over every stream, where streams sharing a
+    /// queue combine their submissions.
+    #[serde(default)]
+    pub device_submissions_per_frame: f64,
     /// Host device waits of this stream's own per frame, every frame, mean.
     #[serde(default)]
     pub waits_per_frame: f64,
@@ -63,6 +71,7 @@ impl RoundTrips {
         RoundTrips {
             plain_frames: plain.len(),
             icp_iterations_per_frame: per_frame(&|c| c.icp_iterations as u64),
+            device_submissions_per_frame: per_frame(&|c| c.device_submissions),
             waits_per_frame: per_frame(&|c| c.waits),
             shared_waits_per_frame: per_frame(&|c| c.shared_waits),
             plain_submissions_beyond_icp_mean: submissions.0,

@@ -1,9 +1,10 @@
 //! `wgslam bench --streams N`: one sequence tracked by N GPU streams at once in this
 //! process, each on its own context sharing one device and queue (as `batch --concurrent
 //! N` runs its jobs), after the same sequence as one stream alone: host waits and
-//! submissions per stream-frame, ICP iterations per frame, wall time against N runs one at
-//! a time, and whether every stream's result equals the lone stream's. Not a CPU benchmark:
-//! the CPU backend has no waits to share.
+//! submissions per stream-frame (those each stream asked for, and the `queue.submit` calls
+//! the device got, fewer where streams combine them), ICP iterations per frame, wall time
+//! against N runs one at a time, and whether every stream's result equals the lone
+//! stream's. Not a CPU benchmark: the CPU backend has no waits to share.
 
 use serde::Serialize;
 
@@ -28,8 +29,11 @@ pub struct StreamsPass {
     pub waits_per_stream_frame: f64,
     /// Waits served by another stream's device wait, per stream-frame.
     pub shared_waits_per_stream_frame: f64,
-    /// Queue submissions per stream-frame.
+    /// Submissions per stream-frame (each stream's own, as it asked for them).
     pub submissions_per_stream_frame: f64,
+    /// `queue.submit` calls the device got per stream-frame: every stream's together over
+    /// every stream's frames. Fewer than the submissions where streams combine theirs.
+    pub device_submissions_per_stream_frame: f64,
     /// Each stream's own result (its `round_trips` hold its per-frame counts).
     #[serde(skip)]
     pub each: Vec<BenchResult>,
@@ -133,6 +137,7 @@ fn pass(ctx: &GpuContext, seq: &Sequence, run: Frames<'_>, streams: usize) -> Re
         icp_iterations_per_frame: mean(&|t| t.icp_iterations_per_frame),
         waits_per_stream_frame: mean(&|t| t.waits_per_frame),
         shared_waits_per_stream_frame: mean(&|t| t.shared_waits_per_frame),
+        device_submissions_per_stream_frame: mean(&|t| t.device_submissions_per_frame),
         submissions_per_stream_frame: each.iter().map(|r| r.submissions_per_frame).sum::<f64>()
             / each.len().max(1) as f64,
         each,
@@ -143,13 +148,14 @@ impl StreamsPass {
     /// The pass's figures in a line (without every stream's whole result).
     pub fn line(&self) -> String {
         format!(
-            "{} stream(s): ICP {:.2}, waits {:.2}, shared {:.2}, submissions {:.2} per \
-             stream-frame, {:.2} s",
+            "{} stream(s): ICP {:.2}, waits {:.2}, shared {:.2}, submissions {:.2}, device \
+             submissions {:.2} per stream-frame, {:.2} s",
             self.streams,
             self.icp_iterations_per_frame,
             self.waits_per_stream_frame,
             self.shared_waits_per_stream_frame,
             self.submissions_per_stream_frame,
+            self.device_submissions_per_stream_frame,
             self.wall_s
         )
     }

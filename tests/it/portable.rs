@@ -276,6 +276,7 @@ fn device_options_read_the_environment_names() {
     let portable = DeviceOptions {
         features: GpuFeatures::Portable,
         limits: GpuLimits::Adapter,
+        ..DeviceOptions::default()
     };
     let f = portable.features_from(all);
     assert!(!f.contains(wgpu::Features::SHADER_INT64));
@@ -284,6 +285,7 @@ fn device_options_read_the_environment_names() {
     let webgpu = DeviceOptions {
         features: GpuFeatures::Auto,
         limits: GpuLimits::Webgpu,
+        ..DeviceOptions::default()
     };
     assert_eq!(webgpu.features_from(all), wgpu::Features::empty());
     assert_eq!(
@@ -303,6 +305,7 @@ fn webgpu_limits_device_has_the_defaults_and_no_features(ctx: GpuContext) {
     let ctx = GpuContext::with_options(DeviceOptions {
         features: GpuFeatures::Auto,
         limits: GpuLimits::Webgpu,
+        ..DeviceOptions::default()
     })
     .expect("a device with WebGPU's default limits");
     assert_eq!(ctx.limits(), &wgpu::Limits::default());
@@ -315,6 +318,7 @@ fn webgpu_limits_device_has_the_defaults_and_no_features(ctx: GpuContext) {
     let ctx = GpuContext::with_options(DeviceOptions {
         features: GpuFeatures::Auto,
         limits: GpuLimits::Webgpu,
+        ..DeviceOptions::default()
     })
     .expect("a device with WebGPU's default limits");
     let mut gpu = GpuBackend::new(ctx).expect("the backend builds");
@@ -408,6 +412,7 @@ fn portable_run_equals_the_64_bit_run(ctx: GpuContext, noisy: bool) -> Completio
     let portable = DeviceOptions {
         features: GpuFeatures::Portable,
         limits: GpuLimits::Adapter,
+        ..DeviceOptions::default()
     };
     let (poses_32, surfels_32, ate_32) = gpu_run(portable, noisy);
     eprintln!(

@@ -6,6 +6,7 @@
 use crate::common;
 
 use common::harness::{gpu, gpu_backend};
+use wgslam::gpu::context::{DeviceOptions, GpuSubmissions};
 use wgslam::gpu::GpuContext;
 use wgslam::slam::params::{Profile, ValidParams};
 use wgslam::tools::{bench, run, streams};
@@ -43,6 +44,14 @@ pub fn tests() -> Vec<common::harness::Test> {
         gpu(
             "gpu_a_waiter_gathers_other_threads_not_its_own_streams",
             gpu_a_waiter_gathers_other_threads_not_its_own_streams,
+        ),
+        gpu(
+            "gpu_combined_streams_submit_together_and_match_one_stream",
+            gpu_combined_streams_submit_together_and_match_one_stream,
+        ),
+        gpu(
+            "gpu_a_failed_scope_drops_its_held_work_and_spares_other_streams",
+            gpu_a_failed_scope_drops_its_held_work_and_spares_other_streams,
         ),
     ]
 }
@@ -107,6 +116,11 @@ fn gpu_streams_share_waits_and_match_one_stream(ctx: GpuContext) {
     eprintln!("{summary}");
     assert_eq!(r.one.shared_waits_per_stream_frame, 0.0, "{summary}");
     assert!(r.one.icp_iterations_per_frame >= 1.0, "{summary}");
+    // The default, `--gpu-submissions own`: every submission goes to the device itself.
+    assert_eq!(
+        r.many.device_submissions_per_stream_frame, r.many.submissions_per_stream_frame,
+        "{summary}"
+    );
     let bound = (r.many.icp_iterations_per_frame + STREAM_WAITS_BEYOND_ICP) / 2.0;
     assert!(
         r.many.waits_per_stream_frame <= bound,
@@ -124,6 +138,106 @@ fn gpu_streams_share_waits_and_match_one_stream(ctx: GpuContext) {
             .iter()
             .map(|e| (e.map_points, e.ate_rmse_aligned_m))
             .collect::<Vec<_>>()
+    );
+}
+
+/// Issue 48 item 2's second half, with `--gpu-submissions combined`: with [`STREAMS`]
+/// streams, the `queue.submit` calls the device gets per stream-frame are at most this share
+/// of the lone stream's (which equal its submissions). A stream's submission made while the
+/// device has work in flight is held and given to the device with the others' in one call
+/// (`shared_wait.rs`); measured 0.67-0.70 of the lone stream's (5.4-5.7 of 8.13) on the
+/// loaded 2-core machine in 2026-11-28's build. How many are ready together depends on
+/// timing, so the bound leaves margin: 0.85, at least 15 % saved, which streams submitting
+/// one by one never meet (their share is 1).
+const STREAM_DEVICE_SUBMISSIONS_SHARE_MAX: f64 = 0.85;
+
+/// A device whose streams combine their submissions, with the environment's features and
+/// limits.
+fn combined_device(ctx: GpuContext) -> GpuContext {
+    drop(ctx);
+    GpuContext::with_options(DeviceOptions {
+        submissions: GpuSubmissions::Combined,
+        ..DeviceOptions::from_env().expect("the environment's device options")
+    })
+    .expect("a device with combined submissions")
+}
+
+/// [`gpu_streams_share_waits_and_match_one_stream`] with combined submissions: the device
+/// gets fewer `queue.submit` calls than the streams make submissions, a lone stream's go one
+/// by one, the waits still meet the bound, and every stream's map and accuracy equal the
+/// lone stream's bit for bit.
+fn gpu_combined_streams_submit_together_and_match_one_stream(ctx: GpuContext) {
+    let seq = common::open_asset("icl_living_room_kt2");
+    let frames = (1, seq.frames.len() - 1);
+    let params = ValidParams::profile(Profile::Robust);
+    let ctx = combined_device(ctx);
+    let r = streams::bench_streams(&ctx, &seq, frames, &params, STREAMS).unwrap();
+    let summary = format!("{}; {}", r.one.line(), r.many.line());
+    eprintln!("combined: {summary}");
+    assert_eq!(
+        r.one.device_submissions_per_stream_frame, r.one.submissions_per_stream_frame,
+        "a lone stream's submissions go to the device one by one: {summary}"
+    );
+    let most = STREAM_DEVICE_SUBMISSIONS_SHARE_MAX * r.one.device_submissions_per_stream_frame;
+    assert!(
+        r.many.device_submissions_per_stream_frame <= most,
+        "{STREAMS} streams made {:.2} device submissions per stream-frame, more than \
+         {STREAM_DEVICE_SUBMISSIONS_SHARE_MAX} x the lone stream's {:.2} = {most:.2}",
+        r.many.device_submissions_per_stream_frame,
+        r.one.device_submissions_per_stream_frame
+    );
+    let bound = (r.many.icp_iterations_per_frame + STREAM_WAITS_BEYOND_ICP) / 2.0;
+    assert!(r.many.waits_per_stream_frame <= bound, "{summary}");
+    assert!(
+        r.identical_to_one,
+        "a stream's map size or accuracy differs from the lone stream's: {:?}",
+        r.many
+            .each
+            .iter()
+            .map(|e| (e.map_points, e.ate_rmse_aligned_m))
+            .collect::<Vec<_>>()
+    );
+}
+
+/// With combined submissions, a stream whose error scope catches an error (here a copy
+/// past a buffer's end) drops the work it held in that scope: another stream's wait, which
+/// makes every held submission, stays free of it, and the failing stream's own wait for the
+/// dropped work ends at once. Held, the invalid command buffer would fail the other
+/// stream's `queue.submit`, in that stream's error scope.
+fn gpu_a_failed_scope_drops_its_held_work_and_spares_other_streams(ctx: GpuContext) {
+    let a = combined_device(ctx);
+    let b = a.share();
+    let buffer = |size: u64| {
+        a.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("copy test"),
+            size,
+            usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let (small, large) = (buffer(256), buffer(4096));
+    let copy = |c: &GpuContext, bytes: u64| {
+        let mut enc = c.encoder("copy");
+        enc.copy_buffer_to_buffer(&large, 0, &small, 0, bytes);
+        c.submit(enc);
+    };
+    // B's work is made at once (the only stream so far) and keeps the device busy as far
+    // as the host knows; A's next, a valid copy, is held.
+    b.scoped("b's copy", || Ok(copy(&b, 256))).unwrap();
+    a.scoped("a's valid copy", || Ok(copy(&a, 256))).unwrap();
+    let failed = a.scoped("a's copy past the end", || Ok(copy(&a, 4096)));
+    assert!(
+        failed.is_err(),
+        "a copy past a buffer's end was not refused"
+    );
+    // B's wait makes A's held valid copy, not the invalid one.
+    b.scoped("b's wait", || b.wait_idle())
+        .expect("another stream's invalid work reached this stream's submission");
+    a.wait_idle()
+        .expect("waiting for dropped work ends at once, without an error");
+    assert_eq!(
+        a.stats().device_submissions + b.stats().device_submissions,
+        2
     );
 }
 

@@ -141,6 +141,10 @@ pub struct BackendCounters {
     pub readback_bytes: u64,
     /// Command submissions since creation.
     pub submissions: u64,
+    /// Submissions the device got from the backend's thread since creation: its own, and
+    /// other streams' made with them in one `queue.submit` on a shared queue (GPU contexts
+    /// made by `GpuContext::share`). Equal to `submissions` for a lone stream.
+    pub device_submissions: u64,
     /// Host waits for the device since creation (each read-back is one), in a device wait
     /// of the backend's own.
     pub waits: u64,

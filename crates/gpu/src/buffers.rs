@@ -176,13 +176,13 @@ impl<T: Pod> GpuArray<T> {
             self.label
         );
         if bytes.len() as u64 % COPY_ALIGN == 0 {
-            ctx.queue.write_buffer(&self.buffer, byte_offset, bytes);
+            ctx.write_buffer(&self.buffer, byte_offset, bytes);
         } else {
             // Odd tails (e.g. u16 elements): pad with zeros; the pad lies inside the buffer
             // because the buffer size is padded the same way.
             let mut padded = bytes.to_vec();
             padded.resize(padded_bytes(bytes.len() as u64) as usize, 0);
-            ctx.queue.write_buffer(&self.buffer, byte_offset, &padded);
+            ctx.write_buffer(&self.buffer, byte_offset, &padded);
         }
         ctx.stats_handle().upload(bytes.len() as u64);
         Ok(())
@@ -261,7 +261,7 @@ pub(crate) fn map_read<R>(
     staging: &wgpu::Buffer,
     f: impl FnOnce(&[u8]) -> R,
 ) -> Result<R> {
-    MapRequest::new(staging).finish(ctx, staging, false, f)
+    MapRequest::new(ctx, staging).finish(ctx, staging, false, f)
 }
 
 /// The result of a `map_async` as [`super::wait::block_on`] waits for it.
@@ -279,12 +279,14 @@ pub(crate) struct MapRequest {
 }
 
 impl MapRequest {
-    /// Requests the map of `staging` (valid once every submission using it is done).
-    pub fn new(staging: &wgpu::Buffer) -> Self {
+    /// Requests the map of `staging` (valid once every submission using it is done), as
+    /// soon as `ctx`'s latest submission, which fills it, is made (it may be held with
+    /// other streams', `shared_wait.rs`).
+    pub fn new(ctx: &GpuContext, staging: &wgpu::Buffer) -> Self {
         let (mapped, when_mapped) = super::wait::callback();
         let fired = Arc::new(std::sync::atomic::AtomicBool::new(false));
         let seen = fired.clone();
-        staging.map_async(wgpu::MapMode::Read, .., move |result| {
+        ctx.map_after_submission(staging, move |result| {
             seen.store(true, std::sync::atomic::Ordering::SeqCst);
             mapped(result)
         });
@@ -379,7 +381,7 @@ impl<T: Pod> ParamBuffer<T> {
     /// Queues a new value (visible to the next submission).
     pub fn write(&self, ctx: &GpuContext, value: &T) {
         let bytes = bytemuck::bytes_of(value);
-        ctx.queue.write_buffer(&self.buffer, 0, bytes);
+        ctx.write_buffer(&self.buffer, 0, bytes);
         ctx.stats_handle().upload(bytes.len() as u64);
     }
 
@@ -472,16 +474,16 @@ impl<T: Pod> Readback<T> {
     /// Waits for the submitted copy and returns its elements (counted as read-back bytes).
     pub fn read(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
         let request = self.requested.take();
-        let request = request.unwrap_or_else(|| MapRequest::new(&self.staging));
+        let request = request.unwrap_or_else(|| MapRequest::new(ctx, &self.staging));
         self.finish(ctx, request, false)
     }
 
     /// Requests the map of the submitted copy without waiting (call it after the
     /// submission that holds the copy): a later wait that covers that submission completes
     /// it, and [`Readback::take`] reads it then at no wait of its own.
-    pub fn request(&mut self) {
+    pub fn request(&mut self, ctx: &GpuContext) {
         if self.requested.is_none() {
-            self.requested = Some(MapRequest::new(&self.staging));
+            self.requested = Some(MapRequest::new(ctx, &self.staging));
         }
     }
 
@@ -495,7 +497,7 @@ impl<T: Pod> Readback<T> {
     /// device finished it since): the map is requested if it was not, the device polled
     /// without blocking, and waited for only if the copy is still in flight.
     pub fn take(&mut self, ctx: &GpuContext) -> Result<Vec<T>> {
-        self.request();
+        self.request(ctx);
         let request = self.requested.take().expect("just requested");
         self.finish(ctx, request, true)
     }

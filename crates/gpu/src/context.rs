@@ -8,6 +8,8 @@
 
 use std::sync::{Arc, Mutex};
 
+mod submission;
+
 use super::pipeline_cache::{self, DiskCache};
 use super::shared_wait::Stream;
 use super::stats::{GpuStats, StatsSnapshot};
@@ -44,6 +46,13 @@ pub const FEATURES_ENV: &str = "WGSLAM_GPU_FEATURES";
 /// timestamp queries), as a browser tab gets; `adapter` (or unset) asks for the adapter's
 /// own limits. The command line's `--gpu-limits` sets it.
 pub const LIMITS_ENV: &str = "WGSLAM_GPU_LIMITS";
+/// Environment variable choosing how contexts sharing a queue ([`GpuContext::share`]:
+/// `batch --concurrent`, `bench --streams`, Python's trackers) submit: `own` (or unset)
+/// gives each submission to the device when it is made; `combined` holds a stream's
+/// submission while other streams share the queue and the device has work in flight, and
+/// gives every held one to the device in one `queue.submit` (`shared_wait.rs`). The
+/// command line's `--gpu-submissions` sets it.
+pub const SUBMISSIONS_ENV: &str = "WGSLAM_GPU_SUBMISSIONS";
 
 /// Which optional features the device is created with (see [`FEATURES_ENV`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -66,14 +75,31 @@ pub enum GpuLimits {
     Webgpu,
 }
 
-/// How the device is created: features and limits, read from [`FEATURES_ENV`] and
-/// [`LIMITS_ENV`] by [`DeviceOptions::from_env`].
+/// How contexts sharing one queue give their submissions to the device (see
+/// [`SUBMISSIONS_ENV`]). Results are the same either way; only the number of
+/// `queue.submit` calls and when the device gets the work differ.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum GpuSubmissions {
+    /// Every submission goes to the device at once, as one `queue.submit` of its own.
+    #[default]
+    Own,
+    /// Streams sharing the queue combine their submissions into one `queue.submit` while
+    /// the device is busy. Not the default: on lavapipe it was not faster (four streams
+    /// 5-15 % slower, docs/performance.md), and a real GPU has not measured it yet
+    /// (`deploy/gpu-check.sh` runs both).
+    Combined,
+}
+
+/// How the device is created: features, limits and submissions, read from
+/// [`FEATURES_ENV`], [`LIMITS_ENV`] and [`SUBMISSIONS_ENV`] by [`DeviceOptions::from_env`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct DeviceOptions {
     /// 64-bit key kernels where offered, or the portable ones.
     pub features: GpuFeatures,
     /// The adapter's limits or WebGPU's defaults.
     pub limits: GpuLimits,
+    /// How streams sharing the queue submit.
+    pub submissions: GpuSubmissions,
 }
 
 impl DeviceOptions {
@@ -98,6 +124,7 @@ impl DeviceOptions {
         Ok(DeviceOptions {
             features: read(FEATURES_ENV)?,
             limits: read(LIMITS_ENV)?,
+            submissions: read(SUBMISSIONS_ENV)?,
         })
     }
 
@@ -206,6 +233,14 @@ impl std::fmt::Debug for GpuContext {
 
 /// Devices opened in this process ([`GpuContext::devices_opened`]).
 static DEVICES_OPENED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+impl Drop for GpuContext {
+    /// Gives held submissions to the device: a stream that ends with work held might
+    /// otherwise leave it to a wait that never comes.
+    fn drop(&mut self) {
+        self.queue_waits.make_held(&self.queue, &self.stats);
+    }
+}
 
 impl GpuContext {
     /// Opens the high-performance adapter among Vulkan / Metal / DX12, logs it to stderr and
@@ -322,7 +357,7 @@ impl GpuContext {
             lost,
             uncaptured,
             last_submission: Mutex::new(None),
-            queue_waits: Stream::default(),
+            queue_waits: Stream::new(options.submissions == GpuSubmissions::Combined),
             cache: Arc::default(),
             pipeline_cache,
         })
@@ -466,134 +501,6 @@ impl GpuContext {
         &self.stats
     }
 
-    /// A new command encoder.
-    pub fn encoder(&self, label: &str) -> wgpu::CommandEncoder {
-        self.device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
-    }
-
-    /// Submits one encoder's commands, after every deferred step's in recording order, as
-    /// one submission, and counts it.
-    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
-        let mut buffers = self.take_deferred();
-        buffers.push(encoder.finish());
-        self.submit_buffers(buffers);
-    }
-
-    /// Submits `buffers` as one counted submission and remembers its number, which
-    /// [`GpuContext::wait_idle`] waits for.
-    fn submit_buffers(&self, buffers: Vec<wgpu::CommandBuffer>) {
-        self.stats.count_submission();
-        let number = self.queue_waits.submit(&self.queue, buffers);
-        *self
-            .last_submission
-            .lock()
-            .unwrap_or_else(|p| p.into_inner()) = Some(number);
-    }
-
-    /// Keeps step `step`'s commands for the next submission instead of submitting them now
-    /// (one round trip less when nothing waits for them). Safe only while no buffer that
-    /// they read or write is written through the queue (`write_buffer`, `write_texture`)
-    /// before that submission: such a write would land before them. The GPU backend
-    /// defers only `preprocess` and `predict` (and flushes before any other step) and the
-    /// copies of growing arrays (whose writes flush first).
-    pub fn defer(&self, step: &'static str, encoder: wgpu::CommandEncoder) {
-        let commands = encoder.finish();
-        let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
-        d.push((step, commands));
-    }
-
-    /// Whether step `step`'s commands are deferred and not yet submitted.
-    pub fn has_deferred(&self, step: &str) -> bool {
-        let d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
-        d.iter().any(|(s, _)| *s == step)
-    }
-
-    /// Submits the deferred steps, if any, as one submission.
-    pub fn flush(&self) {
-        let buffers = self.take_deferred();
-        if !buffers.is_empty() {
-            self.submit_buffers(buffers);
-        }
-    }
-
-    fn take_deferred(&self) -> Vec<wgpu::CommandBuffer> {
-        let mut d = self.deferred.lock().unwrap_or_else(|p| p.into_inner());
-        d.drain(..).map(|(_, c)| c).collect()
-    }
-
-    /// Runs the map callbacks of work the device has finished, without blocking and
-    /// without counting a wait (a read-back whose work a later wait may already have
-    /// covered; see `Readback::take`). In a browser nothing runs them but the event loop.
-    pub fn poll_ready(&self) -> Result<()> {
-        #[cfg(not(target_arch = "wasm32"))]
-        self.device
-            .poll(wgpu::PollType::Poll)
-            .map_err(|e| Error::Gpu(format!("polling the GPU: {e}")))?;
-        Ok(())
-    }
-
-    /// Blocks until the work this context submitted is done, deferred steps submitted
-    /// first; device loss or a timeout is [`Error::Gpu`]. Natively, when another context
-    /// sharing the queue is already blocked in a device wait that covers this context's
-    /// work, it sleeps until that wait ends (counted as a shared wait, not its own);
-    /// otherwise it waits for the newest submission on the queue, covering every context's
-    /// work submitted so far (`shared_wait.rs`). When nothing was submitted since the
-    /// last wait (a second read-back of the same finished work, as the fern codes fusion
-    /// recorded), or another context's wait served it, it only polls without blocking,
-    /// which runs the map callbacks of that finished work.
-    pub fn wait_idle(&self) -> Result<()> {
-        self.flush();
-        #[cfg(not(target_arch = "wasm32"))]
-        {
-            use super::shared_wait::Waited;
-            let last = self
-                .last_submission
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .take();
-            let waited = match last {
-                Some(number) => self
-                    .queue_waits
-                    .wait_for(&self.device, number)
-                    .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?,
-                None => Waited::Shared,
-            };
-            match waited {
-                Waited::Own => self.stats.count_wait(),
-                Waited::Shared => {
-                    if last.is_some() {
-                        self.stats.count_shared_wait();
-                    }
-                    self.device
-                        .poll(wgpu::PollType::Poll)
-                        .map_err(|e| Error::Gpu(format!("polling the GPU: {e}")))?;
-                }
-            }
-            self.check_device()
-        }
-        #[cfg(target_arch = "wasm32")]
-        {
-            // One thread in a browser: nothing to share a wait with.
-            self.last_submission
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .take();
-            self.stats.count_wait();
-            super::wait::wait_for_submitted(&self.device, &self.queue)
-                .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-            self.check_device()
-        }
-    }
-
-    /// Device waits on this context's queue (every context [`GpuContext::share`] made from
-    /// the same device counts here) that first waited the whole gathering time for other
-    /// threads' streams that did not come (`shared_wait.rs`). A diagnostic: one thread
-    /// driving several contexts never gathers for its own.
-    pub fn gathers_timed_out(&self) -> u64 {
-        self.queue_waits.gathers_timed_out()
-    }
-
     /// [`Error::Gpu`] if the device was lost or an error escaped every error scope.
     pub fn check_device(&self) -> Result<()> {
         if let Some(msg) = self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone() {
@@ -615,10 +522,16 @@ impl GpuContext {
     pub fn scoped<T>(&self, what: &str, work: impl FnOnce() -> Result<T>) -> Result<T> {
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope_start = self.queue_waits.handed();
         let result = work();
         // Scopes pop in reverse order of their pushing.
         let validation_err = super::wait::block_on(validation.pop());
         let oom_err = super::wait::block_on(oom.pop());
+        if validation_err.is_some() || oom_err.is_some() {
+            // What this stream recorded in the scope may be invalid: held, it would fail
+            // the `queue.submit` of whichever stream makes it, in that stream's scope.
+            self.queue_waits.discard_held_since(scope_start);
+        }
         let mut msgs = Vec::new();
         if let Some(e) = validation_err {
             msgs.push(format!("validation: {e}"));

@@ -168,7 +168,7 @@ impl GpuImage {
             &padded
         };
         let bytes: &[u8] = bytemuck::cast_slice(texels);
-        ctx.queue.write_texture(
+        ctx.write_texture(
             self.texture.as_image_copy(),
             bytes,
             wgpu::TexelCopyBufferLayout {

@@ -113,6 +113,7 @@ impl Inspect for GpuBackend {
         BackendCounters {
             readback_bytes: s.readback_bytes,
             submissions: s.submissions,
+            device_submissions: s.device_submissions,
             waits: s.waits,
             shared_waits: s.shared_waits,
         }

@@ -1,5 +1,6 @@
 //! The byte and submission counters a [`super::GpuContext`] and all its buffers share, which
-//! `wgslam bench` reports (allocated, peak, uploaded and read-back bytes; submissions; waits).
+//! `wgslam bench` reports (allocated, peak, uploaded and read-back bytes; submissions, those
+//! the device got; waits).
 //! Counting only: nothing here allocates, submits or waits.
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -12,6 +13,7 @@ pub struct GpuStats {
     uploaded_bytes: AtomicU64,
     readback_bytes: AtomicU64,
     submissions: AtomicU64,
+    device_submissions: AtomicU64,
     waits: AtomicU64,
     shared_waits: AtomicU64,
 }
@@ -29,6 +31,11 @@ pub struct StatsSnapshot {
     pub readback_bytes: u64,
     /// Queue submissions made through [`super::GpuContext::submit`] and the buffer helpers.
     pub submissions: u64,
+    /// `queue.submit` calls this context's thread made: its own submissions, and those of
+    /// other contexts on the shared queue that it made with them in one call
+    /// ([`super::GpuContext::share`]). Equal to `submissions` for a lone context; summed
+    /// over every context sharing a queue, what the device got.
+    pub device_submissions: u64,
     /// Times the host blocked until submitted work was done ([`super::GpuContext::wait_idle`]:
     /// every read-back waits through it) in a device wait of its own.
     pub waits: u64,
@@ -54,6 +61,9 @@ impl GpuStats {
     pub(crate) fn count_submission(&self) {
         self.submissions.fetch_add(1, Ordering::Relaxed);
     }
+    pub(crate) fn count_device_submission(&self) {
+        self.device_submissions.fetch_add(1, Ordering::Relaxed);
+    }
     pub(crate) fn count_wait(&self) {
         self.waits.fetch_add(1, Ordering::Relaxed);
     }
@@ -69,6 +79,7 @@ impl GpuStats {
             uploaded_bytes: self.uploaded_bytes.load(Ordering::Relaxed),
             readback_bytes: self.readback_bytes.load(Ordering::Relaxed),
             submissions: self.submissions.load(Ordering::Relaxed),
+            device_submissions: self.device_submissions.load(Ordering::Relaxed),
             waits: self.waits.load(Ordering::Relaxed),
             shared_waits: self.shared_waits.load(Ordering::Relaxed),
         }

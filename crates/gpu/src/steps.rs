@@ -189,7 +189,7 @@ impl Backend for GpuBackend {
             submit_profiled(ctx, profiler, enc)?;
             // No wait: the count of surfels added is mapped when a later wait (the next
             // frame's first ICP iteration's) finds the fusion done (`settle_count`).
-            self.counter_readback.request();
+            self.counter_readback.request(ctx);
             // While the fusion runs: the next frame's images.
             stage_next(ctx, f, next)
         })?;
