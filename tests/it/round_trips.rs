@@ -216,16 +216,17 @@ fn gpu_a_failed_scope_drops_its_held_work_and_spares_other_streams(ctx: GpuConte
         })
     };
     let (small, large) = (buffer(256), buffer(4096));
-    let copy = |c: &GpuContext, bytes: u64| {
+    let copy = |c: &GpuContext, bytes: u64| -> wgslam::Result<()> {
         let mut enc = c.encoder("copy");
         enc.copy_buffer_to_buffer(&large, 0, &small, 0, bytes);
         c.submit(enc);
+        Ok(())
     };
     // B's work is made at once (the only stream so far) and keeps the device busy as far
     // as the host knows; A's next, a valid copy, is held.
-    b.scoped("b's copy", || Ok(copy(&b, 256))).unwrap();
-    a.scoped("a's valid copy", || Ok(copy(&a, 256))).unwrap();
-    let failed = a.scoped("a's copy past the end", || Ok(copy(&a, 4096)));
+    b.scoped("b's copy", || copy(&b, 256)).unwrap();
+    a.scoped("a's valid copy", || copy(&a, 256)).unwrap();
+    let failed = a.scoped("a's copy past the end", || copy(&a, 4096));
     assert!(
         failed.is_err(),
         "a copy past a buffer's end was not refused"
