@@ -160,6 +160,8 @@ pub(crate) struct Stream {
 impl Stream {
     /// The first stream on a new queue; `combine`: whether streams sharing it combine
     /// their submissions.
+    // In a browser wgpu's command buffers are not `Send`, and there is one thread.
+    #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
     pub(crate) fn new(combine: bool) -> Stream {
         Stream {
             waits: Arc::new(QueueWaits {

@@ -68,14 +68,17 @@ impl GpuContext {
             .last_submission
             .lock()
             .unwrap_or_else(|p| p.into_inner());
-        match last {
-            Some(number) => {
-                let staging = staging.clone();
-                let map = move || staging.map_async(wgpu::MapMode::Read, .., done);
-                self.queue_waits.after_made(number, Box::new(map));
-            }
-            None => staging.map_async(wgpu::MapMode::Read, .., done),
+        // A browser has one thread, never holds a submission, and its buffers cannot be
+        // sent to another thread.
+        #[cfg(not(target_arch = "wasm32"))]
+        if let Some(number) = last {
+            let staging = staging.clone();
+            let map = move || staging.map_async(wgpu::MapMode::Read, .., done);
+            self.queue_waits.after_made(number, Box::new(map));
+            return;
         }
+        let _ = last;
+        staging.map_async(wgpu::MapMode::Read, .., done);
     }
 
     /// Keeps step `step`'s commands for the next submission instead of submitting them now
