@@ -4,7 +4,8 @@
 # the concurrent batch when the binary has one; and issue 48's throughput targets (group
 # `throughput`): `wgslam run` on 7-Scenes 0..299 at 640x480 (wall time of the whole
 # command), start-up of a one-frame run with an empty and then a filled pipeline cache, 16
-# jobs of 150 frames at 16 offsets with `batch --concurrent 16`, and the CPU reference's
+# jobs of 150 frames at 16 offsets with `batch --concurrent 16` (each stream submitting on
+# its own, and with `--gpu-submissions combined`), and the CPU reference's
 # ms/frame at 640x480 (`bench --backends cpu`), each against the baseline binary in the same
 # run when one is given; writes ONE JSON with every command, its exit status, its wall time
 # and its JSON output (or the tail of its log).
@@ -201,6 +202,24 @@ throughput() {
     step "streams16-$label" "$WORK/streams16-$label.json" -- \
       "$bin" bench "$SCENES" --frames "$BENCH_FRAMES" --downsample 1 --streams 16 \
       --json "$WORK/streams16-$label.json"
+  fi
+  # Combined submissions (issue 48 item 2's second half; not the default until a GPU shows
+  # they pay): the same batch and streams with `--gpu-submissions combined`, outputs the
+  # same bytes as the default's.
+  if "$bin" --help 2>/dev/null | grep -q -- '--gpu-submissions'; then
+    step "batch16-concurrent16-combined-$label" "$WORK/batch16-combined-$label/summary.json" -- \
+      "$bin" --gpu-submissions combined batch "$manifest" \
+      --out "$WORK/batch16-combined-$label" --concurrent 16
+    step "batch16-combined-same-outputs-$label" "" -- bash -c '
+      status=0
+      for f in "$1"/jobs/*/gpu/trajectory.tum "$1"/jobs/*/gpu/map.ply; do
+        cmp "$f" "$2/${f#"$1"/}" || status=1
+      done
+      ls "$1"/jobs/*/gpu/map.ply | wc -l
+      exit $status' _ "$WORK/batch16-$label" "$WORK/batch16-combined-$label"
+    step "streams16-combined-$label" "$WORK/streams16-combined-$label.json" -- \
+      "$bin" --gpu-submissions combined bench "$SCENES" --frames "$BENCH_FRAMES" \
+      --downsample 1 --streams 16 --json "$WORK/streams16-combined-$label.json"
   fi
   step "cpu-reference-ds1-$label" "$WORK/cpu-$label.json" -- \
     "$bin" bench "$SCENES" --frames "$CPU_FRAMES" --downsample 1 --backends cpu --rounds 1 \
