@@ -47,6 +47,9 @@ else
 fi
 GROUPS_RUN=" ${WGSLAM_CHECK_STEPS:-bench compare batch throughput} "
 wants() { [[ "$GROUPS_RUN" == *" $1 "* ]]; }
+# offers OPTION CMD...: whether `CMD --help` mentions OPTION. grep reads the whole text:
+# `grep -q` would stop early, and under pipefail the help's SIGPIPE would fail the test.
+offers() { local opt=$1; shift; "$@" --help 2>/dev/null | grep -c -- "$opt" >/dev/null; }
 
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/gpu-check.XXXXXX")
 STEPS=()
@@ -156,7 +159,7 @@ fi
 # binary can run jobs concurrently; outputs must be identical.
 if ! wants batch; then
   skip batch-concurrent "not in WGSLAM_CHECK_STEPS"
-elif "$BIN" batch --help 2>/dev/null | grep -q -- '--concurrent'; then
+elif offers --concurrent "$BIN" batch; then
   manifest=$WORK/concurrent.toml
   gpu_jobs_manifest c 8 12 "$BATCH_SPAN" >"$manifest"
   for n in 1 2 4 8; do
@@ -198,7 +201,7 @@ throughput() {
     "$bin" batch "$manifest" --out "$WORK/batch16-$label" --concurrent 16
   # Shared waits (issue 48 item 2): 16 GPU streams in one process, waits and submissions
   # per stream-frame against one stream, where the binary has `bench --streams`.
-  if "$bin" bench --help 2>/dev/null | grep -q -- '--streams'; then
+  if offers --streams "$bin" bench; then
     step "streams16-$label" "$WORK/streams16-$label.json" -- \
       "$bin" bench "$SCENES" --frames "$BENCH_FRAMES" --downsample 1 --streams 16 \
       --json "$WORK/streams16-$label.json"
@@ -206,7 +209,7 @@ throughput() {
   # Combined submissions (issue 48 item 2's second half; not the default until a GPU shows
   # they pay): the same batch and streams with `--gpu-submissions combined`, outputs the
   # same bytes as the default's.
-  if "$bin" --help 2>/dev/null | grep -q -- '--gpu-submissions'; then
+  if offers --gpu-submissions "$bin"; then
     step "batch16-concurrent16-combined-$label" "$WORK/batch16-combined-$label/summary.json" -- \
       "$bin" --gpu-submissions combined batch "$manifest" \
       --out "$WORK/batch16-combined-$label" --concurrent 16
@@ -226,7 +229,7 @@ throughput() {
     --json "$WORK/cpu-$label.json"
   # The reference on one thread against every core, frame by frame in one process (issue
   # 48 item 5), where the binary has `bench --thread-scaling`.
-  if "$bin" bench --help 2>/dev/null | grep -q -- '--thread-scaling'; then
+  if offers --thread-scaling "$bin" bench; then
     step "cpu-thread-scaling-ds1-$label" "$WORK/cpu-threads-$label.json" -- \
       "$bin" bench "$SCENES" --frames "$CPU_FRAMES" --downsample 1 --thread-scaling \
       --json "$WORK/cpu-threads-$label.json"
