@@ -130,15 +130,7 @@ fn gpu_streams_share_waits_and_match_one_stream(ctx: GpuContext) {
         r.many.icp_iterations_per_frame,
         r.one.waits_per_stream_frame
     );
-    assert!(
-        r.identical_to_one,
-        "a stream's map size or accuracy differs from the lone stream's: {:?}",
-        r.many
-            .each
-            .iter()
-            .map(|e| (e.map_points, e.ate_rmse_aligned_m))
-            .collect::<Vec<_>>()
-    );
+    assert_each_stream_equals_the_lone_one(&r);
 }
 
 /// Issue 48 item 2's second half, with `--gpu-submissions combined`: with [`STREAMS`]
@@ -188,15 +180,7 @@ fn gpu_combined_streams_submit_together_and_match_one_stream(ctx: GpuContext) {
     );
     let bound = (r.many.icp_iterations_per_frame + STREAM_WAITS_BEYOND_ICP) / 2.0;
     assert!(r.many.waits_per_stream_frame <= bound, "{summary}");
-    assert!(
-        r.identical_to_one,
-        "a stream's map size or accuracy differs from the lone stream's: {:?}",
-        r.many
-            .each
-            .iter()
-            .map(|e| (e.map_points, e.ate_rmse_aligned_m))
-            .collect::<Vec<_>>()
-    );
+    assert_each_stream_equals_the_lone_one(&r);
 }
 
 /// With combined submissions, a stream whose error scope catches an error (here a copy
@@ -239,6 +223,19 @@ fn gpu_a_failed_scope_drops_its_held_work_and_spares_other_streams(ctx: GpuConte
     assert_eq!(
         a.stats().device_submissions + b.stats().device_submissions,
         2
+    );
+}
+
+/// Every stream's map size and accuracy equal the lone stream's bit for bit.
+fn assert_each_stream_equals_the_lone_one(r: &streams::StreamsResult) {
+    assert!(
+        r.identical_to_one,
+        "a stream's map size or accuracy differs from the lone stream's: {:?}",
+        r.many
+            .each
+            .iter()
+            .map(|e| (e.map_points, e.ate_rmse_aligned_m))
+            .collect::<Vec<_>>()
     );
 }
 

@@ -280,16 +280,9 @@ impl Stream {
         self.waits.lock().gathers_timed_out
     }
 
-    /// [`QueueWaits::wait_for`].
-    #[cfg(not(target_arch = "wasm32"))]
-    pub(crate) fn wait_for(
-        &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        number: u64,
-        stats: &GpuStats,
-    ) -> Result<Waited, String> {
-        self.waits.wait_for(device, queue, number, stats)
+    /// The submissions and waits of every stream on the queue ([`QueueWaits::wait_for`]).
+    pub(crate) fn queue(&self) -> &QueueWaits {
+        &self.waits
     }
 }
 

@@ -146,6 +146,7 @@ impl GpuContext {
             let waited = match last {
                 Some(number) => self
                     .queue_waits
+                    .queue()
                     .wait_for(&self.device, &self.queue, number, &self.stats)
                     .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?,
                 None => Waited::Shared,
