@@ -330,7 +330,14 @@ impl QueueWaits {
         // next waiter. Held work never outlasts the work in flight: the wait that ends it
         // makes what was held meanwhile (`wait_for`).
         let busy = s.newest.as_ref().is_some_and(|(n, _)| *n > s.completed);
-        let hold = self.combine && cfg!(not(target_arch = "wasm32")) && s.streams() > 1 && busy;
+        // A thread already blocked in the device makes nothing until its wait ends: work
+        // held now would wait out that whole wait, so it goes to the device at once.
+        let blocked = s.waiting_for.is_some_and(|t| t > 0);
+        let hold = self.combine
+            && cfg!(not(target_arch = "wasm32"))
+            && s.streams() > 1
+            && busy
+            && !blocked;
         if hold {
             s.held.push(Held {
                 stream,
