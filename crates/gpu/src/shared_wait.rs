@@ -18,7 +18,9 @@
 //! With combined submissions ([`super::context::GpuSubmissions::Combined`]) submissions
 //! combine the same way: while more than one stream shares the queue and the device has
 //! work in flight (made, not yet known to be done), a stream's submission is *held*
-//! (numbered, not yet given to the device). The thread about to block in the device gives
+//! (numbered, not yet given to the device), unless a thread is already blocked in the
+//! device (nothing would make it before that wait ends). The thread about to block in the
+//! device gives
 //! every held submission to the device in one `queue.submit`, in number order, then waits;
 //! when its wait ends, it gives what was held meanwhile in one call too, so held work never
 //! waits on an idle device for long. A stream that writes through the queue
