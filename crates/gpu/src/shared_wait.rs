@@ -20,13 +20,12 @@
 //! work in flight (made, not yet known to be done), a stream's submission is *held*
 //! (numbered, not yet given to the device), unless a thread is already blocked in the
 //! device (nothing would make it before that wait ends). The thread about to block in the
-//! device gives
-//! every held submission to the device in one `queue.submit`, in number order, then waits;
-//! when its wait ends, it gives what was held meanwhile in one call too, so held work never
-//! waits on an idle device for long. A stream that writes through the queue
-//! (`write_buffer`, `write_texture`) first has its held work made, since the write would
-//! otherwise land before it ([`Stream::make_held`]); a read-back's `map_async`, which wgpu
-//! refuses before the submission that writes the buffer is made, is held with it
+//! device gives every held submission to the device in one `queue.submit`, in number
+//! order, then waits; when its wait ends, it gives what was held meanwhile in one call too,
+//! so held work never waits on an idle device for long. A stream that writes through the
+//! queue (`write_buffer`, `write_texture`) first has its held work made, since the write
+//! would otherwise land before it ([`Stream::make_held`]); a read-back's `map_async`, which
+//! wgpu refuses before the submission that writes the buffer is made, is held with it
 //! ([`Stream::after_made`]). A lone stream's submissions go to the device at once.
 //!
 //! Errors stay with the stream that made them. wgpu reports a command buffer's recording
