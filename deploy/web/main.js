@@ -16,7 +16,8 @@
 // build even where the browser has JSPI.
 // For scripts (deploy/web/test): `document.body.dataset.state` is `ready` (waiting for the
 // user), `running`, `done` or `error`; `window.wgslam` holds `{ state, error, result,
-// wallSeconds, adapterName, suspensions, renders, wait }` (wait: "jspi" or "asyncify").
+// wallSeconds, adapterName, suspensions, stackBytesMax, renders, wait }` (wait: "jspi" or
+// "asyncify"; stackBytesMax: the most bytes an asyncify suspension saved, 0 with JSPI).
 
 import { drawTrajectory } from "./plot.js";
 import * as suspending from "wgslam_suspend";
@@ -211,6 +212,7 @@ async function run() {
   setState("running", { error: undefined, result: undefined });
   say("starting the GPU…");
   globalThis.wgslamSuspensions = 0;
+  globalThis.wgslamStackBytesMax = 0;
   const t0 = performance.now();
   let rc;
   try {
@@ -237,7 +239,12 @@ async function run() {
   plot(result);
   offerDownloads(result.downloads);
   say("done: turn the map with the mouse, or download the outputs below");
-  setState("done", { result, wallSeconds, suspensions: globalThis.wgslamSuspensions });
+  setState("done", {
+    result,
+    wallSeconds,
+    suspensions: globalThis.wgslamSuspensions,
+    stackBytesMax: globalThis.wgslamStackBytesMax,
+  });
 }
 
 // Which intrinsics the run used (pixels of the raw frames), and where they came from.

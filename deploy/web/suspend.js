@@ -16,9 +16,9 @@
 //   the functions restore their locals and run back into `suspend`, which ends the rewind
 //   and returns to where Rust left off.
 
-// Room for a suspended stack's locals in the asyncify build. A frame's deepest wait (a
-// file read inside a frame's decoding) is a few kilobytes of saved locals; a stack that
-// outgrows it traps with "unreachable", so it is generous.
+// Room for a suspended stack's locals in the asyncify build. The deepest suspension of a
+// run over 7-Scenes frames saved 1,484 bytes (deploy/web/test.sh, 2026-11-29); a stack
+// that outgrew the room would trap with "unreachable", so it is generous.
 const STACK_BYTES = 1 << 20;
 
 // asyncify_get_state's values.
@@ -29,8 +29,10 @@ let mode = null;
 let module = null; // the instance's exports (asyncify)
 let stack = 0; // the address of the asyncify buffer in the module's memory
 let resume = null;
-// How many times the module waited for the event loop (the page shows it).
+// How many times the module waited for the event loop (the page shows it), and the most
+// bytes of saved locals one asyncify suspension took (0 with JSPI).
 globalThis.wgslamSuspensions = 0;
+globalThis.wgslamStackBytesMax = 0;
 
 // Whether this browser has JSPI.
 export const hasJspi =
@@ -96,6 +98,8 @@ export async function call(entry, ...args) {
   let result = entry(...args);
   while (module.asyncify_get_state() === UNWINDING) {
     module.asyncify_stop_unwind();
+    const used = new Int32Array(module.memory.buffer, stack, 1)[0] - (stack + 8);
+    globalThis.wgslamStackBytesMax = Math.max(globalThis.wgslamStackBytesMax, used);
     await waiting;
     module.asyncify_start_rewind(stack);
     result = entry(...args);

@@ -413,11 +413,13 @@ async function checkWithoutJspi(browser, origin, opt, got, failures) {
     return;
   }
   console.log(
-    `without JSPI: waited through ${s.wait}, ${s.suspensions} suspensions, ` +
+    `without JSPI: waited through ${s.wait}, ${s.suspensions} suspensions (at most ` +
+      `${s.stackBytesMax} bytes of saved locals), ` +
       `${((Date.now() - t0) / 1000).toFixed(1)} s from Run to done, ` +
       `${(s.result.metrics.time_per_frame_median_s * 1e3).toFixed(1)} ms/frame median`,
   );
   if (s.wait !== "asyncify") failures.push(`without JSPI: the page waited through ${s.wait}`);
+  if (!(s.stackBytesMax > 0)) failures.push("without JSPI: no suspension unwound the stack");
   for (const name of ["trajectory.tum", "map.ply"]) {
     const bytes = await downloaded(page, name, path.join(opt.shots, `download-asyncify-${name}`));
     const same = Buffer.compare(bytes, got[name]) === 0;
