@@ -209,7 +209,19 @@ pub struct GpuContext {
     /// (written back when the last is dropped); `None` where the adapter has none or it is
     /// switched off.
     pipeline_cache: Option<Arc<DiskCache>>,
+    /// Browser only: error scopes popped and not yet read ([`GpuContext::scoped`]).
+    #[cfg(target_arch = "wasm32")]
+    popped_scopes: Mutex<Vec<PoppedScope>>,
 }
+
+/// A step's error scopes, popped and not yet read (browser only): the step's name and the
+/// pops' results, validation first.
+#[cfg(target_arch = "wasm32")]
+type PoppedScope = (String, [ScopeResult; 2]);
+
+/// The result of an error scope's pop.
+#[cfg(target_arch = "wasm32")]
+type ScopeResult = std::pin::Pin<Box<dyn std::future::Future<Output = Option<wgpu::Error>>>>;
 
 /// Objects built once per device by key (a kernel's name, or its name and its passes),
 /// each of the type its key's callers ask for, in a slot of its own (empty while its first
@@ -360,6 +372,8 @@ impl GpuContext {
             queue_waits: Stream::new(options.submissions == GpuSubmissions::Combined),
             cache: Arc::default(),
             pipeline_cache,
+            #[cfg(target_arch = "wasm32")]
+            popped_scopes: Mutex::new(Vec::new()),
         })
     }
 
@@ -385,6 +399,8 @@ impl GpuContext {
             cache: Arc::clone(&self.cache),
             deferred: Mutex::new(Vec::new()),
             pipeline_cache: self.pipeline_cache.clone(),
+            #[cfg(target_arch = "wasm32")]
+            popped_scopes: Mutex::new(Vec::new()),
         }
     }
 
@@ -519,11 +535,44 @@ impl GpuContext {
     /// pushed Validation and OutOfMemory error scopes, and turns any captured error, a lost
     /// device, or an error escaping the scopes into [`Error::Gpu`] prefixed with `what`.
     /// An error returned by `work` itself is passed through unchanged (after popping).
+    ///
+    /// In a browser each pop's answer is a round trip to the GPU process, which the page
+    /// waits for by suspending: two per step, most of a frame's suspensions. So there the
+    /// scopes are popped at once but read at the context's next wait
+    /// ([`GpuContext::wait_idle`], which every read-back makes), whose suspension covers
+    /// them: a step's error is reported, with its name, by the next wait instead.
     pub fn scoped<T>(&self, what: &str, work: impl FnOnce() -> Result<T>) -> Result<T> {
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let scope_start = self.queue_waits.handed();
         let result = work();
+        #[cfg(target_arch = "wasm32")]
+        {
+            let _ = scope_start;
+            // Scopes pop in reverse order of their pushing.
+            let popped: [ScopeResult; 2] = [Box::pin(validation.pop()), Box::pin(oom.pop())];
+            self.popped_scopes
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .push((what.to_string(), popped));
+            self.check_device()?;
+            result
+        }
+        #[cfg(not(target_arch = "wasm32"))]
+        self.read_scopes(what, scope_start, validation, oom, result)
+    }
+
+    /// [`GpuContext::scoped`]'s end natively: pops the scopes, waits for their answers, and
+    /// returns `result` unless they caught an error.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn read_scopes<T>(
+        &self,
+        what: &str,
+        scope_start: u64,
+        validation: wgpu::ErrorScopeGuard,
+        oom: wgpu::ErrorScopeGuard,
+        result: Result<T>,
+    ) -> Result<T> {
         // Scopes pop in reverse order of their pushing.
         let validation_err = super::wait::block_on(validation.pop());
         let oom_err = super::wait::block_on(oom.pop());
@@ -546,5 +595,28 @@ impl GpuContext {
             return Err(Error::Gpu(format!("{what}: {}", msgs.join("; "))));
         }
         result
+    }
+
+    /// Browser only: reads the answers of every error scope popped since the last call
+    /// (waiting for any not yet in, which the wait before it has normally brought), and
+    /// reports the first step whose scopes caught an error.
+    #[cfg(target_arch = "wasm32")]
+    pub(crate) fn read_popped_scopes(&self) -> Result<()> {
+        let popped =
+            std::mem::take(&mut *self.popped_scopes.lock().unwrap_or_else(|p| p.into_inner()));
+        let mut first = None;
+        for (what, [validation, oom]) in popped {
+            let mut msgs = Vec::new();
+            if let Some(e) = super::wait::block_on(validation) {
+                msgs.push(format!("validation: {e}"));
+            }
+            if let Some(e) = super::wait::block_on(oom) {
+                msgs.push(format!("out of memory: {e}"));
+            }
+            if first.is_none() && !msgs.is_empty() {
+                first = Some(Error::Gpu(format!("{what}: {}", msgs.join("; "))));
+            }
+        }
+        first.map_or(Ok(()), Err)
     }
 }

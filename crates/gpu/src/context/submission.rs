@@ -174,6 +174,8 @@ impl GpuContext {
             self.stats.count_wait();
             crate::wait::wait_for_submitted(&self.device, &self.queue)
                 .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+            // The steps' error scopes, answered during that wait (`GpuContext::scoped`).
+            self.read_popped_scopes()?;
             self.check_device()
         }
     }
