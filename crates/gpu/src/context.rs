@@ -85,7 +85,7 @@ pub enum GpuSubmissions {
     Own,
     /// Streams sharing the queue combine their submissions into one `queue.submit` while
     /// the device is busy. Not the default: on lavapipe it was not faster (four streams
-    /// 5-15 % slower, docs/performance.md), and a real GPU has not measured it yet
+    /// about a tenth slower, docs/performance.md), and a real GPU has not measured it yet
     /// (`deploy/gpu-check.sh` runs both).
     Combined,
 }
@@ -581,13 +581,7 @@ impl GpuContext {
             // the `queue.submit` of whichever stream makes it, in that stream's scope.
             self.queue_waits.discard_held_since(scope_start);
         }
-        let mut msgs = Vec::new();
-        if let Some(e) = validation_err {
-            msgs.push(format!("validation: {e}"));
-        }
-        if let Some(e) = oom_err {
-            msgs.push(format!("out of memory: {e}"));
-        }
+        let mut msgs = scope_messages(validation_err, oom_err);
         if let Err(e) = self.check_device() {
             msgs.push(e.to_string());
         }
@@ -606,17 +600,21 @@ impl GpuContext {
             std::mem::take(&mut *self.popped_scopes.lock().unwrap_or_else(|p| p.into_inner()));
         let mut first = None;
         for (what, [validation, oom]) in popped {
-            let mut msgs = Vec::new();
-            if let Some(e) = super::wait::block_on(validation) {
-                msgs.push(format!("validation: {e}"));
-            }
-            if let Some(e) = super::wait::block_on(oom) {
-                msgs.push(format!("out of memory: {e}"));
-            }
+            let msgs = scope_messages(
+                super::wait::block_on(validation),
+                super::wait::block_on(oom),
+            );
             if first.is_none() && !msgs.is_empty() {
                 first = Some(Error::Gpu(format!("{what}: {}", msgs.join("; "))));
             }
         }
         first.map_or(Ok(()), Err)
     }
+}
+
+/// What a step's Validation and OutOfMemory error scopes caught, as message parts.
+fn scope_messages(validation: Option<wgpu::Error>, oom: Option<wgpu::Error>) -> Vec<String> {
+    let validation = validation.map(|e| format!("validation: {e}"));
+    let oom = oom.map(|e| format!("out of memory: {e}"));
+    validation.into_iter().chain(oom).collect()
 }

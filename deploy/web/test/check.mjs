@@ -269,28 +269,16 @@ async function main() {
         `(${m.backend} on ${s.adapterName}), native ${(native.time_per_frame_median_s * 1e3).toFixed(1)} ms (${native.backend})`,
     );
 
-    // Turn the map: drag across a sixth of the canvas's height (a sixth of a turn).
-    const before = await mapPixels(page);
-    const renders = s.renders;
-    const box = await page.locator("#map").boundingBox();
-    const [x0, y0] = [box.x + box.width / 2, box.y + box.height / 2];
-    await page.mouse.move(x0, y0);
-    await page.mouse.down();
-    await page.mouse.move(x0 + box.height / 6, y0 + box.height / 24, { steps: 4 });
-    await page.mouse.up();
-    // Every picture of the drag drawn (the page draws the latest view after the one in
-    // flight).
-    await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, renders, {
-      timeout: 60_000,
-      polling: 100,
-    });
-    const fraction = changedFraction(before, await mapPixels(page));
+    // Turn the map.
+    const fraction = await dragMap(page);
     console.log(`orbit: a drag changed ${(fraction * 100).toFixed(1)} % of the map's pixels (at least ${MIN_CHANGED_PIXELS * 100} %)`);
     if (!(fraction >= MIN_CHANGED_PIXELS)) failures.push(`the drag changed only ${(fraction * 100).toFixed(1)} % of the map`);
     await page.screenshot({ path: path.join(opt.shots, "page-turned.png"), fullPage: true });
 
     // Two fingers on a touch screen: spreading them zooms in (pointer events as a touch
     // screen sends them; headless Chromium has no multi-touch input of its own).
+    const box = await page.locator("#map").boundingBox();
+    const [x0, y0] = [box.x + box.width / 2, box.y + box.height / 2];
     const beforePinch = await mapPixels(page);
     const pinchRenders = await page.evaluate(() => window.wgslam.renders);
     await page.evaluate(({ x, y }) => {
@@ -376,6 +364,25 @@ async function main() {
   }
 }
 
+// Drags across a sixth of the map canvas's height (a sixth of a turn), waits until every
+// picture of the drag is drawn (the page draws the latest view after the one in flight),
+// and returns the fraction of the map's pixels that changed.
+async function dragMap(page) {
+  const before = await mapPixels(page);
+  const renders = await page.evaluate(() => window.wgslam.renders);
+  const box = await page.locator("#map").boundingBox();
+  const [x0, y0] = [box.x + box.width / 2, box.y + box.height / 2];
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  await page.mouse.move(x0 + box.height / 6, y0 + box.height / 24, { steps: 4 });
+  await page.mouse.up();
+  await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, renders, {
+    timeout: 60_000,
+    polling: 100,
+  });
+  return changedFraction(before, await mapPixels(page));
+}
+
 // Clicks the page's download link for `name`, saves the file as `file` and returns its bytes.
 async function downloaded(page, name, file) {
   const [download] = await Promise.all([
@@ -427,19 +434,7 @@ async function checkWithoutJspi(browser, origin, opt, got, failures) {
     if (!same) failures.push(`without JSPI: ${name} differs from the JSPI run's`);
   }
   // A drag after the run draws through the other entry point that waits.
-  const before = await mapPixels(page);
-  const renders = await page.evaluate(() => window.wgslam.renders);
-  const box = await page.locator("#map").boundingBox();
-  const [x0, y0] = [box.x + box.width / 2, box.y + box.height / 2];
-  await page.mouse.move(x0, y0);
-  await page.mouse.down();
-  await page.mouse.move(x0 + box.height / 6, y0, { steps: 4 });
-  await page.mouse.up();
-  await page.waitForFunction((n) => window.wgslam.renders > n && !window.wgslam.drawing, renders, {
-    timeout: 60_000,
-    polling: 100,
-  });
-  const fraction = changedFraction(before, await mapPixels(page));
+  const fraction = await dragMap(page);
   console.log(`without JSPI: a drag changed ${(fraction * 100).toFixed(1)} % of the map's pixels`);
   if (!(fraction >= MIN_CHANGED_PIXELS)) failures.push(`without JSPI: the drag changed only ${(fraction * 100).toFixed(1)} % of the map`);
   await page.screenshot({ path: path.join(opt.shots, "page-asyncify.png"), fullPage: true });
